@@ -1,0 +1,5 @@
+"""``python -m beacon_sim`` is the same as the ``beacon-sim`` command."""
+
+from beacon_sim.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,81 @@
+"""Expected measurements h(pose) and their Jacobians H = dh/dpose, for every sensor kind.
+
+Known correspondence: each reading names its beacon. Bearings are relative to the robot's
+heading and wrapped to [-pi, pi). Functions take one pose of shape (3,) unless they say
+otherwise; the ``*_many`` forms take poses of shape (N, 3) for particle and grid filters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+
+
+def bearing(pose, beacon_xy):
+    """Bearing to each beacon [rad], shape (m,): ``atan2(yb - y, xb - x) - theta`` (seed 000 eq. 6)."""
+    d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
+    return wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+
+
+def bearing_jacobian(pose, beacon_xy):
+    """H for bearings, shape (m, 3): ``[dy/q, -dx/q, -1]`` with ``(dx, dy) = beacon - robot``, q = r^2."""
+    d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
+    q = np.sum(d * d, axis=1)
+    H = np.empty((d.shape[0], 3))
+    H[:, 0] = d[:, 1] / q
+    H[:, 1] = -d[:, 0] / q
+    H[:, 2] = -1.0
+    return H
+
+
+def range_bearing(pose, beacon_xy):
+    """Range [m] and bearing [rad] to each beacon, shape (m, 2) (seed 001)."""
+    d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
+    out = np.empty((d.shape[0], 2))
+    out[:, 0] = np.hypot(d[:, 0], d[:, 1])
+    out[:, 1] = wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+    return out
+
+
+def range_bearing_jacobian(pose, beacon_xy):
+    """H for range-bearing, shape (m, 2, 3) (seed 001's H_k, one 2x3 block per beacon)."""
+    d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
+    q = np.sum(d * d, axis=1)
+    r = np.sqrt(q)
+    H = np.zeros((d.shape[0], 2, 3))
+    H[:, 0, 0] = -d[:, 0] / r
+    H[:, 0, 1] = -d[:, 1] / r
+    H[:, 1, 0] = d[:, 1] / q
+    H[:, 1, 1] = -d[:, 0] / q
+    H[:, 1, 2] = -1.0
+    return H
+
+
+def pose_fix(pose):
+    """A pose fix measures the pose itself: h = pose, H = I (seed 003's C = I)."""
+    return np.asarray(pose, dtype=float).copy()
+
+
+def position_fix(pose):
+    """A position fix measures x, y: h = pose[:2], H = [[1, 0, 0], [0, 1, 0]]."""
+    return np.asarray(pose[:2], dtype=float).copy()
+
+
+POSITION_H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def bearing_many(poses, beacon_xy):
+    """Bearings from many poses, shape (N, m) [rad]."""
+    poses = np.asarray(poses, dtype=float)
+    b = np.asarray(beacon_xy, dtype=float).reshape(-1, 2)
+    dx = b[None, :, 0] - poses[:, 0:1]
+    dy = b[None, :, 1] - poses[:, 1:2]
+    return wrap(np.arctan2(dy, dx) - poses[:, 2:3])
+
+
+def range_many(poses, beacon_xy):
+    """Ranges from many poses, shape (N, m) [m]."""
+    poses = np.asarray(poses, dtype=float)
+    b = np.asarray(beacon_xy, dtype=float).reshape(-1, 2)
+    return np.hypot(b[None, :, 0] - poses[:, 0:1], b[None, :, 1] - poses[:, 1:2])

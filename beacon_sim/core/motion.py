@@ -1,0 +1,86 @@
+"""The velocity motion model (seeds 000, 001, 003) and its Jacobians.
+
+``x' = x + v dt cos(theta); y' = y + v dt sin(theta); theta' = theta + omega dt``
+
+All functions accept a single pose of shape (3,) or a batch of shape (N, 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+
+
+def move(pose, v, omega, dt):
+    """Apply the velocity model to ``pose`` (shape (3,) or (N, 3)); heading wrapped.
+
+    ``v`` [m/s] and ``omega`` [rad/s] may be scalars or arrays of shape (N,) (one per pose,
+    as a particle filter samples them).
+    """
+    pose = np.asarray(pose, dtype=float)
+    theta = pose[..., 2]
+    out = np.empty(np.broadcast_shapes(pose.shape, np.shape(v) + (3,)), dtype=float)
+    out[..., 0] = pose[..., 0] + v * dt * np.cos(theta)
+    out[..., 1] = pose[..., 1] + v * dt * np.sin(theta)
+    out[..., 2] = wrap(theta + omega * dt)
+    return out
+
+
+def jacobian_state(pose, v, dt):
+    """F = d move / d pose, shape (3, 3), evaluated at ``pose`` (seed 000 eq. 9)."""
+    theta = float(pose[2])
+    return np.array(
+        [
+            [1.0, 0.0, -v * dt * np.sin(theta)],
+            [0.0, 1.0, v * dt * np.cos(theta)],
+            [0.0, 0.0, 1.0],
+        ]
+    )
+
+
+def jacobian_control(pose, dt):
+    """B = d move / d (v, omega), shape (3, 2); also the KF's control matrix (seed 003)."""
+    theta = float(pose[2])
+    return np.array(
+        [
+            [dt * np.cos(theta), 0.0],
+            [dt * np.sin(theta), 0.0],
+            [0.0, dt],
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class MotionNoise:
+    """Noise on the executed velocity command, and optional additive pose noise per step.
+
+    The standard deviation of the executed speed is ``v_std + v_frac * |v|`` [m/s] and of
+    the executed turn rate ``omega_std + omega_frac * |omega|`` [rad/s] (seed 002 uses
+    25 % of v). ``pose_std`` [m, m, rad] is white noise added to the pose every step.
+    """
+
+    v_std: float = 0.0
+    v_frac: float = 0.0
+    omega_std: float = 0.0
+    omega_frac: float = 0.0
+    pose_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def control_std(self, v, omega):
+        """Standard deviations ``(sigma_v, sigma_omega)`` for a command (arrays broadcast)."""
+        return (
+            self.v_std + self.v_frac * np.abs(v),
+            self.omega_std + self.omega_frac * np.abs(omega),
+        )
+
+    def control_cov(self, v, omega):
+        """M = diag(sigma_v^2, sigma_omega^2), shape (2, 2) [m^2/s^2, rad^2/s^2]."""
+        sv, sw = self.control_std(v, omega)
+        return np.diag([float(sv) ** 2, float(sw) ** 2])
+
+    def process_cov(self, pose, v, omega, dt):
+        """Process noise covariance in state space, shape (3, 3): ``B M B^T + diag(pose_std^2)``."""
+        B = jacobian_control(pose, dt)
+        return B @ self.control_cov(v, omega) @ B.T + np.diag(np.square(self.pose_std))

@@ -1,0 +1,484 @@
+"""Scenario files (TOML) parsed into frozen dataclasses and validated at load.
+
+Every error names the file, the key path, the bad value and what was expected; unknown
+keys are errors with a "did you mean". The keys, units and defaults are documented in
+docs/scenarios.md.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from beacon_sim.core.drivers import (
+    CircleSpec,
+    ConstantSpec,
+    DriverSpec,
+    KeyboardSpec,
+    RandomGoalSpec,
+    WaypointsSpec,
+)
+from beacon_sim.core.events import Blackout, Event, Kidnap, NoiseBurst
+from beacon_sim.core.keyboard_drive import KeyboardLimits
+from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.sensors import SENSOR_KINDS, SensorNoise, SensorSpec
+from beacon_sim.core.types import Beacon
+from beacon_sim.core.world import World
+
+
+class ScenarioError(ValueError):
+    """A scenario file is missing, unreadable or invalid. The message is one line."""
+
+
+@dataclass(frozen=True)
+class InitialBelief:
+    """The filters' initial belief: a Gaussian around ``mean`` with ``std`` [m, m, rad], or
+    uniform over the world (``global_`` true, key ``global`` in the file)."""
+
+    mean: tuple[float, float, float]
+    std: tuple[float, float, float] = (0.1, 0.1, 0.05)
+    global_: bool = False
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A complete, validated scenario. See docs/scenarios.md for every key."""
+
+    name: str
+    description: str
+    source: str
+    dt: float
+    duration: float
+    seed: int
+    world: World
+    initial_pose: tuple[float, float, float]
+    robot_radius: float
+    motion_noise: MotionNoise
+    sensors: tuple[SensorSpec, ...]
+    driver: DriverSpec
+    keyboard: KeyboardLimits
+    events: tuple[Event, ...]
+    initial_belief: InitialBelief
+    model_motion_noise: MotionNoise
+    model_sensors: tuple[SensorSpec, ...]
+    default_filters: tuple[str, ...] = ("ekf", "dead_reckoning")
+    filter_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def sensor(self, name: str) -> SensorSpec:
+        for s in self.sensors:
+            if s.name == name:
+                return s
+        raise KeyError(name)
+
+    def with_changes(self, **changes) -> Scenario:
+        """A copy with some fields replaced (e.g. ``seed``)."""
+        return replace(self, **changes)
+
+
+_REQUIRED = object()
+
+
+class _Table:
+    """Reads one TOML table, tracking the key path for error messages."""
+
+    def __init__(self, data: Any, path: str, file: str):
+        self.file = file
+        self.path = path
+        if not isinstance(data, dict):
+            self.fail(path or "<top level>", data, "a table")
+        self.data = data
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def fail(self, keypath: str, value: Any, expected: str):
+        raise ScenarioError(f"{self.file}: {keypath} = {value!r}: expected {expected}")
+
+    def has(self, name: str) -> bool:
+        return name in self.data
+
+    def raw(self, name: str, default: Any = _REQUIRED) -> Any:
+        self.used.add(name)
+        if name not in self.data:
+            if default is _REQUIRED:
+                raise ScenarioError(f"{self.file}: missing key {self.key(name)}")
+            return default
+        return self.data[name]
+
+    def number(self, name, default=_REQUIRED, *, lo=-math.inf, hi=math.inf, lo_open=False,
+               what=None) -> float:
+        value = self.raw(name, default)
+        if value is default and default is not _REQUIRED:
+            return value
+        ok = isinstance(value, int | float) and not isinstance(value, bool)
+        # inf is allowed only where the range is open above (e.g. max_range = inf).
+        ok = ok and (math.isfinite(value) or (value == math.inf and hi == math.inf))
+        if ok:
+            ok = (value > lo if lo_open else value >= lo) and value <= hi
+        if not ok:
+            rng = what or _range_text(lo, hi, lo_open)
+            self.fail(self.key(name), value, f"a number {rng}")
+        return float(value)
+
+    def integer(self, name, default=_REQUIRED, *, lo=-(2**63), hi=2**63 - 1) -> int:
+        value = self.raw(name, default)
+        if value is default and default is not _REQUIRED:
+            return value
+        if not isinstance(value, int) or isinstance(value, bool) or not lo <= value <= hi:
+            self.fail(self.key(name), value, f"an integer {_range_text(lo, hi)}")
+        return int(value)
+
+    def boolean(self, name, default=_REQUIRED) -> bool:
+        value = self.raw(name, default)
+        if not isinstance(value, bool):
+            self.fail(self.key(name), value, "true or false")
+        return value
+
+    def string(self, name, default=_REQUIRED, *, choices=None) -> str:
+        value = self.raw(name, default)
+        if not isinstance(value, str):
+            self.fail(self.key(name), value, "a string")
+        if choices is not None and value not in choices:
+            hint = difflib.get_close_matches(value, choices, n=1)
+            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+            self.fail(self.key(name), value, "one of " + ", ".join(map(repr, choices)) + extra)
+        return value
+
+    def vector(self, name, n, default=_REQUIRED, *, lo=-math.inf) -> tuple[float, ...]:
+        value = self.raw(name, default)
+        if value is default and default is not _REQUIRED:
+            return value
+        ok = isinstance(value, list) and len(value) == n and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            and v >= lo for v in value)
+        if not ok:
+            sign = " non-negative" if lo == 0 else ""
+            self.fail(self.key(name), value, f"a list of {n}{sign} finite numbers")
+        return tuple(float(v) for v in value)
+
+    def sub(self, name, default=_REQUIRED) -> _Table:
+        value = self.raw(name, {} if default is not _REQUIRED else _REQUIRED)
+        return _Table(value, self.key(name), self.file)
+
+    def tables(self, name) -> list[_Table]:
+        value = self.raw(name, [])
+        if not isinstance(value, list):
+            self.fail(self.key(name), value, "an array of tables ([[...]])")
+        return [_Table(v, f"{self.key(name)}[{i}]", self.file) for i, v in enumerate(value)]
+
+    def finish(self) -> None:
+        unknown = [k for k in self.data if k not in self.used]
+        if unknown:
+            k = unknown[0]
+            hint = difflib.get_close_matches(k, sorted(self.used | _known_keys(self)), n=1)
+            extra = f" (did you mean {self.key(hint[0])!r}?)" if hint else ""
+            raise ScenarioError(f"{self.file}: unknown key {self.key(k)!r}{extra}")
+
+
+def _known_keys(table: _Table) -> set[str]:
+    return _KNOWN.get(_generic_path(table.path), set())
+
+
+def _generic_path(path: str) -> str:
+    import re
+
+    return re.sub(r"\[\d+\]", "[]", path)
+
+
+def _range_text(lo, hi, lo_open=False) -> str:
+    if lo > -math.inf and hi < math.inf:
+        return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
+    if lo > -math.inf:
+        return f"{'>' if lo_open else '>='} {lo:g}"
+    if hi < math.inf:
+        return f"<= {hi:g}"
+    return ""
+
+
+# Every key each table may hold, so that an unknown key gets a "did you mean" even when
+# the key it resembles was not written in the file.
+_NOISE_KEYS = {"v_std", "v_frac", "omega_std", "omega_frac", "pose_std"}
+_SENSOR_NOISE_KEYS = {"bearing_std", "range_std", "position_std", "heading_std"}
+_KNOWN: dict[str, set[str]] = {
+    "": {"name", "description", "dt", "duration", "seed", "world", "robot", "sensors",
+         "driver", "keyboard", "events", "initial_belief", "model", "default_filters",
+         "filters"},
+    "world": {"bounds", "beacons"},
+    "world.beacons[]": {"id", "x", "y"},
+    "robot": {"initial_pose", "radius", "motion_noise"},
+    "robot.motion_noise": _NOISE_KEYS,
+    "sensors[]": {"name", "kind", "period", "max_range", "fov", "detection_prob",
+                  "outlier_rate", "min_beacons", "beacon_height"} | _SENSOR_NOISE_KEYS,
+    "driver": {"kind", "v", "omega", "radius", "speed", "gain", "max_omega", "tolerance",
+               "margin", "points", "loop"},
+    "keyboard": {"v_step", "v_max", "v_min", "omega_step", "omega_max"},
+    "events[]": {"kind", "time", "duration", "pose", "offset", "random", "sensors", "v_std",
+                 "omega_std"},
+    "initial_belief": {"mean", "std", "global"},
+    "model": {"motion_noise", "sensors"},
+    "model.motion_noise": _NOISE_KEYS,
+}
+
+
+def _motion_noise(t: _Table, base: MotionNoise | None = None) -> MotionNoise:
+    b = base or MotionNoise()
+    out = MotionNoise(
+        v_std=t.number("v_std", b.v_std, lo=0),
+        v_frac=t.number("v_frac", b.v_frac, lo=0),
+        omega_std=t.number("omega_std", b.omega_std, lo=0),
+        omega_frac=t.number("omega_frac", b.omega_frac, lo=0),
+        pose_std=t.vector("pose_std", 3, b.pose_std, lo=0),
+    )
+    t.finish()
+    return out
+
+
+def _sensor_noise(t: _Table, base: SensorNoise) -> SensorNoise:
+    return SensorNoise(
+        bearing_std=t.number("bearing_std", base.bearing_std, lo=0),
+        range_std=t.number("range_std", base.range_std, lo=0),
+        position_std=t.number("position_std", base.position_std, lo=0),
+        heading_std=t.number("heading_std", base.heading_std, lo=0),
+    )
+
+
+def _sensor(t: _Table, dt: float) -> SensorSpec:
+    kind = t.string("kind", choices=SENSOR_KINDS)
+    name = t.string("name", kind)
+    period = t.number("period", dt, lo=0, lo_open=True)
+    ratio = period / dt
+    if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+        t.fail(t.key("period"), period, f"a whole multiple of dt = {dt:g} s")
+    spec = SensorSpec(
+        name=name,
+        kind=kind,
+        period=period,
+        max_range=t.number("max_range", math.inf, lo=0, lo_open=True),
+        fov=t.number("fov", 2 * math.pi, lo=0, hi=2 * math.pi, lo_open=True),
+        detection_prob=t.number("detection_prob", 1.0, lo=0, hi=1),
+        outlier_rate=t.number("outlier_rate", 0.0, lo=0, hi=1),
+        min_beacons=t.integer("min_beacons", 2 if kind == "position" else 1, lo=1),
+        beacon_height=t.number("beacon_height", 0.0, lo=0),
+        noise=_sensor_noise(t, SensorNoise()),
+    )
+    if kind == "position" and spec.min_beacons < 2:
+        t.fail(t.key("min_beacons"), spec.min_beacons, "at least 2 for a position fix")
+    t.finish()
+    return spec
+
+
+def _driver(t: _Table) -> DriverSpec:
+    kind = t.string("kind", "keyboard",
+                    choices=("keyboard", "constant", "circle", "random_goal", "waypoints"))
+    if kind == "constant":
+        spec = ConstantSpec(v=t.number("v", 0.0), omega=t.number("omega", 0.0))
+    elif kind == "circle":
+        spec = CircleSpec(radius=t.number("radius", 1.0, lo=0, lo_open=True),
+                          speed=t.number("speed", 0.2))
+    elif kind == "random_goal":
+        d = RandomGoalSpec()
+        spec = RandomGoalSpec(
+            speed=t.number("speed", d.speed, lo=0, lo_open=True),
+            gain=t.number("gain", d.gain, lo=0, lo_open=True),
+            max_omega=t.number("max_omega", d.max_omega, lo=0, lo_open=True),
+            tolerance=t.number("tolerance", d.tolerance, lo=0, lo_open=True),
+            margin=t.number("margin", d.margin, lo=0),
+        )
+    elif kind == "waypoints":
+        d = WaypointsSpec()
+        pts = t.raw("points")
+        ok = isinstance(pts, list) and len(pts) >= 1 and all(
+            isinstance(p, list) and len(p) == 2
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in p)
+            for p in pts)
+        if not ok:
+            t.fail(t.key("points"), pts, "a non-empty list of [x, y] pairs in metres")
+        spec = WaypointsSpec(
+            points=tuple((float(p[0]), float(p[1])) for p in pts),
+            speed=t.number("speed", d.speed, lo=0, lo_open=True),
+            gain=t.number("gain", d.gain, lo=0, lo_open=True),
+            max_omega=t.number("max_omega", d.max_omega, lo=0, lo_open=True),
+            tolerance=t.number("tolerance", d.tolerance, lo=0, lo_open=True),
+            loop=t.boolean("loop", True),
+        )
+    else:
+        spec = KeyboardSpec()
+    t.finish()
+    return spec
+
+
+def _event(t: _Table, sensor_names: set[str]) -> Event:
+    kind = t.string("kind", choices=("kidnap", "blackout", "noise_burst"))
+    time = t.number("time", lo=0)
+    if kind == "kidnap":
+        given = [k for k in ("pose", "offset", "random") if t.has(k)]
+        if len(given) != 1:
+            t.fail(t.path, {k: t.data[k] for k in given},
+                   "exactly one of pose = [x, y, theta], offset = [dx, dy, dtheta], "
+                   "random = true")
+        ev = Kidnap(
+            time=time,
+            pose=t.vector("pose", 3, None),
+            offset=t.vector("offset", 3, None),
+            random=t.boolean("random", False),
+        )
+        if given == ["random"] and not ev.random:
+            t.fail(t.key("random"), False, "true (or give pose or offset instead)")
+    elif kind == "blackout":
+        sensors = t.raw("sensors", [])
+        if not isinstance(sensors, list) or any(s not in sensor_names for s in sensors):
+            t.fail(t.key("sensors"), sensors,
+                   "a list of sensor names from: " + ", ".join(sorted(sensor_names)))
+        ev = Blackout(time=time, duration=t.number("duration", lo=0, lo_open=True),
+                      sensors=tuple(sensors))
+    else:
+        ev = NoiseBurst(time=time, duration=t.number("duration", lo=0, lo_open=True),
+                        v_std=t.number("v_std", 0.0, lo=0),
+                        omega_std=t.number("omega_std", 0.0, lo=0))
+    t.finish()
+    return ev
+
+
+def parse_scenario(data: dict, file: str, name: str = "") -> Scenario:
+    """Validate a decoded TOML document and build the :class:`Scenario`."""
+    top = _Table(data, "", file)
+    name = top.string("name", name or Path(file).stem)
+    description = top.string("description", "")
+    dt = top.number("dt", 0.1, lo=0, hi=10, lo_open=True)
+    duration = top.number("duration", 60.0, lo=0, lo_open=True)
+    seed = top.integer("seed", 0, lo=0)
+
+    w = top.sub("world")
+    bounds = w.vector("bounds", 4)
+    if not (bounds[2] > bounds[0] and bounds[3] > bounds[1]):
+        w.fail(w.key("bounds"), list(bounds), "[xmin, ymin, xmax, ymax] with xmax > xmin, ymax > ymin")
+    beacons = []
+    for bt in w.tables("beacons"):
+        b = Beacon(id=bt.integer("id", lo=0), x=bt.number("x"), y=bt.number("y"))
+        if any(o.id == b.id for o in beacons):
+            bt.fail(bt.key("id"), b.id, "an ID no other beacon has")
+        bt.finish()
+        beacons.append(b)
+    w.finish()
+    world = World(bounds=bounds, beacons=tuple(beacons))
+
+    r = top.sub("robot")
+    initial_pose = r.vector("initial_pose", 3)
+    if not world.contains(initial_pose[:2]):
+        r.fail(r.key("initial_pose"), list(initial_pose), f"a position inside world.bounds {list(bounds)}")
+    radius = r.number("radius", 0.2, lo=0, lo_open=True)
+    motion_noise = _motion_noise(r.sub("motion_noise", {}))
+    r.finish()
+
+    sensors = tuple(_sensor(st, dt) for st in top.tables("sensors"))
+    names = [s.name for s in sensors]
+    for i, n in enumerate(names):
+        if n in names[:i]:
+            raise ScenarioError(f"{file}: sensors[{i}].name = {n!r}: expected a unique name")
+    if sensors and not beacons:
+        raise ScenarioError(f"{file}: world.beacons = []: expected at least one beacon for the sensors")
+
+    driver = _driver(top.sub("driver", {}))
+    k = top.sub("keyboard", {})
+    kd = KeyboardLimits()
+    keyboard = KeyboardLimits(
+        v_step=k.number("v_step", kd.v_step, lo=0, lo_open=True),
+        v_max=k.number("v_max", kd.v_max, lo=0, lo_open=True),
+        v_min=k.number("v_min", kd.v_min, hi=0),
+        omega_step=k.number("omega_step", kd.omega_step, lo=0, lo_open=True),
+        omega_max=k.number("omega_max", kd.omega_max, lo=0, lo_open=True),
+    )
+    k.finish()
+
+    events = tuple(_event(et, set(names)) for et in top.tables("events"))
+
+    ib = top.sub("initial_belief", {})
+    initial_belief = InitialBelief(
+        mean=ib.vector("mean", 3, initial_pose),
+        std=ib.vector("std", 3, (0.1, 0.1, 0.05), lo=0),
+        global_=ib.boolean("global", False),
+    )
+    ib.finish()
+
+    m = top.sub("model", {})
+    model_motion = _motion_noise(m.sub("motion_noise", {}), base=motion_noise)
+    ms = m.sub("sensors", {})
+    model_sensors = []
+    for s in sensors:
+        if ms.has(s.name):
+            st = ms.sub(s.name)
+            model_sensors.append(replace(s, noise=_sensor_noise(st, s.noise)))
+            st.finish()
+        else:
+            model_sensors.append(s)
+    unknown = [n for n in ms.data if n not in names]
+    if unknown:
+        hint = difflib.get_close_matches(unknown[0], names, n=1)
+        extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+        raise ScenarioError(
+            f"{file}: model.sensors.{unknown[0]}: no sensor of that name{extra}")
+    ms.used.update(names)
+    ms.finish()
+    m.finish()
+
+    default_filters = top.raw("default_filters", ["ekf", "dead_reckoning"])
+    if not isinstance(default_filters, list) or not all(isinstance(f, str) for f in default_filters):
+        top.fail("default_filters", default_filters, "a list of filter names")
+    fp = top.raw("filters", {})
+    if not isinstance(fp, dict) or not all(isinstance(v, dict) for v in fp.values()):
+        top.fail("filters", fp, "tables [filters.NAME] of filter parameters")
+    top.finish()
+
+    return Scenario(
+        name=name, description=description, source=file, dt=dt, duration=duration, seed=seed,
+        world=world, initial_pose=initial_pose, robot_radius=radius, motion_noise=motion_noise,
+        sensors=sensors, driver=driver, keyboard=keyboard, events=events,
+        initial_belief=initial_belief, model_motion_noise=model_motion,
+        model_sensors=tuple(model_sensors), default_filters=tuple(default_filters),
+        filter_params={k: dict(v) for k, v in fp.items()},
+    )
+
+
+def resolve_scenario_path(name_or_path: str | Path) -> Path:
+    """A shipped scenario's name (``default``) or a path to a ``.toml`` file."""
+    from beacon_sim.resources import scenario_dir, shipped_scenarios
+
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists() or "/" in str(name_or_path):
+        if not p.is_file():
+            raise ScenarioError(f"{p}: no such scenario file")
+        return p
+    shipped = scenario_dir() / f"{name_or_path}.toml"
+    if not shipped.is_file():
+        names = shipped_scenarios()
+        hint = difflib.get_close_matches(str(name_or_path), names, n=1)
+        extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+        raise ScenarioError(
+            f"{name_or_path}: no shipped scenario of that name{extra}; "
+            f"choose one of {', '.join(names)} or give a path to a .toml file")
+    return shipped
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario by shipped name or file path.
+
+    Raises
+    ------
+    ScenarioError
+        With a one-line message naming the file, key, value and what was expected.
+    """
+    path = resolve_scenario_path(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    return parse_scenario(data, str(path), name=path.stem)

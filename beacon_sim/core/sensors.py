@@ -1,0 +1,166 @@
+"""Simulated sensors: which beacons are seen, and the noisy readings they give.
+
+A beacon is seen when it is within ``max_range``, inside the field of view and a Bernoulli
+draw with ``detection_prob`` succeeds. With probability ``outlier_rate`` a reading is
+replaced by a uniformly random (wrong) one. Each call draws a fixed number of random
+numbers, so the sensor stream's state depends only on how many times it was called.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from beacon_sim.core import measurement_models as mm
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.geometry import hdop
+from beacon_sim.core.types import MEASUREMENT_DIMS, Measurement
+from beacon_sim.core.world import World
+
+SENSOR_KINDS = tuple(MEASUREMENT_DIMS)
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Noise standard deviations of a sensor (the truth's, or what a filter is told).
+
+    bearing_std [rad]: bearing and range_bearing. range_std [m]: range_bearing.
+    position_std [m]: pose fix (x and y, per beacon: averaging n beacons divides it by
+    sqrt(n)) and position fix (seed 002's sigma_d, multiplied by HDOP).
+    heading_std [rad]: pose fix heading (also divided by sqrt(n)).
+    """
+
+    bearing_std: float = 0.05
+    range_std: float = 0.1
+    position_std: float = 0.1
+    heading_std: float = 0.05
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One sensor of the robot, as a scenario file describes it.
+
+    Attributes
+    ----------
+    name : str
+    kind : str
+        One of ``bearing``, ``range_bearing``, ``pose``, ``position``.
+    period : float
+        Time between readings [s]; a multiple of the scenario's dt.
+    max_range : float
+        Beacons further than this [m] are not seen (``inf``: no limit).
+    fov : float
+        Full field of view [rad] centred on the heading; ``2 pi`` sees all around.
+    detection_prob : float
+        Probability that a beacon in range and view is detected on a reading.
+    outlier_rate : float
+        Probability that a reading is replaced by a random one.
+    min_beacons : int
+        Pose / position fixes need at least this many beacons seen (1 and 2 by default).
+    beacon_height : float
+        Height [m] of the beacons above the receiver, for the HDOP of a position fix.
+    noise : SensorNoise
+        The true noise of the readings.
+    """
+
+    name: str
+    kind: str
+    period: float = 0.1
+    max_range: float = math.inf
+    fov: float = 2.0 * math.pi
+    detection_prob: float = 1.0
+    outlier_rate: float = 0.0
+    min_beacons: int = 1
+    beacon_height: float = 0.0
+    noise: SensorNoise = field(default_factory=SensorNoise)
+
+    def fix_std(self, n_beacons: int, hdop_value: float = 1.0) -> np.ndarray:
+        """Standard deviations of one fix row: pose ``[sx, sy, sth]`` or position ``[sx, sy]``."""
+        if self.kind == "pose":
+            s = 1.0 / math.sqrt(max(n_beacons, 1))
+            n = self.noise
+            return np.array([n.position_std * s, n.position_std * s, n.heading_std * s])
+        if self.kind == "position":
+            return np.full(2, self.noise.position_std * hdop_value)
+        raise ValueError(f"fix_std is for pose and position sensors, not {self.kind!r}")
+
+    def reading_std(self) -> np.ndarray:
+        """Standard deviations of one beacon reading: ``[sb]`` or ``[sr, sb]``."""
+        if self.kind == "bearing":
+            return np.array([self.noise.bearing_std])
+        if self.kind == "range_bearing":
+            return np.array([self.noise.range_std, self.noise.bearing_std])
+        raise ValueError(f"reading_std is for beacon sensors, not {self.kind!r}")
+
+
+def visible_beacons(spec: SensorSpec, pose: np.ndarray, world: World) -> np.ndarray:
+    """Boolean mask, shape (n,), of the beacons in range and field of view (no detection draw)."""
+    d = world.beacon_xy - pose[:2]
+    in_range = np.hypot(d[:, 0], d[:, 1]) <= spec.max_range
+    if spec.fov >= 2.0 * math.pi:
+        return in_range
+    rel = wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+    return in_range & (np.abs(rel) <= 0.5 * spec.fov)
+
+
+def sense(
+    spec: SensorSpec, pose: np.ndarray, world: World, rng: np.random.Generator
+) -> Measurement | None:
+    """One reading of ``spec`` at the true ``pose``; None when nothing was measured.
+
+    Beacon sensors return one row per detected beacon (None when none is detected); fixes
+    return a single row when at least ``min_beacons`` beacons are detected.
+    """
+    n = len(world.beacons)
+    d = MEASUREMENT_DIMS[spec.kind]
+    # Fixed-size draws: the stream advances the same way whatever is seen.
+    u_detect = rng.random(n)
+    noise = rng.standard_normal((n, d)) if spec.kind in ("bearing", "range_bearing") else \
+        rng.standard_normal((1, d))
+    u_outlier = rng.random(max(n, 1))
+    u_value = rng.random((max(n, 1), d))
+
+    seen = visible_beacons(spec, pose, world) & (u_detect < spec.detection_prob)
+    idx = np.flatnonzero(seen)
+    ids = world.beacon_ids[idx]
+    if spec.kind == "bearing":
+        if idx.size == 0:
+            return None
+        z = mm.bearing(pose, world.beacon_xy[idx])[:, None] + noise[idx] * spec.noise.bearing_std
+        out = u_outlier[idx] < spec.outlier_rate
+        z[out, 0] = -math.pi + 2.0 * math.pi * u_value[idx][out, 0]
+        z[:, 0] = wrap(z[:, 0])
+        return Measurement(spec.name, spec.kind, z, ids)
+    if spec.kind == "range_bearing":
+        if idx.size == 0:
+            return None
+        z = mm.range_bearing(pose, world.beacon_xy[idx]) + noise[idx] * spec.reading_std()
+        out = u_outlier[idx] < spec.outlier_rate
+        max_r = spec.max_range if math.isfinite(spec.max_range) else max(world.width, world.height)
+        z[out, 0] = max_r * u_value[idx][out, 0]
+        z[out, 1] = -math.pi + 2.0 * math.pi * u_value[idx][out, 1]
+        z[:, 0] = np.abs(z[:, 0])
+        z[:, 1] = wrap(z[:, 1])
+        return Measurement(spec.name, spec.kind, z, ids)
+
+    # Pose and position fixes.
+    if idx.size < spec.min_beacons:
+        return None
+    h = float("nan")
+    if spec.kind == "position":
+        h = hdop(pose[:2], world.beacon_xy[idx], spec.beacon_height)
+        if not math.isfinite(h):
+            return None
+        z = pose[:2] + noise[0] * spec.fix_std(idx.size, h)
+    else:
+        z = pose + noise[0] * spec.fix_std(idx.size)
+        z[2] = wrap(z[2])
+    if u_outlier[0] < spec.outlier_rate:
+        xmin, ymin, xmax, ymax = world.bounds
+        z[0] = xmin + (xmax - xmin) * u_value[0, 0]
+        z[1] = ymin + (ymax - ymin) * u_value[0, 1]
+        if spec.kind == "pose":
+            z[2] = -math.pi + 2.0 * math.pi * u_value[0, 2]
+    return Measurement(spec.name, spec.kind, z[None, :], ids, hdop=h)

@@ -1,0 +1,148 @@
+"""The simulation: fixed ticks of ``dt`` seconds, truth, sensors and events.
+
+``Simulation.step(control) -> Step``. The simulation knows nothing about filters. Same
+scenario + seed + controls gives identical arrays, whatever else draws random numbers:
+motion noise, each sensor, events and the driver each have their own stream.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from beacon_sim.core.drivers import Driver
+from beacon_sim.core.events import Blackout, Kidnap, NoiseBurst, active_ticks, first_tick_at
+from beacon_sim.core.motion import move
+from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensors import sense
+from beacon_sim.core.streams import stream
+from beacon_sim.core.types import Control, EventRecord, Measurement, Step
+
+
+class Simulation:
+    """Runs a :class:`Scenario` with a seed.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    seed : int, optional
+        Defaults to the scenario's seed.
+    """
+
+    def __init__(self, scenario: Scenario, seed: int | None = None):
+        self.scenario = scenario
+        self.seed = scenario.seed if seed is None else int(seed)
+        self.dt = scenario.dt
+        self.world = scenario.world
+        self.tick = 0
+        self.pose = np.array(scenario.initial_pose, dtype=float)
+        self._motion_rng = stream(self.seed, "motion")
+        self._events_rng = stream(self.seed, "events")
+        self._sensor_rngs = {s.name: stream(self.seed, "sensor", s.name) for s in scenario.sensors}
+        self.driver = Driver(scenario.driver, scenario.world, stream(self.seed, "driver"))
+        self._every = {s.name: round(s.period / self.dt) for s in scenario.sensors}
+        self._kidnaps: dict[int, list[Kidnap]] = {}
+        self._blackout_ticks: dict[int, list[Blackout]] = {}
+        self._burst_ticks: dict[int, list[NoiseBurst]] = {}
+        self._interval_edges: dict[int, list[EventRecord]] = {}
+        for ev in scenario.events:
+            if isinstance(ev, Kidnap):
+                self._kidnaps.setdefault(first_tick_at(ev.time, self.dt), []).append(ev)
+                continue
+            ticks = active_ticks(ev, self.dt)
+            table = self._blackout_ticks if isinstance(ev, Blackout) else self._burst_ticks
+            for k in ticks:
+                table.setdefault(k, []).append(ev)
+            what = ", ".join(ev.sensors) if isinstance(ev, Blackout) and ev.sensors else ""
+            self._interval_edges.setdefault(ticks.start, []).append(
+                EventRecord(f"{ev.kind}_start", ticks.start, ticks.start * self.dt, what))
+            self._interval_edges.setdefault(ticks.stop, []).append(
+                EventRecord(f"{ev.kind}_end", ticks.stop, ticks.stop * self.dt, what))
+        self._pending_kidnap: list[np.ndarray | None] = []
+        self._hash = hashlib.sha256()
+        self._hash.update(self.pose.tobytes())
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s] of the current state."""
+        return self.tick * self.dt
+
+    @property
+    def truth_checksum(self) -> str:
+        """SHA-256 (first 16 hex digits) of every true pose so far, bit for bit."""
+        return self._hash.hexdigest()[:16]
+
+    def request_kidnap(self, pose=None) -> None:
+        """Teleport the robot on the next step: to ``pose`` [x, y, theta], or a random pose
+        (from the events stream) when None. Used by the window (K key, mouse click)."""
+        self._pending_kidnap.append(None if pose is None else np.array(pose, dtype=float))
+
+    def step(self, control: Control | None = None) -> Step:
+        """Advance one tick. ``control`` None asks the scenario's driver for the command."""
+        if control is None:
+            control = self.driver.control(self.time, self.pose)
+        self.tick += 1
+        k = self.tick
+        events: list[EventRecord] = list(self._interval_edges.get(k, ()))
+
+        # Truth: the command executed with noise (plus any noise burst in force).
+        noise = self.scenario.motion_noise
+        sv, sw = noise.control_std(control.v, control.omega)
+        for burst in self._burst_ticks.get(k, ()):
+            sv = math.hypot(sv, burst.v_std)
+            sw = math.hypot(sw, burst.omega_std)
+        e = self._motion_rng.standard_normal(5)
+        v = control.v + sv * e[0]
+        w = control.omega + sw * e[1]
+        pose = move(self.pose, v, w, self.dt)
+        pose += np.asarray(noise.pose_std) * e[2:]
+        pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
+        pose = self.world.clip(pose)
+
+        # Kidnaps: scheduled ones, then those the user asked for.
+        for kid in self._kidnaps.get(k, ()):
+            target = kid.target(pose, self.world, self._events_rng)
+            events.append(EventRecord("kidnap", k, k * self.dt, _kidnap_text(kid), pose, target))
+            pose = target
+        for target in self._pending_kidnap:
+            if target is None:
+                target = Kidnap(0.0, random=True).target(pose, self.world, self._events_rng)
+                text = "random (user)"
+            else:
+                target = self.world.clip(target)
+                text = "to a pose (user)"
+            events.append(EventRecord("kidnap", k, k * self.dt, text, pose, target))
+            pose = target
+        self._pending_kidnap.clear()
+        self.pose = pose
+        self._hash.update(pose.tobytes())
+
+        measurements: list[Measurement] = []
+        blackouts = self._blackout_ticks.get(k, ())
+        for spec in self.scenario.sensors:
+            if k % self._every[spec.name]:
+                continue
+            rng = self._sensor_rngs[spec.name]
+            m = sense(spec, pose, self.world, rng)  # draw even when blacked out: stable streams
+            if m is not None and not any(b.covers(spec.name) for b in blackouts):
+                measurements.append(m)
+        return Step(k, k * self.dt, self.dt, pose.copy(), control, tuple(measurements),
+                    tuple(events))
+
+    def run(self, duration: float, controls=None) -> list[Step]:
+        """Step for ``duration`` seconds; ``controls`` is an optional sequence of Control."""
+        n = int(round(duration / self.dt))
+        steps = []
+        for i in range(n):
+            steps.append(self.step(None if controls is None else controls[i]))
+        return steps
+
+
+def _kidnap_text(kid: Kidnap) -> str:
+    if kid.pose is not None:
+        return "to " + ", ".join(f"{v:.2f}" for v in kid.pose)
+    if kid.offset is not None:
+        return "by " + ", ".join(f"{v:+.2f}" for v in kid.offset)
+    return "random"

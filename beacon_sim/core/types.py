@@ -1,0 +1,121 @@
+"""Value types shared by the core, the filters and the front end.
+
+Poses are plain ``ndarray`` of shape (3,): ``[x, y, theta]`` in metres, metres, radians
+(world frame, theta counter-clockwise from +x, wrapped to [-pi, pi)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Measurement kinds and the width of one row of ``Measurement.z``.
+MEASUREMENT_DIMS = {"bearing": 1, "range_bearing": 2, "pose": 3, "position": 2}
+
+
+@dataclass(frozen=True)
+class Control:
+    """A velocity command: forward speed ``v`` [m/s] and turn rate ``omega`` [rad/s].
+
+    Positive ``omega`` turns left (counter-clockwise).
+    """
+
+    v: float = 0.0
+    omega: float = 0.0
+
+    def as_array(self) -> np.ndarray:
+        """``[v, omega]`` as a float array of shape (2,)."""
+        return np.array([self.v, self.omega], dtype=float)
+
+
+@dataclass(frozen=True)
+class Beacon:
+    """A point landmark with a known ID at ``(x, y)`` [m] in the world frame."""
+
+    id: int
+    x: float
+    y: float
+
+
+@dataclass(frozen=True, eq=False)
+class Measurement:
+    """What one sensor reported on one tick.
+
+    Attributes
+    ----------
+    sensor : str
+        The sensor's name in the scenario (e.g. ``"beacons"``).
+    kind : str
+        ``"bearing"``, ``"range_bearing"``, ``"pose"`` or ``"position"``.
+    z : ndarray, shape (m, d)
+        One row per reading. bearing: ``[bearing]`` [rad] relative to the robot's heading;
+        range_bearing: ``[range, bearing]`` [m, rad]; pose: ``[x, y, theta]`` [m, m, rad]
+        (m = 1); position: ``[x, y]`` [m] (m = 1).
+    beacon_ids : ndarray of int, shape (m,) for bearing/range_bearing
+        The ID of the beacon each row belongs to (known correspondence). For pose and
+        position fixes: the IDs of the beacons the fix was computed from.
+    hdop : float
+        Horizontal dilution of precision of a position fix (nan for other kinds).
+    """
+
+    sensor: str
+    kind: str
+    z: np.ndarray
+    beacon_ids: np.ndarray
+    hdop: float = float("nan")
+
+    def __len__(self) -> int:
+        return int(self.z.shape[0])
+
+
+@dataclass(frozen=True)
+class EventRecord:
+    """An event that fired on a tick (kidnap, blackout start/end, noise burst, ...).
+
+    ``pose_before`` / ``pose_after`` are set for kidnaps (shape (3,), world frame).
+    """
+
+    kind: str
+    tick: int
+    time: float
+    detail: str = ""
+    pose_before: np.ndarray | None = None
+    pose_after: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """Everything one simulation tick produced.
+
+    Attributes
+    ----------
+    tick : int
+        Tick index, starting at 1 for the first step (tick 0 is the initial state).
+    time : float
+        Simulated time at the end of the step [s] (``tick * dt``).
+    dt : float
+        Length of the step [s].
+    true_pose : ndarray, shape (3,)
+        True pose after the step. Filters must never read it.
+    control : Control
+        The command given for this step; filters predict with it (the truth ran a noisy
+        version of it).
+    measurements : tuple of Measurement
+        Readings of this tick, at the true pose after the step.
+    events : tuple of EventRecord
+        Events that fired on this tick.
+    """
+
+    tick: int
+    time: float
+    dt: float
+    true_pose: np.ndarray
+    control: Control
+    measurements: tuple[Measurement, ...] = ()
+    events: tuple[EventRecord, ...] = field(default_factory=tuple)
+
+    @property
+    def kidnapped(self) -> bool:
+        """True when the robot was teleported on this tick."""
+        return any(e.kind == "kidnap" for e in self.events)
