@@ -1,0 +1,167 @@
+"""The filter interface: a ``Protocol``, the context a filter is built from, belief types,
+and a small base class that does the bookkeeping (design.md section 4).
+
+A filter is any object with::
+
+    reset(initial)            initial: GaussianBelief (tracking) or None (global)
+    predict(control, dt)      motion update with the command [m/s, rad/s] over dt [s]
+    update(measurements)      measurement update; the sequence may be empty
+    estimate() -> (mean, cov) mean shape (3,) [m, m, rad], cov shape (3, 3)
+    belief()                  GaussianBelief, ParticleBelief or GridBelief, for drawing
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+
+from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.sensors import SensorSpec
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.core.world import World
+
+
+class FilterError(ValueError):
+    """A filter was asked for something it cannot do (bad parameter, unknown sensor...)."""
+
+
+@dataclass(frozen=True, eq=False)
+class GaussianBelief:
+    """A Gaussian over the pose: ``mean`` (3,) [m, m, rad], ``cov`` (3, 3)."""
+
+    mean: np.ndarray
+    cov: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ParticleBelief:
+    """Weighted samples: ``poses`` (N, 3) [m, m, rad], ``weights`` (N,) summing to one."""
+
+    poses: np.ndarray
+    weights: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class GridBelief:
+    """A histogram over x-y (heading marginalised out) for drawing as a heat map.
+
+    ``prob`` has shape (nx, ny), sums to one; cell (i, j) covers
+    ``[xmin + i * cell, xmin + (i + 1) * cell) x [ymin + j * cell, ...)`` in metres.
+    """
+
+    prob: np.ndarray
+    origin: tuple[float, float]
+    cell: float
+
+
+Belief = GaussianBelief | ParticleBelief | GridBelief
+
+
+@dataclass(frozen=True, eq=False)
+class FilterContext:
+    """Everything a filter may know. It never holds the true pose.
+
+    Attributes
+    ----------
+    name : str
+        The filter's name in this run.
+    world : World
+        Bounds and the beacon map.
+    dt : float
+        The simulation tick [s] (``predict`` also receives dt).
+    motion_noise : MotionNoise
+        The motion noise the filter is told (may differ from the truth's).
+    sensors : tuple of SensorSpec
+        The sensors with the noise the filter is told, by name.
+    params : Mapping
+        The filter's parameters (scenario ``[filters.NAME]`` and ``--set`` overrides).
+    rng : numpy.random.Generator
+        The only random generator the filter may use.
+    """
+
+    name: str
+    world: World
+    dt: float
+    motion_noise: MotionNoise
+    sensors: tuple[SensorSpec, ...]
+    params: Mapping[str, Any] = field(default_factory=dict)
+    rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+
+    def sensor(self, name: str) -> SensorSpec:
+        """The spec (with the filter's noise) of the sensor that produced a measurement."""
+        for s in self.sensors:
+            if s.name == name:
+                return s
+        raise FilterError(f"no sensor named {name!r} in this filter's context")
+
+
+@runtime_checkable
+class Filter(Protocol):
+    """What the runner, the window and the checker need from a filter."""
+
+    def reset(self, initial: GaussianBelief | None) -> None: ...
+
+    def predict(self, control: Control, dt: float) -> None: ...
+
+    def update(self, measurements: Sequence[Measurement]) -> None: ...
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def belief(self) -> Belief: ...
+
+
+class FilterBase:
+    """Optional base class: stores the context, merges parameters with ``defaults``
+    (unknown parameter names are an error with a "did you mean"), and draws a Gaussian
+    belief from ``estimate()``.
+
+    Class attributes
+    ----------------
+    defaults : dict
+        Parameter names and default values.
+    supports_global : bool
+        True when ``reset(None)`` (a uniform belief over the world) is meaningful.
+    """
+
+    defaults: ClassVar[dict[str, Any]] = {}
+    supports_global: ClassVar[bool] = False
+
+    def __init__(self, ctx: FilterContext):
+        self.ctx = ctx
+        self.params = self.merge_params(ctx.params)
+
+    @classmethod
+    def merge_params(cls, given: Mapping[str, Any]) -> dict[str, Any]:
+        out = dict(cls.defaults)
+        for key, value in given.items():
+            if key not in cls.defaults:
+                hint = difflib.get_close_matches(key, list(cls.defaults), n=1)
+                extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+                known = ", ".join(sorted(cls.defaults)) or "none"
+                raise FilterError(
+                    f"{cls.__name__}: unknown parameter {key!r}{extra}; known: {known}")
+            default = cls.defaults[key]
+            if isinstance(default, bool) != isinstance(value, bool) or (
+                    isinstance(default, int | float) and not isinstance(value, int | float)):
+                raise FilterError(f"{cls.__name__}: parameter {key} = {value!r}: expected "
+                                  f"a {type(default).__name__} like {default!r}")
+            out[key] = type(default)(value) if isinstance(default, float) else value
+        return out
+
+    def belief(self) -> Belief:
+        mean, cov = self.estimate()
+        return GaussianBelief(mean, cov)
+
+
+def broad_gaussian(world: World) -> GaussianBelief:
+    """The Gaussian a tracking filter gets when asked for a global (uniform) belief: the
+    centre of the world with the variance of a uniform distribution over it."""
+    xmin, ymin, xmax, ymax = world.bounds
+    mean = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2, 0.0])
+    cov = np.diag([(xmax - xmin) ** 2 / 12, (ymax - ymin) ** 2 / 12, math.pi**2 / 3])
+    return GaussianBelief(mean, cov)

@@ -1,0 +1,176 @@
+"""Finding a filter class by name, and building filters for a scenario.
+
+A filter is named by
+- a built-in name (``ekf``; see ``BUILTIN_FILTERS``),
+- a module path ``pkg.mod:Class``,
+- a file path ``path/to/file.py:Class``,
+- or the name of an entry point in the group ``beacon_sim.filters``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import importlib.util
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.streams import stream
+from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief
+
+#: Built-in filters: name -> "module:Class", imported only when used.
+BUILTIN_FILTERS = {
+    "kf": "beacon_sim.filters.kf:KalmanFilter",
+    "ekf": "beacon_sim.filters.ekf:ExtendedKalmanFilter",
+    "ukf": "beacon_sim.filters.ukf:UnscentedKalmanFilter",
+    "pf": "beacon_sim.filters.particle:ParticleFilter",
+    "histogram": "beacon_sim.filters.histogram:HistogramFilter",
+    "dead_reckoning": "beacon_sim.filters.dead_reckoning:DeadReckoning",
+}
+
+ENTRY_POINT_GROUP = "beacon_sim.filters"
+
+
+class FilterLoadError(FilterError):
+    """A filter name that cannot be resolved to a class. The message is one line."""
+
+
+def entry_point_filters() -> dict[str, importlib.metadata.EntryPoint]:
+    """Filters that installed packages register in the ``beacon_sim.filters`` group."""
+    return {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_filters() -> list[str]:
+    """Built-in filters whose module is present, then entry-point filters."""
+    names = [n for n, target in BUILTIN_FILTERS.items()
+             if importlib.util.find_spec(target.split(":")[0]) is not None]
+    return names + sorted(set(entry_point_filters()) - set(names))
+
+
+def _load_file(path: Path, class_name: str):
+    if not path.is_file():
+        raise FilterLoadError(f"{path}: no such filter file")
+    module_name = f"beacon_sim_user_{abs(hash(path.resolve()))}"
+    spec = importlib.util.spec_from_file_location(module_name, path)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        sys.modules[module_name] = module
+        spec.loader.exec_module(module)
+    except Exception as exc:  # a student's file: report, do not crash
+        sys.modules.pop(module_name, None)
+        raise FilterLoadError(f"{path}: cannot import: {type(exc).__name__}: {exc}") from exc
+    return _get_class(module, class_name, str(path))
+
+
+def _get_class(module, class_name: str, where: str):
+    cls = getattr(module, class_name, None)
+    if cls is None:
+        classes = sorted(n for n, v in vars(module).items()
+                         if isinstance(v, type) and hasattr(v, "predict") and hasattr(v, "update"))
+        hint = f"; filter classes there: {', '.join(classes)}" if classes else ""
+        raise FilterLoadError(f"{where}: no class {class_name!r}{hint}")
+    return cls
+
+
+def load_filter_class(spec: str) -> type:
+    """Resolve a filter name (built-in, ``pkg.mod:Class``, ``file.py:Class``, entry point)."""
+    if spec in BUILTIN_FILTERS:
+        spec = BUILTIN_FILTERS[spec]
+    elif ":" not in spec:
+        eps = entry_point_filters()
+        if spec in eps:
+            try:
+                return eps[spec].load()
+            except Exception as exc:
+                raise FilterLoadError(f"entry point {spec!r}: cannot load: {exc}") from exc
+        known = ", ".join(available_filters())
+        raise FilterLoadError(
+            f"unknown filter {spec!r}: use one of {known}, pkg.mod:Class or path/to/file.py:Class")
+    target, _, class_name = spec.rpartition(":")
+    if target.endswith(".py") or "/" in target or "\\" in target:
+        return _load_file(Path(target), class_name)
+    try:
+        module = importlib.import_module(target)
+    except ImportError as exc:
+        raise FilterLoadError(f"{spec}: cannot import module {target!r}: {exc}") from exc
+    return _get_class(module, class_name, target)
+
+
+def filter_display_name(spec: str) -> str:
+    """Short name for a filter spec: ``ekf``, or ``MyFilter`` for ``my.py:MyFilter``."""
+    return spec.rpartition(":")[2] if ":" in spec else spec
+
+
+def initial_belief(scenario: Scenario) -> GaussianBelief | None:
+    """The scenario's initial belief: a Gaussian, or None for a global (uniform) start."""
+    ib = scenario.initial_belief
+    if ib.global_:
+        return None
+    return GaussianBelief(np.array(ib.mean, dtype=float), np.diag(np.square(ib.std)))
+
+
+def parse_set_options(items: list[str]) -> dict[str, dict[str, Any]]:
+    """``["pf.n_particles=1000", ...]`` -> ``{"pf": {"n_particles": 1000}}`` (TOML values)."""
+    import tomllib
+
+    out: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, eq, raw = item.partition("=")
+        name, dot, param = key.strip().partition(".")
+        if not eq or not dot or not name or not param:
+            raise FilterLoadError(f"--set {item!r}: expected NAME.KEY=VALUE, e.g. pf.n_particles=1000")
+        try:
+            value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw.strip()
+        out.setdefault(name, {})[param] = value
+    return out
+
+
+def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = None,
+                 params: dict[str, Any] | None = None):
+    """Construct and reset one filter for ``scenario``.
+
+    Its random generator comes from ``seed`` and its name only, so adding a filter never
+    changes another. Parameters: the scenario's ``[filters.NAME]`` then ``params``.
+    """
+    cls = load_filter_class(spec)
+    name = name or filter_display_name(spec)
+    merged = dict(scenario.filter_params.get(filter_display_name(spec), {}))
+    merged.update(params or {})
+    ctx = FilterContext(
+        name=name,
+        world=scenario.world,
+        dt=scenario.dt,
+        motion_noise=scenario.model_motion_noise,
+        sensors=scenario.model_sensors,
+        params=merged,
+        rng=stream(seed, "filter", name),
+    )
+    try:
+        flt = cls(ctx)
+    except FilterError:
+        raise
+    except TypeError as exc:
+        raise FilterLoadError(f"{spec}: cannot construct with a FilterContext: {exc}") from exc
+    reset_filter(flt, scenario)
+    return flt
+
+
+def reset_filter(flt, scenario: Scenario) -> None:
+    """Give a filter the scenario's initial belief (a broad Gaussian when the scenario is
+    global but the filter cannot represent a uniform belief)."""
+    from beacon_sim.filters.base import broad_gaussian
+
+    init = initial_belief(scenario)
+    if init is None and not getattr(flt, "supports_global", False):
+        init = broad_gaussian(scenario.world)
+    flt.reset(init)
+
+
+__all__ = ["BUILTIN_FILTERS", "FilterLoadError", "available_filters", "build_filter",
+           "initial_belief", "load_filter_class"]
