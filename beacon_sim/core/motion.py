@@ -22,7 +22,7 @@ def move(pose, v, omega, dt):
     """
     pose = np.asarray(pose, dtype=float)
     theta = pose[..., 2]
-    out = np.empty(np.broadcast_shapes(pose.shape, np.shape(v) + (3,)), dtype=float)
+    out = np.empty(np.broadcast_shapes(pose.shape, (*np.shape(v), 3)), dtype=float)
     out[..., 0] = pose[..., 0] + v * dt * np.cos(theta)
     out[..., 1] = pose[..., 1] + v * dt * np.sin(theta)
     out[..., 2] = wrap(theta + omega * dt)

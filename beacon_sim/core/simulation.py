@@ -133,7 +133,7 @@ class Simulation:
 
     def run(self, duration: float, controls=None) -> list[Step]:
         """Step for ``duration`` seconds; ``controls`` is an optional sequence of Control."""
-        n = int(round(duration / self.dt))
+        n = round(duration / self.dt)
         steps = []
         for i in range(n):
             steps.append(self.step(None if controls is None else controls[i]))
