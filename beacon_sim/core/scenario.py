@@ -92,6 +92,14 @@ class _Table:
             self.fail(path or "<top level>", data, "a table")
         self.data = data
         self.used: set[str] = set()
+        # Unknown keys first: a misspelt table name should not be reported as a missing one.
+        known = _KNOWN.get(_generic_path(path))
+        if known is not None:
+            for k in data:
+                if k not in known:
+                    hint = difflib.get_close_matches(k, sorted(known), n=1)
+                    extra = f" (did you mean {self.key(hint[0])!r}?)" if hint else ""
+                    raise ScenarioError(f"{file}: unknown key {self.key(k)!r}{extra}")
 
     def key(self, name: str) -> str:
         return f"{self.path}.{name}" if self.path else name

@@ -1,0 +1,46 @@
+import json
+
+from beacon_sim.cli import main
+
+
+def test_run_json_has_the_design_shape(capsys):
+    assert main(["run", "krejsa_bearing_only", "--duration", "5", "--seed", "3",
+                 "--filter", "dead_reckoning", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["scenario"] == "krejsa_bearing_only" and d["seed"] == 3 and d["steps"] == 50
+    assert len(d["truth_checksum"]) == 16
+    row = d["filters"]["dead_reckoning"]
+    for key in ("pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
+                "us_per_step"):
+        assert isinstance(row[key], float)
+    assert d["measurements"]["beacons"] > 0
+
+
+def test_run_checksum_does_not_depend_on_filters(capsys):
+    main(["run", "default", "--duration", "3", "--filter", "dead_reckoning", "--json"])
+    a = json.loads(capsys.readouterr().out)["truth_checksum"]
+    main(["run", "default", "--duration", "3", "--filter", "dead_reckoning", "--filter",
+          "dead_reckoning", "--json"])
+    b = json.loads(capsys.readouterr().out)["truth_checksum"]
+    assert a == b
+
+
+def test_run_text_summary(capsys):
+    assert main(["run", "krejsa_bearing_only", "--duration", "40", "--filter", "dead_reckoning"]) == 0
+    out = capsys.readouterr().out
+    assert "steps 400" in out and "kidnap at 30.00 s" in out and "truth checksum" in out
+
+
+def test_list(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "default" in out and "ulps_circle" in out and "dead_reckoning" in out
+
+
+def test_bad_arguments_exit_2(capsys):
+    assert main(["run", "default", "--duration", "-1"]) == 2
+    assert main(["run", "default", "--filter", "nosuchfilter"]) == 2
+    assert main(["run"]) == 2
+    assert main(["run", "default", "--set", "novalue"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 4 and all(line.startswith("beacon-sim") for line in err)
