@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import time
 import traceback
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from beacon_sim.core.types import Step
+from beacon_sim.filters.isolation import SLOW_WINDOW, note_step_time
 
 
 @dataclass
@@ -29,6 +31,8 @@ class FilterTrack:
     steps: int = 0
     failed: str | None = None
     traceback: str = ""
+    slow_warning: str | None = None
+    recent_step_ns: deque = field(default_factory=lambda: deque(maxlen=SLOW_WINDOW))
 
     @property
     def us_per_step(self) -> float:
@@ -79,8 +83,10 @@ class FilterRunner:
                 track.failed = f"{type(exc).__name__}: {exc}"
                 track.traceback = traceback.format_exc()
                 continue
-            track.step_ns += time.perf_counter_ns() - t0
+            elapsed = time.perf_counter_ns() - t0
+            track.step_ns += elapsed
             track.steps += 1
+            note_step_time(track, elapsed)
             problem = check_estimate(mean, cov)
             if problem:
                 track.failed = problem
