@@ -1,0 +1,230 @@
+"""Extended Kalman filter for beacon readings and fixes (seed 000 eq. 7-10, seed 001).
+
+State ``[x, y, theta]`` [m, m, rad]; the velocity motion model; measurements of any kind
+(bearing, range-bearing, pose fix, position fix), any number per tick.
+
+Prediction (seed 000 eq. 7, 9)::
+
+    x_pred = f(x, u)                 velocity model, heading wrapped
+    P_pred = F P F^T + Q             F = df/dx at x, Q = B M B^T + diag(pose_std^2)
+
+Update, all readings of a tick in one stacked update linearised once at x_pred
+(seed 000 eq. 8, 10; seed 001's range-bearing H)::
+
+    y = wrap(z - h(x_pred))          every angle residual wrapped to [-pi, pi)
+    S = H P H^T + R,  K = P H^T S^-1
+    x = x_pred + K y
+    P = (I - K H) P (I - K H)^T + K R K^T          (Joseph form, parameter ``joseph``)
+
+The readings are independent (R diagonal), so the stacked update is computed as a
+sequence of scalar updates that keep the one linearisation point: row i uses the
+innovation ``y_i - H_i (x - x_pred)``. That is algebraically the same update as the
+stacked matrices, without any matrix inverse, and lets the whole filter run on Python
+floats: a numpy call costs about 1 us even on a 3x3 array (design.md section 9).
+
+Optional gating (seed 001's closing advice): a beacon's reading (1 row, 2 rows for
+range-bearing, the whole fix for pose/position) is dropped when its squared Mahalanobis
+distance ``y_b^T S_b^-1 y_b`` against the predicted belief exceeds ``gate_chi2``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import ClassVar
+
+import numpy as np
+
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, broad_gaussian
+from beacon_sim.filters.gaussian_measurements import ReadingModels, process_cov_terms
+
+PI = math.pi
+TWO_PI = 2.0 * math.pi
+
+
+def _wrap(a: float) -> float:
+    """Wrap a float angle [rad] to [-pi, pi)."""
+    a = (a + PI) % TWO_PI - PI
+    return a - TWO_PI if a >= PI else a
+
+
+class ExtendedKalmanFilter(FilterBase):
+    """EKF over ``[x, y, theta]`` for bearing, range-bearing, pose and position readings.
+
+    Parameters (``ctx.params``)
+    ---------------------------
+    gate_chi2 : float, default 0.0
+        0 turns gating off; otherwise the chi-square threshold a beacon's reading must stay
+        below to be used (e.g. 6.63 = 99 % for 1 dof bearings, 9.21 for 2 dof range-bearing).
+    joseph : bool, default True
+        Joseph-form covariance update; False uses ``P - K S K^T``.
+    """
+
+    defaults: ClassVar[dict] = {"gate_chi2": 0.0, "joseph": True}
+    sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
+
+    def __init__(self, ctx: FilterContext):
+        super().__init__(ctx)
+        self.models = ReadingModels(ctx)
+        self.gate = float(self.params["gate_chi2"])
+        self.joseph = bool(self.params["joseph"])
+        self.rejected = 0  # readings dropped by the gate so far
+        self.reset(None)
+
+    # -- state ---------------------------------------------------------------------------
+    def reset(self, initial: GaussianBelief | None) -> None:
+        initial = initial or broad_gaussian(self.ctx.world)
+        m = np.asarray(initial.mean, dtype=float)
+        c = np.asarray(initial.cov, dtype=float)
+        c = 0.5 * (c + c.T)
+        self.x, self.y, self.th = float(m[0]), float(m[1]), _wrap(float(m[2]))
+        # The six distinct entries of the symmetric P.
+        (self.p00, self.p01, self.p02), (_, self.p11, self.p12), (_, _, self.p22) = c.tolist()
+
+    @property
+    def mean(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.th])
+
+    @property
+    def cov(self) -> np.ndarray:
+        p01, p02, p12 = self.p01, self.p02, self.p12
+        return np.array([[self.p00, p01, p02], [p01, self.p11, p12], [p02, p12, self.p22]])
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.mean, self.cov
+
+    # -- prediction ----------------------------------------------------------------------
+    def predict(self, control: Control, dt: float) -> None:
+        v, w = float(control.v), float(control.omega)
+        th = self.th
+        c, s = math.cos(th), math.sin(th)
+        # F = [[1, 0, a], [0, 1, b], [0, 0, 1]] (seed 000 eq. 9), at the prior mean.
+        a = -v * dt * s
+        b = v * dt * c
+        p00, p01, p02, p11, p12, p22 = self.p00, self.p01, self.p02, self.p11, self.p12, self.p22
+        # Q = B M B^T + diag(pose_std^2) at the prior mean (MotionNoise.process_cov).
+        q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.motion_noise, th, v, w, dt)
+        # P = F P F^T + Q
+        self.p00 = p00 + 2.0 * a * p02 + a * a * p22 + q00
+        self.p01 = p01 + a * p12 + b * p02 + a * b * p22 + q01
+        self.p02 = p02 + a * p22 + q02
+        self.p11 = p11 + 2.0 * b * p12 + b * b * p22 + q11
+        self.p12 = p12 + b * p22 + q12
+        self.p22 = p22 + q22
+        self.x += v * dt * c
+        self.y += v * dt * s
+        self.th = _wrap(th + w * dt)
+
+    # -- update --------------------------------------------------------------------------
+    def linearise(self, measurements: Sequence[Measurement]) -> list[list[tuple]]:
+        """The stacked model at the current mean, grouped per beacon (or per fix).
+
+        Returns a list of groups; each group is a list of rows
+        ``(H0, H1, H2, innovation, variance, h)``: the Jacobian row dh/d[x, y, theta], the
+        residual ``z - h(mean)`` (wrapped for angles), the noise variance and h itself.
+        """
+        x, y, th = self.x, self.y, self.th
+        groups = []
+        models = self.models
+        for m in measurements:
+            kind = m.kind
+            if kind == "bearing" or kind == "range_bearing":
+                var = models.reading_var.get(m.sensor)
+                if var is None:
+                    var = tuple(float(v) ** 2 for v in models.spec(m.sensor).reading_std())
+                for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist(), strict=True):
+                    bx, by = models.beacon(bid)
+                    dx = bx - x
+                    dy = by - y
+                    q = dx * dx + dy * dy
+                    # bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10)
+                    hb = _wrap(math.atan2(dy, dx) - th)
+                    brow = (dy / q, -dx / q, -1.0, _wrap(zrow[-1] - hb), var[-1], hb)
+                    if kind == "bearing":
+                        groups.append([brow])
+                    else:
+                        # range h = sqrt(q), H = [-dx/r, -dy/r, 0] (seed 001)
+                        r = math.sqrt(q)
+                        groups.append([(-dx / r, -dy / r, 0.0, zrow[0] - r, var[0], r), brow])
+            elif kind == "pose" or kind == "position":
+                var = models.fix_var(m)
+                z = m.z.reshape(-1).tolist()
+                rows = [(1.0, 0.0, 0.0, z[0] - x, var[0], x), (0.0, 1.0, 0.0, z[1] - y, var[1], y)]
+                if kind == "pose":
+                    rows.append((0.0, 0.0, 1.0, _wrap(z[2] - th), var[2], th))
+                groups.append(rows)
+            # other kinds: nothing this filter can use
+        return groups
+
+    def _passes_gate(self, rows: list[tuple]) -> bool:
+        """Squared Mahalanobis distance of one beacon's rows against the predicted belief."""
+        H = np.array([r[:3] for r in rows])
+        nu = np.array([r[3] for r in rows])
+        S = H @ self.cov @ H.T + np.diag([r[4] for r in rows])
+        return float(nu @ np.linalg.solve(S, nu)) <= self.gate
+
+    def update(self, measurements: Sequence[Measurement]) -> None:
+        if not measurements:
+            return
+        groups = self.linearise(measurements)
+        if not groups:
+            return
+        if self.gate > 0.0:
+            kept = [g for g in groups if self._passes_gate(g)]
+            self.rejected += len(groups) - len(kept)
+            groups = kept
+        p00, p01, p02, p11, p12, p22 = self.p00, self.p01, self.p02, self.p11, self.p12, self.p22
+        d0 = d1 = d2 = 0.0  # x - x_pred accumulated over the rows
+        joseph = self.joseph
+        for g in groups:
+            for h0, h1, h2, nu, r, _ in g:
+                nu -= h0 * d0 + h1 * d1 + h2 * d2    # innovation at the one linearisation point
+                u0 = p00 * h0 + p01 * h1 + p02 * h2  # u = P H_i^T
+                u1 = p01 * h0 + p11 * h1 + p12 * h2
+                u2 = p02 * h0 + p12 * h1 + p22 * h2
+                s = h0 * u0 + h1 * u1 + h2 * u2 + r  # S_i = H_i P H_i^T + r_i
+                k0 = u0 / s                          # K_i = P H_i^T / S_i
+                k1 = u1 / s
+                k2 = u2 / s
+                d0 += k0 * nu
+                d1 += k1 * nu
+                d2 += k2 * nu
+                if joseph:
+                    # P = A P A^T + r K K^T with A = I - K H_i, as products (Joseph form).
+                    a00 = 1.0 - k0 * h0
+                    a01 = -k0 * h1
+                    a02 = -k0 * h2
+                    a10 = -k1 * h0
+                    a11 = 1.0 - k1 * h1
+                    a12 = -k1 * h2
+                    a20 = -k2 * h0
+                    a21 = -k2 * h1
+                    a22 = 1.0 - k2 * h2
+                    m00 = a00 * p00 + a01 * p01 + a02 * p02  # M = A P
+                    m01 = a00 * p01 + a01 * p11 + a02 * p12
+                    m02 = a00 * p02 + a01 * p12 + a02 * p22
+                    m10 = a10 * p00 + a11 * p01 + a12 * p02
+                    m11 = a10 * p01 + a11 * p11 + a12 * p12
+                    m12 = a10 * p02 + a11 * p12 + a12 * p22
+                    m20 = a20 * p00 + a21 * p01 + a22 * p02
+                    m21 = a20 * p01 + a21 * p11 + a22 * p12
+                    m22 = a20 * p02 + a21 * p12 + a22 * p22
+                    p00 = m00 * a00 + m01 * a01 + m02 * a02 + r * k0 * k0
+                    p01 = m00 * a10 + m01 * a11 + m02 * a12 + r * k0 * k1
+                    p02 = m00 * a20 + m01 * a21 + m02 * a22 + r * k0 * k2
+                    p11 = m10 * a10 + m11 * a11 + m12 * a12 + r * k1 * k1
+                    p12 = m10 * a20 + m11 * a21 + m12 * a22 + r * k1 * k2
+                    p22 = m20 * a20 + m21 * a21 + m22 * a22 + r * k2 * k2
+                else:
+                    # P = P - K S K^T = P - u u^T / s
+                    p00 -= u0 * k0
+                    p01 -= u0 * k1
+                    p02 -= u0 * k2
+                    p11 -= u1 * k1
+                    p12 -= u1 * k2
+                    p22 -= u2 * k2
+        self.p00, self.p01, self.p02, self.p11, self.p12, self.p22 = p00, p01, p02, p11, p12, p22
+        self.x += d0
+        self.y += d1
+        self.th = _wrap(self.th + d2)
