@@ -1,0 +1,155 @@
+"""``beacon-sim eval SCENARIO ... [--filter F ...] [--runs N] [--seed S] [--jobs J]
+[--out DIR] [--json]``: Monte Carlo comparison of filters, with the PCRB.
+
+Prints a table per scenario (or one JSON object with ``--json``); with ``--out DIR`` also
+writes ``eval.csv`` (the table), ``eval_runs.csv`` (one row per run and filter),
+``eval.json`` and PNG plots.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from beacon_sim.cli import UsageError
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.evaluation.montecarlo import filter_names, run_monte_carlo
+from beacon_sim.evaluation.summary import Thresholds, evaluate
+from beacon_sim.filters.loading import build_filter, filter_display_name, parse_set_options
+
+COLUMNS = ("filter", "pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
+           "anees_lo", "anees_hi", "anees_verdict", "nees_steps_in_band", "anis", "anis_verdict",
+           "divergences", "recovery", "us_per_step", "rmse_over_pcrb", "pcrb_pos_rmse_m")
+
+
+def _num(x, fmt: str) -> str:
+    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
+
+
+def recovery_text(recovery: list[dict]) -> str:
+    """``"4.2s 98/100"`` per kidnap (median time of those that recovered), ``-`` if none."""
+    if not recovery:
+        return "-"
+    parts = []
+    for r in recovery:
+        med = "never" if r["median_s"] is None else f"{r['median_s']:.1f}s"
+        parts.append(f"{med} {r['recovered']}/{r['runs']}")
+    return "; ".join(parts)
+
+
+def table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
+    """The terminal table of one scenario. ``timing`` False leaves out us/step (the only
+    column that changes from one identical run to the next)."""
+    b = meta["pcrb"]
+    lines = [f"{meta['scenario']}: {meta['runs']} runs x {meta['steps']} steps "
+             f"(dt {meta['dt']:g} s), seeds {meta['seed']}..{meta['seed'] + meta['runs'] - 1}; "
+             f"PCRB position {b['pos_rmse_m']:.4f} m, heading {b['heading_rmse_rad']:.4f} rad"]
+    lo, hi = next(iter(meta["filters"].values()))["anees_band"] if meta["filters"] else (0, 0)
+    head = (f"{'filter':<16}{'pos RMSE':>9}{'head RMSE':>10}{'MSE x':>9}{'MSE y':>9}"
+            f"{'MSE th':>9}{'ANEES':>8} {'verdict':<12}{'ANIS':>6}{'div':>5}"
+            f"{'RMSE/PCRB':>10}{'us/step' if timing else '':>9}  recovery per kidnap")
+    lines.append(head)
+    for name, r in meta["filters"].items():
+        line = (f"{name:<16}{_num(r['pos_rmse_m'], '.4f'):>9}{_num(r['heading_rmse_rad'], '.4f'):>10}"
+                f"{_num(r['mse_x'], '.2e'):>9}{_num(r['mse_y'], '.2e'):>9}"
+                f"{_num(r['mse_theta'], '.2e'):>9}{_num(r['anees'], '.2f'):>8} "
+                f"{r['anees_verdict']:<12}{_num(r['anis'], '.2f'):>6}{r['divergences']:>5}"
+                f"{_num(r['rmse_over_pcrb'], '.2f'):>10}"
+                f"{_num(r['us_per_step'], '.1f') if timing else '':>9}  {recovery_text(r['recovery'])}")
+        lines.append(line)
+        for f in r["failed"][:3]:
+            lines.append(f"    failed: {f}")
+    lines.append(f"ANEES 95 % band for {meta['runs']} runs: [{lo:.2f}, {hi:.2f}] (3 dof); ANIS is "
+                 "per degree of freedom (1 for an honest filter); div = runs lost "
+                 f"(error > {meta['thresholds']['divergence_m']:g} m at the end); recovery: median "
+                 f"time until the error stays < {meta['thresholds']['recovery_m']:g} m")
+    return lines
+
+
+def _csv_row(meta: dict[str, Any], name: str, r: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "scenario": meta["scenario"], "runs": meta["runs"], "steps": meta["steps"], "filter": name,
+        "pos_rmse_m": r["pos_rmse_m"], "heading_rmse_rad": r["heading_rmse_rad"],
+        "mse_x": r["mse_x"], "mse_y": r["mse_y"], "mse_theta": r["mse_theta"],
+        "anees": r["anees"], "anees_lo": r["anees_band"][0], "anees_hi": r["anees_band"][1],
+        "anees_verdict": r["anees_verdict"], "nees_steps_in_band": r["nees_steps_in_band"],
+        "anis": r["anis"], "anis_verdict": r["anis_verdict"], "divergences": r["divergences"],
+        "recovery": recovery_text(r["recovery"]), "us_per_step": r["us_per_step"],
+        "rmse_over_pcrb": r["rmse_over_pcrb"], "pcrb_pos_rmse_m": meta["pcrb"]["pos_rmse_m"],
+    }
+
+
+def _validate(args) -> None:
+    if args.runs is None or args.runs < 1:
+        raise UsageError(f"--runs {args.runs}: expected a whole number of runs >= 1")
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: expected a number of processes >= 1")
+    if args.seed is not None and args.seed < 0:
+        raise UsageError(f"--seed {args.seed}: expected a seed >= 0")
+    if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
+        raise UsageError(f"--duration {args.duration}: expected a positive number of seconds")
+    if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise UsageError(f"--out {args.out}: exists and is not a folder")
+
+
+def eval_command(args) -> int:
+    """Run the evaluation the parsed ``args`` ask for; returns the exit status."""
+    _validate(args)
+    params = parse_set_options(getattr(args, "set_params", []) or [])
+    scenarios = [load_scenario(s) for s in args.scenarios]
+    for sc in scenarios:  # bad filter names and parameters: a one-line error, before any run
+        specs = list(args.filters or sc.default_filters)
+        for name, spec in zip(filter_names(specs), specs, strict=True):
+            build_filter(spec, sc, 0, name=name, params=params.get(filter_display_name(spec)))
+        steps = round((args.duration or sc.duration) / sc.dt)
+        if steps < 1:
+            raise UsageError(f"--duration {args.duration}: shorter than one step of {sc.dt:g} s")
+    out = Path(args.out) if args.out else None
+    results = []
+    for sc in scenarios:
+        specs = list(args.filters or sc.default_filters)
+        runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
+                               jobs=args.jobs, params=params)
+        meta, curves = evaluate(sc, runs, Thresholds())
+        results.append((sc, meta, curves))
+        if not args.json:
+            print("\n".join(table_lines(meta)))
+            print()
+    metas = [m for _, m, _ in results]
+    document = metas[0] if len(metas) == 1 else {"scenarios": metas}
+    if args.json:
+        print(json.dumps(document, default=float))
+    if out is not None:
+        write_outputs(out, results, document)
+    return 0
+
+
+def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
+    """``eval.csv``, ``eval_runs.csv``, ``eval.json`` and the plots into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    with open(out / "eval.csv", "w", newline="", encoding="utf-8") as fh:
+        w = None
+        for _, meta, _ in results:
+            for name, r in meta["filters"].items():
+                row = _csv_row(meta, name, r)
+                if w is None:
+                    w = csv.DictWriter(fh, fieldnames=list(row))
+                    w.writeheader()
+                w.writerow(row)
+    written.append(out / "eval.csv")
+    with open(out / "eval.json", "w", encoding="utf-8") as fh:
+        json.dump(document, fh, indent=1, default=float)
+    written.append(out / "eval.json")
+    from beacon_sim.evaluation import plots
+
+    if not plots.available():
+        print(plots.INSTALL_HINT, file=sys.stderr)
+        return written
+    for sc, meta, curves in results:
+        written += plots.plot_all(sc, curves, out, meta["runs"])
+    return written

@@ -1,0 +1,254 @@
+"""Monte Carlo runs: one simulated run per seed, every filter on exactly the same steps,
+runs spread over processes with results identical to a single process.
+
+Run ``i`` uses seed ``seed + i``; each run is built from its seed alone (design.md section
+5), so the order in which processes finish changes nothing but the timing figures.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from beacon_sim.core.metrics import pose_errors
+from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.simulation import Simulation
+from beacon_sim.evaluation.metrics import nis_batch
+from beacon_sim.filters.loading import build_filter, filter_display_name
+
+
+@dataclass
+class FilterRun:
+    """One filter in one run. Arrays have one row per step; rows after a failure are NaN.
+
+    err : (T, 3) [m, m, rad] estimate - truth, heading wrapped.
+    var : (T, 3) the diagonal of the filter's covariance.
+    nees : (T,) ``e^T P^-1 e``.
+    """
+
+    err: np.ndarray
+    var: np.ndarray
+    nees: np.ndarray
+    nis_sum: float
+    nis_dof: int
+    step_ns: int
+    steps: int
+    failed: str | None = None
+    means: np.ndarray | None = None  # (T, 3), kept for the first run only (trajectory plot)
+
+
+@dataclass
+class RunOutput:
+    """One run: the truth, the commands, kidnaps, and each filter's record."""
+
+    index: int
+    seed: int
+    truth: np.ndarray  # (T + 1, 3), row 0 = initial pose
+    controls: np.ndarray  # (T, 2) [m/s, rad/s]
+    kidnapped: np.ndarray  # (T,) bool
+    truth_checksum: str
+    filters: dict[str, FilterRun] = field(default_factory=dict)
+
+
+def filter_names(specs: list[str]) -> list[str]:
+    """Display names for filter specs, primed when a name repeats (``ekf``, ``ekf'``)."""
+    names: list[str] = []
+    for spec in specs:
+        name = filter_display_name(spec)
+        while name in names:
+            name += "'"
+        names.append(name)
+    return names
+
+
+def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
+    """Index of the first unusable estimate (non-finite, asymmetric or not PSD) and why."""
+    n = means.shape[0]
+    bad = ~(np.all(np.isfinite(means), axis=1) & np.all(np.isfinite(covs), axis=(1, 2)))
+    first = int(np.argmax(bad)) if bad.any() else n
+    if first < n:
+        return first, "estimate() returned NaN or infinity"
+    scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
+    asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2)) > 1e-6 * scale
+    eig = np.linalg.eigvalsh(0.5 * (covs + np.swapaxes(covs, 1, 2)))[:, 0]
+    notpsd = eig < -1e-9 * scale
+    for mask in (asym, notpsd):
+        if mask.any():
+            first = min(first, int(np.argmax(mask)))
+    if first < n:
+        return first, ("covariance is not symmetric" if asym[first]
+                       else "covariance is not positive semi-definite")
+    return n, None
+
+
+def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, Any]],
+            seed: int, duration: float, index: int = 0, keep_means: bool = False) -> RunOutput:
+    """Simulate one run and feed every filter the same steps.
+
+    Each filter's cost counts ``predict + update + estimate``; the prior estimate read for
+    the NIS between predict and update is not counted.
+    """
+    names = filter_names(specs)
+    built = {name: build_filter(spec, scenario, seed, name=name,
+                                params=params.get(filter_display_name(spec)))
+             for name, spec in zip(names, specs, strict=True)}
+    sensors = {s.name: s for s in scenario.model_sensors}
+    world = scenario.world
+    sim = Simulation(scenario, seed)
+    T = round(duration / scenario.dt)
+    truth = np.empty((T + 1, 3))
+    truth[0] = sim.pose
+    controls = np.empty((T, 2))
+    kidnapped = np.zeros(T, dtype=bool)
+    means = {n: np.full((T, 3), np.nan) for n in names}
+    covs = {n: np.full((T, 3, 3), np.nan) for n in names}
+    records: list = []  # measurements of the ticks that had any
+    priors = {n: (np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)) for n in names}
+    ns = dict.fromkeys(names, 0)
+    done = dict.fromkeys(names, 0)
+    failed: dict[str, str | None] = dict.fromkeys(names)
+    clock = time.perf_counter_ns
+    for i in range(T):
+        step = sim.step()
+        truth[i + 1] = step.true_pose
+        controls[i] = (step.control.v, step.control.omega)
+        kidnapped[i] = step.kidnapped
+        j = len(records)
+        if step.measurements:
+            records.append(step.measurements)
+        for name, f in built.items():
+            if failed[name]:
+                continue
+            try:
+                t0 = clock()
+                f.predict(step.control, step.dt)
+                t1 = clock()
+                if step.measurements:  # the predicted belief, for the NIS (not timed)
+                    priors[name][0][j], priors[name][1][j] = f.estimate()
+                t2 = clock()
+                f.update(step.measurements)
+                mean, cov = f.estimate()
+                t3 = clock()
+                means[name][i] = mean
+                covs[name][i] = cov
+            except Exception as exc:  # a user's filter: switch it off, go on with the others
+                failed[name] = f"{type(exc).__name__}: {exc}"
+                continue
+            ns[name] += (t1 - t0) + (t3 - t2)
+            done[name] += 1
+    out = RunOutput(index, seed, truth, controls, kidnapped, sim.truth_checksum)
+    for name in names:
+        first, why = _check(means[name], covs[name])
+        if why and not failed[name]:
+            failed[name] = why
+        n_ok = min(first, done[name])
+        m = means[name]
+        c = covs[name]
+        m[n_ok:] = np.nan
+        c[n_ok:] = np.nan
+        err = pose_errors(m, truth[1:])
+        nees = np.full(T, np.nan)
+        if n_ok:
+            with np.errstate(all="ignore"):
+                try:
+                    sol = np.linalg.solve(c[:n_ok], err[:n_ok, :, None])[..., 0]
+                    nees[:n_ok] = np.einsum("ti,ti->t", err[:n_ok], sol)
+                except np.linalg.LinAlgError:
+                    nees[:n_ok] = np.inf
+        var = np.einsum("tii->ti", c).copy()
+        pm, pc = priors[name]
+        n_rec = len(records)
+        good = np.all(np.isfinite(pm[:n_rec]), axis=1) & np.all(np.isfinite(pc[:n_rec]), axis=(1, 2))
+        n_good = int(np.argmin(good)) if not good.all() else n_rec
+        with np.errstate(all="ignore"):
+            nis_sum, nis_dof = nis_batch(records[:n_good], pm[:n_good], pc[:n_good], sensors, world)
+        out.filters[name] = FilterRun(err, var, nees, nis_sum, nis_dof,
+                                      ns[name], done[name], failed[name],
+                                      m.copy() if keep_means else None)
+    return out
+
+
+def _task(args) -> RunOutput:
+    return one_run(*args)
+
+
+class Progress:
+    """A one-line progress bar on stderr (drawn only when ``enabled``)."""
+
+    def __init__(self, total: int, label: str, enabled: bool):
+        self.total, self.label, self.enabled = total, label, enabled
+        self.done = 0
+        self.t0 = time.perf_counter()
+
+    def advance(self) -> None:
+        self.done += 1
+        if not self.enabled:
+            return
+        width = 30
+        filled = round(width * self.done / max(self.total, 1))
+        el = time.perf_counter() - self.t0
+        eta = el / self.done * (self.total - self.done)
+        sys.stderr.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] "
+                         f"{self.done}/{self.total} runs  {el:5.1f} s  eta {eta:5.1f} s ")
+        if self.done == self.total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def default_jobs() -> int:
+    """All the cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
+def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int = 0,
+                    duration: float | None = None, jobs: int | None = None,
+                    params: dict[str, dict[str, Any]] | None = None,
+                    progress: bool | None = None,
+                    on_run: Callable[[RunOutput], None] | None = None) -> list[RunOutput]:
+    """``runs`` runs with seeds ``seed, seed + 1, ...``; returns them in seed order.
+
+    ``jobs`` processes (default: all cores; 1 runs in this process). The result does not
+    depend on ``jobs`` except for the cost figures (``step_ns``).
+    """
+    duration = scenario.duration if duration is None else duration
+    jobs = default_jobs() if jobs is None else max(1, int(jobs))
+    jobs = min(jobs, runs)
+    params = params or {}
+    if progress is None:
+        progress = sys.stderr.isatty()
+    bar = Progress(runs, f"eval {scenario.name}", progress)
+    tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0) for i in range(runs)]
+    out: list[RunOutput | None] = [None] * runs
+    if jobs == 1:
+        for i, t in enumerate(tasks):
+            out[i] = _task(t)
+            bar.advance()
+            if on_run:
+                on_run(out[i])
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = {pool.submit(_task, t): i for i, t in enumerate(tasks)}
+            for fut in as_completed(futures):
+                out[futures[fut]] = fut.result()
+                bar.advance()
+                if on_run:
+                    on_run(out[futures[fut]])
+    return [o for o in out if o is not None]
+
+
+def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
+    """One filter's per-step array from every run, stacked: (R, T, ...)."""
+    return np.stack([getattr(r.filters[name], attr) for r in runs])
+
+
+__all__ = ["FilterRun", "RunOutput", "filter_names", "one_run", "run_monte_carlo", "stack"]

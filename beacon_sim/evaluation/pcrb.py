@@ -1,0 +1,208 @@
+"""The posterior Cramer-Rao bound (PCRB) along true trajectories: the smallest covariance
+any unbiased estimator can reach for the scenario's motion and sensor models.
+
+Tichavsky, Muravchik & Nehorai (1998) give the recursion for the Fisher information
+``J_k`` of ``x_{k+1} = f(x_k) + w_k``, ``z_k = h(x_k) + v_k``:
+
+    J_{k+1} = D22 - D21 (J_k + D11)^-1 D12 + E[H^T R^-1 H]
+    D11 = E[F^T Q^-1 F],  D12 = D21^T = -E[F^T] Q^-1,  D22 = Q^-1
+
+With the Jacobians evaluated along a known true trajectory the first three terms equal
+``(F J_k^-1 F^T + Q)^-1`` (matrix inversion lemma), which needs no inverse of Q; the
+velocity model's Q = B M B^T is singular when the scenario has no additive pose noise.
+So, per step::
+
+    P_pred = F P F^T + Q            F, Q at the true pose and the command (truth's noise)
+    J      = P_pred^-1 + I_z        I_z: expected measurement information at the true pose
+    P      = J^-1                   the bound
+
+``I_z`` is the expected information of a tick's readings: for each beacon in range and
+field of view, ``p_detect * (1 - outlier_rate) * H^T R^-1 H``; for pose and position fixes
+the expectation over which beacons are detected (a fix from n beacons is n times as
+informative; a position fix's noise is ``position_std * HDOP`` of the detected subset).
+Blackouts give no information; noise bursts add to Q. A kidnap is not in the model: the
+bound restarts there from the broad (world-uniform) prior, the information an estimator
+would have if it were told "you were moved, somewhere". Down-weighting outliers by
+``1 - outlier_rate`` is an approximation (the exact information of a contaminated
+Gaussian is not a closed form).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from beacon_sim.core.events import Blackout, NoiseBurst, active_ticks
+from beacon_sim.core.geometry import hdop
+from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensors import SensorSpec
+from beacon_sim.filters.base import broad_gaussian
+from beacon_sim.filters.loading import initial_belief
+
+#: Position sensors enumerate every detected subset of the visible beacons up to this many.
+MAX_SUBSET_BEACONS = 10
+
+
+def _visible(spec: SensorSpec, pos: np.ndarray, theta: np.ndarray, bxy: np.ndarray):
+    """In range and field of view, shape (R, nb), for poses (R,) of a batch of runs."""
+    d = bxy[None, :, :] - pos[:, None, :]
+    vis = np.hypot(d[..., 0], d[..., 1]) <= spec.max_range
+    if spec.fov < 2.0 * math.pi:
+        rel = np.arctan2(d[..., 1], d[..., 0]) - theta[:, None]
+        rel = np.mod(rel + math.pi, 2.0 * math.pi) - math.pi
+        vis &= np.abs(rel) <= 0.5 * spec.fov
+    return vis
+
+
+def _binom_pmf(n: np.ndarray, k: int, p: float) -> np.ndarray:
+    comb = np.array([math.comb(int(m), k) if k <= m else 0 for m in n.ravel()], dtype=float)
+    return comb.reshape(n.shape) * p**k * (1.0 - p) ** np.maximum(n - k, 0)
+
+
+def measurement_information(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray) -> np.ndarray:
+    """Expected Fisher information of one reading of ``spec``, shape (R, 3, 3), at true
+    ``poses`` (R, 3) [m, m, rad] with beacons at ``bxy`` (nb, 2) [m]."""
+    R = poses.shape[0]
+    pos, theta = poses[:, :2], poses[:, 2]
+    vis = _visible(spec, pos, theta, bxy)
+    p = spec.detection_prob * (1.0 - spec.outlier_rate)
+    info = np.zeros((R, 3, 3))
+    d = bxy[None, :, :] - pos[:, None, :]  # (R, nb, 2) beacon - robot
+    q = np.maximum(np.sum(d * d, axis=2), 1e-12)
+    if spec.kind == "bearing":
+        h = np.stack([d[..., 1] / q, -d[..., 0] / q, -np.ones_like(q)], axis=2)  # (R, nb, 3)
+        w = vis * (p / spec.noise.bearing_std**2)
+        return np.einsum("rb,rbi,rbj->rij", w, h, h)
+    if spec.kind == "range_bearing":
+        r = np.sqrt(q)
+        hr = np.stack([-d[..., 0] / r, -d[..., 1] / r, np.zeros_like(q)], axis=2)
+        hb = np.stack([d[..., 1] / q, -d[..., 0] / q, -np.ones_like(q)], axis=2)
+        wr = vis * (p / spec.noise.range_std**2)
+        wb = vis * (p / spec.noise.bearing_std**2)
+        return np.einsum("rb,rbi,rbj->rij", wr, hr, hr) + np.einsum("rb,rbi,rbj->rij", wb, hb, hb)
+    n_vis = vis.sum(axis=1)
+    if spec.kind == "pose":
+        # A fix from n beacons has covariance R1 / n: information n R1^-1, when n >= min_beacons.
+        pd = spec.detection_prob
+        e_n = np.zeros(R)
+        for k in range(spec.min_beacons, int(n_vis.max(initial=0)) + 1):
+            e_n += k * _binom_pmf(n_vis, k, pd)
+        r1 = spec.fix_std(1) ** 2
+        return (1.0 - spec.outlier_rate) * e_n[:, None, None] * np.diag(1.0 / r1)[None]
+    if spec.kind == "position":
+        nb = bxy.shape[0]
+        pd = spec.detection_prob
+        s2 = spec.noise.position_std**2
+        scalar = np.zeros(R)
+        if nb <= MAX_SUBSET_BEACONS:
+            for size in range(spec.min_beacons, nb + 1):
+                for subset in itertools.combinations(range(nb), size):
+                    mask = np.zeros(nb, dtype=bool)
+                    mask[list(subset)] = True
+                    inside = np.all(vis[:, mask], axis=1)
+                    if not inside.any():
+                        continue
+                    prob = inside * pd**size * (1.0 - pd) ** (n_vis - size)
+                    hd = np.asarray(hdop(pos, bxy[mask], spec.beacon_height), dtype=float)
+                    ok = np.isfinite(hd) & inside
+                    scalar[ok] += prob[ok] / (s2 * hd[ok] ** 2)
+        else:  # too many subsets: every visible beacon detected, weighted by P(n >= min)
+            for r in range(R):
+                if n_vis[r] >= spec.min_beacons:
+                    hd = hdop(pos[r], bxy[vis[r]], spec.beacon_height)
+                    p_fix = sum(_binom_pmf(n_vis[r:r + 1], k, pd)[0]
+                                for k in range(spec.min_beacons, int(n_vis[r]) + 1))
+                    if math.isfinite(hd):
+                        scalar[r] = p_fix / (s2 * hd**2)
+        info[:, 0, 0] = info[:, 1, 1] = (1.0 - spec.outlier_rate) * scalar
+        return info
+    raise ValueError(f"unknown sensor kind {spec.kind!r}")
+
+
+def _process(scenario: Scenario, poses: np.ndarray, v, w, dt: float, burst_v: float,
+             burst_w: float):
+    """F (R, 3, 3) and Q (R, 3, 3) of the truth's velocity model at ``poses`` (R, 3)."""
+    noise = scenario.motion_noise
+    th = poses[:, 2]
+    c, s = np.cos(th), np.sin(th)
+    R = poses.shape[0]
+    F = np.broadcast_to(np.eye(3), (R, 3, 3)).copy()
+    F[:, 0, 2] = -v * dt * s
+    F[:, 1, 2] = v * dt * c
+    sv, sw = noise.control_std(v, w)
+    sv2 = np.asarray(sv, dtype=float) ** 2 + burst_v**2
+    sw2 = np.asarray(sw, dtype=float) ** 2 + burst_w**2
+    Q = np.zeros((R, 3, 3))  # B M B^T, B = [[dt c, 0], [dt s, 0], [0, dt]]
+    Q[:, 0, 0] = dt * dt * c * c * sv2
+    Q[:, 0, 1] = Q[:, 1, 0] = dt * dt * c * s * sv2
+    Q[:, 1, 1] = dt * dt * s * s * sv2
+    Q[:, 2, 2] = dt * dt * sw2
+    Q += np.diag(np.square(noise.pose_std))[None]
+    return F, Q
+
+
+def pcrb(scenario: Scenario, truths: np.ndarray, controls: np.ndarray,
+         kidnapped: np.ndarray | None = None) -> np.ndarray:
+    """The bound on the error covariance after every step of a batch of runs.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Supplies dt, the truth's motion noise and sensors, events, beacons and the prior.
+    truths : array (R, T + 1, 3) [m, m, rad]
+        True poses; row 0 is the initial pose, row k the pose after step k.
+    controls : array (R, T, 2) [m/s, rad/s]
+        The command of each step.
+    kidnapped : bool array (R, T), optional
+        Steps on which the robot was teleported.
+
+    Returns
+    -------
+    ndarray (R, T, 3, 3)
+        ``P_k`` [m^2, m^2, rad^2]: no unbiased estimator has a smaller error covariance.
+    """
+    truths = np.asarray(truths, dtype=float)
+    controls = np.asarray(controls, dtype=float)
+    R, T = controls.shape[:2]
+    dt = scenario.dt
+    bxy = scenario.world.beacon_xy
+    init = initial_belief(scenario) or broad_gaussian(scenario.world)
+    P = np.broadcast_to(np.asarray(init.cov, dtype=float), (R, 3, 3)).copy()
+    P_lost = np.asarray(broad_gaussian(scenario.world).cov, dtype=float)
+    every = {s.name: round(s.period / dt) for s in scenario.sensors}
+    blackout: dict[int, list[Blackout]] = {}
+    burst: dict[int, list[NoiseBurst]] = {}
+    for ev in scenario.events:
+        if isinstance(ev, Blackout | NoiseBurst):
+            table = blackout if isinstance(ev, Blackout) else burst
+            for k in active_ticks(ev, dt):
+                table.setdefault(k, []).append(ev)
+    out = np.empty((R, T, 3, 3))
+    for k in range(1, T + 1):
+        bv = math.sqrt(sum(b.v_std**2 for b in burst.get(k, ())))
+        bw = math.sqrt(sum(b.omega_std**2 for b in burst.get(k, ())))
+        F, Q = _process(scenario, truths[:, k - 1], controls[:, k - 1, 0], controls[:, k - 1, 1],
+                        dt, bv, bw)
+        P = F @ P @ np.swapaxes(F, 1, 2) + Q  # P_pred = F P F^T + Q
+        if kidnapped is not None and kidnapped[:, k - 1].any():
+            P[kidnapped[:, k - 1]] = P_lost
+        info = None
+        for spec in scenario.sensors:
+            if k % every[spec.name] or any(b.covers(spec.name) for b in blackout.get(k, ())):
+                continue
+            i_z = measurement_information(spec, truths[:, k], bxy)
+            info = i_z if info is None else info + i_z
+        if info is not None:
+            P = np.linalg.inv(np.linalg.inv(P) + info)  # P = (P_pred^-1 + I_z)^-1
+            P = 0.5 * (P + np.swapaxes(P, 1, 2))
+        out[:, k - 1] = P
+    return out
+
+
+def bound_rmse(P: np.ndarray) -> tuple[float, float]:
+    """Best position RMSE [m] and heading RMSE [rad] an unbiased filter could reach, from
+    bounds ``P`` (..., 3, 3): ``sqrt(mean(P_xx + P_yy))`` and ``sqrt(mean(P_thth))``."""
+    return (float(np.sqrt(np.mean(P[..., 0, 0] + P[..., 1, 1]))),
+            float(np.sqrt(np.mean(P[..., 2, 2]))))

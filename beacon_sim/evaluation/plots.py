@@ -1,0 +1,144 @@
+"""PNG plots of an evaluation (matplotlib, the optional ``plot`` extra).
+
+matplotlib is imported inside the functions: without it, :func:`available` is False and
+the command says how to install it and skips the plots.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+INSTALL_HINT = "plots skipped: matplotlib is not installed (pip install 'beacon-sim[plot]')"
+
+
+def available() -> bool:
+    """True when matplotlib can be imported."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, never a window
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_trajectories(scenario, curves: dict[str, Any], path: Path) -> Path:
+    """The first run's true path, each filter's estimate and the beacons [m]."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 5.5))
+    b = scenario.world.beacon_xy
+    ax.plot(b[:, 0], b[:, 1], "k^", ms=8, label="beacons")
+    t = curves["truth0"]
+    ax.plot(t[:, 0], t[:, 1], "k-", lw=2, label="truth")
+    for name, c in curves["filters"].items():
+        if c["means0"] is not None:
+            ax.plot(c["means0"][:, 0], c["means0"][:, 1], lw=1, label=name)
+    xmin, ymin, xmax, ymax = scenario.world.bounds
+    ax.set_xlim(xmin, xmax)
+    ax.set_ylim(ymin, ymax)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{scenario.name}: trajectories (first run)")
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_errors(scenario, curves: dict[str, Any], path: Path) -> Path:
+    """Error against time per axis (first run) with each filter's +-3 sigma."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    t = curves["time"]
+    labels = ("x error [m]", "y error [m]", "heading error [rad]")
+    for name, c in curves["filters"].items():
+        for i, ax in enumerate(axes):
+            (line,) = ax.plot(t, c["err0"][:, i], lw=0.8, label=f"{name} error")
+            ax.fill_between(t, -3 * c["sigma0"][:, i], 3 * c["sigma0"][:, i],
+                            color=line.get_color(), alpha=0.15, lw=0)
+    for i, ax in enumerate(axes):
+        ax.plot(t, 3 * curves["pcrb_sigma_t"][:, i], "k:", lw=0.8)
+        ax.plot(t, -3 * curves["pcrb_sigma_t"][:, i], "k:", lw=0.8,
+                label="+-3 sigma PCRB" if i == 0 else None)
+        for k in curves["kidnap_times"]:
+            ax.axvline(k, color="r", lw=0.8, ls="--")
+        ax.set_ylabel(labels[i])
+        span = max(np.nanmax(np.abs(c["err0"][:, i])) for c in curves["filters"].values()) \
+            if curves["filters"] else 1.0
+        if np.isfinite(span) and span > 0:
+            ax.set_ylim(-1.5 * span, 1.5 * span)
+    axes[0].legend(loc="upper right", fontsize=7)
+    axes[0].set_title(f"{scenario.name}: error and +-3 sigma (shaded), first run")
+    axes[-1].set_xlabel("time [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_nees(scenario, curves: dict[str, Any], path: Path, runs: int) -> Path:
+    """NEES averaged over runs against time, with the 95 % chi-square band for 3 dof."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4))
+    t = curves["time"]
+    lo, hi = curves["nees_band"]
+    for name, c in curves["filters"].items():
+        ax.plot(t, c["nees_t"], lw=0.8, label=name)
+    ax.axhspan(lo, hi, color="g", alpha=0.15, label=f"95 % band ({runs} runs)")
+    ax.axhline(3.0, color="g", lw=0.8)
+    for k in curves["kidnap_times"]:
+        ax.axvline(k, color="r", lw=0.8, ls="--")
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("NEES (mean over runs)")
+    ax.set_title(f"{scenario.name}: NEES against time")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_rmse_pcrb(scenario, curves: dict[str, Any], path: Path) -> Path:
+    """Position RMSE over runs against time beside the PCRB (best any unbiased filter)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4))
+    t = curves["time"]
+    for name, c in curves["filters"].items():
+        ax.plot(t, c["rmse_t"], lw=0.9, label=name)
+    ax.plot(t, curves["pcrb_pos_t"], "k--", lw=1.2, label="PCRB")
+    for k in curves["kidnap_times"]:
+        ax.axvline(k, color="r", lw=0.8, ls="--")
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("position RMSE [m]")
+    ax.set_title(f"{scenario.name}: RMSE beside the posterior Cramer-Rao bound")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_all(scenario, curves: dict[str, Any], out: Path, runs: int) -> list[Path]:
+    """All four plots for one scenario into ``out``; returns the files written."""
+    out.mkdir(parents=True, exist_ok=True)
+    stem = scenario.name
+    return [
+        plot_trajectories(scenario, curves, out / f"{stem}_trajectories.png"),
+        plot_errors(scenario, curves, out / f"{stem}_errors.png"),
+        plot_nees(scenario, curves, out / f"{stem}_nees.png", runs),
+        plot_rmse_pcrb(scenario, curves, out / f"{stem}_rmse_pcrb.png"),
+    ]

@@ -1,0 +1,156 @@
+"""Monte Carlo runs reduced to the figures of the table and the curves of the plots.
+
+Averages are over runs and steps (a filter's steps after it failed are left out). The
+ANEES band is the 95 % chi-square band for the average of ``runs`` NEES values (Bar-Shalom's
+N-run test): consecutive steps of one run are strongly correlated, so the band is not
+narrowed by the number of steps. The NIS of an honest filter is white in time, so its band
+uses every degree of freedom.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from beacon_sim.core.metrics import anees_band
+from beacon_sim.core.scenario import Scenario
+from beacon_sim.evaluation.metrics import diverged, recovery_times
+from beacon_sim.evaluation.montecarlo import RunOutput, stack
+from beacon_sim.evaluation.pcrb import bound_rmse, pcrb
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """recovery_m [m]: a kidnapped filter has recovered once its position error stays below
+    this. divergence_m [m]: a run diverged when the error stays above this over the last
+    10 % of the run (or the filter failed)."""
+
+    recovery_m: float = 0.5
+    divergence_m: float = 1.0
+
+
+def _verdict(value: float, lo: float, hi: float) -> str:
+    if not math.isfinite(value):
+        return "failed"
+    if value > hi:
+        return "optimistic"  # errors larger than the covariance admits
+    if value < lo:
+        return "pessimistic"
+    return "consistent"
+
+
+def _f(x: float) -> float | None:
+    """JSON-safe float: None for NaN and infinity."""
+    return float(x) if math.isfinite(x) else None
+
+
+def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds = Thresholds()):
+    """The table rows (dict per filter), the PCRB and the per-step curves for one scenario."""
+    names = list(runs[0].filters)
+    R = len(runs)
+    T = runs[0].controls.shape[0]
+    times = scenario.dt * np.arange(1, T + 1)
+    truths = np.stack([r.truth for r in runs])
+    kid = np.stack([r.kidnapped for r in runs])
+    P = pcrb(scenario, truths, np.stack([r.controls for r in runs]), kid)
+    b_pos, b_head = bound_rmse(P)
+    lo, hi = anees_band(R)
+    curves: dict[str, Any] = {
+        "time": times,
+        "pcrb_pos_t": np.sqrt(np.mean(P[..., 0, 0] + P[..., 1, 1], axis=0)),
+        "pcrb_sigma_t": np.sqrt(np.mean(np.einsum("rtii->rti", P), axis=0)),
+        "truth0": truths[0],
+        "kidnap_times": times[kid[0]],
+        "nees_band": (lo, hi),
+        "filters": {},
+    }
+    rows: dict[str, dict[str, Any]] = {}
+    for name in names:
+        err = stack(runs, name, "err")  # (R, T, 3)
+        nees = stack(runs, name, "nees")  # (R, T)
+        var = stack(runs, name, "var")
+        with np.errstate(all="ignore"):
+            mse = np.nanmean(err**2, axis=(0, 1))
+            pos2 = err[..., 0] ** 2 + err[..., 1] ** 2
+            run_rmse = np.sqrt(np.nanmean(pos2, axis=1))
+            anees = float(np.nanmean(nees))
+            nees_t = np.nanmean(nees, axis=0)
+        in_band = float(np.mean((nees_t >= lo) & (nees_t <= hi)))
+        nis_sum = sum(r.filters[name].nis_sum for r in runs)
+        nis_dof = sum(r.filters[name].nis_dof for r in runs)
+        anis = nis_sum / nis_dof if nis_dof else math.nan
+        nlo, nhi = anees_band(nis_dof, dof=1) if nis_dof else (math.nan, math.nan)
+        n_div = 0
+        rec: list[list[float]] = []
+        for r in runs:
+            fr = r.filters[name]
+            perr = np.sqrt(fr.err[:, 0] ** 2 + fr.err[:, 1] ** 2)
+            n_div += bool(fr.failed) or diverged(perr, thresholds.divergence_m)
+            rt = recovery_times(perr, times, np.flatnonzero(r.kidnapped), thresholds.recovery_m)
+            for k, v in enumerate(rt):
+                while len(rec) <= k:
+                    rec.append([])
+                rec[k].append(v)
+        recovery = []
+        for vals in rec:
+            finite = [v for v in vals if math.isfinite(v)]
+            recovery.append({"median_s": _f(float(np.median(finite))) if finite else None,
+                             "max_s": _f(max(finite)) if finite else None,
+                             "recovered": len(finite), "runs": len(vals)})
+        us = [r.filters[name].step_ns / 1e3 / max(r.filters[name].steps, 1) for r in runs]
+        failed = [f"seed {r.seed}: {r.filters[name].failed}" for r in runs if r.filters[name].failed]
+        pos_rmse = float(np.sqrt(mse[0] + mse[1]))
+        rows[name] = {
+            "pos_rmse_m": _f(pos_rmse),
+            "heading_rmse_rad": _f(float(np.sqrt(mse[2]))),
+            "mse_x": _f(float(mse[0])),
+            "mse_y": _f(float(mse[1])),
+            "mse_theta": _f(float(mse[2])),
+            "anees": _f(anees),
+            "anees_band": [lo, hi],
+            "anees_verdict": _verdict(anees, lo, hi),
+            "nees_steps_in_band": in_band,
+            "anis": _f(anis),
+            "anis_band": [_f(nlo), _f(nhi)],
+            "anis_verdict": _verdict(anis, nlo, nhi) if nis_dof else "no readings",
+            "divergences": int(n_div),
+            "recovery": recovery,
+            "us_per_step": float(np.mean(us)),
+            "rmse_over_pcrb": _f(pos_rmse / b_pos) if b_pos > 0 else None,
+            "spread": {
+                "pos_rmse_m": {"mean": _f(float(np.nanmean(run_rmse))),
+                               "std": _f(float(np.nanstd(run_rmse))),
+                               "min": _f(float(np.nanmin(run_rmse))),
+                               "median": _f(float(np.nanmedian(run_rmse))),
+                               "max": _f(float(np.nanmax(run_rmse)))},
+                "us_per_step": {"min": float(np.min(us)), "max": float(np.max(us))},
+            },
+            "failed": failed,
+        }
+        with np.errstate(all="ignore"):
+            curves["filters"][name] = {
+                "rmse_t": np.sqrt(np.nanmean(pos2, axis=0)),
+                "nees_t": nees_t,
+                "err0": err[0],
+                "sigma0": np.sqrt(np.clip(var[0], 0.0, None)),
+                "means0": runs[0].filters[name].means,
+            }
+    checksum = hashlib.sha256("".join(r.truth_checksum for r in runs).encode()).hexdigest()[:16]
+    meta = {
+        "scenario": scenario.name,
+        "seed": runs[0].seed,
+        "runs": R,
+        "steps": T,
+        "dt": scenario.dt,
+        "truth_checksum": checksum,
+        "run_checksums": [r.truth_checksum for r in runs],
+        "pcrb": {"pos_rmse_m": b_pos, "heading_rmse_rad": b_head},
+        "thresholds": {"recovery_m": thresholds.recovery_m,
+                       "divergence_m": thresholds.divergence_m},
+        "filters": rows,
+    }
+    return meta, curves
