@@ -88,6 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--headless", action="store_true")
     p.add_argument("--json", action="store_true")
     p.add_argument("--duration", type=float, metavar="S", help="only the first S seconds")
+    p.add_argument("--calibrate", action="store_true",
+                   help="print the noise settings estimated from the data and stop")
 
     # --- new-filter (issue 8) ---
     p = sub.add_parser("new-filter", help="write a working, commented filter template")
