@@ -120,10 +120,10 @@ def test_stacked_update_equals_the_textbook_matrices(joseph):
     ids_b, ids_rb = [1, 2, 5], [3, 4]
     xy_b = np.array([BXY[i] for i in ids_b])
     xy_rb = np.array([BXY[i] for i in ids_rb])
-    true = pose + [0.2, -0.1, 0.15]
+    true = pose + np.array([0.2, -0.1, 0.15])
     zb = diff(mm.bearing(true, xy_b) + 0.03, 0.0)
-    zrb = mm.range_bearing(true, xy_rb) + [0.05, -0.02]
-    zp = true + [0.05, 0.0, 0.02]
+    zrb = mm.range_bearing(true, xy_rb) + np.array([0.05, -0.02])
+    zp = true + np.array([0.05, 0.0, 0.02])
     ms = [bearing(zb, ids_b), range_bearing(zrb, ids_rb), pose_fix(zp, 1)]
     f.update(ms)
     H = np.vstack([mm.bearing_jacobian(pose, xy_b), mm.range_bearing_jacobian(pose, xy_rb).reshape(-1, 3),

@@ -84,7 +84,7 @@ def test_ekf_equals_the_linear_kf_on_a_linear_problem():
     for k in range(40):
         c = Control(0.0, float(rng.normal(0, 0.5)))
         Q = context().motion_noise.process_cov(m, c.v, c.omega, 0.1)
-        m = m + [0.0, 0.0, 0.1 * c.omega]
+        m = m + np.array([0.0, 0.0, 0.1 * c.omega])
         m[2] = diff(m[2], 0.0)
         P = P + Q
         if k % 2 == 0:

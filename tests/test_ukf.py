@@ -80,7 +80,7 @@ def test_close_to_ekf_on_a_near_linear_problem():
     xy = np.array([[b[1], b[2]] for b in far])
     for _ in range(100):
         c = Control(0.5, 0.1)
-        truth = truth + [0.05 * math.cos(truth[2]), 0.05 * math.sin(truth[2]), 0.01]
+        truth = truth + np.array([0.05 * math.cos(truth[2]), 0.05 * math.sin(truth[2]), 0.01])
         z = diff(mm.bearing(truth, xy) + rng.normal(0, 0.05, 4), 0.0)
         for f in (u, e):
             f.predict(c, 0.1)
