@@ -1,0 +1,83 @@
+"""``beacon-sim export``: a recording as arrays (.npz) or CSV, round-tripping exactly."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from beacon_sim.cli import main
+from beacon_sim.recording import load_recording
+from beacon_sim.replay import csv_paths
+from tests.test_recording import SCENARIO, live_run
+
+
+@pytest.fixture
+def recorded(tmp_path):
+    p = tmp_path / "rec_test.toml"
+    p.write_text(SCENARIO)
+    out = tmp_path / "run.jsonl"
+    steps, _, _, _ = live_run(p, out, ticks=160)
+    return out, steps
+
+
+def test_npz_round_trip(recorded, tmp_path):
+    rec_path, steps = recorded
+    out = tmp_path / "trace.npz"
+    assert main(["export", str(rec_path), "--out", str(out)]) == 0
+    with np.load(out, allow_pickle=False) as z:  # plain arrays, no pickled objects
+        a = {k: z[k] for k in z.files}
+    recording = load_recording(rec_path)
+    assert a["truth"].shape == (161, 3)
+    np.testing.assert_array_equal(a["truth"][0], recording.scenario.initial_pose)
+    np.testing.assert_array_equal(a["truth"][1:], np.array([s.true_pose for s in steps]))
+    np.testing.assert_array_equal(a["control"], [[s.control.v, s.control.omega] for s in steps])
+    np.testing.assert_allclose(a["truth_time"], np.arange(161) * 0.1)
+    # every reading comes back in its row
+    for s in steps:
+        rows = a["meas_tick"] == s.tick
+        want = [r for m in s.measurements for r in m.z]
+        ids = [i for m in s.measurements for i in m.beacon_ids]
+        assert rows.sum() == len(want)
+        if want:
+            np.testing.assert_array_equal(a["meas_z"][rows][:, :2], np.array(want))
+            assert np.isnan(a["meas_z"][rows][:, 2]).all()
+            np.testing.assert_array_equal(a["meas_beacon_id"][rows], ids)
+            assert set(a["meas_kind"][rows]) == {"range_bearing"}
+    # events: the scheduled kidnap (12 s) and the two user kidnaps (ticks 40, 130)
+    assert sorted(a["event_tick"].tolist()) == [40, 120, 130]
+    i = int(np.flatnonzero(a["event_tick"] == 40)[0])
+    np.testing.assert_array_equal(a["event_pose_after"][i], [3.0, 7.0, -2.5])
+    assert [json.loads(c)["kind"] for c in a["command_json"]] == ["kidnap", "reset", "kidnap", "toggle"]
+    assert json.loads(str(a["header_json"]))["seed"] == 11
+
+
+def test_csv_round_trip(recorded, tmp_path):
+    rec_path, steps = recorded
+    out = tmp_path / "trace.csv"
+    assert main(["export", str(rec_path), "--out", str(out)]) == 0
+    paths = csv_paths(out)
+    with paths["ticks"].open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 161
+    got = np.array([[float(r["x_m"]), float(r["y_m"]), float(r["theta_rad"])] for r in rows[1:]])
+    np.testing.assert_array_equal(got, np.array([s.true_pose for s in steps]))  # repr is exact
+    assert [float(r["v_mps"]) for r in rows[1:]] == [s.control.v for s in steps]
+    with paths["measurements"].open() as f:
+        meas = list(csv.DictReader(f))
+    assert len(meas) == sum(len(m) for s in steps for m in s.measurements)
+    first = next(s for s in steps if s.measurements)
+    m = first.measurements[0]
+    assert int(meas[0]["tick"]) == first.tick and int(meas[0]["beacon_id"]) == int(m.beacon_ids[0])
+    assert float(meas[0]["z0"]) == m.z[0, 0] and float(meas[0]["z1"]) == m.z[0, 1]
+    with paths["events"].open() as f:
+        events = list(csv.DictReader(f))
+    assert [int(e["tick"]) for e in events] == [40, 120, 130]
+
+
+def test_export_rejects_unknown_suffix(recorded, tmp_path, capsys):
+    rec_path, _ = recorded
+    assert main(["export", str(rec_path), "--out", str(tmp_path / "x.txt")]) == 2
+    assert ".npz or .csv" in capsys.readouterr().err

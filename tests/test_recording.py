@@ -1,0 +1,261 @@
+"""Recording: written as the run goes, read back without executing anything, replayed bit
+for bit; cut files, bad headers and tampered ticks give clear answers."""
+
+from __future__ import annotations
+
+import datetime
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.types import Control
+from beacon_sim.filters.loading import build_filter
+from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.recording import (
+    FORMAT_VERSION,
+    Recorder,
+    RecordingError,
+    default_recording_path,
+    load_recording,
+)
+from beacon_sim.replay import ReplayMismatch, replay_recording
+from beacon_sim.user_commands import apply_commands
+
+SCENARIO = """
+name = "rec_test"
+dt = 0.1
+duration = 30.0
+seed = 3
+default_filters = ["ekf", "dead_reckoning"]
+
+[world]
+bounds = [0.0, 0.0, 10.0, 10.0]
+beacons = [{ id = 1, x = 2.0, y = 2.0 }, { id = 2, x = 8.0, y = 2.0 }, { id = 3, x = 5.0, y = 8.0 }]
+
+[robot]
+initial_pose = [5.0, 5.0, 0.0]
+motion_noise = { v_std = 0.02, omega_std = 0.03, v_frac = 0.05 }
+
+[[sensors]]
+name = "rb"
+kind = "range_bearing"
+period = 0.2
+max_range = 6.0
+detection_prob = 0.8
+range_std = 0.1
+bearing_std = 0.05
+
+[driver]
+kind = "circle"
+radius = 2.0
+speed = 0.3
+
+[[events]]
+kind = "kidnap"
+time = 12.0
+offset = [1.0, -0.5, 0.3]
+"""
+
+
+@pytest.fixture
+def scenario_file(tmp_path) -> Path:
+    p = tmp_path / "rec_test.toml"
+    p.write_text(SCENARIO)
+    return p
+
+
+def live_run(scenario_file: Path, out: Path, ticks: int = 200, seed: int = 11,
+             filters=("ekf", "dead_reckoning"), close: bool = True):
+    """Play a session the way the window does: keyboard-like controls, user commands,
+    recorder called before each step. Returns the live steps, runner and recorder."""
+    sc = load_scenario(scenario_file)
+    sim = Simulation(sc, seed)
+    built = {f: build_filter(f, sc, seed, name=f) for f in filters}
+    runner = FilterRunner(built)
+    rec = Recorder(out, sc, seed, list(filters), {})
+    rng = np.random.default_rng(5)  # the "user" at the keyboard
+    commands = {40: [{"kind": "kidnap", "pose": [3.0, 7.0, -2.5]}], 90: [{"kind": "reset"}],
+                130: [{"kind": "kidnap"}], 150: [{"kind": "toggle", "filter": "ekf"}]}
+    steps = []
+    for tick in range(1, ticks + 1):
+        control = Control(float(rng.uniform(-0.2, 0.8)), float(rng.uniform(-1, 1)))
+        cmds = commands.get(tick, [])
+        rec.record_tick(tick, control, cmds)
+        apply_commands(cmds, sim, built, sc)
+        step = sim.step(control)
+        runner.feed(step)
+        steps.append(step)
+    if close:
+        rec.close()
+    return steps, runner, rec, sim
+
+
+def truth(steps) -> np.ndarray:
+    return np.array([s.true_pose for s in steps])
+
+
+def test_record_then_replay_is_bit_for_bit(scenario_file, tmp_path):
+    out = tmp_path / "run.jsonl"
+    steps, runner, rec, sim = live_run(scenario_file, out)
+    assert rec.truth_checksum == sim.truth_checksum
+    recording = load_recording(out)
+    assert recording.complete and not recording.warnings
+    res = replay_recording(recording)
+    assert res.truth_checksum == sim.truth_checksum
+    assert res.extra["replay"]["checksum_status"] == "verified"
+    np.testing.assert_array_equal(truth(res.steps), truth(steps))  # exact, not approximate
+    for name in ("ekf", "dead_reckoning"):
+        live, again = runner.tracks[name], res.runner.tracks[name]
+        assert live.ticks == again.ticks
+        np.testing.assert_array_equal(np.array(again.means), np.array(live.means))
+        np.testing.assert_array_equal(np.array(again.covs), np.array(live.covs))
+    # the user's kidnap to a pose really happened on tick 40, and was replayed
+    np.testing.assert_array_equal(res.steps[39].true_pose, [3.0, 7.0, -2.5])
+    # measurements too
+    for a, b in zip(steps, res.steps, strict=True):
+        assert len(a.measurements) == len(b.measurements)
+        for ma, mb in zip(a.measurements, b.measurements, strict=True):
+            np.testing.assert_array_equal(ma.z, mb.z)
+
+
+def test_replay_with_another_filter_keeps_the_truth(scenario_file, tmp_path):
+    out = tmp_path / "run.jsonl"
+    steps, _, _, sim = live_run(scenario_file, out)
+    res = replay_recording(load_recording(out), filters=["ukf"])
+    assert list(res.runner.tracks) == ["ukf"]
+    assert res.truth_checksum == sim.truth_checksum
+    np.testing.assert_array_equal(truth(res.steps), truth(steps))
+    assert len(res.runner.tracks["ukf"].means) == len(steps)
+
+
+def test_recording_cut_at_random_bytes_replays_to_last_complete_tick(scenario_file, tmp_path):
+    out = tmp_path / "run.jsonl"
+    steps, _, _, _ = live_run(scenario_file, out)
+    data = out.read_bytes()
+    header_end = data.index(b"\n") + 1
+    rng = np.random.default_rng(2024)
+    for cut in rng.integers(header_end + 1, len(data) - 1, size=6):
+        part = tmp_path / f"cut{cut}.jsonl"
+        part.write_bytes(data[:cut])
+        complete_lines = data[:cut].split(b"\n")[:-1]  # the text after the last newline is partial
+        n_ticks = sum(1 for ln in complete_lines if json.loads(ln).get("type") == "tick")
+        recording = load_recording(part)
+        assert not recording.complete
+        assert any("no end line" in w for w in recording.warnings)
+        if not data[:cut].endswith(b"\n"):
+            assert any("incomplete last line" in w for w in recording.warnings)
+        res = replay_recording(recording)
+        assert len(res.steps) == n_ticks
+        np.testing.assert_array_equal(truth(res.steps).reshape(-1, 3), truth(steps[:n_ticks]).reshape(-1, 3))
+
+
+def test_a_killed_run_leaves_at_most_one_second_unwritten(scenario_file, tmp_path):
+    """Read the file while the recorder is still open (as after a kill -9: whatever was
+    flushed is on disk, nothing else)."""
+    out = tmp_path / "run.jsonl"
+    _, _, rec, _ = live_run(scenario_file, out, ticks=137, close=False)
+    on_disk = load_recording(out)
+    dt = on_disk.scenario.dt
+    assert (137 - len(on_disk.ticks)) * dt <= 1.0
+    assert len(on_disk.ticks) >= 1
+    replay_recording(on_disk)  # and what is there replays, checked tick by tick
+    rec.close()
+
+
+def test_header_holds_what_replay_needs(scenario_file, tmp_path):
+    out = tmp_path / "run.jsonl"
+    live_run(scenario_file, out, ticks=5)
+    header = json.loads(out.read_text().splitlines()[0])
+    assert header["version"] == FORMAT_VERSION
+    assert header["scenario_toml"] == SCENARIO
+    assert header["seed"] == 11 and header["dt"] == 0.1
+    assert header["filters"] == ["ekf", "dead_reckoning"]
+    lines = [json.loads(x) for x in out.read_text().splitlines()[1:]]
+    assert [x["type"] for x in lines[-1:]] == ["end"]
+
+
+@pytest.mark.parametrize("first_line, message", [
+    ('{"type": "header", "format": "beacon-sim-recording", "version": 99}', "version 99"),
+    ('{"type": "header", "format": "beacon-sim-rec', "corrupted header"),
+    ('not json at all', "corrupted header"),
+    ('{"type": "tick", "k": 1, "u": [0, 0]}', "not a beacon-sim recording"),
+])
+def test_bad_header_is_a_clear_error(scenario_file, tmp_path, first_line, message):
+    out = tmp_path / "run.jsonl"
+    live_run(scenario_file, out, ticks=5)
+    lines = out.read_text().splitlines(keepends=True)
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(first_line + "\n" + "".join(lines[1:]))
+    with pytest.raises(RecordingError, match=message) as info:
+        load_recording(bad)
+    assert str(bad) in str(info.value) and ":1:" in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_header_missing_a_field_is_corrupted(scenario_file, tmp_path):
+    out = tmp_path / "run.jsonl"
+    live_run(scenario_file, out, ticks=5)
+    lines = out.read_text().splitlines(keepends=True)
+    header = json.loads(lines[0])
+    del header["seed"]
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(json.dumps(header) + "\n" + "".join(lines[1:]))
+    with pytest.raises(RecordingError, match="corrupted header: seed"):
+        load_recording(bad)
+
+
+def test_tampered_tick_names_the_first_tick_that_differs(scenario_file, tmp_path):
+    out = tmp_path / "run.jsonl"
+    live_run(scenario_file, out, ticks=60)
+    lines = out.read_text().splitlines(keepends=True)
+    for i, ln in enumerate(lines):
+        obj = json.loads(ln)
+        if obj.get("type") == "tick" and obj["k"] == 23:
+            obj["u"][0] += 1e-9  # one bit of difference is enough
+            lines[i] = json.dumps(obj) + "\n"
+    bad = tmp_path / "tampered.jsonl"
+    bad.write_text("".join(lines))
+    with pytest.raises(ReplayMismatch, match="at tick 23 "):
+        replay_recording(load_recording(bad))
+
+
+def test_recorded_code_is_never_run(scenario_file, tmp_path):
+    """A recording naming a filter file does not make replay import it."""
+    marker = tmp_path / "ran.txt"
+    evil = tmp_path / "evil.py"
+    evil.write_text(f"open({str(marker)!r}, 'w').write('x')\nclass F: pass\n")
+    out = tmp_path / "run.jsonl"
+    sc = load_scenario(scenario_file)
+    with Recorder(out, sc, 1, ["dead_reckoning", f"{evil}:F"], {}) as rec:
+        for k in range(1, 11):
+            rec.record_tick(k, Control(0.1, 0.0), [])
+    res = replay_recording(load_recording(out))
+    assert list(res.runner.tracks) == ["dead_reckoning"]
+    assert res.extra["replay"]["skipped_filters"] == [f"{evil}:F"]
+    assert not marker.exists()
+
+
+def test_driver_controls_are_recorded_when_control_is_none(scenario_file, tmp_path):
+    sc = load_scenario(scenario_file)
+    sim = Simulation(sc, 4)
+    out = tmp_path / "run.jsonl"
+    with Recorder(out, sc, 4, [], {}) as rec:
+        for k in range(1, 51):
+            rec.record_tick(k, None, [])
+            sim.step()
+    res = replay_recording(load_recording(out), filters=[])
+    assert res.truth_checksum == sim.truth_checksum
+
+
+def test_default_recording_path(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    when = datetime.datetime(2025, 3, 4, 5, 6, 7)
+    p = default_recording_path("my scenario", when)
+    assert p == Path("recordings/my_scenario_20250304-050607.jsonl")
+    p.parent.mkdir()
+    p.write_text("")
+    assert default_recording_path("my scenario", when) == Path("recordings/my_scenario_20250304-050607-2.jsonl")
