@@ -7,11 +7,11 @@ import json
 
 import numpy as np
 import pytest
+from test_recording import SCENARIO, live_run
 
 from beacon_sim.cli import main
 from beacon_sim.recording import load_recording
 from beacon_sim.replay import csv_paths
-from tests.test_recording import SCENARIO, live_run
 
 
 @pytest.fixture

@@ -258,4 +258,5 @@ def test_default_recording_path(tmp_path, monkeypatch):
     assert p == Path("recordings/my_scenario_20250304-050607.jsonl")
     p.parent.mkdir()
     p.write_text("")
-    assert default_recording_path("my scenario", when) == Path("recordings/my_scenario_20250304-050607-2.jsonl")
+    again = default_recording_path("my scenario", when)
+    assert again == Path("recordings/my_scenario_20250304-050607-2.jsonl")

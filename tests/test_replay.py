@@ -6,12 +6,12 @@ import json
 
 import numpy as np
 import pytest
+from test_recording import SCENARIO, live_run
 
 from beacon_sim.cli import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.headless import run_headless
 from beacon_sim.recording import Recorder
-from tests.test_recording import SCENARIO, live_run
 
 
 @pytest.fixture
