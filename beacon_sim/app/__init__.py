@@ -1,0 +1,1 @@
+"""The interactive simulator window (the only package that imports pygame)."""

@@ -1,0 +1,120 @@
+"""The ONE table of key and mouse bindings: the event handler and the help overlay both
+read it, so the help can never disagree with what the keys do.
+
+``actions_for_event(event)`` turns a pygame event into action names; the window decides
+what each action does. Driving keys (W/S/A/D) repeat while held; the others fire once per
+press.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pygame
+
+
+@dataclass(frozen=True)
+class Binding:
+    """One line of the help: ``keys`` as shown, the pygame key codes, the action, a text.
+
+    ``action`` names ending in ``*`` take the filter number from the key (1-9).
+    Mouse bindings have no key codes; the handler matches them by action name.
+    """
+
+    keys: str
+    codes: tuple[int, ...]
+    action: str
+    description: str
+    repeat: bool = False
+    group: str = "Drive"
+    button: int = 0  # mouse button (1 left, 3 right, 4 wheel) for mouse bindings
+
+
+def _k(*names: str) -> tuple[int, ...]:
+    return tuple(getattr(pygame, n) for n in names)
+
+
+FILTER_KEYS = _k("K_1", "K_2", "K_3", "K_4", "K_5", "K_6", "K_7", "K_8", "K_9")
+
+BINDINGS: tuple[Binding, ...] = (
+    Binding("W / Up", _k("K_w", "K_UP"), "faster", "speed v up one step (held: repeats)", True),
+    Binding("S / Down", _k("K_s", "K_DOWN"), "slower", "speed v down one step / reverse", True),
+    Binding("A / Left", _k("K_a", "K_LEFT"), "left", "steer left (omega up one step)", True),
+    Binding("D / Right", _k("K_d", "K_RIGHT"), "right", "steer right (omega down one step)", True),
+    Binding("X", _k("K_x"), "stop", "stop: v = omega = 0"),
+    Binding("M", _k("K_m"), "autopilot", "autopilot: the scenario's driver on / off"),
+    Binding("Space", _k("K_SPACE"), "pause", "pause / run", group="Time"),
+    Binding(".", _k("K_PERIOD"), "step", "one tick while paused", group="Time"),
+    Binding("+", _k("K_PLUS", "K_EQUALS", "K_KP_PLUS"), "speed_up",
+            "faster simulation (up to x8)", group="Time"),
+    Binding("-", _k("K_MINUS", "K_KP_MINUS"), "speed_down", "slower simulation (down to x0.25)",
+            group="Time"),
+    Binding("K", _k("K_k"), "kidnap_random", "kidnap the robot to a random pose", group="World"),
+    Binding("Left click", (), "kidnap_click", "kidnap to that point (drag: heading)",
+            group="World", button=1),
+    Binding("R", _k("K_r"), "reset", "filters back to the initial belief", group="Filters"),
+    Binding("G", _k("K_g"), "global_reset", "global (uniform) belief where possible",
+            group="Filters"),
+    Binding("1-9", FILTER_KEYS, "toggle*", "show / hide filter 1-9", group="Filters"),
+    Binding("P", _k("K_p"), "particles", "particles on / off", group="Show"),
+    Binding("T", _k("K_t"), "trails", "trails on / off", group="Show"),
+    Binding("E", _k("K_e"), "ellipses", "95 % ellipses and heading wedges on / off",
+            group="Show"),
+    Binding("Wheel", (), "zoom", "zoom at the mouse", group="View", button=4),
+    Binding("Right drag", (), "pan", "pan the view", group="View", button=3),
+    Binding("F", _k("K_f"), "fit", "fit the world to the window", group="View"),
+    Binding("F12", _k("K_F12"), "screenshot", "save a screenshot (PNG)", group="View"),
+    Binding("H / F1", _k("K_h", "K_F1"), "help", "this help on / off", group="View"),
+    Binding("Esc / Q", _k("K_ESCAPE", "K_q"), "quit", "quit", group="View"),
+)
+
+
+_BY_CODE: dict[int, Binding] = {}
+for _b in BINDINGS:
+    for _c in _b.codes:
+        _BY_CODE.setdefault(_c, _b)
+
+
+def binding_for_key(code: int) -> Binding | None:
+    return _BY_CODE.get(code)
+
+
+def mouse_action(button: int) -> str | None:
+    """The action of a mouse button (1 left, 3 right) in the table, or None."""
+    for b in BINDINGS:
+        if b.button == button:
+            return b.action
+    return None
+
+
+class KeyHandler:
+    """Key events -> actions, with repeat only for the bindings that allow it.
+
+    pygame's key repeat sends repeated KEYDOWN events while a key is held; a key whose
+    binding does not repeat is ignored until its KEYUP.
+    """
+
+    def __init__(self) -> None:
+        self._held: set[int] = set()
+
+    def actions(self, event) -> list[str]:
+        """Action names for one pygame event (``toggle3`` for the key 3)."""
+        if event.type == pygame.KEYUP:
+            self._held.discard(event.key)
+            return []
+        if event.type != pygame.KEYDOWN:
+            return []
+        b = binding_for_key(event.key)
+        if b is None:
+            return []
+        if event.key in self._held and not b.repeat:
+            return []
+        self._held.add(event.key)
+        if b.action.endswith("*"):
+            return [b.action[:-1] + str(FILTER_KEYS.index(event.key) + 1)]
+        return [b.action]
+
+
+def help_lines() -> list[tuple[str, str, str]]:
+    """``(group, keys, description)`` for every binding the overlay lists, in table order."""
+    return [(b.group, b.keys, b.description) for b in BINDINGS]

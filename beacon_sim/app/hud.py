@@ -1,0 +1,191 @@
+"""The side panel (time, command, beacons in view, per-filter errors and NEES, legend),
+the kidnap banner and the help overlay (generated from ``controls.BINDINGS``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pygame
+
+from beacon_sim.app import controls, palette
+from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2
+from beacon_sim.app.session import NEES_BAND
+
+
+def wrap_text(font: pygame.font.Font, text: str, width: int) -> list[str]:
+    """Greedy word wrap to ``width`` pixels."""
+    lines: list[str] = []
+    line = ""
+    for word in text.split():
+        trial = f"{line} {word}".strip()
+        if line and font.size(trial)[0] > width:
+            lines.append(line)
+            line = word
+        else:
+            line = trial
+    if line:
+        lines.append(line)
+    return lines
+
+
+class Hud:
+    """Draws the panel, banner and help; remembers the help lines it drew (for tests)."""
+
+    def __init__(self, fonts: dict[str, pygame.font.Font]):
+        self.fonts = fonts
+        self.help_drawn: list[tuple[str, str]] = []
+
+    def _blit(self, surf, text: str, font: str, colour, at, bg=None) -> pygame.Rect:
+        img = self.fonts[font].render(text, True, colour)
+        r = img.get_rect(topleft=(int(at[0]), int(at[1])))
+        if bg is not None:
+            surf.fill(bg, r.inflate(8, 2))
+        surf.blit(img, r)
+        return r
+
+    def panel(self, surf, rect: pygame.Rect, session, colours, info: dict) -> None:
+        """The side panel. ``info``: speed, paused, fps, recording (path or None), message."""
+        surf.fill(palette.PANEL, rect)
+        pygame.draw.line(surf, palette.PANEL_EDGE, rect.topleft, rect.bottomleft, 3)
+        x = rect.left + 16
+        w = rect.width - 28
+        y = rect.top + 10
+        f = self.fonts
+        lh = f["hud"].get_linesize()
+        sc = session.scenario
+        self._blit(surf, sc.name, "title", palette.TEXT, (x, y))
+        y += f["title"].get_linesize() + 2
+        state = "PAUSED" if info.get("paused") else "running"
+        speed = info.get("speed", 1.0)
+        self._blit(surf, f"t = {session.sim.time:7.2f} s", "hud", palette.TEXT, (x, y))
+        self._blit(surf, f"x{speed:g}  {state}", "hud",
+                   palette.WARN if info.get("paused") else palette.TEXT, (x + int(w * 0.55), y))
+        y += lh
+        c = session.next_control()
+        self._blit(surf, f"v = {c.v:+.2f} m/s", "hud", palette.TEXT, (x, y))
+        y += lh
+        self._blit(surf, f"omega = {c.omega:+.2f} rad/s", "hud", palette.TEXT, (x, y))
+        y += lh
+        mode = "AUTOPILOT (M)" if session.autopilot else "keyboard WASD, X stop"
+        self._blit(surf, mode, "small", palette.TEXT_DIM, (x, y))
+        y += f["small"].get_linesize()
+        seen = sorted(session.seen_ids())
+        ids = ", ".join(map(str, seen)) if seen else "none"
+        self._blit(surf, f"beacons in view: {len(seen)}", "hud",
+                   palette.WARN if not seen else palette.TEXT, (x, y))
+        y += lh
+        self._blit(surf, f"  IDs {ids}", "small", palette.TEXT_DIM, (x, y))
+        y += f["small"].get_linesize() + 6
+        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
+        y += 8
+
+        for i, name in enumerate(session.names):
+            st = session.status[name]
+            visible = session.visible[name]
+            colour = colours[name]
+            sw = pygame.Rect(x, y + 4, 26, lh - 8)
+            if visible:
+                surf.fill(colour, sw)
+            pygame.draw.rect(surf, colour, sw, 3)
+            label = f"{i + 1}  {name}" + ("" if visible else "  (hidden)")
+            self._blit(surf, label, "hud", palette.TEXT if visible else palette.TEXT_DIM,
+                       (x + 36, y))
+            y += lh
+            if st.failed:
+                for line in wrap_text(f["small"], "FAILED: " + st.failed, w - 10)[:4]:
+                    self._blit(surf, line, "small", palette.WARN, (x + 10, y))
+                    y += f["small"].get_linesize()
+                y += 4
+                continue
+            if math.isfinite(st.pos_err):
+                deg = math.degrees(st.heading_err)
+                self._blit(surf, f"err {st.pos_err:5.2f} m {deg:+6.1f} deg", "small", palette.TEXT,
+                           (x + 10, y))
+                nees = "inf" if math.isinf(st.nees) else f"{st.nees:.1f}"
+                out = st.nees_out_of_band
+                self._blit(surf, f"NEES {nees}", "small", palette.BANNER_TEXT if out else palette.TEXT,
+                           (x + int(w * 0.66), y), bg=palette.WARN if out else None)
+                y += f["small"].get_linesize() + 4
+            else:
+                y += 4
+
+        # Legend: what the shapes mean.
+        y = max(y + 6, rect.bottom - 7 * f["small"].get_linesize() - 10)
+        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
+        y += 6
+        legend = [
+            f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 2 dof = {ELLIPSE_SCALE2:.2f})",
+            "wedge: heading +-2 sigma",
+            f"NEES band 95 %: {NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}",
+            "black: true robot and path",
+        ]
+        for line in legend:
+            self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))
+            y += f["small"].get_linesize()
+        rec = info.get("recording")
+        status = f"FPS {info.get('fps', 0):4.0f}   " + (f"REC {rec}" if rec else "not recording")
+        self._blit(surf, status, "small", palette.TEXT_DIM, (x, y))
+        y += f["small"].get_linesize()
+        self._blit(surf, "H: help    Esc: quit", "small", palette.TEXT, (x, y))
+
+    def banner(self, surf, area: pygame.Rect, text: str) -> None:
+        """A large message across the top of the world view (kidnap, screenshot saved)."""
+        img = self.fonts["banner"].render(text, True, palette.BANNER_TEXT)
+        r = img.get_rect(midtop=(area.centerx, area.top + 14))
+        box = r.inflate(36, 16)
+        pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)
+        pygame.draw.rect(surf, palette.TEXT, box, 3, border_radius=10)
+        surf.blit(img, r)
+
+    def help(self, surf) -> None:
+        """Every binding of ``controls.BINDINGS``, grouped, over a dark translucent box."""
+        W, H = surf.get_size()
+        f = self.fonts
+        lines = controls.help_lines()
+        groups: list[tuple[str, list[tuple[str, str]]]] = []
+        for group, keys, desc in lines:
+            if not groups or groups[-1][0] != group:
+                groups.append((group, []))
+            groups[-1][1].append((keys, desc))
+        lh = f["hud"].get_linesize()
+        total = sum(len(g[1]) + 1.4 for g in groups)
+        ncol = 1 if total * lh + 120 < H else 2
+        col_w = min((W - 80) // ncol, 640)
+        key_w = max(f["hud"].size(k)[0] for _, k, _ in lines) + 24
+        per_col = math.ceil(total / ncol)
+        height = int(per_col * lh + 110)
+        box = pygame.Rect(0, 0, col_w * ncol + 40, min(height, H - 20))
+        box.center = (W // 2, H // 2)
+        shade = pygame.Surface(box.size, pygame.SRCALPHA)
+        shade.fill((*palette.OVERLAY_BG, 235))
+        surf.blit(shade, box)
+        pygame.draw.rect(surf, palette.OVERLAY_KEY, box, 3, border_radius=6)
+        self._blit(surf, "Keys and mouse  (H or F1 closes)", "title", palette.OVERLAY_TEXT,
+                   (box.left + 20, box.top + 12))
+        self.help_drawn = []
+        col, used = 0, 0.0
+        y0 = box.top + 12 + f["title"].get_linesize() + 10
+        y = y0
+        for group, rows in groups:
+            if ncol > 1 and col == 0 and used + len(rows) + 1.4 > per_col + 0.5:
+                col, y = 1, y0
+            x = box.left + 20 + col * col_w
+            self._blit(surf, group, "small", palette.OVERLAY_KEY, (x, y + 4))
+            y += int(lh * 1.1)
+            used += 1.4
+            for keys, desc in rows:
+                self._blit(surf, keys, "hud", palette.OVERLAY_KEY, (x, y))
+                self._blit(surf, desc, "hud", palette.OVERLAY_TEXT, (x + key_w, y))
+                self.help_drawn.append((keys, desc))
+                y += lh
+                used += 1
+            y += int(lh * 0.3)
+
+
+def fps_of(frame_times: np.ndarray) -> float:
+    """Frames per second from recent frame durations [s]."""
+    if not len(frame_times):
+        return 0.0
+    m = float(np.mean(frame_times))
+    return 1.0 / m if m > 0 else 0.0

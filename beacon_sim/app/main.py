@@ -1,0 +1,307 @@
+"""``beacon-sim play``: the window. Drive with WASDX and watch every filter's belief live.
+
+The frame: events -> actions (from the one table in ``controls``) -> as many fixed
+simulation ticks as the clock allows (``loop.StepClock``) -> draw the world and the HUD.
+With ``--frames N`` each frame counts as exactly 1/60 s and nothing waits, so a scripted
+session (and its screenshot) is the same on every machine.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import pygame
+
+from beacon_sim.app import controls
+from beacon_sim.app.hud import Hud, fps_of
+from beacon_sim.app.loop import StepClock
+from beacon_sim.app.render import ShowOptions, View, WorldRenderer
+from beacon_sim.app.session import Session, make_recorder
+
+#: Frame time a scripted (``--frames``) session pretends each frame took [s].
+SCRIPTED_FRAME_S = 1.0 / 60.0
+BANNER_S = 2.5
+DRIVE_KEYS = {"faster": "w", "slower": "s", "left": "a", "right": "d", "stop": "x"}
+
+
+def make_fonts(height: int) -> dict[str, pygame.font.Font]:
+    """pygame's default font at sizes readable on a projector (scaled a little with the
+    window height, never below the sizes for 800 px)."""
+    k = max(height / 800.0, 1.0)
+    sizes = {"title": 40, "hud": 34, "small": 28, "label": 32, "banner": 50}
+    return {name: pygame.font.Font(None, round(s * k)) for name, s in sizes.items()}
+
+
+class App:
+    """The window around a :class:`Session`.
+
+    Parameters
+    ----------
+    session : Session
+    size : (int, int)
+        Initial window size in pixels.
+    scripted : bool
+        Each frame counts as ``SCRIPTED_FRAME_S`` and the loop does not wait (for
+        ``--frames``, tests and benchmarks).
+    """
+
+    def __init__(self, session: Session, size=(1280, 800), scripted: bool = False,
+                 recording: Path | None = None):
+        self.session = session
+        self.scripted = scripted
+        self.recording = recording
+        pygame.display.init()
+        pygame.font.init()
+        self.screen = pygame.display.set_mode(size, pygame.RESIZABLE)
+        pygame.display.set_caption(f"beacon-sim: {session.scenario.name}")
+        pygame.key.set_repeat(300, 50)
+        from beacon_sim.app.palette import filter_colours
+
+        self.colours = filter_colours(session.names)
+        self.clock = StepClock(session.scenario.dt)
+        self.show = ShowOptions()
+        self.keys = controls.KeyHandler()
+        self.help = False
+        self.running = True
+        self.frames = 0
+        self.banner_text = ""
+        self.banner_until = -1.0
+        self.now = 0.0  # real (or scripted) seconds since start
+        self.frame_times: deque[float] = deque(maxlen=60)
+        self.drag_start: tuple[int, int] | None = None
+        self.pan_from: tuple[int, int] | None = None
+        self._layout(self.screen.get_size())
+
+    # --- layout ---------------------------------------------------------------------------
+    def _layout(self, size) -> None:
+        W, H = size
+        self.fonts = make_fonts(H)
+        self.renderer = WorldRenderer(self.fonts)
+        self.hud = Hud(self.fonts)
+        pw = int(min(max(W * 0.3, 360), 480))
+        self.panel_rect = pygame.Rect(W - pw, 0, pw, H)
+        area = (0, 0, W - pw, H)
+        if hasattr(self, "view"):
+            self.view.set_area(area)
+        else:
+            self.view = View(self.session.scenario.world.bounds, area)
+
+    # --- events ---------------------------------------------------------------------------
+    def handle(self, event) -> None:
+        """One pygame event: keys through the binding table, the mouse, window changes."""
+        if event.type == pygame.QUIT:
+            self.running = False
+        elif event.type in (pygame.KEYDOWN, pygame.KEYUP):
+            for action in self.keys.actions(event):
+                self.act(action)
+        elif event.type == pygame.MOUSEBUTTONDOWN:
+            action = controls.mouse_action(event.button)
+            if action == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos):
+                self.drag_start = event.pos
+            elif action == "pan":
+                self.pan_from = event.pos
+        elif event.type == pygame.MOUSEBUTTONUP:
+            action = controls.mouse_action(event.button)
+            if action == "kidnap_click" and self.drag_start is not None:
+                self.kidnap_at(self.drag_start, event.pos)
+                self.drag_start = None
+            elif action == "pan":
+                self.pan_from = None
+        elif event.type == pygame.MOUSEMOTION and self.pan_from is not None:
+            self.view.pan(event.pos[0] - self.pan_from[0], event.pos[1] - self.pan_from[1])
+            self.pan_from = event.pos
+        elif event.type == pygame.MOUSEWHEEL:
+            self.view.zoom(1.15 ** event.y, pygame.mouse.get_pos())
+        elif event.type in (pygame.VIDEORESIZE, pygame.WINDOWSIZECHANGED):
+            self.screen = pygame.display.get_surface()
+            self._layout(self.screen.get_size())
+
+    def act(self, action: str) -> None:
+        """Do one action of the binding table."""
+        s = self.session
+        if action in DRIVE_KEYS:
+            s.drive(DRIVE_KEYS[action])
+        elif action == "autopilot":
+            s.toggle_autopilot()
+            if not s.has_autopilot:
+                self.flash("this scenario has no autopilot")
+        elif action == "pause":
+            self.clock.toggle_pause()
+        elif action == "step":
+            self.clock.single_step()
+        elif action == "speed_up":
+            self.clock.faster()
+        elif action == "speed_down":
+            self.clock.slower()
+        elif action == "kidnap_random":
+            s.command({"kind": "kidnap"})
+        elif action in ("reset", "global_reset"):
+            s.command({"kind": action})
+            self.flash("filters reset" if action == "reset" else "global belief")
+        elif action.startswith("toggle"):
+            i = int(action[len("toggle"):]) - 1
+            if i < len(s.names):
+                s.command({"kind": "toggle", "filter": s.names[i]})
+        elif action == "particles":
+            self.show.particles = not self.show.particles
+        elif action == "trails":
+            self.show.trails = not self.show.trails
+        elif action == "ellipses":
+            self.show.ellipses = not self.show.ellipses
+        elif action == "fit":
+            self.view.fit()
+        elif action == "screenshot":
+            path = Path(time.strftime("beacon-sim-%Y%m%d-%H%M%S.png"))
+            self.save_screenshot(path)
+            self.flash(f"saved {path}")
+        elif action == "help":
+            self.help = not self.help
+        elif action == "quit":
+            self.running = False
+        else:
+            raise ValueError(f"no handler for the action {action!r}")
+
+    def kidnap_at(self, start_px, end_px) -> None:
+        """Left click: kidnap to the clicked point; a drag sets the heading (else keep it)."""
+        xy = self.view.to_world(np.asarray(start_px, dtype=float))
+        dx, dy = end_px[0] - start_px[0], end_px[1] - start_px[1]
+        theta = math.atan2(-dy, dx) if math.hypot(dx, dy) > 8 else float(self.session.sim.pose[2])
+        self.session.command({"kind": "kidnap", "pose": [float(xy[0]), float(xy[1]), theta]})
+
+    def flash(self, text: str) -> None:
+        self.banner_text = text
+        self.banner_until = self.now + BANNER_S
+
+    # --- the frame ------------------------------------------------------------------------
+    def frame(self, real_dt: float) -> None:
+        """Handle events, run the simulation ticks due, draw."""
+        self.now += real_dt
+        for event in pygame.event.get():
+            self.handle(event)
+        # A filter object may be swapped here, between frames (hot reload): see swap_filter.
+        for _ in range(self.clock.advance(real_dt)):
+            step = self.session.tick()
+            for ev in step.events:
+                if ev.kind == "kidnap":
+                    self.flash(f"KIDNAPPED  ({ev.detail})")
+                elif ev.kind.endswith("_start"):
+                    self.flash(ev.kind[: -len("_start")].replace("_", " ").upper()
+                               + (f": {ev.detail}" if ev.detail else ""))
+        self.draw()
+        self.frames += 1
+
+    def swap_filter(self, name: str, flt) -> None:
+        """Replace a running filter (hot reload of a student's file)."""
+        self.session.replace_filter(name, flt)
+
+    def draw(self) -> None:
+        surf = self.screen
+        drag = None
+        if self.drag_start is not None:
+            drag = (self.drag_start, pygame.mouse.get_pos())
+        self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag)
+        info = {"speed": self.clock.speed, "paused": self.clock.paused,
+                "fps": fps_of(np.array(self.frame_times)), "recording": self.recording}
+        self.hud.panel(surf, self.panel_rect, self.session, self.colours, info)
+        if self.now < self.banner_until:
+            self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
+        if self.help:
+            self.hud.help(surf)
+        pygame.display.flip()
+
+    def save_screenshot(self, path) -> None:
+        path = Path(path)
+        if path.parent and not path.parent.exists():
+            path.parent.mkdir(parents=True, exist_ok=True)
+        pygame.image.save(self.screen, str(path))
+
+    def run(self, max_frames: int | None = None) -> None:
+        """The main loop, until quit (or ``max_frames`` frames)."""
+        timer = pygame.time.Clock()
+        last = time.perf_counter()
+        while self.running and (max_frames is None or self.frames < max_frames):
+            if self.scripted:
+                real_dt = SCRIPTED_FRAME_S
+            else:
+                timer.tick(60)
+                t = time.perf_counter()
+                real_dt, last = t - last, t
+            t0 = time.perf_counter()
+            self.frame(real_dt)
+            self.frame_times.append(max(time.perf_counter() - t0, 1e-6) if self.scripted
+                                    else real_dt)
+
+    def close(self) -> None:
+        self.session.close()
+        pygame.display.quit()
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    from beacon_sim.cli import UsageError
+
+    w, sep, h = text.lower().partition("x")
+    try:
+        size = (int(w), int(h))
+    except ValueError:
+        size = (0, 0)
+    if not sep or min(size) < 200 or max(size) > 10000:
+        raise UsageError(f"--size {text!r}: expected WxH in pixels, e.g. 1280x800")
+    return size
+
+
+def choose_filters(scenario, requested: list[str] | None) -> list[str]:
+    """The requested filters, or the scenario's defaults that are installed (missing
+    built-ins are skipped with a note, so the window opens while filters are written)."""
+    if requested:
+        return list(requested)
+    from beacon_sim.filters.loading import FilterLoadError, load_filter_class
+
+    out = []
+    for spec in scenario.default_filters:
+        try:
+            load_filter_class(spec)
+        except FilterLoadError as exc:
+            print(f"beacon-sim: skipping default filter {spec}: {exc}", file=sys.stderr)
+            continue
+        out.append(spec)
+    return out
+
+
+def play(args) -> int:
+    """``beacon-sim play``: open the window; returns the exit status."""
+    from beacon_sim.cli import UsageError
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.filters.loading import parse_set_options
+
+    scenario = load_scenario(getattr(args, "scenario", None) or "default")
+    size = parse_size(getattr(args, "size", None) or "1280x800")
+    frames = getattr(args, "frames", None)
+    if frames is not None and frames < 1:
+        raise UsageError(f"--frames {frames}: expected a positive number of frames")
+    params = parse_set_options(getattr(args, "set_params", None) or [])
+    specs = choose_filters(scenario, getattr(args, "filters", None))
+    seed = scenario.seed if getattr(args, "seed", None) is None else int(args.seed)
+    recorder, rec_path = (None, None)
+    if not getattr(args, "no_record", False):
+        recorder, rec_path = make_recorder(scenario, seed, specs, params)
+    session = Session(scenario, specs, seed, params, recorder)
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    app = App(session, size, scripted=frames is not None, recording=rec_path)
+    try:
+        app.run(frames)
+        if getattr(args, "screenshot", None):
+            app.save_screenshot(args.screenshot)
+    finally:
+        app.close()
+    if rec_path is not None:
+        print(f"recorded to {rec_path}", file=sys.stderr)
+    return 0
+
+
+__all__ = ["App", "play"]

@@ -1,0 +1,377 @@
+"""Metres to pixels, and drawing the world: grid, beacons, sensor disc, rays, trails,
+beliefs (ellipses, heading wedges, particles, heat maps) and the true robot.
+
+All geometry arrives in metres from the core (``geometry``) or ``shapes``; this module only
+converts to pixels and draws. The screen's y axis points down; the world's points up.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pygame
+
+from beacon_sim.app import palette, shapes
+from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
+from beacon_sim.filters.base import GridBelief, ParticleBelief
+
+#: The 95 % ellipse of x-y: chi-square quantile for 2 degrees of freedom.
+ELLIPSE_LEVEL = 0.95
+ELLIPSE_SCALE2 = CHI2_2DOF[ELLIPSE_LEVEL]
+
+
+class View:
+    """Maps world metres to window pixels inside ``area`` (x, y, w, h), with zoom and pan.
+
+    ``scale`` is pixels per metre; ``centre`` the world point [m] shown at the area's centre.
+    """
+
+    def __init__(self, bounds, area: tuple[int, int, int, int]):
+        self.bounds = tuple(float(b) for b in bounds)
+        self.area = area
+        self.scale = 1.0
+        self.centre = np.zeros(2)
+        self.fit()
+
+    def set_area(self, area: tuple[int, int, int, int]) -> None:
+        self.area = area
+        self.fit()
+
+    def fit(self) -> None:
+        """Show the whole world with a margin for the axis labels."""
+        xmin, ymin, xmax, ymax = self.bounds
+        _, _, w, h = self.area
+        pad = 44  # px for labels and air
+        self.scale = max(min((w - 2 * pad) / (xmax - xmin), (h - 2 * pad) / (ymax - ymin)), 1e-3)
+        self.centre = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
+
+    @property
+    def key(self) -> tuple:
+        """Changes whenever the mapping changes (for caches)."""
+        return (self.area, round(self.scale, 9), float(self.centre[0]), float(self.centre[1]))
+
+    def to_px(self, xy) -> np.ndarray:
+        """World points (..., 2) [m] -> pixel coordinates (..., 2), float."""
+        xy = np.asarray(xy, dtype=float)
+        ax, ay, w, h = self.area
+        out = np.empty_like(xy)
+        out[..., 0] = ax + w / 2 + (xy[..., 0] - self.centre[0]) * self.scale
+        out[..., 1] = ay + h / 2 - (xy[..., 1] - self.centre[1]) * self.scale
+        return out
+
+    def to_world(self, px) -> np.ndarray:
+        """Pixel coordinates (..., 2) -> world points [m]."""
+        px = np.asarray(px, dtype=float)
+        ax, ay, w, h = self.area
+        out = np.empty_like(px)
+        out[..., 0] = self.centre[0] + (px[..., 0] - ax - w / 2) / self.scale
+        out[..., 1] = self.centre[1] - (px[..., 1] - ay - h / 2) / self.scale
+        return out
+
+    def zoom(self, factor: float, at_px) -> None:
+        """Zoom by ``factor`` keeping the world point under ``at_px`` in place."""
+        before = self.to_world(at_px)
+        self.scale = float(np.clip(self.scale * factor, 2.0, 20000.0))
+        after = self.to_world(at_px)
+        self.centre = self.centre + (before - after)
+
+    def pan(self, dx_px: float, dy_px: float) -> None:
+        """Move the picture by (dx, dy) pixels."""
+        self.centre = self.centre + np.array([-dx_px, dy_px]) / self.scale
+
+    def visible_world(self) -> tuple[float, float, float, float]:
+        """The world rectangle (xmin, ymin, xmax, ymax) [m] the area shows."""
+        ax, ay, w, h = self.area
+        (x0, y1), (x1, y0) = self.to_world(np.array([[ax, ay], [ax + w, ay + h]]))
+        return x0, y0, x1, y1
+
+
+@dataclass
+class ShowOptions:
+    particles: bool = True
+    trails: bool = True
+    ellipses: bool = True
+
+
+def ipx(v) -> int:
+    """Round a pixel coordinate to the nearest integer."""
+    return math.floor(float(v) + 0.5)
+
+
+def nice_step(scale: float, min_px: float = 70.0) -> float:
+    """Grid spacing [m] from 1-2-5 steps so that lines are at least ``min_px`` apart."""
+    target = min_px / scale
+    exp = math.floor(math.log10(target))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        step = m * 10.0**exp
+        if step >= target - 1e-12:
+            return step
+    return 10.0 ** (exp + 1)
+
+
+class WorldRenderer:
+    """Draws one frame of the world into a surface (the HUD is drawn by ``hud``)."""
+
+    def __init__(self, fonts: dict[str, pygame.font.Font]):
+        self.fonts = fonts
+        self._heat_cache: dict[str, tuple[tuple, pygame.Surface, tuple[int, int]]] = {}
+        self._text_cache: dict[tuple, pygame.Surface] = {}
+
+    def text(self, s: str, font: str, colour) -> pygame.Surface:
+        key = (s, font, colour)
+        surf = self._text_cache.get(key)
+        if surf is None:
+            if len(self._text_cache) > 512:
+                self._text_cache.clear()
+            surf = self.fonts[font].render(s, True, colour)
+            self._text_cache[key] = surf
+        return surf
+
+    # --- the frame ------------------------------------------------------------------------
+    def draw(self, surf: pygame.Surface, view: View, session, colours, show: ShowOptions,
+             drag=None) -> None:
+        """Draw the world part of a frame. ``drag``: (start_px, now_px) of a click-kidnap."""
+        sc = session.scenario
+        world = sc.world
+        pose = session.sim.pose
+        area = pygame.Rect(view.area)
+        surf.fill(palette.OUTSIDE, area)
+        old_clip = surf.get_clip()
+        surf.set_clip(area)
+        b = view.to_px(np.array([[world.bounds[0], world.bounds[3]], [world.bounds[2], world.bounds[1]]]))
+        world_rect = pygame.Rect(ipx(b[0, 0]), ipx(b[0, 1]),
+                                 ipx(b[1, 0] - b[0, 0]), ipx(b[1, 1] - b[0, 1]))
+        surf.fill(palette.BACKGROUND, world_rect)
+        surf.set_clip(world_rect.clip(area))
+        self._sensor_discs(surf, view, sc, pose)
+        surf.set_clip(area)
+        self._grid(surf, view, world_rect)
+        pygame.draw.rect(surf, palette.BOUNDS, world_rect.inflate(4, 4), 3)
+
+        beliefs = {}
+        for name in session.names:
+            tr = session.runner.tracks[name]
+            if not session.visible[name] or tr.failed:
+                continue
+            try:
+                beliefs[name] = tr.filter.belief()
+            except Exception as exc:  # a student's belief(): show it, keep the window alive
+                session.status[name].failed = f"belief(): {type(exc).__name__}: {exc}"
+        for name, bel in beliefs.items():
+            if isinstance(bel, GridBelief):
+                self._heat(surf, view, name, bel, colours[name], session.sim.tick)
+        if show.trails:
+            self._trails(surf, view, session, colours)
+        if show.particles:
+            for name, bel in beliefs.items():
+                if isinstance(bel, ParticleBelief):
+                    self.particles(surf, view, bel.poses, colours[name])
+        self._beacons_and_rays(surf, view, session, pose)
+        self.robot(surf, view, pose, sc.robot_radius)
+        for name in session.names:
+            tr = session.runner.tracks[name]
+            if name not in beliefs or not tr.means:
+                continue
+            self._estimate(surf, view, tr.means[-1], tr.covs[-1], colours[name], show.ellipses,
+                           sc.robot_radius)
+        if drag is not None:
+            self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
+        self._axis_labels(surf, view, world_rect)
+        surf.set_clip(old_clip)
+
+    # --- pieces ---------------------------------------------------------------------------
+    def _grid(self, surf, view: View, world_rect: pygame.Rect) -> None:
+        step = nice_step(view.scale)
+        x0, y0, x1, y1 = view.visible_world()
+        xmin, ymin, xmax, ymax = view.bounds
+        x0, x1 = max(x0, xmin), min(x1, xmax)
+        y0, y1 = max(y0, ymin), min(y1, ymax)
+        minor = step / 5 if step / 5 * view.scale >= 14 else None
+        for spacing, colour, width in ((minor, palette.GRID_MINOR, 1), (step, palette.GRID_MAJOR, 2)):
+            if spacing is None:
+                continue
+            for x in np.arange(math.ceil(x0 / spacing) * spacing, x1 + 1e-9, spacing):
+                px = ipx(view.to_px(np.array([x, 0.0]))[0])
+                pygame.draw.line(surf, colour, (px, world_rect.top), (px, world_rect.bottom - 1), width)
+            for y in np.arange(math.ceil(y0 / spacing) * spacing, y1 + 1e-9, spacing):
+                py = ipx(view.to_px(np.array([0.0, y]))[1])
+                pygame.draw.line(surf, colour, (world_rect.left, py), (world_rect.right - 1, py), width)
+
+    def _axis_labels(self, surf, view: View, world_rect: pygame.Rect) -> None:
+        step = nice_step(view.scale)
+        x0, y0, x1, y1 = view.visible_world()
+        xmin, ymin, xmax, ymax = view.bounds
+        area = pygame.Rect(view.area)
+        fmt = (lambda v: f"{v:g}") if step >= 1 else (lambda v: f"{v:.1f}")
+        ylab = min(max(world_rect.bottom + 6, area.top + 2), area.bottom - 24)
+        for x in np.arange(math.ceil(max(x0, xmin) / step) * step, min(x1, xmax) + 1e-9, step):
+            px = view.to_px(np.array([x, 0.0]))[0]
+            t = self.text(fmt(x + 0.0), "small", palette.TEXT_DIM)
+            surf.blit(t, (int(px - t.get_width() / 2), ylab))
+        xlab = max(min(world_rect.left - 6, area.right - 40), area.left + 2)
+        for y in np.arange(math.ceil(max(y0, ymin) / step) * step, min(y1, ymax) + 1e-9, step):
+            py = view.to_px(np.array([0.0, y]))[1]
+            t = self.text(fmt(y + 0.0), "small", palette.TEXT_DIM)
+            surf.blit(t, (max(xlab - t.get_width(), area.left + 2), int(py - t.get_height() / 2)))
+        unit = self.text("m", "small", palette.TEXT_DIM)
+        surf.blit(unit, (min(world_rect.right + 8, area.right - unit.get_width() - 2), ylab))
+
+    def _sensor_discs(self, surf, view: View, sc, pose) -> None:
+        for spec in sc.sensors:
+            if not math.isfinite(spec.max_range):
+                continue
+            if spec.fov >= 2 * math.pi:
+                outline = circle(pose[:2], spec.max_range, 96)
+            else:
+                outline = shapes.sector(pose, spec.fov, spec.max_range)
+            pts = view.to_px(outline)
+            pygame.draw.polygon(surf, palette.SENSOR_FILL, pts)
+            pygame.draw.polygon(surf, palette.SENSOR_EDGE, pts, 2)
+
+    def _trails(self, surf, view: View, session, colours) -> None:
+        for piece in session.truth_trail.pieces():  # under the estimates: where they agree,
+            pygame.draw.lines(surf, palette.TRUTH_TRAIL, False, view.to_px(piece), 5)  # it frames them
+        for name in session.names:
+            if session.visible[name]:
+                for piece in session.trails[name].pieces():
+                    pygame.draw.lines(surf, colours[name], False, view.to_px(piece), 2)
+
+    def particles(self, surf: pygame.Surface, view: View, poses: np.ndarray, colour) -> None:
+        """Each particle as a 2x2 pixel block, written through a pixel array (no draw calls)."""
+        clip = surf.get_clip()
+        p = view.to_px(np.asarray(poses)[:, :2])
+        ix = p[:, 0].astype(np.int32)
+        iy = p[:, 1].astype(np.int32)
+        ok = (ix >= clip.left) & (ix < clip.right - 1) & (iy >= clip.top) & (iy < clip.bottom - 1)
+        ix, iy = ix[ok], iy[ok]
+        value = surf.map_rgb(colour)
+        arr = pygame.surfarray.pixels2d(surf)
+        try:
+            arr[ix, iy] = value
+            arr[ix + 1, iy] = value
+            arr[ix, iy + 1] = value
+            arr[ix + 1, iy + 1] = value
+        finally:
+            del arr
+
+    def _heat(self, surf, view: View, name: str, bel: GridBelief, colour, tick: int) -> None:
+        """The grid belief as a translucent heat map in the filter's colour."""
+        key = (tick, view.key, id(bel.prob))
+        cached = self._heat_cache.get(name)
+        if cached is None or cached[0] != key:
+            made = self._make_heat(view, bel, colour)
+            if made is None:
+                self._heat_cache.pop(name, None)
+                return
+            cached = (key, *made)
+            self._heat_cache[name] = cached
+        _, image, at = cached
+        surf.blit(image, at)
+
+    @staticmethod
+    def _make_heat(view: View, bel: GridBelief, colour):
+        prob = np.asarray(bel.prob, dtype=float)
+        nx, ny = prob.shape
+        ox, oy = bel.origin
+        c = bel.cell
+        vx0, vy0, vx1, vy1 = view.visible_world()
+        i0, i1 = max(math.floor((vx0 - ox) / c), 0), min(math.ceil((vx1 - ox) / c), nx)
+        j0, j1 = max(math.floor((vy0 - oy) / c), 0), min(math.ceil((vy1 - oy) / c), ny)
+        if i1 <= i0 or j1 <= j0:
+            return None
+        sub = prob[i0:i1, j0:j1]
+        top = float(prob.max())
+        if not top > 0:
+            return None
+        alpha = np.sqrt(np.clip(sub / top, 0.0, 1.0)) * 190.0  # sqrt: faint mass stays visible
+        small = pygame.Surface((i1 - i0, j1 - j0), pygame.SRCALPHA)
+        small.fill((*colour, 0))
+        a = pygame.surfarray.pixels_alpha(small)
+        a[:] = alpha[:, ::-1].astype(np.uint8)  # screen y down: flip the y index
+        del a
+        corner = view.to_px(np.array([[ox + i0 * c, oy + j1 * c], [ox + i1 * c, oy + j0 * c]]))
+        w = max(ipx(corner[1, 0] - corner[0, 0]), 1)
+        h = max(ipx(corner[1, 1] - corner[0, 1]), 1)
+        if w * h > 6_000_000:
+            return None
+        image = pygame.transform.scale(small, (w, h))
+        return image, (ipx(corner[0, 0]), ipx(corner[0, 1]))
+
+    def _beacons_and_rays(self, surf, view: View, session, pose) -> None:
+        world = session.scenario.world
+        readings = session.readings()
+        far = 2.0 * math.hypot(world.width, world.height)
+        for m in readings:
+            if m.kind in ("pose", "position"):
+                bxy = world.beacon_positions(m.beacon_ids) if len(m.beacon_ids) else np.zeros((0, 2))
+                segs = shapes.rays(pose, m, bxy, far)
+            else:
+                segs = shapes.rays(pose, m, world.beacon_xy, far)
+            px = view.to_px(segs)
+            for a, b in px:
+                pygame.draw.line(surf, palette.RAY, a, b, 2)
+            if m.kind == "range_bearing":
+                for _, b in px:
+                    self._cross(surf, b, 6, palette.RAY, 2)
+            elif m.kind in ("pose", "position"):
+                self._cross(surf, view.to_px(m.z[0, :2]), 9, palette.RAY, 3)
+        seen = session.seen_ids()
+        pxs = view.to_px(world.beacon_xy)
+        half = 9
+        for bcn, (x, y) in zip(world.beacons, pxs, strict=True):
+            x, y = ipx(x), ipx(y)
+            if bcn.id in seen:
+                pygame.draw.circle(surf, palette.BEACON_SEEN, (x, y), half + 7)
+                pygame.draw.circle(surf, palette.BEACON_SEEN_RING, (x, y), half + 7, 3)
+            rect = pygame.Rect(x - half, y - half, 2 * half, 2 * half)
+            pygame.draw.rect(surf, palette.BEACON, rect)
+            pygame.draw.rect(surf, palette.BACKGROUND, rect.inflate(-8, -8))
+            t = self.text(str(bcn.id), "label", palette.TEXT)
+            at = pygame.Rect(x + half + 6, y - half - t.get_height() + 6, t.get_width(), t.get_height())
+            surf.fill(palette.BACKGROUND, at.inflate(6, -2))
+            surf.blit(t, at)
+
+    @staticmethod
+    def _cross(surf, at, r: int, colour, width: int) -> None:
+        x, y = ipx(at[0]), ipx(at[1])
+        pygame.draw.line(surf, colour, (x - r, y - r), (x + r, y + r), width)
+        pygame.draw.line(surf, colour, (x - r, y + r), (x + r, y - r), width)
+
+    def _estimate(self, surf, view: View, mean, cov, colour, ellipses: bool, radius: float) -> None:
+        if ellipses:
+            outline = covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 72)
+            pts = view.to_px(outline)
+            if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
+                pygame.draw.polygon(surf, colour, pts, 3)
+            sigma = math.sqrt(max(float(cov[2, 2]), 0.0))
+            r = max(3.2 * radius, 55.0 / view.scale)
+            w = view.to_px(shapes.wedge(mean, 2.0 * sigma, r))
+            pygame.draw.lines(surf, colour, True, w, 2)
+        size = max(1.2 * radius, 16.0 / view.scale)
+        tri = view.to_px(shapes.arrow(mean, size))
+        pygame.draw.polygon(surf, colour, tri)
+        pygame.draw.polygon(surf, palette.TEXT, tri, 2)
+
+    def robot(self, surf, view: View, pose, radius: float) -> None:
+        """The true robot: a dark chassis with wheels and a white heading mark."""
+        r = max(radius, 14.0 / view.scale)
+        body, wheels = shapes.chassis(pose, r)
+        for wheel in wheels:
+            pygame.draw.polygon(surf, palette.ROBOT, view.to_px(wheel))
+        pygame.draw.polygon(surf, palette.ROBOT, view.to_px(body))
+        a, b = view.to_px(shapes.heading_mark(pose, r))
+        pygame.draw.line(surf, palette.ROBOT_MARK, a, b, 3)
+        pygame.draw.circle(surf, palette.ROBOT, (ipx(a[0]), ipx(a[1])), 3)
+
+    def _drag_ghost(self, surf, view: View, drag, pose, radius: float) -> None:
+        start, now = (np.asarray(p, dtype=float) for p in drag)
+        xy = view.to_world(start)
+        d = now - start
+        theta = math.atan2(-d[1], d[0]) if math.hypot(*d) > 8 else float(pose[2])
+        ghost = np.array([xy[0], xy[1], theta])
+        body, _ = shapes.chassis(ghost, max(radius, 14.0 / view.scale))
+        pygame.draw.polygon(surf, palette.WARN, view.to_px(body), 3)
+        if math.hypot(*d) > 8:
+            pygame.draw.line(surf, palette.WARN, start, now, 3)
