@@ -1,0 +1,312 @@
+"""Grid (histogram) Bayes filter over x, y AND heading, vectorised over the whole grid.
+
+The belief is a probability per cell of a regular grid: ``cell`` [m] in x and y over the
+world bounds, ``heading_bins`` bins of ``2 pi / heading_bins`` [rad] in heading (0.2 m x
+0.2 m x 10 deg over a 10 m x 10 m room: 50 x 50 x 36 = 90,000 cells).
+
+Prediction (seed 004's ``bel_bar(x) = sum p(x | u, x') bel(x')``, done as shift + blur):
+each heading slab moves along its own heading. The sub-cell part of the motion is kept in a
+per-slab offset [m] and the slab is shifted by whole cells when the offset passes half a
+cell, so slow motion is not smeared by interpolation; turning is kept the same way in one
+heading offset for the whole grid. The motion noise is accumulated as a variance and applied
+as a 3-tap blur (x, y and circular in heading) once it is worth a fraction of a cell. The
+walls stop the robot, so mass pushed out of the grid piles up in the border cells.
+
+Update (``bel(x) = eta p(z | x) bel_bar(x)``): the likelihood over the whole grid. Ranges
+and fixes depend on x, y only (2-D arrays); bearings enter as ``kappa cos(nu)`` (von Mises,
+``kappa = 1 / sigma^2``), and since ``cos(z - alpha + theta) = cos(z - alpha) cos(theta) -
+sin(z - alpha) sin(theta)``, all bearing readings of a tick sum into two x-y arrays that
+meet the heading axis in one outer product. Noise is inflated by the cell size (the belief
+is only known to within a cell). A small uniform floor keeps every cell alive, so the filter
+can recover from a kidnap.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.geometry import hdop
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, GridBelief
+
+TWO_PI = 2.0 * math.pi
+
+
+class HistogramFilter(FilterBase):
+    """Discrete Bayes filter on an x-y-heading grid."""
+
+    supports_global = True
+    defaults: ClassVar[dict[str, Any]] = {
+        "cell": 0.2,            # x-y cell size [m]
+        "heading_bins": 36,     # heading bins over 2 pi (36: 10 deg)
+        "floor": 1e-4,          # share of probability spread uniformly after each update
+        "blur_min": 0.05,       # apply the motion blur once its variance reaches this * cell^2
+    }
+
+    def __init__(self, ctx: FilterContext):
+        super().__init__(ctx)
+        p = self.params
+        if p["cell"] <= 0 or int(p["heading_bins"]) < 4:
+            raise FilterError("histogram: need cell > 0 and heading_bins >= 4")
+        if not 0.0 <= p["floor"] < 1.0:
+            raise FilterError("histogram: floor must be in [0, 1)")
+        self.cell = float(p["cell"])
+        xmin, ymin, xmax, ymax = ctx.world.bounds
+        self.origin = (float(xmin), float(ymin))
+        self.nx = max(1, math.ceil((xmax - xmin) / self.cell - 1e-9))
+        self.ny = max(1, math.ceil((ymax - ymin) / self.cell - 1e-9))
+        self.nh = int(p["heading_bins"])
+        self.bin = TWO_PI / self.nh
+        self.xc = xmin + (np.arange(self.nx) + 0.5) * self.cell     # cell centres [m]
+        self.yc = ymin + (np.arange(self.ny) + 0.5) * self.cell
+        self.base_th = -math.pi + (np.arange(self.nh) + 0.5) * self.bin
+        self.grid = np.empty((self.nh, self.nx, self.ny))           # [heading, x, y]
+        self.offset = np.zeros((self.nh, 2))     # sub-cell position offset of each slab [m]
+        self.phi = 0.0                           # sub-bin heading offset of the whole grid [rad]
+        self.var_xy = 0.0                        # motion variance not yet blurred [m^2]
+        self.var_th = 0.0                        # [rad^2]
+        # Beacon geometry on the x-y grid (the grid never moves): range, cos/sin of direction.
+        bxy = ctx.world.beacon_xy
+        dx = bxy[:, 0, None, None] - self.xc[None, :, None]
+        dy = bxy[:, 1, None, None] - self.yc[None, None, :]
+        self._r = np.hypot(dx, dy)                                  # (nb, nx, ny)
+        rr = np.maximum(self._r, 1e-9)
+        self._ca = dx / rr
+        self._sa = dy / rr
+        self._hdop_cache: dict[tuple[tuple[int, ...], float], np.ndarray] = {}
+        self._L = np.empty_like(self.grid)
+        self._cache: tuple[np.ndarray, np.ndarray] | None = None
+        self.reset(None)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Heading of each bin's centre [rad], shape (nh,)."""
+        return wrap(self.base_th + self.phi)
+
+    # ----------------------------------------------------------------- initial belief
+    def reset(self, initial: GaussianBelief | None) -> None:
+        """Uniform over the grid (None) or a Gaussian evaluated at the cell centres."""
+        self.offset[:] = 0.0
+        self.phi = 0.0
+        self.var_xy = self.var_th = 0.0
+        if initial is None:
+            self.grid.fill(1.0 / self.grid.size)
+        else:
+            mean = np.asarray(initial.mean, dtype=float)
+            cov = np.asarray(initial.cov, dtype=float)
+            # Never narrower than a cell: a sharper Gaussian would fall between centres.
+            cov = 0.5 * (cov + cov.T) + np.diag([self.cell**2 / 12] * 2 + [self.bin**2 / 12])
+            info = np.linalg.inv(cov)
+            ex = self.xc[None, :, None] - mean[0]
+            ey = self.yc[None, None, :] - mean[1]
+            et = wrap(self.theta - mean[2])[:, None, None]
+            q = (info[0, 0] * ex * ex + info[1, 1] * ey * ey + info[2, 2] * et * et
+                 + 2 * info[0, 1] * ex * ey + 2 * info[0, 2] * ex * et + 2 * info[1, 2] * ey * et)
+            self.grid[:] = np.exp(-0.5 * (q - q.min()))
+            self.grid /= self.grid.sum()
+        self._cache = None
+
+    # ----------------------------------------------------------------- motion
+    def predict(self, control: Control, dt: float) -> None:
+        """Shift each heading slab along its heading, turn, and blur with the motion noise."""
+        noise = self.ctx.motion_noise
+        # Turning: the whole grid turns by omega dt; whole bins by rolling the heading axis.
+        self.phi += control.omega * dt
+        k = round(self.phi / self.bin)
+        if k:
+            self.grid = np.roll(self.grid, k, axis=0)
+            self.offset = np.roll(self.offset, k, axis=0)
+            self.phi -= k * self.bin
+        th = self.base_th + self.phi
+        d = control.v * dt
+        self.offset[:, 0] += d * np.cos(th)
+        self.offset[:, 1] += d * np.sin(th)
+        shift = np.rint(self.offset / self.cell).astype(np.int64)
+        moving = np.flatnonzero(np.any(shift != 0, axis=1))
+        if moving.size:
+            self.offset[moving] -= shift[moving] * self.cell
+            keys = shift[moving]
+            for sx, sy in {(int(a), int(b)) for a, b in keys}:     # a few distinct shifts
+                group = moving[(keys[:, 0] == sx) & (keys[:, 1] == sy)]
+                self.grid[group] = _shift_pile(self.grid[group], sx, sy)
+        # Motion noise, as a variance to blur with.
+        sv, sw = noise.control_std(control.v, control.omega)
+        ps = noise.pose_std
+        self.var_xy += (sv * dt) ** 2 + 0.5 * (ps[0] ** 2 + ps[1] ** 2)
+        self.var_th += (sw * dt) ** 2 + ps[2] ** 2
+        thr = self.params["blur_min"]
+        if self.var_xy >= thr * self.cell**2:
+            self._blur_xy(self.var_xy / self.cell**2)
+            self.var_xy = 0.0
+        if self.var_th >= thr * self.bin**2:
+            self._blur_th(self.var_th / self.bin**2)
+            self.var_th = 0.0
+        self._cache = None
+
+    def _blur_xy(self, var_cells: float) -> None:
+        """3-tap blur ``[a, 1 - 2a, a]`` (variance 2a cells^2) along x and y, reflecting at
+        the walls; repeated when more variance is due than one pass can hold."""
+        g = self.grid
+        while var_cells > 1e-12:
+            a = min(var_cells / 2.0, 1.0 / 3.0)
+            var_cells -= 2.0 * a
+            for axis in (1, 2):
+                if g.shape[axis] < 2:
+                    continue
+                lo = np.take(g, [0], axis=axis)
+                hi = np.take(g, [g.shape[axis] - 1], axis=axis)
+                prev = np.concatenate([lo, np.delete(g, -1, axis=axis)], axis=axis)
+                nxt = np.concatenate([np.delete(g, 0, axis=axis), hi], axis=axis)
+                g *= 1.0 - 2.0 * a
+                prev += nxt
+                prev *= a
+                g += prev
+
+    def _blur_th(self, var_bins: float) -> None:
+        """Circular 3-tap blur along heading."""
+        while var_bins > 1e-12:
+            a = min(var_bins / 2.0, 1.0 / 3.0)
+            var_bins -= 2.0 * a
+            nb = np.roll(self.grid, 1, axis=0)
+            nb += np.roll(self.grid, -1, axis=0)
+            self.grid *= 1.0 - 2.0 * a
+            nb *= a
+            self.grid += nb
+
+    # ----------------------------------------------------------------- measurements
+    def update(self, measurements: Sequence[Measurement]) -> None:
+        """Multiply by the likelihood of this tick's readings over the whole grid."""
+        measurements = [m for m in measurements if len(m)]
+        if not measurements:
+            return
+        lxy = np.zeros((self.nx, self.ny))   # log-likelihood terms in x, y only
+        C = np.zeros((self.nx, self.ny))     # coefficient of cos(theta)
+        S = np.zeros((self.nx, self.ny))     # coefficient of sin(theta)
+        cell_var = self.cell**2 / 6.0         # within-cell position + slab offset
+        for m in measurements:
+            spec = self.ctx.sensor(m.sensor)
+            z = np.asarray(m.z, dtype=float)
+            if m.kind in ("bearing", "range_bearing"):
+                idx = self.ctx.world.beacon_index(m.beacon_ids)
+                std = spec.reading_std()
+                for row, b in zip(z, idx, strict=True):
+                    r = self._r[b]
+                    sb2 = std[-1] ** 2 + self.bin**2 / 12 + cell_var / np.maximum(r, self.cell) ** 2
+                    kappa = 1.0 / sb2
+                    cz, sz = math.cos(row[-1]), math.sin(row[-1])
+                    ca, sa = self._ca[b], self._sa[b]
+                    # kappa cos(z - alpha + theta) = kappa [cos(z-a) cos(th) - sin(z-a) sin(th)]
+                    C += kappa * (cz * ca + sz * sa)
+                    S -= kappa * (sz * ca - cz * sa)
+                    lxy -= kappa
+                    if m.kind == "range_bearing":
+                        lxy -= 0.5 * (r - row[0]) ** 2 / (std[0] ** 2 + cell_var)
+            elif m.kind == "pose":
+                std = spec.fix_std(len(m.beacon_ids))
+                lxy -= 0.5 * ((self.xc[:, None] - z[0, 0]) ** 2 / (std[0] ** 2 + cell_var)
+                              + (self.yc[None, :] - z[0, 1]) ** 2 / (std[1] ** 2 + cell_var))
+                kappa = 1.0 / (std[2] ** 2 + self.bin**2 / 12)
+                C += kappa * math.cos(z[0, 2])
+                S += kappa * math.sin(z[0, 2])
+                lxy -= kappa
+            elif m.kind == "position":
+                h = self._hdop(m.beacon_ids, spec.beacon_height)
+                var = (spec.noise.position_std * h) ** 2 + cell_var
+                d2 = (self.xc[:, None] - z[0, 0]) ** 2 + (self.yc[None, :] - z[0, 1]) ** 2
+                lxy -= 0.5 * d2 / var + np.log(var)      # seed 002 eq. 11, 2-D normalised
+            else:
+                raise FilterError(f"histogram: unknown measurement kind {m.kind!r}")
+        th = self.theta
+        L = self._L
+        np.multiply(np.cos(th)[:, None, None], C[None], out=L)
+        L += np.sin(th)[:, None, None] * S[None]
+        L += lxy[None]
+        L -= L.max()
+        np.exp(L, out=L)
+        g = self.grid
+        g *= L
+        total = g.sum()
+        if not total > 0 or not math.isfinite(total):
+            g.fill(1.0 / g.size)   # every cell ruled out (numerically): start over
+        else:
+            eps = self.params["floor"]
+            g *= (1.0 - eps) / total
+            g += eps / g.size
+        self._cache = None
+
+    def _hdop(self, ids, height: float) -> np.ndarray:
+        key = (tuple(int(i) for i in np.ravel(ids)), float(height))
+        h = self._hdop_cache.get(key)
+        if h is None:
+            xy = np.stack(np.meshgrid(self.xc, self.yc, indexing="ij"), axis=-1).reshape(-1, 2)
+            h = hdop(xy, self.ctx.world.beacon_positions(ids), height).reshape(self.nx, self.ny)
+            h = np.minimum(h, 1e3)
+            self._hdop_cache[key] = h
+        return h
+
+    # ----------------------------------------------------------------- outputs
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and covariance of the grid (circular heading, wrapped residuals), with the
+        within-cell variance ``cell^2 / 12`` and ``bin^2 / 12`` added."""
+        if self._cache is None:
+            self._cache = self._moments()
+        mean, cov = self._cache
+        return mean.copy(), cov.copy()
+
+    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+        g = self.grid
+        gx = g.sum(axis=2)                     # (nh, nx)
+        gy = g.sum(axis=1)                     # (nh, ny)
+        P = gx.sum(axis=1)                     # (nh,)
+        P = P / P.sum()
+        scale = 1.0 / g.sum()
+        ox, oy = self.offset[:, 0], self.offset[:, 1]
+        X = gx @ self.xc * scale + ox * P      # sum over slab of p * x, per slab
+        Y = gy @ self.yc * scale + oy * P
+        XX = (gx @ self.xc**2) * scale + 2 * ox * (gx @ self.xc) * scale + ox**2 * P
+        YY = (gy @ self.yc**2) * scale + 2 * oy * (gy @ self.yc) * scale + oy**2 * P
+        G = g.sum(axis=0)                      # (nx, ny)
+        XY = float(self.xc @ G @ self.yc) * scale + float(
+            np.sum(ox * (gy @ self.yc) + oy * (gx @ self.xc)) * scale + np.sum(ox * oy * P))
+        mx, my = float(X.sum()), float(Y.sum())
+        th = self.theta
+        mth = math.atan2(float(P @ np.sin(th)), float(P @ np.cos(th)))
+        et = wrap(th - mth)
+        cov = np.empty((3, 3))
+        cov[0, 0] = XX.sum() - mx * mx + self.cell**2 / 12
+        cov[1, 1] = YY.sum() - my * my + self.cell**2 / 12
+        cov[0, 1] = cov[1, 0] = XY - mx * my
+        cov[2, 2] = float(P @ et**2) + self.bin**2 / 12
+        cov[0, 2] = cov[2, 0] = float(et @ (X - mx * P))
+        cov[1, 2] = cov[2, 1] = float(et @ (Y - my * P))
+        return np.array([mx, my, wrap(mth)]), cov
+
+    def belief(self) -> GridBelief:
+        """The x-y marginal, shape (nx, ny), for drawing as a heat map."""
+        G = self.grid.sum(axis=0)
+        return GridBelief(G / G.sum(), self.origin, self.cell)
+
+
+def _shift_pile(block: np.ndarray, sx: int, sy: int) -> np.ndarray:
+    """Shift ``block`` (k, nx, ny) by (sx, sy) cells; what would leave piles up at the wall."""
+    out = block
+    for axis, s in ((1, sx), (2, sy)):
+        if s == 0:
+            continue
+        a = np.moveaxis(out, axis, -1)
+        n = a.shape[-1]
+        s = max(-(n - 1), min(n - 1, s))
+        moved = np.zeros_like(a)
+        if s > 0:
+            moved[..., s:] = a[..., : n - s]
+            moved[..., n - 1] += a[..., n - s:].sum(axis=-1)
+        else:
+            moved[..., : n + s] = a[..., -s:]
+            moved[..., 0] += a[..., :-s].sum(axis=-1)
+        out = np.moveaxis(moved, -1, axis)
+    return out

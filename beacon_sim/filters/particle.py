@@ -1,0 +1,540 @@
+"""Particle filter (Monte Carlo localization), vectorised: no Python loop over particles.
+
+- Belief: N poses ``[x, y, theta]`` [m, m, rad] with log-weights (long runs never underflow).
+- Start: Gaussian around a pose (tracking) or uniform over the world and all headings
+  (global localization).
+- Motion: each particle executes the command with its own noise drawn from the model's
+  ``control_std`` (plus additive ``pose_std``), and is stopped by the walls as the robot is.
+- Measurements: bearing, range-bearing, pose fix, and position fix whose standard deviation
+  is ``position_std * HDOP`` at each particle (seed 002 eq. 11), optionally times the heading
+  term of eq. 14. Bearings use the von Mises form ``exp(kappa (cos(innovation) - 1))``,
+  ``kappa = 1 / sigma^2``, which equals the wrapped Gaussian to 4th order in the innovation,
+  needs no wrapping and no arctan.
+- Resampling when the effective sample size falls below ``ess_threshold * N`` (systematic,
+  stratified, residual or multinomial), done at the next update that has measurements, so
+  that injected particles are weighted before anyone sees the estimate.
+- Recovery: augmented MCL (Thrun et al., Probabilistic Robotics, table 8.3; ROS AMCL's
+  ``recovery_alpha_slow/fast``): short- and long-term averages ``w_fast`` / ``w_slow`` of the
+  measurement likelihood; at each resampling a share ``max(0, 1 - w_fast / w_slow)`` of the
+  particles is replaced by uniform random poses. The likelihood is taken per scalar reading
+  (geometric mean, noise constants left out), so its level does not depend on how many
+  beacons a tick happened to see.
+- Adaptive count: KLD-sampling (Fox 2003) between ``n_min`` and ``n_max``, or seed 002's
+  scheme (keep drawing until the summed fit of the drawn particles exceeds ``ver_max``).
+- Estimate: weighted mean and covariance, circular mean for heading, heading residuals
+  wrapped; ``estimate = "cluster"`` summarises the dominant mode only.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.geometry import hdop
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
+from beacon_sim.filters.resampling import RESAMPLERS, resample
+
+TWO_PI = 2.0 * math.pi
+
+
+class ParticleFilter(FilterBase):
+    """Sampling importance resampling with augmented-MCL recovery and optional KLD-sampling.
+
+    Attributes for the HUD: ``n`` (current particle count), ``w_slow``, ``w_fast``,
+    ``inject_prob`` (share of random particles at the next resampling), ``ess``.
+    """
+
+    supports_global = True
+    defaults: ClassVar[dict[str, Any]] = {
+        "n_particles": 2000,        # fixed count; initial count for adaptive runs
+        "n_min": 300,               # adaptive lower bound
+        "n_max": 10000,             # adaptive upper bound (and the count after a global reset)
+        "resampler": "systematic",  # systematic | stratified | residual | multinomial
+        "ess_threshold": 0.5,       # resample when ESS < ess_threshold * N
+        "augmented": True,          # augmented-MCL random-particle injection (recovery)
+        "alpha_slow": 0.01,         # long-term likelihood average rate (per update)
+        "alpha_fast": 0.2,          # short-term likelihood average rate (per update)
+        "inject_max": 0.25,         # cap on the share of random particles per resampling
+        "adaptive": "off",          # off | kld | seed002
+        "kld_epsilon": 0.05,        # KLD bound between sample and true posterior
+        "kld_z": 2.326,             # upper standard normal quantile (0.99)
+        "kld_bin_xy": 0.5,          # KLD histogram bin [m]
+        "kld_bin_theta": 0.1745,    # KLD histogram bin [rad] (10 deg)
+        "ver_max": 500.0,           # seed 002: stop drawing when summed fit exceeds this
+        "roughen": 0.0,             # jitter after resampling, in units of the kernel bandwidth
+        "estimate": "mean",         # mean | cluster
+        "cluster_cell": 0.5,        # [m] coarse grid for finding the dominant mode
+        "cluster_radius": 1.0,      # [m] particles within this of the mode make the cluster
+        "heading_weight": False,    # seed 002 eq. 14 heading term
+        "heading_k_a": 0.03 * math.pi,  # K_a of eq. 13 [rad/s/m... as in the seed]
+        "dtype": "float32",         # particle storage: float32 | float64
+    }
+
+    def __init__(self, ctx: FilterContext):
+        super().__init__(ctx)
+        p = self.params
+        if p["resampler"] not in RESAMPLERS:
+            raise FilterError(f"pf: resampler {p['resampler']!r}: use one of {', '.join(RESAMPLERS)}")
+        if p["adaptive"] not in ("off", "kld", "seed002"):
+            raise FilterError(f"pf: adaptive {p['adaptive']!r}: use off, kld or seed002")
+        if p["estimate"] not in ("mean", "cluster"):
+            raise FilterError(f"pf: estimate {p['estimate']!r}: use mean or cluster")
+        if p["dtype"] not in ("float32", "float64"):
+            raise FilterError(f"pf: dtype {p['dtype']!r}: use float32 or float64")
+        if not (1 <= p["n_min"] <= p["n_max"]) or p["n_particles"] < 1:
+            raise FilterError("pf: need 1 <= n_min <= n_max and n_particles >= 1")
+        self.dtype = np.dtype(p["dtype"])
+        self.adaptive = p["adaptive"] != "off"
+        self.capacity = int(max(p["n_particles"], p["n_max"]) if self.adaptive else p["n_particles"])
+        cap = self.capacity
+        # Particles as rows of a (3, cap) array: x, y, theta each contiguous (fast SIMD loops).
+        self._P = np.zeros((3, cap), dtype=self.dtype)
+        self._P2 = np.zeros((3, cap), dtype=self.dtype)  # resampling target, swapped in
+        self._logw = np.zeros(cap)
+        self._fit = np.zeros(cap)            # log-likelihood of the last update, per particle
+        self._b1 = np.empty(cap, dtype=self.dtype)
+        self._b2 = np.empty(cap, dtype=self.dtype)
+        self._c = np.empty(cap, dtype=self.dtype)
+        self._s = np.empty(cap, dtype=self.dtype)
+        self._w32 = np.empty(cap, dtype=self.dtype)
+        self.n = 0
+        self.w_slow = 0.0
+        self.w_fast = 0.0
+        self.inject_prob = 0.0
+        self.ess = 0.0
+        self._pending_resample = False
+        self._cache: tuple[np.ndarray, np.ndarray] | None = None
+        self._theta_pred = 0.0
+        self._last_v = 0.0
+        self._dims = 1
+        self._work: np.ndarray | None = None
+        self.reset(None)
+
+    # ----------------------------------------------------------------- initial belief
+    def reset(self, initial: GaussianBelief | None) -> None:
+        """Gaussian ``initial`` (tracking) or None: uniform over the bounds and all headings."""
+        p = self.params
+        rng = self.ctx.rng
+        if initial is None:
+            n = self.capacity if self.adaptive else int(p["n_particles"])
+            xmin, ymin, xmax, ymax = self.ctx.world.bounds
+            self._P[0, :n] = rng.uniform(xmin, xmax, n)
+            self._P[1, :n] = rng.uniform(ymin, ymax, n)
+            self._P[2, :n] = rng.uniform(-math.pi, math.pi, n)
+        else:
+            n = int(np.clip(p["n_particles"], p["n_min"], p["n_max"])) if self.adaptive \
+                else int(p["n_particles"])
+            mean = np.asarray(initial.mean, dtype=float)
+            cov = np.asarray(initial.cov, dtype=float)
+            L = np.linalg.cholesky(0.5 * (cov + cov.T) + 1e-12 * np.eye(3))
+            draws = mean[:, None] + L @ rng.standard_normal((3, n))
+            draws[2] = wrap(draws[2])
+            self._P[:, :n] = draws
+        self.n = n
+        self._logw[:n] = -math.log(n)
+        self._fit[:n] = 0.0
+        self.w_slow = self.w_fast = 0.0
+        self.inject_prob = 0.0
+        self.ess = float(n)
+        self._pending_resample = False
+        self._cache = None
+        self._last_v = 0.0
+        self._theta_pred = float(self.estimate()[0][2])
+
+    # ----------------------------------------------------------------- motion
+    def predict(self, control: Control, dt: float) -> None:
+        """Move every particle with its own noisy copy of the command (walls stop it)."""
+        n = self.n
+        rng = self.ctx.rng
+        noise = self.ctx.motion_noise
+        x, y, th = self._P[0, :n], self._P[1, :n], self._P[2, :n]
+        sv, sw = noise.control_std(control.v, control.omega)
+        v = self._b1[:n]
+        w = self._b2[:n]
+        rng.standard_normal(n, dtype=self.dtype, out=v)
+        rng.standard_normal(n, dtype=self.dtype, out=w)
+        v *= sv * dt
+        v += control.v * dt                       # distance travelled [m]
+        w *= sw * dt
+        w += control.omega * dt                   # heading change [rad]
+        c, s = self._c[:n], self._s[:n]
+        np.cos(th, out=c)
+        np.sin(th, out=s)
+        c *= v
+        s *= v
+        x += c
+        y += s
+        th += w
+        ps = noise.pose_std
+        if any(ps):
+            for row, std in zip((x, y, th), ps, strict=True):
+                if std > 0:
+                    rng.standard_normal(n, dtype=self.dtype, out=v)
+                    v *= std
+                    row += v
+        self._wrap_inplace(th)
+        xmin, ymin, xmax, ymax = self.ctx.world.bounds
+        np.clip(x, xmin, xmax, out=x)
+        np.clip(y, ymin, ymax, out=y)
+        self._theta_pred += control.omega * dt
+        self._last_v = abs(control.v)
+        self._cache = None
+
+    def _wrap_inplace(self, a: np.ndarray) -> None:
+        """Wrap angles in place to [-pi, pi) (values within a few turns)."""
+        t = self._w32[: a.shape[0]]
+        np.add(a, math.pi, out=t)
+        t *= 1.0 / TWO_PI
+        np.floor(t, out=t)
+        t *= TWO_PI
+        a -= t
+        # float32 rounding can leave exactly pi
+        a[a >= math.pi] = -math.pi
+
+    # ----------------------------------------------------------------- measurements
+    def update(self, measurements: Sequence[Measurement]) -> None:
+        """Weight the particles by the likelihood of this tick's readings (log domain)."""
+        measurements = [m for m in measurements if len(m)]
+        if not measurements:
+            return
+        if self._pending_resample:
+            self._resample()
+        n = self.n
+        ll = self._fit[:n]
+        ll[:] = 0.0
+        extra = np.zeros(n) if any(m.kind == "position" for m in measurements) else None
+        dims = 0
+        for m in measurements:
+            dims += self._loglik(m, ll, extra)
+        if self.params["heading_weight"]:
+            # Seed 002 eqs. 12-14: theta_pred from the last estimate and the commanded turn.
+            sa = self.params["heading_k_a"] / max(self._last_v, 0.015)
+            e = wrap(self._P[2, :n].astype(np.float64) - self._theta_pred)
+            ll += -0.5 * (e / sa) ** 2
+            dims += 1
+        self._dims = dims
+        logw = self._logw[:n]
+        # Per-reading likelihood of the tick (for augmented MCL): sum_i w_i exp(ll_i), ^(1/dims).
+        log_marg = _logsumexp(logw + ll)
+        w_avg = math.exp(log_marg / max(dims, 1))
+        logw += ll
+        if extra is not None:
+            logw += extra
+        logw -= _logsumexp(logw)
+        np.maximum(logw, -700.0, out=logw)          # no denormals (they are slow)
+        w = np.exp(logw)
+        self.ess = 1.0 / float(np.dot(w, w))
+        self._update_recovery(w_avg)
+        self._pending_resample = (self.ess < self.params["ess_threshold"] * n
+                                  or self.inject_prob > 0.0)
+        self._cache = None
+        if self.params["heading_weight"]:
+            self._theta_pred = float(self.estimate()[0][2])
+
+    def _update_recovery(self, w_avg: float) -> None:
+        p = self.params
+        if not p["augmented"]:
+            self.inject_prob = 0.0
+            return
+        if self.w_slow == 0.0:
+            self.w_slow = self.w_fast = w_avg
+        else:
+            self.w_slow += p["alpha_slow"] * (w_avg - self.w_slow)
+            self.w_fast += p["alpha_fast"] * (w_avg - self.w_fast)
+        ratio = self.w_fast / self.w_slow if self.w_slow > 0 else 1.0
+        self.inject_prob = min(max(0.0, 1.0 - ratio), p["inject_max"])
+
+    def _loglik(self, m: Measurement, ll: np.ndarray, extra: np.ndarray | None) -> int:
+        """Add the log-likelihood of ``m`` at every particle to ``ll`` (noise constants that
+        are the same for all particles left out, so every term is <= 0). Returns the number
+        of scalar readings."""
+        n = self.n
+        spec = self.ctx.sensor(m.sensor)
+        x, y, th = self._P[0, :n], self._P[1, :n], self._P[2, :n]
+        z = np.asarray(m.z, dtype=float)
+        eps = spec.outlier_rate
+        if m.kind in ("bearing", "range_bearing"):
+            bxy = self.ctx.world.beacon_positions(m.beacon_ids)
+            std = spec.reading_std()
+            kappa = 1.0 / std[-1] ** 2
+            k = z.shape[0]
+            T1, T2, T3, DX, DY = self._scratch(k, n)
+            c, s = self._c[:n], self._s[:n]
+            np.cos(th, out=c)
+            np.sin(th, out=s)
+            cz = np.cos(z[:, -1]).astype(self.dtype)[:, None]
+            sz = np.sin(z[:, -1]).astype(self.dtype)[:, None]
+            np.subtract(bxy[:, 0:1].astype(self.dtype), x, out=DX)
+            np.subtract(bxy[:, 1:2].astype(self.dtype), y, out=DY)
+            # cos(innovation) = [cos(theta + z) dx + sin(theta + z) dy] / r,
+            # cos(theta + z) = c cz - s sz, sin(theta + z) = s cz + c sz.
+            np.multiply(c, cz, out=T1)
+            np.multiply(s, sz, out=T2)
+            T1 -= T2
+            T1 *= DX
+            np.multiply(s, cz, out=T2)
+            np.multiply(c, sz, out=T3)
+            T2 += T3
+            T2 *= DY
+            T1 += T2
+            np.multiply(DX, DX, out=T2)
+            np.multiply(DY, DY, out=T3)
+            T2 += T3
+            np.sqrt(T2, out=T2)                   # range r
+            np.maximum(T2, 1e-6, out=T3)
+            T1 /= T3
+            T1 -= 1.0
+            T1 *= kappa                           # von Mises: kappa (cos(nu) - 1) <= 0
+            if m.kind == "range_bearing":
+                T2 -= z[:, 0:1].astype(self.dtype)
+                T2 *= 1.0 / std[0]
+                T2 *= T2
+                T2 *= -0.5
+                T1 += T2                          # Gaussian range term
+            if eps > 0:
+                # mixture with a uniform reading, log((1 - eps) p + eps u), relative to the peak
+                log_u = -math.log(TWO_PI) + 0.5 * math.log(TWO_PI * std[-1] ** 2)
+                if m.kind == "range_bearing":
+                    rmax = spec.max_range if math.isfinite(spec.max_range) else math.hypot(
+                        self.ctx.world.width, self.ctx.world.height)
+                    log_u += -math.log(rmax) + 0.5 * math.log(TWO_PI * std[0] ** 2)
+                T1[:] = np.logaddexp(T1 + math.log1p(-eps), math.log(eps) + log_u)
+            ll += T1.sum(axis=0, dtype=np.float64) if k > 1 else T1[0]
+            return int(z.size)
+        if m.kind == "pose":
+            std = spec.fix_std(len(m.beacon_ids))
+            ex = (x - z[0, 0]) / std[0]
+            ey = (y - z[0, 1]) / std[1]
+            row = -0.5 * (ex.astype(np.float64) ** 2 + ey ** 2)
+            row += (np.cos(th - z[0, 2]) - 1.0) / std[2] ** 2
+            if eps > 0:
+                area = self.ctx.world.width * self.ctx.world.height
+                log_u = -math.log(area * TWO_PI) + math.log(TWO_PI * std[0] * std[1]) \
+                    + 0.5 * math.log(TWO_PI * std[2] ** 2)
+                row = np.logaddexp(row + math.log1p(-eps), math.log(eps) + log_u)
+            ll += row
+            return 3
+        if m.kind == "position":
+            bxy = self.ctx.world.beacon_positions(m.beacon_ids)
+            xy = np.stack([x, y], axis=1)
+            h = np.minimum(hdop(xy, bxy, spec.beacon_height), 1e3)
+            sd = spec.noise.position_std * h            # seed 002: sigma = HDOP(x_l, y_l) sigma_d
+            sd0 = spec.noise.position_std * (m.hdop if math.isfinite(m.hdop) else float(np.min(h)))
+            d2 = (x - z[0, 0]).astype(np.float64) ** 2 + (y - z[0, 1]) ** 2
+            row = -0.5 * d2 / sd**2
+            # 2-D normalisation 1 / (2 pi sd^2), relative to the reported fix's sd0:
+            # it differs between particles through HDOP.
+            const = -2.0 * np.log(sd / sd0)
+            if eps > 0:
+                area = self.ctx.world.width * self.ctx.world.height
+                log_u = -math.log(area) + math.log(TWO_PI * sd0**2)
+                row = np.logaddexp(row + const + math.log1p(-eps), math.log(eps) + log_u)
+                const = 0.0
+            ll += row
+            if extra is not None:
+                extra += const
+            return 2
+        raise FilterError(f"pf: unknown measurement kind {m.kind!r}")
+
+    # ----------------------------------------------------------------- resampling
+    def _resample(self) -> None:
+        """Draw a new, equally weighted set (count by the adaptive scheme), inject random
+        particles at the augmented-MCL rate, roughen if asked."""
+        p = self.params
+        rng = self.ctx.rng
+        n_old = self.n
+        w = np.exp(self._logw[:n_old])
+        if not self.adaptive:
+            n_new = n_old
+            idx = resample(p["resampler"], w, n_new, rng)
+        else:
+            n_cand = self.capacity
+            idx = resample(p["resampler"], w, n_cand, rng)
+            idx = idx[rng.permutation(n_cand)]  # a prefix must be a fair sample
+        P = self._P2
+        m = idx.shape[0]
+        np.take(self._P[0, :n_old], idx, out=P[0, :m])
+        np.take(self._P[1, :n_old], idx, out=P[1, :m])
+        np.take(self._P[2, :n_old], idx, out=P[2, :m])
+        fit = self._fit[:n_old][idx] if p["adaptive"] == "seed002" else None
+        if self.inject_prob > 0:
+            mask = rng.random(m) < self.inject_prob
+            k = int(mask.sum())
+            if k:
+                xmin, ymin, xmax, ymax = self.ctx.world.bounds
+                P[0, :m][mask] = rng.uniform(xmin, xmax, k)
+                P[1, :m][mask] = rng.uniform(ymin, ymax, k)
+                P[2, :m][mask] = rng.uniform(-math.pi, math.pi, k)
+                if fit is not None:
+                    fit[mask] = -np.inf
+        if self.adaptive:
+            m = self._adaptive_count(P[:, :m], fit)
+        self._P, self._P2 = P, self._P
+        self.n = m
+        self._logw[:m] = -math.log(m)
+        if p["roughen"] > 0:
+            self._roughen(m)
+        self._pending_resample = False
+        self._cache = None
+
+    def _adaptive_count(self, cand: np.ndarray, fit: np.ndarray | None) -> int:
+        """How many of the (randomly ordered) candidates to keep."""
+        p = self.params
+        n_min, n_max = int(p["n_min"]), min(int(p["n_max"]), cand.shape[1])
+        if p["adaptive"] == "seed002":
+            # Seed 002: stop when the summed likelihood of the drawn particles exceeds Ver_max.
+            # Fit per scalar reading (geometric mean), in (0, 1], so Ver_max ~ particles needed
+            # when all agree.
+            dims = max(self._dims, 1)
+            score = np.exp(np.asarray(fit, dtype=np.float64) / dims)
+            csum = np.cumsum(score)
+            k = int(np.searchsorted(csum, p["ver_max"])) + 1
+            return int(np.clip(k, n_min, n_max))
+        # KLD-sampling: after j draws occupying k_j bins, stop once j >= n_kld(k_j).
+        bxy, bth = p["kld_bin_xy"], p["kld_bin_theta"]
+        xmin, ymin, _, _ = self.ctx.world.bounds
+        ix = np.floor((cand[0] - xmin) / bxy).astype(np.int64)
+        iy = np.floor((cand[1] - ymin) / bxy).astype(np.int64)
+        it = np.floor((cand[2] + math.pi) / bth).astype(np.int64)
+        key = (ix * 4096 + iy) * 4096 + it
+        _, first = np.unique(key, return_index=True)
+        is_new = np.zeros(key.shape[0], dtype=np.int64)
+        is_new[first] = 1
+        k = np.cumsum(is_new)                     # bins occupied by the first j + 1 draws
+        km1 = np.maximum(k - 1, 1).astype(np.float64)
+        a = 2.0 / (9.0 * km1)
+        need = km1 / (2.0 * p["kld_epsilon"]) * (1.0 - a + np.sqrt(a) * p["kld_z"]) ** 3
+        need[k <= 1] = 1.0
+        j = np.arange(1, key.shape[0] + 1)
+        ok = np.flatnonzero((j >= need) & (j >= n_min))
+        count = int(ok[0]) + 1 if ok.size else n_max
+        return int(np.clip(count, n_min, n_max))
+
+    def _roughen(self, n: int) -> None:
+        """Gaussian jitter with ``roughen`` times the kernel bandwidth (Silverman's rule,
+        3-D: ``h = n^(-1/7)`` of each dimension's spread)."""
+        rng = self.ctx.rng
+        P = self._P[:, :n]
+        h = self.params["roughen"] * n ** (-1.0 / 7.0)
+        sd = np.std(P[:2].astype(np.float64), axis=1)
+        th_sd = math.sqrt(max(0.0, -2.0 * math.log(max(
+            math.hypot(float(np.mean(np.cos(P[2]))), float(np.mean(np.sin(P[2])))), 1e-12))))
+        for row, s in zip(P, (*sd, th_sd), strict=True):
+            if s > 0:
+                row += (h * s * rng.standard_normal(n)).astype(self.dtype)
+        self._wrap_inplace(P[2])
+
+    # ----------------------------------------------------------------- outputs
+    def weights(self) -> np.ndarray:
+        """Normalised weights, shape (n,)."""
+        w = np.exp(self._logw[: self.n])
+        return w / w.sum()
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted mean and covariance ([m, m, rad]; heading circular, residuals wrapped)."""
+        if self._cache is None:
+            w = self.weights()
+            P = self._P[:, : self.n]
+            if self.params["estimate"] == "cluster":
+                sel = self._dominant_cluster(P, w)
+                P, w = P[:, sel], w[sel] / w[sel].sum()
+            if self._work is None or self._work.shape[1] < 4:
+                self._work = np.empty((5, max(4, len(self.ctx.world.beacons)), self.capacity),
+                                      dtype=self.dtype)
+            self._cache = weighted_pose_stats(P, w, self._work[:, 0, :])
+        mean, cov = self._cache
+        return mean.copy(), cov.copy()
+
+    def _dominant_cluster(self, P: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Indices of the particles of the heaviest mode: the coarse x-y cell with the most
+        weight in its 3x3 neighbourhood, then all particles within ``cluster_radius`` of that
+        neighbourhood's weighted mean."""
+        cell = self.params["cluster_cell"]
+        xmin, ymin, xmax, ymax = self.ctx.world.bounds
+        nx = max(1, math.ceil((xmax - xmin) / cell))
+        ny = max(1, math.ceil((ymax - ymin) / cell))
+        ix = np.clip(((P[0] - xmin) / cell).astype(np.int64), 0, nx - 1)
+        iy = np.clip(((P[1] - ymin) / cell).astype(np.int64), 0, ny - 1)
+        H = np.bincount(ix * ny + iy, weights=w, minlength=nx * ny).reshape(nx, ny)
+        Hp = np.pad(H, 1)
+        S = sum(Hp[1 + a: 1 + a + nx, 1 + b: 1 + b + ny] for a in (-1, 0, 1) for b in (-1, 0, 1))
+        cx, cy = np.unravel_index(int(np.argmax(S)), S.shape)
+        near = (np.abs(ix - cx) <= 1) & (np.abs(iy - cy) <= 1)
+        wn = w[near]
+        mx = float(np.dot(wn, P[0][near]) / wn.sum())
+        my = float(np.dot(wn, P[1][near]) / wn.sum())
+        r = self.params["cluster_radius"]
+        sel = np.flatnonzero((P[0] - mx) ** 2 + (P[1] - my) ** 2 <= r * r)
+        return sel if sel.size else np.flatnonzero(near)
+
+    def belief(self) -> ParticleBelief:
+        """The particles, shape (n, 3) [m, m, rad] (a read-only view, valid until the next
+        step), and their normalised weights (n,)."""
+        poses = self._P[:, : self.n].T
+        poses.flags.writeable = False
+        return ParticleBelief(poses, self.weights())
+
+    def _scratch(self, k: int, n: int) -> list[np.ndarray]:
+        """Five (k, n) work arrays, reused between calls."""
+        if self._work is None or self._work.shape[1] < k:
+            self._work = np.empty((5, max(k, len(self.ctx.world.beacons)), self.capacity),
+                                  dtype=self.dtype)
+        return [self._work[i, :k, :n] for i in range(5)]
+
+
+def weighted_pose_stats(P: np.ndarray, w: np.ndarray,
+                        work: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of weighted poses.
+
+    Parameters
+    ----------
+    P : ndarray, shape (3, n) [m, m, rad]
+        Rows x, y, theta (float32 or float64; sums are done in that precision).
+    w : ndarray, shape (n,)
+        Normalised weights.
+    work : ndarray, shape (>= 4, >= n), optional
+        Scratch space of P's dtype, to avoid allocating.
+
+    Returns
+    -------
+    mean : ndarray (3,)
+        Weighted mean position and circular mean heading.
+    cov : ndarray (3, 3)
+        ``sum w e e^T`` with the heading residual wrapped to [-pi, pi).
+    """
+    n = P.shape[1]
+    if work is None:
+        work = np.empty((4, n), dtype=P.dtype)
+    E = work[:3, :n]
+    wt = work[3, :n]
+    wt[:] = w
+    mx = float(np.dot(wt, P[0]))
+    my = float(np.dot(wt, P[1]))
+    np.sin(P[2], out=E[0])
+    np.cos(P[2], out=E[1])
+    mth = wrap(math.atan2(float(np.dot(wt, E[0])), float(np.dot(wt, E[1]))))
+    np.subtract(P[0], mx, out=E[0])
+    np.subtract(P[1], my, out=E[1])
+    e = E[2]
+    np.subtract(P[2], mth, out=e)            # in (-2 pi, 2 pi): wrap by at most one turn
+    e[e >= math.pi] -= TWO_PI
+    e[e < -math.pi] += TWO_PI
+    WE = np.multiply(E, wt)
+    cov = (WE @ E.T).astype(np.float64)
+    # float32 sums can leave a tiny negative eigenvalue when the set has collapsed: clip.
+    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    cov = (vecs * np.maximum(vals, 1e-12)) @ vecs.T
+    cov = 0.5 * (cov + cov.T)
+    return np.array([mx, my, mth]), cov
+
+
+def _logsumexp(a: np.ndarray) -> float:
+    m = float(np.max(a))
+    if not math.isfinite(m):
+        return m
+    return m + math.log(float(np.sum(np.exp(a - m))))
