@@ -86,11 +86,24 @@ def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds =
         nlo, nhi = anees_band(nis_dof, dof=1) if nis_dof else (math.nan, math.nan)
         n_div = 0
         rec: list[list[float]] = []
+        per_run = []
         for r in runs:
             fr = r.filters[name]
             perr = np.sqrt(fr.err[:, 0] ** 2 + fr.err[:, 1] ** 2)
-            n_div += bool(fr.failed) or diverged(perr, thresholds.divergence_m)
+            lost = bool(fr.failed) or diverged(perr, thresholds.divergence_m)
+            n_div += lost
             rt = recovery_times(perr, times, np.flatnonzero(r.kidnapped), thresholds.recovery_m)
+            with np.errstate(all="ignore"):
+                per_run.append({
+                    "seed": r.seed,
+                    "pos_rmse_m": _f(float(np.sqrt(np.nanmean(perr**2)))),
+                    "heading_rmse_rad": _f(float(np.sqrt(np.nanmean(fr.err[:, 2] ** 2)))),
+                    "anees": _f(float(np.nanmean(fr.nees))),
+                    "diverged": lost,
+                    "recovery_s": [_f(v) for v in rt],
+                    "us_per_step": fr.step_ns / 1e3 / max(fr.steps, 1),
+                    "failed": fr.failed,
+                })
             for k, v in enumerate(rt):
                 while len(rec) <= k:
                     rec.append([])
@@ -130,6 +143,7 @@ def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds =
                 "us_per_step": {"min": float(np.min(us)), "max": float(np.max(us))},
             },
             "failed": failed,
+            "per_run": per_run,
         }
         with np.errstate(all="ignore"):
             curves["filters"][name] = {
