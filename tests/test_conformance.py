@@ -1,0 +1,122 @@
+"""The conformance checker: every built-in filter passes; broken filters are caught."""
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from beacon_sim.cli import main
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.filters.conformance import run_checks
+from beacon_sim.filters.loading import BUILTIN_FILTERS
+
+BUILTINS = [n for n, t in BUILTIN_FILTERS.items() if importlib.util.find_spec(t.split(":")[0])]
+
+GOOD = '''
+import numpy as np
+from beacon_sim.core.motion import move
+from beacon_sim.filters.base import FilterBase
+
+class {name}(FilterBase):
+    def reset(self, initial):
+        self.mean = np.array([5.0, 5.0, 0.0]) if initial is None else np.array(initial.mean)
+        self.cov = np.eye(3) * 0.01
+    def predict(self, control, dt):
+        self.mean = move(self.mean, control.v, control.omega, dt)
+        {extra_predict}
+    def update(self, measurements):
+        {extra_update}
+    def estimate(self):
+        return {estimate}
+'''
+
+
+def write_filter(tmp_path, name="Student", extra_predict="pass", extra_update="pass",
+                 estimate="self.mean.copy(), self.cov.copy()"):
+    path = tmp_path / f"{name.lower()}.py"
+    path.write_text(GOOD.format(name=name, extra_predict=extra_predict, extra_update=extra_update,
+                                estimate=estimate))
+    return f"{path}:{name}"
+
+
+def failed(results):
+    return {r.name for r in results if not r.passed}
+
+
+@pytest.fixture(scope="module")
+def default():
+    return load_scenario("default")
+
+
+@pytest.mark.parametrize("spec", BUILTINS)
+def test_every_builtin_filter_passes(spec, default):
+    results = run_checks(spec, default)
+    assert not failed(results), [(r.name, r.message) for r in results if not r.passed]
+
+
+def test_kf_is_checked_on_a_scenario_with_a_pose_fix(default):
+    results = run_checks("kf", default)
+    note = [r for r in results if r.name == "scenario"]
+    assert note and "assignment_kf" in note[0].message
+
+
+def test_a_correct_student_filter_passes(tmp_path, default):
+    assert not failed(run_checks(write_filter(tmp_path), default))
+
+
+def test_global_np_random_is_rejected(tmp_path, default):
+    spec = write_filter(tmp_path, "Noisy",
+                        extra_update="self.mean = self.mean + np.random.normal(0, 1e-3, 3)")
+    results = run_checks(spec, default)
+    bad = failed(results)
+    assert "no global RNG" in bad and "deterministic" in bad
+    advice = next(r.advice for r in results if r.name == "no global RNG")
+    assert "ctx.rng" in advice
+
+
+def test_global_draw_without_effect_is_still_rejected(tmp_path, default):
+    spec = write_filter(tmp_path, "Sneaky", extra_update="np.random.random()")
+    assert failed(run_checks(spec, default)) == {"no global RNG"}
+
+
+def test_ctx_rng_is_allowed(tmp_path, default):
+    spec = write_filter(tmp_path, "Honest",
+                        extra_update="self.mean = self.mean + self.ctx.rng.normal(0, 1e-6, 3)")
+    assert not failed(run_checks(spec, default))
+
+
+def test_unwrapped_heading_and_bad_covariance_are_reported(tmp_path, default):
+    spec = write_filter(tmp_path, "Spinner", extra_predict="self.mean[2] += 0.5; self.cov[0, 1] = 1.0")
+    bad = failed(run_checks(spec, default))
+    assert {"heading wrapped", "symmetric covariance"} <= bad
+
+
+def test_wrong_shapes_and_nan_are_reported(tmp_path, default):
+    assert "shapes" in failed(run_checks(write_filter(tmp_path, "Flat", estimate="self.mean[:2], self.cov"),
+                                         default))
+    spec = write_filter(tmp_path, "Nan", extra_update="self.cov = self.cov * np.nan")
+    assert "finite" in failed(run_checks(spec, default))
+
+
+def test_crashing_update_is_reported_with_advice(tmp_path, default):
+    spec = write_filter(tmp_path, "Crash", extra_update="raise RuntimeError('boom')")
+    results = run_checks(spec, default)
+    r = next(r for r in results if r.name == "runs")
+    assert not r.passed and "boom" in r.message and r.advice
+
+
+def test_global_rng_state_is_restored(default):
+    np.random.seed(99)
+    before = np.random.get_state()[1].copy()
+    run_checks("ekf", default)
+    assert np.array_equal(np.random.get_state()[1], before)
+
+
+def test_cli_check_exit_status(tmp_path, capsys):
+    assert main(["check", "ekf"]) == 0
+    out = capsys.readouterr().out
+    assert "PASS" in out and "deterministic" in out
+    spec = write_filter(tmp_path, "Noisy", extra_update="np.random.random()")
+    assert main(["check", spec]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL" in out and "what to fix" in out
