@@ -1,0 +1,275 @@
+"""Particle filter: likelihoods against hand maths, estimates, global localization,
+kidnap recovery (augmented MCL), ANEES in tracking, adaptive counts, determinism."""
+
+import math
+
+import numpy as np
+import pytest
+
+from beacon_sim.core.events import Kidnap
+from beacon_sim.core.geometry import hdop
+from beacon_sim.core.metrics import anees_band, nees, pose_errors
+from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.scenario import InitialBelief, load_scenario
+from beacon_sim.core.sensors import SensorNoise, SensorSpec
+from beacon_sim.core.types import Beacon, Control, Measurement
+from beacon_sim.core.world import World
+from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, ParticleBelief
+from beacon_sim.filters.particle import ParticleFilter, weighted_pose_stats
+from beacon_sim.headless import run_headless
+
+WORLD = World((0.0, 0.0, 10.0, 10.0), (Beacon(1, 2.0, 2.0), Beacon(2, 8.0, 3.0), Beacon(3, 4.0, 8.5)))
+
+
+def make_pf(sensors=(), params=None, seed=0, noise=None):
+    ctx = FilterContext("pf", WORLD, 0.1, noise or MotionNoise(), tuple(sensors),
+                        params or {}, np.random.default_rng(seed))
+    return ParticleFilter(ctx)
+
+
+def set_particles(pf, poses):
+    poses = np.asarray(poses, dtype=float)
+    n = poses.shape[0]
+    pf._P[:, :n] = poses.T
+    pf.n = n
+    pf._logw[:n] = -math.log(n)
+    pf._cache = None
+
+
+# --------------------------------------------------------------------- likelihoods by hand
+def test_range_bearing_weights_match_the_hand_computed_likelihood():
+    spec = SensorSpec("rb", "range_bearing", noise=SensorNoise(range_std=0.2, bearing_std=0.1))
+    pf = make_pf([spec], {"n_particles": 2, "augmented": False, "dtype": "float64"})
+    poses = [[5.0, 5.0, 0.3], [5.4, 4.8, 0.1]]
+    set_particles(pf, poses)
+    z = np.array([[4.0, -2.0]])          # range 4 m, bearing -2 rad to beacon 1 at (2, 2)
+    pf.update([Measurement("rb", "range_bearing", z, np.array([1]))])
+
+    def lik(p):
+        dx, dy = 2.0 - p[0], 2.0 - p[1]
+        r = math.hypot(dx, dy)
+        nu = math.remainder(z[0, 1] - (math.atan2(dy, dx) - p[2]), 2 * math.pi)
+        return math.exp(-0.5 * ((r - 4.0) / 0.2) ** 2) * math.exp((math.cos(nu) - 1) / 0.1**2)
+
+    w = pf.weights()
+    expect = np.array([lik(p) for p in poses])
+    assert w == pytest.approx(expect / expect.sum(), rel=1e-6)
+
+
+def test_von_mises_bearing_equals_wrapped_gaussian_near_pi():
+    # A bearing innovation across +-pi: the reading is -pi + 0.02, the prediction pi - 0.03.
+    spec = SensorSpec("b", "bearing", noise=SensorNoise(bearing_std=0.05))
+    pf = make_pf([spec], {"n_particles": 2, "augmented": False, "dtype": "float64"})
+    # Beacon 2 at (8, 3) seen from (9, 3): direction pi. Heading 0.03 gives bearing pi - 0.03;
+    # heading 0.5 gives bearing pi - 0.5.
+    set_particles(pf, [[9.0, 3.0, 0.03], [9.0, 3.0, 0.5]])
+    z = np.array([[-math.pi + 0.02]])
+    pf.update([Measurement("b", "bearing", z, np.array([2]))])
+    w = pf.weights()
+    # Wrapped innovations 0.05 and 0.52 rad; Gaussian ratio exp(-(0.05^2 - 0.52^2) / (2 s^2)).
+    # Von Mises with kappa = 1 / s^2: log ratio (cos 0.05 - cos 0.52) / s^2; the wrapped
+    # Gaussian gives (0.52^2 - 0.05^2) / (2 s^2), within 3 % at this 10-sigma innovation.
+    assert math.log(w[0] / w[1]) == pytest.approx((math.cos(0.05) - math.cos(0.52)) / 0.05**2, rel=1e-6)
+    assert math.log(w[0] / w[1]) == pytest.approx((0.52**2 - 0.05**2) / (2 * 0.05**2), rel=0.03)
+
+
+def test_position_fix_uses_hdop_at_each_particle():
+    spec = SensorSpec("ulps", "position", min_beacons=2, beacon_height=2.0,
+                      noise=SensorNoise(position_std=0.1))
+    pf = make_pf([spec], {"n_particles": 2, "augmented": False, "dtype": "float64"})
+    poses = [[5.0, 5.0, 0.0], [5.1, 4.9, 0.0]]
+    set_particles(pf, poses)
+    ids = np.array([1, 2, 3])
+    z = np.array([[5.05, 5.0]])
+    pf.update([Measurement("ulps", "position", z, ids, hdop=1.3)])
+    b = WORLD.beacon_xy
+
+    def lik(p):   # 2-D Gaussian with sigma = HDOP(x, y) sigma_d (seed 002 eq. 11)
+        s = hdop(np.array(p[:2]), b, 2.0) * 0.1
+        d2 = (p[0] - z[0, 0]) ** 2 + (p[1] - z[0, 1]) ** 2
+        return math.exp(-0.5 * d2 / s**2) / (2 * math.pi * s**2)
+
+    expect = np.array([lik(p) for p in poses])
+    assert pf.weights() == pytest.approx(expect / expect.sum(), rel=1e-6)
+
+
+def test_log_weights_never_underflow():
+    spec = SensorSpec("rb", "range_bearing", noise=SensorNoise(range_std=0.01, bearing_std=0.01))
+    pf = make_pf([spec], {"n_particles": 50, "augmented": False, "ess_threshold": 0.0})
+    pf.reset(GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([1.0, 1.0, 0.3])))
+    m = Measurement("rb", "range_bearing", np.array([[9.0, 2.0]]), np.array([1]))
+    for _ in range(200):       # each update multiplies by factors like exp(-1e5)
+        pf.update([m])
+    assert np.all(np.isfinite(pf.weights())) and pf.weights().sum() == pytest.approx(1.0)
+    mean, cov = pf.estimate()
+    assert np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))
+
+
+# --------------------------------------------------------------------- estimates
+def test_estimate_circular_mean_and_wrapped_residuals_at_pi():
+    P = np.array([[1.0, 1.2, 0.8, 1.0], [2.0, 2.0, 2.0, 2.4], [math.pi - 0.1, -math.pi + 0.1,
+                                                              math.pi - 0.05, -math.pi + 0.05]])
+    w = np.array([0.25, 0.25, 0.25, 0.25])
+    mean, cov = weighted_pose_stats(P, w)
+    assert abs(math.remainder(mean[2] - math.pi, 2 * math.pi)) < 1e-9
+    assert -math.pi <= mean[2] < math.pi
+    assert mean[:2] == pytest.approx([1.0, 2.1])
+    # Residuals +-0.1, +-0.05 around pi: variance (0.01 + 0.01 + 0.0025 + 0.0025) / 4.
+    assert cov[2, 2] == pytest.approx(0.00625, rel=1e-9)
+    assert cov[0, 0] == pytest.approx((0 + 0.04 + 0.04 + 0) / 4)
+    # x residuals (0, .2, -.2, 0) against theta residuals (-.1, .1, -.05, .05): (0.02+0.01)/4
+    assert cov[0, 2] == pytest.approx(0.0075)
+
+
+def test_cluster_estimate_reports_the_heavier_mode():
+    rng = np.random.default_rng(5)
+    a = np.column_stack([rng.normal(2, 0.1, 600), rng.normal(2, 0.1, 600), rng.normal(0.5, 0.05, 600)])
+    b = np.column_stack([rng.normal(8, 0.1, 400), rng.normal(7, 0.1, 400), rng.normal(-1, 0.05, 400)])
+    for mode, expect in (("mean", [4.4, 4.0]), ("cluster", [2.0, 2.0])):
+        pf = make_pf(params={"n_particles": 1000, "estimate": mode})
+        set_particles(pf, np.vstack([a, b]))
+        mean, cov = pf.estimate()
+        assert mean[:2] == pytest.approx(expect, abs=0.05)
+    assert mean[2] == pytest.approx(0.5, abs=0.02)
+    assert np.sqrt(cov[0, 0]) < 0.2
+
+
+def test_reset_uniform_and_gaussian():
+    pf = make_pf(params={"n_particles": 20000})
+    b = pf.belief()
+    assert isinstance(b, ParticleBelief) and b.poses.shape == (20000, 3)
+    assert b.poses[:, 0].min() >= 0 and b.poses[:, 0].max() <= 10
+    assert b.poses[:, 2].min() >= -math.pi and b.poses[:, 2].max() < math.pi
+    assert np.mean(b.poses[:, 0]) == pytest.approx(5.0, abs=0.1)
+    assert np.var(b.poses[:, 1]) == pytest.approx(100 / 12, rel=0.05)   # uniform over 10 m
+    pf.reset(GaussianBelief(np.array([3.0, 4.0, 3.1]), np.diag([0.04, 0.09, 0.01])))
+    mean, cov = pf.estimate()
+    assert mean == pytest.approx([3.0, 4.0, 3.1], abs=0.02)
+    assert np.diag(cov) == pytest.approx([0.04, 0.09, 0.01], rel=0.08)
+
+
+def test_prediction_spreads_as_the_motion_noise_says():
+    noise = MotionNoise(v_std=0.1, omega_std=0.2)
+    pf = make_pf(params={"n_particles": 20000, "dtype": "float64"}, noise=noise)
+    pf.reset(GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([1e-12, 1e-12, 1e-12])))
+    for _ in range(10):
+        pf.predict(Control(0.5, 0.0), 0.1)
+    mean, cov = pf.estimate()
+    assert mean[0] == pytest.approx(5.5, abs=0.01)
+    # Along track: 10 steps of (0.1 * 0.1)^2 = 1e-3 m^2; heading: 10 * (0.2 * 0.1)^2 = 4e-3.
+    assert cov[0, 0] == pytest.approx(1e-3, rel=0.06)
+    assert cov[2, 2] == pytest.approx(4e-3, rel=0.06)
+
+
+def test_bad_parameters():
+    with pytest.raises(FilterError, match="n_particles"):
+        make_pf(params={"n_partcles": 10})
+    with pytest.raises(FilterError, match="resampler"):
+        make_pf(params={"resampler": "magic"})
+
+
+# --------------------------------------------------------------------- runs on sparse_kidnap
+def _errors(result, name):
+    tr = result.runner.tracks[name]
+    assert tr.failed is None, tr.failed
+    return np.hypot(*(np.array(tr.means)[:, :2] - result.truth[:, :2]).T)
+
+
+def _first_settled(err, start=0, hold=20, tol=0.5):
+    """First index from ``start`` where the error stays below ``tol`` for ``hold`` steps."""
+    ok = err < tol
+    for i in range(start, len(err) - hold + 1):
+        if ok[i: i + hold].all():
+            return i
+    return None
+
+
+@pytest.mark.parametrize("start", [(2.0, 7.0, -2.0), (8.5, 8.5, 2.5)])
+def test_global_localization_from_uniform(start):
+    sc = load_scenario("sparse_kidnap").with_changes(initial_pose=start)
+    assert sc.initial_belief.global_
+    r = run_headless(sc, ["pf"], seed=3, duration=17.0, params={"pf": {"n_particles": 5000}})
+    err = _errors(r, "pf")
+    assert err[0] > 1.0                          # the uniform mean is far from the truth
+    i = _first_settled(err)
+    assert i is not None and i * sc.dt <= 15.0, err[::10]
+
+
+def _kidnap_trials(augmented, trials=20):
+    base = load_scenario("sparse_kidnap")
+    sc = base.with_changes(
+        events=(Kidnap(time=5.0, random=True),),
+        initial_belief=InitialBelief(mean=base.initial_pose, std=(0.1, 0.1, 0.05)))
+    recovered = 0
+    for seed in range(trials):
+        r = run_headless(sc, ["pf"], seed=1000 + seed, duration=20.0,
+                         params={"pf": {"augmented": augmented}})
+        err = _errors(r, "pf")
+        k = next(i for i, s in enumerate(r.steps) if s.kidnapped)
+        if np.hypot(*(r.steps[k].true_pose[:2] - r.steps[k - 1].true_pose[:2])) < 1.0:
+            recovered += 1      # a kidnap to next door is not a kidnap; counts as recovered
+            continue
+        i = _first_settled(err, k, hold=20)
+        recovered += i is not None and (i - k) * sc.dt <= 15.0
+    return recovered
+
+
+@pytest.mark.slow
+def test_kidnap_recovery_needs_augmented_mcl():
+    with_recovery = _kidnap_trials(True)
+    without = _kidnap_trials(False)
+    assert with_recovery >= 18, with_recovery
+    assert without <= 10, without
+
+
+@pytest.mark.slow
+def test_tracking_anees_in_the_chi_square_band():
+    base = load_scenario("sparse_kidnap")
+    sc = base.with_changes(events=(), initial_belief=InitialBelief(
+        mean=base.initial_pose, std=(0.1, 0.1, 0.05)))
+    values = []
+    for seed in range(10):
+        r = run_headless(sc, ["pf"], seed=100 + seed, duration=60.0,
+                         params={"pf": {"n_particles": 2000}})
+        tr = r.runner.tracks["pf"]
+        e = pose_errors(np.array(tr.means), r.truth)
+        values.append(nees(e, np.array(tr.covs))[29::30])     # every 3 s: nearly independent
+    v = np.concatenate(values)
+    lo, hi = anees_band(v.size)
+    assert lo <= v.mean() <= hi, (v.mean(), lo, hi)
+
+
+# --------------------------------------------------------------------- adaptive counts
+@pytest.mark.parametrize("scheme", ["kld", "seed002"])
+def test_adaptive_count_shrinks_when_localized(scheme):
+    sc = load_scenario("sparse_kidnap").with_changes(initial_pose=(2.0, 7.0, -2.0))
+    r = run_headless(sc, ["pf"], seed=4, duration=10.0,
+                     params={"pf": {"adaptive": scheme, "n_min": 200, "n_max": 8000}})
+    pf = r.runner.tracks["pf"].filter
+    err = _errors(r, "pf")
+    assert err[-20:].max() < 0.5
+    assert 200 <= pf.n <= 3000, pf.n          # far fewer than the 8000 it started with
+
+
+def test_heading_weight_option_runs_and_tracks():
+    sc = load_scenario("ulps_circle")
+    r = run_headless(sc, ["pf"], seed=1, duration=10.0, params={"pf": {"heading_weight": True}})
+    assert _errors(r, "pf")[-20:].max() < 0.5
+
+
+# --------------------------------------------------------------------- randomness
+def test_determinism_under_a_reseeded_global_rng():
+    sc = load_scenario("sparse_kidnap")
+    out = []
+    for g in (1, 2):
+        np.random.seed(g)  # the point: the filter must not care
+        r = run_headless(sc, ["pf"], seed=9, duration=5.0, params={"pf": {"n_particles": 500}})
+        out.append(np.array(r.runner.tracks["pf"].means))
+    assert np.array_equal(out[0], out[1])
+
+
+def test_conformance_check_passes():
+    conformance = pytest.importorskip("beacon_sim.filters.conformance")
+    for name in ("sparse_kidnap", "default"):
+        results = conformance.run_checks("pf", load_scenario(name))
+        assert all(r.passed for r in results), [(r.name, r.message) for r in results if not r.passed]
