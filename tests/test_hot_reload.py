@@ -215,3 +215,41 @@ def test_reload_restarts_the_filter_random_stream(tmp_path, scenario):
     write(path, SOURCE.format(offset=0.5), bump_s=1)
     res = watcher.poll()
     np.testing.assert_array_equal(res.new_filter.ctx.rng.random(4), first)
+
+
+def test_reload_inside_the_window_under_the_dummy_driver(setup, scenario):
+    """The window's own hooks (App.swap_filter, App.flash) with the watcher, as the loop
+    will call them: the new version runs in the window, a broken one leaves the old one."""
+    pytest.importorskip("pygame")
+    app_main = pytest.importorskip("beacon_sim.app.main")
+    from beacon_sim.app.session import Session
+
+    path, spec, clock, watcher, _ = setup
+    session = Session(scenario, [spec, "dead_reckoning"], seed=5)
+    app = app_main.App(session, (640, 400), scripted=True)
+    try:
+        name = session.names[0]
+        watcher.name = name
+        app.run(app.frames + 10)              # run() counts frames from the start
+        write(path, SOURCE.format(offset=2.0), bump_s=1)
+        clock.t += 2
+        res = watcher.poll()
+        app.swap_filter(name, res.new_filter)
+        app.flash(res.message)
+        app.run(app.frames + 10)
+        track = session.runner.tracks[name]
+        assert track.filter is res.new_filter and track.means and track.failed is None
+        assert track.means[-1][0] - scenario.initial_belief.mean[0] == pytest.approx(2.0)
+        assert "reloaded" in app.banner_text
+        write(path, "this is not python\n", bump_s=2)
+        clock.t += 2
+        bad = watcher.poll()
+        assert bad.new_filter is None
+        app.flash(bad.error)
+        app.run(app.frames + 10)
+        assert session.runner.tracks[name].filter is res.new_filter    # previous version runs on
+        assert session.runner.tracks[name].failed is None
+        assert "not reloaded" in app.banner_text
+        assert len(session.runner.tracks["dead_reckoning"].means) > len(track.means)
+    finally:
+        app.close()

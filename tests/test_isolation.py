@@ -257,3 +257,26 @@ def test_real_sleep_is_measured(faulty_file, scenario):
         runner.feed(sim.step())
     assert runner.tracks["slow"].us_per_step >= 60_000 * 0.95
     assert time.perf_counter() - t0 >= 0.17
+
+
+@pytest.mark.parametrize("kind", ["RaisesInUpdate", "NanMean", "NotPSD"])
+def test_the_window_keeps_stepping_past_a_faulty_filter(kind, faulty_file, scenario):
+    """Under the dummy SDL driver: the faulty filter is switched off, its status carries the
+    message for the HUD, and the simulation and dead reckoning go on tick after tick."""
+    pytest.importorskip("pygame")
+    app_main = pytest.importorskip("beacon_sim.app.main")
+    from beacon_sim.app.session import Session
+
+    session = Session(scenario, [f"{faulty_file}:{kind}", "dead_reckoning"], seed=3)
+    app = app_main.App(session, (640, 400), scripted=True)
+    try:
+        app.run(40)
+        bad, good = session.runner.tracks[kind], session.runner.tracks["dead_reckoning"]
+        assert bad.failed and KINDS[kind] in bad.failed
+        assert session.status[kind].failed == bad.failed
+        ticks = session.sim.tick
+        assert ticks > FAIL_AT + 5 and good.failed is None and len(good.means) == ticks
+        app.run(app.frames + 20)
+        assert session.sim.tick > ticks and len(good.means) == session.sim.tick
+    finally:
+        app.close()
