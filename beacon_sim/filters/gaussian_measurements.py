@@ -33,6 +33,8 @@ class ReadingModels:
     def __init__(self, ctx: FilterContext):
         self.ctx = ctx
         self.beacon_xy = {int(b.id): (float(b.x), float(b.y)) for b in ctx.world.beacons}
+        self.xy = np.array(ctx.world.beacon_xy, dtype=float).reshape(-1, 2)
+        self.row = {int(b.id): i for i, b in enumerate(ctx.world.beacons)}
         self.specs = {s.name: s for s in ctx.sensors}
         self.reading_var = {s.name: tuple(float(v) ** 2 for v in s.reading_std())
                             for s in ctx.sensors if s.kind in BEACON_KINDS}
@@ -49,6 +51,19 @@ class ReadingModels:
         except KeyError:
             raise FilterError(f"reading from beacon {beacon_id}, which is not on the map") from None
 
+    def beacons(self, ids) -> np.ndarray:
+        """Positions (k, 2) [m] of the beacons with these IDs."""
+        try:
+            return self.xy[[self.row[i] for i in ids.tolist()]]
+        except KeyError as exc:
+            raise FilterError(f"reading from beacon {exc.args[0]}, which is not on the map") from None
+
+    def reading_variance(self, sensor: str) -> tuple[float, ...]:
+        var = self.reading_var.get(sensor)
+        if var is None:
+            var = tuple(float(v) ** 2 for v in self.spec(sensor).reading_std())
+        return var
+
     def fix_var(self, m: Measurement) -> list[float]:
         """Variances of a pose ``[x, y, theta]`` or position ``[x, y]`` fix row."""
         std = self.spec(m.sensor).fix_std(len(m.beacon_ids), m.hdop)
@@ -58,38 +73,48 @@ class ReadingModels:
 @dataclass
 class StackedReadings:
     """One tick's readings as one vector. Rows are ordered measurement by measurement,
-    reading by reading, component by component (range before bearing)."""
+    reading by reading, component by component (range before bearing).
+
+    ``angle`` is a boolean mask of the angle rows; ``angle_sel`` selects the same rows as a
+    slice when it can (a view, cheaper than a mask on the hot path).
+    """
 
     z: np.ndarray          # (m,) measured values [m or rad]
     r: np.ndarray          # (m,) noise variances [m^2 or rad^2]
     angle: np.ndarray      # (m,) bool: row is an angle (wrap its residuals)
+    angle_sel: object      # slice or index array of the angle rows (None: no angle row)
     blocks: list           # (kind, start, stop, beacon xy (k, 2) or None)
 
     def __len__(self) -> int:
         return int(self.z.shape[0])
 
-    def predict(self, poses: np.ndarray) -> np.ndarray:
-        """Expected readings h(pose) for poses of shape (N, 3): shape (N, m), angles wrapped."""
+    def predict(self, poses: np.ndarray, wrap: bool = True) -> np.ndarray:
+        """Expected readings h(pose) for poses of shape (N, 3): shape (N, m), angles wrapped
+        (``wrap=False`` leaves them unwrapped, for callers that wrap residuals anyway)."""
         out = np.empty((poses.shape[0], self.z.shape[0]))
         x = poses[:, 0:1]
         y = poses[:, 1:2]
         th = poses[:, 2:3]
         for kind, a, b, bxy in self.blocks:
             if kind == "bearing":
-                out[:, a:b] = np.arctan2(bxy[:, 1] - y, bxy[:, 0] - x) - th
+                np.subtract(np.arctan2(bxy[:, 1] - y, bxy[:, 0] - x), th, out=out[:, a:b])
             elif kind == "range_bearing":
                 dx = bxy[:, 0] - x
                 dy = bxy[:, 1] - y
-                out[:, a:b:2] = np.hypot(dx, dy)
-                out[:, a + 1:b:2] = np.arctan2(dy, dx) - th
+                np.hypot(dx, dy, out=out[:, a:b:2])
+                np.subtract(np.arctan2(dy, dx), th, out=out[:, a + 1:b:2])
             elif kind == "pose":
                 out[:, a:b] = poses
             else:  # position
                 out[:, a:b] = poses[:, :2]
-        # Wrap the angle rows to [-pi, pi).
-        ang = out[:, self.angle]
-        out[:, self.angle] = (ang + np.pi) % (2.0 * np.pi) - np.pi
+        sel = self.angle_sel
+        if wrap and sel is not None:  # wrap the angle rows to [-pi, pi)
+            out[:, sel] = (out[:, sel] + np.pi) % (2.0 * np.pi) - np.pi
         return out
+
+
+_ANGLE_PATTERN = {"bearing": (True,), "range_bearing": (False, True), "pose": (False, False, True),
+                  "position": (False, False)}
 
 
 def stack(models: ReadingModels, measurements: Iterable[Measurement],
@@ -101,31 +126,33 @@ def stack(models: ReadingModels, measurements: Iterable[Measurement],
     for m in measurements:
         if m.kind not in kinds or len(m) == 0:
             continue
-        z = np.asarray(m.z, dtype=float)
         if m.kind in BEACON_KINDS:
-            var = models.reading_var.get(m.sensor)
-            if var is None:
-                var = tuple(float(v) ** 2 for v in models.spec(m.sensor).reading_std())
-            bxy = np.array([models.beacon(int(i)) for i in m.beacon_ids.tolist()]).reshape(-1, 2)
+            var = models.reading_variance(m.sensor)
+            bxy = models.beacons(m.beacon_ids)
             k = bxy.shape[0]
-            zs.append(z.reshape(-1))
-            rs.append(np.tile(var, k))
-            angles.append(np.tile([False, True] if m.kind == "range_bearing" else [True], k))
+            rs.extend(var * k)
+            angles.extend(_ANGLE_PATTERN[m.kind] * k)
             n = k * len(var)
         else:
-            row = z.reshape(-1)
-            zs.append(row)
-            rs.append(np.array(models.fix_var(m)))
-            angles.append(np.array([False, False, True][: row.shape[0]]))
+            var = models.fix_var(m)
+            rs.extend(var)
+            angles.extend(_ANGLE_PATTERN[m.kind])
             bxy = None
-            n = row.shape[0]
+            n = len(var)
+        zs.append(m.z.reshape(-1))
         blocks.append((m.kind, m0, m0 + n, bxy))
         m0 += n
     if not blocks:
         return None
-    if len(zs) == 1:
-        return StackedReadings(zs[0], rs[0], angles[0], blocks)
-    return StackedReadings(np.concatenate(zs), np.concatenate(rs), np.concatenate(angles), blocks)
+    z = zs[0] if len(zs) == 1 else np.concatenate(zs)
+    angle = np.array(angles)
+    if len(blocks) == 1 and blocks[0][0] != "position":
+        kind = blocks[0][0]
+        sel = slice(None) if kind == "bearing" else slice(1, None, 2) if kind == "range_bearing" \
+            else slice(2, 3)
+    else:
+        sel = np.flatnonzero(angle) if any(angles) else None
+    return StackedReadings(np.asarray(z, dtype=float), np.array(rs), angle, sel, blocks)
 
 
 def process_cov_terms(noise, theta: float, v: float, omega: float, dt: float) -> tuple[float, ...]:

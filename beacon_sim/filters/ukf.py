@@ -25,6 +25,7 @@ clipped to zero, so a degenerate covariance never stops the filter.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -107,10 +108,9 @@ class UnscentedKalmanFilter(FilterBase):
         super().__init__(ctx)
         p = self.params
         self.c, self.Wm, self.Wc = sigma_weights(p["alpha"], p["beta"], p["kappa"], p["scaled"])
-        self.sqrt_c = float(np.sqrt(self.c))
+        self.sqrt_c = math.sqrt(self.c)
+        self._wm, self._wc = self.Wm.tolist(), self.Wc.tolist()
         self.models = ReadingModels(ctx)
-        self._X = np.empty((2 * N + 1, N))   # sigma points
-        self._D = np.zeros((2 * N + 1, N))   # their offsets from the mean
         self.reset(None)
 
     def reset(self, initial: GaussianBelief | None) -> None:
@@ -123,34 +123,65 @@ class UnscentedKalmanFilter(FilterBase):
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         return self.mean.copy(), self.cov.copy()
 
+    def _offsets(self) -> list[tuple[float, float, float]]:
+        """The 2n + 1 sigma-point offsets from the mean: 0, +- columns of sqrt(c P).
+
+        The 3x3 Cholesky factor is written out on floats (a numpy call costs ~1 us,
+        design.md section 9); ``robust_sqrt`` takes over when a pivot is not positive."""
+        (a00, a01, a02), (_, a11, a12), (_, _, a22) = self.cov.tolist()
+        sc = self.sqrt_c
+        try:
+            l00 = math.sqrt(a00)
+            l10 = a01 / l00
+            l20 = a02 / l00
+            l11 = math.sqrt(a11 - l10 * l10)
+            l21 = (a12 - l20 * l10) / l11
+            l22 = math.sqrt(a22 - l20 * l20 - l21 * l21)
+            cols = ((sc * l00, sc * l10, sc * l20), (0.0, sc * l11, sc * l21), (0.0, 0.0, sc * l22))
+        except (ValueError, ZeroDivisionError):
+            L = robust_sqrt(self.cov) * sc
+            cols = tuple(tuple(c) for c in L.T.tolist())
+        return [(0.0, 0.0, 0.0), *cols, *((-a, -b, -c) for a, b, c in cols)]
+
     def _sigma_points(self) -> np.ndarray:
-        """Fill ``_X`` (7, 3) and ``_D`` (offsets, unwrapped) from the current belief."""
-        L = robust_sqrt(self.cov)
-        D = self._D
-        D[1:N + 1] = L.T
-        D[1:N + 1] *= self.sqrt_c
-        D[N + 1:] = -D[1:N + 1]
-        np.add(D, self.mean, out=self._X)
-        return self._X
+        """Sigma points, shape (7, 3): the mean plus the offsets (heading not wrapped)."""
+        return self.mean + np.array(self._offsets())
 
     def predict(self, control: Control, dt: float) -> None:
         v, w = float(control.v), float(control.omega)
-        X = self._sigma_points()
-        th = X[:, 2]
-        Y = X.copy()
-        Y[:, 0] += v * dt * np.cos(th)          # the velocity model on every sigma point
-        Y[:, 1] += v * dt * np.sin(th)
-        Y[:, 2] += w * dt
-        Wm = self.Wm
-        m = Wm @ Y                                # weighted mean (x, y)
-        m[2] = np.arctan2(Wm @ np.sin(Y[:, 2]), Wm @ np.cos(Y[:, 2]))  # circular mean
-        D = Y - m
-        D[:, 2] = (D[:, 2] + _PI) % _TWO_PI - _PI  # wrapped heading residuals
-        q00, q01, q02, q11, q12, q22 = process_cov_terms(
-            self.ctx.motion_noise, float(self.mean[2]), v, w, dt)
-        Q = np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
-        self.cov = (D.T * self.Wc) @ D + Q
-        self.mean = m
+        m0, m1, m2 = self.mean.tolist()
+        vdt, wdt = v * dt, w * dt
+        Wm, Wc = self._wm, self._wc
+        cw, sw = math.cos(wdt), math.sin(wdt)
+        # The velocity model on every sigma point; weighted sums for the mean as we go.
+        Y = []
+        x = y = sn = cs = 0.0
+        for wi, (d0, d1, d2) in zip(Wm, self._offsets(), strict=True):
+            th = m2 + d2
+            c, s = math.cos(th), math.sin(th)
+            a, b = m0 + d0 + vdt * c, m1 + d1 + vdt * s
+            th += wdt
+            Y.append((a, b, th))
+            x += wi * a
+            y += wi * b
+            # sin and cos of th + wdt from those of th (angle addition)
+            sn += wi * (s * cw + c * sw)
+            cs += wi * (c * cw - s * sw)
+        th = math.atan2(sn, cs)                 # circular weighted mean of the heading
+        # P = sum Wc d d^T + Q with the heading residual wrapped.
+        q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.motion_noise, m2, v, w, dt)
+        for wi, (a, b, c) in zip(Wc, Y, strict=True):
+            da, db = a - x, b - y
+            dc = (c - th + _PI) % _TWO_PI - _PI
+            wa, wb, wc = wi * da, wi * db, wi * dc
+            q00 += wa * da
+            q01 += wa * db
+            q02 += wa * dc
+            q11 += wb * db
+            q12 += wb * dc
+            q22 += wc * dc
+        self.mean = np.array([x, y, (th + _PI) % _TWO_PI - _PI])
+        self.cov = np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         if not measurements:
@@ -158,26 +189,46 @@ class UnscentedKalmanFilter(FilterBase):
         st = stack(self.models, measurements)
         if st is None:
             return
-        X = self._sigma_points()                  # redrawn from the predicted belief (seed 000)
-        Z = st.predict(X)                         # (7, m)
+        D = np.array(self._offsets())             # redrawn from the predicted belief (seed 000)
+        Z = st.predict(self.mean + D, wrap=False)  # (7, m); residuals are wrapped below
         Wm, Wc = self.Wm, self.Wc
-        ang = st.angle
+        sel = st.angle_sel
         zhat = Wm @ Z
-        if ang.any():
-            Za = Z[:, ang]
-            zhat[ang] = np.arctan2(Wm @ np.sin(Za), Wm @ np.cos(Za))
+        if sel is not None:                       # circular means of the angle rows
+            Za = Z[:, sel]
+            zhat[sel] = np.arctan2(Wm @ np.sin(Za), Wm @ np.cos(Za))
         dZ = Z - zhat
         nu = st.z - zhat
-        if ang.any():
-            dZ[:, ang] = (dZ[:, ang] + _PI) % _TWO_PI - _PI
-            nu[ang] = (nu[ang] + _PI) % _TWO_PI - _PI
+        if sel is not None:                       # wrapped residuals
+            dZ[:, sel] = (dZ[:, sel] + _PI) % _TWO_PI - _PI
+            nu[sel] = (nu[sel] + _PI) % _TWO_PI - _PI
         WdZ = dZ * Wc[:, None]
         S = dZ.T @ WdZ
-        S[np.diag_indices_from(S)] += st.r
-        Pxz = self._D.T @ WdZ                     # sum Wc dX dZ^T, dX = the sigma offsets
-        Kt = np.linalg.solve(S, Pxz.T)           # K^T = S^-1 Pxz^T (S symmetric)
+        S.flat[:: S.shape[0] + 1] += st.r         # + R (diagonal)
+        Pxz = D.T @ WdZ                           # sum Wc dX dZ^T, dX = the sigma offsets
+        Kt = _solve(S, Pxz.T)                     # K^T = S^-1 Pxz^T (S symmetric)
         m = self.mean + nu @ Kt
         m[2] = (m[2] + _PI) % _TWO_PI - _PI
         P = self.cov - Pxz @ Kt                   # P - K S K^T = P - Pxz K^T
-        self.cov = 0.5 * (P + P.T)
+        P += P.T
+        P *= 0.5
+        self.cov = P
         self.mean = m
+
+
+def _solve(S: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``S^-1 B`` for a small symmetric positive-definite S. numpy's solve spends ~10 us in
+    its Python wrapper on a 4x4 system; the gufunc underneath takes ~3 us."""
+    if _gufunc_solve is not None:
+        X = _gufunc_solve(S, B)
+        if np.isfinite(X).all():
+            return X
+    return np.linalg.solve(S, B)  # raises LinAlgError for a singular S
+
+
+try:  # the ufunc np.linalg.solve wraps (numpy >= 1.8); absent: use the public function
+    from numpy.linalg import _umath_linalg as _ul
+
+    _gufunc_solve = _ul.solve
+except (ImportError, AttributeError):  # pragma: no cover
+    _gufunc_solve = None
