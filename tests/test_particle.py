@@ -28,12 +28,7 @@ def make_pf(sensors=(), params=None, seed=0, noise=None):
 
 
 def set_particles(pf, poses):
-    poses = np.asarray(poses, dtype=float)
-    n = poses.shape[0]
-    pf._P[:, :n] = poses.T
-    pf.n = n
-    pf._logw[:n] = -math.log(n)
-    pf._cache = None
+    pf.set_particles(poses)
 
 
 # --------------------------------------------------------------------- likelihoods by hand

@@ -96,6 +96,7 @@ class ParticleFilter(FilterBase):
         self._P = np.zeros((3, cap), dtype=self.dtype)
         self._P2 = np.zeros((3, cap), dtype=self.dtype)  # resampling target, swapped in
         self._logw = np.zeros(cap)
+        self._wn = np.zeros(cap)             # normalised weights (kept in step with _logw)
         self._fit = np.zeros(cap)            # log-likelihood of the last update, per particle
         self._b1 = np.empty(cap, dtype=self.dtype)
         self._b2 = np.empty(cap, dtype=self.dtype)
@@ -137,6 +138,7 @@ class ParticleFilter(FilterBase):
             self._P[:, :n] = draws
         self.n = n
         self._logw[:n] = -math.log(n)
+        self._wn[:n] = 1.0 / n
         self._fit[:n] = 0.0
         self.w_slow = self.w_fast = 0.0
         self.inject_prob = 0.0
@@ -145,6 +147,23 @@ class ParticleFilter(FilterBase):
         self._cache = None
         self._last_v = 0.0
         self._theta_pred = float(self.estimate()[0][2])
+
+    def set_particles(self, poses, weights=None) -> None:
+        """Replace the particle set: ``poses`` (n, 3) [m, m, rad], optional weights (n,)."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        n = poses.shape[0]
+        if n > self.capacity:
+            raise FilterError(f"pf: {n} particles exceed the capacity {self.capacity}")
+        w = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, dtype=float)
+        w = w / w.sum()
+        self._P[:, :n] = poses.T
+        self._P[2, :n] = wrap(poses[:, 2])
+        self.n = n
+        with np.errstate(divide="ignore"):
+            self._logw[:n] = np.maximum(np.log(w), -700.0)
+        self._wn[:n] = w
+        self._pending_resample = False
+        self._cache = None
 
     # ----------------------------------------------------------------- motion
     def predict(self, control: Control, dt: float) -> None:
@@ -219,16 +238,20 @@ class ParticleFilter(FilterBase):
             dims += 1
         self._dims = dims
         logw = self._logw[:n]
+        tmp = self._wn[:n]                   # float64 scratch, ends as the normalised weights
         # Per-reading likelihood of the tick (for augmented MCL): sum_i w_i exp(ll_i), ^(1/dims).
-        log_marg = _logsumexp(logw + ll)
+        np.add(logw, ll, out=tmp)
+        log_marg = _logsumexp_inplace(tmp)
         w_avg = math.exp(log_marg / max(dims, 1))
         logw += ll
         if extra is not None:
             logw += extra
-        logw -= _logsumexp(logw)
+        tmp[:] = logw
+        logw -= _logsumexp_inplace(tmp)
         np.maximum(logw, -700.0, out=logw)          # no denormals (they are slow)
-        w = np.exp(logw)
-        self.ess = 1.0 / float(np.dot(w, w))
+        np.exp(logw, out=tmp)
+        tmp *= 1.0 / tmp.sum()
+        self.ess = 1.0 / float(np.dot(tmp, tmp))
         self._update_recovery(w_avg)
         self._pending_resample = (self.ess < self.params["ess_threshold"] * n
                                   or self.inject_prob > 0.0)
@@ -348,7 +371,7 @@ class ParticleFilter(FilterBase):
         p = self.params
         rng = self.ctx.rng
         n_old = self.n
-        w = np.exp(self._logw[:n_old])
+        w = self._wn[:n_old]
         if not self.adaptive:
             n_new = n_old
             idx = resample(p["resampler"], w, n_new, rng)
@@ -377,6 +400,7 @@ class ParticleFilter(FilterBase):
         self._P, self._P2 = P, self._P
         self.n = m
         self._logw[:m] = -math.log(m)
+        self._wn[:m] = 1.0 / m
         if p["roughen"] > 0:
             self._roughen(m)
         self._pending_resample = False
@@ -431,14 +455,13 @@ class ParticleFilter(FilterBase):
 
     # ----------------------------------------------------------------- outputs
     def weights(self) -> np.ndarray:
-        """Normalised weights, shape (n,)."""
-        w = np.exp(self._logw[: self.n])
-        return w / w.sum()
+        """Normalised weights, shape (n,) (a copy)."""
+        return self._wn[: self.n].copy()
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """Weighted mean and covariance ([m, m, rad]; heading circular, residuals wrapped)."""
         if self._cache is None:
-            w = self.weights()
+            w = self._wn[: self.n]
             P = self._P[:, : self.n]
             if self.params["estimate"] == "cluster":
                 sel = self._dominant_cluster(P, w)
@@ -533,8 +556,12 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray,
     return np.array([mx, my, mth]), cov
 
 
-def _logsumexp(a: np.ndarray) -> float:
+def _logsumexp_inplace(a: np.ndarray) -> float:
+    """log(sum(exp(a))), using ``a`` as scratch (it is overwritten)."""
     m = float(np.max(a))
     if not math.isfinite(m):
         return m
-    return m + math.log(float(np.sum(np.exp(a - m))))
+    a -= m
+    np.maximum(a, -700.0, out=a)   # exp of values below -745 underflows on a 10x slower path
+    np.exp(a, out=a)
+    return m + math.log(float(np.sum(a)))
