@@ -102,7 +102,8 @@ class Hud:
                 deg = math.degrees(st.heading_err)
                 self._blit(surf, f"err {st.pos_err:5.2f} m {deg:+6.1f} deg", "small", palette.TEXT,
                            (x + 10, y))
-                nees = "inf" if math.isinf(st.nees) else f"{st.nees:.1f}"
+                nees = f"{st.nees:.1f}" if st.nees < 100 else (
+                    f"{st.nees:.0f}" if st.nees < 1000 else ">1000")
                 out = st.nees_out_of_band
                 self._blit(surf, f"NEES {nees}", "small", palette.BANNER_TEXT if out else palette.TEXT,
                            (x + int(w * 0.66), y), bg=palette.WARN if out else None)

@@ -19,6 +19,7 @@ PANEL_EDGE = (60, 60, 60)
 
 ROBOT = (20, 20, 20)  # the true robot's chassis
 ROBOT_MARK = (255, 255, 255)  # heading mark on the chassis
+ROBOT_WHEEL = (110, 110, 110)
 TRUTH_TRAIL = (20, 20, 20)
 SENSOR_FILL = (232, 240, 250)
 SENSOR_EDGE = (150, 175, 205)

@@ -118,6 +118,7 @@ class WorldRenderer:
         self.fonts = fonts
         self._heat_cache: dict[str, tuple[tuple, pygame.Surface, tuple[int, int]]] = {}
         self._text_cache: dict[tuple, pygame.Surface] = {}
+        self._static: tuple[tuple, pygame.Surface] | None = None
 
     def text(self, s: str, font: str, colour) -> pygame.Surface:
         key = (s, font, colour)
@@ -134,21 +135,15 @@ class WorldRenderer:
              drag=None) -> None:
         """Draw the world part of a frame. ``drag``: (start_px, now_px) of a click-kidnap."""
         sc = session.scenario
-        world = sc.world
         pose = session.sim.pose
         area = pygame.Rect(view.area)
-        surf.fill(palette.OUTSIDE, area)
         old_clip = surf.get_clip()
         surf.set_clip(area)
-        b = view.to_px(np.array([[world.bounds[0], world.bounds[3]], [world.bounds[2], world.bounds[1]]]))
-        world_rect = pygame.Rect(ipx(b[0, 0]), ipx(b[0, 1]),
-                                 ipx(b[1, 0] - b[0, 0]), ipx(b[1, 1] - b[0, 1]))
-        surf.fill(palette.BACKGROUND, world_rect)
+        world_rect = self._world_rect(view)
+        surf.blit(self._static_layer(view, world_rect), area)
         surf.set_clip(world_rect.clip(area))
         self._sensor_discs(surf, view, sc, pose)
         surf.set_clip(area)
-        self._grid(surf, view, world_rect)
-        pygame.draw.rect(surf, palette.BOUNDS, world_rect.inflate(4, 4), 3)
 
         beliefs = {}
         for name in session.names:
@@ -167,19 +162,47 @@ class WorldRenderer:
         if show.particles:
             for name, bel in beliefs.items():
                 if isinstance(bel, ParticleBelief):
-                    self.particles(surf, view, bel.poses, colours[name])
+                    self.particles(surf, view, bel.poses, colours[name], bel.weights)
         self._beacons_and_rays(surf, view, session, pose)
-        self.robot(surf, view, pose, sc.robot_radius)
         for name in session.names:
             tr = session.runner.tracks[name]
-            if name not in beliefs or not tr.means:
+            if name not in beliefs:
                 continue
-            self._estimate(surf, view, tr.means[-1], tr.covs[-1], colours[name], show.ellipses,
-                           sc.robot_radius)
+            if tr.means:
+                mean, cov = tr.means[-1], tr.covs[-1]
+            else:  # before the first tick: the initial belief
+                try:
+                    mean, cov = (np.asarray(a, dtype=float) for a in tr.filter.estimate())
+                except Exception:
+                    continue
+            self._estimate(surf, view, mean, cov, colours[name], show.ellipses, sc.robot_radius)
+        self.robot(surf, view, pose, sc.robot_radius)  # the truth on top of every belief
         if drag is not None:
             self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
-        self._axis_labels(surf, view, world_rect)
         surf.set_clip(old_clip)
+
+    @staticmethod
+    def _world_rect(view: View) -> pygame.Rect:
+        xmin, ymin, xmax, ymax = view.bounds
+        b = view.to_px(np.array([[xmin, ymax], [xmax, ymin]]))
+        return pygame.Rect(ipx(b[0, 0]), ipx(b[0, 1]), ipx(b[1, 0] - b[0, 0]), ipx(b[1, 1] - b[0, 1]))
+
+    def _static_layer(self, view: View, world_rect: pygame.Rect) -> pygame.Surface:
+        """Background, metric grid, bounds and axis labels: drawn once per view, then blitted."""
+        if self._static is not None and self._static[0] == view.key:
+            return self._static[1]
+        area = pygame.Rect(view.area)
+        layer = pygame.Surface(area.size)
+        # Draw in window coordinates on a surface offset by the area's corner.
+        full = pygame.Surface((area.right, area.bottom))
+        full.fill(palette.OUTSIDE)
+        full.fill(palette.BACKGROUND, world_rect)
+        self._grid(full, view, world_rect)
+        pygame.draw.rect(full, palette.BOUNDS, world_rect.inflate(4, 4), 3)
+        self._axis_labels(full, view, world_rect)
+        layer.blit(full, (0, 0), area)
+        self._static = (view.key, layer)
+        return layer
 
     # --- pieces ---------------------------------------------------------------------------
     def _grid(self, surf, view: View, world_rect: pygame.Rect) -> None:
@@ -215,8 +238,10 @@ class WorldRenderer:
             py = view.to_px(np.array([0.0, y]))[1]
             t = self.text(fmt(y + 0.0), "small", palette.TEXT_DIM)
             surf.blit(t, (max(xlab - t.get_width(), area.left + 2), int(py - t.get_height() / 2)))
-        unit = self.text("m", "small", palette.TEXT_DIM)
-        surf.blit(unit, (min(world_rect.right + 8, area.right - unit.get_width() - 2), ylab))
+        unit = self.text(f"grid {step:g} m", "small", palette.TEXT_DIM)
+        box = unit.get_rect(topleft=(area.left + 8, area.top + 6))
+        surf.fill(palette.OUTSIDE, box.inflate(8, 4))
+        surf.blit(unit, box)
 
     def _sensor_discs(self, surf, view: View, sc, pose) -> None:
         for spec in sc.sensors:
@@ -227,7 +252,15 @@ class WorldRenderer:
             else:
                 outline = shapes.sector(pose, spec.fov, spec.max_range)
             pts = view.to_px(outline)
-            pygame.draw.polygon(surf, palette.SENSOR_FILL, pts)
+            # Tint what is under the disc (multiply blend) so that the grid stays visible.
+            box = pygame.Rect(ipx(pts[:, 0].min()) - 2, ipx(pts[:, 1].min()) - 2,
+                              ipx(np.ptp(pts[:, 0])) + 5, ipx(np.ptp(pts[:, 1])) + 5)
+            box = box.clip(surf.get_clip())
+            if box.width > 0 and box.height > 0:
+                tint = pygame.Surface(box.size)
+                tint.fill((255, 255, 255))
+                pygame.draw.polygon(tint, palette.SENSOR_FILL, pts - np.array(box.topleft))
+                surf.blit(tint, box, special_flags=pygame.BLEND_RGB_MULT)
             pygame.draw.polygon(surf, palette.SENSOR_EDGE, pts, 2)
 
     def _trails(self, surf, view: View, session, colours) -> None:
@@ -238,21 +271,37 @@ class WorldRenderer:
                 for piece in session.trails[name].pieces():
                     pygame.draw.lines(surf, colours[name], False, view.to_px(piece), 2)
 
-    def particles(self, surf: pygame.Surface, view: View, poses: np.ndarray, colour) -> None:
-        """Each particle as a 2x2 pixel block, written through a pixel array (no draw calls)."""
+    def particles(self, surf: pygame.Surface, view: View, poses: np.ndarray, colour,
+                  weights: np.ndarray | None = None) -> None:
+        """Each particle as a 2x2 pixel block, written through a pixel array (no draw calls).
+
+        With ``weights``, particles below half the mean weight (1 / 2N) are drawn in a pale
+        shade first, so that the ones carrying the belief stand out.
+        """
         clip = surf.get_clip()
-        p = view.to_px(np.asarray(poses)[:, :2])
-        ix = p[:, 0].astype(np.int32)
-        iy = p[:, 1].astype(np.int32)
+        poses = np.asarray(poses)
+        ax, ay, w, h = view.area
+        s = view.scale
+        # Pixel coordinates as float32 (to_px in float64 costs more at 100k particles).
+        fx = (poses[:, 0] - view.centre[0]).astype(np.float32) * np.float32(s) + np.float32(ax + w / 2)
+        fy = (poses[:, 1] - view.centre[1]).astype(np.float32) * np.float32(-s) + np.float32(ay + h / 2)
+        ix = fx.astype(np.int32)
+        iy = fy.astype(np.int32)
         ok = (ix >= clip.left) & (ix < clip.right - 1) & (iy >= clip.top) & (iy < clip.bottom - 1)
-        ix, iy = ix[ok], iy[ok]
-        value = surf.map_rgb(colour)
+        layers = [(ok, colour)]
+        if weights is not None and len(weights) == len(poses):
+            light = np.asarray(weights) < 0.5 / max(len(poses), 1)
+            if light.any():
+                layers = [(ok & light, palette.lighten(colour, 0.6)), (ok & ~light, colour)]
         arr = pygame.surfarray.pixels2d(surf)
         try:
-            arr[ix, iy] = value
-            arr[ix + 1, iy] = value
-            arr[ix, iy + 1] = value
-            arr[ix + 1, iy + 1] = value
+            for mask, col in layers:
+                x, y = ix[mask], iy[mask]
+                value = surf.map_rgb(col)
+                arr[x, y] = value
+                arr[x + 1, y] = value
+                arr[x, y + 1] = value
+                arr[x + 1, y + 1] = value
         finally:
             del arr
 
@@ -285,7 +334,19 @@ class WorldRenderer:
         top = float(prob.max())
         if not top > 0:
             return None
-        alpha = np.sqrt(np.clip(sub / top, 0.0, 1.0)) * 190.0  # sqrt: faint mass stays visible
+        # sqrt: faint mass stays visible. A flat belief is a light tint, a peaked one strong:
+        # the peak alpha grows from 60 (uniform, max / mean = 1) towards 200.
+        peak = top / max(float(prob.mean()), 1e-300)
+        strength = 60.0 + 140.0 * (1.0 - math.exp(-(peak - 1.0) / 3.0))
+        alpha = np.sqrt(np.clip(sub / top, 0.0, 1.0)) * strength
+        # Crop to the cells that show at all: blitting and scaling cost grows with the area.
+        rows = np.flatnonzero(alpha.max(axis=1) >= 1.0)
+        cols = np.flatnonzero(alpha.max(axis=0) >= 1.0)
+        if not len(rows) or not len(cols):
+            return None
+        i0, i1 = i0 + rows[0], i0 + rows[-1] + 1
+        j0, j1 = j0 + cols[0], j0 + cols[-1] + 1
+        alpha = alpha[rows[0]: rows[-1] + 1, cols[0]: cols[-1] + 1]
         small = pygame.Surface((i1 - i0, j1 - j0), pygame.SRCALPHA)
         small.fill((*colour, 0))
         a = pygame.surfarray.pixels_alpha(small)
@@ -359,7 +420,7 @@ class WorldRenderer:
         r = max(radius, 14.0 / view.scale)
         body, wheels = shapes.chassis(pose, r)
         for wheel in wheels:
-            pygame.draw.polygon(surf, palette.ROBOT, view.to_px(wheel))
+            pygame.draw.polygon(surf, palette.ROBOT_WHEEL, view.to_px(wheel))
         pygame.draw.polygon(surf, palette.ROBOT, view.to_px(body))
         a, b = view.to_px(shapes.heading_mark(pose, r))
         pygame.draw.line(surf, palette.ROBOT_MARK, a, b, 3)
