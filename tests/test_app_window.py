@@ -279,3 +279,30 @@ def test_resize_refits_the_world():
         assert app.view.area[2] + app.panel_rect.width == 1400
     finally:
         app.close()
+
+
+def test_the_window_records_what_it_ran(tmp_path, monkeypatch):
+    recording = pytest.importorskip("beacon_sim.recording")
+    import json
+
+    from beacon_sim.app.session import make_recorder
+
+    monkeypatch.chdir(tmp_path)
+    sc = load_scenario("default")
+    recorder, path = make_recorder(sc, sc.seed, ["dead_reckoning"], {})
+    assert recorder is not None and path.parent.name == recording.RECORDINGS_DIR
+    app = App(Session(sc, ["dead_reckoning"], None, {}, recorder), (1000, 700), scripted=True)
+    try:
+        key(pygame.K_w)
+        key(pygame.K_a)
+        frames(app, 30)
+        key(pygame.K_k)
+        frames(app, 30)
+    finally:
+        app.close()
+    lines = [json.loads(x) for x in path.read_text().splitlines()]
+    ticks = [x for x in lines if x["type"] == "tick"]
+    assert [t["k"] for t in ticks] == list(range(1, app.session.sim.tick + 1))
+    assert [tuple(t["u"]) for t in ticks] == [(c.v, c.omega) for c in app.session.controls]
+    assert lines[-1]["type"] == "end" and lines[-1]["checksum"] == app.session.sim.truth_checksum
+    assert sum(1 for t in ticks if t.get("c") == [{"kind": "kidnap"}]) == 1
