@@ -162,8 +162,8 @@ def test_range_bearing_position_std_below_the_information_bound(spec):
 
 def _krejsa(model_noise=None):
     data = tomllib.loads((scenario_dir() / "krejsa_bearing_only.toml").read_text())
-    if model_noise:
-        data["model"] = {"motion_noise": model_noise}
+    # The filters are told the truth's noise, plus model_noise when given.
+    data["model"] = {"motion_noise": model_noise or {}}
     return parse_scenario(data, "krejsa_bearing_only.toml", name="krejsa_bearing_only")
 
 

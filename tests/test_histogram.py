@@ -38,7 +38,7 @@ def test_default_grid_size_and_uniform_start():
 
 
 def test_straight_motion_moves_the_mass_without_smearing():
-    hf = make_hf()
+    hf = make_hf(params={"grid_noise": 0.0})      # the shift alone, no discretisation noise
     hf.reset(GaussianBelief(np.array([3.1, 5.1, 0.0]), np.diag([0.01, 0.01, 0.001])))
     m0, c0 = hf.estimate()
     for _ in range(25):                          # 25 x 0.04 m = 1 m along +x (heading ~0)
@@ -69,6 +69,29 @@ def test_blur_adds_the_motion_noise_variance():
     _, c1 = hf.estimate()
     assert c1[0, 0] - c0[0, 0] == pytest.approx(0.02, rel=0.1)
     assert c1[1, 1] - c0[1, 1] == pytest.approx(0.02, rel=0.1)
+
+
+def test_discretisation_noise_is_a_cell_and_a_bin_per_grid_noise_seconds():
+    hf = make_hf(params={"grid_noise": 2.0})
+    hf.reset(GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([0.04, 0.04, 0.04])))
+    _, c0 = hf.estimate()
+    for _ in range(40):                          # 4 s of turning on the spot: 2 x cell^2 / 12
+        hf.predict(Control(0.0, 0.3), 0.1)
+    _, c1 = hf.estimate()
+    assert c1[0, 0] - c0[0, 0] == pytest.approx(2 * 0.2**2 / 12, rel=0.15)
+
+
+def test_the_belief_does_not_drift_out_of_its_cell_on_default():
+    """Regression: without discretisation noise the whole mass fell into one heading bin
+    5 deg off the truth, drifted sideways out of the true cell and jumped 3.5 m away."""
+    sc = load_scenario("default")
+    r = run_headless(sc, ["histogram"], duration=40.0)
+    tr = r.runner.tracks["histogram"]
+    err = np.hypot(*(np.array(tr.means)[:, :2] - r.truth[:, :2]).T)
+    assert err.max() < 0.6
+    off = run_headless(sc, ["histogram"], duration=40.0, params={"histogram": {"grid_noise": 0.0}})
+    tr = off.runner.tracks["histogram"]
+    assert np.hypot(*(np.array(tr.means)[:, :2] - off.truth[:, :2]).T).max() > 1.0
 
 
 def test_walls_keep_the_mass():
