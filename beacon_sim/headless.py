@@ -7,6 +7,7 @@ same steps; the result is the same whatever filters run (the truth does not depe
 from __future__ import annotations
 
 import time
+import traceback
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,6 +17,7 @@ from beacon_sim.core.metrics import summary
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Step
+from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.loading import build_filter, filter_display_name
 from beacon_sim.filters.runner import FilterRunner
 
@@ -67,6 +69,8 @@ class RunResult:
             row["us_per_step"] = tr.us_per_step
             if tr.failed:
                 row["failed"] = tr.failed
+            if tr.slow_warning:
+                row["slow_warning"] = tr.slow_warning
             out[name] = row
         return out
 
@@ -97,14 +101,24 @@ def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int
     seed = scenario.seed if seed is None else seed
     duration = scenario.duration if duration is None else duration
     specs = list(scenario.default_filters if filters is None else filters)
-    built = {}
+    built: dict[str, object] = {}
+    broken: dict[str, tuple[str, str]] = {}
     for spec in specs:
         name = filter_display_name(spec)
         while name in built:
             name += "'"
-        built[name] = build_filter(spec, scenario, seed, name=name,
-                                   params=(params or {}).get(filter_display_name(spec)))
+        try:
+            built[name] = build_filter(spec, scenario, seed, name=name,
+                                       params=(params or {}).get(filter_display_name(spec)))
+        except FilterError:
+            raise  # the user named something that cannot work: one line, exit 2
+        except Exception as exc:  # a filter that crashes in __init__ or reset: mark it failed
+            built[name] = None
+            broken[name] = (f"construction failed: {type(exc).__name__}: {exc}",
+                            traceback.format_exc())
     runner = FilterRunner(built)
+    for name, (message, tb) in broken.items():
+        runner.tracks[name].failed, runner.tracks[name].traceback = message, tb
     sim = Simulation(scenario, seed)
     n = round(duration / scenario.dt)
     steps = []

@@ -44,3 +44,15 @@ def test_bad_arguments_exit_2(capsys):
     assert main(["run", "default", "--set", "novalue"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 4 and all(line.startswith("beacon-sim") for line in err)
+
+
+def test_a_filter_that_crashes_when_built_is_marked_failed_and_the_others_run(tmp_path, capsys):
+    bad = tmp_path / "bad_filter.py"
+    bad.write_text("class Bad:\n    def __init__(self, ctx):\n        raise RuntimeError('boom')\n"
+                   "    def predict(self, c, dt): pass\n    def update(self, m): pass\n")
+    assert main(["run", "default", "--duration", "2", "--filter", f"{bad}:Bad",
+                 "--filter", "dead_reckoning", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert "boom" in d["filters"]["Bad"]["failed"]
+    assert "failed" not in d["filters"]["dead_reckoning"]
+    assert d["filters"]["dead_reckoning"]["pos_rmse_m"] >= 0.0
