@@ -143,6 +143,7 @@ def main() -> int:
                "and propagates 7 sigma points through numpy (about 1 µs per numpy call, design.md "
                "section 9), so the ratio measures Python/numpy overheads as much as arithmetic.", ""]
     conv = []
+    conv_stats: dict = {}
     for p in (0.5, 0.15):
         scp = with_detection(sc, p)
         rsp, mp, _ = run(scp, [f for f in ("ekf", "ukf") if f in have], n(40), args.jobs,
@@ -154,6 +155,7 @@ def main() -> int:
             pos2 = err[..., 0] ** 2 + err[..., 1] ** 2
             pre = float(np.sqrt(np.nanmean(pos2[:, :k_idx])))
             end = float(np.sqrt(np.nanmean(pos2[:, -100:])))
+            conv_stats[(p, f)] = (rec["recovered"], rec["runs"], r["divergences"])
             conv.append(f"| {p:g} | {f} | {pre:.3f} | {end:.3f} "
                         f"| {rec['recovered']}/{rec['runs']} | {fmt(rec['median_s'], '.1f')} s "
                         f"| {r['divergences']}/{mp['runs']} | {fmt(r['rmse_over_pcrb'], '.2f')} |")
@@ -173,6 +175,16 @@ def main() -> int:
            "consistent (see the NEES plot). After the kidnap the filters' covariance is small "
            "and the bearings are poor (σ = 0.63 rad), so the position error shrinks slowly: "
            "the heading is found again within seconds, the position takes tens of seconds.", ""]
+    if (0.15, "ekf") in conv_stats:
+        rec5, n5, _ = conv_stats[(0.5, "ekf")]
+        rec15, n15, div15 = conv_stats[(0.15, "ekf")]
+        md += [f"At p_detect 0.15 the EKF recovered from the kidnap in {rec15}/{n15} runs within "
+               f"90 s (against {rec5}/{n5} at 0.5) and ended lost in {div15}/{n15}. The paper "
+               "reports convergence at 15 % from its own tests; with our choices for what the "
+               "paper leaves open (0.3 m/s random-goal driving, 10 % speed and turn-rate noise, a "
+               "10 m field) recovery at 15 % is slow and often incomplete. Tracking without a "
+               "kidnap does still converge at 15 % (RMSE before the kidnap above), which may be "
+               "what the paper's sentence refers to.", ""]
 
     # ---- seed 002 ---------------------------------------------------------------------
     sc = load_scenario("ulps_circle")
@@ -187,8 +199,9 @@ def main() -> int:
         md += [f"The particle filter tracks the circle at {r['pos_rmse_m'] * 100:.1f} cm RMSE, "
                f"{r['rmse_over_pcrb']:.2f}x the bound. The paper gives plots, not numbers: its "
                "Fig. 4 shows the particle filter following the path through the noise burst, as "
-               "ours does. Our PCRB says what the fix geometry allows: directly under the beacon "
-               "patch HDOP is smallest; the bound grows where the circle runs away from it.", ""]
+               "ours does. The circle (radius v/ω = 3.2 m) is centred under the beacon patch, so "
+               "the HDOP, and with it the bound, is nearly constant along the lap; the "
+               "filters' error is set by the 1 cm x HDOP fix more than by the 25 % odometry noise.", ""]
     md += figures(sc, curves, meta, "seed002_ulps")
 
     # ---- seed 003 ---------------------------------------------------------------------
