@@ -11,6 +11,7 @@ import pygame
 from beacon_sim.app import controls, palette
 from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2
 from beacon_sim.app.session import NEES_BAND
+from beacon_sim.filters.isolation import status_line
 
 
 def wrap_text(font: pygame.font.Font, text: str, width: int) -> list[str]:
@@ -92,10 +93,14 @@ class Hud:
             self._blit(surf, label, "hud", palette.TEXT if visible else palette.TEXT_DIM,
                        (x + 36, y))
             y += lh
-            if st.failed:
-                for line in wrap_text(f["small"], "FAILED: " + st.failed, w - 10)[:4]:
+            track = session.runner.tracks[name]
+            note = status_line(track) or (f"{name} switched off: {st.failed}" if st.failed else None)
+            notes = [n for n in (note, info.get("reload_errors", {}).get(name)) if n]
+            for text in notes:
+                for line in wrap_text(f["small"], text, w - 10)[:3]:
                     self._blit(surf, line, "small", palette.WARN, (x + 10, y))
                     y += f["small"].get_linesize()
+            if st.failed:
                 y += 4
                 continue
             if math.isfinite(st.pos_err):
@@ -132,12 +137,19 @@ class Hud:
 
     def banner(self, surf, area: pygame.Rect, text: str) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved)."""
-        img = self.fonts["banner"].render(text, True, palette.BANNER_TEXT)
-        r = img.get_rect(midtop=(area.centerx, area.top + 14))
+        font = "banner" if self.fonts["banner"].size(text)[0] <= area.width - 60 else "hud"
+        lines = wrap_text(self.fonts[font], text, area.width - 60)[:4]
+        imgs = [self.fonts[font].render(line, True, palette.BANNER_TEXT) for line in lines]
+        if not imgs:
+            return
+        lh = self.fonts[font].get_linesize()
+        r = pygame.Rect(0, 0, max(i.get_width() for i in imgs), lh * len(imgs))
+        r.midtop = (area.centerx, area.top + 14)
         box = r.inflate(36, 16)
         pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)
         pygame.draw.rect(surf, palette.TEXT, box, 3, border_radius=10)
-        surf.blit(img, r)
+        for k, img in enumerate(imgs):
+            surf.blit(img, img.get_rect(midtop=(r.centerx, r.top + k * lh)))
 
     def help(self, surf) -> None:
         """Every binding of ``controls.BINDINGS``, grouped, over a dark translucent box."""

@@ -52,7 +52,7 @@ class App:
     """
 
     def __init__(self, session: Session, size=(1280, 800), scripted: bool = False,
-                 recording: Path | None = None):
+                 recording: Path | None = None, *, watch_interval: float = 1.0):
         self.session = session
         self.scripted = scripted
         self.recording = recording
@@ -76,7 +76,44 @@ class App:
         self.frame_times: deque[float] = deque(maxlen=60)
         self.drag_start: tuple[int, int] | None = None
         self.pan_from: tuple[int, int] | None = None
+        self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
+        self.watchers = self._make_watchers(watch_interval)
         self._layout(self.screen.get_size())
+
+    # --- hot reload -----------------------------------------------------------------------
+    def _make_watchers(self, interval: float) -> dict[str, object]:
+        """A file watcher for every filter given as ``path.py:Class``, on the window's clock
+        (``self.now``: real seconds, or 1/60 s per frame when scripted)."""
+        from beacon_sim.filters.hot_reload import FilterFileWatcher
+        from beacon_sim.filters.loading import filter_display_name
+
+        s = self.session
+        out = {}
+        for spec, name in zip(s.specs, s.names, strict=True):
+            if not spec.rpartition(":")[0].endswith(".py"):
+                continue
+            w = FilterFileWatcher(spec, s.scenario, s.seed, name=name,
+                                  params=s.params.get(filter_display_name(spec)),
+                                  interval=interval, clock=lambda: self.now)
+            if w.watchable:
+                out[name] = w
+        return out
+
+    def poll_watchers(self) -> None:
+        """Reload the filters whose file changed: swap the new one in, or show the error and
+        keep the previous version (traceback to stderr)."""
+        for name, w in self.watchers.items():
+            res = w.poll()
+            if res.new_filter is not None:
+                self.swap_filter(name, res.new_filter)
+                self.reload_errors.pop(name, None)
+                self.flash(res.message)
+            elif res.error is not None:
+                self.reload_errors[name] = res.error
+                self.flash(res.error)
+                if res.traceback:
+                    print(res.traceback, file=sys.stderr, end="")
+                print(f"beacon-sim: {res.error}", file=sys.stderr)
 
     # --- layout ---------------------------------------------------------------------------
     def _layout(self, size) -> None:
@@ -184,7 +221,7 @@ class App:
         self.now += real_dt
         for event in pygame.event.get():
             self.handle(event)
-        # A filter object may be swapped here, between frames (hot reload): see swap_filter.
+        self.poll_watchers()  # a filter object is swapped here, between ticks
         for _ in range(self.clock.advance(real_dt)):
             step = self.session.tick()
             for ev in step.events:
@@ -207,7 +244,8 @@ class App:
             drag = (self.drag_start, pygame.mouse.get_pos())
         self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag)
         info = {"speed": self.clock.speed, "paused": self.clock.paused,
-                "fps": fps_of(np.array(self.frame_times)), "recording": self.recording}
+                "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
+                "reload_errors": self.reload_errors}
         self.hud.panel(surf, self.panel_rect, self.session, self.colours, info)
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
