@@ -76,6 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_filter_options(p)
     p.add_argument("--headless", action="store_true")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--frames", type=int, help="on screen: quit after N frames of 1/60 s")
+    p.add_argument("--screenshot", metavar="PNG", help="on screen: save the last frame to PNG")
 
     p = sub.add_parser("export", help="export a recording as arrays (.npz or .csv)")
     p.add_argument("file")

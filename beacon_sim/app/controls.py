@@ -68,20 +68,49 @@ BINDINGS: tuple[Binding, ...] = (
     Binding("Esc / Q", _k("K_ESCAPE", "K_q"), "quit", "quit", group="View"),
 )
 
+#: Replaying a recording: the run is fixed, so driving, kidnaps and resets are gone; the
+#: arrows and the timeline seek. The display keys are the same objects as in ``BINDINGS``.
+_REPLAY_ONLY: tuple[Binding, ...] = (
+    Binding("Left", _k("K_LEFT"), "seek_back", "seek 5 s back (re-simulates)",
+            True, group="Timeline"),
+    Binding("Right", _k("K_RIGHT"), "seek_forward", "seek 5 s forward", True, group="Timeline"),
+    Binding("Home", _k("K_HOME"), "seek_start", "back to the start", group="Timeline"),
+    Binding("Click timeline", (), "seek_click", "seek there (drag: scrub)", group="Timeline",
+            button=1),
+)
+_NOT_IN_REPLAY = {"faster", "slower", "left", "right", "stop", "autopilot", "kidnap_random",
+                  "kidnap_click", "reset", "global_reset"}
+REPLAY_BINDINGS: tuple[Binding, ...] = tuple(
+    b for b in BINDINGS if b.group == "Time") + _REPLAY_ONLY + tuple(
+    b for b in BINDINGS if b.group != "Time" and b.action not in _NOT_IN_REPLAY)
 
-_BY_CODE: dict[int, Binding] = {}
-for _b in BINDINGS:
-    for _c in _b.codes:
-        _BY_CODE.setdefault(_c, _b)
+#: The tables by window mode.
+TABLES: dict[str, tuple[Binding, ...]] = {"play": BINDINGS, "replay": REPLAY_BINDINGS}
 
 
-def binding_for_key(code: int) -> Binding | None:
-    return _BY_CODE.get(code)
+def bindings(mode: str = "play") -> tuple[Binding, ...]:
+    """The binding table of a window mode ("play" or "replay")."""
+    return TABLES[mode]
 
 
-def mouse_action(button: int) -> str | None:
-    """The action of a mouse button (1 left, 3 right) in the table, or None."""
-    for b in BINDINGS:
+def _by_code(table: tuple[Binding, ...]) -> dict[int, Binding]:
+    out: dict[int, Binding] = {}
+    for b in table:
+        for c in b.codes:
+            out.setdefault(c, b)
+    return out
+
+
+_BY_CODE = {mode: _by_code(table) for mode, table in TABLES.items()}
+
+
+def binding_for_key(code: int, mode: str = "play") -> Binding | None:
+    return _BY_CODE[mode].get(code)
+
+
+def mouse_action(button: int, mode: str = "play") -> str | None:
+    """The action of a mouse button (1 left, 3 right) in the mode's table, or None."""
+    for b in TABLES[mode]:
         if b.button == button:
             return b.action
     return None
@@ -94,7 +123,8 @@ class KeyHandler:
     binding does not repeat is ignored until its KEYUP.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, mode: str = "play") -> None:
+        self.mode = mode
         self._held: set[int] = set()
 
     def actions(self, event) -> list[str]:
@@ -104,7 +134,7 @@ class KeyHandler:
             return []
         if event.type != pygame.KEYDOWN:
             return []
-        b = binding_for_key(event.key)
+        b = binding_for_key(event.key, self.mode)
         if b is None:
             return []
         if event.key in self._held and not b.repeat:
@@ -115,6 +145,6 @@ class KeyHandler:
         return [b.action]
 
 
-def help_lines() -> list[tuple[str, str, str]]:
+def help_lines(mode: str = "play") -> list[tuple[str, str, str]]:
     """``(group, keys, description)`` for every binding the overlay lists, in table order."""
-    return [(b.group, b.keys, b.description) for b in BINDINGS]
+    return [(b.group, b.keys, b.description) for b in TABLES[mode]]

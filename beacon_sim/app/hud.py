@@ -33,8 +33,9 @@ def wrap_text(font: pygame.font.Font, text: str, width: int) -> list[str]:
 class Hud:
     """Draws the panel, banner and help; remembers the help lines it drew (for tests)."""
 
-    def __init__(self, fonts: dict[str, pygame.font.Font]):
+    def __init__(self, fonts: dict[str, pygame.font.Font], mode: str = "play"):
         self.fonts = fonts
+        self.mode = mode
         self.help_drawn: list[tuple[str, str]] = []
 
     def _blit(self, surf, text: str, font: str, colour, at, bg=None) -> pygame.Rect:
@@ -68,7 +69,7 @@ class Hud:
         y += lh
         self._blit(surf, f"omega = {c.omega:+.2f} rad/s", "hud", palette.TEXT, (x, y))
         y += lh
-        mode = "AUTOPILOT (M)" if session.autopilot else "keyboard WASD, X stop"
+        mode = session.drive_mode
         self._blit(surf, mode, "small", palette.TEXT_DIM, (x, y))
         y += f["small"].get_linesize()
         seen = sorted(session.seen_ids())
@@ -130,7 +131,8 @@ class Hud:
             self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))
             y += f["small"].get_linesize()
         rec = info.get("recording")
-        status = f"FPS {info.get('fps', 0):4.0f}   " + (f"REC {rec}" if rec else "not recording")
+        where = "REPLAY" if info.get("mode") == "replay" else (f"REC {rec}" if rec else "not recording")
+        status = f"FPS {info.get('fps', 0):4.0f}   " + where
         self._blit(surf, status, "small", palette.TEXT_DIM, (x, y))
         y += f["small"].get_linesize()
         self._blit(surf, "H: help    Esc: quit", "small", palette.TEXT, (x, y))
@@ -152,10 +154,10 @@ class Hud:
             surf.blit(img, img.get_rect(midtop=(r.centerx, r.top + k * lh)))
 
     def help(self, surf) -> None:
-        """Every binding of ``controls.BINDINGS``, grouped, over a dark translucent box."""
+        """Every binding of the mode's table (``controls.bindings``), grouped, over a dark translucent box."""
         W, H = surf.get_size()
         f = self.fonts
-        lines = controls.help_lines()
+        lines = controls.help_lines(self.mode)
         groups: list[tuple[str, list[tuple[str, str]]]] = []
         for group, keys, desc in lines:
             if not groups or groups[-1][0] != group:

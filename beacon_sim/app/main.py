@@ -51,6 +51,9 @@ class App:
         ``--frames``, tests and benchmarks).
     """
 
+    #: Which binding table the keys, the mouse and the help overlay use (controls.TABLES).
+    MODE = "play"
+
     def __init__(self, session: Session, size=(1280, 800), scripted: bool = False,
                  recording: Path | None = None, *, watch_interval: float = 1.0):
         self.session = session
@@ -66,7 +69,7 @@ class App:
         self.colours = filter_colours(session.names)
         self.clock = StepClock(session.scenario.dt)
         self.show = ShowOptions()
-        self.keys = controls.KeyHandler()
+        self.keys = controls.KeyHandler(self.MODE)
         self.help = False
         self.running = True
         self.frames = 0
@@ -120,14 +123,18 @@ class App:
         W, H = size
         self.fonts = make_fonts(H)
         self.renderer = WorldRenderer(self.fonts)
-        self.hud = Hud(self.fonts)
+        self.hud = Hud(self.fonts, self.MODE)
         pw = int(min(max(W * 0.3, 360), 480))
         self.panel_rect = pygame.Rect(W - pw, 0, pw, H)
-        area = (0, 0, W - pw, H)
+        area = self.world_area(W - pw, H)
         if hasattr(self, "view"):
             self.view.set_area(area)
         else:
             self.view = View(self.session.scenario.world.bounds, area)
+
+    def world_area(self, width: int, height: int) -> tuple[int, int, int, int]:
+        """The part of the window (x, y, w, h) [px] the world is drawn in, left of the panel."""
+        return (0, 0, width, height)
 
     # --- events ---------------------------------------------------------------------------
     def handle(self, event) -> None:
@@ -138,13 +145,13 @@ class App:
             for action in self.keys.actions(event):
                 self.act(action)
         elif event.type == pygame.MOUSEBUTTONDOWN:
-            action = controls.mouse_action(event.button)
+            action = controls.mouse_action(event.button, self.MODE)
             if action == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos):
                 self.drag_start = event.pos
             elif action == "pan":
                 self.pan_from = event.pos
         elif event.type == pygame.MOUSEBUTTONUP:
-            action = controls.mouse_action(event.button)
+            action = controls.mouse_action(event.button, self.MODE)
             if action == "kidnap_click" and self.drag_start is not None:
                 self.kidnap_at(self.drag_start, event.pos)
                 self.drag_start = None
@@ -222,7 +229,7 @@ class App:
         for event in pygame.event.get():
             self.handle(event)
         self.poll_watchers()  # a filter object is swapped here, between ticks
-        for _ in range(self.clock.advance(real_dt)):
+        for _ in range(self.ticks_due(real_dt)):
             step = self.session.tick()
             for ev in step.events:
                 if ev.kind == "kidnap":
@@ -232,6 +239,10 @@ class App:
                                + (f": {ev.detail}" if ev.detail else ""))
         self.draw()
         self.frames += 1
+
+    def ticks_due(self, real_dt: float) -> int:
+        """How many simulation ticks to run this frame."""
+        return self.clock.advance(real_dt)
 
     def swap_filter(self, name: str, flt) -> None:
         """Replace a running filter (hot reload of a student's file)."""
@@ -243,15 +254,19 @@ class App:
         if self.drag_start is not None:
             drag = (self.drag_start, pygame.mouse.get_pos())
         self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag)
-        info = {"speed": self.clock.speed, "paused": self.clock.paused,
+        info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
                 "reload_errors": self.reload_errors}
         self.hud.panel(surf, self.panel_rect, self.session, self.colours, info)
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
+        self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
         pygame.display.flip()
+
+    def draw_extra(self, surf) -> None:
+        """Anything a mode adds under the help overlay (the replay's timeline)."""
 
     def save_screenshot(self, path) -> None:
         path = Path(path)

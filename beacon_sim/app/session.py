@@ -178,6 +178,11 @@ class Session:
         return self.keyboard.control
 
     @property
+    def drive_mode(self) -> str:
+        """Who drives, for the panel."""
+        return "AUTOPILOT (M)" if self.autopilot else "keyboard WASD, X stop"
+
+    @property
     def filters(self) -> dict[str, object]:
         return {n: t.filter for n, t in self.runner.tracks.items()}
 

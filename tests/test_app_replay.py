@@ -1,0 +1,152 @@
+"""Replay on screen (SDL dummy driver): the window driven by a recording reproduces the
+recorded truth, seeking backward then forward lands on the same state as a straight run,
+and ``beacon-sim replay FILE --frames N --screenshot PNG`` works."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+import numpy as np
+import pygame
+import pytest
+
+from beacon_sim.app import controls
+from beacon_sim.app.loop import SPEEDS
+from beacon_sim.app.replay import ReplayApp
+from beacon_sim.app.session import Session
+from beacon_sim.cli import main
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.recording import Recorder, load_recording
+
+TICKS = 320  # 16 s at dt = 0.05
+FILTERS = ["ekf", "dead_reckoning"]
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """A live session driven by hand (turns, a click kidnap, a reset), recorded; returns
+    the file and the live session's final state."""
+    path = tmp_path_factory.mktemp("rec") / "drive.jsonl"
+    sc = load_scenario("default")
+    live = Session(sc, FILTERS, 3, {}, Recorder(path, sc, 3, FILTERS, {}))
+    for k in ("w", "w", "w", "a"):
+        live.drive(k)
+    for t in range(1, TICKS + 1):
+        if t == 60:
+            live.drive("d")
+        if t == 150:
+            live.command({"kind": "kidnap", "pose": [8.0, 5.0, 2.0]})
+        if t == 200:
+            live.command({"kind": "reset"})
+        live.tick()
+    state = {"pose": live.sim.pose.copy(), "checksum": live.sim.truth_checksum,
+             "ekf": live.runner.tracks["ekf"].means[-1].copy()}
+    live.close()
+    return path, state
+
+
+def key(k):
+    pygame.event.post(pygame.event.Event(pygame.KEYDOWN, key=k, mod=0, unicode="", scancode=0))
+    pygame.event.post(pygame.event.Event(pygame.KEYUP, key=k, mod=0, unicode="", scancode=0))
+
+
+def make(path, size=(960, 600)) -> ReplayApp:
+    return ReplayApp(load_recording(path), FILTERS, size=size, scripted=True)
+
+
+def run_until(app, tick, limit=5000):
+    while app.session.sim.tick < tick and app.frames < limit:
+        app.run(app.frames + 1)
+
+
+def test_replay_on_screen_reproduces_the_recorded_truth_and_estimates(recorded, capsys):
+    path, live = recorded
+    app = make(path)
+    try:
+        app.clock.speed_index = SPEEDS.index(8.0)
+        run_until(app, TICKS)
+        app.run(app.frames + 5)                       # past the end: nothing more happens
+        s = app.session
+        assert s.sim.tick == TICKS and s.mismatch is None
+        assert s.sim.truth_checksum == live["checksum"] == load_recording(path).end["checksum"]
+        np.testing.assert_array_equal(s.sim.pose, live["pose"])
+        np.testing.assert_array_equal(s.runner.tracks["ekf"].means[-1], live["ekf"])
+        assert "verified" in app.banner_text
+        assert "truth checksum verified" in capsys.readouterr().err
+    finally:
+        app.close()
+
+
+def test_seeking_back_then_forward_lands_on_the_straight_run_state(recorded):
+    path, _ = recorded
+    straight = make(path)
+    try:
+        run_until(straight, 160)                      # x1: one tick every 3 frames, exact
+        assert straight.session.sim.tick == 160
+        ref = straight.session
+        ref_pose, ref_sum = ref.sim.pose.copy(), ref.sim.truth_checksum
+        ref_ekf = ref.runner.tracks["ekf"].means[-1].copy()
+        ref_trail = ref.truth_trail.points[: ref.truth_trail.n].copy()
+    finally:
+        straight.close()
+
+    app = make(path)
+    try:
+        key(pygame.K_SPACE)                           # pause: only seeks move time
+        for _ in range(3):
+            key(pygame.K_RIGHT)                       # +5 s each: tick 300
+        app.run(app.frames + 1)
+        assert app.session.sim.tick == 300
+        first = app.session
+        key(pygame.K_LEFT)                            # back to 200: re-simulated from 0
+        key(pygame.K_LEFT)
+        app.run(app.frames + 1)
+        assert app.session.sim.tick == 100 and app.session is not first
+        bar = app._bar_rect()                         # click the timeline at 0.5 = tick 160
+        at = (bar.left + bar.width * 0.5, bar.centery)
+        pygame.event.post(pygame.event.Event(pygame.MOUSEBUTTONDOWN, pos=at, button=1))
+        pygame.event.post(pygame.event.Event(pygame.MOUSEBUTTONUP, pos=at, button=1))
+        app.run(app.frames + 1)
+        s = app.session
+        assert s.sim.tick == 160
+        np.testing.assert_array_equal(s.sim.pose, ref_pose)
+        assert s.sim.truth_checksum == ref_sum
+        np.testing.assert_array_equal(s.runner.tracks["ekf"].means[-1], ref_ekf)
+        np.testing.assert_array_equal(s.truth_trail.points[: s.truth_trail.n], ref_trail)
+        key(pygame.K_PERIOD)                          # one step while paused
+        app.run(app.frames + 1)
+        assert app.session.sim.tick == 161
+    finally:
+        app.close()
+
+
+def test_help_in_replay_lists_the_timeline_keys_and_no_driving(recorded):
+    path, _ = recorded
+    app = make(path)
+    try:
+        key(pygame.K_h)
+        app.run(app.frames + 1)
+        drawn = app.hud.help_drawn
+        assert drawn == [(b.keys, b.description) for b in controls.bindings("replay")]
+        keys = {k for k, _ in drawn}
+        assert {"Left", "Right", "Click timeline", "Space", ".", "+", "-"} <= keys
+        assert not {"W / Up", "K", "R", "Left click"} & keys
+        key(pygame.K_w)                               # driving keys do nothing in a replay
+        key(pygame.K_k)
+        app.run(app.frames + 30)
+        assert not app.session.pending and not app.session.commands
+    finally:
+        app.close()
+
+
+def test_cli_replay_on_screen_writes_a_screenshot(recorded, tmp_path):
+    path, _ = recorded
+    png = tmp_path / "replay.png"
+    assert main(["replay", str(path), "--frames", "20", "--screenshot", str(png)]) == 0
+    img = pygame.image.load(str(png))
+    assert img.get_size() == (1280, 800)
+    # The timeline strip is the panel colour with the dark position marker in it.
+    assert img.get_at((5, 790))[:3] == (255, 255, 255)
