@@ -178,13 +178,17 @@ def main() -> int:
     if (0.15, "ekf") in conv_stats:
         rec5, n5, _ = conv_stats[(0.5, "ekf")]
         rec15, n15, div15 = conv_stats[(0.15, "ekf")]
+        mostly = rec15 >= 0.6 * n15 and div15 <= 0.1 * n15
         md += [f"At p_detect 0.15 the EKF recovered from the kidnap in {rec15}/{n15} runs within "
-               f"90 s (against {rec5}/{n5} at 0.5) and ended lost in {div15}/{n15}. The paper "
-               "reports convergence at 15 % from its own tests; with our choices for what the "
-               "paper leaves open (0.3 m/s random-goal driving, 10 % speed and turn-rate noise, a "
-               "10 m field) recovery at 15 % is slow and often incomplete. Tracking without a "
-               "kidnap does still converge at 15 % (RMSE before the kidnap above), which may be "
-               "what the paper's sentence refers to.", ""]
+               f"90 s (against {rec5}/{n5} at 0.5) and ended lost in {div15}/{n15}. " +
+               ("As the paper says, localization still converges at 15 %, but more slowly and "
+                "not in every run. " if mostly else
+                "The paper reports convergence at 15 %; with our choices for what the paper "
+                "leaves open (0.3 m/s random-goal driving, 10 % speed and turn-rate noise, a "
+                "10 m field) recovery at 15 % is slow and often incomplete. ") +
+               "The filters are told an additive process noise V_k (the scenario's "
+               "`[model.motion_noise] pose_std`), as in the paper's eq. 2; without it their "
+               "covariance is too confident to reconverge within 90 s.", ""]
 
     # ---- seed 002 ---------------------------------------------------------------------
     sc = load_scenario("ulps_circle")
