@@ -578,8 +578,12 @@ def mrclam_command(args) -> int:
         else:
             _print_calibration(data, cal)
         return 0
+    show = None
     if not args.headless:
-        print("note: the window has no MRCLAM view yet; running headless", file=sys.stderr)
+        try:
+            from beacon_sim.app.mrclam import show_mrclam as show
+        except ImportError:
+            print("note: the window has no MRCLAM view; running headless", file=sys.stderr)
     try:
         run = run_mrclam(data, args.filters, duration, _filter_params(args))
     except MrclamError as exc:
@@ -592,4 +596,4 @@ def mrclam_command(args) -> int:
     for tr in run.tracks.values():
         if tr.failed:
             print(f"filter {tr.name} failed: {tr.failed}", file=sys.stderr)
-    return 0
+    return 0 if show is None else show(run, args)

@@ -150,3 +150,42 @@ def test_cli_replay_on_screen_writes_a_screenshot(recorded, tmp_path):
     assert img.get_size() == (1280, 800)
     # The timeline strip is the panel colour with the dark position marker in it.
     assert img.get_at((5, 790))[:3] == (255, 255, 255)
+
+
+def test_mrclam_on_screen_shows_the_truth_and_the_estimates_at_the_tick(tmp_path, capsys):
+    """The MRCLAM view (a synthetic folder in the real format, from test_mrclam): at a
+    display tick, the robot is the interpolated ground truth and each filter's estimate
+    is its latest one at or before that time."""
+    from test_mrclam import make_folder
+
+    from beacon_sim.app.mrclam import MrclamApp
+    from beacon_sim.mrclam import load_mrclam, run_mrclam
+
+    folder = tmp_path / "Synthetic"
+    make_folder(folder, seconds=30.0)
+    run = run_mrclam(load_mrclam(folder, 1), ["ekf", "dead_reckoning"])
+    app = MrclamApp(run, size=(960, 600), scripted=True)
+    try:
+        app.clock.speed_index = SPEEDS.index(8.0)
+        app.run(20)
+        s = app.session
+        assert s.sim.tick > 0
+        t = run.t_start + s.sim.tick * run.scenario.dt
+        truth, _ = run.data.truth_at(np.array([t]))
+        np.testing.assert_allclose(s.sim.pose, truth[0])
+        ekf = run.tracks["ekf"]
+        i = int(np.searchsorted(ekf.times, t, side="right")) - 1
+        assert ekf.times[i] <= t < (ekf.times[i + 1] if i + 1 < len(ekf.times) else np.inf)
+        np.testing.assert_array_equal(s.runner.tracks["ekf"].means[-1], ekf.means[i])
+        key(pygame.K_SPACE)
+        key(pygame.K_LEFT)                            # paused, seek back: clamped at 0
+        app.run(app.frames + 1)
+        assert s.sim.tick == 0 and len(s.truth_trail.pieces()) == 0
+        app.seek(s.total_ticks)
+        app.run(app.frames + 2)
+        assert s.at_end
+        png = tmp_path / "mrclam.png"
+        app.save_screenshot(png)
+        assert png.stat().st_size > 10_000
+    finally:
+        app.close()

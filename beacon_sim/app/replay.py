@@ -185,6 +185,12 @@ class ReplayApp(App):
             super().act(action)
 
     # --- drawing --------------------------------------------------------------------------
+    def marks(self) -> list[tuple[int, tuple[int, int, int]]]:
+        """(tick, colour) marks on the timeline: the recorded user commands (kidnaps in the
+        warning colour, resets and toggles dim)."""
+        return [(rec.tick, palette.WARN if rec.commands[0]["kind"] == "kidnap" else palette.TEXT_DIM)
+                for rec in self.replay_of.ticks if rec.commands]
+
     def draw_extra(self, surf) -> None:
         """The timeline: elapsed / total, the bar with the recorded commands marked, the
         position marker."""
@@ -203,12 +209,9 @@ class ReplayApp(App):
         done.width = round(bar.width * min(s.sim.tick / total, 1.0))
         if done.width > 0:
             pygame.draw.rect(surf, palette.SENSOR_EDGE, done, border_radius=6)
-        for rec in self.replay_of.ticks:
-            if rec.commands:  # user commands (kidnaps, resets, toggles) as marks
-                x = bar.left + round(bar.width * rec.tick / total)
-                kind = rec.commands[0]["kind"]
-                colour = palette.WARN if kind == "kidnap" else palette.TEXT_DIM
-                pygame.draw.line(surf, colour, (x, bar.top + 2), (x, bar.bottom - 3), 3)
+        for tick, colour in self.marks():
+            x = bar.left + round(bar.width * tick / total)
+            pygame.draw.line(surf, colour, (x, bar.top + 2), (x, bar.bottom - 3), 3)
         pygame.draw.rect(surf, palette.PANEL_EDGE, bar, 2, border_radius=6)
         x = bar.left + round(bar.width * min(s.sim.tick / total, 1.0))
         pygame.draw.line(surf, palette.TEXT, (x, r.top + 5), (x, r.bottom - 5), 5)
