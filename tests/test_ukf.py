@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from gaussian_helpers import bearing, belief, context, pose_fix
+from gaussian_helpers import bearing, belief, context, pose_fix, range_bearing
 
 from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.angles import diff
@@ -130,3 +130,26 @@ def test_degenerate_covariance_does_not_stop_the_filter():
     f.update([bearing([0.5], [1])])
     mean, cov = f.estimate()
     assert np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))
+
+
+def test_gate_drops_an_outlier_and_equals_the_update_without_it():
+    pose = np.array([0.5, 0.5, 0.0])
+    xy = np.array([[2.0, 2.0], [8.0, 2.0], [8.0, 8.0]])
+    z = mm.range_bearing(pose, xy)
+    z[1, 1] = diff(z[1, 1], math.pi)  # a bearing off by pi, as MRCLAM has a few
+    m = range_bearing(z, [1, 2, 3])
+
+    def ukf(**params):
+        f = UnscentedKalmanFilter(context(params))
+        f.reset(belief(pose, (0.05, 0.05, 0.02)))
+        return f
+
+    gated, plain, ref = ukf(gate_chi2=13.8), ukf(), ukf()
+    gated.update([m])
+    plain.update([m])
+    ref.update([range_bearing(z[[0, 2]], [1, 3])])
+    assert gated.rejected == 1
+    assert np.allclose(gated.estimate()[0], ref.estimate()[0], atol=1e-12)
+    assert np.allclose(gated.estimate()[1], ref.estimate()[1], atol=1e-12)
+    err = lambda f: np.linalg.norm(f.estimate()[0][:2] - pose[:2])  # noqa: E731
+    assert err(plain) > 10 * err(gated)

@@ -99,9 +99,13 @@ class UnscentedKalmanFilter(FilterBase):
         Secondary spread; with ``scaled = False`` seed 000's kappa (n + kappa = 3 here).
     scaled : bool, default True
         True: the alpha/beta/kappa form (seed 001); False: seed 000's kappa-only form.
+    gate_chi2 : float, default 0.0
+        0 turns gating off; otherwise a beacon's reading (or a whole fix) is dropped when its
+        squared Mahalanobis distance ``nu_b^T S_bb^-1 nu_b`` exceeds this (as the EKF's).
     """
 
-    defaults: ClassVar[dict] = {"alpha": 1.0, "beta": 2.0, "kappa": 0.0, "scaled": True}
+    defaults: ClassVar[dict] = {"alpha": 1.0, "beta": 2.0, "kappa": 0.0, "scaled": True,
+                                "gate_chi2": 0.0}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
@@ -111,6 +115,8 @@ class UnscentedKalmanFilter(FilterBase):
         self.sqrt_c = math.sqrt(self.c)
         self._wm, self._wc = self.Wm.tolist(), self.Wc.tolist()
         self.models = ReadingModels(ctx)
+        self.gate = float(p["gate_chi2"])
+        self.rejected = 0  # readings dropped by the gate so far
         self.reset(None)
 
     def reset(self, initial: GaussianBelief | None) -> None:
@@ -206,6 +212,12 @@ class UnscentedKalmanFilter(FilterBase):
         S = dZ.T @ WdZ
         S.flat[:: S.shape[0] + 1] += st.r         # + R (diagonal)
         Pxz = D.T @ WdZ                           # sum Wc dX dZ^T, dX = the sigma offsets
+        if self.gate > 0.0:
+            keep = self._gate(st, S, nu)
+            if keep is not None:
+                if not keep.any():
+                    return
+                S, Pxz, nu = S[np.ix_(keep, keep)], Pxz[:, keep], nu[keep]
         Kt = _solve(S, Pxz.T)                     # K^T = S^-1 Pxz^T (S symmetric)
         m = self.mean + nu @ Kt
         m[2] = (m[2] + _PI) % _TWO_PI - _PI
@@ -214,6 +226,22 @@ class UnscentedKalmanFilter(FilterBase):
         P *= 0.5
         self.cov = P
         self.mean = m
+
+    def _gate(self, st, S: np.ndarray, nu: np.ndarray) -> np.ndarray | None:
+        """Rows to keep (bool mask), or None when every reading passes the chi-square gate.
+
+        A beacon's rows (1 for a bearing, 2 for range-bearing) or a fix's rows are tested
+        together against their block of S."""
+        keep = np.ones(nu.shape[0], dtype=bool)
+        for kind, a, b, _ in st.blocks:
+            width = 1 if kind == "bearing" else 2 if kind == "range_bearing" else b - a
+            for i in range(a, b, width):
+                j = i + width
+                d2 = float(nu[i:j] @ np.linalg.solve(S[i:j, i:j], nu[i:j]))
+                if d2 > self.gate:
+                    keep[i:j] = False
+                    self.rejected += 1
+        return None if keep.all() else keep
 
 
 def _solve(S: np.ndarray, B: np.ndarray) -> np.ndarray:
