@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -88,6 +89,31 @@ def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     return n, None
 
 
+def finish_filter(m: np.ndarray, c: np.ndarray, truth: np.ndarray, done: int, failed: str | None,
+                  nis_sum: float, nis_dof: int, step_ns: int, keep_means: bool) -> FilterRun:
+    """One filter's record of one run from its estimates ``m`` (T, 3) and ``c`` (T, 3, 3)
+    (modified: rows from the first unusable one on become NaN) and ``truth`` (T + 1, 3)."""
+    T = m.shape[0]
+    first, why = _check(m, c)
+    if why and not failed:
+        failed = why
+    n_ok = min(first, done)
+    m[n_ok:] = np.nan
+    c[n_ok:] = np.nan
+    err = pose_errors(m, truth[1:])
+    nees = np.full(T, np.nan)
+    if n_ok:
+        with np.errstate(all="ignore"):
+            try:
+                sol = np.linalg.solve(c[:n_ok], err[:n_ok, :, None])[..., 0]
+                nees[:n_ok] = np.einsum("ti,ti->t", err[:n_ok], sol)
+            except np.linalg.LinAlgError:
+                nees[:n_ok] = np.inf
+    var = np.einsum("tii->ti", c).copy()
+    return FilterRun(err, var, nees, nis_sum, nis_dof, step_ns, done, failed,
+                     m.copy() if keep_means else None)
+
+
 def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, Any]],
             seed: int, duration: float, index: int = 0, keep_means: bool = False) -> RunOutput:
     """Simulate one run and feed every filter the same steps.
@@ -144,34 +170,15 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
             ns[name] += (t1 - t0) + (t3 - t2)
             done[name] += 1
     out = RunOutput(index, seed, truth, controls, kidnapped, sim.truth_checksum)
+    n_rec = len(records)
     for name in names:
-        first, why = _check(means[name], covs[name])
-        if why and not failed[name]:
-            failed[name] = why
-        n_ok = min(first, done[name])
-        m = means[name]
-        c = covs[name]
-        m[n_ok:] = np.nan
-        c[n_ok:] = np.nan
-        err = pose_errors(m, truth[1:])
-        nees = np.full(T, np.nan)
-        if n_ok:
-            with np.errstate(all="ignore"):
-                try:
-                    sol = np.linalg.solve(c[:n_ok], err[:n_ok, :, None])[..., 0]
-                    nees[:n_ok] = np.einsum("ti,ti->t", err[:n_ok], sol)
-                except np.linalg.LinAlgError:
-                    nees[:n_ok] = np.inf
-        var = np.einsum("tii->ti", c).copy()
         pm, pc = priors[name]
-        n_rec = len(records)
         good = np.all(np.isfinite(pm[:n_rec]), axis=1) & np.all(np.isfinite(pc[:n_rec]), axis=(1, 2))
         n_good = int(np.argmin(good)) if not good.all() else n_rec
         with np.errstate(all="ignore"):
             nis_sum, nis_dof = nis_batch(records[:n_good], pm[:n_good], pc[:n_good], sensors, world)
-        out.filters[name] = FilterRun(err, var, nees, nis_sum, nis_dof,
-                                      ns[name], done[name], failed[name],
-                                      m.copy() if keep_means else None)
+        out.filters[name] = finish_filter(means[name], covs[name], truth, done[name], failed[name],
+                                          nis_sum, nis_dof, ns[name], keep_means)
     return out
 
 
@@ -210,15 +217,34 @@ def default_jobs() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _batch_task(args) -> list[RunOutput]:
+    from beacon_sim.evaluation.batched import batch_runs
+
+    return batch_runs(*args)
+
+
+def batch_reason(scenario: Scenario, specs: list[str], params: dict[str, dict[str, Any]]) -> str | None:
+    """Why the runs cannot be batched (None: every filter has a batched form)."""
+    from beacon_sim.evaluation.batched import unsupported
+
+    return unsupported(scenario, specs, params)
+
+
 def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int = 0,
                     duration: float | None = None, jobs: int | None = None,
                     params: dict[str, dict[str, Any]] | None = None,
                     progress: bool | None = None,
-                    on_run: Callable[[RunOutput], None] | None = None) -> list[RunOutput]:
+                    on_run: Callable[[RunOutput], None] | None = None,
+                    batch: bool | None = None) -> list[RunOutput]:
     """``runs`` runs with seeds ``seed, seed + 1, ...``; returns them in seed order.
 
     ``jobs`` processes (default: all cores; 1 runs in this process). The result does not
     depend on ``jobs`` except for the cost figures (``step_ns``).
+
+    ``batch``: None batches the filters across runs (``evaluation.batched``, one batch of
+    contiguous runs per job) when every filter has a batched form and no parameter it
+    does not support is set; False forces one run at a time; True insists on batching
+    (ValueError when it is not possible).
     """
     duration = scenario.duration if duration is None else duration
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
@@ -227,8 +253,32 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
     if progress is None:
         progress = sys.stderr.isatty()
     bar = Progress(runs, f"eval {scenario.name}", progress)
-    tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0) for i in range(runs)]
     out: list[RunOutput | None] = [None] * runs
+    if batch is not False:
+        why = batch_reason(scenario, list(specs), params)
+        if why is not None and batch:
+            raise ValueError(f"cannot batch: {why}")
+        batch = why is None
+    if batch:
+        bounds = [round(k * runs / jobs) for k in range(jobs + 1)]
+        chunks = [list(range(a, b)) for a, b in pairwise(bounds) if b > a]
+        btasks = [(scenario, list(specs), params, [seed + i for i in c], duration, c, 0) for c in chunks]
+
+        def collect(done: list[RunOutput]) -> None:
+            for r in done:
+                out[r.index] = r
+                bar.advance()
+                if on_run:
+                    on_run(r)
+
+        if len(btasks) == 1:
+            collect(_batch_task(btasks[0]))
+        else:
+            with ProcessPoolExecutor(max_workers=len(btasks)) as pool:
+                for fut in as_completed([pool.submit(_batch_task, t) for t in btasks]):
+                    collect(fut.result())
+        return [o for o in out if o is not None]
+    tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0) for i in range(runs)]
     if jobs == 1:
         for i, t in enumerate(tasks):
             out[i] = _task(t)
@@ -251,4 +301,5 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
     return np.stack([getattr(r.filters[name], attr) for r in runs])
 
 
-__all__ = ["FilterRun", "RunOutput", "filter_names", "one_run", "run_monte_carlo", "stack"]
+__all__ = ["FilterRun", "RunOutput", "batch_reason", "filter_names", "finish_filter", "one_run",
+           "run_monte_carlo", "stack"]
