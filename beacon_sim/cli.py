@@ -92,6 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, metavar="S", help="only the first S seconds")
     p.add_argument("--calibrate", action="store_true",
                    help="print the noise settings estimated from the data and stop")
+    p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
+    p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
 
     # --- new-filter (issue 8) ---
     p = sub.add_parser("new-filter", help="write a working, commented filter template")

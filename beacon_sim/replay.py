@@ -150,7 +150,7 @@ def replay_command(args) -> int:
         show = _window_replay()
         if show is not None:
             return show(recording, args)
-        print("note: the window has no replay view yet; replaying headless", file=sys.stderr)
+        print("note: the replay window is not available here; replaying headless", file=sys.stderr)
     try:
         result = replay_recording(recording, args.filters, params)
     except ReplayMismatch as exc:

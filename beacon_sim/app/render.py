@@ -379,18 +379,29 @@ class WorldRenderer:
             elif m.kind in ("pose", "position"):
                 self._cross(surf, view.to_px(m.z[0, :2]), 9, palette.RAY, 3)
         seen = session.seen_ids()
-        pxs = view.to_px(world.beacon_xy)
+        pxs = [(ipx(x), ipx(y)) for x, y in view.to_px(world.beacon_xy)]
         half = 9
-        for bcn, (x, y) in zip(world.beacons, pxs, strict=True):
-            x, y = ipx(x), ipx(y)
+        squares = [pygame.Rect(x - half, y - half, 2 * half, 2 * half) for x, y in pxs]
+        for bcn, (x, y), rect in zip(world.beacons, pxs, squares, strict=True):
             if bcn.id in seen:
                 pygame.draw.circle(surf, palette.BEACON_SEEN, (x, y), half + 7)
                 pygame.draw.circle(surf, palette.BEACON_SEEN_RING, (x, y), half + 7, 3)
-            rect = pygame.Rect(x - half, y - half, 2 * half, 2 * half)
             pygame.draw.rect(surf, palette.BEACON, rect)
             pygame.draw.rect(surf, palette.BACKGROUND, rect.inflate(-8, -8))
+        # Labels: top-right of the beacon unless that hides another beacon or label (real
+        # data sets have beacons in close pairs); then the next free corner.
+        placed: list[pygame.Rect] = []
+        for bcn, (x, y) in zip(world.beacons, pxs, strict=True):
             t = self.text(str(bcn.id), "label", palette.TEXT)
-            at = pygame.Rect(x + half + 6, y - half - t.get_height() + 6, t.get_width(), t.get_height())
+            w, h = t.get_width(), t.get_height()
+            corners = [(x + half + 6, y - half - h + 6), (x + half + 6, y + half - 6),
+                       (x - half - 6 - w, y - half - h + 6), (x - half - 6 - w, y + half - 6),
+                       (x - w // 2, y - half - h - 4), (x - w // 2, y + half + 4),
+                       (x + half + 6 + w, y - h // 2), (x - half - 6 - 2 * w, y - h // 2)]
+            rects = [pygame.Rect(cx, cy, w, h) for cx, cy in corners]
+            at = next((r for r in rects if r.collidelist(placed) < 0 and r.collidelist(squares) < 0),
+                      rects[0])
+            placed.append(at)
             surf.fill(palette.BACKGROUND, at.inflate(6, -2))
             surf.blit(t, at)
 
