@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 TWO_PI = 2.0 * np.pi
+_PI = float(np.pi)
 
 
 def wrap(angle):
@@ -12,11 +13,18 @@ def wrap(angle):
 
     Works on Python floats (returns float) and numpy arrays (returns an array).
     """
-    wrapped = np.mod(np.asarray(angle, dtype=float) + np.pi, TWO_PI) - np.pi
+    if type(angle) is float or type(angle) is np.float64:
+        # Scalars without array overhead: Python's float % is the same IEEE remainder as
+        # np.mod (fmod, then + divisor when the signs differ), so the bits are identical.
+        a = (float(angle) + _PI) % TWO_PI - _PI
+        return a - TWO_PI if a >= _PI else a
+    a = np.asarray(angle, dtype=float)
+    if a.ndim == 0:
+        return wrap(float(a))
+    wrapped = np.mod(a + np.pi, TWO_PI)
+    wrapped -= np.pi
     # np.mod can round a value just below pi up to exactly pi after the subtraction.
-    wrapped = np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
-    if np.ndim(wrapped) == 0:
-        return float(wrapped)
+    np.subtract(wrapped, TWO_PI, out=wrapped, where=wrapped >= np.pi)
     return wrapped
 
 

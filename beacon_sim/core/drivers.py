@@ -77,7 +77,7 @@ def steer_towards(pose, goal_xy, speed, gain, max_omega) -> Control:
     """Proportional steering to a point: slow down while the heading error is large."""
     dx, dy = goal_xy[0] - pose[0], goal_xy[1] - pose[1]
     err = wrap(math.atan2(dy, dx) - pose[2])
-    omega = float(np.clip(gain * err, -max_omega, max_omega))
+    omega = float(min(max(gain * err, -max_omega), max_omega))  # np.clip of a float, without numpy
     v = speed * max(0.0, math.cos(err))
     return Control(v, omega)
 

@@ -21,6 +21,13 @@ def move(pose, v, omega, dt):
     as a particle filter samples them).
     """
     pose = np.asarray(pose, dtype=float)
+    if pose.ndim == 1 and np.ndim(v) == 0 and np.ndim(omega) == 0:  # one pose: no broadcasting
+        theta = pose[2]
+        out = np.empty(3)
+        out[0] = pose[0] + v * dt * np.cos(theta)
+        out[1] = pose[1] + v * dt * np.sin(theta)
+        out[2] = wrap(theta + omega * dt)
+        return out
     theta = pose[..., 2]
     out = np.empty(np.broadcast_shapes(pose.shape, (*np.shape(v), 3)), dtype=float)
     out[..., 0] = pose[..., 0] + v * dt * np.cos(theta)
