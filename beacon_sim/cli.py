@@ -69,6 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, help="parallel processes (default: all cores)")
     p.add_argument("--out", metavar="DIR", help="write CSV, JSON and PNG plots here")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--no-batch", action="store_true",
+                   help="run the filters one run at a time (default: batched across runs when possible)")
 
     # --- replay / export / mrclam (issue 6; owner: beacon_sim/recording.py, replay.py, ...) ---
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")

@@ -113,7 +113,8 @@ def eval_command(args) -> int:
     for sc in scenarios:
         specs = list(args.filters or sc.default_filters)
         runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
-                               jobs=args.jobs, params=params)
+                               jobs=args.jobs, params=params,
+                               batch=False if getattr(args, "no_batch", False) else None)
         meta, curves = evaluate(sc, runs, Thresholds())
         results.append((sc, meta, curves))
         if not args.json:
