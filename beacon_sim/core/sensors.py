@@ -129,18 +129,20 @@ def sense(
         if idx.size == 0:
             return None
         z = mm.bearing(pose, world.beacon_xy[idx])[:, None] + noise[idx] * spec.noise.bearing_std
-        out = u_outlier[idx] < spec.outlier_rate
-        z[out, 0] = -math.pi + 2.0 * math.pi * u_value[idx][out, 0]
+        if spec.outlier_rate > 0.0:  # u < rate is never true otherwise: skip the empty indexing
+            out = u_outlier[idx] < spec.outlier_rate
+            z[out, 0] = -math.pi + 2.0 * math.pi * u_value[idx][out, 0]
         z[:, 0] = wrap(z[:, 0])
         return Measurement(spec.name, spec.kind, z, ids)
     if spec.kind == "range_bearing":
         if idx.size == 0:
             return None
         z = mm.range_bearing(pose, world.beacon_xy[idx]) + noise[idx] * spec.reading_std()
-        out = u_outlier[idx] < spec.outlier_rate
-        max_r = spec.max_range if math.isfinite(spec.max_range) else max(world.width, world.height)
-        z[out, 0] = max_r * u_value[idx][out, 0]
-        z[out, 1] = -math.pi + 2.0 * math.pi * u_value[idx][out, 1]
+        if spec.outlier_rate > 0.0:
+            out = u_outlier[idx] < spec.outlier_rate
+            max_r = spec.max_range if math.isfinite(spec.max_range) else max(world.width, world.height)
+            z[out, 0] = max_r * u_value[idx][out, 0]
+            z[out, 1] = -math.pi + 2.0 * math.pi * u_value[idx][out, 1]
         z[:, 0] = np.abs(z[:, 0])
         z[:, 1] = wrap(z[:, 1])
         return Measurement(spec.name, spec.kind, z, ids)
