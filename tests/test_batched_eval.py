@@ -144,6 +144,8 @@ def test_batching_is_chosen_only_when_every_filter_has_a_batched_form():
     assert unsupported(sc, ["kf", "ekf", "ukf", "dead_reckoning"], {}) is None
     assert "pf" in unsupported(sc, ["ekf", "pf"], {})
     assert "gate_chi2" in unsupported(sc, ["ekf"], {"ekf": {"gate_chi2": 9.21}})
+    assert "gate_chi2" in unsupported(sc, ["ukf"], {"ukf": {"gate_chi2": 9.21}})
+    assert unsupported(sc, ["ekf", "ukf"], {"ekf": {"joseph": False}, "ukf": {"scaled": False}}) is None
     with pytest.raises(ValueError, match="cannot batch"):
         run_monte_carlo(sc, ["ekf", "histogram"], 1, duration=1.0, jobs=1, batch=True)
     # A gated EKF runs one run at a time (the per-run path).
