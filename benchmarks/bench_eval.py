@@ -14,6 +14,8 @@ from __future__ import annotations
 import argparse
 import time
 
+from figures import figure
+
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.montecarlo import default_jobs, run_monte_carlo
@@ -69,6 +71,10 @@ def main() -> None:
         print(f"{n + ' step (batched, per run-step)':<44}{us:>12.1f}  us")
     print(f"{'floor: (sim + filters) x steps x runs / jobs':<44}{floor:>12.2f}  s")
     print(f"{'wall / floor (evaluation overhead)':<44}{wall / floor:>12.2f}  ratio")
+    figure(f"eval {args.runs} runs x {args.steps} steps x {len(filters)} filters", wall, "s",
+           peer="per-run path" if per_run_wall is not None else None, peer_value=per_run_wall,
+           target=TARGET_S)
+    figure("simulation step (default)", sim_us, "us")
 
 
 if __name__ == "__main__":

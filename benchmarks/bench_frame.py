@@ -20,6 +20,7 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 import numpy as np
+from figures import figure
 
 from beacon_sim.app.main import SCRIPTED_FRAME_S, App
 from beacon_sim.app.session import Session
@@ -70,6 +71,11 @@ def main() -> None:
               f"(drawing alone: median {r['draw_median_ms']:.2f} ms)")
         print("  filter update per tick: " + ", ".join(
             f"{k} {v:.2f} ms" for k, v in r["filter_ms_per_tick"].items()))
+        what = f"frame, {' + '.join(r['filters'])}, pf {n:,}"
+        if n <= 10_000:
+            figure(what + ", p99", r["p99_ms"], "ms", target=16.7)
+        else:
+            figure(what + ", median", r["median_ms"], "ms", target=33.0)
 
 
 if __name__ == "__main__":

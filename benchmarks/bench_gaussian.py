@@ -22,6 +22,7 @@ import time
 import tomllib
 
 import numpy as np
+from figures import figure
 
 from beacon_sim.core import measurement_models as mm
 from beacon_sim.core import motion
@@ -234,6 +235,14 @@ def main() -> None:
         print(f"{kind:<15}{us['ekf']:>10.1f}{us['fp_ekf']:>10.1f}{us['ekf'] / us['fp_ekf']:>7.2f}x"
               f"{us['ukf']:>10.1f}{us['fp_ukf']:>10.1f}{us['ukf'] / us['fp_ukf']:>7.2f}x"
               f"{us['ukf'] / us['ekf']:>8.1f}x{d_ekf:>11.1e}{d_ukf:>11.1e}")
+        figure(f"ekf step, {kind}", us["ekf"], "us", peer="filterpy EKF", peer_value=us["fp_ekf"],
+               target=0.20, target_of="ratio")
+        figure(f"ukf step, {kind}", us["ukf"], "us", peer="filterpy UKF", peer_value=us["fp_ukf"],
+               target=0.30, target_of="ratio")
+        figure(f"ukf / ekf cost, {kind} (seed 000: about 4x)", us["ukf"], "us", peer="our ekf",
+               peer_value=us["ekf"])
+        figure(f"largest |ours - filterpy|, ekf, {kind}", d_ekf, "", target=1e-9)
+        figure(f"largest |ours - filterpy|, ukf, {kind}", d_ukf, "", target=1e-9)
     print("targets: ekf <= 0.20x filterpy EKF, ukf <= 0.30x filterpy UKF; seed 000 reports the "
           "UKF step 'about 4 times' slower than the EKF's")
     print("diff: largest |difference| of mean (heading wrapped) and covariance over the run; "

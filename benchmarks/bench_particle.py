@@ -17,6 +17,7 @@ import math
 import time
 
 import numpy as np
+from figures import figure
 
 from beacon_sim.core.measurement_models import bearing
 from beacon_sim.core.motion import MotionNoise, move
@@ -126,13 +127,17 @@ def main(argv=None):
         if n <= 10_000:
             loop = time_loop(n, meas, 3 if n > 1000 else 10, rng)
             print(f"{n:>9} {vec:>19.3f} {loop:>13.1f} {loop / vec:>6.0f}x")
+            figure(f"pf step, {n:,} particles", vec, "ms", peer="per-particle loop",
+                   peer_value=loop, target=1 / 50 if n == 1000 else None, target_of="ratio")
         else:
             print(f"{n:>9} {vec:>19.3f} {'-':>13} {'-':>7}")
+            figure(f"pf step, {n:,} particles", vec, "ms", target=15.0 if n == 100_000 else None)
     ctx = FilterContext("histogram", WORLD, DT, NOISE, (SPEC,), {}, np.random.default_rng(1))
     hf = HistogramFilter(ctx)
     ms = time_filter(hf, meas, 20 if args.quick else 50)
     print(f"histogram {hf.grid.shape} = {hf.grid.size} cells: {ms:.3f} ms/step "
           "(predict + update with 4 bearings + estimate)")
+    figure(f"histogram step, {hf.grid.size:,} cells", ms, "ms", target=10.0)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from figures import figure
 
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import load_scenario
@@ -46,6 +47,8 @@ def main() -> None:
 
         rate = best_rate(run, n)
         print(f"{name:<22}{rate:>10.0f}{rate * sc.dt:>13.0f}{floor / rate:>19.1f}")
+        figure(f"simulation step, {name}", 1e6 / rate, "us", peer="move() alone",
+               peer_value=1e6 / floor)
     print(f"{'(peer) move() only':<22}{floor:>10.0f}")
 
 

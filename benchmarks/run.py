@@ -1,109 +1,90 @@
-"""Run every ``benchmarks/bench_*.py`` and print one table of their figures.
+"""Run every ``benchmarks/bench_*.py`` and print one table of their key figures.
 
-Each script runs as a subprocess (its own interpreter, one at a time, so they do not slow
-each other down) and prints its own table: a header line whose columns are separated by two
-or more spaces, then rows of a label and numbers. This collects every number under its
-column name, so the peers' figures (rows labelled ``(peer) ...``) and the ratios the
-scripts compute end up side by side. A script that fails or prints no table is listed with
-its last line of output.
-Usage: python benchmarks/run.py [--only NAME ...] [--timeout S] [-- ARGS for every script]
+Each script runs as a subprocess, one at a time (so they do not slow each other down), and
+reports its key figures through ``benchmarks/figures.py`` (lines ``FIGURE {json}``), each
+with the peer measured in the same run, the ratio and the target where there is one. The
+scripts' own tables are kept in ``--log FILE`` if asked for.
+Usage: python benchmarks/run.py [--only NAME ...] [--timeout S] [--log FILE]
 """
 
 from __future__ import annotations
 
 import argparse
-import re
+import json
+import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(x|%)?$")
 
 
-def _segments(header: str) -> list[tuple[int, int, str]]:
-    """Column titles of a header line: (start, end, text), split on runs of 2+ spaces."""
-    return [(m.start(), m.end(), m.group(0).strip())
-            for m in re.finditer(r"\S+(?: \S+)*", header)]
+def collect(text: str) -> list[dict]:
+    """The ``FIGURE`` records a script printed."""
+    return [json.loads(line[len("FIGURE "):]) for line in text.splitlines()
+            if line.startswith("FIGURE ")]
 
 
-def parse_table(text: str) -> list[tuple[str, str, str]]:
-    """(row label, column, value) for every number in the tables of ``text``."""
-    out = []
-    header: list[tuple[int, int, str]] = []
-    for line in text.splitlines():
-        tokens = list(re.finditer(r"\S+", line))
-        nums = [t for t in tokens if NUMBER.match(t.group(0))]
-        if not tokens:
-            continue
-        if not nums:
-            segs = _segments(line)
-            if len(segs) >= 2:
-                header = segs
-            continue
-        if not header:  # a sentence: "label: median 6.78 ms, p99 25.89 ms"
-            label = line.split(":", 1)[0].strip() if ":" in line else "-"
-            for i, t in enumerate(tokens):
-                if not NUMBER.match(t.group(0)) or t.start() < len(label):
-                    continue
-                before = tokens[i - 1].group(0).strip(",;:(") if i else ""
-                after = tokens[i + 1].group(0).strip(",;:)") if i + 1 < len(tokens) else ""
-                unit = f" [{after}]" if after.isalpha() and len(after) <= 3 else ""
-                out.append((label, (before + unit).strip() or "value", t.group(0)))
-            continue
-        label = line[:nums[0].start()].strip() or "-"
-        label_end = len(line[:nums[0].start()].rstrip())
-        for t in nums:
-            column = "value"
-            best = None
-            for start, end, title in header:
-                # right-aligned columns end where their values end; left-aligned ones start there
-                d = min(abs(end - t.end()), abs(start - t.start()))
-                if end > label_end and (best is None or d < best):
-                    best, column = d, title
-            out.append((label, column, t.group(0)))
-    return out
+def verdict(f: dict) -> str:
+    if f.get("target") is None:
+        return ""
+    x = f["ratio"] if f.get("target_of") == "ratio" else f["value"]
+    if x is None:
+        return ""
+    shown = f"{f['target']:.3g}x" if f.get("target_of") == "ratio" else f"{f['target']:g} {f['unit']}"
+    return f"<= {shown}: {'met' if x <= f['target'] else 'NOT met'}"
+
+
+def fmt(x: float | None) -> str:
+    if x is None:
+        return "-"
+    return f"{x:.3g}" if abs(x) < 1000 else f"{x:.0f}"
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", default=None, help="run only these bench_*.py names")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per script")
-    ap.add_argument("rest", nargs=argparse.REMAINDER)
+    ap.add_argument("--log", help="write every script's own output to this file")
     args = ap.parse_args()
     scripts = sorted(HERE.glob("bench_*.py"))
     if args.only:
         scripts = [s for s in scripts if s.stem in args.only or s.name in args.only]
-    extra = [a for a in args.rest if a != "--"]
-    rows = []
+    rows, log, ok = [], [], True
     for script in scripts:
         print(f"running {script.name} ...", file=sys.stderr, flush=True)
         t = time.perf_counter()
         try:
-            proc = subprocess.run([sys.executable, str(script), *extra], capture_output=True,
-                                  text=True, timeout=args.timeout, cwd=HERE.parent)
+            proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                                  timeout=args.timeout, cwd=HERE.parent,
+                                  env={**os.environ, "BEACON_SIM_BENCH_FIGURES": "1"})
             status = "ok" if proc.returncode == 0 else f"exit {proc.returncode}"
             text = proc.stdout
-            tail = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or [""]
+            log.append(f"== {script.name} ({status})\n{proc.stdout}{proc.stderr}")
         except subprocess.TimeoutExpired:
-            status, text, tail = f"timeout {args.timeout:g} s", "", [""]
-        wall = time.perf_counter() - t
-        figures = parse_table(text)
+            status, text = f"timeout {args.timeout:g} s", ""
+        ok &= status == "ok"
+        figures = collect(text)
         if status != "ok" or not figures:
-            rows.append((script.stem, status, "-", "-", tail[0][:60]))
-        for label, column, value in figures:
-            rows.append((script.stem, status, label, column, value))
-        rows.append((script.stem, status, "(script wall time)", "s", f"{wall:.1f}"))
-    w = [max(len(str(r[i])) for r in [("benchmark", "status", "row", "figure", "value"), *rows])
-         for i in range(5)]
-    w[2] = min(w[2], 46)
-    line = f"{{:<{w[0]}}}  {{:<{w[1]}}}  {{:<{w[2]}}}  {{:<{w[3]}}}  {{:>{w[4]}}}"
-    print(line.format("benchmark", "status", "row", "figure", "value"))
-    print("-" * (sum(w) + 8))
+            rows.append((script.stem, f"{status}: no figures", "", "", "", "", ""))
+        for f in figures:
+            peer = f"{f['peer']} {fmt(f['peer_value'])}" if f.get("peer") else ""
+            ratio = f"{f['ratio']:.3g}x" if f.get("ratio") is not None else ""
+            rows.append((script.stem, f["what"], fmt(f["value"]), f["unit"], peer, ratio,
+                         verdict(f)))
+        rows.append((script.stem, "(script wall time)", f"{time.perf_counter() - t:.1f}", "s",
+                     "", "", ""))
+    head = ("benchmark", "figure", "value", "unit", "peer (same run)", "ratio", "target")
+    w = [max(len(r[i]) for r in [head, *rows]) for i in range(7)]
+    line = "  ".join(f"{{:<{n}}}" if i in (0, 1, 3, 4, 6) else f"{{:>{n}}}" for i, n in enumerate(w))
+    print(line.format(*head))
+    print("-" * (sum(w) + 12))
     for r in rows:
-        print(line.format(r[0], r[1], r[2][:46], r[3], r[4]))
-    return 0 if all(r[1] == "ok" for r in rows) else 1
+        print(line.format(*r))
+    if args.log:
+        Path(args.log).write_text("\n".join(log))
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

@@ -14,7 +14,8 @@ Update, all readings of a tick in one stacked update linearised once at x_pred
     y = wrap(z - h(x_pred))          every angle residual wrapped to [-pi, pi)
     S = H P H^T + R,  K = P H^T S^-1
     x = x_pred + K y
-    P = (I - K H) P (I - K H)^T + K R K^T          (Joseph form, parameter ``joseph``)
+    P = (I - K H) P (I - K H)^T + K R K^T          (Joseph form, parameter ``joseph``;
+                                                    expanded per scalar row, see update)
 
 The readings are independent (R diagonal), so the stacked update is computed as a
 sequence of scalar updates that keep the one linearisation point: row i uses the
@@ -133,20 +134,27 @@ class ExtendedKalmanFilter(FilterBase):
                 var = models.reading_var.get(m.sensor)
                 if var is None:
                     var = tuple(float(v) ** 2 for v in models.spec(m.sensor).reading_std())
+                vb = var[-1]
+                where = models.beacon_xy
                 for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist(), strict=True):
-                    bx, by = models.beacon(bid)
+                    try:
+                        bx, by = where[bid]
+                    except KeyError:
+                        bx, by = models.beacon(bid)  # raises the one-line FilterError
                     dx = bx - x
                     dy = by - y
                     q = dx * dx + dy * dy
                     # bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10)
                     hb = _wrap(math.atan2(dy, dx) - th)
-                    brow = (dy / q, -dx / q, -1.0, _wrap(zrow[-1] - hb), var[-1], hb)
+                    nu = zrow[-1] - hb
+                    nu = (nu + PI) % TWO_PI - PI  # wrapped residual (inline _wrap: hot path)
+                    brow = (dy / q, -dx / q, -1.0, nu, vb, hb)
                     if kind == "bearing":
-                        groups.append([brow])
+                        groups.append((brow,))
                     else:
                         # range h = sqrt(q), H = [-dx/r, -dy/r, 0] (seed 001)
                         r = math.sqrt(q)
-                        groups.append([(-dx / r, -dy / r, 0.0, zrow[0] - r, var[0], r), brow])
+                        groups.append(((-dx / r, -dy / r, 0.0, zrow[0] - r, var[0], r), brow))
             elif kind == "pose" or kind == "position":
                 var = models.fix_var(m)
                 z = m.z.reshape(-1).tolist()
@@ -191,31 +199,15 @@ class ExtendedKalmanFilter(FilterBase):
                 d1 += k1 * nu
                 d2 += k2 * nu
                 if joseph:
-                    # P = A P A^T + r K K^T with A = I - K H_i, as products (Joseph form).
-                    a00 = 1.0 - k0 * h0
-                    a01 = -k0 * h1
-                    a02 = -k0 * h2
-                    a10 = -k1 * h0
-                    a11 = 1.0 - k1 * h1
-                    a12 = -k1 * h2
-                    a20 = -k2 * h0
-                    a21 = -k2 * h1
-                    a22 = 1.0 - k2 * h2
-                    m00 = a00 * p00 + a01 * p01 + a02 * p02  # M = A P
-                    m01 = a00 * p01 + a01 * p11 + a02 * p12
-                    m02 = a00 * p02 + a01 * p12 + a02 * p22
-                    m10 = a10 * p00 + a11 * p01 + a12 * p02
-                    m11 = a10 * p01 + a11 * p11 + a12 * p12
-                    m12 = a10 * p02 + a11 * p12 + a12 * p22
-                    m20 = a20 * p00 + a21 * p01 + a22 * p02
-                    m21 = a20 * p01 + a21 * p11 + a22 * p12
-                    m22 = a20 * p02 + a21 * p12 + a22 * p22
-                    p00 = m00 * a00 + m01 * a01 + m02 * a02 + r * k0 * k0
-                    p01 = m00 * a10 + m01 * a11 + m02 * a12 + r * k0 * k1
-                    p02 = m00 * a20 + m01 * a21 + m02 * a22 + r * k0 * k2
-                    p11 = m10 * a10 + m11 * a11 + m12 * a12 + r * k1 * k1
-                    p12 = m10 * a20 + m11 * a21 + m12 * a22 + r * k1 * k2
-                    p22 = m20 * a20 + m21 * a21 + m22 * a22 + r * k2 * k2
+                    # Joseph form (I - K H) P (I - K H)^T + r K K^T, expanded for a scalar
+                    # row: P - K u^T - u K^T + s K K^T (exact for any gain K, so rounding
+                    # in K does not break symmetry or positive semi-definiteness).
+                    p00 += (s * k0 - 2.0 * u0) * k0
+                    p01 += s * k0 * k1 - k0 * u1 - u0 * k1
+                    p02 += s * k0 * k2 - k0 * u2 - u0 * k2
+                    p11 += (s * k1 - 2.0 * u1) * k1
+                    p12 += s * k1 * k2 - k1 * u2 - u1 * k2
+                    p22 += (s * k2 - 2.0 * u2) * k2
                 else:
                     # P = P - K S K^T = P - u u^T / s
                     p00 -= u0 * k0
