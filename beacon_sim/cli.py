@@ -45,6 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, help="quit after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the last frame to PNG")
     p.add_argument("--size", default="1280x800", help="window size WxH in pixels")
+    p.add_argument("--autopilot", action="store_true",
+                   help="start with the scenario's driver at the wheel (M toggles it)")
 
     p = sub.add_parser("run", help="one headless run; prints a summary")
     p.add_argument("scenario")

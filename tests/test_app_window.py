@@ -306,3 +306,22 @@ def test_the_window_records_what_it_ran(tmp_path, monkeypatch):
     assert [tuple(t["u"]) for t in ticks] == [(c.v, c.omega) for c in app.session.controls]
     assert lines[-1]["type"] == "end" and lines[-1]["checksum"] == app.session.sim.truth_checksum
     assert sum(1 for t in ticks if t.get("c") == [{"kind": "kidnap"}]) == 1
+
+
+def test_autopilot_option_drives_the_scenario_driver(tmp_path, monkeypatch):
+    from beacon_sim.cli import main
+    from beacon_sim.recording import load_recording
+
+    monkeypatch.chdir(tmp_path)  # the recording goes to ./recordings
+    shot = tmp_path / "auto.png"
+    assert main(["play", "default", "--filter", "dead_reckoning", "--autopilot", "--frames", "120",
+                 "--screenshot", str(shot)]) == 0
+    assert shot.is_file()
+    (path,) = (tmp_path / "recordings").glob("*.jsonl")
+    ticks = load_recording(path).ticks
+    assert len(ticks) > 30 and all(t.control.v > 0 for t in ticks[5:])  # the tour drives on
+    # Without a driver there is nothing to hand the wheel to: one-line error, exit 2.
+    bad = tmp_path / "kb.toml"
+    bad.write_text('[world]\nbounds = [0, 0, 5, 5]\n[robot]\ninitial_pose = [1, 1, 0]\n')
+    assert main(["play", str(bad), "--filter", "dead_reckoning", "--autopilot", "--frames", "1",
+                 "--no-record"]) == 2

@@ -340,10 +340,15 @@ def play(args) -> int:
     params = parse_set_options(getattr(args, "set_params", None) or [])
     specs = choose_filters(scenario, getattr(args, "filters", None))
     seed = scenario.seed if getattr(args, "seed", None) is None else int(args.seed)
+    autopilot = bool(getattr(args, "autopilot", False))
+    if autopilot and scenario.driver.kind == "keyboard":
+        raise UsageError(f"--autopilot: scenario {scenario.name} has no driver (driver.kind = keyboard)")
     recorder, rec_path = (None, None)
     if not getattr(args, "no_record", False):
         recorder, rec_path = make_recorder(scenario, seed, specs, params)
     session = Session(scenario, specs, seed, params, recorder)
+    if autopilot:
+        session.toggle_autopilot()
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     app = App(session, size, scripted=frames is not None, recording=rec_path)
     try:
