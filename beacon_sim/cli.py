@@ -125,6 +125,7 @@ def cmd_run(args) -> int:
         raise UsageError(f"--duration {args.duration}: expected a positive number of seconds")
     result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
                           params=_filter_params(args))
+    _print_sensor_notes(args.filters or scenario.default_filters, scenario)
     data = result.as_json()
     if args.json:
         print(json.dumps(data, indent=None, default=float))
@@ -135,6 +136,24 @@ def cmd_run(args) -> int:
             print(f"filter {track.name} failed: {track.failed}\n{track.traceback}",
                   file=sys.stderr)
     return 0
+
+
+def _print_sensor_notes(specs, scenario) -> None:
+    """Tell the user, on stderr, about filters that can use none of the scenario's sensors."""
+    from beacon_sim.filters.loading import FilterLoadError, sensor_note
+
+    for spec in specs:
+        try:
+            note = sensor_note(spec, scenario)
+        except FilterLoadError:
+            continue
+        if note:
+            print(note, file=sys.stderr)
+
+
+def _fmt(x: float, spec: str) -> str:
+    """A figure for the table; huge ones (ANEES after a kidnap) in exponent form."""
+    return format(x, spec) if abs(x) < 1e5 else format(x, ".2e")
 
 
 def _print_run(d: dict) -> None:
@@ -154,7 +173,7 @@ def _print_run(d: dict) -> None:
                 continue
             print(f"{name:<16}{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>11.4f}"
                   f"{r['mse_x']:>10.4f}{r['mse_y']:>10.4f}{r['mse_theta']:>10.4f}"
-                  f"{r['anees']:>9.2f}{r['us_per_step']:>9.1f}")
+                  f"{_fmt(r['anees'], '.2f'):>9}{r['us_per_step']:>9.1f}")
 
 
 def cmd_list(args) -> int:

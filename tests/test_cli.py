@@ -56,3 +56,11 @@ def test_a_filter_that_crashes_when_built_is_marked_failed_and_the_others_run(tm
     assert "boom" in d["filters"]["Bad"]["failed"]
     assert "failed" not in d["filters"]["dead_reckoning"]
     assert d["filters"]["dead_reckoning"]["pos_rmse_m"] >= 0.0
+
+
+def test_a_filter_that_can_use_no_sensor_of_the_scenario_gets_a_note(capsys):
+    assert main(["run", "default", "--duration", "1", "--filter", "kf"]) == 0
+    err = capsys.readouterr().err
+    assert "kf uses pose / position readings" in err and "only predicts" in err
+    assert main(["run", "assignment_kf", "--duration", "1", "--filter", "kf"]) == 0
+    assert "only predicts" not in capsys.readouterr().err

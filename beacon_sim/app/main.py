@@ -339,6 +339,9 @@ def play(args) -> int:
         raise UsageError(f"--frames {frames}: expected a positive number of frames")
     params = parse_set_options(getattr(args, "set_params", None) or [])
     specs = choose_filters(scenario, getattr(args, "filters", None))
+    from beacon_sim.cli import _print_sensor_notes
+
+    _print_sensor_notes(specs, scenario)
     seed = scenario.seed if getattr(args, "seed", None) is None else int(args.seed)
     autopilot = bool(getattr(args, "autopilot", False))
     if autopilot and scenario.driver.kind == "keyboard":

@@ -161,6 +161,17 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     return flt
 
 
+def sensor_note(spec: str, scenario: Scenario) -> str | None:
+    """A one-line note when a filter declares the measurement kinds it uses
+    (``sensor_kinds``) and the scenario has no sensor of those kinds: it can only predict."""
+    kinds = getattr(load_filter_class(spec), "sensor_kinds", None)
+    if kinds is None or any(s.kind in kinds for s in scenario.sensors):
+        return None
+    have = ", ".join(sorted({s.kind for s in scenario.sensors})) or "no sensors"
+    return (f"note: {filter_display_name(spec)} uses {' / '.join(kinds)} readings and "
+            f"{scenario.name} has {have}: it only predicts (dead reckoning)")
+
+
 def reset_filter(flt, scenario: Scenario) -> None:
     """Give a filter the scenario's initial belief (a broad Gaussian when the scenario is
     global but the filter cannot represent a uniform belief)."""
