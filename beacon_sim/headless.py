@@ -18,7 +18,7 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Step
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import build_filter, filter_display_name
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 from beacon_sim.filters.runner import FilterRunner
 
 
@@ -103,10 +103,7 @@ def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int
     specs = list(scenario.default_filters if filters is None else filters)
     built: dict[str, object] = {}
     broken: dict[str, tuple[str, str]] = {}
-    for spec in specs:
-        name = filter_display_name(spec)
-        while name in built:
-            name += "'"
+    for name, spec in zip(filter_names(specs), specs, strict=True):
         try:
             built[name] = build_filter(spec, scenario, seed, name=name,
                                        params=(params or {}).get(filter_display_name(spec)))

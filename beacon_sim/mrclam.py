@@ -427,7 +427,7 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     stamp, and goes on. No outlier gate is added: the EKF's ``gate_chi2`` stays as
     ``params`` set it (docs/replay.md shows why a gate hurts with this data's noise).
     """
-    from beacon_sim.filters.loading import build_filter, filter_display_name
+    from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 
     od = data.odometry
     t_start = data.t0
@@ -436,10 +436,7 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     scenario = mrclam_scenario(data, cal, t_start, t_end)
     specs = list(scenario.default_filters if filters is None else filters)
     tracks: dict[str, MrclamTrack] = {}
-    for spec in specs:
-        name = filter_display_name(spec)
-        while name in tracks:
-            name += "'"
+    for name, spec in zip(filter_names(specs), specs, strict=True):
         p = dict((params or {}).get(filter_display_name(spec), {}))
         tracks[name] = MrclamTrack(name, build_filter(spec, scenario, seed=0, name=name, params=p))
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Step
-from beacon_sim.filters.loading import build_filter, filter_display_name
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 from beacon_sim.filters.runner import FilterRunner
 from beacon_sim.headless import RunResult
 from beacon_sim.recording import Recording, RecordingError, load_recording
@@ -40,10 +40,7 @@ def build_filters(specs: list[str], recording: Recording,
                   params: dict[str, dict[str, Any]] | None = None) -> dict[str, object]:
     """Construct the filters for a replay, named as a headless run names them."""
     built: dict[str, object] = {}
-    for spec in specs:
-        name = filter_display_name(spec)
-        while name in built:
-            name += "'"
+    for name, spec in zip(filter_names(specs), specs, strict=True):
         built[name] = build_filter(spec, recording.scenario, recording.seed, name=name,
                                    params=(params or {}).get(filter_display_name(spec)))
     return built

@@ -22,7 +22,7 @@ from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
-from beacon_sim.filters.loading import build_filter, filter_display_name
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 from beacon_sim.filters.runner import FilterRunner, FilterTrack
 from beacon_sim.user_commands import apply_commands, validate_command
 
@@ -120,10 +120,7 @@ class Session:
         sc = self.scenario
         self.seed = sc.seed if self.seed is None else int(self.seed)
         built: dict[str, object] = {}
-        for spec in self.specs:
-            name = filter_display_name(spec)
-            while name in built:
-                name += "'"
+        for name, spec in zip(filter_names(self.specs), self.specs, strict=True):
             built[name] = build_filter(spec, sc, self.seed, name=name,
                                        params=self.params.get(filter_display_name(spec)))
         self.names = list(built)

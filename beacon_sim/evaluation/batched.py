@@ -34,7 +34,7 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.dead_reckoning import DeadReckoning
 from beacon_sim.filters.ekf import ExtendedKalmanFilter
 from beacon_sim.filters.kf import KalmanFilter
-from beacon_sim.filters.loading import build_filter, filter_display_name, load_filter_class
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names, load_filter_class
 from beacon_sim.filters.ukf import UnscentedKalmanFilter, robust_sqrt, sigma_weights
 
 try:  # the gufunc under np.linalg.solve: no Python wrapper, NaN instead of an exception
@@ -473,7 +473,7 @@ def batch_runs(scenario: Scenario, specs: list[str], params: dict[str, dict[str,
                seeds: list[int], duration: float, indices: list[int], keep_means_index: int = 0):
     """Runs ``seeds`` together; returns one :class:`RunOutput` per seed, as
     :func:`beacon_sim.evaluation.montecarlo.one_run` would (costs: the batch's cost per run-step)."""
-    from beacon_sim.evaluation.montecarlo import RunOutput, filter_names, finish_filter
+    from beacon_sim.evaluation.montecarlo import RunOutput, finish_filter
 
     names = filter_names(specs)
     R = len(seeds)

@@ -17,9 +17,9 @@ from typing import Any
 
 from beacon_sim.cli import UsageError
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.evaluation.montecarlo import filter_names, run_monte_carlo
+from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.summary import Thresholds, evaluate
-from beacon_sim.filters.loading import build_filter, filter_display_name, parse_set_options
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names, parse_set_options
 
 COLUMNS = ("filter", "pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
            "anees_lo", "anees_hi", "anees_verdict", "nees_steps_in_band", "anis", "anis_verdict",

@@ -22,7 +22,7 @@ from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.metrics import nis_batch
-from beacon_sim.filters.loading import build_filter, filter_display_name
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 
 
 @dataclass
@@ -56,17 +56,6 @@ class RunOutput:
     kidnapped: np.ndarray  # (T,) bool
     truth_checksum: str
     filters: dict[str, FilterRun] = field(default_factory=dict)
-
-
-def filter_names(specs: list[str]) -> list[str]:
-    """Display names for filter specs, primed when a name repeats (``ekf``, ``ekf'``)."""
-    names: list[str] = []
-    for spec in specs:
-        name = filter_display_name(spec)
-        while name in names:
-            name += "'"
-        names.append(name)
-    return names
 
 
 def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:

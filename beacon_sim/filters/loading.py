@@ -105,6 +105,18 @@ def filter_display_name(spec: str) -> str:
     return spec.rpartition(":")[2] if ":" in spec else spec
 
 
+def filter_names(specs: list[str]) -> list[str]:
+    """Display names for filter specs, primed when a name repeats (``ekf``, ``ekf'``): the
+    names every run, window, replay and evaluation gives its filters."""
+    names: list[str] = []
+    for spec in specs:
+        name = filter_display_name(spec)
+        while name in names:
+            name += "'"
+        names.append(name)
+    return names
+
+
 def initial_belief(scenario: Scenario) -> GaussianBelief | None:
     """The scenario's initial belief: a Gaussian, or None for a global (uniform) start."""
     ib = scenario.initial_belief
@@ -184,4 +196,4 @@ def reset_filter(flt, scenario: Scenario) -> None:
 
 
 __all__ = ["BUILTIN_FILTERS", "FilterLoadError", "available_filters", "build_filter",
-           "initial_belief", "load_filter_class"]
+           "filter_display_name", "filter_names", "initial_belief", "load_filter_class"]
