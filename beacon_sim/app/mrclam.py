@@ -24,7 +24,6 @@ import pygame
 from beacon_sim.app.main import App
 from beacon_sim.app.replay import ReplayApp
 from beacon_sim.app.session import FilterStatus, Trail
-from beacon_sim.core.angles import diff
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import GaussianBelief
 
@@ -123,12 +122,7 @@ class MrclamPlayback:
                 mean, cov = tr.means[i], tr.covs[i]
                 shown.means, shown.covs = [mean], [cov]
                 self.trails[n].add(mean)
-                e = np.array([mean[0] - truth[0], mean[1] - truth[1], diff(mean[2], truth[2])])
-                st.pos_err, st.heading_err = math.hypot(e[0], e[1]), float(e[2])
-                try:
-                    st.nees = float(e @ np.linalg.solve(cov, e))
-                except np.linalg.LinAlgError:
-                    st.nees = math.inf
+                st.measure(mean, cov, truth)
             tracks[n] = shown
         self.runner.tracks = tracks
 

@@ -88,6 +88,16 @@ class FilterStatus:
     nees: float = math.nan
     failed: str | None = None
 
+    def measure(self, mean, cov, truth) -> None:
+        """The errors [m, rad] and NEES of the estimate ``(mean, cov)`` against ``truth``."""
+        e = np.array([mean[0] - truth[0], mean[1] - truth[1], diff(mean[2], truth[2])])
+        self.pos_err = math.hypot(e[0], e[1])
+        self.heading_err = float(e[2])
+        try:
+            self.nees = float(e @ np.linalg.solve(cov, e))
+        except np.linalg.LinAlgError:
+            self.nees = math.inf
+
     @property
     def nees_out_of_band(self) -> bool:
         return math.isfinite(self.nees) and not NEES_BAND[0] <= self.nees <= NEES_BAND[1]
@@ -227,15 +237,8 @@ class Session:
             st.failed = tr.failed
             if tr.failed or not tr.ticks or tr.ticks[-1] != step.tick:
                 continue
-            mean, cov = tr.means[-1], tr.covs[-1]
-            self.trails[name].add(mean)
-            e = np.array([mean[0] - truth[0], mean[1] - truth[1], diff(mean[2], truth[2])])
-            st.pos_err = math.hypot(e[0], e[1])
-            st.heading_err = float(e[2])
-            try:
-                st.nees = float(e @ np.linalg.solve(cov, e))
-            except np.linalg.LinAlgError:
-                st.nees = math.inf
+            self.trails[name].add(tr.means[-1])
+            st.measure(tr.means[-1], tr.covs[-1], truth)
 
     def readings(self) -> list[Measurement]:
         """The latest reading of each sensor still within its period."""
