@@ -32,6 +32,20 @@ def _pyplot():
     return plt
 
 
+def _mark_kidnaps(ax, curves: dict[str, Any]) -> None:
+    """A dashed red line at each kidnap time [s]."""
+    for k in curves["kidnap_times"]:
+        ax.axvline(k, color="r", lw=0.8, ls="--")
+
+
+def _save(plt, fig, path: Path) -> Path:
+    """Lay out, write the PNG and free the figure."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_trajectories(scenario, curves: dict[str, Any], path: Path) -> Path:
     """The first run's true path, each filter's estimate and the beacons [m]."""
     plt = _pyplot()
@@ -51,10 +65,7 @@ def plot_trajectories(scenario, curves: dict[str, Any], path: Path) -> Path:
     ax.set_ylabel("y [m]")
     ax.set_title(f"{scenario.name}: trajectories (first run)")
     ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def plot_errors(scenario, curves: dict[str, Any], path: Path) -> Path:
@@ -72,8 +83,7 @@ def plot_errors(scenario, curves: dict[str, Any], path: Path) -> Path:
         ax.plot(t, 3 * curves["pcrb_sigma_t"][:, i], "k:", lw=0.8)
         ax.plot(t, -3 * curves["pcrb_sigma_t"][:, i], "k:", lw=0.8,
                 label="+-3 sigma PCRB" if i == 0 else None)
-        for k in curves["kidnap_times"]:
-            ax.axvline(k, color="r", lw=0.8, ls="--")
+        _mark_kidnaps(ax, curves)
         ax.set_ylabel(labels[i])
         span = max(np.nanmax(np.abs(c["err0"][:, i])) for c in curves["filters"].values()) \
             if curves["filters"] else 1.0
@@ -82,10 +92,7 @@ def plot_errors(scenario, curves: dict[str, Any], path: Path) -> Path:
     axes[0].legend(loc="upper right", fontsize=7)
     axes[0].set_title(f"{scenario.name}: error and +-3 sigma (shaded), first run")
     axes[-1].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def plot_nees(scenario, curves: dict[str, Any], path: Path, runs: int) -> Path:
@@ -98,17 +105,13 @@ def plot_nees(scenario, curves: dict[str, Any], path: Path, runs: int) -> Path:
         ax.plot(t, c["nees_t"], lw=0.8, label=name)
     ax.axhspan(lo, hi, color="g", alpha=0.15, label=f"95 % band ({runs} runs)")
     ax.axhline(3.0, color="g", lw=0.8)
-    for k in curves["kidnap_times"]:
-        ax.axvline(k, color="r", lw=0.8, ls="--")
+    _mark_kidnaps(ax, curves)
     ax.set_yscale("log")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("NEES (mean over runs)")
     ax.set_title(f"{scenario.name}: NEES against time")
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def plot_rmse_pcrb(scenario, curves: dict[str, Any], path: Path) -> Path:
@@ -119,17 +122,13 @@ def plot_rmse_pcrb(scenario, curves: dict[str, Any], path: Path) -> Path:
     for name, c in curves["filters"].items():
         ax.plot(t, c["rmse_t"], lw=0.9, label=name)
     ax.plot(t, curves["pcrb_pos_t"], "k--", lw=1.2, label="PCRB")
-    for k in curves["kidnap_times"]:
-        ax.axvline(k, color="r", lw=0.8, ls="--")
+    _mark_kidnaps(ax, curves)
     ax.set_yscale("log")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("position RMSE [m]")
     ax.set_title(f"{scenario.name}: RMSE beside the posterior Cramer-Rao bound")
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def plot_all(scenario, curves: dict[str, Any], out: Path, runs: int) -> list[Path]:
