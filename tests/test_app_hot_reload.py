@@ -4,49 +4,17 @@ it from its own loop (under SDL's dummy driver, scripted frames of 1/60 s)."""
 from __future__ import annotations
 
 import os
-import textwrap
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
 import pytest
+from hot_reload_helpers import SOURCE, write
 
 from beacon_sim.app.main import App
 from beacon_sim.app.session import Session
 from beacon_sim.cli import build_parser
 from beacon_sim.core.scenario import load_scenario
-
-# The estimate is the initial mean shifted by OFFSET metres in x: the offset tells which
-# version of the file is running.
-SOURCE = textwrap.dedent("""
-    import numpy as np
-    from beacon_sim.filters.base import FilterBase
-
-    OFFSET = {offset}
-
-    class Shift(FilterBase):
-        def reset(self, initial):
-            self.mean = np.array(initial.mean, dtype=float)
-            self.cov = np.array(initial.cov, dtype=float)
-
-        def predict(self, control, dt):
-            pass
-
-        def update(self, measurements):
-            pass
-
-        def estimate(self):
-            m = self.mean.copy()
-            m[0] += OFFSET
-            return m, self.cov.copy()
-""")
-
-
-def write(path, text, bump_s):
-    """Write and move the modification time ``bump_s`` s later (coarse file-system clocks)."""
-    path.write_text(text)
-    st = path.stat()
-    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + int(bump_s * 1e9)))
 
 
 @pytest.fixture

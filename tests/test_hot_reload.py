@@ -3,43 +3,17 @@ previous version keeps running (driven through FilterFileWatcher directly)."""
 
 from __future__ import annotations
 
-import os
 import textwrap
 
 import numpy as np
 import pytest
+from hot_reload_helpers import SOURCE, write
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.hot_reload import FilterFileWatcher, replace_in_runner, source_of
 from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.runner import FilterRunner
-
-# A filter whose estimate is a constant offset from the initial mean: the OFFSET tells
-# which version of the file built it.
-SOURCE = textwrap.dedent("""
-    import numpy as np
-    from beacon_sim.filters.base import FilterBase
-
-    OFFSET = {offset}
-
-    class Shift(FilterBase):
-        def reset(self, initial):
-            self.mean = np.array(initial.mean, dtype=float)
-            self.cov = np.array(initial.cov, dtype=float)
-            self.steps = 0
-
-        def predict(self, control, dt):
-            self.steps += 1
-
-        def update(self, measurements):
-            pass
-
-        def estimate(self):
-            m = self.mean.copy()
-            m[0] += OFFSET
-            return m, self.cov.copy()
-""")
 
 
 class FakeClock:
@@ -48,14 +22,6 @@ class FakeClock:
 
     def __call__(self):
         return self.t
-
-
-def write(path, text, bump_s):
-    """Write and set the modification time ``bump_s`` seconds later than now (file systems
-    with coarse timestamps would otherwise see no change within one second)."""
-    path.write_text(text)
-    st = path.stat()
-    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + int(bump_s * 1e9)))
 
 
 @pytest.fixture
