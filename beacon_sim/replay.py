@@ -36,6 +36,30 @@ def _is_safe_spec(spec: str) -> bool:
     return ":" not in spec
 
 
+def replay_specs(recording: Recording, requested: list[str] | None) -> tuple[list[str], list[str]]:
+    """(filters to run, recorded filters skipped): ``requested`` when given (even empty);
+    otherwise the recorded built-in ones (named by module or file path: skipped)."""
+    if requested is not None:
+        return list(requested), []
+    return ([s for s in recording.filters if _is_safe_spec(s)],
+            [s for s in recording.filters if not _is_safe_spec(s)])
+
+
+def replay_params(recording: Recording,
+                  params: dict[str, dict[str, Any]] | None) -> dict[str, dict[str, Any]]:
+    """The recorded filter parameters with ``params`` (from ``--set``) on top."""
+    merged = recording.params
+    for name, p in (params or {}).items():
+        merged.setdefault(name, {}).update(p)
+    return merged
+
+
+def skipped_note(spec: str) -> str:
+    """The line telling the user a recorded filter was not run, and how to run it."""
+    return (f"note: recorded filter {spec} not run (a recording never makes beacon-sim import "
+            f"code); pass --filter {spec} to run it")
+
+
 def build_filters(specs: list[str], recording: Recording,
                   params: dict[str, dict[str, Any]] | None = None) -> dict[str, object]:
     """Construct the filters for a replay, named as a headless run names them."""
@@ -55,17 +79,8 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     (filters named by module or file path are skipped: pass them explicitly). Raises
     :class:`ReplayMismatch` naming the first tick whose truth differs.
     """
-    skipped: list[str] = []
-    if filters is None:
-        specs = [s for s in recording.filters if _is_safe_spec(s)]
-        skipped = [s for s in recording.filters if not _is_safe_spec(s)]
-        merged = recording.params
-    else:
-        specs = list(filters)
-        merged = recording.params
-    for name, p in (params or {}).items():
-        merged.setdefault(name, {}).update(p)
-    built = build_filters(specs, recording, merged)
+    specs, skipped = replay_specs(recording, filters)
+    built = build_filters(specs, recording, replay_params(recording, params))
     runner = FilterRunner(built)
     scenario = recording.scenario
     sim = Simulation(scenario, recording.seed)
@@ -154,8 +169,7 @@ def replay_command(args) -> int:
         raise _as_usage_error(exc) from None
     info = result.extra["replay"]
     for spec in info["skipped_filters"]:
-        print(f"note: recorded filter {spec} not run (a recording never makes beacon-sim "
-              f"import code); pass --filter {spec} to run it", file=sys.stderr)
+        print(skipped_note(spec), file=sys.stderr)
     data = result.as_json()
     data["replay"] = info
     if args.json:

@@ -23,6 +23,8 @@ from beacon_sim.app.main import App
 from beacon_sim.app.session import Session
 from beacon_sim.core.types import Control, Step
 from beacon_sim.recording import Recording
+from beacon_sim.replay import replay_params, skipped_note
+from beacon_sim.replay import replay_specs as _replay_specs
 
 #: Left / Right arrows seek by this much simulated time [s].
 SEEK_STEP_S = 5.0
@@ -228,10 +230,7 @@ class ReplayApp(App):
 def replay_specs(recording: Recording, requested: list[str] | None) -> tuple[list[str], list[str]]:
     """(filters to run, recorded filters skipped): ``--filter`` wins; otherwise the recorded
     built-in ones (a recording never makes beacon-sim import a file or module it names)."""
-    if requested:
-        return list(requested), []
-    run = [s for s in recording.filters if ":" not in s]
-    return run, [s for s in recording.filters if ":" in s]
+    return _replay_specs(recording, requested or None)
 
 
 def show_replay(recording: Recording, args) -> int:
@@ -244,11 +243,8 @@ def show_replay(recording: Recording, args) -> int:
         raise UsageError(f"--frames {frames}: expected a positive number of frames")
     specs, skipped = replay_specs(recording, getattr(args, "filters", None))
     for spec in skipped:
-        print(f"note: recorded filter {spec} not run (a recording never makes beacon-sim import "
-              f"code); pass --filter {spec} to run it", file=sys.stderr)
-    params = recording.params
-    for name, p in _filter_params(args).items():
-        params.setdefault(name, {}).update(p)
+        print(skipped_note(spec), file=sys.stderr)
+    params = replay_params(recording, _filter_params(args))
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     app = ReplayApp(recording, specs, params, scripted=frames is not None)
     try:
