@@ -21,7 +21,6 @@ from types import SimpleNamespace
 import numpy as np
 import pygame
 
-from beacon_sim.app.main import App
 from beacon_sim.app.replay import ReplayApp
 from beacon_sim.app.session import FilterStatus, Trail
 from beacon_sim.core.types import Control, Measurement
@@ -156,11 +155,8 @@ class MrclamApp(ReplayApp):
     def __init__(self, run, size=(1280, 800), scripted: bool = False):
         self.replay_of = None
         self.specs, self.params = [], {}
-        self.user_flips: set[str] = set()
-        self.seek_to = None
-        self.scrubbing = False
         self.reported = True  # no checksum to report
-        App.__init__(self, MrclamPlayback(run), size, scripted)
+        self._open(MrclamPlayback(run), size, scripted)
 
     def _make_watchers(self, interval: float) -> dict:
         return {}  # the estimates are computed already: nothing to hot-reload

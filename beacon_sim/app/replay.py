@@ -95,11 +95,16 @@ class ReplayApp(App):
         self.replay_of = recording
         self.specs = list(specs)
         self.params = dict(params or {})
+        self.reported = False
+        self._open(ReplaySession(recording, specs, params), size, scripted)
+
+    def _open(self, session, size, scripted: bool) -> None:
+        """The timeline's own state, then the window around ``session`` (also for the
+        MRCLAM window, which plays something other than a recording)."""
         self.user_flips: set[str] = set()  # filters the user showed / hid (kept over seeks)
         self.seek_to: int | None = None
         self.scrubbing = False
-        self.reported = False
-        super().__init__(ReplaySession(recording, specs, params), size, scripted)
+        App.__init__(self, session, size, scripted)
 
     # --- layout ---------------------------------------------------------------------------
     def world_area(self, width: int, height: int) -> tuple[int, int, int, int]:
