@@ -34,7 +34,13 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.dead_reckoning import DeadReckoning
 from beacon_sim.filters.ekf import ExtendedKalmanFilter
 from beacon_sim.filters.kf import KalmanFilter
-from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names, load_filter_class
+from beacon_sim.filters.loading import (
+    build_filter,
+    filter_display_name,
+    filter_names,
+    load_filter_class,
+    merged_params,
+)
 from beacon_sim.filters.ukf import UnscentedKalmanFilter, robust_sqrt, sigma_weights
 
 try:  # the gufunc under np.linalg.solve: no Python wrapper, NaN instead of an exception
@@ -457,8 +463,7 @@ def unsupported(scenario: Scenario, specs: list[str], params: dict[str, dict[str
         extra = sorted(set(getattr(cls, "defaults", {})) - set(known))
         if extra:
             return f"{spec} parameter {extra[0]} is not batched"
-        merged = dict(scenario.filter_params.get(filter_display_name(spec), {}))
-        merged.update(params.get(filter_display_name(spec), {}))
+        merged = merged_params(spec, scenario, params.get(filter_display_name(spec)))
         try:
             merged = cls.merge_params(merged)
         except Exception as exc:  # reported by the per-run path

@@ -29,7 +29,7 @@ from beacon_sim.filters.base import (
     GridBelief,
     ParticleBelief,
 )
-from beacon_sim.filters.loading import filter_display_name, initial_belief, load_filter_class
+from beacon_sim.filters.loading import filter_display_name, load_filter_class, merged_params, reset_filter
 
 N_STEPS = 100
 SEED = 12345
@@ -65,17 +65,8 @@ def _context(scenario: Scenario, spec: str) -> FilterContext:
     name = filter_display_name(spec)
     return FilterContext(name=name, world=scenario.world, dt=scenario.dt,
                          motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                         params=dict(scenario.filter_params.get(name, {})),
+                         params=merged_params(spec, scenario),
                          rng=stream(SEED, "filter", name))
-
-
-def _start(flt, scenario: Scenario) -> None:
-    init = initial_belief(scenario)
-    if init is None and not getattr(flt, "supports_global", False):
-        from beacon_sim.filters.base import broad_gaussian
-
-        init = broad_gaussian(scenario.world)
-    flt.reset(init)
 
 
 def _estimate_problem(est) -> str | None:
@@ -98,7 +89,7 @@ def _run(cls, scenario, spec, steps, global_seed: int):
     np.random.seed(global_seed)  # noqa: NPY002 - the point of the check
     random.seed(global_seed)
     flt = cls(_context(scenario, spec))
-    _start(flt, scenario)
+    reset_filter(flt, scenario)
     out = []
     for st in steps:
         flt.predict(st.control, st.dt)
@@ -138,7 +129,7 @@ def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
 
     try:
         flt = cls(_context(scenario, spec))
-        _start(flt, scenario)
+        reset_filter(flt, scenario)
     except Exception as exc:
         add("constructs", False, f"{type(exc).__name__}: {exc}",
             "the class must take one argument, a FilterContext (call super().__init__(ctx) "

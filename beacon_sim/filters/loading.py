@@ -143,6 +143,14 @@ def parse_set_options(items: list[str]) -> dict[str, dict[str, Any]]:
     return out
 
 
+def merged_params(spec: str, scenario: Scenario, params: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The parameters a filter is built with: the scenario's ``[filters.NAME]``, then
+    ``params`` (this filter's ``--set`` values) on top."""
+    merged = dict(scenario.filter_params.get(filter_display_name(spec), {}))
+    merged.update(params or {})
+    return merged
+
+
 def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = None,
                  params: dict[str, Any] | None = None):
     """Construct and reset one filter for ``scenario``.
@@ -152,15 +160,13 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     """
     cls = load_filter_class(spec)
     name = name or filter_display_name(spec)
-    merged = dict(scenario.filter_params.get(filter_display_name(spec), {}))
-    merged.update(params or {})
     ctx = FilterContext(
         name=name,
         world=scenario.world,
         dt=scenario.dt,
         motion_noise=scenario.model_motion_noise,
         sensors=scenario.model_sensors,
-        params=merged,
+        params=merged_params(spec, scenario, params),
         rng=stream(seed, "filter", name),
     )
     try:
