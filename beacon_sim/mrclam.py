@@ -526,6 +526,8 @@ def _print_calibration(data: MrclamData, cal: Calibration) -> None:
 
 
 def _print_run(d: dict[str, Any]) -> None:
+    from beacon_sim.cli import _fmt
+
     print(f"MRCLAM {d['dataset']} robot {d['robot']}: {d['duration_s']:.1f} s, "
           f"{d['odometry_rows']} odometry rows, {d['updates']} updates with {d['readings']} "
           f"landmark readings (dropped: {', '.join(f'{k} {v}' for k, v in d['dropped'].items())})")
@@ -543,7 +545,7 @@ def _print_run(d: dict[str, Any]) -> None:
             print(f"{name:<16}no estimate inside the ground truth")
             continue
         print(f"{name:<16}{r['mse_x']:>10.4f}{r['mse_y']:>10.4f}{r['mse_theta']:>12.4f}"
-              f"{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>10.4f}{r['anees']:>9.1f}"
+              f"{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>10.4f}{_fmt(r['anees'], '.1f'):>9}"
               f"{r['us_per_step']:>9.1f}")
     u, e = SEED_001_UKF_MSE, SEED_001_EKF_MSE
     print(f"{'seed 001 UKF':<16}{u[0]:>10.4f}{u[1]:>10.4f}{u[2]:>12.4f}   (paper, Table II)")
