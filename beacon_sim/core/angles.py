@@ -18,10 +18,10 @@ def wrap(angle):
         # np.mod (fmod, then + divisor when the signs differ), so the bits are identical.
         a = (float(angle) + _PI) % TWO_PI - _PI
         return a - TWO_PI if a >= _PI else a
-    a = np.asarray(angle, dtype=float)
-    if a.ndim == 0:
-        return wrap(float(a))
-    wrapped = np.mod(a + np.pi, TWO_PI)
+    arr = np.asarray(angle, dtype=float)
+    if arr.ndim == 0:
+        return wrap(float(arr))
+    wrapped = np.mod(arr + np.pi, TWO_PI)
     wrapped -= np.pi
     # np.mod can round a value just below pi up to exactly pi after the subtraction.
     np.subtract(wrapped, TWO_PI, out=wrapped, where=wrapped >= np.pi)

@@ -8,11 +8,13 @@ docs/scenarios.md.
 from __future__ import annotations
 
 import difflib
+import enum
 import math
 import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Final, NoReturn, overload
 
 from beacon_sim.core.drivers import (
     CircleSpec,
@@ -79,7 +81,16 @@ class Scenario:
         return replace(self, **changes)
 
 
-_REQUIRED = object()
+class _Required(enum.Enum):
+    """The type of ``_REQUIRED``: a key with no default must be in the file."""
+
+    TOKEN = 0
+
+
+_REQUIRED: Final = _Required.TOKEN
+
+Vec3 = tuple[float, float, float]
+Vec4 = tuple[float, float, float, float]
 
 
 class _Table:
@@ -104,13 +115,13 @@ class _Table:
     def key(self, name: str) -> str:
         return f"{self.path}.{name}" if self.path else name
 
-    def fail(self, keypath: str, value: Any, expected: str):
+    def fail(self, keypath: str, value: Any, expected: str) -> NoReturn:
         raise ScenarioError(f"{self.file}: {keypath} = {value!r}: expected {expected}")
 
     def has(self, name: str) -> bool:
         return name in self.data
 
-    def raw(self, name: str, default: Any = _REQUIRED) -> Any:
+    def raw(self, name: str, default: object = _REQUIRED) -> Any:
         self.used.add(name)
         if name not in self.data:
             if default is _REQUIRED:
@@ -118,11 +129,11 @@ class _Table:
             return default
         return self.data[name]
 
-    def number(self, name, default=_REQUIRED, *, lo=-math.inf, hi=math.inf, lo_open=False,
-               what=None) -> float:
+    def number(self, name: str, default: float | _Required = _REQUIRED, *, lo: float = -math.inf,
+               hi: float = math.inf, lo_open: bool = False, what: str | None = None) -> float:
         value = self.raw(name, default)
-        if value is default and default is not _REQUIRED:
-            return value
+        if default is not _REQUIRED and not self.has(name):
+            return default
         ok = isinstance(value, int | float) and not isinstance(value, bool)
         # inf is allowed only where the range is open above (e.g. max_range = inf).
         ok = ok and (math.isfinite(value) or (value == math.inf and hi == math.inf))
@@ -133,21 +144,23 @@ class _Table:
             self.fail(self.key(name), value, f"a number {rng}")
         return float(value)
 
-    def integer(self, name, default=_REQUIRED, *, lo=-(2**63), hi=2**63 - 1) -> int:
+    def integer(self, name: str, default: int | _Required = _REQUIRED, *, lo: int = -(2**63),
+                hi: int = 2**63 - 1) -> int:
         value = self.raw(name, default)
-        if value is default and default is not _REQUIRED:
-            return value
+        if default is not _REQUIRED and not self.has(name):
+            return default
         if not isinstance(value, int) or isinstance(value, bool) or not lo <= value <= hi:
             self.fail(self.key(name), value, f"an integer {_range_text(lo, hi)}")
         return int(value)
 
-    def boolean(self, name, default=_REQUIRED) -> bool:
+    def boolean(self, name: str, default: bool | _Required = _REQUIRED) -> bool:
         value = self.raw(name, default)
         if not isinstance(value, bool):
             self.fail(self.key(name), value, "true or false")
         return value
 
-    def string(self, name, default=_REQUIRED, *, choices=None) -> str:
+    def string(self, name: str, default: str | _Required = _REQUIRED, *,
+               choices: Sequence[str] | None = None) -> str:
         value = self.raw(name, default)
         if not isinstance(value, str):
             self.fail(self.key(name), value, "a string")
@@ -157,23 +170,42 @@ class _Table:
             self.fail(self.key(name), value, "one of " + ", ".join(map(repr, choices)) + extra)
         return value
 
-    def vector(self, name, n, default=_REQUIRED, *, lo=-math.inf) -> tuple[float, ...]:
-        value = self.raw(name, default)
-        if value is default and default is not _REQUIRED:
-            return value
+    def _floats(self, name: str, n: int, lo: float) -> list[float]:
+        """The key's list of ``n`` finite numbers, each ``>= lo`` (the key must be present)."""
+        value = self.raw(name)
         ok = isinstance(value, list) and len(value) == n and all(
             isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
             and v >= lo for v in value)
         if not ok:
             sign = " non-negative" if lo == 0 else ""
             self.fail(self.key(name), value, f"a list of {n}{sign} finite numbers")
-        return tuple(float(v) for v in value)
+        return [float(v) for v in value]
 
-    def sub(self, name, default=_REQUIRED) -> _Table:
+    @overload
+    def vector3(self, name: str, default: Vec3 | _Required = ..., *, lo: float = ...) -> Vec3: ...
+
+    @overload
+    def vector3(self, name: str, default: None, *, lo: float = ...) -> Vec3 | None: ...
+
+    def vector3(self, name: str, default: Vec3 | _Required | None = _REQUIRED, *,
+                lo: float = -math.inf) -> Vec3 | None:
+        """A list of 3 finite numbers, e.g. a pose ``[x, y, theta]``."""
+        if default is not _REQUIRED and not self.has(name):
+            self.used.add(name)  # as raw() does
+            return default
+        x, y, z = self._floats(name, 3, lo)
+        return (x, y, z)
+
+    def vector4(self, name: str, *, lo: float = -math.inf) -> Vec4:
+        """A list of 4 finite numbers (required), e.g. bounds ``[xmin, ymin, xmax, ymax]``."""
+        a, b, c, d = self._floats(name, 4, lo)
+        return (a, b, c, d)
+
+    def sub(self, name: str, default: dict[str, Any] | _Required = _REQUIRED) -> _Table:
         value = self.raw(name, {} if default is not _REQUIRED else _REQUIRED)
         return _Table(value, self.key(name), self.file)
 
-    def tables(self, name) -> list[_Table]:
+    def tables(self, name: str) -> list[_Table]:
         value = self.raw(name, [])
         if not isinstance(value, list):
             self.fail(self.key(name), value, "an array of tables ([[...]])")
@@ -198,7 +230,7 @@ def _generic_path(path: str) -> str:
     return re.sub(r"\[\d+\]", "[]", path)
 
 
-def _range_text(lo, hi, lo_open=False) -> str:
+def _range_text(lo: float, hi: float, lo_open: bool = False) -> str:
     if lo > -math.inf and hi < math.inf:
         return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
     if lo > -math.inf:
@@ -240,7 +272,7 @@ def _motion_noise(t: _Table, base: MotionNoise | None = None) -> MotionNoise:
         v_frac=t.number("v_frac", b.v_frac, lo=0),
         omega_std=t.number("omega_std", b.omega_std, lo=0),
         omega_frac=t.number("omega_frac", b.omega_frac, lo=0),
-        pose_std=t.vector("pose_std", 3, b.pose_std, lo=0),
+        pose_std=t.vector3("pose_std", b.pose_std, lo=0),
     )
     t.finish()
     return out
@@ -283,6 +315,7 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
 def _driver(t: _Table) -> DriverSpec:
     kind = t.string("kind", "keyboard",
                     choices=("keyboard", "constant", "circle", "random_goal", "waypoints"))
+    spec: DriverSpec
     if kind == "constant":
         spec = ConstantSpec(v=t.number("v", 0.0), omega=t.number("omega", 0.0))
     elif kind == "circle":
@@ -298,7 +331,7 @@ def _driver(t: _Table) -> DriverSpec:
             margin=t.number("margin", d.margin, lo=0),
         )
     elif kind == "waypoints":
-        d = WaypointsSpec()
+        dw = WaypointsSpec()
         pts = t.raw("points")
         ok = isinstance(pts, list) and len(pts) >= 1 and all(
             isinstance(p, list) and len(p) == 2
@@ -308,10 +341,10 @@ def _driver(t: _Table) -> DriverSpec:
             t.fail(t.key("points"), pts, "a non-empty list of [x, y] pairs in metres")
         spec = WaypointsSpec(
             points=tuple((float(p[0]), float(p[1])) for p in pts),
-            speed=t.number("speed", d.speed, lo=0, lo_open=True),
-            gain=t.number("gain", d.gain, lo=0, lo_open=True),
-            max_omega=t.number("max_omega", d.max_omega, lo=0, lo_open=True),
-            tolerance=t.number("tolerance", d.tolerance, lo=0, lo_open=True),
+            speed=t.number("speed", dw.speed, lo=0, lo_open=True),
+            gain=t.number("gain", dw.gain, lo=0, lo_open=True),
+            max_omega=t.number("max_omega", dw.max_omega, lo=0, lo_open=True),
+            tolerance=t.number("tolerance", dw.tolerance, lo=0, lo_open=True),
             loop=t.boolean("loop", True),
         )
     else:
@@ -323,6 +356,7 @@ def _driver(t: _Table) -> DriverSpec:
 def _event(t: _Table, sensor_names: set[str]) -> Event:
     kind = t.string("kind", choices=("kidnap", "blackout", "noise_burst"))
     time = t.number("time", lo=0)
+    ev: Event
     if kind == "kidnap":
         given = [k for k in ("pose", "offset", "random") if t.has(k)]
         if len(given) != 1:
@@ -331,8 +365,8 @@ def _event(t: _Table, sensor_names: set[str]) -> Event:
                    "random = true")
         ev = Kidnap(
             time=time,
-            pose=t.vector("pose", 3, None),
-            offset=t.vector("offset", 3, None),
+            pose=t.vector3("pose", None),
+            offset=t.vector3("offset", None),
             random=t.boolean("random", False),
         )
         if given == ["random"] and not ev.random:
@@ -352,7 +386,7 @@ def _event(t: _Table, sensor_names: set[str]) -> Event:
     return ev
 
 
-def parse_scenario(data: dict, file: str, name: str = "") -> Scenario:
+def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     """Validate a decoded TOML document and build the :class:`Scenario`."""
     top = _Table(data, "", file)
     name = top.string("name", name or Path(file).stem)
@@ -362,10 +396,10 @@ def parse_scenario(data: dict, file: str, name: str = "") -> Scenario:
     seed = top.integer("seed", 0, lo=0)
 
     w = top.sub("world")
-    bounds = w.vector("bounds", 4)
+    bounds = w.vector4("bounds")
     if not (bounds[2] > bounds[0] and bounds[3] > bounds[1]):
         w.fail(w.key("bounds"), list(bounds), "[xmin, ymin, xmax, ymax] with xmax > xmin, ymax > ymin")
-    beacons = []
+    beacons: list[Beacon] = []
     for bt in w.tables("beacons"):
         b = Beacon(id=bt.integer("id", lo=0), x=bt.number("x"), y=bt.number("y"))
         if any(o.id == b.id for o in beacons):
@@ -376,7 +410,7 @@ def parse_scenario(data: dict, file: str, name: str = "") -> Scenario:
     world = World(bounds=bounds, beacons=tuple(beacons))
 
     r = top.sub("robot")
-    initial_pose = r.vector("initial_pose", 3)
+    initial_pose = r.vector3("initial_pose")
     if not world.contains(initial_pose[:2]):
         r.fail(r.key("initial_pose"), list(initial_pose), f"a position inside world.bounds {list(bounds)}")
     radius = r.number("radius", 0.2, lo=0, lo_open=True)
@@ -407,8 +441,8 @@ def parse_scenario(data: dict, file: str, name: str = "") -> Scenario:
 
     ib = top.sub("initial_belief", {})
     initial_belief = InitialBelief(
-        mean=ib.vector("mean", 3, initial_pose),
-        std=ib.vector("std", 3, (0.1, 0.1, 0.05), lo=0),
+        mean=ib.vector3("mean", initial_pose),
+        std=ib.vector3("std", (0.1, 0.1, 0.05), lo=0),
         global_=ib.boolean("global", False),
     )
     ib.finish()
@@ -454,7 +488,7 @@ def parse_scenario(data: dict, file: str, name: str = "") -> Scenario:
 
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """A shipped scenario's name (``default``) or a path to a ``.toml`` file."""
-    from beacon_sim.resources import scenario_dir, shipped_scenarios
+    from beacon_sim.core.resources import scenario_dir, shipped_scenarios
 
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists() or "/" in str(name_or_path):

@@ -52,9 +52,11 @@ class Simulation:
                 self._kidnaps.setdefault(first_tick_at(ev.time, self.dt), []).append(ev)
                 continue
             ticks = active_ticks(ev, self.dt)
-            table = self._blackout_ticks if isinstance(ev, Blackout) else self._burst_ticks
             for k in ticks:
-                table.setdefault(k, []).append(ev)
+                if isinstance(ev, Blackout):
+                    self._blackout_ticks.setdefault(k, []).append(ev)
+                else:
+                    self._burst_ticks.setdefault(k, []).append(ev)
             what = ", ".join(ev.sensors) if isinstance(ev, Blackout) and ev.sensors else ""
             self._interval_edges.setdefault(ticks.start, []).append(
                 EventRecord(f"{ev.kind}_start", ticks.start, ticks.start * self.dt, what))
@@ -106,12 +108,12 @@ class Simulation:
             target = kid.target(pose, self.world, self._events_rng)
             events.append(EventRecord("kidnap", k, k * self.dt, _kidnap_text(kid), pose, target))
             pose = target
-        for target in self._pending_kidnap:
-            if target is None:
+        for asked in self._pending_kidnap:
+            if asked is None:
                 target = Kidnap(0.0, random=True).target(pose, self.world, self._events_rng)
                 text = "random (user)"
             else:
-                target = self.world.clip(target)
+                target = self.world.clip(asked)
                 text = "to a pose (user)"
             events.append(EventRecord("kidnap", k, k * self.dt, text, pose, target))
             pose = target
