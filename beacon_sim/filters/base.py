@@ -115,6 +115,13 @@ class Filter(Protocol):
     def belief(self) -> Belief: ...
 
 
+class _Estimating(Protocol):
+    """A filter as far as :meth:`FilterBase.belief` needs it (the subclass defines
+    ``estimate``)."""
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+
 class FilterBase:
     """Optional base class: stores the context, merges parameters with ``defaults``
     (unknown parameter names are an error with a "did you mean"), and draws a Gaussian
@@ -153,7 +160,7 @@ class FilterBase:
             out[key] = type(default)(value) if isinstance(default, float) else value
         return out
 
-    def belief(self) -> Belief:
+    def belief(self: _Estimating) -> Belief:
         mean, cov = self.estimate()
         return GaussianBelief(mean, cov)
 

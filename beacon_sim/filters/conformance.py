@@ -16,13 +16,17 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.types import Step
 from beacon_sim.filters.base import (
+    Filter,
     FilterContext,
     FilterError,
     GaussianBelief,
@@ -45,11 +49,11 @@ class CheckResult:
     advice: str = ""
 
 
-def _scenario_for(cls, scenario: Scenario) -> tuple[Scenario, str]:
+def _scenario_for(cls: type, scenario: Scenario) -> tuple[Scenario, str]:
     kinds = getattr(cls, "sensor_kinds", None)
     if not kinds or any(s.kind in kinds for s in scenario.sensors):
         return scenario, ""
-    from beacon_sim.resources import shipped_scenarios
+    from beacon_sim.core.resources import shipped_scenarios
 
     for name in shipped_scenarios():
         other = load_scenario(name)
@@ -69,8 +73,9 @@ def _context(scenario: Scenario, spec: str) -> FilterContext:
                          rng=stream(SEED, "filter", name))
 
 
-def _estimate_problem(est) -> str | None:
-    """What is wrong with an ``estimate()`` result, or None."""
+def _estimate_problem(est: tuple[object, object]) -> str | None:
+    """What is wrong with an ``estimate()`` result, or None (a student's filter may return
+    anything, whatever its annotation says)."""
     try:
         mean, cov = est
     except (TypeError, ValueError):
@@ -84,11 +89,12 @@ def _estimate_problem(est) -> str | None:
     return None
 
 
-def _run(cls, scenario, spec, steps, global_seed: int):
+def _run(cls: type, scenario: Scenario, spec: str, steps: Sequence[Step],
+         global_seed: int) -> tuple[Filter, list[tuple[np.ndarray, np.ndarray]]]:
     """Build, reset and feed the steps with the global RNGs seeded; return the estimates."""
     np.random.seed(global_seed)  # noqa: NPY002 - the point of the check
     random.seed(global_seed)
-    flt = cls(_context(scenario, spec))
+    flt: Filter = cls(_context(scenario, spec))
     reset_filter(flt, scenario)
     out = []
     for st in steps:
@@ -99,13 +105,21 @@ def _run(cls, scenario, spec, steps, global_seed: int):
     return flt, out
 
 
+def _same_np_state(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Whether two ``np.random.get_state(legacy=False)`` dicts (MT19937) are the same state."""
+    return (a["bit_generator"] == b["bit_generator"]
+            and np.array_equal(a["state"]["key"], b["state"]["key"])
+            and a["state"]["pos"] == b["state"]["pos"]
+            and a["has_gauss"] == b["has_gauss"] and a["gauss"] == b["gauss"])
+
+
 def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
     """Run every check on the filter named ``spec`` with ``scenario``'s map and sensors."""
     results: list[CheckResult] = []
 
-    def add(name, passed, message="", advice=""):
+    def add(name: str, passed: object, message: str = "", advice: str = "") -> bool:
         results.append(CheckResult(name, bool(passed), message, "" if passed else advice))
-        return passed
+        return bool(passed)
 
     try:
         cls = load_filter_class(spec)
@@ -128,7 +142,7 @@ def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
         return results
 
     try:
-        flt = cls(_context(scenario, spec))
+        flt: Filter = cls(_context(scenario, spec))
         reset_filter(flt, scenario)
     except Exception as exc:
         add("constructs", False, f"{type(exc).__name__}: {exc}",
@@ -218,15 +232,15 @@ def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
 
     # Determinism and the global RNG.
     try:
-        state_np = np.random.get_state()  # noqa: NPY002
+        state_np = np.random.get_state(legacy=False)  # noqa: NPY002
         state_py = random.getstate()
         np.random.seed(1)  # noqa: NPY002
         random.seed(1)
-        ref_np = np.random.get_state()  # noqa: NPY002
+        ref_np = np.random.get_state(legacy=False)  # noqa: NPY002
         ref_py = random.getstate()
         _, run1 = _run(cls, scenario, spec, steps, 1)
-        now_np = np.random.get_state()  # noqa: NPY002
-        drew_np = not (np.array_equal(now_np[1], ref_np[1]) and now_np[2:] == ref_np[2:])
+        now_np = np.random.get_state(legacy=False)  # noqa: NPY002
+        drew_np = not _same_np_state(now_np, ref_np)
         drew_py = random.getstate() != ref_py
         _, run2 = _run(cls, scenario, spec, steps, 2)
         np.random.set_state(state_np)  # noqa: NPY002

@@ -24,13 +24,14 @@ from pathlib import Path
 from typing import Any
 
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.filters.base import FilterError
+from beacon_sim.filters.base import Filter, FilterError
 from beacon_sim.filters.loading import (
     BUILTIN_FILTERS,
     build_filter,
     entry_point_filters,
     filter_display_name,
 )
+from beacon_sim.filters.runner import FilterRunner, FilterTrack
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,7 @@ class ReloadResult:
 
     Attributes
     ----------
-    new_filter : object or None
+    new_filter : Filter or None
         The rebuilt, reset filter when the file changed and loaded; else None.
     error : str or None
         One line to show on screen when the changed file could not be loaded (the caller
@@ -50,7 +51,7 @@ class ReloadResult:
         What to show on screen: "reloaded ..." or the error; "" when nothing changed.
     """
 
-    new_filter: object | None = None
+    new_filter: Filter | None = None
     error: str | None = None
     traceback: str = ""
     message: str = ""
@@ -176,9 +177,7 @@ class FilterFileWatcher:
                                     f"initial belief")
 
 
-def replace_in_runner(runner, name: str, new_filter) -> None:
+def replace_in_runner(runner: FilterRunner, name: str, new_filter: Filter) -> None:
     """Put a reloaded filter into a :class:`~beacon_sim.filters.runner.FilterRunner` under
     ``name`` with a fresh track (no history, not failed, no slow warning)."""
-    from beacon_sim.filters.runner import FilterTrack
-
     runner.tracks[name] = FilterTrack(name, new_filter)

@@ -9,6 +9,11 @@ and is not fed again; the simulation and the other filters go on.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # runner imports this module
+    from beacon_sim.filters.runner import FilterTrack
+
 #: A filter whose recent steps (predict + update + estimate) average more than this gets
 #: ``track.slow_warning`` [ms].
 SLOW_STEP_MS = 50.0
@@ -17,7 +22,7 @@ SLOW_WINDOW = 10
 SLOW_MIN_STEPS = 3
 
 
-def note_step_time(track, step_ns: int) -> None:
+def note_step_time(track: FilterTrack, step_ns: int) -> None:
     """Record one step's wall time [ns] on ``track`` and set ``track.slow_warning`` when the
     mean of the last ``SLOW_WINDOW`` steps, leaving out the slowest one, exceeds ``SLOW_STEP_MS``.
 
@@ -35,7 +40,7 @@ def note_step_time(track, step_ns: int) -> None:
                               f"the simulation cannot run in real time)")
 
 
-def status_line(track) -> str | None:
+def status_line(track: FilterTrack) -> str | None:
     """What to show next to a filter's name: why it was switched off, or the slow warning."""
     if track.failed:
         return f"{track.name} switched off: {track.failed}"

@@ -14,13 +14,14 @@ import importlib.metadata
 import importlib.util
 import sys
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.streams import stream
-from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief
+from beacon_sim.filters.base import Filter, FilterContext, FilterError, GaussianBelief, broad_gaussian
 
 #: Built-in filters: name -> "module:Class", imported only when used.
 BUILTIN_FILTERS = {
@@ -51,22 +52,25 @@ def available_filters() -> list[str]:
     return names + sorted(set(entry_point_filters()) - set(names))
 
 
-def _load_file(path: Path, class_name: str):
+def _load_file(path: Path, class_name: str) -> type:
     if not path.is_file():
         raise FilterLoadError(f"{path}: no such filter file")
     module_name = f"beacon_sim_user_{abs(hash(path.resolve()))}"
     spec = importlib.util.spec_from_file_location(module_name, path)
+    if spec is None or spec.loader is None:  # e.g. no .py suffix: Python cannot import it
+        raise FilterLoadError(f"{path}: not a Python source file (expected path/to/file.py:Class)")
+    loader = spec.loader
     module = importlib.util.module_from_spec(spec)
     try:
         sys.modules[module_name] = module
-        spec.loader.exec_module(module)
+        loader.exec_module(module)
     except Exception as exc:  # a student's file: report, do not crash
         sys.modules.pop(module_name, None)
         raise FilterLoadError(f"{path}: cannot import: {type(exc).__name__}: {exc}") from exc
     return _get_class(module, class_name, str(path))
 
 
-def _get_class(module, class_name: str, where: str):
+def _get_class(module: ModuleType, class_name: str, where: str) -> type:
     cls = getattr(module, class_name, None)
     if cls is None:
         classes = sorted(n for n, v in vars(module).items()
@@ -152,11 +156,16 @@ def merged_params(spec: str, scenario: Scenario, params: dict[str, Any] | None =
 
 
 def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = None,
-                 params: dict[str, Any] | None = None):
+                 params: dict[str, Any] | None = None) -> Filter:
     """Construct and reset one filter for ``scenario``.
 
     Its random generator comes from ``seed`` and its name only, so adding a filter never
     changes another. Parameters: the scenario's ``[filters.NAME]`` then ``params``.
+
+    The object is not checked against :class:`~beacon_sim.filters.base.Filter` here (a
+    student's class is duck-typed): one that lacks a method is switched off by the
+    :class:`~beacon_sim.filters.runner.FilterRunner` when it first fails, and
+    ``beacon-sim check`` names what is missing.
     """
     cls = load_filter_class(spec)
     name = name or filter_display_name(spec)
@@ -170,7 +179,7 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
         rng=stream(seed, "filter", name),
     )
     try:
-        flt = cls(ctx)
+        flt: Filter = cls(ctx)
     except FilterError:
         raise
     except TypeError as exc:
@@ -190,11 +199,9 @@ def sensor_note(spec: str, scenario: Scenario) -> str | None:
             f"{scenario.name} has {have}: it only predicts (dead reckoning)")
 
 
-def reset_filter(flt, scenario: Scenario) -> None:
+def reset_filter(flt: Filter, scenario: Scenario) -> None:
     """Give a filter the scenario's initial belief (a broad Gaussian when the scenario is
     global but the filter cannot represent a uniform belief)."""
-    from beacon_sim.filters.base import broad_gaussian
-
     init = initial_belief(scenario)
     if init is None and not getattr(flt, "supports_global", False):
         init = broad_gaussian(scenario.world)

@@ -380,7 +380,7 @@ class ParticleFilter(FilterBase):
             idx = resample(p["resampler"], w, n_cand, rng)
             idx = idx[rng.permutation(n_cand)]  # a prefix must be a fair sample
         P = self._P2
-        m = idx.shape[0]
+        m = int(idx.shape[0])
         np.take(self._P[0, :n_old], idx, out=P[0, :m])
         np.take(self._P[1, :n_old], idx, out=P[1, :m])
         np.take(self._P[2, :n_old], idx, out=P[2, :m])
@@ -429,11 +429,11 @@ class ParticleFilter(FilterBase):
         _, first = np.unique(key, return_index=True)
         is_new = np.zeros(key.shape[0], dtype=np.int64)
         is_new[first] = 1
-        k = np.cumsum(is_new)                     # bins occupied by the first j + 1 draws
-        km1 = np.maximum(k - 1, 1).astype(np.float64)
+        bins = np.cumsum(is_new)                  # bins occupied by the first j + 1 draws
+        km1 = np.maximum(bins - 1, 1).astype(np.float64)
         a = 2.0 / (9.0 * km1)
         need = km1 / (2.0 * p["kld_epsilon"]) * (1.0 - a + np.sqrt(a) * p["kld_z"]) ** 3
-        need[k <= 1] = 1.0
+        need[bins <= 1] = 1.0
         j = np.arange(1, key.shape[0] + 1)
         ok = np.flatnonzero((j >= need) & (j >= n_min))
         count = int(ok[0]) + 1 if ok.size else n_max
@@ -485,7 +485,10 @@ class ParticleFilter(FilterBase):
         iy = np.clip(((P[1] - ymin) / cell).astype(np.int64), 0, ny - 1)
         H = np.bincount(ix * ny + iy, weights=w, minlength=nx * ny).reshape(nx, ny)
         Hp = np.pad(H, 1)
-        S = sum(Hp[1 + a: 1 + a + nx, 1 + b: 1 + b + ny] for a in (-1, 0, 1) for b in (-1, 0, 1))
+        S = np.zeros_like(H)
+        for a in (-1, 0, 1):
+            for b in (-1, 0, 1):
+                S += Hp[1 + a: 1 + a + nx, 1 + b: 1 + b + ny]
         cx, cy = np.unravel_index(int(np.argmax(S)), S.shape)
         near = (np.abs(ix - cx) <= 1) & (np.abs(iy - cy) <= 1)
         wn = w[near]

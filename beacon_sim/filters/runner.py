@@ -2,7 +2,9 @@
 and keeps each one's estimate history and cost.
 
 A filter that raises, or returns a non-finite or malformed estimate, is switched off with
-a message; the simulation and the other filters go on.
+a message; the simulation and the other filters go on. That includes an object that does
+not implement :class:`~beacon_sim.filters.base.Filter` at all (a student's class is only
+duck-typed): its missing method raises on the first step and it is switched off.
 """
 
 from __future__ import annotations
@@ -10,20 +12,27 @@ from __future__ import annotations
 import time
 import traceback
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from beacon_sim.core.types import Step
+from beacon_sim.filters.base import Filter
 from beacon_sim.filters.isolation import SLOW_WINDOW, note_step_time
+
+#: ``FilterTrack.failed`` of a filter that was never built (``None`` given to the runner);
+#: the caller usually replaces it with why construction failed.
+NOT_BUILT = "not constructed"
 
 
 @dataclass
 class FilterTrack:
-    """One filter in a run: the object, its history and its state."""
+    """One filter in a run: the object (None when it could not be built), its history and
+    its state."""
 
     name: str
-    filter: object
+    filter: Filter | None
     means: list[np.ndarray] = field(default_factory=list)
     covs: list[np.ndarray] = field(default_factory=list)
     ticks: list[int] = field(default_factory=list)
@@ -32,7 +41,7 @@ class FilterTrack:
     failed: str | None = None
     traceback: str = ""
     slow_warning: str | None = None
-    recent_step_ns: deque = field(default_factory=lambda: deque(maxlen=SLOW_WINDOW))
+    recent_step_ns: deque[int] = field(default_factory=lambda: deque(maxlen=SLOW_WINDOW))
 
     @property
     def us_per_step(self) -> float:
@@ -40,7 +49,7 @@ class FilterTrack:
         return self.step_ns / 1e3 / max(self.steps, 1)
 
 
-def check_estimate(mean, cov) -> str | None:
+def check_estimate(mean: object, cov: object) -> str | None:
     """Why an estimate is unusable (wrong shape, non-finite, not symmetric PSD), or None."""
     mean = np.asarray(mean)
     cov = np.asarray(cov)
@@ -61,19 +70,21 @@ class FilterRunner:
 
     Parameters
     ----------
-    filters : dict[str, filter]
-        Name -> a constructed, reset filter.
+    filters : Mapping[str, Filter or None]
+        Name -> a constructed, reset filter; None for one that could not be built (its
+        track starts switched off with ``failed = NOT_BUILT``).
     """
 
-    def __init__(self, filters: dict[str, object]):
-        self.tracks = {name: FilterTrack(name, f) for name, f in filters.items()}
+    def __init__(self, filters: Mapping[str, Filter | None]):
+        self.tracks = {name: FilterTrack(name, f, failed=None if f is not None else NOT_BUILT)
+                       for name, f in filters.items()}
 
     def feed(self, step: Step) -> None:
         """Predict with the step's command, update with its measurements, record."""
         for track in self.tracks.values():
-            if track.failed:
-                continue
             f = track.filter
+            if track.failed or f is None:
+                continue
             t0 = time.perf_counter_ns()
             try:
                 f.predict(step.control, step.dt)
