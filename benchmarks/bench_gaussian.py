@@ -26,10 +26,10 @@ from figures import figure
 
 from beacon_sim.core import measurement_models as mm
 from beacon_sim.core import motion
+from beacon_sim.core.resources import scenario_dir
 from beacon_sim.core.scenario import parse_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.resources import scenario_dir
 
 try:
     from filterpy.kalman import ExtendedKalmanFilter as FpEKF

@@ -13,9 +13,9 @@ import numpy as np
 from figures import figure
 
 from beacon_sim.core.motion import move
+from beacon_sim.core.resources import shipped_scenarios
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.resources import shipped_scenarios
 
 
 def best_rate(fn, n, repeats=3):

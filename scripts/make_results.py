@@ -24,8 +24,8 @@ import numpy as np
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.sensors import visible_beacons
 from beacon_sim.evaluation import plots
-from beacon_sim.evaluation.command import recovery_text
 from beacon_sim.evaluation.montecarlo import default_jobs, run_monte_carlo
+from beacon_sim.evaluation.report import recovery_text
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.filters.loading import available_filters
 
@@ -248,11 +248,10 @@ def main() -> int:
 
     # ---- seed 001 ---------------------------------------------------------------------
     md += ["## Seed 001: EKF against UKF on MRCLAM (real data)", ""]
-    try:
-        from beacon_sim.mrclam import load_mrclam, run_mrclam
-    except ImportError:
-        load_mrclam = None
-    if load_mrclam is None or not args.mrclam.is_dir():
+    from beacon_sim.io.mrclam import load_mrclam
+    from beacon_sim.runs.mrclam import run_mrclam
+
+    if not args.mrclam.is_dir():
         md += ["This table is produced by `beacon-sim mrclam DIR --robot 1 --filter ekf --filter ukf "
                "--headless` on a copy of a UTIAS MRCLAM data set (not shipped with the project); "
                "point `scripts/make_results.py --mrclam DIR` at one to include it here.", ""]
@@ -279,7 +278,7 @@ def main() -> int:
                        "wrap every angle difference (design.md section 2), and the UKF's sigma-point "
                        "residuals are wrapped the same way, so the two agree; both are limited by "
                        "this data's noisy odometry and long gaps without a landmark. The noise "
-                       "the filters are told is calibrated from the data (beacon_sim.mrclam); the "
+                       "the filters are told is calibrated from the data (beacon_sim.runs.mrclam); the "
                        "ANEES above the band shows it is still optimistic (unmodelled slip and "
                        "landmark-position errors). The paper does not say which robot or data set "
                        "its tables use.", ""]

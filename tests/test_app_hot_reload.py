@@ -12,9 +12,9 @@ import pytest
 from hot_reload_helpers import SOURCE, write
 
 from beacon_sim.app.main import App
-from beacon_sim.app.session import Session
-from beacon_sim.cli import build_parser
+from beacon_sim.cli.main import build_parser
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.runs.live import Session
 
 
 @pytest.fixture
@@ -76,12 +76,14 @@ def test_the_panel_shows_the_status_line_of_a_slow_or_switched_off_filter(window
     app.run(app.frames + 5)
     track = app.session.runner.tracks["dead_reckoning"]
     track.slow_warning = "slow: 80 ms per step (over 50 ms; the simulation cannot run in real time)"
+    app.session.tick()  # the panel's status follows the runner tick by tick
     drawn: list[str] = []
     blit = app.hud._blit
     app.hud._blit = lambda surf, text, *a, **k: drawn.append(text) or blit(surf, text, *a, **k)
     app.run(app.frames + 1)
     assert any("slow: 80 ms" in t for t in drawn)
     track.failed = "estimate() returned NaN or infinity"
+    app.session.tick()
     drawn.clear()
     app.run(app.frames + 1)
     assert any("switched off" in t for t in drawn) and any("NaN" in t for t in drawn)

@@ -16,10 +16,12 @@ import pytest
 from beacon_sim.app import controls
 from beacon_sim.app.loop import SPEEDS
 from beacon_sim.app.replay import ReplayApp
-from beacon_sim.app.session import Session
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.recording import Recorder, load_recording
+from beacon_sim.io.recording import load_recording
+from beacon_sim.runs.live import Session
+from beacon_sim.runs.recorder import Recorder
+from beacon_sim.runs.replay import ReplaySession
 
 TICKS = 320  # 16 s at dt = 0.05
 FILTERS = ["ekf", "dead_reckoning"]
@@ -54,7 +56,7 @@ def key(k):
 
 
 def make(path, size=(960, 600)) -> ReplayApp:
-    return ReplayApp(load_recording(path), FILTERS, size=size, scripted=True)
+    return ReplayApp(ReplaySession(load_recording(path), FILTERS), size=size, scripted=True)
 
 
 def run_until(app, tick, limit=5000):
@@ -100,11 +102,11 @@ def test_seeking_back_then_forward_lands_on_the_straight_run_state(recorded):
             key(pygame.K_RIGHT)                       # +5 s each: tick 300
         app.run(app.frames + 1)
         assert app.session.sim.tick == 300
-        first = app.session
+        first = app.session.sim
         key(pygame.K_LEFT)                            # back to 200: re-simulated from 0
         key(pygame.K_LEFT)
         app.run(app.frames + 1)
-        assert app.session.sim.tick == 100 and app.session is not first
+        assert app.session.sim.tick == 100 and app.session.sim is not first
         bar = app._bar_rect()                         # click the timeline at 0.5 = tick 160
         at = (bar.left + bar.width * 0.5, bar.centery)
         pygame.event.post(pygame.event.Event(pygame.MOUSEBUTTONDOWN, pos=at, button=1))
@@ -158,29 +160,29 @@ def test_mrclam_on_screen_shows_the_truth_and_the_estimates_at_the_tick(tmp_path
     is its latest one at or before that time."""
     from test_mrclam import make_folder
 
-    from beacon_sim.app.mrclam import MrclamApp
-    from beacon_sim.mrclam import load_mrclam, run_mrclam
+    from beacon_sim.io.mrclam import load_mrclam
+    from beacon_sim.runs.mrclam import MrclamPlayback, run_mrclam
 
     folder = tmp_path / "Synthetic"
     make_folder(folder, seconds=30.0)
     run = run_mrclam(load_mrclam(folder, 1), ["ekf", "dead_reckoning"])
-    app = MrclamApp(run, size=(960, 600), scripted=True)
+    app = ReplayApp(MrclamPlayback(run), size=(960, 600), scripted=True)
     try:
         app.clock.speed_index = SPEEDS.index(8.0)
         app.run(20)
         s = app.session
-        assert s.sim.tick > 0
-        t = run.t_start + s.sim.tick * run.scenario.dt
+        assert s.tick_count > 0
+        t = run.t_start + s.tick_count * run.scenario.dt
         truth, _ = run.data.truth_at(np.array([t]))
-        np.testing.assert_allclose(s.sim.pose, truth[0])
+        np.testing.assert_allclose(s.true_pose, truth[0])
         ekf = run.tracks["ekf"]
         i = int(np.searchsorted(ekf.times, t, side="right")) - 1
         assert ekf.times[i] <= t < (ekf.times[i + 1] if i + 1 < len(ekf.times) else np.inf)
-        np.testing.assert_array_equal(s.runner.tracks["ekf"].means[-1], ekf.means[i])
+        np.testing.assert_array_equal(s.estimate("ekf")[0], ekf.means[i])
         key(pygame.K_SPACE)
         key(pygame.K_LEFT)                            # paused, seek back: clamped at 0
         app.run(app.frames + 1)
-        assert s.sim.tick == 0 and len(s.truth_trail.pieces()) == 0
+        assert s.tick_count == 0 and len(s.truth_trail.pieces()) == 0
         app.seek(s.total_ticks)
         app.run(app.frames + 2)
         assert s.at_end

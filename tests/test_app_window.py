@@ -16,13 +16,14 @@ import pytest
 from beacon_sim.app import controls, palette
 from beacon_sim.app.main import App
 from beacon_sim.app.render import ipx
-from beacon_sim.app.session import Session
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control
 from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.runner import FilterRunner
-from beacon_sim.user_commands import apply_commands
+from beacon_sim.io.recording import RECORDINGS_DIR
+from beacon_sim.runs.live import Session
+from beacon_sim.runs.user_commands import apply_commands
 
 
 def make_app(scenario="default", filters=("dead_reckoning",), seed=None, size=(1280, 800)):
@@ -156,7 +157,7 @@ def test_screenshot_has_the_robot_colour_where_the_robot_is(tmp_path):
 
 
 def test_play_command_writes_the_screenshot(tmp_path):
-    from beacon_sim.cli import main
+    from beacon_sim.cli.main import main
 
     path = tmp_path / "play.png"
     assert main(["play", "default", "--filter", "dead_reckoning", "--frames", "5", "--no-record",
@@ -282,15 +283,14 @@ def test_resize_refits_the_world():
 
 
 def test_the_window_records_what_it_ran(tmp_path, monkeypatch):
-    recording = pytest.importorskip("beacon_sim.recording")
     import json
 
-    from beacon_sim.app.session import make_recorder
+    from beacon_sim.runs.live import make_recorder
 
     monkeypatch.chdir(tmp_path)
     sc = load_scenario("default")
     recorder, path = make_recorder(sc, sc.seed, ["dead_reckoning"], {})
-    assert recorder is not None and path.parent.name == recording.RECORDINGS_DIR
+    assert recorder is not None and path.parent.name == RECORDINGS_DIR
     app = App(Session(sc, ["dead_reckoning"], None, {}, recorder), (1000, 700), scripted=True)
     try:
         key(pygame.K_w)
@@ -309,8 +309,8 @@ def test_the_window_records_what_it_ran(tmp_path, monkeypatch):
 
 
 def test_autopilot_option_drives_the_scenario_driver(tmp_path, monkeypatch):
-    from beacon_sim.cli import main
-    from beacon_sim.recording import load_recording
+    from beacon_sim.cli.main import main
+    from beacon_sim.io.recording import load_recording
 
     monkeypatch.chdir(tmp_path)  # the recording goes to ./recordings
     shot = tmp_path / "auto.png"

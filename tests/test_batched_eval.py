@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.batched import (
@@ -21,9 +21,9 @@ from beacon_sim.evaluation.batched import (
     stacked_update,
     unsupported,
 )
-from beacon_sim.evaluation.command import table_lines
 from beacon_sim.evaluation.metrics import nis
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
+from beacon_sim.evaluation.report import table_lines
 from beacon_sim.filters.loading import build_filter
 
 SEEDS = [2, 3, 11]

@@ -1,6 +1,6 @@
 import json
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 
 
 def test_run_json_has_the_design_shape(capsys):

@@ -5,7 +5,7 @@ import importlib.util
 import numpy as np
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters.conformance import run_checks
 from beacon_sim.filters.loading import BUILTIN_FILTERS

@@ -14,7 +14,7 @@ import zipfile
 
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters.loading import (
     ENTRY_POINT_GROUP,
@@ -22,7 +22,7 @@ from beacon_sim.filters.loading import (
     build_filter,
     load_filter_class,
 )
-from beacon_sim.headless import run_headless
+from beacon_sim.runs.headless import run_headless
 
 MODULE = textwrap.dedent("""
     from beacon_sim.filters.dead_reckoning import DeadReckoning

@@ -9,13 +9,13 @@ import json
 import numpy as np
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.evaluation.command import table_lines
 from beacon_sim.evaluation.metrics import nis, nis_batch
+from beacon_sim.evaluation.report import table_lines
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.headless import run_headless
+from beacon_sim.runs.headless import run_headless
 
 ARGS = ["eval", "default", "--filter", "ekf", "--filter", "dead_reckoning", "--runs", "3",
         "--duration", "8", "--seed", "5"]

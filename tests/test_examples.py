@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.metrics import anees_band, nees, pose_errors
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import GaussianBelief
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.headless import run_headless
+from beacon_sim.runs.headless import run_headless
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 STUDENT = f"{EXAMPLES / 'student_ekf.py'}:StudentEKF"

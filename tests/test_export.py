@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from test_recording import SCENARIO, live_run
 
-from beacon_sim.cli import main
-from beacon_sim.recording import load_recording
-from beacon_sim.replay import csv_paths
+from beacon_sim.cli.main import main
+from beacon_sim.io.export import csv_paths
+from beacon_sim.io.recording import load_recording
 
 
 @pytest.fixture

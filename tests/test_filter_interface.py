@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from helpers import make_scenario
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.base import Filter, FilterError
 from beacon_sim.filters.ekf import ExtendedKalmanFilter

@@ -15,11 +15,11 @@ import pytest
 
 from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.metrics import anees_band, nees, pose_errors
+from beacon_sim.core.resources import scenario_dir
 from beacon_sim.core.scenario import parse_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.headless import run_headless
-from beacon_sim.resources import scenario_dir
+from beacon_sim.runs.headless import run_headless
 
 BEACONS = [{"id": 1, "x": 2.0, "y": 2.0}, {"id": 2, "x": 8.0, "y": 2.0},
            {"id": 3, "x": 8.0, "y": 8.0}, {"id": 4, "x": 2.0, "y": 8.0}]

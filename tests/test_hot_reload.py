@@ -186,9 +186,8 @@ def test_reload_restarts_the_filter_random_stream(tmp_path, scenario):
 def test_reload_inside_the_window_under_the_dummy_driver(setup, scenario):
     """The window's own hooks (App.swap_filter, App.flash) with the watcher, as the loop
     will call them: the new version runs in the window, a broken one leaves the old one."""
-    pytest.importorskip("pygame")
-    app_main = pytest.importorskip("beacon_sim.app.main")
-    from beacon_sim.app.session import Session
+    import beacon_sim.app.main as app_main
+    from beacon_sim.runs.live import Session
 
     path, spec, clock, watcher, _ = setup
     session = Session(scenario, [spec, "dead_reckoning"], seed=5)

@@ -11,13 +11,13 @@ import time
 import numpy as np
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters import isolation
 from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.runner import FilterRunner, FilterTrack
-from beacon_sim.headless import run_headless
+from beacon_sim.runs.headless import run_headless
 
 FAIL_AT = 5   # faulty filters misbehave on their 5th step
 
@@ -263,9 +263,8 @@ def test_real_sleep_is_measured(faulty_file, scenario):
 def test_the_window_keeps_stepping_past_a_faulty_filter(kind, faulty_file, scenario):
     """Under the dummy SDL driver: the faulty filter is switched off, its status carries the
     message for the HUD, and the simulation and dead reckoning go on tick after tick."""
-    pytest.importorskip("pygame")
-    app_main = pytest.importorskip("beacon_sim.app.main")
-    from beacon_sim.app.session import Session
+    import beacon_sim.app.main as app_main
+    from beacon_sim.runs.live import Session
 
     session = Session(scenario, [f"{faulty_file}:{kind}", "dead_reckoning"], seed=3)
     app = app_main.App(session, (640, 400), scripted=True)

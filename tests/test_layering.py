@@ -9,7 +9,7 @@ import beacon_sim.core, beacon_sim.filters
 for pkg in (beacon_sim.core, beacon_sim.filters):
     for m in pkgutil.iter_modules(pkg.__path__):
         importlib.import_module(pkg.__name__ + "." + m.name)
-import beacon_sim.headless, beacon_sim.user_commands
+import beacon_sim.runs.headless, beacon_sim.runs.replay, beacon_sim.runs.mrclam, beacon_sim.io.export
 print("pygame" in sys.modules)
 """
 

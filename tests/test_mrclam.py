@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.angles import wrap
-from beacon_sim.mrclam import MrclamError, calibrate, load_mrclam, read_table, run_mrclam
+from beacon_sim.io.mrclam import MrclamError, load_mrclam, read_table
+from beacon_sim.runs.mrclam import calibrate, run_mrclam
 
 COMMENT = ("# UTIAS Multi-Robot Cooperative Localization and Mapping Dataset\r\n"
            "# produced by a test\r\n# {what} Data Fomat:\r\n# {cols}\r\n")

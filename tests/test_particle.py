@@ -14,9 +14,10 @@ from beacon_sim.core.scenario import InitialBelief, load_scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, Measurement
 from beacon_sim.core.world import World
+from beacon_sim.filters import conformance
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.particle import ParticleFilter, weighted_pose_stats
-from beacon_sim.headless import run_headless
+from beacon_sim.runs.headless import run_headless
 
 WORLD = World((0.0, 0.0, 10.0, 10.0), (Beacon(1, 2.0, 2.0), Beacon(2, 8.0, 3.0), Beacon(3, 4.0, 8.5)))
 
@@ -264,7 +265,6 @@ def test_determinism_under_a_reseeded_global_rng():
 
 
 def test_conformance_check_passes():
-    conformance = pytest.importorskip("beacon_sim.filters.conformance")
     for name in ("sparse_kidnap", "default"):
         results = conformance.run_checks("pf", load_scenario(name))
         assert all(r.passed for r in results), [(r.name, r.message) for r in results if not r.passed]

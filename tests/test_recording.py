@@ -15,15 +15,15 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control
 from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.runner import FilterRunner
-from beacon_sim.recording import (
+from beacon_sim.io.recording import (
     FORMAT_VERSION,
-    Recorder,
     RecordingError,
     default_recording_path,
     load_recording,
 )
-from beacon_sim.replay import ReplayMismatch, replay_recording
-from beacon_sim.user_commands import apply_commands
+from beacon_sim.runs.recorder import Recorder
+from beacon_sim.runs.replay import ReplayMismatch, replay_recording
+from beacon_sim.runs.user_commands import apply_commands
 
 SCENARIO = """
 name = "rec_test"

@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from beacon_sim.recording import load_recording
-from beacon_sim.replay import replay_recording
+from beacon_sim.io.recording import load_recording
+from beacon_sim.runs.replay import replay_recording
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL is POSIX")

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
+from beacon_sim.core.resources import shipped_scenarios
 from beacon_sim.core.scenario import ScenarioError, load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.resources import shipped_scenarios
 
 BROKEN = Path(__file__).parent / "data" / "broken"
 

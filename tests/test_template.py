@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beacon_sim.cli import main
+from beacon_sim.cli.main import main
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.filters import conformance
 from beacon_sim.filters.loading import load_filter_class
 from beacon_sim.filters.template import class_name_for, render_template
-from beacon_sim.headless import run_headless
+from beacon_sim.runs.headless import run_headless
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -58,16 +59,12 @@ def test_refuses_to_overwrite_or_bad_names(template_file, tmp_path, capsys):
 
 
 def test_template_passes_the_conformance_check(template_file):
-    conformance = pytest.importorskip("beacon_sim.filters.conformance",
-                                      reason="conformance checks (issue 3) not present")
     results = conformance.run_checks(f"{template_file}:MyFilter", load_scenario("default"))
     failed = [f"{r.name}: {r.message}" for r in results if not r.passed]
     assert results and not failed
 
 
 def test_check_command_on_the_template(template_file, capsys):
-    pytest.importorskip("beacon_sim.filters.conformance",
-                        reason="conformance checks (issue 3) not present")
     assert main(["check", f"{template_file}:MyFilter"]) == 0
     assert "FAIL" not in capsys.readouterr().out
 

@@ -10,8 +10,7 @@ import pygame
 
 from beacon_sim.app import controls, palette
 from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2
-from beacon_sim.app.session import NEES_BAND
-from beacon_sim.filters.isolation import status_line
+from beacon_sim.runs.scene import NEES_BAND, Scene
 
 
 def wrap_text(font: pygame.font.Font, text: str, width: int) -> list[str]:
@@ -46,7 +45,7 @@ class Hud:
         surf.blit(img, r)
         return r
 
-    def panel(self, surf, rect: pygame.Rect, session, colours, info: dict) -> None:
+    def panel(self, surf, rect: pygame.Rect, session: Scene, colours, info: dict) -> None:
         """The side panel. ``info``: speed, paused, fps, recording (path or None), message."""
         surf.fill(palette.PANEL, rect)
         pygame.draw.line(surf, palette.PANEL_EDGE, rect.topleft, rect.bottomleft, 3)
@@ -60,7 +59,7 @@ class Hud:
         y += f["title"].get_linesize() + 2
         state = "PAUSED" if info.get("paused") else "running"
         speed = info.get("speed", 1.0)
-        self._blit(surf, f"t = {session.sim.time:7.2f} s", "hud", palette.TEXT, (x, y))
+        self._blit(surf, f"t = {session.time:7.2f} s", "hud", palette.TEXT, (x, y))
         self._blit(surf, f"x{speed:g}  {state}", "hud",
                    palette.WARN if info.get("paused") else palette.TEXT, (x + int(w * 0.55), y))
         y += lh
@@ -94,8 +93,7 @@ class Hud:
             self._blit(surf, label, "hud", palette.TEXT if visible else palette.TEXT_DIM,
                        (x + 36, y))
             y += lh
-            track = session.runner.tracks[name]
-            note = status_line(track) or (f"{name} switched off: {st.failed}" if st.failed else None)
+            note = st.warning or (f"{name} switched off: {st.failed}" if st.failed else None)
             notes = [n for n in (note, info.get("reload_errors", {}).get(name)) if n]
             for text in notes:
                 for line in wrap_text(f["small"], text, w - 10)[:3]:

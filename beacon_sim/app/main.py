@@ -13,7 +13,9 @@ import os
 import sys
 import time
 from collections import deque
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pygame
@@ -22,7 +24,9 @@ from beacon_sim.app import controls
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import ShowOptions, View, WorldRenderer
-from beacon_sim.app.session import Session, make_recorder
+from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.types import Step
+from beacon_sim.runs.live import Session, make_recorder
 
 #: Frame time a scripted (``--frames``) session pretends each frame took [s].
 SCRIPTED_FRAME_S = 1.0 / 60.0
@@ -91,7 +95,9 @@ class App:
         from beacon_sim.filters.loading import filter_display_name
 
         s = self.session
-        out = {}
+        out: dict[str, object] = {}
+        if not isinstance(s, Session):  # a finished run played back: nothing to reload
+            return out
         for spec, name in zip(s.specs, s.names, strict=True):
             if not spec.rpartition(":")[0].endswith(".py"):
                 continue
@@ -215,7 +221,7 @@ class App:
         """Left click: kidnap to the clicked point; a drag sets the heading (else keep it)."""
         xy = self.view.to_world(np.asarray(start_px, dtype=float))
         dx, dy = end_px[0] - start_px[0], end_px[1] - start_px[1]
-        theta = math.atan2(-dy, dx) if math.hypot(dx, dy) > 8 else float(self.session.sim.pose[2])
+        theta = math.atan2(-dy, dx) if math.hypot(dx, dy) > 8 else float(self.session.true_pose[2])
         self.session.command({"kind": "kidnap", "pose": [float(xy[0]), float(xy[1]), theta]})
 
     def flash(self, text: str) -> None:
@@ -231,7 +237,7 @@ class App:
         self.poll_watchers()  # a filter object is swapped here, between ticks
         for _ in range(self.ticks_due(real_dt)):
             step = self.session.tick()
-            for ev in step.events:
+            for ev in (step.events if isinstance(step, Step) else step):
                 if ev.kind == "kidnap":
                     self.flash(f"KIDNAPPED  ({ev.detail})")
                 elif ev.kind.endswith("_start"):
@@ -295,69 +301,36 @@ class App:
         pygame.display.quit()
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    from beacon_sim.cli import UsageError
+@dataclass(frozen=True)
+class PlayOptions:
+    """What ``beacon-sim play`` opens (the command line checks and builds these)."""
 
-    w, sep, h = text.lower().partition("x")
-    try:
-        size = (int(w), int(h))
-    except ValueError:
-        size = (0, 0)
-    if not sep or min(size) < 200 or max(size) > 10000:
-        raise UsageError(f"--size {text!r}: expected WxH in pixels, e.g. 1280x800")
-    return size
-
-
-def choose_filters(scenario, requested: list[str] | None) -> list[str]:
-    """The requested filters, or the scenario's defaults that are installed (missing
-    built-ins are skipped with a note, so the window opens while filters are written)."""
-    if requested:
-        return list(requested)
-    from beacon_sim.filters.loading import FilterLoadError, load_filter_class
-
-    out = []
-    for spec in scenario.default_filters:
-        try:
-            load_filter_class(spec)
-        except FilterLoadError as exc:
-            print(f"beacon-sim: skipping default filter {spec}: {exc}", file=sys.stderr)
-            continue
-        out.append(spec)
-    return out
+    scenario: Scenario
+    filters: list[str]  # filter specs
+    seed: int
+    params: dict[str, dict[str, Any]] = field(default_factory=dict)  # ``--set`` overrides
+    size: tuple[int, int] = (1280, 800)  # window [px]
+    frames: int | None = None  # quit after this many frames (scripts, tests)
+    screenshot: str | None = None  # save the last frame here (PNG)
+    record: bool = True
+    autopilot: bool = False
 
 
-def play(args) -> int:
-    """``beacon-sim play``: open the window; returns the exit status."""
-    from beacon_sim.cli import UsageError
-    from beacon_sim.core.scenario import load_scenario
-    from beacon_sim.filters.loading import parse_set_options
-
-    scenario = load_scenario(getattr(args, "scenario", None) or "default")
-    size = parse_size(getattr(args, "size", None) or "1280x800")
-    frames = getattr(args, "frames", None)
-    if frames is not None and frames < 1:
-        raise UsageError(f"--frames {frames}: expected a positive number of frames")
-    params = parse_set_options(getattr(args, "set_params", None) or [])
-    specs = choose_filters(scenario, getattr(args, "filters", None))
-    from beacon_sim.cli import _print_sensor_notes
-
-    _print_sensor_notes(specs, scenario)
-    seed = scenario.seed if getattr(args, "seed", None) is None else int(args.seed)
-    autopilot = bool(getattr(args, "autopilot", False))
-    if autopilot and scenario.driver.kind == "keyboard":
-        raise UsageError(f"--autopilot: scenario {scenario.name} has no driver (driver.kind = keyboard)")
+def play(options: PlayOptions) -> int:
+    """Open the window on a live session; returns the exit status."""
+    o = options
     recorder, rec_path = (None, None)
-    if not getattr(args, "no_record", False):
-        recorder, rec_path = make_recorder(scenario, seed, specs, params)
-    session = Session(scenario, specs, seed, params, recorder)
-    if autopilot:
+    if o.record:
+        recorder, rec_path = make_recorder(o.scenario, o.seed, o.filters, o.params)
+    session = Session(o.scenario, o.filters, o.seed, o.params, recorder)
+    if o.autopilot:
         session.toggle_autopilot()
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-    app = App(session, size, scripted=frames is not None, recording=rec_path)
+    app = App(session, o.size, scripted=o.frames is not None, recording=rec_path)
     try:
-        app.run(frames)
-        if getattr(args, "screenshot", None):
-            app.save_screenshot(args.screenshot)
+        app.run(o.frames)
+        if o.screenshot:
+            app.save_screenshot(o.screenshot)
     finally:
         app.close()
     if rec_path is not None:
@@ -365,4 +338,4 @@ def play(args) -> int:
     return 0
 
 
-__all__ = ["App", "play"]
+__all__ = ["App", "PlayOptions", "play"]

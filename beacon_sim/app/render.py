@@ -16,6 +16,7 @@ import pygame
 from beacon_sim.app import palette, shapes
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.filters.base import GridBelief, ParticleBelief
+from beacon_sim.runs.scene import Scene
 
 #: The 95 % ellipse of x-y: chi-square quantile for 2 degrees of freedom.
 ELLIPSE_LEVEL = 0.95
@@ -131,11 +132,11 @@ class WorldRenderer:
         return surf
 
     # --- the frame ------------------------------------------------------------------------
-    def draw(self, surf: pygame.Surface, view: View, session, colours, show: ShowOptions,
+    def draw(self, surf: pygame.Surface, view: View, session: Scene, colours, show: ShowOptions,
              drag=None) -> None:
         """Draw the world part of a frame. ``drag``: (start_px, now_px) of a click-kidnap."""
         sc = session.scenario
-        pose = session.sim.pose
+        pose = session.true_pose
         area = pygame.Rect(view.area)
         old_clip = surf.get_clip()
         surf.set_clip(area)
@@ -147,16 +148,15 @@ class WorldRenderer:
 
         beliefs = {}
         for name in session.names:
-            tr = session.runner.tracks[name]
-            if not session.visible[name] or tr.failed:
+            if not session.visible[name] or session.status[name].failed:
                 continue
             try:
-                beliefs[name] = tr.filter.belief()
+                beliefs[name] = session.belief(name)
             except Exception as exc:  # a student's belief(): show it, keep the window alive
                 session.status[name].failed = f"belief(): {type(exc).__name__}: {exc}"
         for name, bel in beliefs.items():
             if isinstance(bel, GridBelief):
-                self._heat(surf, view, name, bel, colours[name], session.sim.tick)
+                self._heat(surf, view, name, bel, colours[name], session.tick_count)
         if show.trails:
             self._trails(surf, view, session, colours)
         if show.particles:
@@ -165,16 +165,15 @@ class WorldRenderer:
                     self.particles(surf, view, bel.poses, colours[name], bel.weights)
         self._beacons_and_rays(surf, view, session, pose)
         for name in session.names:
-            tr = session.runner.tracks[name]
             if name not in beliefs:
                 continue
-            if tr.means:
-                mean, cov = tr.means[-1], tr.covs[-1]
-            else:  # before the first tick: the initial belief
-                try:
-                    mean, cov = (np.asarray(a, dtype=float) for a in tr.filter.estimate())
-                except Exception:
-                    continue
+            try:
+                est = session.estimate(name)
+            except Exception:  # before the first tick a student's estimate() may raise
+                continue
+            if est is None:
+                continue
+            mean, cov = est
             self._estimate(surf, view, mean, cov, colours[name], show.ellipses, sc.robot_radius)
         self.robot(surf, view, pose, sc.robot_radius)  # the truth on top of every belief
         if drag is not None:

@@ -144,24 +144,3 @@ def render_template(class_name: str, file_name: str) -> str:
     if not class_name.isidentifier() or keyword.iskeyword(class_name):
         raise ValueError(f"{class_name!r} is not a valid Python class name")
     return TEMPLATE.format(class_name=class_name, file_name=file_name)
-
-
-def new_filter_command(args) -> int:
-    """Write the template to ``args.path`` (never over an existing file); print next steps."""
-    from beacon_sim.cli import UsageError
-
-    path = Path(args.path)
-    if path.suffix != ".py":
-        raise UsageError(f"new-filter {path}: the file name must end in .py")
-    if path.exists():
-        raise UsageError(f"new-filter {path}: the file exists; choose another name")
-    if not path.parent.is_dir():
-        raise UsageError(f"new-filter {path}: no folder {path.parent}")
-    cls = class_name_for(path)
-    path.write_text(render_template(cls, path.name), encoding="utf-8")
-    shown = path.as_posix() if path.is_absolute() or "/" in path.as_posix() else f"./{path.name}"
-    print(f"wrote {path} with the class {cls} (dead reckoning, with TODOs for the update)")
-    print("next:")
-    print(f"  beacon-sim check {shown}:{cls}")
-    print(f"  beacon-sim play --filter {shown}:{cls} --filter ekf")
-    return 0

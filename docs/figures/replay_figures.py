@@ -14,7 +14,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from beacon_sim.mrclam import load_mrclam, run_mrclam
+from beacon_sim.io.mrclam import load_mrclam
+from beacon_sim.runs.mrclam import run_mrclam
 
 OUT = Path(__file__).parent
 

@@ -1,32 +1,21 @@
-"""Real robot data: the UTIAS MRCLAM data sets (Leung et al., IJRR 2011) run through any filter.
+"""Real robot data: one robot of a UTIAS MRCLAM data set run through any filter.
 
-``beacon-sim mrclam DIR --robot N [--filter F ...] [--duration S] [--calibrate] [--json]``
-
-- Reads ``RobotN_Odometry.dat`` (t, v, omega), ``RobotN_Measurement.dat`` (t, barcode, range,
-  bearing), ``RobotN_Groundtruth.dat`` (t, x, y, theta), ``Landmark_Groundtruth.dat`` and
-  ``Barcodes.dat`` of one folder (4 comment lines, CRLF, tabs or spaces). A malformed or
-  missing file is an error naming the file and line.
-- Barcodes are mapped to subjects through that folder's ``Barcodes.dat``; sightings of robots
-  (subjects 1-5) and unknown barcodes are dropped; readings sharing a time stamp form one
-  update.
-- Odometry and measurements are interleaved by time stamp (seed 001 section III.C): the
-  filters predict with the latest command up to each reading's time, update, and go on.
 - The noise the filters are told comes from the data (:func:`calibrate`): odometry against
   ground truth and measurement residuals against ground truth, with robust statistics.
-- Ground truth is interpolated to the estimate times; only times inside ground truth count.
+- Odometry and measurements are interleaved by time stamp (seed 001 section III.C): the
+  filters predict with the latest command up to each reading's time, update, and go on
+  (:func:`run_mrclam`).
+- :class:`MrclamPlayback` shows a finished run one display tick at a time, for the window.
 
-Frames and units: metres, radians, world frame of the data set (Vicon), bearings relative to
-the heading and wrapped to [-pi, pi).
+Reading the files: beacon_sim/io/mrclam.py. Frames and units: metres, radians, world frame
+of the data set (Vicon), bearings relative to the heading and wrapped to [-pi, pi).
 """
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,156 +27,22 @@ from beacon_sim.core.metrics import summary
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.scenario import InitialBelief, Scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
-from beacon_sim.core.types import Beacon, Control, Measurement
+from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement
 from beacon_sim.core.world import World
+from beacon_sim.filters.base import Belief, GaussianBelief
+from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
+from beacon_sim.runs.scene import FilterStatus, Trail
 
-#: Subjects 1-5 are the robots in every MRCLAM data set; landmarks are 6 and up.
-ROBOT_SUBJECTS = range(1, 6)
 SENSOR_NAME = "camera"
 #: Seed 001's UKF figures on MRCLAM (Table II), m^2, m^2, rad^2.
 SEED_001_UKF_MSE = (0.0119, 0.0078, 0.0571)
 SEED_001_EKF_MSE = (1.7875, 1.889, 7.7997)
-#: Ground-truth samples further apart than this [s] are a gap: no evaluation inside it.
-MAX_TRUTH_GAP_S = 0.5
 #: The window [s] over which odometry is compared with ground truth (about the time between
 #: two sightings, the span a filter must predict over).
 CALIBRATION_WINDOW_S = 1.0
 #: Initial belief: ground truth at the start with these standard deviations [m, m, rad]
 #: (local localization with a known start, as seed 001).
 INITIAL_STD = (0.05, 0.05, 0.05)
-
-
-class MrclamError(ValueError):
-    """A missing or malformed MRCLAM file; the message names the file and line."""
-
-
-# --------------------------------------------------------------------------------------------
-# Reading
-
-
-def read_table(path: Path, ncols: int, columns: str) -> np.ndarray:
-    """Rows of ``ncols`` numbers from an MRCLAM ``.dat`` file, shape (n, ncols).
-
-    Lines starting with ``#`` and blank lines are skipped; CRLF and tabs/spaces are fine.
-    """
-    if not path.is_file():
-        raise MrclamError(f"{path}: missing (an MRCLAM folder holds {path.name} with columns "
-                          f"{columns})")
-    try:
-        raw = path.read_bytes().decode("ascii")
-    except UnicodeDecodeError as exc:
-        line = path.read_bytes()[: exc.start].count(b"\n") + 1
-        raise MrclamError(f"{path}:{line}: not a text line (byte {exc.start})") from None
-    rows: list[list[float]] = []
-    for n, line in enumerate(raw.splitlines(), start=1):
-        s = line.strip()
-        if not s or s.startswith("#"):
-            continue
-        parts = s.split()
-        if len(parts) != ncols:
-            raise MrclamError(f"{path}:{n}: expected {ncols} columns ({columns}), "
-                              f"found {len(parts)}: {s[:60]!r}")
-        try:
-            row = [float(p) for p in parts]
-        except ValueError:
-            raise MrclamError(f"{path}:{n}: not a number in {s[:60]!r}") from None
-        if not all(math.isfinite(v) for v in row):
-            raise MrclamError(f"{path}:{n}: not a finite number in {s[:60]!r}")
-        rows.append(row)
-    if not rows:
-        raise MrclamError(f"{path}: no data rows (columns {columns})")
-    return np.array(rows, dtype=float)
-
-
-@dataclass
-class MrclamData:
-    """One robot of one MRCLAM folder, cleaned.
-
-    Attributes
-    ----------
-    odometry : ndarray (n, 3)
-        ``t [s], v [m/s], omega [rad/s]``, sorted by time (stable: repeated stamps kept in
-        file order; the last of them governs).
-    measurements : ndarray (m, 4)
-        ``t [s], subject, range [m], bearing [rad]``, landmarks only, sorted by time.
-    groundtruth : ndarray (g, 4)
-        ``t [s], x [m], y [m], theta [rad]``, strictly increasing times.
-    landmarks : dict subject -> (x, y) [m]
-    dropped : dict
-        Counts of rows dropped: ``robot_sightings``, ``unknown_barcodes``, ``unknown_landmarks``
-        (barcode of a subject with no landmark position), ``duplicates``.
-    """
-
-    folder: Path
-    robot: int
-    odometry: np.ndarray
-    measurements: np.ndarray
-    groundtruth: np.ndarray
-    landmarks: dict[int, tuple[float, float]]
-    barcodes: dict[int, int]
-    dropped: dict[str, int] = field(default_factory=dict)
-
-    @property
-    def t0(self) -> float:
-        """Time of the first odometry row [s] (Unix epoch): the run starts there."""
-        return float(self.odometry[0, 0])
-
-    def truth_at(self, times) -> tuple[np.ndarray, np.ndarray]:
-        """Ground truth interpolated to ``times``: poses (k, 3) and a mask (k,) of the times
-        that lie inside the ground truth (no gap longer than ``MAX_TRUTH_GAP_S``)."""
-        return interpolate_truth(self.groundtruth, np.asarray(times, dtype=float))
-
-
-def interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Linear interpolation of x, y and the unwrapped heading; heading wrapped after."""
-    t = gt[:, 0]
-    poses = np.empty((times.shape[0], 3))
-    poses[:, 0] = np.interp(times, t, gt[:, 1])
-    poses[:, 1] = np.interp(times, t, gt[:, 2])
-    poses[:, 2] = wrap(np.interp(times, t, np.unwrap(gt[:, 3])))
-    j = np.clip(np.searchsorted(t, times), 1, len(t) - 1)
-    ok = (times >= t[0]) & (times <= t[-1]) & ((t[j] - t[j - 1]) <= MAX_TRUTH_GAP_S)
-    return poses, ok
-
-
-def load_mrclam(folder, robot: int) -> MrclamData:
-    """Load and clean one robot of an MRCLAM data set folder."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise MrclamError(f"{folder}: no such folder (expected an MRCLAM data set folder)")
-    if robot not in ROBOT_SUBJECTS:
-        raise MrclamError(f"--robot {robot}: expected 1 to 5")
-    bc = read_table(folder / "Barcodes.dat", 2, "subject, barcode")
-    lm = read_table(folder / "Landmark_Groundtruth.dat", 5, "subject, x, y, sigma_x, sigma_y")
-    od = read_table(folder / f"Robot{robot}_Odometry.dat", 3, "time, v, omega")
-    ms = read_table(folder / f"Robot{robot}_Measurement.dat", 4, "time, barcode, range, bearing")
-    gt = read_table(folder / f"Robot{robot}_Groundtruth.dat", 4, "time, x, y, theta")
-
-    barcodes = {int(b): int(s) for s, b in bc}
-    landmarks = {int(r[0]): (float(r[1]), float(r[2])) for r in lm}
-    od = od[np.argsort(od[:, 0], kind="stable")]
-    gt = gt[np.argsort(gt[:, 0], kind="stable")]
-    _, first = np.unique(gt[:, 0], return_index=True)
-    gt = gt[first]
-    ms = ms[np.argsort(ms[:, 0], kind="stable")]
-
-    subjects = np.array([barcodes.get(int(b), -1) for b in ms[:, 1]], dtype=int)
-    robot_rows = np.isin(subjects, list(ROBOT_SUBJECTS))
-    unknown = subjects < 0
-    no_position = ~robot_rows & ~unknown & ~np.isin(subjects, list(landmarks))
-    keep = ~(robot_rows | unknown | no_position)
-    ms = np.column_stack([ms[:, 0], subjects, ms[:, 2], ms[:, 3]])[keep]
-    # The same landmark twice at one time stamp: keep the first reading.
-    seen: set[tuple[float, int]] = set()
-    dup = np.zeros(len(ms), dtype=bool)
-    for i, (t, s) in enumerate(zip(ms[:, 0].tolist(), ms[:, 1].astype(int).tolist(), strict=True)):
-        dup[i] = (t, s) in seen
-        seen.add((t, s))
-    ms = ms[~dup]
-    ms[:, 3] = wrap(ms[:, 3])
-    dropped = {"robot_sightings": int(robot_rows.sum()), "unknown_barcodes": int(unknown.sum()),
-               "unknown_landmarks": int(no_position.sum()), "duplicates": int(dup.sum())}
-    return MrclamData(folder, robot, od, ms, gt, landmarks, barcodes, dropped)
 
 
 # --------------------------------------------------------------------------------------------
@@ -498,101 +353,121 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     return MrclamRun(data, scenario, cal, tracks, t_start, t_end, updates, len(ms), wall)
 
 
-# --------------------------------------------------------------------------------------------
-# Command line
+#: Readings stay drawn this long after their time stamp [s] (they arrive a few per second).
+READING_SHOW_S = 0.3
 
 
-def _print_calibration(data: MrclamData, cal: Calibration) -> None:
-    s = cal.stats
-    print(f"MRCLAM {data.folder} robot {data.robot}: noise from the data")
-    print(f"  dropped readings: {data.dropped}")
-    if s.get("windows"):
-        print(f"  odometry vs ground truth over {s['windows']} windows of {cal.window_s:g} s: "
-              f"forward error median {s['fwd_err_median_m']:+.4f} m, robust std "
-              f"{s['fwd_err_std_m']:.4f} m; turn error median {s['turn_err_median_rad']:+.4f} rad, "
-              f"robust std {s['turn_err_std_rad']:.4f} rad")
-    if s.get("readings", 0) >= 5:
-        print(f"  {s['readings']} readings vs ground truth: range error median "
-              f"{s['range_err_median_m']:+.4f} m, robust std {s['range_err_std_m']:.4f} m, "
-              f"{100 * s['range_short_tail']:.1f} % too short and {100 * s['range_long_tail']:.1f} % "
-              f"too long beyond 3 std")
-        print(f"  bearing error median {s['bearing_err_median_rad']:+.4f} rad, robust std "
-              f"{s['bearing_err_std_rad']:.4f} rad, {100 * s['bearing_tail']:.1f} % beyond 3 std, "
-              f"{100 * s['bearing_flipped']:.1f} % off by more than pi/2")
-    m = cal.motion
-    print(f"  filters told (per {cal.step_dt:g} s step): v_std = {m.v_std:.4f} m/s, omega_std = "
-          f"{m.omega_std:.4f} rad/s, range_std = {cal.sensor.range_std:.4f} m, bearing_std = "
-          f"{cal.sensor.bearing_std:.4f} rad")
+class MrclamPlayback:
+    """A finished MRCLAM run seen one display tick of ``scenario.dt`` at a time: a
+    :class:`~beacon_sim.runs.scene.Scene` with a timeline, for the replay window.
 
+    The filters ran on the real data first; this only looks the results up: the ground truth
+    interpolated to the tick, each filter's latest estimate at or before it, and the landmark
+    readings of the last ``READING_SHOW_S`` seconds.
+    """
 
-def _print_run(d: dict[str, Any]) -> None:
-    from beacon_sim.cli import _fmt
+    def __init__(self, run: MrclamRun):
+        self.run = run
+        self.scenario = sc = run.scenario
+        self.names = list(run.tracks)
+        self.specs: list[str] = []
+        self.seed, self.params, self.autopilot = 0, {}, False
+        self.visible = {n: True for n in self.names}
+        self.status = {n: FilterStatus(n) for n in self.names}
+        dt = sc.dt
+        self.total_ticks = math.floor((run.t_end - run.t_start) / dt + 1e-9)
+        self.times = run.t_start + dt * np.arange(self.total_ticks + 1)
+        self.truth, _ = run.data.truth_at(self.times)
+        # Index of each filter's latest estimate at or before each display tick.
+        self.index = {n: np.searchsorted(np.array(tr.times), self.times, side="right") - 1
+                      for n, tr in run.tracks.items()}
+        ms = run.data.measurements
+        self.meas = ms[(ms[:, 0] > run.t_start) & (ms[:, 0] <= run.t_end)]
+        self.od = run.data.odometry
+        self.shown: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
+        self.seek(0)
 
-    print(f"MRCLAM {d['dataset']} robot {d['robot']}: {d['duration_s']:.1f} s, "
-          f"{d['odometry_rows']} odometry rows, {d['updates']} updates with {d['readings']} "
-          f"landmark readings (dropped: {', '.join(f'{k} {v}' for k, v in d['dropped'].items())})")
-    n = d["noise"]
-    print(f"noise from the data (beacon-sim mrclam ... --calibrate): v_std {n['v_std']:.4f} m/s, "
-          f"omega_std {n['omega_std']:.4f} rad/s per {n['step_dt']:g} s, range_std "
-          f"{n['range_std']:.4f} m, bearing_std {n['bearing_std']:.4f} rad")
-    print(f"{'filter':<16}{'MSE x m2':>10}{'MSE y m2':>10}{'MSE th rad2':>12}{'pos RMSE m':>11}"
-          f"{'head RMSE':>10}{'ANEES':>9}{'us/step':>9}")
-    for name, r in d["filters"].items():
-        if "failed" in r:
-            print(f"{name:<16}FAILED: {r['failed']}")
-            continue
-        if "mse_x" not in r:
-            print(f"{name:<16}no estimate inside the ground truth")
-            continue
-        print(f"{name:<16}{r['mse_x']:>10.4f}{r['mse_y']:>10.4f}{r['mse_theta']:>12.4f}"
-              f"{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>10.4f}{_fmt(r['anees'], '.1f'):>9}"
-              f"{r['us_per_step']:>9.1f}")
-    u, e = SEED_001_UKF_MSE, SEED_001_EKF_MSE
-    print(f"{'seed 001 UKF':<16}{u[0]:>10.4f}{u[1]:>10.4f}{u[2]:>12.4f}   (paper, Table II)")
-    print(f"{'seed 001 EKF':<16}{e[0]:>10.4f}{e[1]:>10.4f}{e[2]:>12.4f}   (paper, Table I)")
+    # --- time -------------------------------------------------------------------------------
+    @property
+    def at_end(self) -> bool:
+        return self.k >= self.total_ticks
 
+    @property
+    def tick_count(self) -> int:
+        return self.k
 
-def mrclam_command(args) -> int:
-    """``beacon-sim mrclam DIR --robot N``: run filters on real data and print seed 001's table."""
-    from beacon_sim.cli import UsageError, _filter_params
+    @property
+    def time(self) -> float:
+        return float(self.times[self.k] - self.run.t_start)
 
-    duration = getattr(args, "duration", None)
-    if duration is not None and not (duration > 0 and math.isfinite(duration)):
-        raise UsageError(f"--duration {duration}: expected a positive number of seconds")
-    try:
-        data = load_mrclam(args.dir, args.robot)
-    except MrclamError as exc:
-        raise UsageError(str(exc)) from None
-    if getattr(args, "calibrate", False):
-        t_end = None if duration is None else data.t0 + duration
-        cal = calibrate(data, t_end)
-        if args.json:
-            print(json.dumps({"dataset": str(data.folder), "robot": data.robot,
-                              "dropped": data.dropped, "step_dt": cal.step_dt,
-                              "motion_noise": {"v_std": cal.motion.v_std,
-                                               "omega_std": cal.motion.omega_std},
-                              "sensor_noise": {"range_std": cal.sensor.range_std,
-                                               "bearing_std": cal.sensor.bearing_std},
-                              "stats": cal.stats}))
-        else:
-            _print_calibration(data, cal)
-        return 0
-    show = None
-    if not args.headless:
-        try:
-            from beacon_sim.app.mrclam import show_mrclam as show
-        except ImportError:
-            print("note: the window has no MRCLAM view; running headless", file=sys.stderr)
-    try:
-        run = run_mrclam(data, args.filters, duration, _filter_params(args))
-    except MrclamError as exc:
-        raise UsageError(str(exc)) from None
-    d = run.as_json()
-    if args.json:
-        print(json.dumps(d, default=float))
-    else:
-        _print_run(d)
-    for tr in run.tracks.values():
-        if tr.failed:
-            print(f"filter {tr.name} failed: {tr.failed}", file=sys.stderr)
-    return 0 if show is None else show(run, args)
+    @property
+    def true_pose(self) -> np.ndarray:
+        return self.truth[self.k]
+
+    @property
+    def drive_mode(self) -> str:
+        return f"MRCLAM {self.run.data.folder.name} robot {self.run.data.robot}"
+
+    def seek(self, tick: int, keep_flips: set[str] = frozenset()) -> None:
+        """Jump to ``tick``; the trails are rebuilt from the start (cheap: lookups only).
+        Shown / hidden filters stay as they are (``keep_flips`` is for rebuilt scenes)."""
+        self.k = min(max(int(tick), 0), self.total_ticks)
+        self.truth_trail = Trail()
+        self.trails = {n: Trail() for n in self.names}
+        for k in range(self.k):  # the trails up to (not including) the tick shown
+            self.truth_trail.add(self.truth[k])
+            for n, tr in self.run.tracks.items():
+                i = int(self.index[n][k])
+                if i >= 0:
+                    self.trails[n].add(tr.means[i])
+        self._show()
+
+    def tick(self) -> tuple[EventRecord, ...]:
+        """One display tick forward; returns its events (none: the data has no kidnaps)."""
+        self.k = min(self.k + 1, self.total_ticks)
+        self._show()
+        return ()
+
+    def _show(self) -> None:
+        k, truth = self.k, self.truth[self.k]
+        self.truth_trail.add(truth)
+        for n, tr in self.run.tracks.items():
+            i = int(self.index[n][k])
+            st = self.status[n]
+            st.failed = tr.failed if i >= len(tr.means) - 1 else None
+            self.shown[n] = None
+            if i >= 0:
+                mean, cov = tr.means[i], tr.covs[i]
+                self.shown[n] = (mean, cov)
+                self.trails[n].add(mean)
+                st.measure(mean, cov, truth)
+
+    # --- what the window reads ----------------------------------------------------------------
+    def next_control(self) -> Control:
+        """The odometry command in force at the displayed time [m/s, rad/s]."""
+        i = int(np.searchsorted(self.od[:, 0], self.times[self.k], side="right")) - 1
+        return Control(float(self.od[max(i, 0), 1]), float(self.od[max(i, 0), 2]))
+
+    def readings(self) -> list[Measurement]:
+        t = self.times[self.k]
+        lo, hi = np.searchsorted(self.meas[:, 0], [t - READING_SHOW_S, t], side="right")
+        if hi <= lo:
+            return []
+        rows = self.meas[lo:hi]
+        return [Measurement("mrclam", "range_bearing", rows[:, 2:4].copy(), rows[:, 1].astype(int))]
+
+    def seen_ids(self) -> set[int]:
+        return {int(i) for m in self.readings() for i in m.beacon_ids}
+
+    def belief(self, name: str) -> Belief | None:
+        est = self.shown.get(name)
+        return None if est is None else GaussianBelief(est[0], est[1])
+
+    def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.shown.get(name)
+
+    def marks(self) -> list[tuple[int, str]]:
+        return []  # no user commands in a data set
+
+    def close(self) -> None:
+        """Nothing to close: the run is finished."""

@@ -1,5 +1,5 @@
-"""What a window session runs, without pygame: the simulation, the filters side by side, the
-keyboard's command, user commands, trails and the figures the HUD shows.
+"""A live session, without pygame: the simulation, the filters side by side, the keyboard's
+command, user commands, trails and the figures the panel shows (a :class:`~beacon_sim.runs.scene.Scene`).
 
 Every tick goes the same way (``Session.tick``): take the command (keyboard or autopilot),
 take the user commands queued since the last tick, hand both to the recorder, apply the
@@ -9,98 +9,25 @@ So a replay of (command, user commands) per tick reproduces the session bit for 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.angles import diff
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
+from beacon_sim.filters.base import Belief
+from beacon_sim.filters.isolation import status_line
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 from beacon_sim.filters.runner import FilterRunner, FilterTrack
-from beacon_sim.user_commands import apply_commands, validate_command
-
-#: Single-sample NEES band: the 2.5 % and 97.5 % quantiles of chi-square with 3 degrees of
-#: freedom (tables); outside it the HUD highlights the value.
-NEES_BAND = (0.2158, 9.3484)
-
-
-class Trail:
-    """A polyline in metres with breaks (kidnaps, resets), thinned to ``min_step`` metres
-    and capped at ``max_points`` (the oldest half is dropped when full)."""
-
-    def __init__(self, min_step: float = 0.02, max_points: int = 6000):
-        self.min_step = min_step
-        self.max_points = max_points
-        self.points = np.full((max_points, 2), np.nan)
-        self.n = 0
-        self._last = np.array([np.nan, np.nan])
-
-    def add(self, xy) -> None:
-        xy = np.asarray(xy, dtype=float)[:2]
-        if self.n and np.isfinite(self._last[0]) and math.hypot(*(xy - self._last)) < self.min_step:
-            return
-        self._append(xy)
-        self._last = xy
-
-    def brk(self) -> None:
-        """Start a new piece: the next point is not joined to the previous one."""
-        if self.n and np.isfinite(self.points[self.n - 1, 0]):
-            self._append(np.array([np.nan, np.nan]))
-        self._last = np.array([np.nan, np.nan])
-
-    def _append(self, xy) -> None:
-        if self.n == self.max_points:
-            half = self.max_points // 2
-            self.points[:half] = self.points[half:]
-            self.points[half:] = np.nan
-            self.n = half
-        self.points[self.n] = xy
-        self.n += 1
-
-    def pieces(self) -> list[np.ndarray]:
-        """The unbroken pieces, each shape (k, 2) [m] with k >= 2."""
-        pts = self.points[: self.n]
-        if not len(pts):
-            return []
-        cut = np.flatnonzero(np.isnan(pts[:, 0]))
-        out = []
-        for seg in np.split(pts, cut):
-            seg = seg[np.isfinite(seg[:, 0])]
-            if len(seg) >= 2:
-                out.append(seg)
-        return out
-
-
-@dataclass
-class FilterStatus:
-    """What the HUD shows for one filter after the latest tick."""
-
-    name: str
-    pos_err: float = math.nan  # [m]
-    heading_err: float = math.nan  # [rad]
-    nees: float = math.nan
-    failed: str | None = None
-
-    def measure(self, mean, cov, truth) -> None:
-        """The errors [m, rad] and NEES of the estimate ``(mean, cov)`` against ``truth``."""
-        e = np.array([mean[0] - truth[0], mean[1] - truth[1], diff(mean[2], truth[2])])
-        self.pos_err = math.hypot(e[0], e[1])
-        self.heading_err = float(e[2])
-        try:
-            self.nees = float(e @ np.linalg.solve(cov, e))
-        except np.linalg.LinAlgError:
-            self.nees = math.inf
-
-    @property
-    def nees_out_of_band(self) -> bool:
-        return math.isfinite(self.nees) and not NEES_BAND[0] <= self.nees <= NEES_BAND[1]
+from beacon_sim.io.recording import default_recording_path, validate_command
+from beacon_sim.runs.recorder import Recorder
+from beacon_sim.runs.scene import FilterStatus, Trail
+from beacon_sim.runs.user_commands import apply_commands
 
 
 @dataclass
@@ -189,6 +116,30 @@ class Session:
         """Who drives, for the panel."""
         return "AUTOPILOT (M)" if self.autopilot else "keyboard WASD, X stop"
 
+    # --- what a window reads (the Scene protocol) -------------------------------------------
+    @property
+    def tick_count(self) -> int:
+        return self.sim.tick
+
+    @property
+    def time(self) -> float:
+        return self.sim.time
+
+    @property
+    def true_pose(self) -> np.ndarray:
+        return self.sim.pose
+
+    def belief(self, name: str) -> Belief | None:
+        return self.runner.tracks[name].filter.belief()
+
+    def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """The latest estimate; before the first tick, the filter's initial belief."""
+        tr = self.runner.tracks[name]
+        if tr.means:
+            return tr.means[-1], tr.covs[-1]
+        mean, cov = tr.filter.estimate()
+        return np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
+
     @property
     def filters(self) -> dict[str, object]:
         return {n: t.filter for n, t in self.runner.tracks.items()}
@@ -235,6 +186,7 @@ class Session:
         for name, tr in self.runner.tracks.items():
             st = self.status[name]
             st.failed = tr.failed
+            st.warning = status_line(tr)
             if tr.failed or not tr.ticks or tr.ticks[-1] != step.tick:
                 continue
             self.trails[name].add(tr.means[-1])
@@ -257,11 +209,7 @@ class Session:
 
 
 def make_recorder(scenario: Scenario, seed: int, specs: list[str],
-                  params: dict[str, dict[str, Any]]) -> tuple[Any, Path | None]:
-    """A recorder from ``beacon_sim.recording`` when that module exists, else ``(None, None)``."""
-    try:
-        from beacon_sim.recording import Recorder, default_recording_path
-    except ImportError:
-        return None, None
+                  params: dict[str, dict[str, Any]]) -> tuple[Recorder, Path]:
+    """A recorder writing to ``recordings/<scenario>_<time>.jsonl``, and that path."""
     path = Path(default_recording_path(scenario.name))
     return Recorder(path, scenario, seed, list(specs), params), path

@@ -1,0 +1,123 @@
+"""The ``beacon-sim`` command line: the parser, and one module per subcommand beside this one.
+
+Only this package reads argparse results; each subcommand checks its arguments and calls
+typed library functions. Bad arguments or files give a one-line message, exit status 2
+and no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+
+from beacon_sim import __version__
+from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, replay, run
+from beacon_sim.cli import eval as eval_cli
+from beacon_sim.cli.common import Parser, add_filter_options
+from beacon_sim.core.scenario import ScenarioError
+from beacon_sim.errors import UsageError
+from beacon_sim.filters.base import FilterError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = Parser(prog="beacon-sim", description="Drive a robot among beacons and watch "
+                     "Bayesian filters localise it. With no command: play the default scenario.")
+    parser.add_argument("--version", action="version", version=f"beacon-sim {__version__}")
+    sub = parser.add_subparsers(dest="command", parser_class=Parser)
+
+    p = sub.add_parser("play", help="open the simulator window")
+    p.add_argument("scenario", nargs="?", default="default")
+    add_filter_options(p)
+    p.add_argument("--seed", type=int)
+    p.add_argument("--no-record", action="store_true", help="do not record this session")
+    p.add_argument("--frames", type=int, help="quit after N frames (for scripts and tests)")
+    p.add_argument("--screenshot", metavar="PNG", help="save the last frame to PNG")
+    p.add_argument("--size", default="1280x800", help="window size WxH in pixels")
+    p.add_argument("--autopilot", action="store_true",
+                   help="start with the scenario's driver at the wheel (M toggles it)")
+
+    p = sub.add_parser("run", help="one headless run; prints a summary")
+    p.add_argument("scenario")
+    add_filter_options(p)
+    p.add_argument("--seed", type=int)
+    p.add_argument("--duration", type=float, metavar="S", help="seconds to simulate")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+    p = sub.add_parser("check", help="conformance report for a filter")
+    p.add_argument("filter")
+    p.add_argument("--scenario", default="default")
+
+    sub.add_parser("list", help="shipped scenarios and available filters")
+
+    p = sub.add_parser("eval", help="Monte Carlo comparison of filters over seeds")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO")
+    add_filter_options(p)
+    p.add_argument("--runs", type=int, default=20)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--duration", type=float, metavar="S")
+    p.add_argument("--jobs", type=int, help="parallel processes (default: all cores)")
+    p.add_argument("--out", metavar="DIR", help="write CSV, JSON and PNG plots here")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--no-batch", action="store_true",
+                   help="run the filters one run at a time (default: batched across runs when possible)")
+
+    p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
+    p.add_argument("file")
+    add_filter_options(p)
+    p.add_argument("--headless", action="store_true")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--frames", type=int, help="on screen: quit after N frames of 1/60 s")
+    p.add_argument("--screenshot", metavar="PNG", help="on screen: save the last frame to PNG")
+
+    p = sub.add_parser("export", help="export a recording as arrays (.npz or .csv)")
+    p.add_argument("file")
+    p.add_argument("--out", required=True, metavar="PATH")
+
+    p = sub.add_parser("mrclam", help="replay a UTIAS MRCLAM data set folder")
+    p.add_argument("dir")
+    p.add_argument("--robot", type=int, required=True)
+    add_filter_options(p)
+    p.add_argument("--headless", action="store_true")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--duration", type=float, metavar="S", help="only the first S seconds")
+    p.add_argument("--calibrate", action="store_true",
+                   help="print the noise settings estimated from the data and stop")
+    p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
+    p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
+
+    p = sub.add_parser("new-filter", help="write a working, commented filter template")
+    p.add_argument("path")
+    return parser
+
+
+COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "run": run.run_command,
+    "list": listing.list_command,
+    "check": check.check_command,
+    "play": play.play_command,
+    "eval": eval_cli.eval_command,
+    "replay": replay.replay_command,
+    "export": export.export_command,
+    "mrclam": mrclam.mrclam_command,
+    "new-filter": new_filter.new_filter_command,
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``beacon-sim`` console script; returns the exit status."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv or ["play"])
+        return COMMANDS[args.command](args)
+    except (UsageError, ScenarioError, FilterError) as exc:
+        print(f"beacon-sim: {exc}" if not str(exc).startswith("beacon-sim") else str(exc),
+              file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

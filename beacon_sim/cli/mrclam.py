@@ -1,0 +1,101 @@
+"""``beacon-sim mrclam DIR --robot N [--filter F ...] [--duration S] [--calibrate] [--json]``:
+filters on one robot of a UTIAS MRCLAM data set, and seed 001's table."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from beacon_sim.cli.common import check_duration, check_frames, filter_params, print_failures
+from beacon_sim.cli.tables import fmt
+from beacon_sim.errors import UsageError
+from beacon_sim.io.mrclam import MrclamData, MrclamError, load_mrclam
+from beacon_sim.runs.mrclam import SEED_001_EKF_MSE, SEED_001_UKF_MSE, Calibration, calibrate, run_mrclam
+
+
+def _print_calibration(data: MrclamData, cal: Calibration) -> None:
+    s = cal.stats
+    print(f"MRCLAM {data.folder} robot {data.robot}: noise from the data")
+    print(f"  dropped readings: {data.dropped}")
+    if s.get("windows"):
+        print(f"  odometry vs ground truth over {s['windows']} windows of {cal.window_s:g} s: "
+              f"forward error median {s['fwd_err_median_m']:+.4f} m, robust std "
+              f"{s['fwd_err_std_m']:.4f} m; turn error median {s['turn_err_median_rad']:+.4f} rad, "
+              f"robust std {s['turn_err_std_rad']:.4f} rad")
+    if s.get("readings", 0) >= 5:
+        print(f"  {s['readings']} readings vs ground truth: range error median "
+              f"{s['range_err_median_m']:+.4f} m, robust std {s['range_err_std_m']:.4f} m, "
+              f"{100 * s['range_short_tail']:.1f} % too short and {100 * s['range_long_tail']:.1f} % "
+              f"too long beyond 3 std")
+        print(f"  bearing error median {s['bearing_err_median_rad']:+.4f} rad, robust std "
+              f"{s['bearing_err_std_rad']:.4f} rad, {100 * s['bearing_tail']:.1f} % beyond 3 std, "
+              f"{100 * s['bearing_flipped']:.1f} % off by more than pi/2")
+    m = cal.motion
+    print(f"  filters told (per {cal.step_dt:g} s step): v_std = {m.v_std:.4f} m/s, omega_std = "
+          f"{m.omega_std:.4f} rad/s, range_std = {cal.sensor.range_std:.4f} m, bearing_std = "
+          f"{cal.sensor.bearing_std:.4f} rad")
+
+
+def _print_run(d: dict[str, Any]) -> None:
+    print(f"MRCLAM {d['dataset']} robot {d['robot']}: {d['duration_s']:.1f} s, "
+          f"{d['odometry_rows']} odometry rows, {d['updates']} updates with {d['readings']} "
+          f"landmark readings (dropped: {', '.join(f'{k} {v}' for k, v in d['dropped'].items())})")
+    n = d["noise"]
+    print(f"noise from the data (beacon-sim mrclam ... --calibrate): v_std {n['v_std']:.4f} m/s, "
+          f"omega_std {n['omega_std']:.4f} rad/s per {n['step_dt']:g} s, range_std "
+          f"{n['range_std']:.4f} m, bearing_std {n['bearing_std']:.4f} rad")
+    print(f"{'filter':<16}{'MSE x m2':>10}{'MSE y m2':>10}{'MSE th rad2':>12}{'pos RMSE m':>11}"
+          f"{'head RMSE':>10}{'ANEES':>9}{'us/step':>9}")
+    for name, r in d["filters"].items():
+        if "failed" in r:
+            print(f"{name:<16}FAILED: {r['failed']}")
+            continue
+        if "mse_x" not in r:
+            print(f"{name:<16}no estimate inside the ground truth")
+            continue
+        print(f"{name:<16}{r['mse_x']:>10.4f}{r['mse_y']:>10.4f}{r['mse_theta']:>12.4f}"
+              f"{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>10.4f}{fmt(r['anees'], '.1f'):>9}"
+              f"{r['us_per_step']:>9.1f}")
+    u, e = SEED_001_UKF_MSE, SEED_001_EKF_MSE
+    print(f"{'seed 001 UKF':<16}{u[0]:>10.4f}{u[1]:>10.4f}{u[2]:>12.4f}   (paper, Table II)")
+    print(f"{'seed 001 EKF':<16}{e[0]:>10.4f}{e[1]:>10.4f}{e[2]:>12.4f}   (paper, Table I)")
+
+
+def mrclam_command(args: argparse.Namespace) -> int:
+    duration = args.duration
+    check_duration(duration)
+    check_frames(args.frames)
+    try:
+        data = load_mrclam(args.dir, args.robot)
+    except MrclamError as exc:
+        raise UsageError(str(exc)) from None
+    if args.calibrate:
+        t_end = None if duration is None else data.t0 + duration
+        cal = calibrate(data, t_end)
+        if args.json:
+            print(json.dumps({"dataset": str(data.folder), "robot": data.robot,
+                              "dropped": data.dropped, "step_dt": cal.step_dt,
+                              "motion_noise": {"v_std": cal.motion.v_std,
+                                               "omega_std": cal.motion.omega_std},
+                              "sensor_noise": {"range_std": cal.sensor.range_std,
+                                               "bearing_std": cal.sensor.bearing_std},
+                              "stats": cal.stats}))
+        else:
+            _print_calibration(data, cal)
+        return 0
+    try:
+        run = run_mrclam(data, args.filters, duration, filter_params(args))
+    except MrclamError as exc:
+        raise UsageError(str(exc)) from None
+    d = run.as_json()
+    if args.json:
+        print(json.dumps(d, default=float))
+    else:
+        _print_run(d)
+    print_failures(run.tracks.values())
+    if args.headless:
+        return 0
+    from beacon_sim.app.mrclam import show_mrclam  # pygame only when a window opens
+
+    return show_mrclam(run, args.frames, args.screenshot)

@@ -1,0 +1,28 @@
+"""``beacon-sim new-filter PATH``: write a working, commented filter template."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from beacon_sim.errors import UsageError
+from beacon_sim.filters.template import class_name_for, render_template
+
+
+def new_filter_command(args: argparse.Namespace) -> int:
+    """Write the template to ``args.path`` (never over an existing file); print next steps."""
+    path = Path(args.path)
+    if path.suffix != ".py":
+        raise UsageError(f"new-filter {path}: the file name must end in .py")
+    if path.exists():
+        raise UsageError(f"new-filter {path}: the file exists; choose another name")
+    if not path.parent.is_dir():
+        raise UsageError(f"new-filter {path}: no folder {path.parent}")
+    cls = class_name_for(path)
+    path.write_text(render_template(cls, path.name), encoding="utf-8")
+    shown = path.as_posix() if path.is_absolute() or "/" in path.as_posix() else f"./{path.name}"
+    print(f"wrote {path} with the class {cls} (dead reckoning, with TODOs for the update)")
+    print("next:")
+    print(f"  beacon-sim check {shown}:{cls}")
+    print(f"  beacon-sim play --filter {shown}:{cls} --filter ekf")
+    return 0

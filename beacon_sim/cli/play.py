@@ -1,0 +1,55 @@
+"""``beacon-sim play [SCENARIO] ...`` (and plain ``beacon-sim``): open the simulator window."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from beacon_sim.cli.common import check_frames, filter_params, print_sensor_notes
+from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.errors import UsageError
+from beacon_sim.filters.loading import FilterLoadError, load_filter_class
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``--size WxH`` [px], 200 to 10000 each."""
+    w, sep, h = text.lower().partition("x")
+    try:
+        size = (int(w), int(h))
+    except ValueError:
+        size = (0, 0)
+    if not sep or min(size) < 200 or max(size) > 10000:
+        raise UsageError(f"--size {text!r}: expected WxH in pixels, e.g. 1280x800")
+    return size
+
+
+def choose_filters(scenario: Scenario, requested: list[str] | None) -> list[str]:
+    """The requested filters, or the scenario's defaults that are installed (missing
+    built-ins are skipped with a note, so the window opens while filters are written)."""
+    if requested:
+        return list(requested)
+    out = []
+    for spec in scenario.default_filters:
+        try:
+            load_filter_class(spec)
+        except FilterLoadError as exc:
+            print(f"beacon-sim: skipping default filter {spec}: {exc}", file=sys.stderr)
+            continue
+        out.append(spec)
+    return out
+
+
+def play_command(args: argparse.Namespace) -> int:
+    scenario = load_scenario(args.scenario or "default")
+    size = parse_size(args.size)
+    check_frames(args.frames)
+    params = filter_params(args)
+    specs = choose_filters(scenario, args.filters)
+    print_sensor_notes(specs, scenario)
+    if args.autopilot and scenario.driver.kind == "keyboard":
+        raise UsageError(f"--autopilot: scenario {scenario.name} has no driver (driver.kind = keyboard)")
+    from beacon_sim.app.main import PlayOptions, play  # pygame only when a window opens
+
+    return play(PlayOptions(scenario, specs, scenario.seed if args.seed is None else int(args.seed),
+                            params, size, args.frames, args.screenshot, record=not args.no_record,
+                            autopilot=args.autopilot))

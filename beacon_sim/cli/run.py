@@ -1,0 +1,27 @@
+"""``beacon-sim run SCENARIO [--filter F ...] [--seed N] [--duration S] [--json]``: one
+headless run, its summary printed."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from beacon_sim.cli.common import check_duration, filter_params, print_failures, print_sensor_notes
+from beacon_sim.cli.tables import print_run
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.runs.headless import run_headless
+
+
+def run_command(args: argparse.Namespace) -> int:
+    scenario = load_scenario(args.scenario)
+    check_duration(args.duration)
+    result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
+                          params=filter_params(args))
+    print_sensor_notes(args.filters or scenario.default_filters, scenario)
+    data = result.as_json()
+    if args.json:
+        print(json.dumps(data, indent=None, default=float))
+    else:
+        print_run(data)
+    print_failures(result.runner.tracks.values())
+    return 0

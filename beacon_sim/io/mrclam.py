@@ -1,0 +1,158 @@
+"""Reading the UTIAS MRCLAM data sets (Leung et al., IJRR 2011; docs/references.md).
+
+- Reads ``RobotN_Odometry.dat`` (t, v, omega), ``RobotN_Measurement.dat`` (t, barcode, range,
+  bearing), ``RobotN_Groundtruth.dat`` (t, x, y, theta), ``Landmark_Groundtruth.dat`` and
+  ``Barcodes.dat`` of one folder (4 comment lines, CRLF, tabs or spaces). A malformed or
+  missing file is an error naming the file and line.
+- Barcodes are mapped to subjects through that folder's ``Barcodes.dat``; sightings of robots
+  (subjects 1-5) and unknown barcodes are dropped; readings sharing a time stamp form one
+  update.
+- Ground truth is interpolated to any times; only times inside ground truth count.
+
+Frames and units: metres, radians, world frame of the data set (Vicon), bearings relative to
+the heading and wrapped to [-pi, pi). Running filters on the data: beacon_sim/runs/mrclam.py.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+
+#: Subjects 1-5 are the robots in every MRCLAM data set; landmarks are 6 and up.
+ROBOT_SUBJECTS = range(1, 6)
+#: Ground-truth samples further apart than this [s] are a gap: no evaluation inside it.
+MAX_TRUTH_GAP_S = 0.5
+
+
+class MrclamError(ValueError):
+    """A missing or malformed MRCLAM file; the message names the file and line."""
+
+
+def read_table(path: Path, ncols: int, columns: str) -> np.ndarray:
+    """Rows of ``ncols`` numbers from an MRCLAM ``.dat`` file, shape (n, ncols).
+
+    Lines starting with ``#`` and blank lines are skipped; CRLF and tabs/spaces are fine.
+    """
+    if not path.is_file():
+        raise MrclamError(f"{path}: missing (an MRCLAM folder holds {path.name} with columns "
+                          f"{columns})")
+    try:
+        raw = path.read_bytes().decode("ascii")
+    except UnicodeDecodeError as exc:
+        line = path.read_bytes()[: exc.start].count(b"\n") + 1
+        raise MrclamError(f"{path}:{line}: not a text line (byte {exc.start})") from None
+    rows: list[list[float]] = []
+    for n, line in enumerate(raw.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = s.split()
+        if len(parts) != ncols:
+            raise MrclamError(f"{path}:{n}: expected {ncols} columns ({columns}), "
+                              f"found {len(parts)}: {s[:60]!r}")
+        try:
+            row = [float(p) for p in parts]
+        except ValueError:
+            raise MrclamError(f"{path}:{n}: not a number in {s[:60]!r}") from None
+        if not all(math.isfinite(v) for v in row):
+            raise MrclamError(f"{path}:{n}: not a finite number in {s[:60]!r}")
+        rows.append(row)
+    if not rows:
+        raise MrclamError(f"{path}: no data rows (columns {columns})")
+    return np.array(rows, dtype=float)
+
+
+@dataclass
+class MrclamData:
+    """One robot of one MRCLAM folder, cleaned.
+
+    Attributes
+    ----------
+    odometry : ndarray (n, 3)
+        ``t [s], v [m/s], omega [rad/s]``, sorted by time (stable: repeated stamps kept in
+        file order; the last of them governs).
+    measurements : ndarray (m, 4)
+        ``t [s], subject, range [m], bearing [rad]``, landmarks only, sorted by time.
+    groundtruth : ndarray (g, 4)
+        ``t [s], x [m], y [m], theta [rad]``, strictly increasing times.
+    landmarks : dict subject -> (x, y) [m]
+    dropped : dict
+        Counts of rows dropped: ``robot_sightings``, ``unknown_barcodes``, ``unknown_landmarks``
+        (barcode of a subject with no landmark position), ``duplicates``.
+    """
+
+    folder: Path
+    robot: int
+    odometry: np.ndarray
+    measurements: np.ndarray
+    groundtruth: np.ndarray
+    landmarks: dict[int, tuple[float, float]]
+    barcodes: dict[int, int]
+    dropped: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def t0(self) -> float:
+        """Time of the first odometry row [s] (Unix epoch): the run starts there."""
+        return float(self.odometry[0, 0])
+
+    def truth_at(self, times) -> tuple[np.ndarray, np.ndarray]:
+        """Ground truth interpolated to ``times``: poses (k, 3) and a mask (k,) of the times
+        that lie inside the ground truth (no gap longer than ``MAX_TRUTH_GAP_S``)."""
+        return interpolate_truth(self.groundtruth, np.asarray(times, dtype=float))
+
+
+def interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Linear interpolation of x, y and the unwrapped heading; heading wrapped after."""
+    t = gt[:, 0]
+    poses = np.empty((times.shape[0], 3))
+    poses[:, 0] = np.interp(times, t, gt[:, 1])
+    poses[:, 1] = np.interp(times, t, gt[:, 2])
+    poses[:, 2] = wrap(np.interp(times, t, np.unwrap(gt[:, 3])))
+    j = np.clip(np.searchsorted(t, times), 1, len(t) - 1)
+    ok = (times >= t[0]) & (times <= t[-1]) & ((t[j] - t[j - 1]) <= MAX_TRUTH_GAP_S)
+    return poses, ok
+
+
+def load_mrclam(folder, robot: int) -> MrclamData:
+    """Load and clean one robot of an MRCLAM data set folder."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise MrclamError(f"{folder}: no such folder (expected an MRCLAM data set folder)")
+    if robot not in ROBOT_SUBJECTS:
+        raise MrclamError(f"--robot {robot}: expected 1 to 5")
+    bc = read_table(folder / "Barcodes.dat", 2, "subject, barcode")
+    lm = read_table(folder / "Landmark_Groundtruth.dat", 5, "subject, x, y, sigma_x, sigma_y")
+    od = read_table(folder / f"Robot{robot}_Odometry.dat", 3, "time, v, omega")
+    ms = read_table(folder / f"Robot{robot}_Measurement.dat", 4, "time, barcode, range, bearing")
+    gt = read_table(folder / f"Robot{robot}_Groundtruth.dat", 4, "time, x, y, theta")
+
+    barcodes = {int(b): int(s) for s, b in bc}
+    landmarks = {int(r[0]): (float(r[1]), float(r[2])) for r in lm}
+    od = od[np.argsort(od[:, 0], kind="stable")]
+    gt = gt[np.argsort(gt[:, 0], kind="stable")]
+    _, first = np.unique(gt[:, 0], return_index=True)
+    gt = gt[first]
+    ms = ms[np.argsort(ms[:, 0], kind="stable")]
+
+    subjects = np.array([barcodes.get(int(b), -1) for b in ms[:, 1]], dtype=int)
+    robot_rows = np.isin(subjects, list(ROBOT_SUBJECTS))
+    unknown = subjects < 0
+    no_position = ~robot_rows & ~unknown & ~np.isin(subjects, list(landmarks))
+    keep = ~(robot_rows | unknown | no_position)
+    ms = np.column_stack([ms[:, 0], subjects, ms[:, 2], ms[:, 3]])[keep]
+    # The same landmark twice at one time stamp: keep the first reading.
+    seen: set[tuple[float, int]] = set()
+    dup = np.zeros(len(ms), dtype=bool)
+    for i, (t, s) in enumerate(zip(ms[:, 0].tolist(), ms[:, 1].astype(int).tolist(), strict=True)):
+        dup[i] = (t, s) in seen
+        seen.add((t, s))
+    ms = ms[~dup]
+    ms[:, 3] = wrap(ms[:, 3])
+    dropped = {"robot_sightings": int(robot_rows.sum()), "unknown_barcodes": int(unknown.sum()),
+               "unknown_landmarks": int(no_position.sum()), "duplicates": int(dup.sum())}
+    return MrclamData(folder, robot, od, ms, gt, landmarks, barcodes, dropped)

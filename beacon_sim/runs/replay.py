@@ -1,0 +1,206 @@
+"""Replaying a recording bit for bit, with the recorded filters or any others.
+
+The one home of "how a recording is replayed": :func:`replay_recording` re-simulates a
+file headless and checks its checksums; :class:`ReplaySession` is the same, one tick at a
+time, for the window. The file format is beacon_sim/io/recording.py (and docs/replay.md).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.types import Control, Step
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
+from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.io.recording import Recording, RecordingError
+from beacon_sim.runs.headless import RunResult
+from beacon_sim.runs.live import Session
+from beacon_sim.runs.user_commands import apply_commands
+
+
+class ReplayMismatch(RecordingError):
+    """The replayed truth differs from the recorded one."""
+
+
+def _is_safe_spec(spec: str) -> bool:
+    """Built-in filters (and installed entry points) only: a recording never makes us
+    import a module or a file it names."""
+    return ":" not in spec
+
+
+def recorded_filter_specs(recording: Recording, requested: list[str] | None) -> tuple[list[str], list[str]]:
+    """(filters to run, recorded filters skipped): ``requested`` when given (even empty);
+    otherwise the recorded built-in ones (named by module or file path: skipped)."""
+    if requested is not None:
+        return list(requested), []
+    return ([s for s in recording.filters if _is_safe_spec(s)],
+            [s for s in recording.filters if not _is_safe_spec(s)])
+
+
+def recorded_params(recording: Recording,
+                  params: dict[str, dict[str, Any]] | None) -> dict[str, dict[str, Any]]:
+    """The recorded filter parameters with ``params`` (from ``--set``) on top."""
+    merged = recording.params
+    for name, p in (params or {}).items():
+        merged.setdefault(name, {}).update(p)
+    return merged
+
+
+def skipped_note(spec: str) -> str:
+    """The line telling the user a recorded filter was not run, and how to run it."""
+    return (f"note: recorded filter {spec} not run (a recording never makes beacon-sim import "
+            f"code); pass --filter {spec} to run it")
+
+
+def build_filters(specs: list[str], recording: Recording,
+                  params: dict[str, dict[str, Any]] | None = None) -> dict[str, object]:
+    """Construct the filters for a replay, named as a headless run names them."""
+    built: dict[str, object] = {}
+    for name, spec in zip(filter_names(specs), specs, strict=True):
+        built[name] = build_filter(spec, recording.scenario, recording.seed, name=name,
+                                   params=(params or {}).get(filter_display_name(spec)))
+    return built
+
+
+def replay_recording(recording: Recording, filters: list[str] | None = None,
+                     params: dict[str, dict[str, Any]] | None = None,
+                     verify: bool = True) -> RunResult:
+    """Re-simulate a recording, feeding the filters; check the truth against the file.
+
+    ``filters`` None runs the recorded built-in filters with the recorded parameters
+    (filters named by module or file path are skipped: pass them explicitly). Raises
+    :class:`ReplayMismatch` naming the first tick whose truth differs.
+    """
+    specs, skipped = recorded_filter_specs(recording, filters)
+    built = build_filters(specs, recording, recorded_params(recording, params))
+    runner = FilterRunner(built)
+    scenario = recording.scenario
+    sim = Simulation(scenario, recording.seed)
+    steps: list[Step] = []
+    checked = 0
+    t0 = time.perf_counter()
+    sim_ns = 0
+    for rec in recording.ticks:
+        a = time.perf_counter_ns()
+        if rec.commands:
+            apply_commands(rec.commands, sim, built, scenario)
+        step = sim.step(rec.control)
+        sim_ns += time.perf_counter_ns() - a
+        if verify:
+            if rec.short_checksum is not None:
+                if sim.truth_checksum[:8] != rec.short_checksum:
+                    raise _mismatch(recording, rec.tick, rec.line, "its truth checksum")
+                checked += 1
+            cp = recording.checkpoints.get(rec.tick)
+            if cp is not None and (cp["checksum"] != sim.truth_checksum
+                                   or cp.get("pose") != [float(v) for v in sim.pose]):
+                raise _mismatch(recording, _first_bad_tick(recording, rec.tick), rec.line,
+                                "the checkpoint")
+        steps.append(step)
+        runner.feed(step)
+    wall = time.perf_counter() - t0
+    end = recording.end
+    status = "no end line: checked tick by tick"
+    if verify and end is not None:
+        if end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum:
+            raise _mismatch(recording, sim.tick, len(recording.ticks), "the final checksum")
+        status = "verified"
+    elif verify and recording.ticks and checked == len(recording.ticks):
+        status = "verified up to the last complete tick"
+    result = RunResult(scenario, recording.seed, steps, runner, wall, sim_ns / 1e9, sim.truth_checksum)
+    result.extra["replay"] = {
+        "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
+        "checksum_status": status if verify else "not checked",
+        "recorded_checksum": end["checksum"] if end else None,
+        "skipped_filters": skipped, "warnings": list(recording.warnings),
+    }
+    return result
+
+
+def _first_bad_tick(recording: Recording, tick: int) -> int:
+    prev = [k for k in recording.checkpoints if k < tick]
+    return (max(prev) + 1) if prev else 1
+
+
+def _mismatch(recording: Recording, tick: int, line: int, what: str) -> ReplayMismatch:
+    return ReplayMismatch(
+        f"{recording.path}:{line}: replay differs from the recording at tick {tick} "
+        f"(t = {tick * recording.scenario.dt:g} s; checked against {what}): was it recorded by "
+        f"another version of beacon-sim (recorded by {recording.header.get('program_version')})?")
+
+
+class ReplaySession(Session):
+    """A :class:`~beacon_sim.runs.live.Session` whose controls and user commands come from a
+    recording, one tick at a time (the replay window's scene)."""
+
+    def __init__(self, recording: Recording, specs: list[str],
+                 params: dict[str, dict[str, Any]] | None = None):
+        self.recording = recording
+        self.mismatch: str | None = None  # first tick whose truth differs from the file
+        super().__init__(recording.scenario, list(specs), recording.seed, dict(params or {}))
+
+    @property
+    def total_ticks(self) -> int:
+        return len(self.recording.ticks)
+
+    def marks(self) -> list[tuple[int, str]]:
+        """(tick, kind of the first user command) of the recorded user commands."""
+        return [(rec.tick, rec.commands[0]["kind"]) for rec in self.recording.ticks if rec.commands]
+
+    @property
+    def at_end(self) -> bool:
+        return self.sim.tick >= self.total_ticks
+
+    @property
+    def drive_mode(self) -> str:
+        name = self.recording.path.name
+        return "replay " + (name if len(name) <= 28 else name[:12] + "..." + name[-13:])
+
+    def next_control(self) -> Control:
+        """The recorded control of the next tick (the last one once the recording ends)."""
+        ticks = self.recording.ticks
+        if not ticks:
+            return Control()
+        return ticks[min(self.sim.tick, len(ticks) - 1)].control
+
+    def seek(self, tick: int, keep_flips: set[str] = frozenset()) -> None:
+        """Show the run at ``tick``: forward by running the ticks in between, backward by
+        rebuilding the simulation and the filters and re-simulating from the start (the
+        recording holds no generator state). ``keep_flips``: filters the user showed / hid,
+        flipped again after a rebuild."""
+        tick = min(max(int(tick), 0), self.total_ticks)
+        if tick < self.sim.tick:
+            self.close()
+            self.mismatch = None
+            self.__post_init__()  # a fresh simulation, fresh filters, empty trails
+            for name in keep_flips:
+                if name in self.visible:
+                    self.visible[name] = not self.visible[name]
+        while self.sim.tick < tick:
+            self.tick()
+
+    def tick(self) -> Step:
+        """The next recorded tick: its commands, its control, then the checksum check."""
+        rec = self.recording.ticks[self.sim.tick]
+        self.pending = [dict(c) for c in rec.commands]
+        for c in self.pending:  # recorded show / hide of a filter (display only)
+            if c["kind"] == "toggle" and c.get("filter") in self.visible:
+                self.visible[c["filter"]] = not self.visible[c["filter"]]
+        step = super().tick()
+        if (self.mismatch is None and rec.short_checksum is not None
+                and self.sim.truth_checksum[:8] != rec.short_checksum):
+            self.mismatch = (f"{self.recording.path}:{rec.line}: replay differs from the recording "
+                             f"at tick {rec.tick} (t = {self.sim.time:g} s)")
+        return step
+
+    def checksum_status(self) -> str:
+        """"verified", "MISMATCH ...", or how far the check went."""
+        if self.mismatch:
+            return f"MISMATCH: {self.mismatch}"
+        end = self.recording.end
+        if self.at_end and end is not None:
+            return "verified" if end["checksum"] == self.sim.truth_checksum else \
+                "MISMATCH with the end line's checksum"
+        return f"checked tick by tick up to tick {self.sim.tick}"
