@@ -108,3 +108,12 @@ def test_run_json_has_the_design_shape(capsys):
                     "us_per_step"):
             assert np.isfinite(row[key]), key
         assert row["pos_rmse_m"] < 0.3
+
+
+def test_a_file_spec_that_is_not_python_source_is_a_one_line_error(tmp_path):
+    """``path/to/my_filter:Cls`` without ``.py``: Python finds no loader for the file."""
+    path = tmp_path / "my_filter"
+    path.write_text(FILE_FILTER)
+    with pytest.raises(FilterLoadError) as exc:
+        load_filter_class(f"{path}:MyEKF")
+    assert "not a Python source file" in str(exc.value) and "\n" not in str(exc.value)

@@ -250,7 +250,7 @@ class HistogramFilter(FilterBase):
             g += eps / g.size
         self._cache = None
 
-    def _hdop(self, ids, height: float) -> np.ndarray:
+    def _hdop(self, ids: np.ndarray, height: float) -> np.ndarray:
         key = (tuple(int(i) for i in np.ravel(ids)), float(height))
         h = self._hdop_cache.get(key)
         if h is None:
