@@ -53,13 +53,15 @@ def test_every_font_is_the_shipped_ttf(height):
         assert img.get_width() > 0 and _ink(img) > 0
 
 
-def test_text_is_about_as_tall_as_the_default_fonts_were():
-    """The sizes keep the digit height of the old pygame-default fonts (within 10 %)."""
-    fonts = assets.load_fonts(800)
-    for name, s in assets.BASE_SIZES.items():
-        old = pygame.font.Font(None, s).metrics("0")[0][3]
-        new = fonts[name].metrics("0")[0][3]
-        assert abs(new - old) <= 0.1 * old, (name, old, new)
+def test_text_is_tall_enough_for_a_projector_and_grows_with_the_window():
+    """Digits at least 13 px tall (the small panel text) in an 800 px window, the headings
+    larger, and every font twice as tall in a 1600 px window (within a pixel)."""
+    at800, at1600 = assets.load_fonts(800), assets.load_fonts(1600)
+    height = {name: f.metrics("0")[0][3] for name, f in at800.items()}
+    assert height["small"] >= 13 and height["hud"] >= 16
+    assert height["title"] > height["hud"] > height["small"] and height["banner"] > height["title"]
+    for name, f in at1600.items():
+        assert abs(f.metrics("0")[0][3] - 2 * height[name]) <= 2, name
 
 
 def test_fonts_grow_with_the_window_but_not_below_800_px():

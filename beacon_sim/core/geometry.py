@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from beacon_sim.core.metrics import chi2_quantile
+
 #: Chi-square quantiles for 2 degrees of freedom: the ellipse that holds this share of mass.
-CHI2_2DOF = {0.95: 5.991464547107979, 0.99: 9.21034037197618, 0.6827: 2.2957489}
+CHI2_2DOF = {p: chi2_quantile(p, 2) for p in (0.95, 0.99, 0.6827)}
 
 
 def covariance_ellipse(mean_xy, cov_xy, scale2: float = CHI2_2DOF[0.95], n: int = 48):

@@ -4,7 +4,9 @@ and keeps each one's estimate history and cost.
 A filter that raises, or returns a non-finite or malformed estimate, is switched off with
 a message; the simulation and the other filters go on. That includes an object that does
 not implement :class:`~beacon_sim.filters.base.Filter` at all (a student's class is only
-duck-typed): its missing method raises on the first step and it is switched off.
+duck-typed): its missing method raises on the first step and it is switched off. A filter
+that is slow on every step gets a warning (:func:`note_step_time`); :func:`status_line` is
+what the window and the terminal show for either.
 """
 
 from __future__ import annotations
@@ -19,11 +21,45 @@ import numpy as np
 
 from beacon_sim.core.types import Step
 from beacon_sim.filters.base import Filter
-from beacon_sim.filters.isolation import SLOW_WINDOW, note_step_time
 
 #: ``FilterTrack.failed`` of a filter that was never built (``None`` given to the runner);
 #: the caller usually replaces it with why construction failed.
 NOT_BUILT = "not constructed"
+
+
+#: A filter whose recent steps (predict + update + estimate) average more than this gets
+#: ``track.slow_warning`` [ms].
+SLOW_STEP_MS = 50.0
+#: How many recent steps the average is taken over, and how many are needed before judging.
+SLOW_WINDOW = 10
+SLOW_MIN_STEPS = 3
+
+
+def note_step_time(track: FilterTrack, step_ns: int) -> None:
+    """Record one step's wall time [ns] on ``track`` and set ``track.slow_warning`` when the
+    mean of the last ``SLOW_WINDOW`` steps, leaving out the slowest one, exceeds ``SLOW_STEP_MS``.
+
+    One slow step (a first call that imports or allocates, a garbage collection) does not
+    warn; a filter that is slow on every step does after ``SLOW_MIN_STEPS`` steps. The
+    warning stays once given (it tells the user the filter cannot keep up in real time).
+    """
+    recent = track.recent_step_ns
+    recent.append(int(step_ns))
+    if len(recent) < SLOW_MIN_STEPS:
+        return
+    mean_ms = (sum(recent) - max(recent)) / (len(recent) - 1) / 1e6
+    if mean_ms > SLOW_STEP_MS:
+        track.slow_warning = (f"slow: {mean_ms:.0f} ms per step (over {SLOW_STEP_MS:.0f} ms; "
+                              f"the simulation cannot run in real time)")
+
+
+def status_line(track: FilterTrack) -> str | None:
+    """What to show next to a filter's name: why it was switched off, or the slow warning."""
+    if track.failed:
+        return f"{track.name} switched off: {track.failed}"
+    if getattr(track, "slow_warning", None):
+        return f"{track.name} {track.slow_warning}"
+    return None
 
 
 @dataclass
