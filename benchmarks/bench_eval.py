@@ -1,5 +1,5 @@
 """Wall time of a Monte Carlo evaluation: 100 runs x 2,000 steps x the Gaussian filters
-(kf, ekf, ukf) on `default`, in parallel processes on all cores (issue 7's target: 10 s).
+(kf, ekf, ukf) on `default`, in parallel processes on all cores (target: 10 s).
 
 The filters run batched across runs (beacon_sim.evaluation.batched, the default). The
 per-run path (``--no-batch``) is timed in the same session on ``--per-run-runs`` runs and

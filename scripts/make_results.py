@@ -4,7 +4,7 @@ Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J]
 
 Every number in docs/results.md comes from this script: the seeds' findings (000 Krejsa
 EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF) and the
-issue 7 targets on `default`. Monte Carlo runs use seeds 0, 1, 2, ...; the same command
+the evaluation's targets on `default`. Monte Carlo runs use seeds 0, 1, 2, ...; the same command
 gives the same tables (except the cost columns, which are measured).
 """
 
@@ -108,7 +108,7 @@ def main() -> int:
     _, meta, curves = run(sc, flt, n(40), args.jobs)
     rows = meta["filters"]
     best = min(rows, key=lambda k: rows[k]["pos_rmse_m"])
-    md += ["## Targets on `default` (issue 7)", "", *md_table(meta), ""]
+    md += ["## Targets on `default`", "", *md_table(meta), ""]
     ok_rmse = rows[best]["rmse_over_pcrb"] <= 1.2
     ok_anees = all(rows[f]["anees_verdict"] == "consistent" for f in flt)
     md += [f"- Best filter: **{best}**, position RMSE / PCRB = **{rows[best]['rmse_over_pcrb']:.2f}** "
@@ -127,7 +127,8 @@ def main() -> int:
     sc = load_scenario("krejsa_bearing_only")
     flt = [f for f in ("ekf", "ukf", "dead_reckoning") if f in have]
     _, meta, curves = run(sc, flt, n(50), args.jobs)
-    md += ["## Seed 000: EKF against UKF, bearing-only beacons, with the kidnap", "",
+    md += ["## [Seed 000](references.md#seed-000): EKF against UKF, bearing-only beacons, "
+           "with the kidnap", "",
            "Krejsa & Věchet: 4 beacons, each seen with probability 0.5 per step, bearing noise "
            "variance π/8, a kidnap of (+1 m, +0.5 m, -π/2) at 30 s.", "", *md_table(meta), ""]
     md += figures(sc, curves, meta, "seed000_krejsa")
@@ -142,8 +143,9 @@ def main() -> int:
                "against the paper's ~4x. The paper ran both in C on an 8-bit AVR, where each "
                "filter's cost is its arithmetic. Here the EKF is written with scalar updates per "
                "reading and costs little more than Python's call overhead, while the UKF builds "
-               "and propagates 7 sigma points through numpy (about 1 µs per numpy call, design.md "
-               "section 9), so the ratio measures Python/numpy overheads as much as arithmetic.", ""]
+               "and propagates 7 sigma points through numpy (about 1 µs per numpy call, "
+               "[filters.md](filters.md)), so the ratio measures Python/numpy overheads as much "
+               "as arithmetic.", ""]
     conv = []
     conv_stats: dict = {}
     for p in (0.5, 0.15):
@@ -196,7 +198,7 @@ def main() -> int:
     sc = load_scenario("ulps_circle")
     flt = [f for f in ("pf", "ekf", "dead_reckoning") if f in have]
     _, meta, curves = run(sc, flt, n(20), args.jobs)
-    md += ["## Seed 002: particle filter on the ULPS circle", "",
+    md += ["## [Seed 002](references.md#seed-002): particle filter on the ULPS circle", "",
            "Ruiz et al.: a position fix with noise 1 cm x HDOP from 4 ceiling beacons 3.45 m up, "
            "odometry speed noise 25 % of v, a 2-s burst of impulsive speed noise at 60 s, one "
            "200-s lap.", "", *md_table(meta), ""]
@@ -214,7 +216,8 @@ def main() -> int:
     sc = load_scenario("assignment_kf")
     flt = [f for f in ("kf", "ekf", "dead_reckoning") if f in have]
     rs, meta, curves = run(sc, flt, n(20), args.jobs)
-    md += ["## Seed 003: the classroom KF — no beacon in view against three", "", *md_table(meta), ""]
+    md += ["## [Seed 003](references.md#seed-003): the classroom KF — no beacon in view against three",
+           "", *md_table(meta), ""]
     spec = sc.sensors[0]
     in_view = np.array([[visible_beacons(spec, p, sc.world).sum() for p in r.truth[1:]] for r in rs])
     from beacon_sim.evaluation.pcrb import pcrb as _pcrb
@@ -247,7 +250,7 @@ def main() -> int:
     md += figures(sc, curves, meta, "seed003_assignment")
 
     # ---- seed 001 ---------------------------------------------------------------------
-    md += ["## Seed 001: EKF against UKF on MRCLAM (real data)", ""]
+    md += ["## [Seed 001](references.md#seed-001): EKF against UKF on MRCLAM (real data)", ""]
     from beacon_sim.io.mrclam import load_mrclam
     from beacon_sim.runs.mrclam import run_mrclam
 
@@ -275,7 +278,7 @@ def main() -> int:
                        "error. A heading MSE of 7.8 rad² is what an unwrapped bearing innovation "
                        "produces: when the predicted bearing and the reading straddle ±π the "
                        "residual is off by 2π and the update throws the heading away. Our filters "
-                       "wrap every angle difference (design.md section 2), and the UKF's sigma-point "
+                       "wrap every angle difference ([filters.md](filters.md)), and the UKF's sigma-point "
                        "residuals are wrapped the same way, so the two agree; both are limited by "
                        "this data's noisy odometry and long gaps without a landmark. The noise "
                        "the filters are told is calibrated from the data (beacon_sim.runs.mrclam); the "

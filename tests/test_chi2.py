@@ -36,6 +36,6 @@ def test_every_band_uses_it():
     assert NEES_BAND == anees_band(1, dof=3) == pytest.approx((0.21580, 9.3484), rel=1e-4)
     assert CHI2_2DOF[0.95] == pytest.approx(-2 * math.log(0.05))
     lo, hi = anees_band(50)
-    assert lo == pytest.approx(chi2_quantile(0.025, 150) / 50)
+    assert (lo, hi) == pytest.approx((chi2_quantile(0.025, 150) / 50, chi2_quantile(0.975, 150) / 50))
     with pytest.raises(ValueError):
         chi2_quantile(1.0, 3)

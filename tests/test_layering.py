@@ -1,4 +1,4 @@
-"""The core and the filters never load pygame (design.md section 1)."""
+"""The core and the filters never load pygame, even at run time (docs/architecture.md)."""
 
 import subprocess
 import sys

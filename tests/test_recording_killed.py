@@ -1,4 +1,4 @@
-"""A play session killed with SIGKILL leaves a recording that replays (design.md section 5)."""
+"""A play session killed with SIGKILL leaves a recording that replays (docs/replay.md)."""
 
 import json
 import os

@@ -1,5 +1,5 @@
 """The filter interface: a ``Protocol``, the context a filter is built from, belief types,
-and a small base class that does the bookkeeping (design.md section 4).
+and a small base class that does the bookkeeping (docs/architecture.md, "Conventions").
 
 A filter is any object with::
 

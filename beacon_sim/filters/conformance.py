@@ -1,4 +1,4 @@
-"""Conformance checks for any filter (design.md section 4), used by ``beacon-sim check``.
+"""Conformance checks for any filter (docs/architecture.md), used by ``beacon-sim check``.
 
 The checks build the filter from a ``FilterContext``, feed it 100 steps of a scenario, and
 check: the interface, shapes, finite values, a symmetric positive semi-definite covariance,
