@@ -15,7 +15,7 @@ import pytest
 
 from beacon_sim.app import shapes
 from beacon_sim.app.loop import SPEEDS, StepClock
-from beacon_sim.app.palette import OKABE_ITO, filter_colours
+from beacon_sim.app.palette import OKABE_ITO, filter_colours, filter_styles
 from beacon_sim.app.render import View, WorldRenderer, nice_step
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import GridBelief
@@ -158,7 +158,16 @@ def test_clock_pause_and_single_step():
     assert c.speed == 0.25
 
 
-def test_filter_colours_are_okabe_ito_and_dead_reckoning_grey():
+def test_filter_colours_are_okabe_ito_by_kind_and_dead_reckoning_grey():
     cols = filter_colours(["ekf", "dead_reckoning", "ukf", "pf"])
-    assert cols["ekf"] == OKABE_ITO[0] and cols["ukf"] == OKABE_ITO[1] and cols["pf"] == OKABE_ITO[2]
+    assert {cols["ekf"], cols["ukf"], cols["pf"]} <= set(OKABE_ITO)
+    assert cols == filter_colours(["pf", "ukf", "dead_reckoning", "ekf"])  # kind, not order
     assert cols["dead_reckoning"][0] == cols["dead_reckoning"][1] == cols["dead_reckoning"][2]
+
+
+def test_every_filter_kind_has_its_own_colour_or_line_style():
+    names = ["kf", "ekf", "ukf", "pf", "histogram", "dead_reckoning", "Mine", "ekf'"]
+    styles = filter_styles(names)
+    assert len(set(styles.values())) == len(names)
+    assert styles["ekf"][1] != styles["ukf"][1]  # they agree: one solid, one dashed
+    assert styles["ekf'"][0] == styles["ekf"][0]

@@ -18,13 +18,15 @@ from beacon_sim.filters.loading import build_filter
 from beacon_sim.runs.headless import run_headless
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+#: The default scenario before issue 12's retune: the numbers below are written for it.
+DEFAULT_QUIET = Path(__file__).resolve().parent / "data" / "default_quiet.toml"
 STUDENT = f"{EXAMPLES / 'student_ekf.py'}:StudentEKF"
 FILTERPY = f"{EXAMPLES / 'filterpy_wrapper.py'}:FilterpyEKF"
 
 
 @pytest.fixture(scope="module")
 def scenario():
-    return load_scenario("default")
+    return load_scenario(DEFAULT_QUIET)
 
 
 def _numeric_jacobian(h, x, eps=1e-6):

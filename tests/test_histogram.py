@@ -2,6 +2,7 @@
 moments, global localization from uniform, kidnap, determinism, conformance."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -85,7 +86,7 @@ def test_discretisation_noise_is_a_cell_and_a_bin_per_grid_noise_seconds():
 def test_the_belief_does_not_drift_out_of_its_cell_on_default():
     """Regression: without discretisation noise the whole mass fell into one heading bin
     5 deg off the truth, drifted sideways out of the true cell and jumped 3.5 m away."""
-    sc = load_scenario("default")
+    sc = load_scenario(Path(__file__).resolve().parent / "data" / "default_quiet.toml")
     r = run_headless(sc, ["histogram"], duration=40.0)
     tr = r.runner.tracks["histogram"]
     err = np.hypot(*(np.array(tr.means)[:, :2] - r.truth[:, :2]).T)

@@ -21,6 +21,7 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import controls
+from beacon_sim.app.assets import load_fonts, window_icon
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import ShowOptions, View, WorldRenderer
@@ -32,14 +33,6 @@ from beacon_sim.runs.live import Session, make_recorder
 SCRIPTED_FRAME_S = 1.0 / 60.0
 BANNER_S = 2.5
 DRIVE_KEYS = {"faster": "w", "slower": "s", "left": "a", "right": "d", "stop": "x"}
-
-
-def make_fonts(height: int) -> dict[str, pygame.font.Font]:
-    """pygame's default font at sizes readable on a projector (scaled a little with the
-    window height, never below the sizes for 800 px)."""
-    k = max(height / 800.0, 1.0)
-    sizes = {"title": 40, "hud": 34, "small": 28, "label": 32, "banner": 50}
-    return {name: pygame.font.Font(None, round(s * k)) for name, s in sizes.items()}
 
 
 class App:
@@ -67,10 +60,13 @@ class App:
         pygame.font.init()
         self.screen = pygame.display.set_mode(size, pygame.RESIZABLE)
         pygame.display.set_caption(f"beacon-sim: {session.scenario.name}")
+        pygame.display.set_icon(window_icon())
         pygame.key.set_repeat(300, 50)
-        from beacon_sim.app.palette import filter_colours
+        from beacon_sim.app.palette import filter_styles
 
-        self.colours = filter_colours(session.names)
+        styles = filter_styles(session.names)
+        self.colours = {n: c for n, (c, _) in styles.items()}
+        self.dashes = {n: d for n, (_, d) in styles.items()}
         self.clock = StepClock(session.scenario.dt)
         self.show = ShowOptions()
         self.keys = controls.KeyHandler(self.MODE)
@@ -127,7 +123,7 @@ class App:
     # --- layout ---------------------------------------------------------------------------
     def _layout(self, size) -> None:
         W, H = size
-        self.fonts = make_fonts(H)
+        self.fonts = load_fonts(H)
         self.renderer = WorldRenderer(self.fonts)
         self.hud = Hud(self.fonts, self.MODE)
         pw = int(min(max(W * 0.3, 360), 480))
@@ -259,7 +255,8 @@ class App:
         drag = None
         if self.drag_start is not None:
             drag = (self.drag_start, pygame.mouse.get_pos())
-        self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag)
+        self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
+                           dashes=self.dashes)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
                 "reload_errors": self.reload_errors}

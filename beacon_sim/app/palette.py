@@ -50,18 +50,60 @@ OKABE_ITO = [
 #: Dead reckoning is the neutral baseline: a mid grey.
 DEAD_RECKONING = (128, 128, 128)
 
+#: Line dash patterns [px on, px off, ...]; None is a solid line.
+SOLID = None
+DASHED = (22, 11)
+DOTTED = (5, 8)
+DASH_DOT = (20, 7, 5, 7)
+SHORT_DASH = (9, 8)
+
+#: One colour and one line style per filter KIND, the same in every window, plot and doc,
+#: so that two filters that agree (EKF and UKF usually do) stay apart: the dashed UKF is
+#: drawn over the solid EKF. Kinds not listed (a student's filter) take the rest in turn.
+KIND_STYLES: dict[str, tuple[tuple[int, int, int], tuple[int, ...] | None]] = {
+    "kf": (OKABE_ITO[0], SOLID),  # blue
+    "ekf": (OKABE_ITO[1], SOLID),  # vermillion
+    "ukf": (OKABE_ITO[3], DASHED),  # bluish green
+    "pf": (OKABE_ITO[2], DOTTED),  # reddish purple
+    "histogram": (OKABE_ITO[4], DASH_DOT),  # orange
+    "dead_reckoning": (DEAD_RECKONING, SHORT_DASH),  # grey
+}
+_OTHER_STYLES = [((86, 180, 233), DASH_DOT), ((0, 0, 0), DASHED), ((86, 180, 233), SOLID),
+                 ((0, 0, 0), DOTTED), ((240, 228, 66), SOLID)]
+_STYLE_CYCLE = [SOLID, DASHED, DOTTED, DASH_DOT, SHORT_DASH]
+
+
+def filter_kind(name: str) -> str:
+    """The kind of a display name: ``ekf'`` (a second EKF) -> ``ekf``."""
+    return name.rstrip("'")
+
+
+def filter_styles(names: list[str]) -> dict[str, tuple[tuple[int, int, int], tuple[int, ...] | None]]:
+    """``(colour, dash pattern)`` per filter name: by kind, a repeated kind (``ekf'``) keeps
+    the colour and takes the next line style."""
+    out: dict[str, tuple[tuple[int, int, int], tuple[int, ...] | None]] = {}
+    others = 0
+    for name in names:
+        kind = filter_kind(name)
+        if kind in KIND_STYLES:
+            colour, dash = KIND_STYLES[kind]
+        else:
+            same = next((out[n] for n in out if filter_kind(n) == kind), None)
+            if same is None:
+                colour, dash = _OTHER_STYLES[others % len(_OTHER_STYLES)]
+                others += 1
+            else:
+                colour, dash = same
+        repeats = len(name) - len(kind)
+        if repeats:
+            dash = _STYLE_CYCLE[(_STYLE_CYCLE.index(dash) + repeats) % len(_STYLE_CYCLE)]
+        out[name] = (colour, dash)
+    return out
+
 
 def filter_colours(names: list[str]) -> dict[str, tuple[int, int, int]]:
-    """One colour per filter name, in order; ``dead_reckoning`` is always grey."""
-    out: dict[str, tuple[int, int, int]] = {}
-    i = 0
-    for name in names:
-        if name.startswith("dead_reckoning"):
-            out[name] = DEAD_RECKONING
-            continue
-        out[name] = OKABE_ITO[i % len(OKABE_ITO)]
-        i += 1
-    return out
+    """One colour per filter name, by kind (``KIND_STYLES``); dead reckoning is grey."""
+    return {n: c for n, (c, _) in filter_styles(names).items()}
 
 
 def lighten(colour: tuple[int, int, int], amount: float) -> tuple[int, int, int]:

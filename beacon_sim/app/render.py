@@ -96,6 +96,45 @@ class ShowOptions:
     ellipses: bool = True
 
 
+def line_width(height_px: int) -> int:
+    """Belief line width [px] for a window ``height_px`` tall: 4 px at 800, more above."""
+    return max(4, round(height_px / 200))
+
+
+def polyline(surf, colour, pts, width: int, dash=None, closed: bool = False) -> None:
+    """A thick polyline through ``pts`` (k, 2) [px], solid (``dash`` None) or dashed with
+    the pattern ``dash`` (px on, px off, ...), measured along the line."""
+    pts = np.asarray(pts, dtype=float)
+    if closed:
+        pts = np.vstack([pts, pts[:1]])
+    if len(pts) < 2:
+        return
+    if dash is None:
+        pygame.draw.lines(surf, colour, False, pts, width)
+        for p in pts[1:-1]:  # round joints: thick pygame lines leave notches at corners
+            pygame.draw.circle(surf, colour, (ipx(p[0]), ipx(p[1])), max(width // 2 - 1, 1))
+        return
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    total = float(s[-1])
+    if not total > 0:
+        return
+    step = max(total / 4000.0, 1.5)  # sample every ~2 px (at most 4000 samples)
+    t = np.arange(0.0, total + step, step)
+    t[-1] = min(t[-1], total)
+    xs, ys = np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])
+    period = float(sum(dash))
+    bounds = np.cumsum(dash)
+    phase = np.searchsorted(bounds, t % period, side="right")
+    on = phase % 2 == 0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if b - a >= 2:
+            pygame.draw.lines(surf, colour, False, np.stack([xs[a:b], ys[a:b]], 1), width)
+        else:
+            pygame.draw.circle(surf, colour, (ipx(xs[a]), ipx(ys[a])), max(width // 2, 1))
+
+
 def ipx(v) -> int:
     """Round a pixel coordinate to the nearest integer."""
     return math.floor(float(v) + 0.5)
@@ -133,10 +172,18 @@ class WorldRenderer:
 
     # --- the frame ------------------------------------------------------------------------
     def draw(self, surf: pygame.Surface, view: View, session: Scene, colours, show: ShowOptions,
-             drag=None) -> None:
-        """Draw the world part of a frame. ``drag``: (start_px, now_px) of a click-kidnap."""
+             drag=None, dashes=None, extra=None) -> None:
+        """Draw the world part of a frame. ``drag``: (start_px, now_px) of a click-kidnap.
+        ``dashes``: filter name -> dash pattern (None: solid). ``extra``: a callable
+        ``(surf, view, lw)`` drawn after the truth and before the beliefs (the step view's
+        prior ellipses, the bound's ellipse).
+
+        Order: the true robot is an outline drawn UNDER every belief, and the ellipses and
+        wedges come last, solid ones first, so that nothing hides an estimate."""
         sc = session.scenario
         pose = session.true_pose
+        dashes = dashes or {}
+        self.lw = line_width(surf.get_height())
         area = pygame.Rect(view.area)
         old_clip = surf.get_clip()
         surf.set_clip(area)
@@ -159,11 +206,15 @@ class WorldRenderer:
                 self._heat(surf, view, name, bel, colours[name], session.tick_count)
         if show.trails:
             self._trails(surf, view, session, colours)
+        self._beacons_and_rays(surf, view, session, pose)
+        self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
         if show.particles:
             for name, bel in beliefs.items():
                 if isinstance(bel, ParticleBelief):
                     self.particles(surf, view, bel.poses, colours[name], bel.weights)
-        self._beacons_and_rays(surf, view, session, pose)
+        if extra is not None:
+            extra(surf, view, self.lw)
+        estimates = []
         for name in session.names:
             if name not in beliefs:
                 continue
@@ -171,11 +222,14 @@ class WorldRenderer:
                 est = session.estimate(name)
             except Exception:  # before the first tick a student's estimate() may raise
                 continue
-            if est is None:
-                continue
-            mean, cov = est
-            self._estimate(surf, view, mean, cov, colours[name], show.ellipses, sc.robot_radius)
-        self.robot(surf, view, pose, sc.robot_radius)  # the truth on top of every belief
+            if est is not None:
+                estimates.append((name, *est))
+        for name, mean, _ in estimates:
+            self._arrow(surf, view, mean, colours[name], sc.robot_radius)
+        if show.ellipses:  # solid lines first: a dashed one drawn over it leaves gaps to see
+            for name, mean, cov in sorted(estimates, key=lambda e: dashes.get(e[0]) is not None):
+                self.uncertainty(surf, view, mean, cov, colours[name], dashes.get(name),
+                                 sc.robot_radius)
         if drag is not None:
             self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
         surf.set_clip(old_clip)
@@ -410,31 +464,36 @@ class WorldRenderer:
         pygame.draw.line(surf, colour, (x - r, y - r), (x + r, y + r), width)
         pygame.draw.line(surf, colour, (x - r, y + r), (x + r, y - r), width)
 
-    def _estimate(self, surf, view: View, mean, cov, colour, ellipses: bool, radius: float) -> None:
-        if ellipses:
-            outline = covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 72)
-            pts = view.to_px(outline)
-            if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
-                pygame.draw.polygon(surf, colour, pts, 3)
-            sigma = math.sqrt(max(float(cov[2, 2]), 0.0))
-            r = max(3.2 * radius, 55.0 / view.scale)
-            w = view.to_px(shapes.wedge(mean, 2.0 * sigma, r))
-            pygame.draw.lines(surf, colour, True, w, 2)
+    def _arrow(self, surf, view: View, mean, colour, radius: float) -> None:
+        """The estimated pose: a filled arrow in the filter's colour, outlined in black."""
         size = max(1.2 * radius, 16.0 / view.scale)
         tri = view.to_px(shapes.arrow(mean, size))
         pygame.draw.polygon(surf, colour, tri)
         pygame.draw.polygon(surf, palette.TEXT, tri, 2)
 
+    def uncertainty(self, surf, view: View, mean, cov, colour, dash, radius: float,
+                    width: int | None = None) -> None:
+        """The 95 % ellipse of x-y and the +-2 sigma heading wedge, in ``dash`` style."""
+        lw = width or getattr(self, "lw", 4)
+        pts = view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 96))
+        if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
+            polyline(surf, colour, pts, lw, dash, closed=True)
+        sigma = math.sqrt(max(float(cov[2, 2]), 0.0))
+        r = max(3.2 * radius, 55.0 / view.scale)
+        w = view.to_px(shapes.wedge(mean, 2.0 * sigma, r))
+        polyline(surf, colour, w, max(lw - 1, 2), dash, closed=True)
+
     def robot(self, surf, view: View, pose, radius: float) -> None:
-        """The true robot: a dark chassis with wheels and a white heading mark."""
+        """The true robot as an OUTLINE (black chassis edge, grey wheels, heading mark): it is
+        drawn under the beliefs and never covers an estimate or a small ellipse."""
         r = max(radius, 14.0 / view.scale)
+        lw = max(getattr(self, "lw", 4) - 1, 2)
         body, wheels = shapes.chassis(pose, r)
         for wheel in wheels:
-            pygame.draw.polygon(surf, palette.ROBOT_WHEEL, view.to_px(wheel))
-        pygame.draw.polygon(surf, palette.ROBOT, view.to_px(body))
+            pygame.draw.polygon(surf, palette.ROBOT_WHEEL, view.to_px(wheel), 2)
+        pygame.draw.polygon(surf, palette.ROBOT, view.to_px(body), lw)
         a, b = view.to_px(shapes.heading_mark(pose, r))
-        pygame.draw.line(surf, palette.ROBOT_MARK, a, b, 3)
-        pygame.draw.circle(surf, palette.ROBOT, (ipx(a[0]), ipx(a[1])), 3)
+        pygame.draw.line(surf, palette.ROBOT, a, b, lw)
 
     def _drag_ghost(self, surf, view: View, drag, pose, radius: float) -> None:
         start, now = (np.asarray(p, dtype=float) for p in drag)

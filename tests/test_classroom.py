@@ -1,0 +1,128 @@
+"""The classroom demonstration (issue 12): in ``default`` and ``assignment_kf`` every
+Gaussian filter's 95 % ellipse grows to several robot widths in the blind stretch and falls
+back to a few centimetres once three beacons are in view, and the window shows it (nothing
+covers an ellipse, not even the true robot)."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+import numpy as np
+import pygame
+import pytest
+
+from beacon_sim.app.main import App
+from beacon_sim.app.render import ELLIPSE_SCALE2
+from beacon_sim.core.geometry import covariance_ellipse
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.runs.headless import run_headless
+from beacon_sim.runs.live import Session
+
+#: Semi-major axis [m] of the 95 % ellipse the blind stretch must reach (robot radius 0.2 m).
+BLIND_A95 = 0.5
+#: ... reached within this many seconds of losing the last beacon [s].
+BLIND_WITHIN_S = 10.0
+#: Semi-major axis [m] it must be back under, ...
+SEEN_A95 = 0.1
+#: ... this many seconds after three beacons come into view [s].
+SEEN_AFTER_S = 2.0
+
+
+def a95(cov) -> float:
+    """Semi-major axis [m] of the 95 % ellipse of the x-y block of ``cov``."""
+    return float(np.sqrt(ELLIPSE_SCALE2 * np.linalg.eigvalsh(np.asarray(cov)[:2, :2]).max()))
+
+
+def beacons_in_view(steps, scenario) -> np.ndarray:
+    """Per step, how many beacons the sensor's latest reading used (held between readings)."""
+    every = round(scenario.sensors[0].period / scenario.dt)
+    out, last = [], 0
+    for s in steps:
+        if s.tick % every == 0:
+            last = len({int(i) for m in s.measurements for i in m.beacon_ids})
+        out.append(last)
+    return np.array(out)
+
+
+def demo_moments(steps, scenario) -> tuple[int, int, int]:
+    """(first, end) step index of the longest blind stretch, and the first step after it
+    with three beacons in view."""
+    n = beacons_in_view(steps, scenario)
+    blind = np.concatenate([[0], (n == 0).astype(int), [0]])
+    edges = np.flatnonzero(np.diff(blind))
+    starts, ends = edges[::2], edges[1::2]
+    k = int(np.argmax(ends - starts))
+    b0, b1 = int(starts[k]), int(ends[k])
+    three = b1 + int(np.argmax(n[b1:] >= 3))
+    assert n[three] >= 3, "the tour never sees three beacons after the blind stretch"
+    return b0, b1, three
+
+
+CASES = [("assignment_kf", ["kf", "ekf", "ukf"]), ("default", ["ekf", "ukf"])]
+
+
+@pytest.mark.parametrize(("scenario", "filters"), CASES)
+def test_the_ellipse_grows_blind_and_collapses_with_three_beacons(scenario, filters):
+    sc = load_scenario(scenario)
+    r = run_headless(sc, filters)
+    b0, b1, three = demo_moments(r.steps, sc)
+    k10 = min(b0 + round(BLIND_WITHIN_S / sc.dt), b1)
+    k2 = three + round(SEEN_AFTER_S / sc.dt)
+    for name, tr in r.runner.tracks.items():
+        assert not tr.failed, tr.failed
+        assert tr.ticks == [s.tick for s in r.steps]
+        peak = max(a95(c) for c in tr.covs[b0:k10 + 1])
+        seen = a95(tr.covs[k2])
+        assert peak >= BLIND_A95, f"{scenario} {name}: blind 95 % ellipse only {peak:.3f} m"
+        assert seen <= SEEN_A95, f"{scenario} {name}: with three beacons still {seen:.3f} m"
+
+
+def ellipse_pixels_shown(app: App, name: str) -> tuple[int, int, int]:
+    """How many points of filter ``name``'s drawn 95 % ellipse are outside the true robot's
+    body, how many of those show the filter's colour, and how many inside show it.
+
+    The ellipse is computed from the estimate the window drew; a point counts as shown
+    when its colour is within 2 px of it (line width)."""
+    mean, cov = app.session.estimate(name)
+    pts = app.view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 180))
+    centre = app.view.to_px(app.session.true_pose[:2])
+    body_px = app.session.scenario.robot_radius * app.view.scale
+    colour = pygame.Color(*app.colours[name])
+    surf = app.screen
+    outside = shown_out = shown_in = 0
+    for x, y in pts:
+        hit = any(surf.get_at((int(x) + dx, int(y) + dy)) == colour
+                  for dx in (-2, -1, 0, 1, 2) for dy in (-2, -1, 0, 1, 2))
+        if np.hypot(x - centre[0], y - centre[1]) > body_px + 3:
+            outside += 1
+            shown_out += hit
+        else:
+            shown_in += hit
+    return outside, shown_out, shown_in
+
+
+def test_the_blind_ellipse_shows_outside_the_robot_and_the_small_one_over_it():
+    sc = load_scenario("assignment_kf")
+    steps = run_headless(sc, []).steps
+    b0, _, three = demo_moments(steps, sc)
+    app = App(Session(sc, ["kf"]), (1600, 1000), scripted=True)
+    try:
+        app.session.toggle_autopilot()
+        app.show.trails = False
+        for _ in range(b0 + round(BLIND_WITHIN_S / sc.dt)):
+            app.session.tick()
+        app.draw()
+        outside, shown, _ = ellipse_pixels_shown(app, "kf")
+        assert outside > 90, "the blind ellipse is not larger than the robot"
+        assert shown >= 0.9 * outside, f"only {shown} of {outside} ellipse points visible"
+        for _ in range(three + round(SEEN_AFTER_S / sc.dt) - app.session.tick_count):
+            app.session.tick()
+        app.draw()
+        outside, _, shown_in = ellipse_pixels_shown(app, "kf")
+        assert outside == 0  # a few centimetres: inside the robot's outline ...
+        assert shown_in >= 0.9 * 180, f"only {shown_in} of 180 points visible over the robot"
+    finally:
+        app.close()
