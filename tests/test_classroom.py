@@ -126,3 +126,29 @@ def test_the_blind_ellipse_shows_outside_the_robot_and_the_small_one_over_it():
         assert shown_in >= 0.9 * 180, f"only {shown_in} of 180 points visible over the robot"
     finally:
         app.close()
+
+
+def test_the_strip_chart_toggles_and_draws_error_and_two_sigma():
+    sc = load_scenario("assignment_kf")
+    app = App(Session(sc, ["kf", "dead_reckoning"]), (1280, 800), scripted=True)
+    try:
+        app.session.toggle_autopilot()
+        full = app.view.area
+        app.act("chart")
+        assert app.chart_rect is not None and app.view.area[3] < full[3]
+        for _ in range(round(15.0 / sc.dt)):  # into the blind stretch
+            app.session.tick()
+            app.chart.record(app.session)
+        app.draw()
+        assert app.session.status["kf"].pos_sigma > 0.05
+        w = app.chart.window()
+        assert app.chart.blind[w].any() and not app.chart.blind[w].all()
+        r = app.chart_rect
+        img = pygame.surfarray.array3d(app.screen.subsurface(r))
+        blue = np.all(img == np.array(app.colours["kf"]), axis=2)
+        shade = np.all(img == np.array((255, 226, 204)), axis=2)
+        assert blue.sum() > 200 and shade.sum() > 1000
+        app.act("chart")
+        assert app.chart_rect is None and app.view.area == full
+    finally:
+        app.close()

@@ -60,6 +60,8 @@ BINDINGS: tuple[Binding, ...] = (
     Binding("T", _k("K_t"), "trails", "trails on / off", group="Show"),
     Binding("E", _k("K_e"), "ellipses", "95 % ellipses and heading wedges on / off",
             group="Show"),
+    Binding("C", _k("K_c"), "chart", "strip chart: error and 2 sigma over the last 60 s",
+            group="Show"),
     Binding("Wheel", (), "zoom", "zoom at the mouse", group="View", button=4),
     Binding("Right drag", (), "pan", "pan the view", group="View", button=3),
     Binding("F", _k("K_f"), "fit", "fit the world to the window", group="View"),

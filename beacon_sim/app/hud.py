@@ -111,7 +111,13 @@ class Hud:
                 out = st.nees_out_of_band
                 self._blit(surf, f"NEES {nees}", "small", palette.BANNER_TEXT if out else palette.TEXT,
                            (x + int(w * 0.66), y), bg=palette.WARN if out else None)
-                y += f["small"].get_linesize() + 4
+                y += f["small"].get_linesize()
+                if math.isfinite(st.pos_sigma):
+                    sig = (f"sigma {st.pos_sigma:5.2f} m {math.degrees(st.heading_sigma):6.1f} deg"
+                           f"   2sig {2 * st.pos_sigma:.2f}")
+                    self._blit(surf, sig, "small", palette.TEXT_DIM, (x + 10, y))
+                    y += f["small"].get_linesize()
+                y += 4
             else:
                 y += 4
 
@@ -123,7 +129,7 @@ class Hud:
             f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 2 dof = {ELLIPSE_SCALE2:.2f})",
             "wedge: heading +-2 sigma",
             f"NEES band 95 %: {NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}",
-            "black: true robot and path",
+            "black outline: true robot; line: path",
         ]
         for line in legend:
             self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))

@@ -25,6 +25,7 @@ from beacon_sim.app.assets import load_fonts, window_icon
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import ShowOptions, View, WorldRenderer
+from beacon_sim.app.strip import StripChart
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
 from beacon_sim.runs.live import Session, make_recorder
@@ -81,6 +82,8 @@ class App:
         self.pan_from: tuple[int, int] | None = None
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
+        self.chart = StripChart(session.names, session.scenario.dt)
+        self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
 
     # --- hot reload -----------------------------------------------------------------------
@@ -129,6 +132,13 @@ class App:
         pw = int(min(max(W * 0.3, 360), 480))
         self.panel_rect = pygame.Rect(W - pw, 0, pw, H)
         area = self.world_area(W - pw, H)
+        if self.show.chart:  # the strip chart takes the bottom ~30 % of the world's area
+            ax, ay, aw, ah = area
+            ch = max(int(ah * 0.3), 120)
+            self.chart_rect = pygame.Rect(ax, ay + ah - ch, aw, ch)
+            area = (ax, ay, aw, ah - ch)
+        else:
+            self.chart_rect = None
         if hasattr(self, "view"):
             self.view.set_area(area)
         else:
@@ -200,6 +210,9 @@ class App:
             self.show.trails = not self.show.trails
         elif action == "ellipses":
             self.show.ellipses = not self.show.ellipses
+        elif action == "chart":
+            self.show.chart = not self.show.chart
+            self._layout(self.screen.get_size())
         elif action == "fit":
             self.view.fit()
         elif action == "screenshot":
@@ -233,6 +246,7 @@ class App:
         self.poll_watchers()  # a filter object is swapped here, between ticks
         for _ in range(self.ticks_due(real_dt)):
             step = self.session.tick()
+            self.chart.record(self.session)
             for ev in (step.events if isinstance(step, Step) else step):
                 if ev.kind == "kidnap":
                     self.flash(f"KIDNAPPED  ({ev.detail})")
@@ -261,6 +275,9 @@ class App:
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
                 "reload_errors": self.reload_errors}
         self.hud.panel(surf, self.panel_rect, self.session, self.colours, info)
+        if self.chart_rect is not None:
+            self.chart.draw(surf, self.chart_rect, self.fonts, self.colours, self.dashes,
+                            self.session.visible)
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
         self.draw_extra(surf)

@@ -94,6 +94,7 @@ class ShowOptions:
     particles: bool = True
     trails: bool = True
     ellipses: bool = True
+    chart: bool = False  # the strip chart of error and 2-sigma (C)
 
 
 def line_width(height_px: int) -> int:
@@ -111,6 +112,8 @@ def polyline(surf, colour, pts, width: int, dash=None, closed: bool = False) -> 
         return
     if dash is None:
         pygame.draw.lines(surf, colour, False, pts, width)
+        if len(pts) > 200:
+            return
         for p in pts[1:-1]:  # round joints: thick pygame lines leave notches at corners
             pygame.draw.circle(surf, colour, (ipx(p[0]), ipx(p[1])), max(width // 2 - 1, 1))
         return

@@ -81,11 +81,20 @@ class FilterStatus:
     pos_err: float = math.nan  # [m]
     heading_err: float = math.nan  # [rad]
     nees: float = math.nan
+    pos_sigma: float = math.nan  # [m] sqrt of the largest eigenvalue of the x-y covariance
+    heading_sigma: float = math.nan  # [rad]
     failed: str | None = None
     warning: str | None = None  # e.g. slower than the time budget
 
     def measure(self, mean, cov, truth) -> None:
-        """The errors [m, rad] and NEES of the estimate ``(mean, cov)`` against ``truth``."""
+        """The errors [m, rad], the sigmas [m, rad] and NEES of the estimate ``(mean, cov)``
+        against ``truth``."""
+        cov = np.asarray(cov, dtype=float)
+        try:
+            self.pos_sigma = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
+        except np.linalg.LinAlgError:
+            self.pos_sigma = math.nan
+        self.heading_sigma = math.sqrt(max(float(cov[2, 2]), 0.0))
         e = np.array([mean[0] - truth[0], mean[1] - truth[1], diff(mean[2], truth[2])])
         self.pos_err = math.hypot(e[0], e[1])
         self.heading_err = float(e[2])
