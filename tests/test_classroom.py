@@ -6,6 +6,7 @@ covers an ellipse, not even the true robot)."""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -152,3 +153,30 @@ def test_the_strip_chart_toggles_and_draws_error_and_two_sigma():
         assert app.chart_rect is None and app.view.area == full
     finally:
         app.close()
+
+
+QUIET_DEFAULT = Path(__file__).resolve().parent / "data" / "default_quiet.toml"
+
+
+def test_the_bumper_stops_the_robot_at_the_wall_and_the_filters_follow():
+    """Holding W drives straight into the wall at x = 12: the robot stops there, the
+    filters are told v = 0, and none of them runs off (before the bumper: 14 m off)."""
+    sc = load_scenario(QUIET_DEFAULT)
+    s = Session(sc, ["ekf", "ukf", "pf", "dead_reckoning"])
+    bumps = []
+    for _ in range(round(30.0 / sc.dt)):
+        s.keyboard.v = sc.keyboard.v_max  # W held
+        step = s.tick()
+        bumps += [e for e in step.events if e.kind == "bump"]
+        if [e for e in step.events if e.kind == "bump"]:
+            assert step.control.v == 0.0
+    assert bumps and s.true_pose[0] == pytest.approx(12.0, abs=0.3)
+    for name in s.names:
+        assert s.status[name].pos_err < 1.0, (name, s.status[name].pos_err)
+    assert s.keyboard.v == 0.0  # the last tick bumped: the keyboard's command is zeroed
+
+
+def test_the_bumper_leaves_a_run_that_never_touches_a_wall_alone():
+    sc = load_scenario("krejsa_bearing_only")
+    r = run_headless(sc, [], duration=20.0)
+    assert not [e for s in r.steps for e in s.events if e.kind == "bump"]

@@ -248,7 +248,9 @@ class App:
             step = self.session.tick()
             self.chart.record(self.session)
             for ev in (step.events if isinstance(step, Step) else step):
-                if ev.kind == "kidnap":
+                if ev.kind == "bump":
+                    self.flash("BUMPER: the robot hit the wall and stopped (v = 0)")
+                elif ev.kind == "kidnap":
                     self.flash(f"KIDNAPPED  ({ev.detail})")
                 elif ev.kind.endswith("_start"):
                     self.flash(ev.kind[: -len("_start")].replace("_", " ").upper()

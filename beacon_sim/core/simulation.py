@@ -101,7 +101,14 @@ class Simulation:
         pose = move(self.pose, v, w, self.dt)
         pose += np.asarray(noise.pose_std) * e[2:]
         pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
-        pose = self.world.clip(pose)
+        if not self.world.contains(pose[:2]):
+            # The bumper: a move that would leave the room is not made. The robot stays where
+            # it was (it may still turn), and the command the filters see is what it did:
+            # v = 0. Runs that never reach a wall are not affected (same draws, same truth).
+            pose = self.world.clip(np.array([self.pose[0], self.pose[1], pose[2]]))
+            if control.v != 0.0:
+                events.append(EventRecord("bump", k, k * self.dt, "stopped at the wall"))
+            control = Control(0.0, control.omega)
 
         # Kidnaps: scheduled ones, then those the user asked for.
         for kid in self._kidnaps.get(k, ()):

@@ -100,7 +100,8 @@ class Step:
         True pose after the step. Filters must never read it.
     control : Control
         The command given for this step; filters predict with it (the truth ran a noisy
-        version of it).
+        version of it). When the bumper stopped the robot at a wall, ``v`` is 0 (what the
+        robot did) and the events hold a ``bump``.
     measurements : tuple of Measurement
         Readings of this tick, at the true pose after the step.
     events : tuple of EventRecord

@@ -21,9 +21,8 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 from beacon_sim.filters.base import Belief
-from beacon_sim.filters.isolation import status_line
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
-from beacon_sim.filters.runner import FilterRunner, FilterTrack
+from beacon_sim.filters.runner import FilterRunner, FilterTrack, status_line
 from beacon_sim.io.recording import default_recording_path, validate_command
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
@@ -180,6 +179,8 @@ class Session:
         if step.kidnapped:
             self.truth_trail.brk()
         self.truth_trail.add(step.true_pose)
+        if not self.autopilot and any(e.kind == "bump" for e in step.events):
+            self.keyboard.v = 0.0  # the bumper stopped the robot: the command says so too
         self.recent_events.extend(step.events)
         del self.recent_events[:-20]
         truth = step.true_pose
