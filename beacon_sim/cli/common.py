@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Any
+from typing import Any, NoReturn
 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.errors import UsageError
@@ -16,7 +16,7 @@ from beacon_sim.filters.loading import FilterLoadError, parse_set_options, senso
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line and exit status 2 (no usage dump)."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:  # raises instead of exiting
         raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
 
 

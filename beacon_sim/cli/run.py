@@ -17,7 +17,7 @@ def run_command(args: argparse.Namespace) -> int:
     check_duration(args.duration)
     result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
                           params=filter_params(args))
-    print_sensor_notes(args.filters or scenario.default_filters, scenario)
+    print_sensor_notes(list(args.filters or scenario.default_filters), scenario)
     data = result.as_json()
     if args.json:
         print(json.dumps(data, indent=None, default=float))

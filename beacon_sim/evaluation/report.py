@@ -88,14 +88,14 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
                 w.writerow(row)
     written.append(out / "eval.csv")
     with open(out / "eval_runs.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["scenario", "filter", "seed", "pos_rmse_m", "heading_rmse_rad", "anees",
+        rows = csv.writer(fh)
+        rows.writerow(["scenario", "filter", "seed", "pos_rmse_m", "heading_rmse_rad", "anees",
                     "diverged", "recovery_s", "us_per_step", "failed"])
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
                 for p in r["per_run"]:
                     rec = ";".join("inf" if v is None else f"{v:g}" for v in p["recovery_s"])
-                    w.writerow([meta["scenario"], name, p["seed"], p["pos_rmse_m"],
+                    rows.writerow([meta["scenario"], name, p["seed"], p["pos_rmse_m"],
                                 p["heading_rmse_rad"], p["anees"], int(p["diverged"]), rec,
                                 p["us_per_step"], p["failed"] or ""])
     written.append(out / "eval_runs.csv")

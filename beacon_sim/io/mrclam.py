@@ -44,8 +44,8 @@ def read_table(path: Path, ncols: int, columns: str) -> np.ndarray:
     try:
         raw = path.read_bytes().decode("ascii")
     except UnicodeDecodeError as exc:
-        line = path.read_bytes()[: exc.start].count(b"\n") + 1
-        raise MrclamError(f"{path}:{line}: not a text line (byte {exc.start})") from None
+        bad_line = path.read_bytes()[: exc.start].count(b"\n") + 1
+        raise MrclamError(f"{path}:{bad_line}: not a text line (byte {exc.start})") from None
     rows: list[list[float]] = []
     for n, line in enumerate(raw.splitlines(), start=1):
         s = line.strip()

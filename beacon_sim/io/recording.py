@@ -174,8 +174,9 @@ def _check_header(path: Path, header: Any) -> None:
     if version != FORMAT_VERSION:
         raise _fail(path, 1, f"recording format version {version!r} is not supported by "
                              f"beacon-sim {__version__} (it reads version {FORMAT_VERSION})")
-    need = {"scenario_toml": str, "scenario_name": str, "seed": int, "dt": (int, float),
-            "filters": list, "params": dict}
+    need: dict[str, type | tuple[type, ...]] = {
+        "scenario_toml": str, "scenario_name": str, "seed": int, "dt": (int, float),
+        "filters": list, "params": dict}
     for key, typ in need.items():
         if not isinstance(header.get(key), typ) or isinstance(header.get(key), bool):
             raise _fail(path, 1, f"corrupted header: {key} = {header.get(key)!r}")

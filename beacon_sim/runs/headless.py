@@ -17,7 +17,7 @@ from beacon_sim.core.metrics import summary
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Step
-from beacon_sim.filters.base import FilterError
+from beacon_sim.filters.base import Filter, FilterError
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 from beacon_sim.filters.runner import FilterRunner
 
@@ -101,7 +101,7 @@ def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int
     seed = scenario.seed if seed is None else seed
     duration = scenario.duration if duration is None else duration
     specs = list(scenario.default_filters if filters is None else filters)
-    built: dict[str, object] = {}
+    built: dict[str, Filter | None] = {}
     broken: dict[str, tuple[str, str]] = {}
     for name, spec in zip(filter_names(specs), specs, strict=True):
         try:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Set
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,7 +30,7 @@ from beacon_sim.core.scenario import InitialBelief, Scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement
 from beacon_sim.core.world import World
-from beacon_sim.filters.base import Belief, GaussianBelief
+from beacon_sim.filters.base import Belief, Filter, GaussianBelief
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
 from beacon_sim.runs.scene import FilterStatus, Trail
 
@@ -169,7 +170,7 @@ def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: f
     if not ok[0]:
         raise MrclamError(f"{data.folder}: no ground truth at the start of robot {data.robot}'s "
                           f"odometry (t = {t_start:.3f}); cannot set the initial belief")
-    init = tuple(float(v) for v in pose[0])
+    init = (float(pose[0, 0]), float(pose[0, 1]), float(pose[0, 2]))
     sensor = SensorSpec(name=SENSOR_NAME, kind="range_bearing", period=cal.step_dt, noise=cal.sensor)
     return Scenario(
         name=f"mrclam_{data.folder.name}_robot{data.robot}",
@@ -192,7 +193,7 @@ class MrclamTrack:
     """One filter's estimates at the event times (every odometry row and every update)."""
 
     name: str
-    filter: object
+    filter: Filter
     times: list[float] = field(default_factory=list)
     means: list[np.ndarray] = field(default_factory=list)
     covs: list[np.ndarray] = field(default_factory=list)
@@ -371,7 +372,8 @@ class MrclamPlayback:
         self.scenario = sc = run.scenario
         self.names = list(run.tracks)
         self.specs: list[str] = []
-        self.seed, self.params, self.autopilot = 0, {}, False
+        self.seed, self.autopilot = 0, False
+        self.params: dict[str, dict[str, Any]] = {}
         self.visible = {n: True for n in self.names}
         self.status = {n: FilterStatus(n) for n in self.names}
         dt = sc.dt
@@ -408,7 +410,7 @@ class MrclamPlayback:
     def drive_mode(self) -> str:
         return f"MRCLAM {self.run.data.folder.name} robot {self.run.data.robot}"
 
-    def seek(self, tick: int, keep_flips: set[str] = frozenset()) -> None:
+    def seek(self, tick: int, keep_flips: Set[str] = frozenset()) -> None:
         """Jump to ``tick``; the trails are rebuilt from the start (cheap: lookups only).
         Shown / hidden filters stay as they are (``keep_flips`` is for rebuilt scenes)."""
         self.k = min(max(int(tick), 0), self.total_ticks)

@@ -14,7 +14,7 @@ import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from beacon_sim import __version__
 from beacon_sim.core.scenario import Scenario
@@ -68,7 +68,7 @@ class Recorder:
         self._expected_tick: int | None = None
         self._warned_gap = False
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = self.path.open("w", encoding="utf-8", newline="\n")
+        self._file: TextIO | None = self.path.open("w", encoding="utf-8", newline="\n")
         header = {
             "type": "header", "format": FORMAT_NAME, "version": FORMAT_VERSION,
             "program_version": __version__,

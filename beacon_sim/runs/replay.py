@@ -8,10 +8,12 @@ time, for the window. The file format is beacon_sim/io/recording.py (and docs/re
 from __future__ import annotations
 
 import time
+from collections.abc import Set
 from typing import Any
 
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, Step
+from beacon_sim.filters.base import Filter
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 from beacon_sim.filters.runner import FilterRunner
 from beacon_sim.io.recording import Recording, RecordingError
@@ -55,9 +57,9 @@ def skipped_note(spec: str) -> str:
 
 
 def build_filters(specs: list[str], recording: Recording,
-                  params: dict[str, dict[str, Any]] | None = None) -> dict[str, object]:
+                  params: dict[str, dict[str, Any]] | None = None) -> dict[str, Filter]:
     """Construct the filters for a replay, named as a headless run names them."""
-    built: dict[str, object] = {}
+    built: dict[str, Filter] = {}
     for name, spec in zip(filter_names(specs), specs, strict=True):
         built[name] = build_filter(spec, recording.scenario, recording.seed, name=name,
                                    params=(params or {}).get(filter_display_name(spec)))
@@ -165,7 +167,7 @@ class ReplaySession(Session):
             return Control()
         return ticks[min(self.sim.tick, len(ticks) - 1)].control
 
-    def seek(self, tick: int, keep_flips: set[str] = frozenset()) -> None:
+    def seek(self, tick: int, keep_flips: Set[str] = frozenset()) -> None:
         """Show the run at ``tick``: forward by running the ticks in between, backward by
         rebuilding the simulation and the filters and re-simulating from the start (the
         recording holds no generator state). ``keep_flips``: filters the user showed / hid,

@@ -17,11 +17,12 @@ from collections.abc import Iterable, Mapping
 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.filters.base import Filter
 from beacon_sim.filters.loading import reset_filter
 from beacon_sim.io.recording import validate_command
 
 
-def apply_commands(commands: Iterable[Mapping], sim: Simulation, filters: Mapping[str, object],
+def apply_commands(commands: Iterable[Mapping], sim: Simulation, filters: Mapping[str, Filter],
                    scenario: Scenario) -> None:
     """Apply user commands to the simulation and the filters (``name -> filter``)."""
     for cmd in commands:
