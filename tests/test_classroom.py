@@ -180,3 +180,33 @@ def test_the_bumper_leaves_a_run_that_never_touches_a_wall_alone():
     sc = load_scenario("krejsa_bearing_only")
     r = run_headless(sc, [], duration=20.0)
     assert not [e for s in r.steps for e in s.events if e.kind == "bump"]
+
+
+def test_q_asks_before_quitting_and_backspace_clears_the_trails():
+    sc = load_scenario("default")
+    app = App(Session(sc, ["ekf"]), (1024, 768), scripted=True)
+    try:
+        app.session.toggle_autopilot()
+        app.run(120)
+        assert app.session.truth_trail.n > 2
+        app.act("clear_trails")
+        assert app.session.truth_trail.n == 1
+        app.act("quit")
+        assert app.running and "Quit?" in app.banner_text
+        app.act("quit")
+        assert not app.running
+        assert app.view.area[2] > 0.65 * 1024  # at 1024x768 the room gets most of the width
+    finally:
+        app.close()
+
+
+def test_without_a_display_play_says_so_in_one_line_and_exits_2(monkeypatch, capsys):
+    from beacon_sim.cli.main import main
+
+    monkeypatch.delenv("SDL_VIDEODRIVER", raising=False)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    assert main(["play", "default", "--no-record"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "display" in err[0]

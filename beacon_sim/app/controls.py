@@ -52,12 +52,15 @@ BINDINGS: tuple[Binding, ...] = (
     Binding("K", _k("K_k"), "kidnap_random", "kidnap the robot to a random pose", group="World"),
     Binding("Left click", (), "kidnap_click", "kidnap to that point (drag: heading)",
             group="World", button=1),
-    Binding("R", _k("K_r"), "reset", "filters back to the initial belief", group="Filters"),
+    Binding("R", _k("K_r"), "reset", "filters back to the initial belief (clears trails)",
+            group="Filters"),
     Binding("G", _k("K_g"), "global_reset", "global (uniform) belief where possible",
             group="Filters"),
     Binding("1-9", FILTER_KEYS, "toggle*", "show / hide filter 1-9", group="Filters"),
     Binding("P", _k("K_p"), "particles", "particles on / off", group="Show"),
     Binding("T", _k("K_t"), "trails", "trails on / off", group="Show"),
+    Binding("Backspace", _k("K_BACKSPACE", "K_DELETE"), "clear_trails", "clear the trails",
+            group="Show"),
     Binding("E", _k("K_e"), "ellipses", "95 % ellipses and heading wedges on / off",
             group="Show"),
     Binding("C", _k("K_c"), "chart", "strip chart: error and 2 sigma over the last 60 s",
@@ -67,7 +70,9 @@ BINDINGS: tuple[Binding, ...] = (
     Binding("F", _k("K_f"), "fit", "fit the world to the window", group="View"),
     Binding("F12", _k("K_F12"), "screenshot", "save a screenshot (PNG)", group="View"),
     Binding("H / F1", _k("K_h", "K_F1"), "help", "this help on / off", group="View"),
-    Binding("Esc / Q", _k("K_ESCAPE", "K_q"), "quit", "quit", group="View"),
+    Binding("F11", _k("K_F11"), "fullscreen", "fullscreen on / off", group="View"),
+    Binding("Esc / Q", _k("K_ESCAPE", "K_q"), "quit", "quit (press twice: asks first)",
+            group="View"),
 )
 
 #: Replaying a recording: the run is fixed, so driving, kidnaps and resets are gone; the

@@ -33,6 +33,7 @@ from beacon_sim.runs.live import Session, make_recorder
 #: Frame time a scripted (``--frames``) session pretends each frame took [s].
 SCRIPTED_FRAME_S = 1.0 / 60.0
 BANNER_S = 2.5
+QUIT_CONFIRM_S = 3.0  # a second Q or Esc within this time quits [s]
 DRIVE_KEYS = {"faster": "w", "slower": "s", "left": "a", "right": "d", "stop": "x"}
 
 
@@ -76,6 +77,7 @@ class App:
         self.frames = 0
         self.banner_text = ""
         self.banner_until = -1.0
+        self.quit_armed_until = -1.0
         self.now = 0.0  # real (or scripted) seconds since start
         self.frame_times: deque[float] = deque(maxlen=60)
         self.drag_start: tuple[int, int] | None = None
@@ -129,7 +131,7 @@ class App:
         self.fonts = load_fonts(H)
         self.renderer = WorldRenderer(self.fonts)
         self.hud = Hud(self.fonts, self.MODE)
-        pw = int(min(max(W * 0.3, 360), 480))
+        pw = int(min(max(W * 0.27, 300), 480))  # the room gets most of the width
         self.panel_rect = pygame.Rect(W - pw, 0, pw, H)
         area = self.world_area(W - pw, H)
         if self.show.chart:  # the strip chart takes the bottom ~30 % of the world's area
@@ -199,6 +201,7 @@ class App:
             s.command({"kind": "kidnap"})
         elif action in ("reset", "global_reset"):
             s.command({"kind": action})
+            self.clear_trails()
             self.flash("filters reset" if action == "reset" else "global belief")
         elif action.startswith("toggle"):
             i = int(action[len("toggle"):]) - 1
@@ -221,10 +224,37 @@ class App:
             self.flash(f"saved {path}")
         elif action == "help":
             self.help = not self.help
-        elif action == "quit":
-            self.running = False
+        elif action == "quit":  # Q sits beside W and A: one press only asks
+            if self.now < self.quit_armed_until:
+                self.running = False
+            else:
+                self.quit_armed_until = self.now + QUIT_CONFIRM_S
+                self.flash("Quit? Press Q or Esc again")
+        elif action == "clear_trails":
+            self.clear_trails()
+        elif action == "fullscreen":
+            try:
+                pygame.display.toggle_fullscreen()
+            except pygame.error as exc:
+                self.flash(f"fullscreen: {exc}")
+            self.screen = pygame.display.get_surface()
+            self._layout(self.screen.get_size())
         else:
             raise ValueError(f"no handler for the action {action!r}")
+
+    def clear_trails(self) -> None:
+        """Forget every trail (the truth's and the filters'), keep the current points."""
+        s = self.session
+        s.truth_trail.__init__(s.truth_trail.min_step, s.truth_trail.max_points)
+        s.truth_trail.add(s.true_pose)
+        for name, tr in s.trails.items():
+            tr.__init__(tr.min_step, tr.max_points)
+            try:
+                est = s.estimate(name)
+            except Exception:
+                est = None
+            if est is not None:
+                tr.add(est[0])
 
     def kidnap_at(self, start_px, end_px) -> None:
         """Left click: kidnap to the clicked point; a drag sets the heading (else keep it)."""
@@ -317,6 +347,23 @@ class App:
         pygame.display.quit()
 
 
+def check_display() -> None:
+    """Raise ``UsageError`` (one line, exit 2) when no window can open: on Linux, no X or
+    Wayland display and no SDL video driver chosen (a window would run invisibly)."""
+    from beacon_sim.errors import UsageError
+
+    if os.environ.get("SDL_VIDEODRIVER"):
+        return
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        raise UsageError("no display to open a window on (DISPLAY is not set); for a headless"
+                         " window set SDL_VIDEODRIVER=dummy, or use beacon-sim run")
+    try:
+        pygame.display.init()
+    except pygame.error as exc:
+        raise UsageError(f"cannot open a window: {exc}") from None
+
+
 @dataclass(frozen=True)
 class PlayOptions:
     """What ``beacon-sim play`` opens (the command line checks and builds these)."""
@@ -335,6 +382,7 @@ class PlayOptions:
 def play(options: PlayOptions) -> int:
     """Open the window on a live session; returns the exit status."""
     o = options
+    check_display()
     recorder, rec_path = (None, None)
     if o.record:
         recorder, rec_path = make_recorder(o.scenario, o.seed, o.filters, o.params)

@@ -349,15 +349,21 @@ class WorldRenderer:
             light = np.asarray(weights) < 0.5 / max(len(poses), 1)
             if light.any():
                 layers = [(ok & light, palette.lighten(colour, 0.6)), (ok & ~light, colour)]
+        # Blocks of 3x3 px up to 20,000 particles (visible on a projector), 2x2 above.
+        big = len(poses) <= 20_000
+        if big:
+            ok &= (ix < clip.right - 2) & (iy < clip.bottom - 2)
+            layers = [(m & ok, c) for m, c in layers]
+        offsets = [(0, 0), (1, 0), (0, 1), (1, 1)]
+        if big:
+            offsets += [(2, 0), (2, 1), (0, 2), (1, 2), (2, 2)]
         arr = pygame.surfarray.pixels2d(surf)
         try:
             for mask, col in layers:
                 x, y = ix[mask], iy[mask]
                 value = surf.map_rgb(col)
-                arr[x, y] = value
-                arr[x + 1, y] = value
-                arr[x, y + 1] = value
-                arr[x + 1, y + 1] = value
+                for dx, dy in offsets:
+                    arr[x + dx, y + dy] = value
         finally:
             del arr
 
