@@ -113,8 +113,7 @@ class Hud:
                            (x + int(w * 0.66), y), bg=palette.WARN if out else None)
                 y += f["small"].get_linesize()
                 if math.isfinite(st.pos_sigma):
-                    sig = (f"sigma {st.pos_sigma:5.2f} m {math.degrees(st.heading_sigma):6.1f} deg"
-                           f"   2sig {2 * st.pos_sigma:.2f}")
+                    sig = f"sigma {st.pos_sigma:5.2f} m {math.degrees(st.heading_sigma):6.1f} deg"
                     self._blit(surf, sig, "small", palette.TEXT_DIM, (x + 10, y))
                     y += f["small"].get_linesize()
                 y += 4
@@ -126,7 +125,7 @@ class Hud:
         pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
         y += 6
         legend = [
-            f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 2 dof = {ELLIPSE_SCALE2:.2f})",
+            f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 = {ELLIPSE_SCALE2:.2f})",
             "wedge: heading +-2 sigma",
             f"NEES band 95 %: {NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}",
             "black outline: true robot; line: path",
