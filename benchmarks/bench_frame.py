@@ -1,7 +1,8 @@
 """Frame time of the window, headless (SDL dummy driver), at 1280x800.
 
-Runs the default scenario on autopilot at x1 with ekf + ukf + pf + histogram all drawn (the
-ones that are installed) and the strip chart (C) on, and prints the median and 99th percentile of the frame time: events,
+Runs the default scenario on autopilot at x1 with ekf + ukf + pf + histogram all drawn
+(the ones that are installed) and the strip chart (C) on, and prints the median and 99th
+percentile of the frame time: events,
 the simulation ticks due (dt = 0.05 s: one tick every third frame), every filter's update,
 drawing and flip. Targets on the 2-core machine: p99 <= 16.7 ms (60 FPS) with 10,000
 particles; median <= 33 ms with 100,000.
