@@ -3,6 +3,28 @@
 Layers (see docs/architecture.md): ``beacon_sim.core`` (plain numpy, no pygame),
 ``beacon_sim.filters`` (Bayesian filters on top of the core) and the front end
 (``beacon_sim.app`` and ``beacon_sim.cli``), the only place pygame is imported.
+
+The Python API (docs/python-api.md) is the names in ``__all__``, defined in
+``beacon_sim.api`` and loaded on first use, so ``import beacon_sim.core`` stays light and the
+lower layers that read ``__version__`` never load the upper ones::
+
+    import beacon_sim as bs
+    run = bs.run("default", ["ekf", "pf"], seed=3, duration=30)
 """
 
 __version__ = "0.1.0"
+
+__all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "__version__",
+           "load_scenario", "replay", "run"]
+
+
+def __getattr__(name: str):
+    if name in __all__:
+        import importlib
+
+        return getattr(importlib.import_module("beacon_sim.api"), name)
+    raise AttributeError(f"module 'beacon_sim' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

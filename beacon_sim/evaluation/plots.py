@@ -1,7 +1,10 @@
-"""PNG plots of an evaluation (matplotlib, the optional ``plot`` extra).
+"""Plots of an evaluation (matplotlib, the optional ``plot`` extra).
 
-matplotlib is imported inside the functions: without it, :func:`available` is False and
-the command says how to install it and skips the plots.
+The ``*_figure`` functions build and return a :class:`matplotlib.figure.Figure`; the
+``plot_*`` functions write it to a PNG. Neither imports pyplot, switches matplotlib's
+backend or leaves a figure open, so a notebook's or a script's own matplotlib setup is left
+as it was. matplotlib is imported inside the functions: without it, :func:`available` is
+False and the command says how to install it and skips the plots.
 """
 
 from __future__ import annotations
@@ -23,13 +26,11 @@ def available() -> bool:
     return True
 
 
-def _pyplot():
-    import matplotlib
+def _figure(figsize: tuple[float, float]):
+    """A new figure owned by nobody but the caller (no pyplot, no backend switch)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")  # files only, never a window
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(figsize=figsize, layout="tight")
 
 
 def _mark_kidnaps(ax, curves: dict[str, Any]) -> None:
@@ -38,18 +39,16 @@ def _mark_kidnaps(ax, curves: dict[str, Any]) -> None:
         ax.axvline(k, color="r", lw=0.8, ls="--")
 
 
-def _save(plt, fig, path: Path) -> Path:
-    """Lay out, write the PNG and free the figure."""
-    fig.tight_layout()
+def _save(fig, path: Path) -> Path:
+    """Write the PNG (matplotlib's Agg renderer, whatever the current backend)."""
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
-def plot_trajectories(scenario, curves: dict[str, Any], path: Path) -> Path:
-    """The first run's true path, each filter's estimate and the beacons [m]."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 5.5))
+def trajectories_figure(scenario, curves: dict[str, Any]):
+    """The first run's true path, each filter's estimate and the beacons [m], world frame."""
+    fig = _figure((7, 5.5))
+    ax = fig.subplots()
     b = scenario.world.beacon_xy
     ax.plot(b[:, 0], b[:, 1], "k^", ms=8, label="beacons")
     t = curves["truth0"]
@@ -65,13 +64,13 @@ def plot_trajectories(scenario, curves: dict[str, Any], path: Path) -> Path:
     ax.set_ylabel("y [m]")
     ax.set_title(f"{scenario.name}: trajectories (first run)")
     ax.legend(loc="best", fontsize=8)
-    return _save(plt, fig, path)
+    return fig
 
 
-def plot_errors(scenario, curves: dict[str, Any], path: Path) -> Path:
-    """Error against time per axis (first run) with each filter's +-3 sigma."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+def errors_figure(scenario, curves: dict[str, Any]):
+    """Error against time [s] per axis (first run) with each filter's +-3 sigma and the PCRB's."""
+    fig = _figure((8, 7))
+    axes = fig.subplots(3, 1, sharex=True)
     t = curves["time"]
     labels = ("x error [m]", "y error [m]", "heading error [rad]")
     for name, c in curves["filters"].items():
@@ -92,13 +91,13 @@ def plot_errors(scenario, curves: dict[str, Any], path: Path) -> Path:
     axes[0].legend(loc="upper right", fontsize=7)
     axes[0].set_title(f"{scenario.name}: error and +-3 sigma (shaded), first run")
     axes[-1].set_xlabel("time [s]")
-    return _save(plt, fig, path)
+    return fig
 
 
-def plot_nees(scenario, curves: dict[str, Any], path: Path, runs: int) -> Path:
-    """NEES averaged over runs against time, with the 95 % chi-square band for 3 dof."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4))
+def nees_figure(scenario, curves: dict[str, Any], runs: int):
+    """NEES averaged over ``runs`` runs against time [s], with the 95 % chi-square band."""
+    fig = _figure((8, 4))
+    ax = fig.subplots()
     t = curves["time"]
     lo, hi = curves["nees_band"]
     for name, c in curves["filters"].items():
@@ -111,13 +110,13 @@ def plot_nees(scenario, curves: dict[str, Any], path: Path, runs: int) -> Path:
     ax.set_ylabel("NEES (mean over runs)")
     ax.set_title(f"{scenario.name}: NEES against time")
     ax.legend(loc="upper right", fontsize=8)
-    return _save(plt, fig, path)
+    return fig
 
 
-def plot_rmse_pcrb(scenario, curves: dict[str, Any], path: Path) -> Path:
-    """Position RMSE over runs against time beside the PCRB (best any unbiased filter)."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4))
+def rmse_pcrb_figure(scenario, curves: dict[str, Any]):
+    """Position RMSE [m] over runs against time [s] beside the PCRB (best any unbiased filter)."""
+    fig = _figure((8, 4))
+    ax = fig.subplots()
     t = curves["time"]
     for name, c in curves["filters"].items():
         ax.plot(t, c["rmse_t"], lw=0.9, label=name)
@@ -128,7 +127,27 @@ def plot_rmse_pcrb(scenario, curves: dict[str, Any], path: Path) -> Path:
     ax.set_ylabel("position RMSE [m]")
     ax.set_title(f"{scenario.name}: RMSE beside the posterior Cramer-Rao bound")
     ax.legend(loc="upper right", fontsize=8)
-    return _save(plt, fig, path)
+    return fig
+
+
+def plot_trajectories(scenario, curves: dict[str, Any], path: Path) -> Path:
+    """:func:`trajectories_figure` as a PNG at ``path``."""
+    return _save(trajectories_figure(scenario, curves), path)
+
+
+def plot_errors(scenario, curves: dict[str, Any], path: Path) -> Path:
+    """:func:`errors_figure` as a PNG at ``path``."""
+    return _save(errors_figure(scenario, curves), path)
+
+
+def plot_nees(scenario, curves: dict[str, Any], path: Path, runs: int) -> Path:
+    """:func:`nees_figure` as a PNG at ``path``."""
+    return _save(nees_figure(scenario, curves, runs), path)
+
+
+def plot_rmse_pcrb(scenario, curves: dict[str, Any], path: Path) -> Path:
+    """:func:`rmse_pcrb_figure` as a PNG at ``path``."""
+    return _save(rmse_pcrb_figure(scenario, curves), path)
 
 
 def plot_all(scenario, curves: dict[str, Any], out: Path, runs: int) -> list[Path]:

@@ -1,4 +1,5 @@
-"""A recording as flat arrays for a notebook: ``.npz`` or ``.csv`` (``beacon-sim export``).
+"""A run as flat arrays for a notebook: ``.npz`` or ``.csv`` (``beacon-sim export``); the
+same arrays feed the MCAP export (:mod:`beacon_sim.io.mcap`).
 
 Frames and units as everywhere: world frame, metres, radians, seconds.
 """
@@ -7,27 +8,29 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
+from beacon_sim.filters.runner import FilterTrack
 from beacon_sim.io.recording import Recording
 
 
-def trace_arrays(recording: Recording, steps: list[Step]) -> dict[str, np.ndarray]:
-    """A recording and its re-simulated ``steps`` (:func:`beacon_sim.runs.replay.replay_recording`
-    with no filters) as flat arrays.
+def step_arrays(scenario: Scenario, steps: Sequence[Step]) -> dict[str, np.ndarray]:
+    """Simulated ``steps`` (ticks 1..T of a run of ``scenario``) as flat arrays.
 
     Keys: ``truth_tick`` (T+1,), ``truth_time`` (T+1,) [s], ``truth`` (T+1, 3) [m, m, rad]
     (row 0 is the initial pose); ``control`` (T, 2) [m/s, rad/s] for ticks 1..T;
     ``meas_tick``, ``meas_time``, ``meas_sensor``, ``meas_kind``, ``meas_beacon_id`` (-1 for a
     fix), ``meas_z`` (M, 3) NaN-padded (bearing [rad]; range, bearing [m, rad]; pose x, y,
     theta; position x, y), ``meas_hdop``; ``event_tick``, ``event_time``, ``event_kind``,
-    ``event_detail``, ``event_pose_before``, ``event_pose_after`` (E, 3; NaN when not a kidnap);
-    ``command_tick``, ``command_json``; ``header_json`` (the recording's header).
+    ``event_detail``, ``event_pose_before``, ``event_pose_after`` (E, 3; NaN when not a kidnap).
+    All in the world frame.
     """
-    sc = recording.scenario
+    sc = scenario
     truth = np.vstack([np.array(sc.initial_pose, dtype=float)] + [s.true_pose for s in steps])
     ticks = np.arange(len(steps) + 1)
     out: dict[str, np.ndarray] = {
@@ -64,6 +67,43 @@ def trace_arrays(recording: Recording, steps: list[Step]) -> dict[str, np.ndarra
                                          for e in ev], dtype=float).reshape(-1, 3)
     out["event_pose_after"] = np.array([nan3 if e.pose_after is None else e.pose_after
                                         for e in ev], dtype=float).reshape(-1, 3)
+    return out
+
+
+def filter_arrays(tracks: Mapping[str, FilterTrack], n_ticks: int) -> dict[str, np.ndarray]:
+    """Each filter's estimates over ticks 1..``n_ticks`` as arrays, one row per tick.
+
+    Keys: ``filter_names`` (F,); ``est_mean`` (F, T, 3) [m, m, rad] and ``est_cov``
+    (F, T, 3, 3) in the world frame, row ``k - 1`` for tick ``k``, NaN on ticks without an
+    estimate (after the filter was switched off); ``filter_failed`` (F,) why it was switched
+    off ("" when it ran to the end).
+    """
+    names = list(tracks)
+    mean = np.full((len(names), n_ticks, 3), np.nan)
+    cov = np.full((len(names), n_ticks, 3, 3), np.nan)
+    for i, tr in enumerate(tracks.values()):
+        if tr.ticks:
+            rows = np.asarray(tr.ticks, dtype=int) - 1
+            mean[i, rows] = np.asarray(tr.means, dtype=float)
+            cov[i, rows] = np.asarray(tr.covs, dtype=float)
+    return {"filter_names": np.array(names, dtype=str).reshape(len(names)),
+            "est_mean": mean, "est_cov": cov,
+            "filter_failed": np.array([tr.failed or "" for tr in tracks.values()],
+                                      dtype=str).reshape(len(names))}
+
+
+def trace_arrays(recording: Recording, steps: Sequence[Step],
+                 tracks: Mapping[str, FilterTrack] | None = None) -> dict[str, np.ndarray]:
+    """A recording, its re-simulated ``steps`` and the filters' ``tracks``
+    (:func:`beacon_sim.runs.replay.replay_recording`) as flat arrays.
+
+    Keys: those of :func:`step_arrays`, of :func:`filter_arrays` (when ``tracks`` is given),
+    and ``command_tick``, ``command_json`` (the user's commands), ``header_json`` (the
+    recording's header).
+    """
+    out = step_arrays(recording.scenario, steps)
+    if tracks is not None:
+        out.update(filter_arrays(tracks, len(steps)))
     cmds = [(r.tick, json.dumps(c)) for r in recording.ticks for c in r.commands]
     out["command_tick"] = np.array([t for t, _ in cmds], dtype=int)
     out["command_json"] = np.array([c for _, c in cmds], dtype=str)
@@ -72,15 +112,35 @@ def trace_arrays(recording: Recording, steps: list[Step]) -> dict[str, np.ndarra
 
 
 def csv_paths(out: Path) -> dict[str, Path]:
-    """The three files a ``.csv`` export writes: ``X.csv`` (one row per tick: truth and
-    control), ``X.measurements.csv`` and ``X.events.csv``."""
+    """The files a ``.csv`` export writes: ``X.csv`` (one row per tick: truth and control),
+    ``X.measurements.csv``, ``X.events.csv`` and, when filters ran, ``X.estimates.csv`` (one
+    row per filter and tick)."""
     stem = out.with_suffix("")
     return {"ticks": out, "measurements": Path(f"{stem}.measurements.csv"),
-            "events": Path(f"{stem}.events.csv")}
+            "events": Path(f"{stem}.events.csv"), "estimates": Path(f"{stem}.estimates.csv")}
+
+
+#: The covariance columns of ``X.estimates.csv``: the upper triangle of the 3 x 3 matrix.
+COV_COLUMNS = ("cov_xx", "cov_xy", "cov_xt", "cov_yy", "cov_yt", "cov_tt")
+_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
 def write_csv(arrays: dict[str, np.ndarray], out: Path) -> list[Path]:
     paths = csv_paths(out)
+    if "filter_names" not in arrays:
+        del paths["estimates"]
+    else:
+        with paths["estimates"].open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["tick", "time_s", "filter", "x_m", "y_m", "theta_rad", *COV_COLUMNS])
+            for i, name in enumerate(arrays["filter_names"]):
+                for k in range(arrays["est_mean"].shape[1]):
+                    m, c = arrays["est_mean"][i, k], arrays["est_cov"][i, k]
+                    if np.isnan(m).all():
+                        continue  # no estimate on this tick (the filter was switched off)
+                    w.writerow([k + 1, repr(float(arrays["truth_time"][k + 1])), str(name),
+                                *(repr(float(v)) for v in m),
+                                *(repr(float(c[a, b])) for a, b in _UPPER)])
     with paths["ticks"].open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["tick", "time_s", "x_m", "y_m", "theta_rad", "v_mps", "omega_radps"])
@@ -114,7 +174,7 @@ def write_export(arrays: dict[str, np.ndarray], out: Path) -> list[Path]:
     """Write ``arrays`` to ``out`` (``.npz``: one compressed file; ``.csv``: three files, see
     :func:`csv_paths`); returns the files written."""
     if out.suffix == ".npz":
-        np.savez_compressed(out, **arrays)
+        np.savez_compressed(out, allow_pickle=False, **arrays)
         return [out]
     if out.suffix == ".csv":
         return write_csv(arrays, out)
