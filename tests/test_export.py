@@ -1,4 +1,5 @@
-"""``beacon-sim export``: a recording as arrays (.npz) or CSV, round-tripping exactly."""
+"""``beacon-sim export``: a recording (or a headless run) as arrays (.npz) or CSV, with the
+filters' estimates, round-tripping exactly."""
 
 from __future__ import annotations
 
@@ -19,12 +20,12 @@ def recorded(tmp_path):
     p = tmp_path / "rec_test.toml"
     p.write_text(SCENARIO)
     out = tmp_path / "run.jsonl"
-    steps, _, _, _ = live_run(p, out, ticks=160)
-    return out, steps
+    steps, runner, _, _ = live_run(p, out, ticks=160)
+    return out, steps, runner  # runner: the live filters, to compare with the replayed ones
 
 
 def test_npz_round_trip(recorded, tmp_path):
-    rec_path, steps = recorded
+    rec_path, steps, live = recorded
     out = tmp_path / "trace.npz"
     assert main(["export", str(rec_path), "--out", str(out)]) == 0
     with np.load(out, allow_pickle=False) as z:  # plain arrays, no pickled objects
@@ -52,10 +53,18 @@ def test_npz_round_trip(recorded, tmp_path):
     np.testing.assert_array_equal(a["event_pose_after"][i], [3.0, 7.0, -2.5])
     assert [json.loads(c)["kind"] for c in a["command_json"]] == ["kidnap", "reset", "kidnap", "toggle"]
     assert json.loads(str(a["header_json"]))["seed"] == 11
+    # the recorded filters, replayed: their estimates are the live ones, bit for bit
+    assert list(a["filter_names"]) == ["ekf", "dead_reckoning"]
+    assert a["est_mean"].shape == (2, 160, 3) and a["est_cov"].shape == (2, 160, 3, 3)
+    for i, name in enumerate(a["filter_names"]):
+        track = live.tracks[str(name)]
+        np.testing.assert_array_equal(a["est_mean"][i], np.array(track.means))
+        np.testing.assert_array_equal(a["est_cov"][i], np.array(track.covs))
+    assert list(a["filter_failed"]) == ["", ""]
 
 
 def test_csv_round_trip(recorded, tmp_path):
-    rec_path, steps = recorded
+    rec_path, steps, live = recorded
     out = tmp_path / "trace.csv"
     assert main(["export", str(rec_path), "--out", str(out)]) == 0
     paths = csv_paths(out)
@@ -75,9 +84,32 @@ def test_csv_round_trip(recorded, tmp_path):
     with paths["events"].open() as f:
         events = list(csv.DictReader(f))
     assert [int(e["tick"]) for e in events] == [40, 120, 130]
+    with paths["estimates"].open() as f:
+        est = list(csv.DictReader(f))
+    assert len(est) == 2 * 160 and {e["filter"] for e in est} == {"ekf", "dead_reckoning"}
+    ekf = [e for e in est if e["filter"] == "ekf"]
+    track = live.tracks["ekf"]
+    np.testing.assert_array_equal([[float(e[k]) for k in ("x_m", "y_m", "theta_rad")] for e in ekf],
+                                  np.array(track.means))
+    np.testing.assert_array_equal([float(e["cov_xy"]) for e in ekf], np.array(track.covs)[:, 0, 1])
+
+
+def test_export_of_a_headless_run_equals_run_api(tmp_path, capsys):
+    """A scenario instead of a recording: the run ``beacon-sim run`` would make, filters chosen."""
+    import beacon_sim as bs
+
+    out = tmp_path / "run.npz"
+    assert main(["export", "default", "--filter", "ekf", "--filter", "pf", "--set", "pf.n_particles=200",
+                 "--seed", "4", "--duration", "3", "--out", str(out)]) == 0
+    r = bs.run("default", ["ekf", "pf"], seed=4, duration=3, params={"pf": {"n_particles": 200}})
+    with np.load(out) as z:
+        np.testing.assert_array_equal(z["truth"], r.truth)
+        np.testing.assert_array_equal(z["est_mean"][1], r.estimates["pf"])
+        assert "header_json" not in z.files
+    assert main(["export", str(out), "--seed", "1", "--out", str(tmp_path / "x.npz")]) == 2
 
 
 def test_export_rejects_unknown_suffix(recorded, tmp_path, capsys):
-    rec_path, _ = recorded
+    rec_path, _, _ = recorded
     assert main(["export", str(rec_path), "--out", str(tmp_path / "x.txt")]) == 2
-    assert ".npz or .csv" in capsys.readouterr().err
+    assert ".npz, .csv or .mcap" in capsys.readouterr().err

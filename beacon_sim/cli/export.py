@@ -1,29 +1,65 @@
-"""``beacon-sim export FILE --out trace.npz|trace.csv``: a recording as arrays."""
+"""``beacon-sim export FILE --out run.npz|run.csv|run.mcap``: a recording, or a headless run of
+a scenario, as arrays (with every filter's estimates) or as an MCAP file for Foxglove."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
+from beacon_sim.cli.common import check_duration, filter_params, print_failures
 from beacon_sim.cli.replay import load
+from beacon_sim.core.scenario import load_scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.io.export import trace_arrays, write_export
-from beacon_sim.runs.replay import ReplayMismatch, replay_recording
+from beacon_sim.io.export import filter_arrays, step_arrays, trace_arrays, write_export
+from beacon_sim.runs.headless import run_headless
+from beacon_sim.runs.replay import ReplayMismatch, replay_recording, skipped_note
+
+SUFFIXES = (".npz", ".csv", ".mcap")
+
+
+def is_recording(file: str) -> bool:
+    """A recording is an existing file that is not a scenario (``.toml``); anything else is
+    a scenario name or path."""
+    p = Path(file)
+    return p.is_file() and p.suffix != ".toml"
 
 
 def export_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
-    if out.suffix not in (".npz", ".csv"):
-        raise UsageError(f"--out {out}: expected a .npz or .csv file name")
+    if out.suffix not in SUFFIXES:
+        raise UsageError(f"--out {out}: expected a .npz, .csv or .mcap file name")
     if not out.parent.is_dir():
         raise UsageError(f"--out {out}: no such folder {out.parent}")
-    recording = load(args.file)
-    try:
-        steps = replay_recording(recording, filters=[]).steps
-    except ReplayMismatch as exc:
-        raise UsageError(str(exc)) from None
-    arrays = trace_arrays(recording, steps)
-    written = write_export(arrays, out)
+    check_duration(args.duration)
+    if is_recording(args.file):
+        if args.seed is not None or args.duration is not None:
+            raise UsageError("--seed and --duration are for a scenario; a recording has its own")
+        recording = load(args.file)
+        try:
+            result = replay_recording(recording, args.filters, filter_params(args))
+        except ReplayMismatch as exc:
+            raise UsageError(str(exc)) from None
+        for spec in result.extra["replay"]["skipped_filters"]:
+            print(skipped_note(spec), file=sys.stderr)
+        arrays = trace_arrays(recording, result.steps, result.runner.tracks)
+    else:
+        scenario = load_scenario(args.file)
+        result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
+                              params=filter_params(args))
+        arrays = step_arrays(scenario, result.steps)
+        arrays.update(filter_arrays(result.runner.tracks, len(result.steps)))
+    print_failures(result.runner.tracks.values())
+    if out.suffix == ".mcap":
+        try:
+            from beacon_sim.io.mcap import write_mcap
+            written = [write_mcap(out, result.scenario, arrays,
+                                  {"seed": str(result.seed), "truth_checksum": result.truth_checksum})]
+        except ImportError as exc:
+            raise UsageError(str(exc)) from None
+    else:
+        written = write_export(arrays, out)
     print(f"exported {len(arrays['control'])} ticks, {len(arrays['meas_tick'])} readings, "
-          f"{len(arrays['event_tick'])} events to {', '.join(map(str, written))}")
+          f"{len(arrays['event_tick'])} events, {len(arrays['filter_names'])} filters "
+          f"to {', '.join(map(str, written))}")
     return 0

@@ -70,9 +70,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, help="on screen: quit after N frames of 1/60 s")
     p.add_argument("--screenshot", metavar="PNG", help="on screen: save the last frame to PNG")
 
-    p = sub.add_parser("export", help="export a recording as arrays (.npz or .csv)")
-    p.add_argument("file")
-    p.add_argument("--out", required=True, metavar="PATH")
+    p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv) or "
+                                      "MCAP for Foxglove (.mcap)")
+    p.add_argument("file", metavar="FILE", help="a recording (.jsonl) or a scenario (name or .toml)")
+    p.add_argument("--out", required=True, metavar="PATH", help="run.npz, run.csv or run.mcap")
+    add_filter_options(p)
+    p.add_argument("--seed", type=int, help="a scenario's seed (default: the scenario's)")
+    p.add_argument("--duration", type=float, metavar="S", help="a scenario: seconds to simulate")
 
     p = sub.add_parser("mrclam", help="replay a UTIAS MRCLAM data set folder")
     p.add_argument("dir")
