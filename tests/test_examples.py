@@ -1,5 +1,7 @@
 """The examples: the tutorial's one-file EKF (hand-checked update, angle wrapping, ANEES in
-the chi-square band over seeded runs) and the filterpy wrapper (skipped without filterpy)."""
+the chi-square band over seeded runs) and the filterpy wrapper side by side with it (filterpy
+is in the test extra, so these run wherever the tests do, CI included: a missing filterpy is
+a failure, not a skip)."""
 
 from __future__ import annotations
 
@@ -166,7 +168,7 @@ def test_examples_run_from_the_command_line(capsys):
 
 
 def test_filterpy_wrapper_agrees_with_the_student_ekf(scenario):
-    pytest.importorskip("filterpy", reason="filterpy is optional (the bench extra)")
+    import filterpy  # noqa: F401  (the test extra installs it: fail, do not skip, without it)
     res = run_headless(scenario, [FILTERPY, STUDENT], seed=5, duration=15.0)
     a, b = res.runner.tracks["FilterpyEKF"], res.runner.tracks["StudentEKF"]
     assert a.failed is None and len(a.means) == len(b.means)
@@ -179,7 +181,7 @@ def test_filterpy_wrapper_agrees_with_the_student_ekf(scenario):
 
 
 def test_filterpy_wrapper_handles_bearing_only_and_refuses_fixes():
-    pytest.importorskip("filterpy", reason="filterpy is optional (the bench extra)")
+    import filterpy  # noqa: F401  (the test extra installs it: fail, do not skip, without it)
     res = run_headless(load_scenario("krejsa_bearing_only"), [FILTERPY], seed=1, duration=20.0)
     row = res.filter_summary()["FilterpyEKF"]
     assert "failed" not in row and row["pos_rmse_m"] < 0.5
