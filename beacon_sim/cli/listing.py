@@ -1,18 +1,37 @@
-"""``beacon-sim list``: the shipped scenarios and the available filters."""
+"""``beacon-sim list``: the shipped scenarios, each described in full sentences, and the
+available filters."""
 
 from __future__ import annotations
 
 import argparse
+import shutil
+import textwrap
 
 from beacon_sim.core.resources import shipped_scenarios
-from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.filters.loading import available_filters
+
+#: Left margin of a scenario's description [characters].
+INDENT = 6
+
+
+def describe(scenario: Scenario, width: int) -> list[str]:
+    """The lines ``list`` prints for one scenario: its name, then its whole description and
+    what it runs (length, default filters), wrapped at ``width`` characters, never cut."""
+    facts = (f"{scenario.duration:g} s long; the window opens with "
+             f"{', '.join(scenario.default_filters) or 'no filter'}.")
+    text = " ".join((scenario.description or "(no description)").split())
+    wrap = textwrap.TextWrapper(width=max(width, INDENT + 30), initial_indent=" " * INDENT,
+                                subsequent_indent=" " * INDENT, break_long_words=False,
+                                break_on_hyphens=False)
+    return [f"  {scenario.name}", *wrap.wrap(text), *wrap.wrap(facts)]
 
 
 def list_command(args: argparse.Namespace) -> int:
+    width = min(shutil.get_terminal_size((88, 24)).columns, 100) - 1
     print("scenarios:")
     for name in shipped_scenarios():
-        print(f"  {name:<22}{load_scenario(name).description}")
+        print("\n".join(describe(load_scenario(name), width)))
     print("filters:")
     for name in available_filters():
         print(f"  {name}")
