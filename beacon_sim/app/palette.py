@@ -7,6 +7,22 @@ Yellow (poor on white) is used last. Colours are ``(r, g, b)`` tuples, 0-255.
 
 from __future__ import annotations
 
+# The per-kind filter colours and line styles live in runs/styles.py (pygame-free), so the
+# evaluation's plots use the same ones; re-exported here for the window's modules.
+from beacon_sim.runs.styles import (
+    DASH_DOT,
+    DASHED,
+    DEAD_RECKONING,
+    DOTTED,
+    KIND_STYLES,
+    OKABE_ITO,
+    SHORT_DASH,
+    SOLID,
+    filter_colours,
+    filter_kind,
+    filter_styles,
+)
+
 BACKGROUND = (250, 250, 247)
 OUTSIDE = (228, 228, 224)  # beyond the world bounds
 GRID_MINOR = (226, 226, 222)
@@ -35,77 +51,10 @@ OVERLAY_BG = (20, 20, 20)
 OVERLAY_TEXT = (250, 250, 250)
 OVERLAY_KEY = (240, 228, 66)  # Okabe-Ito yellow reads well on the dark overlay
 
-#: Okabe-Ito, ordered for a white background (blue, vermillion, reddish purple,
-#: bluish green, orange, sky blue, yellow).
-OKABE_ITO = [
-    (0, 114, 178),
-    (213, 94, 0),
-    (204, 121, 167),
-    (0, 158, 115),
-    (230, 159, 0),
-    (86, 180, 233),
-    (240, 228, 66),
-]
-
-#: Dead reckoning is the neutral baseline: a mid grey.
-DEAD_RECKONING = (128, 128, 128)
-
-#: Line dash patterns [px on, px off, ...]; None is a solid line.
-SOLID = None
-DASHED = (22, 11)
-DOTTED = (5, 8)
-DASH_DOT = (20, 7, 5, 7)
-SHORT_DASH = (9, 8)
-
-#: One colour and one line style per filter KIND, the same in every window, plot and doc,
-#: so that two filters that agree (EKF and UKF usually do) stay apart: the dashed UKF is
-#: drawn over the solid EKF. Kinds not listed (a student's filter) take the rest in turn.
-KIND_STYLES: dict[str, tuple[tuple[int, int, int], tuple[int, ...] | None]] = {
-    "kf": (OKABE_ITO[0], SOLID),  # blue
-    "ekf": (OKABE_ITO[1], SOLID),  # vermillion
-    "ukf": (OKABE_ITO[3], DASHED),  # bluish green
-    "pf": (OKABE_ITO[2], DOTTED),  # reddish purple
-    "histogram": (OKABE_ITO[4], DASH_DOT),  # orange
-    "dead_reckoning": (DEAD_RECKONING, SHORT_DASH),  # grey
-}
-_OTHER_STYLES = [((86, 180, 233), DASH_DOT), ((0, 0, 0), DASHED), ((86, 180, 233), SOLID),
-                 ((0, 0, 0), DOTTED), ((240, 228, 66), SOLID)]
-_STYLE_CYCLE = [SOLID, DASHED, DOTTED, DASH_DOT, SHORT_DASH]
-
-
-def filter_kind(name: str) -> str:
-    """The kind of a display name: ``ekf'`` (a second EKF) -> ``ekf``."""
-    return name.rstrip("'")
-
-
-def filter_styles(names: list[str]) -> dict[str, tuple[tuple[int, int, int], tuple[int, ...] | None]]:
-    """``(colour, dash pattern)`` per filter name: by kind, a repeated kind (``ekf'``) keeps
-    the colour and takes the next line style."""
-    out: dict[str, tuple[tuple[int, int, int], tuple[int, ...] | None]] = {}
-    others = 0
-    for name in names:
-        kind = filter_kind(name)
-        if kind in KIND_STYLES:
-            colour, dash = KIND_STYLES[kind]
-        else:
-            same = next((out[n] for n in out if filter_kind(n) == kind), None)
-            if same is None:
-                colour, dash = _OTHER_STYLES[others % len(_OTHER_STYLES)]
-                others += 1
-            else:
-                colour, dash = same
-        repeats = len(name) - len(kind)
-        if repeats:
-            dash = _STYLE_CYCLE[(_STYLE_CYCLE.index(dash) + repeats) % len(_STYLE_CYCLE)]
-        out[name] = (colour, dash)
-    return out
-
-
-def filter_colours(names: list[str]) -> dict[str, tuple[int, int, int]]:
-    """One colour per filter name, by kind (``KIND_STYLES``); dead reckoning is grey."""
-    return {n: c for n, (c, _) in filter_styles(names).items()}
-
-
 def lighten(colour: tuple[int, int, int], amount: float) -> tuple[int, int, int]:
     """Blend ``colour`` towards white by ``amount`` in [0, 1]."""
     return tuple(round(c + (255 - c) * amount) for c in colour)  # type: ignore[return-value]
+
+
+__all__ = ["DASHED", "DASH_DOT", "DEAD_RECKONING", "DOTTED", "KIND_STYLES", "OKABE_ITO",
+           "SHORT_DASH", "SOLID", "filter_colours", "filter_kind", "filter_styles", "lighten"]

@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.runs.styles import BOUND_STYLE, filter_styles, hex_colour, plot_linestyle
+
 INSTALL_HINT = "plots skipped: matplotlib is not installed (pip install 'beacon-sim[plot]')"
 
 
@@ -31,6 +33,17 @@ def _figure(figsize: tuple[float, float]):
     from matplotlib.figure import Figure
 
     return Figure(figsize=figsize, layout="tight")
+
+
+def _styles(curves: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """matplotlib ``color`` and ``linestyle`` per filter: the window's colour and line style
+    of its kind (runs/styles.py), so a filter looks the same in the window and the plots."""
+    return {n: {"color": hex_colour(c), "linestyle": plot_linestyle(d)}
+            for n, (c, d) in filter_styles(list(curves["filters"])).items()}
+
+
+#: The PCRB's line: the window's bound style (black, dotted).
+BOUND = {"color": hex_colour(BOUND_STYLE[0]), "linestyle": plot_linestyle(BOUND_STYLE[1], 0.4)}
 
 
 def _mark_kidnaps(ax, curves: dict[str, Any]) -> None:
@@ -53,9 +66,10 @@ def trajectories_figure(scenario, curves: dict[str, Any]):
     ax.plot(b[:, 0], b[:, 1], "k^", ms=8, label="beacons")
     t = curves["truth0"]
     ax.plot(t[:, 0], t[:, 1], "k-", lw=2, label="truth")
+    style = _styles(curves)
     for name, c in curves["filters"].items():
         if c["means0"] is not None:
-            ax.plot(c["means0"][:, 0], c["means0"][:, 1], lw=1, label=name)
+            ax.plot(c["means0"][:, 0], c["means0"][:, 1], lw=1.2, label=name, **style[name])
     xmin, ymin, xmax, ymax = scenario.world.bounds
     ax.set_xlim(xmin, xmax)
     ax.set_ylim(ymin, ymax)
@@ -73,14 +87,15 @@ def errors_figure(scenario, curves: dict[str, Any]):
     axes = fig.subplots(3, 1, sharex=True)
     t = curves["time"]
     labels = ("x error [m]", "y error [m]", "heading error [rad]")
+    style = _styles(curves)
     for name, c in curves["filters"].items():
         for i, ax in enumerate(axes):
-            (line,) = ax.plot(t, c["err0"][:, i], lw=0.8, label=f"{name} error")
+            (line,) = ax.plot(t, c["err0"][:, i], lw=0.9, label=f"{name} error", **style[name])
             ax.fill_between(t, -3 * c["sigma0"][:, i], 3 * c["sigma0"][:, i],
                             color=line.get_color(), alpha=0.15, lw=0)
     for i, ax in enumerate(axes):
-        ax.plot(t, 3 * curves["pcrb_sigma_t"][:, i], "k:", lw=0.8)
-        ax.plot(t, -3 * curves["pcrb_sigma_t"][:, i], "k:", lw=0.8,
+        ax.plot(t, 3 * curves["pcrb_sigma_t"][:, i], lw=0.8, **BOUND)
+        ax.plot(t, -3 * curves["pcrb_sigma_t"][:, i], lw=0.8, **BOUND,
                 label="+-3 sigma PCRB" if i == 0 else None)
         _mark_kidnaps(ax, curves)
         ax.set_ylabel(labels[i])
@@ -100,8 +115,9 @@ def nees_figure(scenario, curves: dict[str, Any], runs: int):
     ax = fig.subplots()
     t = curves["time"]
     lo, hi = curves["nees_band"]
+    style = _styles(curves)
     for name, c in curves["filters"].items():
-        ax.plot(t, c["nees_t"], lw=0.8, label=name)
+        ax.plot(t, c["nees_t"], lw=0.9, label=name, **style[name])
     ax.axhspan(lo, hi, color="g", alpha=0.15, label=f"95 % band ({runs} runs)")
     ax.axhline(3.0, color="g", lw=0.8)
     _mark_kidnaps(ax, curves)
@@ -118,9 +134,10 @@ def rmse_pcrb_figure(scenario, curves: dict[str, Any]):
     fig = _figure((8, 4))
     ax = fig.subplots()
     t = curves["time"]
+    style = _styles(curves)
     for name, c in curves["filters"].items():
-        ax.plot(t, c["rmse_t"], lw=0.9, label=name)
-    ax.plot(t, curves["pcrb_pos_t"], "k--", lw=1.2, label="PCRB")
+        ax.plot(t, c["rmse_t"], lw=1.0, label=name, **style[name])
+    ax.plot(t, curves["pcrb_pos_t"], lw=1.2, label="PCRB", **BOUND)
     _mark_kidnaps(ax, curves)
     ax.set_yscale("log")
     ax.set_xlabel("time [s]")

@@ -1,0 +1,101 @@
+"""One colour and one line style per filter KIND, the same in the window, the evaluation's
+plots and the docs (no pygame, no matplotlib here: ``app/palette.py`` and
+``evaluation/plots.py`` both read this table).
+
+Colours are Okabe & Ito (2008), colour-blind safe, as ``(r, g, b)`` 0-255; dead reckoning,
+the baseline, is grey. Line styles are dash patterns (length on, length off, ...) in
+screen pixels; None is solid. Two filters that usually agree (EKF and UKF) differ in both,
+so the dashed UKF drawn over the solid EKF leaves both visible.
+"""
+
+from __future__ import annotations
+
+RGB = tuple[int, int, int]
+Dash = tuple[int, ...] | None
+
+#: Okabe-Ito, ordered for a white background (blue, vermillion, reddish purple,
+#: bluish green, orange, sky blue, yellow).
+OKABE_ITO: list[RGB] = [
+    (0, 114, 178),
+    (213, 94, 0),
+    (204, 121, 167),
+    (0, 158, 115),
+    (230, 159, 0),
+    (86, 180, 233),
+    (240, 228, 66),
+]
+
+#: Dead reckoning is the neutral baseline: a mid grey.
+DEAD_RECKONING: RGB = (128, 128, 128)
+
+#: Line dash patterns [px on, px off, ...]; None is a solid line.
+SOLID: Dash = None
+DASHED: Dash = (22, 11)
+DOTTED: Dash = (5, 8)
+DASH_DOT: Dash = (20, 7, 5, 7)
+SHORT_DASH: Dash = (9, 8)
+
+#: Colour and line style by filter kind. Kinds not listed (a student's filter) take
+#: ``OTHER_STYLES`` in turn.
+KIND_STYLES: dict[str, tuple[RGB, Dash]] = {
+    "kf": (OKABE_ITO[0], SOLID),  # blue
+    "ekf": (OKABE_ITO[1], SOLID),  # vermillion
+    "ukf": (OKABE_ITO[3], DASHED),  # bluish green
+    "pf": (OKABE_ITO[2], DOTTED),  # reddish purple
+    "histogram": (OKABE_ITO[4], DASH_DOT),  # orange
+    "dead_reckoning": (DEAD_RECKONING, SHORT_DASH),  # grey
+}
+OTHER_STYLES: list[tuple[RGB, Dash]] = [
+    (OKABE_ITO[5], DASH_DOT), ((0, 0, 0), DASHED), (OKABE_ITO[5], SOLID), ((0, 0, 0), DOTTED),
+    (OKABE_ITO[6], SOLID)]
+STYLE_CYCLE: list[Dash] = [SOLID, DASHED, DOTTED, DASH_DOT, SHORT_DASH]
+
+#: The best achievable covariance (the PCRB) wherever it is drawn: black, dotted.
+BOUND_STYLE: tuple[RGB, Dash] = ((0, 0, 0), (3, 6))
+
+
+def filter_kind(name: str) -> str:
+    """The kind of a display name: ``ekf'`` (a second EKF) -> ``ekf``."""
+    return name.rstrip("'")
+
+
+def filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
+    """``(colour, dash pattern)`` per filter name: by kind; a repeated kind (``ekf'``) keeps
+    the colour and takes the next line style."""
+    out: dict[str, tuple[RGB, Dash]] = {}
+    others = 0
+    for name in names:
+        kind = filter_kind(name)
+        if kind in KIND_STYLES:
+            colour, dash = KIND_STYLES[kind]
+        else:
+            same = next((out[n] for n in out if filter_kind(n) == kind), None)
+            if same is None:
+                colour, dash = OTHER_STYLES[others % len(OTHER_STYLES)]
+                others += 1
+            else:
+                colour, dash = same
+        repeats = len(name) - len(kind)
+        if repeats:
+            dash = STYLE_CYCLE[(STYLE_CYCLE.index(dash) + repeats) % len(STYLE_CYCLE)]
+        out[name] = (colour, dash)
+    return out
+
+
+def filter_colours(names: list[str]) -> dict[str, RGB]:
+    """One colour per filter name, by kind (``KIND_STYLES``); dead reckoning is grey."""
+    return {n: c for n, (c, _) in filter_styles(names).items()}
+
+
+def hex_colour(colour: RGB) -> str:
+    """``(r, g, b)`` 0-255 -> ``"#rrggbb"`` (for matplotlib, HTML, docs)."""
+    return "#{:02x}{:02x}{:02x}".format(*colour)
+
+
+def plot_linestyle(dash: Dash, scale: float = 0.25) -> str | tuple[float, tuple[float, ...]]:
+    """A dash pattern as a matplotlib ``linestyle``: ``"-"`` for solid, else
+    ``(0, (on, off, ...))`` in points (window pixels times ``scale``: a plot's lines are
+    thinner than the window's, so its dashes are shorter)."""
+    if dash is None:
+        return "-"
+    return (0.0, tuple(max(d * scale, 0.5) for d in dash))
