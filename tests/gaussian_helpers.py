@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Measurement
@@ -52,10 +53,10 @@ def textbook_update(mean, P, z, h, H, R, angle_rows):
     y = wrap(z - h), S = H P H^T + R, K = P H^T S^-1, Joseph covariance."""
     y = np.asarray(z, dtype=float) - h
     for i in angle_rows:
-        y[i] = (y[i] + np.pi) % (2 * np.pi) - np.pi
+        y[i] = wrap(y[i])
     S = H @ P @ H.T + R
     K = P @ H.T @ np.linalg.inv(S)
     m = mean + K @ y
-    m[2] = (m[2] + np.pi) % (2 * np.pi) - np.pi
+    m[2] = wrap(m[2])
     A = np.eye(3) - K @ H
     return m, A @ P @ A.T + K @ R @ K.T

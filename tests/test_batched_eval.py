@@ -1,29 +1,26 @@
-"""Filters batched across runs (beacon_sim.evaluation.batched) give the per-run filters'
-estimates, covariances and NIS; the truth stays that of ``Simulation(scenario, seed)``; a
-run's numbers do not depend on its batch; ``eval`` prints the same table either way."""
+"""Filters batched across runs (each filter's ``batched`` form, driven by
+evaluation.montecarlo.batch_runs) give the per-run filters' estimates, covariances and NIS;
+the truth stays that of ``Simulation(scenario, seed)``; a run's numbers do not depend on its
+batch; ``eval`` prints the same table either way."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
 from beacon_sim.cli.main import main
+from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.evaluation.batched import (
-    ReadingPacker,
-    _make,
-    batch_runs,
-    linearise,
-    nis_of,
-    stacked_update,
-    unsupported,
-)
 from beacon_sim.evaluation.metrics import nis
-from beacon_sim.evaluation.montecarlo import run_monte_carlo
+from beacon_sim.evaluation.montecarlo import batch_reason, batch_runs, run_monte_carlo
 from beacon_sim.evaluation.report import table_lines
+from beacon_sim.filters import gaussian_measurements as gm
+from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian_measurements import SlotPacker, kalman_update
 from beacon_sim.filters.loading import build_filter
 
 SEEDS = [2, 3, 11]
@@ -42,10 +39,11 @@ def test_batched_filters_equal_the_per_run_filters(scenario, duration, filters):
     against the predicted belief equal to metrics.nis (to 1e-9 relative)."""
     sc = load_scenario(scenario)
     sims = [Simulation(sc, s) for s in SEEDS]
-    packer = ReadingPacker(sc)
+    packer = SlotPacker(sc.world, sc.model_sensors)
     R = len(SEEDS)
     scalar = [[build_filter(spec, sc, s, params=p) for s in SEEDS] for spec, p in filters]
-    batched = [_make(type(fs[0]), fs[0], R, sc.model_motion_noise) for fs in scalar]
+    assert all(fs[0].batch_blocker is None for fs in scalar)
+    batched = [fs[0].batched(R) for fs in scalar]
     sensors = {s.name: s for s in sc.model_sensors}
     worst = 0.0
     kidnaps = 0
@@ -54,19 +52,21 @@ def test_batched_filters_equal_the_per_run_filters(scenario, duration, filters):
         kidnaps += sum(s.kidnapped for s in steps)
         v = np.array([s.control.v for s in steps])
         w = np.array([s.control.omega for s in steps])
-        rd = packer.pack(steps)
+        st = packer.pack([s.measurements for s in steps])
         for fs, fb in zip(scalar, batched, strict=True):
             fb.predict(v, w, sc.dt)
             for f, step in zip(fs, steps, strict=True):
                 f.predict(step.control, step.dt)
-            if rd is not None:
-                got = nis_of(fb.mean, fb.cov, rd)
+            if st is not None:
+                got = gm.nis(fb.mean, fb.cov, st)
                 for i, (f, step) in enumerate(zip(fs, steps, strict=True)):
                     want, dof = nis(step.measurements, sensors, *f.estimate(), sc.world)
-                    assert dof == (rd.dof[i] if step.measurements else 0)
+                    assert dof == np.count_nonzero(st.valid[i])
                     if step.measurements:
                         assert got[i] == pytest.approx(want, rel=1e-9, abs=1e-12)
-                fb.update(rd)
+                fb.update(st)
+                if fb.own_nis:  # the EKF's update gives the same NIS
+                    assert fb.last_nis == pytest.approx(got, rel=1e-9, abs=1e-12)
             for i, (f, step) in enumerate(zip(fs, steps, strict=True)):
                 f.update(step.measurements)
                 m, c = f.estimate()
@@ -78,9 +78,10 @@ def test_batched_filters_equal_the_per_run_filters(scenario, duration, filters):
         assert kidnaps == R  # the kidnap happened inside the compared stretch
 
 
-def test_stacked_update_is_the_textbook_kalman_update():
-    """One run, two range-bearing readings and a pose fix: x + K nu and the Joseph P
-    against K = P H^T (H P H^T + R)^-1 written with an explicit inverse."""
+def test_kalman_update_is_the_textbook_kalman_update_for_one_run_and_for_runs():
+    """Two range-bearing readings and a pose fix: x + K nu and the Joseph P against
+    K = P H^T (H P H^T + R)^-1 written with an explicit inverse; the same function on one
+    run (3,), (3, 3) and on runs (R, 3), (R, 3, 3) with empty slots."""
     rng = np.random.default_rng(4)
     A = rng.standard_normal((3, 3))
     P = A @ A.T * 0.01 + np.eye(3) * 1e-3
@@ -94,32 +95,52 @@ def test_stacked_update_is_the_textbook_kalman_update():
     K = P @ Hr.T @ np.linalg.inv(Hr @ P @ Hr.T + Rr)
     want_m = mean[0] + K @ nur
     IKH = np.eye(3) - K @ Hr
-    want_P = IKH @ P @ IKH.T + K @ Rr @ K.T
+    want_P = {True: IKH @ P @ IKH.T + K @ Rr @ K.T, False: P - K @ Hr @ P}
+    want_nis = nur @ np.linalg.solve(Hr @ P @ Hr.T + Rr, nur)
     for joseph in (True, False):
-        m, Pn, nis_v = stacked_update(mean, P[None], H, nu, r, joseph, want_nis=True)
-        assert np.allclose(m[0], want_m, atol=1e-12)
-        assert np.allclose(Pn[0], want_P, atol=1e-12)
-        assert nis_v[0] == pytest.approx(nur @ np.linalg.solve(Hr @ P @ Hr.T + Rr, nur), rel=1e-10)
+        for m, Pn, nis_v in (kalman_update(mean, P[None], H, nu, r, joseph, want_nis=True, strict=False),
+                             kalman_update(mean[0], P, Hr, nur, r[0, :5], joseph, want_nis=True)):
+            assert np.allclose(m.reshape(3), want_m, atol=1e-12)
+            assert np.allclose(Pn.reshape(3, 3), want_P[joseph], atol=1e-12)
+            assert float(np.reshape(nis_v, -1)[0]) == pytest.approx(want_nis, rel=1e-10)
 
 
 def test_linearise_matches_finite_differences():
     sc = load_scenario("default")
     sims = [Simulation(sc, s) for s in (1, 2)]
-    packer = ReadingPacker(sc)
-    rd = None
-    while rd is None or rd.dof.min() < 2:
-        rd = packer.pack([s.step() for s in sims])
+    packer = SlotPacker(sc.world, sc.model_sensors)
+    st = None
+    while st is None or np.count_nonzero(st.valid, axis=1).min() < 2:
+        st = packer.pack([s.step().measurements for s in sims])
     mean = np.array([[2.4, 2.1, 0.2], [2.6, 2.3, -0.1]])
-    H, nu, _ = linearise(mean, rd, rd.valid)
+    H, nu, _ = st.linearise(mean)
     eps = 1e-6
     for j in range(3):
         d = np.zeros(3)
         d[j] = eps
-        _, nu_p, _ = linearise(mean + d, rd, rd.valid)
-        _, nu_m, _ = linearise(mean - d, rd, rd.valid)
+        _, nu_p, _ = st.linearise(mean + d)
+        _, nu_m, _ = st.linearise(mean - d)
         # nu = z - h, so dh/dx = -(nu(x + eps) - nu(x - eps)) / (2 eps)
         assert np.allclose(-(nu_p - nu_m) / (2 * eps), H[..., j], atol=1e-6)
-    assert np.all(H[~rd.valid] == 0) and np.all(nu[~rd.valid] == 0)
+    assert np.all(H[~st.valid] == 0) and np.all(nu[~st.valid] == 0)
+
+
+def test_slots_are_fixed_by_the_sensors():
+    """A reading's slot depends on its sensor and beacon only, never on the other runs."""
+    sc = load_scenario("default")
+    packer = SlotPacker(sc.world, sc.model_sensors)
+    sims = [Simulation(sc, s) for s in (1, 2, 3)]
+    for _ in range(30):
+        ms = [s.step().measurements for s in sims]
+        together = packer.pack(ms)
+        for i, m in enumerate(ms):
+            alone = packer.pack([m])
+            if alone is None:
+                assert together is None or not together.valid[i].any()
+                continue
+            assert np.array_equal(alone.valid[0], together.valid[i])
+            assert np.array_equal(alone.z[0], together.z[i])
+            assert np.array_equal(alone.r[0], together.r[i])
 
 
 def test_truth_is_the_simulation_of_each_seed_and_runs_do_not_depend_on_their_batch():
@@ -139,18 +160,39 @@ def test_truth_is_the_simulation_of_each_seed_and_runs_do_not_depend_on_their_ba
         assert (a.nis_sum, a.nis_dof) == (b.nis_sum, b.nis_dof)
 
 
+class _GatedLater(ExtendedKalmanFilter):
+    """A subclass: its batched form is not the EKF's unless it says so itself."""
+
+
 def test_batching_is_chosen_only_when_every_filter_has_a_batched_form():
     sc = load_scenario("default")
-    assert unsupported(sc, ["kf", "ekf", "ukf", "dead_reckoning"], {}) is None
-    assert "pf" in unsupported(sc, ["ekf", "pf"], {})
-    assert "gate_chi2" in unsupported(sc, ["ekf"], {"ekf": {"gate_chi2": 9.21}})
-    assert "gate_chi2" in unsupported(sc, ["ukf"], {"ukf": {"gate_chi2": 9.21}})
-    assert unsupported(sc, ["ekf", "ukf"], {"ekf": {"joseph": False}, "ukf": {"scaled": False}}) is None
+    assert batch_reason(sc, ["kf", "ekf", "ukf", "dead_reckoning"], {}) is None
+    assert "pf" in batch_reason(sc, ["ekf", "pf"], {})
+    assert "gate_chi2" in batch_reason(sc, ["ekf"], {"ekf": {"gate_chi2": 9.21}})
+    assert "gate_chi2" in batch_reason(sc, ["ukf"], {"ukf": {"gate_chi2": 9.21}})
+    assert batch_reason(sc, ["ekf", "ukf"], {"ekf": {"joseph": False}, "ukf": {"scaled": False}}) is None
+    assert "no batched form" in batch_reason(sc, [f"{__name__}:_GatedLater"], {})
     with pytest.raises(ValueError, match="cannot batch"):
         run_monte_carlo(sc, ["ekf", "histogram"], 1, duration=1.0, jobs=1, batch=True)
     # A gated EKF runs one run at a time (the per-run path).
     runs = run_monte_carlo(sc, ["ekf"], 1, duration=5.0, jobs=1, params={"ekf": {"gate_chi2": 9.21}})
     assert runs[0].filters["ekf"].steps == 100
+
+
+def test_each_filter_declares_what_its_batched_form_reproduces():
+    """A parameter the class does not list in ``batch_params``, or a motion noise that is
+    not a plain MotionNoise, keeps a filter to one run at a time."""
+    sc = load_scenario("default")
+    ekf = build_filter("ekf", sc, 0)
+    assert ekf.batch_blocker is None
+    ekf.params["new_option"] = 1
+    assert "new_option" in ekf.batch_blocker
+
+    class Noise(MotionNoise):
+        pass
+
+    sc2 = dataclasses.replace(sc, model_motion_noise=Noise(v_std=0.1))
+    assert "MotionNoise" in build_filter("kf", sc2, 0).batch_blocker
 
 
 def _eval(capsys, *extra):

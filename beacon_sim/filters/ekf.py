@@ -26,31 +26,133 @@ floats: a numpy call costs about 1 us even on a 3x3 array (design.md section 9).
 Optional gating (seed 001's closing advice): a beacon's reading (1 row, 2 rows for
 range-bearing, the whole fix for pose/position) is dropped when its squared Mahalanobis
 distance ``y_b^T S_b^-1 y_b`` against the predicted belief exceeds ``gate_chi2``.
+
+R runs at once (:class:`BatchedEKF`, for ``evaluation.montecarlo``): the same prediction
+code on arrays (R,) instead of floats, and the stacked update in matrix form
+(``gaussian_measurements.kalman_update``) on the readings of all runs in fixed slots; no
+gating. The KF's prediction is this one with F = I; dead reckoning's batched form is this one alone.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, broad_gaussian
-from beacon_sim.filters.gaussian_measurements import ReadingModels, process_cov_terms
+from beacon_sim.filters.base import FilterContext, GaussianBelief, broad_gaussian
+from beacon_sim.filters.gaussian_measurements import (
+    BatchableFilter,
+    BatchedGaussian,
+    ReadingModels,
+    StackedReadings,
+    cov_entries,
+    cov_matrix,
+    kalman_update,
+    process_cov_terms,
+)
 
-PI = math.pi
-TWO_PI = 2.0 * math.pi
+#: One row of the stacked model: (H0, H1, H2, innovation, variance, h).
+Row = tuple[float, float, float, float, float, float]
 
 
-def _wrap(a: float) -> float:
-    """Wrap a float angle [rad] to [-pi, pi)."""
-    a = (a + PI) % TWO_PI - PI
-    return a - TWO_PI if a >= PI else a
+def predict_moments(x: Any, y: Any, th: Any, p: Sequence[Any], v: Any, w: Any, dt: float, c: Any,
+                    s: Any, q: Sequence[Any], jacobian: bool = True) -> tuple[Any, Any, Any, tuple]:
+    """The velocity model's prediction of the mean and the six distinct entries ``p`` =
+    (p00, p01, p02, p11, p12, p22) of P, on floats (one run) or arrays (R,) (R runs).
+
+    c, s: cos and sin of the prior heading th [rad]; v [m/s], w [rad/s], dt [s]; q: the
+    entries of Q at the prior mean (``process_cov_terms``). Returns (x, y, theta, p) with
+    ``P = F P F^T + Q``, F = [[1, 0, a], [0, 1, b], [0, 0, 1]], a = -v dt s, b = v dt c
+    (seed 000 eq. 7, 9); ``jacobian=False``: ``P + Q`` (the linear KF's A = I, seed 003).
+    """
+    vdt = v * dt
+    p00, p01, p02, p11, p12, p22 = p
+    q00, q01, q02, q11, q12, q22 = q
+    if jacobian:
+        a = -vdt * s
+        b = vdt * c
+        p = (p00 + 2.0 * a * p02 + a * a * p22 + q00,
+             p01 + a * p12 + b * p02 + a * b * p22 + q01,
+             p02 + a * p22 + q02,
+             p11 + 2.0 * b * p12 + b * b * p22 + q11,
+             p12 + b * p22 + q12,
+             p22 + q22)
+    else:
+        p = (p00 + q00, p01 + q01, p02 + q02, p11 + q11, p12 + q12, p22 + q22)
+    return x + vdt * c, y + vdt * s, wrap(th + w * dt), p
 
 
-class ExtendedKalmanFilter(FilterBase):
+class VelocityGaussian(BatchableFilter):
+    """A Gaussian over ``[x, y, theta]`` on Python floats, predicted with the velocity model
+    (:func:`predict_moments`); the EKF and the KF add their updates.
+
+    ``jacobian`` (class attribute): True propagates P with F (EKF, dead reckoning), False
+    with A = I (the linear KF).
+    """
+
+    jacobian: ClassVar[bool] = True
+
+    def __init__(self, ctx: FilterContext):
+        super().__init__(ctx)
+        self.x = self.y = self.th = 0.0
+        self.p: tuple[float, ...] = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)  # P's distinct entries
+        self.reset(None)
+
+    def reset(self, initial: GaussianBelief | None) -> None:
+        initial = initial or broad_gaussian(self.ctx.world)
+        m = np.asarray(initial.mean, dtype=float)
+        c = np.asarray(initial.cov, dtype=float)
+        c = 0.5 * (c + c.T)
+        self.x, self.y, self.th = float(m[0]), float(m[1]), wrap(float(m[2]))
+        (p00, p01, p02), (_, p11, p12), (_, _, p22) = c.tolist()
+        self.p = (p00, p01, p02, p11, p12, p22)
+
+    @property
+    def mean(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.th])
+
+    @property
+    def cov(self) -> np.ndarray:
+        p00, p01, p02, p11, p12, p22 = self.p
+        return np.array([[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]])
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.mean, self.cov
+
+    def predict(self, control: Control, dt: float) -> None:
+        v, w = float(control.v), float(control.omega)
+        th = self.th
+        c, s = math.cos(th), math.sin(th)
+        q = process_cov_terms(self.ctx.motion_noise, th, c, s, v, w, dt)
+        self.x, self.y, self.th, self.p = predict_moments(self.x, self.y, th, self.p, v, w, dt, c, s, q,
+                                                          self.jacobian)
+
+    def update(self, measurements: Sequence[Measurement]) -> None:
+        """No measurement update here."""
+
+
+class BatchedVelocityGaussian(BatchedGaussian):
+    """:class:`VelocityGaussian` for R runs: the same :func:`predict_moments` on arrays (R,)."""
+
+    jacobian: ClassVar[bool] = True
+
+    def predict(self, v: np.ndarray, w: np.ndarray, dt: float) -> None:
+        m = self.mean
+        th = m[:, 2]
+        c, s = np.cos(th), np.sin(th)
+        q = process_cov_terms(self.noise, th, c, s, v, w, dt)
+        x, y, th, p = predict_moments(m[:, 0], m[:, 1], th, cov_entries(self.cov), v, w, dt, c, s, q,
+                                      self.jacobian)
+        self.mean = np.stack([x, y, th], axis=1)
+        self.cov = cov_matrix(p)
+
+
+class ExtendedKalmanFilter(VelocityGaussian):
     """EKF over ``[x, y, theta]`` for bearing, range-bearing, pose and position readings.
 
     Parameters (``ctx.params``)
@@ -63,77 +165,37 @@ class ExtendedKalmanFilter(FilterBase):
     """
 
     defaults: ClassVar[dict] = {"gate_chi2": 0.0, "joseph": True}
+    batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": 0.0}  # no batched gate
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
-        super().__init__(ctx)
         self.models = ReadingModels(ctx)
+        super().__init__(ctx)
         self.gate = float(self.params["gate_chi2"])
         self.joseph = bool(self.params["joseph"])
         self.rejected = 0  # readings dropped by the gate so far
-        self.reset(None)
 
-    # -- state ---------------------------------------------------------------------------
-    def reset(self, initial: GaussianBelief | None) -> None:
-        initial = initial or broad_gaussian(self.ctx.world)
-        m = np.asarray(initial.mean, dtype=float)
-        c = np.asarray(initial.cov, dtype=float)
-        c = 0.5 * (c + c.T)
-        self.x, self.y, self.th = float(m[0]), float(m[1]), _wrap(float(m[2]))
-        # The six distinct entries of the symmetric P.
-        (self.p00, self.p01, self.p02), (_, self.p11, self.p12), (_, _, self.p22) = c.tolist()
-
-    @property
-    def mean(self) -> np.ndarray:
-        return np.array([self.x, self.y, self.th])
-
-    @property
-    def cov(self) -> np.ndarray:
-        p01, p02, p12 = self.p01, self.p02, self.p12
-        return np.array([[self.p00, p01, p02], [p01, self.p11, p12], [p02, p12, self.p22]])
-
-    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.mean, self.cov
-
-    # -- prediction ----------------------------------------------------------------------
-    def predict(self, control: Control, dt: float) -> None:
-        v, w = float(control.v), float(control.omega)
-        th = self.th
-        c, s = math.cos(th), math.sin(th)
-        # F = [[1, 0, a], [0, 1, b], [0, 0, 1]] (seed 000 eq. 9), at the prior mean.
-        a = -v * dt * s
-        b = v * dt * c
-        p00, p01, p02, p11, p12, p22 = self.p00, self.p01, self.p02, self.p11, self.p12, self.p22
-        # Q = B M B^T + diag(pose_std^2) at the prior mean (MotionNoise.process_cov).
-        q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.motion_noise, th, v, w, dt)
-        # P = F P F^T + Q
-        self.p00 = p00 + 2.0 * a * p02 + a * a * p22 + q00
-        self.p01 = p01 + a * p12 + b * p02 + a * b * p22 + q01
-        self.p02 = p02 + a * p22 + q02
-        self.p11 = p11 + 2.0 * b * p12 + b * b * p22 + q11
-        self.p12 = p12 + b * p22 + q12
-        self.p22 = p22 + q22
-        self.x += v * dt * c
-        self.y += v * dt * s
-        self.th = _wrap(th + w * dt)
+    def batched(self, runs: int) -> BatchedEKF:
+        mean, cov = self.estimate()
+        return BatchedEKF(mean, cov, runs, self.ctx.motion_noise, self.joseph)
 
     # -- update --------------------------------------------------------------------------
-    def linearise(self, measurements: Sequence[Measurement]) -> list[list[tuple]]:
+    def linearise(self, measurements: Sequence[Measurement]) -> list[Sequence[Row]]:
         """The stacked model at the current mean, grouped per beacon (or per fix).
 
-        Returns a list of groups; each group is a list of rows
+        Returns a list of groups; each group is a sequence of rows
         ``(H0, H1, H2, innovation, variance, h)``: the Jacobian row dh/d[x, y, theta], the
         residual ``z - h(mean)`` (wrapped for angles), the noise variance and h itself.
+        The same model as ``StackedReadings.linearise`` (the batched form's), on floats.
         """
         x, y, th = self.x, self.y, self.th
-        groups = []
+        groups: list[Sequence[Row]] = []
         models = self.models
+        atan2, sqrt, wrap_ = math.atan2, math.sqrt, wrap  # locals: the per-reading hot path
         for m in measurements:
             kind = m.kind
             if kind == "bearing" or kind == "range_bearing":
-                var = models.reading_var.get(m.sensor)
-                if var is None:
-                    var = tuple(float(v) ** 2 for v in models.spec(m.sensor).reading_std())
+                var = models.reading_var.get(m.sensor) or models.reading_variance(m.sensor)
                 vb = var[-1]
                 where = models.beacon_xy
                 for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist(), strict=True):
@@ -145,27 +207,25 @@ class ExtendedKalmanFilter(FilterBase):
                     dy = by - y
                     q = dx * dx + dy * dy
                     # bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10)
-                    hb = _wrap(math.atan2(dy, dx) - th)
-                    nu = zrow[-1] - hb
-                    nu = (nu + PI) % TWO_PI - PI  # wrapped residual (inline _wrap: hot path)
-                    brow = (dy / q, -dx / q, -1.0, nu, vb, hb)
+                    hb = wrap_(atan2(dy, dx) - th)
+                    brow = (dy / q, -dx / q, -1.0, wrap_(zrow[-1] - hb), vb, hb)
                     if kind == "bearing":
                         groups.append((brow,))
                     else:
                         # range h = sqrt(q), H = [-dx/r, -dy/r, 0] (seed 001)
-                        r = math.sqrt(q)
+                        r = sqrt(q)
                         groups.append(((-dx / r, -dy / r, 0.0, zrow[0] - r, var[0], r), brow))
             elif kind == "pose" or kind == "position":
-                var = models.fix_var(m)
+                fvar = models.fix_var(m)
                 z = m.z.reshape(-1).tolist()
-                rows = [(1.0, 0.0, 0.0, z[0] - x, var[0], x), (0.0, 1.0, 0.0, z[1] - y, var[1], y)]
+                rows = [(1.0, 0.0, 0.0, z[0] - x, fvar[0], x), (0.0, 1.0, 0.0, z[1] - y, fvar[1], y)]
                 if kind == "pose":
-                    rows.append((0.0, 0.0, 1.0, _wrap(z[2] - th), var[2], th))
+                    rows.append((0.0, 0.0, 1.0, wrap(z[2] - th), fvar[2], th))
                 groups.append(rows)
             # other kinds: nothing this filter can use
         return groups
 
-    def _passes_gate(self, rows: list[tuple]) -> bool:
+    def _passes_gate(self, rows: Sequence[Row]) -> bool:
         """Squared Mahalanobis distance of one beacon's rows against the predicted belief."""
         H = np.array([r[:3] for r in rows])
         nu = np.array([r[3] for r in rows])
@@ -182,7 +242,7 @@ class ExtendedKalmanFilter(FilterBase):
             kept = [g for g in groups if self._passes_gate(g)]
             self.rejected += len(groups) - len(kept)
             groups = kept
-        p00, p01, p02, p11, p12, p22 = self.p00, self.p01, self.p02, self.p11, self.p12, self.p22
+        p00, p01, p02, p11, p12, p22 = self.p
         d0 = d1 = d2 = 0.0  # x - x_pred accumulated over the rows
         joseph = self.joseph
         for g in groups:
@@ -216,7 +276,24 @@ class ExtendedKalmanFilter(FilterBase):
                     p11 -= u1 * k1
                     p12 -= u1 * k2
                     p22 -= u2 * k2
-        self.p00, self.p01, self.p02, self.p11, self.p12, self.p22 = p00, p01, p02, p11, p12, p22
+        self.p = (p00, p01, p02, p11, p12, p22)
         self.x += d0
         self.y += d1
-        self.th = _wrap(self.th + d2)
+        self.th = wrap(self.th + d2)
+
+
+class BatchedEKF(BatchedVelocityGaussian):
+    """:class:`ExtendedKalmanFilter` for R runs (``gate_chi2 = 0``): its prediction, and its
+    update in stacked matrix form, which leaves the tick's NIS in ``last_nis``."""
+
+    own_nis = True
+
+    def __init__(self, mean0: np.ndarray, cov0: np.ndarray, runs: int, noise: MotionNoise,
+                 joseph: bool = True):
+        super().__init__(mean0, cov0, runs, noise)
+        self.joseph = joseph
+
+    def update(self, st: StackedReadings) -> None:
+        H, nu, r = st.linearise(self.mean)
+        self.mean, self.cov, self.last_nis = kalman_update(self.mean, self.cov, H, nu, r, self.joseph,
+                                                           want_nis=True, strict=False)

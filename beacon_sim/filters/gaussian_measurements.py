@@ -1,29 +1,54 @@
-"""Stacking one tick's readings for the Gaussian filters.
+"""What the Gaussian filters share, for one run or for R runs at once.
 
-All readings of a tick (any sensors, any number of beacons) become one measurement vector
-``z`` (m,), one diagonal noise variance vector ``r`` (m,) and a flag per row saying whether
-the row is an angle (bearing, or the heading of a pose fix), whose residuals must be
-wrapped. ``StackedReadings.predict(poses)`` evaluates the stacked model h for many poses at
-once (the UKF's sigma points); the EKF uses the same rows with its own scalar Jacobians.
+Shapes: one run has a mean (3,) [m, m, rad], a covariance (3, 3) and m readings (m,); R runs
+(``evaluation.montecarlo`` batches them) add a leading axis: (R, 3), (R, 3, 3), (R, M). The
+array functions here take either, so one piece of code serves both forms.
 
-Noise comes from the filter's context: ``ctx.sensor(name).reading_std()`` for beacon
-readings, ``fix_std(len(beacon_ids), hdop)`` for pose and position fixes.
+- Readings: all readings of a tick (any sensors, any number of beacons) become one vector
+  ``z``, one diagonal noise variance vector ``r`` and the angle rows (bearings, the heading
+  of a pose fix), whose residuals are wrapped. ``stack`` does it for one run;
+  ``SlotPacker`` for R runs, in slots fixed by the sensors (every beacon of every beacon
+  sensor, every fix row), so a run's numbers never depend on the other runs of its batch.
+  Empty slots have z = 0, r = 1 and ``valid`` False: H = 0 and innovation 0 there, so they
+  add an identity block to S and a zero column to K, i.e. nothing.
+- The stacked model: ``StackedReadings.predict`` (h at many poses, the UKF's) and
+  ``StackedReadings.linearise`` (H and the innovation, the EKF's and the KF's).
+- The Kalman update ``kalman_update`` (S, K, mean, Joseph or plain P), the NIS ``nis``.
+- The velocity model's process noise ``process_cov_terms``.
+- ``BatchableFilter``: a filter that declares the parameters its R-run form reproduces.
+
+Noise comes from the filter's context: ``reading_std()`` for beacon readings,
+``fix_std(len(beacon_ids), hdop)`` for pose and position fixes.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap as wrap_angle
 from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
-from beacon_sim.filters.base import FilterContext, FilterError
+from beacon_sim.core.world import World
+from beacon_sim.filters.base import FilterBase, FilterContext, FilterError
 
 BEACON_KINDS = ("bearing", "range_bearing")
 FIX_KINDS = ("pose", "position")
+KINDS = BEACON_KINDS + FIX_KINDS
+_ANGLE_PATTERN = {"bearing": (True,), "range_bearing": (False, True), "pose": (False, False, True),
+                  "position": (False, False)}
+_I3 = np.eye(3)
+
+#: One sensor's rows: (kind, first row, end row, beacon xy (k, 2) [m] or None for a fix).
+Block = tuple[str, int, int, "np.ndarray | None"]
+#: The angle rows as a slice (a view, cheaper on the hot path) or an index array; None: none.
+AngleRows = slice | np.ndarray | None
+#: The angle rows when every row is one (bearings only).
+ALL_ROWS = slice(None)
 
 
 class ReadingModels:
@@ -35,11 +60,12 @@ class ReadingModels:
         self.beacon_xy = {int(b.id): (float(b.x), float(b.y)) for b in ctx.world.beacons}
         self.xy = np.array(ctx.world.beacon_xy, dtype=float).reshape(-1, 2)
         self.row = {int(b.id): i for i, b in enumerate(ctx.world.beacons)}
+        self._beacons_of: dict[bytes, np.ndarray] = {}  # IDs' bytes -> positions (k, 2)
         self.specs = {s.name: s for s in ctx.sensors}
         self.reading_var = {s.name: tuple(float(v) ** 2 for v in s.reading_std())
                             for s in ctx.sensors if s.kind in BEACON_KINDS}
 
-    def spec(self, name: str):
+    def spec(self, name: str) -> SensorSpec:
         try:
             return self.specs[name]
         except KeyError:
@@ -51,12 +77,19 @@ class ReadingModels:
         except KeyError:
             raise FilterError(f"reading from beacon {beacon_id}, which is not on the map") from None
 
-    def beacons(self, ids) -> np.ndarray:
-        """Positions (k, 2) [m] of the beacons with these IDs."""
-        try:
-            return self.xy[[self.row[i] for i in ids.tolist()]]
-        except KeyError as exc:
-            raise FilterError(f"reading from beacon {exc.args[0]}, which is not on the map") from None
+    def beacons(self, ids: np.ndarray) -> np.ndarray:
+        """Positions (k, 2) [m] of the beacons with these IDs (remembered per set of IDs)."""
+        key = ids.tobytes()
+        xy = self._beacons_of.get(key)
+        if xy is None:
+            try:
+                xy = self.xy[[self.row[i] for i in ids.tolist()]]
+            except KeyError as exc:
+                raise FilterError(f"reading from beacon {exc.args[0]}, which is not on the map") from None
+            if len(self._beacons_of) >= 4096:
+                self._beacons_of.clear()
+            self._beacons_of[key] = xy
+        return xy
 
     def reading_variance(self, sensor: str) -> tuple[float, ...]:
         var = self.reading_var.get(sensor)
@@ -64,68 +97,131 @@ class ReadingModels:
             var = tuple(float(v) ** 2 for v in self.spec(sensor).reading_std())
         return var
 
-    def fix_var(self, m: Measurement) -> list[float]:
+    def fix_var(self, m: Measurement) -> tuple[float, ...]:
         """Variances of a pose ``[x, y, theta]`` or position ``[x, y]`` fix row."""
         std = self.spec(m.sensor).fix_std(len(m.beacon_ids), m.hdop)
-        return [float(s) ** 2 for s in std]
+        return tuple(float(s) ** 2 for s in std)
+
+
+def _angle_rows(blocks: list[Block], angle: np.ndarray) -> AngleRows:
+    if len(blocks) == 1 and blocks[0][0] != "position":
+        kind = blocks[0][0]
+        return ALL_ROWS if kind == "bearing" else slice(1, None, 2) if kind == "range_bearing" \
+            else slice(2, 3)
+    return np.flatnonzero(angle) if angle.any() else None
 
 
 @dataclass
 class StackedReadings:
-    """One tick's readings as one vector. Rows are ordered measurement by measurement,
-    reading by reading, component by component (range before bearing).
+    """One tick's readings as one vector, of one run (m,) or of R runs (R, M). Rows are
+    ordered block by block (a block: one sensor's readings), reading by reading, component
+    by component (range before bearing)."""
 
-    ``angle`` is a boolean mask of the angle rows; ``angle_sel`` selects the same rows as a
-    slice when it can (a view, cheaper than a mask on the hot path).
-    """
-
-    z: np.ndarray          # (m,) measured values [m or rad]
-    r: np.ndarray          # (m,) noise variances [m^2 or rad^2]
-    angle: np.ndarray      # (m,) bool: row is an angle (wrap its residuals)
-    angle_sel: object      # slice or index array of the angle rows (None: no angle row)
-    blocks: list           # (kind, start, stop, beacon xy (k, 2) or None)
+    z: np.ndarray                    # measured values [m or rad]; 0 in empty slots
+    r: np.ndarray                    # noise variances [m^2 or rad^2]; 1 in empty slots
+    angle: np.ndarray                # (m,) bool: row is an angle (wrap its residuals)
+    angle_sel: AngleRows             # the same rows, as a slice when it can
+    blocks: list[Block]
+    valid: np.ndarray | None = None  # (R, M) bool: the slot holds a reading (None: all rows)
 
     def __len__(self) -> int:
-        return int(self.z.shape[0])
+        return int(self.z.shape[-1])
 
     def predict(self, poses: np.ndarray, wrap: bool = True) -> np.ndarray:
         """Expected readings h(pose) for poses of shape (N, 3): shape (N, m), angles wrapped
         (``wrap=False`` leaves them unwrapped, for callers that wrap residuals anyway)."""
-        out = np.empty((poses.shape[0], self.z.shape[0]))
+        out = np.empty((poses.shape[0], self.z.shape[-1]))
         x = poses[:, 0:1]
         y = poses[:, 1:2]
         th = poses[:, 2:3]
         for kind, a, b, bxy in self.blocks:
-            if kind == "bearing":
+            if bxy is None:  # pose or position fix
+                out[:, a:b] = poses[:, :b - a]
+            elif kind == "bearing":
                 np.subtract(np.arctan2(bxy[:, 1] - y, bxy[:, 0] - x), th, out=out[:, a:b])
-            elif kind == "range_bearing":
+            else:  # range_bearing
                 dx = bxy[:, 0] - x
                 dy = bxy[:, 1] - y
                 np.hypot(dx, dy, out=out[:, a:b:2])
                 np.subtract(np.arctan2(dy, dx), th, out=out[:, a + 1:b:2])
-            elif kind == "pose":
-                out[:, a:b] = poses
-            else:  # position
-                out[:, a:b] = poses[:, :2]
         sel = self.angle_sel
-        if wrap and sel is not None:  # wrap the angle rows to [-pi, pi)
-            out[:, sel] = (out[:, sel] + np.pi) % (2.0 * np.pi) - np.pi
+        if wrap and sel is not None:
+            out[:, sel] = wrap_angle(out[:, sel])
         return out
 
+    def linearise(self, mean: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The stacked model at ``mean`` (3,) or (R, 3): H (..., m, 3), the innovation
+        ``z - h(mean)`` (..., m) with angle rows wrapped, and the variances (..., m). Empty
+        slots get H = 0 and innovation 0.
 
-_ANGLE_PATTERN = {"bearing": (True,), "range_bearing": (False, True), "pose": (False, False, True),
-                  "position": (False, False)}
+        bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10), q = dx^2 + dy^2;
+        range h = sqrt(q), H = [-dx/r, -dy/r, 0] (seed 001); fixes h = x, y(, theta), H = unit rows.
+        """
+        x = mean[..., 0:1]
+        y = mean[..., 1:2]
+        th = mean[..., 2:3]
+        H = np.zeros((*self.z.shape, 3))
+        h = np.empty(self.z.shape)
+        for kind, a, b, bxy in self.blocks:
+            if bxy is None:  # pose or position fix
+                n = b - a
+                H[..., a:b, :] = _I3[:n]
+                h[..., a:b] = mean[..., :n]
+                continue
+            dx = bxy[:, 0] - x
+            dy = bxy[:, 1] - y
+            q = dx * dx + dy * dy
+            rows = slice(a, b) if kind == "bearing" else slice(a + 1, b, 2)
+            Hb = H[..., rows, :]
+            Hb[..., 0] = dy / q
+            Hb[..., 1] = -dx / q
+            Hb[..., 2] = -1.0
+            h[..., rows] = wrap_angle(np.arctan2(dy, dx) - th)
+            if kind == "range_bearing":
+                rr = np.sqrt(q)
+                Hr = H[..., a:b:2, :]
+                Hr[..., 0] = -dx / rr
+                Hr[..., 1] = -dy / rr
+                h[..., a:b:2] = rr
+        nu = self.z - h
+        sel = self.angle_sel
+        if sel is not None:
+            nu[..., sel] = wrap_angle(nu[..., sel])
+        if self.valid is not None:
+            H = np.where(self.valid[..., None], H, 0.0)
+            nu = np.where(self.valid, nu, 0.0)
+        return H, nu, self.r
+
+    def only(self, kinds: Sequence[str]) -> StackedReadings | None:
+        """The rows of the blocks of these kinds (None: there are none)."""
+        keep = [blk for blk in self.blocks if blk[0] in kinds]
+        if not keep:
+            return None
+        if len(keep) == len(self.blocks):
+            return self
+        cols = np.concatenate([np.arange(a, b) for _, a, b, _ in keep])
+        blocks, start = [], 0
+        for kind, a, b, bxy in keep:
+            blocks.append((kind, start, start + b - a, bxy))
+            start += b - a
+        angle = self.angle[cols]
+        valid = None if self.valid is None else self.valid[..., cols]
+        return StackedReadings(self.z[..., cols], self.r[..., cols], angle, _angle_rows(blocks, angle),
+                               blocks, valid)
 
 
 def stack(models: ReadingModels, measurements: Iterable[Measurement],
-          kinds: Sequence[str] = ("bearing", "range_bearing", "pose", "position")
-          ) -> StackedReadings | None:
-    """Stack the readings of the given ``kinds``; None when there is nothing to use."""
-    zs, rs, angles, blocks = [], [], [], []
+          kinds: Sequence[str] = KINDS) -> StackedReadings | None:
+    """One run's readings of the given ``kinds``; None when there is nothing to use."""
+    zs: list[np.ndarray] = []
+    rs: list[float] = []
+    angles: list[bool] = []
+    blocks: list[Block] = []
     m0 = 0
     for m in measurements:
         if m.kind not in kinds or len(m) == 0:
             continue
+        bxy: np.ndarray | None
         if m.kind in BEACON_KINDS:
             var = models.reading_variance(m.sensor)
             bxy = models.beacons(m.beacon_ids)
@@ -146,29 +242,271 @@ def stack(models: ReadingModels, measurements: Iterable[Measurement],
         return None
     z = zs[0] if len(zs) == 1 else np.concatenate(zs)
     angle = np.array(angles)
-    if len(blocks) == 1 and blocks[0][0] != "position":
-        kind = blocks[0][0]
-        sel = slice(None) if kind == "bearing" else slice(1, None, 2) if kind == "range_bearing" \
-            else slice(2, 3)
+    return StackedReadings(np.asarray(z, dtype=float), np.array(rs), angle, _angle_rows(blocks, angle),
+                           blocks)
+
+
+class SlotPacker:
+    """Packs the readings of one tick of R runs into :class:`StackedReadings` (R, M), one
+    slot per beacon of each beacon sensor and per fix row, in the order of ``sensors``."""
+
+    def __init__(self, world: World, sensors: Sequence[SensorSpec]):
+        xy = np.asarray(world.beacon_xy, dtype=float).reshape(-1, 2)
+        ids = np.asarray(world.beacon_ids, dtype=int)
+        self.index = np.full(int(ids.max(initial=0)) + 1, -1)
+        self.index[ids] = np.arange(len(ids))
+        self.specs = {s.name: s for s in sensors}
+        self.blocks: list[Block] = []
+        self.at: dict[str, tuple[int, int]] = {}  # sensor -> (first slot, rows per reading)
+        angles: list[bool] = []
+        r0: list[float] = []
+        a = 0
+        for s in sensors:
+            if s.kind in BEACON_KINDS:
+                var = [float(v) ** 2 for v in s.reading_std()]
+                width, n, bxy = len(var), len(var) * len(xy), xy
+                r0.extend(var * len(xy))
+            elif s.kind in FIX_KINDS:
+                width = n = len(_ANGLE_PATTERN[s.kind])
+                bxy = None
+                r0.extend([1.0] * n)
+            else:
+                raise FilterError(f"sensor kind {s.kind!r} has no batched readings")
+            self.blocks.append((s.kind, a, a + n, bxy))
+            angles.extend(_ANGLE_PATTERN[s.kind] * (n // width))
+            self.at[s.name] = (a, width)
+            a += n
+        self.M = a
+        self.angle = np.array(angles, dtype=bool)
+        self.angle_sel = _angle_rows(self.blocks, self.angle)
+        self.r0 = np.array(r0)  # the beacon slots' variances (1 for the fix slots)
+
+    def pack(self, runs: Sequence[Sequence[Measurement]]) -> StackedReadings | None:
+        """The readings of each run (one list per run); None when no run has any."""
+        M = self.M
+        slots: list[np.ndarray] = []
+        zs: list[np.ndarray] = []
+        fix_slots: list[np.ndarray] = []
+        fix_var: list[np.ndarray] = []
+        for i, measurements in enumerate(runs):
+            for m in measurements:
+                try:
+                    a, width = self.at[m.sensor]
+                except KeyError:
+                    raise FilterError(f"reading from sensor {m.sensor!r}, which has no slots") from None
+                if m.kind in BEACON_KINDS:
+                    cols = a + width * self.index[m.beacon_ids]
+                    if width == 2:  # range and bearing of each beacon side by side
+                        cols = np.stack([cols, cols + 1], axis=1).reshape(-1)
+                else:
+                    cols = np.arange(a, a + width)
+                    std = self.specs[m.sensor].fix_std(len(m.beacon_ids), m.hdop)
+                    fix_slots.append(cols + i * M)
+                    fix_var.append(std * std)
+                slots.append(cols + i * M)
+                zs.append(m.z.reshape(-1))
+        if not slots:
+            return None
+        R = len(runs)
+        flat = np.concatenate(slots)
+        z = np.zeros(R * M)
+        z[flat] = np.concatenate(zs)
+        filled = np.zeros(R * M, dtype=bool)
+        filled[flat] = True
+        if np.count_nonzero(filled) != flat.size:
+            raise FilterError("two readings for one slot (one measurement per sensor and tick)")
+        valid = filled.reshape(R, M)
+        r = np.where(valid, self.r0, 1.0)
+        if fix_slots:
+            r.reshape(-1)[np.concatenate(fix_slots)] = np.concatenate(fix_var)
+        return StackedReadings(z.reshape(R, M), r, self.angle, self.angle_sel, self.blocks, valid)
+
+
+# -- the Kalman update, for one run or R runs -------------------------------------------
+def _find_gufunc_solve() -> Callable[..., np.ndarray] | None:
+    try:  # the ufunc np.linalg.solve wraps (numpy >= 1.8); absent: the public function
+        from numpy.linalg import _umath_linalg
+    except ImportError:  # pragma: no cover
+        return None
+    return getattr(_umath_linalg, "solve", None)
+
+
+_gufunc_solve = _find_gufunc_solve()
+
+
+def solve(S: np.ndarray, B: np.ndarray, strict: bool = True) -> np.ndarray:
+    """``S^-1 B`` for small symmetric positive-definite S (..., m, m), B (..., m, n).
+
+    The gufunc under ``np.linalg.solve`` (its Python wrapper costs ~10 us on a 4x4 system,
+    the gufunc ~3 us). A singular S: with ``strict`` LinAlgError (one run: the filter stops);
+    otherwise NaN rows (R runs: one bad run must not stop the others).
+    """
+    if _gufunc_solve is None:  # pragma: no cover
+        return np.linalg.solve(S, B)
+    X = _gufunc_solve(S, B)
+    if strict and not np.isfinite(X).all():
+        return np.linalg.solve(S, B)  # raises LinAlgError for a singular S
+    return X
+
+
+def add_diagonal(S: np.ndarray, r: np.ndarray) -> None:
+    """``S += diag(r)`` in place, S (..., m, m) C-contiguous (fresh from a product)."""
+    m = S.shape[-1]
+    S.reshape(*S.shape[:-2], m * m)[..., :: m + 1] += r
+
+
+def corrected_mean(mean: np.ndarray, Kt: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """``mean + K nu`` (..., 3) with ``Kt`` = K^T (..., m, 3); heading wrapped."""
+    m = mean + (nu[..., None, :] @ Kt)[..., 0, :]
+    m[..., 2] = wrap_angle(m[..., 2])
+    return m
+
+
+def symmetrise(P: np.ndarray) -> np.ndarray:
+    """``(P + P^T) / 2`` in place (P fresh from the update); returns P."""
+    P += P.swapaxes(-1, -2)
+    P *= 0.5
+    return P
+
+
+def kalman_update(mean: np.ndarray, P: np.ndarray, H: np.ndarray, nu: np.ndarray, r: np.ndarray,
+                  joseph: bool = True, want_nis: bool = False, strict: bool = True
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The stacked Kalman update of one run or R runs: ``(mean, P, NIS or None)``.
+
+    S = H P H^T + diag(r), K = P H^T S^-1, mean = mean + K nu (heading wrapped),
+    P = (I - K H) P (I - K H)^T + K diag(r) K^T (Joseph) or P - K H P, symmetrised;
+    NIS = nu^T S^-1 nu. ``strict``: see :func:`solve`.
+    """
+    HP = H @ P                                          # (..., m, 3)
+    S = HP @ H.swapaxes(-1, -2)
+    add_diagonal(S, r)
+    nis = None
+    if want_nis:
+        X = solve(S, np.concatenate([HP, nu[..., None]], axis=-1), strict)
+        Kt = X[..., :3]                                 # K^T = S^-1 H P (P symmetric)
+        nis = np.sum(nu * X[..., 3], axis=-1)
     else:
-        sel = np.flatnonzero(angle) if any(angles) else None
-    return StackedReadings(np.asarray(z, dtype=float), np.array(rs), angle, sel, blocks)
+        Kt = solve(S, HP, strict)
+    K = Kt.swapaxes(-1, -2)
+    mean = corrected_mean(mean, Kt, nu)
+    if joseph:
+        A = _I3 - K @ H
+        P = A @ P @ A.swapaxes(-1, -2) + (K * r[..., None, :]) @ Kt
+    else:
+        P = P - K @ HP
+    return mean, symmetrise(P), nis
 
 
-def process_cov_terms(noise, theta: float, v: float, omega: float, dt: float) -> tuple[float, ...]:
-    """``(q00, q01, q02, q11, q12, q22)`` of ``noise.process_cov(pose, v, omega, dt)`` as floats.
+def nis(mean: np.ndarray, P: np.ndarray, st: StackedReadings) -> np.ndarray:
+    """Joint NIS ``nu^T S^-1 nu`` (R,) of every reading of the tick against the prior
+    ``(mean, P)`` (R runs), as ``evaluation.metrics.nis`` (all kinds, the told noise)."""
+    H, nu, r = st.linearise(mean)
+    S = H @ P @ H.swapaxes(-1, -2)
+    add_diagonal(S, r)
+    return np.sum(nu * solve(S, nu[..., None], strict=False)[..., 0], axis=-1)
+
+
+# -- process noise -----------------------------------------------------------------------
+def process_cov_terms(noise: MotionNoise, theta: Any, c: Any, s: Any, v: Any, omega: Any, dt: float
+                      ) -> tuple[Any, ...]:
+    """``(q00, q01, q02, q11, q12, q22)`` of ``noise.process_cov(pose, v, omega, dt)`` at the
+    heading ``theta`` [rad] (c, s its cos and sin), as floats or as arrays (R,).
 
     Q = B M B^T + diag(pose_std^2) with B = [[dt cos, 0], [dt sin, 0], [0, dt]] and
-    M = diag(sigma_v^2, sigma_omega^2), written out for a plain ``MotionNoise`` (no numpy
-    call); any other noise object is asked for its ``process_cov``.
+    M = diag(sigma_v^2, sigma_omega^2), written out for a plain ``MotionNoise``; any other
+    noise object is asked for its ``process_cov`` (floats only).
     """
     if type(noise) is not MotionNoise:
         q = noise.process_cov(np.array([0.0, 0.0, theta]), v, omega, dt).tolist()
         return q[0][0], q[0][1], q[0][2], q[1][1], q[1][2], q[2][2]
-    c, s = math.cos(theta), math.sin(theta)
     sv = noise.v_std + noise.v_frac * abs(v)
     sw = noise.omega_std + noise.omega_frac * abs(omega)
     qv = dt * dt * sv * sv
     ps = noise.pose_std
     return (qv * c * c + ps[0] * ps[0], qv * c * s, 0.0, qv * s * s + ps[1] * ps[1], 0.0,
             dt * dt * sw * sw + ps[2] * ps[2])
+
+
+def cov_entries(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                         np.ndarray]:
+    """The six distinct entries (p00, p01, p02, p11, p12, p22) of P (..., 3, 3), as views."""
+    return P[..., 0, 0], P[..., 0, 1], P[..., 0, 2], P[..., 1, 1], P[..., 1, 2], P[..., 2, 2]
+
+
+def cov_matrix(p: Sequence[Any]) -> np.ndarray:
+    """The symmetric matrices (R, 3, 3) with the six entries ``p`` (p00 an array (R,))."""
+    p00, p01, p02, p11, p12, p22 = p
+    P = np.empty((*np.shape(p00), 3, 3))
+    P[..., 0, 0] = p00
+    P[..., 0, 1] = P[..., 1, 0] = p01
+    P[..., 0, 2] = P[..., 2, 0] = p02
+    P[..., 1, 1] = p11
+    P[..., 1, 2] = P[..., 2, 1] = p12
+    P[..., 2, 2] = p22
+    return P
+
+
+# -- batching ----------------------------------------------------------------------------
+class BatchedGaussian:
+    """One Gaussian filter for R runs: ``mean`` (R, 3) [m, m, rad], ``cov`` (R, 3, 3).
+
+    ``predict(v, w, dt)`` takes the commands (R,) [m/s, rad/s]; ``update(st)`` the tick's
+    readings (R, M) from a :class:`SlotPacker`.
+    """
+
+    #: True when ``update`` leaves the NIS of the tick's readings in ``last_nis`` (for free).
+    own_nis: ClassVar[bool] = False
+
+    def __init__(self, mean0: np.ndarray, cov0: np.ndarray, runs: int, noise: MotionNoise):
+        self.mean = np.tile(np.asarray(mean0, dtype=float), (runs, 1))
+        self.cov = np.tile(np.asarray(cov0, dtype=float), (runs, 1, 1))
+        self.noise = noise
+        self.last_nis: np.ndarray | None = None
+
+    def predict(self, v: np.ndarray, w: np.ndarray, dt: float) -> None:
+        raise NotImplementedError
+
+    def update(self, st: StackedReadings) -> None:
+        """No measurement update (dead reckoning)."""
+
+
+class BatchableFilter(FilterBase):
+    """A filter with a form that runs R runs at once (:meth:`batched`).
+
+    ``batch_params`` (declared by the class itself) names the parameters that form
+    reproduces: None = any value, else the only value it does. A parameter not named there,
+    a subclass that does not declare its own, a motion noise other than a plain
+    ``MotionNoise`` or a sensor kind without slots keep the filter to one run at a time.
+    """
+
+    batch_params: ClassVar[dict[str, Any]] = {}
+
+    @property
+    def batch_blocker(self) -> str | None:
+        """Why this filter has no batched form (None: :meth:`batched` reproduces it)."""
+        cls = type(self)
+        if "batch_params" not in vars(cls):
+            return f"{cls.__name__} has no batched form"
+        for key, value in self.params.items():
+            if key not in cls.batch_params:
+                return f"parameter {key} is not batched"
+            only = cls.batch_params[key]
+            if only is not None and value != only:
+                return f"{key} = {value!r} is not batched"
+        if type(self.ctx.motion_noise) is not MotionNoise:
+            return "the motion noise is not a plain MotionNoise"
+        for s in self.ctx.sensors:
+            if s.kind not in KINDS:
+                return f"sensor kind {s.kind!r} is not batched"
+        return None
+
+    def batched(self, runs: int) -> BatchedGaussian:
+        """This filter, from its current belief, for ``runs`` runs at once."""
+        raise NotImplementedError
+
+
+__all__ = ["ALL_ROWS", "BEACON_KINDS", "FIX_KINDS", "KINDS", "BatchableFilter", "BatchedGaussian",
+           "ReadingModels", "SlotPacker", "StackedReadings", "add_diagonal", "corrected_mean",
+           "cov_entries", "cov_matrix", "kalman_update", "nis", "process_cov_terms", "solve", "stack",
+           "symmetrise"]

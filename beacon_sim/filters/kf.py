@@ -17,82 +17,69 @@ assignment. Measurements:
 
 Bearing and range-bearing readings are *ignored*: they are not linear in the state (use
 ``ekf`` or ``ukf`` for them). ``beacon-sim check kf`` therefore runs on assignment_kf.
+
+The prediction is the EKF's code with A = I (``ekf.predict_moments``, on floats); the
+update is ``gaussian_measurements.kalman_update``, on one run here and on R runs at once in
+:class:`BatchedKF`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import ClassVar
+from typing import Any, ClassVar
 
-import numpy as np
+from beacon_sim.core.types import Measurement
+from beacon_sim.filters.base import FilterContext
+from beacon_sim.filters.ekf import BatchedVelocityGaussian, VelocityGaussian
+from beacon_sim.filters.gaussian_measurements import (
+    FIX_KINDS,
+    ReadingModels,
+    StackedReadings,
+    kalman_update,
+    stack,
+)
 
-from beacon_sim.core import motion
-from beacon_sim.core.angles import wrap
-from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, broad_gaussian
 
-I3 = np.eye(3)
-C_POSE = I3
-C_POSITION = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-
-
-class KalmanFilter(FilterBase):
+class KalmanFilter(VelocityGaussian):
     """Linear KF with A = I, B(theta), and C = I (pose fix) or [I2 0] (position fix)."""
 
     defaults: ClassVar[dict] = {}
-    sensor_kinds: ClassVar[tuple[str, ...]] = ("pose", "position")
+    batch_params: ClassVar[dict[str, Any]] = {}
+    sensor_kinds: ClassVar[tuple[str, ...]] = FIX_KINDS
+    jacobian = False  # A = I
 
     def __init__(self, ctx: FilterContext):
+        self.models = ReadingModels(ctx)
         super().__init__(ctx)
-        self.mean = np.zeros(3)
-        self.cov = np.eye(3)
-        self.reset(None)
-
-    def reset(self, initial: GaussianBelief | None) -> None:
-        initial = initial or broad_gaussian(self.ctx.world)
-        self.mean = np.array(initial.mean, dtype=float)
-        self.mean[2] = wrap(self.mean[2])
-        cov = np.array(initial.cov, dtype=float)
-        self.cov = 0.5 * (cov + cov.T)
-
-    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.mean.copy(), self.cov.copy()
-
-    def predict(self, control: Control, dt: float) -> None:
-        u = np.array([control.v, control.omega], dtype=float)
-        B = motion.jacobian_control(self.mean, dt)                      # B(theta), seed 003
-        R = self.ctx.motion_noise.process_cov(self.mean, control.v, control.omega, dt)
-        mu = self.mean + B @ u                                          # A = I
-        mu[2] = wrap(mu[2])
-        self.mean = mu
-        self.cov = self.cov + R                                         # A Sigma A^T + R
 
     def update(self, measurements: Sequence[Measurement]) -> None:
-        rows_C, rows_nu, var = [], [], []
-        for m in measurements:
-            if m.kind not in self.sensor_kinds or len(m) == 0:
-                continue  # bearing / range-bearing: not linear, ignored by this filter
-            z = np.asarray(m.z, dtype=float).reshape(-1)
-            std = self.ctx.sensor(m.sensor).fix_std(len(m.beacon_ids), m.hdop)
-            if m.kind == "pose":
-                nu = z - self.mean
-                nu[2] = wrap(nu[2])                                     # heading innovation
-                rows_C.append(C_POSE)
-            else:
-                nu = z - self.mean[:2]
-                rows_C.append(C_POSITION)
-            rows_nu.append(nu)
-            var.append(np.square(std))
-        if not rows_C:
+        st = stack(self.models, measurements, FIX_KINDS)  # bearings: not linear, ignored
+        if st is None:
             return
-        C = np.vstack(rows_C)
-        nu = np.concatenate(rows_nu)
-        Q = np.diag(np.concatenate(var))
-        S = C @ self.cov @ C.T + Q
-        K = np.linalg.solve(S, C @ self.cov).T                          # Sigma C^T S^-1
-        mu = self.mean + K @ nu
-        mu[2] = wrap(mu[2])
-        A = I3 - K @ C
-        P = A @ self.cov @ A.T + K @ Q @ K.T                            # Joseph form
-        self.mean = mu
-        self.cov = 0.5 * (P + P.T)
+        mean, cov = self.estimate()
+        C, nu, q = st.linearise(mean)
+        mu, P, _ = kalman_update(mean, cov, C, nu, q, joseph=True)
+        self.x, self.y, self.th = mu.tolist()
+        (p00, p01, p02), (_, p11, p12), (_, _, p22) = P.tolist()
+        self.p = (p00, p01, p02, p11, p12, p22)
+
+    def batched(self, runs: int) -> BatchedKF:
+        mean, cov = self.estimate()
+        return BatchedKF(mean, cov, runs, self.ctx.motion_noise)
+
+
+class BatchedKF(BatchedVelocityGaussian):
+    """:class:`KalmanFilter` for R runs: the same prediction on arrays, the same update on
+    the fix slots of the tick's readings."""
+
+    jacobian = False
+
+    def update(self, st: StackedReadings) -> None:
+        fixes = st.only(FIX_KINDS)
+        if fixes is None:
+            return
+        C, nu, q = fixes.linearise(self.mean)
+        self.mean, self.cov, _ = kalman_update(self.mean, self.cov, C, nu, q, joseph=True, strict=False)
+
+
+__all__ = ["BatchedKF", "KalmanFilter"]

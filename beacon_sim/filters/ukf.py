@@ -21,29 +21,43 @@ readings; angle rows use circular means and wrapped residuals::
 The square root is a Cholesky factor; when P is near-singular it retries with a small
 diagonal jitter, and finally uses the eigen-decomposition with negative eigenvalues
 clipped to zero, so a degenerate covariance never stops the filter.
+
+R runs at once (:class:`BatchedUKF`, for ``evaluation.montecarlo``): the same weights,
+Cholesky (:func:`cholesky3`) and update (:func:`innovation`, :func:`correct`) on arrays with
+a leading run axis; the prediction is the per-step loop over sigma points written on
+arrays (R, 7).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import ClassVar
+from collections.abc import Callable, Sequence
+from typing import Any, ClassVar
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import (
-    FilterBase,
-    FilterContext,
-    FilterError,
-    GaussianBelief,
-    broad_gaussian,
+from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, broad_gaussian
+from beacon_sim.filters.gaussian_measurements import (
+    ALL_ROWS,
+    AngleRows,
+    BatchableFilter,
+    BatchedGaussian,
+    ReadingModels,
+    StackedReadings,
+    add_diagonal,
+    corrected_mean,
+    cov_entries,
+    cov_matrix,
+    process_cov_terms,
+    solve,
+    stack,
+    symmetrise,
 )
-from beacon_sim.filters.gaussian_measurements import ReadingModels, process_cov_terms, stack
 
 N = 3
-_PI = np.pi
-_TWO_PI = 2.0 * np.pi
 
 
 def robust_sqrt(A: np.ndarray) -> np.ndarray:
@@ -68,7 +82,26 @@ def robust_sqrt(A: np.ndarray) -> np.ndarray:
     return V * np.sqrt(np.clip(w, 0.0, None))
 
 
-def sigma_weights(alpha: float, beta: float, kappa: float, scaled: bool, n: int = N):
+def cholesky3(a00: Any, a01: Any, a02: Any, a11: Any, a12: Any, a22: Any,
+              sqrt: Callable[[Any], Any]) -> tuple[tuple[Any, ...], tuple[Any, Any]]:
+    """The lower Cholesky factor of a symmetric 3x3 matrix from its six distinct entries,
+    on floats (``sqrt = math.sqrt``: ValueError or ZeroDivisionError when a pivot is not
+    positive) or arrays (R,) (``sqrt = np.sqrt``: NaN or inf there).
+
+    Returns ``(l00, l10, l20, l11, l21, l22)`` and the pivots ``(p1, p2)`` = l11^2, l22^2.
+    """
+    l00 = sqrt(a00)
+    l10 = a01 / l00
+    l20 = a02 / l00
+    p1 = a11 - l10 * l10
+    l11 = sqrt(p1)
+    l21 = (a12 - l20 * l10) / l11
+    p2 = a22 - l20 * l20 - l21 * l21
+    return (l00, l10, l20, l11, l21, sqrt(p2)), (p1, p2)
+
+
+def sigma_weights(alpha: float, beta: float, kappa: float, scaled: bool, n: int = N
+                  ) -> tuple[float, np.ndarray, np.ndarray]:
     """``(c, Wm, Wc)``: the spread factor c (points at m +- columns of sqrt(c P)) and the
     mean and covariance weights, shape (2n + 1,)."""
     if scaled:
@@ -86,7 +119,43 @@ def sigma_weights(alpha: float, beta: float, kappa: float, scaled: bool, n: int 
     return c, Wm, Wc
 
 
-class UnscentedKalmanFilter(FilterBase):
+def innovation(Z: np.ndarray, D: np.ndarray, z: np.ndarray, r: np.ndarray, sel: AngleRows,
+               Wm: np.ndarray, Wc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unscented innovation of one run (Z (7, m) the readings expected at the sigma
+    points, D (7, 3) their offsets, z, r (m,)) or of R runs (a leading axis R on each).
+
+    Returns S = sum Wc dZ dZ^T + diag(r) (..., m, m), Pxz = sum Wc dX dZ^T (..., 3, m) and
+    nu = z - z_hat (..., m); the angle rows ``sel`` use circular means and wrapped residuals.
+    """
+    if sel is ALL_ROWS:                                 # circular means of the angle rows
+        zhat = np.arctan2(Wm @ np.sin(Z), Wm @ np.cos(Z))
+    else:
+        zhat = Wm @ Z
+        if sel is not None:
+            Za = Z[..., sel]
+            zhat[..., sel] = np.arctan2(Wm @ np.sin(Za), Wm @ np.cos(Za))
+    # The residuals of the sigma points (rows 0..2n) and of the measurement (last row),
+    # angle rows wrapped in one call.
+    dY = np.concatenate((Z, z[..., None, :]), axis=-2) - zhat[..., None, :]
+    if sel is not None:
+        dY[..., sel] = wrap(dY[..., sel])
+    dZ, nu = dY[..., :-1, :], dY[..., -1, :]
+    WdZ = dZ * Wc[:, None]
+    S = dZ.swapaxes(-1, -2) @ WdZ
+    add_diagonal(S, r)
+    Pxz = D.swapaxes(-1, -2) @ WdZ                     # dX = the sigma offsets
+    return S, Pxz, nu
+
+
+def correct(mean: np.ndarray, P: np.ndarray, S: np.ndarray, Pxz: np.ndarray, nu: np.ndarray,
+            strict: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``K = Pxz S^-1``, ``mean + K nu`` (heading wrapped), ``P - K S K^T = P - Pxz K^T``
+    (symmetrised), for one run or R runs; ``strict``: see ``gaussian_measurements.solve``."""
+    Kt = solve(S, Pxz.swapaxes(-1, -2), strict)        # K^T = S^-1 Pxz^T (S symmetric)
+    return corrected_mean(mean, Kt, nu), symmetrise(P - Pxz @ Kt)
+
+
+class UnscentedKalmanFilter(BatchableFilter):
     """UKF over ``[x, y, theta]`` for bearing, range-bearing, pose and position readings.
 
     Parameters (``ctx.params``)
@@ -106,6 +175,8 @@ class UnscentedKalmanFilter(FilterBase):
 
     defaults: ClassVar[dict] = {"alpha": 1.0, "beta": 2.0, "kappa": 0.0, "scaled": True,
                                 "gate_chi2": 0.0}
+    batch_params: ClassVar[dict[str, Any]] = {"alpha": None, "beta": None, "kappa": None,
+                                              "scaled": None, "gate_chi2": 0.0}  # no batched gate
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
@@ -117,36 +188,36 @@ class UnscentedKalmanFilter(FilterBase):
         self.models = ReadingModels(ctx)
         self.gate = float(p["gate_chi2"])
         self.rejected = 0  # readings dropped by the gate so far
+        self.mean = np.zeros(3)
+        self.cov = np.eye(3)
         self.reset(None)
 
     def reset(self, initial: GaussianBelief | None) -> None:
         initial = initial or broad_gaussian(self.ctx.world)
         self.mean = np.array(initial.mean, dtype=float)
-        self.mean[2] = (self.mean[2] + _PI) % _TWO_PI - _PI
+        self.mean[2] = wrap(self.mean[2])
         cov = np.array(initial.cov, dtype=float)
         self.cov = 0.5 * (cov + cov.T)
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         return self.mean.copy(), self.cov.copy()
 
+    def batched(self, runs: int) -> BatchedUKF:
+        return BatchedUKF(self.mean, self.cov, runs, self.ctx.motion_noise, self.sqrt_c, self.Wm, self.Wc)
+
     def _offsets(self) -> list[tuple[float, float, float]]:
         """The 2n + 1 sigma-point offsets from the mean: 0, +- columns of sqrt(c P).
 
-        The 3x3 Cholesky factor is written out on floats (a numpy call costs ~1 us,
-        design.md section 9); ``robust_sqrt`` takes over when a pivot is not positive."""
+        The 3x3 Cholesky factor on floats (a numpy call costs ~1 us, design.md section 9);
+        ``robust_sqrt`` takes over when a pivot is not positive."""
         (a00, a01, a02), (_, a11, a12), (_, _, a22) = self.cov.tolist()
         sc = self.sqrt_c
         try:
-            l00 = math.sqrt(a00)
-            l10 = a01 / l00
-            l20 = a02 / l00
-            l11 = math.sqrt(a11 - l10 * l10)
-            l21 = (a12 - l20 * l10) / l11
-            l22 = math.sqrt(a22 - l20 * l20 - l21 * l21)
-            cols = ((sc * l00, sc * l10, sc * l20), (0.0, sc * l11, sc * l21), (0.0, 0.0, sc * l22))
+            (l00, l10, l20, l11, l21, l22), _ = cholesky3(a00, a01, a02, a11, a12, a22, math.sqrt)
+            cols = [(sc * l00, sc * l10, sc * l20), (0.0, sc * l11, sc * l21), (0.0, 0.0, sc * l22)]
         except (ValueError, ZeroDivisionError):
             L = robust_sqrt(self.cov) * sc
-            cols = tuple(tuple(c) for c in L.T.tolist())
+            cols = [(a, b, c) for a, b, c in L.T.tolist()]
         return [(0.0, 0.0, 0.0), *cols, *((-a, -b, -c) for a, b, c in cols)]
 
     def _sigma_points(self) -> np.ndarray:
@@ -158,13 +229,14 @@ class UnscentedKalmanFilter(FilterBase):
         m0, m1, m2 = self.mean.tolist()
         vdt, wdt = v * dt, w * dt
         Wm, Wc = self._wm, self._wc
-        cw, sw = math.cos(wdt), math.sin(wdt)
+        cos, sin, wrap_ = math.cos, math.sin, wrap  # locals: the per-sigma-point hot path
+        cw, sw = cos(wdt), sin(wdt)
         # The velocity model on every sigma point; weighted sums for the mean as we go.
         Y = []
         x = y = sn = cs = 0.0
         for wi, (d0, d1, d2) in zip(Wm, self._offsets(), strict=True):
             th = m2 + d2
-            c, s = math.cos(th), math.sin(th)
+            c, s = cos(th), sin(th)
             a, b = m0 + d0 + vdt * c, m1 + d1 + vdt * s
             th += wdt
             Y.append((a, b, th))
@@ -175,10 +247,11 @@ class UnscentedKalmanFilter(FilterBase):
             cs += wi * (c * cw - s * sw)
         th = math.atan2(sn, cs)                 # circular weighted mean of the heading
         # P = sum Wc d d^T + Q with the heading residual wrapped.
-        q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.motion_noise, m2, v, w, dt)
+        q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.motion_noise, m2, math.cos(m2),
+                                                         math.sin(m2), v, w, dt)
         for wi, (a, b, c) in zip(Wc, Y, strict=True):
             da, db = a - x, b - y
-            dc = (c - th + _PI) % _TWO_PI - _PI
+            dc = wrap_(c - th)
             wa, wb, wc = wi * da, wi * db, wi * dc
             q00 += wa * da
             q01 += wa * db
@@ -186,7 +259,7 @@ class UnscentedKalmanFilter(FilterBase):
             q11 += wb * db
             q12 += wb * dc
             q22 += wc * dc
-        self.mean = np.array([x, y, (th + _PI) % _TWO_PI - _PI])
+        self.mean = np.array([x, y, wrap(th)])
         self.cov = np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
 
     def update(self, measurements: Sequence[Measurement]) -> None:
@@ -196,38 +269,17 @@ class UnscentedKalmanFilter(FilterBase):
         if st is None:
             return
         D = np.array(self._offsets())             # redrawn from the predicted belief (seed 000)
-        Z = st.predict(self.mean + D, wrap=False)  # (7, m); residuals are wrapped below
-        Wm, Wc = self.Wm, self.Wc
-        sel = st.angle_sel
-        zhat = Wm @ Z
-        if sel is not None:                       # circular means of the angle rows
-            Za = Z[:, sel]
-            zhat[sel] = np.arctan2(Wm @ np.sin(Za), Wm @ np.cos(Za))
-        dZ = Z - zhat
-        nu = st.z - zhat
-        if sel is not None:                       # wrapped residuals
-            dZ[:, sel] = (dZ[:, sel] + _PI) % _TWO_PI - _PI
-            nu[sel] = (nu[sel] + _PI) % _TWO_PI - _PI
-        WdZ = dZ * Wc[:, None]
-        S = dZ.T @ WdZ
-        S.flat[:: S.shape[0] + 1] += st.r         # + R (diagonal)
-        Pxz = D.T @ WdZ                           # sum Wc dX dZ^T, dX = the sigma offsets
+        Z = st.predict(self.mean + D, wrap=False)  # (7, m); residuals are wrapped in innovation
+        S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self.Wm, self.Wc)
         if self.gate > 0.0:
             keep = self._gate(st, S, nu)
             if keep is not None:
                 if not keep.any():
                     return
                 S, Pxz, nu = S[np.ix_(keep, keep)], Pxz[:, keep], nu[keep]
-        Kt = _solve(S, Pxz.T)                     # K^T = S^-1 Pxz^T (S symmetric)
-        m = self.mean + nu @ Kt
-        m[2] = (m[2] + _PI) % _TWO_PI - _PI
-        P = self.cov - Pxz @ Kt                   # P - K S K^T = P - Pxz K^T
-        P += P.T
-        P *= 0.5
-        self.cov = P
-        self.mean = m
+        self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu)
 
-    def _gate(self, st, S: np.ndarray, nu: np.ndarray) -> np.ndarray | None:
+    def _gate(self, st: StackedReadings, S: np.ndarray, nu: np.ndarray) -> np.ndarray | None:
         """Rows to keep (bool mask), or None when every reading passes the chi-square gate.
 
         A beacon's rows (1 for a bearing, 2 for range-bearing) or a fix's rows are tested
@@ -244,19 +296,63 @@ class UnscentedKalmanFilter(FilterBase):
         return None if keep.all() else keep
 
 
-def _solve(S: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``S^-1 B`` for a small symmetric positive-definite S. numpy's solve spends ~10 us in
-    its Python wrapper on a 4x4 system; the gufunc underneath takes ~3 us."""
-    if _gufunc_solve is not None:
-        X = _gufunc_solve(S, B)
-        if np.isfinite(X).all():
-            return X
-    return np.linalg.solve(S, B)  # raises LinAlgError for a singular S
+class BatchedUKF(BatchedGaussian):
+    """:class:`UnscentedKalmanFilter` for R runs (``gate_chi2 = 0``)."""
+
+    def __init__(self, mean0: np.ndarray, cov0: np.ndarray, runs: int, noise: MotionNoise,
+                 sqrt_c: float, Wm: np.ndarray, Wc: np.ndarray):
+        super().__init__(mean0, cov0, runs, noise)
+        self.sqrt_c, self.Wm, self.Wc = sqrt_c, Wm, Wc
+
+    def offsets(self) -> np.ndarray:
+        """Sigma-point offsets (R, 7, 3): 0, +- the columns of sqrt(c P) (:func:`cholesky3`;
+        ``robust_sqrt`` for the runs where a pivot is not positive)."""
+        P = self.cov
+        a = cov_entries(P)
+        (l00, l10, l20, l11, l21, l22), (p1, p2) = cholesky3(*a, np.sqrt)
+        L = np.zeros_like(P)
+        L[:, 0, 0], L[:, 1, 0], L[:, 2, 0] = l00, l10, l20
+        L[:, 1, 1], L[:, 2, 1] = l11, l21
+        L[:, 2, 2] = l22
+        for i in np.flatnonzero((a[0] <= 0.0) | (p1 <= 0.0) | (p2 < 0.0)):
+            L[i] = robust_sqrt(P[i])
+        cols = self.sqrt_c * L.swapaxes(-1, -2)        # row j = column j of sqrt(c P)
+        return np.concatenate([np.zeros((len(P), 1, 3)), cols, -cols], axis=1)
+
+    def predict(self, v: np.ndarray, w: np.ndarray, dt: float) -> None:
+        """:meth:`UnscentedKalmanFilter.predict` with every sum over sigma points on arrays."""
+        D = self.offsets()
+        m = self.mean
+        X = m[:, None, :] + D                           # sigma points, heading not wrapped
+        vdt = (v * dt)[:, None]
+        wdt = (w * dt)[:, None]
+        th = X[..., 2]
+        c, s = np.cos(th), np.sin(th)
+        a = X[..., 0] + vdt * c
+        b = X[..., 1] + vdt * s
+        cw, sw = np.cos(wdt), np.sin(wdt)
+        Wm, Wc = self.Wm, self.Wc
+        x = np.sum(a * Wm, axis=1)
+        y = np.sum(b * Wm, axis=1)
+        sn = np.sum((s * cw + c * sw) * Wm, axis=1)
+        cs = np.sum((c * cw - s * sw) * Wm, axis=1)
+        thm = np.arctan2(sn, cs)                        # circular weighted mean
+        dX = np.stack([a - x[:, None], b - y[:, None], wrap(th + wdt - thm[:, None])], axis=2)
+        th0 = m[:, 2]
+        Q = cov_matrix(process_cov_terms(self.noise, th0, np.cos(th0), np.sin(th0), v, w, dt))
+        self.cov = (dX * Wc[:, None]).swapaxes(-1, -2) @ dX + Q
+        self.mean = np.stack([x, y, wrap(thm)], axis=1)
+
+    def update(self, st: StackedReadings) -> None:
+        D = self.offsets()
+        X = self.mean[:, None, :] + D                   # (R, 7, 3)
+        R, n, _ = X.shape
+        Z = st.predict(X.reshape(R * n, 3), wrap=False).reshape(R, n, -1)
+        if st.valid is not None:                        # empty slots: no reading, no residual
+            Z = np.where(st.valid[:, None, :], Z, 0.0)
+        S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self.Wm, self.Wc)
+        self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu, strict=False)
 
 
-try:  # the ufunc np.linalg.solve wraps (numpy >= 1.8); absent: use the public function
-    from numpy.linalg import _umath_linalg as _ul
-
-    _gufunc_solve = _ul.solve
-except (ImportError, AttributeError):  # pragma: no cover
-    _gufunc_solve = None
+__all__ = ["BatchedUKF", "UnscentedKalmanFilter", "cholesky3", "correct", "innovation",
+           "robust_sqrt", "sigma_weights"]
