@@ -156,6 +156,8 @@ def test_clock_pause_and_single_step():
     assert c.speed == 8.0
     for _ in range(10):
         c.slower()
+    assert c.speed == SPEEDS[0] == 0.1
+    c.set_speed(0.3)
     assert c.speed == 0.25
 
 

@@ -47,7 +47,7 @@ BINDINGS: tuple[Binding, ...] = (
     Binding(".", _k("K_PERIOD"), "step", "one tick while paused", group="Time"),
     Binding("+", _k("K_PLUS", "K_EQUALS", "K_KP_PLUS"), "speed_up",
             "faster simulation (up to x8)", group="Time"),
-    Binding("-", _k("K_MINUS", "K_KP_MINUS"), "speed_down", "slower simulation (down to x0.25)",
+    Binding("-", _k("K_MINUS", "K_KP_MINUS"), "speed_down", "slower simulation (down to x0.1)",
             group="Time"),
     Binding("K", _k("K_k"), "kidnap_random", "kidnap the robot to a random pose", group="World"),
     Binding("Left click", (), "kidnap_click", "kidnap to that point (drag: heading)",

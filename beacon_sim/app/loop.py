@@ -8,10 +8,12 @@ frame rate, so a window session equals a headless run fed the same commands.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
-#: Speed factors reachable with + / -.
-SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+#: Speed factors reachable with + / - (x0.1: one tick of sparse_kidnap per second, slow
+#: enough to talk a class through global localization).
+SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
 
 @dataclass
@@ -48,6 +50,11 @@ class StepClock:
 
     def slower(self) -> None:
         self.speed_index = max(self.speed_index - 1, 0)
+
+    def set_speed(self, factor: float) -> None:
+        """The speed factor in ``SPEEDS`` nearest to ``factor`` (on a log scale)."""
+        self.speed_index = min(range(len(SPEEDS)),
+                               key=lambda i: abs(math.log(SPEEDS[i] / max(factor, 1e-6))))
 
     def toggle_pause(self) -> None:
         self.paused = not self.paused

@@ -84,6 +84,7 @@ class App:
         self.pan_from: tuple[int, int] | None = None
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
+        self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.chart = StripChart(session.names, session.scenario.dt)
         self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
@@ -286,6 +287,8 @@ class App:
                     self.flash(ev.kind[: -len("_start")].replace("_", " ").upper()
                                + (f": {ev.detail}" if ev.detail else ""))
         self.draw()
+        if self.gif is not None:
+            self.gif.offer(self.screen)
         self.frames += 1
 
     def ticks_due(self, real_dt: float) -> int:
@@ -377,6 +380,9 @@ class PlayOptions:
     screenshot: str | None = None  # save the last frame here (PNG)
     record: bool = True
     autopilot: bool = False
+    paused: bool = False  # start paused (Space runs, . steps)
+    speed: float | None = None  # start at this speed factor (nearest of loop.SPEEDS)
+    gif: str | None = None  # also write the session as an animated GIF here
 
 
 def play(options: PlayOptions) -> int:
@@ -391,10 +397,12 @@ def play(options: PlayOptions) -> int:
         session.toggle_autopilot()
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     app = App(session, o.size, scripted=o.frames is not None, recording=rec_path)
+    start(app, o.paused, o.speed, o.gif)
     try:
         app.run(o.frames)
         if o.screenshot:
             app.save_screenshot(o.screenshot)
+        finish_gif(app)
     finally:
         app.close()
     if rec_path is not None:
@@ -402,4 +410,30 @@ def play(options: PlayOptions) -> int:
     return 0
 
 
-__all__ = ["App", "PlayOptions", "play"]
+def start(app: App, paused: bool = False, speed: float | None = None, gif: str | None = None) -> None:
+    """The command line's starting state: paused, the speed factor, a GIF being captured."""
+    if paused:
+        app.clock.paused = True
+    if speed is not None:
+        app.clock.set_speed(speed)
+    if gif:
+        from beacon_sim.app.gif import GifRecorder
+
+        app.gif = GifRecorder(gif)
+
+
+def finish_gif(app: App) -> None:
+    """Write the GIF the window captured (if any) and say where, how many frames, how big."""
+    if app.gif is None:
+        return
+    n = app.gif.save()
+    if not n:
+        print(f"beacon-sim: no frame captured, {app.gif.path} not written", file=sys.stderr)
+        return
+    kb = app.gif.path.stat().st_size / 1024
+    full = " (stopped capturing at the frame limit)" if app.gif.full else ""
+    print(f"wrote {app.gif.path}: {n} frames of {app.gif.duration_ms} ms, {app.gif.size[0]}x"
+          f"{app.gif.size[1]} px, {kb:.0f} KB{full}", file=sys.stderr)
+
+
+__all__ = ["App", "PlayOptions", "finish_gif", "play", "start"]

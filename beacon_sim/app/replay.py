@@ -41,6 +41,8 @@ class ReplayApp(App):
     def __init__(self, session: ReplaySession | MrclamPlayback, size=(1280, 800),
                  scripted: bool = False):
         self.reported = False
+        self.end_tick: int | None = None  # stop the window here (--end, --gif)
+        self.stop_at_end = False  # quit once the recording is over (--gif)
         self.user_flips: set[str] = set()  # filters the user showed / hid (kept over seeks)
         self.seek_to: int | None = None
         self.scrubbing = False
@@ -75,11 +77,20 @@ class ReplayApp(App):
             target, self.seek_to = self.seek_to, None
             self.seek(target)
         n = min(super().ticks_due(real_dt), self.session.total_ticks - self.session.tick_count)
-        return max(n, 0)
+        return self.ticks_due_capped(max(n, 0))
+
+    def ticks_due_capped(self, n: int) -> int:
+        """At most the ticks left before ``end_tick``."""
+        if self.end_tick is None:
+            return n
+        return max(min(n, self.end_tick - self.session.tick_count), 0)
 
     def frame(self, real_dt: float) -> None:
         super().frame(real_dt)
         s = self.session
+        if (self.end_tick is not None and s.tick_count >= self.end_tick) or (
+                self.stop_at_end and s.at_end):
+            self.running = False
         if not self.reported and isinstance(s, ReplaySession) and (s.at_end or s.mismatch):
             self.reported = True
             status = s.checksum_status()
@@ -163,16 +174,33 @@ class ReplayApp(App):
 
 
 def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[str, Any]],
-                frames: int | None = None, screenshot: str | None = None) -> int:
+                frames: int | None = None, screenshot: str | None = None, *,
+                paused: bool = False, gif: str | None = None, start: float | None = None,
+                end: float | None = None) -> int:
     """The replay window until quit (or ``frames`` frames, each counting 1/60 s); saves the
-    last frame to ``screenshot``. Returns 2 when the truth differs from the recording."""
+    last frame to ``screenshot``. Returns 2 when the truth differs from the recording.
+
+    ``start`` / ``end`` [s]: seek to ``start`` first, stop at ``end``. With ``gif`` the
+    window is scripted (1/60 s per frame, as fast as it draws), captures every 6th frame
+    from ``start`` to ``end`` (default: the end of the recording) and writes the GIF."""
+    from beacon_sim.app.main import finish_gif
+    from beacon_sim.app.main import start as start_app
+
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     session = ReplaySession(recording, specs, params)
-    app = ReplayApp(session, scripted=frames is not None)
+    app = ReplayApp(session, scripted=frames is not None or gif is not None)
+    dt = session.scenario.dt
+    if start:
+        app.seek(min(round(start / dt), session.total_ticks))
+    if end is not None:
+        app.end_tick = min(round(end / dt), session.total_ticks)
+    app.stop_at_end = gif is not None
+    start_app(app, paused=paused and gif is None, gif=gif)
     try:
         app.run(frames)
         if screenshot:
             app.save_screenshot(screenshot)
+        finish_gif(app)
         s = app.session
         assert isinstance(s, ReplaySession)
         if not app.reported:

@@ -36,6 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", default="1280x800", help="window size WxH in pixels")
     p.add_argument("--autopilot", action="store_true",
                    help="start with the scenario's driver at the wheel (M toggles it)")
+    p.add_argument("--paused", action="store_true", help="start paused (Space runs, . steps one tick)")
+    p.add_argument("--speed", type=float, metavar="X", help="start at this speed factor (0.1 to 8)")
+    p.add_argument("--gif", metavar="GIF", help="also write the session as an animated GIF (Pillow)")
 
     p = sub.add_parser("run", help="one headless run; prints a summary")
     p.add_argument("scenario")
@@ -69,6 +72,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.add_argument("--frames", type=int, help="on screen: quit after N frames of 1/60 s")
     p.add_argument("--screenshot", metavar="PNG", help="on screen: save the last frame to PNG")
+    p.add_argument("--paused", action="store_true", help="on screen: start paused")
+    p.add_argument("--gif", metavar="GIF", help="write an animated GIF of the replay (off screen) and stop")
+    p.add_argument("--start", type=float, metavar="S", help="start at S seconds (with --gif or on screen)")
+    p.add_argument("--end", type=float, metavar="S", help="with --gif: stop at S seconds")
 
     p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv) or "
                                       "MCAP for Foxglove (.mcap)")

@@ -48,8 +48,29 @@ def play_command(args: argparse.Namespace) -> int:
     print_sensor_notes(specs, scenario)
     if args.autopilot and scenario.driver.kind == "keyboard":
         raise UsageError(f"--autopilot: scenario {scenario.name} has no driver (driver.kind = keyboard)")
+    check_speed(args.speed)
+    check_gif(args.gif)
     from beacon_sim.app.main import PlayOptions, play  # pygame only when a window opens
 
     return play(PlayOptions(scenario, specs, scenario.seed if args.seed is None else int(args.seed),
                             params, size, args.frames, args.screenshot, record=not args.no_record,
-                            autopilot=args.autopilot))
+                            autopilot=args.autopilot, paused=args.paused, speed=args.speed,
+                            gif=args.gif))
+
+
+def check_speed(speed: float | None) -> None:
+    """``--speed X``: a factor from 0.1 to 8 (the window takes the nearest of its steps)."""
+    if speed is not None and not 0.1 <= speed <= 8.0:
+        raise UsageError(f"--speed {speed:g}: expected a factor from 0.1 to 8")
+
+
+def check_gif(path: str | None) -> None:
+    """``--gif FILE``: a .gif name, and Pillow installed (the ``gif`` extra)."""
+    if path is None:
+        return
+    if not path.lower().endswith(".gif"):
+        raise UsageError(f"--gif {path!r}: expected a file name ending in .gif")
+    try:
+        import PIL  # noqa: F401
+    except ImportError:
+        raise UsageError("--gif needs Pillow: pip install 'beacon-sim[gif]'") from None

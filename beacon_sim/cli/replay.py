@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 from beacon_sim.cli.common import check_frames, filter_params, print_failures
+from beacon_sim.cli.play import check_gif
 from beacon_sim.cli.tables import print_run
 from beacon_sim.errors import UsageError
 from beacon_sim.io.recording import Recording, RecordingError, load_recording
@@ -31,6 +33,14 @@ def load(path: str) -> Recording:
     return recording
 
 
+def check_span(start: float | None, end: float | None, duration: float) -> None:
+    """``--start S --end S`` [s]: within the recording, start before end."""
+    if start is not None and not 0.0 <= start < duration:
+        raise UsageError(f"--start {start:g}: expected 0 <= S < {duration:g} (the recording's length)")
+    if end is not None and not end > (start or 0.0):
+        raise UsageError(f"--end {end:g}: expected a time after --start ({start or 0.0:g} s)")
+
+
 def replay_command(args: argparse.Namespace) -> int:
     recording = load(args.file)
     params = filter_params(args)
@@ -39,10 +49,15 @@ def replay_command(args: argparse.Namespace) -> int:
         specs, skipped = recorded_filter_specs(recording, args.filters or None)
         for spec in skipped:
             print(skipped_note(spec), file=sys.stderr)
+        check_gif(args.gif)
+        check_span(args.start, args.end, len(recording.ticks) * recording.scenario.dt)
+        if args.gif:  # a GIF is made off screen, as fast as it draws
+            os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
         from beacon_sim.app.replay import show_replay  # pygame only when a window opens
 
         return show_replay(recording, specs, recorded_params(recording, params),
-                           args.frames, args.screenshot)
+                           args.frames, args.screenshot, paused=args.paused, gif=args.gif,
+                           start=args.start, end=args.end)
     try:
         result = replay_recording(recording, args.filters, params)
     except ReplayMismatch as exc:
