@@ -1,8 +1,9 @@
 """``beacon-sim eval SCENARIO ... [--filter F ...] [--runs N] [--seed S] [--jobs J]
-[--out DIR] [--json]``: Monte Carlo comparison of filters, with the PCRB.
+[--out DIR] [--json] [--strict]``: Monte Carlo comparison of filters, with the PCRB.
 
 Prints a table per scenario (or one JSON object with ``--json``); with ``--out DIR`` also
-writes the files of :func:`beacon_sim.evaluation.report.write_outputs`.
+writes the files of :func:`beacon_sim.evaluation.report.write_outputs`. A filter that
+failed in any run gets no score (``FAILED``); ``--strict`` makes that exit status 1.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 from beacon_sim.core.scenario import load_scenario
@@ -63,6 +65,11 @@ def eval_command(args: argparse.Namespace) -> int:
         print(json.dumps(document, default=float))
     if out is not None:
         write_outputs(out, results, document)
-    return 0
+    failed = {(m["scenario"], name): r["failed_runs"] for m in metas
+              for name, r in m["filters"].items() if r.get("failed_runs")}
+    for (scenario, name), n in failed.items():
+        print(f"beacon-sim eval: {name} failed in {n} run(s) of {scenario} (no score)",
+              file=sys.stderr)
+    return 1 if failed and getattr(args, "strict", False) else 0
 
 

@@ -64,6 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.add_argument("--no-batch", action="store_true",
                    help="run the filters one run at a time (default: batched across runs when possible)")
+    p.add_argument("--strict", action="store_true",
+                   help="exit status 1 when any filter failed in any run")
 
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
     p.add_argument("file")

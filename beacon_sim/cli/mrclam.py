@@ -8,7 +8,7 @@ import json
 from typing import Any
 
 from beacon_sim.cli.common import check_duration, check_frames, filter_params, print_failures
-from beacon_sim.cli.tables import fmt
+from beacon_sim.cli.tables import failed_text, fmt
 from beacon_sim.errors import UsageError
 from beacon_sim.io.mrclam import MrclamData, MrclamError, load_mrclam
 from beacon_sim.runs.mrclam import SEED_001_EKF_MSE, SEED_001_UKF_MSE, Calibration, calibrate, run_mrclam
@@ -49,7 +49,7 @@ def _print_run(d: dict[str, Any]) -> None:
           f"{'head RMSE':>10}{'ANEES':>9}{'us/step':>9}")
     for name, r in d["filters"].items():
         if "failed" in r:
-            print(f"{name:<16}FAILED: {r['failed']}")
+            print(f"{name:<16}{failed_text(r)}")
             continue
         if "mse_x" not in r:
             print(f"{name:<16}no estimate inside the ground truth")

@@ -11,6 +11,12 @@ def fmt(x: float, spec: str) -> str:
     return format(x, spec) if abs(x) < 1e5 else format(x, ".2e")
 
 
+def failed_text(r: dict[str, Any]) -> str:
+    """``FAILED at 3.00 s: reason`` for a filter row of ``run``, ``replay`` or ``mrclam``."""
+    at = r.get("failed_time_s")
+    return f"FAILED{'' if at is None else f' at {at:.2f} s'}: {r['failed']}"
+
+
 def print_run(d: dict[str, Any]) -> None:
     """The summary of one headless run (``RunResult.as_json()``)."""
     print(f"scenario {d['scenario']}  seed {d['seed']}  steps {d['steps']} "
@@ -25,7 +31,7 @@ def print_run(d: dict[str, Any]) -> None:
               f"{'MSE th':>10}{'ANEES':>9}{'us/step':>9}")
         for name, r in d["filters"].items():
             if "failed" in r:
-                print(f"{name:<16}FAILED: {r['failed']}")
+                print(f"{name:<16}{failed_text(r)}")
                 continue
             print(f"{name:<16}{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>11.4f}"
                   f"{r['mse_x']:>10.4f}{r['mse_y']:>10.4f}{r['mse_theta']:>10.4f}"

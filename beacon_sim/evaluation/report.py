@@ -11,9 +11,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
+#: A failed filter's accuracy cells are empty (None), its row says ``failed_runs`` and the
+#: first failure (seed, time, reason).
 COLUMNS = ("filter", "pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
            "anees_lo", "anees_hi", "anees_verdict", "nees_steps_in_band", "anis", "anis_verdict",
-           "divergences", "recovery", "us_per_step", "rmse_over_pcrb", "pcrb_pos_rmse_m")
+           "divergences", "recovery", "us_per_step", "rmse_over_pcrb", "pcrb_pos_rmse_m", "failed_runs",
+           "first_failure")
 
 
 def _num(x, fmt: str) -> str:
@@ -44,6 +47,14 @@ def table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
             f"{'RMSE/PCRB':>10}{'us/step' if timing else '':>9}  recovery per kidnap")
     lines.append(head)
     for name, r in meta["filters"].items():
+        if r.get("failed_runs"):
+            first = r["failures"][0]
+            at = "" if first["time_s"] is None else f" at {first['time_s']:.2f} s"
+            lines.append(f"{name:<16}FAILED in {r['failed_runs']}/{meta['runs']} runs (no score); "
+                         f"first: seed {first['seed']}{at}: {first['reason']}")
+            for f in r["failed"][1:3]:
+                lines.append(f"    failed: {f}")
+            continue
         line = (f"{name:<16}{_num(r['pos_rmse_m'], '.4f'):>9}{_num(r['heading_rmse_rad'], '.4f'):>10}"
                 f"{_num(r['mse_x'], '.2e'):>9}{_num(r['mse_y'], '.2e'):>9}"
                 f"{_num(r['mse_theta'], '.2e'):>9}{_num(r['anees'], '.2f'):>8} "
@@ -70,6 +81,7 @@ def _csv_row(meta: dict[str, Any], name: str, r: dict[str, Any]) -> dict[str, An
         "anis": r["anis"], "anis_verdict": r["anis_verdict"], "divergences": r["divergences"],
         "recovery": recovery_text(r["recovery"]), "us_per_step": r["us_per_step"],
         "rmse_over_pcrb": r["rmse_over_pcrb"], "pcrb_pos_rmse_m": meta["pcrb"]["pos_rmse_m"],
+        "failed_runs": r.get("failed_runs", 0), "first_failure": r["failed"][0] if r["failed"] else "",
     }
 
 
@@ -90,14 +102,14 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
     with open(out / "eval_runs.csv", "w", newline="", encoding="utf-8") as fh:
         rows = csv.writer(fh)
         rows.writerow(["scenario", "filter", "seed", "pos_rmse_m", "heading_rmse_rad", "anees",
-                    "diverged", "recovery_s", "us_per_step", "failed"])
+                    "diverged", "recovery_s", "us_per_step", "failed", "failed_time_s"])
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
                 for p in r["per_run"]:
                     rec = ";".join("inf" if v is None else f"{v:g}" for v in p["recovery_s"])
                     rows.writerow([meta["scenario"], name, p["seed"], p["pos_rmse_m"],
                                 p["heading_rmse_rad"], p["anees"], int(p["diverged"]), rec,
-                                p["us_per_step"], p["failed"] or ""])
+                                p["us_per_step"], p["failed"] or "", p.get("failed_time_s")])
     written.append(out / "eval_runs.csv")
     with open(out / "eval.json", "w", encoding="utf-8") as fh:
         json.dump(document, fh, indent=1, default=float)

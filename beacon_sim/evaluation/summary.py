@@ -88,6 +88,40 @@ def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds =
         rec: list[list[float]] = []
         per_run = []
         for r in runs:
+#: The figures of a filter's row that a filter failing in any run does not get (None).
+NO_SCORE_KEYS = ("pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
+                 "nees_steps_in_band", "anis", "pos_rmse_modelled_m", "rmse_over_pcrb")
+
+
+def withhold_failed(row: dict[str, Any], runs: list[RunOutput], name: str, dt: float) -> None:
+    """A failed filter gets no score: set ``row["failed_runs"]`` and ``row["failures"]``
+    (seed, ``time_s`` of the failing step [s], reason); when any run failed, the accuracy
+    and consistency figures become None and the verdicts "FAILED" (an average over the
+    steps before a crash would rank a crashed filter above a working one). Per run, a
+    failed run's figures become None too."""
+    failures = []
+    for r, p in zip(runs, row["per_run"], strict=True):
+        fr = r.filters[name]
+        p["failed_time_s"] = None
+        if not fr.failed:
+            continue
+        bad = np.flatnonzero(~np.isfinite(fr.err[:, 0]))
+        t = float((bad[0] + 1) * dt) if len(bad) else None
+        p.update(pos_rmse_m=None, heading_rmse_rad=None, anees=None, failed_time_s=t)
+        failures.append({"seed": r.seed, "time_s": t, "reason": fr.failed})
+    row["failed_runs"] = len(failures)
+    row["failures"] = failures
+    row["failed"] = [f"seed {f['seed']}" + ("" if f["time_s"] is None else f" at {f['time_s']:.2f} s")
+                     + f": {f['reason']}" for f in failures]
+    if failures:
+        for key in NO_SCORE_KEYS:
+            if key in row:
+                row[key] = None
+        row["anees_verdict"] = row["anis_verdict"] = "FAILED"
+        row["spread"]["pos_rmse_m"] = None
+        row["recovery"] = []
+
+
             fr = r.filters[name]
             perr = np.sqrt(fr.err[:, 0] ** 2 + fr.err[:, 1] ** 2)
             lost = bool(fr.failed) or diverged(perr, thresholds.divergence_m)
@@ -168,3 +202,4 @@ def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds =
         "filters": rows,
     }
     return meta, curves
+        withhold_failed(rows[name], runs, name, scenario.dt)

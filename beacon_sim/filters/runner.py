@@ -7,25 +7,40 @@ not implement :class:`~beacon_sim.filters.base.Filter` at all (a student's class
 duck-typed): its missing method raises on the first step and it is switched off. A filter
 that is slow on every step gets a warning (:func:`note_step_time`); :func:`status_line` is
 what the window and the terminal show for either.
+
+The one guard: :func:`validate_estimate` and :func:`validate_belief` are what every front
+end (``run``, ``eval``, ``grade``, the window) uses to judge what a filter returned, so
+nothing a filter returns reaches a metric or the renderer unchecked. Time limits
+(``step_limit_s``, ``run_limit_s``) stop a filter stuck in a loop: see :class:`FilterTimeout`.
 """
 
 from __future__ import annotations
 
+import ctypes
+import math
+import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 
 from beacon_sim.core.types import Step
-from beacon_sim.filters.base import Filter
+from beacon_sim.filters.base import Belief, Filter, GaussianBelief, GridBelief, ParticleBelief
 
 #: ``FilterTrack.failed`` of a filter that was never built (``None`` given to the runner);
 #: the caller usually replaces it with why construction failed.
 NOT_BUILT = "not constructed"
 
+
+#: The longest a step (predict + update + estimate) may take in a headless run and in the
+#: window before the filter is stopped [s]: far beyond real time, not a benchmark.
+HEADLESS_STEP_LIMIT_S = 10.0
+WINDOW_STEP_LIMIT_S = 0.5
 
 #: A filter whose recent steps (predict + update + estimate) average more than this gets
 #: ``track.slow_warning`` [ms].
@@ -76,6 +91,7 @@ class FilterTrack:
     steps: int = 0
     failed: str | None = None
     traceback: str = ""
+    failed_time_s: float | None = None  # simulated time of the step that failed [s]
     slow_warning: str | None = None
     recent_step_ns: deque[int] = field(default_factory=lambda: deque(maxlen=SLOW_WINDOW))
 
@@ -85,20 +101,203 @@ class FilterTrack:
         return self.step_ns / 1e3 / max(self.steps, 1)
 
 
-def check_estimate(mean: object, cov: object) -> str | None:
-    """Why an estimate is unusable (wrong shape, non-finite, not symmetric PSD), or None."""
-    mean = np.asarray(mean)
-    cov = np.asarray(cov)
+_F8 = np.dtype(float)
+
+
+def _as_numbers(x: object) -> np.ndarray | None:
+    """``x`` as a float array, or None when it is not numbers (strings, objects, complex)."""
+    if type(x) is np.ndarray and x.dtype == _F8:  # the usual case, fast
+        return x.copy()
+    try:
+        a = np.asarray(x)
+    except Exception:  # an object whose __array__ raises
+        return None
+    if a.dtype.kind not in "biuf":
+        return None
+    return a.astype(float, copy=True)
+
+
+def _type_name(x: object) -> str:
+    return "None" if x is None else type(x).__name__
+
+
+def _not_psd(a: float, b: float, d: float, e: float, f: float, g: float) -> bool:
+    """Whether the symmetric 3x3 ``[[a, b, d], [b, e, f], [d, f, g]]`` (finite floats) has
+    an eigenvalue below ``-1e-9 * max|entry|``: the matrix plus ``1e-9 max|entry| I`` is
+    tested for positive definiteness by its leading principal minors (Sylvester), a few
+    float operations instead of an eigen-decomposition. Same verdict as
+    ``eigvalsh(c).min() < -1e-9 * scale`` up to rounding."""
+    tol = 1e-9 * max(abs(a), abs(b), abs(d), abs(e), abs(f), abs(g), 1e-12)
+    a, e, g = a + tol, e + tol, g + tol
+    if a <= 0.0:
+        return True
+    if a * e - b * b <= 0.0:
+        return True
+    return a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0
+
+
+def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
+    """The one guard of what ``estimate()`` returned: ``(mean (3,), cov (3, 3))`` as fresh
+    float arrays [m, m, rad], or one line saying why it is unusable (not a pair, not
+    numbers, wrong shapes, NaN or infinity, covariance not symmetric, not positive
+    semi-definite). Cheap (a few microseconds): it runs on every step of every filter."""
+    if not isinstance(est, tuple | list) or len(est) != 2:
+        return f"estimate() returned {_type_name(est)}, expected a (mean, cov) pair"
+    mean, cov = _as_numbers(est[0]), _as_numbers(est[1])
+    if mean is None or cov is None:
+        return (f"estimate() returned {_type_name(est[0])} and {_type_name(est[1])}, "
+                "expected arrays of numbers")
     if mean.shape != (3,) or cov.shape != (3, 3):
         return f"estimate() returned shapes {mean.shape} and {cov.shape}, expected (3,) and (3, 3)"
-    if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
+    c = cov.tolist()
+    if not all(map(math.isfinite, (*mean.tolist(), *c[0], *c[1], *c[2]))):
         return "estimate() returned NaN or infinity"
-    scale = max(float(np.max(np.abs(cov))), 1e-12)
-    if np.max(np.abs(cov - cov.T)) > 1e-6 * scale:
+    (a, b, d), (b2, e, f), (d2, f2, g) = c
+    scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
+    if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
         return "covariance is not symmetric"
-    if np.min(np.linalg.eigvalsh(0.5 * (cov + cov.T))) < -1e-9 * scale:
+    b, d, f = 0.5 * (b + b2), 0.5 * (d + d2), 0.5 * (f + f2)
+    if _not_psd(a, b, d, e, f, g):
         return "covariance is not positive semi-definite"
-    return None
+    return mean, cov
+
+
+def check_estimate(mean: object, cov: object) -> str | None:
+    """Why an estimate is unusable (see :func:`validate_estimate`), or None."""
+    r = validate_estimate((mean, cov))
+    return r if isinstance(r, str) else None
+
+
+def validate_belief(bel: object) -> Belief | str:
+    """The guard of what ``belief()`` returned, for drawing: a belief whose arrays are float,
+    finite and of the right shapes, or one line saying why not.
+
+    GaussianBelief: as :func:`validate_estimate`. ParticleBelief: poses (N, 3) [m, m, rad]
+    with N >= 1, weights (N,) >= 0 with a positive sum. GridBelief: prob 2-D >= 0 with a
+    positive sum, origin two finite numbers [m], cell > 0 [m].
+    """
+    if isinstance(bel, GaussianBelief):
+        r = validate_estimate((bel.mean, bel.cov))
+        if isinstance(r, str):
+            return "belief(): " + r.replace("estimate() returned", "Gaussian has")
+        return GaussianBelief(*r)
+    if isinstance(bel, ParticleBelief):
+        poses, w = _as_numbers(bel.poses), _as_numbers(bel.weights)
+        if poses is None or w is None:
+            return "belief(): particle poses or weights are not arrays of numbers"
+        if poses.ndim != 2 or poses.shape[1] != 3 or poses.shape[0] < 1 or w.shape != (len(poses),):
+            return (f"belief(): particle poses {poses.shape} and weights {w.shape}, "
+                    "expected (N, 3) and (N,)")
+        if not (np.isfinite(poses).all() and np.isfinite(w).all()):
+            return "belief(): particles with NaN or infinity"
+        if (w < 0).any() or not w.sum() > 0:
+            return "belief(): particle weights must be >= 0 with a positive sum"
+        return ParticleBelief(poses, w)
+    if isinstance(bel, GridBelief):
+        prob = _as_numbers(bel.prob)
+        origin = _as_numbers(bel.origin)
+        cell = _as_numbers(bel.cell)
+        if prob is None or origin is None or cell is None or prob.ndim != 2 or origin.shape != (2,) \
+                or cell.shape != () or min(prob.shape) < 1:
+            return "belief(): grid needs prob (nx, ny), origin (x, y) [m] and a cell size [m]"
+        if not (np.isfinite(prob).all() and np.isfinite(origin).all() and math.isfinite(float(cell))):
+            return "belief(): grid with NaN or infinity"
+        if (prob < 0).any() or not prob.sum() > 0 or not float(cell) > 0:
+            return "belief(): grid probabilities must be >= 0 with a positive sum, cell > 0"
+        return GridBelief(prob, (float(origin[0]), float(origin[1])), float(cell))
+    return f"belief() returned {_type_name(bel)}, expected a GaussianBelief, ParticleBelief or GridBelief"
+
+
+class FilterTimeout(BaseException):
+    """Raised inside a filter's code when its time is up.
+
+    A :class:`BaseException`, so that a student's ``except Exception`` does not swallow it.
+    It is raised by a watchdog thread through ``PyThreadState_SetAsyncExc`` (CPython), which
+    works in any thread (the window's main thread, a Dask worker's thread) and costs two
+    dictionary operations per step. It interrupts Python code (a ``while True`` loop, a slow
+    Python loop); a single long call into C (one huge numpy operation, ``time.sleep``) is
+    interrupted when it returns. It is raised again every 0.1 s until the step gives up.
+    """
+
+
+_WD_LOCK = threading.Lock()
+_WD_ARMED: dict[int, list[float]] = {}  # thread id -> [deadline (monotonic s), fired 0/1]
+_WD_THREAD: threading.Thread | None = None
+_WD_POLL_S = 0.02
+_WD_REFIRE_S = 0.1
+
+
+def _raise_in(thread_id: int, exc: type[BaseException] | None) -> None:
+    try:
+        ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread_id),
+                                                   ctypes.py_object(exc) if exc else None)
+    except (AttributeError, OSError):  # not CPython: no watchdog
+        pass
+
+
+def _watchdog_loop() -> None:
+    while True:
+        time.sleep(_WD_POLL_S)
+        now = time.monotonic()
+        with _WD_LOCK:
+            for tid, entry in _WD_ARMED.items():
+                if now >= entry[0]:
+                    _raise_in(tid, FilterTimeout)
+                    entry[0] = now + _WD_REFIRE_S
+                    entry[1] = 1.0
+
+
+@contextmanager
+def time_limit(seconds: float | None):
+    """Raise :class:`FilterTimeout` in the calling thread if the block runs longer than
+    ``seconds`` [s] of wall time (None or infinity: no limit)."""
+    global _WD_THREAD
+    if seconds is None or not math.isfinite(seconds):
+        yield
+        return
+    tid = threading.get_ident()
+    with _WD_LOCK:
+        if _WD_THREAD is None:
+            _WD_THREAD = threading.Thread(target=_watchdog_loop, name="beacon-sim watchdog",
+                                          daemon=True)
+            _WD_THREAD.start()
+        _WD_ARMED[tid] = [time.monotonic() + max(seconds, 0.0), 0.0]
+    try:
+        yield
+    finally:
+        with _WD_LOCK:
+            entry = _WD_ARMED.pop(tid, None)
+            if entry is not None and entry[1]:
+                _raise_in(tid, None)  # a raise not yet delivered: withdraw it
+
+
+T = TypeVar("T")
+
+
+def guarded_call(fn: Callable[[], T], seconds: float | None) -> tuple[T | None, str | None, str]:
+    """``fn()`` under :func:`time_limit`: (its value, None, "") or (None, why it failed in one
+    line, the traceback)."""
+    try:
+        with time_limit(seconds):
+            return fn(), None, ""
+    except FilterTimeout:
+        return None, f"time limit: stopped after {seconds:g} s", traceback.format_exc()
+    except Exception as exc:
+        return None, one_line(exc), traceback.format_exc()
+
+
+def one_line(exc: BaseException) -> str:
+    """``Type: message`` on one line."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+def failure_text(track: FilterTrack) -> str | None:
+    """``reason (at 3.00 s)`` for a failed track, None for a working one."""
+    if not track.failed:
+        return None
+    at = f" (at {track.failed_time_s:.2f} s)" if track.failed_time_s is not None else ""
+    return track.failed + at
 
 
 class FilterRunner:
@@ -109,11 +308,45 @@ class FilterRunner:
     filters : Mapping[str, Filter or None]
         Name -> a constructed, reset filter; None for one that could not be built (its
         track starts switched off with ``failed = NOT_BUILT``).
+
+    step_limit_s : float, optional
+        A step (predict + update + estimate) longer than this [s] wall time stops the
+        filter ("time limit"); None: no limit.
+    run_limit_s : float, optional
+        A filter whose steps add up to more than this [s] wall time is stopped.
     """
 
-    def __init__(self, filters: Mapping[str, Filter | None]):
+    #: Filters (by name) whose estimate after predict and before update is copied, each
+    #: step, into ``priors[name]`` as (mean (3,), cov (3, 3)): the window's step view.
+    #: Empty (the default): no extra call; the filters' results are the same either way.
+    keep_prior: frozenset[str] = frozenset()
+    priors: dict[str, tuple[np.ndarray, np.ndarray]]
+
+    def __init__(self, filters: Mapping[str, Filter | None], step_limit_s: float | None = None,
+                 run_limit_s: float | None = None):
         self.tracks = {name: FilterTrack(name, f, failed=None if f is not None else NOT_BUILT)
                        for name, f in filters.items()}
+        self.step_limit_s = step_limit_s
+        self.run_limit_s = run_limit_s
+
+    def fail(self, name: str, reason: str, tb: str = "", time_s: float | None = None) -> None:
+        """Switch ``name`` off with ``reason`` (one line), at simulated time ``time_s`` [s]."""
+        track = self.tracks[name]
+        if track.failed:
+            return
+        track.failed, track.traceback, track.failed_time_s = reason, tb, time_s
+
+    def _limit(self, track: FilterTrack) -> tuple[float | None, str]:
+        """The time this track's next step may take [s] and the message when it is over."""
+        limits = []
+        if self.step_limit_s is not None:
+            limits.append((self.step_limit_s, f"time limit: a step took over {self.step_limit_s:g} s"))
+        if self.run_limit_s is not None:
+            left = self.run_limit_s - track.step_ns / 1e9
+            limits.append((left, f"time limit: over {self.run_limit_s:g} s of filter time in the run"))
+        if not limits:
+            return None, ""
+        return min(limits, key=lambda x: x[0])
 
     def feed(self, step: Step) -> None:
         """Predict with the step's command, update with its measurements, record."""
@@ -121,23 +354,33 @@ class FilterRunner:
             f = track.filter
             if track.failed or f is None:
                 continue
+            limit, over = self._limit(track)
             t0 = time.perf_counter_ns()
             try:
-                f.predict(step.control, step.dt)
-                f.update(step.measurements)
-                mean, cov = f.estimate()
-            except Exception as exc:
-                track.failed = f"{type(exc).__name__}: {exc}"
-                track.traceback = traceback.format_exc()
+                try:
+                    with time_limit(limit):
+                        f.predict(step.control, step.dt)
+                        if track.name in self.keep_prior:  # the step view: the belief after predict
+                            m, c = f.estimate()
+                            self.priors[track.name] = (np.array(m, dtype=float), np.array(c, dtype=float))
+                        f.update(step.measurements)
+                        est: Any = f.estimate()
+                finally:
+                    elapsed = time.perf_counter_ns() - t0
+            except FilterTimeout:
+                track.step_ns += elapsed
+                self.fail(track.name, over, traceback.format_exc(), step.time)
                 continue
-            elapsed = time.perf_counter_ns() - t0
+            except Exception as exc:
+                self.fail(track.name, one_line(exc), traceback.format_exc(), step.time)
+                continue
             track.step_ns += elapsed
             track.steps += 1
             note_step_time(track, elapsed)
-            problem = check_estimate(mean, cov)
-            if problem:
-                track.failed = problem
+            checked = validate_estimate(est)
+            if isinstance(checked, str):
+                self.fail(track.name, checked, "", step.time)
                 continue
-            track.means.append(np.array(mean, dtype=float))
-            track.covs.append(np.array(cov, dtype=float))
+            track.means.append(checked[0])
+            track.covs.append(checked[1])
             track.ticks.append(step.tick)

@@ -19,7 +19,10 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Step
 from beacon_sim.filters.base import Filter, FilterError
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
-from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
+
+#: The figures of a run that a failed filter does not get (null in JSON, empty in CSV).
+ACCURACY_KEYS = ("pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees")
 
 
 @dataclass
@@ -63,12 +66,15 @@ class RunResult:
         truth_by_tick = {s.tick: s.true_pose for s in self.steps}
         for name, tr in self.runner.tracks.items():
             row: dict[str, Any] = {}
-            if tr.means:
+            if tr.failed:  # no score for a filter that failed: its figures would flatter it
+                row.update(dict.fromkeys(ACCURACY_KEYS))
+            elif tr.means:
                 truths = np.array([truth_by_tick[t] for t in tr.ticks])
                 row.update(summary(np.array(tr.means), np.array(tr.covs), truths))
             row["us_per_step"] = tr.us_per_step
             if tr.failed:
                 row["failed"] = tr.failed
+                row["failed_time_s"] = tr.failed_time_s
             if tr.slow_warning:
                 row["slow_warning"] = tr.slow_warning
             out[name] = row
@@ -113,7 +119,7 @@ def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int
             built[name] = None
             broken[name] = (f"construction failed: {type(exc).__name__}: {exc}",
                             traceback.format_exc())
-    runner = FilterRunner(built)
+    runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
     for name, (message, tb) in broken.items():
         runner.tracks[name].failed, runner.tracks[name].traceback = message, tb
     sim = Simulation(scenario, seed)

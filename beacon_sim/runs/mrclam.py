@@ -31,7 +31,9 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
+from beacon_sim.filters.runner import validate_estimate
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
+from beacon_sim.runs.headless import ACCURACY_KEYS
 from beacon_sim.runs.scene import FilterStatus, Trail
 
 SENSOR_NAME = "camera"
@@ -200,6 +202,7 @@ class MrclamTrack:
     ns: int = 0
     calls: int = 0
     failed: str | None = None
+    failed_time_s: float | None = None  # [s] from the start of the run
 
 
 @dataclass
@@ -221,7 +224,9 @@ class MrclamRun:
         out: dict[str, dict[str, Any]] = {}
         for name, tr in self.tracks.items():
             row: dict[str, Any] = {}
-            if tr.means:
+            if tr.failed:  # no score for a filter that failed
+                row.update(dict.fromkeys(ACCURACY_KEYS))
+            elif tr.means:
                 times = np.array(tr.times)
                 truth, ok = self.data.truth_at(times)
                 if ok.any():
@@ -234,6 +239,7 @@ class MrclamRun:
                     row["rejected_readings"] = int(value)
             if tr.failed:
                 row["failed"] = tr.failed
+                row["failed_time_s"] = tr.failed_time_s
             out[name] = row
         return out
 
@@ -308,16 +314,19 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
 
     def record(t: float) -> None:
         for tr in active:
-            if tr.failed:
-                continue
-            try:
-                mean, cov = tr.filter.estimate()
-            except Exception as exc:
-                tr.failed = f"{type(exc).__name__}: {exc}"
-                continue
-            tr.times.append(t)
-            tr.means.append(np.array(mean, dtype=float))
-            tr.covs.append(np.array(cov, dtype=float))
+            if not tr.failed:
+                try:
+                    est = validate_estimate(tr.filter.estimate())
+                except Exception as exc:
+                    est = f"{type(exc).__name__}: {exc}"
+                if isinstance(est, str):
+                    tr.failed = est
+                else:
+                    tr.times.append(t)
+                    tr.means.append(est[0])
+                    tr.covs.append(est[1])
+            if tr.failed and tr.failed_time_s is None:
+                tr.failed_time_s = t - t_start
 
     t0 = time.perf_counter()
     record(t_start)

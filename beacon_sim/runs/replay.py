@@ -15,7 +15,7 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, Step
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
-from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
 from beacon_sim.io.recording import Recording, RecordingError
 from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.live import Session
@@ -77,7 +77,7 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     """
     specs, skipped = recorded_filter_specs(recording, filters)
     built = build_filters(specs, recording, recorded_params(recording, params))
-    runner = FilterRunner(built)
+    runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
     scenario = recording.scenario
     sim = Simulation(scenario, recording.seed)
     steps: list[Step] = []

@@ -1,0 +1,69 @@
+"""A failed filter gets no score (issue 13): ``run --json``, ``eval`` (table, JSON, CSV)
+show FAILED with the reason and the time, no accuracy figures; ``--strict`` exits 1."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from beacon_sim.cli.main import main
+from tests.student_filters import write_class
+
+
+@pytest.fixture(scope="module")
+def klass(tmp_path_factory):
+    return write_class(tmp_path_factory.mktemp("class"), ["alice", "carol", "dave", "erin", "oscar"])
+
+
+def test_run_json_has_no_rmse_for_a_crashed_filter(klass, capsys):
+    code = main(["run", "default", "--filter", "ekf", "--filter", f"{klass}/carol.py:MyEkf",
+                 "--duration", "5", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0
+    crashed = out["filters"]["MyEkf"]
+    assert "ZeroDivisionError" in crashed["failed"]
+    assert crashed["failed_time_s"] == pytest.approx(3.0)
+    assert crashed["pos_rmse_m"] is None and crashed["anees"] is None
+    assert out["filters"]["ekf"]["pos_rmse_m"] > 0
+
+
+def test_run_table_says_failed_with_the_time(klass, capsys):
+    assert main(["run", "default", "--filter", f"{klass}/dave.py:MyEkf", "--duration", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "FAILED at 2.00 s: estimate() returned NaN or infinity" in out
+
+
+@pytest.mark.parametrize("stem,reason", [("carol", "ZeroDivisionError"), ("dave", "NaN"),
+                                         ("erin", "positive semi-definite"),
+                                         ("oscar", "not symmetric")])
+def test_eval_gives_a_crashed_filter_no_score(klass, tmp_path, capsys, stem, reason):
+    out_dir = tmp_path / "out"
+    args = ["eval", "default", "--filter", "ekf", "--filter", f"{klass}/{stem}.py:MyEkf",
+            "--runs", "2", "--duration", "4", "--jobs", "1", "--json", "--out", str(out_dir)]
+    assert main(args) == 0
+    doc = json.loads(capsys.readouterr().out)
+    bad, good = doc["filters"]["MyEkf"], doc["filters"]["ekf"]
+    assert bad["failed_runs"] == 2 and reason in bad["failures"][0]["reason"]
+    assert bad["failures"][0]["time_s"] is not None
+    for key in ("pos_rmse_m", "anees", "rmse_over_pcrb", "heading_rmse_rad"):
+        assert bad[key] is None, key
+    assert bad["anees_verdict"] == "FAILED"
+    assert all(p["pos_rmse_m"] is None for p in bad["per_run"])
+    assert good["failed_runs"] == 0 and good["pos_rmse_m"] > 0
+    with open(out_dir / "eval.csv", newline="") as fh:
+        rows = {r["filter"]: r for r in csv.DictReader(fh)}
+    assert rows["MyEkf"]["pos_rmse_m"] == "" and rows["MyEkf"]["anees"] == ""
+    assert rows["MyEkf"]["failed_runs"] == "2" and reason in rows["MyEkf"]["first_failure"]
+    assert float(rows["ekf"]["pos_rmse_m"]) > 0
+    assert main(args + ["--strict"]) == 1
+    table = capsys.readouterr()
+    assert "failed in 2 run(s)" in table.err
+
+
+def test_eval_table_says_failed_in_k_of_n_runs(klass, capsys):
+    assert main(["eval", "default", "--filter", f"{klass}/carol.py:MyEkf", "--runs", "2",
+                 "--duration", "4", "--jobs", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "FAILED in 2/2 runs (no score); first: seed 0 at 3.00 s: ZeroDivisionError" in out
