@@ -66,9 +66,13 @@ def nis(measurements: Sequence[Measurement], sensors: dict[str, SensorSpec], mea
     return value, int(nu.size)
 
 
-def recovery_times(pos_err, times, kidnap_idx, threshold: float) -> list[float]:
+def recovery_times(pos_err, times, kidnap_idx, threshold: float, hold: float = 5.0) -> list[float]:
     """Time [s] from each kidnap until the position error falls below ``threshold`` [m]
-    and stays below until the next kidnap (or the end of the run).
+    and then stays below it for ``hold`` seconds.
+
+    The figure depends only on the error up to ``recovery + hold`` after the kidnap, so a
+    longer run (or a later next kidnap) gives the same number whenever the shorter one saw
+    the recovery. A hold that the next kidnap or the end of the run cuts short does not count.
 
     Parameters
     ----------
@@ -78,27 +82,42 @@ def recovery_times(pos_err, times, kidnap_idx, threshold: float) -> list[float]:
         Time of each step.
     kidnap_idx : sequence of int
         Indices into ``pos_err`` of the steps on which a kidnap happened (ascending).
+    threshold : float [m]
+    hold : float [s]
+        How long the error must stay below ``threshold``; 0 accepts the first step below.
 
     Returns
     -------
     list of float
-        One per kidnap; 0 when the error was already below the threshold on the kidnap's
-        step and stayed there; ``inf`` when it never settles below it.
+        One per kidnap: ``t_i - t_kidnap`` for the first step ``i`` (from the kidnap's own
+        step on) that starts a stretch below the threshold lasting ``hold``; ``inf`` when
+        there is none before the next kidnap or the end of the run.
     """
     err = np.asarray(pos_err, dtype=float)
     t = np.asarray(times, dtype=float)
     kidnap_idx = [int(k) for k in kidnap_idx]
     out: list[float] = []
     ends = [*kidnap_idx[1:], len(err)]
+    eps = 1e-9 * max(1.0, abs(hold))
     for k, end in zip(kidnap_idx, ends[:len(kidnap_idx)], strict=True):
-        seg = err[k:end]
-        above = np.flatnonzero(~(seg < threshold))  # NaN (a failed filter) counts as above
-        if above.size == 0:
-            out.append(0.0)
-        elif above[-1] == seg.size - 1:
-            out.append(math.inf)
-        else:
-            out.append(float(t[k + above[-1] + 1] - t[k]))
+        below = err[k:end] < threshold  # NaN (a failed filter) counts as above
+        ts = t[k:end]
+        found = math.inf
+        i = 0
+        n = below.size
+        while i < n:
+            if not below[i]:
+                i += 1
+                continue
+            j = i
+            while j + 1 < n and below[j + 1]:
+                j += 1
+            # steps i..j are below: every sample from ts[i] to ts[i] + hold must be among them
+            if ts[j] - ts[i] >= hold - eps:
+                found = float(ts[i] - t[k])
+                break
+            i = j + 1
+        out.append(found)
     return out
 
 

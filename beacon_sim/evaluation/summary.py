@@ -21,16 +21,56 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.evaluation.metrics import diverged, recovery_times
 from beacon_sim.evaluation.montecarlo import RunOutput, stack
 from beacon_sim.evaluation.pcrb import bound_rmse, pcrb
+from beacon_sim.filters.loading import initial_belief
 
 
 @dataclass(frozen=True)
 class Thresholds:
-    """recovery_m [m]: a kidnapped filter has recovered once its position error stays below
-    this. divergence_m [m]: a run diverged when the error stays above this over the last
-    10 % of the run (or the filter failed)."""
+    """recovery_m [m] and recovery_hold_s [s]: a kidnapped filter has recovered at the first
+    time its position error falls below ``recovery_m`` and stays below for
+    ``recovery_hold_s``. divergence_m [m]: a run diverged when the error stays above this
+    over the last 10 % of the run (or the filter failed). kidnap_window_s [s] (default: the
+    rest of the run) and global_start_s [s]: the stretches after each kidnap and after a
+    global start left out of the bound and of RMSE/PCRB, where the filters' model does not
+    hold (a kidnap is in no filter's model; after it a filter carries a confidently wrong
+    belief until it recovers, however long that takes)."""
 
     recovery_m: float = 0.5
+    recovery_hold_s: float = 5.0
     divergence_m: float = 1.0
+    kidnap_window_s: float = math.inf
+    global_start_s: float = 15.0
+
+
+def model_mask(scenario: Scenario, kidnapped: np.ndarray, kidnap_window_s: float = math.inf,
+               global_start_s: float = 15.0) -> np.ndarray:
+    """Steps where the filters' model holds, bool (R, T): every step except those less than
+    ``kidnap_window_s`` seconds from a kidnap (the kidnap's own step included) and, for a
+    scenario whose filters start from a global (uniform) belief, the first
+    ``global_start_s`` seconds. ``kidnapped`` is bool (R, T)."""
+    kid = np.asarray(kidnapped, dtype=bool)
+    R, T = kid.shape
+    keep = np.ones((R, T), dtype=bool)
+
+    def steps(s: float) -> int:
+        return T if not math.isfinite(s) else math.ceil(s / scenario.dt - 1e-9)
+
+    if initial_belief(scenario) is None:
+        keep[:, :steps(global_start_s)] = False
+    w = steps(kidnap_window_s)
+    for r, k in zip(*np.nonzero(kid), strict=True):
+        keep[r, k:k + w] = False
+    return keep
+
+
+def left_out_text(scenario: Scenario, thresholds: Thresholds) -> str:
+    """Which steps the bound and RMSE/PCRB leave out, in words."""
+    kw = thresholds.kidnap_window_s
+    parts = ["everything from the first kidnap on" if not math.isfinite(kw)
+             else f"{kw:g} s from each kidnap"]
+    if initial_belief(scenario) is None:
+        parts.append(f"the first {thresholds.global_start_s:g} s (global start)")
+    return " and ".join(parts)
 
 
 def _verdict(value: float, lo: float, hi: float) -> str:
@@ -48,46 +88,6 @@ def _f(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds = Thresholds()):
-    """The table rows (dict per filter), the PCRB and the per-step curves for one scenario."""
-    names = list(runs[0].filters)
-    R = len(runs)
-    T = runs[0].controls.shape[0]
-    times = scenario.dt * np.arange(1, T + 1)
-    truths = np.stack([r.truth for r in runs])
-    kid = np.stack([r.kidnapped for r in runs])
-    P = pcrb(scenario, truths, np.stack([r.controls for r in runs]), kid)
-    b_pos, b_head = bound_rmse(P)
-    lo, hi = anees_band(R)
-    curves: dict[str, Any] = {
-        "time": times,
-        "pcrb_pos_t": np.sqrt(np.mean(P[..., 0, 0] + P[..., 1, 1], axis=0)),
-        "pcrb_sigma_t": np.sqrt(np.mean(np.einsum("rtii->rti", P), axis=0)),
-        "truth0": truths[0],
-        "kidnap_times": times[kid[0]],
-        "nees_band": (lo, hi),
-        "filters": {},
-    }
-    rows: dict[str, dict[str, Any]] = {}
-    for name in names:
-        err = stack(runs, name, "err")  # (R, T, 3)
-        nees = stack(runs, name, "nees")  # (R, T)
-        var = stack(runs, name, "var")
-        with np.errstate(all="ignore"):
-            mse = np.nanmean(err**2, axis=(0, 1))
-            pos2 = err[..., 0] ** 2 + err[..., 1] ** 2
-            run_rmse = np.sqrt(np.nanmean(pos2, axis=1))
-            anees = float(np.nanmean(nees))
-            nees_t = np.nanmean(nees, axis=0)
-        in_band = float(np.mean((nees_t >= lo) & (nees_t <= hi)))
-        nis_sum = sum(r.filters[name].nis_sum for r in runs)
-        nis_dof = sum(r.filters[name].nis_dof for r in runs)
-        anis = nis_sum / nis_dof if nis_dof else math.nan
-        nlo, nhi = anees_band(nis_dof, dof=1) if nis_dof else (math.nan, math.nan)
-        n_div = 0
-        rec: list[list[float]] = []
-        per_run = []
-        for r in runs:
 #: The figures of a filter's row that a filter failing in any run does not get (None).
 NO_SCORE_KEYS = ("pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
                  "nees_steps_in_band", "anis", "pos_rmse_modelled_m", "rmse_over_pcrb")
@@ -122,11 +122,53 @@ def withhold_failed(row: dict[str, Any], runs: list[RunOutput], name: str, dt: f
         row["recovery"] = []
 
 
+def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds = Thresholds()):
+    """The table rows (dict per filter), the PCRB and the per-step curves for one scenario."""
+    names = list(runs[0].filters)
+    R = len(runs)
+    T = runs[0].controls.shape[0]
+    times = scenario.dt * np.arange(1, T + 1)
+    truths = np.stack([r.truth for r in runs])
+    kid = np.stack([r.kidnapped for r in runs])
+    P = pcrb(scenario, truths, np.stack([r.controls for r in runs]), kid)
+    keep = model_mask(scenario, kid, thresholds.kidnap_window_s, thresholds.global_start_s)
+    b_pos, b_head = bound_rmse(P[keep]) if keep.any() else (math.nan, math.nan)
+    lo, hi = anees_band(R)
+    curves: dict[str, Any] = {
+        "time": times,
+        "pcrb_pos_t": np.sqrt(np.mean(P[..., 0, 0] + P[..., 1, 1], axis=0)),
+        "pcrb_sigma_t": np.sqrt(np.mean(np.einsum("rtii->rti", P), axis=0)),
+        "truth0": truths[0],
+        "kidnap_times": times[kid[0]],
+        "nees_band": (lo, hi),
+        "filters": {},
+    }
+    rows: dict[str, dict[str, Any]] = {}
+    for name in names:
+        err = stack(runs, name, "err")  # (R, T, 3)
+        nees = stack(runs, name, "nees")  # (R, T)
+        var = stack(runs, name, "var")
+        with np.errstate(all="ignore"):
+            mse = np.nanmean(err**2, axis=(0, 1))
+            pos2 = err[..., 0] ** 2 + err[..., 1] ** 2
+            run_rmse = np.sqrt(np.nanmean(pos2, axis=1))
+            anees = float(np.nanmean(nees))
+            nees_t = np.nanmean(nees, axis=0)
+        in_band = float(np.mean((nees_t >= lo) & (nees_t <= hi)))
+        nis_sum = sum(r.filters[name].nis_sum for r in runs)
+        nis_dof = sum(r.filters[name].nis_dof for r in runs)
+        anis = nis_sum / nis_dof if nis_dof else math.nan
+        nlo, nhi = anees_band(nis_dof, dof=1) if nis_dof else (math.nan, math.nan)
+        n_div = 0
+        rec: list[list[float]] = []
+        per_run = []
+        for r in runs:
             fr = r.filters[name]
             perr = np.sqrt(fr.err[:, 0] ** 2 + fr.err[:, 1] ** 2)
             lost = bool(fr.failed) or diverged(perr, thresholds.divergence_m)
             n_div += lost
-            rt = recovery_times(perr, times, np.flatnonzero(r.kidnapped), thresholds.recovery_m)
+            rt = recovery_times(perr, times, np.flatnonzero(r.kidnapped), thresholds.recovery_m,
+                                thresholds.recovery_hold_s)
             with np.errstate(all="ignore"):
                 per_run.append({
                     "seed": r.seed,
@@ -145,12 +187,18 @@ def withhold_failed(row: dict[str, Any], runs: list[RunOutput], name: str, dt: f
         recovery = []
         for vals in rec:
             finite = [v for v in vals if math.isfinite(v)]
-            recovery.append({"median_s": _f(float(np.median(finite))) if finite else None,
+            # Median over all runs, a run that did not recover counting as infinitely late:
+            # it does not change when longer runs let more of the late ones recover, and is
+            # None (never) when fewer than half recovered.
+            med = float(np.median(np.sort(np.asarray(vals, dtype=float)))) if vals else math.inf
+            recovery.append({"median_s": _f(med),
                              "max_s": _f(max(finite)) if finite else None,
                              "recovered": len(finite), "runs": len(vals)})
         us = [r.filters[name].step_ns / 1e3 / max(r.filters[name].steps, 1) for r in runs]
         failed = [f"seed {r.seed}: {r.filters[name].failed}" for r in runs if r.filters[name].failed]
         pos_rmse = float(np.sqrt(mse[0] + mse[1]))
+        with np.errstate(all="ignore"):
+            modelled_rmse = float(np.sqrt(np.nanmean(pos2[keep]))) if keep.any() else math.nan
         rows[name] = {
             "pos_rmse_m": _f(pos_rmse),
             "heading_rmse_rad": _f(float(np.sqrt(mse[2]))),
@@ -167,7 +215,8 @@ def withhold_failed(row: dict[str, Any], runs: list[RunOutput], name: str, dt: f
             "divergences": int(n_div),
             "recovery": recovery,
             "us_per_step": float(np.mean(us)),
-            "rmse_over_pcrb": _f(pos_rmse / b_pos) if b_pos > 0 else None,
+            "pos_rmse_modelled_m": _f(modelled_rmse),
+            "rmse_over_pcrb": _f(modelled_rmse / b_pos) if b_pos > 0 else None,
             "spread": {
                 "pos_rmse_m": {"mean": _f(float(np.nanmean(run_rmse))),
                                "std": _f(float(np.nanstd(run_rmse))),
@@ -179,6 +228,7 @@ def withhold_failed(row: dict[str, Any], runs: list[RunOutput], name: str, dt: f
             "failed": failed,
             "per_run": per_run,
         }
+        withhold_failed(rows[name], runs, name, scenario.dt)
         with np.errstate(all="ignore"):
             curves["filters"][name] = {
                 "rmse_t": np.sqrt(np.nanmean(pos2, axis=0)),
@@ -196,10 +246,14 @@ def withhold_failed(row: dict[str, Any], runs: list[RunOutput], name: str, dt: f
         "dt": scenario.dt,
         "truth_checksum": checksum,
         "run_checksums": [r.truth_checksum for r in runs],
-        "pcrb": {"pos_rmse_m": b_pos, "heading_rmse_rad": b_head},
+        "pcrb": {"pos_rmse_m": b_pos, "heading_rmse_rad": b_head,
+                 "steps_used": float(keep.mean()),
+                 "left_out": left_out_text(scenario, thresholds) if not keep.all() else "nothing"},
         "thresholds": {"recovery_m": thresholds.recovery_m,
-                       "divergence_m": thresholds.divergence_m},
+                       "recovery_hold_s": thresholds.recovery_hold_s,
+                       "divergence_m": thresholds.divergence_m,
+                       "kidnap_window_s": _f(thresholds.kidnap_window_s),
+                       "global_start_s": thresholds.global_start_s},
         "filters": rows,
     }
     return meta, curves
-        withhold_failed(rows[name], runs, name, scenario.dt)
