@@ -43,6 +43,9 @@ FAULTY = textwrap.dedent("""
                 mean, cov = self.spoil(mean, cov)
             return mean, cov
 
+        def spoil(self, mean, cov):
+            return mean, cov
+
     class RaisesInPredict(Faulty):
         def predict(self, control, dt):
             super().predict(control, dt)

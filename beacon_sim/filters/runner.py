@@ -332,7 +332,7 @@ class FilterRunner:
     def fail(self, name: str, reason: str, tb: str = "", time_s: float | None = None) -> None:
         """Switch ``name`` off with ``reason`` (one line), at simulated time ``time_s`` [s]."""
         track = self.tracks[name]
-        if track.failed:
+        if track.failed and track.failed != NOT_BUILT:
             return
         track.failed, track.traceback, track.failed_time_s = reason, tb, time_s
 
@@ -361,8 +361,10 @@ class FilterRunner:
                     with time_limit(limit):
                         f.predict(step.control, step.dt)
                         if track.name in self.keep_prior:  # the step view: the belief after predict
-                            m, c = f.estimate()
-                            self.priors[track.name] = (np.array(m, dtype=float), np.array(c, dtype=float))
+                            prior = validate_estimate(f.estimate())  # the one guard
+                            if isinstance(prior, str):
+                                raise ValueError(f"after predict: {prior}")
+                            self.priors[track.name] = prior
                         f.update(step.measurements)
                         est: Any = f.estimate()
                 finally:

@@ -20,9 +20,18 @@ from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
-from beacon_sim.filters.base import Belief
+from beacon_sim.filters.base import Belief, FilterError
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
-from beacon_sim.filters.runner import FilterRunner, FilterTrack, status_line
+from beacon_sim.filters.runner import (
+    WINDOW_STEP_LIMIT_S,
+    FilterRunner,
+    FilterTrack,
+    guarded_call,
+    one_line,
+    status_line,
+    validate_belief,
+    validate_estimate,
+)
 from beacon_sim.io.recording import default_recording_path, validate_command
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
@@ -56,11 +65,20 @@ class Session:
         sc = self.scenario
         self.seed = sc.seed if self.seed is None else int(self.seed)
         built: dict[str, object] = {}
+        broken: dict[str, str] = {}
         for name, spec in zip(filter_names(self.specs), self.specs, strict=True):
-            built[name] = build_filter(spec, sc, self.seed, name=name,
-                                       params=self.params.get(filter_display_name(spec)))
+            try:
+                built[name] = build_filter(spec, sc, self.seed, name=name,
+                                           params=self.params.get(filter_display_name(spec)))
+            except FilterError:
+                raise  # a name or parameter that cannot work: one line, exit 2
+            except Exception as exc:  # a student's __init__ or reset: switched off, on screen
+                built[name] = None
+                broken[name] = f"construction failed: {one_line(exc)}"
         self.names = list(built)
-        self.runner = FilterRunner(built)
+        self.runner = FilterRunner(built, step_limit_s=WINDOW_STEP_LIMIT_S)
+        for name, why in broken.items():
+            self.runner.fail(name, why)
         self.sim = Simulation(sc, self.seed)
         self.keyboard = KeyboardDrive(sc.keyboard)
         self.has_autopilot = not isinstance(sc.driver, KeyboardSpec)
@@ -77,8 +95,10 @@ class Session:
         self.trails = {n: Trail() for n in self.names}
         self.status = {n: FilterStatus(n) for n in self.names}
         self._every = {s.name: max(1, round(s.period / sc.dt)) for s in sc.sensors}
-        for n, tr in self.runner.tracks.items():
-            self.trails[n].add(tr.filter.estimate()[0])
+        for n in self.names:
+            est = self.estimate(n)
+            if est is not None:
+                self.trails[n].add(est[0])
 
     # --- commands -------------------------------------------------------------------------
     def command(self, cmd: dict) -> None:
@@ -129,19 +149,48 @@ class Session:
         return self.sim.pose
 
     def belief(self, name: str) -> Belief | None:
-        return self.runner.tracks[name].filter.belief()
+        """The filter's belief to draw, through the runner's guard (time limit, types,
+        shapes, finite values): None, and the filter switched off with the reason, when
+        ``belief()`` raises, hangs or returns something that cannot be drawn."""
+        tr = self.runner.tracks[name]
+        if tr.failed or tr.filter is None:
+            return None
+        bel, why, tb = guarded_call(tr.filter.belief, WINDOW_STEP_LIMIT_S)
+        if why is None:
+            checked = validate_belief(bel)
+            if not isinstance(checked, str):
+                return checked
+            why = checked
+        else:
+            why = f"belief(): {why}"
+        self._switch_off(name, why, tb)
+        return None
 
     def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
-        """The latest estimate; before the first tick, the filter's initial belief."""
+        """The latest estimate; before the first tick, the filter's initial belief (through
+        the guard: None, and the filter switched off, when it is unusable)."""
         tr = self.runner.tracks[name]
         if tr.means:
             return tr.means[-1], tr.covs[-1]
-        mean, cov = tr.filter.estimate()
-        return np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
+        if tr.failed or tr.filter is None:
+            return None
+        est, why, tb = guarded_call(tr.filter.estimate, WINDOW_STEP_LIMIT_S)
+        if why is None:
+            checked = validate_estimate(est)
+            if not isinstance(checked, str):
+                return checked
+            why = checked
+        self._switch_off(name, why, tb)
+        return None
+
+    def _switch_off(self, name: str, why: str, tb: str = "") -> None:
+        self.runner.fail(name, why, tb, self.sim.time)
+        self.status[name].failed = self.runner.tracks[name].failed
+        self.status[name].warning = status_line(self.runner.tracks[name])
 
     @property
     def filters(self) -> dict[str, object]:
-        return {n: t.filter for n, t in self.runner.tracks.items()}
+        return {n: t.filter for n, t in self.runner.tracks.items() if t.filter is not None}
 
     def replace_filter(self, name: str, flt: object) -> None:
         """Swap in a new filter object under ``name`` (hot reload): a fresh track, same colour."""

@@ -1,0 +1,158 @@
+"""The window never crashes on what a filter returns (issue 13, item 2): estimate() and
+belief() of any shape, type, None, NaN, an exception, an endless loop: the filter is
+switched off on screen with the reason, the others go on, the window keeps drawing."""
+
+from __future__ import annotations
+
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+pygame = pytest.importorskip("pygame")
+
+from beacon_sim.app.main import App  # noqa: E402
+from beacon_sim.core.scenario import load_scenario  # noqa: E402
+from beacon_sim.filters import runner as runner_mod  # noqa: E402
+from beacon_sim.runs.live import Session  # noqa: E402
+
+GARBAGE = textwrap.dedent('''
+    import numpy as np
+    from beacon_sim.filters.base import GaussianBelief, GridBelief, ParticleBelief
+    from beacon_sim.filters.ekf import ExtendedKalmanFilter
+
+    class G(ExtendedKalmanFilter):
+        """Good for FROM ticks (0: from the start), then returns garbage."""
+        FROM = 3
+        def reset(self, initial):
+            super().reset(initial)
+            self.k = 0
+        def predict(self, control, dt):
+            super().predict(control, dt)
+            self.k += 1
+        def bad(self):
+            return self.k >= self.FROM
+        def estimate(self):
+            good = super().estimate()
+            return self.garbage(*good) if self.bad() else good
+        def garbage(self, mean, cov):
+            return mean, cov
+        def belief(self):
+            bel = GaussianBelief(*ExtendedKalmanFilter.estimate(self))
+            return self.bad_belief(bel) if self.bad() else bel
+        def bad_belief(self, bel):
+            return bel
+
+    class Mean2(G):
+        FROM = 0
+        def garbage(self, m, c): return m[:2], c
+    class Cov2(G):
+        FROM = 0
+        def garbage(self, m, c): return m, c[:2, :2]
+    class NoneAtStart(G):
+        FROM = 0
+        def garbage(self, m, c): return None
+    class NoneLater(G):
+        def garbage(self, m, c): return None
+    class Strings(G):
+        def garbage(self, m, c): return "x", "y"
+    class Triple(G):
+        def garbage(self, m, c): return m, c, 1
+    class ObjectArray(G):
+        def garbage(self, m, c): return np.array([1, "a", None], dtype=object), c
+    class Complex(G):
+        def garbage(self, m, c): return m + 1j, c
+    class Lists(G):
+        def garbage(self, m, c): return m.tolist(), c.tolist()  # fine: lists of numbers
+    class Nan(G):
+        def garbage(self, m, c): return m * np.nan, c
+    class Dict(G):
+        def garbage(self, m, c): return {"mean": m}
+    class RaisesAtStart(G):
+        FROM = 0
+        def garbage(self, m, c): raise RuntimeError("estimate before predict")
+    class BeliefRaises(G):
+        def bad_belief(self, b): raise ValueError("no belief")
+    class BeliefNone(G):
+        def bad_belief(self, b): return None
+    class BeliefInt(G):
+        def bad_belief(self, b): return 3
+    class BeliefBadParticles(G):
+        def bad_belief(self, b): return ParticleBelief(np.zeros((5, 2)), np.ones(5))
+    class BeliefNanParticles(G):
+        def bad_belief(self, b): return ParticleBelief(np.full((5, 3), np.nan), np.ones(5) / 5)
+    class BeliefBadGrid(G):
+        def bad_belief(self, b): return GridBelief(np.ones(4), (0, 0), 0.5)
+    class BeliefNanGaussian(G):
+        def bad_belief(self, b): return GaussianBelief(np.zeros(3), np.full((3, 3), np.nan))
+    class BeliefLoops(G):
+        def bad_belief(self, b):
+            while True:
+                pass
+    class EstimateLoops(G):
+        def garbage(self, m, c):
+            while True:
+                pass
+    class InitRaises(G):
+        def __init__(self, ctx):
+            raise RuntimeError("broken constructor")
+''')
+
+KINDS = ["Mean2", "Cov2", "NoneAtStart", "NoneLater", "Strings", "Triple", "ObjectArray",
+         "Complex", "Nan", "Dict", "RaisesAtStart", "BeliefRaises", "BeliefNone", "BeliefInt",
+         "BeliefBadParticles", "BeliefNanParticles", "BeliefBadGrid", "BeliefNanGaussian",
+         "BeliefLoops", "EstimateLoops", "InitRaises"]
+
+
+@pytest.fixture(scope="module")
+def garbage_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("garbage") / "garbage.py"
+    path.write_text(GARBAGE)
+    return path
+
+
+def test_the_window_survives_every_kind_of_garbage(garbage_file, monkeypatch):
+    monkeypatch.setattr(runner_mod, "WINDOW_STEP_LIMIT_S", 0.3)
+    import beacon_sim.runs.live as live
+    monkeypatch.setattr(live, "WINDOW_STEP_LIMIT_S", 0.3)
+    specs = [f"{garbage_file}:{k}" for k in KINDS] + [f"{garbage_file}:Lists", "ekf"]
+    app = App(Session(load_scenario("default"), specs), (1024, 768), scripted=True)
+    try:
+        t0 = time.perf_counter()
+        app.run(30)  # 30 frames of 1/60 s: ticks run, everything is drawn
+        elapsed = time.perf_counter() - t0
+        s = app.session
+        for kind in KINDS:
+            st = s.status[kind]
+            assert st.failed, kind
+            assert s.runner.tracks[kind].failed == st.failed
+        reasons = {k: s.status[k].failed for k in KINDS}
+        assert "shapes (2,)" in reasons["Mean2"] and "(2, 2)" in reasons["Cov2"]
+        assert "returned None" in reasons["NoneAtStart"] and "returned None" in reasons["NoneLater"]
+        assert "time limit" in reasons["BeliefLoops"] and "time limit" in reasons["EstimateLoops"]
+        assert "construction failed" in reasons["InitRaises"]
+        assert "NaN" in reasons["Nan"] and "NaN" in reasons["BeliefNanParticles"]
+        assert s.status["Lists"].failed is None and s.status["ekf"].failed is None
+        assert len(s.runner.tracks["ekf"].means) == s.tick_count > 0
+        assert elapsed < 2 * 0.3 * 2 + 5  # the loops were stopped (bounded freeze)
+        app.draw()  # still draws
+        assert np.isfinite(s.status["ekf"].pos_err)
+    finally:
+        app.close()
+
+
+def test_an_endless_loop_freezes_the_window_for_at_most_the_limit(garbage_file):
+    """With the window's own limit: one frame takes at most about WINDOW_STEP_LIMIT_S."""
+    app = App(Session(load_scenario("default"), [f"{garbage_file}:EstimateLoops", "ekf"]),
+              (800, 600), scripted=True)
+    try:
+        worst = 0.0
+        for _ in range(12):
+            t0 = time.perf_counter()
+            app.run(app.frames + 1)
+            worst = max(worst, time.perf_counter() - t0)
+        assert "time limit" in app.session.status["EstimateLoops"].failed
+        assert worst < runner_mod.WINDOW_STEP_LIMIT_S + 0.5
+    finally:
+        app.close()
