@@ -120,3 +120,49 @@ def test_cli_check_exit_status(tmp_path, capsys):
     assert main(["check", spec]) == 1
     out = capsys.readouterr().out
     assert "FAIL" in out and "what to fix" in out
+
+
+FAULTS = {  # one injected fault -> the one check that must fail
+    "nan": (dict(extra_update="self.mean = self.mean * np.nan if self.cov[0, 0] > 0.011 else self.mean\n"
+                 "        self.cov = self.cov + 0.0001"), "finite"),
+    "raise": (dict(extra_update="self.k = getattr(self, 'k', 0) + 1\n"
+                   "        if self.k == 5: raise KeyError('k')"), "runs"),
+    "notpsd": (dict(estimate="self.mean.copy(), np.diag([0.1, -0.2, 0.1])"),
+               "positive semi-definite covariance"),
+    "asym": (dict(estimate="self.mean.copy(), self.cov + np.triu(np.full((3, 3), 0.001), 1)"),
+             "symmetric covariance"),
+    "shape": (dict(estimate="self.mean[:2].copy(), self.cov.copy()"), "shapes"),
+    "heading": (dict(extra_predict="self.mean[2] += 7.0"), "heading wrapped"),
+    "rng": (dict(extra_predict="self.mean[0] += 0.001 * np.random.normal()"), None),
+    "empty": (dict(extra_update="if not measurements: raise IndexError('empty')"), "empty update"),
+    "loop": (dict(extra_update="self.k = getattr(self, 'k', 0) + 1\n"
+                  "        while self.k == 3: pass"), "runs"),
+}
+
+
+@pytest.mark.parametrize("fault", sorted(FAULTS))
+def test_one_injected_fault_gives_exactly_one_fail(fault, tmp_path, default, monkeypatch):
+    from beacon_sim.filters import conformance
+
+    monkeypatch.setattr(conformance, "STEP_LIMIT_S", 0.5)
+    kwargs, check = FAULTS[fault]
+    results = run_checks(write_filter(tmp_path, **kwargs), default)
+    bad = failed(results)
+    if fault == "rng":  # the global RNG: drawing from it is the fault; it also changes the
+        assert bad == {"deterministic", "no global RNG"}  # estimates with the seed: two views
+    else:
+        assert bad == {check}, [(r.name, r.message) for r in results if not r.passed]
+    if fault == "empty":
+        assert bad == {"empty update"}
+
+
+def test_non_symmetric_negative_definite_fails_the_psd_check_too(tmp_path, default):
+    spec = write_filter(tmp_path, estimate="self.mean.copy(), -np.eye(3) + np.triu(np.ones((3, 3)), 1)")
+    assert failed(run_checks(spec, default)) == {"symmetric covariance",
+                                                   "positive semi-definite covariance"}
+
+
+def test_check_prints_the_cost_beside_the_ekf(tmp_path, capsys):
+    assert main(["check", write_filter(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "cost" in out and "us per step" in out and "the built-in ekf" in out
