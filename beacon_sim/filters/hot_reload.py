@@ -30,6 +30,7 @@ from beacon_sim.filters.loading import (
     build_filter,
     entry_point_filters,
     filter_display_name,
+    split_label,
 )
 from beacon_sim.filters.runner import FilterRunner, FilterTrack
 
@@ -68,6 +69,7 @@ def source_of(spec: str) -> tuple[Path | None, str | None]:
     ``(path, None)`` for ``file.py:Class``; ``(path, "pkg.mod")`` for module specs, built-in
     names and entry points; ``(None, None)`` when there is no file to watch.
     """
+    spec = split_label(spec)[1]
     target = spec
     if spec in BUILTIN_FILTERS:
         target = BUILTIN_FILTERS[spec]

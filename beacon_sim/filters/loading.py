@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import importlib.util
+import re
 import sys
 from pathlib import Path
 from types import ModuleType
@@ -80,8 +81,20 @@ def _get_class(module: ModuleType, class_name: str, where: str) -> type:
     return cls
 
 
+_LABEL = re.compile(r"^([A-Za-z0-9_][A-Za-z0-9_.'+-]*)=(.+)$")
+
+
+def split_label(spec: str) -> tuple[str | None, str]:
+    """``"alice=./alice.py:MyEkf"`` -> ``("alice", "./alice.py:MyEkf")``; a spec without a
+    label -> ``(None, spec)``. A label is letters, digits, ``_ . ' + -`` before ``=``."""
+    m = _LABEL.match(spec)
+    return (m.group(1), m.group(2)) if m else (None, spec)
+
+
 def load_filter_class(spec: str) -> type:
-    """Resolve a filter name (built-in, ``pkg.mod:Class``, ``file.py:Class``, entry point)."""
+    """Resolve a filter name (built-in, ``pkg.mod:Class``, ``file.py:Class``, entry point),
+    with or without a ``LABEL=`` in front."""
+    spec = split_label(spec)[1]
     if spec in BUILTIN_FILTERS:
         spec = BUILTIN_FILTERS[spec]
     elif ":" not in spec:
@@ -105,16 +118,31 @@ def load_filter_class(spec: str) -> type:
 
 
 def filter_display_name(spec: str) -> str:
-    """Short name for a filter spec: ``ekf``, or ``MyFilter`` for ``my.py:MyFilter``."""
+    """Short name for a filter spec: its label (``alice`` for ``alice=./a.py:MyEkf``),
+    ``ekf``, or ``MyFilter`` for ``my.py:MyFilter``."""
+    label, spec = split_label(spec)
+    if label:
+        return label
     return spec.rpartition(":")[2] if ":" in spec else spec
 
 
+def _file_stem(spec: str) -> str | None:
+    """``alice`` for ``path/to/alice.py:MyEkf``; None for other specs."""
+    target = split_label(spec)[1].rpartition(":")[0]
+    return Path(target).stem if target.endswith(".py") else None
+
+
 def filter_names(specs: list[str]) -> list[str]:
-    """Display names for filter specs, primed when a name repeats (``ekf``, ``ekf'``): the
-    names every run, window, replay and evaluation gives its filters."""
+    """Display names for filter specs: the names every run, window, replay and evaluation
+    gives its filters. A label (``alice=...``) is the name; unlabelled file filters whose
+    class names clash (three ``MyEkf``) take their file's name (``alice``, ``bob``...);
+    whatever still repeats is primed (``ekf``, ``ekf'``)."""
+    first = [filter_display_name(s) for s in specs]
     names: list[str] = []
-    for spec in specs:
-        name = filter_display_name(spec)
+    for spec, name in zip(specs, first, strict=True):
+        stem = _file_stem(spec)
+        if first.count(name) > 1 and split_label(spec)[0] is None and stem:
+            name = stem
         while name in names:
             name += "'"
         names.append(name)
@@ -209,4 +237,4 @@ def reset_filter(flt: Filter, scenario: Scenario) -> None:
 
 
 __all__ = ["BUILTIN_FILTERS", "FilterLoadError", "available_filters", "build_filter",
-           "filter_display_name", "filter_names", "initial_belief", "load_filter_class"]
+           "filter_display_name", "filter_names", "initial_belief", "load_filter_class", "split_label"]
