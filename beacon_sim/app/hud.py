@@ -120,6 +120,14 @@ class Hud:
             else:
                 y += 4
 
+        if info.get("bound") is not None:
+            bpos, bhead = info["bound"]
+            self._blit(surf, "best possible (PCRB, B)", "small", palette.TEXT, (x, y))
+            y += f["small"].get_linesize()
+            self._blit(surf, f"sigma {bpos:5.2f} m {math.degrees(bhead):6.1f} deg", "small",
+                       palette.TEXT_DIM, (x + 10, y))
+            y += f["small"].get_linesize() + 4
+
         # Legend: what the shapes mean.
         y = max(y + 6, rect.bottom - 7 * f["small"].get_linesize() - 10)
         pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
@@ -139,6 +147,31 @@ class Hud:
         self._blit(surf, status, "small", palette.TEXT_DIM, (x, y))
         y += f["small"].get_linesize()
         self._blit(surf, "H: help    Esc: quit", "small", palette.TEXT, (x, y))
+
+    def step_legend(self, surf, area: pygame.Rect, session, steps: bool, bound: bool) -> None:
+        """What the step view and the bound show, in a box at the bottom left of the world."""
+        lines = []
+        if steps:
+            used = sorted(session.used_ids()) if hasattr(session, "used_ids") else []
+            lines.append(f"tick {session.tick_count} (t = {session.time:.2f} s):  dashed = after "
+                         "predict (prior),  solid = after update (posterior)")
+            lines.append(("update used beacons " + ", ".join(map(str, used)) + " (ringed)") if used
+                         else "no reading on this tick: the update changed nothing")
+        if bound:
+            lines.append("dotted black around the robot: best achievable 95 % (PCRB)")
+        font = self.fonts["small"]
+        out: list[str] = []
+        for line in lines:
+            out += wrap_text(font, line, area.width - 40)
+        lh = font.get_linesize()
+        box = pygame.Rect(area.left + 8, area.bottom - lh * len(out) - 16,
+                          max(font.size(t)[0] for t in out) + 20, lh * len(out) + 10)
+        shade = pygame.Surface(box.size, pygame.SRCALPHA)
+        shade.fill((*palette.PANEL, 225))
+        surf.blit(shade, box)
+        pygame.draw.rect(surf, palette.PANEL_EDGE, box, 2)
+        for k, t in enumerate(out):
+            self._blit(surf, t, "small", palette.TEXT, (box.left + 10, box.top + 5 + k * lh))
 
     def banner(self, surf, area: pygame.Rect, text: str) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved)."""

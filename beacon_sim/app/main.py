@@ -22,6 +22,7 @@ import pygame
 
 from beacon_sim.app import controls
 from beacon_sim.app.assets import load_fonts, window_icon
+from beacon_sim.app.bound import LiveBound
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import ShowOptions, View, WorldRenderer
@@ -85,6 +86,10 @@ class App:
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
+        self.bound: LiveBound | None = None  # the PCRB along the true path (B)
+        if isinstance(session, Session):
+            self.bound = LiveBound(session.scenario)
+            session.on_step.append(self.bound.feed)
         self.chart = StripChart(session.names, session.scenario.dt)
         self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
@@ -217,6 +222,14 @@ class App:
         elif action == "chart":
             self.show.chart = not self.show.chart
             self._layout(self.screen.get_size())
+        elif action == "step_view":
+            self.show.step = not self.show.step
+            if self.show.step and not self.clock.paused:
+                self.flash("step view: pause (Space), then . steps one tick")
+        elif action == "bound":
+            self.show.bound = not self.show.bound
+            if self.show.bound and (self.bound is None or self.bound.tick < 0):
+                self.flash("no bound here: it is built from the start of a run")
         elif action == "fit":
             self.view.fit()
         elif action == "screenshot":
@@ -304,21 +317,53 @@ class App:
         drag = None
         if self.drag_start is not None:
             drag = (self.drag_start, pygame.mouse.get_pos())
+        steps = self.step_view()
+        dashes = dict(self.dashes)
+        for name in steps:  # the step view: the posterior solid, whatever the kind's style
+            dashes[name] = None
+        bound = self.bound if (self.show.bound and self.bound is not None
+                               and self.bound.valid) else None
+
+        def extra(surf, view, lw):
+            if bound is not None:
+                self.renderer.bound(surf, view, self.session.true_pose, bound.P)
+            if steps:
+                self.renderer.priors(surf, view, steps, self.colours, self.session.used_ids())
+
         self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
-                           dashes=self.dashes)
+                           dashes=dashes, extra=extra if (steps or bound is not None) else None)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
-                "reload_errors": self.reload_errors}
+                "reload_errors": self.reload_errors,
+                "bound": bound.sigmas() if bound is not None else None}
         self.hud.panel(surf, self.panel_rect, self.session, self.colours, info)
         if self.chart_rect is not None:
             self.chart.draw(surf, self.chart_rect, self.fonts, self.colours, self.dashes,
                             self.session.visible)
+        if steps or bound is not None:
+            self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
+                                 bound is not None)
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
         pygame.display.flip()
+
+    def step_view(self) -> dict[str, tuple]:
+        """Filter name -> (prior, posterior) of the last tick, each (mean, cov), for the
+        visible Gaussian filters, while paused with the step view on; else empty."""
+        s = self.session
+        if not (self.show.step and self.clock.paused and self.show.ellipses
+                and hasattr(s, "predict_update")):
+            return {}
+        out = {}
+        for name in s.names:
+            if s.visible[name] and not s.status[name].failed:
+                pu = s.predict_update(name)
+                if pu is not None:
+                    out[name] = pu
+        return out
 
     def draw_extra(self, surf) -> None:
         """Anything a mode adds under the help overlay (the replay's timeline)."""

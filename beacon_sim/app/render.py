@@ -17,10 +17,13 @@ from beacon_sim.app import palette, shapes
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.filters.base import GridBelief, ParticleBelief
 from beacon_sim.runs.scene import Scene
+from beacon_sim.runs.styles import BOUND_STYLE
 
 #: The 95 % ellipse of x-y: chi-square quantile for 2 degrees of freedom.
 ELLIPSE_LEVEL = 0.95
 ELLIPSE_SCALE2 = CHI2_2DOF[ELLIPSE_LEVEL]
+#: The step view's prior (after predict): dashed, as in the textbook figures [px on, off].
+PRIOR_DASH = (14, 10)
 
 
 class View:
@@ -95,6 +98,8 @@ class ShowOptions:
     trails: bool = True
     ellipses: bool = True
     chart: bool = False  # the strip chart of error and 2-sigma (C)
+    step: bool = True  # while paused: the last tick's prior and posterior (V)
+    bound: bool = False  # the best achievable covariance, the PCRB (B)
 
 
 def line_width(height_px: int) -> int:
@@ -162,6 +167,7 @@ class WorldRenderer:
         self._heat_cache: dict[str, tuple[tuple, pygame.Surface, tuple[int, int]]] = {}
         self._text_cache: dict[tuple, pygame.Surface] = {}
         self._static: tuple[tuple, pygame.Surface] | None = None
+        self.last_world = None  # the world of the scene being drawn (for the step view)
 
     def text(self, s: str, font: str, colour) -> pygame.Surface:
         key = (s, font, colour)
@@ -184,6 +190,7 @@ class WorldRenderer:
         Order: the true robot is an outline drawn UNDER every belief, and the ellipses and
         wedges come last, solid ones first, so that nothing hides an estimate."""
         sc = session.scenario
+        self.last_world = sc.world
         pose = session.true_pose
         dashes = dashes or {}
         self.lw = line_width(surf.get_height())
@@ -491,6 +498,35 @@ class WorldRenderer:
         r = max(3.2 * radius, 55.0 / view.scale)
         w = view.to_px(shapes.wedge(mean, 2.0 * sigma, r))
         polyline(surf, colour, w, max(lw - 1, 2), dash, closed=True)
+
+    def priors(self, surf, view: View, steps: dict, colours, used_ids: set[int]) -> None:
+        """The step view: for each filter the 95 % ellipse after predict (the prior, dashed,
+        thinner) and a line from the prior's mean to the posterior's (what the update
+        moved), and a black ring around each beacon the update used. The posterior itself is
+        drawn solid by the normal pass, over this."""
+        lw = max(getattr(self, "lw", 4) - 1, 2)
+        for name, ((m0, c0), (m1, _)) in steps.items():
+            colour = colours[name]
+            pts = view.to_px(covariance_ellipse(m0[:2], c0[:2, :2], ELLIPSE_SCALE2, 96))
+            if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
+                polyline(surf, colour, pts, lw, PRIOR_DASH, closed=True)
+            a, b = view.to_px(np.array([m0[:2], m1[:2]]))
+            pygame.draw.line(surf, colour, a, b, 2)
+            pygame.draw.circle(surf, colour, (ipx(a[0]), ipx(a[1])), 6, 2)
+        world = self.last_world
+        if world is not None and used_ids:
+            for bcn, (x, y) in zip(world.beacons, view.to_px(world.beacon_xy), strict=True):
+                if bcn.id in used_ids:
+                    pygame.draw.circle(surf, palette.TEXT, (ipx(x), ipx(y)), 24, 4)
+
+    def bound(self, surf, view: View, pose, P) -> None:
+        """The best achievable 95 % ellipse (the PCRB ``P`` (3, 3)) around the TRUE pose,
+        black and dotted: no unbiased filter's ellipse can be smaller."""
+        colour, dash = BOUND_STYLE
+        pts = view.to_px(covariance_ellipse(np.asarray(pose)[:2], np.asarray(P)[:2, :2],
+                                            ELLIPSE_SCALE2, 96))
+        if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
+            polyline(surf, colour, pts, max(getattr(self, "lw", 4) - 1, 2), dash, closed=True)
 
     def robot(self, surf, view: View, pose, radius: float) -> None:
         """The true robot as an OUTLINE (black chassis edge, grey wheels, heading mark): it is

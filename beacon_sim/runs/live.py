@@ -9,6 +9,7 @@ So a replay of (command, user commands) per tick reproduces the session bit for 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,7 @@ from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
-from beacon_sim.filters.base import Belief, FilterError
+from beacon_sim.filters.base import Belief, FilterError, GaussianBelief
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 from beacon_sim.filters.runner import (
     WINDOW_STEP_LIMIT_S,
@@ -79,6 +80,11 @@ class Session:
         self.runner = FilterRunner(built, step_limit_s=WINDOW_STEP_LIMIT_S)
         for name, why in broken.items():
             self.runner.fail(name, why)
+        self.runner.priors = {}
+        self._keep_priors()
+        # Called with every Step after the filters are fed (the window's live bound); kept
+        # over a replay's rebuild (a seek back re-runs __post_init__).
+        self.on_step: list[Callable[[Step], None]] = getattr(self, "on_step", [])
         self.sim = Simulation(sc, self.seed)
         self.keyboard = KeyboardDrive(sc.keyboard)
         self.has_autopilot = not isinstance(sc.driver, KeyboardSpec)
@@ -197,6 +203,38 @@ class Session:
         self.runner.tracks[name] = FilterTrack(name, flt)
         self.trails[name].brk()
         self.status[name] = FilterStatus(name)
+        self.runner.priors.pop(name, None)
+        self._keep_priors()
+
+    # --- the step view: predict, then update, of the last tick ------------------------------
+    def _keep_priors(self) -> None:
+        """Ask the runner to keep the belief after predict of every Gaussian filter (one whose
+        ``belief()`` is a GaussianBelief); the others' beliefs have no single ellipse."""
+        keep = set()
+        for name, tr in self.runner.tracks.items():
+            try:
+                if tr.filter is not None and isinstance(tr.filter.belief(), GaussianBelief):
+                    keep.add(name)
+            except Exception:  # a student's belief() may raise before the first tick
+                continue
+        self.runner.keep_prior = frozenset(keep)
+
+    def predict_update(self, name: str) -> tuple[tuple[np.ndarray, np.ndarray],
+                                                  tuple[np.ndarray, np.ndarray]] | None:
+        """The last tick of a Gaussian filter: ``((mean, cov) after predict, (mean, cov) after
+        update)`` [m, m, rad], or None (not Gaussian, switched off, no tick yet)."""
+        tr = self.runner.tracks.get(name)
+        prior = self.runner.priors.get(name)
+        if (tr is None or prior is None or tr.failed or self.last_step is None or not tr.ticks
+                or tr.ticks[-1] != self.last_step.tick):
+            return None
+        return prior, (tr.means[-1], tr.covs[-1])
+
+    def used_ids(self) -> set[int]:
+        """The beacons in the last tick's readings: the ones its update used."""
+        if self.last_step is None:
+            return set()
+        return {int(i) for m in self.last_step.measurements for i in m.beacon_ids}
 
     # --- one tick -------------------------------------------------------------------------
     def tick(self) -> Step:
@@ -241,6 +279,8 @@ class Session:
                 continue
             self.trails[name].add(tr.means[-1])
             st.measure(tr.means[-1], tr.covs[-1], truth)
+        for listener in self.on_step:
+            listener(step)
 
     def readings(self) -> list[Measurement]:
         """The latest reading of each sensor still within its period."""
