@@ -1,0 +1,306 @@
+"""A Gymnasium environment: drive the robot, a filter localises it (the ``gym`` extra).
+
+``BeaconEnv(scenario="default", filters=("ekf",))``: each step applies the action
+``[v, omega]`` [m/s, rad/s] (clipped to the scenario's keyboard limits) for
+``ticks_per_step`` simulation ticks while the filters run, exactly as in a headless run.
+The reward is pluggable (``reward=``, a callable ``(env, steps) -> float``); the shipped
+one, :func:`neg_log_det`, is active localisation: the negative log-determinant of a chosen
+filter's covariance after the step (larger when the filter is surer). docs/gym.md documents
+the observation, the reward and the episode's end.
+
+pygame is imported only when a frame is drawn (``render_mode="rgb_array"`` or ``"human"``),
+by the window's own renderer.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.core.types import Control, Step
+from beacon_sim.runs.live import Session
+
+#: Numbers per observation slot: a beacon sensor's slot is one beacon, a fix sensor's slot
+#: is its fix.
+BEACON_SLOT = ("seen", "range_m", "cos_bearing", "sin_bearing")
+FIX_SLOT = ("fresh", "x_m", "y_m", "cos_theta", "sin_theta")
+ENV_ID = "beacon_sim/Localize-v0"
+
+Reward = Callable[["BeaconEnv", list[Step]], float]
+
+
+def neg_log_det(filter_name: str | None = None) -> Reward:
+    """Active localisation: ``-log det P`` of ``filter_name``'s covariance after the step
+    (P is 3 x 3 over x [m], y [m], theta [rad]; the first filter when None). Shrinking the
+    uncertainty ellipsoid's volume by a factor e earns one unit."""
+
+    def reward(env: BeaconEnv, steps: list[Step]) -> float:
+        _, cov = env.estimate(filter_name or env.filter_names[0])
+        if not np.all(np.isfinite(cov)):
+            return -float(env.failed_penalty)
+        sign, logdet = np.linalg.slogdet(cov)
+        return -float(logdet) if sign > 0 else -float(env.failed_penalty)
+
+    reward.__name__ = reward.__qualname__ = f"neg_log_det({filter_name or ''})"
+    return reward
+
+
+class _Session(Session):
+    """A session driven by the agent's action instead of the keyboard or the autopilot."""
+
+    action = Control()
+
+    def next_control(self) -> Control:
+        return self.action
+
+    @property
+    def drive_mode(self) -> str:
+        return "agent"
+
+
+class BeaconEnv(gymnasium.Env):
+    """Localisation with beacons as a Gymnasium environment.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or Path
+        A scenario, or a shipped name / ``.toml`` path.
+    filters : sequence of str
+        Filter specs run on every tick (``"ekf"``, ``"pf"``, ``"file.py:Class"``).
+    reward : callable ``(env, steps) -> float``, optional
+        ``steps``: the simulation steps of this env step. Default :func:`neg_log_det` of the
+        first filter.
+    tracked : str, optional
+        The filter whose switching off ends the episode (default the first).
+    ticks_per_step : int, optional
+        Simulation ticks per env step (default: the fastest sensor's period in ticks, so
+        each step can hold a reading of every sensor).
+    max_steps : int, optional
+        Truncate after this many steps (default: the scenario's duration).
+    params : dict, optional
+        ``{filter name: {key: value}}`` as ``--set``.
+    render_mode : ``"rgb_array"``, ``"human"`` or None
+    size : (width, height) of a rendered frame [px].
+    failed_penalty : float
+        The reward of a step whose tracked filter has no usable covariance.
+    """
+
+    #: Gymnasium's metadata; an instance's ``render_fps`` is one step per ``ticks_per_step * dt``.
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 20}  # noqa: RUF012
+
+    def __init__(self, scenario: Scenario | str | Path = "default", filters: Sequence[str] = ("ekf",),
+                 reward: Reward | None = None, tracked: str | None = None,
+                 ticks_per_step: int | None = None, max_steps: int | None = None,
+                 params: dict[str, dict[str, Any]] | None = None, render_mode: str | None = None,
+                 size: tuple[int, int] = (640, 440), failed_penalty: float = 100.0):
+        sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode {render_mode!r}: expected one of {self.metadata['render_modes']}")
+        self.scenario = sc
+        self.specs = list(filters)
+        if not self.specs:
+            raise ValueError("filters: at least one filter (the reward and the episode follow it)")
+        self.params = dict(params or {})
+        self.reward_fn = reward or neg_log_det()
+        self.failed_penalty = float(failed_penalty)
+        fastest = min((s.period for s in sc.sensors), default=sc.dt)
+        self.ticks_per_step = int(ticks_per_step or max(1, round(fastest / sc.dt)))
+        self.max_steps = int(max_steps or max(1, round(sc.duration / sc.dt / self.ticks_per_step)))
+        self.render_mode = render_mode
+        self.size = (int(size[0]), int(size[1]))
+        self.metadata = {**self.metadata, "render_fps": 1.0 / (sc.dt * self.ticks_per_step)}
+        kb = sc.keyboard
+        self.action_space = spaces.Box(np.array([-kb.v_max, -kb.omega_max], dtype=np.float32),
+                                       np.array([kb.v_max, kb.omega_max], dtype=np.float32),
+                                       dtype=np.float32)
+        self._layout = observation_layout(sc)
+        # Bounds far beyond any reading (clipped to them, never reached in practice): ranges
+        # within twice the world's diagonal, fixes within the world grown by that much.
+        xmin, ymin, xmax, ymax = sc.world.bounds
+        far = 2.0 * math.hypot(xmax - xmin, ymax - ymin)
+        lim = {"seen": (0.0, 1.0), "fresh": (0.0, 1.0), "range_m": (0.0, far),
+               "x_m": (xmin - far, xmax + far), "y_m": (ymin - far, ymax + far)}
+        bounds = [lim.get(f, (-1.0, 1.0)) for _, _, fields in self._layout for f in fields]
+        self.observation_space = spaces.Box(np.array([b[0] for b in bounds], dtype=np.float32),
+                                            np.array([b[1] for b in bounds], dtype=np.float32),
+                                            dtype=np.float32)
+        self.session: _Session | None = None
+        self.filter_names: list[str] = []
+        self.tracked = tracked
+        self.steps_taken = 0
+        self._drawer: Any = None
+
+    # --- the Gymnasium interface --------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """A new episode. ``seed`` seeds the run itself (truth, sensors, filters: the same
+        seed, the same episode for the same actions); None draws one from the env's
+        generator."""
+        super().reset(seed=seed)
+        run_seed = int(seed) if seed is not None else int(self.np_random.integers(2**31 - 1))
+        if self.session is not None:
+            self.session.close()
+        self.session = _Session(self.scenario, self.specs, run_seed, dict(self.params))
+        self.filter_names = list(self.session.names)
+        if self.tracked is None:
+            self.tracked = self.filter_names[0]
+        elif self.tracked not in self.filter_names:
+            raise ValueError(f"tracked={self.tracked!r}: not one of the filters {self.filter_names}")
+        self.steps_taken = 0
+        obs = self.encode([])
+        if self.render_mode == "human":
+            self.render()
+        return obs, self._info([])
+
+    def step(self, action):
+        """Apply ``action = [v, omega]`` [m/s, rad/s] for ``ticks_per_step`` ticks."""
+        if self.session is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.clip(np.asarray(action, dtype=np.float64).reshape(2), self.action_space.low,
+                    self.action_space.high)
+        self.session.action = Control(float(a[0]), float(a[1]))
+        steps = [self.session.tick() for _ in range(self.ticks_per_step)]
+        self.steps_taken += 1
+        failed = self.session.runner.tracks[self.tracked].failed is not None
+        reward = -self.failed_penalty if failed else float(self.reward_fn(self, steps))
+        truncated = self.steps_taken >= self.max_steps and not failed
+        obs = self.encode(steps)
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, failed, truncated, self._info(steps)
+
+    def render(self):
+        """``rgb_array``: the frame as an (H, W, 3) uint8 array; ``human``: shown in a window."""
+        if self.render_mode is None or self.session is None:
+            return None
+        if self._drawer is None:
+            self._drawer = _Drawer(self.scenario, self.filter_names, self.size, self.render_mode)
+        return self._drawer.draw(self.session, self.metadata["render_fps"])
+
+    def close(self):
+        if self._drawer is not None:
+            self._drawer.close()
+            self._drawer = None
+        if self.session is not None:
+            self.session.close()
+
+    # --- helpers --------------------------------------------------------------------------
+    def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """A filter's latest estimate: mean (3,) [m, m, rad], covariance (3, 3); NaN when it
+        has none (switched off)."""
+        assert self.session is not None
+        est = self.session.estimate(name)
+        if est is None:
+            return np.full(3, np.nan), np.full((3, 3), np.nan)
+        return est
+
+    def encode(self, steps: list[Step]) -> np.ndarray:
+        """The observation: the latest reading of each sensor during ``steps`` (docs/gym.md)."""
+        obs = np.zeros(self.observation_space.shape, dtype=np.float32)
+        latest = {m.sensor: m for s in steps for m in s.measurements}
+        i = 0
+        for sensor, kind, fields in self._layout:
+            m = latest.get(sensor)
+            if kind == "beacon":
+                if m is not None:
+                    slot = {int(b): k for k, b in enumerate(self._beacon_ids)}
+                    for row, bid in zip(m.z, m.beacon_ids, strict=True):
+                        j = i + len(BEACON_SLOT) * slot[int(bid)]
+                        rng = float(row[0]) if m.kind == "range_bearing" else 0.0
+                        b = float(row[-1])
+                        obs[j:j + 4] = (1.0, rng, math.cos(b), math.sin(b))
+            elif m is not None:
+                z = m.z[0]
+                th = float(z[2]) if m.kind == "pose" else None
+                obs[i:i + 5] = (1.0, z[0], z[1], math.cos(th) if th is not None else 0.0,
+                                math.sin(th) if th is not None else 0.0)
+            i += len(fields)
+        return np.clip(obs, self.observation_space.low, self.observation_space.high)
+
+    @property
+    def _beacon_ids(self) -> list[int]:
+        return [b.id for b in self.scenario.world.beacons]
+
+    def _info(self, steps: list[Step]) -> dict[str, Any]:
+        assert self.session is not None
+        mean, cov = self.estimate(self.tracked or self.filter_names[0])
+        return {"time": self.session.time, "true_pose": self.session.true_pose.copy(),
+                "estimate": np.array(mean), "cov": np.array(cov),
+                "events": [e.kind for s in steps for e in s.events]}
+
+
+def observation_layout(scenario: Scenario) -> list[tuple[str, str, tuple[str, ...]]]:
+    """(sensor, "beacon" or "fix", field names) per block of the observation, in order: a
+    beacon sensor's block is one :data:`BEACON_SLOT` per beacon of the map (in map order), a
+    fix sensor's block is one :data:`FIX_SLOT`."""
+    out = []
+    for s in scenario.sensors:
+        if s.kind in ("bearing", "range_bearing"):
+            fields = tuple(f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in BEACON_SLOT)
+            out.append((s.name, "beacon", tuple(f.rpartition(".")[2] for f in fields)))
+        else:
+            out.append((s.name, "fix", FIX_SLOT))
+    return out
+
+
+def observation_names(scenario: Scenario) -> list[str]:
+    """One name per number of the observation, e.g. ``beacons.B3.range_m``."""
+    names = []
+    for s in scenario.sensors:
+        if s.kind in ("bearing", "range_bearing"):
+            names += [f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in BEACON_SLOT]
+        else:
+            names += [f"{s.name}.{f}" for f in FIX_SLOT]
+    return names
+
+
+class _Drawer:
+    """The window's renderer on an off-screen surface (or the window, for ``human``)."""
+
+    def __init__(self, scenario: Scenario, names: list[str], size: tuple[int, int], mode: str):
+        import pygame
+
+        from beacon_sim.app.assets import load_fonts
+        from beacon_sim.app.palette import filter_styles
+        from beacon_sim.app.render import ShowOptions, View, WorldRenderer
+
+        self.pygame = pygame
+        pygame.font.init()
+        self.mode = mode
+        if mode == "human":
+            pygame.display.init()
+            self.surface = pygame.display.set_mode(size)
+            pygame.display.set_caption(f"beacon-sim gym: {scenario.name}")
+            self.clock = pygame.time.Clock()
+        else:
+            self.surface = pygame.Surface(size)
+        styles = filter_styles(names)
+        self.colours = {n: c for n, (c, _) in styles.items()}
+        self.dashes = {n: d for n, (_, d) in styles.items()}
+        self.renderer = WorldRenderer(load_fonts(size[1]))
+        self.view = View(scenario.world.bounds, (0, 0, size[0], size[1]))
+        self.show = ShowOptions()
+
+    def draw(self, session: Session, fps: float):
+        self.renderer.draw(self.surface, self.view, session, self.colours, self.show,
+                           dashes=self.dashes)
+        if self.mode == "human":
+            self.pygame.event.pump()
+            self.pygame.display.flip()
+            self.clock.tick(fps)
+            return None
+        return np.transpose(self.pygame.surfarray.array3d(self.surface), (1, 0, 2)).copy()
+
+    def close(self) -> None:
+        if self.mode == "human":
+            self.pygame.display.quit()
+
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(id=ENV_ID, entry_point="beacon_sim.gym:BeaconEnv")
