@@ -27,18 +27,31 @@ FONT_FILES = {"title": BOLD, "hud": REGULAR, "small": REGULAR, "label": BOLD, "b
 TTF_SCALE = 0.73
 
 
-def font_sizes(height_px: int) -> dict[str, int]:
+#: The smallest text scale: a 1024x768 projector gets 0.8 of the 1280x800 sizes, smaller
+#: windows no less than this.
+MIN_SCALE = 0.7
+
+
+def ui_scale(width_px: int, height_px: int) -> float:
+    """How big text and the panel are drawn in a ``width_px`` x ``height_px`` window,
+    relative to 1280x800 (1.0): the smaller of the two ratios, at least ``MIN_SCALE``."""
+    return max(min(height_px / 800.0, width_px / 1280.0), MIN_SCALE)
+
+
+def font_sizes(height_px: int, width_px: int | None = None) -> dict[str, int]:
     """Point size of each font for a window ``height_px`` tall: scaled with the height,
-    never below the sizes for 800 px."""
-    k = max(height_px / 800.0, 1.0)
+    never below the sizes for 800 px. With ``width_px``: scaled by :func:`ui_scale`, so
+    text shrinks with a narrow or low window (1024x768) and grows with a large one."""
+    k = max(height_px / 800.0, 1.0) if width_px is None else ui_scale(width_px, height_px)
     return {name: max(round(s * k * TTF_SCALE), 1) for name, s in BASE_SIZES.items()}
 
 
-def load_fonts(height_px: int) -> dict[str, pygame.font.Font]:
+def load_fonts(height_px: int, width_px: int | None = None) -> dict[str, pygame.font.Font]:
     """The window's fonts by role (``title``, ``hud``, ``small``, ``label``, ``banner``),
-    sized for a window ``height_px`` tall. Needs ``pygame.font.init()``."""
+    sized for a window ``height_px`` tall (and ``width_px`` wide: see :func:`font_sizes`).
+    Needs ``pygame.font.init()``."""
     return {name: pygame.font.Font(str(asset_path(FONT_FILES[name])), size)
-            for name, size in font_sizes(height_px).items()}
+            for name, size in font_sizes(height_px, width_px).items()}
 
 
 def window_icon() -> pygame.Surface:

@@ -54,14 +54,16 @@ class Hud:
         y = rect.top + 10
         f = self.fonts
         lh = f["hud"].get_linesize()
+        sl = f["small"].get_linesize()
         sc = session.scenario
         self._blit(surf, sc.name, "title", palette.TEXT, (x, y))
         y += f["title"].get_linesize() + 2
         state = "PAUSED" if info.get("paused") else "running"
         speed = info.get("speed", 1.0)
-        self._blit(surf, f"t = {session.time:7.2f} s", "hud", palette.TEXT, (x, y))
+        r = self._blit(surf, f"t = {session.time:7.2f} s", "hud", palette.TEXT, (x, y))
         self._blit(surf, f"x{speed:g}  {state}", "hud",
-                   palette.WARN if info.get("paused") else palette.TEXT, (x + int(w * 0.55), y))
+                   palette.WARN if info.get("paused") else palette.TEXT,
+                   (max(x + int(w * 0.55), r.right + lh // 2), y))
         y += lh
         c = session.next_control()
         self._blit(surf, f"v = {c.v:+.2f} m/s", "hud", palette.TEXT, (x, y))
@@ -85,13 +87,13 @@ class Hud:
             st = session.status[name]
             visible = session.visible[name]
             colour = colours[name]
-            sw = pygame.Rect(x, y + 4, 26, lh - 8)
+            sw = pygame.Rect(x, y + 4, round(lh * 0.65), lh - 8)
             if visible:
                 surf.fill(colour, sw)
             pygame.draw.rect(surf, colour, sw, 3)
             label = f"{i + 1}  {name}" + ("" if visible else "  (hidden)")
             self._blit(surf, label, "hud", palette.TEXT if visible else palette.TEXT_DIM,
-                       (x + 36, y))
+                       (sw.right + lh // 4, y))
             y += lh
             note = st.warning or (f"{name} switched off: {st.failed}" if st.failed else None)
             notes = [n for n in (note, info.get("reload_errors", {}).get(name)) if n]
@@ -104,14 +106,19 @@ class Hud:
                 continue
             if math.isfinite(st.pos_err):
                 deg = math.degrees(st.heading_err)
-                self._blit(surf, f"err {st.pos_err:5.2f} m {deg:+6.1f} deg", "small", palette.TEXT,
-                           (x + 10, y))
+                r = self._blit(surf, f"err {st.pos_err:5.2f} m {deg:+6.1f} deg", "small",
+                               palette.TEXT, (x + 10, y))
                 nees = f"{st.nees:.1f}" if st.nees < 100 else (
                     f"{st.nees:.0f}" if st.nees < 1000 else ">1000")
                 out = st.nees_out_of_band
-                self._blit(surf, f"NEES {nees}", "small", palette.BANNER_TEXT if out else palette.TEXT,
-                           (x + int(w * 0.66), y), bg=palette.WARN if out else None)
-                y += f["small"].get_linesize()
+                text = f"NEES {nees}"
+                nx = max(x + int(w * 0.66), r.right + sl // 2)
+                if nx + f["small"].size(text)[0] > rect.right - 6:  # no room: its own line
+                    y += sl
+                    nx = x + 10
+                self._blit(surf, text, "small", palette.BANNER_TEXT if out else palette.TEXT,
+                           (nx, y), bg=palette.WARN if out else None)
+                y += sl
                 if math.isfinite(st.pos_sigma):
                     sig = f"sigma {st.pos_sigma:5.2f} m {math.degrees(st.heading_sigma):6.1f} deg"
                     self._blit(surf, sig, "small", palette.TEXT_DIM, (x + 10, y))
@@ -128,25 +135,27 @@ class Hud:
                        palette.TEXT_DIM, (x + 10, y))
             y += f["small"].get_linesize() + 4
 
-        # Legend: what the shapes mean.
-        y = max(y + 6, rect.bottom - 7 * f["small"].get_linesize() - 10)
-        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
-        y += 6
+        # Legend: what the shapes mean, wrapped to the panel, at the bottom.
         legend = [
             f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 = {ELLIPSE_SCALE2:.2f})",
             "wedge: heading +-2 sigma",
             f"NEES band 95 %: {NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}",
             "black outline: true robot; line: path",
         ]
-        for line in legend:
-            self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))
-            y += f["small"].get_linesize()
+        lines = [part for line in legend for part in wrap_text(f["small"], line, w)]
         rec = info.get("recording")
         where = "REPLAY" if info.get("mode") == "replay" else (f"REC {rec}" if rec else "not recording")
-        status = f"FPS {info.get('fps', 0):4.0f}   " + where
-        self._blit(surf, status, "small", palette.TEXT_DIM, (x, y))
-        y += f["small"].get_linesize()
+        lines.append(f"FPS {info.get('fps', 0):4.0f}   " + where)
+        y = max(y + 6, rect.bottom - (len(lines) + 1) * sl - 16)
+        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
+        y += 6
+        old_clip = surf.get_clip()
+        surf.set_clip(rect.inflate(-6, 0))  # a long recording path is cut at the edge
+        for line in lines:
+            self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))
+            y += sl
         self._blit(surf, "H: help    Esc: quit", "small", palette.TEXT, (x, y))
+        surf.set_clip(old_clip)
 
     def step_legend(self, surf, area: pygame.Rect, session, steps: bool, bound: bool) -> None:
         """What the step view and the bound show, in a box at the bottom left of the world."""

@@ -21,7 +21,7 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import controls
-from beacon_sim.app.assets import load_fonts, window_icon
+from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.bound import LiveBound
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
@@ -134,10 +134,12 @@ class App:
     # --- layout ---------------------------------------------------------------------------
     def _layout(self, size) -> None:
         W, H = size
-        self.fonts = load_fonts(H)
+        self.ui_scale = ui_scale(W, H)
+        self.fonts = load_fonts(H, W)
         self.renderer = WorldRenderer(self.fonts)
         self.hud = Hud(self.fonts, self.MODE)
-        pw = int(min(max(W * 0.27, 300), 480))  # the room gets most of the width
+        # The panel scales with the text (340 px at 1280x800); the room gets most of the width.
+        pw = int(min(340 * self.ui_scale, 0.4 * W))
         self.panel_rect = pygame.Rect(W - pw, 0, pw, H)
         area = self.world_area(W - pw, H)
         if self.show.chart:  # the strip chart takes the bottom ~30 % of the world's area
