@@ -42,7 +42,8 @@ BINDINGS: tuple[Binding, ...] = (
     Binding("A / Left", _k("K_a", "K_LEFT"), "left", "steer left (omega up one step)", True),
     Binding("D / Right", _k("K_d", "K_RIGHT"), "right", "steer right (omega down one step)", True),
     Binding("X", _k("K_x"), "stop", "stop: v = omega = 0"),
-    Binding("M", _k("K_m"), "autopilot", "autopilot: the scenario's driver on / off"),
+    Binding("M", _k("K_m"), "autopilot",
+            "autopilot: the scenario's driver on / off (a driving key takes over)"),
     Binding("Space", _k("K_SPACE"), "pause", "pause / run", group="Time"),
     Binding(".", _k("K_PERIOD"), "step", "one tick while paused", group="Time"),
     Binding("+", _k("K_PLUS", "K_EQUALS", "K_KP_PLUS"), "speed_up",
@@ -59,7 +60,7 @@ BINDINGS: tuple[Binding, ...] = (
     Binding("1-9", FILTER_KEYS, "toggle*", "show / hide filter 1-9", group="Filters"),
     Binding("P", _k("K_p"), "particles", "particles on / off", group="Show"),
     Binding("T", _k("K_t"), "trails", "trails on / off", group="Show"),
-    Binding("Backspace", _k("K_BACKSPACE", "K_DELETE"), "clear_trails", "clear the trails",
+    Binding("Backspace / Delete", _k("K_BACKSPACE", "K_DELETE"), "clear_trails", "clear the trails",
             group="Show"),
     Binding("E", _k("K_e"), "ellipses", "95 % ellipses and heading wedges on / off",
             group="Show"),
@@ -73,7 +74,7 @@ BINDINGS: tuple[Binding, ...] = (
     Binding("Right drag", (), "pan", "pan the view", group="View", button=3),
     Binding("F", _k("K_f"), "fit", "fit the world to the window", group="View"),
     Binding("F12", _k("K_F12"), "screenshot", "save a screenshot (PNG)", group="View"),
-    Binding("H / F1", _k("K_h", "K_F1"), "help", "this help on / off", group="View"),
+    Binding("H / F1", _k("K_h", "K_F1"), "help", "help: every key, on / off", group="View"),
     Binding("F11", _k("K_F11"), "fullscreen", "fullscreen on / off", group="View"),
     Binding("Esc / Q", _k("K_ESCAPE", "K_q"), "quit", "quit (press twice: asks first)",
             group="View"),
@@ -154,6 +155,14 @@ class KeyHandler:
         if b.action.endswith("*"):
             return [b.action[:-1] + str(FILTER_KEYS.index(event.key) + 1)]
         return [b.action]
+
+
+def markdown_table(mode: str = "play") -> str:
+    """The mode's bindings as the Markdown table README.md and docs/window.md show (a test
+    checks that they do): one row per binding, in table order."""
+    rows = ["| keys | action |", "|---|---|"]
+    rows += [f"| `{b.keys}` | {b.description} |" for b in TABLES[mode]]
+    return "\n".join(rows) + "\n"
 
 
 def help_lines(mode: str = "play") -> list[tuple[str, str, str]]:
