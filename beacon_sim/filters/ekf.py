@@ -148,7 +148,9 @@ class BatchedVelocityGaussian(BatchedGaussian):
         q = process_cov_terms(self.noise, th, c, s, v, w, dt)
         x, y, th, p = predict_moments(m[:, 0], m[:, 1], th, cov_entries(self.cov), v, w, dt, c, s, q,
                                       self.jacobian)
-        self.mean = np.stack([x, y, th], axis=1)
+        mean = np.empty_like(m)
+        mean[:, 0], mean[:, 1], mean[:, 2] = x, y, th
+        self.mean = mean
         self.cov = cov_matrix(p)
 
 

@@ -253,28 +253,33 @@ class SlotPacker:
     def __init__(self, world: World, sensors: Sequence[SensorSpec]):
         xy = np.asarray(world.beacon_xy, dtype=float).reshape(-1, 2)
         ids = np.asarray(world.beacon_ids, dtype=int)
-        self.index = np.full(int(ids.max(initial=0)) + 1, -1)
-        self.index[ids] = np.arange(len(ids))
+        n_ids = int(ids.max(initial=0)) + 1
         self.specs = {s.name: s for s in sensors}
         self.blocks: list[Block] = []
-        self.at: dict[str, tuple[int, int]] = {}  # sensor -> (first slot, rows per reading)
+        # sensor -> its slots: by beacon ID (n_ids, rows per reading; -1: no such beacon) for a
+        # beacon sensor, (rows,) for a fix
+        self.slots_of: dict[str, np.ndarray] = {}
         angles: list[bool] = []
         r0: list[float] = []
         a = 0
         for s in sensors:
+            bxy: np.ndarray | None
             if s.kind in BEACON_KINDS:
                 var = [float(v) ** 2 for v in s.reading_std()]
                 width, n, bxy = len(var), len(var) * len(xy), xy
+                table = np.full((n_ids, width), -1)
+                table[ids] = a + np.arange(n).reshape(-1, width)
+                self.slots_of[s.name] = table
                 r0.extend(var * len(xy))
             elif s.kind in FIX_KINDS:
                 width = n = len(_ANGLE_PATTERN[s.kind])
                 bxy = None
+                self.slots_of[s.name] = np.arange(a, a + n)
                 r0.extend([1.0] * n)
             else:
                 raise FilterError(f"sensor kind {s.kind!r} has no batched readings")
             self.blocks.append((s.kind, a, a + n, bxy))
             angles.extend(_ANGLE_PATTERN[s.kind] * (n // width))
-            self.at[s.name] = (a, width)
             a += n
         self.M = a
         self.angle = np.array(angles, dtype=bool)
@@ -286,29 +291,34 @@ class SlotPacker:
         M = self.M
         slots: list[np.ndarray] = []
         zs: list[np.ndarray] = []
+        starts: list[int] = []  # i * M of each measurement's run i
+        counts: list[int] = []
         fix_slots: list[np.ndarray] = []
         fix_var: list[np.ndarray] = []
         for i, measurements in enumerate(runs):
             for m in measurements:
                 try:
-                    a, width = self.at[m.sensor]
+                    table = self.slots_of[m.sensor]
                 except KeyError:
                     raise FilterError(f"reading from sensor {m.sensor!r}, which has no slots") from None
                 if m.kind in BEACON_KINDS:
-                    cols = a + width * self.index[m.beacon_ids]
-                    if width == 2:  # range and bearing of each beacon side by side
-                        cols = np.stack([cols, cols + 1], axis=1).reshape(-1)
+                    cols = table[m.beacon_ids].reshape(-1)
                 else:
-                    cols = np.arange(a, a + width)
+                    cols = table
                     std = self.specs[m.sensor].fix_std(len(m.beacon_ids), m.hdop)
                     fix_slots.append(cols + i * M)
                     fix_var.append(std * std)
-                slots.append(cols + i * M)
+                slots.append(cols)
                 zs.append(m.z.reshape(-1))
+                starts.append(i * M)
+                counts.append(cols.size)
         if not slots:
             return None
         R = len(runs)
-        flat = np.concatenate(slots)
+        cols = np.concatenate(slots)
+        if cols.min() < 0:
+            raise FilterError("reading from a beacon that is not on the map")
+        flat = cols + np.repeat(starts, counts)
         z = np.zeros(R * M)
         z[flat] = np.concatenate(zs)
         filled = np.zeros(R * M, dtype=bool)
@@ -435,16 +445,16 @@ def cov_entries(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
 
 
 def cov_matrix(p: Sequence[Any]) -> np.ndarray:
-    """The symmetric matrices (R, 3, 3) with the six entries ``p`` (p00 an array (R,))."""
+    """The symmetric matrices (R, 3, 3) with the six entries ``p`` (arrays (R,) or floats)."""
     p00, p01, p02, p11, p12, p22 = p
-    P = np.empty((*np.shape(p00), 3, 3))
-    P[..., 0, 0] = p00
-    P[..., 0, 1] = P[..., 1, 0] = p01
-    P[..., 0, 2] = P[..., 2, 0] = p02
-    P[..., 1, 1] = p11
-    P[..., 1, 2] = P[..., 2, 1] = p12
-    P[..., 2, 2] = p22
-    return P
+    rows = np.empty((9, *np.shape(p00)))  # row-major entries, one row each (fast to fill)
+    rows[0] = p00
+    rows[1] = rows[3] = p01
+    rows[2] = rows[6] = p02
+    rows[4] = p11
+    rows[5] = rows[7] = p12
+    rows[8] = p22
+    return rows.T.reshape(-1, 3, 3)
 
 
 # -- batching ----------------------------------------------------------------------------
