@@ -36,9 +36,20 @@ class Hud:
         self.fonts = fonts
         self.mode = mode
         self.help_drawn: list[tuple[str, str]] = []
+        self._cache: dict[tuple, pygame.Surface] = {}
+
+    def _text(self, text: str, font: str, colour) -> pygame.Surface:
+        """The rendered text, from a cache (most of the panel is the same every frame)."""
+        key = (text, font, colour)
+        img = self._cache.get(key)
+        if img is None:
+            if len(self._cache) > 400:
+                self._cache.clear()
+            img = self._cache[key] = self.fonts[font].render(text, True, colour)
+        return img
 
     def _blit(self, surf, text: str, font: str, colour, at, bg=None) -> pygame.Rect:
-        img = self.fonts[font].render(text, True, colour)
+        img = self._text(text, font, colour)
         r = img.get_rect(topleft=(int(at[0]), int(at[1])))
         if bg is not None:
             surf.fill(bg, r.inflate(8, 2))

@@ -85,6 +85,7 @@ class App:
         self.pan_from: tuple[int, int] | None = None
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
+        self.ticks_this_frame = 0  # simulation ticks run in the current frame
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
@@ -290,7 +291,8 @@ class App:
         for event in pygame.event.get():
             self.handle(event)
         self.poll_watchers()  # a filter object is swapped here, between ticks
-        for _ in range(self.ticks_due(real_dt)):
+        self.ticks_this_frame = self.ticks_due(real_dt)
+        for _ in range(self.ticks_this_frame):
             step = self.session.tick()
             self.chart.record(self.session)
             for ev in (step.events if isinstance(step, Step) else step):
@@ -341,7 +343,7 @@ class App:
         self.hud.panel(surf, self.panel_rect, self.session, self.colours, info)
         if self.chart_rect is not None:
             self.chart.draw(surf, self.chart_rect, self.fonts, self.colours, self.dashes,
-                            self.session.visible)
+                            self.session.visible, now=self.now, busy=self.ticks_this_frame > 0)
         if steps or bound is not None:
             self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
                                  bound is not None)

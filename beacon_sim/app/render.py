@@ -135,12 +135,14 @@ def polyline(surf, colour, pts, width: int, dash=None, closed: bool = False) -> 
     bounds = np.cumsum(dash)
     phase = np.searchsorted(bounds, t % period, side="right")
     on = phase % 2 == 0
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]])))
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]]))).tolist()
+    xy = np.stack([xs, ys], 1).tolist()  # one conversion, then slices (no array per dash)
+    r = max(width // 2, 1)
     for a, b in zip(edges[::2], edges[1::2], strict=True):
         if b - a >= 2:
-            pygame.draw.lines(surf, colour, False, np.stack([xs[a:b], ys[a:b]], 1), width)
+            pygame.draw.lines(surf, colour, False, xy[a:b], width)
         else:
-            pygame.draw.circle(surf, colour, (ipx(xs[a]), ipx(ys[a])), max(width // 2, 1))
+            pygame.draw.circle(surf, colour, xy[a], r)
 
 
 def ipx(v) -> int:

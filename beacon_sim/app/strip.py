@@ -19,6 +19,10 @@ from beacon_sim.app.render import ipx, polyline
 
 #: Seconds of history shown.
 SPAN_S = 60.0
+#: The chart is rendered again at most this often [s of the window's clock] ...
+REDRAW_S = 0.1
+#: ... and on a frame that also runs simulation ticks only once it is this old [s].
+STALE_S = 0.25
 BLIND_SHADE = (255, 226, 204)  # a pale vermillion: "no beacon in view"
 
 
@@ -37,9 +41,13 @@ class StripChart:
         self.err = {n: np.full(self._size, np.nan) for n in self.names}
         self.two_sigma = {n: np.full(self._size, np.nan) for n in self.names}
         self.n = 0
+        self.version = 0  # bumped by every change of the data (the render cache's key)
+        self._cache: dict | None = None
+        self._static_cache: tuple | None = None
 
     def clear(self) -> None:
         self.n = 0
+        self.version += 1
 
     def record(self, scene) -> None:
         """Sample the scene after a tick."""
@@ -60,6 +68,7 @@ class StripChart:
             self.err[name][k] = st.pos_err if ok else np.nan
             self.two_sigma[name][k] = 2.0 * st.pos_sigma if ok else np.nan
         self.n += 1
+        self.version += 1
 
     def window(self) -> slice:
         """The samples within the last ``span`` seconds."""
@@ -70,23 +79,84 @@ class StripChart:
         return slice(first, self.n)
 
     def draw(self, surf: pygame.Surface, rect: pygame.Rect, fonts, colours, dashes,
-             visible) -> None:
-        """Draw into ``rect``: axes, blind shading, each visible filter's two lines."""
-        surf.fill(palette.PANEL, rect)
-        pygame.draw.line(surf, palette.PANEL_EDGE, rect.topleft, rect.topright, 3)
+             visible, now: float | None = None, busy: bool = False) -> None:
+        """Blit the chart into ``rect``, re-rendering it only when it is stale.
+
+        The chart is rendered off screen (:meth:`render`) and blitted; it is rendered again
+        when new samples arrived, at most every ``REDRAW_S`` seconds of the window's clock
+        ``now`` [s], and preferably on a frame without simulation ticks (``busy`` False),
+        so that its cost does not land on the frames that also run the filters (a ``busy``
+        frame re-renders only once the picture is ``STALE_S`` old). A change of size,
+        fonts, colours or shown filters re-renders at once. ``now`` None: every call."""
+        shown = tuple(n for n in self.names if visible.get(n, True))
+        key = (tuple(rect), id(fonts), shown, tuple(sorted(colours.items())),
+               tuple(sorted((k, v) for k, v in dashes.items() if k in shown)))
+        c = self._cache
+        fresh = c is not None and c["key"] == key
+        if fresh and c["version"] != self.version and now is not None:
+            age = now - c["at"]
+            fresh = age < REDRAW_S or (busy and age < STALE_S)
+        elif fresh and c["version"] != self.version:
+            fresh = False
+        if not fresh:
+            image = c["image"] if c is not None and c["image"].get_size() == rect.size else \
+                pygame.Surface(rect.size)
+            self.render(image, fonts, colours, dashes, shown)
+            c = self._cache = {"key": key, "version": self.version, "image": image,
+                               "at": now if now is not None else 0.0}
+        surf.blit(c["image"], rect)
+
+    def _static(self, size: tuple[int, int], fonts, top: float) -> tuple[pygame.Surface, pygame.Rect]:
+        """The chart without data (title, axes, grid, labels) for a y range ``top`` [m],
+        rendered once per size, fonts and range; and the plot's rectangle in it."""
+        key = (size, id(fonts), top)
+        if self._static_cache is not None and self._static_cache[0] == key:
+            return self._static_cache[1], self._static_cache[2]
+        w, h = size
+        layer = pygame.Surface(size)
+        layer.fill(palette.PANEL)
+        pygame.draw.line(layer, palette.PANEL_EDGE, (0, 0), (w, 0), 3)
         small = fonts["small"]
         lh = small.get_linesize()
         title = small.render("position error (thin) and 2 sigma (thick) [m];  shaded: no beacon"
                              " in view;  C hides", True, palette.TEXT)
-        surf.blit(title, (rect.left + 10, rect.top + 4))
-        plot = pygame.Rect(rect.left + 64, rect.top + lh + 10, rect.width - 84,
-                           rect.height - 2 * lh - 18)
-        if plot.width < 40 or plot.height < 20:
-            return
-        pygame.draw.rect(surf, palette.BACKGROUND, plot)
+        layer.blit(title, (10, 4))
+        lab_w = small.size("0.05")[0] + 14
+        plot = pygame.Rect(lab_w, lh + 10, w - lab_w - 20, h - 2 * lh - 18)
+        if plot.width >= 40 and plot.height >= 20:
+            pygame.draw.rect(layer, palette.BACKGROUND, plot)
+            for frac in (0.0, 0.5, 1.0):
+                y = ipx(plot.bottom - frac * plot.height)
+                pygame.draw.line(layer, palette.GRID_MAJOR, (plot.left, y), (plot.right, y), 1)
+                lab = small.render(f"{frac * top:g}", True, palette.TEXT_DIM)
+                layer.blit(lab, (plot.left - lab.get_width() - 6, y - lab.get_height() // 2))
+            for sec in range(0, int(self.span) + 1, 10):
+                x = ipx(plot.left + sec / self.span * plot.width)
+                pygame.draw.line(layer, palette.GRID_MINOR, (x, plot.top), (x, plot.bottom), 1)
+                lab = small.render(f"{sec - self.span:g} s" if sec < self.span else "now", True,
+                                   palette.TEXT_DIM)
+                layer.blit(lab, (min(x - lab.get_width() // 2, plot.right - lab.get_width()),
+                                 plot.bottom + 2))
+        self._static_cache = (key, layer, plot)
+        return layer, plot
+
+    def render(self, image: pygame.Surface, fonts, colours, dashes, shown) -> None:
+        """Draw the whole chart into ``image`` (its own coordinates): the static layer, the
+        blind shading, and each shown filter's two lines, about one point per 3 px."""
         w = self.window()
         t = self.t[w]
-        t1 = float(t[-1]) if len(t) else 0.0
+        top = 0.2
+        for n in shown:
+            for arr in (self.err[n][w], self.two_sigma[n][w]):
+                finite = arr[np.isfinite(arr)]
+                if len(finite):
+                    top = max(top, float(np.max(finite)))
+        top = nice_top(top * 1.08)
+        layer, plot = self._static(image.get_size(), fonts, top)
+        image.blit(layer, (0, 0))
+        if plot.width < 40 or plot.height < 20 or not len(t):
+            return
+        t1 = float(t[-1])
         t0 = t1 - self.span
 
         def xs(tt):
@@ -97,44 +167,24 @@ class StripChart:
             edges = np.flatnonzero(np.diff(np.concatenate([[0], blind.astype(np.int8), [0]])))
             for a, b in zip(edges[::2], edges[1::2], strict=True):
                 xa, xb = ipx(xs(t[a])), ipx(xs(t[min(b, len(t) - 1)]))
-                surf.fill(BLIND_SHADE, pygame.Rect(xa, plot.top, max(xb - xa, 1), plot.height))
-        shown = [n for n in self.names if visible.get(n, True)]
-        top = 0.2
-        for n in shown:
-            for arr in (self.err[n][w], self.two_sigma[n][w]):
-                finite = arr[np.isfinite(arr)]
-                if len(finite):
-                    top = max(top, float(np.max(finite)))
-        top = nice_top(top * 1.08)
-
-        def ys(v):
-            return plot.bottom - np.asarray(v) / top * plot.height
-
-        for frac in (0.0, 0.5, 1.0):
-            y = ipx(plot.bottom - frac * plot.height)
-            pygame.draw.line(surf, palette.GRID_MAJOR, (plot.left, y), (plot.right, y), 1)
-            lab = small.render(f"{frac * top:g}", True, palette.TEXT_DIM)
-            surf.blit(lab, (plot.left - lab.get_width() - 6, y - lab.get_height() // 2))
-        for sec in range(0, int(self.span) + 1, 10):
-            x = ipx(plot.left + sec / self.span * plot.width)
-            pygame.draw.line(surf, palette.GRID_MINOR, (x, plot.top), (x, plot.bottom), 1)
-            lab = small.render(f"{sec - self.span:g} s" if sec < self.span else "now", True,
-                               palette.TEXT_DIM)
-            surf.blit(lab, (min(x - lab.get_width() // 2, plot.right - lab.get_width()),
-                            plot.bottom + 2))
-        old = surf.get_clip()
-        surf.set_clip(plot.inflate(0, 4))
-        step = max(1, len(t) // max(plot.width, 1))  # about one sample per pixel
+                image.fill(BLIND_SHADE, pygame.Rect(xa, plot.top, max(xb - xa, 1), plot.height))
+            for frac in (0.0, 0.5, 1.0):  # the grid lines over the shading
+                y = ipx(plot.bottom - frac * plot.height)
+                pygame.draw.line(image, palette.GRID_MAJOR, (plot.left, y), (plot.right, y), 1)
+        image.set_clip(plot.inflate(0, 4))
+        step = max(1, math.ceil(len(t) / max(plot.width / 3, 1)))  # ~one point per 3 px
+        tx = xs(t[::step])
         for n in shown:
             for arr, width, dash in ((self.two_sigma[n][w], 4, dashes.get(n)),
                                      (self.err[n][w], 2, None)):
-                ok = np.isfinite(arr[::step])
+                v = arr[::step]
+                ok = np.isfinite(v)
                 if ok.sum() < 2:
                     continue
-                pts = np.stack([xs(t[::step][ok]), ys(np.minimum(arr[::step][ok], top * 1.02))], 1)
-                polyline(surf, colours[n], pts, width, dash)
-        surf.set_clip(old)
-        pygame.draw.rect(surf, palette.GRID_MAJOR, plot, 1)
+                pts = np.stack([tx[ok], plot.bottom - np.minimum(v[ok], top * 1.02) / top * plot.height], 1)
+                polyline(image, colours[n], pts, width, dash)
+        image.set_clip(None)
+        pygame.draw.rect(image, palette.GRID_MAJOR, plot, 1)
 
 
 def nice_top(v: float) -> float:
