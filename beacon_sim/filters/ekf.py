@@ -200,7 +200,8 @@ class ExtendedKalmanFilter(VelocityGaussian):
                 var = models.reading_var.get(m.sensor) or models.reading_variance(m.sensor)
                 vb = var[-1]
                 where = models.beacon_xy
-                for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist(), strict=True):
+                # one row per beacon ID by construction; zip(strict=...) costs ~0.35 us a call
+                for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist()):  # noqa: B905
                     try:
                         bx, by = where[bid]
                     except KeyError:
