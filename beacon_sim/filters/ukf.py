@@ -338,11 +338,14 @@ class BatchedUKF(BatchedGaussian):
         sn = np.sum((s * cw + c * sw) * Wm, axis=1)
         cs = np.sum((c * cw - s * sw) * Wm, axis=1)
         thm = np.arctan2(sn, cs)                        # circular weighted mean
-        dX = np.stack([a - x[:, None], b - y[:, None], wrap(th + wdt - thm[:, None])], axis=2)
+        dX = np.empty_like(X)                           # residuals, heading wrapped
+        dX[..., 0], dX[..., 1], dX[..., 2] = a - x[:, None], b - y[:, None], wrap(th + wdt - thm[:, None])
         th0 = m[:, 2]
         Q = cov_matrix(process_cov_terms(self.noise, th0, np.cos(th0), np.sin(th0), v, w, dt))
         self.cov = (dX * Wc[:, None]).swapaxes(-1, -2) @ dX + Q
-        self.mean = np.stack([x, y, wrap(thm)], axis=1)
+        mean = np.empty_like(m)
+        mean[:, 0], mean[:, 1], mean[:, 2] = x, y, wrap(thm)
+        self.mean = mean
 
     def update(self, st: StackedReadings) -> None:
         D = self.offsets()
