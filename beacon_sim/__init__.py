@@ -19,10 +19,10 @@ __all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "__
 
 
 def __getattr__(name: str):
-    if name in __all__:
-        import importlib
+    if name in __all__:  # PEP 562: the API is imported on first use
+        from beacon_sim import api
 
-        return getattr(importlib.import_module("beacon_sim.api"), name)
+        return getattr(api, name)
     raise AttributeError(f"module 'beacon_sim' has no attribute {name!r}")
 
 
