@@ -199,12 +199,16 @@ class HistogramFilter(FilterBase):
         C = np.zeros((self.nx, self.ny))     # coefficient of cos(theta)
         S = np.zeros((self.nx, self.ny))     # coefficient of sin(theta)
         cell_var = self.cell**2 / 6.0         # within-cell position + slab offset
+        th = self.theta
+        cos_th, sin_th = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
+        mixed: np.ndarray | None = None      # sum of per-reading outlier-mixture terms
         for m in measurements:
             spec = self.ctx.sensor(m.sensor)
             z = np.asarray(m.z, dtype=float)
             if m.kind in ("bearing", "range_bearing"):
                 idx = self.ctx.world.beacon_index(m.beacon_ids)
                 std = spec.reading_std()
+                eps = spec.outlier_rate
                 for row, b in zip(z, idx, strict=True):
                     r = self._r[b]
                     sb2 = std[-1] ** 2 + self.bin**2 / 12 + cell_var / np.maximum(r, self.cell) ** 2
@@ -212,11 +216,27 @@ class HistogramFilter(FilterBase):
                     cz, sz = math.cos(row[-1]), math.sin(row[-1])
                     ca, sa = self._ca[b], self._sa[b]
                     # kappa cos(z - alpha + theta) = kappa [cos(z-a) cos(th) - sin(z-a) sin(th)]
-                    C += kappa * (cz * ca + sz * sa)
-                    S -= kappa * (sz * ca - cz * sa)
-                    lxy -= kappa
+                    cb = kappa * (cz * ca + sz * sa)
+                    sbb = -kappa * (sz * ca - cz * sa)
+                    lb = -kappa
                     if m.kind == "range_bearing":
-                        lxy -= 0.5 * (r - row[0]) ** 2 / (std[0] ** 2 + cell_var)
+                        sr2 = std[0] ** 2 + cell_var
+                        lb = lb - 0.5 * (r - row[0]) ** 2 / sr2
+                    if eps <= 0:
+                        C += cb
+                        S += sbb
+                        lxy += lb
+                        continue
+                    # Gaussian core mixed with a uniform reading: log((1 - eps) p + eps u),
+                    # both relative to the core's peak (the particle filter's form).
+                    log_u = -math.log(2 * math.pi) + 0.5 * math.log(2 * math.pi * float(np.min(sb2)))
+                    if m.kind == "range_bearing":
+                        rmax = spec.max_range if math.isfinite(spec.max_range) else math.hypot(
+                            self.ctx.world.width, self.ctx.world.height)
+                        log_u += -math.log(rmax) + 0.5 * math.log(2 * math.pi * sr2)
+                    core = cos_th * cb[None] + sin_th * sbb[None] + lb[None]
+                    term = np.logaddexp(core + math.log1p(-eps), math.log(eps) + log_u)
+                    mixed = term if mixed is None else mixed + term
             elif m.kind == "pose":
                 std = spec.fix_std(len(m.beacon_ids))
                 lxy -= 0.5 * ((self.xc[:, None] - z[0, 0]) ** 2 / (std[0] ** 2 + cell_var)
@@ -232,11 +252,12 @@ class HistogramFilter(FilterBase):
                 lxy -= 0.5 * d2 / var + np.log(var)      # seed 002 eq. 11, 2-D normalised
             else:
                 raise FilterError(f"histogram: unknown measurement kind {m.kind!r}")
-        th = self.theta
         L = self._L
-        np.multiply(np.cos(th)[:, None, None], C[None], out=L)
-        L += np.sin(th)[:, None, None] * S[None]
+        np.multiply(cos_th, C[None], out=L)
+        L += sin_th * S[None]
         L += lxy[None]
+        if mixed is not None:
+            L += mixed
         L -= L.max()
         np.exp(L, out=L)
         g = self.grid

@@ -119,6 +119,39 @@ def sigma_weights(alpha: float, beta: float, kappa: float, scaled: bool, n: int 
     return c, Wm, Wc
 
 
+#: Largest heading offset [rad] of a sigma point from the mean. Beyond pi/2 the + and -
+#: points approach each other around the circle (at pi they coincide, which the default
+#: c = 3 reaches for a room-wide heading, std pi / sqrt(3)), and the wrapped residuals no
+#: longer carry the spread.
+MAX_HEADING_OFFSET = 0.5 * math.pi
+
+
+def heading_limited_weights(c: float, Wm: np.ndarray, Wc: np.ndarray, p_thth
+                            ) -> tuple[Any, np.ndarray, np.ndarray]:
+    """Spread and weights for a belief with heading variance ``p_thth`` [rad^2] (a float, or
+    an array (R,) for R runs): ``c`` unchanged while ``sqrt(c p_thth) <= MAX_HEADING_OFFSET``,
+    else ``c' = MAX_HEADING_OFFSET^2 / p_thth`` with ``W_i = 1 / (2 c')``,
+    ``Wm_0 = 1 - n / c'`` (the weights still sum to one and reproduce the mean and covariance)
+    and ``Wc_0`` keeping the configured ``Wc_0 - Wm_0`` (beta) term.
+
+    Returns ``(sqrt_c, Wm, Wc)``: shapes (), (2n + 1,) or (R,), (R, 2n + 1)."""
+    limit2 = MAX_HEADING_OFFSET * MAX_HEADING_OFFSET
+    pt = np.asarray(p_thth, dtype=float)
+    with np.errstate(divide="ignore"):
+        ceff = np.where(c * pt > limit2, limit2 / np.maximum(pt, 1e-300), c)
+    if pt.ndim == 0 and float(ceff) == c:
+        return math.sqrt(c), Wm, Wc
+    n = (Wm.shape[-1] - 1) // 2
+    wi = 0.5 / ceff
+    Wm2 = np.broadcast_to(wi[..., None], (*np.shape(ceff), 2 * n + 1)).copy()
+    Wm2[..., 0] = 1.0 - n / ceff
+    Wc2 = Wm2.copy()
+    # Wm_0 < 0 once c' < n; a negative Wc_0 could make the covariance indefinite, and it
+    # multiplies a zero residual in the linear case, so it is clipped at zero.
+    Wc2[..., 0] = np.maximum(Wc2[..., 0] + (Wc[0] - Wm[0]), 0.0)
+    return (math.sqrt(float(ceff)) if pt.ndim == 0 else np.sqrt(ceff)), Wm2, Wc2
+
+
 def innovation(Z: np.ndarray, D: np.ndarray, z: np.ndarray, r: np.ndarray, sel: AngleRows,
                Wm: np.ndarray, Wc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The unscented innovation of one run (Z (7, m) the readings expected at the sigma
@@ -127,20 +160,37 @@ def innovation(Z: np.ndarray, D: np.ndarray, z: np.ndarray, r: np.ndarray, sel: 
     Returns S = sum Wc dZ dZ^T + diag(r) (..., m, m), Pxz = sum Wc dX dZ^T (..., 3, m) and
     nu = z - z_hat (..., m); the angle rows ``sel`` use circular means and wrapped residuals.
     """
-    if sel is ALL_ROWS:                                 # circular means of the angle rows
-        zhat = np.arctan2(Wm @ np.sin(Z), Wm @ np.cos(Z))
+    if Wm.ndim == 1:
+        def wsum(A: np.ndarray) -> np.ndarray:
+            return Wm @ A
+    else:                                               # weights per run (R, 7)
+        def wsum(A: np.ndarray) -> np.ndarray:
+            return np.einsum("...i,...ij->...j", Wm, A)
+    limited = Wm[..., 0] < 0.0                         # () or per run (R,)
+
+    def angle_mean(A: np.ndarray) -> np.ndarray:
+        circ = np.arctan2(wsum(np.sin(A)), wsum(np.cos(A)))  # circular weighted mean
+        if not np.any(limited):
+            return circ
+        # A negative centre weight breaks the circular mean: average the residuals about
+        # the centre point instead (the sigma points lie within pi/2 of it).
+        A0 = A[..., :1, :]
+        rel = A0[..., 0, :] + wsum(wrap(A - A0))
+        return np.where(np.reshape(limited, (*np.shape(limited), 1)), rel, circ)
+
+    if sel is ALL_ROWS:
+        zhat = angle_mean(Z)
     else:
-        zhat = Wm @ Z
+        zhat = wsum(Z)
         if sel is not None:
-            Za = Z[..., sel]
-            zhat[..., sel] = np.arctan2(Wm @ np.sin(Za), Wm @ np.cos(Za))
+            zhat[..., sel] = angle_mean(Z[..., sel])
     # The residuals of the sigma points (rows 0..2n) and of the measurement (last row),
     # angle rows wrapped in one call.
     dY = np.concatenate((Z, z[..., None, :]), axis=-2) - zhat[..., None, :]
     if sel is not None:
         dY[..., sel] = wrap(dY[..., sel])
     dZ, nu = dY[..., :-1, :], dY[..., -1, :]
-    WdZ = dZ * Wc[:, None]
+    WdZ = dZ * Wc[..., None]
     S = dZ.swapaxes(-1, -2) @ WdZ
     add_diagonal(S, r)
     Pxz = D.swapaxes(-1, -2) @ WdZ                     # dX = the sigma offsets
@@ -188,6 +238,7 @@ class UnscentedKalmanFilter(BatchableFilter):
         self.models = ReadingModels(ctx)
         self.gate = float(p["gate_chi2"])
         self.rejected = 0  # readings dropped by the gate so far
+        self._Wm_now, self._Wc_now = self.Wm, self.Wc  # the weights of the last sigma points
         self.mean = np.zeros(3)
         self.cov = np.eye(3)
         self.reset(None)
@@ -211,7 +262,7 @@ class UnscentedKalmanFilter(BatchableFilter):
         The 3x3 Cholesky factor on floats (a numpy call costs ~1 us, design.md section 9);
         ``robust_sqrt`` takes over when a pivot is not positive."""
         (a00, a01, a02), (_, a11, a12), (_, _, a22) = self.cov.tolist()
-        sc = self.sqrt_c
+        sc, self._Wm_now, self._Wc_now = heading_limited_weights(self.c, self.Wm, self.Wc, a22)
         try:
             (l00, l10, l20, l11, l21, l22), _ = cholesky3(a00, a01, a02, a11, a12, a22, math.sqrt)
             cols = [(sc * l00, sc * l10, sc * l20), (0.0, sc * l11, sc * l21), (0.0, 0.0, sc * l22)]
@@ -228,14 +279,18 @@ class UnscentedKalmanFilter(BatchableFilter):
         v, w = float(control.v), float(control.omega)
         m0, m1, m2 = self.mean.tolist()
         vdt, wdt = v * dt, w * dt
-        Wm, Wc = self._wm, self._wc
+        offsets = self._offsets()
+        if self._Wm_now is self.Wm:
+            Wm, Wc = self._wm, self._wc
+        else:  # a spread limited for a wide heading (heading_limited_weights)
+            Wm, Wc = self._Wm_now.tolist(), self._Wc_now.tolist()
         cos, sin, wrap_ = math.cos, math.sin, wrap  # locals: the per-sigma-point hot path
         cw, sw = cos(wdt), sin(wdt)
         # The velocity model on every sigma point; weighted sums for the mean as we go.
         Y = []
         x = y = sn = cs = 0.0
         # 2n + 1 weights and points by construction; zip(strict=...) costs ~0.35 us a call
-        for wi, (d0, d1, d2) in zip(Wm, self._offsets()):  # noqa: B905
+        for wi, (d0, d1, d2) in zip(Wm, offsets):  # noqa: B905
             th = m2 + d2
             c, s = cos(th), sin(th)
             a, b = m0 + d0 + vdt * c, m1 + d1 + vdt * s
@@ -247,6 +302,8 @@ class UnscentedKalmanFilter(BatchableFilter):
             sn += wi * (s * cw + c * sw)
             cs += wi * (c * cw - s * sw)
         th = math.atan2(sn, cs)                 # circular weighted mean of the heading
+        if Wm[0] < 0.0:  # limited spread: the offsets are symmetric, the mean is the centre's
+            th = m2 + wdt
         # P = sum Wc d d^T + Q with the heading residual wrapped.
         q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.motion_noise, m2, math.cos(m2),
                                                          math.sin(m2), v, w, dt)
@@ -271,7 +328,7 @@ class UnscentedKalmanFilter(BatchableFilter):
             return
         D = np.array(self._offsets())             # redrawn from the predicted belief (seed 000)
         Z = st.predict(self.mean + D, wrap=False)  # (7, m); residuals are wrapped in innovation
-        S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self.Wm, self.Wc)
+        S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self._Wm_now, self._Wc_now)
         if self.gate > 0.0:
             keep = self._gate(st, S, nu)
             if keep is not None:
@@ -304,6 +361,7 @@ class BatchedUKF(BatchedGaussian):
                  sqrt_c: float, Wm: np.ndarray, Wc: np.ndarray):
         super().__init__(mean0, cov0, runs, noise)
         self.sqrt_c, self.Wm, self.Wc = sqrt_c, Wm, Wc
+        self.Wm_now, self.Wc_now = Wm, Wc              # the weights of the last offsets()
 
     def offsets(self) -> np.ndarray:
         """Sigma-point offsets (R, 7, 3): 0, +- the columns of sqrt(c P) (:func:`cholesky3`;
@@ -317,7 +375,13 @@ class BatchedUKF(BatchedGaussian):
         L[:, 2, 2] = l22
         for i in np.flatnonzero((a[0] <= 0.0) | (p1 <= 0.0) | (p2 < 0.0)):
             L[i] = robust_sqrt(P[i])
-        cols = self.sqrt_c * L.swapaxes(-1, -2)        # row j = column j of sqrt(c P)
+        sc, self.Wm_now, self.Wc_now = heading_limited_weights(self.sqrt_c ** 2, self.Wm, self.Wc,
+                                                               P[:, 2, 2])
+        if np.all(sc == self.sqrt_c):                  # no run needs a limited spread
+            sc, self.Wm_now, self.Wc_now = self.sqrt_c, self.Wm, self.Wc
+        else:
+            sc = sc[:, None, None]
+        cols = sc * L.swapaxes(-1, -2)                 # row j = column j of sqrt(c P)
         return np.concatenate([np.zeros((len(P), 1, 3)), cols, -cols], axis=1)
 
     def predict(self, v: np.ndarray, w: np.ndarray, dt: float) -> None:
@@ -332,17 +396,20 @@ class BatchedUKF(BatchedGaussian):
         a = X[..., 0] + vdt * c
         b = X[..., 1] + vdt * s
         cw, sw = np.cos(wdt), np.sin(wdt)
-        Wm, Wc = self.Wm, self.Wc
+        Wm, Wc = self.Wm_now, self.Wc_now             # (7,) or per run (R, 7)
         x = np.sum(a * Wm, axis=1)
         y = np.sum(b * Wm, axis=1)
         sn = np.sum((s * cw + c * sw) * Wm, axis=1)
         cs = np.sum((c * cw - s * sw) * Wm, axis=1)
         thm = np.arctan2(sn, cs)                        # circular weighted mean
+        if Wm.ndim > 1:                                 # limited spread in some runs
+            lim = Wm[:, 0] < 0.0
+            thm = np.where(lim, m[:, 2] + wdt[:, 0], thm)
         dX = np.empty_like(X)                           # residuals, heading wrapped
         dX[..., 0], dX[..., 1], dX[..., 2] = a - x[:, None], b - y[:, None], wrap(th + wdt - thm[:, None])
         th0 = m[:, 2]
         Q = cov_matrix(process_cov_terms(self.noise, th0, np.cos(th0), np.sin(th0), v, w, dt))
-        self.cov = (dX * Wc[:, None]).swapaxes(-1, -2) @ dX + Q
+        self.cov = (dX * Wc[..., None]).swapaxes(-1, -2) @ dX + Q
         mean = np.empty_like(m)
         mean[:, 0], mean[:, 1], mean[:, 2] = x, y, wrap(thm)
         self.mean = mean
@@ -354,9 +421,9 @@ class BatchedUKF(BatchedGaussian):
         Z = st.predict(X.reshape(R * n, 3), wrap=False).reshape(R, n, -1)
         if st.valid is not None:                        # empty slots: no reading, no residual
             Z = np.where(st.valid[:, None, :], Z, 0.0)
-        S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self.Wm, self.Wc)
+        S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self.Wm_now, self.Wc_now)
         self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu, strict=False)
 
 
-__all__ = ["BatchedUKF", "UnscentedKalmanFilter", "cholesky3", "correct", "innovation",
-           "robust_sqrt", "sigma_weights"]
+__all__ = ["MAX_HEADING_OFFSET", "BatchedUKF", "UnscentedKalmanFilter", "cholesky3", "correct",
+           "heading_limited_weights", "innovation", "robust_sqrt", "sigma_weights"]

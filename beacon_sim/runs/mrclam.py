@@ -40,9 +40,32 @@ SENSOR_NAME = "camera"
 #: Seed 001's UKF figures on MRCLAM (Table II), m^2, m^2, rad^2.
 SEED_001_UKF_MSE = (0.0119, 0.0078, 0.0571)
 SEED_001_EKF_MSE = (1.7875, 1.889, 7.7997)
-#: The window [s] over which odometry is compared with ground truth (about the time between
-#: two sightings, the span a filter must predict over).
-CALIBRATION_WINDOW_S = 1.0
+#: The correlation time [s] of the errors, about the length of the blind stretches a filter
+#: must bridge: odometry is compared with ground truth over windows this long, and readings
+#: within one window are treated as sharing their error. Odometry drift and reading errors
+#: (landmark survey, range bias, timing) persist over seconds; a white-noise model told the
+#: one-step (or 1 s) spread averages them away and is overconfident (docs/replay.md).
+CALIBRATION_WINDOW_S = 10.0
+#: Chi-square gate for one range-bearing reading (2 dof, 99.9 %): on by default in MRCLAM
+#: runs of the EKF and UKF.
+MRCLAM_GATE_CHI2 = 13.8155
+#: Sub-step [s] of the ground-truth path when odometry is compared with it.
+SUB_S = 0.1
+#: Floor of the outlier share the particle and grid filters are told (a mixture with a
+#: uniform reading): a reading can always be a misidentified landmark.
+MIN_OUTLIER_RATE = 0.01
+#: Parameters a MRCLAM run gives the built-in filters unless the caller sets them: the
+#: same for every data set and robot. EKF, UKF: a 99.9 % chi-square gate per reading. The
+#: particle filter weighs readings with the calibrated outlier mixture; it tracks from a
+#: known start in data without kidnaps, so augmented-MCL injection (a recovery mechanism
+#: that the long blind stretches and outliers set off, scattering particles over the room:
+#: jumps of metres) is off; roughening after resampling keeps the cloud from collapsing
+#: below what the shared reading errors allow.
+MRCLAM_PARAMS: dict[str, dict[str, Any]] = {
+    "ekf": {"gate_chi2": MRCLAM_GATE_CHI2},
+    "ukf": {"gate_chi2": MRCLAM_GATE_CHI2},
+    "pf": {"n_particles": 4000, "augmented": False, "roughen": 1.25},
+}
 #: Initial belief: ground truth at the start with these standard deviations [m, m, rad]
 #: (local localization with a known start, as seed 001).
 INITIAL_STD = (0.05, 0.05, 0.05)
@@ -61,6 +84,27 @@ def robust_std(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(x - np.median(x))))
 
 
+def rms(x: np.ndarray) -> float:
+    """Root mean square about zero (a bias counts as error: the filters do not model it)."""
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
+
+
+def shared_error_factor(err: np.ndarray, groups: np.ndarray) -> float:
+    """``sum_g (sum_{i in g} e_i)^2 / sum_i e_i^2``: 1 when the errors within each group are
+    independent, the group size when they are identical. The variance a filter must assign
+    to each reading so that the readings of a group, treated as independent, carry the
+    information they really hold."""
+    err = np.asarray(err, dtype=float)
+    if err.size == 0:
+        return 1.0
+    _, inv = np.unique(groups, return_inverse=True)
+    total = float(np.sum(err * err))
+    if total <= 0:
+        return 1.0
+    return max(1.0, float(np.sum(np.bincount(inv, weights=err) ** 2)) / total)
+
+
 def _command_integrals(od: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Integrals of v and omega from the first odometry row to ``times`` (piecewise constant
     commands, each held until the next row)."""
@@ -75,9 +119,11 @@ def _command_integrals(od: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, n
 class Calibration:
     """Noise settings estimated from one robot's data, and the statistics behind them.
 
-    ``motion`` is per filter step of ``step_dt`` seconds (white noise equivalent to the
-    error seen over ``window_s``); ``sensor`` holds the robust standard deviations of the
-    range and bearing residuals.
+    ``motion`` is per filter step of ``step_dt`` seconds (white noise with the variance of
+    the odometry error seen over ``window_s``); ``sensor`` the standard deviations each
+    reading is told (RMS of the residuals, inflated for the error readings of one landmark
+    share within ``window_s``); ``outlier_rate`` the share of readings the particle and grid
+    filters treat as possibly unrelated to the pose.
     """
 
     motion: MotionNoise
@@ -85,47 +131,64 @@ class Calibration:
     step_dt: float
     window_s: float
     stats: dict[str, float]
+    outlier_rate: float = MIN_OUTLIER_RATE
 
 
 def calibrate(data: MrclamData, t_end: float | None = None,
               window_s: float = CALIBRATION_WINDOW_S) -> Calibration:
-    """Estimate the filters' noise from the data, where ground truth exists.
+    """Estimate the noise the filters are told from the data, where ground truth exists.
+
+    One setting for every data set and robot; nothing here is tuned to one of them.
 
     Odometry: over consecutive windows of ``window_s`` seconds, the true forward
     displacement and heading change (ground truth, in the robot frame at the window start)
-    minus the integrated commands. Their robust standard deviations ``s_d`` [m] and ``s_a``
-    [rad] over a window are turned into the per-step standard deviations of a white
-    velocity noise with the same variance over the window: ``sigma_v = s_d / sqrt(window *
-    step_dt)`` [m/s], ``sigma_omega = s_a / sqrt(window * step_dt)`` [rad/s], with
-    ``step_dt`` the median odometry interval (the filters' step).
+    minus the integrated commands. Their RMS ``s_d`` [m] and ``s_a`` [rad] (tails and bias
+    included) become the per-step standard deviations of a white velocity noise with the
+    same variance over the window: ``sigma_v = s_d / sqrt(window * step_dt)`` [m/s],
+    ``sigma_omega = s_a / sqrt(window * step_dt)`` [rad/s], ``step_dt`` the median odometry
+    interval (the filters' step). The error over 10 s is larger than ten 1-s errors would
+    give (slip and drift are correlated), so the window is the correlation time, not one step.
 
-    Measurements: range and bearing residuals against the ground truth interpolated to the
-    reading times; robust (MAD) standard deviations. Medians (biases), the fraction of
-    bearings off by more than pi/2 and the tail fractions are reported in ``stats``.
+    Readings: range and bearing residuals against the ground truth interpolated to the
+    reading times. Bearings off by more than pi/2 (a misidentified or flipped reading) are
+    counted as outliers and left out; the rest give the RMS (about zero: the median bias is
+    error the filters cannot remove). Readings within a window share much of
+    their error; the told variance is ``RMS^2 x f`` with ``f`` the shared-error factor
+    (:func:`shared_error_factor`, the window as the group), so that a window's
+    readings together carry the information they hold. The outlier rate is the share of
+    readings beyond 4 told standard deviations (range or bearing), at least
+    ``MIN_OUTLIER_RATE``. Robust (MAD) spreads and tail shares are reported in ``stats``.
     """
     od = data.odometry
     t_end = float(od[-1, 0]) if t_end is None else min(float(t_end), float(od[-1, 0]))
     step_dt = float(np.median(np.diff(od[:, 0]))) if len(od) > 1 else 0.01
     step_dt = step_dt if step_dt > 0 else 0.01
     start = max(data.t0, float(data.groundtruth[0, 0]))
-    edges = np.arange(start, t_end, window_s)
+    # The path within a window is summed over sub-steps of SUB_S, each projected on its own
+    # heading (a chord across a turn is shorter than the arc driven).
+    sub = max(1, round(window_s / SUB_S))
+    fine = np.arange(start, t_end, window_s / sub)
+    n_win = (fine.size - 1) // sub
     stats: dict[str, float] = {}
-    if edges.size >= 3:
-        pose, ok = data.truth_at(edges)
-        s, a = _command_integrals(od, edges)
+    if n_win >= 2:
+        fine = fine[:n_win * sub + 1]
+        pose, ok = data.truth_at(fine)
+        s, a = _command_integrals(od, fine)
         d = np.diff(pose[:, :2], axis=0)
         th = pose[:-1, 2]
-        fwd = np.cos(th) * d[:, 0] + np.sin(th) * d[:, 1]
-        e_d = fwd - np.diff(s)
-        e_a = wrap(np.diff(np.unwrap(pose[:, 2])) - np.diff(a))
-        good = ok[:-1] & ok[1:]
+        fwd = (np.cos(th) * d[:, 0] + np.sin(th) * d[:, 1]).reshape(n_win, sub).sum(axis=1)
+        turn = np.diff(np.unwrap(pose[:, 2])).reshape(n_win, sub).sum(axis=1)
+        e_d = fwd - (s[sub::sub] - s[:-1:sub])
+        e_a = wrap(turn - (a[sub::sub] - a[:-1:sub]))
+        good = ok[:-1].reshape(n_win, sub).all(axis=1) & ok[1:].reshape(n_win, sub).all(axis=1)
         e_d, e_a = e_d[good], e_a[good]
-        s_d, s_a = robust_std(e_d), robust_std(e_a)
+        s_d, s_a = rms(e_d), rms(e_a)
         stats.update(windows=int(good.sum()), fwd_err_median_m=float(np.median(e_d)),
-                     fwd_err_std_m=s_d, turn_err_median_rad=float(np.median(e_a)),
-                     turn_err_std_rad=s_a)
+                     fwd_err_std_m=s_d, fwd_err_robust_std_m=robust_std(e_d),
+                     turn_err_median_rad=float(np.median(e_a)), turn_err_std_rad=s_a,
+                     turn_err_robust_std_rad=robust_std(e_a))
     else:
-        s_d, s_a = 0.01, 0.02
+        s_d, s_a = 0.01 * math.sqrt(window_s), 0.02 * math.sqrt(window_s)
         stats["windows"] = 0
     scale = math.sqrt(window_s * step_dt)
     motion = MotionNoise(v_std=s_d / scale, omega_std=s_a / scale)
@@ -134,6 +197,7 @@ def calibrate(data: MrclamData, t_end: float | None = None,
     ms = ms[ms[:, 0] <= t_end]
     pose, ok = data.truth_at(ms[:, 0])
     ms, pose = ms[ok], pose[ok]
+    outlier_rate = MIN_OUTLIER_RATE
     if len(ms) >= 5:
         lxy = np.array([data.landmarks[int(s)] for s in ms[:, 1]])
         dx = lxy[:, 0] - pose[:, 0]
@@ -141,19 +205,31 @@ def calibrate(data: MrclamData, t_end: float | None = None,
         e_r = ms[:, 2] - np.hypot(dx, dy)
         e_b = wrap(ms[:, 3] - (np.arctan2(dy, dx) - pose[:, 2]))
         flipped = np.abs(e_b) > math.pi / 2
-        s_r = robust_std(e_r)
-        s_b = robust_std(e_b[~flipped])
-        stats.update(readings=len(ms), range_err_median_m=float(np.median(e_r)), range_err_std_m=s_r,
-                     range_short_tail=float(np.mean(e_r < np.median(e_r) - 3 * s_r)),
-                     range_long_tail=float(np.mean(e_r > np.median(e_r) + 3 * s_r)),
-                     bearing_err_median_rad=float(np.median(e_b[~flipped])), bearing_err_std_rad=s_b,
+        core_r, core_b = e_r[~flipped], e_b[~flipped]
+        groups = np.floor((ms[~flipped, 0] - ms[0, 0]) / window_s)
+        f_r = shared_error_factor(core_r, groups)
+        f_b = shared_error_factor(core_b, groups)
+        s_r = rms(core_r) * math.sqrt(f_r)
+        s_b = rms(core_b) * math.sqrt(f_b)
+        far = flipped | (np.abs(e_r) > 4 * s_r) | (np.abs(e_b) > 4 * s_b)
+        outlier_rate = max(MIN_OUTLIER_RATE, float(np.mean(far)))
+        mr, sr = robust_std(core_r), robust_std(core_b)
+        stats.update(readings=len(ms), range_err_median_m=float(np.median(e_r)),
+                     range_err_rms_m=rms(core_r), range_err_robust_std_m=mr,
+                     range_shared_factor=f_r, range_err_std_m=s_r,
+                     range_short_tail=float(np.mean(e_r < np.median(e_r) - 3 * mr)),
+                     range_long_tail=float(np.mean(e_r > np.median(e_r) + 3 * mr)),
+                     bearing_err_median_rad=float(np.median(core_b)),
+                     bearing_err_rms_rad=rms(core_b), bearing_err_robust_std_rad=sr,
+                     bearing_shared_factor=f_b, bearing_err_std_rad=s_b,
                      bearing_flipped=float(np.mean(flipped)),
-                     bearing_tail=float(np.mean(np.abs(e_b[~flipped]) > 3 * s_b)))
+                     bearing_tail=float(np.mean(np.abs(core_b) > 3 * sr)),
+                     outlier_rate=outlier_rate)
     else:
         s_r, s_b = 0.1, 0.05
         stats["readings"] = len(ms)
     sensor = SensorNoise(bearing_std=max(s_b, 1e-4), range_std=max(s_r, 1e-4))
-    return Calibration(motion, sensor, step_dt, window_s, stats)
+    return Calibration(motion, sensor, step_dt, window_s, stats, outlier_rate)
 
 
 # --------------------------------------------------------------------------------------------
@@ -173,7 +249,8 @@ def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: f
         raise MrclamError(f"{data.folder}: no ground truth at the start of robot {data.robot}'s "
                           f"odometry (t = {t_start:.3f}); cannot set the initial belief")
     init = (float(pose[0, 0]), float(pose[0, 1]), float(pose[0, 2]))
-    sensor = SensorSpec(name=SENSOR_NAME, kind="range_bearing", period=cal.step_dt, noise=cal.sensor)
+    sensor = SensorSpec(name=SENSOR_NAME, kind="range_bearing", period=cal.step_dt, noise=cal.sensor,
+                        outlier_rate=cal.outlier_rate)
     return Scenario(
         name=f"mrclam_{data.folder.name}_robot{data.robot}",
         description=f"UTIAS MRCLAM {data.folder.name}, robot {data.robot}",
@@ -286,8 +363,9 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     Each filter starts at the ground truth of the first odometry time (``INITIAL_STD``),
     predicts with the latest command up to each reading's time stamp (in steps of at most
     the median odometry interval: long gaps are split), updates with all readings of that
-    stamp, and goes on. No outlier gate is added: the EKF's ``gate_chi2`` stays as
-    ``params`` set it (docs/replay.md shows why a gate hurts with this data's noise).
+    stamp, and goes on. Built-in filters get ``MRCLAM_PARAMS`` (the EKF's and UKF's
+    chi-square gate, the particle filter's settings) unless ``params`` set them; the particle
+    and grid filters weigh readings with the calibrated outlier mixture (docs/replay.md).
     """
     from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
 
@@ -300,6 +378,8 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     tracks: dict[str, MrclamTrack] = {}
     for name, spec in zip(filter_names(specs), specs, strict=True):
         p = dict((params or {}).get(filter_display_name(spec), {}))
+        for key, value in MRCLAM_PARAMS.get(spec, {}).items():
+            p.setdefault(key, value)
         tracks[name] = MrclamTrack(name, build_filter(spec, scenario, seed=0, name=name, params=p))
 
     ms = data.measurements
