@@ -57,7 +57,7 @@ def test_eval_gives_a_crashed_filter_no_score(klass, tmp_path, capsys, stem, rea
     assert rows["MyEkf"]["pos_rmse_m"] == "" and rows["MyEkf"]["anees"] == ""
     assert rows["MyEkf"]["failed_runs"] == "2" and reason in rows["MyEkf"]["first_failure"]
     assert float(rows["ekf"]["pos_rmse_m"]) > 0
-    assert main(args + ["--strict"]) == 1
+    assert main([*args, "--strict"]) == 1
     table = capsys.readouterr()
     assert "failed in 2 run(s)" in table.err
 
@@ -67,3 +67,18 @@ def test_eval_table_says_failed_in_k_of_n_runs(klass, capsys):
                  "--duration", "4", "--jobs", "1"]) == 0
     out = capsys.readouterr().out
     assert "FAILED in 2/2 runs (no score); first: seed 0 at 3.00 s: ZeroDivisionError" in out
+
+
+def test_eval_stops_an_endless_loop_and_goes_on(tmp_path, capsys):
+    import time
+
+    klass = write_class(tmp_path / "loop", ["heidi"])
+    t0 = time.perf_counter()
+    code = main(["eval", "default", "--filter", "ekf", "--filter", f"{klass}/heidi.py:MyEkf",
+                 "--runs", "2", "--duration", "4", "--jobs", "2", "--json", "--time-limit", "1"])
+    elapsed = time.perf_counter() - t0
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0 and elapsed < 30
+    bad = doc["filters"]["MyEkf"]
+    assert bad["failed_runs"] == 2 and "time limit" in bad["failures"][0]["reason"]
+    assert bad["pos_rmse_m"] is None and doc["filters"]["ekf"]["pos_rmse_m"] > 0

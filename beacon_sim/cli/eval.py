@@ -21,6 +21,10 @@ from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names, parse_set_options
 
+#: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
+#: in a loop is stopped and marked, the evaluation goes on.
+DEFAULT_RUN_LIMIT_S = 300.0
+
 
 def _validate(args: argparse.Namespace) -> None:
     if args.runs is None or args.runs < 1:
@@ -31,6 +35,9 @@ def _validate(args: argparse.Namespace) -> None:
         raise UsageError(f"--seed {args.seed}: expected a seed >= 0")
     if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
         raise UsageError(f"--duration {args.duration}: expected a positive number of seconds")
+    limit = getattr(args, "time_limit", None)
+    if limit is not None and not (limit > 0 and math.isfinite(limit)):
+        raise UsageError(f"--time-limit {limit}: expected a positive number of seconds")
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise UsageError(f"--out {args.out}: exists and is not a folder")
 
@@ -53,7 +60,8 @@ def eval_command(args: argparse.Namespace) -> int:
         specs = list(args.filters or sc.default_filters)
         runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
                                jobs=args.jobs, params=params,
-                               batch=False if getattr(args, "no_batch", False) else None)
+                               batch=False if getattr(args, "no_batch", False) else None,
+                               run_limit_s=getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S)
         meta, curves = evaluate(sc, runs, Thresholds())
         results.append((sc, meta, curves))
         if not args.json:

@@ -66,6 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the filters one run at a time (default: batched across runs when possible)")
     p.add_argument("--strict", action="store_true",
                    help="exit status 1 when any filter failed in any run")
+    p.add_argument("--time-limit", type=float, metavar="S",
+                   help="stop a filter whose steps take over S seconds in one run (default 300)")
 
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
     p.add_argument("file")

@@ -38,6 +38,7 @@ from beacon_sim.filters.loading import (
     filter_names,
     load_filter_class,
 )
+from beacon_sim.filters.runner import FilterTimeout, one_line, time_limit
 
 
 @dataclass
@@ -119,11 +120,14 @@ def finish_filter(m: np.ndarray, c: np.ndarray, truth: np.ndarray, done: int, fa
 
 
 def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, Any]],
-            seed: int, duration: float, index: int = 0, keep_means: bool = False) -> RunOutput:
+            seed: int, duration: float, index: int = 0, keep_means: bool = False,
+            run_limit_s: float | None = None) -> RunOutput:
     """Simulate one run and feed every filter the same steps.
 
     Each filter's cost counts ``predict + update + estimate``; the prior estimate read for
-    the NIS between predict and update is not counted.
+    the NIS between predict and update is not counted. ``run_limit_s`` [s]: a filter whose
+    steps take longer than this in all is stopped ("time limit"; an endless loop), see
+    ``filters.runner.time_limit``.
     """
     names = filter_names(specs)
     built = {name: build_filter(spec, scenario, seed, name=name,
@@ -156,20 +160,25 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
         for name, f in built.items():
             if failed[name]:
                 continue
+            left = None if run_limit_s is None else run_limit_s - ns[name] / 1e9
             try:
-                t0 = clock()
-                f.predict(step.control, step.dt)
-                t1 = clock()
-                if step.measurements:  # the predicted belief, for the NIS (not timed)
-                    priors[name][0][j], priors[name][1][j] = f.estimate()
-                t2 = clock()
-                f.update(step.measurements)
-                mean, cov = f.estimate()
-                t3 = clock()
-                means[name][i] = mean
-                covs[name][i] = cov
+                with time_limit(left):
+                    t0 = clock()
+                    f.predict(step.control, step.dt)
+                    t1 = clock()
+                    if step.measurements:  # the predicted belief, for the NIS (not timed)
+                        priors[name][0][j], priors[name][1][j] = f.estimate()
+                    t2 = clock()
+                    f.update(step.measurements)
+                    mean, cov = f.estimate()
+                    t3 = clock()
+                    means[name][i] = mean
+                    covs[name][i] = cov
+            except FilterTimeout:
+                failed[name] = f"time limit: over {run_limit_s:g} s of filter time in the run"
+                continue
             except Exception as exc:  # a user's filter: switch it off, go on with the others
-                failed[name] = f"{type(exc).__name__}: {exc}"
+                failed[name] = one_line(exc)
                 continue
             ns[name] += (t1 - t0) + (t3 - t2)
             done[name] += 1
@@ -324,8 +333,12 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
                     params: dict[str, dict[str, Any]] | None = None,
                     progress: bool | None = None,
                     on_run: Callable[[RunOutput], None] | None = None,
-                    batch: bool | None = None) -> list[RunOutput]:
+                    batch: bool | None = None,
+                    run_limit_s: float | None = None) -> list[RunOutput]:
     """``runs`` runs with seeds ``seed, seed + 1, ...``; returns them in seed order.
+
+    ``run_limit_s`` [s]: each filter's time limit per run (:func:`one_run`; the batched
+    built-in filters have none).
 
     ``jobs`` processes (default: all cores; 1 runs in this process). The result does not
     depend on ``jobs`` except for the cost figures (``step_ns``).
@@ -367,7 +380,8 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
                 for fut in as_completed([pool.submit(_batch_task, t) for t in btasks]):
                     collect(fut.result())
         return [o for o in out if o is not None]
-    tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0) for i in range(runs)]
+    tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0, run_limit_s)
+             for i in range(runs)]
     if jobs == 1:
         for i, t in enumerate(tasks):
             out[i] = _task(t)

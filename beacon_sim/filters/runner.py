@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import os
 import threading
 import time
 import traceback
@@ -225,6 +226,18 @@ _WD_ARMED: dict[int, list[float]] = {}  # thread id -> [deadline (monotonic s), 
 _WD_THREAD: threading.Thread | None = None
 _WD_POLL_S = 0.02
 _WD_REFIRE_S = 0.1
+
+
+def _after_fork() -> None:
+    """A forked worker has no watchdog thread (threads do not survive fork): start afresh."""
+    global _WD_THREAD, _WD_LOCK
+    _WD_THREAD = None
+    _WD_LOCK = threading.Lock()
+    _WD_ARMED.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork)
 
 
 def _raise_in(thread_id: int, exc: type[BaseException] | None) -> None:
