@@ -11,7 +11,14 @@ from beacon_sim.cli.common import check_duration, check_frames, filter_params, p
 from beacon_sim.cli.tables import failed_text, fmt
 from beacon_sim.errors import UsageError
 from beacon_sim.io.mrclam import MrclamData, MrclamError, load_mrclam
-from beacon_sim.runs.mrclam import SEED_001_EKF_MSE, SEED_001_UKF_MSE, Calibration, calibrate, run_mrclam
+from beacon_sim.runs.mrclam import (
+    MRCLAM_GATE_CHI2,
+    SEED_001_EKF_MSE,
+    SEED_001_UKF_MSE,
+    Calibration,
+    calibrate,
+    run_mrclam,
+)
 
 
 def _print_calibration(data: MrclamData, cal: Calibration) -> None:
@@ -20,21 +27,27 @@ def _print_calibration(data: MrclamData, cal: Calibration) -> None:
     print(f"  dropped readings: {data.dropped}")
     if s.get("windows"):
         print(f"  odometry vs ground truth over {s['windows']} windows of {cal.window_s:g} s: "
-              f"forward error median {s['fwd_err_median_m']:+.4f} m, robust std "
-              f"{s['fwd_err_std_m']:.4f} m; turn error median {s['turn_err_median_rad']:+.4f} rad, "
-              f"robust std {s['turn_err_std_rad']:.4f} rad")
+              f"forward error median {s['fwd_err_median_m']:+.4f} m, RMS "
+              f"{s['fwd_err_std_m']:.4f} m (robust std {s['fwd_err_robust_std_m']:.4f}); turn error "
+              f"median {s['turn_err_median_rad']:+.4f} rad, RMS {s['turn_err_std_rad']:.4f} rad "
+              f"(robust std {s['turn_err_robust_std_rad']:.4f})")
     if s.get("readings", 0) >= 5:
         print(f"  {s['readings']} readings vs ground truth: range error median "
-              f"{s['range_err_median_m']:+.4f} m, robust std {s['range_err_std_m']:.4f} m, "
+              f"{s['range_err_median_m']:+.4f} m, RMS {s['range_err_rms_m']:.4f} m x sqrt(shared "
+              f"factor {s['range_shared_factor']:.2f}) = {s['range_err_std_m']:.4f} m (robust std "
+              f"{s['range_err_robust_std_m']:.4f} m), "
               f"{100 * s['range_short_tail']:.1f} % too short and {100 * s['range_long_tail']:.1f} % "
               f"too long beyond 3 std")
-        print(f"  bearing error median {s['bearing_err_median_rad']:+.4f} rad, robust std "
-              f"{s['bearing_err_std_rad']:.4f} rad, {100 * s['bearing_tail']:.1f} % beyond 3 std, "
-              f"{100 * s['bearing_flipped']:.1f} % off by more than pi/2")
+        print(f"  bearing error median {s['bearing_err_median_rad']:+.4f} rad, RMS "
+              f"{s['bearing_err_rms_rad']:.4f} rad x sqrt(shared factor {s['bearing_shared_factor']:.2f}) "
+              f"= {s['bearing_err_std_rad']:.4f} rad (robust std {s['bearing_err_robust_std_rad']:.4f}), "
+              f"{100 * s['bearing_tail']:.1f} % beyond 3 robust std, "
+              f"{100 * s['bearing_flipped']:.2f} % off by more than pi/2; outlier rate told "
+              f"{100 * s['outlier_rate']:.1f} %")
     m = cal.motion
     print(f"  filters told (per {cal.step_dt:g} s step): v_std = {m.v_std:.4f} m/s, omega_std = "
           f"{m.omega_std:.4f} rad/s, range_std = {cal.sensor.range_std:.4f} m, bearing_std = "
-          f"{cal.sensor.bearing_std:.4f} rad")
+          f"{cal.sensor.bearing_std:.4f} rad; EKF/UKF gate chi2 > {MRCLAM_GATE_CHI2:.2f} (99.9 %)")
 
 
 def _print_run(d: dict[str, Any]) -> None:
