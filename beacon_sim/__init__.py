@@ -6,13 +6,13 @@ Layers (see docs/architecture.md): ``beacon_sim.core`` (plain numpy, no pygame),
 
 The Python API (docs/python-api.md) is the names in ``__all__``, defined in
 ``beacon_sim.api`` and loaded on first use, so ``import beacon_sim.core`` stays light and the
-lower layers that read ``__version__`` never load the upper ones::
+lower layers never load the upper ones::
 
     import beacon_sim as bs
     run = bs.run("default", ["ekf", "pf"], seed=3, duration=30)
 """
 
-__version__ = "0.1.0"
+from beacon_sim.version import __version__
 
 __all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "__version__",
            "load_scenario", "replay", "run"]

@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def lint_imports(cwd: Path) -> subprocess.CompletedProcess:
     """``lint-imports`` over the ``beacon_sim`` found first on the path from ``cwd``."""
     code = "import sys; from importlinter.cli import lint_imports_command; sys.exit(lint_imports_command())"
-    return subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-c", code, "--no-cache"], cwd=cwd, capture_output=True, text=True,
                           timeout=300, env={"PYTHONPATH": str(cwd), "PATH": "/usr/bin:/bin"})
 
 

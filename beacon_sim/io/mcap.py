@@ -262,7 +262,7 @@ def write_mcap(path: Path | str, scenario: Scenario, arrays: dict[str, np.ndarra
         from mcap.writer import CompressionType, Writer
     except ImportError as exc:
         raise ImportError(INSTALL_HINT) from exc
-    from beacon_sim import __version__
+    from beacon_sim.version import __version__
 
     path = Path(path)
     msgs = sorted(messages(scenario, arrays), key=lambda m: m[2])  # stable: ties keep their order

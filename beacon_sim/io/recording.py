@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from beacon_sim import __version__
+from beacon_sim.version import __version__
 from beacon_sim.core.scenario import Scenario, ScenarioError, parse_scenario
 from beacon_sim.core.types import Control
 
