@@ -14,6 +14,7 @@ from collections.abc import Callable
 from beacon_sim import __version__
 from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, replay, run
 from beacon_sim.cli import eval as eval_cli
+from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options
 from beacon_sim.core.scenario import ScenarioError
 from beacon_sim.errors import UsageError
@@ -101,6 +102,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
 
+    p = sub.add_parser("grade", help="grade a folder of filter files (one per student): "
+                                     "CSV + HTML leaderboard")
+    p.add_argument("dir", help="folder with one filter file per student")
+    p.add_argument("--config", metavar="TOML",
+                   help="scenarios, seeds, duration, time_limit (docs/grading.md)")
+    p.add_argument("--out", metavar="DIR",
+                   help="where grade.csv, grade.html, grade.json go (default DIR/grade_out)")
+    p.add_argument("--jobs", type=int, help="local processes (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
+    p.add_argument("--time-limit", type=float, metavar="S", help="a filter's time limit per run [s]")
+    p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
+
     p = sub.add_parser("new-filter", help="write a working, commented filter template")
     p.add_argument("path")
     return parser
@@ -116,6 +129,7 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "export": export.export_command,
     "mrclam": mrclam.mrclam_command,
     "new-filter": new_filter.new_filter_command,
+    "grade": grade_cli.grade_command,
 }
 
 

@@ -171,8 +171,9 @@ def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
         if p:
             problems.setdefault("shapes", f"step {k}: {p}")
             continue
-        mean = np.asarray(est[0], dtype=float)  # type: ignore[index]
-        cov = np.asarray(est[1], dtype=float)  # type: ignore[index]
+        pair: Any = est
+        mean = np.asarray(pair[0], dtype=np.float64)
+        cov = np.asarray(pair[1], dtype=np.float64)
         if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov))):
             problems.setdefault("finite", f"step {k}: NaN or infinity in the estimate")
             continue
@@ -285,7 +286,11 @@ def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
         ef = fresh()
         pre = _Feed([], None, 0)
         before, _, _ = guarded_call(ef.estimate, STEP_LIMIT_S)
-        _, why, _ = guarded_call(lambda: (ef.update([]), ef.update(())), STEP_LIMIT_S)
+        def empty() -> None:
+            ef.update([])
+            ef.update(())
+
+        _, why, _ = guarded_call(empty, STEP_LIMIT_S)
         after, why2, _ = guarded_call(ef.estimate, STEP_LIMIT_S)
     except Exception as exc:
         pre, why, why2 = _Feed([], None, 0), one_line(exc), None

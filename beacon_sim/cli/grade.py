@@ -1,0 +1,58 @@
+"""``beacon-sim grade DIR [--config grade.toml] [--out DIR] [--jobs J] [--scheduler ADDRESS]
+[--time-limit S] [--strict]``: every filter file in a folder over the same scenarios and
+seeds; writes grade.csv, grade.html (the leaderboard) and grade.json (docs/grading.md)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import sys
+import time
+from pathlib import Path
+
+from beacon_sim.errors import UsageError
+from beacon_sim.evaluation.grading import GradeError, grade, load_config, write_outputs
+
+
+def grade_command(args: argparse.Namespace) -> int:
+    """Grade the folder ``args.dir``; exit status 0 (1 with ``--strict`` when any filter failed)."""
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: expected a number of processes >= 1")
+    try:
+        cfg = load_config(args.config)
+    except GradeError as exc:
+        raise UsageError(str(exc)) from None
+    if args.time_limit is not None:
+        if not (args.time_limit > 0 and math.isfinite(args.time_limit)):
+            raise UsageError(f"--time-limit {args.time_limit}: expected a positive number of seconds")
+        cfg = dataclasses.replace(cfg, time_limit=args.time_limit)
+    scheduler = args.scheduler
+    if scheduler is not None:
+        try:
+            import dask.distributed  # noqa: F401
+        except ImportError:
+            raise UsageError("--scheduler needs Dask: pip install 'beacon-sim[grade]'") from None
+    out = Path(args.out) if args.out else Path(args.dir) / "grade_out"
+    tty = sys.stderr.isatty()
+
+    def progress(done: int, total: int) -> None:
+        if tty:
+            sys.stderr.write(f"\rgrade: {done}/{total} runs ")
+            if done == total:
+                sys.stderr.write("\n")
+
+    t0 = time.perf_counter()
+    try:
+        board = grade(args.dir, cfg, jobs=args.jobs, scheduler=scheduler, progress=progress)
+    except GradeError as exc:
+        raise UsageError(str(exc)) from None
+    written = write_outputs(board, out)
+    for r in board["rows"]:
+        score = ("FAILED " + str(r["failed_runs"]) + "/" + str(r["runs"]) if r["failed_runs"]
+                 else f"{r['pos_rmse_m']:.4f} m  {r['anees_verdict']}")
+        print(f"{r['rank']:>3}  {r['student']:<20} {score}")
+    print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
+          f"({'Dask ' + str(scheduler) if scheduler else 'local processes'})")
+    failed = any(r["failed_runs"] for r in board["rows"])
+    return 1 if failed and args.strict else 0

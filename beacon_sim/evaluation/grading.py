@@ -1,0 +1,474 @@
+"""Grading a class (``beacon-sim grade DIR``, docs/grading.md): every student's filter file
+over the same scenarios and seeds, one row per student, a CSV and a self-contained HTML
+leaderboard.
+
+The sweep is a list of independent tasks (student, scenario, seed), each a
+:func:`~beacon_sim.evaluation.montecarlo.one_run` with a per-run time limit, so it runs the
+same on local processes (default) and on a Dask distributed cluster (``scheduler``): a
+run's numbers depend only on its seed, never on where it ran (only the cost figures, wall
+time, differ). A task that cannot run (the file does not import, a worker died of memory)
+is a failed run, not a failed sweep. A student whose filter failed in any run gets no
+score and is ranked below every working filter.
+"""
+
+from __future__ import annotations
+
+import ast
+import csv
+import html
+import json
+import math
+import time
+import tomllib
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.evaluation.montecarlo import RunOutput, default_jobs, one_run
+from beacon_sim.evaluation.summary import Thresholds, evaluate
+
+
+class GradeError(ValueError):
+    """A bad grading folder or configuration file (one line, exit status 2)."""
+
+
+@dataclass(frozen=True)
+class GradeConfig:
+    """What the class is graded on (a ``grade.toml`` may set any of these).
+
+    scenarios : shipped names or TOML paths (default: ``default``).
+    seeds : the run seeds, the same for every student (default 0 to 4).
+    duration : seconds per run [s] (default 60; None: each scenario's own).
+    time_limit : a filter's time limit per run [s] (default 60).
+    memory_limit_gb : a local worker's address-space limit [GB] (default 4; 0: none).
+    class_name : the filter class in each file (default: found in the file).
+    """
+
+    scenarios: tuple[str, ...] = ("default",)
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    duration: float | None = 60.0
+    time_limit: float = 60.0
+    memory_limit_gb: float = 4.0
+    class_name: str | None = None
+
+
+def load_config(path: str | Path | None) -> GradeConfig:
+    """A :class:`GradeConfig` from a TOML file (keys as the attributes), or the defaults."""
+    if path is None:
+        return GradeConfig()
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise GradeError(f"{path}: cannot read: {exc}") from None
+    known = set(GradeConfig.__dataclass_fields__)
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise GradeError(f"{path}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+    try:
+        cfg = GradeConfig(
+            scenarios=tuple(str(s) for s in data.get("scenarios", GradeConfig.scenarios)),
+            seeds=tuple(int(s) for s in data.get("seeds", GradeConfig.seeds)),
+            duration=None if data.get("duration", 60.0) in (None, 0) else float(data.get("duration", 60.0)),
+            time_limit=float(data.get("time_limit", GradeConfig.time_limit)),
+            memory_limit_gb=float(data.get("memory_limit_gb", GradeConfig.memory_limit_gb)),
+            class_name=data.get("class_name"))
+    except (TypeError, ValueError) as exc:
+        raise GradeError(f"{path}: {exc}") from None
+    if not cfg.scenarios or not cfg.seeds or cfg.time_limit <= 0:
+        raise GradeError(f"{path}: needs at least one scenario and seed, and time_limit > 0")
+    return cfg
+
+
+@dataclass(frozen=True)
+class Student:
+    """One file: the student (the file's stem), the filter spec, or why it has none."""
+
+    name: str
+    path: Path
+    spec: str | None
+    problem: str | None = None
+
+
+def find_class(path: Path, class_name: str | None = None) -> str:
+    """The filter class of a student's file, read without running it (``ast``): the one
+    named ``class_name``, else the last top-level class defining predict, update or
+    estimate, else the last top-level class. Raises GradeError (syntax error, no class)."""
+    try:
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    except (SyntaxError, UnicodeDecodeError, OSError) as exc:
+        raise GradeError(f"does not import: {type(exc).__name__}: {exc}") from None
+    classes = [n for n in tree.body if isinstance(n, ast.ClassDef)]
+    if class_name is not None:
+        if any(c.name == class_name for c in classes):
+            return class_name
+        raise GradeError(f"no class {class_name!r}")
+    filters = [c for c in classes if any(isinstance(f, ast.FunctionDef) and f.name in
+                                         ("predict", "update", "estimate") for f in c.body)]
+    chosen = (filters or classes)[-1:] if classes else []
+    if not chosen:
+        raise GradeError("no class in the file")
+    return chosen[0].name
+
+
+def find_students(folder: str | Path, class_name: str | None = None) -> list[Student]:
+    """Every ``*.py`` file of ``folder`` (sorted, ``_``-prefixed files left out)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise GradeError(f"{folder}: not a folder")
+    out = []
+    for path in sorted(folder.glob("*.py")):
+        if path.name.startswith("_"):
+            continue
+        try:
+            cls = find_class(path, class_name)
+        except GradeError as exc:
+            out.append(Student(path.stem, path, None, str(exc)))
+            continue
+        out.append(Student(path.stem, path, f"{path.resolve()}:{cls}"))
+    if not out:
+        raise GradeError(f"{folder}: no filter files (*.py)")
+    return out
+
+
+@dataclass(frozen=True)
+class Task:
+    """One run of one student's filter: picklable, so it runs in any worker."""
+
+    student: str
+    spec: str
+    scenario: str
+    seed: int
+    duration: float | None
+    time_limit: float
+    index: int
+
+
+@dataclass
+class TaskResult:
+    """A task's run, or why it could not run at all."""
+
+    task: Task
+    run: RunOutput | None
+    problem: str | None = None
+    wall_s: float = 0.0
+
+
+def run_task(task: Task) -> TaskResult:
+    """Run one task (in whatever process or thread a worker gives it)."""
+    t0 = time.perf_counter()
+    try:
+        sc = load_scenario(task.scenario)
+        duration = sc.duration if task.duration is None else task.duration
+        run = one_run(sc, [task.spec], {}, task.seed, duration, index=task.index,
+                      keep_means=task.index == 0, run_limit_s=task.time_limit)
+        return TaskResult(task, run, None, time.perf_counter() - t0)
+    except MemoryError:
+        return TaskResult(task, None, "out of memory", time.perf_counter() - t0)
+    except Exception as exc:  # the file does not import, the class cannot be built...
+        text = str(exc).strip().splitlines()
+        why = text[0] if text else type(exc).__name__
+        return TaskResult(task, None, f"{type(exc).__name__}: {why}" if not isinstance(exc, ValueError)
+                          else why, time.perf_counter() - t0)
+
+
+def _limit_memory(gb: float) -> None:
+    """A local worker's address-space limit, so a filter that hoards memory gets a
+    MemoryError (a failed run) instead of the kernel's out-of-memory killer."""
+    if gb <= 0:
+        return
+    try:
+        import resource
+
+        limit = int(gb * 2**30)
+        _soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        if hard != resource.RLIM_INFINITY:
+            limit = min(limit, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    except (ImportError, ValueError, OSError):
+        pass
+
+
+def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = None,
+              memory_limit_gb: float = 4.0,
+              progress: Callable[[int, int], None] | None = None) -> list[TaskResult]:
+    """Run every task; results in task order.
+
+    ``scheduler``: None runs on ``jobs`` local processes (default: all cores); an address
+    (``tcp://host:8786``) or a ``dask.distributed`` Client / cluster runs on Dask. A task
+    whose worker died (memory) is a failed run with that reason.
+    """
+    out: list[TaskResult | None] = [None] * len(tasks)
+    done = 0
+
+    def finish(i: int, res: TaskResult) -> None:
+        nonlocal done
+        out[i] = res
+        done += 1
+        if progress:
+            progress(done, len(tasks))
+
+    if scheduler is not None:
+        from dask.distributed import Client, as_completed
+
+        client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
+        try:
+            futures = client.map(run_task, list(tasks), pure=False)
+            index = {f.key: i for i, f in enumerate(futures)}
+            for fut in as_completed(futures):
+                i = index[fut.key]
+                try:
+                    finish(i, fut.result())
+                except Exception as exc:  # KilledWorker: the filter took the worker down
+                    finish(i, TaskResult(tasks[i], None, f"worker lost: {type(exc).__name__}"))
+        finally:
+            if client is not scheduler:
+                client.close()
+        return [r for r in out if r is not None]
+    jobs = default_jobs() if jobs is None else max(1, int(jobs))
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    pending = list(range(len(tasks)))
+    while pending:  # a pool broken by a dead worker is replaced; its task is failed
+        broken = False
+        with ProcessPoolExecutor(max_workers=min(jobs, len(pending)), initializer=_limit_memory,
+                                 initargs=(memory_limit_gb,)) as pool:
+            futs = {pool.submit(run_task, tasks[i]): i for i in pending}
+            for fut, i in futs.items():
+                try:
+                    finish(i, fut.result())
+                except BrokenProcessPool:
+                    broken = True
+                    break
+        if not broken:
+            break
+        left = [i for i in pending if out[i] is None]
+        finish(left[0], TaskResult(tasks[left[0]], None, "worker died (memory?)"))
+        pending = left[1:]
+    return [r for r in out if r is not None]
+
+
+def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320,
+              height: int = 110) -> str:
+    """A small inline SVG of position error [m] against time [s], one line per scenario."""
+    colours = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"]
+    finite = [e[np.isfinite(e)] for _, _, e in curves]
+    top = max([float(np.max(f)) for f in finite if len(f)] + [1e-3])
+    tmax = max([float(t[-1]) for _, t, _ in curves if len(t)] + [1.0])
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+             f'viewBox="0 0 {width} {height}"><rect width="100%" height="100%" fill="#fff"/>']
+    for k, (label, t, e) in enumerate(curves):
+        pts = " ".join(f"{4 + (width - 8) * ti / tmax:.1f},{height - 14 - (height - 24) * ei / top:.1f}"
+                       for ti, ei in zip(t[::4], e[::4], strict=True) if math.isfinite(ei))
+        parts.append(f'<polyline fill="none" stroke="{colours[k % 4]}" stroke-width="1.2" '
+                     f'points="{pts}"><title>{html.escape(label)}</title></polyline>')
+    parts.append(f'<text x="4" y="10" font-size="9">{top:.2g} m</text>'
+                 f'<text x="{width - 40}" y="{height - 2}" font-size="9">{tmax:.0f} s</text></svg>')
+    return "".join(parts)
+
+
+def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
+          scheduler: Any = None, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
+    order, ``config``, ``wall_s``) that :func:`write_csv` and :func:`write_html` write."""
+    t0 = time.perf_counter()
+    students = find_students(folder, config.class_name)
+    scenarios: dict[str, Scenario] = {s: load_scenario(s) for s in config.scenarios}
+    tasks = [Task(st.name, st.spec, sc, seed, config.duration, config.time_limit, i)
+             for st in students if st.spec for sc in config.scenarios
+             for i, seed in enumerate(config.seeds)]
+    results = run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, progress)
+    by: dict[tuple[str, str], list[TaskResult]] = {}
+    for r in results:
+        by.setdefault((r.task.student, r.task.scenario), []).append(r)
+    rows = []
+    n_runs = len(config.scenarios) * len(config.seeds)
+    for st in students:
+        rows.append(_student_row(st, config, scenarios, by, n_runs))
+    rows.sort(key=rank_key)
+    for k, row in enumerate(rows, 1):
+        row["rank"] = k
+    return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
+            "students": len(students), "runs_per_student": n_runs}
+
+
+def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario],
+                 by: dict[tuple[str, str], list[TaskResult]], n_runs: int) -> dict[str, Any]:
+    row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
+                           "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
+                           "anees_verdict": "FAILED", "rmse_over_pcrb": None, "us_per_step": None,
+                           "failed_runs": n_runs, "failures": [], "plot": ""}
+    if st.spec is None:
+        row["failures"] = [{"scenario": "-", "seed": None, "time_s": None, "reason": st.problem}]
+        return row
+    figures: dict[str, list[float]] = {k: [] for k in ("pos_rmse_m", "heading_rmse_rad", "anees",
+                                                        "rmse_over_pcrb", "us_per_step")}
+    verdicts, failures, curves = [], [], []
+    for name in config.scenarios:
+        res = sorted(by.get((st.name, name), []), key=lambda r: r.task.index)
+        for r in res:
+            if r.run is None:
+                failures.append({"scenario": name, "seed": r.task.seed, "time_s": None,
+                                 "reason": r.problem})
+        runs = [r.run for r in res if r.run is not None]
+        if not runs:
+            continue
+        meta, curve = evaluate(scenarios[name], runs, Thresholds())
+        fr = next(iter(meta["filters"].values()))
+        for f in fr["failures"]:
+            failures.append({"scenario": name, **f})
+        for key in figures:
+            if fr.get(key) is not None:
+                figures[key].append(float(fr[key]))
+        verdicts.append(fr["anees_verdict"])
+        c = next(iter(curve["filters"].values()))
+        curves.append((name, curve["time"], np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
+    row["failures"] = failures
+    row["failed_runs"] = len(failures)
+    row["us_per_step"] = float(np.mean(figures["us_per_step"])) if figures["us_per_step"] else None
+    row["plot"] = _svg_plot(curves) if curves else ""
+    if not failures:
+        for key in ("pos_rmse_m", "heading_rmse_rad", "anees", "rmse_over_pcrb"):
+            row[key] = float(np.mean(figures[key])) if figures[key] else None
+        row["anees_verdict"] = verdicts[0] if len(set(verdicts)) == 1 else "/".join(verdicts)
+    return row
+
+
+def rank_key(row: dict[str, Any]) -> tuple:
+    """Working filters first by position RMSE, then failed ones (fewest failed runs first):
+    a failed filter never ranks above a working one."""
+    failed = row["failed_runs"] > 0
+    rmse = row["pos_rmse_m"] if row["pos_rmse_m"] is not None else math.inf
+    return (failed, row["failed_runs"] if failed else 0, rmse, row["student"])
+
+
+CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_rad", "anees",
+               "anees_verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs", "failures")
+
+
+def _failure_text(f: dict[str, Any]) -> str:
+    where = "" if f.get("seed") is None else f"{f['scenario']} seed {f['seed']}"
+    at = "" if f.get("time_s") is None else f" at {f['time_s']:.2f} s"
+    return f"{where}{at}: {f['reason']}" if where else str(f["reason"])
+
+
+def write_csv(board: dict[str, Any], path: Path) -> Path:
+    """One row per student, in rank order; a failed student's figures are empty cells."""
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(CSV_COLUMNS)
+        for r in board["rows"]:
+            w.writerow([r["rank"], r["student"], r["file"], "FAILED" if r["failed_runs"] else "ok",
+                        *("" if r[k] is None else r[k] for k in ("pos_rmse_m", "heading_rmse_rad",
+                                                                 "anees")),
+                        r["anees_verdict"], "" if r["rmse_over_pcrb"] is None else r["rmse_over_pcrb"],
+                        "" if r["us_per_step"] is None else f"{r['us_per_step']:.1f}",
+                        r["failed_runs"], r["runs"],
+                        " | ".join(_failure_text(f) for f in r["failures"][:5])])
+    return path
+
+
+_CSS = """body{font-family:sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse}
+th,td{border:1px solid #ccc;padding:4px 8px;vertical-align:top}th{background:#eef;cursor:pointer}
+tr.failed td{background:#fdecea}td.num{text-align:right;font-variant-numeric:tabular-nums}
+.why{font-size:85%;color:#a00;max-width:28em}.note{color:#555;font-size:90%}"""
+
+_JS = """
+function sortBy(col, dir) {
+  var body = document.getElementById('board').tBodies[0];
+  var rows = Array.prototype.slice.call(body.rows);
+  rows.sort(function (a, b) {
+    var fa = +a.dataset.failed, fb = +b.dataset.failed;
+    if (fa !== fb) return fa - fb;            /* a failed filter never above a working one */
+    var x = a.dataset[col], y = b.dataset[col];
+    var nx = parseFloat(x), ny = parseFloat(y);
+    var c = (isNaN(nx) || isNaN(ny)) ? String(x).localeCompare(String(y)) : nx - ny;
+    if (isNaN(nx) !== isNaN(ny)) c = isNaN(nx) ? 1 : -1;
+    return dir * c;
+  });
+  rows.forEach(function (r) { body.appendChild(r); });
+  document.getElementById('board').dataset.sorted = col + (dir > 0 ? '' : '-desc');
+}
+document.querySelectorAll('#board th[data-col]').forEach(function (th) {
+  th.addEventListener('click', function () {
+    var d = th.dataset.dir === '1' ? -1 : 1; th.dataset.dir = String(d); sortBy(th.dataset.col, d);
+  });
+});
+var m = /sort=([a-z_]+)(-desc)?/.exec(location.hash);
+if (m) sortBy(m[1], m[2] ? -1 : 1);
+"""
+
+
+def write_html(board: dict[str, Any], path: Path) -> Path:
+    """A self-contained leaderboard page (inline CSS, JS and SVG plots): click a column
+    to sort (``#sort=COLUMN`` or ``#sort=COLUMN-desc`` in the address sorts on load)."""
+    cfg = board["config"]
+    cols = [("rank", "rank"), ("student", "student"), ("pos_rmse_m", "pos RMSE [m]"),
+            ("heading_rmse_rad", "heading RMSE [rad]"), ("anees", "ANEES"),
+            ("anees_verdict", "consistency"), ("rmse_over_pcrb", "RMSE/PCRB"),
+            ("us_per_step", "cost [us/step]"), ("failed_runs", "failed runs")]
+
+    def cell(r: dict[str, Any], key: str) -> str:
+        v = r[key]
+        if v is None:
+            return '<td class="num">&ndash;</td>'
+        if isinstance(v, float):
+            fmt = ".1f" if key == "us_per_step" else (".2f" if key in ("anees", "rmse_over_pcrb") else ".4f")
+            return f'<td class="num">{v:{fmt}}</td>'
+        if isinstance(v, int):
+            return f'<td class="num">{v}</td>'
+        return f"<td>{html.escape(str(v))}</td>"
+
+    body = []
+    for r in board["rows"]:
+        data = " ".join(f'data-{k}="{html.escape("" if r[k] is None else str(r[k]))}"' for k, _ in cols)
+        why = "<br>".join(html.escape(_failure_text(f)) for f in r["failures"][:4])
+        more = len(r["failures"]) - 4
+        if more > 0:
+            why += f"<br>... and {more} more"
+        status = "FAILED" if r["failed_runs"] else "ok"
+        body.append(f'<tr class="{"failed" if r["failed_runs"] else "ok"}" data-failed='
+                    f'"{1 if r["failed_runs"] else 0}" {data}>'
+                    + "".join(cell(r, k) for k, _ in cols)
+                    + f'<td>{status}<div class="why">{why}</div></td>'
+                    + f"<td>{r['plot']}</td></tr>")
+    head = "".join(f'<th data-col="{k}">{html.escape(t)}</th>' for k, t in cols)
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>beacon-sim grade</title>
+<style>{_CSS}</style></head><body>
+<h1>Leaderboard</h1>
+<p class="note">{board['students']} students, {board['runs_per_student']} runs each: scenarios
+{html.escape(', '.join(cfg['scenarios']))}; seeds {html.escape(', '.join(map(str, cfg['seeds'])))};
+{'each scenario' + chr(39) + 's duration' if cfg['duration'] is None else f"{cfg['duration']:g} s"} per run;
+time limit {cfg['time_limit']:g} s per run. A filter that failed in any run has no score and
+ranks below every working filter, whatever the column sorted. Click a column to sort.
+Plot: position error [m] against time [s] of the first seed.</p>
+<table id="board"><thead><tr>{head}<th>status and failures</th><th>error, first seed</th></tr></thead>
+<tbody>
+{chr(10).join(body)}
+</tbody></table>
+<script>{_JS}</script>
+</body></html>
+"""
+    path.write_text(page, encoding="utf-8")
+    return path
+
+
+def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:
+    """``grade.csv``, ``grade.html`` and ``grade.json`` (the rows without the plots) in ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    doc = {k: v for k, v in board.items() if k != "rows"}
+    doc["rows"] = [{k: v for k, v in r.items() if k != "plot"} for r in board["rows"]]
+    (out / "grade.json").write_text(json.dumps(doc, indent=1, default=float), encoding="utf-8")
+    return [write_csv(board, out / "grade.csv"), write_html(board, out / "grade.html"),
+            out / "grade.json"]
+
+
+__all__ = ["GradeConfig", "GradeError", "Student", "Task", "TaskResult", "find_class",
+           "find_students", "grade", "load_config", "rank_key", "run_task", "run_tasks",
+           "write_csv", "write_html", "write_outputs"]
+
