@@ -11,7 +11,6 @@ import argparse
 import sys
 from collections.abc import Callable
 
-from beacon_sim import __version__
 from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, replay, run
 from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
@@ -19,6 +18,7 @@ from beacon_sim.cli.common import Parser, add_filter_options
 from beacon_sim.core.scenario import ScenarioError
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.base import FilterError
+from beacon_sim.version import __version__
 
 
 def build_parser() -> argparse.ArgumentParser:

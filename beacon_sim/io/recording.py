@@ -31,9 +31,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from beacon_sim.version import __version__
 from beacon_sim.core.scenario import Scenario, ScenarioError, parse_scenario
 from beacon_sim.core.types import Control
+from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
 FORMAT_VERSION = 1

@@ -16,7 +16,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, TextIO
 
-from beacon_sim.version import __version__
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control
@@ -31,6 +30,7 @@ from beacon_sim.io.recording import (
     validate_command,
 )
 from beacon_sim.runs.user_commands import apply_commands
+from beacon_sim.version import __version__
 
 
 class Recorder:
