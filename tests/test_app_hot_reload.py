@@ -8,6 +8,7 @@ import os
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
+import numpy as np
 import pytest
 from hot_reload_helpers import SOURCE, write
 
@@ -87,3 +88,45 @@ def test_the_panel_shows_the_status_line_of_a_slow_or_switched_off_filter(window
     drawn.clear()
     app.run(app.frames + 1)
     assert any("switched off" in t for t in drawn) and any("NaN" in t for t in drawn)
+
+
+def test_a_reloaded_filter_catches_up_to_where_a_run_from_the_start_is():
+    """Hot reload re-runs the new filter over the session so far (same Steps, same resets):
+    its estimates equal, bit for bit, those of a filter that ran from the start."""
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.filters.loading import build_filter
+
+    sc = load_scenario("default")
+    straight = Session(sc, ["ekf", "dead_reckoning"], seed=4)
+    reloaded = Session(sc, ["ekf", "dead_reckoning"], seed=4)
+    for s in (straight, reloaded):
+        s.toggle_autopilot()
+        for k in range(300):
+            if k == 120:
+                s.command({"kind": "reset"})
+            s.tick()
+    fresh = build_filter("ekf", sc, 4, name="ekf")
+    message = reloaded.replace_filter("ekf", fresh)
+    assert "run over the 300 ticks" in message
+    a, b = straight.runner.tracks["ekf"], reloaded.runner.tracks["ekf"]
+    assert b.filter is fresh and b.ticks == a.ticks
+    np.testing.assert_array_equal(np.array(b.means), np.array(a.means))
+    np.testing.assert_array_equal(np.array(b.covs), np.array(a.covs))
+    assert reloaded.status["ekf"].pos_err == straight.status["ekf"].pos_err
+    for s in (straight, reloaded):  # and they go on together
+        s.tick()
+    np.testing.assert_array_equal(reloaded.runner.tracks["ekf"].means[-1],
+                                  straight.runner.tracks["ekf"].means[-1])
+
+
+def test_a_reload_too_slow_to_catch_up_restarts_from_the_initial_belief():
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.filters.loading import build_filter
+
+    sc = load_scenario("default")
+    s = Session(sc, ["ekf"], seed=4)
+    for _ in range(50):
+        s.tick()
+    message = s.replace_filter("ekf", build_filter("ekf", sc, 4, name="ekf"), budget_s=0.0)
+    assert "from the initial belief" in message
+    assert s.runner.tracks["ekf"].means == []

@@ -122,9 +122,9 @@ class App:
         for name, w in self.watchers.items():
             res = w.poll()
             if res.new_filter is not None:
-                self.swap_filter(name, res.new_filter)
+                how = self.swap_filter(name, res.new_filter)
                 self.reload_errors.pop(name, None)
-                self.flash(res.message)
+                self.flash(f"{res.message}; {how}")
             elif res.error is not None:
                 self.reload_errors[name] = res.error
                 self.flash(res.error)
@@ -312,9 +312,9 @@ class App:
         """How many simulation ticks to run this frame."""
         return self.clock.advance(real_dt)
 
-    def swap_filter(self, name: str, flt) -> None:
-        """Replace a running filter (hot reload of a student's file)."""
-        self.session.replace_filter(name, flt)
+    def swap_filter(self, name: str, flt) -> str:
+        """Replace a running filter (hot reload of a student's file); says how it caught up."""
+        return self.session.replace_filter(name, flt)
 
     def draw(self) -> None:
         surf = self.screen

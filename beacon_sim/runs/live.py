@@ -9,6 +9,7 @@ So a replay of (command, user commands) per tick reproduces the session bit for 
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,8 +22,8 @@ from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
-from beacon_sim.filters.base import Belief, FilterError, GaussianBelief
-from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
+from beacon_sim.filters.base import Belief, Filter, FilterError, GaussianBelief
+from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names, reset_filter
 from beacon_sim.filters.runner import (
     WINDOW_STEP_LIMIT_S,
     FilterRunner,
@@ -36,7 +37,14 @@ from beacon_sim.filters.runner import (
 from beacon_sim.io.recording import default_recording_path, validate_command
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
-from beacon_sim.runs.user_commands import apply_commands
+from beacon_sim.runs.user_commands import apply_commands, apply_to_filters
+
+#: A reloaded filter catches up over the session's history when that takes at most this
+#: long [s] (estimated from its first steps); otherwise it restarts from the initial belief.
+CATCH_UP_BUDGET_S = 1.5
+#: The session keeps every Step for a catch-up up to this much simulated time [s] (about
+#: 0.7 kB a tick: 20 minutes at 20 Hz is 17 MB); later reloads start from the initial belief.
+HISTORY_S = 1200.0
 
 
 @dataclass
@@ -92,6 +100,7 @@ class Session:
         self.pending: list[dict] = []
         self.visible = {n: True for n in self.names}
         self.controls: list[Control] = []  # the command of every tick, in order
+        self.steps: list[Step] = []  # every tick's Step, for a reloaded filter to catch up
         self.commands: dict[int, list[dict]] = {}  # tick -> user commands applied on it
         self.last_step: Step | None = None
         self.last_readings: dict[str, tuple[int, Measurement]] = {}
@@ -198,11 +207,51 @@ class Session:
     def filters(self) -> dict[str, object]:
         return {n: t.filter for n, t in self.runner.tracks.items() if t.filter is not None}
 
-    def replace_filter(self, name: str, flt: object) -> None:
-        """Swap in a new filter object under ``name`` (hot reload): a fresh track, same colour."""
-        self.runner.tracks[name] = FilterTrack(name, flt)
-        self.trails[name].brk()
-        self.status[name] = FilterStatus(name)
+    def replace_filter(self, name: str, flt: Filter, budget_s: float = CATCH_UP_BUDGET_S) -> str:
+        """Swap in a new filter object under ``name`` (hot reload), same colour.
+
+        The new filter is run over every tick of the session so far (the same Steps and the
+        same resets the others had), so it appears where it would be had it run from the
+        start. When that would take longer than ``budget_s`` [s] (judged on its first
+        steps) it starts from the initial belief instead. Returns what happened, in words.
+        """
+        if len(self.steps) < self.sim.tick:  # the history was not kept this far
+            reset_filter(flt, self.scenario)
+            self._install(name, FilterTrack(name, flt))
+            return (f"{name} reloaded from the initial belief (the session keeps "
+                    f"{HISTORY_S / 60:.0f} minutes of history to catch up over)")
+        catch_up = FilterRunner({name: flt}, step_limit_s=WINDOW_STEP_LIMIT_S)
+        t0 = time.perf_counter()
+        for i, step in enumerate(self.steps):
+            cmds = self.commands.get(step.tick)
+            if cmds:
+                apply_to_filters(cmds, {name: flt}, self.scenario)
+            catch_up.feed(step)
+            elapsed = time.perf_counter() - t0
+            if catch_up.tracks[name].failed:
+                break
+            if i in (19, 199) and elapsed * len(self.steps) / (i + 1) > budget_s:
+                projected = elapsed * len(self.steps) / (i + 1)
+                reset_filter(flt, self.scenario)
+                self._install(name, FilterTrack(name, flt))
+                return (f"{name} reloaded from the initial belief: catching up over "
+                        f"{len(self.steps)} ticks would take about {projected:.0f} s")
+        self._install(name, catch_up.tracks[name])
+        if not self.steps:
+            return f"{name} reloaded"
+        return (f"{name} reloaded and run over the {len(self.steps)} ticks so far "
+                f"({time.perf_counter() - t0:.2f} s)")
+
+    def _install(self, name: str, track: FilterTrack) -> None:
+        """Put ``track`` in the runner under ``name``; rebuild its trail and status from it."""
+        self.runner.tracks[name] = track
+        trail = self.trails[name] = Trail()
+        for mean in track.means:
+            trail.add(mean)
+        st = self.status[name] = FilterStatus(name)
+        st.failed, st.warning = track.failed, status_line(track)
+        if track.means and self.last_step is not None and track.ticks[-1] == self.last_step.tick:
+            st.measure(track.means[-1], track.covs[-1], self.last_step.true_pose)
         self.runner.priors.pop(name, None)
         self._keep_priors()
 
@@ -250,6 +299,8 @@ class Session:
                 tr.brk()
         step = self.sim.step(control)
         self.runner.feed(step)
+        if step.time <= HISTORY_S:
+            self.steps.append(step)
         self.controls.append(control)
         if cmds:
             self.commands[tick] = cmds

@@ -25,12 +25,21 @@ from beacon_sim.io.recording import validate_command
 def apply_commands(commands: Iterable[Mapping], sim: Simulation, filters: Mapping[str, Filter],
                    scenario: Scenario) -> None:
     """Apply user commands to the simulation and the filters (``name -> filter``)."""
+    commands = list(commands)
     for cmd in commands:
         validate_command(cmd)
-        kind = cmd["kind"]
-        if kind == "kidnap":
+        if cmd["kind"] == "kidnap":
             sim.request_kidnap(cmd.get("pose"))
-        elif kind == "reset":
+    apply_to_filters(commands, filters, scenario)
+
+
+def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
+                     scenario: Scenario) -> None:
+    """The filters' part of user commands (resets), also for a filter that catches up over a
+    session's history after a hot reload."""
+    for cmd in commands:
+        kind = cmd["kind"]
+        if kind == "reset":
             for f in filters.values():
                 reset_filter(f, scenario)
         elif kind == "global_reset":
