@@ -136,6 +136,8 @@ def heading_limited_weights(c: float, Wm: np.ndarray, Wc: np.ndarray, p_thth
 
     Returns ``(sqrt_c, Wm, Wc)``: shapes (), (2n + 1,) or (R,), (R, 2n + 1)."""
     limit2 = MAX_HEADING_OFFSET * MAX_HEADING_OFFSET
+    if type(p_thth) is float and not c * p_thth > limit2:  # one run, not limited: no numpy
+        return math.sqrt(c), Wm, Wc                          # (~4 us a call on the hot path)
     pt = np.asarray(p_thth, dtype=float)
     with np.errstate(divide="ignore"):
         ceff = np.where(c * pt > limit2, limit2 / np.maximum(pt, 1e-300), c)
@@ -167,10 +169,11 @@ def innovation(Z: np.ndarray, D: np.ndarray, z: np.ndarray, r: np.ndarray, sel: 
         def wsum(A: np.ndarray) -> np.ndarray:
             return np.einsum("...i,...ij->...j", Wm, A)
     limited = Wm[..., 0] < 0.0                         # () or per run (R,)
+    any_limited = bool(limited) if Wm.ndim == 1 else bool(limited.any())  # any(): ~2 us on a scalar
 
     def angle_mean(A: np.ndarray) -> np.ndarray:
         circ = np.arctan2(wsum(np.sin(A)), wsum(np.cos(A)))  # circular weighted mean
-        if not np.any(limited):
+        if not any_limited:
             return circ
         # A negative centre weight breaks the circular mean: average the residuals about
         # the centre point instead (the sigma points lie within pi/2 of it).
