@@ -368,7 +368,10 @@ def add_diagonal(S: np.ndarray, r: np.ndarray) -> None:
 def corrected_mean(mean: np.ndarray, Kt: np.ndarray, nu: np.ndarray) -> np.ndarray:
     """``mean + K nu`` (..., 3) with ``Kt`` = K^T (..., m, 3); heading wrapped."""
     m = mean + (nu[..., None, :] @ Kt)[..., 0, :]
-    m[..., 2] = wrap_angle(m[..., 2])
+    if m.ndim == 1:
+        m[2] = wrap_angle(m[2])  # a numpy scalar: wrap's fast path
+    else:
+        m[:, 2] = wrap_angle(m[:, 2])
     return m
 
 

@@ -189,7 +189,9 @@ def innovation(Z: np.ndarray, D: np.ndarray, z: np.ndarray, r: np.ndarray, sel: 
             zhat[..., sel] = angle_mean(Z[..., sel])
     # The residuals of the sigma points (rows 0..2n) and of the measurement (last row),
     # angle rows wrapped in one call.
-    dY = np.concatenate((Z, z[..., None, :]), axis=-2) - zhat[..., None, :]
+    dY = np.empty((*Z.shape[:-2], Z.shape[-2] + 1, Z.shape[-1]))
+    np.subtract(Z, zhat[..., None, :], out=dY[..., :-1, :])
+    np.subtract(z, zhat, out=dY[..., -1, :])
     if sel is not None:
         dY[..., sel] = wrap(dY[..., sel])
     dZ, nu = dY[..., :-1, :], dY[..., -1, :]
