@@ -14,6 +14,7 @@ from beacon_sim.core.scenario import InitialBelief, load_scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, Measurement
 from beacon_sim.core.world import World
+from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.filters import conformance
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.particle import ParticleFilter, weighted_pose_stats
@@ -268,3 +269,39 @@ def test_conformance_check_passes():
     for name in ("sparse_kidnap", "default"):
         results = conformance.run_checks("pf", load_scenario(name))
         assert all(r.passed for r in results), [(r.name, r.message) for r in results if not r.passed]
+
+
+# --------------------------------------------------------------------- progressive correction
+def _sharp_fix_after_a_wide_prior(temper_ess, seed):
+    """A 2 cm / 0.03 rad pose fix meets a prior of 0.4 m / 0.25 rad (a blind stretch):
+    returns the ESS and the posterior std [m, m, rad] divided by the exact (Kalman) one."""
+    spec = SensorSpec("fix", "pose", noise=SensorNoise(position_std=0.02, heading_std=0.03))
+    pf = make_pf([spec], {"n_particles": 2000, "augmented": False, "temper_ess": temper_ess},
+                 seed=seed)
+    prior = np.diag([0.4, 0.4, 0.25]) ** 2
+    pf.reset(GaussianBelief(np.array([5.0, 5.0, 0.5]), prior))
+    pf.update([Measurement("fix", "pose", np.array([[5.3, 4.8, 0.7]]), np.array([1]))])
+    post = np.linalg.inv(np.linalg.inv(prior) + np.linalg.inv(np.diag([0.02, 0.02, 0.03]) ** 2))
+    return pf.ess, np.sqrt(np.diag(pf.estimate()[1]) / np.diag(post))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_progressive_correction_keeps_a_sharp_update_represented(seed):
+    ess, ratio = _sharp_fix_after_a_wide_prior(0.0, seed)
+    assert ess < 10                               # weighted at once: a handful of particles
+    ess, ratio = _sharp_fix_after_a_wide_prior(0.25, seed)
+    assert ess > 1000                             # in stages: most of them
+    assert np.all((ratio > 0.85) & (ratio < 1.25)), ratio   # and the right posterior spread
+
+
+@pytest.mark.slow
+def test_consistent_on_assignment_kf():
+    """assignment_kf (noisy motion, a blind stretch, a 2 cm pose fix) with the scenario's
+    [filters.pf] settings: ANEES over whole runs in the band for the number of runs, and no
+    collapse (without progressive correction 5 of 30 runs have NEES above 1,000)."""
+    sc = load_scenario("assignment_kf")
+    runs = run_monte_carlo(sc, ["pf"], 12, seed=0, jobs=1, progress=False)
+    per_run = np.array([np.mean(r.filters["pf"].nees) for r in runs])
+    lo, hi = anees_band(len(runs))
+    assert lo <= per_run.mean() <= hi, (per_run.mean(), lo, hi, per_run)
+    assert max(float(np.max(r.filters["pf"].nees)) for r in runs) < 100.0

@@ -67,6 +67,8 @@ class ParticleFilter(FilterBase):
         "kld_bin_theta": 0.1745,    # KLD histogram bin [rad] (10 deg)
         "ver_max": 500.0,           # seed 002: stop drawing when summed fit exceeds this
         "roughen": 0.0,             # jitter after resampling, in units of the kernel bandwidth
+        "temper_ess": 0.0,          # progressive correction: stage an update that would leave
+                                    # ESS below this share of N (0: off)
         "estimate": "mean",         # mean | cluster
         "cluster_cell": 0.5,        # [m] coarse grid for finding the dominant mode
         "cluster_radius": 1.0,      # [m] particles within this of the mode make the cluster
@@ -86,6 +88,8 @@ class ParticleFilter(FilterBase):
             raise FilterError(f"pf: estimate {p['estimate']!r}: use mean or cluster")
         if p["dtype"] not in ("float32", "float64"):
             raise FilterError(f"pf: dtype {p['dtype']!r}: use float32 or float64")
+        if not 0.0 <= p["temper_ess"] <= 1.0:
+            raise FilterError(f"pf: temper_ess {p['temper_ess']!r}: use a share of N in [0, 1]")
         if not (1 <= p["n_min"] <= p["n_max"]) or p["n_particles"] < 1:
             raise FilterError("pf: need 1 <= n_min <= n_max and n_particles >= 1")
         self.dtype = np.dtype(p["dtype"])
@@ -114,6 +118,7 @@ class ParticleFilter(FilterBase):
         self._last_v = 0.0
         self._dims = 1
         self._work: np.ndarray | None = None
+        self._extra: np.ndarray | None = None
         self.reset(None)
 
     # ----------------------------------------------------------------- initial belief
@@ -224,6 +229,39 @@ class ParticleFilter(FilterBase):
         if self._pending_resample:
             self._resample()
         n = self.n
+        extra = self._extra = self._tick_loglik(measurements)
+        ll = self._fit[:n]
+        logw = self._logw[:n]
+        tmp = self._wn[:n]                   # float64 scratch, ends as the normalised weights
+        # Per-reading likelihood of the tick (for augmented MCL): sum_i w_i exp(ll_i), ^(1/dims).
+        np.add(logw, ll, out=tmp)
+        log_marg = _logsumexp_inplace(tmp)
+        w_avg = math.exp(log_marg / max(self._dims, 1))
+        target = self.params["temper_ess"] * n
+        if target > 0 and _ess(logw + ll + (0.0 if extra is None else extra)) < target:
+            self._progressive_update(measurements, target)
+            logw, tmp = self._logw[:n], self._wn[:n]
+        else:
+            logw += ll
+            if extra is not None:
+                logw += extra
+        tmp[:] = logw
+        logw -= _logsumexp_inplace(tmp)
+        np.maximum(logw, -700.0, out=logw)          # no denormals (they are slow)
+        np.exp(logw, out=tmp)
+        tmp *= 1.0 / tmp.sum()
+        self.ess = 1.0 / float(np.dot(tmp, tmp))
+        self._update_recovery(w_avg)
+        self._pending_resample = (self.ess < self.params["ess_threshold"] * n
+                                  or self.inject_prob > 0.0)
+        self._cache = None
+        if self.params["heading_weight"]:
+            self._theta_pred = float(self.estimate()[0][2])
+
+    def _tick_loglik(self, measurements: Sequence[Measurement]) -> np.ndarray | None:
+        """Log-likelihood of all of a tick's readings at every particle, into ``_fit[:n]``
+        (and ``_dims``); returns the position fixes' per-particle normalisation (or None)."""
+        n = self.n
         ll = self._fit[:n]
         ll[:] = 0.0
         extra = np.zeros(n) if any(m.kind == "position" for m in measurements) else None
@@ -237,27 +275,52 @@ class ParticleFilter(FilterBase):
             ll += -0.5 * (e / sa) ** 2
             dims += 1
         self._dims = dims
-        logw = self._logw[:n]
-        tmp = self._wn[:n]                   # float64 scratch, ends as the normalised weights
-        # Per-reading likelihood of the tick (for augmented MCL): sum_i w_i exp(ll_i), ^(1/dims).
-        np.add(logw, ll, out=tmp)
-        log_marg = _logsumexp_inplace(tmp)
-        w_avg = math.exp(log_marg / max(dims, 1))
-        logw += ll
-        if extra is not None:
-            logw += extra
-        tmp[:] = logw
-        logw -= _logsumexp_inplace(tmp)
-        np.maximum(logw, -700.0, out=logw)          # no denormals (they are slow)
-        np.exp(logw, out=tmp)
-        tmp *= 1.0 / tmp.sum()
-        self.ess = 1.0 / float(np.dot(tmp, tmp))
-        self._update_recovery(w_avg)
-        self._pending_resample = (self.ess < self.params["ess_threshold"] * n
-                                  or self.inject_prob > 0.0)
-        self._cache = None
-        if self.params["heading_weight"]:
-            self._theta_pred = float(self.estimate()[0][2])
+        return extra
+
+    def _progressive_update(self, measurements: Sequence[Measurement], target: float) -> None:
+        """Progressive correction (Musso, Oudjane & Le Gland 2001): apply the tick's
+        likelihood ``p(z | x)`` as ``p^lambda_1 ... p^lambda_k`` (sum of lambdas 1), each
+        stage as large as keeps the effective sample size at ``target`` particles; between
+        stages resample and jitter by one kernel bandwidth (``_roughen``), so the particles
+        move into the likelihood's peak instead of all but a few being dropped.
+
+        Needed when the likelihood is much sharper than the cloud (a 2 cm pose fix meeting a
+        0.5 m cloud after a blind stretch): applied at once it leaves a handful of particles
+        whose spread, reported as the covariance, is far smaller than the error.
+        Leaves the final stage's log-weights in ``_logw[:n]`` (unnormalised)."""
+        n = self.n
+        rest = 1.0
+        for stage in range(_MAX_STAGES):
+            ll = self._fit[:n]
+            extra = self._extra
+            total = ll if extra is None else ll + extra
+            logw = self._logw[:n]
+            lam = rest
+            if stage < _MAX_STAGES - 1 and _ess(logw + rest * total) < target:
+                lo, hi = 0.0, rest
+                for _ in range(12):                        # ESS falls as lambda grows
+                    mid = 0.5 * (lo + hi)
+                    lo, hi = (mid, hi) if _ess(logw + mid * total) >= target else (lo, mid)
+                lam = lo
+            logw += lam * total
+            rest -= lam
+            if rest <= 1e-9:
+                return
+            w = self._wn[:n]
+            w[:] = logw
+            w -= _logsumexp_inplace(w.copy())
+            np.exp(w, out=w)
+            w *= 1.0 / w.sum()
+            idx = resample(self.params["resampler"], w, n, self.ctx.rng)
+            P = self._P2
+            for row in range(3):
+                np.take(self._P[row, :n], idx, out=P[row, :n])
+            self._P, self._P2 = P, self._P
+            self._logw[:n] = -math.log(n)
+            self._roughen(n, 1.0)
+            dims = self._dims
+            self._extra = self._tick_loglik(measurements)
+            self._dims = dims
 
     def _update_recovery(self, w_avg: float) -> None:
         p = self.params
@@ -439,12 +502,12 @@ class ParticleFilter(FilterBase):
         count = int(ok[0]) + 1 if ok.size else n_max
         return int(np.clip(count, n_min, n_max))
 
-    def _roughen(self, n: int) -> None:
-        """Gaussian jitter with ``roughen`` times the kernel bandwidth (Silverman's rule,
-        3-D: ``h = n^(-1/7)`` of each dimension's spread)."""
+    def _roughen(self, n: int, factor: float | None = None) -> None:
+        """Gaussian jitter with ``factor`` (default: the ``roughen`` parameter) times the
+        kernel bandwidth (Silverman's rule, 3-D: ``h = n^(-1/7)`` of each dimension's spread)."""
         rng = self.ctx.rng
         P = self._P[:, :n]
-        h = self.params["roughen"] * n ** (-1.0 / 7.0)
+        h = (self.params["roughen"] if factor is None else factor) * n ** (-1.0 / 7.0)
         sd = np.std(P[:2].astype(np.float64), axis=1)
         th_sd = math.sqrt(max(0.0, -2.0 * math.log(max(
             math.hypot(float(np.mean(np.cos(P[2]))), float(np.mean(np.sin(P[2])))), 1e-12))))
@@ -557,6 +620,15 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray,
     cov = (vecs * np.maximum(vals, 1e-12)) @ vecs.T
     cov = 0.5 * (cov + cov.T)
     return np.array([mx, my, mth]), cov
+
+
+_MAX_STAGES = 8   # progressive correction: the last stage takes what is left of the likelihood
+
+
+def _ess(logw: np.ndarray) -> float:
+    """Effective sample size ``(sum w)^2 / sum w^2`` of unnormalised log-weights (n,)."""
+    w = np.exp(logw - float(np.max(logw)))
+    return float(w.sum() ** 2 / np.dot(w, w))
 
 
 def _logsumexp_inplace(a: np.ndarray) -> float:
