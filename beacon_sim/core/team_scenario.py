@@ -1,0 +1,278 @@
+"""Team scenarios (issue 18): several robots in one world, declared as ``[[robots]]``.
+
+A team file has the single-robot file's top-level keys (``name``, ``description``, ``dt``,
+``duration``, ``seed``, ``[world]``, ``[keyboard]``, ``default_filters``, ``[filters.*]``)
+and, instead of ``[robot]``, ``[[sensors]]``, ``[driver]``, ``[initial_belief]`` and
+``[model]``, an array ``[[robots]]`` whose entries hold each robot's own::
+
+    [[robots]]
+    name = "A"                 # unique; default "robot1", "robot2", ...
+    id = 1                     # unique positive integer: what robot sensors report
+    initial_pose = [x, y, theta]
+    radius = 0.2
+    motion_noise = { ... }     # as [robot].motion_noise
+    driver = { kind = ... }    # as [driver]
+    initial_belief = { std = [...] }
+    model = { motion_noise = {...}, sensors = { NAME = {...} } }
+    [[robots.sensors]]         # beacon sensors as [[sensors]], or a robot sensor:
+    kind = "robot_range_bearing"   # or "robot_bearing": sees the other robots
+    name, period, max_range, fov, detection_prob, range_std, bearing_std
+
+Each robot is validated by the single-robot parser (``core/scenario.py``) on a document
+made of the shared keys and that robot's keys, so every check and message is the same;
+the key paths in messages are rewritten to ``robots[i]....``. A single-robot file is not
+touched by any of this (``load_scenario`` rejects ``robots``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from beacon_sim.core.keyboard_drive import KeyboardLimits
+from beacon_sim.core.scenario import (
+    MAX_SENSORS,
+    MAX_TICKS,
+    Scenario,
+    ScenarioError,
+    _sensor_noise,
+    _Table,
+    parse_scenario,
+    resolve_scenario_path,
+)
+from beacon_sim.core.sensors import SensorNoise
+from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS
+from beacon_sim.core.world import World
+
+#: Most robots in a team.
+MAX_ROBOTS = 100
+#: Keys of one ``[[robots]]`` entry.
+ROBOT_KEYS = {"name", "id", "initial_pose", "radius", "motion_noise", "driver", "initial_belief",
+              "model", "sensors"}
+_SHARED_KEYS = ("name", "description", "dt", "duration", "seed", "world", "keyboard",
+                "default_filters", "filters")
+_SINGLE_ONLY = ("robot", "sensors", "driver", "initial_belief", "model", "events")
+#: Team filters a team scenario runs by default.
+DEFAULT_TEAM_FILTERS = ("independent", "centralised", "ci")
+
+
+@dataclass(frozen=True)
+class RobotSensorSpec:
+    """A sensor that measures the other robots of the team (issue 18).
+
+    kind : ``robot_range_bearing`` (range [m] and bearing [rad]) or ``robot_bearing``.
+    period [s], max_range [m], fov [rad] (centred on the heading), detection_prob: as a
+    beacon sensor's. noise: ``range_std`` [m], ``bearing_std`` [rad].
+    """
+
+    name: str
+    kind: str
+    period: float = 0.1
+    max_range: float = math.inf
+    fov: float = 2.0 * math.pi
+    detection_prob: float = 1.0
+    noise: SensorNoise = field(default_factory=SensorNoise)
+
+    def reading_std(self) -> tuple[float, ...]:
+        """Standard deviations of one reading: ``(sb,)`` or ``(sr, sb)``."""
+        if self.kind == "robot_bearing":
+            return (self.noise.bearing_std,)
+        return (self.noise.range_std, self.noise.bearing_std)
+
+
+@dataclass(frozen=True)
+class TeamRobot:
+    """One robot of a team: its ID, its own single-robot :class:`Scenario` (pose, noise,
+    beacon sensors, driver, initial belief, the model the filters are told) and its robot
+    sensors (true noise and the noise the filters are told)."""
+
+    name: str
+    id: int
+    scenario: Scenario
+    robot_sensors: tuple[RobotSensorSpec, ...] = ()
+    model_robot_sensors: tuple[RobotSensorSpec, ...] = ()
+
+
+@dataclass(frozen=True)
+class TeamScenario:
+    """A validated team scenario: shared world and clock, and the robots."""
+
+    name: str
+    description: str
+    source: str
+    dt: float
+    duration: float
+    seed: int
+    world: World
+    keyboard: KeyboardLimits
+    robots: tuple[TeamRobot, ...]
+    default_filters: tuple[str, ...] = DEFAULT_TEAM_FILTERS
+    filter_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        return tuple(r.id for r in self.robots)
+
+    def with_changes(self, **changes) -> TeamScenario:
+        return replace(self, **changes)
+
+
+def is_team_document(data: Any) -> bool:
+    """Whether a decoded TOML document declares ``[[robots]]``."""
+    return isinstance(data, dict) and "robots" in data
+
+
+def _robot_sensor(t: _Table, dt: float) -> RobotSensorSpec:
+    kind = t.string("kind", choices=tuple(ROBOT_MEASUREMENT_DIMS))
+    name = t.string("name", kind)
+    period = t.number("period", dt, lo=0, hi=MAX_TICKS * dt, lo_open=True)
+    ratio = period / dt
+    if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+        t.fail(t.key("period"), period, f"a whole multiple of dt = {dt:g} s")
+    spec = RobotSensorSpec(
+        name=name, kind=kind, period=period,
+        max_range=t.number("max_range", math.inf, lo=0, hi=1e6, lo_open=True, allow_inf=True),
+        fov=t.number("fov", 2 * math.pi, lo=0, hi=2 * math.pi, lo_open=True),
+        detection_prob=t.number("detection_prob", 1.0, lo=0, hi=1),
+        noise=_sensor_noise(t, SensorNoise()),
+    )
+    t.finish()
+    return spec
+
+
+def _rewrite(message: str, file: str, i: int, sensor_index: list[int]) -> str:
+    """A single-robot parser message about robot i's document, with its key paths named as
+    in the team file (``robot.x`` -> ``robots[i].x``, ``sensors[k]`` -> ``robots[i].sensors[k']``)."""
+    head = f"{file}: "
+    if not message.startswith(head):
+        return message
+    body = message[len(head):]
+
+    def sensor(m: re.Match) -> str:
+        k = int(m.group(1))
+        return f"robots[{i}].sensors[{sensor_index[k] if k < len(sensor_index) else k}]"
+
+    body = re.sub(r"(?<![\w\].])sensors\[(\d+)\]", sensor, body)
+    body = re.sub(r"(?<![\w\].])(robot\.|driver|initial_belief|model)",
+                  lambda m: f"robots[{i}]." + (m.group(1)[len("robot."):] if m.group(1) == "robot." else
+                                               m.group(1)), body)
+    return head + body
+
+
+def parse_team_scenario(data: dict[str, Any], file: str, name: str = "") -> TeamScenario:
+    """Validate a decoded team TOML document and build the :class:`TeamScenario`."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{file}: expected a table at the top level")
+    for k in _SINGLE_ONLY:
+        if k in data:
+            raise ScenarioError(f"{file}: {k}: a team scenario declares it inside each "
+                                f"[[robots]] entry, not at the top level")
+    raw_robots = data.get("robots")
+    if not isinstance(raw_robots, list) or not 1 <= len(raw_robots) <= MAX_ROBOTS \
+            or not all(isinstance(r, dict) for r in raw_robots):
+        raise ScenarioError(f"{file}: robots: expected an array of 1 to {MAX_ROBOTS} tables "
+                            "[[robots]]")
+    shared = {k: v for k, v in data.items() if k in _SHARED_KEYS}
+    unknown = [k for k in data if k not in _SHARED_KEYS and k != "robots"]
+    if unknown:
+        raise ScenarioError(f"{file}: unknown key {unknown[0]!r}")
+    default_filters = shared.pop("default_filters", list(DEFAULT_TEAM_FILTERS))
+    if not isinstance(default_filters, list) or not all(isinstance(f, str) for f in default_filters):
+        raise ScenarioError(f"{file}: default_filters = {default_filters!r}: expected a list of "
+                            "team filter names")
+    robots: list[TeamRobot] = []
+    names: set[str] = set()
+    ids: set[int] = set()
+    team_name = str(shared.get("name", name or Path(file).stem))
+    for i, rd in enumerate(raw_robots):
+        path = f"robots[{i}]"
+        bad = [k for k in rd if k not in ROBOT_KEYS]
+        if bad:
+            raise ScenarioError(f"{file}: unknown key '{path}.{bad[0]}'")
+        t = _Table(rd, path, file)
+        rname = t.string("name", f"robot{i + 1}")
+        rid = t.integer("id", i + 1, lo=1, hi=2**31 - 1)
+        if rname in names:
+            t.fail(t.key("name"), rname, "a name no other robot has")
+        if rid in ids:
+            t.fail(t.key("id"), rid, "an ID no other robot has")
+        names.add(rname)
+        ids.add(rid)
+        sensors = rd.get("sensors", [])
+        if not isinstance(sensors, list) or len(sensors) > MAX_SENSORS \
+                or not all(isinstance(s, dict) for s in sensors):
+            t.fail(t.key("sensors"), sensors, f"an array of at most {MAX_SENSORS} tables")
+        beacon_sensors = [s for s in sensors if not str(s.get("kind", "")).startswith("robot_")]
+        sensor_index = [k for k, s in enumerate(sensors) if not str(s.get("kind", "")).startswith("robot_")]
+        dt = float(shared.get("dt", 0.1)) if isinstance(shared.get("dt", 0.1), int | float) else 0.1
+        robot_sensors = tuple(_robot_sensor(_Table(s, f"{path}.sensors[{k}]", file), dt)
+                              for k, s in enumerate(sensors) if str(s.get("kind", "")).startswith("robot_"))
+        model = dict(rd.get("model", {})) if isinstance(rd.get("model", {}), dict) else rd.get("model")
+        model_robot: list[RobotSensorSpec] = []
+        if isinstance(model, dict) and isinstance(model.get("sensors"), dict):
+            ms = dict(model["sensors"])
+            for rs in robot_sensors:
+                if rs.name in ms:
+                    st = _Table(ms.pop(rs.name), f"{path}.model.sensors.{rs.name}", file)
+                    model_robot.append(replace(rs, noise=_sensor_noise(st, rs.noise)))
+                    st.finish()
+                else:
+                    model_robot.append(rs)
+            model["sensors"] = ms
+        else:
+            model_robot = list(robot_sensors)
+        doc = dict(shared)
+        doc["robot"] = {k: rd[k] for k in ("initial_pose", "radius", "motion_noise") if k in rd}
+        doc["sensors"] = beacon_sensors
+        for k in ("driver", "initial_belief"):
+            if k in rd:
+                doc[k] = rd[k]
+        if model is not None and "model" in rd:
+            doc["model"] = model
+        doc["name"] = f"{team_name}/{rname}"
+        try:
+            sc = parse_scenario(doc, file)
+        except ScenarioError as exc:
+            raise ScenarioError(_rewrite(str(exc), file, i, sensor_index)) from None
+        robots.append(TeamRobot(rname, rid, sc, robot_sensors, tuple(model_robot)))
+    first = robots[0].scenario
+    return TeamScenario(
+        name=team_name, description=first.description, source=file, dt=first.dt,
+        duration=first.duration, seed=first.seed, world=first.world, keyboard=first.keyboard,
+        robots=tuple(robots), default_filters=tuple(default_filters),
+        filter_params=dict(first.filter_params))
+
+
+def resolve_team_path(name_or_path: str | Path) -> Path:
+    """A shipped team scenario's name (``team_sparse``, in ``scenarios/team/``) or a path."""
+    from beacon_sim.core.resources import scenario_dir
+
+    shipped = scenario_dir() / "team" / f"{name_or_path}.toml"
+    if shipped.is_file():
+        return shipped
+    return resolve_scenario_path(name_or_path)
+
+
+def shipped_team_scenarios() -> list[str]:
+    """Names of the shipped team scenarios (``scenarios/team/*.toml``), sorted."""
+    from beacon_sim.core.resources import scenario_dir
+
+    return sorted(p.stem for p in (scenario_dir() / "team").glob("*.toml"))
+
+
+def load_team_scenario(name_or_path: str | Path) -> TeamScenario:
+    """Load and validate a team scenario by shipped name or file path (ScenarioError: one line)."""
+    path = resolve_team_path(name_or_path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    if not is_team_document(data):
+        raise ScenarioError(f"{path}: not a team scenario (no [[robots]]); use load_scenario")
+    return parse_team_scenario(data, str(path), name=path.stem)

@@ -1,0 +1,456 @@
+"""Filters for a team of robots (issue 18): the :class:`TeamFilter` protocol beside the
+single-robot :class:`~beacon_sim.filters.base.Filter` (which is unchanged), and four team
+filters.
+
+- ``independent``: every robot's own single-robot filter (any ``Filter``; the EKF by
+  default), fed its beacon readings only. The baseline: it ignores the teammates.
+- ``centralised``: one EKF over the joint state ``[x_1, y_1, th_1, ..., x_N, y_N, th_N]``
+  (3N) and its 3N x 3N covariance, using the beacon readings and the robot-to-robot
+  readings, whose Jacobians (core/team_models.py) couple two robots' blocks (Roumeliotis &
+  Bekey, IEEE T-RA 2002, centralised form). With no robot-to-robot reading it is the
+  independent EKFs exactly (the blocks stay uncorrelated).
+- ``ci``: decentralised. Each robot keeps its own 3-state EKF; an observer i that reads
+  range and bearing to a teammate j sends j the position it implies,
+  ``p_j = p_i + r [cos(th_i + b), sin(th_i + b)]`` with covariance
+  ``J_x P_i J_x^T + J_z R J_z^T``, and j fuses it by covariance intersection (Julier &
+  Uhlmann, ACC 1997; for cooperative localization Carrillo-Arce, Nerurkar, Gordillo &
+  Roumeliotis, IROS 2013), which stays consistent whatever the unknown correlation between
+  the message and j's belief (information that went i -> j -> i is not counted twice)::
+
+      P_new^-1 = w P_j^-1 + (1 - w) H^T P_z^-1 H,        H = [I2 0]
+      x_new    = x_j + (1 - w) P_new H^T P_z^-1 (p_j - H x_j)
+      w in [0.001, 1] minimising trace(P_new) (golden-section search)
+
+  Bearing-only robot readings do not give a position and are not used by ``ci``.
+- ``naive``: the same messages fused by a Kalman update as if independent of j's belief
+  (w dropped): it double-counts shared information and is overconfident. Kept as the
+  counter-example the tests and docs/multi-robot.md measure.
+
+Poses ``[x, y, theta]`` [m, m, rad], world frame; robot readings have kind
+``robot_range_bearing`` or ``robot_bearing`` and name the robots seen in ``beacon_ids``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.streams import stream
+from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS, relative_rows, teammate_position
+from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.core.world import World
+from beacon_sim.filters.base import Belief, Filter, FilterContext, FilterError, GaussianBelief
+from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian_measurements import process_cov_terms
+
+
+@dataclass(frozen=True, eq=False)
+class TeamMember:
+    """What a team filter knows of one robot: its ID, the single-robot context (beacon
+    map, told motion and beacon-sensor noise) and its robot sensors with the told noise."""
+
+    id: int
+    ctx: FilterContext
+    robot_sensors: tuple[RobotSensorSpec, ...] = ()
+
+    def robot_sensor(self, name: str) -> RobotSensorSpec:
+        for s in self.robot_sensors:
+            if s.name == name:
+                return s
+        raise FilterError(f"no robot sensor named {name!r} on robot {self.id}")
+
+
+@dataclass(frozen=True, eq=False)
+class TeamContext:
+    """Everything a team filter may know (never a true pose): the members in team order."""
+
+    name: str
+    world: World
+    dt: float
+    members: tuple[TeamMember, ...]
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        return tuple(m.id for m in self.members)
+
+
+@runtime_checkable
+class TeamFilter(Protocol):
+    """A filter over a team. ``measurements[i]`` are robot i's readings of the tick (beacon
+    readings and robot readings); ``estimates()`` gives each robot's (mean (3,), cov (3, 3))."""
+
+    def reset(self, initial: Sequence[GaussianBelief]) -> None: ...
+
+    def predict(self, controls: Sequence[Control], dt: float) -> None: ...
+
+    def update(self, measurements: Sequence[Sequence[Measurement]]) -> None: ...
+
+    def estimates(self) -> list[tuple[np.ndarray, np.ndarray]]: ...
+
+
+def is_robot_reading(m: Measurement) -> bool:
+    return m.kind in ROBOT_MEASUREMENT_DIMS
+
+
+def team_context(team: TeamScenario, name: str, params: Mapping[str, Any] | None = None,
+                 seed: int | None = None) -> TeamContext:
+    """The context of team filter ``name`` for a team scenario: each member gets the model
+    noise its robot's scenario tells the filters, and its own random stream."""
+    seed = team.seed if seed is None else seed
+    members = []
+    for r in team.robots:
+        sc = r.scenario
+        ctx = FilterContext(name=f"{name}/{r.name}", world=team.world, dt=team.dt,
+                            motion_noise=sc.model_motion_noise, sensors=sc.model_sensors,
+                            params=dict(sc.filter_params.get("ekf", {})),
+                            rng=stream(seed, "filter", f"{name}/{r.id}"))
+        members.append(TeamMember(r.id, ctx, r.model_robot_sensors))
+    return TeamContext(name, team.world, team.dt, tuple(members), dict(params or {}))
+
+
+def initial_beliefs(team: TeamScenario) -> list[GaussianBelief]:
+    """Each robot's initial Gaussian belief from its scenario's ``initial_belief``."""
+    out = []
+    for r in team.robots:
+        ib = r.scenario.initial_belief
+        out.append(GaussianBelief(np.array(ib.mean, dtype=float), np.diag(np.square(ib.std))))
+    return out
+
+
+class _TeamBase:
+    """Parameters merged with ``defaults`` (unknown names are an error), as FilterBase."""
+
+    defaults: ClassVar[dict[str, Any]] = {}
+
+    def __init__(self, ctx: TeamContext):
+        self.ctx = ctx
+        self.params = dict(self.defaults)
+        for key, value in ctx.params.items():
+            if key not in self.defaults:
+                known = ", ".join(sorted(self.defaults)) or "none"
+                raise FilterError(f"{type(self).__name__}: unknown parameter {key!r}; known: {known}")
+            self.params[key] = value
+        self.index = {m.id: i for i, m in enumerate(ctx.members)}
+
+    def beliefs(self) -> list[Belief]:
+        return [GaussianBelief(m, c) for m, c in self.estimates()]
+
+    def estimates(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        raise NotImplementedError
+
+
+class IndependentTeam(_TeamBase):
+    """One single-robot filter per robot, each fed only its own beacon readings (baseline).
+
+    ``member`` builds a robot's filter from its FilterContext (default: the EKF), so any
+    single-robot filter, a student's too, becomes a team baseline unchanged.
+    """
+
+    def __init__(self, ctx: TeamContext, member: Callable[[FilterContext], Filter] = ExtendedKalmanFilter):
+        super().__init__(ctx)
+        self.filters = [member(m.ctx) for m in ctx.members]
+
+    def reset(self, initial: Sequence[GaussianBelief]) -> None:
+        for f, b in zip(self.filters, initial, strict=True):
+            f.reset(b)
+
+    def predict(self, controls: Sequence[Control], dt: float) -> None:
+        for f, u in zip(self.filters, controls, strict=True):
+            f.predict(u, dt)
+
+    def update(self, measurements: Sequence[Sequence[Measurement]]) -> None:
+        for f, ms in zip(self.filters, measurements, strict=True):
+            f.update([m for m in ms if not is_robot_reading(m)])
+
+    def estimates(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        return [f.estimate() for f in self.filters]
+
+
+#: One scalar row of a joint update: (state indices, H entries, innovation, variance).
+JointRow = tuple[tuple[int, ...], tuple[float, ...], float, float]
+
+
+class CentralisedEKF(_TeamBase):
+    """EKF over the joint state of all robots (3N) with robot-to-robot readings.
+
+    Parameters: ``gate_chi2`` (0: off) drops a beacon's or a teammate's reading whose
+    squared Mahalanobis distance against the predicted belief exceeds it.
+
+    Predict, robot by robot (F block diagonal)::
+
+        x_i = f(x_i, u_i);  P <- F_i P F_i^T + Q_i   on the rows and columns of block i
+
+    Update: every reading of the tick stacked, linearised once at the predicted joint
+    mean, applied as scalar rows (R diagonal) with the innovation corrected by
+    ``-H (x - x_pred)``; a robot reading's row has entries in the observer's and the
+    subject's blocks (``dh/dx_i``, ``dh/dx_j``). Cost per step O(m (3N)^2) for m rows.
+    """
+
+    defaults: ClassVar[dict[str, Any]] = {"gate_chi2": 0.0}
+
+    def __init__(self, ctx: TeamContext):
+        super().__init__(ctx)
+        n = 3 * len(ctx.members)
+        self.x = np.zeros(n)
+        self.P = np.eye(n)
+        self.gate = float(self.params["gate_chi2"])
+        self.rejected = 0
+        self._beacons = {b.id: (b.x, b.y) for b in ctx.world.beacons}
+
+    def reset(self, initial: Sequence[GaussianBelief]) -> None:
+        n = 3 * len(self.ctx.members)
+        if len(initial) != len(self.ctx.members):
+            raise FilterError(f"{len(initial)} initial beliefs for {len(self.ctx.members)} robots")
+        self.x = np.zeros(n)
+        self.P = np.zeros((n, n))
+        for i, b in enumerate(initial):
+            c = np.asarray(b.cov, dtype=float)
+            self.x[3 * i:3 * i + 3] = b.mean
+            self.x[3 * i + 2] = wrap(float(b.mean[2]))
+            self.P[3 * i:3 * i + 3, 3 * i:3 * i + 3] = 0.5 * (c + c.T)
+
+    def predict(self, controls: Sequence[Control], dt: float) -> None:
+        x, P = self.x, self.P
+        for i, (m, u) in enumerate(zip(self.ctx.members, controls, strict=True)):
+            k = 3 * i
+            v, w = float(u.v), float(u.omega)
+            th = float(x[k + 2])
+            c, s = math.cos(th), math.sin(th)
+            q00, q01, q02, q11, q12, q22 = process_cov_terms(m.ctx.motion_noise, th, c, s, v, w, dt)
+            a, b = -v * dt * s, v * dt * c  # F_i = [[1, 0, a], [0, 1, b], [0, 0, 1]]
+            P[k, :] += a * P[k + 2, :]
+            P[k + 1, :] += b * P[k + 2, :]
+            P[:, k] += a * P[:, k + 2]
+            P[:, k + 1] += b * P[:, k + 2]
+            P[k:k + 3, k:k + 3] += np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
+            x[k] += v * dt * c
+            x[k + 1] += v * dt * s
+            x[k + 2] = wrap(th + w * dt)
+
+    # -- update ----------------------------------------------------------------------------
+    def rows(self, measurements: Sequence[Sequence[Measurement]]) -> list[list[JointRow]]:
+        """The stacked model at the current joint mean, grouped per beacon or teammate seen."""
+        x = self.x
+        groups: list[list[JointRow]] = []
+        for i, (member, ms) in enumerate(zip(self.ctx.members, measurements, strict=True)):
+            k = 3 * i
+            xi, yi, ti = float(x[k]), float(x[k + 1]), float(x[k + 2])
+            idx_i = (k, k + 1, k + 2)
+            for m in ms:
+                if m.kind in ("bearing", "range_bearing"):
+                    std = member.ctx.sensor(m.sensor).reading_std()
+                    for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist(), strict=True):
+                        if bid not in self._beacons:
+                            raise FilterError(f"no beacon with ID {bid} in the map")
+                        bx, by = self._beacons[bid]
+                        dx, dy = bx - xi, by - yi
+                        q = dx * dx + dy * dy
+                        hb = wrap(math.atan2(dy, dx) - ti)
+                        brow = (idx_i, (dy / q, -dx / q, -1.0), wrap(zrow[-1] - hb), float(std[-1]) ** 2)
+                        if m.kind == "bearing":
+                            groups.append([brow])
+                        else:
+                            r = math.sqrt(q)
+                            groups.append([(idx_i, (-dx / r, -dy / r, 0.0), zrow[0] - r, float(std[0]) ** 2),
+                                           brow])
+                elif m.kind in ROBOT_MEASUREMENT_DIMS:
+                    rstd = member.robot_sensor(m.sensor).reading_std()
+                    for zrow, rid in zip(m.z.tolist(), m.beacon_ids.tolist(), strict=True):
+                        j = self.index.get(rid)
+                        if j is None or j == i:
+                            continue
+                        kj = 3 * j
+                        h, hi, hj = relative_rows(m.kind, x[k:k + 3], x[kj:kj + 3])
+                        idx: tuple[int, ...] = (*idx_i, kj, kj + 1, kj + 2)
+                        g: list[JointRow] = []
+                        for row in range(len(h)):
+                            nu = zrow[row] - h[row]
+                            if m.kind == "robot_bearing" or row == 1:
+                                nu = wrap(nu)
+                            g.append((idx, (*hi[row].tolist(), *hj[row].tolist()), float(nu),
+                                      float(rstd[row]) ** 2))
+                        groups.append(g)
+                # pose and position fixes: not used by the team filters (no such sensor here)
+        return groups
+
+    def _passes_gate(self, g: list[JointRow]) -> bool:
+        idx = sorted({i for r in g for i in r[0]})
+        pos = {s: t for t, s in enumerate(idx)}
+        H = np.zeros((len(g), len(idx)))
+        for a, (ix, hv, _, _) in enumerate(g):
+            for s, v in zip(ix, hv, strict=True):
+                H[a, pos[s]] += v
+        nu = np.array([r[2] for r in g])
+        S = H @ self.P[np.ix_(idx, idx)] @ H.T + np.diag([r[3] for r in g])
+        return float(nu @ np.linalg.solve(S, nu)) <= self.gate
+
+    def update(self, measurements: Sequence[Sequence[Measurement]]) -> None:
+        groups = self.rows(measurements)
+        if not groups:
+            return
+        if self.gate > 0.0:
+            kept = [g for g in groups if self._passes_gate(g)]
+            self.rejected += len(groups) - len(kept)
+            groups = kept
+        P = self.P
+        d = np.zeros(self.x.shape[0])  # x - x_pred accumulated over the rows
+        for g in groups:
+            for idx, hv, nu, r in g:
+                ix = list(idx)
+                h = np.array(hv)
+                nu -= float(h @ d[ix])          # innovation at the one linearisation point
+                u = P[:, ix] @ h                # u = P H^T
+                s = float(h @ u[ix]) + r        # S = H P H^T + r
+                kgain = u / s                   # K = P H^T / S
+                d += kgain * nu
+                P -= np.outer(kgain, u)         # P - K S K^T
+        self.P = 0.5 * (P + P.T)
+        self.x += d
+        self.x[2::3] = wrap(self.x[2::3])
+
+    def estimates(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        return [(self.x[3 * i:3 * i + 3].copy(), self.P[3 * i:3 * i + 3, 3 * i:3 * i + 3].copy())
+                for i in range(len(self.ctx.members))]
+
+    def joint(self) -> tuple[np.ndarray, np.ndarray]:
+        """The joint mean (3N,) and covariance (3N, 3N)."""
+        return self.x.copy(), self.P.copy()
+
+
+def ci_weight(P: np.ndarray, Pz: np.ndarray, iters: int = 20) -> float:
+    """Covariance-intersection weight w in [0.001, 1] minimising
+    ``trace((w P^-1 + (1 - w) H^T Pz^-1 H)^-1)`` with H = [I2 0] (golden-section search)."""
+    Pi = np.linalg.inv(P)
+    Zi = np.zeros_like(Pi)
+    Zi[:2, :2] = np.linalg.inv(Pz)
+
+    def cost(w: float) -> float:
+        return float(np.trace(np.linalg.inv(w * Pi + (1.0 - w) * Zi)))
+
+    lo, hi = 1e-3, 1.0
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    a, b = hi - g * (hi - lo), lo + g * (hi - lo)
+    fa, fb = cost(a), cost(b)
+    for _ in range(iters):
+        if fa < fb:
+            hi, b, fb = b, a, fa
+            a = hi - g * (hi - lo)
+            fa = cost(a)
+        else:
+            lo, a, fa = a, b, fb
+            b = lo + g * (hi - lo)
+            fb = cost(b)
+    return 0.5 * (lo + hi)
+
+
+class CovarianceIntersectionTeam(_TeamBase):
+    """Decentralised: one EKF per robot; teammates' position messages fused by covariance
+    intersection (``fusion = "ci"``) or, as a counter-example, by a naive Kalman update that
+    double-counts (``fusion = "naive"``). ``gate_chi2`` (0: off) drops a message whose
+    squared Mahalanobis distance ``e^T (P_j,xy + P_z)^-1 e`` exceeds it. The members' own
+    EKF parameters come from the scenario's ``[filters.ekf]``."""
+
+    defaults: ClassVar[dict[str, Any]] = {"fusion": "ci", "gate_chi2": 0.0}
+
+    def __init__(self, ctx: TeamContext):
+        super().__init__(ctx)
+        if self.params["fusion"] not in ("ci", "naive"):
+            raise FilterError(f"fusion = {self.params['fusion']!r}: expected 'ci' or 'naive'")
+        self.naive = self.params["fusion"] == "naive"
+        self.gate = float(self.params["gate_chi2"])
+        self.filters = [ExtendedKalmanFilter(m.ctx) for m in ctx.members]
+        self.fused = 0
+        self.rejected = 0
+
+    def reset(self, initial: Sequence[GaussianBelief]) -> None:
+        for f, b in zip(self.filters, initial, strict=True):
+            f.reset(b)
+
+    def predict(self, controls: Sequence[Control], dt: float) -> None:
+        for f, u in zip(self.filters, controls, strict=True):
+            f.predict(u, dt)
+
+    def messages(self, measurements: Sequence[Sequence[Measurement]]
+                 ) -> list[tuple[int, np.ndarray, np.ndarray]]:
+        """``(subject index, position (2,), covariance (2, 2))`` for every range-bearing robot
+        reading, from the observers' current beliefs."""
+        out = []
+        for i, ms in enumerate(measurements):
+            mean, cov = self.filters[i].estimate()
+            for m in ms:
+                if m.kind != "robot_range_bearing":
+                    continue
+                sr, sb = self.ctx.members[i].robot_sensor(m.sensor).reading_std()
+                R = np.diag([sr * sr, sb * sb])
+                for z, rid in zip(m.z, m.beacon_ids.tolist(), strict=True):
+                    j = self.index.get(rid)
+                    if j is None or j == i:
+                        continue
+                    p, jx, jz = teammate_position(mean, z)
+                    out.append((j, p, jx @ cov @ jx.T + jz @ R @ jz.T))
+        return out
+
+    def fuse(self, j: int, p: np.ndarray, Pz: np.ndarray) -> None:
+        """Fuse a position message into robot j's belief (CI or naive)."""
+        f = self.filters[j]
+        x, P = f.estimate()
+        e = p - x[:2]
+        S = P[:2, :2] + Pz
+        if self.gate > 0.0 and float(e @ np.linalg.solve(S, e)) > self.gate:
+            self.rejected += 1
+            return
+        if self.naive:
+            K = np.linalg.solve(S, P[:2, :]).T     # K = P H^T S^-1
+            x_new = x + K @ e
+            P_new = P - K @ S @ K.T
+        else:
+            w = ci_weight(P, Pz)
+            Zi = np.zeros((3, 3))
+            Zi[:2, :2] = np.linalg.inv(Pz)
+            P_new = np.linalg.inv(w * np.linalg.inv(P) + (1.0 - w) * Zi)
+            x_new = x + (1.0 - w) * (P_new[:, :2] @ (Zi[:2, :2] @ e))
+        x_new[2] = wrap(float(x_new[2]))
+        f.reset(GaussianBelief(x_new, 0.5 * (P_new + P_new.T)))
+        self.fused += 1
+
+    def update(self, measurements: Sequence[Sequence[Measurement]]) -> None:
+        for f, ms in zip(self.filters, measurements, strict=True):
+            f.update([m for m in ms if not is_robot_reading(m)])
+        for j, p, Pz in self.messages(measurements):
+            self.fuse(j, p, Pz)
+
+    def estimates(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        return [f.estimate() for f in self.filters]
+
+
+def _naive(ctx: TeamContext) -> CovarianceIntersectionTeam:
+    return CovarianceIntersectionTeam(TeamContext(ctx.name, ctx.world, ctx.dt, ctx.members,
+                                                  {"fusion": "naive", **ctx.params}))
+
+
+#: Team filters by name.
+TEAM_FILTERS: dict[str, Callable[[TeamContext], Any]] = {
+    "independent": IndependentTeam,
+    "centralised": CentralisedEKF,
+    "ci": CovarianceIntersectionTeam,
+    "naive": _naive,
+}
+
+
+def build_team_filter(name: str, team: TeamScenario, params: Mapping[str, Any] | None = None,
+                      seed: int | None = None) -> TeamFilter:
+    """Team filter ``name`` (a key of :data:`TEAM_FILTERS`) for ``team``, reset to the
+    scenario's initial beliefs."""
+    if name not in TEAM_FILTERS:
+        raise FilterError(f"no team filter named {name!r}; choose one of {', '.join(TEAM_FILTERS)}")
+    merged = {**team.filter_params.get(name, {}), **(params or {})}
+    f = TEAM_FILTERS[name](team_context(team, name, merged, seed))
+    f.reset(initial_beliefs(team))
+    return f
