@@ -92,7 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("mrclam", help="replay a UTIAS MRCLAM data set folder")
     p.add_argument("dir")
-    p.add_argument("--robot", type=int, required=True)
+    p.add_argument("--robot", type=int, help="the robot, 1 to 5 (required without --team)")
+    p.add_argument("--team", action="store_true",
+                   help="all five robots at once, alone against cooperatively with their "
+                        "sightings of each other (docs/multi-robot.md); headless")
     add_filter_options(p)
     p.add_argument("--headless", action="store_true")
     p.add_argument("--json", action="store_true")

@@ -75,9 +75,49 @@ def _print_run(d: dict[str, Any]) -> None:
     print(f"{'seed 001 EKF':<16}{e[0]:>10.4f}{e[1]:>10.4f}{e[2]:>12.4f}   (paper, Table I)")
 
 
+def _print_team(d: dict[str, Any]) -> None:
+    """The table of a team run: per robot, each filter's position RMSE and ANEES."""
+    print(f"MRCLAM {d['dataset']}, robots {', '.join(map(str, d['robots']))} together: "
+          f"{d['duration_s']:.1f} s")
+    names = list(d["filters"])
+    head = "".join(f"{n + ' RMSE m':>18}{'ANEES':>7}" for n in names)
+    print(f"{'robot':<6}{'landmarks':>10}{'sightings':>10}{head}")
+    for r in d["robots"]:
+        row = "".join(f"{d['filters'][n][str(r)]['pos_rmse_m']:>18.3f}"
+                      f"{fmt(d['filters'][n][str(r)]['anees'], '.2f'):>7}" for n in names)
+        print(f"{r:<6}{d['landmark_readings'][r]:>10}{d['robot_sightings'][r]:>10}{row}")
+    print("us per tick: " + ", ".join(f"{n} {v:.0f}" for n, v in d["us_per_step"].items()))
+
+
+def _team_command(args: argparse.Namespace) -> int:
+    from beacon_sim.filters.team import TEAM_FILTERS
+    from beacon_sim.runs.team_mrclam import run_team_mrclam
+
+    names = getattr(args, "filters", None) or None
+    for n in names or ():
+        if n not in TEAM_FILTERS:
+            raise UsageError(f"--team: no team filter named {n!r}; choose from {', '.join(TEAM_FILTERS)}")
+    try:
+        run = run_team_mrclam(args.dir, names, args.duration)
+    except MrclamError as exc:
+        raise UsageError(str(exc)) from None
+    d = run.as_json()
+    if args.json:
+        print(json.dumps(d, default=float))
+    else:
+        _print_team(d)
+    return 0
+
+
 def mrclam_command(args: argparse.Namespace) -> int:
     duration = args.duration
     check_duration(duration)
+    if getattr(args, "team", False):
+        if args.robot is not None:
+            raise UsageError("--team runs all five robots: leave out --robot")
+        return _team_command(args)
+    if args.robot is None:
+        raise UsageError("mrclam: --robot N (1 to 5) is required, or --team for all five")
     check_frames(args.frames)
     try:
         data = load_mrclam(args.dir, args.robot)

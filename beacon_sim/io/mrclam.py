@@ -5,7 +5,8 @@
   ``Barcodes.dat`` of one folder (4 comment lines, CRLF, tabs or spaces). A malformed or
   missing file is an error naming the file and line.
 - Barcodes are mapped to subjects through that folder's ``Barcodes.dat``; sightings of robots
-  (subjects 1-5) and unknown barcodes are dropped; readings sharing a time stamp form one
+  (subjects 1-5) and unknown barcodes are dropped (robot sightings are kept apart on request,
+  for the team run: ``load_mrclam(..., robot_sightings=True)``); readings sharing a time stamp form one
   update.
 - Ground truth is interpolated to any times; only times inside ground truth count.
 
@@ -84,6 +85,10 @@ class MrclamData:
     dropped : dict
         Counts of rows dropped: ``robot_sightings``, ``unknown_barcodes``, ``unknown_landmarks``
         (barcode of a subject with no landmark position), ``duplicates``.
+    sightings : ndarray (k, 4)
+        ``t [s], subject, range [m], bearing [rad]``: the sightings of the other robots
+        (subjects 1-5 other than this one), sorted by time, one per robot and time stamp;
+        filled only when loaded with ``robot_sightings=True`` (issue 18), else empty.
     """
 
     folder: Path
@@ -94,6 +99,7 @@ class MrclamData:
     landmarks: dict[int, tuple[float, float]]
     barcodes: dict[int, int]
     dropped: dict[str, int] = field(default_factory=dict)
+    sightings: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
 
     @property
     def t0(self) -> float:
@@ -118,8 +124,10 @@ def interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np
     return poses, ok
 
 
-def load_mrclam(folder, robot: int) -> MrclamData:
-    """Load and clean one robot of an MRCLAM data set folder."""
+def load_mrclam(folder, robot: int, robot_sightings: bool = False) -> MrclamData:
+    """Load and clean one robot of an MRCLAM data set folder. ``robot_sightings`` also keeps
+    the sightings of the other robots in ``sightings`` (the landmark readings, ``dropped``
+    and everything else are the same either way)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise MrclamError(f"{folder}: no such folder (expected an MRCLAM data set folder)")
@@ -144,7 +152,8 @@ def load_mrclam(folder, robot: int) -> MrclamData:
     unknown = subjects < 0
     no_position = ~robot_rows & ~unknown & ~np.isin(subjects, list(landmarks))
     keep = ~(robot_rows | unknown | no_position)
-    ms = np.column_stack([ms[:, 0], subjects, ms[:, 2], ms[:, 3]])[keep]
+    all_rows = np.column_stack([ms[:, 0], subjects, ms[:, 2], ms[:, 3]])
+    ms = all_rows[keep]
     # The same landmark twice at one time stamp: keep the first reading.
     seen: set[tuple[float, int]] = set()
     dup = np.zeros(len(ms), dtype=bool)
@@ -155,4 +164,20 @@ def load_mrclam(folder, robot: int) -> MrclamData:
     ms[:, 3] = wrap(ms[:, 3])
     dropped = {"robot_sightings": int(robot_rows.sum()), "unknown_barcodes": int(unknown.sum()),
                "unknown_landmarks": int(no_position.sum()), "duplicates": int(dup.sum())}
-    return MrclamData(folder, robot, od, ms, gt, landmarks, barcodes, dropped)
+    sightings = np.empty((0, 4))
+    if robot_sightings:
+        sightings = _robot_sightings(all_rows[robot_rows & (subjects != robot)])
+    return MrclamData(folder, robot, od, ms, gt, landmarks, barcodes, dropped, sightings)
+
+
+def _robot_sightings(rows: np.ndarray) -> np.ndarray:
+    """Rows ``t, subject, range, bearing`` of robot sightings: the first of a robot at one
+    time stamp kept, bearings wrapped."""
+    seen: set[tuple[float, int]] = set()
+    keep = np.ones(len(rows), dtype=bool)
+    for i, (t, s) in enumerate(zip(rows[:, 0].tolist(), rows[:, 1].astype(int).tolist(), strict=True)):
+        keep[i] = (t, s) not in seen
+        seen.add((t, s))
+    out = rows[keep].copy()
+    out[:, 3] = wrap(out[:, 3])
+    return out
