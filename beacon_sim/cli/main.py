@@ -16,6 +16,7 @@ from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options
 from beacon_sim.core.scenario import ScenarioError
+from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.base import FilterError
 from beacon_sim.version import __version__
@@ -140,6 +141,10 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``beacon-sim`` console script; returns the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
+        try:
+            limit_blas_threads()   # one BLAS thread unless BEACON_SIM_BLAS_THREADS says otherwise
+        except ValueError as exc:
+            raise UsageError(f"beacon-sim: {exc}") from None
         parser = build_parser()
         args = parser.parse_args(argv or ["play"])
         return COMMANDS[args.command](args)

@@ -30,6 +30,7 @@ import numpy as np
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
 from beacon_sim.filters.loading import (
@@ -376,7 +377,7 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
         if len(btasks) == 1:
             collect(_batch_task(btasks[0]))
         else:
-            with ProcessPoolExecutor(max_workers=len(btasks)) as pool:
+            with ProcessPoolExecutor(max_workers=len(btasks), initializer=limit_blas_threads) as pool:
                 for fut in as_completed([pool.submit(_batch_task, t) for t in btasks]):
                     collect(fut.result())
         return [o for o in out if o is not None]
@@ -389,7 +390,7 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
             if on_run:
                 on_run(out[i])
     else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
+        with ProcessPoolExecutor(max_workers=jobs, initializer=limit_blas_threads) as pool:
             futures = {pool.submit(_task, t): i for i, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 out[futures[fut]] = fut.result()
