@@ -67,6 +67,7 @@ class HistogramFilter(FilterBase):
         self.xc = xmin + (np.arange(self.nx) + 0.5) * self.cell     # cell centres [m]
         self.yc = ymin + (np.arange(self.ny) + 0.5) * self.cell
         self.base_th = -math.pi + (np.arange(self.nh) + 0.5) * self.bin
+        self._yw = np.stack([np.ones(self.ny), self.yc, self.yc**2], axis=1)   # (ny, 3): 1, y, y^2
         self.grid = np.empty((self.nh, self.nx, self.ny))           # [heading, x, y]
         self.offset = np.zeros((self.nh, 2))     # sub-cell position offset of each slab [m]
         self.phi = 0.0                           # sub-bin heading offset of the whole grid [rad]
@@ -81,7 +82,8 @@ class HistogramFilter(FilterBase):
         self._ca = dx / rr
         self._sa = dy / rr
         self._hdop_cache: dict[tuple[tuple[int, ...], float], np.ndarray] = {}
-        self._L = np.empty_like(self.grid)
+        self._L = np.empty_like(self.grid)      # scratch grids: the likelihood, the blur's
+        self._T = np.empty_like(self.grid)      # neighbour sums, a rolled grid (no allocation)
         self._cache: tuple[np.ndarray, np.ndarray] | None = None
         self.reset(None)
 
@@ -121,7 +123,7 @@ class HistogramFilter(FilterBase):
         self.phi += control.omega * dt
         k = round(self.phi / self.bin)
         if k:
-            self.grid = np.roll(self.grid, k, axis=0)
+            self.grid, self._T = _roll_into(self.grid, k, self._T), self.grid
             self.offset = np.roll(self.offset, k, axis=0)
             self.phi -= k * self.bin
         th = self.base_th + self.phi
@@ -162,32 +164,36 @@ class HistogramFilter(FilterBase):
     def _blur_xy(self, var_cells: float) -> None:
         """3-tap blur ``[a, 1 - 2a, a]`` (variance 2a cells^2) along x and y, reflecting at
         the walls; repeated when more variance is due than one pass can hold."""
-        g = self.grid
+        g, t = self.grid, self._T
         while var_cells > 1e-12:
             a = min(var_cells / 2.0, 1.0 / 3.0)
             var_cells -= 2.0 * a
             for axis in (1, 2):
                 if g.shape[axis] < 2:
                     continue
-                lo = np.take(g, [0], axis=axis)
-                hi = np.take(g, [g.shape[axis] - 1], axis=axis)
-                prev = np.concatenate([lo, np.delete(g, -1, axis=axis)], axis=axis)
-                nxt = np.concatenate([np.delete(g, 0, axis=axis), hi], axis=axis)
+                # t = previous + next neighbour (the wall cell is its own neighbour), in place
+                ga, ta = np.moveaxis(g, axis, -1), np.moveaxis(t, axis, -1)
+                ta[..., 1:] = ga[..., :-1]
+                ta[..., 0] = ga[..., 0]
+                ta[..., :-1] += ga[..., 1:]
+                ta[..., -1] += ga[..., -1]
                 g *= 1.0 - 2.0 * a
-                prev += nxt
-                prev *= a
-                g += prev
+                t *= a
+                g += t
 
     def _blur_th(self, var_bins: float) -> None:
         """Circular 3-tap blur along heading."""
+        g, nb = self.grid, self._T
         while var_bins > 1e-12:
             a = min(var_bins / 2.0, 1.0 / 3.0)
             var_bins -= 2.0 * a
-            nb = np.roll(self.grid, 1, axis=0)
-            nb += np.roll(self.grid, -1, axis=0)
-            self.grid *= 1.0 - 2.0 * a
+            nb[1:] = g[:-1]           # the previous bin, circularly
+            nb[0] = g[-1]
+            nb[:-1] += g[1:]          # + the next one
+            nb[-1] += g[0]
+            g *= 1.0 - 2.0 * a
             nb *= a
-            self.grid += nb
+            g += nb
 
     # ----------------------------------------------------------------- measurements
     def update(self, measurements: Sequence[Measurement]) -> None:
@@ -254,7 +260,7 @@ class HistogramFilter(FilterBase):
                 raise FilterError(f"histogram: unknown measurement kind {m.kind!r}")
         L = self._L
         np.multiply(cos_th, C[None], out=L)
-        L += sin_th * S[None]
+        L += np.multiply(sin_th, S[None], out=self._T)
         L += lxy[None]
         if mixed is not None:
             L += mixed
@@ -291,20 +297,22 @@ class HistogramFilter(FilterBase):
         return mean.copy(), cov.copy()
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
-        g = self.grid
-        gx = g.sum(axis=2)                     # (nh, nx)
-        gy = g.sum(axis=1)                     # (nh, ny)
+        # One pass over the grid: per (heading, x) row the sums of p, p y and p y^2; every
+        # moment below comes from these (nh, nx) arrays.
+        m = (self.grid.reshape(-1, self.ny) @ self._yw).reshape(self.nh, self.nx, 3)
+        gx, gxy, gxyy = m[..., 0], m[..., 1], m[..., 2]
         P = gx.sum(axis=1)                     # (nh,)
-        P = P / P.sum()
-        scale = 1.0 / g.sum()
+        scale = 1.0 / P.sum()
+        P = P * scale
         ox, oy = self.offset[:, 0], self.offset[:, 1]
-        X = gx @ self.xc * scale + ox * P      # sum over slab of p * x, per slab
-        Y = gy @ self.yc * scale + oy * P
-        XX = (gx @ self.xc**2) * scale + 2 * ox * (gx @ self.xc) * scale + ox**2 * P
-        YY = (gy @ self.yc**2) * scale + 2 * oy * (gy @ self.yc) * scale + oy**2 * P
-        G = g.sum(axis=0)                      # (nx, ny)
-        XY = float(self.xc @ G @ self.yc) * scale + float(
-            np.sum(ox * (gy @ self.yc) + oy * (gx @ self.xc)) * scale + np.sum(ox * oy * P))
+        sx = gx @ self.xc                      # per slab: sum of p x, p y (unnormalised)
+        sy = gxy.sum(axis=1)
+        X = sx * scale + ox * P                # sum over slab of p * x, per slab
+        Y = sy * scale + oy * P
+        XX = (gx @ self.xc**2) * scale + 2 * ox * sx * scale + ox**2 * P
+        YY = gxyy.sum(axis=1) * scale + 2 * oy * sy * scale + oy**2 * P
+        XY = float(self.xc @ gxy.sum(axis=0)) * scale + float(
+            np.sum(ox * sy + oy * sx) * scale + np.sum(ox * oy * P))
         mx, my = float(X.sum()), float(Y.sum())
         th = self.theta
         mth = math.atan2(float(P @ np.sin(th)), float(P @ np.cos(th)))
@@ -322,6 +330,14 @@ class HistogramFilter(FilterBase):
         """The x-y marginal, shape (nx, ny), for drawing as a heat map."""
         G = self.grid.sum(axis=0)
         return GridBelief(G / G.sum(), self.origin, self.cell)
+
+
+def _roll_into(g: np.ndarray, k: int, out: np.ndarray) -> np.ndarray:
+    """``np.roll(g, k, axis=0)`` written into ``out`` (same shape, not ``g``); returns ``out``."""
+    k %= g.shape[0]
+    out[k:] = g[: g.shape[0] - k]
+    out[:k] = g[g.shape[0] - k:]
+    return out
 
 
 def _shift_pile(block: np.ndarray, sx: int, sy: int) -> np.ndarray:
