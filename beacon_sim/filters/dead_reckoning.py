@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from beacon_sim.core import motion
+from beacon_sim.core.angles import wrap
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterContext, GaussianBelief, broad_gaussian
 from beacon_sim.filters.ekf import BatchedVelocityGaussian
@@ -31,6 +32,7 @@ class DeadReckoning(BatchableFilter):
         super().__init__(ctx)
         self.mean = np.zeros(3)
         self.cov = np.eye(3)
+        self._pose_var: np.ndarray | None = None   # diag(pose_std^2), built on first use
 
     def reset(self, initial: GaussianBelief | None) -> None:
         initial = initial or broad_gaussian(self.ctx.world)
@@ -38,9 +40,30 @@ class DeadReckoning(BatchableFilter):
         self.cov = np.array(initial.cov, dtype=float)
 
     def predict(self, control: Control, dt: float) -> None:
-        F = motion.jacobian_state(self.mean, control.v, dt)
-        Q = self.ctx.motion_noise.process_cov(self.mean, control.v, control.omega, dt)
-        self.mean = motion.move(self.mean, control.v, control.omega, dt)
+        noise = self.ctx.motion_noise
+        if type(noise) is not motion.MotionNoise:   # someone's own noise model: as it says
+            F = motion.jacobian_state(self.mean, control.v, dt)
+            Q = noise.process_cov(self.mean, control.v, control.omega, dt)
+            self.mean = motion.move(self.mean, control.v, control.omega, dt)
+            self.cov = F @ self.cov @ F.T + Q
+            return
+        # The same operations as jacobian_state, process_cov and move (so the bits of the
+        # template's filter), with the heading's cos and sin taken once and diag(pose_std^2)
+        # built once.
+        v, w = control.v, control.omega
+        m = self.mean
+        th = m[2]
+        c, s = np.cos(float(th)), np.sin(float(th))
+        F = np.array([[1.0, 0.0, -v * dt * s], [0.0, 1.0, v * dt * c], [0.0, 0.0, 1.0]])
+        B = np.array([[dt * c, 0.0], [dt * s, 0.0], [0.0, dt]])
+        if self._pose_var is None:
+            self._pose_var = np.diag(np.square(noise.pose_std))
+        Q = B @ noise.control_cov(v, w) @ B.T + self._pose_var
+        mean = np.empty(3)
+        mean[0] = m[0] + v * dt * c
+        mean[1] = m[1] + v * dt * s
+        mean[2] = wrap(th + w * dt)
+        self.mean = mean
         self.cov = F @ self.cov @ F.T + Q
 
     def update(self, measurements: Sequence[Measurement]) -> None:
