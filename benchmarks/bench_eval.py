@@ -1,8 +1,9 @@
 """Wall time of a Monte Carlo evaluation: 100 runs x 2,000 steps x the Gaussian filters
 (kf, ekf, ukf) on `default`, in parallel processes on all cores (target: 10 s).
 
-The filters run batched across runs (each filter's batched form, driven by evaluation.montecarlo.batch_runs; the default). The
-per-run path (``--no-batch``) is timed in the same session on ``--per-run-runs`` runs and
+The filters run batched across runs (each filter's batched form, driven by
+evaluation.montecarlo.batch_runs; the default). The per-run path (``--no-batch``) is timed
+in the same session on ``--per-run-runs`` runs and
 scaled up to ``--runs``. Also prints where the time goes: the bare simulation per step,
 each filter's cost per run-step, and the floor ``(simulation + filters) x steps x runs /
 jobs``.
