@@ -42,6 +42,7 @@ from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, broad_gaussian
 from beacon_sim.filters.gaussian_measurements import (
     ALL_ROWS,
+    LOW_RANK_ROWS,
     AngleRows,
     BatchableFilter,
     BatchedGaussian,
@@ -162,6 +163,16 @@ def innovation(Z: np.ndarray, D: np.ndarray, z: np.ndarray, r: np.ndarray, sel: 
     Returns S = sum Wc dZ dZ^T + diag(r) (..., m, m), Pxz = sum Wc dX dZ^T (..., 3, m) and
     nu = z - z_hat (..., m); the angle rows ``sel`` use circular means and wrapped residuals.
     """
+    dZ, WdZ, Pxz, nu = innovation_parts(Z, D, z, sel, Wm, Wc)
+    S = dZ.swapaxes(-1, -2) @ WdZ
+    add_diagonal(S, r)
+    return S, Pxz, nu
+
+
+def innovation_parts(Z: np.ndarray, D: np.ndarray, z: np.ndarray, sel: AngleRows, Wm: np.ndarray,
+                     Wc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`innovation` before S is formed: the residuals dZ (..., 7, m), Wc dZ, Pxz and
+    nu; linear in the readings (:func:`correct_low_rank` goes on from here)."""
     if Wm.ndim == 1:
         def wsum(A: np.ndarray) -> np.ndarray:
             return Wm @ A
@@ -196,10 +207,8 @@ def innovation(Z: np.ndarray, D: np.ndarray, z: np.ndarray, r: np.ndarray, sel: 
         dY[..., sel] = wrap(dY[..., sel])
     dZ, nu = dY[..., :-1, :], dY[..., -1, :]
     WdZ = dZ * Wc[..., None]
-    S = dZ.swapaxes(-1, -2) @ WdZ
-    add_diagonal(S, r)
     Pxz = D.swapaxes(-1, -2) @ WdZ                     # dX = the sigma offsets
-    return S, Pxz, nu
+    return dZ, WdZ, Pxz, nu
 
 
 def correct(mean: np.ndarray, P: np.ndarray, S: np.ndarray, Pxz: np.ndarray, nu: np.ndarray,
@@ -207,6 +216,25 @@ def correct(mean: np.ndarray, P: np.ndarray, S: np.ndarray, Pxz: np.ndarray, nu:
     """``K = Pxz S^-1``, ``mean + K nu`` (heading wrapped), ``P - K S K^T = P - Pxz K^T``
     (symmetrised), for one run or R runs; ``strict``: see ``gaussian_measurements.solve``."""
     Kt = solve(S, Pxz.swapaxes(-1, -2), strict)        # K^T = S^-1 Pxz^T (S symmetric)
+    return corrected_mean(mean, Kt, nu), symmetrise(P - Pxz @ Kt)
+
+
+def correct_low_rank(mean: np.ndarray, P: np.ndarray, dZ: np.ndarray, Wc: np.ndarray, r: np.ndarray,
+                     Pxz: np.ndarray, nu: np.ndarray, strict: bool = True
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`correct` without forming S = dZ^T W dZ + R (m x m, W = diag(Wc), R = diag(r):
+    independent readings), linear in the readings m. Woodbury, in the form that never
+    inverts W (a weight may be zero)::
+
+        S^-1 = R^-1 - R^-1 dZ^T (I + W G)^-1 W dZ R^-1,   G = dZ R^-1 dZ^T (7 x 7)
+
+    I + W G is invertible for W >= 0. One run (dZ (7, m)) or R runs (a leading axis)."""
+    Ar = dZ / r[..., None, :]                          # dZ R^-1 (..., 7, m)
+    G = Ar @ dZ.swapaxes(-1, -2)                       # (..., 7, 7)
+    Wcol = Wc[..., :, None]
+    B = Pxz.swapaxes(-1, -2) / r[..., :, None]         # R^-1 Pxz^T (..., m, 3)
+    Y = solve(np.eye(G.shape[-1]) + Wcol * G, Wcol * (dZ @ B), strict)   # (..., 7, 3)
+    Kt = B - Ar.swapaxes(-1, -2) @ Y                   # K^T = S^-1 Pxz^T (..., m, 3)
     return corrected_mean(mean, Kt, nu), symmetrise(P - Pxz @ Kt)
 
 
@@ -333,26 +361,47 @@ class UnscentedKalmanFilter(BatchableFilter):
             return
         D = np.array(self._offsets())             # redrawn from the predicted belief (seed 000)
         Z = st.predict(self.mean + D, wrap=False)  # (7, m); residuals are wrapped in innovation
+        if Z.shape[-1] > LOW_RANK_ROWS:            # many readings: linear in them, S never formed
+            self._update_low_rank(st, Z, D)
+            return
         S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self._Wm_now, self._Wc_now)
         if self.gate > 0.0:
-            keep = self._gate(st, S, nu)
+            keep = self._gate(st, lambda i, j: S[i:j, i:j], nu)
             if keep is not None:
                 if not keep.any():
                     return
                 S, Pxz, nu = S[np.ix_(keep, keep)], Pxz[:, keep], nu[keep]
         self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu)
 
-    def _gate(self, st: StackedReadings, S: np.ndarray, nu: np.ndarray) -> np.ndarray | None:
+    def _update_low_rank(self, st: StackedReadings, Z: np.ndarray, D: np.ndarray) -> None:
+        """The update for over ``LOW_RANK_ROWS`` readings (:func:`correct_low_rank`): the same
+        results to 1e-9, linear in the readings; the gate tests each beacon's block of S."""
+        dZ, WdZ, Pxz, nu = innovation_parts(Z, D, st.z, st.angle_sel, self._Wm_now, self._Wc_now)
+        r = st.r
+        if self.gate > 0.0:
+            def block(i: int, j: int) -> np.ndarray:
+                S = dZ[:, i:j].T @ WdZ[:, i:j]
+                add_diagonal(S, r[i:j])
+                return S
+            keep = self._gate(st, block, nu)
+            if keep is not None:
+                if not keep.any():
+                    return
+                dZ, Pxz, nu, r = dZ[:, keep], Pxz[:, keep], nu[keep], r[keep]
+        self.mean, self.cov = correct_low_rank(self.mean, self.cov, dZ, self._Wc_now, r, Pxz, nu)
+
+    def _gate(self, st: StackedReadings, S_block: Callable[[int, int], np.ndarray],
+              nu: np.ndarray) -> np.ndarray | None:
         """Rows to keep (bool mask), or None when every reading passes the chi-square gate.
 
         A beacon's rows (1 for a bearing, 2 for range-bearing) or a fix's rows are tested
-        together against their block of S."""
+        together against their block of S, ``S_block(i, j)`` = S[i:j, i:j]."""
         keep = np.ones(nu.shape[0], dtype=bool)
         for kind, a, b, _ in st.blocks:
             width = 1 if kind == "bearing" else 2 if kind == "range_bearing" else b - a
             for i in range(a, b, width):
                 j = i + width
-                d2 = float(nu[i:j] @ np.linalg.solve(S[i:j, i:j], nu[i:j]))
+                d2 = float(nu[i:j] @ np.linalg.solve(S_block(i, j), nu[i:j]))
                 if d2 > self.gate:
                     keep[i:j] = False
                     self.rejected += 1
@@ -426,9 +475,15 @@ class BatchedUKF(BatchedGaussian):
         Z = st.predict(X.reshape(R * n, 3), wrap=False).reshape(R, n, -1)
         if st.valid is not None:                        # empty slots: no reading, no residual
             Z = np.where(st.valid[:, None, :], Z, 0.0)
+        if Z.shape[-1] > LOW_RANK_ROWS:                 # many slots: linear in them
+            dZ, _, Pxz, nu = innovation_parts(Z, D, st.z, st.angle_sel, self.Wm_now, self.Wc_now)
+            self.mean, self.cov = correct_low_rank(self.mean, self.cov, dZ, self.Wc_now, st.r, Pxz, nu,
+                                                   strict=False)
+            return
         S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self.Wm_now, self.Wc_now)
         self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu, strict=False)
 
 
 __all__ = ["MAX_HEADING_OFFSET", "BatchedUKF", "UnscentedKalmanFilter", "cholesky3", "correct",
-           "heading_limited_weights", "innovation", "robust_sqrt", "sigma_weights"]
+           "correct_low_rank", "heading_limited_weights", "innovation", "innovation_parts", "robust_sqrt",
+           "sigma_weights"]
