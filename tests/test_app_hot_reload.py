@@ -129,4 +129,4 @@ def test_a_reload_too_slow_to_catch_up_restarts_from_the_initial_belief():
         s.tick()
     message = s.replace_filter("ekf", build_filter("ekf", sc, 4, name="ekf"), budget_s=0.0)
     assert "from the initial belief" in message
-    assert s.runner.tracks["ekf"].means == []
+    assert len(s.runner.tracks["ekf"].means) == 0

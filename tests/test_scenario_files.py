@@ -17,7 +17,7 @@ BROKEN = Path(__file__).parent / "data" / "broken"
 EXPECTED = {
     "syntax_error.toml": ["not valid TOML"],
     "misspelt_key.toml": ["unknown key 'sensors[0].max_rnage'", "did you mean 'sensors[0].max_range'"],
-    "negative_dt.toml": ["dt = -0.1", "expected a number in (0, 10]"],
+    "negative_dt.toml": ["dt = -0.1", "expected a number in [0.001, 10]"],
     "short_pose.toml": ["robot.initial_pose = [1, 1]", "a list of 3"],
     "unknown_sensor_kind.toml": ["sensors[0].kind = 'lidar'", "one of 'bearing'"],
     "duplicate_beacon.toml": ["world.beacons[1].id = 1", "no other beacon has"],

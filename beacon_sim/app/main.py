@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -29,6 +31,7 @@ from beacon_sim.app.render import ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
+from beacon_sim.filters.runner import note_user_interrupt
 from beacon_sim.runs.live import Session, make_recorder
 
 #: Frame time a scripted (``--frames``) session pretends each frame took [s].
@@ -376,10 +379,43 @@ class App:
         path = Path(path)
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
-        pygame.image.save(self.screen, str(path))
+        try:
+            pygame.image.save(self.screen, str(path))
+        except pygame.error as exc:  # a path that cannot be written: one line, exit 2
+            raise OSError(0, str(exc), str(path)) from None
+
+    def _on_signal(self, signum, frame) -> None:
+        """SIGINT / SIGTERM: close the window after this frame (a filter's step is cut short
+        by the runner's time limit). A second signal interrupts whatever runs (the user's
+        interrupt, which the filter guard lets through); a third ends the process at once,
+        after flushing the recording."""
+        self._signals += 1
+        if self._signals == 1:
+            self.running = False
+            return
+        note_user_interrupt()
+        if self._signals == 2:
+            raise KeyboardInterrupt
+        try:
+            self.session.close()
+        finally:
+            os._exit(128 + signum)
 
     def run(self, max_frames: int | None = None) -> None:
-        """The main loop, until quit (or ``max_frames`` frames)."""
+        """The main loop, until quit (or ``max_frames`` frames). SIGINT and SIGTERM close the
+        window as the close button does, whatever a filter does (see :meth:`_on_signal`)."""
+        self._signals = 0
+        previous = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                previous[sig] = signal.signal(sig, self._on_signal)
+        try:
+            self._loop(max_frames)
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def _loop(self, max_frames: int | None) -> None:
         timer = pygame.time.Clock()
         last = time.perf_counter()
         while self.running and (max_frames is None or self.frames < max_frames):

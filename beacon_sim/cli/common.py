@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+import tempfile
+from pathlib import Path
 from typing import Any, NoReturn
 
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import MAX_TICKS, Scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.filters.loading import FilterLoadError, parse_set_options, sensor_note
+from beacon_sim.filters.loading import FilterLoadError, check_param_names, parse_set_options, sensor_note
 
 
 class Parser(argparse.ArgumentParser):
@@ -34,10 +37,82 @@ def filter_params(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
     return parse_set_options(args.set_params)
 
 
-def check_duration(duration: float | None) -> None:
-    """``--duration S``: a positive, finite number of seconds (or absent)."""
+def check_set_names(args: argparse.Namespace, specs: list[str]) -> None:
+    """``--set NAME.KEY=VALUE``: NAME must be one of the filters that run."""
+    check_param_names(filter_params(args), list(specs))
+
+
+def check_duration(duration: float | None, scenario: Scenario | None = None) -> None:
+    """``--duration S``: a positive, finite number of seconds (or absent); with a scenario,
+    at least one tick of its ``dt`` and at most ``MAX_TICKS`` ticks."""
     if duration is not None and not (duration > 0 and math.isfinite(duration)):
         raise UsageError(f"--duration {duration}: expected a positive number of seconds")
+    if duration is not None and scenario is not None:
+        ticks = round(duration / scenario.dt)
+        if ticks < 1:
+            raise UsageError(f"--duration {duration:g}: shorter than one tick of {scenario.dt:g} s")
+        if ticks > MAX_TICKS:
+            raise UsageError(f"--duration {duration:g}: over {MAX_TICKS:,} ticks of "
+                             f"{scenario.dt:g} s (at most {MAX_TICKS * scenario.dt:g} s)")
+
+
+def _probe_dir(option: str, path: str, folder: Path) -> None:
+    """Create and remove a temporary file in ``folder`` (what a write needs), or one line."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise UsageError(f"{option} {path}: cannot write in {folder}: {exc.strerror or exc}") from None
+
+
+def _writable_file(option: str, path: str, create_parent: bool = False) -> None:
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if p.is_dir():
+        raise UsageError(f"{option} {path}: is a folder, expected a file name")
+    if create_parent and not parent.exists():
+        _writable_dir(option, str(parent))
+        return
+    if not parent.is_dir():
+        raise UsageError(f"{option} {path}: no such folder {parent}")
+    if p.exists() and not os.access(p, os.W_OK):
+        raise UsageError(f"{option} {path}: cannot write that file (permission denied)")
+    _probe_dir(option, path, parent)
+
+
+def _writable_dir(option: str, path: str) -> None:
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise UsageError(f"{option} {path}: exists and is not a folder")
+    parent = next((q for q in [p.absolute(), *p.absolute().parents] if q.exists()), Path("/"))
+    if not parent.is_dir():
+        raise UsageError(f"{option} {path}: cannot create a folder under {parent}")
+    _probe_dir(option, path, parent)
+
+
+def check_common(args: argparse.Namespace) -> None:
+    """The options several commands share, checked before anything runs: seeds, counts,
+    times and output paths (one line, exit status 2, for each mistake)."""
+    seed = getattr(args, "seed", None)
+    if seed is not None and not 0 <= seed <= 2**63 - 1:
+        raise UsageError(f"--seed {seed}: expected a seed from 0 to 2^63 - 1")
+    check_duration(getattr(args, "duration", None))
+    check_frames(getattr(args, "frames", None))
+    for option in ("runs", "jobs", "robot"):
+        n = getattr(args, option, None)
+        if n is not None and not 1 <= n <= 1_000_000:
+            raise UsageError(f"--{option} {n}: expected a whole number from 1 to 1000000")
+    for option in ("time_limit", "start", "end", "speed"):
+        x = getattr(args, option, None)
+        if x is not None and not math.isfinite(x):
+            raise UsageError(f"--{option.replace('_', '-')} {x}: expected a finite number")
+    if args.command == "export":
+        _writable_file("--out", args.out)
+    elif getattr(args, "out", None) is not None:
+        _writable_dir("--out", args.out)
+    for option in ("screenshot", "gif"):
+        if getattr(args, option, None) is not None:
+            _writable_file(f"--{option}", getattr(args, option), create_parent=option == "screenshot")
 
 
 def check_frames(frames: int | None) -> None:

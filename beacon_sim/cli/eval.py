@@ -14,12 +14,19 @@ import math
 import sys
 from pathlib import Path
 
+from beacon_sim.cli.common import check_duration
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.summary import Thresholds, evaluate
-from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names, parse_set_options
+from beacon_sim.filters.loading import (
+    build_filter,
+    check_param_names,
+    filter_display_name,
+    filter_names,
+    parse_set_options,
+)
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
 #: in a loop is stopped and marked, the evaluation goes on.
@@ -49,11 +56,10 @@ def eval_command(args: argparse.Namespace) -> int:
     scenarios = [load_scenario(s) for s in args.scenarios]
     for sc in scenarios:  # bad filter names and parameters: a one-line error, before any run
         specs = list(args.filters or sc.default_filters)
+        check_param_names(params, specs)
         for name, spec in zip(filter_names(specs), specs, strict=True):
             build_filter(spec, sc, 0, name=name, params=params.get(filter_display_name(spec)))
-        steps = round((args.duration or sc.duration) / sc.dt)
-        if steps < 1:
-            raise UsageError(f"--duration {args.duration}: shorter than one step of {sc.dt:g} s")
+        check_duration(args.duration, sc)
     out = Path(args.out) if args.out else None
     results = []
     for sc in scenarios:

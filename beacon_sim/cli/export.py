@@ -7,13 +7,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from beacon_sim.cli.common import check_duration, filter_params, print_failures
+from beacon_sim.cli.common import check_duration, check_set_names, filter_params, print_failures
 from beacon_sim.cli.replay import load
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.io.export import filter_arrays, step_arrays, trace_arrays, write_export
 from beacon_sim.runs.headless import run_headless
-from beacon_sim.runs.replay import ReplayMismatch, replay_recording, skipped_note
+from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording, skipped_note
 
 SUFFIXES = (".npz", ".csv", ".mcap")
 
@@ -36,6 +36,7 @@ def export_command(args: argparse.Namespace) -> int:
         if args.seed is not None or args.duration is not None:
             raise UsageError("--seed and --duration are for a scenario; a recording has its own")
         recording = load(args.file)
+        check_set_names(args, recorded_filter_specs(recording, args.filters)[0])
         try:
             result = replay_recording(recording, args.filters, filter_params(args))
         except ReplayMismatch as exc:
@@ -45,6 +46,8 @@ def export_command(args: argparse.Namespace) -> int:
         arrays = trace_arrays(recording, result.steps, result.runner.tracks)
     else:
         scenario = load_scenario(args.file)
+        check_duration(args.duration, scenario)
+        check_set_names(args, list(args.filters or scenario.default_filters))
         result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
                               params=filter_params(args))
         arrays = step_arrays(scenario, result.steps)

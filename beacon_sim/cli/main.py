@@ -8,17 +8,22 @@ and no traceback.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from collections.abc import Callable
 
 from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, replay, run
 from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
-from beacon_sim.cli.common import Parser, add_filter_options
+from beacon_sim.cli.common import Parser, add_filter_options, check_common
 from beacon_sim.core.scenario import ScenarioError
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.base import FilterError
+from beacon_sim.filters.runner import note_user_interrupt
+from beacon_sim.io.mrclam import MrclamError
+from beacon_sim.io.recording import RecordingError
 from beacon_sim.version import __version__
 
 
@@ -137,9 +142,19 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
 }
 
 
+def _on_sigint(signum, frame) -> None:
+    """The user's Ctrl-C: marked as the user's (the filter guard turns a KeyboardInterrupt
+    raised by filter code into that filter's failure, never this one), then raised."""
+    note_user_interrupt()
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``beacon-sim`` console script; returns the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    if threading.current_thread() is threading.main_thread() \
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _on_sigint)
     try:
         try:
             limit_blas_threads()   # one BLAS thread unless BEACON_SIM_BLAS_THREADS says otherwise
@@ -147,9 +162,20 @@ def main(argv: list[str] | None = None) -> int:
             raise UsageError(f"beacon-sim: {exc}") from None
         parser = build_parser()
         args = parser.parse_args(argv or ["play"])
+        if args.command is None:
+            raise UsageError("beacon-sim: expected a command (see beacon-sim --help)")
+        check_common(args)
         return COMMANDS[args.command](args)
-    except (UsageError, ScenarioError, FilterError) as exc:
-        print(f"beacon-sim: {exc}" if not str(exc).startswith("beacon-sim") else str(exc),
+    except (UsageError, ScenarioError, FilterError, RecordingError, MrclamError) as exc:
+        text = " ".join(str(exc).split()) or type(exc).__name__  # one line
+        print(text if text.startswith("beacon-sim") else f"beacon-sim: {text}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file or folder that cannot be read or written
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"beacon-sim: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print("beacon-sim: out of memory (use a smaller scenario, grid or particle count)",
               file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from beacon_sim.cli.common import check_frames, filter_params, print_sensor_notes
+from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_sensor_notes
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.loading import FilterLoadError, load_filter_class
@@ -45,6 +45,7 @@ def play_command(args: argparse.Namespace) -> int:
     check_frames(args.frames)
     params = filter_params(args)
     specs = choose_filters(scenario, args.filters)
+    check_set_names(args, specs)
     print_sensor_notes(specs, scenario)
     if args.autopilot and scenario.driver.kind == "keyboard":
         raise UsageError(f"--autopilot: scenario {scenario.name} has no driver (driver.kind = keyboard)")

@@ -8,7 +8,7 @@ import json
 import os
 import sys
 
-from beacon_sim.cli.common import check_frames, filter_params, print_failures
+from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_failures
 from beacon_sim.cli.play import check_gif
 from beacon_sim.cli.tables import print_run
 from beacon_sim.errors import UsageError
@@ -44,6 +44,7 @@ def check_span(start: float | None, end: float | None, duration: float) -> None:
 def replay_command(args: argparse.Namespace) -> int:
     recording = load(args.file)
     params = filter_params(args)
+    check_set_names(args, recorded_filter_specs(recording, args.filters or None)[0])
     if not args.headless:
         check_frames(args.frames)
         specs, skipped = recorded_filter_specs(recording, args.filters or None)

@@ -25,13 +25,18 @@ def print_run(d: dict[str, Any]) -> None:
     print(f"measurements  {meas}")
     ev = ", ".join(f"{e['kind']} at {e['time']:.2f} s" for e in d["events"]) or "none"
     print(f"events        {ev}")
-    print(f"truth checksum {d['truth_checksum']}  ({d['steps_per_s']:.0f} simulation steps/s)")
+    rate = d.get("steps_per_s")
+    print(f"truth checksum {d['truth_checksum']}  ("
+          + (f"{rate:.0f} simulation steps/s)" if rate is not None else "no steps)"))
     if d["filters"]:
         print(f"{'filter':<16}{'pos RMSE m':>11}{'head RMSE':>11}{'MSE x':>10}{'MSE y':>10}"
               f"{'MSE th':>10}{'ANEES':>9}{'us/step':>9}")
         for name, r in d["filters"].items():
             if "failed" in r:
                 print(f"{name:<16}{failed_text(r)}")
+                continue
+            if r.get("pos_rmse_m") is None:
+                print(f"{name:<16}no estimate (no steps)")
                 continue
             print(f"{name:<16}{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>11.4f}"
                   f"{r['mse_x']:>10.4f}{r['mse_y']:>10.4f}{r['mse_theta']:>10.4f}"

@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 import enum
 import math
+import re
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -24,7 +25,7 @@ from beacon_sim.core.drivers import (
     RandomGoalSpec,
     WaypointsSpec,
 )
-from beacon_sim.core.events import Blackout, Event, Kidnap, NoiseBurst
+from beacon_sim.core.events import Blackout, Event, Kidnap, NoiseBurst, active_ticks
 from beacon_sim.core.keyboard_drive import KeyboardLimits
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensors import SENSOR_KINDS, SensorNoise, SensorSpec
@@ -89,6 +90,28 @@ class _Required(enum.Enum):
 
 _REQUIRED: Final = _Required.TOKEN
 
+# Physical ranges (docs/scenarios.md, "Ranges"): every number in a scenario is finite and
+# within these, so that nothing overflows, hangs or fills the memory.
+#: Largest coordinate, length or angle in a vector [m or rad].
+MAX_COORD: Final = 1e6
+#: Smallest and largest tick [s].
+MIN_DT: Final = 1e-3
+MAX_DT: Final = 10.0
+#: Most ticks in a run (duration / dt), and latest event time in ticks.
+MAX_TICKS: Final = 1_000_000
+#: Largest speed [m/s], turn rate [rad/s] and their noise.
+MAX_SPEED: Final = 100.0
+MAX_TURN: Final = 100.0
+#: Largest sensor noise standard deviation [m or rad] and fraction of the command.
+MAX_STD: Final = 1e3
+MAX_FRAC: Final = 10.0
+#: Most beacons, sensors and events in a scenario, and most ticks covered by all the
+#: blackouts and noise bursts together (their per-tick tables must fit in memory).
+MAX_BEACONS: Final = 10_000
+MAX_SENSORS: Final = 100
+MAX_EVENTS: Final = 10_000
+MAX_EVENT_TICKS: Final = 2_000_000
+
 Vec3 = tuple[float, float, float]
 Vec4 = tuple[float, float, float, float]
 
@@ -130,18 +153,25 @@ class _Table:
         return self.data[name]
 
     def number(self, name: str, default: float | _Required = _REQUIRED, *, lo: float = -math.inf,
-               hi: float = math.inf, lo_open: bool = False, what: str | None = None) -> float:
+               hi: float = math.inf, lo_open: bool = False, what: str | None = None,
+               allow_inf: bool = False) -> float:
+        """A finite number in ``[lo, hi]`` (``(lo, hi]`` when ``lo_open``); infinity only
+        where ``allow_inf`` (e.g. ``max_range = inf``)."""
         value = self.raw(name, default)
         if default is not _REQUIRED and not self.has(name):
             return default
         ok = isinstance(value, int | float) and not isinstance(value, bool)
-        # inf is allowed only where the range is open above (e.g. max_range = inf).
-        ok = ok and (math.isfinite(value) or (value == math.inf and hi == math.inf))
         if ok:
-            ok = (value > lo if lo_open else value >= lo) and value <= hi
+            try:
+                x = float(value)
+            except OverflowError:  # an integer too large for a float
+                ok = False
+        if ok:
+            ok = (math.isfinite(x) or (allow_inf and x == math.inf)) \
+                and (x > lo if lo_open else x >= lo) and (x <= hi or (allow_inf and x == math.inf))
         if not ok:
             rng = what or _range_text(lo, hi, lo_open)
-            self.fail(self.key(name), value, f"a number {rng}")
+            self.fail(self.key(name), value, f"a number {rng}" + (" or inf" if allow_inf else ""))
         return float(value)
 
     def integer(self, name: str, default: int | _Required = _REQUIRED, *, lo: int = -(2**63),
@@ -170,35 +200,35 @@ class _Table:
             self.fail(self.key(name), value, "one of " + ", ".join(map(repr, choices)) + extra)
         return value
 
-    def _floats(self, name: str, n: int, lo: float) -> list[float]:
-        """The key's list of ``n`` finite numbers, each ``>= lo`` (the key must be present)."""
+    def _floats(self, name: str, n: int, lo: float, hi: float = 1e6) -> list[float]:
+        """The key's list of ``n`` finite numbers, each in ``[lo, hi]`` (the key must be present)."""
         value = self.raw(name)
         ok = isinstance(value, list) and len(value) == n and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            and v >= lo for v in value)
+            isinstance(v, int | float) and not isinstance(v, bool) and _finite_in(v, lo, hi)
+            for v in value)
         if not ok:
-            sign = " non-negative" if lo == 0 else ""
-            self.fail(self.key(name), value, f"a list of {n}{sign} finite numbers")
+            self.fail(self.key(name), value, f"a list of {n} finite numbers {_range_text(lo, hi)}")
         return [float(v) for v in value]
 
     @overload
-    def vector3(self, name: str, default: Vec3 | _Required = ..., *, lo: float = ...) -> Vec3: ...
+    def vector3(self, name: str, default: Vec3 | _Required = ..., *, lo: float = ...,
+                hi: float = ...) -> Vec3: ...
 
     @overload
-    def vector3(self, name: str, default: None, *, lo: float = ...) -> Vec3 | None: ...
+    def vector3(self, name: str, default: None, *, lo: float = ..., hi: float = ...) -> Vec3 | None: ...
 
     def vector3(self, name: str, default: Vec3 | _Required | None = _REQUIRED, *,
-                lo: float = -math.inf) -> Vec3 | None:
-        """A list of 3 finite numbers, e.g. a pose ``[x, y, theta]``."""
+                lo: float = -MAX_COORD, hi: float = MAX_COORD) -> Vec3 | None:
+        """A list of 3 finite numbers in ``[lo, hi]``, e.g. a pose ``[x, y, theta]``."""
         if default is not _REQUIRED and not self.has(name):
             self.used.add(name)  # as raw() does
             return default
-        x, y, z = self._floats(name, 3, lo)
+        x, y, z = self._floats(name, 3, lo, hi)
         return (x, y, z)
 
-    def vector4(self, name: str, *, lo: float = -math.inf) -> Vec4:
+    def vector4(self, name: str, *, lo: float = -MAX_COORD, hi: float = MAX_COORD) -> Vec4:
         """A list of 4 finite numbers (required), e.g. bounds ``[xmin, ymin, xmax, ymax]``."""
-        a, b, c, d = self._floats(name, 4, lo)
+        a, b, c, d = self._floats(name, 4, lo, hi)
         return (a, b, c, d)
 
     def sub(self, name: str, default: dict[str, Any] | _Required = _REQUIRED) -> _Table:
@@ -225,9 +255,22 @@ def _known_keys(table: _Table) -> set[str]:
 
 
 def _generic_path(path: str) -> str:
-    import re
-
     return re.sub(r"\[\d+\]", "[]", path)
+
+
+#: A filter a scenario may name: a built-in or an entry point (``ekf``), with an optional
+#: label (``mine=ekf``); never a ``file.py:Class`` or ``pkg.mod:Class`` (code to import).
+_DATA_FILTER: Final = re.compile(
+    r"^(?:[A-Za-z0-9_][A-Za-z0-9_.'+-]{0,63}=)?[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}$")
+
+
+def _finite_in(v: float, lo: float, hi: float) -> bool:
+    """Whether the number ``v`` (int or float) is finite and in ``[lo, hi]``."""
+    try:
+        x = float(v)
+    except OverflowError:
+        return False
+    return math.isfinite(x) and lo <= x <= hi
 
 
 def _range_text(lo: float, hi: float, lo_open: bool = False) -> str:
@@ -268,11 +311,11 @@ _KNOWN: dict[str, set[str]] = {
 def _motion_noise(t: _Table, base: MotionNoise | None = None) -> MotionNoise:
     b = base or MotionNoise()
     out = MotionNoise(
-        v_std=t.number("v_std", b.v_std, lo=0),
-        v_frac=t.number("v_frac", b.v_frac, lo=0),
-        omega_std=t.number("omega_std", b.omega_std, lo=0),
-        omega_frac=t.number("omega_frac", b.omega_frac, lo=0),
-        pose_std=t.vector3("pose_std", b.pose_std, lo=0),
+        v_std=t.number("v_std", b.v_std, lo=0, hi=MAX_SPEED),
+        v_frac=t.number("v_frac", b.v_frac, lo=0, hi=MAX_FRAC),
+        omega_std=t.number("omega_std", b.omega_std, lo=0, hi=MAX_TURN),
+        omega_frac=t.number("omega_frac", b.omega_frac, lo=0, hi=MAX_FRAC),
+        pose_std=t.vector3("pose_std", b.pose_std, lo=0, hi=MAX_SPEED),
     )
     t.finish()
     return out
@@ -280,17 +323,17 @@ def _motion_noise(t: _Table, base: MotionNoise | None = None) -> MotionNoise:
 
 def _sensor_noise(t: _Table, base: SensorNoise) -> SensorNoise:
     return SensorNoise(
-        bearing_std=t.number("bearing_std", base.bearing_std, lo=0),
-        range_std=t.number("range_std", base.range_std, lo=0),
-        position_std=t.number("position_std", base.position_std, lo=0),
-        heading_std=t.number("heading_std", base.heading_std, lo=0),
+        bearing_std=t.number("bearing_std", base.bearing_std, lo=0, hi=MAX_STD),
+        range_std=t.number("range_std", base.range_std, lo=0, hi=MAX_STD),
+        position_std=t.number("position_std", base.position_std, lo=0, hi=MAX_STD),
+        heading_std=t.number("heading_std", base.heading_std, lo=0, hi=MAX_STD),
     )
 
 
 def _sensor(t: _Table, dt: float) -> SensorSpec:
     kind = t.string("kind", choices=SENSOR_KINDS)
     name = t.string("name", kind)
-    period = t.number("period", dt, lo=0, lo_open=True)
+    period = t.number("period", dt, lo=0, hi=MAX_TICKS * dt, lo_open=True)
     ratio = period / dt
     if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
         t.fail(t.key("period"), period, f"a whole multiple of dt = {dt:g} s")
@@ -298,12 +341,12 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
         name=name,
         kind=kind,
         period=period,
-        max_range=t.number("max_range", math.inf, lo=0, lo_open=True),
+        max_range=t.number("max_range", math.inf, lo=0, hi=MAX_COORD, lo_open=True, allow_inf=True),
         fov=t.number("fov", 2 * math.pi, lo=0, hi=2 * math.pi, lo_open=True),
         detection_prob=t.number("detection_prob", 1.0, lo=0, hi=1),
         outlier_rate=t.number("outlier_rate", 0.0, lo=0, hi=1),
-        min_beacons=t.integer("min_beacons", 2 if kind == "position" else 1, lo=1),
-        beacon_height=t.number("beacon_height", 0.0, lo=0),
+        min_beacons=t.integer("min_beacons", 2 if kind == "position" else 1, lo=1, hi=MAX_BEACONS),
+        beacon_height=t.number("beacon_height", 0.0, lo=0, hi=MAX_COORD),
         noise=_sensor_noise(t, SensorNoise()),
     )
     if kind == "position" and spec.min_beacons < 2:
@@ -312,39 +355,46 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
     return spec
 
 
-def _driver(t: _Table) -> DriverSpec:
+def _driver(t: _Table, world: World) -> DriverSpec:
     kind = t.string("kind", "keyboard",
                     choices=("keyboard", "constant", "circle", "random_goal", "waypoints"))
     spec: DriverSpec
     if kind == "constant":
-        spec = ConstantSpec(v=t.number("v", 0.0), omega=t.number("omega", 0.0))
+        spec = ConstantSpec(v=t.number("v", 0.0, lo=-MAX_SPEED, hi=MAX_SPEED),
+                            omega=t.number("omega", 0.0, lo=-MAX_TURN, hi=MAX_TURN))
     elif kind == "circle":
-        spec = CircleSpec(radius=t.number("radius", 1.0, lo=0, lo_open=True),
-                          speed=t.number("speed", 0.2))
+        spec = CircleSpec(radius=t.number("radius", 1.0, lo=1e-3, hi=MAX_COORD),
+                          speed=t.number("speed", 0.2, lo=-MAX_SPEED, hi=MAX_SPEED))
     elif kind == "random_goal":
         d = RandomGoalSpec()
         spec = RandomGoalSpec(
-            speed=t.number("speed", d.speed, lo=0, lo_open=True),
-            gain=t.number("gain", d.gain, lo=0, lo_open=True),
-            max_omega=t.number("max_omega", d.max_omega, lo=0, lo_open=True),
-            tolerance=t.number("tolerance", d.tolerance, lo=0, lo_open=True),
-            margin=t.number("margin", d.margin, lo=0),
+            speed=t.number("speed", d.speed, lo=0, hi=MAX_SPEED, lo_open=True),
+            gain=t.number("gain", d.gain, lo=0, hi=1e3, lo_open=True),
+            max_omega=t.number("max_omega", d.max_omega, lo=0, hi=MAX_TURN, lo_open=True),
+            tolerance=t.number("tolerance", d.tolerance, lo=0, hi=MAX_COORD, lo_open=True),
+            margin=t.number("margin", d.margin, lo=0, hi=0.5 * min(world.width, world.height),
+                            what=f"in [0, {0.5 * min(world.width, world.height):g}) (half the "
+                                 "room's smaller side)"),
         )
+        if spec.margin >= 0.5 * min(world.width, world.height):
+            t.fail(t.key("margin"), spec.margin, "less than half the room's smaller side")
     elif kind == "waypoints":
         dw = WaypointsSpec()
         pts = t.raw("points")
-        ok = isinstance(pts, list) and len(pts) >= 1 and all(
+        ok = isinstance(pts, list) and 1 <= len(pts) <= MAX_EVENTS and all(
             isinstance(p, list) and len(p) == 2
-            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in p)
+            and all(isinstance(v, int | float) and not isinstance(v, bool)
+                    and _finite_in(v, -MAX_COORD, MAX_COORD) for v in p)
             for p in pts)
         if not ok:
-            t.fail(t.key("points"), pts, "a non-empty list of [x, y] pairs in metres")
+            t.fail(t.key("points"), pts if len(str(pts)) < 200 else f"{str(pts)[:80]}...",
+                   f"a list of 1 to {MAX_EVENTS} [x, y] pairs of finite numbers in metres")
         spec = WaypointsSpec(
             points=tuple((float(p[0]), float(p[1])) for p in pts),
-            speed=t.number("speed", dw.speed, lo=0, lo_open=True),
-            gain=t.number("gain", dw.gain, lo=0, lo_open=True),
-            max_omega=t.number("max_omega", dw.max_omega, lo=0, lo_open=True),
-            tolerance=t.number("tolerance", dw.tolerance, lo=0, lo_open=True),
+            speed=t.number("speed", dw.speed, lo=0, hi=MAX_SPEED, lo_open=True),
+            gain=t.number("gain", dw.gain, lo=0, hi=1e3, lo_open=True),
+            max_omega=t.number("max_omega", dw.max_omega, lo=0, hi=MAX_TURN, lo_open=True),
+            tolerance=t.number("tolerance", dw.tolerance, lo=0, hi=MAX_COORD, lo_open=True),
             loop=t.boolean("loop", True),
         )
     else:
@@ -353,9 +403,10 @@ def _driver(t: _Table) -> DriverSpec:
     return spec
 
 
-def _event(t: _Table, sensor_names: set[str]) -> Event:
+def _event(t: _Table, sensor_names: set[str], dt: float) -> Event:
     kind = t.string("kind", choices=("kidnap", "blackout", "noise_burst"))
-    time = t.number("time", lo=0)
+    latest = MAX_TICKS * dt
+    time = t.number("time", lo=0, hi=latest)
     ev: Event
     if kind == "kidnap":
         given = [k for k in ("pose", "offset", "random") if t.has(k)]
@@ -376,12 +427,12 @@ def _event(t: _Table, sensor_names: set[str]) -> Event:
         if not isinstance(sensors, list) or any(s not in sensor_names for s in sensors):
             t.fail(t.key("sensors"), sensors,
                    "a list of sensor names from: " + ", ".join(sorted(sensor_names)))
-        ev = Blackout(time=time, duration=t.number("duration", lo=0, lo_open=True),
+        ev = Blackout(time=time, duration=t.number("duration", lo=0, hi=latest, lo_open=True),
                       sensors=tuple(sensors))
     else:
-        ev = NoiseBurst(time=time, duration=t.number("duration", lo=0, lo_open=True),
-                        v_std=t.number("v_std", 0.0, lo=0),
-                        omega_std=t.number("omega_std", 0.0, lo=0))
+        ev = NoiseBurst(time=time, duration=t.number("duration", lo=0, hi=latest, lo_open=True),
+                        v_std=t.number("v_std", 0.0, lo=0, hi=MAX_SPEED),
+                        omega_std=t.number("omega_std", 0.0, lo=0, hi=MAX_TURN))
     t.finish()
     return ev
 
@@ -391,19 +442,29 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     top = _Table(data, "", file)
     name = top.string("name", name or Path(file).stem)
     description = top.string("description", "")
-    dt = top.number("dt", 0.1, lo=0, hi=10, lo_open=True)
-    duration = top.number("duration", 60.0, lo=0, lo_open=True)
-    seed = top.integer("seed", 0, lo=0)
+    dt = top.number("dt", 0.1, lo=MIN_DT, hi=MAX_DT)
+    duration = top.number("duration", 60.0, lo=0, hi=MAX_TICKS * dt, lo_open=True,
+                          what=f"in (0, {MAX_TICKS * dt:g}] (at most {MAX_TICKS:,} ticks of dt)")
+    if round(duration / dt) < 1:
+        top.fail("duration", duration, f"at least one tick of dt = {dt:g} s")
+    seed = top.integer("seed", 0, lo=0, hi=2**63 - 1)
 
     w = top.sub("world")
     bounds = w.vector4("bounds")
     if not (bounds[2] > bounds[0] and bounds[3] > bounds[1]):
         w.fail(w.key("bounds"), list(bounds), "[xmin, ymin, xmax, ymax] with xmax > xmin, ymax > ymin")
     beacons: list[Beacon] = []
+    raw_beacons = w.raw("beacons", [])
+    if isinstance(raw_beacons, list) and len(raw_beacons) > MAX_BEACONS:
+        w.fail(w.key("beacons"), f"[... {len(raw_beacons):,} beacons]", f"at most {MAX_BEACONS:,} beacons")
+    ids: set[int] = set()
     for bt in w.tables("beacons"):
-        b = Beacon(id=bt.integer("id", lo=0), x=bt.number("x"), y=bt.number("y"))
-        if any(o.id == b.id for o in beacons):
+        b = Beacon(id=bt.integer("id", lo=0, hi=2**31 - 1),
+                   x=bt.number("x", lo=-MAX_COORD, hi=MAX_COORD),
+                   y=bt.number("y", lo=-MAX_COORD, hi=MAX_COORD))
+        if b.id in ids:
             bt.fail(bt.key("id"), b.id, "an ID no other beacon has")
+        ids.add(b.id)
         bt.finish()
         beacons.append(b)
     w.finish()
@@ -413,11 +474,14 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     initial_pose = r.vector3("initial_pose")
     if not world.contains(initial_pose[:2]):
         r.fail(r.key("initial_pose"), list(initial_pose), f"a position inside world.bounds {list(bounds)}")
-    radius = r.number("radius", 0.2, lo=0, lo_open=True)
+    radius = r.number("radius", 0.2, lo=0, hi=MAX_COORD, lo_open=True)
     motion_noise = _motion_noise(r.sub("motion_noise", {}))
     r.finish()
 
-    sensors = tuple(_sensor(st, dt) for st in top.tables("sensors"))
+    sensor_tables = top.tables("sensors")
+    if len(sensor_tables) > MAX_SENSORS:
+        top.fail("sensors", f"[... {len(sensor_tables)} sensors]", f"at most {MAX_SENSORS} sensors")
+    sensors = tuple(_sensor(st, dt) for st in sensor_tables)
     names = [s.name for s in sensors]
     for i, n in enumerate(names):
         if n in names[:i]:
@@ -425,24 +489,31 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     if sensors and not beacons:
         raise ScenarioError(f"{file}: world.beacons = []: expected at least one beacon for the sensors")
 
-    driver = _driver(top.sub("driver", {}))
+    driver = _driver(top.sub("driver", {}), world)
     k = top.sub("keyboard", {})
     kd = KeyboardLimits()
     keyboard = KeyboardLimits(
-        v_step=k.number("v_step", kd.v_step, lo=0, lo_open=True),
-        v_max=k.number("v_max", kd.v_max, lo=0, lo_open=True),
-        v_min=k.number("v_min", kd.v_min, hi=0),
-        omega_step=k.number("omega_step", kd.omega_step, lo=0, lo_open=True),
-        omega_max=k.number("omega_max", kd.omega_max, lo=0, lo_open=True),
+        v_step=k.number("v_step", kd.v_step, lo=0, hi=MAX_SPEED, lo_open=True),
+        v_max=k.number("v_max", kd.v_max, lo=0, hi=MAX_SPEED, lo_open=True),
+        v_min=k.number("v_min", kd.v_min, lo=-MAX_SPEED, hi=0),
+        omega_step=k.number("omega_step", kd.omega_step, lo=0, hi=MAX_TURN, lo_open=True),
+        omega_max=k.number("omega_max", kd.omega_max, lo=0, hi=MAX_TURN, lo_open=True),
     )
     k.finish()
 
-    events = tuple(_event(et, set(names)) for et in top.tables("events"))
+    event_tables = top.tables("events")
+    if len(event_tables) > MAX_EVENTS:
+        top.fail("events", f"[... {len(event_tables):,} events]", f"at most {MAX_EVENTS:,} events")
+    events = tuple(_event(et, set(names), dt) for et in event_tables)
+    covered = sum(len(active_ticks(ev, dt)) for ev in events if not isinstance(ev, Kidnap))
+    if covered > MAX_EVENT_TICKS:
+        raise ScenarioError(f"{file}: events: blackouts and noise bursts cover {covered:,} ticks "
+                            f"together: expected at most {MAX_EVENT_TICKS:,}")
 
     ib = top.sub("initial_belief", {})
     initial_belief = InitialBelief(
         mean=ib.vector3("mean", initial_pose),
-        std=ib.vector3("std", (0.1, 0.1, 0.05), lo=0),
+        std=ib.vector3("std", (0.1, 0.1, 0.05), lo=0, hi=MAX_COORD),
         global_=ib.boolean("global", False),
     )
     ib.finish()
@@ -469,8 +540,14 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     m.finish()
 
     default_filters = top.raw("default_filters", ["ekf", "dead_reckoning"])
-    if not isinstance(default_filters, list) or not all(isinstance(f, str) for f in default_filters):
+    if not isinstance(default_filters, list) or not all(isinstance(f, str) for f in default_filters) \
+            or len(default_filters) > MAX_SENSORS:
         top.fail("default_filters", default_filters, "a list of filter names")
+    for i, spec in enumerate(default_filters):
+        if not _DATA_FILTER.match(spec):  # files are data: a scenario never names code to run
+            top.fail(f"default_filters[{i}]", spec,
+                     "a built-in filter or an installed entry point (a scenario may not name a "
+                     "file or module; pass --filter on the command line to run one)")
     fp = top.raw("filters", {})
     if not isinstance(fp, dict) or not all(isinstance(v, dict) for v in fp.values()):
         top.fail("filters", fp, "tables [filters.NAME] of filter parameters")

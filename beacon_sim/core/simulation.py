@@ -65,6 +65,7 @@ class Simulation:
         self._pending_kidnap: list[np.ndarray | None] = []
         self._hash = hashlib.sha256()
         self._hash.update(self.pose.tobytes())
+        self._readings_hash = hashlib.sha256()
 
     @property
     def time(self) -> float:
@@ -75,6 +76,12 @@ class Simulation:
     def truth_checksum(self) -> str:
         """SHA-256 (first 16 hex digits) of every true pose so far, bit for bit."""
         return self._hash.hexdigest()[:16]
+
+    @property
+    def readings_checksum(self) -> str:
+        """SHA-256 (first 16 hex digits) of every reading so far (sensor, kind, z, beacon IDs,
+        HDOP, bit for bit): what a recording's replay checks besides the truth."""
+        return self._readings_hash.hexdigest()[:16]
 
     def request_kidnap(self, pose=None) -> None:
         """Teleport the robot on the next step: to ``pose`` [x, y, theta], or a random pose
@@ -137,6 +144,11 @@ class Simulation:
             m = sense(spec, pose, self.world, rng)  # draw even when blacked out: stable streams
             if m is not None and not any(b.covers(spec.name) for b in blackouts):
                 measurements.append(m)
+                h = self._readings_hash
+                h.update(f"{k} {m.sensor} {m.kind} {m.z.shape}".encode())
+                h.update(np.ascontiguousarray(m.z, dtype="<f8").tobytes())
+                h.update(np.ascontiguousarray(m.beacon_ids, dtype="<i8").tobytes())
+                h.update(np.float64(m.hdop).tobytes())
         return Step(k, k * self.dt, self.dt, pose.copy(), control, tuple(measurements),
                     tuple(events))
 

@@ -14,6 +14,18 @@ import numpy as np
 MEASUREMENT_DIMS = {"bearing": 1, "range_bearing": 2, "pose": 3, "position": 2}
 
 
+def read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` whose base is read-only too, so that the flag cannot be set
+    back (``view.flags.writeable = True`` raises). Costs one view, no copy, unless ``a`` is
+    a view of someone else's writable array (then it is copied first)."""
+    if isinstance(a, np.ndarray) and not a.flags.writeable and a.base is not None \
+            and not getattr(a.base, "flags", a.flags).writeable:
+        return a
+    base = np.array(a) if not isinstance(a, np.ndarray) or a.base is not None else a
+    base.flags.writeable = False
+    return base.view()
+
+
 @dataclass(frozen=True)
 class Control:
     """A velocity command: forward speed ``v`` [m/s] and turn rate ``omega`` [rad/s].
@@ -64,6 +76,12 @@ class Measurement:
     z: np.ndarray
     beacon_ids: np.ndarray
     hdop: float = float("nan")
+
+    def __post_init__(self) -> None:
+        # Read-only: every filter sees the same readings, so none may change them (a write
+        # raises, and the runner switches that filter off).
+        object.__setattr__(self, "z", read_only(self.z))
+        object.__setattr__(self, "beacon_ids", read_only(self.beacon_ids))
 
     def __len__(self) -> int:
         return int(self.z.shape[0])

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
+from types import MappingProxyType
 
 import numpy as np
 
-from beacon_sim.core.types import Beacon
+from beacon_sim.core.types import Beacon, read_only
 
 
 @dataclass(frozen=True)
@@ -21,16 +23,16 @@ class World:
     def beacon_xy(self) -> np.ndarray:
         """Beacon positions, shape (n, 2) [m], in the order of ``beacons``."""
         xy = np.array([[b.x, b.y] for b in self.beacons], dtype=float)
-        return xy.reshape(-1, 2)
+        return read_only(xy.reshape(-1, 2))  # shared with every filter: nobody may move a beacon
 
     @cached_property
     def beacon_ids(self) -> np.ndarray:
         """Beacon IDs, shape (n,), in the order of ``beacons``."""
-        return np.array([b.id for b in self.beacons], dtype=int)
+        return read_only(np.array([b.id for b in self.beacons], dtype=int))
 
     @cached_property
-    def _index_of_id(self) -> dict[int, int]:
-        return {b.id: i for i, b in enumerate(self.beacons)}
+    def _index_of_id(self) -> Mapping[int, int]:
+        return MappingProxyType({b.id: i for i, b in enumerate(self.beacons)})
 
     def beacon_index(self, ids) -> np.ndarray:
         """Row indices into ``beacon_xy`` for an array of beacon IDs."""

@@ -273,7 +273,8 @@ class HistogramFilter(FilterBase):
             g.fill(1.0 / g.size)   # every cell ruled out (numerically): start over
         else:
             eps = self.params["floor"]
-            g *= (1.0 - eps) / total
+            g /= total             # not g *= 1 / total: a subnormal total would overflow to inf
+            g *= 1.0 - eps
             g += eps / g.size
         self._cache = None
 

@@ -9,11 +9,13 @@ A filter is named by
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import importlib.metadata
 import importlib.util
 import re
 import sys
+import traceback
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -23,6 +25,8 @@ import numpy as np
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.streams import stream
 from beacon_sim.filters.base import Filter, FilterContext, FilterError, GaussianBelief, broad_gaussian
+from beacon_sim.filters.param_ranges import check_params
+from beacon_sim.filters.runner import FilterExit, run_filter_code
 
 #: Built-in filters: name -> "module:Class", imported only when used.
 BUILTIN_FILTERS = {
@@ -35,6 +39,11 @@ BUILTIN_FILTERS = {
 }
 
 ENTRY_POINT_GROUP = "beacon_sim.filters"
+
+#: The longest a filter's module may take to import, and its ``__init__`` or ``reset`` to
+#: run, before it is stopped as a failure [s] (an endless loop must not hang the program).
+IMPORT_LIMIT_S = 60.0
+BUILD_LIMIT_S = 30.0
 
 
 class FilterLoadError(FilterError):
@@ -64,10 +73,11 @@ def _load_file(path: Path, class_name: str) -> type:
     module = importlib.util.module_from_spec(spec)
     try:
         sys.modules[module_name] = module
-        loader.exec_module(module)
-    except Exception as exc:  # a student's file: report, do not crash
+        run_filter_code(lambda: loader.exec_module(module), IMPORT_LIMIT_S, "import")
+    except Exception as exc:  # a student's file (even one that calls sys.exit): report, do not crash
         sys.modules.pop(module_name, None)
-        raise FilterLoadError(f"{path}: cannot import: {type(exc).__name__}: {exc}") from exc
+        why = str(exc) if isinstance(exc, FilterExit) else f"{type(exc).__name__}: {exc}"
+        raise FilterLoadError(f"{path}: cannot import: {one_line_text(why)}") from exc
     return _get_class(module, class_name, str(path))
 
 
@@ -101,9 +111,10 @@ def load_filter_class(spec: str) -> type:
         eps = entry_point_filters()
         if spec in eps:
             try:
-                return eps[spec].load()
+                return run_filter_code(eps[spec].load, IMPORT_LIMIT_S, "import")
             except Exception as exc:
-                raise FilterLoadError(f"entry point {spec!r}: cannot load: {exc}") from exc
+                raise FilterLoadError(f"entry point {spec!r}: cannot load: "
+                                      f"{one_line_text(str(exc))}") from exc
         known = ", ".join(available_filters())
         raise FilterLoadError(
             f"unknown filter {spec!r}: use one of {known}, pkg.mod:Class or path/to/file.py:Class")
@@ -111,9 +122,10 @@ def load_filter_class(spec: str) -> type:
     if target.endswith(".py") or "/" in target or "\\" in target:
         return _load_file(Path(target), class_name)
     try:
-        module = importlib.import_module(target)
-    except ImportError as exc:
-        raise FilterLoadError(f"{spec}: cannot import module {target!r}: {exc}") from exc
+        module = run_filter_code(lambda: importlib.import_module(target), IMPORT_LIMIT_S, "import")
+    except Exception as exc:
+        raise FilterLoadError(f"{spec}: cannot import module {target!r}: "
+                              f"{one_line_text(str(exc))}") from exc
     return _get_class(module, class_name, target)
 
 
@@ -175,6 +187,18 @@ def parse_set_options(items: list[str]) -> dict[str, dict[str, Any]]:
     return out
 
 
+def check_param_names(params: dict[str, dict[str, Any]] | None, specs: list[str]) -> None:
+    """Raise :class:`FilterLoadError` when ``--set NAME.KEY=VALUE`` names a filter that does
+    not run (``NAME`` must be one of the filters' display names)."""
+    names = sorted({filter_display_name(s) for s in specs})
+    for name in params or {}:
+        if name not in names:
+            hint = difflib.get_close_matches(name, names, n=1)
+            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+            raise FilterLoadError(f"--set {name}.*: no filter {name!r} in this run{extra}; the "
+                                  f"filters are {', '.join(names) or 'none'}")
+
+
 def merged_params(spec: str, scenario: Scenario, params: dict[str, Any] | None = None) -> dict[str, Any]:
     """The parameters a filter is built with: the scenario's ``[filters.NAME]``, then
     ``params`` (this filter's ``--set`` values) on top."""
@@ -206,14 +230,48 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
         params=merged_params(spec, scenario, params),
         rng=stream(seed, "filter", name),
     )
+    check_params(cls, ctx.params, scenario.world)  # finite, in range, fits in memory
     try:
-        flt: Filter = cls(ctx)
+        flt: Filter = run_filter_code(lambda: cls(ctx), BUILD_LIMIT_S, "__init__")
     except FilterError:
         raise
     except TypeError as exc:
-        raise FilterLoadError(f"{spec}: cannot construct with a FilterContext: {exc}") from exc
-    reset_filter(flt, scenario)
+        raise FilterLoadError(f"{spec}: cannot construct with a FilterContext: "
+                              f"{one_line_text(str(exc))}") from exc
+    run_filter_code(lambda: reset_filter(flt, scenario), BUILD_LIMIT_S, "reset")
     return flt
+
+
+def build_filters(specs: list[str], scenario: Scenario, seed: int,
+                  params: dict[str, dict[str, Any]] | None = None
+                  ) -> tuple[dict[str, Filter | None], dict[str, tuple[str, str]]]:
+    """Build every filter of a run, named by :func:`filter_names`: ``(name -> filter or None,
+    name -> (why construction failed, traceback))``.
+
+    A name or parameter that cannot work raises :class:`FilterError` (the user named it: one
+    line, exit status 2); a filter whose own code fails in import-time-free construction
+    (``__init__`` or ``reset`` raising, exiting or hanging) is None with its reason, so the
+    run goes on without it."""
+    built: dict[str, Filter | None] = {}
+    broken: dict[str, tuple[str, str]] = {}
+    for name, spec in zip(filter_names(specs), specs, strict=True):
+        try:
+            built[name] = build_filter(spec, scenario, seed, name=name,
+                                       params=(params or {}).get(filter_display_name(spec)))
+        except FilterError:
+            raise
+        except Exception as exc:  # a student's __init__ or reset
+            built[name] = None
+            why = str(exc) if isinstance(exc, FilterExit) else f"{type(exc).__name__}: {exc}"
+            broken[name] = (f"construction failed: {one_line_text(why)}", traceback.format_exc())
+    return built, broken
+
+
+def one_line_text(text: str) -> str:
+    """The first line of ``text`` (messages are one line), at most 300 characters."""
+    lines = text.strip().splitlines()
+    first = lines[0] if lines else ""
+    return first if len(first) <= 300 else first[:297] + "..."
 
 
 def sensor_note(spec: str, scenario: Scenario) -> str | None:
@@ -236,5 +294,6 @@ def reset_filter(flt: Filter, scenario: Scenario) -> None:
     flt.reset(init)
 
 
-__all__ = ["BUILTIN_FILTERS", "FilterLoadError", "available_filters", "build_filter",
+__all__ = ["BUILTIN_FILTERS", "FilterLoadError", "available_filters", "build_filter", "build_filters",
+           "check_param_names",
            "filter_display_name", "filter_names", "initial_belief", "load_filter_class", "split_label"]

@@ -85,9 +85,11 @@ class FilterTrack:
 
     name: str
     filter: Filter | None
-    means: list[np.ndarray] = field(default_factory=list)
-    covs: list[np.ndarray] = field(default_factory=list)
-    ticks: list[int] = field(default_factory=list)
+    # Every estimate in a headless run (the metrics need them all); the last ``keep`` only
+    # in a window's session (see :func:`bounded_track`), so its memory stays bounded.
+    means: list[np.ndarray] | deque[np.ndarray] = field(default_factory=list)
+    covs: list[np.ndarray] | deque[np.ndarray] = field(default_factory=list)
+    ticks: list[int] | deque[int] = field(default_factory=list)
     step_ns: int = 0
     steps: int = 0
     failed: str | None = None
@@ -103,6 +105,11 @@ class FilterTrack:
 
 
 _F8 = np.dtype(float)
+
+#: The largest |mean| entry [m or rad] and covariance entry [m^2 or rad^2] an estimate may
+#: hold: beyond them the filter has diverged (and the metrics' products would overflow).
+MAX_MEAN = 1e9
+MAX_COV = 1e12
 
 
 def _as_numbers(x: object) -> np.ndarray | None:
@@ -151,10 +158,14 @@ def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
     if mean.shape != (3,) or cov.shape != (3, 3):
         return f"estimate() returned shapes {mean.shape} and {cov.shape}, expected (3,) and (3, 3)"
     c = cov.tolist()
-    if not all(map(math.isfinite, (*mean.tolist(), *c[0], *c[1], *c[2]))):
+    m = mean.tolist()
+    if not all(map(math.isfinite, (*m, *c[0], *c[1], *c[2]))):
         return "estimate() returned NaN or infinity"
     (a, b, d), (b2, e, f), (d2, f2, g) = c
     scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
+    if scale > MAX_COV or max(abs(m[0]), abs(m[1]), abs(m[2])) > MAX_MEAN:
+        return (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
+                f"{MAX_COV:g} (diverged)")
     if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
         return "covariance is not symmetric"
     b, d, f = 0.5 * (b + b2), 0.5 * (d + d2), 0.5 * (f + f2)
@@ -274,7 +285,11 @@ def time_limit(seconds: float | None):
             _WD_THREAD = threading.Thread(target=_watchdog_loop, name="beacon-sim watchdog",
                                           daemon=True)
             _WD_THREAD.start()
-        _WD_ARMED[tid] = [time.monotonic() + max(seconds, 0.0), 0.0]
+        outer = _WD_ARMED.get(tid)  # a limit around this one (nested): the earlier deadline wins
+        deadline = time.monotonic() + max(seconds, 0.0)
+        if outer is not None:
+            deadline = min(deadline, outer[0])
+        _WD_ARMED[tid] = [deadline, 0.0]
     try:
         yield
     finally:
@@ -282,14 +297,66 @@ def time_limit(seconds: float | None):
             entry = _WD_ARMED.pop(tid, None)
             if entry is not None and entry[1]:
                 _raise_in(tid, None)  # a raise not yet delivered: withdraw it
+            if outer is not None:
+                _WD_ARMED[tid] = outer
 
 
 T = TypeVar("T")
 
+# A Ctrl-C (SIGINT) or SIGTERM from the user, as opposed to a ``KeyboardInterrupt`` or a
+# ``SystemExit`` that filter code raised itself: the front ends' signal handlers call
+# note_user_interrupt() before raising, and the guard lets only those through.
+_USER_INTERRUPT = threading.Event()
+
+
+def note_user_interrupt() -> None:
+    """Record that the user asked to stop (called from a SIGINT / SIGTERM handler)."""
+    _USER_INTERRUPT.set()
+
+
+def user_interrupted() -> bool:
+    """Whether the user asked to stop (see :func:`note_user_interrupt`)."""
+    return _USER_INTERRUPT.is_set()
+
+
+class FilterExit(RuntimeError):
+    """Filter code raised ``SystemExit`` or ``KeyboardInterrupt`` (not the user's Ctrl-C), or
+    ran out of time, where an ordinary exception is expected: a failure of that filter."""
+
+
+def is_filter_failure(exc: BaseException) -> bool:
+    """Whether ``exc``, raised inside filter code, is that filter's failure (everything but
+    the user's own Ctrl-C / SIGTERM and the interpreter's GeneratorExit)."""
+    if isinstance(exc, KeyboardInterrupt):
+        return not user_interrupted()
+    return isinstance(exc, Exception | SystemExit | FilterTimeout)
+
+
+def exit_text(exc: BaseException) -> str:
+    """One line for a ``SystemExit`` / ``KeyboardInterrupt`` raised by filter code."""
+    if isinstance(exc, SystemExit):
+        return f"SystemExit({exc.code!r}) raised by the filter"
+    return f"{type(exc).__name__} raised by the filter"
+
+
+def run_filter_code(fn: Callable[[], T], seconds: float | None, what: str) -> T:
+    """``fn()`` (a filter's ``__init__``, ``reset``, import...) under :func:`time_limit`, with
+    ``SystemExit``, a ``KeyboardInterrupt`` that is not the user's and a time-out turned into
+    :class:`FilterExit`, so that every ``except Exception`` handles them as the filter's failure."""
+    try:
+        with time_limit(seconds):
+            return fn()
+    except FilterTimeout:
+        raise FilterExit(f"{what}: time limit: stopped after {seconds:g} s") from None
+    except (SystemExit, KeyboardInterrupt) as exc:
+        if not is_filter_failure(exc):
+            raise
+        raise FilterExit(f"{what}: {exit_text(exc)}") from exc
+
 
 def guarded_call(fn: Callable[[], T], seconds: float | None) -> tuple[T | None, str | None, str]:
     """``fn()`` under :func:`time_limit`: (its value, None, "") or (None, why it failed in one
-    line, the traceback)."""
+    line, the traceback). The user's own Ctrl-C goes through."""
     try:
         with time_limit(seconds):
             return fn(), None, ""
@@ -297,6 +364,10 @@ def guarded_call(fn: Callable[[], T], seconds: float | None) -> tuple[T | None, 
         return None, f"time limit: stopped after {seconds:g} s", traceback.format_exc()
     except Exception as exc:
         return None, one_line(exc), traceback.format_exc()
+    except (SystemExit, KeyboardInterrupt) as exc:
+        if not is_filter_failure(exc):
+            raise
+        return None, exit_text(exc), traceback.format_exc()
 
 
 def one_line(exc: BaseException) -> str:
@@ -313,6 +384,14 @@ def failure_text(track: FilterTrack) -> str | None:
     return track.failed + at
 
 
+def bounded_track(name: str, flt: Filter | None, keep: int | None, **fields: Any) -> FilterTrack:
+    """A track that keeps every estimate (``keep`` None) or only the last ``keep`` of them
+    (means, covariances and ticks in ring buffers: the window's sessions)."""
+    if keep is None:
+        return FilterTrack(name, flt, **fields)
+    return FilterTrack(name, flt, deque(maxlen=keep), deque(maxlen=keep), deque(maxlen=keep), **fields)
+
+
 class FilterRunner:
     """Runs several filters on the same steps.
 
@@ -327,6 +406,9 @@ class FilterRunner:
         filter ("time limit"); None: no limit.
     run_limit_s : float, optional
         A filter whose steps add up to more than this [s] wall time is stopped.
+    keep : int, optional
+        Keep only the last ``keep`` estimates of each filter (a window's session, whose
+        memory must not grow with time); None (headless runs): keep them all.
     """
 
     #: Filters (by name) whose estimate after predict and before update is copied, each
@@ -336,8 +418,9 @@ class FilterRunner:
     priors: dict[str, tuple[np.ndarray, np.ndarray]]
 
     def __init__(self, filters: Mapping[str, Filter | None], step_limit_s: float | None = None,
-                 run_limit_s: float | None = None):
-        self.tracks = {name: FilterTrack(name, f, failed=None if f is not None else NOT_BUILT)
+                 run_limit_s: float | None = None, keep: int | None = None):
+        self.keep = keep
+        self.tracks = {name: bounded_track(name, f, keep, failed=None if f is not None else NOT_BUILT)
                        for name, f in filters.items()}
         self.step_limit_s = step_limit_s
         self.run_limit_s = run_limit_s
@@ -388,6 +471,11 @@ class FilterRunner:
                 continue
             except Exception as exc:
                 self.fail(track.name, one_line(exc), traceback.format_exc(), step.time)
+                continue
+            except (SystemExit, KeyboardInterrupt) as exc:  # raised by the filter's code
+                if not is_filter_failure(exc):
+                    raise  # the user's Ctrl-C: stop the program
+                self.fail(track.name, exit_text(exc), traceback.format_exc(), step.time)
                 continue
             track.step_ns += elapsed
             track.steps += 1

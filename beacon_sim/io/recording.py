@@ -2,18 +2,23 @@
 
 One JSON object per line (format described in docs/replay.md):
 
-- line 1, the header: ``{"type": "header", "format": "beacon-sim-recording", "version": 1,
+- line 1, the header: ``{"type": "header", "format": "beacon-sim-recording", "version": 2,
   "program_version", "created", "scenario_name", "scenario_source", "scenario_toml" (the
-  full text of the scenario file), "seed", "dt", "filters" (specs), "params" ({NAME: {KEY:
-  VALUE}}, the ``--set`` overrides), "checkpoint_every" (ticks)}``;
-- one line per tick: ``{"type": "tick", "k": tick, "u": [v, omega], "h": "8 hex digits"}``
+  full text of the scenario file), "scenario_sha256" (its checksum), "seed", "dt", "filters"
+  (specs), "params" ({NAME: {KEY: VALUE}}, the ``--set`` overrides), "checkpoint_every"
+  (ticks)}``;
+- one line per tick: ``{"type": "tick", "k": tick, "u": [v, omega], "h": "8 hex digits",
+  "r": "8 hex digits"}`` (truth and readings checksums)
   plus ``"c": [commands]`` when the user gave commands on that tick (:data:`COMMAND_KINDS`;
   their effect is in beacon_sim/runs/user_commands.py);
   ``h`` is the start of the truth checksum after the tick, so a replay names the first tick
   that differs;
 - every ``checkpoint_every`` ticks (one simulated second): ``{"type": "checkpoint", "k",
-  "time", "pose": [x, y, theta], "checksum"}``;
-- last: ``{"type": "end", "ticks", "pose", "checksum"}``.
+  "time", "pose": [x, y, theta], "checksum", "readings_checksum"}``;
+- last: ``{"type": "end", "ticks", "pose", "checksum", "readings_checksum"}``.
+
+Version 1 files (no readings checksums, no scenario checksum) are still read; a replay says
+they are verified for the truth only.
 
 This module is the format: reading a file (:func:`load_recording`) and the pieces the writer
 shares (:class:`beacon_sim.runs.recorder.Recorder` writes a file as a run goes). Reading
@@ -23,6 +28,7 @@ never executes code: ``json`` only.
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import json
 import math
 import tomllib
@@ -36,7 +42,11 @@ from beacon_sim.core.types import Control
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Versions this program reads. Version 1 files carry checksums of the truth only; version 2
+#: adds the readings (``r`` per tick, ``readings_checksum``) and the scenario text
+#: (``scenario_sha256`` in the header).
+READ_VERSIONS = (1, 2)
 #: Flush the file when this much simulated or wall time [s] has passed since the last flush.
 FLUSH_EVERY_S = 0.5
 RECORDINGS_DIR = "recordings"
@@ -86,6 +96,11 @@ def scenario_text(scenario: Scenario) -> str:
             from None
 
 
+def text_checksum(text: str) -> str:
+    """SHA-256 (first 16 hex digits) of a scenario's text, as stored in a version 2 header."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
 def dumps(obj: Mapping[str, Any]) -> str:
     # Python's float repr round-trips exactly, so poses and controls come back bit for bit.
     return json.dumps(obj, separators=(",", ":"), allow_nan=True)
@@ -106,6 +121,8 @@ class TickRecord:
     commands: list[dict]
     short_checksum: str | None = None
     line: int = 0
+    readings_checksum: str | None = None  # version 2: first 8 hex digits of the readings'
+
 
 
 @dataclass
@@ -135,6 +152,12 @@ class Recording:
     @property
     def complete(self) -> bool:
         return self.end is not None
+
+    @property
+    def version(self) -> int:
+        """The file's format version (1: checksums of the truth only; 2: also the readings
+        and the scenario text)."""
+        return int(self.header["version"])
 
 
 def rebuild_scenario(text: str, file: str, name: str) -> Scenario:
@@ -171,15 +194,27 @@ def _check_header(path: Path, header: Any) -> None:
         raise _fail(path, 1, f"not a beacon-sim recording (the first line must be a "
                              f"{FORMAT_NAME!r} header)")
     version = header.get("version")
-    if version != FORMAT_VERSION:
+    if version not in READ_VERSIONS or isinstance(version, bool):
         raise _fail(path, 1, f"recording format version {version!r} is not supported by "
-                             f"beacon-sim {__version__} (it reads version {FORMAT_VERSION})")
+                             f"beacon-sim {__version__} (it reads versions "
+                             f"{', '.join(map(str, READ_VERSIONS))})")
     need: dict[str, type | tuple[type, ...]] = {
         "scenario_toml": str, "scenario_name": str, "seed": int, "dt": (int, float),
         "filters": list, "params": dict}
+    if version >= 2:
+        need["scenario_sha256"] = str
     for key, typ in need.items():
         if not isinstance(header.get(key), typ) or isinstance(header.get(key), bool):
-            raise _fail(path, 1, f"corrupted header: {key} = {header.get(key)!r}")
+            value = repr(header.get(key))
+            raise _fail(path, 1, f"corrupted header: {key} = {value[:60]}")
+    if not 0 <= header["seed"] <= 2**63 - 1:
+        raise _fail(path, 1, f"corrupted header: seed = {header['seed']!r}")
+    if not all(isinstance(f, str) for f in header["filters"]) \
+            or not all(isinstance(v, dict) for v in header["params"].values()):
+        raise _fail(path, 1, "corrupted header: filters or params")
+    if version >= 2 and text_checksum(header["scenario_toml"]) != header["scenario_sha256"]:
+        raise _fail(path, 1, "the stored scenario was edited (its checksum scenario_sha256 "
+                             "differs): not the scenario this run was recorded with")
 
 
 def _number(x) -> bool:
@@ -240,13 +275,18 @@ def load_recording(path) -> Recording:
                     validate_command(cmd)
                 except ValueError as exc:
                     raise _fail(path, n, str(exc)) from None
-            ticks.append(TickRecord(k, Control(float(u[0]), float(u[1])), c, obj.get("h"), n))
+            h, r = obj.get("h"), obj.get("r")
+            if not (h is None or isinstance(h, str)) or not (r is None or isinstance(r, str)):
+                raise _fail(path, n, f"malformed tick line: {text.strip()[:80]}")
+            ticks.append(TickRecord(k, Control(float(u[0]), float(u[1])), c, h, n, r))
         elif kind == "checkpoint":
-            if not isinstance(obj.get("k"), int) or not isinstance(obj.get("checksum"), str):
+            if not isinstance(obj.get("k"), int) or not isinstance(obj.get("checksum"), str) \
+                    or not isinstance(obj.get("readings_checksum", ""), str):
                 raise _fail(path, n, "malformed checkpoint line")
             checkpoints[obj["k"]] = obj
         elif kind == "end":
-            if not isinstance(obj.get("checksum"), str):
+            if not isinstance(obj.get("checksum"), str) \
+                    or not isinstance(obj.get("readings_checksum", ""), str):
                 raise _fail(path, n, "malformed end line")
             end = obj
         else:

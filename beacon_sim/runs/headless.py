@@ -7,7 +7,6 @@ same steps; the result is the same whatever filters run (the truth does not depe
 from __future__ import annotations
 
 import time
-import traceback
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,8 +16,7 @@ from beacon_sim.core.metrics import summary
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Step
-from beacon_sim.filters.base import Filter, FilterError
-from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
+from beacon_sim.filters.loading import build_filters
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
 
 #: The figures of a run that a failed filter does not get (null in JSON, empty in CSV).
@@ -107,18 +105,7 @@ def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int
     seed = scenario.seed if seed is None else seed
     duration = scenario.duration if duration is None else duration
     specs = list(scenario.default_filters if filters is None else filters)
-    built: dict[str, Filter | None] = {}
-    broken: dict[str, tuple[str, str]] = {}
-    for name, spec in zip(filter_names(specs), specs, strict=True):
-        try:
-            built[name] = build_filter(spec, scenario, seed, name=name,
-                                       params=(params or {}).get(filter_display_name(spec)))
-        except FilterError:
-            raise  # the user named something that cannot work: one line, exit 2
-        except Exception as exc:  # a filter that crashes in __init__ or reset: mark it failed
-            built[name] = None
-            broken[name] = (f"construction failed: {type(exc).__name__}: {exc}",
-                            traceback.format_exc())
+    built, broken = build_filters(specs, scenario, seed, params)
     runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
     for name, (message, tb) in broken.items():
         runner.tracks[name].failed, runner.tracks[name].traceback = message, tb

@@ -10,6 +10,7 @@ So a replay of (command, user commands) per tick reproduces the session bit for 
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,14 +23,14 @@ from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
-from beacon_sim.filters.base import Belief, Filter, FilterError, GaussianBelief
-from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names, reset_filter
+from beacon_sim.filters.base import Belief, Filter, GaussianBelief
+from beacon_sim.filters.loading import build_filters, reset_filter
 from beacon_sim.filters.runner import (
     WINDOW_STEP_LIMIT_S,
     FilterRunner,
     FilterTrack,
+    bounded_track,
     guarded_call,
-    one_line,
     status_line,
     validate_belief,
     validate_estimate,
@@ -45,6 +46,9 @@ CATCH_UP_BUDGET_S = 1.5
 #: The session keeps every Step for a catch-up up to this much simulated time [s] (about
 #: 0.7 kB a tick: 20 minutes at 20 Hz is 17 MB); later reloads start from the initial belief.
 HISTORY_S = 1200.0
+#: Estimates a window's session keeps per filter (the screen needs the latest; a rebuilt
+#: trail at most this many points, the trail's own cap): memory does not grow with time.
+KEEP_ESTIMATES = 6000
 
 
 @dataclass
@@ -73,21 +77,11 @@ class Session:
     def __post_init__(self) -> None:
         sc = self.scenario
         self.seed = sc.seed if self.seed is None else int(self.seed)
-        built: dict[str, object] = {}
-        broken: dict[str, str] = {}
-        for name, spec in zip(filter_names(self.specs), self.specs, strict=True):
-            try:
-                built[name] = build_filter(spec, sc, self.seed, name=name,
-                                           params=self.params.get(filter_display_name(spec)))
-            except FilterError:
-                raise  # a name or parameter that cannot work: one line, exit 2
-            except Exception as exc:  # a student's __init__ or reset: switched off, on screen
-                built[name] = None
-                broken[name] = f"construction failed: {one_line(exc)}"
+        built, broken = build_filters(self.specs, sc, self.seed, self.params)
         self.names = list(built)
-        self.runner = FilterRunner(built, step_limit_s=WINDOW_STEP_LIMIT_S)
-        for name, why in broken.items():
-            self.runner.fail(name, why)
+        self.runner = FilterRunner(built, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES)
+        for name, (why, tb) in broken.items():
+            self.runner.fail(name, why, tb)
         self.runner.priors = {}
         self._keep_priors()
         # Called with every Step after the filters are fed (the window's live bound); kept
@@ -99,7 +93,8 @@ class Session:
         self.autopilot = False
         self.pending: list[dict] = []
         self.visible = {n: True for n in self.names}
-        self.controls: list[Control] = []  # the command of every tick, in order
+        # the command of every tick, in order, over the kept history
+        self.controls: deque[Control] = deque(maxlen=round(HISTORY_S / sc.dt) + 1)
         self.steps: list[Step] = []  # every tick's Step, for a reloaded filter to catch up
         self.commands: dict[int, list[dict]] = {}  # tick -> user commands applied on it
         self.last_step: Step | None = None
@@ -217,15 +212,17 @@ class Session:
         """
         if len(self.steps) < self.sim.tick:  # the history was not kept this far
             reset_filter(flt, self.scenario)
-            self._install(name, FilterTrack(name, flt))
+            self._install(name, bounded_track(name, flt, KEEP_ESTIMATES))
             return (f"{name} reloaded from the initial belief (the session keeps "
                     f"{HISTORY_S / 60:.0f} minutes of history to catch up over)")
-        catch_up = FilterRunner({name: flt}, step_limit_s=WINDOW_STEP_LIMIT_S)
+        catch_up = FilterRunner({name: flt}, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES)
         t0 = time.perf_counter()
         for i, step in enumerate(self.steps):
             cmds = self.commands.get(step.tick)
-            if cmds:
-                apply_to_filters(cmds, {name: flt}, self.scenario)
+            if cmds and not catch_up.tracks[name].failed:
+                for _, (why, tb) in apply_to_filters(cmds, {name: flt}, self.scenario,
+                                                     WINDOW_STEP_LIMIT_S).items():
+                    catch_up.fail(name, why, tb, step.time - step.dt)
             catch_up.feed(step)
             elapsed = time.perf_counter() - t0
             if catch_up.tracks[name].failed:
@@ -233,7 +230,7 @@ class Session:
             if i in (19, 199) and elapsed * len(self.steps) / (i + 1) > budget_s:
                 projected = elapsed * len(self.steps) / (i + 1)
                 reset_filter(flt, self.scenario)
-                self._install(name, FilterTrack(name, flt))
+                self._install(name, bounded_track(name, flt, KEEP_ESTIMATES))
                 return (f"{name} reloaded from the initial belief: catching up over "
                         f"{len(self.steps)} ticks would take about {projected:.0f} s")
         self._install(name, catch_up.tracks[name])
@@ -261,11 +258,12 @@ class Session:
         ``belief()`` is a GaussianBelief); the others' beliefs have no single ellipse."""
         keep = set()
         for name, tr in self.runner.tracks.items():
-            try:
-                if tr.filter is not None and isinstance(tr.filter.belief(), GaussianBelief):
-                    keep.add(name)
-            except Exception:  # a student's belief() may raise before the first tick
+            if tr.filter is None or tr.failed:
                 continue
+            # a student's belief() may raise (or exit, or hang) before the first tick
+            bel, why, _ = guarded_call(tr.filter.belief, WINDOW_STEP_LIMIT_S)
+            if why is None and isinstance(bel, GaussianBelief):
+                keep.add(name)
         self.runner.keep_prior = frozenset(keep)
 
     def predict_update(self, name: str) -> tuple[tuple[np.ndarray, np.ndarray],
@@ -293,7 +291,10 @@ class Session:
         tick = self.sim.tick + 1
         if self.recorder is not None:
             self.recorder.record_tick(tick, control, cmds)
-        apply_commands(cmds, self.sim, self.filters, self.scenario)
+        working = {n: t.filter for n, t in self.runner.tracks.items() if t.filter and not t.failed}
+        for name, (why, tb) in apply_commands(cmds, self.sim, working, self.scenario,
+                                              WINDOW_STEP_LIMIT_S).items():
+            self._switch_off(name, why, tb)
         if any(c["kind"] in ("reset", "global_reset") for c in cmds):
             for tr in self.trails.values():
                 tr.brk()

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+import traceback
 from collections.abc import Set
 from dataclasses import dataclass, field
 from typing import Any
@@ -31,7 +32,7 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
-from beacon_sim.filters.runner import validate_estimate
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, guarded_call, one_line, validate_estimate
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
 from beacon_sim.runs.headless import ACCURACY_KEYS
 from beacon_sim.runs.scene import FilterStatus, Trail
@@ -280,6 +281,7 @@ class MrclamTrack:
     calls: int = 0
     failed: str | None = None
     failed_time_s: float | None = None  # [s] from the start of the run
+    traceback: str = ""
 
 
 @dataclass
@@ -346,11 +348,14 @@ def _predict_all(tracks, control: Control, dt: float, max_step: float) -> None:
         if tr.failed:
             continue
         a = time.perf_counter_ns()
-        try:
+
+        def run(tr=tr) -> None:
             for _ in range(n):
                 tr.filter.predict(control, h)
-        except Exception as exc:  # a filter that fails is switched off; the others go on
-            tr.failed = f"{type(exc).__name__}: {exc}"
+        # a filter that fails (raises, exits, hangs) is switched off; the others go on
+        _, why, tb = guarded_call(run, HEADLESS_STEP_LIMIT_S)
+        if why is not None:
+            tr.failed, tr.traceback = f"predict: {why}", tb
         tr.ns += time.perf_counter_ns() - a
         tr.calls += n
 
@@ -367,7 +372,13 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     chi-square gate, the particle filter's settings) unless ``params`` set them; the particle
     and grid filters weigh readings with the calibrated outlier mixture (docs/replay.md).
     """
-    from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
+    from beacon_sim.filters.loading import (
+        FilterError,
+        build_filter,
+        check_param_names,
+        filter_display_name,
+        filter_names,
+    )
 
     od = data.odometry
     t_start = data.t0
@@ -375,12 +386,19 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     cal = calibration or calibrate(data, t_end)
     scenario = mrclam_scenario(data, cal, t_start, t_end)
     specs = list(scenario.default_filters if filters is None else filters)
+    check_param_names(params, specs)
     tracks: dict[str, MrclamTrack] = {}
     for name, spec in zip(filter_names(specs), specs, strict=True):
         p = dict((params or {}).get(filter_display_name(spec), {}))
         for key, value in MRCLAM_PARAMS.get(spec, {}).items():
             p.setdefault(key, value)
-        tracks[name] = MrclamTrack(name, build_filter(spec, scenario, seed=0, name=name, params=p))
+        try:
+            tracks[name] = MrclamTrack(name, build_filter(spec, scenario, seed=0, name=name, params=p))
+        except FilterError:
+            raise  # the user named something that cannot work: one line, exit 2
+        except Exception as exc:  # the filter's own __init__ or reset failed: switched off
+            tracks[name] = MrclamTrack(name, None, failed=f"construction failed: {one_line(exc)}",  # type: ignore[arg-type]
+                                       failed_time_s=0.0, traceback=traceback.format_exc())
 
     ms = data.measurements
     ms = ms[(ms[:, 0] > t_start) & (ms[:, 0] <= t_end)]
@@ -395,12 +413,10 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     def record(t: float) -> None:
         for tr in active:
             if not tr.failed:
-                try:
-                    est = validate_estimate(tr.filter.estimate())
-                except Exception as exc:
-                    est = f"{type(exc).__name__}: {exc}"
+                raw, why, tb = guarded_call(tr.filter.estimate, HEADLESS_STEP_LIMIT_S)
+                est = validate_estimate(raw) if why is None else f"estimate(): {why}"
                 if isinstance(est, str):
-                    tr.failed = est
+                    tr.failed, tr.traceback = est, tb
                 else:
                     tr.times.append(t)
                     tr.means.append(est[0])
@@ -428,10 +444,10 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
                 if tr.failed:
                     continue
                 c = time.perf_counter_ns()
-                try:
-                    tr.filter.update([m])
-                except Exception as exc:
-                    tr.failed = f"{type(exc).__name__}: {exc}"
+                _, why, tb = guarded_call(lambda tr=tr, m=m: tr.filter.update([m]),
+                                          HEADLESS_STEP_LIMIT_S)
+                if why is not None:
+                    tr.failed, tr.traceback = f"update: {why}", tb
                 tr.ns += time.perf_counter_ns() - c
             updates += 1
             i_me += 1

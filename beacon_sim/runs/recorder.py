@@ -27,6 +27,7 @@ from beacon_sim.io.recording import (
     dumps,
     rebuild_scenario,
     scenario_text,
+    text_checksum,
     validate_command,
 )
 from beacon_sim.runs.user_commands import apply_commands
@@ -74,7 +75,8 @@ class Recorder:
             "program_version": __version__,
             "created": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
             "scenario_name": scenario.name, "scenario_source": str(scenario.source),
-            "scenario_toml": text, "seed": self.seed, "dt": scenario.dt,
+            "scenario_toml": text, "scenario_sha256": text_checksum(text),
+            "seed": self.seed, "dt": scenario.dt,
             "filters": list(filters), "params": {k: dict(v) for k, v in (params or {}).items()},
             "checkpoint_every": self.checkpoint_every,
         }
@@ -110,7 +112,8 @@ class Recorder:
         self.ticks += 1
         line: dict[str, Any] = {"type": "tick", "k": step.tick,
                                 "u": [step.control.v, step.control.omega],
-                                "h": self.shadow.truth_checksum[:8]}
+                                "h": self.shadow.truth_checksum[:8],
+                                "r": self.shadow.readings_checksum[:8]}
         if commands:
             line["c"] = commands
         self._file.write(dumps(line) + "\n")
@@ -133,6 +136,7 @@ class Recorder:
             out["time"] = sim.time
         out["pose"] = [float(v) for v in sim.pose]
         out["checksum"] = sim.truth_checksum
+        out["readings_checksum"] = sim.readings_checksum
         return out
 
     def close(self) -> None:

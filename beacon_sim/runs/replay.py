@@ -14,9 +14,9 @@ from typing import Any
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, Step
 from beacon_sim.filters.base import Filter
-from beacon_sim.filters.loading import build_filter, filter_display_name, filter_names
+from beacon_sim.filters.loading import build_filters as build_all
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
-from beacon_sim.io.recording import Recording, RecordingError
+from beacon_sim.io.recording import Recording, RecordingError, TickRecord
 from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.user_commands import apply_commands
@@ -57,13 +57,11 @@ def skipped_note(spec: str) -> str:
 
 
 def build_filters(specs: list[str], recording: Recording,
-                  params: dict[str, dict[str, Any]] | None = None) -> dict[str, Filter]:
-    """Construct the filters for a replay, named as a headless run names them."""
-    built: dict[str, Filter] = {}
-    for name, spec in zip(filter_names(specs), specs, strict=True):
-        built[name] = build_filter(spec, recording.scenario, recording.seed, name=name,
-                                   params=(params or {}).get(filter_display_name(spec)))
-    return built
+                  params: dict[str, dict[str, Any]] | None = None
+                  ) -> tuple[dict[str, Filter | None], dict[str, tuple[str, str]]]:
+    """Construct the filters for a replay, named as a headless run names them: (name ->
+    filter or None, name -> (why construction failed, traceback))."""
+    return build_all(specs, recording.scenario, recording.seed, params)
 
 
 def replay_recording(recording: Recording, filters: list[str] | None = None,
@@ -76,8 +74,10 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     :class:`ReplayMismatch` naming the first tick whose truth differs.
     """
     specs, skipped = recorded_filter_specs(recording, filters)
-    built = build_filters(specs, recording, recorded_params(recording, params))
+    built, broken = build_filters(specs, recording, recorded_params(recording, params))
     runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
+    for name, (why, tb) in broken.items():
+        runner.tracks[name].failed, runner.tracks[name].traceback = why, tb
     scenario = recording.scenario
     sim = Simulation(scenario, recording.seed)
     steps: list[Step] = []
@@ -87,30 +87,32 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     for rec in recording.ticks:
         a = time.perf_counter_ns()
         if rec.commands:
-            apply_commands(rec.commands, sim, built, scenario)
+            working = {n: t.filter for n, t in runner.tracks.items() if t.filter and not t.failed}
+            for name, (why, tb) in apply_commands(rec.commands, sim, working, scenario).items():
+                runner.fail(name, why, tb, sim.time)
         step = sim.step(rec.control)
         sim_ns += time.perf_counter_ns() - a
         if verify:
-            if rec.short_checksum is not None:
-                if sim.truth_checksum[:8] != rec.short_checksum:
-                    raise _mismatch(recording, rec.tick, rec.line, "its truth checksum")
-                checked += 1
+            why = tick_mismatch(recording, rec, sim)
+            if why is not None:
+                raise _mismatch(recording, rec.tick, rec.line, why)
+            checked += tick_checked(recording, rec)
             cp = recording.checkpoints.get(rec.tick)
             if cp is not None and (cp["checksum"] != sim.truth_checksum
-                                   or cp.get("pose") != [float(v) for v in sim.pose]):
+                                   or cp.get("pose") != [float(v) for v in sim.pose]
+                                   or cp.get("readings_checksum", sim.readings_checksum)
+                                   != sim.readings_checksum):
                 raise _mismatch(recording, _first_bad_tick(recording, rec.tick), rec.line,
                                 "the checkpoint")
         steps.append(step)
         runner.feed(step)
     wall = time.perf_counter() - t0
     end = recording.end
-    status = "no end line: checked tick by tick"
-    if verify and end is not None:
-        if end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum:
-            raise _mismatch(recording, sim.tick, len(recording.ticks), "the final checksum")
-        status = "verified"
-    elif verify and recording.ticks and checked == len(recording.ticks):
-        status = "verified up to the last complete tick"
+    if verify and end is not None and (
+            end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum
+            or end.get("readings_checksum", sim.readings_checksum) != sim.readings_checksum):
+        raise _mismatch(recording, sim.tick, len(recording.ticks), "the final checksum")
+    status = verification_status(recording, checked, len(recording.ticks), at_end=True)
     result = RunResult(scenario, recording.seed, steps, runner, wall, sim_ns / 1e9, sim.truth_checksum)
     result.extra["replay"] = {
         "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
@@ -121,6 +123,38 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     return result
 
 
+def tick_mismatch(recording: Recording, rec: TickRecord, sim: Simulation) -> str | None:
+    """What the tick's recorded checksums disagree with after ``sim`` ran it, or None."""
+    if rec.short_checksum is not None and sim.truth_checksum[:8] != rec.short_checksum:
+        return "its truth checksum"
+    if rec.readings_checksum is not None and sim.readings_checksum[:8] != rec.readings_checksum:
+        return "its readings checksum"
+    return None
+
+
+def tick_checked(recording: Recording, rec: TickRecord) -> int:
+    """1 when the tick carries every checksum its format version has (truth; version 2 also
+    readings), else 0."""
+    return int(rec.short_checksum is not None
+               and (recording.version < 2 or rec.readings_checksum is not None))
+
+
+def verification_status(recording: Recording, checked: int, ticks: int, at_end: bool) -> str:
+    """What a replay may claim, in words (docs/replay.md, "What replay verifies"). The end
+    line's checksums cover every tick; without it only the ticks that carry checksums count.
+    Version 1 files cover the truth only."""
+    covers = "" if recording.version >= 2 else \
+        " (truth only: a version 1 file does not cover the readings and the scenario)"
+    end = recording.end
+    if at_end and end is not None and (recording.version < 2 or "readings_checksum" in end):
+        return "verified" + covers
+    if ticks and checked == ticks:
+        return "verified up to the last complete tick" + covers
+    if checked or (end is not None and at_end):
+        return f"partly verified: {checked} of {ticks} ticks carry checksums" + covers
+    return "not verified: the recording holds no checksums"
+
+
 def _first_bad_tick(recording: Recording, tick: int) -> int:
     prev = [k for k in recording.checkpoints if k < tick]
     return (max(prev) + 1) if prev else 1
@@ -129,8 +163,9 @@ def _first_bad_tick(recording: Recording, tick: int) -> int:
 def _mismatch(recording: Recording, tick: int, line: int, what: str) -> ReplayMismatch:
     return ReplayMismatch(
         f"{recording.path}:{line}: replay differs from the recording at tick {tick} "
-        f"(t = {tick * recording.scenario.dt:g} s; checked against {what}): was it recorded by "
-        f"another version of beacon-sim (recorded by {recording.header.get('program_version')})?")
+        f"(t = {tick * recording.scenario.dt:g} s; checked against {what}): was it edited, or "
+        f"recorded by another version of beacon-sim (recorded by "
+        f"{recording.header.get('program_version')})?")
 
 
 class ReplaySession(Session):
@@ -141,6 +176,7 @@ class ReplaySession(Session):
                  params: dict[str, dict[str, Any]] | None = None):
         self.recording = recording
         self.mismatch: str | None = None  # first tick whose truth differs from the file
+        self._checked = 0  # ticks so far that carried their checksums
         super().__init__(recording.scenario, list(specs), recording.seed, dict(params or {}))
 
     @property
@@ -176,6 +212,7 @@ class ReplaySession(Session):
         if tick < self.sim.tick:
             self.close()
             self.mismatch = None
+            self._checked = 0
             self.__post_init__()  # a fresh simulation, fresh filters, empty trails
             for name in keep_flips:
                 if name in self.visible:
@@ -191,10 +228,12 @@ class ReplaySession(Session):
             if c["kind"] == "toggle" and c.get("filter") in self.visible:
                 self.visible[c["filter"]] = not self.visible[c["filter"]]
         step = super().tick()
-        if (self.mismatch is None and rec.short_checksum is not None
-                and self.sim.truth_checksum[:8] != rec.short_checksum):
-            self.mismatch = (f"{self.recording.path}:{rec.line}: replay differs from the recording "
-                             f"at tick {rec.tick} (t = {self.sim.time:g} s)")
+        if self.mismatch is None:
+            why = tick_mismatch(self.recording, rec, self.sim)
+            if why is not None:
+                self.mismatch = (f"{self.recording.path}:{rec.line}: replay differs from the "
+                                 f"recording at tick {rec.tick} (t = {self.sim.time:g} s; {why})")
+            self._checked += tick_checked(self.recording, rec)
         return step
 
     def checksum_status(self) -> str:
@@ -202,7 +241,9 @@ class ReplaySession(Session):
         if self.mismatch:
             return f"MISMATCH: {self.mismatch}"
         end = self.recording.end
-        if self.at_end and end is not None:
-            return "verified" if end["checksum"] == self.sim.truth_checksum else \
-                "MISMATCH with the end line's checksum"
-        return f"checked tick by tick up to tick {self.sim.tick}"
+        if self.at_end and end is not None and (
+                end["checksum"] != self.sim.truth_checksum
+                or end.get("readings_checksum", self.sim.readings_checksum) != self.sim.readings_checksum):
+            return "MISMATCH with the end line's checksum"
+        status = verification_status(self.recording, self._checked, self.sim.tick, self.at_end)
+        return status if self.at_end else f"{status} (up to tick {self.sim.tick})"

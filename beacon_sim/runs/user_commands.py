@@ -19,30 +19,44 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.loading import reset_filter
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, guarded_call
 from beacon_sim.io.recording import validate_command
 
 
 def apply_commands(commands: Iterable[Mapping], sim: Simulation, filters: Mapping[str, Filter],
-                   scenario: Scenario) -> None:
-    """Apply user commands to the simulation and the filters (``name -> filter``)."""
+                   scenario: Scenario, limit_s: float | None = HEADLESS_STEP_LIMIT_S
+                   ) -> dict[str, tuple[str, str]]:
+    """Apply user commands to the simulation and the filters (``name -> filter``). Returns
+    the filters whose ``reset`` failed: ``{name: (why in one line, traceback)}``, for the
+    caller to switch off (see :func:`apply_to_filters`)."""
     commands = list(commands)
     for cmd in commands:
         validate_command(cmd)
         if cmd["kind"] == "kidnap":
             sim.request_kidnap(cmd.get("pose"))
-    apply_to_filters(commands, filters, scenario)
+    return apply_to_filters(commands, filters, scenario, limit_s)
 
 
 def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
-                     scenario: Scenario) -> None:
+                     scenario: Scenario, limit_s: float | None = HEADLESS_STEP_LIMIT_S
+                     ) -> dict[str, tuple[str, str]]:
     """The filters' part of user commands (resets), also for a filter that catches up over a
-    session's history after a hot reload."""
+    session's history after a hot reload. Each ``reset`` runs under the runner's guard (time
+    limit ``limit_s`` [s]; an exception, ``SystemExit`` included, is that filter's failure):
+    returns ``{name: (why, traceback)}`` of the filters that failed, which get no further
+    command."""
+    failed: dict[str, tuple[str, str]] = {}
     for cmd in commands:
         kind = cmd["kind"]
-        if kind == "reset":
-            for f in filters.values():
-                reset_filter(f, scenario)
-        elif kind == "global_reset":
-            for f in filters.values():
-                if getattr(f, "supports_global", False):
-                    f.reset(None)
+        for name, f in filters.items():
+            if name in failed:
+                continue
+            if kind == "reset":
+                _, why, tb = guarded_call(lambda f=f: reset_filter(f, scenario), limit_s)
+            elif kind == "global_reset" and getattr(f, "supports_global", False):
+                _, why, tb = guarded_call(lambda f=f: f.reset(None), limit_s)
+            else:
+                continue
+            if why is not None:
+                failed[name] = (f"reset: {why}", tb)
+    return failed

@@ -1,0 +1,517 @@
+"""A seeded generator of hostile input (issue 15): malformed scenarios mutated from the
+shipped ones, hand-made scenarios, bad recordings, bad MRCLAM folders, bad command lines and
+faulty filters. Every case is a command line for ``beacon-sim`` plus the files it needs;
+tests/test_hostile_corpus.py runs them and checks exit status 0 or 2, at most two lines on
+stderr for exit 2, no traceback, and a time bound.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from beacon_sim.core.resources import scenario_dir
+
+#: Values a mutation puts in place of a number, a list or a string.
+EXTREMES: list[Any] = [0, -1, 0.0, -0.0, 1e-9, 1e-300, 1e9, 1e300, 1e308, -1e308, math.inf, -math.inf,
+                       math.nan, 2**63, -(2**63), 10**30, 1.5, True, "x", "", [], [1e308, 0, 0],
+                       [math.nan, 1, 2], {}, [[0, 0]], [[math.nan, 0]]]
+
+
+@dataclass
+class Case:
+    """One hostile input: ``argv`` for ``beacon-sim`` and files to write first
+    (name -> text), relative to the case's folder."""
+
+    name: str
+    argv: list[str]
+    files: dict[str, str] = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------- TOML writing
+def _value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{json.dumps(k)} = {_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(type(v))
+
+
+def dump_toml(data: dict[str, Any]) -> str:
+    """A TOML document for ``data`` (tables as inline tables: enough for the corpus)."""
+    return "".join(f"{json.dumps(k)} = {_value(v)}\n" for k, v in data.items())
+
+
+# --------------------------------------------------------------------------- scenarios
+def _leaves(obj: Any, path: tuple = ()) -> list[tuple]:
+    out = []
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            out.append((*path, k))
+            out.extend(_leaves(v, (*path, k)))
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj):
+            out.append((*path, i))
+            out.extend(_leaves(v, (*path, i)))
+    return out
+
+
+def _set(obj: Any, path: tuple, value: Any) -> None:
+    for p in path[:-1]:
+        obj = obj[p]
+    obj[path[-1]] = value
+
+
+def _delete(obj: Any, path: tuple) -> None:
+    for p in path[:-1]:
+        obj = obj[p]
+    del obj[path[-1]]
+
+
+def shipped() -> dict[str, dict[str, Any]]:
+    return {p.stem: tomllib.loads(p.read_text(encoding="utf-8"))
+            for p in sorted(scenario_dir().glob("*.toml"))}
+
+
+def mutated_scenarios(rng: random.Random, n: int) -> list[Case]:
+    """``n`` scenarios, each a shipped one with one to three leaves replaced by an extreme
+    value or deleted, run headless for a second with the EKF and dead reckoning."""
+    base = shipped()
+    names = sorted(base)
+    cases = []
+    for i in range(n):
+        data = json.loads(json.dumps(base[rng.choice(names)]))
+        for _ in range(rng.randint(1, 3)):
+            leaves = _leaves(data)
+            if not leaves:
+                break
+            path = rng.choice(leaves)
+            if rng.random() < 0.15:
+                _delete(data, path)
+            else:
+                _set(data, path, rng.choice(EXTREMES))
+        data["default_filters"] = ["ekf", "dead_reckoning"]
+        argv = ["run", "s.toml", "--duration", "1"]
+        if rng.random() < 0.2:
+            argv = ["run", "s.toml", "--duration", "1", "--filter", rng.choice(["pf", "histogram"]),
+                    "--set", "pf.n_particles=200" if "pf" in argv else "histogram.cell=0.5"]
+            argv[-1] = "pf.n_particles=200" if argv[-3] == "pf" else "histogram.cell=0.5"
+        cases.append(Case(f"mutated-{i}", argv, {"s.toml": dump_toml(data)}))
+    return cases
+
+
+_ROOM = ('dt = 0.1\nduration = 5\n[world]\nbounds = [0, 0, 10, 8]\nbeacons = [{ id = 1, x = 2, y = 2 }, '
+         '{ id = 2, x = 8, y = 6 }]\n[robot]\ninitial_pose = [5, 4, 0]\n')
+_SENSOR = '[[sensors]]\nkind = "range_bearing"\nname = "b"\n'
+
+
+def hand_made_scenarios() -> list[Case]:
+    """Scenarios written for one extreme each (the numbers the issue names, and more)."""
+    texts = {
+        "period-zero": _ROOM + _SENSOR + "period = 0\n",
+        "period-inf": _ROOM + _SENSOR + "period = inf\n",
+        "period-huge": _ROOM + _SENSOR + "period = 1e308\n",
+        "event-time-inf": _ROOM + '[[events]]\nkind = "kidnap"\ntime = inf\nrandom = true\n',
+        "event-time-huge": _ROOM + '[[events]]\nkind = "kidnap"\ntime = 1e308\nrandom = true\n',
+        "blackout-1e9": _ROOM + _SENSOR + '[[events]]\nkind = "blackout"\ntime = 1\nduration = 1e9\n',
+        "burst-inf": _ROOM + '[[events]]\nkind = "noise_burst"\ntime = 1\nduration = inf\nv_std = 1\n',
+        "burst-v-inf": _ROOM + '[[events]]\nkind = "noise_burst"\ntime = 1\nduration = 1\nv_std = inf\n',
+        "margin-huge": _ROOM + '[driver]\nkind = "random_goal"\nmargin = 1e308\n',
+        "margin-wide": _ROOM + '[driver]\nkind = "random_goal"\nmargin = 4\n',
+        "speed-inf": _ROOM + '[driver]\nkind = "random_goal"\nspeed = inf\n',
+        "circle-speed-huge": _ROOM + '[driver]\nkind = "circle"\nspeed = 1e308\n',
+        "omega-inf": _ROOM + '[driver]\nkind = "constant"\nv = 0.1\nomega = inf\n',
+        "v-nan": _ROOM + '[driver]\nkind = "constant"\nv = nan\n',
+        "waypoints-nan": _ROOM + '[driver]\nkind = "waypoints"\npoints = [[nan, 1], [2, 2]]\n',
+        "waypoints-inf": _ROOM + '[driver]\nkind = "waypoints"\npoints = [[inf, 1]]\n',
+        "v-std-inf": _ROOM + '[robot.motion_noise]\nv_std = inf\n',
+        "v-std-huge": _ROOM + '[robot.motion_noise]\nv_std = 1e300\n',
+        "omega-frac-inf": _ROOM + '[robot.motion_noise]\nomega_frac = inf\n',
+        "pose-std-huge": _ROOM + '[robot.motion_noise]\npose_std = [1e308, 0, 0]\n',
+        "duration-inf": _ROOM.replace("duration = 5", "duration = inf"),
+        "duration-1e300": _ROOM.replace("duration = 5", "duration = 1e300"),
+        "duration-tiny": _ROOM.replace("duration = 5", "duration = 1e-9"),
+        "dt-tiny": _ROOM.replace("dt = 0.1", "dt = 1e-9"),
+        "dt-zero": _ROOM.replace("dt = 0.1", "dt = 0"),
+        "dt-nan": _ROOM.replace("dt = 0.1", "dt = nan"),
+        "seed-negative": _ROOM + "seed = -1\n",
+        "seed-huge": "seed = 100000000000000000000000\n" + _ROOM,
+        "bounds-huge": _ROOM.replace("[0, 0, 10, 8]", "[-1e308, -1e308, 1e308, 1e308]"),
+        "bounds-inf": _ROOM.replace("[0, 0, 10, 8]", "[0, 0, inf, 8]"),
+        "beacon-x-inf": _ROOM.replace("x = 2,", "x = inf,"),
+        "beacon-id-huge": _ROOM.replace("id = 1,", "id = 100000000000000000000,"),
+        "beacon-dup": _ROOM.replace("id = 2,", "id = 1,"),
+        "many-beacons": (_ROOM.split("beacons")[0] + "beacons = ["
+                         + ", ".join(f"{{ id = {i}, x = {i % 10}, y = {i % 8} }}" for i in range(20000))
+                         + "]\n[robot]\ninitial_pose = [5, 4, 0]\n"),
+        "many-events": _ROOM + "".join(f'[[events]]\nkind = "kidnap"\ntime = {i}\nrandom = true\n'
+                                       for i in range(20000)),
+        "initial-nan": _ROOM.replace("[5, 4, 0]", "[5, nan, 0]"),
+        "initial-theta-huge": _ROOM.replace("[5, 4, 0]", "[5, 4, 1e308]"),
+        "belief-std-inf": _ROOM + '[initial_belief]\nstd = [inf, 1, 1]\n',
+        "belief-std-huge": _ROOM + '[initial_belief]\nstd = [1e300, 1, 1]\n',
+        "belief-mean-huge": _ROOM + '[initial_belief]\nmean = [1e300, 1, 1]\n',
+        "max-range-nan": _ROOM + _SENSOR + "max_range = nan\n",
+        "max-range-inf": _ROOM + _SENSOR + "max_range = inf\n",
+        "bearing-std-inf": _ROOM + _SENSOR + "bearing_std = inf\n",
+        "range-std-huge": _ROOM + _SENSOR + "range_std = 1e308\n",
+        "min-beacons-huge": _ROOM + _SENSOR + "min_beacons = 1000000000000\n",
+        "model-inf": _ROOM + _SENSOR + '[model.sensors.b]\nbearing_std = inf\n',
+        "model-noise-nan": _ROOM + '[model.motion_noise]\nv_std = nan\n',
+        "keyboard-inf": _ROOM + '[keyboard]\nv_max = inf\n',
+        "filters-file": _ROOM + 'default_filters = ["evil.py:Evil", "ekf"]\n',
+        "filters-abs-file": _ROOM + 'default_filters = ["/tmp/evil.py:Evil"]\n',
+        "filters-module": _ROOM + 'default_filters = ["os:system"]\n',
+        "filters-label-file": _ROOM + 'default_filters = ["a=evil.py:Evil"]\n',
+        "filter-params-nan": _ROOM + '[filters.ekf]\ngate_chi2 = nan\n',
+        "filter-params-pf-huge": _ROOM + 'default_filters = ["pf"]\n[filters.pf]\nn_particles = 1000000000\n',
+        "filter-params-grid-tiny": (_ROOM + 'default_filters = ["histogram"]\n'
+                                    '[filters.histogram]\ncell = 1e-5\n'),
+        "filter-params-unknown": _ROOM + '[filters.ekf]\nbogus = 1\n',
+        "not-toml": "this is [ not toml\n",
+        "binary": "\x00\x01\x02",
+        "empty": "",
+        "top-array": "x = [1, 2\n",
+        "world-string": 'world = "big"\n[robot]\ninitial_pose = [0, 0, 0]\n',
+        "sensors-table": _ROOM + "sensors = 3\n",
+        "events-number": _ROOM + "events = 5\n",
+        "event-kind-bad": _ROOM + '[[events]]\nkind = "explode"\ntime = 1\n',
+        "kidnap-offset-nan": _ROOM + '[[events]]\nkind = "kidnap"\ntime = 1\noffset = [nan, 0, 0]\n',
+        "kidnap-pose-huge": _ROOM + '[[events]]\nkind = "kidnap"\ntime = 1\npose = [1e300, 0, 0]\n',
+        "fov-zero": _ROOM + _SENSOR + "fov = 0\n",
+        "detection-2": _ROOM + _SENSOR + "detection_prob = 2\n",
+        "outlier-nan": _ROOM + _SENSOR + "outlier_rate = nan\n",
+        "beacon-height-inf": _ROOM + _SENSOR.replace("range_bearing", "position") + "beacon_height = inf\n",
+        "radius-inf": _ROOM.replace("initial_pose = [5, 4, 0]", "initial_pose = [5, 4, 0]\nradius = inf"),
+        "name-long": f'name = "{"n" * 10000}"\n' + _ROOM,
+        "circle-radius-tiny": _ROOM + '[driver]\nkind = "circle"\nradius = 1e-300\n',
+        "gain-huge": _ROOM + '[driver]\nkind = "random_goal"\ngain = 1e308\n',
+        "tolerance-inf": _ROOM + '[driver]\nkind = "waypoints"\npoints = [[1, 1]]\ntolerance = inf\n',
+        "ok-room": _ROOM + _SENSOR,
+    }
+    cases = []
+    for name, text in texts.items():
+        for cmd in (["run", "s.toml"], ["eval", "s.toml", "--runs", "1", "--jobs", "1"]):
+            argv = [*cmd, "--duration", "2"] if "duration" not in name else cmd
+            cases.append(Case(f"hand-{name}-{cmd[0]}", argv, {"s.toml": text, "evil.py": EVIL}))
+    return cases
+
+
+EVIL = "raise SystemExit('a scenario made me run code')\n"
+
+
+# --------------------------------------------------------------------------- recordings
+def recording_text(tmp: Path) -> str:
+    """A short real recording of ``default`` (written by the Recorder)."""
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.core.simulation import Simulation
+    from beacon_sim.runs.recorder import Recorder
+
+    sc = load_scenario("sparse_kidnap")
+    path = tmp / "base.jsonl"
+    with Recorder(path, sc, 3, ["ekf", "pf"], {"pf": {"n_particles": 300}}) as rec:
+        sim = Simulation(sc, 3)
+        for k in range(1, 31):
+            cmds = [{"kind": "reset"}] if k == 10 else []
+            rec.record_tick(k, None, cmds)
+            sim.step()
+    return path.read_text(encoding="utf-8")
+
+
+def bad_recordings(rng: random.Random, base: str, n: int) -> list[Case]:
+    """Hand-made corruptions of a recording, then ``n`` random ones."""
+    lines = base.splitlines()
+    header = json.loads(lines[0])
+
+    def with_header(**changes) -> str:
+        h = dict(header)
+        for k, v in changes.items():
+            if v is None:
+                h.pop(k, None)
+            else:
+                h[k] = v
+        return "\n".join([json.dumps(h), *lines[1:]]) + "\n"
+
+    toml = header["scenario_toml"]
+    made = {
+        "empty": "",
+        "header-only": lines[0] + "\n",
+        "not-json": "hello\n",
+        "binary": "\x00\xff" * 10,
+        "truncated": base[: len(base) // 2],
+        "version-99": with_header(version=99),
+        "version-1": with_header(version=1, scenario_sha256=None),
+        "version-string": with_header(version="2"),
+        "no-toml": with_header(scenario_toml=None),
+        "bad-toml": with_header(scenario_toml="[[[", scenario_sha256=None, version=1),
+        "seed-negative": with_header(seed=-5),
+        "seed-huge": with_header(seed=10**40),
+        "dt-string": with_header(dt="x"),
+        "filters-file": with_header(filters=["evil.py:Evil", "ekf"]),
+        "filters-not-strings": with_header(filters=[1, 2]),
+        "params-particles-huge": with_header(params={"pf": {"n_particles": 10**9}}),
+        "params-particles-float": with_header(params={"pf": {"n_particles": 1e9}}),
+        "params-grid-tiny": with_header(filters=["histogram"], params={"histogram": {"cell": 1e-5}}),
+        "params-nan": with_header(params={"ekf": {"gate_chi2": float("nan")}}),
+        "params-not-dict": with_header(params={"ekf": 3}),
+        "toml-edited": with_header(scenario_toml=toml.replace("dt = 0.1", "dt = 0.2")),
+        "toml-inf": with_header(scenario_toml=toml + "\nduration = inf\n", version=1,
+                                scenario_sha256=None),
+        "ticks-stripped": "\n".join(ln for ln in lines if '"tick"' not in ln) + "\n",
+        "tick-gap": "\n".join(ln for ln in lines if '"k":5,' not in ln) + "\n",
+        "control-nan": base.replace('"u":[', '"u":[NaN,', 1).replace("NaN,", "NaN", 1),
+        "control-huge": base.replace('"u":[', '"u":[1e308,0],"x":[', 1),
+        "command-bad": base.replace('"c":[{"kind":"reset"}]', '"c":[{"kind":"explode"}]'),
+        "command-pose-short": base.replace('"c":[{"kind":"reset"}]', '"c":[{"kind":"kidnap","pose":[1]}]'),
+        "command-pose-nan": base.replace('"c":[{"kind":"reset"}]',
+                                         '"c":[{"kind":"kidnap","pose":[NaN,1,1]}]'),
+        "command-pose-huge": base.replace('"c":[{"kind":"reset"}]',
+                                          '"c":[{"kind":"kidnap","pose":[1e308,1,1]}]'),
+        "end-not-dict": base.rstrip("\n").rsplit("\n", 1)[0] + '\n{"type":"end","checksum":5}\n',
+        "list-line": lines[0] + "\n[1,2,3]\n",
+    }
+    cases = [Case(f"rec-{k}", ["replay", "r.jsonl", "--headless"], {"r.jsonl": v})
+             for k, v in made.items()]
+    for i in range(n):
+        ls = list(lines)
+        for _ in range(rng.randint(1, 3)):
+            j = rng.randrange(len(ls))
+            ln = ls[j]
+            op = rng.random()
+            if op < 0.3 and len(ln) > 2:
+                a = rng.randrange(len(ln))
+                ls[j] = ln[:a] + rng.choice(["", "x", "9", "-", "}", '"', "1e308", "NaN"]) + ln[a + 1:]
+            elif op < 0.5:
+                del ls[j]
+            elif op < 0.7:
+                ls.insert(j, ls[rng.randrange(len(ls))])
+            else:
+                try:
+                    obj = json.loads(ln)
+                except json.JSONDecodeError:
+                    continue
+                if isinstance(obj, dict) and obj:
+                    key = rng.choice(sorted(obj))
+                    obj[key] = rng.choice(EXTREMES)
+                    ls[j] = json.dumps(obj)
+        cases.append(Case(f"rec-random-{i}", ["replay", "r.jsonl", "--headless"],
+                          {"r.jsonl": "\n".join(ls) + "\n"}))
+    return cases
+
+
+# --------------------------------------------------------------------------- MRCLAM
+_COMMENT = "# {what}\r\n# {cols}\r\n"
+
+
+def mrclam_folder(rng: random.Random, corrupt: str) -> dict[str, str]:
+    """A tiny MRCLAM folder (robot 1, 20 s) with one kind of corruption."""
+    t0 = 1248272272.841
+    lm = {6: (1.0, 1.0), 7: (4.0, 1.0), 8: (4.0, 4.0), 9: (1.0, 4.0)}
+    barcodes = {1: 5, 2: 14, 6: 27, 7: 54, 8: 70, 9: 36}
+    od, gt, me = [], [], []
+    for k in range(2000):
+        t = t0 + 0.01 * k
+        od.append(f"{t:.3f} \t 0.1 \t 0.05")
+        gt.append(f"{t:.3f} \t {2 + 0.001 * k:.6f} \t 2.0 \t 0.0")
+        if k % 25 == 0:
+            me.append(f"{t:.3f} \t {barcodes[6 + (k // 25) % 4]} \t 2.0 \t 0.1")
+    files = {
+        "Barcodes.dat": "".join(f"{s} \t {b}\r\n" for s, b in barcodes.items()),
+        "Landmark_Groundtruth.dat": "".join(f"{s} \t {x} \t {y} \t 0 \t 0\r\n" for s, (x, y) in lm.items()),
+        "Robot1_Odometry.dat": "\r\n".join(od) + "\r\n",
+        "Robot1_Groundtruth.dat": "\r\n".join(gt) + "\r\n",
+        "Robot1_Measurement.dat": "\r\n".join(me) + "\r\n",
+    }
+    name = rng.choice(sorted(f for f in files if f.startswith("Robot")))
+    rows = files[name].split("\r\n")
+    j = rng.randrange(len(rows) - 1)
+    if corrupt == "stamp-huge":
+        rows[j] = "1e15" + rows[j][rows[j].index(" "):]
+    elif corrupt == "stamp-nan":
+        rows[j] = "nan" + rows[j][rows[j].index(" "):]
+    elif corrupt == "stamp-inf":
+        rows[j] = "inf" + rows[j][rows[j].index(" "):]
+    elif corrupt == "stamp-negative":
+        rows[j] = "-1e9" + rows[j][rows[j].index(" "):]
+    elif corrupt == "value-inf":
+        rows[j] = rows[j].rsplit("\t", 1)[0] + "\t inf"
+    elif corrupt == "value-huge":
+        rows[j] = rows[j].rsplit("\t", 1)[0] + "\t 1e308"
+    elif corrupt == "text":
+        rows[j] = "abc def"
+    elif corrupt == "binary":
+        rows[j] = "\x00\x01"
+    elif corrupt == "missing":
+        files.pop(name)
+        return files
+    elif corrupt == "empty":
+        rows = [""]
+    elif corrupt == "backwards":
+        rows = rows[::-1]
+    elif corrupt == "landmarks-nan":
+        files["Landmark_Groundtruth.dat"] = "6 \t nan \t 1 \t 0 \t 0\r\n"
+        return files
+    elif corrupt == "barcodes-dup":
+        files["Barcodes.dat"] += "6 \t 27\r\n7 \t 27\r\n"
+        return files
+    files[name] = "\r\n".join(rows)
+    return files
+
+
+MRCLAM_CORRUPTIONS = ["none", "stamp-huge", "stamp-nan", "stamp-inf", "stamp-negative", "value-inf",
+                      "value-huge", "text", "binary", "missing", "empty", "backwards", "landmarks-nan",
+                      "barcodes-dup"]
+
+
+def bad_mrclam(rng: random.Random, n: int) -> list[Case]:
+    cases = []
+    for i in range(n):
+        corrupt = MRCLAM_CORRUPTIONS[i % len(MRCLAM_CORRUPTIONS)]
+        files = {f"m/{k}": v for k, v in mrclam_folder(rng, corrupt).items()}
+        argv = ["mrclam", "m", "--robot", "1", "--headless", "--filter", "ekf", "--filter", "dead_reckoning"]
+        if i % 3 == 1:
+            argv = ["mrclam", "m", "--robot", "1", "--calibrate"]
+        cases.append(Case(f"mrclam-{corrupt}-{i}", argv, files))
+    return cases
+
+
+# --------------------------------------------------------------------------- command lines
+def bad_command_lines(rng: random.Random, n: int) -> list[Case]:
+    fixed = [
+        ["run", "default", "--seed", "-1"], ["run", "default", "--seed", "99999999999999999999999"],
+        ["run", "default", "--duration", "0.01"], ["run", "default", "--duration", "inf"],
+        ["run", "default", "--duration", "nan"], ["run", "default", "--duration", "1e300"],
+        ["run", "default", "--duration", "-1"], ["run", "default", "--duration", "x"],
+        ["run", "default", "--set", "pf.n_particles=1.5", "--filter", "pf"],
+        ["run", "default", "--set", "ekf.gate_chi2=nan", "--filter", "ekf"],
+        ["run", "default", "--set", "pf.alpha_slow=-3", "--filter", "pf"],
+        ["run", "default", "--set", "nosuchfilter.x=1"], ["run", "default", "--set", "garbage"],
+        ["run", "default", "--set", "pf.n_particles=1000000000", "--filter", "pf"],
+        ["run", "default", "--set", "histogram.cell=0.00001", "--filter", "histogram"],
+        ["run", "default", "--filter", "nosuch"], ["run", "default", "--filter", "nosuch.py:X"],
+        ["run", "default", "--filter", "os:nosuch"], ["run", "default", "--filter", ":"],
+        ["run", "nosuch"], ["run", "/"], ["run", "/dev/null"], ["run", "."],
+        ["eval", "default", "--runs", "0"], ["eval", "default", "--runs", "-5"],
+        ["eval", "default", "--jobs", "0"], ["eval", "default", "--seed", "-3"],
+        ["eval", "default", "--time-limit", "nan"], ["eval", "default", "--duration", "0.001"],
+        ["eval", "default", "--out", "/proc/nope", "--runs", "1"],
+        ["export", "default", "--out", "/nonexistent/x.npz"], ["export", "default", "--out", "x.txt"],
+        ["export", "default", "--out", "/proc/x.npz"], ["export", "default", "--out", "."],
+        ["play", "default", "--frames", "0"], ["play", "default", "--frames", "-1"],
+        ["play", "default", "--size", "1x1"], ["play", "default", "--speed", "nan"],
+        ["play", "default", "--speed", "100"], ["play", "default", "--screenshot", "/proc/x.png"],
+        ["play", "default", "--gif", "x.png"], ["replay", "nosuch.jsonl"], ["replay", "/"],
+        ["replay", "/dev/null", "--headless"], ["mrclam", "/nonexistent", "--robot", "1"],
+        ["mrclam", ".", "--robot", "0"], ["mrclam", ".", "--robot", "99"], ["check", "nosuch"],
+        ["grade", "/nonexistent"], ["new-filter", "/proc/x.py"], ["new-filter", "/"],
+        ["nosuchcommand"], ["--nosuch"], ["run"], ["run", "default", "--json", "--json", "extra"],
+    ]
+    cases = [Case(f"cli-{i}", argv) for i, argv in enumerate(fixed)]
+    words = ["run", "eval", "export", "replay", "mrclam", "check", "default", "--seed", "--duration",
+             "--set", "--filter", "--runs", "--out", "-1", "0", "nan", "inf", "1e308", "x", "=", ".",
+             "pf.n_particles=0", "ekf", "/", "--jobs", "--time-limit"]
+    for i in range(n):
+        argv = [rng.choice(["run", "eval", "export", "check"])] + [rng.choice(words)
+                                                                   for _ in range(rng.randint(0, 5))]
+        cases.append(Case(f"cli-random-{i}", argv))
+    return cases
+
+
+# --------------------------------------------------------------------------- filters
+FAULTY_FILTERS = '''
+import sys
+import numpy as np
+from beacon_sim.filters.ekf import ExtendedKalmanFilter as E
+
+class ExitUpdate(E):
+    def update(self, m): sys.exit(0)
+class ExitPredict(E):
+    def predict(self, c, dt): sys.exit(3)
+class ExitInit(E):
+    def __init__(self, ctx): sys.exit(3)
+class KbInit(E):
+    def __init__(self, ctx): raise KeyboardInterrupt
+class RaiseInit(E):
+    def __init__(self, ctx): raise RuntimeError("boom in __init__")
+class RaiseReset(E):
+    def reset(self, init): raise RuntimeError("boom in reset")
+class RaiseEstimate(E):
+    def estimate(self): raise RuntimeError("boom in estimate")
+class RaiseBelief(E):
+    def belief(self): raise RuntimeError("boom in belief")
+class ExitBelief(E):
+    def belief(self): sys.exit(0)
+class StrMean(E):
+    def estimate(self): return "abc", np.eye(3)
+class HugeCov(E):
+    def estimate(self): return np.zeros(3), np.eye(3) * 1e308
+class NanMean(E):
+    def estimate(self): return np.full(3, np.nan), np.eye(3)
+class KbPredict(E):
+    def predict(self, c, dt): raise KeyboardInterrupt
+class WriteZ(E):
+    def update(self, ms):
+        for m in ms:
+            m.z[...] = 0
+        super().update(ms)
+class WriteWorld(E):
+    def predict(self, c, dt):
+        self.ctx.world.beacon_xy[...] = 0
+class Unwrite(E):
+    def update(self, ms):
+        for m in ms:
+            m.z.flags.writeable = True
+class LoopPredict(E):
+    def predict(self, c, dt):
+        while True:
+            pass
+class NotAFilter:
+    def __init__(self, ctx): pass
+'''
+
+FILTER_CLASSES = ["ExitUpdate", "ExitPredict", "ExitInit", "KbInit", "RaiseInit", "RaiseReset",
+                  "RaiseEstimate", "RaiseBelief", "ExitBelief", "StrMean", "HugeCov", "NanMean",
+                  "KbPredict", "WriteZ", "WriteWorld", "Unwrite", "LoopPredict", "NotAFilter"]
+IMPORT_FAULTS = {"exit_import.py": "import sys\nsys.exit(3)\n",
+                 "kb_import.py": "raise KeyboardInterrupt\n",
+                 "syntax.py": "def (:\n"}
+
+
+def faulty_filter_cases(recording: str) -> list[Case]:
+    """Each faulty filter beside the EKF in ``run``, ``replay --headless`` and ``mrclam``."""
+    cases = []
+    files = {"faulty.py": FAULTY_FILTERS, "r.jsonl": recording, **IMPORT_FAULTS}
+    specs = [f"faulty.py:{c}" for c in FILTER_CLASSES] + [f"{f}:X" for f in IMPORT_FAULTS]
+    for spec in specs:
+        if "LoopPredict" in spec:  # the headless limit is 10 s a step: the window's test covers it
+            continue
+        for cmd in (["run", "default", "--duration", "1"], ["replay", "r.jsonl", "--headless"]):
+            cases.append(Case(f"filter-{spec}-{cmd[0]}", [*cmd, "--filter", spec, "--filter", "ekf"],
+                              files))
+    return cases
+
+
+def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, mrclam: int = 28,
+           command_lines: int = 30) -> list[Case]:
+    """The whole corpus, deterministic for a seed."""
+    rng = random.Random(seed)
+    rec = recording_text(tmp)
+    return (mutated_scenarios(rng, mutated) + hand_made_scenarios() + bad_recordings(rng, rec, recordings)
+            + bad_mrclam(rng, mrclam) + bad_command_lines(rng, command_lines) + faulty_filter_cases(rec))
