@@ -4,12 +4,23 @@ Besides its own table for people, each script calls :func:`figure` for the numbe
 matter. Under run.py (which sets ``BEACON_SIM_BENCH_FIGURES=1``) it prints one line
 ``FIGURE {json}``; run.py collects those lines from every script into one table with the
 peer, the ratio and the target.
+
+Importing this module limits numpy's BLAS to the thread count the window, headless runs and
+eval workers use (``beacon_sim.core.threads``: one unless ``BEACON_SIM_BLAS_THREADS`` says
+otherwise), so a benchmark measures what a user gets. Each record carries the 1-minute load
+average when it was taken; ``cpu`` (the process's CPU time for the same thing, same unit)
+may be given beside the wall-clock value, which other jobs on a shared machine inflate.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import time
+
+from beacon_sim.core.threads import limit_blas_threads
+
+limit_blas_threads()
 
 #: run.py sets this; a script run by hand prints only its own table.
 ENV = "BEACON_SIM_BENCH_FIGURES"
@@ -17,7 +28,7 @@ ENV = "BEACON_SIM_BENCH_FIGURES"
 
 def figure(what: str, value: float, unit: str, *, peer: str | None = None,
            peer_value: float | None = None, target: float | None = None,
-           target_of: str = "value") -> None:
+           target_of: str = "value", cpu: float | None = None) -> None:
     """Report one figure.
 
     Parameters
@@ -32,10 +43,25 @@ def figure(what: str, value: float, unit: str, *, peer: str | None = None,
     target : float, optional
         The largest acceptable ``value`` (``target_of="value"``) or ratio
         (``target_of="ratio"``); run.py says whether it is met.
+    cpu : float, optional
+        The CPU time behind ``value`` (same unit), shown beside it.
     """
     if not os.environ.get(ENV):
         return
     ratio = value / peer_value if peer_value else None
     print("FIGURE " + json.dumps({"what": what, "value": value, "unit": unit, "peer": peer,
                                   "peer_value": peer_value, "ratio": ratio, "target": target,
-                                  "target_of": target_of}), flush=True)
+                                  "target_of": target_of, "cpu": cpu,
+                                  "load": os.getloadavg()[0]}), flush=True)
+
+
+class Clock:
+    """Wall and CPU time of a block: ``with Clock() as c: ...``, then ``c.wall``, ``c.cpu`` [s]."""
+
+    def __enter__(self) -> Clock:
+        self._w, self._c = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.wall = time.perf_counter() - self._w
+        self.cpu = time.process_time() - self._c

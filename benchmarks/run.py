@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -52,9 +53,11 @@ def main() -> int:
     if args.only:
         scripts = [s for s in scripts if s.stem in args.only or s.name in args.only]
     rows, log, ok = [], [], True
+    load0 = os.getloadavg()
     for script in scripts:
         print(f"running {script.name} ...", file=sys.stderr, flush=True)
         t = time.perf_counter()
+        cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         try:
             proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                                   timeout=args.timeout, cwd=HERE.parent,
@@ -66,20 +69,25 @@ def main() -> int:
             status, text = f"timeout {args.timeout:g} s", ""
         ok &= status == "ok"
         figures = collect(text)
+        cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         if status != "ok" or not figures:
-            rows.append((script.stem, f"{status}: no figures", "", "", "", "", ""))
+            rows.append((script.stem, f"{status}: no figures", "", "", "", "", "", "", ""))
         for f in figures:
             peer = f"{f['peer']} {fmt(f['peer_value'])}" if f.get("peer") else ""
             ratio = f"{f['ratio']:.3g}x" if f.get("ratio") is not None else ""
-            rows.append((script.stem, f["what"], fmt(f["value"]), f["unit"], peer, ratio,
-                         verdict(f)))
-        rows.append((script.stem, "(script wall time)", f"{time.perf_counter() - t:.1f}", "s",
-                     "", "", ""))
-    head = ("benchmark", "figure", "value", "unit", "peer (same run)", "ratio", "target")
-    w = [max(len(r[i]) for r in [head, *rows]) for i in range(7)]
-    line = "  ".join(f"{{:<{n}}}" if i in (0, 1, 3, 4, 6) else f"{{:>{n}}}" for i, n in enumerate(w))
+            load = f"{f['load']:.1f}" if f.get("load") is not None else ""
+            rows.append((script.stem, f["what"], fmt(f["value"]), fmt(f.get("cpu")), f["unit"], peer,
+                         ratio, verdict(f), load))
+        cpu = (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime)
+        rows.append((script.stem, "(script wall time)", f"{time.perf_counter() - t:.1f}", f"{cpu:.1f}",
+                     "s", "", "", "", f"{os.getloadavg()[0]:.1f}"))
+    head = ("benchmark", "figure", "value", "cpu", "unit", "peer (same run)", "ratio", "target", "load")
+    w = [max(len(r[i]) for r in [head, *rows]) for i in range(9)]
+    line = "  ".join(f"{{:<{n}}}" if i in (0, 1, 4, 5, 7) else f"{{:>{n}}}" for i, n in enumerate(w))
+    print(f"load average (1, 5, 15 min) at start: {', '.join(f'{x:.2f}' for x in load0)}; "
+          f"at end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}; {os.cpu_count()} cores")
     print(line.format(*head))
-    print("-" * (sum(w) + 12))
+    print("-" * (sum(w) + 16))
     for r in rows:
         print(line.format(*r))
     if args.log:
