@@ -27,6 +27,7 @@ from beacon_sim.filters.loading import (
     filter_names,
     parse_set_options,
 )
+from beacon_sim.filters.runner import exit_text, is_filter_failure
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
 #: in a loop is stopped and marked, the evaluation goes on.
@@ -64,10 +65,19 @@ def eval_command(args: argparse.Namespace) -> int:
     results = []
     for sc in scenarios:
         specs = list(args.filters or sc.default_filters)
-        runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
-                               jobs=args.jobs, params=params,
-                               batch=False if getattr(args, "no_batch", False) else None,
-                               run_limit_s=getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S)
+        try:
+            runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
+                                   jobs=args.jobs, params=params,
+                                   batch=False if getattr(args, "no_batch", False) else None,
+                                   run_limit_s=getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S)
+        except (SystemExit, KeyboardInterrupt) as exc:
+            # Raised by a filter's code inside the Monte Carlo loop (which switches off only
+            # filters that raise an Exception): never a silent exit, and never status 0.
+            if not is_filter_failure(exc):
+                raise
+            what = exit_text(exc).removesuffix(" raised by the filter")
+            raise UsageError(f"{sc.name}: a filter's code raised {what} during the evaluation; "
+                             "run it alone with beacon-sim run to see which") from None
         meta, curves = evaluate(sc, runs, Thresholds())
         results.append((sc, meta, curves))
         if not args.json:
