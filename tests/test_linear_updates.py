@@ -116,3 +116,30 @@ def test_batched_filters_with_many_slots_equal_the_per_run_filters():
                 dm[2] = min(dm[2], 2 * np.pi - dm[2])
                 worst = max(worst, dm.max(), np.abs(fb.cov[i] - c).max())
     assert worst < 1e-9
+
+
+def test_the_evaluations_nis_is_linear_and_the_same_above_the_threshold(monkeypatch):
+    from beacon_sim.evaluation import metrics
+
+    sc = many_beacons(40)
+    sensors = {s.name: s for s in sc.model_sensors}
+    steps = [st for st in Simulation(sc, 3).run(2.0) if st.measurements]
+    f = build_filter("ekf", sc, 0)
+    means, covs, fast = [], [], []
+    for st in steps:
+        f.predict(st.control, st.dt)
+        m, c = f.estimate()
+        means.append(m)
+        covs.append(c)
+        fast.append(metrics.nis(st.measurements, sensors, m, c, sc.world))
+        f.update(st.measurements)
+    assert max(dof for _, dof in fast) > gm.LOW_RANK_ROWS
+    batch_fast = metrics.nis_batch([st.measurements for st in steps], np.array(means), np.array(covs),
+                                   sensors, sc.world)
+    monkeypatch.setattr(metrics, "LOW_RANK_ROWS", 10**9)
+    for st, m, c, (value, dof) in zip(steps, means, covs, fast, strict=True):
+        want = metrics.nis(st.measurements, sensors, m, c, sc.world)
+        assert dof == want[1] and value == pytest.approx(want[0], rel=1e-9)
+    batch_direct = metrics.nis_batch([st.measurements for st in steps], np.array(means), np.array(covs),
+                                     sensors, sc.world)
+    assert batch_fast[1] == batch_direct[1] and batch_fast[0] == pytest.approx(batch_direct[0], rel=1e-9)

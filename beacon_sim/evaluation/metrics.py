@@ -19,6 +19,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
+from beacon_sim.filters.gaussian_measurements import LOW_RANK_ROWS, nis_low_rank
 
 
 def innovation(meas: Measurement, spec: SensorSpec, mean: np.ndarray, world: World):
@@ -58,9 +59,13 @@ def nis(measurements: Sequence[Measurement], sensors: dict[str, SensorSpec], mea
     parts = [innovation(m, sensors[m.sensor], mean, world) for m in measurements]
     nu = np.concatenate([p[0] for p in parts])
     H = np.vstack([p[1] for p in parts])
-    S = H @ cov @ H.T + np.diag(np.concatenate([p[2] for p in parts]))  # S = H P H^T + R
+    r = np.concatenate([p[2] for p in parts])
     try:
-        value = float(nu @ np.linalg.solve(S, nu))
+        if nu.size > LOW_RANK_ROWS:  # many readings: linear in them, S never formed
+            value = float(nis_low_rank(np.asarray(cov, dtype=float), H, nu, r))
+        else:
+            S = H @ cov @ H.T + np.diag(r)  # S = H P H^T + R
+            value = float(nu @ np.linalg.solve(S, nu))
     except np.linalg.LinAlgError:
         value = math.inf
     return value, int(nu.size)
@@ -196,6 +201,12 @@ def nis_batch(records, prior_means: np.ndarray, prior_covs: np.ndarray,
         rows = st[:, None] + np.arange(k)[None, :]  # (n, k)
         Hk = H_a[rows]  # (n, k, 3)
         P = prior_covs[tick_a[st]]
+        if k > LOW_RANK_ROWS:  # many readings in a tick: linear in them, S never formed
+            try:
+                total += float(np.sum(nis_low_rank(P, Hk, nu_a[rows], var_a[rows])))
+            except np.linalg.LinAlgError:
+                return math.inf, int(nu_a.size)
+            continue
         S = Hk @ P @ np.swapaxes(Hk, 1, 2)  # S = H P H^T + R
         S[:, np.arange(k), np.arange(k)] += var_a[rows]
         e = nu_a[rows]

@@ -450,15 +450,22 @@ def kalman_update_low_rank(mean: np.ndarray, P: np.ndarray, H: np.ndarray, nu: n
     return mean, symmetrise(P), nis
 
 
+def nis_low_rank(P: np.ndarray, H: np.ndarray, nu: np.ndarray, r: np.ndarray, strict: bool = True
+                 ) -> np.ndarray:
+    """``nu^T S^-1 nu`` with S = H P H^T + diag(r) never formed (one run or R runs), linear in
+    the rows: ``nu^T R^-1 nu - b^T T b`` (:func:`kalman_update_low_rank`)."""
+    G, b = _information(H, nu, r)
+    T = solve(_I3 + P @ G, P, strict)
+    return np.sum(nu * nu / r, axis=-1) - np.sum(b * (T @ b[..., None])[..., 0], axis=-1)
+
+
 def nis(mean: np.ndarray, P: np.ndarray, st: StackedReadings) -> np.ndarray:
     """Joint NIS ``nu^T S^-1 nu`` (R,) of every reading of the tick against the prior
     ``(mean, P)`` (R runs), as ``evaluation.metrics.nis`` (all kinds, the told noise);
     linear in the rows over :data:`LOW_RANK_ROWS` (see :func:`kalman_update_low_rank`)."""
     H, nu, r = st.linearise(mean)
     if H.shape[-2] > LOW_RANK_ROWS:
-        G, b = _information(H, nu, r)
-        T = solve(_I3 + P @ G, P, strict=False)
-        return np.sum(nu * nu / r, axis=-1) - np.sum(b * (T @ b[..., None])[..., 0], axis=-1)
+        return nis_low_rank(P, H, nu, r, strict=False)
     S = H @ P @ H.swapaxes(-1, -2)
     add_diagonal(S, r)
     return np.sum(nu * solve(S, nu[..., None], strict=False)[..., 0], axis=-1)
@@ -566,4 +573,5 @@ class BatchableFilter(FilterBase):
 __all__ = ["ALL_ROWS", "BEACON_KINDS", "FIX_KINDS", "KINDS", "LOW_RANK_ROWS", "BatchableFilter",
            "BatchedGaussian", "ReadingModels", "SlotPacker", "StackedReadings", "add_diagonal",
            "corrected_mean", "cov_entries", "cov_matrix", "kalman_update", "kalman_update_low_rank", "nis",
+           "nis_low_rank",
            "process_cov_terms", "solve", "stack", "symmetrise"]
