@@ -32,7 +32,7 @@ RANGES: dict[str, dict[str, tuple[float, float]]] = {
         "inject_max": (0.0, 1.0), "kld_epsilon": (1e-6, 1.0), "kld_z": (0.0, 10.0),
         "kld_bin_xy": (1e-3, 1e3), "kld_bin_theta": (1e-3, 2 * math.pi), "ver_max": (0.0, 1e12),
         "roughen": (0.0, 100.0), "cluster_cell": (1e-3, 1e6), "cluster_radius": (1e-3, 1e6),
-        "heading_k_a": (0.0, 100.0),
+        "heading_k_a": (0.0, 100.0), "temper_ess": (0.0, 1.0),
     },
     _GRID: {
         "cell": (1e-3, 1e3), "heading_bins": (4, 3600), "floor": (0.0, 0.999),
