@@ -82,3 +82,35 @@ def test_eval_stops_an_endless_loop_and_goes_on(tmp_path, capsys):
     bad = doc["filters"]["MyEkf"]
     assert bad["failed_runs"] == 2 and "time limit" in bad["failures"][0]["reason"]
     assert bad["pos_rmse_m"] is None and doc["filters"]["ekf"]["pos_rmse_m"] > 0
+
+
+BROKEN_LIFE = '''
+from beacon_sim.filters.dead_reckoning import DeadReckoning
+
+
+class BadInit(DeadReckoning):
+    def __init__(self, ctx):
+        raise RuntimeError("my init is broken")
+
+
+class Exits(DeadReckoning):
+    def predict(self, control, dt):
+        raise SystemExit(3)
+'''
+
+
+@pytest.mark.parametrize("cls,reason", [("BadInit", "construction failed: RuntimeError: my init is broken"),
+                                        ("Exits", "SystemExit(3) raised by the filter")])
+def test_eval_fails_only_the_filter_whose_init_raises_or_that_exits(tmp_path, capsys, cls, reason):
+    """A student's __init__ that raises, or sys.exit() in predict, fails that filter in every
+    run (in the worker processes too); the EKF beside it is scored; --strict exits 1."""
+    path = tmp_path / "broken.py"
+    path.write_text(BROKEN_LIFE)
+    code = main(["eval", "default", "--filter", f"{path}:{cls}", "--filter", "ekf", "--runs", "2",
+                 "--duration", "3", "--jobs", "2", "--json", "--strict"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 1
+    bad = out["filters"][cls]
+    assert bad["pos_rmse_m"] is None and bad["failed_runs"] == 2
+    assert all(reason in f for f in bad["failed"])
+    assert out["filters"]["ekf"]["pos_rmse_m"] > 0

@@ -20,6 +20,7 @@ from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.summary import Thresholds, evaluate
+from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.loading import (
     build_filter,
     check_param_names,
@@ -59,7 +60,13 @@ def eval_command(args: argparse.Namespace) -> int:
         specs = list(args.filters or sc.default_filters)
         check_param_names(params, specs)
         for name, spec in zip(filter_names(specs), specs, strict=True):
-            build_filter(spec, sc, 0, name=name, params=params.get(filter_display_name(spec)))
+            try:
+                build_filter(spec, sc, 0, name=name, params=params.get(filter_display_name(spec)))
+            except FilterError:
+                raise  # a name or parameter that cannot work: one line, exit 2
+            except BaseException as exc:  # a student's __init__ raises: the runs mark it FAILED
+                if not is_filter_failure(exc):
+                    raise
         check_duration(args.duration, sc)
     out = Path(args.out) if args.out else None
     results = []

@@ -33,6 +33,7 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
+from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
 from beacon_sim.filters.loading import (
     build_filter,
@@ -40,7 +41,13 @@ from beacon_sim.filters.loading import (
     filter_names,
     load_filter_class,
 )
-from beacon_sim.filters.runner import FilterTimeout, one_line, time_limit
+from beacon_sim.filters.runner import (
+    FilterTimeout,
+    exit_text,
+    is_filter_failure,
+    one_line,
+    time_limit,
+)
 
 
 @dataclass
@@ -132,9 +139,18 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     ``filters.runner.time_limit``.
     """
     names = filter_names(specs)
-    built = {name: build_filter(spec, scenario, seed, name=name,
-                                params=params.get(filter_display_name(spec)))
-             for name, spec in zip(names, specs, strict=True)}
+    built: dict[str, Any] = {}
+    failed: dict[str, str | None] = dict.fromkeys(names)
+    for name, spec in zip(names, specs, strict=True):
+        try:
+            built[name] = build_filter(spec, scenario, seed, name=name,
+                                       params=params.get(filter_display_name(spec)))
+        except FilterError:
+            raise  # a name or parameter that cannot work: one line, exit 2
+        except BaseException as exc:  # a student's __init__ or reset: that filter fails
+            if not is_filter_failure(exc):
+                raise
+            failed[name] = f"construction failed: {_failure_text(exc)}"
     sensors = {s.name: s for s in scenario.model_sensors}
     world = scenario.world
     sim = Simulation(scenario, seed)
@@ -149,7 +165,6 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     priors = {n: (np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)) for n in names}
     ns = dict.fromkeys(names, 0)
     done = dict.fromkeys(names, 0)
-    failed: dict[str, str | None] = dict.fromkeys(names)
     clock = time.perf_counter_ns
     for i in range(T):
         step = sim.step()
@@ -179,8 +194,10 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
             except FilterTimeout:
                 failed[name] = f"time limit: over {run_limit_s:g} s of filter time in the run"
                 continue
-            except Exception as exc:  # a user's filter: switch it off, go on with the others
-                failed[name] = one_line(exc)
+            except BaseException as exc:  # a user's filter: switch it off, go on with the others
+                if not is_filter_failure(exc):  # the user's own Ctrl-C
+                    raise
+                failed[name] = _failure_text(exc)
                 continue
             ns[name] += (t1 - t0) + (t3 - t2)
             done[name] += 1
@@ -195,6 +212,11 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
         out.filters[name] = finish_filter(means[name], covs[name], truth, done[name], failed[name],
                                           nis_sum, nis_dof, ns[name], keep_means)
     return out
+
+
+def _failure_text(exc: BaseException) -> str:
+    """One line for what a filter's code raised (SystemExit and KeyboardInterrupt included)."""
+    return exit_text(exc) if isinstance(exc, SystemExit | KeyboardInterrupt) else one_line(exc)
 
 
 def _task(args) -> RunOutput:
