@@ -129,6 +129,7 @@ def evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds =
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
         warnings.filterwarnings("ignore", "All-NaN slice encountered", RuntimeWarning)
+        warnings.filterwarnings("ignore", "Degrees of freedom <= 0", RuntimeWarning)
         return _evaluate(scenario, runs, thresholds)
 
 
