@@ -114,3 +114,21 @@ def test_eval_fails_only_the_filter_whose_init_raises_or_that_exits(tmp_path, ca
     assert bad["pos_rmse_m"] is None and bad["failed_runs"] == 2
     assert all(reason in f for f in bad["failed"])
     assert out["filters"]["ekf"]["pos_rmse_m"] > 0
+
+
+def _worker_address_limit() -> int:
+    import resource
+
+    return resource.getrlimit(resource.RLIMIT_AS)[0]
+
+
+def test_eval_workers_have_a_memory_limit():
+    """A filter that hoards memory in an eval worker meets MemoryError (its run fails, the
+    sweep goes on) instead of the out-of-memory killer: the workers start with a limit."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from beacon_sim.evaluation.montecarlo import WORKER_MEMORY_GB, init_worker
+
+    with ProcessPoolExecutor(max_workers=1, initializer=init_worker) as pool:
+        limit = pool.submit(_worker_address_limit).result()
+    assert 0 < limit <= WORKER_MEMORY_GB * 2**30

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario, load_scenario
-from beacon_sim.evaluation.montecarlo import RunOutput, default_jobs, one_run
+from beacon_sim.evaluation.montecarlo import RunOutput, default_jobs, init_worker, one_run
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 
 
@@ -175,23 +175,6 @@ def run_task(task: Task) -> TaskResult:
                           else why, time.perf_counter() - t0)
 
 
-def _limit_memory(gb: float) -> None:
-    """A local worker's address-space limit, so a filter that hoards memory gets a
-    MemoryError (a failed run) instead of the kernel's out-of-memory killer."""
-    if gb <= 0:
-        return
-    try:
-        import resource
-
-        limit = int(gb * 2**30)
-        _soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-        if hard != resource.RLIM_INFINITY:
-            limit = min(limit, hard)
-        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
-    except (ImportError, ValueError, OSError):
-        pass
-
-
 def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = None,
               memory_limit_gb: float = 4.0,
               progress: Callable[[int, int], None] | None = None) -> list[TaskResult]:
@@ -235,7 +218,7 @@ def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = N
     pending = list(range(len(tasks)))
     while pending:  # a pool broken by a dead worker is replaced; its task is failed
         broken = False
-        with ProcessPoolExecutor(max_workers=min(jobs, len(pending)), initializer=_limit_memory,
+        with ProcessPoolExecutor(max_workers=min(jobs, len(pending)), initializer=init_worker,
                                  initargs=(memory_limit_gb,)) as pool:
             futs = {pool.submit(run_task, tasks[i]): i for i in pending}
             for fut, i in futs.items():

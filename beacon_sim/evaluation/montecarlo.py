@@ -401,7 +401,7 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
         if len(btasks) == 1:
             collect(_batch_task(btasks[0]))
         else:
-            with ProcessPoolExecutor(max_workers=len(btasks), initializer=limit_blas_threads) as pool:
+            with ProcessPoolExecutor(max_workers=len(btasks), initializer=init_worker) as pool:
                 for fut in as_completed([pool.submit(_batch_task, t) for t in btasks]):
                     collect(fut.result())
         return [o for o in out if o is not None]
@@ -414,7 +414,7 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
             if on_run:
                 on_run(out[i])
     else:
-        with ProcessPoolExecutor(max_workers=jobs, initializer=limit_blas_threads) as pool:
+        with ProcessPoolExecutor(max_workers=jobs, initializer=init_worker) as pool:
             futures = {pool.submit(_task, t): i for i, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 out[futures[fut]] = fut.result()
@@ -422,6 +422,34 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
                 if on_run:
                     on_run(out[futures[fut]])
     return [o for o in out if o is not None]
+
+
+def limit_worker_memory(gb: float) -> None:
+    """A local worker's address-space limit, so a filter that hoards memory gets a
+    MemoryError (a failed run) instead of the kernel's out-of-memory killer."""
+    if gb <= 0:
+        return
+    try:
+        import resource
+
+        limit = int(gb * 2**30)
+        _soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        if hard != resource.RLIM_INFINITY:
+            limit = min(limit, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    except (ImportError, ValueError, OSError):
+        pass
+
+
+#: A local evaluation worker's address-space limit [GB]: a filter that hoards memory fails
+#: its run with a MemoryError instead of the kernel killing the worker (and the sweep).
+WORKER_MEMORY_GB = 4.0
+
+
+def init_worker(memory_gb: float = WORKER_MEMORY_GB) -> None:
+    """Set up a local worker process: one BLAS thread, and the memory limit."""
+    limit_blas_threads()
+    limit_worker_memory(memory_gb)
 
 
 def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
