@@ -165,16 +165,7 @@ class Session:
         tr = self.runner.tracks[name]
         if tr.failed or tr.filter is None:
             return None
-        bel, why, tb = guarded_call(tr.filter.belief, WINDOW_STEP_LIMIT_S)
-        if why is None:
-            checked = validate_belief(bel)
-            if not isinstance(checked, str):
-                return checked
-            why = checked
-        else:
-            why = f"belief(): {why}"
-        self._switch_off(name, why, tb)
-        return None
+        return self._guarded_read(name, tr.filter.belief, validate_belief, "belief(): ")
 
     def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
         """The latest estimate; before the first tick, the filter's initial belief (through
@@ -184,12 +175,20 @@ class Session:
             return tr.means[-1], tr.covs[-1]
         if tr.failed or tr.filter is None:
             return None
-        est, why, tb = guarded_call(tr.filter.estimate, WINDOW_STEP_LIMIT_S)
+        return self._guarded_read(name, tr.filter.estimate, validate_estimate)
+
+    def _guarded_read(self, name: str, call: Callable[[], object],
+                      validate: Callable[[object], Any], raised_prefix: str = "") -> Any:
+        """``validate(call())`` under the window's time limit; None, and the filter switched
+        off with the reason, when the call raises, hangs or returns something unusable."""
+        value, why, tb = guarded_call(call, WINDOW_STEP_LIMIT_S)
         if why is None:
-            checked = validate_estimate(est)
+            checked = validate(value)
             if not isinstance(checked, str):
                 return checked
             why = checked
+        else:
+            why = raised_prefix + why
         self._switch_off(name, why, tb)
         return None
 
