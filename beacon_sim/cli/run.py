@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from beacon_sim.cli.common import (
     check_duration,
@@ -23,7 +24,7 @@ def run_command(args: argparse.Namespace) -> int:
     check_duration(args.duration, scenario)
     check_set_names(args, list(args.filters or scenario.default_filters))
     result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
-                          params=filter_params(args))
+                          params=filter_params(args), progress=sys.stderr.isatty())
     print_sensor_notes(list(args.filters or scenario.default_filters), scenario)
     data = result.as_json()
     if args.json:

@@ -48,6 +48,7 @@ from beacon_sim.filters.runner import (
     one_line,
     time_limit,
 )
+from beacon_sim.runs.progress import Progress
 
 
 @dataclass
@@ -221,29 +222,6 @@ def _failure_text(exc: BaseException) -> str:
 
 def _task(args) -> RunOutput:
     return one_run(*args)
-
-
-class Progress:
-    """A one-line progress bar on stderr (drawn only when ``enabled``)."""
-
-    def __init__(self, total: int, label: str, enabled: bool):
-        self.total, self.label, self.enabled = total, label, enabled
-        self.done = 0
-        self.t0 = time.perf_counter()
-
-    def advance(self) -> None:
-        self.done += 1
-        if not self.enabled:
-            return
-        width = 30
-        filled = round(width * self.done / max(self.total, 1))
-        el = time.perf_counter() - self.t0
-        eta = el / self.done * (self.total - self.done)
-        sys.stderr.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] "
-                         f"{self.done}/{self.total} runs  {el:5.1f} s  eta {eta:5.1f} s ")
-        if self.done == self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
 
 
 def default_jobs() -> int:

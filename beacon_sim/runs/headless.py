@@ -18,6 +18,7 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Step
 from beacon_sim.filters.loading import build_filters
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
+from beacon_sim.runs.progress import Progress
 
 #: The figures of a run that a failed filter does not get (null in JSON, empty in CSV).
 ACCURACY_KEYS = ("pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees")
@@ -96,11 +97,13 @@ class RunResult:
 
 def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int | None = None,
                  duration: float | None = None,
-                 params: dict[str, dict[str, Any]] | None = None) -> RunResult:
+                 params: dict[str, dict[str, Any]] | None = None,
+                 progress: bool = False) -> RunResult:
     """Simulate ``duration`` seconds (default: the scenario's) and feed every filter.
 
     ``filters`` are filter specs (built-in names, ``pkg.mod:Class``, ``file.py:Class``);
-    None runs the scenario's ``default_filters``.
+    None runs the scenario's ``default_filters``. ``progress``: a progress bar on stderr
+    once the run has taken a second.
     """
     seed = scenario.seed if seed is None else seed
     duration = scenario.duration if duration is None else duration
@@ -111,6 +114,7 @@ def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int
         runner.tracks[name].failed, runner.tracks[name].traceback = message, tb
     sim = Simulation(scenario, seed)
     n = round(duration / scenario.dt)
+    bar = Progress(n, f"run {scenario.name}", progress, unit="ticks")
     steps = []
     t0 = time.perf_counter()
     sim_ns = 0
@@ -120,5 +124,6 @@ def run_headless(scenario: Scenario, filters: list[str] | None = None, seed: int
         sim_ns += time.perf_counter_ns() - a
         steps.append(step)
         runner.feed(step)
+        bar.advance()
     wall = time.perf_counter() - t0
     return RunResult(scenario, seed, steps, runner, wall, sim_ns / 1e9, sim.truth_checksum)
