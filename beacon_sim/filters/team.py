@@ -350,9 +350,9 @@ def ci_weight(P: np.ndarray, Pz: np.ndarray, iters: int = 20) -> float:
     return 0.5 * (lo + hi)
 
 
-class CovarianceIntersectionTeam(_TeamBase):
-    """Decentralised: one EKF per robot; teammates' position messages fused by covariance
-    intersection (``fusion = "ci"``) or, as a counter-example, by a naive Kalman update that
+class CovarianceIntersectionTeam(IndependentTeam):
+    """Decentralised: one EKF per robot (the independent baseline's); teammates' position
+    messages fused by covariance intersection (``fusion = "ci"``) or, as a counter-example, by a naive Kalman update that
     double-counts (``fusion = "naive"``). ``gate_chi2`` (0: off) drops a message whose
     squared Mahalanobis distance ``e^T (P_j,xy + P_z)^-1 e`` exceeds it. The members' own
     EKF parameters come from the scenario's ``[filters.ekf]``."""
@@ -360,22 +360,13 @@ class CovarianceIntersectionTeam(_TeamBase):
     defaults: ClassVar[dict[str, Any]] = {"fusion": "ci", "gate_chi2": 0.0}
 
     def __init__(self, ctx: TeamContext):
-        super().__init__(ctx)
+        super().__init__(ctx, ExtendedKalmanFilter)
         if self.params["fusion"] not in ("ci", "naive"):
             raise FilterError(f"fusion = {self.params['fusion']!r}: expected 'ci' or 'naive'")
         self.naive = self.params["fusion"] == "naive"
         self.gate = float(self.params["gate_chi2"])
-        self.filters = [ExtendedKalmanFilter(m.ctx) for m in ctx.members]
         self.fused = 0
         self.rejected = 0
-
-    def reset(self, initial: Sequence[GaussianBelief]) -> None:
-        for f, b in zip(self.filters, initial, strict=True):
-            f.reset(b)
-
-    def predict(self, controls: Sequence[Control], dt: float) -> None:
-        for f, u in zip(self.filters, controls, strict=True):
-            f.predict(u, dt)
 
     def messages(self, measurements: Sequence[Sequence[Measurement]]
                  ) -> list[tuple[int, np.ndarray, np.ndarray]]:
@@ -421,13 +412,9 @@ class CovarianceIntersectionTeam(_TeamBase):
         self.fused += 1
 
     def update(self, measurements: Sequence[Sequence[Measurement]]) -> None:
-        for f, ms in zip(self.filters, measurements, strict=True):
-            f.update([m for m in ms if not is_robot_reading(m)])
+        super().update(measurements)  # each robot's own beacon readings
         for j, p, Pz in self.messages(measurements):
             self.fuse(j, p, Pz)
-
-    def estimates(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        return [f.estimate() for f in self.filters]
 
 
 def _naive(ctx: TeamContext) -> CovarianceIntersectionTeam:
