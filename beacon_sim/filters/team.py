@@ -353,9 +353,9 @@ def ci_weight(P: np.ndarray, Pz: np.ndarray, iters: int = 20) -> float:
 class CovarianceIntersectionTeam(IndependentTeam):
     """Decentralised: one EKF per robot (the independent baseline's); teammates' position
     messages fused by covariance intersection (``fusion = "ci"``) or, as a counter-example,
-    by a naive Kalman update that double-counts (``fusion = "naive"``). ``gate_chi2`` (0: off) drops a message whose
-    squared Mahalanobis distance ``e^T (P_j,xy + P_z)^-1 e`` exceeds it. The members' own
-    EKF parameters come from the scenario's ``[filters.ekf]``."""
+    by a naive Kalman update that double-counts (``fusion = "naive"``). ``gate_chi2`` (0: off)
+    drops a message whose squared Mahalanobis distance ``e^T (P_j,xy + P_z)^-1 e`` exceeds it.
+    The members' own EKF parameters come from the scenario's ``[filters.ekf]``."""
 
     defaults: ClassVar[dict[str, Any]] = {"fusion": "ci", "gate_chi2": 0.0}
 
