@@ -1,14 +1,16 @@
 """One headless team run (issue 18): a team scenario, a seed, some team filters; each
 robot's accuracy and consistency under each filter, and the team's.
 
-The truth does not depend on the filters. Team filters are the built-in ones of
-filters/team.py (not guarded by the single-robot FilterRunner: a failure raises).
+The truth does not depend on the filters. Every team filter runs under the guard of
+:class:`~beacon_sim.filters.team_runner.TeamFilterRunner`: one that cannot be built, raises,
+hangs or returns an unusable estimate is switched off with a message, the others go on, and
+it gets no score.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -16,20 +18,9 @@ import numpy as np
 from beacon_sim.core.metrics import nees, pose_errors, summary
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
-from beacon_sim.filters.team import TeamFilter, build_team_filter
-
-
-@dataclass
-class TeamTrack:
-    """One team filter's estimates after every tick: means (T, N, 3), covs (T, N, 3, 3)."""
-
-    means: list[np.ndarray] = field(default_factory=list)
-    covs: list[np.ndarray] = field(default_factory=list)
-    ns: int = 0
-
-    @property
-    def us_per_step(self) -> float:
-        return self.ns / 1e3 / max(len(self.means), 1)
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterTrack, failure_text
+from beacon_sim.filters.team import build_team_filter
+from beacon_sim.filters.team_runner import TeamFilterRunner, build_team_filters
 
 
 @dataclass
@@ -37,9 +28,13 @@ class TeamRunResult:
     team: TeamScenario
     seed: int
     steps: list[TeamStep]
-    tracks: dict[str, TeamTrack]
+    tracks: dict[str, FilterTrack]
     truth_checksum: str
     wall_s: float
+
+    def failed(self, name: str) -> str | None:
+        """Why team filter ``name`` was switched off (with the time), or None."""
+        return failure_text(self.tracks[name])
 
     @property
     def truth(self) -> np.ndarray:
@@ -67,6 +62,9 @@ class TeamRunResult:
     def as_json(self) -> dict[str, Any]:
         filters: dict[str, Any] = {}
         for name, tr in self.tracks.items():
+            if tr.failed:
+                filters[name] = {"failed": self.failed(name)}
+                continue
             robots = {r.name: self.robot_summary(name, i) for i, r in enumerate(self.team.robots)}
             filters[name] = {
                 "robots": robots,
@@ -82,27 +80,24 @@ class TeamRunResult:
 
 def run_team_headless(team: TeamScenario, filters: list[str] | None = None, seed: int | None = None,
                       duration: float | None = None,
-                      params: dict[str, dict[str, Any]] | None = None) -> TeamRunResult:
-    """Simulate ``duration`` seconds (default: the scenario's) and feed every team filter."""
+                      params: dict[str, dict[str, Any]] | None = None,
+                      step_limit_s: float | None = HEADLESS_STEP_LIMIT_S) -> TeamRunResult:
+    """Simulate ``duration`` seconds (default: the scenario's) and feed every team filter
+    (guarded: see the module docstring)."""
     seed = team.seed if seed is None else seed
     duration = team.duration if duration is None else duration
     names = list(team.default_filters if filters is None else filters)
-    built: dict[str, TeamFilter] = {n: build_team_filter(n, team, (params or {}).get(n), seed) for n in names}
-    tracks = {n: TeamTrack() for n in names}
+    built, why = build_team_filters(
+        names, lambda n: build_team_filter(n, team, (params or {}).get(n), seed), step_limit_s)
+    runner = TeamFilterRunner(built, len(team.robots), step_limit_s)
+    for name, reason in why.items():
+        runner.tracks[name].failed = f"could not be built: {reason}"
     sim = TeamSimulation(team, seed)
     steps = []
     t0 = time.perf_counter()
     for _ in range(round(duration / team.dt)):
         step = sim.step()
         steps.append(step)
-        controls = [s.control for s in step.steps]
-        readings = [step.measurements(i) for i in range(len(step.steps))]
-        for n, f in built.items():
-            a = time.perf_counter_ns()
-            f.predict(controls, step.dt)
-            f.update(readings)
-            est = f.estimates()
-            tracks[n].ns += time.perf_counter_ns() - a
-            tracks[n].means.append(np.array([m for m, _ in est]))
-            tracks[n].covs.append(np.array([c for _, c in est]))
-    return TeamRunResult(team, seed, steps, tracks, sim.truth_checksum, time.perf_counter() - t0)
+        runner.feed(step.tick, step.time, [s.control for s in step.steps], step.dt,
+                    [step.measurements(i) for i in range(len(step.steps))])
+    return TeamRunResult(team, seed, steps, runner.tracks, sim.truth_checksum, time.perf_counter() - t0)
