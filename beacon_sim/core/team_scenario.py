@@ -264,6 +264,18 @@ def shipped_team_scenarios() -> list[str]:
     return sorted(p.stem for p in (scenario_dir() / "team").glob("*.toml"))
 
 
+def is_team_scenario(name_or_path: str | Path) -> bool:
+    """Whether a scenario name or path is a team scenario (a shipped team name, or a file
+    that declares ``[[robots]]``). False for anything unreadable: loading it as a
+    single-robot scenario then gives the usual one-line error."""
+    try:
+        path = resolve_team_path(name_or_path)
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except Exception:
+        return False
+    return is_team_document(data)
+
+
 def load_team_scenario(name_or_path: str | Path) -> TeamScenario:
     """Load and validate a team scenario by shipped name or file path (ScenarioError: one line)."""
     path = resolve_team_path(name_or_path)
