@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -50,6 +51,8 @@ from beacon_sim.core.events import Blackout, NoiseBurst, active_ticks
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec
+from beacon_sim.core.team_models import relative_range_bearing, relative_rows
+from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.filters.base import broad_gaussian
 from beacon_sim.filters.loading import initial_belief
 
@@ -156,14 +159,61 @@ def _process(scenario: Scenario, poses: np.ndarray, v, w, dt: float, burst_v: fl
 
 
 def _update(P: np.ndarray, info: np.ndarray) -> np.ndarray:
-    """``(P^-1 + I_z)^-1`` for batches (R, 3, 3), valid for singular P (Woodbury)."""
+    """``(P^-1 + I_z)^-1`` for batches (R, n, n), valid for singular P (Woodbury)."""
     w, V = np.linalg.eigh(0.5 * (info + np.swapaxes(info, 1, 2)))
     L = V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]  # I_z = L L^T
     Lt = np.swapaxes(L, 1, 2)
     PL = P @ L
-    M = np.eye(3)[None] + Lt @ PL
+    M = np.eye(P.shape[-1])[None] + Lt @ PL
     P = P - PL @ np.linalg.solve(M, np.swapaxes(PL, 1, 2))
     return 0.5 * (P + np.swapaxes(P, 1, 2))
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """When a scenario's sensors read (every so many ticks), and which ticks have blackouts
+    and noise bursts: what every step of the bound needs besides the poses."""
+
+    every: dict[str, int]
+    blackout: dict[int, list[Blackout]]
+    burst: dict[int, list[NoiseBurst]]
+
+
+def schedule(scenario: Scenario) -> Schedule:
+    dt = scenario.dt
+    blackout: dict[int, list[Blackout]] = {}
+    burst: dict[int, list[NoiseBurst]] = {}
+    for ev in scenario.events:
+        if isinstance(ev, Blackout | NoiseBurst):
+            table = blackout if isinstance(ev, Blackout) else burst
+            for k in active_ticks(ev, dt):
+                table.setdefault(k, []).append(ev)
+    return Schedule({s.name: round(s.period / dt) for s in scenario.sensors}, blackout, burst)
+
+
+def start_cov(scenario: Scenario) -> np.ndarray:
+    """The bound's covariance at the start (3, 3): zero (the simulation's known start), or
+    the broad world-uniform Gaussian for a scenario with a global initial belief."""
+    return broad_gaussian(scenario.world).cov if initial_belief(scenario) is None else np.zeros((3, 3))
+
+
+def step_terms(scenario: Scenario, sched: Schedule, k: int, prev: np.ndarray, control: np.ndarray,
+               now: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """One robot's terms of step ``k`` (1-based) for a batch of runs: ``F`` and ``Q``
+    (R, 3, 3) of the truth's motion from the poses ``prev`` (R, 3) with the commands
+    ``control`` (R, 2), and the expected information (R, 3, 3) of the readings taken at the
+    new poses ``now`` (R, 3), or None when no sensor reads on this tick."""
+    bursts = sched.burst.get(k, ())
+    bv = math.sqrt(sum(b.v_std**2 for b in bursts))
+    bw = math.sqrt(sum(b.omega_std**2 for b in bursts))
+    F, Q = _process(scenario, prev, control[:, 0], control[:, 1], scenario.dt, bv, bw)
+    info = None
+    for spec in scenario.sensors:
+        if k % sched.every[spec.name] or any(b.covers(spec.name) for b in sched.blackout.get(k, ())):
+            continue
+        i_z = measurement_information(spec, now, scenario.world.beacon_xy)
+        info = i_z if info is None else info + i_z
+    return F, Q, info
 
 
 def pcrb(scenario: Scenario, truths: np.ndarray, controls: np.ndarray,
@@ -182,8 +232,7 @@ def pcrb(scenario: Scenario, truths: np.ndarray, controls: np.ndarray,
     kidnapped : bool array (R, T), optional
         Steps on which the robot was teleported; used only with ``restart_at_kidnap``.
     initial_cov : array (3, 3), optional
-        Covariance of the initial pose; default zero (the simulation's known start), or the
-        broad world-uniform Gaussian for a scenario with a global initial belief.
+        Covariance of the initial pose; default :func:`start_cov`.
     restart_at_kidnap : bool
         Reset the bound to the broad world-uniform Gaussian on each kidnap (the former
         behaviour; not a lower bound, kept to show why).
@@ -196,36 +245,17 @@ def pcrb(scenario: Scenario, truths: np.ndarray, controls: np.ndarray,
     truths = np.asarray(truths, dtype=float)
     controls = np.asarray(controls, dtype=float)
     R, T = controls.shape[:2]
-    dt = scenario.dt
-    bxy = scenario.world.beacon_xy
     if initial_cov is None:
-        global_start = initial_belief(scenario) is None
-        initial_cov = broad_gaussian(scenario.world).cov if global_start else np.zeros((3, 3))
+        initial_cov = start_cov(scenario)
     P = np.broadcast_to(np.asarray(initial_cov, dtype=float), (R, 3, 3)).copy()
     P_lost = np.asarray(broad_gaussian(scenario.world).cov, dtype=float)
-    every = {s.name: round(s.period / dt) for s in scenario.sensors}
-    blackout: dict[int, list[Blackout]] = {}
-    burst: dict[int, list[NoiseBurst]] = {}
-    for ev in scenario.events:
-        if isinstance(ev, Blackout | NoiseBurst):
-            table = blackout if isinstance(ev, Blackout) else burst
-            for k in active_ticks(ev, dt):
-                table.setdefault(k, []).append(ev)
+    sched = schedule(scenario)
     out = np.empty((R, T, 3, 3))
     for k in range(1, T + 1):
-        bv = math.sqrt(sum(b.v_std**2 for b in burst.get(k, ())))
-        bw = math.sqrt(sum(b.omega_std**2 for b in burst.get(k, ())))
-        F, Q = _process(scenario, truths[:, k - 1], controls[:, k - 1, 0], controls[:, k - 1, 1],
-                        dt, bv, bw)
+        F, Q, info = step_terms(scenario, sched, k, truths[:, k - 1], controls[:, k - 1], truths[:, k])
         P = F @ P @ np.swapaxes(F, 1, 2) + Q  # P_pred = F P F^T + Q
         if restart_at_kidnap and kidnapped is not None and kidnapped[:, k - 1].any():
             P[kidnapped[:, k - 1]] = P_lost
-        info = None
-        for spec in scenario.sensors:
-            if k % every[spec.name] or any(b.covers(spec.name) for b in blackout.get(k, ())):
-                continue
-            i_z = measurement_information(spec, truths[:, k], bxy)
-            info = i_z if info is None else info + i_z
         if info is not None:
             P = _update(P, info)  # P = (P_pred^-1 + I_z)^-1
         out[:, k - 1] = P
@@ -237,3 +267,91 @@ def bound_rmse(P: np.ndarray) -> tuple[float, float]:
     bounds ``P`` (..., 3, 3): ``sqrt(mean(P_xx + P_yy))`` and ``sqrt(mean(P_thth))``."""
     return (float(np.sqrt(np.mean(P[..., 0, 0] + P[..., 1, 1]))),
             float(np.sqrt(np.mean(P[..., 2, 2]))))
+
+
+def robot_information(spec: RobotSensorSpec, observer: int, poses: np.ndarray) -> np.ndarray:
+    """Expected Fisher information on the joint state (R, 3N, 3N) of one reading of robot
+    sensor ``spec`` carried by robot index ``observer``, at the true ``poses`` (R, N, 3).
+
+    Each teammate j in range and field of view is detected with ``detection_prob``; a
+    detection's rows ``H = [.. dh/dx_i .. dh/dx_j ..]`` (core/team_models.py) fill the
+    observer's and the subject's blocks and the two cross blocks: this coupling is what
+    robot-to-robot readings add to the bound."""
+    R, N = poses.shape[:2]
+    std = np.asarray(spec.reading_std(), dtype=float)
+    info = np.zeros((R, 3 * N, 3 * N))
+    a = slice(3 * observer, 3 * observer + 3)
+    for r in range(R):
+        for j in range(N):
+            if j == observer:
+                continue
+            rng, bearing = relative_range_bearing(poses[r, observer], poses[r, j])
+            if rng > spec.max_range or rng <= 0.0 or (spec.fov < 2.0 * math.pi
+                                                      and abs(bearing) > 0.5 * spec.fov):
+                continue
+            _, hi, hj = relative_rows(spec.kind, poses[r, observer], poses[r, j])
+            w = spec.detection_prob / std**2  # (d,)
+            b = slice(3 * j, 3 * j + 3)
+            info[r, a, a] += hi.T @ (w[:, None] * hi)
+            info[r, a, b] += hi.T @ (w[:, None] * hj)
+            info[r, b, a] += hj.T @ (w[:, None] * hi)
+            info[r, b, b] += hj.T @ (w[:, None] * hj)
+    return info
+
+
+def team_pcrb(team: TeamScenario, truths: np.ndarray, controls: np.ndarray,
+              robot_sensing: bool = True) -> np.ndarray:
+    """The bound on the joint error covariance of a team (Tichavsky et al. 1998 on the
+    joint state ``[x_1, y_1, th_1, ..., x_N, y_N, th_N]``), after every step of a batch of
+    runs. The same recursion as :func:`pcrb`, per step::
+
+        P_pred = F P F^T + Q        F, Q block diagonal: each robot's own motion (step_terms)
+        J      = P_pred^-1 + I_z    I_z: each robot's beacon information on its diagonal
+                                    block, plus every robot reading's (robot_information),
+                                    which couples the observer's and the subject's blocks
+
+    With no robot reading (``robot_sensing=False``, or none in range) the blocks stay
+    uncorrelated and each diagonal block is that robot's single-robot :func:`pcrb`.
+
+    truths : (R, T + 1, N, 3) [m, m, rad], row 0 the initial poses; controls : (R, T, N, 2).
+    Returns (R, T, 3N, 3N).
+    """
+    truths = np.asarray(truths, dtype=float)
+    controls = np.asarray(controls, dtype=float)
+    R, T, N = controls.shape[:3]
+    n = 3 * N
+    scenarios = [r.scenario for r in team.robots]
+    scheds = [schedule(sc) for sc in scenarios]
+    every = [{s.name: round(s.period / team.dt) for s in r.robot_sensors} for r in team.robots]
+    P = np.zeros((R, n, n))
+    for i, sc in enumerate(scenarios):
+        P[:, 3 * i:3 * i + 3, 3 * i:3 * i + 3] = start_cov(sc)
+    out = np.empty((R, T, n, n))
+    F = np.zeros((R, n, n))
+    Q = np.zeros((R, n, n))
+    for k in range(1, T + 1):
+        info = np.zeros((R, n, n))
+        read = False
+        for i, sc in enumerate(scenarios):
+            b = slice(3 * i, 3 * i + 3)
+            Fi, Qi, Ii = step_terms(sc, scheds[i], k, truths[:, k - 1, i], controls[:, k - 1, i],
+                                    truths[:, k, i])
+            F[:, b, b], Q[:, b, b] = Fi, Qi
+            if Ii is not None:
+                info[:, b, b] += Ii
+                read = True
+            if robot_sensing:
+                for spec in team.robots[i].robot_sensors:
+                    if k % every[i][spec.name] == 0:
+                        info += robot_information(spec, i, truths[:, k])
+                        read = True
+        P = F @ P @ np.swapaxes(F, 1, 2) + Q
+        if read:
+            P = _update(P, info)
+        out[:, k - 1] = P
+    return out
+
+
+def robot_blocks(P: np.ndarray, i: int) -> np.ndarray:
+    """Robot i's 3 x 3 blocks (..., 3, 3) of joint bounds ``P`` (..., 3N, 3N)."""
+    return P[..., 3 * i:3 * i + 3, 3 * i:3 * i + 3]
