@@ -195,15 +195,8 @@ class WorldRenderer:
         self.last_world = sc.world
         pose = session.true_pose
         dashes = dashes or {}
-        self.lw = line_width(surf.get_height())
-        area = pygame.Rect(view.area)
-        old_clip = surf.get_clip()
-        surf.set_clip(area)
-        world_rect = self._world_rect(view)
-        surf.blit(self._static_layer(view, world_rect), area)
-        surf.set_clip(world_rect.clip(area))
-        self._sensor_discs(surf, view, sc, pose)
-        surf.set_clip(area)
+        old_clip = self.begin(surf, view)
+        self.sensor_discs(surf, view, sc.sensors, pose)
 
         beliefs = {}
         for name in session.names:
@@ -217,8 +210,12 @@ class WorldRenderer:
             if isinstance(bel, GridBelief):
                 self._heat(surf, view, name, bel, colours[name], session.tick_count)
         if show.trails:
-            self._trails(surf, view, session, colours)
-        self._beacons_and_rays(surf, view, session, pose)
+            self.trail(surf, view, session.truth_trail, palette.TRUTH_TRAIL, 5)
+            for name in session.names:
+                if session.visible[name]:
+                    self.trail(surf, view, session.trails[name], colours[name], 2)
+        self.rays(surf, view, sc.world, pose, session.readings())
+        self.beacons(surf, view, sc.world, session.seen_ids())
         self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
         if show.particles:
             for name, bel in beliefs.items():
@@ -236,15 +233,38 @@ class WorldRenderer:
                 continue
             if est is not None:
                 estimates.append((name, *est))
-        for name, mean, _ in estimates:
-            self._arrow(surf, view, mean, colours[name], sc.robot_radius)
-        if show.ellipses:  # solid lines first: a dashed one drawn over it leaves gaps to see
-            for name, mean, cov in sorted(estimates, key=lambda e: dashes.get(e[0]) is not None):
-                self.uncertainty(surf, view, mean, cov, colours[name], dashes.get(name),
-                                 sc.robot_radius)
+        self.estimates(surf, view, estimates, colours, dashes, sc.robot_radius, show.ellipses)
         if drag is not None:
             self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
         surf.set_clip(old_clip)
+
+    # --- the pieces every window draws (the single-robot and the team window) --------------
+    def begin(self, surf: pygame.Surface, view: View) -> pygame.Rect:
+        """Start a frame of the world: the line width for the window's height, the static
+        layer (background, grid, bounds, labels), the clip set to the view's area. Returns
+        the clip to restore when done."""
+        self.lw = line_width(surf.get_height())
+        area = pygame.Rect(view.area)
+        old_clip = surf.get_clip()
+        surf.set_clip(area)
+        surf.blit(self._static_layer(view, self._world_rect(view)), area)
+        return old_clip
+
+    def estimates(self, surf, view: View, estimates, colours, dashes, radius: float,
+                  ellipses: bool = True) -> None:
+        """Estimates ``(key, mean, cov)``: an arrow each in ``colours[key]``, then (with
+        ``ellipses``) the 95 % ellipses and heading wedges in ``dashes[key]`` style, solid
+        ones first: a dashed one drawn over a solid one leaves gaps to see it through."""
+        for key, mean, _ in estimates:
+            self._arrow(surf, view, mean, colours[key], radius)
+        if ellipses:
+            for key, mean, cov in sorted(estimates, key=lambda e: dashes.get(e[0]) is not None):
+                self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), radius)
+
+    def trail(self, surf, view: View, trail, colour, width: int) -> None:
+        """A :class:`~beacon_sim.runs.scene.Trail`'s pieces as polylines ``width`` px wide."""
+        for piece in trail.pieces():
+            pygame.draw.lines(surf, colour, False, view.to_px(piece), width)
 
     @staticmethod
     def _world_rect(view: View) -> pygame.Rect:
@@ -308,8 +328,12 @@ class WorldRenderer:
         surf.fill(palette.OUTSIDE, box.inflate(8, 4))
         surf.blit(unit, box)
 
-    def _sensor_discs(self, surf, view: View, sc, pose) -> None:
-        for spec in sc.sensors:
+    def sensor_discs(self, surf, view: View, sensors, pose) -> None:
+        """Each beacon sensor's range (a disc, or a sector for a limited field of view)
+        around ``pose``, tinted under the grid, clipped to the world."""
+        area_clip = surf.get_clip()
+        surf.set_clip(self._world_rect(view).clip(area_clip))
+        for spec in sensors:
             if not math.isfinite(spec.max_range):
                 continue
             if spec.fov >= 2 * math.pi:
@@ -327,14 +351,7 @@ class WorldRenderer:
                 pygame.draw.polygon(tint, palette.SENSOR_FILL, pts - np.array(box.topleft))
                 surf.blit(tint, box, special_flags=pygame.BLEND_RGB_MULT)
             pygame.draw.polygon(surf, palette.SENSOR_EDGE, pts, 2)
-
-    def _trails(self, surf, view: View, session, colours) -> None:
-        for piece in session.truth_trail.pieces():  # under the estimates: where they agree,
-            pygame.draw.lines(surf, palette.TRUTH_TRAIL, False, view.to_px(piece), 5)  # it frames them
-        for name in session.names:
-            if session.visible[name]:
-                for piece in session.trails[name].pieces():
-                    pygame.draw.lines(surf, colours[name], False, view.to_px(piece), 2)
+        surf.set_clip(area_clip)
 
     def particles(self, surf: pygame.Surface, view: View, poses: np.ndarray, colour,
                   weights: np.ndarray | None = None) -> None:
@@ -431,9 +448,9 @@ class WorldRenderer:
         image = pygame.transform.scale(small, (w, h))
         return image, (ipx(corner[0, 0]), ipx(corner[0, 1]))
 
-    def _beacons_and_rays(self, surf, view: View, session, pose) -> None:
-        world = session.scenario.world
-        readings = session.readings()
+    def rays(self, surf, view: View, world, pose, readings) -> None:
+        """Beacon readings taken at ``pose``: a grey line per beacon seen (to the measured
+        range, with a cross at its end; a bearing alone runs to the world's edge)."""
         far = 2.0 * math.hypot(world.width, world.height)
         for m in readings:
             if m.kind in ("pose", "position"):
@@ -449,7 +466,9 @@ class WorldRenderer:
                     self._cross(surf, b, 6, palette.RAY, 2)
             elif m.kind in ("pose", "position"):
                 self._cross(surf, view.to_px(m.z[0, :2]), 9, palette.RAY, 3)
-        seen = session.seen_ids()
+
+    def beacons(self, surf, view: View, world, seen) -> None:
+        """Every beacon as a square with its ID; those in ``seen`` (IDs) on a green disc."""
         pxs = [(ipx(x), ipx(y)) for x, y in view.to_px(world.beacon_xy)]
         half = 9
         squares = [pygame.Rect(x - half, y - half, 2 * half, 2 * half) for x, y in pxs]
