@@ -58,32 +58,12 @@ class Hud:
 
     def panel(self, surf, rect: pygame.Rect, session: Scene, colours, info: dict) -> None:
         """The side panel. ``info``: speed, paused, fps, recording (path or None), message."""
-        surf.fill(palette.PANEL, rect)
-        pygame.draw.line(surf, palette.PANEL_EDGE, rect.topleft, rect.bottomleft, 3)
-        x = rect.left + 16
-        w = rect.width - 28
-        y = rect.top + 10
+        x, w, y = self.begin_panel(surf, rect)
         f = self.fonts
         lh = f["hud"].get_linesize()
         sl = f["small"].get_linesize()
-        sc = session.scenario
-        self._blit(surf, sc.name, "title", palette.TEXT, (x, y))
-        y += f["title"].get_linesize() + 2
-        state = "PAUSED" if info.get("paused") else "running"
-        speed = info.get("speed", 1.0)
-        r = self._blit(surf, f"t = {session.time:7.2f} s", "hud", palette.TEXT, (x, y))
-        self._blit(surf, f"x{speed:g}  {state}", "hud",
-                   palette.WARN if info.get("paused") else palette.TEXT,
-                   (max(x + int(w * 0.55), r.right + lh // 2), y))
-        y += lh
-        c = session.next_control()
-        self._blit(surf, f"v = {c.v:+.2f} m/s", "hud", palette.TEXT, (x, y))
-        y += lh
-        self._blit(surf, f"omega = {c.omega:+.2f} rad/s", "hud", palette.TEXT, (x, y))
-        y += lh
-        mode = session.drive_mode
-        self._blit(surf, mode, "small", palette.TEXT_DIM, (x, y))
-        y += f["small"].get_linesize()
+        y = self.title_and_clock(surf, x, w, y, session.scenario.name, session.time, info)
+        y = self.command(surf, x, y, session.next_control(), session.drive_mode)
         seen = sorted(session.seen_ids())
         ids = ", ".join(map(str, seen)) if seen else "none"
         self._blit(surf, f"beacons in view: {len(seen)}", "hud",
@@ -91,27 +71,13 @@ class Hud:
         y += lh
         self._blit(surf, f"  IDs {ids}", "small", palette.TEXT_DIM, (x, y))
         y += f["small"].get_linesize() + 6
-        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
-        y += 8
+        y = self.rule(surf, rect, x, y)
 
         for i, name in enumerate(session.names):
             st = session.status[name]
-            visible = session.visible[name]
-            colour = colours[name]
-            sw = pygame.Rect(x, y + 4, round(lh * 0.65), lh - 8)
-            if visible:
-                surf.fill(colour, sw)
-            pygame.draw.rect(surf, colour, sw, 3)
-            label = f"{i + 1}  {name}" + ("" if visible else "  (hidden)")
-            self._blit(surf, label, "hud", palette.TEXT if visible else palette.TEXT_DIM,
-                       (sw.right + lh // 4, y))
-            y += lh
+            y = self.filter_label(surf, x, y, i, name, colours[name], session.visible[name])
             note = st.warning or (f"{name} switched off: {st.failed}" if st.failed else None)
-            notes = [n for n in (note, info.get("reload_errors", {}).get(name)) if n]
-            for text in notes:
-                for line in wrap_text(f["small"], text, w - 10)[:3]:
-                    self._blit(surf, line, "small", palette.WARN, (x + 10, y))
-                    y += f["small"].get_linesize()
+            y = self.notes(surf, x, w, y, [note, info.get("reload_errors", {}).get(name)])
             if st.failed:
                 y += 4
                 continue
@@ -119,24 +85,17 @@ class Hud:
                 deg = math.degrees(st.heading_err)
                 r = self._blit(surf, f"err {st.pos_err:5.2f} m {deg:+6.1f} deg", "small",
                                palette.TEXT, (x + 10, y))
-                nees = f"{st.nees:.1f}" if st.nees < 100 else (
-                    f"{st.nees:.0f}" if st.nees < 1000 else ">1000")
-                out = st.nees_out_of_band
-                text = f"NEES {nees}"
                 nx = max(x + int(w * 0.66), r.right + sl // 2)
-                if nx + f["small"].size(text)[0] > rect.right - 6:  # no room: its own line
-                    y += sl
+                if nx + f["small"].size(nees_text(st.nees))[0] > rect.right - 6:  # no room:
+                    y += sl  # its own line
                     nx = x + 10
-                self._blit(surf, text, "small", palette.BANNER_TEXT if out else palette.TEXT,
-                           (nx, y), bg=palette.WARN if out else None)
+                self.nees(surf, st, (nx, y))
                 y += sl
                 if math.isfinite(st.pos_sigma):
                     sig = f"sigma {st.pos_sigma:5.2f} m {math.degrees(st.heading_sigma):6.1f} deg"
                     self._blit(surf, sig, "small", palette.TEXT_DIM, (x + 10, y))
                     y += f["small"].get_linesize()
-                y += 4
-            else:
-                y += 4
+            y += 4
 
         if info.get("bound") is not None:
             bpos, bhead = info["bound"]
@@ -146,13 +105,85 @@ class Hud:
                        palette.TEXT_DIM, (x + 10, y))
             y += f["small"].get_linesize() + 4
 
-        # Legend: what the shapes mean, wrapped to the panel, at the bottom.
-        legend = [
+        self.footer(surf, rect, x, w, y, [
             f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 = {ELLIPSE_SCALE2:.2f})",
             "wedge: heading +-2 sigma",
             f"NEES band 95 %: {NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}",
             "black outline: true robot; line: path",
-        ]
+        ], info)
+
+    # --- the panel's pieces (the single-robot and the team panel) -------------------------
+    def begin_panel(self, surf, rect: pygame.Rect) -> tuple[int, int, int]:
+        """The panel's background and left edge; returns (x, text width, y) [px]."""
+        surf.fill(palette.PANEL, rect)
+        pygame.draw.line(surf, palette.PANEL_EDGE, rect.topleft, rect.bottomleft, 3)
+        return rect.left + 16, rect.width - 28, rect.top + 10
+
+    def title_and_clock(self, surf, x: int, w: int, y: int, title: str, t: float,
+                        info: dict) -> int:
+        """The scenario's name, then the time, the speed factor and PAUSED / running."""
+        lh = self.fonts["hud"].get_linesize()
+        self._blit(surf, title, "title", palette.TEXT, (x, y))
+        y += self.fonts["title"].get_linesize() + 2
+        state = "PAUSED" if info.get("paused") else "running"
+        speed = info.get("speed", 1.0)
+        r = self._blit(surf, f"t = {t:7.2f} s", "hud", palette.TEXT, (x, y))
+        self._blit(surf, f"x{speed:g}  {state}", "hud",
+                   palette.WARN if info.get("paused") else palette.TEXT,
+                   (max(x + int(w * 0.55), r.right + lh // 2), y))
+        return y + lh
+
+    def command(self, surf, x: int, y: int, c, mode: str) -> int:
+        """The command in force (v, omega) and who drives."""
+        lh = self.fonts["hud"].get_linesize()
+        self._blit(surf, f"v = {c.v:+.2f} m/s", "hud", palette.TEXT, (x, y))
+        y += lh
+        self._blit(surf, f"omega = {c.omega:+.2f} rad/s", "hud", palette.TEXT, (x, y))
+        y += lh
+        self._blit(surf, mode, "small", palette.TEXT_DIM, (x, y))
+        return y + self.fonts["small"].get_linesize()
+
+    def rule(self, surf, rect: pygame.Rect, x: int, y: int) -> int:
+        """A horizontal separator across the panel."""
+        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
+        return y + 8
+
+    def filter_label(self, surf, x: int, y: int, i: int, name: str, colour, visible: bool) -> int:
+        """A filter's swatch (filled when shown), its number (the 1-9 key) and name."""
+        lh = self.fonts["hud"].get_linesize()
+        sw = pygame.Rect(x, y + 4, round(lh * 0.65), lh - 8)
+        if visible:
+            surf.fill(colour, sw)
+        pygame.draw.rect(surf, colour, sw, 3)
+        label = f"{i + 1}  {name}" + ("" if visible else "  (hidden)")
+        self._blit(surf, label, "hud", palette.TEXT if visible else palette.TEXT_DIM,
+                   (sw.right + lh // 4, y))
+        return y + lh
+
+    def notes(self, surf, x: int, w: int, y: int, notes) -> int:
+        """Warnings (switched off, slow, a failed reload), each wrapped to three lines."""
+        sl = self.fonts["small"].get_linesize()
+        for text in notes:
+            if not text:
+                continue
+            for line in wrap_text(self.fonts["small"], text, w - 10)[:3]:
+                self._blit(surf, line, "small", palette.WARN, (x + 10, y))
+                y += sl
+        return y
+
+    def nees(self, surf, st, at) -> pygame.Rect:
+        """``NEES v`` of a FilterStatus, on the warning colour when outside its 95 % band."""
+        out = st.nees_out_of_band
+        return self._blit(surf, nees_text(st.nees), "small",
+                          palette.BANNER_TEXT if out else palette.TEXT, at,
+                          bg=palette.WARN if out else None)
+
+    def footer(self, surf, rect: pygame.Rect, x: int, w: int, y: int, legend: list[str],
+               info: dict) -> None:
+        """The legend (what the shapes mean), FPS and recording, and the help hint, at the
+        bottom of the panel (below ``y`` at least)."""
+        f = self.fonts
+        sl = f["small"].get_linesize()
         lines = [part for line in legend for part in wrap_text(f["small"], line, w)]
         rec = info.get("recording")
         where = "REPLAY" if info.get("mode") == "replay" else (f"REC {rec}" if rec else "not recording")
@@ -252,6 +283,12 @@ class Hud:
                 y += lh
                 used += 1
             y += int(lh * 0.3)
+
+
+def nees_text(nees: float) -> str:
+    """``NEES 2.1``, ``NEES 345``, ``NEES >1000``."""
+    v = f"{nees:.1f}" if nees < 100 else (f"{nees:.0f}" if nees < 1000 else ">1000")
+    return f"NEES {v}"
 
 
 def fps_of(frame_times: np.ndarray) -> float:
