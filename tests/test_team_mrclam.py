@@ -60,7 +60,8 @@ def test_cli_mrclam_team_runs_all_five_robots(capsys):
     assert main(["mrclam", str(DATASET6), "--team", "--duration", "60", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["robots"] == [1, 2, 3, 4, 5]
-    assert set(d["filters"]) == {"independent", "centralised", "ci"}
+    assert set(d["filters"]) == {"independent", "centralised", "decentralised", "ci"}
+    assert d["failed"] == {}
     for name in d["filters"]:
         for r in "12345":
             assert d["filters"][name][r]["pos_rmse_m"] < 1.0

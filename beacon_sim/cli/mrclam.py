@@ -87,6 +87,8 @@ def _print_team(d: dict[str, Any]) -> None:
                       f"{fmt(d['filters'][n][str(r)]['anees'], '.2f'):>7}" for n in names)
         print(f"{r:<6}{d['landmark_readings'][r]:>10}{d['robot_sightings'][r]:>10}{row}")
     print("us per tick: " + ", ".join(f"{n} {v:.0f}" for n, v in d["us_per_step"].items()))
+    for n, why in d.get("failed", {}).items():
+        print(f"{n} switched off, no score: {why}")
 
 
 def _team_command(args: argparse.Namespace) -> int:

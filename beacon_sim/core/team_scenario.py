@@ -57,7 +57,7 @@ _SHARED_KEYS = ("name", "description", "dt", "duration", "seed", "world", "keybo
                 "default_filters", "filters")
 _SINGLE_ONLY = ("robot", "sensors", "driver", "initial_belief", "model", "events")
 #: Team filters a team scenario runs by default.
-DEFAULT_TEAM_FILTERS = ("independent", "centralised", "ci")
+DEFAULT_TEAM_FILTERS = ("independent", "centralised", "decentralised", "ci")
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ filters that also use the robots' sightings of each other.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -27,7 +27,9 @@ from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.team_scenario import RobotSensorSpec
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterContext, GaussianBelief
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, failure_text
 from beacon_sim.filters.team import TEAM_FILTERS, TeamContext, TeamMember
+from beacon_sim.filters.team_runner import TeamFilterRunner, build_team_filters, validate_team_estimates
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, load_mrclam
 from beacon_sim.runs.mrclam import (
     INITIAL_STD,
@@ -41,7 +43,7 @@ from beacon_sim.runs.mrclam import (
 
 #: The name of the robot-sighting "sensor" in a team MRCLAM run.
 SIGHTING_SENSOR = "camera_robots"
-TEAM_MRCLAM_FILTERS = ("independent", "centralised", "ci")
+TEAM_MRCLAM_FILTERS = ("independent", "centralised", "decentralised", "ci")
 
 
 @dataclass
@@ -52,6 +54,7 @@ class TeamMrclamRun:
     tracks: dict[str, tuple[np.ndarray, np.ndarray]]  # name -> means (T, N, 3), covs (T, N, 3, 3)
     us_per_step: dict[str, float]
     wall_s: float
+    failed: dict[str, str] = field(default_factory=dict)  # name -> why it was switched off (no score)
 
     def evaluate(self) -> dict[str, dict[int, dict[str, float]]]:
         """Per filter, per robot (subject 1-5): summary() where ground truth exists."""
@@ -70,7 +73,7 @@ class TeamMrclamRun:
             "landmark_readings": {d.robot: len(d.measurements) for d in self.data},
             "robot_sightings": {d.robot: len(d.sightings) for d in self.data},
             "filters": {n: {str(k): v for k, v in rows.items()} for n, rows in self.evaluate().items()},
-            "us_per_step": self.us_per_step, "wall_s": self.wall_s,
+            "us_per_step": self.us_per_step, "wall_s": self.wall_s, "failed": self.failed,
         }
 
 
@@ -130,31 +133,38 @@ def run_team_mrclam(folder, filters: list[str] | None = None, duration: float | 
         pose, _ = d.truth_at(np.array([t_start]))
         initial.append(GaussianBelief(pose[0], np.diag(np.square(INITIAL_STD))))
     names = list(TEAM_MRCLAM_FILTERS if filters is None else filters)
-    built = {}
-    for n in names:
+
+    def build(n: str) -> Any:
         f = TEAM_FILTERS[n](team_mrclam_context(n, data, cals, t_start, t_end, dt))
         f.reset(initial)
-        built[n] = f
-    means = {n: np.empty((n_ticks + 1, len(data), 3)) for n in names}
-    covs = {n: np.empty((n_ticks + 1, len(data), 3, 3)) for n in names}
-    ns = dict.fromkeys(names, 0)
+        return f
+
+    built, why = build_team_filters(names, build, HEADLESS_STEP_LIMIT_S)
+    runner = TeamFilterRunner(built, len(data), HEADLESS_STEP_LIMIT_S)
+    for n, reason in why.items():
+        runner.tracks[n].failed = f"could not be built: {reason}"
+    start: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for n, f in built.items():
-        for i, (m, c) in enumerate(f.estimates()):
-            means[n][0, i], covs[n][0, i] = m, c
+        if f is not None:
+            checked = validate_team_estimates(f.estimates(), len(data))
+            if isinstance(checked, str):
+                runner.fail(n, checked)
+            else:
+                start[n] = checked
     t0 = time.perf_counter()
     empty: list[Measurement] = []
     for k in range(n_ticks):
         controls = [Control(float(v[k, i]), float(w[k, i])) for i in range(len(data))]
         readings = [per_tick[k].get(i, empty) for i in range(len(data))]
-        for n, f in built.items():
-            a = time.perf_counter_ns()
-            f.predict(controls, dt)
-            if per_tick[k]:
-                f.update(readings)
-            est = f.estimates()
-            ns[n] += time.perf_counter_ns() - a
-            for i, (m, c) in enumerate(est):
-                means[n][k + 1, i], covs[n][k + 1, i] = m, c
+        runner.feed(k + 1, float(times[k + 1] - t_start), controls, dt, readings)
     wall = time.perf_counter() - t0
-    return TeamMrclamRun(data, cals, times, {n: (means[n], covs[n]) for n in names},
-                         {n: ns[n] / 1e3 / max(n_ticks, 1) for n in names}, wall)
+    tracks, failed = {}, {}
+    for n in names:
+        tr = runner.tracks[n]
+        if tr.failed:
+            failed[n] = failure_text(tr) or tr.failed
+            continue
+        tracks[n] = (np.concatenate([start[n][0][None], np.array(tr.means)]),
+                     np.concatenate([start[n][1][None], np.array(tr.covs)]))
+    return TeamMrclamRun(data, cals, times, tracks,
+                         {n: runner.tracks[n].us_per_step for n in tracks}, wall, failed)
