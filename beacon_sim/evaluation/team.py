@@ -1,0 +1,298 @@
+"""Monte Carlo evaluation of team filters on a team scenario (issue 18): per-robot and
+team figures, with the PCRB of the joint state (``pcrb.team_pcrb``).
+
+Run ``i`` uses seed ``seed + i`` (as the single-robot ``eval``); each run is the guarded
+headless team run (``runs.team.run_team_headless``), so a team filter that raises, hangs or
+returns an unusable estimate for any robot is switched off in that run and, having failed
+in any run, gets no score (its figures are None, its verdicts FAILED), as in the
+single-robot evaluation. Runs go to ``jobs`` processes (the single-robot worker set-up,
+``montecarlo.init_worker``); the figures do not depend on ``jobs``, only the cost does.
+
+Each robot's figures are the single-robot evaluation's (``summary.evaluate`` on that
+robot's scenario, its truth and each filter's estimates of it), which also gives the
+robot's bound *alone* (its own beacon readings only); the team's are the RMSE over all
+robots and the mean of their ANEES. ``rmse_over_pcrb`` divides by the joint bound.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from beacon_sim.core.metrics import anees_band
+from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.evaluation.montecarlo import (
+    FilterRun,
+    RunOutput,
+    default_jobs,
+    finish_filter,
+    init_worker,
+)
+from beacon_sim.evaluation.pcrb import bound_rmse, robot_blocks, team_pcrb
+from beacon_sim.evaluation.summary import Thresholds, evaluate, model_mask
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
+from beacon_sim.runs.team import anees_verdict, run_team_headless, team_filter_name
+
+
+@dataclass
+class TeamRunOutput:
+    """One team run: the truth (T + 1, N, 3) with row 0 the start, the commands (T, N, 2),
+    kidnaps (T, N), and per team filter one :class:`FilterRun` per robot (in team order)."""
+
+    index: int
+    seed: int
+    truth: np.ndarray
+    controls: np.ndarray
+    kidnapped: np.ndarray
+    truth_checksum: str
+    filters: dict[str, list[FilterRun]] = field(default_factory=dict)
+
+    def robot(self, i: int) -> RunOutput:
+        """Robot i's view as a single-robot run (what ``summary.evaluate`` reads)."""
+        out = RunOutput(self.index, self.seed, self.truth[:, i], self.controls[:, i],
+                        self.kidnapped[:, i], self.truth_checksum)
+        out.filters = {name: runs[i] for name, runs in self.filters.items()}
+        return out
+
+
+def team_one_run(team: TeamScenario, specs: list[str], params: dict[str, dict[str, Any]] | None,
+                 seed: int, duration: float, index: int = 0,
+                 step_limit_s: float | None = HEADLESS_STEP_LIMIT_S) -> TeamRunOutput:
+    """One guarded team run reduced to arrays (see the module docstring)."""
+    res = run_team_headless(team, specs, seed=seed, duration=duration, params=params,
+                            step_limit_s=step_limit_s)
+    T, N = len(res.steps), len(team.robots)
+    truth = np.empty((T + 1, N, 3))
+    truth[0] = res.initial_poses
+    truth[1:] = res.truth.reshape(T, N, 3)
+    kidnapped = np.array([[st.kidnapped for st in s.steps] for s in res.steps], dtype=bool).reshape(T, N)
+    out = TeamRunOutput(index, seed, truth, res.controls, kidnapped, res.truth_checksum)
+    for name, tr in res.tracks.items():
+        done = len(tr.means)
+        means = np.full((T, N, 3), np.nan)
+        covs = np.full((T, N, 3, 3), np.nan)
+        if done:
+            means[:done] = np.array(tr.means)
+            covs[:done] = np.array(tr.covs)
+        out.filters[name] = [finish_filter(means[:, i].copy(), covs[:, i].copy(), truth[:, i], done,
+                                           tr.failed, 0.0, 0, tr.step_ns, keep_means=index == 0)
+                             for i in range(N)]
+    return out
+
+
+def _task(args) -> TeamRunOutput:
+    return team_one_run(*args)
+
+
+def run_team_monte_carlo(team: TeamScenario, specs: list[str], runs: int, seed: int = 0,
+                         duration: float | None = None, jobs: int | None = None,
+                         params: dict[str, dict[str, Any]] | None = None,
+                         step_limit_s: float | None = HEADLESS_STEP_LIMIT_S) -> list[TeamRunOutput]:
+    """``runs`` team runs with seeds ``seed, seed + 1, ...`` on ``jobs`` processes (default:
+    all cores; 1 runs here); returned in seed order."""
+    duration = team.duration if duration is None else duration
+    jobs = min(default_jobs() if jobs is None else max(1, int(jobs)), runs)
+    tasks = [(team, list(specs), params or {}, seed + i, duration, i, step_limit_s) for i in range(runs)]
+    if jobs == 1:
+        return [_task(t) for t in tasks]
+    with ProcessPoolExecutor(max_workers=jobs, initializer=init_worker) as pool:
+        return list(pool.map(_task, tasks))
+
+
+def _f(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+#: A robot's figures in a team row (from the single-robot evaluation's row).
+ROBOT_KEYS = ("pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
+              "anees_verdict", "nees_steps_in_band", "divergences")
+
+
+def evaluate_team(team: TeamScenario, runs: list[TeamRunOutput],
+                  thresholds: Thresholds | None = None) -> dict[str, Any]:
+    """The figures of every team filter over ``runs``: per robot and for the team, the
+    joint PCRB per robot (and each robot's bound alone), failures. JSON-ready."""
+    thresholds = thresholds or Thresholds()
+    R, N = len(runs), len(team.robots)
+    names = list(runs[0].filters)
+    truths = np.stack([r.truth for r in runs])          # (R, T + 1, N, 3)
+    controls = np.stack([r.controls for r in runs])     # (R, T, N, 2)
+    T = controls.shape[1]
+    P = team_pcrb(team, truths, controls)
+    robot_names = [r.name for r in team.robots]
+    per_robot = []  # each robot's single-robot evaluation (its bound alone inside)
+    bounds: dict[str, Any] = {}
+    for i, robot in enumerate(team.robots):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            meta, _ = evaluate(robot.scenario, [r.robot(i) for r in runs], thresholds)
+        per_robot.append(meta)
+        keep = model_mask(robot.scenario, np.stack([r.kidnapped[:, i] for r in runs]),
+                          thresholds.kidnap_window_s, thresholds.global_start_s)
+        b_pos, b_head = bound_rmse(robot_blocks(P, i)[keep]) if keep.any() else (math.nan, math.nan)
+        bounds[robot.name] = {"pos_rmse_m": _f(b_pos), "heading_rmse_rad": _f(b_head),
+                              "alone_pos_rmse_m": _f(meta["pcrb"]["pos_rmse_m"]),
+                              "alone_heading_rmse_rad": _f(meta["pcrb"]["heading_rmse_rad"])}
+    b_team = math.sqrt(np.mean([bounds[n]["pos_rmse_m"] ** 2 for n in robot_names]))
+    b_alone = math.sqrt(np.mean([bounds[n]["alone_pos_rmse_m"] ** 2 for n in robot_names]))
+    lo, hi = anees_band(R)
+    tlo, thi = anees_band(R * N)
+    rows: dict[str, Any] = {}
+    for name in names:
+        robots: dict[str, Any] = {}
+        for i, rn in enumerate(robot_names):
+            src = per_robot[i]["filters"][name]
+            row = {k: src[k] for k in ROBOT_KEYS}
+            row["pcrb_pos_rmse_m"] = bounds[rn]["pos_rmse_m"]
+            row["rmse_over_pcrb"] = (_f(src["pos_rmse_modelled_m"] / bounds[rn]["pos_rmse_m"])
+                                     if src["pos_rmse_modelled_m"] is not None and bounds[rn]["pos_rmse_m"]
+                                     else None)
+            row["rmse_over_pcrb_alone"] = src["rmse_over_pcrb"]
+            robots[rn] = row
+        first = per_robot[0]["filters"][name]
+        failures = first["failures"]
+        per_run = []
+        for k, r in enumerate(runs):
+            fr = r.filters[name]
+            ok = not fr[0].failed
+            pos2 = math.nan
+            if ok:
+                pos2 = float(np.mean([np.mean(f.err[:, 0] ** 2 + f.err[:, 1] ** 2) for f in fr]))
+            per_run.append({"seed": r.seed, "team_pos_rmse_m": _f(math.sqrt(pos2)) if ok else None,
+                            "robots": {rn: per_robot[i]["filters"][name]["per_run"][k]["pos_rmse_m"]
+                                       for i, rn in enumerate(robot_names)},
+                            "us_per_step": fr[0].step_ns / 1e3 / max(fr[0].steps, 1),
+                            "failed": fr[0].failed,
+                            "failed_time_s": first["per_run"][k].get("failed_time_s")})
+        team_row: dict[str, Any] = {"pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
+                                    "anees_verdict": "FAILED", "rmse_over_pcrb": None,
+                                    "rmse_over_pcrb_alone": None}
+        if not failures:
+            pos = math.sqrt(np.mean([v["pos_rmse_m"] ** 2 for v in robots.values()]))
+            head = math.sqrt(np.mean([v["heading_rmse_rad"] ** 2 for v in robots.values()]))
+            anees = float(np.mean([v["anees"] for v in robots.values()]))
+            team_row = {"pos_rmse_m": _f(pos), "heading_rmse_rad": _f(head), "anees": _f(anees),
+                        "anees_verdict": anees_verdict(anees, tlo, thi),
+                        "rmse_over_pcrb": _f(pos / b_team) if b_team > 0 else None,
+                        "rmse_over_pcrb_alone": _f(pos / b_alone) if b_alone > 0 else None}
+        us = [p["us_per_step"] for p in per_run if not p["failed"]]
+        rows[name] = {
+            "robots": robots,
+            "team": team_row,
+            "anees_band": [lo, hi],
+            "team_anees_band": [tlo, thi],
+            "us_per_step": float(np.mean(us)) if us else None,
+            "failed_runs": len(failures),
+            "failures": failures,
+            "failed": first["failed"],
+            "per_run": per_run,
+        }
+    checksum = hashlib.sha256("".join(r.truth_checksum for r in runs).encode()).hexdigest()[:16]
+    return {
+        "scenario": team.name,
+        "team": True,
+        "robots": robot_names,
+        "seed": runs[0].seed,
+        "runs": R,
+        "steps": T,
+        "dt": team.dt,
+        "truth_checksum": checksum,
+        "run_checksums": [r.truth_checksum for r in runs],
+        "pcrb": {"robots": bounds, "team_pos_rmse_m": _f(b_team), "team_alone_pos_rmse_m": _f(b_alone)},
+        "filters": rows,
+    }
+
+
+def _num(x, fmt: str) -> str:
+    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
+
+
+def team_table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
+    """The terminal table of a team evaluation: per filter, a row per robot and the team's."""
+    lines = [f"{meta['scenario']} (team of {len(meta['robots'])}): {meta['runs']} runs x "
+             f"{meta['steps']} steps (dt {meta['dt']:g} s), seeds "
+             f"{meta['seed']}..{meta['seed'] + meta['runs'] - 1}"]
+    head = (f"{'filter':<16}{'robot':<12}{'pos RMSE':>9}{'head RMSE':>10}{'ANEES':>8} {'verdict':<12}"
+            f"{'PCRB pos':>9}{'alone':>8}{'RMSE/PCRB':>10}{'us/step' if timing else '':>9}")
+    lines.append(head)
+    b = meta["pcrb"]
+    for name, r in meta["filters"].items():
+        if r["failed_runs"]:
+            f = r["failures"][0]
+            at = "" if f["time_s"] is None else f" at {f['time_s']:.2f} s"
+            lines.append(f"{name:<16}FAILED in {r['failed_runs']}/{meta['runs']} runs (no score); "
+                         f"first: seed {f['seed']}{at}: {f['reason']}")
+            continue
+        for k, (rn, v) in enumerate(r["robots"].items()):
+            pb = b["robots"][rn]
+            lines.append(f"{name if k == 0 else '':<16}{rn:<12}{_num(v['pos_rmse_m'], '.4f'):>9}"
+                         f"{_num(v['heading_rmse_rad'], '.4f'):>10}{_num(v['anees'], '.2f'):>8} "
+                         f"{v['anees_verdict']:<12}{_num(pb['pos_rmse_m'], '.4f'):>9}"
+                         f"{_num(pb['alone_pos_rmse_m'], '.3f'):>8}{_num(v['rmse_over_pcrb'], '.2f'):>10}")
+        t = r["team"]
+        lines.append(f"{'':<16}{'team':<12}{_num(t['pos_rmse_m'], '.4f'):>9}"
+                     f"{_num(t['heading_rmse_rad'], '.4f'):>10}{_num(t['anees'], '.2f'):>8} "
+                     f"{t['anees_verdict']:<12}{_num(b['team_pos_rmse_m'], '.4f'):>9}"
+                     f"{_num(b['team_alone_pos_rmse_m'], '.3f'):>8}{_num(t['rmse_over_pcrb'], '.2f'):>10}"
+                     f"{_num(r['us_per_step'], '.0f') if timing else '':>9}")
+    lo, hi = next(iter(meta["filters"].values()))["anees_band"] if meta["filters"] else (0, 0)
+    tlo, thi = next(iter(meta["filters"].values()))["team_anees_band"] if meta["filters"] else (0, 0)
+    lines.append(f"ANEES 95 % band for {meta['runs']} runs: [{lo:.2f}, {hi:.2f}] per robot, "
+                 f"[{tlo:.2f}, {thi:.2f}] for the team (3 dof); PCRB pos: the joint bound "
+                 "(robot readings couple the robots), alone: each robot's bound from its own "
+                 "beacon readings; RMSE/PCRB against the joint bound")
+    return lines
+
+
+def write_team_outputs(out: Path, metas: list[dict[str, Any]], document: dict[str, Any]) -> list[Path]:
+    """``eval.csv`` (a row per filter and robot, and the team's), ``eval_runs.csv`` (a row
+    per filter and run) and ``eval.json`` into ``out``. No plots for a team."""
+    out.mkdir(parents=True, exist_ok=True)
+    cols = ["scenario", "runs", "steps", "filter", "robot", "pos_rmse_m", "heading_rmse_rad", "anees",
+            "anees_lo", "anees_hi", "anees_verdict", "pcrb_pos_rmse_m", "pcrb_alone_pos_rmse_m",
+            "rmse_over_pcrb", "us_per_step", "failed_runs", "first_failure"]
+    with open(out / "eval.csv", "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=cols)
+        w.writeheader()
+        for m in metas:
+            for name, r in m["filters"].items():
+                base = {"scenario": m["scenario"], "runs": m["runs"], "steps": m["steps"], "filter": name,
+                        "us_per_step": r["us_per_step"], "failed_runs": r["failed_runs"],
+                        "first_failure": r["failed"][0] if r["failed"] else ""}
+                for rn, v in [*r["robots"].items(), ("team", r["team"])]:
+                    pb = m["pcrb"]["robots"].get(rn)
+                    band = r["team_anees_band"] if rn == "team" else r["anees_band"]
+                    w.writerow({**base, "robot": rn, "pos_rmse_m": v["pos_rmse_m"],
+                                "heading_rmse_rad": v["heading_rmse_rad"], "anees": v["anees"],
+                                "anees_lo": band[0], "anees_hi": band[1], "anees_verdict": v["anees_verdict"],
+                                "pcrb_pos_rmse_m": pb["pos_rmse_m"] if pb else m["pcrb"]["team_pos_rmse_m"],
+                                "pcrb_alone_pos_rmse_m": pb["alone_pos_rmse_m"] if pb
+                                else m["pcrb"]["team_alone_pos_rmse_m"],
+                                "rmse_over_pcrb": v["rmse_over_pcrb"]})
+    with open(out / "eval_runs.csv", "w", newline="", encoding="utf-8") as fh:
+        w2 = csv.writer(fh)
+        robots = sorted({rn for m in metas for rn in m["robots"]})
+        w2.writerow(["scenario", "filter", "seed", "team_pos_rmse_m", *[f"{rn}_pos_rmse_m" for rn in robots],
+                     "us_per_step", "failed", "failed_time_s"])
+        for m in metas:
+            for name, r in m["filters"].items():
+                for p in r["per_run"]:
+                    w2.writerow([m["scenario"], name, p["seed"], p["team_pos_rmse_m"],
+                                 *[p["robots"].get(rn) for rn in robots], p["us_per_step"],
+                                 p["failed"] or "", p["failed_time_s"]])
+    with open(out / "eval.json", "w", encoding="utf-8") as fh:
+        json.dump(document, fh, indent=1, default=float)
+    return [out / "eval.csv", out / "eval_runs.csv", out / "eval.json"]
+
+
+__all__ = ["TeamRunOutput", "evaluate_team", "run_team_monte_carlo", "team_filter_name", "team_one_run",
+           "team_table_lines", "write_team_outputs"]
