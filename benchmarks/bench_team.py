@@ -11,6 +11,7 @@ wall time per tick [us] of each team filter (predict + update + estimates) and t
 from __future__ import annotations
 
 import argparse
+import os
 
 import numpy as np
 
@@ -43,13 +44,14 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--duration", type=float, default=30.0)
     args = ap.parse_args()
-    print(f"{'robots':>6} {'filter':>12} {'us/step':>9} {'robot rows/tick':>16}")
+    print(f"load average {os.getloadavg()[0]:.1f} (1 min)")
+    print(f"{'robots':>6} {'filter':>14} {'us/step':>9} {'robot rows/tick':>16}")
     for n in (2, 5, 10):
         team = parse_team_scenario(team_doc(n), f"bench_team_{n}")
-        r = run_team_headless(team, ["independent", "centralised", "ci"], duration=args.duration)
+        r = run_team_headless(team, ["independent", "centralised", "decentralised", "ci"], duration=args.duration)
         rows = sum(len(m) for s in r.steps for ms in s.robot_readings for m in ms) / len(r.steps)
         for name, tr in r.tracks.items():
-            print(f"{n:>6} {name:>12} {tr.us_per_step:>9.0f} {rows:>16.1f}")
+            print(f"{n:>6} {name:>14} {tr.us_per_step:>9.0f} {rows:>16.1f}")
 
 
 if __name__ == "__main__":

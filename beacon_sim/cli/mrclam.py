@@ -80,10 +80,11 @@ def _print_team(d: dict[str, Any]) -> None:
     print(f"MRCLAM {d['dataset']}, robots {', '.join(map(str, d['robots']))} together: "
           f"{d['duration_s']:.1f} s")
     names = list(d["filters"])
-    head = "".join(f"{n + ' RMSE m':>18}{'ANEES':>7}" for n in names)
+    width = {n: max(len(n) + 9, 12) for n in names}
+    head = "".join(f"{n + ' RMSE m':>{width[n]}}{'ANEES':>7}" for n in names)
     print(f"{'robot':<6}{'landmarks':>10}{'sightings':>10}{head}")
     for r in d["robots"]:
-        row = "".join(f"{d['filters'][n][str(r)]['pos_rmse_m']:>18.3f}"
+        row = "".join(f"{d['filters'][n][str(r)]['pos_rmse_m']:>{width[n]}.3f}"
                       f"{fmt(d['filters'][n][str(r)]['anees'], '.2f'):>7}" for n in names)
         print(f"{r:<6}{d['landmark_readings'][r]:>10}{d['robot_sightings'][r]:>10}{row}")
     print("us per tick: " + ", ".join(f"{n} {v:.0f}" for n, v in d["us_per_step"].items()))
