@@ -16,10 +16,17 @@ from pathlib import Path
 
 from beacon_sim.cli.common import check_duration
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.summary import Thresholds, evaluate
+from beacon_sim.evaluation.team import (
+    evaluate_team,
+    run_team_monte_carlo,
+    team_table_lines,
+    write_team_outputs,
+)
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.loading import (
     build_filter,
@@ -28,7 +35,8 @@ from beacon_sim.filters.loading import (
     filter_names,
     parse_set_options,
 )
-from beacon_sim.filters.runner import exit_text, is_filter_failure
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
+from beacon_sim.runs.team import check_team_specs
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
 #: in a loop is stopped and marked, the evaluation goes on.
@@ -54,6 +62,12 @@ def _validate(args: argparse.Namespace) -> None:
 def eval_command(args: argparse.Namespace) -> int:
     """Run the evaluation the parsed ``args`` ask for; returns the exit status."""
     _validate(args)
+    team = [is_team_scenario(s) for s in args.scenarios]
+    if any(team):
+        if not all(team):
+            raise UsageError("eval: team scenarios and single-robot scenarios in one evaluation; "
+                             "evaluate them in two commands")
+        return team_eval_command(args)
     params = parse_set_options(getattr(args, "set_params", []) or [])
     scenarios = [load_scenario(s) for s in args.scenarios]
     for sc in scenarios:  # bad filter names and parameters: a one-line error, before any run
@@ -104,3 +118,34 @@ def eval_command(args: argparse.Namespace) -> int:
     return 1 if failed and getattr(args, "strict", False) else 0
 
 
+def team_eval_command(args: argparse.Namespace) -> int:
+    """``eval`` on team scenarios: team filters (``--filter``, default the scenario's), a
+    row per robot and the team's, the joint PCRB (evaluation/team.py). ``--time-limit S``
+    is a team filter's limit per step here (default 10 s: the guarded team run's);
+    ``--no-batch`` changes nothing (team runs are not batched)."""
+    params = parse_set_options(getattr(args, "set_params", []) or [])
+    teams = [load_team_scenario(s) for s in args.scenarios]
+    for team in teams:  # bad names and parameters: one line, exit 2, before any run
+        check_team_specs(list(args.filters or team.default_filters), team, params)
+        check_duration(args.duration, team.robots[0].scenario)
+    metas = []
+    for team in teams:
+        runs = run_team_monte_carlo(team, list(args.filters or team.default_filters), args.runs,
+                                    seed=args.seed or 0, duration=args.duration, jobs=args.jobs,
+                                    params=params,
+                                    step_limit_s=getattr(args, "time_limit", None) or HEADLESS_STEP_LIMIT_S)
+        meta = evaluate_team(team, runs)
+        metas.append(meta)
+        if not args.json:
+            print("\n".join(team_table_lines(meta)))
+            print()
+    document = metas[0] if len(metas) == 1 else {"scenarios": metas}
+    if args.json:
+        print(json.dumps(document, default=float))
+    if args.out is not None:
+        write_team_outputs(Path(args.out), metas, document)
+    failed = {(m["scenario"], name): r["failed_runs"] for m in metas
+              for name, r in m["filters"].items() if r["failed_runs"]}
+    for (scenario, name), n in failed.items():
+        print(f"beacon-sim eval: {name} failed in {n} run(s) of {scenario} (no score)", file=sys.stderr)
+    return 1 if failed and getattr(args, "strict", False) else 0
