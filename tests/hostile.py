@@ -117,6 +117,32 @@ def mutated_scenarios(rng: random.Random, n: int) -> list[Case]:
     return cases
 
 
+def mutated_team_scenarios(rng: random.Random, n: int) -> list[Case]:
+    """``n`` team scenarios, each a shipped one (``scenarios/team/``) with one to three leaves
+    replaced by an extreme value or deleted, run headless for a second, or played for a
+    few frames in the window (one in five)."""
+    base = {p.stem: tomllib.loads(p.read_text(encoding="utf-8"))
+            for p in sorted((scenario_dir() / "team").glob("*.toml"))}
+    names = sorted(base)
+    cases = []
+    for i in range(n):
+        data = json.loads(json.dumps(base[rng.choice(names)]))
+        for _ in range(rng.randint(1, 3)):
+            leaves = _leaves(data)
+            if not leaves:
+                break
+            path = rng.choice(leaves)
+            if rng.random() < 0.15:
+                _delete(data, path)
+            else:
+                _set(data, path, rng.choice(EXTREMES))
+        argv = ["run", "t.toml", "--duration", "1"]
+        if i % 5 == 4:
+            argv = ["play", "t.toml", "--frames", "3", "--screenshot", "shot.png"]
+        cases.append(Case(f"team-mutated-{i}", argv, {"t.toml": dump_toml(data)}))
+    return cases
+
+
 _ROOM = ('dt = 0.1\nduration = 5\n[world]\nbounds = [0, 0, 10, 8]\nbeacons = [{ id = 1, x = 2, y = 2 }, '
          '{ id = 2, x = 8, y = 6 }]\n[robot]\ninitial_pose = [5, 4, 0]\n')
 _SENSOR = '[[sensors]]\nkind = "range_bearing"\nname = "b"\n'
@@ -388,6 +414,8 @@ def bad_mrclam(rng: random.Random, n: int) -> list[Case]:
         argv = ["mrclam", "m", "--robot", "1", "--headless", "--filter", "ekf", "--filter", "dead_reckoning"]
         if i % 3 == 1:
             argv = ["mrclam", "m", "--robot", "1", "--calibrate"]
+        if i % 3 == 2:
+            argv = ["mrclam", "m", "--team", "--duration", "5"]
         cases.append(Case(f"mrclam-{corrupt}-{i}", argv, files))
     return cases
 
@@ -509,9 +537,10 @@ def faulty_filter_cases(recording: str) -> list[Case]:
 
 
 def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, mrclam: int = 28,
-           command_lines: int = 30) -> list[Case]:
+           command_lines: int = 30, team: int = 60) -> list[Case]:
     """The whole corpus, deterministic for a seed."""
     rng = random.Random(seed)
     rec = recording_text(tmp)
     return (mutated_scenarios(rng, mutated) + hand_made_scenarios() + bad_recordings(rng, rec, recordings)
-            + bad_mrclam(rng, mrclam) + bad_command_lines(rng, command_lines) + faulty_filter_cases(rec))
+            + bad_mrclam(rng, mrclam) + bad_command_lines(rng, command_lines) + faulty_filter_cases(rec)
+            + mutated_team_scenarios(random.Random(seed + 18), team))
