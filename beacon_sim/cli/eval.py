@@ -120,9 +120,9 @@ def eval_command(args: argparse.Namespace) -> int:
 
 def team_eval_command(args: argparse.Namespace) -> int:
     """``eval`` on team scenarios: team filters (``--filter``, default the scenario's), a
-    row per robot and the team's, the joint PCRB (evaluation/team.py). ``--time-limit S``
-    is a team filter's limit per step here (default 10 s: the guarded team run's);
-    ``--no-batch`` changes nothing (team runs are not batched)."""
+    row per robot and the team's, the joint PCRB (evaluation/team.py). ``--time-limit S``:
+    a team filter's time limit per run, as for a single robot; ``--no-batch`` changes
+    nothing (team runs are not batched)."""
     params = parse_set_options(getattr(args, "set_params", []) or [])
     teams = [load_team_scenario(s) for s in args.scenarios]
     for team in teams:  # bad names and parameters: one line, exit 2, before any run
@@ -132,8 +132,8 @@ def team_eval_command(args: argparse.Namespace) -> int:
     for team in teams:
         runs = run_team_monte_carlo(team, list(args.filters or team.default_filters), args.runs,
                                     seed=args.seed or 0, duration=args.duration, jobs=args.jobs,
-                                    params=params,
-                                    step_limit_s=getattr(args, "time_limit", None) or HEADLESS_STEP_LIMIT_S)
+                                    params=params, step_limit_s=HEADLESS_STEP_LIMIT_S,
+                                    run_limit_s=getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S)
         meta = evaluate_team(team, runs)
         metas.append(meta)
         if not args.json:

@@ -66,10 +66,12 @@ class TeamRunOutput:
 
 def team_one_run(team: TeamScenario, specs: list[str], params: dict[str, dict[str, Any]] | None,
                  seed: int, duration: float, index: int = 0,
-                 step_limit_s: float | None = HEADLESS_STEP_LIMIT_S) -> TeamRunOutput:
-    """One guarded team run reduced to arrays (see the module docstring)."""
+                 step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
+                 run_limit_s: float | None = None) -> TeamRunOutput:
+    """One guarded team run reduced to arrays (see the module docstring); the limits as
+    :func:`~beacon_sim.runs.team.run_team_headless`'s."""
     res = run_team_headless(team, specs, seed=seed, duration=duration, params=params,
-                            step_limit_s=step_limit_s)
+                            step_limit_s=step_limit_s, run_limit_s=run_limit_s)
     T, N = len(res.steps), len(team.robots)
     truth = np.empty((T + 1, N, 3))
     truth[0] = res.initial_poses
@@ -96,12 +98,14 @@ def _task(args) -> TeamRunOutput:
 def run_team_monte_carlo(team: TeamScenario, specs: list[str], runs: int, seed: int = 0,
                          duration: float | None = None, jobs: int | None = None,
                          params: dict[str, dict[str, Any]] | None = None,
-                         step_limit_s: float | None = HEADLESS_STEP_LIMIT_S) -> list[TeamRunOutput]:
+                         step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
+                         run_limit_s: float | None = None) -> list[TeamRunOutput]:
     """``runs`` team runs with seeds ``seed, seed + 1, ...`` on ``jobs`` processes (default:
-    all cores; 1 runs here); returned in seed order."""
+    all cores; 1 runs here); returned in seed order. Limits: see :func:`team_one_run`."""
     duration = team.duration if duration is None else duration
     jobs = min(default_jobs() if jobs is None else max(1, int(jobs)), runs)
-    tasks = [(team, list(specs), params or {}, seed + i, duration, i, step_limit_s) for i in range(runs)]
+    tasks = [(team, list(specs), params or {}, seed + i, duration, i, step_limit_s, run_limit_s)
+             for i in range(runs)]
     if jobs == 1:
         return [_task(t) for t in tasks]
     with ProcessPoolExecutor(max_workers=jobs, initializer=init_worker) as pool:

@@ -187,10 +187,13 @@ class TeamRunResult:
 def run_team_headless(team: TeamScenario, filters: list[str] | None = None, seed: int | None = None,
                       duration: float | None = None,
                       params: dict[str, dict[str, Any]] | None = None,
-                      step_limit_s: float | None = HEADLESS_STEP_LIMIT_S) -> TeamRunResult:
+                      step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
+                      run_limit_s: float | None = None) -> TeamRunResult:
     """Simulate ``duration`` seconds (default: the scenario's) and feed every team filter
     (specs as :func:`build_team_spec`; guarded: see the module docstring). ``params``:
-    ``{filter name: {key: value}}``."""
+    ``{filter name: {key: value}}``. ``step_limit_s`` [s]: a step that takes longer stops
+    the filter; ``run_limit_s`` [s]: so does its filter time in the run passing this (as
+    ``eval --time-limit`` and ``grade``'s ``time_limit`` for a single robot)."""
     seed = team.seed if seed is None else seed
     duration = team.duration if duration is None else duration
     specs = list(team.default_filters if filters is None else filters)
@@ -209,4 +212,9 @@ def run_team_headless(team: TeamScenario, filters: list[str] | None = None, seed
         steps.append(step)
         runner.feed(step.tick, step.time, [s.control for s in step.steps], step.dt,
                     [step.measurements(i) for i in range(len(step.steps))])
+        if run_limit_s is not None:
+            for name, tr in runner.tracks.items():
+                if not tr.failed and tr.step_ns > run_limit_s * 1e9:
+                    runner.fail(name, f"time limit: over {run_limit_s:g} s of filter time in the run",
+                                "", step.time)
     return TeamRunResult(team, seed, steps, runner.tracks, sim.truth_checksum, time.perf_counter() - t0)
