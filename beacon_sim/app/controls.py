@@ -8,7 +8,7 @@ press.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import pygame
 
@@ -96,12 +96,39 @@ REPLAY_BINDINGS: tuple[Binding, ...] = tuple(
     b for b in BINDINGS if b.group == "Time") + _REPLAY_ONLY + tuple(
     b for b in BINDINGS if b.group != "Time" and b.action not in _NOT_IN_REPLAY)
 
+#: A team scenario (issue 18): the play keys act on the driven robot, Tab switches which;
+#: the keys of single-robot features a team window does not have (uniform belief, particles,
+#: strip chart, step view, PCRB) are left out.
+_NEXT_ROBOT = Binding("Tab", _k("K_TAB"), "next_robot",
+                      "drive the next robot (the others follow their drivers)")
+_NOT_IN_TEAM = {"global_reset", "particles", "chart", "step_view", "bound"}
+_TEAM_TEXT = {"autopilot": "autopilot: the driven robot's own driver on / off",
+              "kidnap_random": "kidnap the driven robot to a random pose",
+              "kidnap_click": "kidnap the driven robot to that point (drag: heading)",
+              "reset": "team filters back to the initial beliefs (clears trails)",
+              "toggle*": "show / hide team filter 1-9"}
+
+
+def _team_table() -> tuple[Binding, ...]:
+    out: list[Binding] = []
+    for b in BINDINGS:
+        if b.action in _NOT_IN_TEAM:
+            continue
+        out.append(replace(b, description=_TEAM_TEXT.get(b.action, b.description)))
+        if b.action == "stop":
+            out.append(_NEXT_ROBOT)
+    return tuple(out)
+
+
+TEAM_BINDINGS: tuple[Binding, ...] = _team_table()
+
 #: The tables by window mode.
-TABLES: dict[str, tuple[Binding, ...]] = {"play": BINDINGS, "replay": REPLAY_BINDINGS}
+TABLES: dict[str, tuple[Binding, ...]] = {"play": BINDINGS, "replay": REPLAY_BINDINGS,
+                                          "team": TEAM_BINDINGS}
 
 
 def bindings(mode: str = "play") -> tuple[Binding, ...]:
-    """The binding table of a window mode ("play" or "replay")."""
+    """The binding table of a window mode ("play", "replay" or "team")."""
     return TABLES[mode]
 
 

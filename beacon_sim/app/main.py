@@ -30,6 +30,7 @@ from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Step
 from beacon_sim.filters.runner import note_user_interrupt
 from beacon_sim.runs.live import Session, make_recorder
@@ -56,6 +57,8 @@ class App:
 
     #: Which binding table the keys, the mouse and the help overlay use (controls.TABLES).
     MODE = "play"
+    #: What draws the world (a subclass may draw more: the team window's robots).
+    RENDERER: type[WorldRenderer] = WorldRenderer
 
     def __init__(self, session: Session, size=(1280, 800), scripted: bool = False,
                  recording: Path | None = None, *, watch_interval: float = 1.0):
@@ -68,9 +71,7 @@ class App:
         pygame.display.set_caption(f"beacon-sim: {session.scenario.name}")
         pygame.display.set_icon(window_icon())
         pygame.key.set_repeat(300, 50)
-        from beacon_sim.app.palette import filter_styles
-
-        styles = filter_styles(session.names)
+        styles = self.filter_styles(session.names)
         self.colours = {n: c for n, (c, _) in styles.items()}
         self.dashes = {n: d for n, (_, d) in styles.items()}
         self.clock = StepClock(session.scenario.dt)
@@ -97,6 +98,12 @@ class App:
         self.chart = StripChart(session.names, session.scenario.dt)
         self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
+
+    def filter_styles(self, names: list[str]) -> dict[str, tuple]:
+        """``(colour, dash pattern)`` per filter name (``runs/styles.py``, by kind)."""
+        from beacon_sim.app.palette import filter_styles
+
+        return filter_styles(names)
 
     # --- hot reload -----------------------------------------------------------------------
     def _make_watchers(self, interval: float) -> dict[str, object]:
@@ -140,7 +147,7 @@ class App:
         W, H = size
         self.ui_scale = ui_scale(W, H)
         self.fonts = load_fonts(H, W)
-        self.renderer = WorldRenderer(self.fonts)
+        self.renderer = self.RENDERER(self.fonts)
         self.hud = Hud(self.fonts, self.MODE)
         # The panel scales with the text (340 px at 1280x800); the room gets most of the width.
         pw = int(min(340 * self.ui_scale, 0.4 * W))
@@ -296,20 +303,28 @@ class App:
         self.poll_watchers()  # a filter object is swapped here, between ticks
         self.ticks_this_frame = self.ticks_due(real_dt)
         for _ in range(self.ticks_this_frame):
-            step = self.session.tick()
-            self.chart.record(self.session)
-            for ev in (step.events if isinstance(step, Step) else step):
-                if ev.kind == "bump":
-                    self.flash("BUMPER: the robot hit the wall and stopped (v = 0)")
-                elif ev.kind == "kidnap":
-                    self.flash(f"KIDNAPPED  ({ev.detail})")
-                elif ev.kind.endswith("_start"):
-                    self.flash(ev.kind[: -len("_start")].replace("_", " ").upper()
-                               + (f": {ev.detail}" if ev.detail else ""))
+            self.after_tick(self.session.tick())
         self.draw()
         if self.gif is not None:
             self.gif.offer(self.screen)
         self.frames += 1
+
+    def after_tick(self, step) -> None:
+        """What the window does after each tick: the strip chart, banners for events."""
+        self.chart.record(self.session)
+        self.announce(step.events if isinstance(step, Step) else step)
+
+    def announce(self, events, who: str = "the robot") -> None:
+        """A banner for the events of a tick (bump, kidnap, the start of a blackout...)."""
+        for ev in events:
+            if ev.kind == "bump":
+                self.flash(f"BUMPER: {who} hit the wall and stopped (v = 0)")
+            elif ev.kind == "kidnap":
+                self.flash(f"KIDNAPPED  ({ev.detail})" if who == "the robot"
+                           else f"{who.upper()} KIDNAPPED  ({ev.detail})")
+            elif ev.kind.endswith("_start"):
+                self.flash(ev.kind[: -len("_start")].replace("_", " ").upper()
+                           + (f": {ev.detail}" if ev.detail else ""))
 
     def ticks_due(self, real_dt: float) -> int:
         """How many simulation ticks to run this frame."""
@@ -456,7 +471,7 @@ def check_display() -> None:
 class PlayOptions:
     """What ``beacon-sim play`` opens (the command line checks and builds these)."""
 
-    scenario: Scenario
+    scenario: Scenario | TeamScenario  # a team scenario opens the team window (app/team.py)
     filters: list[str]  # filter specs
     seed: int
     params: dict[str, dict[str, Any]] = field(default_factory=dict)  # ``--set`` overrides
@@ -482,6 +497,16 @@ def play(options: PlayOptions) -> int:
         session.toggle_autopilot()
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     app = App(session, o.size, scripted=o.frames is not None, recording=rec_path)
+    run_window(app, o)
+    if rec_path is not None:
+        print(f"recorded to {rec_path}", file=sys.stderr)
+    return 0
+
+
+def run_window(app: App, options: PlayOptions) -> None:
+    """Run an opened window as the command line asked (paused, speed, GIF, ``--frames``),
+    save ``--screenshot`` from its last frame and the GIF, and close it."""
+    o = options
     start(app, o.paused, o.speed, o.gif)
     try:
         app.run(o.frames)
@@ -490,9 +515,6 @@ def play(options: PlayOptions) -> int:
         finish_gif(app)
     finally:
         app.close()
-    if rec_path is not None:
-        print(f"recorded to {rec_path}", file=sys.stderr)
-    return 0
 
 
 def start(app: App, paused: bool = False, speed: float | None = None, gif: str | None = None) -> None:
@@ -521,4 +543,4 @@ def finish_gif(app: App) -> None:
           f"{app.gif.size[1]} px, {kb:.0f} KB{full}", file=sys.stderr)
 
 
-__all__ = ["App", "PlayOptions", "finish_gif", "play", "start"]
+__all__ = ["App", "PlayOptions", "finish_gif", "play", "run_window", "start"]
