@@ -50,6 +50,17 @@ OTHER_STYLES: list[tuple[RGB, Dash]] = [
     (OKABE_ITO[6], SOLID)]
 STYLE_CYCLE: list[Dash] = [SOLID, DASHED, DOTTED, DASH_DOT, SHORT_DASH]
 
+#: Team filters (issue 18, ``filters/team.py``) by name: the baseline that ignores the
+#: teammates is grey like dead reckoning; the joint EKF blue and solid; covariance
+#: intersection bluish green and dashed; naive fusion, the overconfident counter-example,
+#: vermillion and dotted. Others (a student's team filter) take ``OTHER_STYLES`` in turn.
+TEAM_STYLES: dict[str, tuple[RGB, Dash]] = {
+    "independent": (DEAD_RECKONING, SHORT_DASH),
+    "centralised": (OKABE_ITO[0], SOLID),
+    "ci": (OKABE_ITO[3], DASHED),
+    "naive": (OKABE_ITO[1], DOTTED),
+}
+
 #: The best achievable covariance (the PCRB) wherever it is drawn: black, dotted.
 BOUND_STYLE: tuple[RGB, Dash] = ((0, 0, 0), (3, 6))
 
@@ -79,6 +90,20 @@ def filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
         if repeats:
             dash = STYLE_CYCLE[(STYLE_CYCLE.index(dash) + repeats) % len(STYLE_CYCLE)]
         out[name] = (colour, dash)
+    return out
+
+
+def team_filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
+    """``(colour, dash pattern)`` per team filter name (``TEAM_STYLES``; any other name
+    takes the next of ``OTHER_STYLES``)."""
+    out: dict[str, tuple[RGB, Dash]] = {}
+    others = 0
+    for name in names:
+        if name in TEAM_STYLES:
+            out[name] = TEAM_STYLES[name]
+        else:
+            out[name] = OTHER_STYLES[others % len(OTHER_STYLES)]
+            others += 1
     return out
 
 
