@@ -1,5 +1,7 @@
 """core/batch_simulation.py: R runs stepped together are, bit for bit, R single runs (truth,
-commands, readings, events, both checksums) on every shipped scenario."""
+commands, readings, events, both checksums) on every shipped scenario; the tick as arrays
+(``advance``) and its packing (``SlotPacker.pack_tick``) are, bit for bit, the Step objects
+and their packing (``pack``)."""
 
 from __future__ import annotations
 
@@ -49,7 +51,9 @@ def test_batched_runs_are_the_single_runs_bit_for_bit(name):
         assert (truth, readings) == (sim.truth_checksum, sim.readings_checksum)
 
 
-def test_outliers_field_of_view_blackouts_bursts_and_walls_too():
+def _everything():
+    """default with outliers, a field of view, a bearing compass, a blackout, a noise burst,
+    a random kidnap and a driver into the wall."""
     import tomllib
 
     from beacon_sim.core.resources import scenario_dir
@@ -64,7 +68,11 @@ def test_outliers_field_of_view_blackouts_bursts_and_walls_too():
                       {"kind": "noise_burst", "time": 6.0, "duration": 2.0, "v_std": 0.3, "omega_std": 0.5},
                       {"kind": "kidnap", "time": 9.0, "random": True}]
     data["driver"] = {"kind": "constant", "v": 0.8, "omega": 0.05}   # into the wall and along it
-    sc = parse_scenario(data, "test", name="everything")
+    return parse_scenario(data, "test", name="everything")
+
+
+def test_outliers_field_of_view_blackouts_bursts_and_walls_too():
+    sc = _everything()
     seeds = list(range(6))
     bs = BatchSimulation(sc, seeds)
     batch = bs.run(30.0)
@@ -76,3 +84,87 @@ def test_outliers_field_of_view_blackouts_bursts_and_walls_too():
             bumps += sum(e.kind == "bump" for e in st.events)
         assert sim.truth_checksum == bs.sims[seeds.index(seed)].truth_checksum
     assert bumps > 0
+
+
+def _same_stacked(a, b):
+    assert (a is None) == (b is None)
+    if a is None:
+        return
+    for x, y in ((a.z, b.z), (a.r, b.r), (a.valid, b.valid), (a.angle, b.angle)):
+        assert x.shape == y.shape and x.dtype == y.dtype and x.tobytes() == y.tobytes()
+    assert a.angle_sel == b.angle_sel if isinstance(a.angle_sel, slice) else \
+        np.array_equal(a.angle_sel, b.angle_sel)
+    assert [blk[:3] for blk in a.blocks] == [blk[:3] for blk in b.blocks]
+
+
+@pytest.mark.parametrize("name", [*shipped_scenarios(), "everything"])
+def test_the_tick_as_arrays_is_the_steps_and_packs_the_same_bits(name):
+    """advance() (arrays) and step() (objects) on two batches of the same seeds: the same
+    steps, poses, commands and kidnaps; pack_tick of the arrays is pack of the Measurements,
+    bit for bit (z, r, valid); the checksums agree, also when the two ways are mixed."""
+    from beacon_sim.filters.gaussian_measurements import SlotPacker
+
+    sc = _everything() if name == "everything" else load_scenario(name)
+    seeds = [0, 3, 12345]
+    arrays, objects, mixed = (BatchSimulation(sc, seeds) for _ in range(3))
+    packer = SlotPacker(sc.world, sc.model_sensors)
+    packed = 0
+    for k in range(round(min(sc.duration, 40.0) / sc.dt)):
+        tick = arrays.advance()
+        steps = objects.step()
+        (mixed.advance().steps() if k % 2 else mixed.step())
+        for i, (a, b) in enumerate(zip(tick.steps(), steps, strict=True)):
+            _same_step(a, b)
+            assert tick.pose[i].tobytes() == b.true_pose.tobytes()
+            assert (float(tick.v[i]), float(tick.omega[i])) == (b.control.v, b.control.omega)
+            assert bool(tick.kidnapped[i]) == b.kidnapped
+        st = packer.pack_tick(tick)
+        _same_stacked(st, packer.pack([s.measurements for s in steps]))
+        packed += st is not None
+    assert packed > 0
+    for bs in (arrays, mixed):
+        assert bs.truth_checksums() == objects.truth_checksums()
+        assert bs.readings_checksums() == objects.readings_checksums()
+        assert [s.pose.tobytes() for s in bs.sims] == [s.pose.tobytes() for s in objects.sims]
+
+
+def test_truth_checksums_over_long_runs_and_without_readings_checksums():
+    """The truth checksum is hashed from the stored poses in chunks; a batch made without
+    readings checksums says so instead of giving a wrong one."""
+    sc = load_scenario("default")
+    bs = BatchSimulation(sc, [5, 6], readings_checksums=False)
+    for _ in range(2500):   # more than one chunk of stored poses
+        bs.advance()
+    for seed, got in zip((5, 6), bs.truth_checksums(), strict=True):
+        sim = Simulation(sc, seed)
+        sim.run(2500 * sc.dt)
+        assert got == sim.truth_checksum
+    with pytest.raises(RuntimeError):
+        bs.readings_checksums()
+
+
+def test_pack_tick_reports_a_sensor_or_beacon_without_slots():
+    """As pack does: a sensor without slots, a reading of a beacon not on the filters' map;
+    readings of the other beacons pack as pack packs them."""
+    from beacon_sim.core.world import World
+    from beacon_sim.filters.base import FilterError
+    from beacon_sim.filters.gaussian_measurements import SlotPacker
+
+    sc = load_scenario("default")
+    fewer = SlotPacker(World(sc.world.bounds, sc.world.beacons[1:]), sc.model_sensors)  # no beacon 1
+    bs = BatchSimulation(sc, [1, 2])
+    raised = compared = 0
+    for _ in range(400):
+        tick = bs.advance()
+        if not tick.readings:
+            continue
+        with pytest.raises(FilterError, match="no slots"):
+            SlotPacker(sc.world, []).pack_tick(tick)
+        if tick.readings[0].seen[:, 0].any():
+            with pytest.raises(FilterError, match="not on the map"):
+                fewer.pack_tick(tick)
+            raised += 1
+        else:
+            _same_stacked(fewer.pack_tick(tick), fewer.pack([tick.measurements(i) for i in range(2)]))
+            compared += 1
+    assert raised and compared

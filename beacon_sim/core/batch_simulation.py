@@ -3,10 +3,22 @@ arrays, bit for bit the steps of R single :class:`~beacon_sim.core.simulation.Si
 runs (the Monte Carlo evaluation's simulation; tests/test_batch_simulation.py compares).
 
 Each run keeps its own random streams, driver and checksums: a :class:`Simulation` per run
-holds them, and :meth:`BatchSimulation.step` draws from each run's streams exactly what its
-own ``step`` would, in the same order. What is shared is the arithmetic: the motion model,
-the walls, the visibility and the expected readings of every beacon for all runs in a few
-array operations instead of one Python call chain per run. The single-run path is untouched.
+holds them, and every tick draws from each run's streams exactly what its own ``step``
+would, in the same order. What is shared is the arithmetic: the motion model, the walls,
+the visibility, the expected readings of every beacon, the outliers and the wrapping for
+all runs in a few array operations instead of one Python call chain per run. The
+single-run path is untouched.
+
+Two ways to take a tick: :meth:`BatchSimulation.step` gives one :class:`Step` per run (the
+objects a filter reads); :meth:`BatchSimulation.advance` gives the tick as arrays
+(:class:`BatchTick`: poses, commands, and each beacon sensor's readings as a (R, n) mask
+and (R, n, d) values over the map's beacons), which ``SlotPacker.pack_tick`` packs for the
+batched filters without building a ``Measurement`` or ``Step`` per run. Both advance the
+same state and draw the same numbers; they may be mixed.
+
+Checksums: the truth checksum is taken from the stored poses when asked for (the same bytes
+in the same order as a single run's); the readings checksum from the arrays, each tick,
+unless the batch was made with ``readings_checksums=False`` (``eval`` never reports it).
 
 Not here: user commands (a kidnap requested from the window) - a Monte Carlo run has none.
 """
@@ -14,6 +26,7 @@ Not here: user commands (a kidnap requested from the window) - a Monte Carlo run
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -25,55 +38,158 @@ from beacon_sim.core.simulation import Simulation, _kidnap_text
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 
 _BEACON_KINDS = ("bearing", "range_bearing")
+#: Poses kept for the truth checksums before they are hashed (bounds the memory).
+_TRUTH_PENDING = 1024
+_NAN_BYTES = np.float64(float("nan")).tobytes()   # a beacon reading's HDOP in the checksum
+
+
+@dataclass(frozen=True, eq=False)
+class BeaconReadings:
+    """One bearing or range-bearing sensor's readings on one tick, for every run.
+
+    seen : (R, n) bool, beacon j of the map (``World.beacons`` order) read in run i.
+    z : (R, n, d) [m, rad] the readings (range before bearing); only the seen entries are
+        readings, the others are meaningless. Run i's ``Measurement`` is
+        ``z[i, seen[i]]`` with ``beacon_ids[seen[i]]``.
+    """
+
+    sensor: str
+    kind: str
+    seen: np.ndarray
+    z: np.ndarray
+    beacon_ids: np.ndarray
+
+    def measurement(self, i: int) -> Measurement | None:
+        """Run ``i``'s reading as the single run's ``sense`` gives it (None: no beacon)."""
+        idx = np.flatnonzero(self.seen[i])
+        if idx.size == 0:
+            return None
+        return Measurement(self.sensor, self.kind, self.z[i, idx], self.beacon_ids[idx])
+
+
+@dataclass(frozen=True, eq=False)
+class OtherReadings:
+    """A sensor of another kind (a pose or position fix) on one tick: each run's reading."""
+
+    sensor: str
+    kind: str
+    per_run: list[Measurement | None]
+
+    def measurement(self, i: int) -> Measurement | None:
+        return self.per_run[i]
+
+
+@dataclass(frozen=True, eq=False)
+class BatchTick:
+    """One tick of R runs as arrays (read-only by convention; ``pose`` is read-only).
+
+    pose : (R, 3) true poses after the tick [m, m, rad].
+    v, omega : (R,) the commands the filters see [m/s, rad/s] (v = 0 where the bumper
+        stopped the robot).
+    kidnapped : (R,) bool.
+    readings : the sensors that reported on this tick (not blacked out), in the scenario's
+        order.
+    """
+
+    tick: int
+    time: float
+    dt: float
+    pose: np.ndarray
+    v: np.ndarray
+    omega: np.ndarray
+    kidnapped: np.ndarray
+    readings: tuple[BeaconReadings | OtherReadings, ...]
+    events: tuple[tuple[EventRecord, ...], ...]
+
+    def measurements(self, i: int) -> tuple[Measurement, ...]:
+        """Run ``i``'s readings as ``Simulation.step`` gives them."""
+        got = (r.measurement(i) for r in self.readings)
+        return tuple(m for m in got if m is not None)
+
+    def steps(self) -> list[Step]:
+        """One :class:`Step` per run."""
+        k, t, dt, pose = self.tick, self.time, self.dt, self.pose
+        v, w = self.v.tolist(), self.omega.tolist()
+        return [Step(k, t, dt, pose[i].copy(), Control(v[i], w[i]), self.measurements(i), self.events[i])
+                for i in range(len(v))]
 
 
 class BatchSimulation:
     """``len(seeds)`` runs of ``scenario``, stepped together.
 
     ``step()`` returns one :class:`Step` per run, equal (bit for bit) to what
-    ``Simulation(scenario, seed).step()`` returns for each seed at that tick.
+    ``Simulation(scenario, seed).step()`` returns for each seed at that tick; ``advance()``
+    the same tick as arrays. ``readings_checksums``: False skips the readings checksums
+    (then :meth:`readings_checksums` raises).
     """
 
-    def __init__(self, scenario: Scenario, seeds: list[int]):
+    def __init__(self, scenario: Scenario, seeds: list[int], readings_checksums: bool = True):
         self.scenario = scenario
-        self.sims = [Simulation(scenario, s) for s in seeds]
+        self._sims = [Simulation(scenario, s) for s in seeds]
         self.dt = scenario.dt
         self.world = scenario.world
         self.tick = 0
-        self.pose = np.stack([s.pose for s in self.sims])          # (R, 3)
-        first = self.sims[0]                                       # the schedules: same for all
+        self.pose = np.stack([s.pose for s in self._sims])          # (R, 3)
+        self.pose.flags.writeable = False
+        first = self._sims[0]                                      # the schedules: same for all
         self._every = first._every
         self._kidnaps = first._kidnaps
         self._blackouts = first._blackout_ticks
         self._bursts = first._burst_ticks
         self._edges = first._interval_edges
+        self._hash_readings = readings_checksums
+        self._truth_pending: list[np.ndarray] = []   # poses not yet in the truth checksums
+        self._synced = 0                             # the tick the Simulation objects are at
 
     def __len__(self) -> int:
-        return len(self.sims)
+        return len(self._sims)
 
     @property
     def time(self) -> float:
         return self.tick * self.dt
 
+    @property
+    def sims(self) -> list[Simulation]:
+        """Each run's :class:`Simulation` (its streams, driver, pose, tick and checksums)."""
+        self._sync()
+        return self._sims
+
+    def _sync(self) -> None:
+        """Bring the Simulation objects' tick, pose and truth checksum up to date."""
+        if self._truth_pending:
+            poses = np.stack(self._truth_pending)                 # (P, R, 3)
+            self._truth_pending.clear()
+            for i, s in enumerate(self._sims):
+                s._hash.update(poses[:, i].tobytes())   # = one update per tick, row by row
+        if self._synced != self.tick:
+            for i, s in enumerate(self._sims):
+                s.tick = self.tick
+                s.pose = self.pose[i].copy()
+            self._synced = self.tick
+
     def truth_checksums(self) -> list[str]:
         return [s.truth_checksum for s in self.sims]
 
     def readings_checksums(self) -> list[str]:
+        if not self._hash_readings:
+            raise RuntimeError("this batch was made with readings_checksums=False")
         return [s.readings_checksum for s in self.sims]
 
     def step(self) -> list[Step]:
         """Advance every run one tick (each run's driver gives its command)."""
-        sims, dt, world = self.sims, self.dt, self.world
+        return self.advance().steps()
+
+    def advance(self) -> BatchTick:
+        """Advance every run one tick; the tick as arrays."""
+        sims, dt, world = self._sims, self.dt, self.world
         R = len(sims)
         old = self.pose
         t = self.time
         controls = [s.driver.control(t, old[i]) for i, s in enumerate(sims)]
         self.tick += 1
         k = self.tick
-        for s in sims:
-            s.tick = k
-        edges = self._edges.get(k, ())
-        events: list[list[EventRecord]] = [list(edges) for _ in range(R)]
+        edges = tuple(self._edges.get(k, ()))
+        extra: dict[int, list[EventRecord]] = {}     # bumps and kidnaps, by run
 
         # Truth: every run's command with its own motion noise, the model on arrays.
         noise = self.scenario.motion_noise
@@ -83,68 +199,111 @@ class BatchSimulation:
         for burst in self._bursts.get(k, ()):   # math.hypot per run, as the single run does
             sv = np.array([math.hypot(x, burst.v_std) for x in sv.tolist()])
             sw = np.array([math.hypot(x, burst.omega_std) for x in sw.tolist()])
-        E = np.stack([s._motion_rng.standard_normal(5) for s in sims])
+        E = np.empty((R, 5))
+        for i, s in enumerate(sims):
+            s._motion_rng.standard_normal(out=E[i])
         v = cv + sv * E[:, 0]
         w = cw + sw * E[:, 1]
         pose = move(old, v, w, dt)
         pose += np.asarray(noise.pose_std) * E[:, 2:]
         pose[:, 2] = (pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
         inside = world.contains(pose[:, :2])
-        for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
-            pose[i] = world.clip(np.array([old[i, 0], old[i, 1], pose[i, 2]]))
-            if controls[i].v != 0.0:
-                events[i].append(EventRecord("bump", k, k * dt, "stopped at the wall"))
-            controls[i] = Control(0.0, controls[i].omega)
+        if not np.all(inside):
+            for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
+                pose[i] = world.clip(np.array([old[i, 0], old[i, 1], pose[i, 2]]))
+                if controls[i].v != 0.0:
+                    extra.setdefault(i, []).append(EventRecord("bump", k, k * dt, "stopped at the wall"))
+                cv[i] = 0.0   # the command the filters see: v = 0 (Control(0.0, omega))
 
+        kidnapped = np.zeros(R, dtype=bool)
         for kid in self._kidnaps.get(k, ()):
+            kidnapped[:] = True
             for i, s in enumerate(sims):
                 target = kid.target(pose[i].copy(), world, s._events_rng)
-                events[i].append(EventRecord("kidnap", k, k * dt, _kidnap_text(kid), pose[i].copy(),
-                                             target))
+                extra.setdefault(i, []).append(EventRecord("kidnap", k, k * dt, _kidnap_text(kid),
+                                                           pose[i].copy(), target))
                 pose[i] = target
+        pose.flags.writeable = False
         self.pose = pose
-        for i, s in enumerate(sims):
-            s._hash.update(pose[i].tobytes())
+        self._truth_pending.append(pose)
+        if len(self._truth_pending) >= _TRUTH_PENDING:
+            self._sync()
 
-        measurements: list[list[Measurement]] = [[] for _ in range(R)]
+        readings: list[BeaconReadings | OtherReadings] = []
         blackouts = self._blackouts.get(k, ())
         for spec in self.scenario.sensors:
             if k % self._every[spec.name]:
                 continue
             blacked = any(b.covers(spec.name) for b in blackouts)
+            got: BeaconReadings | OtherReadings | None
             if spec.kind in _BEACON_KINDS:
                 got = self._sense_beacons(spec, pose)
             else:
-                got = [sense(spec, pose[i], world, s._sensor_rngs[spec.name]) for i, s in enumerate(sims)]
-            if blacked:
+                per_run = [sense(spec, pose[i], world, s._sensor_rngs[spec.name]) for i, s in enumerate(sims)]
+                got = OtherReadings(spec.name, spec.kind, per_run) \
+                    if any(m is not None for m in per_run) else None
+            if blacked or got is None:
                 continue
-            for i, m in enumerate(got):
+            readings.append(got)
+            if self._hash_readings:
+                self._hash_tick(k, got)
+        if extra:
+            events = tuple(edges + tuple(extra.get(i, ())) for i in range(R))
+        else:
+            events = (edges,) * R
+        return BatchTick(k, k * dt, dt, pose, cv, cw, kidnapped, tuple(readings), events)
+
+    def _hash_tick(self, k: int, got: BeaconReadings | OtherReadings) -> None:
+        """Each run's reading of one sensor into its readings checksum, as Simulation.step
+        hashes it (sensor, kind, z's shape, z, beacon IDs, HDOP)."""
+        sims = self._sims
+        if isinstance(got, OtherReadings):
+            for i, m in enumerate(got.per_run):
                 if m is None:
                     continue
-                measurements[i].append(m)
                 h = sims[i]._readings_hash
                 h.update(f"{k} {m.sensor} {m.kind} {m.z.shape}".encode())
                 h.update(np.ascontiguousarray(m.z, dtype="<f8").tobytes())
                 h.update(np.ascontiguousarray(m.beacon_ids, dtype="<i8").tobytes())
                 h.update(np.float64(m.hdop).tobytes())
-        for i, s in enumerate(sims):
-            s.pose = pose[i].copy()
-        return [Step(k, k * dt, dt, pose[i].copy(), controls[i], tuple(measurements[i]), tuple(events[i]))
-                for i in range(R)]
+            return
+        seen, z = got.seen, got.z
+        d = z.shape[-1]
+        counts = np.count_nonzero(seen, axis=1).tolist()
+        ids = np.ascontiguousarray(got.beacon_ids, dtype="<i8")
+        head = f"{k} {got.sensor} {got.kind} "
+        for i, c in enumerate(counts):
+            if not c:
+                continue
+            sel = seen[i]
+            sims[i]._readings_hash.update(b"".join((
+                f"{head}{(c, d)}".encode(),
+                np.ascontiguousarray(z[i, sel], dtype="<f8").tobytes(),
+                ids[sel].tobytes(),
+                _NAN_BYTES)))
 
-    def _sense_beacons(self, spec: SensorSpec, pose: np.ndarray) -> list[Measurement | None]:
+    def _sense_beacons(self, spec: SensorSpec, pose: np.ndarray) -> BeaconReadings | None:
         """``sensors.sense`` of a bearing or range-bearing sensor for every run: each run's
-        draws from its own stream, the geometry of all runs and beacons at once."""
+        draws from its own stream (the same, in the same order, as ``sense``), the geometry,
+        the noise, the outliers and the wrapping of all runs and beacons at once (element by
+        element the operations ``sense`` does on its run's seen beacons). None: no run saw
+        a beacon."""
         world = self.world
+        sims = self._sims
+        R = len(sims)
         n = len(world.beacons)
+        n1 = max(n, 1)
         d = 1 if spec.kind == "bearing" else 2
-        draws = []
-        for s in self.sims:   # the same draws, in the same order, as sense()
+        u_detect = np.empty((R, n))
+        noise = np.empty((R, n, d))
+        u_outlier = np.empty((R, n1))
+        u_value = np.empty((R, n1, d))
+        for i, s in enumerate(sims):
             rng = s._sensor_rngs[spec.name]
-            draws.append((rng.random(n), rng.standard_normal((n, d)), rng.random(max(n, 1)),
-                          rng.random((max(n, 1), d))))
-        u_detect = np.stack([x[0] for x in draws])            # (R, n)
-        noise = np.stack([x[1] for x in draws])               # (R, n, d)
+            rng.random(out=u_detect[i])
+            rng.standard_normal(out=noise[i])
+            rng.random(out=u_outlier[i])
+            rng.random(out=u_value[i])
         diff = world.beacon_xy[None, :, :] - pose[:, None, :2]   # (R, n, 2)
         dx, dy = diff[..., 0], diff[..., 1]
         seen = np.hypot(dx, dy) <= spec.max_range
@@ -153,47 +312,38 @@ class BatchSimulation:
             seen &= np.abs(rel) <= 0.5 * spec.fov
         seen &= u_detect < spec.detection_prob
         if not seen.any():
-            return [None] * len(self.sims)
+            return None
         bearing = wrap(np.arctan2(dy, dx) - pose[:, 2, None])  # (R, n)
         if spec.kind == "bearing":
-            z_all = bearing[..., None] + noise * spec.noise.bearing_std
+            z = bearing[..., None] + noise * spec.noise.bearing_std
         else:
             h = np.empty((*bearing.shape, 2))
             h[..., 0] = np.hypot(dx, dy)
             h[..., 1] = bearing
-            z_all = h + noise * spec.reading_std()
-        out: list[Measurement | None] = []
-        for i in range(len(self.sims)):
-            idx = np.flatnonzero(seen[i])
-            if idx.size == 0:
-                out.append(None)
-                continue
-            z = z_all[i, idx]
-            if spec.outlier_rate > 0.0:
-                _, _, u_outlier, u_value = draws[i]
-                bad = u_outlier[idx] < spec.outlier_rate
-                if spec.kind == "bearing":
-                    z[bad, 0] = -math.pi + 2.0 * math.pi * u_value[idx][bad, 0]
-                else:
-                    max_r = (spec.max_range if math.isfinite(spec.max_range)
-                             else max(world.width, world.height))
-                    z[bad, 0] = max_r * u_value[idx][bad, 0]
-                    z[bad, 1] = -math.pi + 2.0 * math.pi * u_value[idx][bad, 1]
+            z = h + noise * spec.reading_std()
+        if spec.outlier_rate > 0.0:
+            bad = u_outlier[:, :n] < spec.outlier_rate
             if spec.kind == "bearing":
-                z[:, 0] = wrap(z[:, 0])
+                z[bad, 0] = -math.pi + 2.0 * math.pi * u_value[:, :n][bad, 0]
             else:
-                z[:, 0] = np.abs(z[:, 0])
-                z[:, 1] = wrap(z[:, 1])
-            out.append(Measurement(spec.name, spec.kind, z, world.beacon_ids[idx]))
-        return out
+                max_r = (spec.max_range if math.isfinite(spec.max_range)
+                         else max(world.width, world.height))
+                z[bad, 0] = max_r * u_value[:, :n][bad, 0]
+                z[bad, 1] = -math.pi + 2.0 * math.pi * u_value[:, :n][bad, 1]
+        if spec.kind == "bearing":
+            z[..., 0] = wrap(z[..., 0])
+        else:
+            z[..., 0] = np.abs(z[..., 0])
+            z[..., 1] = wrap(z[..., 1])
+        return BeaconReadings(spec.name, spec.kind, seen, z, world.beacon_ids)
 
     def run(self, duration: float) -> list[list[Step]]:
         """Step for ``duration`` seconds; one list of steps per run."""
-        per_run: list[list[Step]] = [[] for _ in self.sims]
+        per_run: list[list[Step]] = [[] for _ in self._sims]
         for _ in range(round(duration / self.dt)):
             for lst, st in zip(per_run, self.step(), strict=True):
                 lst.append(st)
         return per_run
 
 
-__all__ = ["BatchSimulation"]
+__all__ = ["BatchSimulation", "BatchTick", "BeaconReadings", "OtherReadings"]

@@ -264,12 +264,11 @@ def batch_runs(scenario: Scenario, specs: list[str], params: dict[str, dict[str,
     batched = {name: build_filter(spec, scenario, seeds[0], name=name,
                                   params=params.get(filter_display_name(spec))).batched(R)
                for name, spec in zip(names, specs, strict=True)}
-    batch = BatchSimulation(scenario, seeds)   # R single runs, bit for bit, on arrays
-    sims = batch.sims
+    batch = BatchSimulation(scenario, seeds, readings_checksums=False)   # R single runs, bit for bit
     packer = SlotPacker(scenario.world, scenario.model_sensors)
     T = round(duration / scenario.dt)
     truth = np.empty((R, T + 1, 3))
-    truth[:, 0] = [sim.pose for sim in sims]
+    truth[:, 0] = batch.pose
     controls = np.empty((R, T, 2))
     kidnapped = np.zeros((R, T), dtype=bool)
     means = {n: np.empty((R, T, 3)) for n in names}
@@ -281,18 +280,18 @@ def batch_runs(scenario: Scenario, specs: list[str], params: dict[str, dict[str,
     clock = time.perf_counter_ns
     with np.errstate(all="ignore"):
         for t in range(T):
-            steps = batch.step()
-            uv = np.array([(s.control.v, s.control.omega) for s in steps])
-            controls[:, t] = uv
-            truth[:, t + 1] = [s.true_pose for s in steps]
-            kidnapped[:, t] = [s.kidnapped for s in steps]
-            v = uv[:, 0]
-            w = uv[:, 1]
-            dt = steps[0].dt
-            st = packer.pack([s.measurements for s in steps])
+            tick = batch.advance()   # the tick as arrays: no Step or Measurement per run
+            v = tick.v
+            w = tick.omega
+            controls[:, t, 0] = v
+            controls[:, t, 1] = w
+            truth[:, t + 1] = tick.pose
+            kidnapped[:, t] = tick.kidnapped
+            dt = tick.dt
+            st = packer.pack_tick(tick)
             if st is not None:
-                has = np.array([bool(s.measurements) for s in steps])  # its NIS is recorded
                 dof = np.count_nonzero(st.valid, axis=1)
+                has = dof > 0   # the run had a reading: its NIS is recorded
             for name, f in batched.items():
                 t0 = clock()
                 f.predict(v, w, dt)
@@ -315,9 +314,10 @@ def batch_runs(scenario: Scenario, specs: list[str], params: dict[str, dict[str,
                     use = alive & has
                     nis_sum[name][use] += prior[use]
                     nis_dof[name][use] += dof[use]
+    checksums = batch.truth_checksums()
     out = []
     for i in range(R):
-        run = RunOutput(indices[i], seeds[i], truth[i], controls[i], kidnapped[i], sims[i].truth_checksum)
+        run = RunOutput(indices[i], seeds[i], truth[i], controls[i], kidnapped[i], checksums[i])
         for name in names:
             run.filters[name] = finish_filter(
                 means[name][i].copy(), covs[name][i].copy(), truth[i], T, None,
