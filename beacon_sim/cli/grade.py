@@ -1,6 +1,8 @@
 """``beacon-sim grade DIR [--config grade.toml] [--out DIR] [--jobs J] [--scheduler ADDRESS]
 [--time-limit S] [--strict]``: every filter file in a folder over the same scenarios and
-seeds; writes grade.csv, grade.html (the leaderboard) and grade.json (docs/grading.md)."""
+seeds; writes grade.csv, grade.html (the leaderboard) and grade.json (docs/grading.md).
+On a team scenario each student's filter is every robot's own filter, graded beside the
+built-in independent EKF (docs/multi-robot.md)."""
 
 from __future__ import annotations
 
@@ -52,6 +54,16 @@ def grade_command(args: argparse.Namespace) -> int:
         score = ("FAILED " + str(r["failed_runs"]) + "/" + str(r["runs"]) if r["failed_runs"]
                  else f"{r['pos_rmse_m']:.4f} m  {r['anees_verdict']}")
         print(f"{r['rank']:>3}  {r['student']:<20} {score}")
+        for sc, t in r.get("team", {}).items():  # a team scenario: each robot's figures
+            robots = ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in t["robots"].items()
+                               if v["pos_rmse_m"] is not None)
+            if robots:
+                print(f"{'':>5}{sc}: {robots}; team {t['pos_rmse_m']:.4f} m ANEES {t['anees']:.2f}")
+    for sc, ref in board.get("reference", {}).items():
+        if ref["pos_rmse_m"] is not None:
+            print(f"reference on {sc} (built-in independent EKF): team {ref['pos_rmse_m']:.4f} m  "
+                  f"ANEES {ref['anees']:.2f}  "
+                  + ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in ref["robots"].items()))
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
           f"({'Dask ' + str(scheduler) if scheduler else 'local processes'})")
     failed = any(r["failed_runs"] for r in board["rows"])

@@ -9,6 +9,12 @@ run's numbers depend only on its seed, never on where it ran (only the cost figu
 time, differ). A task that cannot run (the file does not import, a worker died of memory)
 is a failed run, not a failed sweep. A student whose filter failed in any run gets no
 score and is ranked below every working filter.
+
+A team scenario (``[[robots]]``, docs/multi-robot.md) among the scenarios grades the
+student's single-robot filter as every robot's own filter (``independent:FILTER``, the
+team baseline: beacon readings only), beside the built-in independent EKF on the same
+seeds (the ``reference``): the row's figures for it are the team's (RMSE over all robots,
+mean ANEES, RMSE over each robot's bound alone), and ``team`` holds each robot's.
 """
 
 from __future__ import annotations
@@ -28,8 +34,16 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
 from beacon_sim.evaluation.montecarlo import RunOutput, default_jobs, init_worker, one_run
 from beacon_sim.evaluation.summary import Thresholds, evaluate
+from beacon_sim.evaluation.team import TeamRunOutput, evaluate_team, team_one_run
+from beacon_sim.runs.team import MEMBER_PREFIX
+
+#: The student name of the built-in filter graded beside the students on team scenarios.
+REFERENCE = "__reference__"
+#: Its spec: every robot's own built-in EKF (the ``independent`` team filter).
+REFERENCE_SPEC = "ekf"
 
 
 class GradeError(ValueError):
@@ -152,7 +166,7 @@ class TaskResult:
     """A task's run, or why it could not run at all."""
 
     task: Task
-    run: RunOutput | None
+    run: RunOutput | TeamRunOutput | None
     problem: str | None = None
     wall_s: float = 0.0
 
@@ -161,6 +175,13 @@ def run_task(task: Task) -> TaskResult:
     """Run one task (in whatever process or thread a worker gives it)."""
     t0 = time.perf_counter()
     try:
+        if is_team_scenario(task.scenario):  # the student's filter as every robot's own
+            team = load_team_scenario(task.scenario)
+            duration = team.duration if task.duration is None else task.duration
+            trun = team_one_run(team, [MEMBER_PREFIX + task.spec], {}, task.seed, duration,
+                                index=task.index, step_limit_s=task.time_limit,
+                                run_limit_s=task.time_limit)
+            return TaskResult(task, trun, None, time.perf_counter() - t0)
         sc = load_scenario(task.scenario)
         duration = sc.duration if task.duration is None else task.duration
         run = one_run(sc, [task.spec], {}, task.seed, duration, index=task.index,
@@ -260,27 +281,58 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     order, ``config``, ``wall_s``) that :func:`write_csv` and :func:`write_html` write."""
     t0 = time.perf_counter()
     students = find_students(folder, config.class_name)
-    scenarios: dict[str, Scenario] = {s: load_scenario(s) for s in config.scenarios}
+    try:
+        scenarios: dict[str, Scenario | TeamScenario] = {
+            s: load_team_scenario(s) if is_team_scenario(s) else load_scenario(s) for s in config.scenarios}
+    except ValueError as exc:  # ScenarioError: one line
+        raise GradeError(str(exc)) from None
     tasks = [Task(st.name, st.spec, sc, seed, config.duration, config.time_limit, i)
              for st in students if st.spec for sc in config.scenarios
              for i, seed in enumerate(config.seeds)]
+    team_names = [n for n, sc in scenarios.items() if isinstance(sc, TeamScenario)]
+    tasks += [Task(REFERENCE, REFERENCE_SPEC, sc, seed, config.duration, config.time_limit, i)
+              for sc in team_names for i, seed in enumerate(config.seeds)]
     results = run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, progress)
     by: dict[tuple[str, str], list[TaskResult]] = {}
     for r in results:
         by.setdefault((r.task.student, r.task.scenario), []).append(r)
     rows = []
     n_runs = len(config.scenarios) * len(config.seeds)
+    reference = {}
+    for name in team_names:
+        runs = [r.run for r in sorted(by.get((REFERENCE, name), []), key=lambda r: r.task.index)]
+        if runs and all(isinstance(r, TeamRunOutput) for r in runs):
+            ref = _team_figures(scenarios[name], runs)  # type: ignore[arg-type]
+            reference[name] = {k: v for k, v in ref.items() if k != "curve"}
     for st in students:
-        rows.append(_student_row(st, config, scenarios, by, n_runs))
+        rows.append(_student_row(st, config, scenarios, by, n_runs, reference))
     rows.sort(key=rank_key)
     for k, row in enumerate(rows, 1):
         row["rank"] = k
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
-            "students": len(students), "runs_per_student": n_runs}
+            "students": len(students), "runs_per_student": n_runs, "reference": reference}
 
 
-def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario],
-                 by: dict[tuple[str, str], list[TaskResult]], n_runs: int) -> dict[str, Any]:
+def _team_figures(team: TeamScenario, runs: list[TeamRunOutput]) -> dict[str, Any]:
+    """A graded filter's figures on a team scenario (its one team filter): the team's, each
+    robot's, its failures, and its first seed's position error averaged over the robots."""
+    meta = evaluate_team(team, runs)
+    name, fr = next(iter(meta["filters"].items()))
+    t = fr["team"]
+    err = np.mean([np.hypot(f.err[:, 0], f.err[:, 1]) for f in runs[0].filters[name]], axis=0)
+    return {"pos_rmse_m": t["pos_rmse_m"], "heading_rmse_rad": t["heading_rmse_rad"],
+            "anees": t["anees"], "anees_verdict": t["anees_verdict"],
+            "rmse_over_pcrb": t["rmse_over_pcrb_alone"], "us_per_step": fr["us_per_step"],
+            "robots": {rn: {k: v[k] for k in ("pos_rmse_m", "heading_rmse_rad", "anees", "anees_verdict",
+                                              "rmse_over_pcrb_alone")}
+                       for rn, v in fr["robots"].items()},
+            "failures": fr["failures"],
+            "curve": (meta["dt"] * np.arange(1, meta["steps"] + 1), err)}
+
+
+def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario | TeamScenario],
+                 by: dict[tuple[str, str], list[TaskResult]], n_runs: int,
+                 reference: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
                            "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
                            "anees_verdict": "FAILED", "rmse_over_pcrb": None, "us_per_step": None,
@@ -291,6 +343,7 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
     figures: dict[str, list[float]] = {k: [] for k in ("pos_rmse_m", "heading_rmse_rad", "anees",
                                                         "rmse_over_pcrb", "us_per_step")}
     verdicts, failures, curves = [], [], []
+    team_rows: dict[str, Any] = {}
     for name in config.scenarios:
         res = sorted(by.get((st.name, name), []), key=lambda r: r.task.index)
         for r in res:
@@ -300,7 +353,24 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         runs = [r.run for r in res if r.run is not None]
         if not runs:
             continue
-        meta, curve = evaluate(scenarios[name], runs, Thresholds())
+        sc = scenarios[name]
+        if isinstance(sc, TeamScenario):
+            tf = _team_figures(sc, runs)  # type: ignore[arg-type]
+            failures += [{"scenario": name, **f} for f in tf["failures"]]
+            for key in figures:
+                if tf.get(key) is not None:
+                    figures[key].append(float(tf[key]))
+            verdicts.append(tf["anees_verdict"])
+            curves.append((f"{name} (mean over robots)", *tf["curve"]))
+            ref = (reference or {}).get(name, {})
+            team_rows[name] = {k: tf[k] for k in ("pos_rmse_m", "heading_rmse_rad", "anees",
+                                                  "anees_verdict", "robots")}
+            team_rows[name]["reference_pos_rmse_m"] = ref.get("pos_rmse_m")
+            team_rows[name]["over_reference"] = (tf["pos_rmse_m"] / ref["pos_rmse_m"]
+                                                 if tf["pos_rmse_m"] is not None and ref.get("pos_rmse_m")
+                                                 else None)
+            continue
+        meta, curve = evaluate(sc, runs, Thresholds())
         fr = next(iter(meta["filters"].values()))
         for f in fr["failures"]:
             failures.append({"scenario": name, **f})
@@ -312,6 +382,8 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         curves.append((name, curve["time"], np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
     row["failures"] = failures
     row["failed_runs"] = len(failures)
+    if team_rows:
+        row["team"] = team_rows
     row["us_per_step"] = float(np.mean(figures["us_per_step"])) if figures["us_per_step"] else None
     row["plot"] = _svg_plot(curves) if curves else ""
     if not failures:
@@ -386,6 +458,20 @@ if (m) sortBy(m[1], m[2] ? -1 : 1);
 """
 
 
+def _reference_note(board: dict[str, Any]) -> str:
+    """The HTML note's sentence on team scenarios: how a filter is graded there, and the
+    built-in independent EKF's figures on the same seeds."""
+    ref = board.get("reference") or {}
+    if not ref:
+        return ""
+    parts = [f"{html.escape(n)}: {r['pos_rmse_m']:.4f} m, ANEES {r['anees']:.2f}"
+             if r["pos_rmse_m"] is not None else f"{html.escape(n)}: failed" for n, r in ref.items()]
+    return (" On a team scenario each student's filter is every robot's own filter (beacon readings "
+            "only); its figures are the team's (RMSE over all robots, mean ANEES; RMSE/PCRB against "
+            "each robot's bound alone). The built-in independent EKF on the same seeds: "
+            + "; ".join(parts) + ".")
+
+
 def write_html(board: dict[str, Any], path: Path) -> Path:
     """A self-contained leaderboard page (inline CSS, JS and SVG plots): click a column
     to sort (``#sort=COLUMN`` or ``#sort=COLUMN-desc`` in the address sorts on load)."""
@@ -429,7 +515,7 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
 {'each scenario' + chr(39) + 's duration' if cfg['duration'] is None else f"{cfg['duration']:g} s"} per run;
 time limit {cfg['time_limit']:g} s per run. A filter that failed in any run has no score and
 ranks below every working filter, whatever the column sorted. Click a column to sort.
-Plot: position error [m] against time [s] of the first seed.</p>
+Plot: position error [m] against time [s] of the first seed.{_reference_note(board)}</p>
 <table id="board"><thead><tr>{head}<th>status and failures</th><th>error, first seed</th></tr></thead>
 <tbody>
 {chr(10).join(body)}
