@@ -402,7 +402,6 @@ class PairwiseDecentralisedEKF(CentralisedEKF):
             kept = [g for g in groups if self._passes_gate(g)]
             self.rejected += len(groups) - len(kept)
             groups = kept
-        n = len(self.ctx.members)
         d = np.zeros(self.x.shape[0])  # x - x_pred accumulated over the rows
         for g in groups:
             robots = sorted({i // 3 for r in g for i in r[0]})
@@ -428,16 +427,12 @@ class PairwiseDecentralisedEKF(CentralisedEKF):
             if len(robots) == 1:
                 i = robots[0]
                 self.S[i] = C
-                for j in range(n):
-                    if j != i:
-                        self.sig[i, j] = phi @ self.sig[i, j]
+                self.sig[i] = phi @ self.sig[i]  # every s_ij at once (s_ii is unused)
                 continue
             a, b = robots
             for i, blk in ((a, C[:3, :3]), (b, C[3:, 3:])):
                 grow = np.linalg.solve(self.S[i].T, blk.T).T  # S_ii^+ (S_ii^-)^-1
-                for k in range(n):
-                    if k not in (a, b):
-                        self.sig[i, k] = grow @ self.sig[i, k]
+                self.sig[i] = grow @ self.sig[i]  # third robots k; s_ab, s_ba are set below
                 self.S[i] = blk
             self.sig[a, b] = C[:3, 3:]
             self.sig[b, a] = np.eye(3)
