@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, WaypointsSpec, steer_towards
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense
@@ -140,6 +141,9 @@ class BatchSimulation:
         self._hash_readings = readings_checksums
         self._truth_pending: list[np.ndarray] = []   # poses not yet in the truth checksums
         self._synced = 0                             # the tick the Simulation objects are at
+        spec = first.driver.spec
+        self._points = np.array(spec.points, dtype=float).reshape(-1, 2) \
+            if isinstance(spec, WaypointsSpec) else None
 
     def __len__(self) -> int:
         return len(self._sims)
@@ -185,7 +189,8 @@ class BatchSimulation:
         R = len(sims)
         old = self.pose
         t = self.time
-        controls = [s.driver.control(t, old[i]) for i, s in enumerate(sims)]
+        cv, cw = self._commands(t, old)
+        v0 = cv.tolist()                               # the commands as given (bump events)
         self.tick += 1
         k = self.tick
         edges = tuple(self._edges.get(k, ()))
@@ -193,8 +198,6 @@ class BatchSimulation:
 
         # Truth: every run's command with its own motion noise, the model on arrays.
         noise = self.scenario.motion_noise
-        cv = np.array([c.v for c in controls])
-        cw = np.array([c.omega for c in controls])
         sv, sw = noise.control_std(cv, cw)
         for burst in self._bursts.get(k, ()):   # math.hypot per run, as the single run does
             sv = np.array([math.hypot(x, burst.v_std) for x in sv.tolist()])
@@ -211,7 +214,7 @@ class BatchSimulation:
         if not np.all(inside):
             for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
                 pose[i] = world.clip(np.array([old[i, 0], old[i, 1], pose[i, 2]]))
-                if controls[i].v != 0.0:
+                if v0[i] != 0.0:
                     extra.setdefault(i, []).append(EventRecord("bump", k, k * dt, "stopped at the wall"))
                 cv[i] = 0.0   # the command the filters see: v = 0 (Control(0.0, omega))
 
@@ -252,6 +255,68 @@ class BatchSimulation:
         else:
             events = (edges,) * R
         return BatchTick(k, k * dt, dt, pose, cv, cw, kidnapped, tuple(readings), events)
+
+    def _commands(self, t: float, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each run's driver's command (v, omega) (R,) for the tick that starts at ``t``
+        [s] from ``pose`` (R, 3): what ``Driver.control`` gives, bit for bit. Constant
+        commands are the spec's; waypoints steer with ``drivers.steer_towards`` on each
+        run's floats (the goal test on arrays, see :meth:`_waypoints`); any other driver is
+        asked run by run."""
+        sims = self._sims
+        R = len(sims)
+        spec = sims[0].driver.spec
+        if isinstance(spec, ConstantSpec):
+            return np.full(R, spec.v, dtype=float), np.full(R, spec.omega, dtype=float)
+        if isinstance(spec, CircleSpec):
+            return np.full(R, spec.speed, dtype=float), np.full(R, spec.speed / spec.radius, dtype=float)
+        if isinstance(spec, KeyboardSpec):
+            return np.zeros(R), np.zeros(R)
+        if isinstance(spec, WaypointsSpec):
+            return self._waypoints(spec, pose)
+        controls = [s.driver.control(t, pose[i]) for i, s in enumerate(sims)]
+        return (np.array([c.v for c in controls], dtype=float),
+                np.array([c.omega for c in controls], dtype=float))
+
+    def _waypoints(self, spec: WaypointsSpec, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``Driver.control`` of a waypoints driver for every run. Each run's waypoint index
+        stays in its ``Driver``. Whether a run reached its waypoint (``hypot < tolerance``)
+        is tested on arrays; a distance within 1e-9 of the tolerance (relative) is tested
+        again with the driver's own scalar ``np.hypot``, so a hypot rounded differently
+        on arrays (a few ulp, 1e-16 relative) cannot change the answer. The command itself
+        is ``steer_towards`` on each run's floats, as the driver computes it."""
+        drivers = [s.driver for s in self._sims]
+        R = len(drivers)
+        pts = self._points
+        assert pts is not None
+        n = len(pts)
+        v = np.zeros(R)
+        w = np.zeros(R)
+        if n == 0:
+            return v, w
+        index = np.array([d._index for d in drivers])
+        live = index < n
+        goal = pts[np.minimum(index, n - 1)]
+        dist = np.hypot(goal[:, 0] - pose[:, 0], goal[:, 1] - pose[:, 1])
+        tol = spec.tolerance
+        reached = dist < tol
+        for i in np.flatnonzero(np.abs(dist - tol) <= 1e-9 * abs(tol)).tolist():
+            reached[i] = np.hypot(*(goal[i] - pose[i, :2])) < tol
+        for i in np.flatnonzero(reached & live).tolist():
+            d = drivers[i]
+            d._index += 1
+            if spec.loop:
+                d._index %= n
+            index[i] = d._index
+        steer = np.flatnonzero(index < n).tolist()
+        if steer:
+            rows = pose.tolist()
+            goals = pts[np.minimum(index, n - 1)].tolist()
+            speed, gain, max_omega = spec.speed, spec.gain, spec.max_omega
+            for i in steer:
+                c = steer_towards(rows[i], goals[i], speed, gain, max_omega)
+                v[i] = c.v
+                w[i] = c.omega
+        return v, w
 
     def _hash_tick(self, k: int, got: BeaconReadings | OtherReadings) -> None:
         """Each run's reading of one sensor into its readings checksum, as Simulation.step
