@@ -42,6 +42,7 @@ from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, broad_gaussian
 from beacon_sim.filters.gaussian_measurements import (
     ALL_ROWS,
+    FIX_KINDS,
     LOW_RANK_ROWS,
     AngleRows,
     BatchableFilter,
@@ -238,8 +239,25 @@ def correct_low_rank(mean: np.ndarray, P: np.ndarray, dZ: np.ndarray, Wc: np.nda
     return corrected_mean(mean, Kt, nu), symmetrise(P - Pxz @ Kt)
 
 
+#: Readings (rows of a tick's update) up to which the single-run UKF's update runs on Python
+#: floats (:meth:`UnscentedKalmanFilter._update_floats`); above, the array forms (the direct
+#: m x m solve, and over ``LOW_RANK_ROWS`` the low-rank one). numpy costs about a microsecond a
+#: call on these tiny arrays, so for a handful of readings the floats are several times faster.
+FLOAT_ROWS = 8
+
+#: Rows per reading of each kind the UKF uses (a fix has one reading).
+_ROWS_PER_READING = {"bearing": 1, "range_bearing": 2, "pose": 3, "position": 2}
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
+
+
 class UnscentedKalmanFilter(BatchableFilter):
     """UKF over ``[x, y, theta]`` for bearing, range-bearing, pose and position readings.
+
+    The belief is kept on Python floats (``mean`` and ``cov`` are arrays made on request), and
+    prediction and, for up to ``FLOAT_ROWS`` readings a tick, the update run on floats with
+    the same equations as the array forms (:func:`innovation`, :func:`correct`); results agree
+    with them to 1e-9 (tests/test_ukf_fast.py).
 
     Parameters (``ctx.params``)
     ---------------------------
@@ -272,52 +290,129 @@ class UnscentedKalmanFilter(BatchableFilter):
         self.gate = float(p["gate_chi2"])
         self.rejected = 0  # readings dropped by the gate so far
         self._Wm_now, self._Wc_now = self.Wm, self.Wc  # the weights of the last sigma points
-        self.mean = np.zeros(3)
-        self.cov = np.eye(3)
+        self._x = self._y = self._th = 0.0             # the mean [m, m, rad]
+        self._p = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)       # P's distinct entries p00 p01 p02 p11 p12 p22
         self.reset(None)
+
+    @property
+    def mean(self) -> np.ndarray:
+        """The mean (3,) [m, m, rad], a new array."""
+        return np.array([self._x, self._y, self._th])
+
+    @mean.setter
+    def mean(self, m: np.ndarray) -> None:
+        self._x, self._y, self._th = np.asarray(m, dtype=float).reshape(3).tolist()
+
+    @property
+    def cov(self) -> np.ndarray:
+        """The covariance (3, 3), a new array."""
+        p00, p01, p02, p11, p12, p22 = self._p
+        return np.array([[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]])
+
+    @cov.setter
+    def cov(self, P: np.ndarray) -> None:
+        """From a symmetric P (its upper triangle is read)."""
+        (a00, a01, a02), (_, a11, a12), (_, _, a22) = np.asarray(P, dtype=float).tolist()
+        self._p = (a00, a01, a02, a11, a12, a22)
 
     def reset(self, initial: GaussianBelief | None) -> None:
         initial = initial or broad_gaussian(self.ctx.world)
-        self.mean = np.array(initial.mean, dtype=float)
-        self.mean[2] = wrap(self.mean[2])
+        x, y, th = np.asarray(initial.mean, dtype=float).reshape(3).tolist()
+        self._x, self._y, self._th = x, y, wrap(th)
         cov = np.array(initial.cov, dtype=float)
         self.cov = 0.5 * (cov + cov.T)
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.mean.copy(), self.cov.copy()
+        return self.mean, self.cov
 
     def batched(self, runs: int) -> BatchedUKF:
         return BatchedUKF(self.mean, self.cov, runs, self.ctx.motion_noise, self.sqrt_c, self.Wm, self.Wc)
 
-    def _offsets(self) -> list[tuple[float, float, float]]:
-        """The 2n + 1 sigma-point offsets from the mean: 0, +- columns of sqrt(c P).
+    def _columns(self) -> tuple[tuple[float, float, float], ...]:
+        """The columns a_1..a_n of sqrt(c P) (the sigma points are m, m + a_i, m - a_i), and the
+        weights for them (``_Wm_now``, ``_Wc_now``: :func:`heading_limited_weights`).
 
         The 3x3 Cholesky factor on floats (a numpy call costs ~1 us, design.md section 9);
         ``robust_sqrt`` takes over when a pivot is not positive."""
-        (a00, a01, a02), (_, a11, a12), (_, _, a22) = self.cov.tolist()
+        a00, a01, a02, a11, a12, a22 = self._p
         sc, self._Wm_now, self._Wc_now = heading_limited_weights(self.c, self.Wm, self.Wc, a22)
         try:
             (l00, l10, l20, l11, l21, l22), _ = cholesky3(a00, a01, a02, a11, a12, a22, math.sqrt)
-            cols = [(sc * l00, sc * l10, sc * l20), (0.0, sc * l11, sc * l21), (0.0, 0.0, sc * l22)]
+            return (sc * l00, sc * l10, sc * l20), (0.0, sc * l11, sc * l21), (0.0, 0.0, sc * l22)
         except (ValueError, ZeroDivisionError):
             L = robust_sqrt(self.cov) * sc
-            cols = [(a, b, c) for a, b, c in L.T.tolist()]
+            return tuple((a, b, c) for a, b, c in L.T.tolist())
+
+    def _offsets(self) -> list[tuple[float, float, float]]:
+        """The 2n + 1 sigma-point offsets from the mean: 0, +- columns of sqrt(c P)."""
+        cols = self._columns()
         return [(0.0, 0.0, 0.0), *cols, *((-a, -b, -c) for a, b, c in cols)]
+
+    def _weights_now(self) -> tuple[list[float], list[float]]:
+        """The weights of the last :meth:`_columns` as lists (Wm, Wc)."""
+        if self._Wm_now is self.Wm:
+            return self._wm, self._wc
+        return self._Wm_now.tolist(), self._Wc_now.tolist()  # a spread limited for a wide heading
 
     def _sigma_points(self) -> np.ndarray:
         """Sigma points, shape (7, 3): the mean plus the offsets (heading not wrapped)."""
         return self.mean + np.array(self._offsets())
 
     def predict(self, control: Control, dt: float) -> None:
+        """The unscented transform of the velocity model, in closed form.
+
+        The model moves a sigma point by ``v dt (cos th, sin th)`` and turns it by ``w dt``:
+        only the heading enters nonlinearly. With the points at m, m +- a_i (heading offsets
+        h_i = a_i[2], |h_i| <= pi/2: ``heading_limited_weights``), C, S = cos, sin of the mean
+        heading and k = Wm_0 + 2 Wm_1 sum cos h_i, the weighted sums of the loop over the points
+        (:meth:`_predict_points`) are::
+
+            mean = m + v dt k (C, S, 0) + (0, 0, w dt)
+            P    = 2 Wc_1 sum p_i p_i^T + g [[C^2, C S, 0], [C S, S^2, 0], [0, 0, 0]] + Q
+            p_i  = a_i + v dt sin h_i (-S, C, 0),
+            g    = (v dt)^2 (2 Wc_1 sum (cos h_i - k)^2 + Wc_0 (1 - k)^2)
+
+        (the points m +- a_i give residuals +-p_i + v dt (cos h_i - k) (C, S, 0)); the same
+        results to rounding. The heading mean is the circular mean's m + w dt (k > 0), or the
+        centre's when ``Wm_0 < 0`` (as the loop); k <= 0 runs the loop."""
         v, w = float(control.v), float(control.omega)
-        m0, m1, m2 = self.mean.tolist()
+        cols = self._columns()
+        Wm, Wc = self._weights_now()
+        wm0, wm1, wc0, wc1 = Wm[0], Wm[1], Wc[0], Wc[1]   # W_1 = ... = W_2n by construction
+        (a0, a1, ha), (b0, b1, hb), (c0, c1, hc) = cols
+        cos, sin = math.cos, math.sin
+        ca, cb, cc = cos(ha), cos(hb), cos(hc)
+        k = wm0 + 2.0 * wm1 * (ca + cb + cc)
+        if wm0 >= 0.0 and not k > 0.0:
+            self._predict_points(v, w, dt, cols, Wm, Wc)
+            return
+        m0, m1, m2 = self._x, self._y, self._th
+        C, S = cos(m2), sin(m2)
+        vdt = v * dt
+        sa, sb, sc = vdt * sin(ha), vdt * sin(hb), vdt * sin(hc)
+        pa0, pa1 = a0 - S * sa, a1 + C * sa
+        pb0, pb1 = b0 - S * sb, b1 + C * sb
+        pc0, pc1 = c0 - S * sc, c1 + C * sc
+        ua, ub, uc, u0 = ca - k, cb - k, cc - k, 1.0 - k
+        g = vdt * vdt * (2.0 * wc1 * (ua * ua + ub * ub + uc * uc) + wc0 * u0 * u0)
+        w2 = 2.0 * wc1
+        q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.motion_noise, m2, C, S, v, w, dt)
+        self._p = (q00 + w2 * (pa0 * pa0 + pb0 * pb0 + pc0 * pc0) + g * C * C,
+                   q01 + w2 * (pa0 * pa1 + pb0 * pb1 + pc0 * pc1) + g * C * S,
+                   q02 + w2 * (pa0 * ha + pb0 * hb + pc0 * hc),
+                   q11 + w2 * (pa1 * pa1 + pb1 * pb1 + pc1 * pc1) + g * S * S,
+                   q12 + w2 * (pa1 * ha + pb1 * hb + pc1 * hc),
+                   q22 + w2 * (ha * ha + hb * hb + hc * hc))
+        vk = vdt * k
+        self._x, self._y, self._th = m0 + vk * C, m1 + vk * S, wrap(m2 + w * dt)
+
+    def _predict_points(self, v: float, w: float, dt: float, cols: Sequence[tuple[float, float, float]],
+                        Wm: list[float], Wc: list[float]) -> None:
+        """:meth:`predict` as the loop over the sigma points (what the closed form sums)."""
+        m0, m1, m2 = self._x, self._y, self._th
         vdt, wdt = v * dt, w * dt
-        offsets = self._offsets()
-        if self._Wm_now is self.Wm:
-            Wm, Wc = self._wm, self._wc
-        else:  # a spread limited for a wide heading (heading_limited_weights)
-            Wm, Wc = self._Wm_now.tolist(), self._Wc_now.tolist()
-        cos, sin, wrap_ = math.cos, math.sin, wrap  # locals: the per-sigma-point hot path
+        offsets = [(0.0, 0.0, 0.0), *cols, *((-a, -b, -c) for a, b, c in cols)]
+        cos, sin = math.cos, math.sin
         cw, sw = cos(wdt), sin(wdt)
         # The velocity model on every sigma point; weighted sums for the mean as we go.
         Y = []
@@ -342,7 +437,7 @@ class UnscentedKalmanFilter(BatchableFilter):
                                                          math.sin(m2), v, w, dt)
         for wi, (a, b, c) in zip(Wc, Y):  # noqa: B905
             da, db = a - x, b - y
-            dc = wrap_(c - th)
+            dc = wrap(c - th)
             wa, wb, wc = wi * da, wi * db, wi * dc
             q00 += wa * da
             q01 += wa * db
@@ -350,19 +445,189 @@ class UnscentedKalmanFilter(BatchableFilter):
             q11 += wb * db
             q12 += wb * dc
             q22 += wc * dc
-        self.mean = np.array([x, y, wrap(th)])
-        self.cov = np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
+        self._x, self._y, self._th = x, y, wrap(th)
+        self._p = (q00, q01, q02, q11, q12, q22)
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         if not measurements:
             return
+        rows = 0
+        for m in measurements:
+            width = _ROWS_PER_READING.get(m.kind)
+            if width is not None and len(m):
+                rows += width if m.kind in FIX_KINDS else width * len(m)
+        if rows == 0:
+            return
+        if rows > FLOAT_ROWS or not self._update_floats(measurements):
+            self._update_arrays(measurements)
+
+    # -- the update on floats (a few readings) ----------------------------------------------
+    def _update_floats(self, measurements: Sequence[Measurement]) -> bool:
+        """:meth:`_update_arrays` on Python floats; False (nothing changed) when a pivot of S
+        is not positive (then the array form, with its LU solve, decides).
+
+        The same sigma points, circular means and wrapped residuals; S = sum Wc dZ dZ^T + R
+        and Pxz = sum Wc dX dZ^T (the offsets are 0 and +-a_i, so Pxz = Wc_1 sum a_i
+        (dZ_i - dZ_{i+n})^T); then the readings are conditioned on one at a time (a symmetric
+        elimination of [[S, Pxz^T, nu]]), which gives P - Pxz S^-1 Pxz^T and Pxz S^-1 nu
+        without forming S^-1."""
+        offsets = self._offsets()
+        Wm, Wc = self._weights_now()
+        wm0, wm1, wc0, wc1 = Wm[0], Wm[1], Wc[0], Wc[1]   # W_1 = ... = W_2n by construction
+        limited = wm0 < 0.0
+        x0, y0, t0 = self._x, self._y, self._th
+        xs = [x0 + d[0] for d in offsets]
+        ys = [y0 + d[1] for d in offsets]
+        ts = [t0 + d[2] for d in offsets]               # headings not wrapped
+        pi, two_pi = _PI, _TWO_PI
+        sin, cos, atan2, hypot = math.sin, math.cos, math.atan2, math.hypot
+        cols: list[list[float]] = []                     # per row: residuals of the 7 points
+        nus: list[float] = []
+        rs: list[float] = []
+        groups: list[tuple[int, int]] = []               # rows of one beacon or fix (the gate)
+
+        def angle_row(zs: list[float], z: float, r: float) -> None:
+            z0, z1, z2, z3, z4, z5, z6 = zs
+            if limited:  # residuals about the centre point (see innovation_parts)
+                zh = z0 + wm1 * (wrap(z1 - z0) + wrap(z2 - z0) + wrap(z3 - z0) + wrap(z4 - z0)
+                                 + wrap(z5 - z0) + wrap(z6 - z0))
+            else:        # circular weighted mean
+                zh = atan2(wm0 * sin(z0) + wm1 * (sin(z1) + sin(z2) + sin(z3) + sin(z4) + sin(z5) + sin(z6)),
+                           wm0 * cos(z0) + wm1 * (cos(z1) + cos(z2) + cos(z3) + cos(z4) + cos(z5) + cos(z6)))
+            d = [(a - zh + pi) % two_pi - pi for a in zs]   # wrap's arithmetic
+            if max(d) >= pi:
+                d = [a - two_pi if a >= pi else a for a in d]
+            nu = (z - zh + pi) % two_pi - pi
+            cols.append(d)
+            nus.append(nu - two_pi if nu >= pi else nu)
+            rs.append(r)
+
+        def linear_row(zs: list[float], z: float, r: float) -> None:
+            z0, z1, z2, z3, z4, z5, z6 = zs
+            zh = wm0 * z0 + wm1 * (z1 + z2 + z3 + z4 + z5 + z6)
+            cols.append([a - zh for a in zs])
+            nus.append(z - zh)
+            rs.append(r)
+
+        models = self.models
+        where = models.beacon_xy
+        for m in measurements:
+            kind = m.kind
+            if kind == "bearing" or kind == "range_bearing":
+                var = models.reading_var.get(m.sensor) or models.reading_variance(m.sensor)
+                for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist()):  # noqa: B905
+                    try:
+                        bx, by = where[bid]
+                    except KeyError:
+                        bx, by = models.beacon(bid)  # raises the one-line FilterError
+                    start = len(nus)
+                    if kind == "bearing":
+                        angle_row([atan2(by - b, bx - a) - t for a, b, t in zip(xs, ys, ts)],  # noqa: B905
+                                  zrow[0], var[0])
+                    else:
+                        dxs = [bx - a for a in xs]
+                        dys = [by - b for b in ys]
+                        linear_row([hypot(a, b) for a, b in zip(dxs, dys)], zrow[0], var[0])  # noqa: B905
+                        angle_row([atan2(b, a) - t for a, b, t in zip(dxs, dys, ts)],  # noqa: B905
+                                  zrow[1], var[1])
+                    groups.append((start, len(nus)))
+            elif (kind == "pose" or kind == "position") and len(m):
+                fvar = models.fix_var(m)
+                z = m.z.reshape(-1).tolist()
+                start = len(nus)
+                linear_row(xs, z[0], fvar[0])
+                linear_row(ys, z[1], fvar[1])
+                if kind == "pose":
+                    angle_row(ts, z[2], fvar[2])
+                groups.append((start, len(nus)))
+        # Pxz^T rows [Pxz_x, Pxz_y, Pxz_theta, nu], and S (lower triangle, one list per row)
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = offsets[1:4]
+        B: list[list[float]] = []
+        S: list[list[float]] = []
+        for j, d in enumerate(cols):
+            _, d1, d2, d3, d4, d5, d6 = d
+            e1, e2, e3 = wc1 * (d1 - d4), wc1 * (d2 - d5), wc1 * (d3 - d6)
+            B.append([a0 * e1 + b0 * e2 + c0 * e3, a1 * e1 + b1 * e2 + c1 * e3, a2 * e1 + b2 * e2 + c2 * e3,
+                      nus[j]])
+            g0 = wc0 * d[0]
+            row = []
+            for f in cols[:j + 1]:
+                row.append(g0 * f[0] + wc1 * (d1 * f[1] + d2 * f[2] + d3 * f[3] + d4 * f[4] + d5 * f[5]
+                                              + d6 * f[6]))
+            row[j] += rs[j]
+            S.append(row)
+        rejected = 0
+        if self.gate > 0.0:
+            keep: list[int] = []
+            for i, j in groups:
+                if self._gate_block(S, nus, i, j) > self.gate:
+                    rejected += 1
+                else:
+                    keep.extend(range(i, j))
+            if rejected:
+                if not keep:
+                    self.rejected += rejected
+                    return True
+                S = [[S[i][j] for j in keep[:k + 1]] for k, i in enumerate(keep)]
+                B = [B[i] for i in keep]
+        # Condition on the readings one at a time: pivot s, its row b = [Pxz^T row, nu].
+        q00 = q01 = q02 = q11 = q12 = q22 = g0 = g1 = g2 = 0.0
+        n = len(B)
+        for p in range(n):
+            Sp = S[p]
+            s = Sp[p]
+            if not s > 0.0:
+                return False
+            h0, h1, h2, h3 = B[p]
+            k0, k1, k2, k3 = h0 / s, h1 / s, h2 / s, h3 / s
+            q00 += h0 * k0
+            q01 += h0 * k1
+            q02 += h0 * k2
+            q11 += h1 * k1
+            q12 += h1 * k2
+            q22 += h2 * k2
+            g0 += h0 * k3
+            g1 += h1 * k3
+            g2 += h2 * k3
+            for q in range(p + 1, n):
+                Sq = S[q]
+                f = Sq[p] / s
+                for col in range(p + 1, q + 1):
+                    Sq[col] -= f * S[col][p]
+                Bq = B[q]
+                Bq[0] -= f * h0
+                Bq[1] -= f * h1
+                Bq[2] -= f * h2
+                Bq[3] -= f * h3
+        p00, p01, p02, p11, p12, p22 = self._p
+        self._p = (p00 - q00, p01 - q01, p02 - q02, p11 - q11, p12 - q12, p22 - q22)
+        self._x, self._y, self._th = x0 + g0, y0 + g1, wrap(t0 + g2)
+        self.rejected += rejected
+        return True
+
+    @staticmethod
+    def _gate_block(S: list[list[float]], nu: list[float], i: int, j: int) -> float:
+        """``nu_b^T S_bb^-1 nu_b`` of rows i..j-1 (S as lower-triangle rows)."""
+        if j - i == 1:
+            return nu[i] * nu[i] / S[i][i]
+        if j - i == 2:
+            s00, s10, s11 = S[i][i], S[i + 1][i], S[i + 1][i + 1]
+            n0, n1 = nu[i], nu[i + 1]
+            return (s11 * n0 * n0 - 2.0 * s10 * n0 * n1 + s00 * n1 * n1) / (s00 * s11 - s10 * s10)
+        Sb = np.array([[S[max(a, b)][min(a, b)] for b in range(i, j)] for a in range(i, j)])
+        nb = np.array(nu[i:j])
+        return float(nb @ np.linalg.solve(Sb, nb))
+
+    # -- the update on arrays (many readings, or a degenerate S) ---------------------------
+    def _update_arrays(self, measurements: Sequence[Measurement]) -> None:
         st = stack(self.models, measurements)
         if st is None:
             return
+        mean, cov = self.mean, self.cov
         D = np.array(self._offsets())             # redrawn from the predicted belief (seed 000)
-        Z = st.predict(self.mean + D, wrap=False)  # (7, m); residuals are wrapped in innovation
+        Z = st.predict(mean + D, wrap=False)      # (7, m); residuals are wrapped in innovation
         if Z.shape[-1] > LOW_RANK_ROWS:            # many readings: linear in them, S never formed
-            self._update_low_rank(st, Z, D)
+            self._update_low_rank(st, Z, D, mean, cov)
             return
         S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self._Wm_now, self._Wc_now)
         if self.gate > 0.0:
@@ -371,9 +636,10 @@ class UnscentedKalmanFilter(BatchableFilter):
                 if not keep.any():
                     return
                 S, Pxz, nu = S[np.ix_(keep, keep)], Pxz[:, keep], nu[keep]
-        self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu)
+        self.mean, self.cov = correct(mean, cov, S, Pxz, nu)
 
-    def _update_low_rank(self, st: StackedReadings, Z: np.ndarray, D: np.ndarray) -> None:
+    def _update_low_rank(self, st: StackedReadings, Z: np.ndarray, D: np.ndarray, mean: np.ndarray,
+                         cov: np.ndarray) -> None:
         """The update for over ``LOW_RANK_ROWS`` readings (:func:`correct_low_rank`): the same
         results to 1e-9, linear in the readings; the gate tests each beacon's block of S."""
         dZ, WdZ, Pxz, nu = innovation_parts(Z, D, st.z, st.angle_sel, self._Wm_now, self._Wc_now)
@@ -388,7 +654,7 @@ class UnscentedKalmanFilter(BatchableFilter):
                 if not keep.any():
                     return
                 dZ, Pxz, nu, r = dZ[:, keep], Pxz[:, keep], nu[keep], r[keep]
-        self.mean, self.cov = correct_low_rank(self.mean, self.cov, dZ, self._Wc_now, r, Pxz, nu)
+        self.mean, self.cov = correct_low_rank(mean, cov, dZ, self._Wc_now, r, Pxz, nu)
 
     def _gate(self, st: StackedReadings, S_block: Callable[[int, int], np.ndarray],
               nu: np.ndarray) -> np.ndarray | None:
