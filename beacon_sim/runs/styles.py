@@ -51,12 +51,14 @@ OTHER_STYLES: list[tuple[RGB, Dash]] = [
 STYLE_CYCLE: list[Dash] = [SOLID, DASHED, DOTTED, DASH_DOT, SHORT_DASH]
 
 #: Team filters (issue 18, ``filters/team.py``) by name: the baseline that ignores the
-#: teammates is grey like dead reckoning; the joint EKF blue and solid; covariance
-#: intersection bluish green and dashed; naive fusion, the overconfident counter-example,
-#: vermillion and dotted. Others (a student's team filter) take ``OTHER_STYLES`` in turn.
+#: teammates is grey like dead reckoning; the joint EKF blue and solid; the pairwise
+#: decentralised EKF orange, dash-dot; covariance intersection bluish green and dashed;
+#: naive fusion, the overconfident counter-example, vermillion and dotted. Others (a
+#: student's team filter) take ``OTHER_STYLES`` in turn.
 TEAM_STYLES: dict[str, tuple[RGB, Dash]] = {
     "independent": (DEAD_RECKONING, SHORT_DASH),
     "centralised": (OKABE_ITO[0], SOLID),
+    "decentralised": (OKABE_ITO[4], DASH_DOT),
     "ci": (OKABE_ITO[3], DASHED),
     "naive": (OKABE_ITO[1], DOTTED),
 }
