@@ -466,46 +466,54 @@ class UnscentedKalmanFilter(BatchableFilter):
         """:meth:`_update_arrays` on Python floats; False (nothing changed) when a pivot of S
         is not positive (then the array form, with its LU solve, decides).
 
-        The same sigma points, circular means and wrapped residuals; S = sum Wc dZ dZ^T + R
-        and Pxz = sum Wc dX dZ^T (the offsets are 0 and +-a_i, so Pxz = Wc_1 sum a_i
-        (dZ_i - dZ_{i+n})^T); then the readings are conditioned on one at a time (a symmetric
-        elimination of [[S, Pxz^T, nu]]), which gives P - Pxz S^-1 Pxz^T and Pxz S^-1 nu
-        without forming S^-1."""
-        offsets = self._offsets()
+        The same sigma points, circular means and wrapped residuals (wrap's arithmetic
+        written out per point); S = sum Wc dZ dZ^T + R and Pxz = sum Wc dX dZ^T (the offsets
+        are 0 and +-a_i, so Pxz = Wc_1 sum a_i (dZ_i - dZ_{i+n})^T); then the readings are
+        conditioned on one at a time (a symmetric elimination of [[S, Pxz^T, nu]]), which
+        gives P - Pxz S^-1 Pxz^T and Pxz S^-1 nu without forming S^-1."""
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = self._columns()
         Wm, Wc = self._weights_now()
         wm0, wm1, wc0, wc1 = Wm[0], Wm[1], Wc[0], Wc[1]   # W_1 = ... = W_2n by construction
         limited = wm0 < 0.0
-        x0, y0, t0 = self._x, self._y, self._th
-        xs = [x0 + d[0] for d in offsets]
-        ys = [y0 + d[1] for d in offsets]
-        ts = [t0 + d[2] for d in offsets]               # headings not wrapped
+        rm = wm0 / wm1                                    # W_1 > 0: the circular mean's ratio
+        rc = wc0 / wc1
+        X0, Y0, T0 = self._x, self._y, self._th
+        X1, X2, X3, X4, X5, X6 = X0 + a0, X0 + b0, X0 + c0, X0 - a0, X0 - b0, X0 - c0
+        Y1, Y2, Y3, Y4, Y5, Y6 = Y0 + a1, Y0 + b1, Y0 + c1, Y0 - a1, Y0 - b1, Y0 - c1
+        T1, T2, T3, T4, T5, T6 = T0 + a2, T0 + b2, T0 + c2, T0 - a2, T0 - b2, T0 - c2  # not wrapped
         pi, two_pi = _PI, _TWO_PI
         sin, cos, atan2, hypot = math.sin, math.cos, math.atan2, math.hypot
-        cols: list[list[float]] = []                     # per row: residuals of the 7 points
+        rows: list[tuple[float, ...]] = []                # per row: the residuals of the 7 points
         nus: list[float] = []
         rs: list[float] = []
-        groups: list[tuple[int, int]] = []               # rows of one beacon or fix (the gate)
+        groups: list[tuple[int, int]] = []                # rows of one beacon or fix (the gate)
 
-        def angle_row(zs: list[float], z: float, r: float) -> None:
-            z0, z1, z2, z3, z4, z5, z6 = zs
+        def angle_row(z0: float, z1: float, z2: float, z3: float, z4: float, z5: float, z6: float,
+                      z: float, r: float) -> None:
             if limited:  # residuals about the centre point (see innovation_parts)
                 zh = z0 + wm1 * (wrap(z1 - z0) + wrap(z2 - z0) + wrap(z3 - z0) + wrap(z4 - z0)
                                  + wrap(z5 - z0) + wrap(z6 - z0))
-            else:        # circular weighted mean
-                zh = atan2(wm0 * sin(z0) + wm1 * (sin(z1) + sin(z2) + sin(z3) + sin(z4) + sin(z5) + sin(z6)),
-                           wm0 * cos(z0) + wm1 * (cos(z1) + cos(z2) + cos(z3) + cos(z4) + cos(z5) + cos(z6)))
-            d = [(a - zh + pi) % two_pi - pi for a in zs]   # wrap's arithmetic
+            elif rm == 0.0:  # circular weighted mean (weights W_1 / W_1: the same angle)
+                zh = atan2(sin(z1) + sin(z2) + sin(z3) + sin(z4) + sin(z5) + sin(z6),
+                           cos(z1) + cos(z2) + cos(z3) + cos(z4) + cos(z5) + cos(z6))
+            else:
+                zh = atan2(rm * sin(z0) + sin(z1) + sin(z2) + sin(z3) + sin(z4) + sin(z5) + sin(z6),
+                           rm * cos(z0) + cos(z1) + cos(z2) + cos(z3) + cos(z4) + cos(z5) + cos(z6))
+            o = pi - zh
+            d = ((z0 + o) % two_pi - pi, (z1 + o) % two_pi - pi, (z2 + o) % two_pi - pi,
+                 (z3 + o) % two_pi - pi, (z4 + o) % two_pi - pi, (z5 + o) % two_pi - pi,
+                 (z6 + o) % two_pi - pi)
             if max(d) >= pi:
-                d = [a - two_pi if a >= pi else a for a in d]
-            nu = (z - zh + pi) % two_pi - pi
-            cols.append(d)
+                d = tuple(a - two_pi if a >= pi else a for a in d)
+            nu = (z + o) % two_pi - pi
+            rows.append(d)
             nus.append(nu - two_pi if nu >= pi else nu)
             rs.append(r)
 
-        def linear_row(zs: list[float], z: float, r: float) -> None:
-            z0, z1, z2, z3, z4, z5, z6 = zs
+        def linear_row(z0: float, z1: float, z2: float, z3: float, z4: float, z5: float, z6: float,
+                       z: float, r: float) -> None:
             zh = wm0 * z0 + wm1 * (z1 + z2 + z3 + z4 + z5 + z6)
-            cols.append([a - zh for a in zs])
+            rows.append((z0 - zh, z1 - zh, z2 - zh, z3 - zh, z4 - zh, z5 - zh, z6 - zh))
             nus.append(z - zh)
             rs.append(r)
 
@@ -515,45 +523,41 @@ class UnscentedKalmanFilter(BatchableFilter):
             kind = m.kind
             if kind == "bearing" or kind == "range_bearing":
                 var = models.reading_var.get(m.sensor) or models.reading_variance(m.sensor)
+                ranged = kind == "range_bearing"
                 for zrow, bid in zip(m.z.tolist(), m.beacon_ids.tolist()):  # noqa: B905
                     try:
                         bx, by = where[bid]
                     except KeyError:
                         bx, by = models.beacon(bid)  # raises the one-line FilterError
+                    e0, e1, e2, e3, e4, e5, e6 = bx - X0, bx - X1, bx - X2, bx - X3, bx - X4, bx - X5, bx - X6
+                    f0, f1, f2, f3, f4, f5, f6 = by - Y0, by - Y1, by - Y2, by - Y3, by - Y4, by - Y5, by - Y6
                     start = len(nus)
-                    if kind == "bearing":
-                        angle_row([atan2(by - b, bx - a) - t for a, b, t in zip(xs, ys, ts)],  # noqa: B905
-                                  zrow[0], var[0])
-                    else:
-                        dxs = [bx - a for a in xs]
-                        dys = [by - b for b in ys]
-                        linear_row([hypot(a, b) for a, b in zip(dxs, dys)], zrow[0], var[0])  # noqa: B905
-                        angle_row([atan2(b, a) - t for a, b, t in zip(dxs, dys, ts)],  # noqa: B905
-                                  zrow[1], var[1])
+                    if ranged:
+                        linear_row(hypot(e0, f0), hypot(e1, f1), hypot(e2, f2), hypot(e3, f3),
+                                   hypot(e4, f4), hypot(e5, f5), hypot(e6, f6), zrow[0], var[0])
+                    angle_row(atan2(f0, e0) - T0, atan2(f1, e1) - T1, atan2(f2, e2) - T2,
+                              atan2(f3, e3) - T3, atan2(f4, e4) - T4, atan2(f5, e5) - T5,
+                              atan2(f6, e6) - T6, zrow[-1], var[-1])
                     groups.append((start, len(nus)))
             elif (kind == "pose" or kind == "position") and len(m):
                 fvar = models.fix_var(m)
                 z = m.z.reshape(-1).tolist()
                 start = len(nus)
-                linear_row(xs, z[0], fvar[0])
-                linear_row(ys, z[1], fvar[1])
+                linear_row(X0, X1, X2, X3, X4, X5, X6, z[0], fvar[0])
+                linear_row(Y0, Y1, Y2, Y3, Y4, Y5, Y6, z[1], fvar[1])
                 if kind == "pose":
-                    angle_row(ts, z[2], fvar[2])
+                    angle_row(T0, T1, T2, T3, T4, T5, T6, z[2], fvar[2])
                 groups.append((start, len(nus)))
-        # Pxz^T rows [Pxz_x, Pxz_y, Pxz_theta, nu], and S (lower triangle, one list per row)
-        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = offsets[1:4]
+        # [Pxz^T row, nu] per row, and S (lower triangle, one list per row)
         B: list[list[float]] = []
         S: list[list[float]] = []
-        for j, d in enumerate(cols):
-            _, d1, d2, d3, d4, d5, d6 = d
+        for j, (d0, d1, d2, d3, d4, d5, d6) in enumerate(rows):
             e1, e2, e3 = wc1 * (d1 - d4), wc1 * (d2 - d5), wc1 * (d3 - d6)
             B.append([a0 * e1 + b0 * e2 + c0 * e3, a1 * e1 + b1 * e2 + c1 * e3, a2 * e1 + b2 * e2 + c2 * e3,
                       nus[j]])
-            g0 = wc0 * d[0]
-            row = []
-            for f in cols[:j + 1]:
-                row.append(g0 * f[0] + wc1 * (d1 * f[1] + d2 * f[2] + d3 * f[3] + d4 * f[4] + d5 * f[5]
-                                              + d6 * f[6]))
+            g0 = rc * d0
+            row = [wc1 * (g0 * f0 + d1 * f1 + d2 * f2 + d3 * f3 + d4 * f4 + d5 * f5 + d6 * f6)
+                   for f0, f1, f2, f3, f4, f5, f6 in rows[:j + 1]]
             row[j] += rs[j]
             S.append(row)
         rejected = 0
@@ -601,7 +605,7 @@ class UnscentedKalmanFilter(BatchableFilter):
                 Bq[3] -= f * h3
         p00, p01, p02, p11, p12, p22 = self._p
         self._p = (p00 - q00, p01 - q01, p02 - q02, p11 - q11, p12 - q12, p22 - q22)
-        self._x, self._y, self._th = x0 + g0, y0 + g1, wrap(t0 + g2)
+        self._x, self._y, self._th = X0 + g0, Y0 + g1, wrap(T0 + g2)
         self.rejected += rejected
         return True
 
