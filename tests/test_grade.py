@@ -109,3 +109,37 @@ def test_the_page_opens_in_chromium_and_sorts(board, tmp_path):
     assert kinds == sorted(kinds, key=lambda k: k == "failed")  # failed never above working
     ok = [n for k, n in order if k == "ok"]
     assert ok == sorted(ok, reverse=True) and len(names) == len(STUDENTS)
+
+
+@pytest.mark.parametrize("text, says", [
+    ("seeds = 2", "seeds = 2: expected a list of 1 to 10000 integer seeds"),
+    ("seeds = [-1]", "seeds = [-1]: expected a list"),
+    ("seeds = [1.5]", "seeds = [1.5]: expected a list"),
+    ("seeds = []", "seeds = []: expected a list"),
+    ("scenarios = 'default'", "scenarios = 'default': expected a list of 1 to 10000 names"),
+    ("duration = inf", "duration = inf: expected a number in [0, 86400]"),
+    ("duration = -3", "duration = -3: expected a number"),
+    ("time_limit = 0", "time_limit = 0: expected a number in (0, 86400]"),
+    ("time_limit = nan", "time_limit = nan: expected a number"),
+    ("memory_limit_gb = 'x'", "memory_limit_gb = 'x': expected a number in [0, 10000]"),
+    ("class_name = 'a b'", "class_name = 'a b': expected a Python class name"),
+])
+def test_a_bad_grading_configuration_names_the_key_and_what_was_expected(tmp_path, text, says):
+    from beacon_sim.evaluation.grading import GradeError, load_config
+
+    cfg = tmp_path / "grade.toml"
+    cfg.write_text(text + "\n")
+    with pytest.raises(GradeError) as err:
+        load_config(cfg)
+    assert str(err.value) == f"{cfg}: {says}" or str(err.value).startswith(f"{cfg}: {says}")
+
+
+def test_a_good_grading_configuration_is_read(tmp_path):
+    from beacon_sim.evaluation.grading import load_config
+
+    cfg = tmp_path / "grade.toml"
+    cfg.write_text('scenarios = ["default", "team_sparse"]\nseeds = [3, 4]\nduration = 0\n'
+                   'time_limit = 5\nmemory_limit_gb = 0\n')
+    c = load_config(cfg)
+    assert (c.scenarios, c.seeds, c.duration, c.time_limit, c.memory_limit_gb) == \
+        (("default", "team_sparse"), (3, 4), None, 5.0, 0.0)

@@ -70,6 +70,56 @@ class GradeConfig:
     class_name: str | None = None
 
 
+#: The longest run a grading configuration may ask for [s] (one simulated day).
+MAX_GRADE_DURATION_S = 86400.0
+
+
+def _config_list(path: str | Path, data: dict[str, Any], key: str, kind: type, what: str,
+                 default: tuple[Any, ...]) -> tuple[Any, ...]:
+    """``key`` as a non-empty list (at most 10,000 entries) of ``kind`` values."""
+    if key not in data:
+        return default
+    value = data[key]
+    ok = isinstance(value, list) and 1 <= len(value) <= 10_000 and all(
+        isinstance(v, kind) and not isinstance(v, bool) for v in value)
+    if ok and kind is int:
+        ok = all(0 <= v <= 2**63 - 1 for v in value)
+    if ok and kind is str:
+        ok = all(v.strip() for v in value)
+    if not ok:
+        raise GradeError(f"{path}: {key} = {value!r}: expected a list of 1 to 10000 {what}")
+    return tuple(value)
+
+
+def _config_number(path: str | Path, data: dict[str, Any], key: str, default: float, *, hi: float,
+                   zero_is_none: bool = False, allow_zero: bool = False) -> Any:
+    """``key`` as a finite number in (0, hi] ([0, hi] with ``allow_zero``; 0 means None with
+    ``zero_is_none``)."""
+    if key not in data:
+        return default
+    value = data[key]
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    if ok:
+        try:
+            x = float(value)
+        except OverflowError:
+            ok = False
+    if ok and x == 0.0 and (zero_is_none or allow_zero):
+        return None if zero_is_none else 0.0
+    if not ok or not (math.isfinite(x) and 0.0 < x <= hi):
+        low = "[0" if (zero_is_none or allow_zero) else "(0"
+        extra = " (0: each scenario's own)" if zero_is_none else ""
+        raise GradeError(f"{path}: {key} = {value!r}: expected a number in {low}, {hi:g}]{extra}")
+    return x
+
+
+def _config_name(path: str | Path, data: dict[str, Any]) -> str | None:
+    value = data.get("class_name")
+    if value is not None and not (isinstance(value, str) and value.isidentifier()):
+        raise GradeError(f"{path}: class_name = {value!r}: expected a Python class name")
+    return value
+
+
 def load_config(path: str | Path | None) -> GradeConfig:
     """A :class:`GradeConfig` from a TOML file (keys as the attributes), or the defaults."""
     if path is None:
@@ -82,18 +132,16 @@ def load_config(path: str | Path | None) -> GradeConfig:
     unknown = sorted(set(data) - known)
     if unknown:
         raise GradeError(f"{path}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
-    try:
-        cfg = GradeConfig(
-            scenarios=tuple(str(s) for s in data.get("scenarios", GradeConfig.scenarios)),
-            seeds=tuple(int(s) for s in data.get("seeds", GradeConfig.seeds)),
-            duration=None if data.get("duration", 60.0) in (None, 0) else float(data.get("duration", 60.0)),
-            time_limit=float(data.get("time_limit", GradeConfig.time_limit)),
-            memory_limit_gb=float(data.get("memory_limit_gb", GradeConfig.memory_limit_gb)),
-            class_name=data.get("class_name"))
-    except (TypeError, ValueError) as exc:
-        raise GradeError(f"{path}: {exc}") from None
-    if not cfg.scenarios or not cfg.seeds or cfg.time_limit <= 0:
-        raise GradeError(f"{path}: needs at least one scenario and seed, and time_limit > 0")
+    cfg = GradeConfig(
+        scenarios=_config_list(path, data, "scenarios", str, "names or paths (strings)",
+                               GradeConfig.scenarios),
+        seeds=_config_list(path, data, "seeds", int, "integer seeds in [0, 2^63 - 1], e.g. [0, 1, 2]",
+                           GradeConfig.seeds),
+        duration=_config_number(path, data, "duration", 60.0, hi=MAX_GRADE_DURATION_S, zero_is_none=True),
+        time_limit=_config_number(path, data, "time_limit", GradeConfig.time_limit, hi=86400.0),
+        memory_limit_gb=_config_number(path, data, "memory_limit_gb", GradeConfig.memory_limit_gb,
+                                       hi=1e4, allow_zero=True),
+        class_name=_config_name(path, data))
     return cfg
 
 
