@@ -245,10 +245,94 @@ def correct_low_rank(mean: np.ndarray, P: np.ndarray, dZ: np.ndarray, Wc: np.nda
 #: call on these tiny arrays, so for a handful of readings the floats are several times faster.
 FLOAT_ROWS = 8
 
+#: Readings up to which that update also solves on floats (above: S and the solve on arrays).
+FLOAT_SOLVE_ROWS = 5
+
 #: Rows per reading of each kind the UKF uses (a fix has one reading).
 _ROWS_PER_READING = {"bearing": 1, "range_bearing": 2, "pose": 3, "position": 2}
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
+
+
+def _s_entry(d: Sequence[float], f: Sequence[float], wc1: float, rc: float) -> float:
+    """``sum_k Wc_k d_k f_k`` over the 7 sigma points (Wc_0 = rc Wc_1, Wc_k = Wc_1 for k > 0)."""
+    d0, d1, d2, d3, d4, d5, d6 = d
+    f0, f1, f2, f3, f4, f5, f6 = f
+    return wc1 * (rc * d0 * f0 + d1 * f1 + d2 * f2 + d3 * f3 + d4 * f4 + d5 * f5 + d6 * f6)
+
+
+def _gate_distance(rows: list[tuple[float, ...]], nu: list[float], r: list[float], wc1: float, rc: float,
+                   i: int, j: int) -> float:
+    """``nu_b^T S_bb^-1 nu_b`` of rows i..j-1 (one beacon or fix), S from the residuals ``rows``."""
+    if j - i == 1:
+        return nu[i] * nu[i] / (_s_entry(rows[i], rows[i], wc1, rc) + r[i])
+    Sb = [[_s_entry(rows[a], rows[b], wc1, rc) + (r[a] if a == b else 0.0) for b in range(i, j)]
+          for a in range(i, j)]
+    if j - i == 2:
+        (s00, s01), (_, s11) = Sb
+        n0, n1 = nu[i], nu[i + 1]
+        return (s11 * n0 * n0 - 2.0 * s01 * n0 * n1 + s00 * n1 * n1) / (s00 * s11 - s01 * s01)
+    nb = np.array(nu[i:j])
+    return float(nb @ np.linalg.solve(np.array(Sb), nb))
+
+
+def _conditioned_floats(rows: list[tuple[float, ...]], r: list[float], B: list[list[float]], wc1: float,
+                        rc: float) -> tuple[float, ...] | None:
+    """``Pxz S^-1 Pxz^T`` (six entries) and ``Pxz S^-1 nu`` (three) on floats, with
+    S = sum Wc dZ dZ^T + diag(r) from the residuals ``rows`` (7 each) and ``B`` the rows
+    [Pxz^T row, nu] (changed in place). The readings are conditioned on one at a time (a
+    symmetric elimination of [[S, B], [B^T, 0]]); None when a pivot is not positive."""
+    S = []                                             # lower triangle, one list per row
+    for j, (d0, d1, d2, d3, d4, d5, d6) in enumerate(rows):
+        g0 = rc * d0
+        row = [wc1 * (g0 * f0 + d1 * f1 + d2 * f2 + d3 * f3 + d4 * f4 + d5 * f5 + d6 * f6)
+               for f0, f1, f2, f3, f4, f5, f6 in rows[:j + 1]]
+        row[j] += r[j]
+        S.append(row)
+    q00 = q01 = q02 = q11 = q12 = q22 = g0 = g1 = g2 = 0.0
+    n = len(B)
+    for p in range(n):
+        s = S[p][p]
+        if not s > 0.0:
+            return None
+        h0, h1, h2, h3 = B[p]
+        k0, k1, k2, k3 = h0 / s, h1 / s, h2 / s, h3 / s
+        q00 += h0 * k0
+        q01 += h0 * k1
+        q02 += h0 * k2
+        q11 += h1 * k1
+        q12 += h1 * k2
+        q22 += h2 * k2
+        g0 += h0 * k3
+        g1 += h1 * k3
+        g2 += h2 * k3
+        for q in range(p + 1, n):
+            Sq = S[q]
+            f = Sq[p] / s
+            for col in range(p + 1, q + 1):
+                Sq[col] -= f * S[col][p]
+            Bq = B[q]
+            Bq[0] -= f * h0
+            Bq[1] -= f * h1
+            Bq[2] -= f * h2
+            Bq[3] -= f * h3
+    return q00, q01, q02, q11, q12, q22, g0, g1, g2
+
+
+def _conditioned_arrays(rows: list[tuple[float, ...]], r: list[float], B: list[list[float]], Wc: np.ndarray
+                        ) -> tuple[float, ...] | None:
+    """:func:`_conditioned_floats` with S and the solve on arrays (cheaper from a few rows on:
+    S has m (m + 1) / 2 entries of 7 products each)."""
+    A = np.array(rows)
+    S = (A * Wc) @ A.T
+    add_diagonal(S, np.array(r))
+    Bm = np.array(B)
+    Y = solve(S, Bm, strict=False)
+    if not np.isfinite(Y).all():
+        return None
+    (q00, q01, q02, g0), (_, q11, q12, g1), (_, _, q22, g2), _ = (Bm.T @ Y).tolist()
+    return q00, q01, q02, q11, q12, q22, g0, g1, g2
+
 
 
 class UnscentedKalmanFilter(BatchableFilter):
@@ -548,23 +632,17 @@ class UnscentedKalmanFilter(BatchableFilter):
                 if kind == "pose":
                     angle_row(T0, T1, T2, T3, T4, T5, T6, z[2], fvar[2])
                 groups.append((start, len(nus)))
-        # [Pxz^T row, nu] per row, and S (lower triangle, one list per row)
+        # [Pxz^T row, nu] per row
         B: list[list[float]] = []
-        S: list[list[float]] = []
-        for j, (d0, d1, d2, d3, d4, d5, d6) in enumerate(rows):
+        for (_, d1, d2, d3, d4, d5, d6), nu in zip(rows, nus):  # noqa: B905
             e1, e2, e3 = wc1 * (d1 - d4), wc1 * (d2 - d5), wc1 * (d3 - d6)
             B.append([a0 * e1 + b0 * e2 + c0 * e3, a1 * e1 + b1 * e2 + c1 * e3, a2 * e1 + b2 * e2 + c2 * e3,
-                      nus[j]])
-            g0 = rc * d0
-            row = [wc1 * (g0 * f0 + d1 * f1 + d2 * f2 + d3 * f3 + d4 * f4 + d5 * f5 + d6 * f6)
-                   for f0, f1, f2, f3, f4, f5, f6 in rows[:j + 1]]
-            row[j] += rs[j]
-            S.append(row)
+                      nu])
         rejected = 0
         if self.gate > 0.0:
             keep: list[int] = []
             for i, j in groups:
-                if self._gate_block(S, nus, i, j) > self.gate:
+                if _gate_distance(rows, nus, rs, wc1, rc, i, j) > self.gate:
                     rejected += 1
                 else:
                     keep.extend(range(i, j))
@@ -572,55 +650,19 @@ class UnscentedKalmanFilter(BatchableFilter):
                 if not keep:
                     self.rejected += rejected
                     return True
-                S = [[S[i][j] for j in keep[:k + 1]] for k, i in enumerate(keep)]
-                B = [B[i] for i in keep]
-        # Condition on the readings one at a time: pivot s, its row b = [Pxz^T row, nu].
-        q00 = q01 = q02 = q11 = q12 = q22 = g0 = g1 = g2 = 0.0
-        n = len(B)
-        for p in range(n):
-            Sp = S[p]
-            s = Sp[p]
-            if not s > 0.0:
-                return False
-            h0, h1, h2, h3 = B[p]
-            k0, k1, k2, k3 = h0 / s, h1 / s, h2 / s, h3 / s
-            q00 += h0 * k0
-            q01 += h0 * k1
-            q02 += h0 * k2
-            q11 += h1 * k1
-            q12 += h1 * k2
-            q22 += h2 * k2
-            g0 += h0 * k3
-            g1 += h1 * k3
-            g2 += h2 * k3
-            for q in range(p + 1, n):
-                Sq = S[q]
-                f = Sq[p] / s
-                for col in range(p + 1, q + 1):
-                    Sq[col] -= f * S[col][p]
-                Bq = B[q]
-                Bq[0] -= f * h0
-                Bq[1] -= f * h1
-                Bq[2] -= f * h2
-                Bq[3] -= f * h3
+                rows, rs, B = [rows[i] for i in keep], [rs[i] for i in keep], [B[i] for i in keep]
+        if len(B) > FLOAT_SOLVE_ROWS:
+            out = _conditioned_arrays(rows, rs, B, self._Wc_now)
+        else:
+            out = _conditioned_floats(rows, rs, B, wc1, rc)
+        if out is None:
+            return False
+        q00, q01, q02, q11, q12, q22, g0, g1, g2 = out
         p00, p01, p02, p11, p12, p22 = self._p
         self._p = (p00 - q00, p01 - q01, p02 - q02, p11 - q11, p12 - q12, p22 - q22)
         self._x, self._y, self._th = X0 + g0, Y0 + g1, wrap(T0 + g2)
         self.rejected += rejected
         return True
-
-    @staticmethod
-    def _gate_block(S: list[list[float]], nu: list[float], i: int, j: int) -> float:
-        """``nu_b^T S_bb^-1 nu_b`` of rows i..j-1 (S as lower-triangle rows)."""
-        if j - i == 1:
-            return nu[i] * nu[i] / S[i][i]
-        if j - i == 2:
-            s00, s10, s11 = S[i][i], S[i + 1][i], S[i + 1][i + 1]
-            n0, n1 = nu[i], nu[i + 1]
-            return (s11 * n0 * n0 - 2.0 * s10 * n0 * n1 + s00 * n1 * n1) / (s00 * s11 - s10 * s10)
-        Sb = np.array([[S[max(a, b)][min(a, b)] for b in range(i, j)] for a in range(i, j)])
-        nb = np.array(nu[i:j])
-        return float(nb @ np.linalg.solve(Sb, nb))
 
     # -- the update on arrays (many readings, or a degenerate S) ---------------------------
     def _update_arrays(self, measurements: Sequence[Measurement]) -> None:
