@@ -171,10 +171,12 @@ class Hud:
                 y += sl
         return y
 
-    def nees(self, surf, st, at) -> pygame.Rect:
-        """``NEES v`` of a FilterStatus, on the warning colour when outside its 95 % band."""
+    def nees(self, surf, st, at, label: bool = True) -> pygame.Rect:
+        """``NEES v`` (``label`` False: the value alone) of a FilterStatus, on the warning
+        colour when outside its 95 % band."""
         out = st.nees_out_of_band
-        return self._blit(surf, nees_text(st.nees), "small",
+        text = nees_text(st.nees) if label else nees_text(st.nees).removeprefix("NEES ")
+        return self._blit(surf, text, "small",
                           palette.BANNER_TEXT if out else palette.TEXT, at,
                           bg=palette.WARN if out else None)
 

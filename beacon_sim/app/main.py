@@ -59,6 +59,8 @@ class App:
     MODE = "play"
     #: What draws the world (a subclass may draw more: the team window's robots).
     RENDERER: type[WorldRenderer] = WorldRenderer
+    #: What draws the panel, the banner and the help.
+    HUD: type[Hud] = Hud
 
     def __init__(self, session: Session, size=(1280, 800), scripted: bool = False,
                  recording: Path | None = None, *, watch_interval: float = 1.0):
@@ -148,7 +150,7 @@ class App:
         self.ui_scale = ui_scale(W, H)
         self.fonts = load_fonts(H, W)
         self.renderer = self.RENDERER(self.fonts)
-        self.hud = Hud(self.fonts, self.MODE)
+        self.hud = self.HUD(self.fonts, self.MODE)
         # The panel scales with the text (340 px at 1280x800); the room gets most of the width.
         pw = int(min(340 * self.ui_scale, 0.4 * W))
         self.panel_rect = pygame.Rect(W - pw, 0, pw, H)

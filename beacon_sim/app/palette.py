@@ -21,6 +21,7 @@ from beacon_sim.runs.styles import (
     filter_colours,
     filter_kind,
     filter_styles,
+    team_filter_styles,
 )
 
 BACKGROUND = (250, 250, 247)
@@ -39,7 +40,10 @@ ROBOT_WHEEL = (110, 110, 110)
 TRUTH_TRAIL = (20, 20, 20)
 SENSOR_FILL = (232, 240, 250)
 SENSOR_EDGE = (150, 175, 205)
-RAY = (70, 70, 70)
+RAY = (70, 70, 70)  # a beacon reading: solid grey
+ROBOT_RAY = (150, 40, 120)  # a robot-to-robot reading: dashed, a dark reddish purple
+ROBOT_RAY_DASH = (12, 7)
+DRIVEN = (240, 228, 66)  # Okabe-Ito yellow: the halo under the robot the keys drive
 BEACON = (40, 40, 40)
 BEACON_SEEN = (0, 158, 115)  # bluish green
 BEACON_SEEN_RING = (0, 110, 80)
@@ -57,4 +61,5 @@ def lighten(colour: tuple[int, int, int], amount: float) -> tuple[int, int, int]
 
 
 __all__ = ["DASHED", "DASH_DOT", "DEAD_RECKONING", "DOTTED", "KIND_STYLES", "OKABE_ITO",
-           "SHORT_DASH", "SOLID", "filter_colours", "filter_kind", "filter_styles", "lighten"]
+           "SHORT_DASH", "SOLID", "filter_colours", "filter_kind", "filter_styles", "lighten",
+           "team_filter_styles"]

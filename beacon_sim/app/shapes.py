@@ -78,3 +78,19 @@ def rays(pose, m: Measurement, beacon_xy: np.ndarray, far: float) -> np.ndarray:
         end = np.asarray(beacon_xy, dtype=float).reshape(-1, 2)
     start = np.broadcast_to(p, end.shape)
     return np.stack([start, end], 1)
+
+
+def robot_rays(pose, m: Measurement, seen_xy: np.ndarray) -> np.ndarray:
+    """Segments (k, 2, 2) [m] from an observer's pose for one robot reading (issue 18):
+    along the measured bearing, as long as the measured range (``robot_range_bearing``) or,
+    for a bearing alone (``robot_bearing``), as far as the seen robot (``seen_xy`` (k, 2),
+    its true position: the reading itself gives no length)."""
+    p = np.asarray(pose[:2], dtype=float)
+    z = np.asarray(m.z, dtype=float)
+    b = pose[2] + z[:, -1]
+    if m.kind == "robot_range_bearing":
+        r = z[:, 0]
+    else:
+        r = np.hypot(*(np.asarray(seen_xy, dtype=float).reshape(-1, 2) - p).T)
+    end = p + np.stack([r * np.cos(b), r * np.sin(b)], 1)
+    return np.stack([np.broadcast_to(p, end.shape), end], 1)

@@ -7,6 +7,7 @@ import sys
 
 from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_sensor_notes
 from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.loading import FilterLoadError, load_filter_class
 
@@ -40,6 +41,8 @@ def choose_filters(scenario: Scenario, requested: list[str] | None) -> list[str]
 
 
 def play_command(args: argparse.Namespace) -> int:
+    if is_team_scenario(args.scenario or "default"):
+        return play_team_command(args)
     scenario = load_scenario(args.scenario or "default")
     size = parse_size(args.size)
     check_frames(args.frames)
@@ -57,6 +60,36 @@ def play_command(args: argparse.Namespace) -> int:
                             params, size, args.frames, args.screenshot, record=not args.no_record,
                             autopilot=args.autopilot, paused=args.paused, speed=args.speed,
                             gif=args.gif))
+
+
+def play_team_command(args: argparse.Namespace) -> int:
+    """``beacon-sim play TEAM_SCENARIO``: the team window (issue 18). ``--filter`` names team
+    filters (default: the scenario's ``default_filters``); team sessions are not recorded."""
+    from beacon_sim.filters.team import TEAM_FILTERS
+
+    team = load_team_scenario(args.scenario)
+    size = parse_size(args.size)
+    check_frames(args.frames)
+    params = filter_params(args)
+    names = list(args.filters or team.default_filters)
+    for name in names:
+        if name not in TEAM_FILTERS:
+            raise UsageError(f"--filter {name}: {team.name} is a team scenario; its filters are "
+                             f"team filters: {', '.join(TEAM_FILTERS)}")
+    check_set_names(args, names)
+    if args.autopilot and not any(r.scenario.driver.kind != "keyboard" for r in team.robots):
+        raise UsageError(f"--autopilot: no robot of {team.name} has a driver")
+    check_speed(args.speed)
+    check_gif(args.gif)
+    if not args.no_record:
+        print("beacon-sim: note: team sessions are not recorded", file=sys.stderr)
+    from beacon_sim.app.main import PlayOptions  # pygame only when a window opens
+    from beacon_sim.app.team import play_team
+
+    return play_team(PlayOptions(team, names, team.seed if args.seed is None else int(args.seed),
+                                 params, size, args.frames, args.screenshot, record=False,
+                                 autopilot=args.autopilot, paused=args.paused, speed=args.speed,
+                                 gif=args.gif))
 
 
 def check_speed(speed: float | None) -> None:

@@ -39,6 +39,10 @@ from beacon_sim.runs.scene import FilterStatus, Trail
 #: Estimates the runner keeps per team filter: the screen draws the latest; trails are
 #: grown tick by tick, so nothing older is needed.
 KEEP_ESTIMATES = 2
+#: Points of each estimate's trail (one per team filter and robot): about 20 s of a robot
+#: at 0.3 m/s, so that a dozen estimate trails do not bury the truth's (which keeps the
+#: usual 6000).
+ESTIMATE_TRAIL_POINTS = 300
 #: User commands a team session understands (applied on the next tick).
 COMMAND_KINDS = ("kidnap", "reset", "toggle")
 
@@ -91,7 +95,8 @@ class TeamSession:
         self.truth_trails = [Trail() for _ in team.robots]
         for tr, r in zip(self.truth_trails, team.robots, strict=True):
             tr.add(r.scenario.initial_pose)
-        self.trails = {n: [Trail() for _ in team.robots] for n in self.names}
+        self.trails = {n: [Trail(max_points=ESTIMATE_TRAIL_POINTS) for _ in team.robots]
+                       for n in self.names}
         self.status = {n: FilterStatus(n) for n in self.names}
         self.robot_status = {n: [FilterStatus(f"{n}/{r}") for r in self.robot_names]
                              for n in self.names}
