@@ -137,7 +137,18 @@ class StackedReadings:
 
     def predict(self, poses: np.ndarray, wrap: bool = True) -> np.ndarray:
         """Expected readings h(pose) for poses of shape (N, 3): shape (N, m), angles wrapped
-        (``wrap=False`` leaves them unwrapped, for callers that wrap residuals anyway)."""
+        (``wrap=False`` leaves them unwrapped, for callers that wrap residuals anyway).
+
+        R runs (``valid`` set) and N = R p poses, p per run, run after run (the batched
+        UKF's sigma points): only the slots that hold a reading are computed, the others
+        are 0, so the cost follows the readings present, not the map (each entry is the
+        same arithmetic, element by element, as the whole-map form)."""
+        if self.valid is not None and poses.shape[0] % max(self.valid.shape[0], 1) == 0:
+            return self._predict_present(poses, wrap)
+        return self._predict_all(poses, wrap)
+
+    def _predict_all(self, poses: np.ndarray, wrap: bool = True) -> np.ndarray:
+        """:meth:`predict` at every row, whether or not its slot holds a reading."""
         out = np.empty((poses.shape[0], self.z.shape[-1]))
         x = poses[:, 0:1]
         y = poses[:, 1:2]
@@ -165,6 +176,12 @@ class StackedReadings:
         bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10), q = dx^2 + dy^2;
         range h = sqrt(q), H = [-dx/r, -dy/r, 0] (seed 001); fixes h = x, y(, theta), H = unit rows.
         """
+        if self.valid is not None and mean.ndim == 2:
+            return self._linearise_present(mean)
+        return self._linearise_all(mean)
+
+    def _linearise_all(self, mean: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`linearise` at every row, then the empty slots set to 0."""
         x = mean[..., 0:1]
         y = mean[..., 1:2]
         th = mean[..., 2:3]
@@ -198,6 +215,85 @@ class StackedReadings:
         if self.valid is not None:
             H = np.where(self.valid[..., None], H, 0.0)
             nu = np.where(self.valid, nu, 0.0)
+        return H, nu, self.r
+
+    def _present(self, a: int, b: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+        """The (run, beacon) pairs of a beacon block's readings (its rows a:b, ``width``
+        per beacon): run indices and beacon indices (k,), run by run, beacon by beacon."""
+        assert self.valid is not None
+        ri, ji = np.nonzero(self.valid[:, a + width - 1:b:width])
+        return ri, ji
+
+    def _predict_present(self, poses: np.ndarray, wrap: bool) -> np.ndarray:
+        """:meth:`predict` of R runs' p poses each, only where a slot holds a reading."""
+        valid = self.valid
+        assert valid is not None
+        N, M = poses.shape[0], self.z.shape[-1]
+        p = N // max(valid.shape[0], 1)
+        out = np.zeros((N, M))
+        for kind, a, b, bxy in self.blocks:
+            if bxy is None:  # pose or position fix
+                out[:, a:b] = np.where(np.repeat(valid[:, a:b], p, axis=0), poses[:, :b - a], 0.0)
+                continue
+            width = 1 if kind == "bearing" else 2
+            ri, ji = self._present(a, b, width)
+            if ri.size == 0:
+                continue
+            rows = (ri[:, None] * p + np.arange(p)).reshape(-1)   # every pose of the run
+            ji = np.repeat(ji, p)
+            x = poses[rows, 0]
+            y = poses[rows, 1]
+            th = poses[rows, 2]
+            dx = bxy[ji, 0] - x
+            dy = bxy[ji, 1] - y
+            cols = a + ji * width
+            if kind == "range_bearing":
+                out[rows, cols] = np.hypot(dx, dy)
+            out[rows, cols + width - 1] = np.arctan2(dy, dx) - th
+        sel = self.angle_sel
+        if wrap and sel is not None:
+            out[:, sel] = wrap_angle(out[:, sel])
+        return out
+
+    def _linearise_present(self, mean: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`linearise` of R runs, computed only where a slot holds a reading (the
+        cost follows the readings present, not the map); the same arithmetic, element by
+        element, so the same bits."""
+        valid = self.valid
+        assert valid is not None
+        z = self.z
+        H = np.zeros((*z.shape, 3))
+        nu = np.zeros(z.shape)
+        for kind, a, b, bxy in self.blocks:
+            if bxy is None:  # pose or position fix: h = x, y(, theta), H = unit rows
+                n = b - a
+                v = valid[:, a:b]
+                H[:, a:b, :] = np.where(v[..., None], _I3[:n], 0.0)
+                d = z[:, a:b] - mean[:, :n]
+                ang = self.angle[a:b]
+                if ang.any():
+                    d[:, ang] = wrap_angle(d[:, ang])
+                nu[:, a:b] = np.where(v, d, 0.0)
+                continue
+            width = 1 if kind == "bearing" else 2
+            ri, ji = self._present(a, b, width)
+            if ri.size == 0:
+                continue
+            dx = bxy[ji, 0] - mean[ri, 0]
+            dy = bxy[ji, 1] - mean[ri, 1]
+            q = dx * dx + dy * dy
+            cb = a + ji * width + width - 1        # the bearing rows
+            H[ri, cb, 0] = dy / q
+            H[ri, cb, 1] = -dx / q
+            H[ri, cb, 2] = -1.0
+            hb = wrap_angle(np.arctan2(dy, dx) - mean[ri, 2])
+            nu[ri, cb] = wrap_angle(z[ri, cb] - hb)
+            if kind == "range_bearing":
+                rr = np.sqrt(q)
+                cr = cb - 1                        # the range rows
+                H[ri, cr, 0] = -dx / rr
+                H[ri, cr, 1] = -dy / rr
+                nu[ri, cr] = z[ri, cr] - rr
         return H, nu, self.r
 
     def only(self, kinds: Sequence[str]) -> StackedReadings | None:
