@@ -68,6 +68,7 @@ class HistogramFilter(FilterBase):
         self.yc = ymin + (np.arange(self.ny) + 0.5) * self.cell
         self.base_th = -math.pi + (np.arange(self.nh) + 0.5) * self.bin
         self._yw = np.stack([np.ones(self.ny), self.yc, self.yc**2], axis=1)   # (ny, 3): 1, y, y^2
+        self._yw_sum = self._yw.sum(axis=0)
         self.grid = np.empty((self.nh, self.nx, self.ny))           # [heading, x, y]
         self.offset = np.zeros((self.nh, 2))     # sub-cell position offset of each slab [m]
         self.phi = 0.0                           # sub-bin heading offset of the whole grid [rad]
@@ -84,7 +85,11 @@ class HistogramFilter(FilterBase):
         self._hdop_cache: dict[tuple[tuple[int, ...], float], np.ndarray] = {}
         self._L = np.empty_like(self.grid)      # scratch grids: the likelihood, the blur's
         self._T = np.empty_like(self.grid)      # neighbour sums, a rolled grid (no allocation)
+        self._A = np.empty((3, self.nx * self.ny))  # the update's C, S, lxy (x-y arrays) as rows
         self._cache: tuple[np.ndarray, np.ndarray] | None = None
+        #: Per (heading, x) row of the grid the sums of p, p y, p y^2, shape (nh, nx, 3), while
+        #: they hold for ``grid`` (None: ``_moments`` takes them in one pass).
+        self._rows: np.ndarray | None = None
         self.reset(None)
 
     @property
@@ -114,6 +119,7 @@ class HistogramFilter(FilterBase):
             self.grid[:] = np.exp(-0.5 * (q - q.min()))
             self.grid /= self.grid.sum()
         self._cache = None
+        self._rows = None
 
     # ----------------------------------------------------------------- motion
     def predict(self, control: Control, dt: float) -> None:
@@ -125,6 +131,8 @@ class HistogramFilter(FilterBase):
         if k:
             self.grid, self._T = _roll_into(self.grid, k, self._T), self.grid
             self.offset = np.roll(self.offset, k, axis=0)
+            if self._rows is not None:
+                self._rows = np.roll(self._rows, k, axis=0)
             self.phi -= k * self.bin
         th = self.base_th + self.phi
         d = control.v * dt
@@ -138,6 +146,8 @@ class HistogramFilter(FilterBase):
             for sx, sy in {(int(a), int(b)) for a, b in keys}:     # a few distinct shifts
                 group = moving[(keys[:, 0] == sx) & (keys[:, 1] == sy)]
                 self.grid[group] = _shift_pile(self.grid[group], sx, sy)
+                if self._rows is not None:
+                    self._rows[group] = self._row_sums(self.grid[group])
         # Motion noise, as a variance to blur with.
         sv, sw = noise.control_std(control.v, control.omega)
         ps = noise.pose_std
@@ -156,9 +166,11 @@ class HistogramFilter(FilterBase):
         if self.var_xy >= thr * self.cell**2:
             self._blur_xy(self.var_xy / self.cell**2)
             self.var_xy = 0.0
+            self._rows = None
         if self.var_th >= thr * self.bin**2:
             self._blur_th(self.var_th / self.bin**2)
             self.var_th = 0.0
+            self._rows = None
         self._cache = None
 
     def _blur_xy(self, var_cells: float) -> None:
@@ -201,9 +213,11 @@ class HistogramFilter(FilterBase):
         measurements = [m for m in measurements if len(m)]
         if not measurements:
             return
-        lxy = np.zeros((self.nx, self.ny))   # log-likelihood terms in x, y only
-        C = np.zeros((self.nx, self.ny))     # coefficient of cos(theta)
-        S = np.zeros((self.nx, self.ny))     # coefficient of sin(theta)
+        A = self._A
+        A.fill(0.0)
+        C = A[0].reshape(self.nx, self.ny)   # coefficient of cos(theta)
+        S = A[1].reshape(self.nx, self.ny)   # coefficient of sin(theta)
+        lxy = A[2].reshape(self.nx, self.ny)  # log-likelihood terms in x, y only
         cell_var = self.cell**2 / 6.0         # within-cell position + slab offset
         th = self.theta
         cos_th, sin_th = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
@@ -259,23 +273,47 @@ class HistogramFilter(FilterBase):
             else:
                 raise FilterError(f"histogram: unknown measurement kind {m.kind!r}")
         L = self._L
-        np.multiply(cos_th, C[None], out=L)
-        L += np.multiply(sin_th, S[None], out=self._T)
-        L += lxy[None]
-        if mixed is not None:
+        if mixed is None:
+            # L = cos(th) C + sin(th) S + lxy as one product (nh, 3) x (3, nx ny). Its peak is
+            # taken out with a bound, not a pass over the grid: over all headings
+            # C cos + S sin <= hypot(C, S), within (1 - cos(bin / 2)) hypot(C, S) of the grid's
+            # peak, and any constant cancels in the normalisation.
+            lxy -= float(np.max(np.hypot(C, S) + lxy))
+            trig = np.empty((self.nh, 3))
+            trig[:, 0], trig[:, 1], trig[:, 2] = cos_th[:, 0, 0], sin_th[:, 0, 0], 1.0
+            np.matmul(trig, A, out=L.reshape(self.nh, -1))
+        else:
+            np.multiply(cos_th, C[None], out=L)
+            L += np.multiply(sin_th, S[None], out=self._T)
+            L += lxy[None]
             L += mixed
-        L -= L.max()
+            L -= L.max()
+        # Below exp(-600) a cell's likelihood is lost under the floor (eps / cells, times at
+        # least e^-600 relative to the peak); clipping there keeps exp off its slow underflow
+        # path and the products out of subnormals.
+        np.maximum(L, -600.0, out=L)
         np.exp(L, out=L)
         g = self.grid
         g *= L
-        total = g.sum()
+        rows = self._row_sums(g)
+        total = float(rows[..., 0].sum())
+        eps = self.params["floor"]
+        b = eps / g.size
         if not total > 0 or not math.isfinite(total):
             g.fill(1.0 / g.size)   # every cell ruled out (numerically): start over
-        else:
-            eps = self.params["floor"]
-            g /= total             # not g *= 1 / total: a subnormal total would overflow to inf
+            self._rows = None
+        elif math.isfinite(f := (1.0 - eps) / total):
+            g *= f
+            g += b
+            # the row sums of f g + b: f times those of g, plus b times those of a row of ones
+            rows *= f
+            rows += b * self._yw_sum
+            self._rows = rows
+        else:                      # a subnormal total: (1 - eps) / total would overflow
+            g /= total
             g *= 1.0 - eps
-            g += eps / g.size
+            g += b
+            self._rows = None
         self._cache = None
 
     def _hdop(self, ids: np.ndarray, height: float) -> np.ndarray:
@@ -297,10 +335,17 @@ class HistogramFilter(FilterBase):
         mean, cov = self._cache
         return mean.copy(), cov.copy()
 
+    def _row_sums(self, g: np.ndarray) -> np.ndarray:
+        """Per (heading, x) row of ``g`` (k, nx, ny) the sums of p, p y, p y^2: (k, nx, 3)."""
+        return (g.reshape(-1, self.ny) @ self._yw).reshape(g.shape[0], self.nx, 3)
+
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
-        # One pass over the grid: per (heading, x) row the sums of p, p y and p y^2; every
-        # moment below comes from these (nh, nx) arrays.
-        m = (self.grid.reshape(-1, self.ny) @ self._yw).reshape(self.nh, self.nx, 3)
+        # One pass over the grid (none when the last update or prediction kept them): per
+        # (heading, x) row the sums of p, p y and p y^2; every moment below comes from these
+        # (nh, nx) arrays.
+        if self._rows is None:
+            self._rows = self._row_sums(self.grid)
+        m = self._rows
         gx, gxy, gxyy = m[..., 0], m[..., 1], m[..., 2]
         P = gx.sum(axis=1)                     # (nh,)
         scale = 1.0 / P.sum()
