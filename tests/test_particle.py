@@ -305,3 +305,35 @@ def test_consistent_on_assignment_kf():
     lo, hi = anees_band(len(runs))
     assert lo <= per_run.mean() <= hi, (per_run.mean(), lo, hi, per_run)
     assert max(float(np.max(r.filters["pf"].nees)) for r in runs) < 100.0
+
+
+def test_pose_stats_skip_the_eigen_clip_only_when_it_changes_nothing():
+    """weighted_pose_stats leaves out the eigenvalue clip when every eigenvalue is above it
+    (a 3x3 Cholesky test on floats): the same mean and covariance to 1e-9 as always clipping,
+    for spread, thin and collapsed particle sets."""
+    import math as _math
+
+    from beacon_sim.core.angles import wrap as _wrap
+    from beacon_sim.filters import particle as pmod
+
+    rng = np.random.default_rng(5)
+    for trial in range(200):
+        n = 500
+        spread = 10.0 ** rng.uniform(-7, 0, 3)
+        P = (np.array([[3.0], [2.0], [rng.uniform(-3.1, 3.1)]]) + rng.normal(size=(3, n)) * spread[:, None])
+        if trial % 4 == 0:
+            P[:, :] = P[:, :1]                           # collapsed: one pose
+        P[2] = _wrap(P[2])
+        P = P.astype(np.float32 if trial % 2 else np.float64)
+        w = rng.random(n)
+        w /= w.sum()
+        mean, cov = pmod.weighted_pose_stats(P, w)
+        Pd, E = P.astype(np.float64), np.empty((3, n))
+        mth = _math.atan2(float(w @ np.sin(Pd[2])), float(w @ np.cos(Pd[2])))
+        E[0], E[1], E[2] = Pd[0] - mean[0], Pd[1] - mean[1], _wrap(Pd[2] - mth)
+        ref = (E * w) @ E.T
+        vals, vecs = np.linalg.eigh(0.5 * (ref + ref.T))
+        ref = (vecs * np.maximum(vals, 1e-12)) @ vecs.T
+        tol = 1e-9 if P.dtype == np.float64 else 1e-6 * max(1.0, float(np.abs(ref).max()))
+        assert np.abs(cov - ref).max() < tol
+        assert np.linalg.eigvalsh(cov).min() > 0.0

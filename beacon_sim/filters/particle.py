@@ -615,11 +615,31 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray,
     e[e < -math.pi] += TWO_PI
     WE = np.multiply(E, wt)
     cov = (WE @ E.T).astype(np.float64)
+    cov = 0.5 * (cov + cov.T)
+    if _above(cov, 1e-12):   # every eigenvalue above the clip: it would change nothing
+        return np.array([mx, my, mth]), cov
     # float32 sums can leave a tiny negative eigenvalue when the set has collapsed: clip.
-    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    vals, vecs = np.linalg.eigh(cov)
     cov = (vecs * np.maximum(vals, 1e-12)) @ vecs.T
     cov = 0.5 * (cov + cov.T)
     return np.array([mx, my, mth]), cov
+
+
+def _above(cov: np.ndarray, floor: float) -> bool:
+    """True when the symmetric 3x3 ``cov - floor I`` is positive definite (its Cholesky
+    pivots on floats are positive), i.e. every eigenvalue of cov exceeds ``floor``: then the
+    eigenvalue clip of :func:`weighted_pose_stats` is the identity, and an eigen-decomposition
+    (~50 us) is not needed."""
+    (a00, a01, a02), (_, a11, a12), (_, _, a22) = cov.tolist()
+    a00 -= floor
+    if not a00 > 0.0:
+        return False
+    l10, l20 = a01 / a00, a02 / a00
+    p1 = a11 - floor - l10 * a01
+    if not p1 > 0.0:
+        return False
+    q = a12 - l20 * a01
+    return a22 - floor - l20 * a02 - q * q / p1 > 0.0
 
 
 _MAX_STAGES = 8   # progressive correction: the last stage takes what is left of the likelihood
