@@ -83,14 +83,17 @@ def test_every_robot_and_each_filters_belief_of_each_robot_are_drawn(app):
             assert any(np.array_equal(c[2], means[i]) and np.array_equal(c[3], covs[i]) for c in mine)
     # each robot's name on its tag; only the driven one (scout) marked
     assert [(t[4], t[5]) for t in tags] == [("scout", True), ("relay", False), ("explorer", False)]
-    # and on the screen: each filter's colour near each robot (its arrow and ellipse)
+    # and on the screen: each filter's colour near the explorer, whose beliefs differ (on
+    # the scout, ci's belief is the independent one's exactly and covers it), and each
+    # robot's ring in the robot colour
     pix = pygame.surfarray.pixels3d(app.screen)
     try:
         for i in range(3):
             cx, cy = (ipx(v) for v in app.view.to_px(poses[i][:2]))
             patch = pix[cx - 30:cx + 31, cy - 30:cy + 31].reshape(-1, 3)
-            for name in FILTERS:
+            for name in FILTERS if i == 2 else ():
                 assert (patch == np.array(app.colours[name])).all(axis=1).any(), (name, i)
+            assert (patch == np.array(palette.ROBOT)).all(axis=1).any(), i
             # the driven robot sits on the yellow halo, the others do not
             halo = (patch == np.array(palette.DRIVEN)).all(axis=1).any()
             assert halo == (i == 0)

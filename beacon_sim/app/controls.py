@@ -106,7 +106,8 @@ _TEAM_TEXT = {"autopilot": "autopilot: the driven robot's own driver on / off",
               "kidnap_random": "kidnap the driven robot to a random pose",
               "kidnap_click": "kidnap the driven robot to that point (drag: heading)",
               "reset": "team filters back to the initial beliefs (clears trails)",
-              "toggle*": "show / hide team filter 1-9"}
+              "toggle*": "show / hide team filter 1-9",
+              "ellipses": "95 % ellipses on / off"}
 
 
 def _team_table() -> tuple[Binding, ...]:

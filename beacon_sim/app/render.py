@@ -251,15 +251,17 @@ class WorldRenderer:
         return old_clip
 
     def estimates(self, surf, view: View, estimates, colours, dashes, radius: float,
-                  ellipses: bool = True) -> None:
-        """Estimates ``(key, mean, cov)``: an arrow each in ``colours[key]``, then (with
-        ``ellipses``) the 95 % ellipses and heading wedges in ``dashes[key]`` style, solid
-        ones first: a dashed one drawn over a solid one leaves gaps to see it through."""
+                  ellipses: bool = True, arrow: float = 1.0, wedges: bool = True) -> None:
+        """Estimates ``(key, mean, cov)``: an arrow each in ``colours[key]`` (``arrow`` times
+        the usual size), then (with ``ellipses``) the 95 % ellipses and (with ``wedges``)
+        heading wedges in ``dashes[key]`` style, solid ones first: a dashed one drawn over a
+        solid one leaves gaps to see it through."""
         for key, mean, _ in estimates:
-            self._arrow(surf, view, mean, colours[key], radius)
+            self._arrow(surf, view, mean, colours[key], radius, arrow)
         if ellipses:
             for key, mean, cov in sorted(estimates, key=lambda e: dashes.get(e[0]) is not None):
-                self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), radius)
+                self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), radius,
+                                 wedge=wedges)
 
     def trail(self, surf, view: View, trail, colour, width: int) -> None:
         """A :class:`~beacon_sim.runs.scene.Trail`'s pieces as polylines ``width`` px wide."""
@@ -501,20 +503,23 @@ class WorldRenderer:
         pygame.draw.line(surf, colour, (x - r, y - r), (x + r, y + r), width)
         pygame.draw.line(surf, colour, (x - r, y + r), (x + r, y - r), width)
 
-    def _arrow(self, surf, view: View, mean, colour, radius: float) -> None:
+    def _arrow(self, surf, view: View, mean, colour, radius: float, scale: float = 1.0) -> None:
         """The estimated pose: a filled arrow in the filter's colour, outlined in black."""
-        size = max(1.2 * radius, 16.0 / view.scale)
+        size = max(1.2 * radius, 16.0 / view.scale) * scale
         tri = view.to_px(shapes.arrow(mean, size))
         pygame.draw.polygon(surf, colour, tri)
         pygame.draw.polygon(surf, palette.TEXT, tri, 2)
 
     def uncertainty(self, surf, view: View, mean, cov, colour, dash, radius: float,
-                    width: int | None = None) -> None:
-        """The 95 % ellipse of x-y and the +-2 sigma heading wedge, in ``dash`` style."""
+                    width: int | None = None, wedge: bool = True) -> None:
+        """The 95 % ellipse of x-y and (``wedge``) the +-2 sigma heading wedge, in ``dash``
+        style."""
         lw = width or getattr(self, "lw", 4)
         pts = view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 96))
         if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
             polyline(surf, colour, pts, lw, dash, closed=True)
+        if not wedge:
+            return
         sigma = math.sqrt(max(float(cov[2, 2]), 0.0))
         r = max(3.2 * radius, 55.0 / view.scale)
         w = view.to_px(shapes.wedge(mean, 2.0 * sigma, r))

@@ -5,11 +5,11 @@ The single-robot window (:class:`~beacon_sim.app.main.App`) around a
 (``controls.TEAM_BINDINGS``: Tab drives the next robot), renderer and panel. Everything is
 drawn with the single-robot window's pieces (``render.WorldRenderer``, ``hud.Hud``):
 
-- every robot's true pose as the usual black outline with its name on a tag; the driven
-  robot on a yellow halo, its tag black;
+- every robot's true pose as the usual black outline, ringed (the ring stays visible over
+  the beliefs), with its name on a tag; the driven robot on a yellow halo, its tag black;
 - each team filter's belief of each robot (the marginal of its joint state): an arrow and
-  the 95 % ellipse and heading wedge, in the team filter's colour and line style
-  (``runs/styles.TEAM_STYLES``);
+  the 95 % ellipse of x-y, in the team filter's colour and line style
+  (``runs/styles.TEAM_STYLES``); no heading wedges (a dozen beliefs would hide the robots);
 - beacon readings as the usual solid grey lines, robot-to-robot readings as dashed purple
   lines ending in a ring;
 - the panel: who is driven, what each robot sees, each team filter's per-robot error and
@@ -30,6 +30,9 @@ from beacon_sim.app.render import ELLIPSE_LEVEL, WorldRenderer, ipx, polyline
 from beacon_sim.runs.scene import NEES_BAND
 from beacon_sim.runs.team_live import TeamSession
 
+#: Estimate arrows at this fraction of the single-robot window's: a few team filters'
+#: arrows on one robot leave its outline visible.
+ARROW_SCALE = 0.65
 #: The world legend's entries that are not team filters.
 LEGEND_MARKS = ("ray", "robot_ray", "robot", "driven")
 
@@ -68,8 +71,11 @@ class TeamRenderer(WorldRenderer):
         beliefs = {name: session.estimates(name) for name in shown}
         for i, radius in enumerate(radii):
             ests = [(name, est[0][i], est[1][i]) for name, est in beliefs.items() if est is not None]
-            self.estimates(surf, view, ests, colours, dashes, radius, show.ellipses)
+            # smaller arrows than alone and no heading wedges: a dozen beliefs on three robots
+            self.estimates(surf, view, ests, colours, dashes, radius, show.ellipses, ARROW_SCALE,
+                           wedges=False)
         for i, (r, pose) in enumerate(zip(team.robots, poses, strict=True)):
+            self.robot_ring(surf, view, pose, radii[i])
             self.name_tag(surf, view, pose, radii[i], r.name, i == session.driven)
         if drag is not None:
             self._drag_ghost(surf, view, drag, session.true_pose, radii[session.driven])
@@ -98,16 +104,28 @@ class TeamRenderer(WorldRenderer):
         pygame.draw.circle(surf, palette.DRIVEN, at, round(r_px))
         pygame.draw.circle(surf, palette.TEXT, at, round(r_px), 2)
 
+    def robot_ring(self, surf, view, pose, radius: float) -> None:
+        """A thin black ring around a true robot, over the beliefs: small ellipses and the
+        arrows on a robot hide its outline, the ring still says where it is (and, being
+        outside the chassis, covers no ellipse smaller than the robot)."""
+        c = view.to_px(np.asarray(pose[:2]))
+        r_px = max(radius * view.scale, 14.0) * 1.35
+        pygame.draw.circle(surf, palette.ROBOT, (ipx(c[0]), ipx(c[1])), round(r_px), 2)
+
     def name_tag(self, surf, view, pose, radius: float, name: str, driven: bool) -> None:
-        """The robot's name on a tag above it (white on black for the driven robot)."""
+        """The robot's name on a tag behind it (opposite its heading, away from the heading
+        wedges and the arrows), white on black for the driven robot."""
         text = f"{name} (driven)" if driven else name
         fg, bg = (palette.BANNER_TEXT, palette.TEXT) if driven else (palette.TEXT, palette.PANEL)
         img = self.text(text, "label", fg)
         c = view.to_px(np.asarray(pose[:2]))
-        r_px = max(radius * view.scale, 14.0) * (1.9 if driven else 1.3)
-        box = img.get_rect(midbottom=(ipx(c[0]), ipx(c[1] - r_px - 6)))
-        clip = surf.get_clip()
-        box.clamp_ip(clip)
+        r_px = max(radius * view.scale, 14.0) * (1.9 if driven else 1.3) + 6
+        # the tag's edge nearest the robot, r_px behind it (screen y down)
+        back = np.array([-np.cos(pose[2]), np.sin(pose[2])])
+        half = np.array(img.get_size()) / 2 + 5
+        centre = c + back * (r_px + float(np.min(half / np.maximum(np.abs(back), 1e-9))))
+        box = img.get_rect(center=(ipx(centre[0]), ipx(centre[1])))
+        box.clamp_ip(surf.get_clip())
         surf.fill(bg, box.inflate(10, 2))
         pygame.draw.rect(surf, palette.TEXT, box.inflate(10, 2), 2)
         surf.blit(img, box)
@@ -225,9 +243,10 @@ class TeamHud(Hud):
                              palette.ROBOT_RAY_DASH)
                     pygame.draw.circle(surf, palette.ROBOT_RAY, (b[0] - 7, mid), 7, 3)
                 elif what == "robot":
-                    r = pygame.Rect(0, 0, sl, sl - 4)
+                    r = pygame.Rect(0, 0, sl - 8, sl - 10)
                     r.center = (x + sample // 2, mid)
                     pygame.draw.rect(surf, palette.ROBOT, r, max(lw - 1, 2))
+                    pygame.draw.circle(surf, palette.ROBOT, r.center, sl // 2 + 2, 2)
                 elif what == "driven":
                     pygame.draw.circle(surf, palette.DRIVEN, (x + sample // 2, mid), sl // 2 + 2)
                     pygame.draw.circle(surf, palette.TEXT, (x + sample // 2, mid), sl // 2 + 2, 2)
