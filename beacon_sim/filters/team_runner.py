@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -59,7 +60,7 @@ def build_team_filters(names: Sequence[str], build: Callable[[str], Any],
     why: dict[str, str] = {}
     for name in names:
         try:
-            built[name] = run_filter_code(lambda n=name: build(n), limit_s, "construction")
+            built[name] = run_filter_code(partial(build, name), limit_s, "construction")
         except Exception as exc:  # FilterExit included: SystemExit, time-out
             built[name] = None
             why[name] = one_line(exc)
@@ -96,7 +97,7 @@ class TeamFilterRunner:
         robot's readings (beacon and robot readings), record its checked estimates."""
         limit = self.step_limit_s
         for track in self.tracks.values():
-            f = track.filter
+            f: Any = track.filter  # a TeamFilter (the track type is shared with single robots)
             if track.failed or f is None:
                 continue
             t0 = time.perf_counter_ns()
