@@ -168,3 +168,31 @@ def test_pack_tick_reports_a_sensor_or_beacon_without_slots():
             _same_stacked(fewer.pack_tick(tick), fewer.pack([tick.measurements(i) for i in range(2)]))
             compared += 1
     assert raised and compared
+
+
+def test_steer_on_arrays_is_steer_towards_bit_for_bit():
+    """The batched drivers' steering: every run's (v, omega) equal to drivers.steer_towards's
+    floats, on random poses and goals and on the edges (headings at +-pi, goals straight
+    behind, the turn rate exactly at its limit, a goal on the robot, NaN)."""
+    from beacon_sim.core.batch_simulation import steer
+    from beacon_sim.core.drivers import steer_towards
+
+    rng = np.random.default_rng(3)
+    n = 20000
+    pose = np.column_stack([rng.uniform(-5, 5, n), rng.uniform(-5, 5, n), rng.uniform(-np.pi, np.pi, n)])
+    goal = rng.uniform(-5, 5, (n, 2))
+    pose[:50, 2] = np.pi - np.ldexp(1.0, -rng.integers(1, 52, 50))
+    pose[50:100, 2] = -np.pi
+    goal[100:150] = pose[100:150, :2] - rng.uniform(0.1, 1, (50, 1)) * np.column_stack(
+        [np.cos(pose[100:150, 2]), np.sin(pose[100:150, 2])])           # straight behind
+    goal[150:160] = pose[150:160, :2]                                    # on the robot
+    pose[160:170] = np.nan
+    for speed, gain, max_omega in ((0.4, 2.0, 1.5), (0.3, 1.0, 0.0), (1.0, 3.0, np.pi)):
+        if max_omega:   # turn rate exactly at the limit: err = +-max_omega / gain
+            pose[170:180, 2] = np.arctan2(goal[170:180, 1] - pose[170:180, 1],
+                                          goal[170:180, 0] - pose[170:180, 0]) - max_omega / gain
+        v, w = steer(pose, goal, speed, gain, max_omega)
+        for i in range(n):
+            c = steer_towards(pose[i].tolist(), goal[i].tolist(), speed, gain, max_omega)
+            assert np.float64(c.v).tobytes() == v[i].tobytes(), i
+            assert np.float64(c.omega).tobytes() == w[i].tobytes(), i

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from beacon_sim.core.angles import wrap
-from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, WaypointsSpec, steer_towards
+from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, RandomGoalSpec, WaypointsSpec
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense
@@ -115,6 +115,25 @@ class BatchTick:
                 for i in range(len(v))]
 
 
+def steer(pose: np.ndarray, goal: np.ndarray, speed: float, gain: float, max_omega: float
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """``drivers.steer_towards`` for R poses (R, 3) and goals (R, 2): (v, omega) (R,), bit for
+    bit its floats. Every step is the same IEEE operation: the differences and products on
+    arrays; atan2 and cos are ``math``'s, element by element (numpy's array forms may round
+    differently); ``wrap`` on arrays is the float form's ``%`` (numpy's remainder is fmod
+    plus the divisor when the signs differ, as Python's float ``%``); ``max``/``min`` are
+    selections written as Python evaluates them (NaN and signed zeros included)."""
+    dx = goal[:, 0] - pose[:, 0]
+    dy = goal[:, 1] - pose[:, 1]
+    n = len(dx)
+    err = wrap(np.fromiter(map(math.atan2, dy.tolist(), dx.tolist()), float, n) - pose[:, 2])
+    om = gain * err
+    om = np.where(-max_omega > om, -max_omega, om)      # max(gain err, -max_omega)
+    om = np.where(max_omega < om, max_omega, om)        # min(., max_omega)
+    c = np.fromiter(map(math.cos, err.tolist()), float, n)
+    return speed * np.where(c > 0.0, c, 0.0), om        # speed * max(0.0, cos(err))
+
+
 class BatchSimulation:
     """``len(seeds)`` runs of ``scenario``, stepped together.
 
@@ -144,6 +163,8 @@ class BatchSimulation:
         spec = first.driver.spec
         self._points = np.array(spec.points, dtype=float).reshape(-1, 2) \
             if isinstance(spec, WaypointsSpec) else None
+        self._goals: np.ndarray | None = None        # random goals (R, 2), once asked for
+        self._has_goal = np.zeros(len(seeds), dtype=bool)
 
     def __len__(self) -> int:
         return len(self._sims)
@@ -259,9 +280,8 @@ class BatchSimulation:
     def _commands(self, t: float, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each run's driver's command (v, omega) (R,) for the tick that starts at ``t``
         [s] from ``pose`` (R, 3): what ``Driver.control`` gives, bit for bit. Constant
-        commands are the spec's; waypoints steer with ``drivers.steer_towards`` on each
-        run's floats (the goal test on arrays, see :meth:`_waypoints`); any other driver is
-        asked run by run."""
+        commands are the spec's; waypoints and random goals steer with :func:`steer` (the
+        goal test on arrays, see :meth:`_reached`); any other driver is asked run by run."""
         sims = self._sims
         R = len(sims)
         spec = sims[0].driver.spec
@@ -273,17 +293,27 @@ class BatchSimulation:
             return np.zeros(R), np.zeros(R)
         if isinstance(spec, WaypointsSpec):
             return self._waypoints(spec, pose)
+        if isinstance(spec, RandomGoalSpec):
+            return self._random_goals(spec, pose)
         controls = [s.driver.control(t, pose[i]) for i, s in enumerate(sims)]
         return (np.array([c.v for c in controls], dtype=float),
                 np.array([c.omega for c in controls], dtype=float))
 
+    @staticmethod
+    def _reached(goal: np.ndarray, pose: np.ndarray, tol: float) -> np.ndarray:
+        """``np.hypot(*(goal - pose[:2])) < tol`` (the drivers' arrival test) for every run
+        (R,): on arrays, and again with the driver's own scalar call for a distance within
+        1e-9 (relative) of the tolerance, so a hypot rounded differently on arrays (a few
+        ulp, 1e-16 relative, if at all) cannot change a decision."""
+        dist = np.hypot(goal[:, 0] - pose[:, 0], goal[:, 1] - pose[:, 1])
+        reached = dist < tol
+        for i in np.flatnonzero(~(np.abs(dist - tol) > 1e-9 * abs(tol))).tolist():   # NaN too
+            reached[i] = np.hypot(*(goal[i] - pose[i, :2])) < tol
+        return reached
+
     def _waypoints(self, spec: WaypointsSpec, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``Driver.control`` of a waypoints driver for every run. Each run's waypoint index
-        stays in its ``Driver``. Whether a run reached its waypoint (``hypot < tolerance``)
-        is tested on arrays; a distance within 1e-9 of the tolerance (relative) is tested
-        again with the driver's own scalar ``np.hypot``, so a hypot rounded differently
-        on arrays (a few ulp, 1e-16 relative) cannot change the answer. The command itself
-        is ``steer_towards`` on each run's floats, as the driver computes it."""
+        """``Driver.control`` of a waypoints driver for every run; each run's waypoint index
+        stays in its ``Driver``."""
         drivers = [s.driver for s in self._sims]
         R = len(drivers)
         pts = self._points
@@ -295,28 +325,40 @@ class BatchSimulation:
             return v, w
         index = np.array([d._index for d in drivers])
         live = index < n
-        goal = pts[np.minimum(index, n - 1)]
-        dist = np.hypot(goal[:, 0] - pose[:, 0], goal[:, 1] - pose[:, 1])
-        tol = spec.tolerance
-        reached = dist < tol
-        for i in np.flatnonzero(np.abs(dist - tol) <= 1e-9 * abs(tol)).tolist():
-            reached[i] = np.hypot(*(goal[i] - pose[i, :2])) < tol
+        reached = self._reached(pts[np.minimum(index, n - 1)], pose, spec.tolerance)
         for i in np.flatnonzero(reached & live).tolist():
             d = drivers[i]
             d._index += 1
             if spec.loop:
                 d._index %= n
             index[i] = d._index
-        steer = np.flatnonzero(index < n).tolist()
-        if steer:
-            rows = pose.tolist()
-            goals = pts[np.minimum(index, n - 1)].tolist()
-            speed, gain, max_omega = spec.speed, spec.gain, spec.max_omega
-            for i in steer:
-                c = steer_towards(rows[i], goals[i], speed, gain, max_omega)
-                v[i] = c.v
-                w[i] = c.omega
+        go = index < n
+        if go.all():
+            return steer(pose, pts[index], spec.speed, spec.gain, spec.max_omega)
+        if go.any():
+            v[go], w[go] = steer(pose[go], pts[index[go]], spec.speed, spec.gain, spec.max_omega)
         return v, w
+
+    def _random_goals(self, spec: RandomGoalSpec, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``Driver.control`` of a random-goal driver for every run: a run without a goal,
+        or at its goal, draws a new one from its driver's stream (as the driver does, into
+        the driver's ``_goal``)."""
+        drivers = [s.driver for s in self._sims]
+        if self._goals is None:
+            self._goals = np.array([(0.0, 0.0) if d._goal is None else d._goal for d in drivers],
+                                   dtype=float).reshape(-1, 2)
+            self._has_goal = np.array([d._goal is not None for d in drivers])
+        goals = self._goals
+        new = ~self._has_goal | self._reached(goals, pose, spec.tolerance)
+        if new.any():
+            xmin, ymin, xmax, ymax = self.world.bounds
+            for i in np.flatnonzero(new).tolist():
+                d = drivers[i]
+                d._goal = np.array([d.rng.uniform(xmin + spec.margin, xmax - spec.margin),
+                                    d.rng.uniform(ymin + spec.margin, ymax - spec.margin)])
+                goals[i] = d._goal
+            self._has_goal[:] = True
+        return steer(pose, goals, spec.speed, spec.gain, spec.max_omega)
 
     def _hash_tick(self, k: int, got: BeaconReadings | OtherReadings) -> None:
         """Each run's reading of one sensor into its readings checksum, as Simulation.step
@@ -411,4 +453,4 @@ class BatchSimulation:
         return per_run
 
 
-__all__ = ["BatchSimulation", "BatchTick", "BeaconReadings", "OtherReadings"]
+__all__ = ["BatchSimulation", "BatchTick", "BeaconReadings", "OtherReadings", "steer"]
