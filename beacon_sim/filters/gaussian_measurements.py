@@ -51,6 +51,11 @@ _I3 = np.eye(3)
 #: as it always did (the same bits; cheaper for a few readings). The two agree to 1e-9.
 LOW_RANK_ROWS = 24
 
+#: R runs' slots (``SlotPacker``): when at most this fraction holds readings, the models
+#: (``StackedReadings.linearise``, ``predict``) compute only those (linear in the readings
+#: present, not in the map); above, the whole map on arrays is cheaper. The same bits.
+PRESENT_FRACTION = 0.25
+
 #: One sensor's rows: (kind, first row, end row, beacon xy (k, 2) [m] or None for a fix).
 Block = tuple[str, int, int, "np.ndarray | None"]
 #: The angle rows as a slice (a view, cheaper on the hot path) or an index array; None: none.
@@ -140,12 +145,24 @@ class StackedReadings:
         (``wrap=False`` leaves them unwrapped, for callers that wrap residuals anyway).
 
         R runs (``valid`` set) and N = R p poses, p per run, run after run (the batched
-        UKF's sigma points): only the slots that hold a reading are computed, the others
-        are 0, so the cost follows the readings present, not the map (each entry is the
-        same arithmetic, element by element, as the whole-map form)."""
-        if self.valid is not None and poses.shape[0] % max(self.valid.shape[0], 1) == 0:
+        UKF's sigma points): the slots without a reading are 0; when few slots hold one
+        (``PRESENT_FRACTION``), only those are computed, so the cost follows the readings
+        present, not the map (each entry is the same arithmetic, element by element, as
+        the whole-map form)."""
+        valid = self.valid
+        if valid is None or poses.shape[0] % max(valid.shape[0], 1):
+            return self._predict_all(poses, wrap)
+        if self._sparse():
             return self._predict_present(poses, wrap)
-        return self._predict_all(poses, wrap)
+        p = poses.shape[0] // max(valid.shape[0], 1)
+        return np.where(np.repeat(valid, p, axis=0), self._predict_all(poses, wrap), 0.0)
+
+    def _sparse(self) -> bool:
+        """Whether few enough slots hold a reading (at most :data:`PRESENT_FRACTION` of
+        them) that computing only those is cheaper than the whole map on arrays (the two
+        give the same bits; scattered entries cost a few times a contiguous one)."""
+        valid = self.valid
+        return valid is not None and bool(np.count_nonzero(valid) <= PRESENT_FRACTION * valid.size)
 
     def _predict_all(self, poses: np.ndarray, wrap: bool = True) -> np.ndarray:
         """:meth:`predict` at every row, whether or not its slot holds a reading."""
@@ -176,7 +193,7 @@ class StackedReadings:
         bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10), q = dx^2 + dy^2;
         range h = sqrt(q), H = [-dx/r, -dy/r, 0] (seed 001); fixes h = x, y(, theta), H = unit rows.
         """
-        if self.valid is not None and mean.ndim == 2:
+        if mean.ndim == 2 and self._sparse():
             return self._linearise_present(mean)
         return self._linearise_all(mean)
 
@@ -738,7 +755,8 @@ class BatchableFilter(FilterBase):
         raise NotImplementedError
 
 
-__all__ = ["ALL_ROWS", "BEACON_KINDS", "FIX_KINDS", "KINDS", "LOW_RANK_ROWS", "BatchableFilter",
+__all__ = ["ALL_ROWS", "BEACON_KINDS", "FIX_KINDS", "KINDS", "LOW_RANK_ROWS", "PRESENT_FRACTION",
+           "BatchableFilter",
            "BatchedGaussian", "ReadingModels", "SlotPacker", "StackedReadings", "add_diagonal",
            "corrected_mean", "cov_entries", "cov_matrix", "kalman_update", "kalman_update_low_rank", "nis",
            "nis_low_rank",
