@@ -192,10 +192,15 @@ def beacon_scenario(n_beacons, in_view, seed=0):
     return parse_scenario(data, "bench", name=f"beacons_{n_beacons}_{in_view}")
 
 
-def eval_time(sc, specs, runs, duration, batch):
-    with Clock() as c:
-        run_monte_carlo(sc, specs, runs, seed=0, duration=duration, jobs=1, progress=False, batch=batch)
-    return c
+def eval_time(sc, specs, runs, duration, batch, tries=1):
+    """The least disturbed (least CPU) of ``tries`` evaluations in this process."""
+    best = None
+    for _ in range(tries):
+        with Clock() as c:
+            run_monte_carlo(sc, specs, runs, seed=0, duration=duration, jobs=1, progress=False, batch=batch)
+        if best is None or c.cpu < best.cpu:
+            best = c
+    return best
 
 
 def main() -> None:
@@ -267,7 +272,7 @@ def main() -> None:
         bsc = beacon_scenario(nb, nb)
         bst = Simulation(bsc, 0).run(0.5 if q else 1.0)
         per[nb] = {f: time_steps(build_filter(f, bsc, 0), bst, repeat=1)[1] for f in ("ekf", "ukf")}
-        per[nb]["eval"] = eval_time(bsc, ["ekf", "ukf"], 4, 0.5 if q else 1.0, True).cpu
+        per[nb]["eval"] = eval_time(bsc, ["ekf", "ukf"], 4, 0.5 if q else 1.0, True, tries=2).cpu
         print(f"{nb} beacons in view: ekf {per[nb]['ekf']:.0f} us, ukf {per[nb]['ukf']:.0f} us CPU a step; "
               f"batched eval (4 runs) {per[nb]['eval']:.2f} s CPU")
     figure("ukf step, 1000 beacons in view (CPU)", per[1000]["ukf"], "us", peer="100 in view",
@@ -278,8 +283,8 @@ def main() -> None:
     # Sized by the readings: a 1000-beacon map with 2 in view, batched against per-run
     bsc = beacon_scenario(1000, 2)
     dur = 1.0 if q else 3.0
-    bt = eval_time(bsc, ["ekf", "ukf"], 4, dur, True)
-    pr = eval_time(bsc, ["ekf", "ukf"], 4, dur, False)
+    bt = eval_time(bsc, ["ekf", "ukf"], 4, dur, True, tries=3)
+    pr = eval_time(bsc, ["ekf", "ukf"], 4, dur, False, tries=3)
     print(f"1000-beacon map, 2 in view, 4 runs x {dur:g} s: batched {bt.cpu:.2f} s CPU, "
           f"per-run {pr.cpu:.2f} s")
     figure("batched eval, 1000-beacon map, 2 in view (CPU)", bt.cpu, "s", peer="per-run path",
