@@ -280,4 +280,13 @@ def test_cli_play_opens_the_team_window_and_saves_a_screenshot(tmp_path, capsys)
                  "--frames", "3", "--screenshot", str(out2)]) == 0
     assert out2.exists()
     assert main(["play", "team_sparse", "--filter", "ekf", "--frames", "1"]) == 2
-    assert "team filters" in capsys.readouterr().err
+    assert "no team filter named 'ekf'" in capsys.readouterr().err
+    # the same specs and --set checks as run: a bad parameter is a usage error, not a window
+    assert main(["play", "team_sparse", "--filter", "centralised", "--set", "centralised.nosuch=1",
+                 "--frames", "1"]) == 2
+    assert "unknown parameter 'nosuch'" in capsys.readouterr().err
+    # every robot's own single-robot filter (a student's too) in the window
+    out3 = tmp_path / "team3.png"
+    assert main(["play", "team_sparse", "--filter", "independent:ukf", "--filter", "centralised",
+                 "--frames", "3", "--screenshot", str(out3)]) == 0
+    assert out3.exists()

@@ -65,18 +65,14 @@ def play_command(args: argparse.Namespace) -> int:
 def play_team_command(args: argparse.Namespace) -> int:
     """``beacon-sim play TEAM_SCENARIO``: the team window (issue 18). ``--filter`` names team
     filters (default: the scenario's ``default_filters``); team sessions are not recorded."""
-    from beacon_sim.filters.team import TEAM_FILTERS
+    from beacon_sim.runs.team import check_team_specs
 
     team = load_team_scenario(args.scenario)
     size = parse_size(args.size)
     check_frames(args.frames)
     params = filter_params(args)
     names = list(args.filters or team.default_filters)
-    for name in names:
-        if name not in TEAM_FILTERS:
-            raise UsageError(f"--filter {name}: {team.name} is a team scenario; its filters are "
-                             f"team filters: {', '.join(TEAM_FILTERS)}")
-    check_set_names(args, names)
+    check_team_specs(names, team, params)  # a bad name or --set: one line, exit 2, as in run
     if args.autopilot and not any(r.scenario.driver.kind != "keyboard" for r in team.robots):
         raise UsageError(f"--autopilot: no robot of {team.name} has a driver")
     check_speed(args.speed)

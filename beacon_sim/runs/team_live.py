@@ -28,13 +28,14 @@ from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.runner import WINDOW_STEP_LIMIT_S, guarded_call, status_line
-from beacon_sim.filters.team import build_team_filter, initial_beliefs
+from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.filters.team_runner import (
     TeamFilterRunner,
     build_team_filters,
     validate_team_estimates,
 )
 from beacon_sim.runs.scene import FilterStatus, Trail
+from beacon_sim.runs.team import build_team_spec, team_filter_name
 
 #: Estimates the runner keeps per team filter: the screen draws the latest; trails are
 #: grown tick by tick, so nothing older is needed.
@@ -55,7 +56,9 @@ class TeamSession:
     ----------
     team : TeamScenario
     specs : list of str
-        Team filter names (keys of ``beacon_sim.filters.team.TEAM_FILTERS``).
+        Team filter specs, as ``run`` takes them: names of
+        ``beacon_sim.filters.team.TEAM_FILTERS`` or ``independent:F`` (every robot's own
+        single-robot filter F, a student's too; see ``runs/team.build_team_spec``).
     seed : int, optional
         Defaults to the scenario's.
     params : dict, optional
@@ -71,9 +74,10 @@ class TeamSession:
         team = self.team
         self.seed = team.seed if self.seed is None else int(self.seed)
         seed = self.seed
-        self.names = list(dict.fromkeys(self.specs))
+        specs = {team_filter_name(s): s for s in self.specs}  # name shown -> spec
+        self.names = list(specs)
         built, why = build_team_filters(
-            self.names, lambda n: build_team_filter(n, team, self.params.get(n), seed),
+            self.names, lambda n: build_team_spec(specs[n], team, self.params.get(n), seed),
             WINDOW_STEP_LIMIT_S)
         self.runner = TeamFilterRunner(built, len(team.robots), step_limit_s=WINDOW_STEP_LIMIT_S,
                                        keep=KEEP_ESTIMATES)
