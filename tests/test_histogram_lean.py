@@ -47,6 +47,27 @@ def _plain_blur_th(g, var_bins):
     return g
 
 
+def _plain_shift_pile(block, sx, sy):
+    """Shift ``block`` (k, nx, ny) by (sx, sy) cells into a new array; what would leave piles
+    up at the wall."""
+    out = block
+    for axis, s in ((1, sx), (2, sy)):
+        if s == 0:
+            continue
+        a = np.moveaxis(out, axis, -1)
+        n = a.shape[-1]
+        s = max(-(n - 1), min(n - 1, s))
+        moved = np.zeros_like(a)
+        if s > 0:
+            moved[..., s:] = a[..., : n - s]
+            moved[..., n - 1] += a[..., n - s:].sum(axis=-1)
+        else:
+            moved[..., : n + s] = a[..., -s:]
+            moved[..., 0] += a[..., :-s].sum(axis=-1)
+        out = np.moveaxis(moved, -1, axis)
+    return out
+
+
 def _plain_moments(hf):
     """Mean and covariance straight from every cell's pose and probability."""
     p = hf.grid / hf.grid.sum()
@@ -78,6 +99,17 @@ def test_blur_and_roll_match_the_plain_forms_bit_for_bit():
         out = np.empty_like(hf.grid)
         for k in (1, -1, 3, -40, 37):
             assert np.array_equal(histogram._roll_into(hf.grid, k, out), np.roll(hf.grid, k, axis=0))
+
+
+def test_in_place_slab_shift_matches_the_copying_shift_bit_for_bit():
+    rng = np.random.default_rng(1)
+    for shape in ((60, 40), (3, 2), (1, 5), (5, 1), (1, 1)):
+        for sx in range(-5, 6):
+            for sy in range(-5, 6):
+                g = rng.random(shape)
+                want = _plain_shift_pile(g[None].copy(), sx, sy)[0]
+                histogram._shift_pile_inplace(g, sx, sy)
+                assert np.array_equal(g, want), (shape, sx, sy)
 
 
 def test_one_pass_moments_match_the_full_grid_ones():

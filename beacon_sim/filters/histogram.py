@@ -134,20 +134,22 @@ class HistogramFilter(FilterBase):
             if self._rows is not None:
                 self._rows = np.roll(self._rows, k, axis=0)
             self.phi -= k * self.bin
-        th = self.base_th + self.phi
         d = control.v * dt
-        self.offset[:, 0] += d * np.cos(th)
-        self.offset[:, 1] += d * np.sin(th)
-        shift = np.rint(self.offset / self.cell).astype(np.int64)
-        moving = np.flatnonzero(np.any(shift != 0, axis=1))
-        if moving.size:
-            self.offset[moving] -= shift[moving] * self.cell
-            keys = shift[moving]
-            for sx, sy in {(int(a), int(b)) for a, b in keys}:     # a few distinct shifts
-                group = moving[(keys[:, 0] == sx) & (keys[:, 1] == sy)]
-                self.grid[group] = _shift_pile(self.grid[group], sx, sy)
-                if self._rows is not None:
-                    self._rows[group] = self._row_sums(self.grid[group])
+        if d != 0.0:   # offsets stay within half a cell: without motion no slab moves
+            th = self.base_th + self.phi
+            self.offset[:, 0] += d * np.cos(th)
+            self.offset[:, 1] += d * np.sin(th)
+            shift = np.rint(self.offset / self.cell).astype(np.int64)
+            moving = np.flatnonzero(np.any(shift != 0, axis=1))
+            if moving.size:
+                self.offset[moving] -= shift[moving] * self.cell
+                rows = self._rows
+                # slab by slab in place (a few slabs a tick): no gathered copies of the grid
+                for h, (sx, sy) in zip(moving.tolist(), shift[moving].tolist(), strict=True):
+                    slab = self.grid[h]
+                    _shift_pile_inplace(slab, sx, sy)
+                    if rows is not None:
+                        np.matmul(slab, self._yw, out=rows[h])
         # Motion noise, as a variance to blur with.
         sv, sw = noise.control_std(control.v, control.omega)
         ps = noise.pose_std
@@ -183,12 +185,19 @@ class HistogramFilter(FilterBase):
             for axis in (1, 2):
                 if g.shape[axis] < 2:
                     continue
-                # t = previous + next neighbour (the wall cell is its own neighbour), in place
-                ga, ta = np.moveaxis(g, axis, -1), np.moveaxis(t, axis, -1)
-                ta[..., 1:] = ga[..., :-1]
-                ta[..., 0] = ga[..., 0]
-                ta[..., :-1] += ga[..., 1:]
-                ta[..., -1] += ga[..., -1]
+                # t = previous + next neighbour (the wall cell is its own neighbour), in one
+                # pass: the same sums as copying one neighbour and adding the other
+                if axis == 1:
+                    np.add(g[:, :-2], g[:, 2:], out=t[:, 1:-1])
+                    np.add(g[:, 0], g[:, 1], out=t[:, 0])
+                    np.add(g[:, -2], g[:, -1], out=t[:, -1])
+                else:
+                    # along the flattened grid (one contiguous pass; rows of ny - 2 are slow),
+                    # then the wall cells of every row, which that pass mixed across rows
+                    gf, tf = g.reshape(-1), t.reshape(-1)
+                    np.add(gf[:-2], gf[2:], out=tf[1:-1])
+                    np.add(g[..., 0], g[..., 1], out=t[..., 0])
+                    np.add(g[..., -2], g[..., -1], out=t[..., -1])
                 g *= 1.0 - 2.0 * a
                 t *= a
                 g += t
@@ -199,10 +208,9 @@ class HistogramFilter(FilterBase):
         while var_bins > 1e-12:
             a = min(var_bins / 2.0, 1.0 / 3.0)
             var_bins -= 2.0 * a
-            nb[1:] = g[:-1]           # the previous bin, circularly
-            nb[0] = g[-1]
-            nb[:-1] += g[1:]          # + the next one
-            nb[-1] += g[0]
+            np.add(g[:-2], g[2:], out=nb[1:-1])   # the previous bin + the next, circularly
+            np.add(g[-1], g[1], out=nb[0])
+            np.add(g[-2], g[0], out=nb[-1])
             g *= 1.0 - 2.0 * a
             nb *= a
             g += nb
@@ -386,21 +394,24 @@ def _roll_into(g: np.ndarray, k: int, out: np.ndarray) -> np.ndarray:
     return out
 
 
-def _shift_pile(block: np.ndarray, sx: int, sy: int) -> np.ndarray:
-    """Shift ``block`` (k, nx, ny) by (sx, sy) cells; what would leave piles up at the wall."""
-    out = block
-    for axis, s in ((1, sx), (2, sy)):
+def _shift_pile_inplace(slab: np.ndarray, sx: int, sy: int) -> None:
+    """Shift one heading slab ``slab`` (nx, ny) by (sx, sy) cells in place; what would leave
+    piles up at the wall, vacated cells become 0."""
+    for a, s in ((slab, sx), (slab.T, sy)):    # the shifted axis first
         if s == 0:
             continue
-        a = np.moveaxis(out, axis, -1)
-        n = a.shape[-1]
+        n = a.shape[0]
         s = max(-(n - 1), min(n - 1, s))
-        moved = np.zeros_like(a)
+        if s == 0:                             # a single cell along this axis
+            continue
         if s > 0:
-            moved[..., s:] = a[..., : n - s]
-            moved[..., n - 1] += a[..., n - s:].sum(axis=-1)
+            pile = a[n - s:].sum(axis=0) if s > 1 else a[n - 1].copy()
+            a[s:] = a[: n - s]                 # numpy buffers the overlapping copy
+            a[:s] = 0.0
+            a[n - 1] += pile
         else:
-            moved[..., : n + s] = a[..., -s:]
-            moved[..., 0] += a[..., :-s].sum(axis=-1)
-        out = np.moveaxis(moved, -1, axis)
-    return out
+            pile = a[:-s].sum(axis=0) if s < -1 else a[0].copy()
+            a[: n + s] = a[-s:]
+            a[n + s:] = 0.0
+            a[0] += pile
+
