@@ -156,3 +156,29 @@ def test_an_endless_loop_freezes_the_window_for_at_most_the_limit(garbage_file):
         assert worst < runner_mod.WINDOW_STEP_LIMIT_S + 0.5
     finally:
         app.close()
+
+
+def test_a_filter_hanging_in_init_delays_the_window_by_the_window_limit_only(tmp_path, monkeypatch):
+    """The window cannot open before its filters are built: a filter stuck in ``__init__``
+    is stopped after the window's construction limit (not the headless 30 s), switched off
+    with that reason, and the others run."""
+    from beacon_sim.filters import loading
+
+    monkeypatch.setattr(loading, "WINDOW_BUILD_LIMIT_S", 0.5)  # read at call time
+    path = tmp_path / "hang.py"
+    path.write_text("from beacon_sim.filters.ekf import ExtendedKalmanFilter\n"
+                    "class Hang(ExtendedKalmanFilter):\n"
+                    "    def __init__(self, ctx):\n"
+                    "        while True:\n"
+                    "            pass\n")
+    import beacon_sim.runs.live as live
+
+    monkeypatch.setattr(live, "WINDOW_BUILD_LIMIT_S", 0.5)
+    t0 = time.perf_counter()
+    s = Session(load_scenario("default"), [f"{path}:Hang", "ekf"])
+    took = time.perf_counter() - t0
+    assert "time limit: stopped after 0.5 s" in s.runner.tracks["Hang"].failed
+    assert took < 5.0
+    s.tick()
+    assert "time limit" in s.status["Hang"].failed and s.status["ekf"].failed is None
+    assert loading.WINDOW_BUILD_LIMIT_S < loading.BUILD_LIMIT_S

@@ -27,6 +27,7 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.filters.base import Filter, FilterError
 from beacon_sim.filters.loading import (
     BUILTIN_FILTERS,
+    WINDOW_BUILD_LIMIT_S,
     build_filter,
     entry_point_filters,
     filter_display_name,
@@ -166,7 +167,7 @@ class FilterFileWatcher:
             if self.module is not None and self.module in sys.modules:
                 importlib.reload(sys.modules[self.module])
             flt = build_filter(self.spec, self.scenario, self.seed, name=self.name,
-                               params=self.params)
+                               params=self.params, limit_s=WINDOW_BUILD_LIMIT_S)
         except Exception as exc:  # a student's file: report it, keep the previous version
             text = str(exc) if isinstance(exc, FilterError) else f"{type(exc).__name__}: {exc}"
             first = text.splitlines()[0] if text else type(exc).__name__

@@ -44,6 +44,9 @@ ENTRY_POINT_GROUP = "beacon_sim.filters"
 #: run, before it is stopped as a failure [s] (an endless loop must not hang the program).
 IMPORT_LIMIT_S = 60.0
 BUILD_LIMIT_S = 30.0
+#: The same in the window, which cannot open before its filters are built [s]: a filter
+#: still in ``__init__`` or ``reset`` after this is switched off and the window opens.
+WINDOW_BUILD_LIMIT_S = 5.0
 
 
 class FilterLoadError(FilterError):
@@ -208,7 +211,7 @@ def merged_params(spec: str, scenario: Scenario, params: dict[str, Any] | None =
 
 
 def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = None,
-                 params: dict[str, Any] | None = None) -> Filter:
+                 params: dict[str, Any] | None = None, *, limit_s: float = BUILD_LIMIT_S) -> Filter:
     """Construct and reset one filter for ``scenario``.
 
     Its random generator comes from ``seed`` and its name only, so adding a filter never
@@ -232,18 +235,18 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     )
     check_params(cls, ctx.params, scenario.world)  # finite, in range, fits in memory
     try:
-        flt: Filter = run_filter_code(lambda: cls(ctx), BUILD_LIMIT_S, "__init__")
+        flt: Filter = run_filter_code(lambda: cls(ctx), limit_s, "__init__")
     except FilterError:
         raise
     except TypeError as exc:
         raise FilterLoadError(f"{spec}: cannot construct with a FilterContext: "
                               f"{one_line_text(str(exc))}") from exc
-    run_filter_code(lambda: reset_filter(flt, scenario), BUILD_LIMIT_S, "reset")
+    run_filter_code(lambda: reset_filter(flt, scenario), limit_s, "reset")
     return flt
 
 
 def build_filters(specs: list[str], scenario: Scenario, seed: int,
-                  params: dict[str, dict[str, Any]] | None = None
+                  params: dict[str, dict[str, Any]] | None = None, *, limit_s: float = BUILD_LIMIT_S
                   ) -> tuple[dict[str, Filter | None], dict[str, tuple[str, str]]]:
     """Build every filter of a run, named by :func:`filter_names`: ``(name -> filter or None,
     name -> (why construction failed, traceback))``.
@@ -257,7 +260,8 @@ def build_filters(specs: list[str], scenario: Scenario, seed: int,
     for name, spec in zip(filter_names(specs), specs, strict=True):
         try:
             built[name] = build_filter(spec, scenario, seed, name=name,
-                                       params=(params or {}).get(filter_display_name(spec)))
+                                       params=(params or {}).get(filter_display_name(spec)),
+                                       limit_s=limit_s)
         except FilterError:
             raise
         except Exception as exc:  # a student's __init__ or reset

@@ -24,7 +24,7 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
-from beacon_sim.filters.loading import build_filters, reset_filter
+from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S, build_filters, reset_filter
 from beacon_sim.filters.runner import (
     WINDOW_STEP_LIMIT_S,
     FilterRunner,
@@ -77,7 +77,8 @@ class Session:
     def __post_init__(self) -> None:
         sc = self.scenario
         self.seed = sc.seed if self.seed is None else int(self.seed)
-        built, broken = build_filters(self.specs, sc, self.seed, self.params)
+        built, broken = build_filters(self.specs, sc, self.seed, self.params,
+                                      limit_s=WINDOW_BUILD_LIMIT_S)
         self.names = list(built)
         self.runner = FilterRunner(built, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES)
         for name, (why, tb) in broken.items():
