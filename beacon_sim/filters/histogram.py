@@ -35,6 +35,11 @@ from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, GridBelief
 
 TWO_PI = 2.0 * math.pi
+#: A likelihood's log below -600 (relative to the peak) is clipped there: exp(-600).
+_EXP_CLIP = float(np.exp(np.full(16, -600.0))[0])
+#: How far (in log-likelihood) a bound must be below the clip for a whole x row to be taken
+#: as clipped; covers the rounding of the bound and of the product at magnitudes ~1e4.
+_CLIP_MARGIN = 1e-6
 
 
 class HistogramFilter(FilterBase):
@@ -83,6 +88,7 @@ class HistogramFilter(FilterBase):
         self._ca = dx / rr
         self._sa = dy / rr
         self._hdop_cache: dict[tuple[tuple[int, ...], float], np.ndarray] = {}
+        self._basis: dict[tuple[str, float, int], np.ndarray] = {}   # see _beacon_basis
         self._L = np.empty_like(self.grid)      # scratch grids: the likelihood, the blur's
         self._T = np.empty_like(self.grid)      # neighbour sums, a rolled grid (no allocation)
         self._A = np.empty((3, self.nx * self.ny))  # the update's C, S, lxy (x-y arrays) as rows
@@ -222,18 +228,49 @@ class HistogramFilter(FilterBase):
         if not measurements:
             return
         A = self._A
-        A.fill(0.0)
         C = A[0].reshape(self.nx, self.ny)   # coefficient of cos(theta)
         S = A[1].reshape(self.nx, self.ny)   # coefficient of sin(theta)
         lxy = A[2].reshape(self.nx, self.ny)  # log-likelihood terms in x, y only
         cell_var = self.cell**2 / 6.0         # within-cell position + slab offset
         th = self.theta
         cos_th, sin_th = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
-        mixed: np.ndarray | None = None      # sum of per-reading outlier-mixture terms
+        # Beacon readings without outliers: every reading's C, S and lxy are combinations of
+        # five fixed x-y arrays of its beacon (kappa cos a, kappa sin a, kappa, r, r^2, see
+        # _beacon_basis), so all of them together are one (3, 5 k) x (5 k, nx ny) product.
+        coef: list[list[float]] = [[], [], []]
+        blocks: list[np.ndarray] = []
+        rest: list[Measurement] = []
         for m in measurements:
+            if m.kind not in ("bearing", "range_bearing"):
+                rest.append(m)
+                continue
+            spec = self.ctx.sensor(m.sensor)
+            if spec.outlier_rate > 0:
+                rest.append(m)
+                continue
+            std = spec.reading_std()
+            ranged = m.kind == "range_bearing"
+            sr2 = float(std[0]) ** 2 + cell_var if ranged else 1.0
+            for row, b in zip(np.asarray(m.z, dtype=float).tolist(),
+                              self.ctx.world.beacon_index(m.beacon_ids).tolist(), strict=True):
+                blocks.append(self._beacon_basis(m.sensor, float(std[-1]), b))
+                cz, sz = math.cos(row[-1]), math.sin(row[-1])
+                # kappa cos(z - alpha + theta) = kappa [cos(z-a) cos(th) - sin(z-a) sin(th)];
+                # -0.5 (r - z_r)^2 / sr2 up to a constant (it cancels in the normalisation)
+                zr = row[0] / sr2 if ranged else 0.0
+                hr = -0.5 / sr2 if ranged else 0.0
+                coef[0] += [cz, sz, 0.0, 0.0, 0.0]
+                coef[1] += [-sz, cz, 0.0, 0.0, 0.0]
+                coef[2] += [0.0, 0.0, -1.0, zr, hr]
+        if blocks:
+            np.matmul(np.array(coef), np.concatenate(blocks), out=A)
+        else:
+            A.fill(0.0)
+        mixed: np.ndarray | None = None      # sum of per-reading outlier-mixture terms
+        for m in rest:
             spec = self.ctx.sensor(m.sensor)
             z = np.asarray(m.z, dtype=float)
-            if m.kind in ("bearing", "range_bearing"):
+            if m.kind in ("bearing", "range_bearing"):      # with an outlier rate
                 idx = self.ctx.world.beacon_index(m.beacon_ids)
                 std = spec.reading_std()
                 eps = spec.outlier_rate
@@ -243,18 +280,12 @@ class HistogramFilter(FilterBase):
                     kappa = 1.0 / sb2
                     cz, sz = math.cos(row[-1]), math.sin(row[-1])
                     ca, sa = self._ca[b], self._sa[b]
-                    # kappa cos(z - alpha + theta) = kappa [cos(z-a) cos(th) - sin(z-a) sin(th)]
                     cb = kappa * (cz * ca + sz * sa)
                     sbb = -kappa * (sz * ca - cz * sa)
                     lb = -kappa
                     if m.kind == "range_bearing":
                         sr2 = std[0] ** 2 + cell_var
                         lb = lb - 0.5 * (r - row[0]) ** 2 / sr2
-                    if eps <= 0:
-                        C += cb
-                        S += sbb
-                        lxy += lb
-                        continue
                     # Gaussian core mixed with a uniform reading: log((1 - eps) p + eps u),
                     # both relative to the core's peak (the particle filter's form).
                     log_u = -math.log(2 * math.pi) + 0.5 * math.log(2 * math.pi * float(np.min(sb2)))
@@ -281,28 +312,43 @@ class HistogramFilter(FilterBase):
             else:
                 raise FilterError(f"histogram: unknown measurement kind {m.kind!r}")
         L = self._L
+        g = self.grid
         if mixed is None:
             # L = cos(th) C + sin(th) S + lxy as one product (nh, 3) x (3, nx ny). Its peak is
             # taken out with a bound, not a pass over the grid: over all headings
             # C cos + S sin <= hypot(C, S), within (1 - cos(bin / 2)) hypot(C, S) of the grid's
             # peak, and any constant cancels in the normalisation.
-            lxy -= float(np.max(np.hypot(C, S) + lxy))
+            bound = np.hypot(C, S)
+            bound += lxy
+            peak = float(np.max(bound))
+            lxy -= peak
+            # Below exp(-600) a cell's likelihood is lost under the floor (eps / cells, times
+            # at least e^-600 relative to the peak), so it is clipped there (exp stays off its
+            # slow underflow path). x rows whose bound is below that at every y and heading
+            # are clipped whole: multiplied by exp(-600) without the product and the exp.
+            live = np.flatnonzero(np.max(bound, axis=1) > peak - 600.0 + _CLIP_MARGIN)
+            x0, x1 = (int(live[0]), int(live[-1]) + 1) if live.size else (0, 0)
+            ny = self.ny
+            Lb = L.reshape(-1)[: self.nh * (x1 - x0) * ny].reshape(self.nh, (x1 - x0) * ny)
             trig = np.empty((self.nh, 3))
             trig[:, 0], trig[:, 1], trig[:, 2] = cos_th[:, 0, 0], sin_th[:, 0, 0], 1.0
-            np.matmul(trig, A, out=L.reshape(self.nh, -1))
+            np.matmul(trig, A[:, x0 * ny: x1 * ny], out=Lb)
+            np.maximum(Lb, -600.0, out=Lb)
+            np.exp(Lb, out=Lb)
+            g[:, x0:x1] *= Lb.reshape(self.nh, x1 - x0, ny)
+            if x0 > 0:
+                g[:, :x0] *= _EXP_CLIP
+            if x1 < self.nx:
+                g[:, x1:] *= _EXP_CLIP
         else:
             np.multiply(cos_th, C[None], out=L)
             L += np.multiply(sin_th, S[None], out=self._T)
             L += lxy[None]
             L += mixed
             L -= L.max()
-        # Below exp(-600) a cell's likelihood is lost under the floor (eps / cells, times at
-        # least e^-600 relative to the peak); clipping there keeps exp off its slow underflow
-        # path and the products out of subnormals.
-        np.maximum(L, -600.0, out=L)
-        np.exp(L, out=L)
-        g = self.grid
-        g *= L
+            np.maximum(L, -600.0, out=L)
+            np.exp(L, out=L)
+            g *= L
         rows = self._row_sums(g)
         total = float(rows[..., 0].sum())
         eps = self.params["floor"]
@@ -323,6 +369,24 @@ class HistogramFilter(FilterBase):
             g += b
             self._rows = None
         self._cache = None
+
+    def _beacon_basis(self, sensor: str, bearing_std: float, b: int) -> np.ndarray:
+        """The x-y arrays of beacon ``b`` for a bearing reading of ``sensor``, as rows of a
+        (5, nx ny) array: ``kappa cos(alpha)``, ``kappa sin(alpha)``, ``kappa``, ``r``, ``r^2``
+        with ``alpha`` the direction and ``r`` the distance from each cell centre to the
+        beacon and ``kappa = 1 / (sigma_b^2 + bin^2 / 12 + (cell^2 / 6) / max(r, cell)^2)``
+        (the bearing noise inflated by the bin and the cell). Made at a beacon's first
+        reading, kept."""
+        key = (sensor, bearing_std, b)
+        basis = self._basis.get(key)
+        if basis is None:
+            r = self._r[b].reshape(-1)
+            kappa = 1.0 / (bearing_std**2 + self.bin**2 / 12
+                           + self.cell**2 / 6.0 / np.maximum(r, self.cell) ** 2)
+            basis = np.stack([kappa * self._ca[b].reshape(-1), kappa * self._sa[b].reshape(-1),
+                              kappa, r, r * r])
+            self._basis[key] = basis
+        return basis
 
     def _hdop(self, ids: np.ndarray, height: float) -> np.ndarray:
         key = (tuple(int(i) for i in np.ravel(ids)), float(height))
