@@ -46,3 +46,15 @@ def test_plots_draw_each_filter_in_its_window_colour_and_dashes(which):
         line = lines[name]
         assert to_hex(line.get_color()) == styles.hex_colour(colour), name
         assert (line.get_linestyle() == "-") == (dash is None), name
+
+
+def test_team_styles_follow_the_member_kind_and_never_repeat():
+    from beacon_sim.runs.styles import KIND_STYLES, TEAM_STYLES, team_filter_styles
+
+    names = ["independent:pf", "independent:histogram", "decentralised", "centralised", "ci",
+             "independent", "independent:dead_reckoning", "naive", "mine", "yours"]
+    styles = team_filter_styles(names)
+    assert styles["independent:pf"] == KIND_STYLES["pf"]  # looks like the particle filter
+    assert styles["centralised"] == TEAM_STYLES["centralised"]
+    assert len(set(styles.values())) == len(names)  # no two look the same
+    assert team_filter_styles(["decentralised"])["decentralised"] == TEAM_STYLES["decentralised"]

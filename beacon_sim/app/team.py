@@ -124,11 +124,11 @@ class TeamRenderer(WorldRenderer):
         back = np.array([-np.cos(pose[2]), np.sin(pose[2])])
         half = np.array(img.get_size()) / 2 + 5
         centre = c + back * (r_px + float(np.min(half / np.maximum(np.abs(back), 1e-9))))
-        box = img.get_rect(center=(ipx(centre[0]), ipx(centre[1])))
-        box.clamp_ip(surf.get_clip())
-        surf.fill(bg, box.inflate(10, 2))
-        pygame.draw.rect(surf, palette.TEXT, box.inflate(10, 2), 2)
-        surf.blit(img, box)
+        frame = img.get_rect(center=(ipx(centre[0]), ipx(centre[1]))).inflate(10, 2)
+        frame.clamp_ip(surf.get_clip())  # the whole tag, its border included, stays in view
+        surf.fill(bg, frame)
+        pygame.draw.rect(surf, palette.TEXT, frame, 2)
+        surf.blit(img, img.get_rect(center=frame.center))
 
 
 def short(font: pygame.font.Font, text: str, width: int) -> str:

@@ -96,16 +96,26 @@ def filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
 
 
 def team_filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
-    """``(colour, dash pattern)`` per team filter name (``TEAM_STYLES``; any other name
-    takes the next of ``OTHER_STYLES``)."""
+    """``(colour, dash pattern)`` per team filter name (``TEAM_STYLES``; ``independent:F``
+    takes the single-robot style of F's kind, so ``independent:pf`` looks like the particle
+    filter; any other name takes the next of ``OTHER_STYLES``). Two names never share a
+    colour and a line style: a later one takes the next line style."""
     out: dict[str, tuple[RGB, Dash]] = {}
     others = 0
     for name in names:
+        member = name.split(":", 1)[1] if name.startswith("independent:") else None
         if name in TEAM_STYLES:
-            out[name] = TEAM_STYLES[name]
+            colour, dash = TEAM_STYLES[name]
+        elif member in KIND_STYLES:
+            colour, dash = KIND_STYLES[member]
         else:
-            out[name] = OTHER_STYLES[others % len(OTHER_STYLES)]
+            colour, dash = OTHER_STYLES[others % len(OTHER_STYLES)]
             others += 1
+        for _ in range(len(STYLE_CYCLE)):
+            if (colour, dash) not in out.values():
+                break
+            dash = STYLE_CYCLE[(STYLE_CYCLE.index(dash) + 1) % len(STYLE_CYCLE)]
+        out[name] = (colour, dash)
     return out
 
 

@@ -27,6 +27,7 @@ from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S
 from beacon_sim.filters.runner import WINDOW_STEP_LIMIT_S, guarded_call, status_line
 from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.filters.team_runner import (
@@ -78,7 +79,7 @@ class TeamSession:
         self.names = list(specs)
         built, why = build_team_filters(
             self.names, lambda n: build_team_spec(specs[n], team, self.params.get(n), seed),
-            WINDOW_STEP_LIMIT_S)
+            WINDOW_BUILD_LIMIT_S)
         self.runner = TeamFilterRunner(built, len(team.robots), step_limit_s=WINDOW_STEP_LIMIT_S,
                                        keep=KEEP_ESTIMATES)
         for name, reason in why.items():
