@@ -74,9 +74,20 @@ class HistogramFilter(FilterBase):
         self.base_th = -math.pi + (np.arange(self.nh) + 0.5) * self.bin
         self._yw = np.stack([np.ones(self.ny), self.yc, self.yc**2], axis=1)   # (ny, 3): 1, y, y^2
         self._yw_sum = self._yw.sum(axis=0)
+        # (nx * 3, 6): the row sums (p, p y, p y^2 per x) to p, p x, p x^2, p y, p x y, p y^2
+        self._xw = np.zeros((self.nx, 3, 6))
+        self._xw[:, 0, 0] = 1.0
+        self._xw[:, 0, 1] = self.xc
+        self._xw[:, 0, 2] = self.xc**2
+        self._xw[:, 1, 3] = 1.0
+        self._xw[:, 1, 4] = self.xc
+        self._xw[:, 2, 5] = 1.0
+        self._xw = self._xw.reshape(-1, 6)
         self.grid = np.empty((self.nh, self.nx, self.ny))           # [heading, x, y]
         self.offset = np.zeros((self.nh, 2))     # sub-cell position offset of each slab [m]
         self.phi = 0.0                           # sub-bin heading offset of the whole grid [rad]
+        self._trig_phi = math.nan                # phi of _trig_cache (theta, sin, cos)
+        self._trig_cache: tuple[np.ndarray, np.ndarray, np.ndarray] = (self.base_th,) * 3
         self.var_xy = 0.0                        # motion variance not yet blurred [m^2]
         self.var_th = 0.0                        # [rad^2]
         # Beacon geometry on the x-y grid (the grid never moves): range, cos/sin of direction.
@@ -232,8 +243,8 @@ class HistogramFilter(FilterBase):
         S = A[1].reshape(self.nx, self.ny)   # coefficient of sin(theta)
         lxy = A[2].reshape(self.nx, self.ny)  # log-likelihood terms in x, y only
         cell_var = self.cell**2 / 6.0         # within-cell position + slab offset
-        th = self.theta
-        cos_th, sin_th = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
+        _, sin_th1, cos_th1 = self._trig()
+        cos_th, sin_th = cos_th1[:, None, None], sin_th1[:, None, None]
         # Beacon readings without outliers: every reading's C, S and lxy are combinations of
         # five fixed x-y arrays of its beacon (kappa cos a, kappa sin a, kappa, r, r^2, see
         # _beacon_basis), so all of them together are one (3, 5 k) x (5 k, nx ny) product.
@@ -413,36 +424,56 @@ class HistogramFilter(FilterBase):
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
         # One pass over the grid (none when the last update or prediction kept them): per
-        # (heading, x) row the sums of p, p y and p y^2; every moment below comes from these
-        # (nh, nx) arrays.
+        # (heading, x) row the sums of p, p y and p y^2; then per slab, in one product, the
+        # sums of p, p x, p x^2, p y, p x y, p y^2 at the cell centres (unnormalised), and
+        # every moment from those (nh, 6) and the slabs' offsets.
         if self._rows is None:
             self._rows = self._row_sums(self.grid)
-        m = self._rows
-        gx, gxy, gxyy = m[..., 0], m[..., 1], m[..., 2]
-        P = gx.sum(axis=1)                     # (nh,)
-        scale = 1.0 / P.sum()
-        P = P * scale
+        M = (self._rows.reshape(self.nh, -1) @ self._xw).T
+        p0, sx, sxx, sy, sxy, syy = M
         ox, oy = self.offset[:, 0], self.offset[:, 1]
-        sx = gx @ self.xc                      # per slab: sum of p x, p y (unnormalised)
-        sy = gxy.sum(axis=1)
-        X = sx * scale + ox * P                # sum over slab of p * x, per slab
-        Y = sy * scale + oy * P
-        XX = (gx @ self.xc**2) * scale + 2 * ox * sx * scale + ox**2 * P
-        YY = gxyy.sum(axis=1) * scale + 2 * oy * sy * scale + oy**2 * P
-        XY = float(self.xc @ gxy.sum(axis=0)) * scale + float(
-            np.sum(ox * sy + oy * sx) * scale + np.sum(ox * oy * P))
-        mx, my = float(X.sum()), float(Y.sum())
-        th = self.theta
-        mth = math.atan2(float(P @ np.sin(th)), float(P @ np.cos(th)))
-        et = wrap(th - mth)
+        Z = np.empty((6, self.nh))
+        Z[0] = p0
+        np.multiply(ox, p0, out=Z[1])
+        Z[1] += sx                              # sum of p x per slab (x with the offset)
+        np.multiply(oy, p0, out=Z[2])
+        Z[2] += sy                              # p y
+        np.add(sx, Z[1], out=Z[3])              # p x^2 = sxx + ox (2 sx + ox p0)
+        Z[3] *= ox
+        Z[3] += sxx
+        np.add(sy, Z[2], out=Z[4])              # p y^2
+        Z[4] *= oy
+        Z[4] += syy
+        np.multiply(oy, Z[1], out=Z[5])         # p x y = sxy + ox sy + oy (sx + ox p0)
+        Z[5] += sxy
+        Z[5] += ox * sy
+        th, sin_th, cos_th = self._trig()
+        mth = math.atan2(float(p0 @ sin_th), float(p0 @ cos_th))
+        W = np.empty((self.nh, 3))
+        W[:, 0] = 1.0
+        W[:, 1] = wrap(th - mth)
+        np.multiply(W[:, 1], W[:, 1], out=W[:, 2])
+        (t0, tx, ty, txx, tyy, txy), (ep, ex, ey, _, _, _), (et2, _, _, _, _, _) = \
+            (Z @ W).T.tolist()
+        scale = 1.0 / t0
+        mx, my = tx * scale, ty * scale
         cov = np.empty((3, 3))
-        cov[0, 0] = XX.sum() - mx * mx + self.cell**2 / 12
-        cov[1, 1] = YY.sum() - my * my + self.cell**2 / 12
-        cov[0, 1] = cov[1, 0] = XY - mx * my
-        cov[2, 2] = float(P @ et**2) + self.bin**2 / 12
-        cov[0, 2] = cov[2, 0] = float(et @ (X - mx * P))
-        cov[1, 2] = cov[2, 1] = float(et @ (Y - my * P))
+        cov[0, 0] = txx * scale - mx * mx + self.cell**2 / 12
+        cov[1, 1] = tyy * scale - my * my + self.cell**2 / 12
+        cov[0, 1] = cov[1, 0] = txy * scale - mx * my
+        cov[2, 2] = et2 * scale + self.bin**2 / 12
+        cov[0, 2] = cov[2, 0] = (ex - mx * ep) * scale
+        cov[1, 2] = cov[2, 1] = (ey - my * ep) * scale
         return np.array([mx, my, wrap(mth)]), cov
+
+    def _trig(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The bins' headings (``theta``) with their sines and cosines, kept while ``phi``
+        does not change."""
+        if self._trig_phi != self.phi:
+            th = self.theta
+            self._trig_cache = (th, np.sin(th), np.cos(th))
+            self._trig_phi = self.phi
+        return self._trig_cache
 
     def belief(self) -> GridBelief:
         """The x-y marginal, shape (nx, ny), for drawing as a heat map."""
