@@ -87,6 +87,8 @@ class HistogramFilter(FilterBase):
         self.offset = np.zeros((self.nh, 2))     # sub-cell position offset of each slab [m]
         self.phi = 0.0                           # sub-bin heading offset of the whole grid [rad]
         self._trig_phi = math.nan                # phi of _trig_cache (theta, sin, cos)
+        self._dir_phi = math.nan                 # phi of _dir: cos, sin of base_th + phi
+        self._dir: tuple[np.ndarray, np.ndarray] = (self.base_th, self.base_th)
         self._trig_cache: tuple[np.ndarray, np.ndarray, np.ndarray] = (self.base_th,) * 3
         self.var_xy = 0.0                        # motion variance not yet blurred [m^2]
         self.var_th = 0.0                        # [rad^2]
@@ -153,12 +155,17 @@ class HistogramFilter(FilterBase):
             self.phi -= k * self.bin
         d = control.v * dt
         if d != 0.0:   # offsets stay within half a cell: without motion no slab moves
-            th = self.base_th + self.phi
-            self.offset[:, 0] += d * np.cos(th)
-            self.offset[:, 1] += d * np.sin(th)
-            shift = np.rint(self.offset / self.cell).astype(np.int64)
-            moving = np.flatnonzero(np.any(shift != 0, axis=1))
-            if moving.size:
+            if self._dir_phi != self.phi:        # the slabs' directions, while phi holds
+                th = self.base_th + self.phi
+                self._dir = (np.cos(th), np.sin(th))
+                self._dir_phi = self.phi
+            self.offset[:, 0] += d * self._dir[0]
+            self.offset[:, 1] += d * self._dir[1]
+            q = self.offset / self.cell
+            a = np.abs(q)
+            if float(a.max()) > 0.5:   # rint(q) != 0 exactly where |q| > 0.5 (halves to even)
+                moving = np.flatnonzero(np.max(a, axis=1) > 0.5)
+                shift = np.rint(q).astype(np.int64)
                 self.offset[moving] -= shift[moving] * self.cell
                 rows = self._rows
                 # slab by slab in place (a few slabs a tick): no gathered copies of the grid
