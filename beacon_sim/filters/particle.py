@@ -102,6 +102,7 @@ class ParticleFilter(FilterBase):
         self._logw = np.zeros(cap)
         self._wn = np.zeros(cap)             # normalised weights (kept in step with _logw)
         self._fit = np.zeros(cap)            # log-likelihood of the last update, per particle
+        self._essbuf = np.empty(cap)         # float64 scratch of the ESS tests
         self._b1 = np.empty(cap, dtype=self.dtype)
         self._b2 = np.empty(cap, dtype=self.dtype)
         self._c = np.empty(cap, dtype=self.dtype)
@@ -238,7 +239,7 @@ class ParticleFilter(FilterBase):
         log_marg = _logsumexp_inplace(tmp)
         w_avg = math.exp(log_marg / max(self._dims, 1))
         target = self.params["temper_ess"] * n
-        if target > 0 and _ess(logw + ll + (0.0 if extra is None else extra)) < target:
+        if target > 0 and _ess(_plus(logw, ll, extra, self._essbuf[:n]), self._essbuf[:n]) < target:
             self._progressive_update(measurements, target)
             logw, tmp = self._logw[:n], self._wn[:n]
         else:
@@ -296,11 +297,13 @@ class ParticleFilter(FilterBase):
             total = ll if extra is None else ll + extra
             logw = self._logw[:n]
             lam = rest
-            if stage < _MAX_STAGES - 1 and _ess(logw + rest * total) < target:
+            buf = self._essbuf[:n]
+            if stage < _MAX_STAGES - 1 and _ess(_scaled_sum(logw, rest, total, buf), buf) < target:
                 lo, hi = 0.0, rest
                 for _ in range(12):                        # ESS falls as lambda grows
                     mid = 0.5 * (lo + hi)
-                    lo, hi = (mid, hi) if _ess(logw + mid * total) >= target else (lo, mid)
+                    ess = _ess(_scaled_sum(logw, mid, total, buf), buf)
+                    lo, hi = (mid, hi) if ess >= target else (lo, mid)
                 lam = lo
             logw += lam * total
             rest -= lam
@@ -645,10 +648,27 @@ def _above(cov: np.ndarray, floor: float) -> bool:
 _MAX_STAGES = 8   # progressive correction: the last stage takes what is left of the likelihood
 
 
-def _ess(logw: np.ndarray) -> float:
-    """Effective sample size ``(sum w)^2 / sum w^2`` of unnormalised log-weights (n,)."""
-    w = np.exp(logw - float(np.max(logw)))
+def _ess(logw: np.ndarray, out: np.ndarray | None = None) -> float:
+    """Effective sample size ``(sum w)^2 / sum w^2`` of unnormalised log-weights (n,);
+    ``out`` (n,) float64 scratch (may be ``logw`` itself) saves the allocations."""
+    w = np.subtract(logw, float(np.max(logw)), out=out)
+    np.exp(w, out=w)
     return float(w.sum() ** 2 / np.dot(w, w))
+
+
+def _scaled_sum(logw: np.ndarray, lam: float, total: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``logw + lam * total`` into ``out`` (the same operations, no allocation)."""
+    np.multiply(total, lam, out=out)
+    out += logw
+    return out
+
+
+def _plus(logw: np.ndarray, ll: np.ndarray, extra: np.ndarray | None, out: np.ndarray) -> np.ndarray:
+    """``logw + ll (+ extra)`` into ``out``."""
+    np.add(logw, ll, out=out)
+    if extra is not None:
+        out += extra
+    return out
 
 
 def _logsumexp_inplace(a: np.ndarray) -> float:
