@@ -75,14 +75,14 @@ class HistogramFilter(FilterBase):
         self._yw = np.stack([np.ones(self.ny), self.yc, self.yc**2], axis=1)   # (ny, 3): 1, y, y^2
         self._yw_sum = self._yw.sum(axis=0)
         # (nx * 3, 6): the row sums (p, p y, p y^2 per x) to p, p x, p x^2, p y, p x y, p y^2
-        self._xw = np.zeros((self.nx, 3, 6))
-        self._xw[:, 0, 0] = 1.0
-        self._xw[:, 0, 1] = self.xc
-        self._xw[:, 0, 2] = self.xc**2
-        self._xw[:, 1, 3] = 1.0
-        self._xw[:, 1, 4] = self.xc
-        self._xw[:, 2, 5] = 1.0
-        self._xw = self._xw.reshape(-1, 6)
+        xw = np.zeros((self.nx, 3, 6))
+        xw[:, 0, 0] = 1.0
+        xw[:, 0, 1] = self.xc
+        xw[:, 0, 2] = self.xc**2
+        xw[:, 1, 3] = 1.0
+        xw[:, 1, 4] = self.xc
+        xw[:, 2, 5] = 1.0
+        self._xw = xw.reshape(-1, 6)
         self.grid = np.empty((self.nh, self.nx, self.ny))           # [heading, x, y]
         self.offset = np.zeros((self.nh, 2))     # sub-cell position offset of each slab [m]
         self.phi = 0.0                           # sub-bin heading offset of the whole grid [rad]
