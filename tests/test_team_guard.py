@@ -93,3 +93,19 @@ def test_validate_team_estimates_checks_every_robot():
     assert validate_team_estimates(good, 2).startswith("robot 1: estimate() returned ndarray")
     assert validate_team_estimates([good, (np.zeros(3), -np.eye(3))], 2).startswith("robot 2:")
     assert validate_team_estimates(None, 2).startswith("estimates() returned NoneType")
+
+
+@pytest.mark.parametrize("setting, says", [
+    ("centralised.gate_chi2=nan", "gate_chi2 = nan: expected a finite number"),
+    ("decentralised.gate_chi2=-1", "gate_chi2 = -1: expected a number in [0, 1e+06]"),
+    ("ci.gate_chi2=inf", "gate_chi2 = inf: expected a finite number"),
+    ("ci.fusion=x", "fusion = 'x': expected 'ci' or 'naive'"),
+])
+def test_team_filter_parameters_have_ranges(setting, says, capsys):
+    """Issue 15's rule for every number a user types, on the team filters' --set too."""
+    from beacon_sim.cli.main import main
+
+    name = setting.split(".")[0]
+    assert main(["run", "team_sparse", "--duration", "1", "--filter", name, "--set", setting]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0]

@@ -42,6 +42,10 @@ RANGES: dict[str, dict[str, tuple[float, float]]] = {
     "beacon_sim.filters.ukf:UnscentedKalmanFilter": {
         "alpha": (1e-4, 10.0), "beta": (0.0, 100.0), "kappa": (-2.5, 100.0), "gate_chi2": (0.0, 1e6),
     },
+    # team filters (filters/team.py)
+    "beacon_sim.filters.team:CentralisedEKF": {"gate_chi2": (0.0, 1e6)},
+    "beacon_sim.filters.team:PairwiseDecentralisedEKF": {"gate_chi2": (0.0, 1e6)},
+    "beacon_sim.filters.team:CovarianceIntersectionTeam": {"gate_chi2": (0.0, 1e6)},
 }
 
 

@@ -48,6 +48,7 @@ from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, Filter, FilterContext, FilterError, GaussianBelief
 from beacon_sim.filters.ekf import ExtendedKalmanFilter
 from beacon_sim.filters.gaussian_measurements import process_cov_terms
+from beacon_sim.filters.param_ranges import check_value
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,6 +137,7 @@ class _TeamBase:
             if key not in self.defaults:
                 known = ", ".join(sorted(self.defaults)) or "none"
                 raise FilterError(f"{type(self).__name__}: unknown parameter {key!r}; known: {known}")
+            check_value(type(self), key, value, self.defaults[key])  # finite, in its range
             self.params[key] = value
         self.index = {m.id: i for i, m in enumerate(ctx.members)}
 
