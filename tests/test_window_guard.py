@@ -182,3 +182,19 @@ def test_a_filter_hanging_in_init_delays_the_window_by_the_window_limit_only(tmp
     s.tick()
     assert "time limit" in s.status["Hang"].failed and s.status["ekf"].failed is None
     assert loading.WINDOW_BUILD_LIMIT_S < loading.BUILD_LIMIT_S
+
+
+def test_a_belief_is_read_and_checked_once_per_tick_not_once_per_frame():
+    """Frames between ticks reuse the checked belief (the filter cannot have changed); a
+    tick, or a filter replaced, reads it again."""
+    s = Session(load_scenario("default"), ["pf", "ekf"], params={"pf": {"n_particles": 500}})
+    flt = s.runner.tracks["pf"].filter
+    calls = []
+    real = flt.belief
+    flt.belief = lambda: calls.append(1) or real()
+    first = s.belief("pf")
+    assert s.belief("pf") is first and s.belief("pf") is first and len(calls) == 1
+    s.tick()
+    second = s.belief("pf")
+    assert len(calls) == 2 and second is not first
+    assert not np.array_equal(first.poses, second.poses)  # the tick moved the particles
