@@ -27,3 +27,15 @@ def test_list_describes_every_scenario_in_full(capsys, monkeypatch, columns):
         assert text in flat, f"{name}: description cut or missing"
         assert f"{sc.duration:g} s" in flat
     assert out.split("filters:")[1].split()[0] == "kf"
+
+
+def test_list_names_the_team_scenarios_and_team_filters(capsys):
+    from beacon_sim.cli.main import main
+
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    team = out[out.index("team scenarios"):]
+    assert "  team_sparse\n" in team and "robots scout, relay, explorer" in team
+    filters = out[out.index("team filters"):]
+    for name in ("independent", "centralised", "decentralised", "ci"):
+        assert f"  {name}\n" in filters

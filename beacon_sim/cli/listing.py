@@ -1,5 +1,6 @@
-"""``beacon-sim list``: the shipped scenarios, each described in full sentences, and the
-available filters."""
+"""``beacon-sim list``: the shipped scenarios, each described in full sentences, the team
+scenarios (several robots, docs/multi-robot.md), and the available filters and team
+filters."""
 
 from __future__ import annotations
 
@@ -9,16 +10,21 @@ import textwrap
 
 from beacon_sim.core.resources import shipped_scenarios
 from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.core.team_scenario import TeamScenario, load_team_scenario, shipped_team_scenarios
 from beacon_sim.filters.loading import available_filters
+from beacon_sim.filters.team import TEAM_FILTERS
 
 #: Left margin of a scenario's description [characters].
 INDENT = 6
 
 
-def describe(scenario: Scenario, width: int) -> list[str]:
+def describe(scenario: Scenario | TeamScenario, width: int) -> list[str]:
     """The lines ``list`` prints for one scenario: its name, then its whole description and
-    what it runs (length, default filters), wrapped at ``width`` characters, never cut."""
-    facts = (f"{scenario.duration:g} s long; the window opens with "
+    what it runs (length, robots, default filters), wrapped at ``width`` characters, never cut."""
+    robots = ""
+    if isinstance(scenario, TeamScenario):
+        robots = f"robots {', '.join(r.name for r in scenario.robots)} (Tab switches the driven one); "
+    facts = (f"{scenario.duration:g} s long; {robots}the window opens with "
              f"{', '.join(scenario.default_filters) or 'no filter'}.")
     text = " ".join((scenario.description or "(no description)").split())
     wrap = textwrap.TextWrapper(width=max(width, INDENT + 30), initial_indent=" " * INDENT,
@@ -32,7 +38,13 @@ def list_command(args: argparse.Namespace) -> int:
     print("scenarios:")
     for name in shipped_scenarios():
         print("\n".join(describe(load_scenario(name), width)))
+    print("team scenarios (several robots; beacon-sim play NAME):")
+    for name in shipped_team_scenarios():
+        print("\n".join(describe(load_team_scenario(name), width)))
     print("filters:")
     for name in available_filters():
+        print(f"  {name}")
+    print("team filters (and independent:FILTER, any filter above on every robot):")
+    for name in TEAM_FILTERS:
         print(f"  {name}")
     return 0
