@@ -38,13 +38,14 @@ def list_command(args: argparse.Namespace) -> int:
     print("scenarios:")
     for name in shipped_scenarios():
         print("\n".join(describe(load_scenario(name), width)))
-    print("team scenarios (several robots; beacon-sim play NAME):")
+    print("team scenarios (several robots):")
     for name in shipped_team_scenarios():
         print("\n".join(describe(load_team_scenario(name), width)))
     print("filters:")
     for name in available_filters():
         print(f"  {name}")
-    print("team filters (and independent:FILTER, any filter above on every robot):")
+    print("team filters:")
     for name in TEAM_FILTERS:
         print(f"  {name}")
+    print("  independent:F (filter F on every robot)")
     return 0
