@@ -109,3 +109,27 @@ def test_team_filter_parameters_have_ranges(setting, says, capsys):
     assert main(["run", "team_sparse", "--duration", "1", "--filter", name, "--set", setting]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0]
+
+
+@pytest.mark.parametrize("spec", ["independent:{evil}:Evil", "{evil}:Evil", "independent:evil_mod:Evil",
+                                  "x=independent:../{evil}:Evil"])
+def test_a_team_scenario_never_runs_code_it_names(tmp_path, spec, capsys):
+    """Files are data (issue 15) on the team path too: a shared team scenario whose
+    default_filters name a file or a module is refused before anything is imported."""
+    from beacon_sim.cli.main import main
+
+    marker = tmp_path / "ran"
+    evil = tmp_path / "evil.py"
+    evil.write_text(f"open({str(marker)!r}, 'w').write('x')\n"
+                    "from beacon_sim.filters.ekf import ExtendedKalmanFilter as Evil\n")
+    text = TEAM.read_text(encoding="utf-8")
+    line = next(ln for ln in text.splitlines() if ln.startswith("default_filters"))
+    spec = spec.format(evil=evil)
+    bad = tmp_path / "t.toml"
+    bad.write_text(text.replace(line, f"default_filters = [{spec!r}, 'centralised']"), encoding="utf-8")
+    for cmd in (["run", str(bad), "--duration", "1"], ["eval", str(bad), "--runs", "1", "--duration", "1"],
+                ["play", str(bad), "--frames", "1"]):
+        assert main(cmd) == 2
+        err = capsys.readouterr().err
+        assert "default_filters[0]" in err and "may not name a file or module" in err
+    assert not marker.exists()

@@ -56,6 +56,11 @@ ROBOT_KEYS = {"name", "id", "initial_pose", "radius", "motion_noise", "driver", 
 _SHARED_KEYS = ("name", "description", "dt", "duration", "seed", "world", "keyboard",
                 "default_filters", "filters")
 _SINGLE_ONLY = ("robot", "sensors", "driver", "initial_belief", "model", "events")
+#: What a team scenario's ``default_filters`` may name: a team filter, or ``independent:``
+#: with a built-in filter or an entry point, optionally labelled; never a file or a module
+#: (a shared file must not run code: only the command line and the API may name code).
+_DATA_TEAM_FILTER = re.compile(
+    r"^(?:[A-Za-z0-9_][A-Za-z0-9_.'+-]{0,63}=)?(?:independent:)?[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}$")
 #: Team filters a team scenario runs by default.
 DEFAULT_TEAM_FILTERS = ("independent", "centralised", "decentralised", "ci")
 
@@ -181,9 +186,16 @@ def parse_team_scenario(data: dict[str, Any], file: str, name: str = "") -> Team
     if unknown:
         raise ScenarioError(f"{file}: unknown key {unknown[0]!r}")
     default_filters = shared.pop("default_filters", list(DEFAULT_TEAM_FILTERS))
-    if not isinstance(default_filters, list) or not all(isinstance(f, str) for f in default_filters):
+    if not isinstance(default_filters, list) or not all(isinstance(f, str) for f in default_filters) \
+            or not 1 <= len(default_filters) <= 16:
         raise ScenarioError(f"{file}: default_filters = {default_filters!r}: expected a list of "
-                            "team filter names")
+                            "1 to 16 team filter names")
+    for i, spec in enumerate(default_filters):
+        if not _DATA_TEAM_FILTER.match(spec):  # files are data: a scenario never names code
+            raise ScenarioError(
+                f"{file}: default_filters[{i}] = {spec!r}: expected a team filter or "
+                "independent:NAME with a built-in filter or an installed entry point (a scenario "
+                "may not name a file or module; pass --filter on the command line to run one)")
     robots: list[TeamRobot] = []
     names: set[str] = set()
     ids: set[int] = set()
