@@ -65,6 +65,7 @@ def play_command(args: argparse.Namespace) -> int:
 def play_team_command(args: argparse.Namespace) -> int:
     """``beacon-sim play TEAM_SCENARIO``: the team window (issue 18). ``--filter`` names team
     filters (default: the scenario's ``default_filters``); team sessions are not recorded."""
+    from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S
     from beacon_sim.runs.team import check_team_specs
 
     team = load_team_scenario(args.scenario)
@@ -72,7 +73,7 @@ def play_team_command(args: argparse.Namespace) -> int:
     check_frames(args.frames)
     params = filter_params(args)
     names = list(args.filters or team.default_filters)
-    check_team_specs(names, team, params)  # a bad name or --set: one line, exit 2, as in run
+    check_team_specs(names, team, params, WINDOW_BUILD_LIMIT_S)  # one line, exit 2, as in run
     if args.autopilot and not any(r.scenario.driver.kind != "keyboard" for r in team.robots):
         raise UsageError(f"--autopilot: no robot of {team.name} has a driver")
     check_speed(args.speed)

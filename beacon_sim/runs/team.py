@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -19,8 +20,14 @@ from beacon_sim.core.metrics import anees_band, nees, pose_errors, summary
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import build_filter, split_label
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterTrack, failure_text
+from beacon_sim.filters.loading import (
+    BUILD_LIMIT_S,
+    build_filter,
+    filter_display_name,
+    load_filter_class,
+    split_label,
+)
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterTrack, failure_text, run_filter_code
 from beacon_sim.filters.team import (
     TEAM_FILTERS,
     IndependentTeam,
@@ -37,22 +44,49 @@ MEMBER_PREFIX = "independent:"
 
 
 def team_filter_name(spec: str) -> str:
-    """The name a team filter spec is shown and ``--set`` under: its label, else the spec."""
+    """The name a team filter spec is shown and ``--set`` under: its label, else the spec
+    (a student's team filter class ``my_team.py:MyTeam``: its class name, ``MyTeam``)."""
     label, body = split_label(spec)
-    return label or body
+    if label:
+        return label
+    if body in TEAM_FILTERS or body.startswith(MEMBER_PREFIX):
+        return body
+    return filter_display_name(body)
+
+
+def build_team_class(spec: str, team: TeamScenario, params: dict[str, Any] | None,
+                     seed: int) -> TeamFilter:
+    """A student's own team filter: a class (``file.py:Class``, ``pkg.mod:Class``) built with
+    a :class:`~beacon_sim.filters.team.TeamContext` and reset to the scenario's initial
+    beliefs. A single-robot filter class given here is a FilterError that says to use
+    ``independent:``."""
+    _, body = split_label(spec)
+    cls = load_filter_class(body)
+    if not callable(getattr(cls, "estimates", None)):
+        raise FilterError(f"{body}: {getattr(cls, '__name__', cls)!s} is not a team filter (it has no "
+                          f"estimates()); to run a single-robot filter on every robot use "
+                          f"independent:{body}")
+    name = team_filter_name(spec)
+    merged = {**team.filter_params.get(name, {}), **(params or {})}
+    f = cls(team_context(team, name, merged, seed))
+    f.reset(initial_beliefs(team))
+    return f
 
 
 def build_team_spec(spec: str, team: TeamScenario, params: dict[str, Any] | None = None,
                     seed: int | None = None) -> TeamFilter:
-    """A team filter from a spec: a name of ``filters.team.TEAM_FILTERS``, or
-    ``independent:F`` (optionally labelled ``alice=independent:./alice.py:MyEkf``): every
-    robot's own single-robot filter F, built as ``run`` builds it for that robot's scenario
-    (its parameters: the scenario's ``[filters.F]`` then ``params``), wrapped in
+    """A team filter from a spec: a name of ``filters.team.TEAM_FILTERS``; a student's team
+    filter class (``my_team.py:MyTeam``, see :func:`build_team_class`); or ``independent:F``
+    (optionally labelled ``alice=independent:./alice.py:MyEkf``): every robot's own
+    single-robot filter F, built as ``run`` builds it for that robot's scenario (its
+    parameters: the scenario's ``[filters.F]`` then ``params``), wrapped in
     :class:`~beacon_sim.filters.team.IndependentTeam`. Raises FilterError for a name or
     parameter that cannot work; a filter's own failing code raises what it raises."""
     name = team_filter_name(spec)
     _, body = split_label(spec)
     if not body.startswith(MEMBER_PREFIX):
+        if body not in TEAM_FILTERS and ":" in body:
+            return build_team_class(spec, team, params, team.seed if seed is None else seed)
         return build_team_filter(body, team, params, seed)
     member = body[len(MEMBER_PREFIX):]
     if not member:
@@ -66,10 +100,12 @@ def build_team_spec(spec: str, team: TeamScenario, params: dict[str, Any] | None
 
 
 def check_team_specs(specs: list[str], team: TeamScenario,
-                     params: dict[str, dict[str, Any]] | None = None) -> None:
+                     params: dict[str, dict[str, Any]] | None = None,
+                     limit_s: float = BUILD_LIMIT_S) -> None:
     """Raise FilterError (one line, exit status 2 on the command line) for a team filter
     name, a ``--set`` name or a parameter that cannot work, before anything runs. A
-    filter whose own code fails when built is left to the run (it fails there, no score)."""
+    filter whose own code fails when built (raising, exiting, or still building after
+    ``limit_s`` [s]) is left to the run (it fails there, no score)."""
     names = [team_filter_name(s) for s in specs]
     if len(set(names)) < len(names):
         raise FilterError(f"a team filter named twice in {', '.join(names)}")
@@ -79,11 +115,14 @@ def check_team_specs(specs: list[str], team: TeamScenario,
                               f"{', '.join(names)}")
     for spec in specs:
         _, body = split_label(spec)
-        if not body.startswith(MEMBER_PREFIX) and body not in TEAM_FILTERS:
+        if not body.startswith(MEMBER_PREFIX) and body not in TEAM_FILTERS and ":" not in body:
             raise FilterError(f"no team filter named {body!r}; choose one of "
-                              f"{', '.join(TEAM_FILTERS)} or independent:FILTER")
+                              f"{', '.join(TEAM_FILTERS)}, independent:FILTER or a team filter "
+                              "class (file.py:Class)")
         try:
-            build_team_spec(spec, team, (params or {}).get(team_filter_name(spec)), team.seed)
+            run_filter_code(partial(build_team_spec, spec, team,
+                                    (params or {}).get(team_filter_name(spec)), team.seed),
+                            limit_s, "construction")
         except FilterError:
             raise
         except Exception:  # the filter's own code: a failed filter in the run, no score

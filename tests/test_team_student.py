@@ -1,0 +1,87 @@
+"""A student's own team filter (issue 18, "the filter interface grows"): a class in one
+file with reset / predict / update / estimates, built with a TeamContext, plugged in with
+``--filter my_team.py:MyTeam`` wherever team filters run, under the same guard."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+from beacon_sim.cli.main import main
+from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.runs.team import run_team_headless
+
+STUDENT = textwrap.dedent('''
+    from beacon_sim.filters.ekf import ExtendedKalmanFilter
+
+
+    class MyTeam:
+        """Each robot's own EKF on its beacon readings (the independent baseline, by hand)."""
+
+        def __init__(self, ctx):
+            self.filters = [ExtendedKalmanFilter(m.ctx) for m in ctx.members]
+
+        def reset(self, initial):
+            for f, b in zip(self.filters, initial):
+                f.reset(b)
+
+        def predict(self, controls, dt):
+            for f, u in zip(self.filters, controls):
+                f.predict(u, dt)
+
+        def update(self, measurements):
+            for f, ms in zip(self.filters, measurements):
+                f.update([m for m in ms if not m.kind.startswith("robot_")])
+
+        def estimates(self):
+            return [f.estimate() for f in self.filters]
+
+
+    class Broken(MyTeam):
+        def update(self, measurements):
+            raise ValueError("my update is wrong")
+''')
+
+
+@pytest.fixture()
+def student(tmp_path):
+    path = tmp_path / "my_team.py"
+    path.write_text(STUDENT, encoding="utf-8")
+    return path
+
+
+def test_a_students_team_filter_runs_and_equals_what_it_computes(student):
+    team = load_team_scenario("team_sparse")
+    r = run_team_headless(team, [f"{student}:MyTeam", "independent"], seed=4, duration=10.0)
+    assert r.failed("MyTeam") is None
+    # it is the independent EKFs written by hand: the same bits, so it really ran
+    np.testing.assert_array_equal(np.array(r.tracks["MyTeam"].means),
+                                  np.array(r.tracks["independent"].means))
+
+
+def test_run_and_eval_take_a_students_team_filter(student, capsys):
+    assert main(["run", "team_sparse", "--duration", "2", "--filter", f"{student}:MyTeam", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert set(d["filters"]["MyTeam"]["robots"]) == {"scout", "relay", "explorer"}
+    assert main(["eval", "team_sparse", "--runs", "2", "--duration", "2", "--jobs", "1",
+                 "--filter", f"{student}:MyTeam", "--filter", f"{student}:Broken"]) == 0
+    out = capsys.readouterr().out
+    assert "MyTeam" in out and "Broken" in out and "FAILED in 2/2 runs (no score)" in out
+
+
+def test_a_single_robot_class_is_told_to_use_independent(student, capsys):
+    spec = "beacon_sim.filters.ekf:ExtendedKalmanFilter"
+    assert main(["run", "team_sparse", "--duration", "1", "--filter", spec]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"use independent:{spec}" in err[0]
+
+
+def test_a_students_failing_team_filter_is_switched_off(student):
+    team = load_team_scenario("team_sparse")
+    r = run_team_headless(team, [f"{student}:Broken", "centralised"], seed=4, duration=2.0)
+    assert "ValueError: my update is wrong" in r.failed("Broken")
+    assert r.failed("centralised") is None
+    assert r.as_json()["filters"]["Broken"].keys() == {"failed"}
