@@ -14,8 +14,8 @@ lower layers never load the upper ones::
 
 from beacon_sim.version import __version__
 
-__all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "__version__",
-           "load_scenario", "replay", "run"]
+__all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "TeamRun", "__version__",
+           "load_scenario", "load_team_scenario", "replay", "run", "run_team"]
 
 
 def __getattr__(name: str):

@@ -21,6 +21,8 @@ import numpy as np
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario, ScenarioError, parse_scenario, resolve_scenario_path
 from beacon_sim.core.scenario import load_scenario as _load_scenario
+from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.team_scenario import load_team_scenario as _load_team_scenario
 from beacon_sim.evaluation import plots
 from beacon_sim.evaluation.montecarlo import RunOutput, finish_filter
 from beacon_sim.evaluation.summary import evaluate
@@ -30,9 +32,10 @@ from beacon_sim.io.export import filter_arrays, step_arrays, trace_arrays, write
 from beacon_sim.io.recording import Recording, load_recording
 from beacon_sim.runs.headless import RunResult, run_headless
 from beacon_sim.runs.replay import replay_recording
+from beacon_sim.runs.team import TeamRunResult, check_team_specs, run_team_headless
 
-__all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "load_scenario",
-           "replay", "run"]
+__all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "TeamRun", "load_scenario",
+           "load_team_scenario", "replay", "run", "run_team"]
 
 #: Filter classes handed to :func:`run` as objects are reached through this module, so they
 #: go the same way as a filter named ``pkg.mod:Class`` (the same construction, seeding and
@@ -249,3 +252,86 @@ class Run:
             return [write_mcap(path, self.scenario, self._arrays,
                                {"seed": str(self.seed), "truth_checksum": self.result.truth_checksum})]
         return write_export(self._arrays, path)
+
+
+def load_team_scenario(name_or_path: str | Path) -> TeamScenario:
+    """A shipped team scenario by name (``"team_sparse"``) or a team ``.toml`` by path
+    (docs/multi-robot.md); a bad file raises ``ScenarioError`` naming the file and the key."""
+    return _load_team_scenario(name_or_path)
+
+
+def run_team(scenario: TeamScenario | str | Path, filters: Sequence[str | type] | None = None, *,
+             seed: int | None = None, duration: float | None = None,
+             params: Mapping[str, Mapping[str, Any]] | None = None) -> TeamRun:
+    """One headless team run, exactly as ``beacon-sim run TEAM_SCENARIO --filter ...``.
+
+    ``filters``: team filter names (``"independent"``, ``"centralised"``,
+    ``"decentralised"``, ``"ci"``, ``"naive"``), ``"independent:F"`` (single-robot filter F
+    on every robot), ``"file.py:Class"`` or a class (your own team filter: ``reset``,
+    ``predict``, ``update``, ``estimates``); None runs the scenario's ``default_filters``.
+    """
+    team = scenario if isinstance(scenario, TeamScenario) else load_team_scenario(scenario)
+    specs = _specs(filters)
+    names = list(team.default_filters if specs is None else specs)
+    plain = {k: dict(v) for k, v in (params or {}).items()}
+    check_team_specs(names, team, plain)
+    return TeamRun(run_team_headless(team, names, seed=seed, duration=duration, params=plain))
+
+
+class TeamRun:
+    """The result of :func:`run_team`: one row per tick (``T`` ticks), robots in the
+    scenario's order; a filter switched off has NaN rows after it failed."""
+
+    def __init__(self, result: TeamRunResult):
+        self.result = result
+
+    def __repr__(self) -> str:
+        return (f"<TeamRun {self.result.team.name} seed={self.result.seed} ticks={len(self.result.steps)} "
+                f"robots={self.robots} filters={self.filter_names}>")
+
+    @property
+    def robots(self) -> list[str]:
+        return [r.name for r in self.result.team.robots]
+
+    @property
+    def filter_names(self) -> list[str]:
+        return list(self.result.tracks)
+
+    @property
+    def time(self) -> np.ndarray:
+        """(T,) simulated time after each tick [s]."""
+        return np.array([s.time for s in self.result.steps])
+
+    @property
+    def truth(self) -> np.ndarray:
+        """(T, N, 3) true poses after each tick [m, m, rad]."""
+        return self.result.truth
+
+    def _rows(self, name: str, attr: str, shape: tuple[int, ...]) -> np.ndarray:
+        tr = self.result.tracks[name]
+        out = np.full((len(self.result.steps), *shape), np.nan)
+        got = np.array(getattr(tr, attr))
+        if len(got):
+            out[np.array(tr.ticks) - 1] = got
+        return out
+
+    @property
+    def estimates(self) -> dict[str, np.ndarray]:
+        """Filter name -> (T, N, 3) each robot's estimated pose after each tick."""
+        n = len(self.robots)
+        return {name: self._rows(name, "means", (n, 3)) for name in self.filter_names}
+
+    @property
+    def covariances(self) -> dict[str, np.ndarray]:
+        """Filter name -> (T, N, 3, 3) each robot's covariance (the joint state's marginal)."""
+        n = len(self.robots)
+        return {name: self._rows(name, "covs", (n, 3, 3)) for name in self.filter_names}
+
+    def failed(self, name: str) -> str | None:
+        """Why filter ``name`` was switched off (with the time), or None."""
+        return self.result.failed(name)
+
+    def metrics(self) -> dict[str, Any]:
+        """What ``beacon-sim run TEAM --json`` prints: per filter, each robot's and the team's
+        figures (RMSE, ANEES with band and verdict); a failed filter has only ``failed``."""
+        return self.result.as_json()

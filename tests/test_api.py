@@ -120,3 +120,33 @@ def test_export_from_the_api(tmp_path):
         assert list(z["filter_names"]) == ["ekf", "dead_reckoning"]
         np.testing.assert_array_equal(z["est_mean"][0], r.estimates["ekf"])
         np.testing.assert_array_equal(z["truth"], r.truth)
+
+
+def test_run_team_is_the_command_line_team_run(capsys):
+    """bs.run_team equals ``beacon-sim run TEAM --json`` number for number, gives arrays per
+    robot, and takes a team filter class defined in the notebook."""
+    import json
+
+    import numpy as np
+
+    import beacon_sim as bs
+    from beacon_sim.cli.main import main
+    from beacon_sim.filters.team import IndependentTeam
+
+    r = bs.run_team("team_sparse", ["centralised", "decentralised"], seed=2, duration=5)
+    assert main(["run", "team_sparse", "--filter", "centralised", "--filter", "decentralised",
+                 "--seed", "2", "--duration", "5", "--json"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    for name in ("centralised", "decentralised"):
+        assert cli["filters"][name]["robots"] == r.metrics()["filters"][name]["robots"]
+    assert r.robots == ["scout", "relay", "explorer"]
+    assert r.truth.shape == (100, 3, 3) and r.estimates["centralised"].shape == (100, 3, 3)
+    assert r.covariances["decentralised"].shape == (100, 3, 3, 3)
+    assert np.abs(r.estimates["centralised"] - r.truth)[..., :2].max() < 0.5
+
+    class Mine(IndependentTeam):  # a team filter class defined here, as in a notebook
+        pass
+
+    mine = bs.run_team("team_sparse", [Mine, "independent"], seed=2, duration=5)
+    np.testing.assert_array_equal(mine.estimates["Mine"], mine.estimates["independent"])
+    assert mine.failed("Mine") is None
