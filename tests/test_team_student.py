@@ -85,3 +85,23 @@ def test_a_students_failing_team_filter_is_switched_off(student):
     assert "ValueError: my update is wrong" in r.failed("Broken")
     assert r.failed("centralised") is None
     assert r.as_json()["filters"]["Broken"].keys() == {"failed"}
+
+
+def test_check_reports_on_a_students_team_filter(student, tmp_path, capsys):
+    assert main(["check", f"{student}:MyTeam"]) == 0
+    out = capsys.readouterr().out
+    assert "PASS  runs" in out and "4 of 4 checks passed" in out
+    assert main(["check", f"{student}:Broken"]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL  runs" in out and "my update is wrong" in out
+    noisy = tmp_path / "noisy.py"
+    noisy.write_text(STUDENT + textwrap.dedent('''
+        import random
+
+
+        class Noisy(MyTeam):
+            def estimates(self):
+                return [(m + random.random() * 1e-6, c) for m, c in super().estimates()]
+    '''), encoding="utf-8")
+    assert main(["check", f"{noisy}:Noisy"]) == 1
+    assert "FAIL  deterministic" in capsys.readouterr().out
