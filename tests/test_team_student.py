@@ -105,3 +105,19 @@ def test_check_reports_on_a_students_team_filter(student, tmp_path, capsys):
     '''), encoding="utf-8")
     assert main(["check", f"{noisy}:Noisy"]) == 1
     assert "FAIL  deterministic" in capsys.readouterr().out
+
+
+def test_the_team_template_runs_as_the_independent_baseline(tmp_path, capsys):
+    path = tmp_path / "coop.py"
+    assert main(["new-filter", str(path), "--team"]) == 0
+    assert "team filter class Coop" in capsys.readouterr().out
+    assert main(["new-filter", str(path), "--team"]) == 2  # never over an existing file
+    team = load_team_scenario("team_sparse")
+    r = run_team_headless(team, [f"{path}:Coop", "independent"], seed=6, duration=10.0)
+    assert r.failed("Coop") is None
+    # the robot readings reach its TODO but change nothing yet: the baseline, bit for bit
+    assert sum(r.readings()[i]["robot"] for i in range(3)) > 0
+    np.testing.assert_array_equal(np.array(r.tracks["Coop"].means),
+                                  np.array(r.tracks["independent"].means))
+    np.testing.assert_array_equal(np.array(r.tracks["Coop"].covs),
+                                  np.array(r.tracks["independent"].covs))

@@ -125,6 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("new-filter", help="write a working, commented filter template")
     p.add_argument("path")
+    p.add_argument("--team", action="store_true",
+                   help="a team filter for scenarios with several robots (docs/multi-robot.md)")
     return parser
 
 

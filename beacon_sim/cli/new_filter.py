@@ -1,4 +1,5 @@
-"""``beacon-sim new-filter PATH``: write a working, commented filter template."""
+"""``beacon-sim new-filter PATH [--team]``: write a working, commented filter template (a
+team filter's with ``--team``)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from beacon_sim.errors import UsageError
+from beacon_sim.filters.team_template import render_team_template
 from beacon_sim.filters.template import class_name_for, render_template
 
 
@@ -19,8 +21,16 @@ def new_filter_command(args: argparse.Namespace) -> int:
     if not path.parent.is_dir():
         raise UsageError(f"new-filter {path}: no folder {path.parent}")
     cls = class_name_for(path)
-    path.write_text(render_template(cls, path.name), encoding="utf-8")
     shown = path.as_posix() if path.is_absolute() or "/" in path.as_posix() else f"./{path.name}"
+    if getattr(args, "team", False):
+        path.write_text(render_team_template(cls, path.name), encoding="utf-8")
+        print(f"wrote {path} with the team filter class {cls} (each robot's own EKF, with a TODO "
+              "for the robot-to-robot readings)")
+        print("next:")
+        print(f"  beacon-sim check {shown}:{cls}")
+        print(f"  beacon-sim play team_sparse --filter {shown}:{cls} --filter centralised")
+        return 0
+    path.write_text(render_template(cls, path.name), encoding="utf-8")
     print(f"wrote {path} with the class {cls} (dead reckoning, with TODOs for the update)")
     print("next:")
     print(f"  beacon-sim check {shown}:{cls}")
