@@ -19,6 +19,8 @@ drawn with the single-robot window's pieces (``render.WorldRenderer``, ``hud.Hud
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 import numpy as np
 import pygame
@@ -27,8 +29,9 @@ from beacon_sim.app import palette, shapes
 from beacon_sim.app.hud import Hud
 from beacon_sim.app.main import App, PlayOptions, check_display, run_window
 from beacon_sim.app.render import ELLIPSE_LEVEL, WorldRenderer, ipx, polyline
+from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.runs.scene import NEES_BAND
-from beacon_sim.runs.team_live import TeamSession
+from beacon_sim.runs.team_live import TeamSession, make_team_recorder
 
 #: Estimate arrows at this fraction of the single-robot window's: a few team filters'
 #: arrows on one robot leave its outline visible.
@@ -267,8 +270,9 @@ class TeamApp(App):
     RENDERER = TeamRenderer
     HUD = TeamHud
 
-    def __init__(self, session: TeamSession, size=(1280, 800), scripted: bool = False):
-        super().__init__(session, size, scripted, recording=None)
+    def __init__(self, session: TeamSession, size=(1280, 800), scripted: bool = False,
+                 recording: Path | None = None):
+        super().__init__(session, size, scripted, recording=recording)
         pygame.display.set_caption(f"beacon-sim: {session.team.name} (team)")
 
     def filter_styles(self, names: list[str]) -> dict[str, tuple]:
@@ -294,16 +298,23 @@ class TeamApp(App):
 
 def play_team(options: PlayOptions) -> int:
     """Open the window on a team session (``options.scenario`` is a TeamScenario and
-    ``options.filters`` team filter names); returns the exit status. Team sessions are not
-    recorded."""
+    ``options.filters`` team filter names); returns the exit status. Recorded as a
+    single-robot session is (``options.record``: ``recordings/<scenario>_<time>.jsonl``,
+    docs/replay.md)."""
     o = options
     check_display()
-    session = TeamSession(o.scenario, list(o.filters), o.seed, o.params)
+    assert isinstance(o.scenario, TeamScenario)
+    recorder, rec_path = (None, None)
+    if o.record:
+        recorder, rec_path = make_team_recorder(o.scenario, o.seed, list(o.filters), o.params)
+    session = TeamSession(o.scenario, list(o.filters), o.seed, o.params, recorder)
     if o.autopilot:
         session.toggle_autopilot()
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-    app = TeamApp(session, o.size, scripted=o.frames is not None)
+    app = TeamApp(session, o.size, scripted=o.frames is not None, recording=rec_path)
     run_window(app, o)
+    if rec_path is not None:
+        print(f"recorded to {rec_path}", file=sys.stderr)
     return 0
 
 

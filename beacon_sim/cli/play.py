@@ -64,7 +64,7 @@ def play_command(args: argparse.Namespace) -> int:
 
 def play_team_command(args: argparse.Namespace) -> int:
     """``beacon-sim play TEAM_SCENARIO``: the team window (issue 18). ``--filter`` names team
-    filters (default: the scenario's ``default_filters``); team sessions are not recorded."""
+    filters (default: the scenario's ``default_filters``); recorded unless ``--no-record``."""
     from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S
     from beacon_sim.runs.team import check_team_specs
 
@@ -78,13 +78,12 @@ def play_team_command(args: argparse.Namespace) -> int:
         raise UsageError(f"--autopilot: no robot of {team.name} has a driver")
     check_speed(args.speed)
     check_gif(args.gif)
-    if not args.no_record:
-        print("beacon-sim: note: team sessions are not recorded", file=sys.stderr)
     from beacon_sim.app.main import PlayOptions  # pygame only when a window opens
     from beacon_sim.app.team import play_team
 
     return play_team(PlayOptions(team, names, team.seed if args.seed is None else int(args.seed),
-                                 params, size, args.frames, args.screenshot, record=False,
+                                 params, size, args.frames, args.screenshot,
+                                 record=not args.no_record,
                                  autopilot=args.autopilot, paused=args.paused, speed=args.speed,
                                  gif=args.gif))
 

@@ -5,36 +5,136 @@ scenario and seed, given the same controls and commands), so the file carries it
 checksums whatever the caller passes. Lines are flushed at least every half second of
 simulated or wall time: a killed program leaves a file that replays to within a second of
 the kill.
+
+:class:`Recorder` writes a single-robot session, :class:`TeamRecorder` a team session
+(several robots; the driven robot's index and command per tick); both share the file
+handling, the header, the flush policy and the end line (``_LineWriter``).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, TextIO
 
+import numpy as np
+
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.team import TeamSimulation, TeamStep
+from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import (
     FLUSH_EVERY_S,
     FORMAT_NAME,
     FORMAT_VERSION,
+    TEAM_KIND,
     RecordingError,
     dumps,
     rebuild_scenario,
+    rebuild_team_scenario,
     scenario_text,
     text_checksum,
     validate_command,
+    validate_team_command,
 )
 from beacon_sim.runs.user_commands import apply_commands
 from beacon_sim.version import __version__
 
 
-class Recorder:
+class _LineWriter:
+    """What every recorder shares: the file, the header, the tick count, the flush policy
+    (at least every :data:`FLUSH_EVERY_S` of simulated or wall time, so a killed program's
+    file replays to within a second of the kill), checkpoints and the end line. A subclass
+    sets ``self.shadow`` (with ``tick``, ``time``, ``truth_checksum``) and writes the
+    state lines (:meth:`_state_line`)."""
+
+    path: Path
+    _file: TextIO | None
+    shadow: Any
+
+    def _open(self, path, scenario: Any, text: str, seed: int, filters: list[str],
+              params: dict | None, checkpoint_every: int | None,
+              extra: dict[str, Any] | None = None) -> None:
+        """Create the file and write the header (``extra``: fields after the common ones)."""
+        self.path = Path(path)
+        self.seed = int(seed)
+        self.dt = scenario.dt
+        self.checkpoint_every = checkpoint_every or max(1, round(1.0 / scenario.dt))
+        self.ticks = 0
+        self._expected_tick: int | None = None
+        self._warned_gap = False
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = self.path.open("w", encoding="utf-8", newline="\n")
+        header = {
+            "type": "header", "format": FORMAT_NAME, "version": FORMAT_VERSION,
+            "program_version": __version__,
+            "created": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "scenario_name": scenario.name, "scenario_source": str(scenario.source),
+            "scenario_toml": text, "scenario_sha256": text_checksum(text),
+            "seed": self.seed, "dt": scenario.dt,
+            "filters": list(filters), "params": {k: dict(v) for k, v in (params or {}).items()},
+            "checkpoint_every": self.checkpoint_every,
+            **(extra or {}),
+        }
+        self._file.write(dumps(header) + "\n")
+        self._file.flush()
+        self._last_flush_wall = time.monotonic()
+        self._last_flush_tick = 0
+
+    @property
+    def truth_checksum(self) -> str:
+        """Checksum of the true trajectory recorded so far (equals the caller's
+        ``sim.truth_checksum`` after the same ticks: a cheap consistency check)."""
+        return self.shadow.truth_checksum
+
+    def _check_tick(self, tick: int) -> None:
+        """Refuse a closed recorder; warn once when ticks are not recorded one by one."""
+        if self._file is None:
+            raise RecordingError(f"{self.path}: recorder already closed")
+        if self._expected_tick is not None and tick != self._expected_tick and not self._warned_gap:
+            warnings.warn(f"{self.path}: tick {tick} recorded after {self._expected_tick - 1}; "
+                          "ticks should be recorded one by one", stacklevel=3)
+            self._warned_gap = True
+        self._expected_tick = tick + 1
+
+    def _write_tick(self, line: dict[str, Any], tick: int) -> None:
+        """The tick line, a checkpoint every ``checkpoint_every`` ticks, a flush when due."""
+        assert self._file is not None
+        self.ticks += 1
+        self._file.write(dumps(line) + "\n")
+        if tick % self.checkpoint_every == 0:
+            self._file.write(dumps(self._state_line("checkpoint")) + "\n")
+        now = time.monotonic()
+        if (now - self._last_flush_wall >= FLUSH_EVERY_S
+                or (tick - self._last_flush_tick) * self.dt >= FLUSH_EVERY_S):
+            self._file.flush()
+            self._last_flush_wall = now
+            self._last_flush_tick = tick
+
+    def _state_line(self, kind: str) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Write the end line (final truth checksum) and close the file. Idempotent."""
+        if self._file is None:
+            return
+        self._file.write(dumps(self._state_line("end")) + "\n")
+        self._file.close()
+        self._file = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class Recorder(_LineWriter):
     """Writes one run to ``path`` as it goes.
 
     Parameters
@@ -55,41 +155,14 @@ class Recorder:
 
     def __init__(self, path, scenario: Scenario, seed: int, filters: list[str],
                  params: dict | None = None, *, checkpoint_every: int | None = None):
-        self.path = Path(path)
         self.scenario = scenario
-        self.seed = int(seed)
         text = scenario_text(scenario)
         rebuilt = rebuild_scenario(text, scenario.source, scenario.name)
         if replace(rebuilt, seed=scenario.seed, duration=scenario.duration) != scenario:
             warnings.warn(f"{scenario.source}: the scenario was changed after loading; the "
                           "recording stores the file as it is on disk", stacklevel=2)
-        self.checkpoint_every = checkpoint_every or max(1, round(1.0 / scenario.dt))
-        self.shadow = Simulation(rebuilt, self.seed)
-        self.ticks = 0
-        self._expected_tick: int | None = None
-        self._warned_gap = False
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file: TextIO | None = self.path.open("w", encoding="utf-8", newline="\n")
-        header = {
-            "type": "header", "format": FORMAT_NAME, "version": FORMAT_VERSION,
-            "program_version": __version__,
-            "created": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "scenario_name": scenario.name, "scenario_source": str(scenario.source),
-            "scenario_toml": text, "scenario_sha256": text_checksum(text),
-            "seed": self.seed, "dt": scenario.dt,
-            "filters": list(filters), "params": {k: dict(v) for k, v in (params or {}).items()},
-            "checkpoint_every": self.checkpoint_every,
-        }
-        self._file.write(dumps(header) + "\n")
-        self._file.flush()
-        self._last_flush_wall = time.monotonic()
-        self._last_flush_tick = 0
-
-    @property
-    def truth_checksum(self) -> str:
-        """Checksum of the true trajectory recorded so far (equals the caller's
-        ``sim.truth_checksum`` after the same ticks: a cheap consistency check)."""
-        return self.shadow.truth_checksum
+        self.shadow = Simulation(rebuilt, int(seed))
+        self._open(path, scenario, text, seed, filters, params, checkpoint_every)
 
     def record_tick(self, tick: int, control: Control | None, commands: list[dict] | None = None) -> None:
         """Record the control [m/s, rad/s] and the user commands of one tick.
@@ -97,34 +170,19 @@ class Recorder:
         ``control`` None means "the scenario's driver decides"; the driver's command is
         recorded. ``tick`` should count up by one per call (a gap is warned about once).
         """
-        if self._file is None:
-            raise RecordingError(f"{self.path}: recorder already closed")
         commands = [dict(c) for c in (commands or [])]
         for c in commands:
             validate_command(c)
-        if self._expected_tick is not None and tick != self._expected_tick and not self._warned_gap:
-            warnings.warn(f"{self.path}: tick {tick} recorded after {self._expected_tick - 1}; "
-                          "ticks should be recorded one by one", stacklevel=2)
-            self._warned_gap = True
-        self._expected_tick = tick + 1
+        self._check_tick(tick)
         apply_commands(commands, self.shadow, {}, self.shadow.scenario)
         step = self.shadow.step(control)
-        self.ticks += 1
         line: dict[str, Any] = {"type": "tick", "k": step.tick,
                                 "u": [step.control.v, step.control.omega],
                                 "h": self.shadow.truth_checksum[:8],
                                 "r": self.shadow.readings_checksum[:8]}
         if commands:
             line["c"] = commands
-        self._file.write(dumps(line) + "\n")
-        if step.tick % self.checkpoint_every == 0:
-            self._file.write(dumps(self._state_line("checkpoint")) + "\n")
-        now = time.monotonic()
-        if (now - self._last_flush_wall >= FLUSH_EVERY_S
-                or (step.tick - self._last_flush_tick) * self.scenario.dt >= FLUSH_EVERY_S):
-            self._file.flush()
-            self._last_flush_wall = now
-            self._last_flush_tick = step.tick
+        self._write_tick(line, step.tick)
 
     def _state_line(self, kind: str) -> dict[str, Any]:
         sim = self.shadow
@@ -139,16 +197,113 @@ class Recorder:
         out["readings_checksum"] = sim.readings_checksum
         return out
 
-    def close(self) -> None:
-        """Write the end line (final truth checksum) and close the file. Idempotent."""
-        if self._file is None:
-            return
-        self._file.write(dumps(self._state_line("end")) + "\n")
-        self._file.close()
-        self._file = None
 
-    def __enter__(self) -> Recorder:
-        return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+class TeamReadingsHash:
+    """SHA-256 of every reading of a team run, tick by tick: each robot's beacon readings
+    and robot readings (sensor, kind, ``z``, IDs seen, HDOP, bit for bit, as a single robot's
+    ``Simulation.readings_checksum``), prefixed with the robot's index. What a team
+    recording's ``r`` and ``readings_checksum`` hold."""
+
+    def __init__(self) -> None:
+        self._hash = hashlib.sha256()
+
+    def update(self, step: TeamStep) -> None:
+        h = self._hash
+        for i in range(len(step.steps)):
+            for m in step.measurements(i):
+                h.update(f"{step.tick} {i} {m.sensor} {m.kind} {m.z.shape}".encode())
+                h.update(np.ascontiguousarray(m.z, dtype="<f8").tobytes())
+                h.update(np.ascontiguousarray(m.beacon_ids, dtype="<i8").tobytes())
+                h.update(np.float64(m.hdop).tobytes())
+
+    @property
+    def checksum(self) -> str:
+        """First 16 hex digits."""
+        return self._hash.hexdigest()[:16]
+
+
+def team_commands_to_sim(commands: list[dict], sim: TeamSimulation) -> None:
+    """The truth's part of team user commands: a kidnap request on the robot it names (to
+    its ``pose``, or a random pose from that robot's events stream). Resets and toggles
+    touch the filters and the display only."""
+    for cmd in commands:
+        if cmd["kind"] == "kidnap":
+            sim.sims[cmd["robot"]].request_kidnap(cmd.get("pose"))
+
+
+class TeamRecorder(_LineWriter):
+    """Writes one team session to ``path`` as it goes (format: beacon_sim/io/recording.py,
+    ``kind: "team"``), with a shadow :class:`TeamSimulation` for the checksums.
+
+    Call :meth:`record_tick` once per tick before the caller's step of that tick, with the
+    driven robot's index, its command, whether its own driver chose it (autopilot) and the
+    user commands of the tick (:data:`~beacon_sim.io.recording.TEAM_COMMAND_KINDS`); then
+    :meth:`close`.
+    """
+
+    def __init__(self, path, team: TeamScenario, seed: int, filters: list[str],
+                 params: dict | None = None, *, checkpoint_every: int | None = None):
+        self.team = team
+        text = scenario_text(team)
+        rebuilt = rebuild_team_scenario(text, team.source, team.name)
+        if replace(rebuilt, seed=team.seed, duration=team.duration) != team:
+            warnings.warn(f"{team.source}: the team scenario was changed after loading; the "
+                          "recording stores the file as it is on disk", stacklevel=2)
+        self.shadow = TeamSimulation(rebuilt, int(seed))
+        self.readings = TeamReadingsHash()
+        self._open(path, team, text, seed, filters, params, checkpoint_every,
+                   {"kind": TEAM_KIND, "robots": [r.name for r in team.robots]})
+
+    @property
+    def readings_checksum(self) -> str:
+        return self.readings.checksum
+
+    def record_tick(self, tick: int, driven: int, control: Control, autopilot: bool = False,
+                    commands: list[dict] | None = None) -> None:
+        """Record one team tick: robot ``driven`` (index) gets ``control`` [m/s, rad/s]
+        (``autopilot``: its own driver chose it, and the shadow lets the driver choose), the
+        others follow their drivers; ``commands`` are applied before the step."""
+        n = len(self.team.robots)
+        commands = [_plain(c) for c in (commands or [])]
+        for c in commands:
+            validate_team_command(c, n)
+        if not 0 <= int(driven) < n:
+            raise ValueError(f"driven robot {driven}: expected an index from 0 to {n - 1}")
+        self._check_tick(tick)
+        team_commands_to_sim(commands, self.shadow)
+        step = self.shadow.step({} if autopilot else {int(driven): control})
+        self.readings.update(step)
+        u = step.steps[int(driven)].control
+        line: dict[str, Any] = {"type": "tick", "k": step.tick, "d": int(driven),
+                                "u": [u.v, u.omega]}
+        if autopilot:
+            line["a"] = True
+        line["h"] = self.shadow.truth_checksum[:8]
+        line["r"] = self.readings.checksum[:8]
+        if commands:
+            line["c"] = commands
+        self._write_tick(line, step.tick)
+
+    def _state_line(self, kind: str) -> dict[str, Any]:
+        sim = self.shadow
+        out: dict[str, Any] = {"type": kind}
+        if kind == "end":
+            out["ticks"] = sim.tick
+        else:
+            out["k"] = sim.tick
+            out["time"] = sim.time
+        out["poses"] = [[float(v) for v in p] for p in sim.poses]
+        out["checksum"] = sim.truth_checksum
+        out["readings_checksum"] = self.readings.checksum
+        return out
+
+
+def _plain(cmd: dict) -> dict:
+    """A command with JSON-ready values (a kidnap pose as a list of floats)."""
+    out = dict(cmd)
+    if "pose" in out and out["pose"] is not None:
+        out["pose"] = [float(v) for v in out["pose"]]
+    elif "pose" in out:
+        del out["pose"]
+    return out

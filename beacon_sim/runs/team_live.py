@@ -18,6 +18,7 @@ reading of each sensor is kept for drawing.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,8 @@ from beacon_sim.filters.team_runner import (
     build_team_filters,
     validate_team_estimates,
 )
+from beacon_sim.io.recording import default_recording_path
+from beacon_sim.runs.recorder import TeamRecorder
 from beacon_sim.runs.scene import FilterStatus, Trail
 from beacon_sim.runs.team import build_team_spec, team_filter_name
 
@@ -45,7 +48,8 @@ KEEP_ESTIMATES = 2
 #: at 0.3 m/s, so that a dozen estimate trails do not bury the truth's (which keeps the
 #: usual 6000).
 ESTIMATE_TRAIL_POINTS = 300
-#: User commands a team session understands (applied on the next tick).
+#: User commands a team session understands (applied on the next tick; recorded as
+#: ``io.recording.TEAM_COMMAND_KINDS``).
 COMMAND_KINDS = ("kidnap", "reset", "toggle")
 
 
@@ -64,12 +68,16 @@ class TeamSession:
         Defaults to the scenario's.
     params : dict, optional
         ``{filter_name: {param: value}}`` overrides (from ``--set``).
+    recorder : TeamRecorder, optional
+        Anything with ``record_tick(tick, driven, control, autopilot, commands)`` and
+        ``close()`` (``runs/recorder.TeamRecorder``: the session written as it goes).
     """
 
     team: TeamScenario
     specs: list[str]
     seed: int | None = None
     params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    recorder: Any = None
 
     def __post_init__(self) -> None:
         team = self.team
@@ -90,6 +98,7 @@ class TeamSession:
         self.keyboard = KeyboardDrive(team.keyboard)
         self.autopilot = False
         self.pending: list[dict] = []
+        self._shown: list[dict] = []  # show / hide since the last tick: recorded with the next
         self.visible = {n: True for n in self.names}
         self.last_step: TeamStep | None = None
         self.last_controls: list[Control] = [Control() for _ in team.robots]
@@ -243,6 +252,7 @@ class TeamSession:
         if kind == "toggle":
             if cmd.get("filter") in self.visible:
                 self.visible[cmd["filter"]] = not self.visible[cmd["filter"]]
+                self._shown.append({"kind": "toggle", "filter": cmd["filter"]})
             return
         self.pending.append({**cmd, "robot": self.driven})
 
@@ -251,6 +261,10 @@ class TeamSession:
         """Run one team tick with the driven robot's command and the queued user commands."""
         cmds, self.pending = self.pending, []
         control = self.next_control()
+        if self.recorder is not None:
+            self.recorder.record_tick(self.sim.tick + 1, self.driven, control, self.autopilot,
+                                      self._shown + cmds)
+        self._shown = []
         for cmd in cmds:
             if cmd["kind"] == "kidnap":
                 self.sim.sims[cmd["robot"]].request_kidnap(cmd.get("pose"))
@@ -318,7 +332,17 @@ class TeamSession:
                     tr.add(est[0][i])
 
     def close(self) -> None:
-        """Nothing to flush (team sessions are not recorded)."""
+        """Write the recording's end line and close it (if the session is recorded)."""
+        if self.recorder is not None:
+            self.recorder.close()
+            self.recorder = None
 
 
-__all__ = ["KEEP_ESTIMATES", "TeamSession"]
+def make_team_recorder(team: TeamScenario, seed: int, specs: list[str],
+                       params: dict[str, dict[str, Any]]) -> tuple[TeamRecorder, Path]:
+    """A team recorder writing to ``recordings/<scenario>_<time>.jsonl``, and that path."""
+    path = Path(default_recording_path(team.name))
+    return TeamRecorder(path, team, seed, list(specs), params), path
+
+
+__all__ = ["KEEP_ESTIMATES", "TeamSession", "make_team_recorder"]
