@@ -8,6 +8,10 @@ state, so a checkpoint cannot be restored: seeking backward rebuilds the simulat
 filters and re-simulates from tick 0 (2,400 ticks take a fraction of a second), so the
 picture at time t is exactly the one a straight run shows at t. Seeking forward just runs
 the ticks in between.
+
+A team session's recording opens :class:`TeamReplayApp`: the team window's drawing
+(``app/team.py``) with this timeline, driven by a
+:class:`~beacon_sim.runs.team_replay.TeamReplaySession`.
 """
 
 from __future__ import annotations
@@ -20,9 +24,11 @@ import pygame
 
 from beacon_sim.app import palette
 from beacon_sim.app.main import App
-from beacon_sim.io.recording import Recording
+from beacon_sim.app.team import TeamApp
+from beacon_sim.io.recording import Recording, TeamRecording
 from beacon_sim.runs.mrclam import MrclamPlayback
 from beacon_sim.runs.replay import ReplaySession
+from beacon_sim.runs.team_replay import TeamReplaySession
 
 #: Left / Right arrows seek by this much simulated time [s].
 SEEK_STEP_S = 5.0
@@ -38,7 +44,7 @@ class ReplayApp(App):
 
     MODE = "replay"
 
-    def __init__(self, session: ReplaySession | MrclamPlayback, size=(1280, 800),
+    def __init__(self, session: ReplaySession | MrclamPlayback | TeamReplaySession, size=(1280, 800),
                  scripted: bool = False):
         self.reported = False
         self.end_tick: int | None = None  # stop the window here (--end, --gif)
@@ -91,7 +97,8 @@ class ReplayApp(App):
         if (self.end_tick is not None and s.tick_count >= self.end_tick) or (
                 self.stop_at_end and s.at_end):
             self.running = False
-        if not self.reported and isinstance(s, ReplaySession) and (s.at_end or s.mismatch):
+        if not self.reported and isinstance(s, ReplaySession | TeamReplaySession) \
+                and (s.at_end or s.mismatch):
             self.reported = True
             status = s.checksum_status()
             self.flash(("end of the recording: truth checksum " + status) if not s.mismatch
@@ -173,7 +180,16 @@ class ReplayApp(App):
                 surf.blit(tag, tag.get_rect(center=box.center))
 
 
-def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[str, Any]],
+class TeamReplayApp(ReplayApp, TeamApp):
+    """The replay window on a team recording: the team window's robots, beliefs, panel and
+    legend (:class:`~beacon_sim.app.team.TeamApp`) with the replay's timeline and keys."""
+
+    def draw_extra(self, surf) -> None:
+        TeamApp.draw_extra(self, surf)  # the legend of the world's lines
+        ReplayApp.draw_extra(self, surf)  # the timeline
+
+
+def show_replay(recording: Recording | TeamRecording, specs: list[str], params: dict[str, dict[str, Any]],
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
                 end: float | None = None) -> int:
@@ -187,8 +203,13 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
     from beacon_sim.app.main import start as start_app
 
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-    session = ReplaySession(recording, specs, params)
-    app = ReplayApp(session, scripted=frames is not None or gif is not None)
+    session: ReplaySession | TeamReplaySession
+    if isinstance(recording, TeamRecording):
+        session = TeamReplaySession(recording, specs, params)
+        app: ReplayApp = TeamReplayApp(session, scripted=frames is not None or gif is not None)
+    else:
+        session = ReplaySession(recording, specs, params)
+        app = ReplayApp(session, scripted=frames is not None or gif is not None)
     dt = session.scenario.dt
     if start:
         app.seek(min(round(start / dt), session.total_ticks))
@@ -202,7 +223,7 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
             app.save_screenshot(screenshot)
         finish_gif(app)
         s = app.session
-        assert isinstance(s, ReplaySession)
+        assert isinstance(s, ReplaySession | TeamReplaySession)
         if not app.reported:
             print(f"replay {recording.path}: stopped at tick {s.tick_count} of {s.total_ticks}, "
                   f"truth checksum {s.checksum_status()}", file=sys.stderr)
@@ -211,4 +232,4 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
         app.close()
 
 
-__all__ = ["ReplayApp", "show_replay"]
+__all__ = ["ReplayApp", "TeamReplayApp", "show_replay"]

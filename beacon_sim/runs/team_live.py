@@ -278,13 +278,8 @@ class TeamSession:
 
     def _reset_filters(self) -> None:
         """Every working team filter back to the scenario's initial beliefs (guarded)."""
-        beliefs = initial_beliefs(self.team)
-        for name, tr in self.runner.tracks.items():
-            if tr.failed or tr.filter is None:
-                continue
-            _, why, tb = guarded_call(lambda f=tr.filter: f.reset(beliefs), WINDOW_STEP_LIMIT_S)
-            if why is not None:
-                self.runner.fail(name, f"reset: {why}", tb, self.sim.time)
+        reset_team_filters(self.runner, self.team, WINDOW_STEP_LIMIT_S, self.sim.time)
+        for name in self.names:
             for trail in self.trails[name]:
                 trail.brk()
 
@@ -338,6 +333,20 @@ class TeamSession:
             self.recorder = None
 
 
+def reset_team_filters(runner: TeamFilterRunner, team: TeamScenario, limit_s: float | None,
+                       time_s: float) -> None:
+    """The ``reset`` user command: every working team filter of ``runner`` back to the
+    scenario's initial beliefs, under the guard (one that fails is switched off), the same
+    live and on replay."""
+    beliefs = initial_beliefs(team)
+    for name, tr in runner.tracks.items():
+        if tr.failed or tr.filter is None:
+            continue
+        _, why, tb = guarded_call(lambda f=tr.filter: f.reset(beliefs), limit_s)
+        if why is not None:
+            runner.fail(name, f"reset: {why}", tb, time_s)
+
+
 def make_team_recorder(team: TeamScenario, seed: int, specs: list[str],
                        params: dict[str, dict[str, Any]]) -> tuple[TeamRecorder, Path]:
     """A team recorder writing to ``recordings/<scenario>_<time>.jsonl``, and that path."""
@@ -345,4 +354,4 @@ def make_team_recorder(team: TeamScenario, seed: int, specs: list[str],
     return TeamRecorder(path, team, seed, list(specs), params), path
 
 
-__all__ = ["KEEP_ESTIMATES", "TeamSession", "make_team_recorder"]
+__all__ = ["KEEP_ESTIMATES", "TeamSession", "make_team_recorder", "reset_team_filters"]

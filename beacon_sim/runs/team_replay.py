@@ -1,0 +1,264 @@
+"""Replaying a team session's recording bit for bit, with the recorded team filters or any
+others (the team counterpart of runs/replay.py; the format is beacon_sim/io/recording.py,
+``kind: "team"``).
+
+:func:`replay_team_recording` re-simulates a file headless, checks its checksums (truth and
+readings, per tick, at the checkpoints and at the end) and gives the figures of
+``beacon-sim run`` on a team scenario (a :class:`~beacon_sim.runs.team.TeamRunResult`);
+:class:`TeamReplaySession` is the same one tick at a time, for the window.
+
+Each tick goes as it went live (``runs/team_live.TeamSession.tick``): the recorded user
+commands (a kidnap of the robot it names, a reset of every team filter), then every robot
+steps, the recorded driven robot with its recorded command (or, where its own driver chose
+it live, the driver again, so that the driver's state follows), the others on their
+drivers; then the team filters are fed.
+
+A recording names team filters as ``run`` takes them; only built-in ones are run from a
+file (:func:`is_builtin_team_spec`): a recording never makes beacon-sim import code.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Set
+from dataclasses import dataclass
+from typing import Any
+
+from beacon_sim.core.team import TeamSimulation, TeamStep
+from beacon_sim.core.types import Control
+from beacon_sim.filters.loading import split_label
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
+from beacon_sim.filters.team_runner import TeamFilterRunner, build_team_filters
+from beacon_sim.io.recording import TeamRecording, TeamTickRecord
+from beacon_sim.runs.recorder import TeamReadingsHash, team_commands_to_sim
+from beacon_sim.runs.replay import (
+    ReplayMismatch,
+    _mismatch,
+    recorded_params,
+    tick_checked,
+    verification_status,
+)
+from beacon_sim.runs.team import MEMBER_PREFIX, TeamRunResult, build_team_spec, team_filter_name
+from beacon_sim.runs.team_live import TeamSession, reset_team_filters
+
+
+def is_builtin_team_spec(spec: str) -> bool:
+    """A team filter spec a recording may run: a team filter by name, or ``independent:F``
+    with F a built-in filter or an entry point (optionally labelled). Anything naming a
+    module or a file (``my_team.py:MyTeam``, ``independent:alice.py:MyEkf``) is not."""
+    _, body = split_label(spec)
+    if body.startswith(MEMBER_PREFIX):
+        body = body[len(MEMBER_PREFIX):]
+    return bool(body) and ":" not in body and "/" not in body and "\\" not in body \
+        and not body.endswith(".py")
+
+
+def recorded_team_specs(recording: TeamRecording,
+                        requested: list[str] | None) -> tuple[list[str], list[str]]:
+    """(team filters to run, recorded ones skipped): ``requested`` when given; otherwise
+    the recorded built-in ones (those naming a module or a file are skipped: pass them with
+    ``--filter``)."""
+    if requested is not None:
+        return list(requested), []
+    return ([s for s in recording.filters if is_builtin_team_spec(s)],
+            [s for s in recording.filters if not is_builtin_team_spec(s)])
+
+
+def team_tick_mismatch(rec: TeamTickRecord, truth: str, readings: str) -> str | None:
+    """What the tick's recorded checksums disagree with (the team's truth and readings
+    checksums after the tick), or None."""
+    if rec.short_checksum is not None and truth[:8] != rec.short_checksum:
+        return "its truth checksum"
+    if rec.readings_checksum is not None and readings[:8] != rec.readings_checksum:
+        return "its readings checksum"
+    return None
+
+
+def step_recorded(sim: TeamSimulation, rec: TeamTickRecord) -> TeamStep:
+    """One recorded tick of the truth: the kidnaps it holds, then every robot's step (the
+    driven one on its recorded command, or on its own driver where the driver chose live)."""
+    team_commands_to_sim(rec.commands, sim)
+    return sim.step({} if rec.autopilot else {rec.driven: rec.control})
+
+
+@dataclass
+class TeamReplayResult:
+    """A team recording replayed: the run's figures (``result.as_json()`` as ``run``
+    prints them) and what the replay checked (``replay``: file, ticks, checksum status,
+    skipped filters, warnings)."""
+
+    result: TeamRunResult
+    replay: dict[str, Any]
+    readings_checksum: str
+
+    def as_json(self) -> dict[str, Any]:
+        return {**self.result.as_json(), "replay": self.replay}
+
+
+def _build_runner(recording: TeamRecording, specs: list[str],
+                  params: dict[str, dict[str, Any]]) -> TeamFilterRunner:
+    team = recording.team
+    by_name = {team_filter_name(s): s for s in specs}
+    built, why = build_team_filters(
+        list(by_name), lambda n: build_team_spec(by_name[n], team, params.get(n), recording.seed),
+        HEADLESS_STEP_LIMIT_S)
+    runner = TeamFilterRunner(built, len(team.robots), HEADLESS_STEP_LIMIT_S)
+    for name, reason in why.items():
+        runner.tracks[name].failed = f"could not be built: {reason}"
+    return runner
+
+
+def replay_team_recording(recording: TeamRecording, filters: list[str] | None = None,
+                          params: dict[str, dict[str, Any]] | None = None,
+                          verify: bool = True) -> TeamReplayResult:
+    """Re-simulate a team recording, feeding the team filters; check truth and readings
+    against the file. ``filters`` None runs the recorded built-in team filters with the
+    recorded parameters (``params``, from ``--set``, on top). Raises
+    :class:`~beacon_sim.runs.replay.ReplayMismatch` naming the first tick that differs."""
+    specs, skipped = recorded_team_specs(recording, filters)
+    runner = _build_runner(recording, specs, recorded_params(recording, params))
+    team = recording.team
+    sim = TeamSimulation(team, recording.seed)
+    readings = TeamReadingsHash()
+    steps: list[TeamStep] = []
+    checked = 0
+    t0 = time.perf_counter()
+    for rec in recording.ticks:
+        if any(c["kind"] == "reset" for c in rec.commands):
+            reset_team_filters(runner, team, HEADLESS_STEP_LIMIT_S, sim.time)
+        step = step_recorded(sim, rec)
+        readings.update(step)
+        if verify:
+            why = team_tick_mismatch(rec, sim.truth_checksum, readings.checksum)
+            if why is not None:
+                raise _mismatch(recording, rec.tick, rec.line, why)
+            checked += tick_checked(recording, rec)
+            cp = recording.checkpoints.get(rec.tick)
+            if cp is not None and (cp["checksum"] != sim.truth_checksum
+                                   or cp["poses"] != sim.poses.tolist()
+                                   or cp.get("readings_checksum") != readings.checksum):
+                prev = [k for k in recording.checkpoints if k < rec.tick]
+                raise _mismatch(recording, (max(prev) + 1) if prev else 1, rec.line,
+                                "the checkpoint")
+        steps.append(step)
+        runner.feed(step.tick, step.time, [s.control for s in step.steps], step.dt,
+                    [step.measurements(i) for i in range(len(step.steps))])
+    wall = time.perf_counter() - t0
+    end = recording.end
+    if verify and end is not None and (
+            end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum
+            or end.get("readings_checksum") != readings.checksum
+            or end["poses"] != sim.poses.tolist()):
+        raise _mismatch(recording, sim.tick, len(recording.ticks), "the final checksum")
+    status = verification_status(recording, checked, len(recording.ticks), at_end=True)
+    result = TeamRunResult(team, recording.seed, steps, runner.tracks, sim.truth_checksum, wall)
+    replay = {
+        "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
+        "checksum_status": status if verify else "not checked",
+        "recorded_checksum": end["checksum"] if end else None,
+        "skipped_filters": skipped, "warnings": list(recording.warnings),
+    }
+    return TeamReplayResult(result, replay, readings.checksum)
+
+
+class TeamReplaySession(TeamSession):
+    """A :class:`~beacon_sim.runs.team_live.TeamSession` whose driven robot, commands and
+    user commands come from a team recording, one tick at a time (the replay window's
+    scene: the timeline methods of ``runs/replay.ReplaySession``)."""
+
+    def __init__(self, recording: TeamRecording, specs: list[str],
+                 params: dict[str, dict[str, Any]] | None = None):
+        self.recording = recording
+        super().__init__(recording.team, list(specs), recording.seed, dict(params or {}))
+        self._fresh()
+
+    def _fresh(self) -> None:
+        self.mismatch: str | None = None  # first tick whose truth or readings differ
+        self._checked = 0
+        self._readings_hash = TeamReadingsHash()
+        self._apply_recorded_driving()
+
+    def _apply_recorded_driving(self) -> None:
+        """Who the next recorded tick drives (the panel shows it)."""
+        ticks = self.recording.ticks
+        if ticks:
+            rec = ticks[min(self.sim.tick, len(ticks) - 1)]
+            self.driven, self.autopilot = rec.driven, rec.autopilot
+
+    @property
+    def total_ticks(self) -> int:
+        return len(self.recording.ticks)
+
+    @property
+    def at_end(self) -> bool:
+        return self.sim.tick >= self.total_ticks
+
+    def marks(self) -> list[tuple[int, str]]:
+        """(tick, kind of the first user command) of the recorded user commands."""
+        return [(rec.tick, rec.commands[0]["kind"]) for rec in self.recording.ticks if rec.commands]
+
+    @property
+    def drive_mode(self) -> str:
+        name = self.recording.path.name
+        return "replay " + (name if len(name) <= 28 else name[:12] + "..." + name[-13:])
+
+    def next_control(self) -> Control:
+        """The driven robot's recorded command of the next tick (its driver's where it chose)."""
+        ticks = self.recording.ticks
+        if not ticks:
+            return Control()
+        rec = ticks[min(self.sim.tick, len(ticks) - 1)]
+        if rec.autopilot and not self.at_end:
+            return super().next_control()
+        return rec.control
+
+    def seek(self, tick: int, keep_flips: Set[str] = frozenset()) -> None:
+        """Show the run at ``tick``: forward by running the ticks in between, backward by
+        rebuilding the simulation and the filters and re-simulating from the start."""
+        tick = min(max(int(tick), 0), self.total_ticks)
+        if tick < self.sim.tick:
+            self.close()
+            self.__post_init__()
+            self._fresh()
+            for name in keep_flips:
+                if name in self.visible:
+                    self.visible[name] = not self.visible[name]
+        while self.sim.tick < tick:
+            self.tick()
+
+    def tick(self) -> TeamStep:
+        """The next recorded tick: its commands, the driven robot's command, then the
+        checksum check."""
+        rec = self.recording.ticks[self.sim.tick]
+        self.driven, self.autopilot = rec.driven, rec.autopilot
+        self.pending = [dict(c) for c in rec.commands if c["kind"] != "toggle"]
+        for c in rec.commands:  # recorded show / hide of a filter (display only)
+            if c["kind"] == "toggle" and c.get("filter") in self.visible:
+                self.visible[c["filter"]] = not self.visible[c["filter"]]
+        step = super().tick()
+        self._readings_hash.update(step)
+        if self.mismatch is None:
+            why = team_tick_mismatch(rec, self.sim.truth_checksum, self._readings_hash.checksum)
+            if why is not None:
+                self.mismatch = (f"{self.recording.path}:{rec.line}: replay differs from the "
+                                 f"recording at tick {rec.tick} (t = {self.sim.time:g} s; {why})")
+            self._checked += tick_checked(self.recording, rec)
+        self._apply_recorded_driving()
+        return step
+
+    def checksum_status(self) -> str:
+        """"verified", "MISMATCH ...", or how far the check went."""
+        if self.mismatch:
+            return f"MISMATCH: {self.mismatch}"
+        end = self.recording.end
+        if self.at_end and end is not None and (
+                end["checksum"] != self.sim.truth_checksum
+                or end.get("readings_checksum") != self._readings_hash.checksum):
+            return "MISMATCH with the end line's checksum"
+        status = verification_status(self.recording, self._checked, self.sim.tick,
+                                     self.at_end)
+        return status if self.at_end else f"{status} (up to tick {self.sim.tick})"
+
+
+__all__ = ["ReplayMismatch", "TeamReplayResult", "TeamReplaySession", "is_builtin_team_spec",
+           "recorded_team_specs", "replay_team_recording"]
