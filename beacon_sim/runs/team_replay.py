@@ -136,7 +136,8 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
             cp = recording.checkpoints.get(rec.tick)
             if cp is not None and (cp["checksum"] != sim.truth_checksum
                                    or cp["poses"] != sim.poses.tolist()
-                                   or cp.get("readings_checksum") != readings.checksum):
+                                   or cp.get("readings_checksum", readings.checksum)
+                                   != readings.checksum):
                 prev = [k for k in recording.checkpoints if k < rec.tick]
                 raise _mismatch(recording, (max(prev) + 1) if prev else 1, rec.line,
                                 "the checkpoint")
@@ -147,7 +148,7 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
     end = recording.end
     if verify and end is not None and (
             end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum
-            or end.get("readings_checksum") != readings.checksum
+            or end.get("readings_checksum", readings.checksum) != readings.checksum
             or end["poses"] != sim.poses.tolist()):
         raise _mismatch(recording, sim.tick, len(recording.ticks), "the final checksum")
     status = verification_status(recording, checked, len(recording.ticks), at_end=True)
@@ -253,7 +254,8 @@ class TeamReplaySession(TeamSession):
         end = self.recording.end
         if self.at_end and end is not None and (
                 end["checksum"] != self.sim.truth_checksum
-                or end.get("readings_checksum") != self._readings_hash.checksum):
+                or end.get("readings_checksum", self._readings_hash.checksum)
+                != self._readings_hash.checksum):
             return "MISMATCH with the end line's checksum"
         status = verification_status(self.recording, self._checked, self.sim.tick,
                                      self.at_end)
