@@ -10,6 +10,11 @@ robot (the others follow their drivers), feed the team filters. The window only 
 the keyboard's state and the driven index between ticks, so the same scenario, seed and
 key presses give the same run whatever the frame rate.
 
+With a :class:`~beacon_sim.runs.recorder.TeamRecorder` (``play`` makes one unless
+``--no-record``: :func:`make_team_recorder`) every tick is recorded before it runs: the
+driven robot, its command and whether its driver chose it, the user commands; replayed by
+``runs/team_replay.py``.
+
 Memory is bounded: the runner keeps the last :data:`KEEP_ESTIMATES` estimates of each
 filter, trails are capped (:class:`~beacon_sim.runs.scene.Trail`), and only the latest
 reading of each sensor is kept for drawing.
