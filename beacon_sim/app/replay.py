@@ -58,7 +58,7 @@ class ReplayApp(App):
     def world_area(self, width: int, height: int) -> tuple[int, int, int, int]:
         th = self.fonts["hud"].get_linesize() + 30
         self.timeline_rect = pygame.Rect(0, height - th, width, th)
-        return (0, 0, width, height - th)
+        return super().world_area(width, height - th)  # the team window's legend strip too
 
     def _bar_rect(self) -> pygame.Rect:
         """The seekable bar inside the timeline strip (right of the time text)."""

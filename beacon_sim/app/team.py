@@ -201,18 +201,15 @@ class TeamHud(Hud):
             f"ellipse: {ELLIPSE_LEVEL:.0%} of each robot's x-y; NEES band 95 %: "
             f"{NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}"], info)
 
-    def world_legend(self, surf, area: pygame.Rect, session: TeamSession, colours, dashes,
-                     lw: int) -> pygame.Rect:
-        """What the lines in the world mean, with a sample of each, in a box at the bottom
-        left of the world view: the readings, the robots, each team filter's style."""
+    def legend_rows(self, width: int, names: list[str]) -> list[list[tuple[str, str]]]:
+        """The legend's entries (text, what) in rows that fit ``width`` [px]: the readings
+        and robots, then one entry per team filter ``names``."""
         f = self.fonts["small"]
-        sl = f.get_linesize()
-        sample = 3 * sl
+        sample = 3 * f.get_linesize()
         items = [("beacon reading", "ray"), ("robot reading", "robot_ray"),
                  ("true robot", "robot"), ("driven (Tab)", "driven")]
-        items += [(f"{name}: {ELLIPSE_LEVEL:.0%} ellipse", name) for name in session.names
-                  if session.visible[name]]
-        room = area.width - 40
+        items += [(f"{name}: {ELLIPSE_LEVEL:.0%} ellipse", name) for name in names]
+        room = width - 40
         rows: list[list[tuple[str, str]]] = [[]]
         used = 0
         for text, what in items:  # fill rows left to right; the filters start a new row
@@ -223,10 +220,25 @@ class TeamHud(Hud):
                 used = 0
             rows[-1].append((text, what))
             used += wide
+        return rows
+
+    def legend_height(self, width: int, names: list[str]) -> int:
+        """The height [px] the legend box takes under the world, margins included."""
+        return len(self.legend_rows(width, names)) * (self.fonts["small"].get_linesize() + 8) + 26
+
+    def world_legend(self, surf, area: pygame.Rect, session: TeamSession, colours, dashes,
+                     lw: int) -> pygame.Rect:
+        """What the lines in the world mean, with a sample of each, in a box at the top left
+        of ``area`` (the strip under the world view): the readings, the robots, each team
+        filter's style."""
+        f = self.fonts["small"]
+        sl = f.get_linesize()
+        sample = 3 * sl
+        rows = self.legend_rows(area.width, [n for n in session.names if session.visible[n]])
         widths = [sum(sample + 12 + f.size(t)[0] + 24 for t, _ in row) for row in rows]
-        box = pygame.Rect(area.left + 8, 0, min(max(widths) + 12, area.width - 16),
+        box = pygame.Rect(area.left + 8, area.top + 4, min(max(widths) + 12, area.width - 16),
                           len(rows) * (sl + 8) + 10)
-        box.bottom = area.bottom - 8
+        surf.fill(palette.OUTSIDE, area)  # the strip under the world, as around the world
         old_clip = surf.get_clip()
         surf.set_clip(area)
         shade = pygame.Surface(box.size, pygame.SRCALPHA)
@@ -284,8 +296,19 @@ class TeamApp(App):
         else:
             super().act(action)
 
+    def world_area(self, width: int, height: int) -> tuple[int, int, int, int]:
+        """The world's part of the window, less the legend's strip under it (sized for every
+        filter, shown or hidden, so the world does not jump when one is hidden)."""
+        x, y, w, h = super().world_area(width, height)
+        return (x, y, w, h - self.hud.legend_height(w, self.session.names))
+
+    def legend_area(self) -> pygame.Rect:
+        """The strip under the world view the legend is drawn in."""
+        x, y, w, h = self.view.area
+        return pygame.Rect(x, y + h, w, self.hud.legend_height(w, self.session.names))
+
     def draw_extra(self, surf) -> None:
-        self.hud.world_legend(surf, pygame.Rect(self.view.area), self.session, self.colours,
+        self.hud.world_legend(surf, self.legend_area(), self.session, self.colours,
                               self.dashes, self.renderer.lw)
 
     def after_tick(self, step) -> None:
