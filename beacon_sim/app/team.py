@@ -153,7 +153,8 @@ class TeamHud(Hud):
         lh = f["hud"].get_linesize()
         sl = f["small"].get_linesize()
         y = self.title_and_clock(surf, x, w, y, session.team.name, session.time, info)
-        self._blit(surf, f"driving: {session.driven_name}  (Tab)", "hud", palette.TEXT, (x, y))
+        tab = "" if getattr(session, "replaying", False) else "  (Tab)"  # Tab drives; not in a replay
+        self._blit(surf, f"driving: {session.driven_name}{tab}", "hud", palette.TEXT, (x, y))
         y = self.command(surf, x, y + lh, session.next_control(), session.drive_mode) + 4
         name_w = max(f["small"].size(n)[0] for n in session.robot_names) + 12
         for i, name in enumerate(session.robot_names):

@@ -167,6 +167,9 @@ class TeamReplaySession(TeamSession):
     user commands come from a team recording, one tick at a time (the replay window's
     scene: the timeline methods of ``runs/replay.ReplaySession``)."""
 
+    #: The panel shows who was driven, without the Tab hint (keys do not drive a replay).
+    replaying = True
+
     def __init__(self, recording: TeamRecording, specs: list[str],
                  params: dict[str, dict[str, Any]] | None = None):
         self.recording = recording
