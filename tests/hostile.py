@@ -7,6 +7,7 @@ stderr for exit 2, no traceback, and a time bound.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import random
@@ -258,6 +259,31 @@ def recording_text(tmp: Path) -> str:
             cmds = [{"kind": "reset"}] if k == 10 else []
             rec.record_tick(k, None, cmds)
             sim.step()
+    return path.read_text(encoding="utf-8")
+
+
+def team_recording_text(tmp: Path) -> str:
+    """A short real team recording of ``team_sparse`` (written by the TeamRecorder): the
+    keys drive the scout, Tab, a kidnap and a reset."""
+    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.runs.recorder import TeamRecorder
+    from beacon_sim.runs.team_live import TeamSession
+
+    team = load_team_scenario("team_sparse")
+    path = tmp / "team_base.jsonl"
+    s = TeamSession(team, ["independent", "centralised"], 2, {},
+                    TeamRecorder(path, team, 2, ["independent", "centralised"]))
+    for k in range(1, 41):
+        if k == 3:
+            s.drive("w")
+        if k == 12:
+            s.next_robot()
+        if k == 20:
+            s.command({"kind": "kidnap"})
+        if k == 30:
+            s.command({"kind": "reset"})
+        s.tick()
+    s.close()
     return path.read_text(encoding="utf-8")
 
 
@@ -543,4 +569,6 @@ def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, 
     rec = recording_text(tmp)
     return (mutated_scenarios(rng, mutated) + hand_made_scenarios() + bad_recordings(rng, rec, recordings)
             + bad_mrclam(rng, mrclam) + bad_command_lines(rng, command_lines) + faulty_filter_cases(rec)
-            + mutated_team_scenarios(random.Random(seed + 18), team))
+            + mutated_team_scenarios(random.Random(seed + 18), team)
+            + [dataclasses.replace(c, name="team-" + c.name)
+               for c in bad_recordings(random.Random(seed + 19), team_recording_text(tmp), 20)])
