@@ -218,23 +218,33 @@ class CentralisedEKF(_TeamBase):
             self.x[3 * i + 2] = wrap(float(b.mean[2]))
             self.P[3 * i:3 * i + 3, 3 * i:3 * i + 3] = 0.5 * (c + c.T)
 
+    def _move(self, i: int, u: Control, dt: float) -> tuple[float, float, np.ndarray]:
+        """Move robot i's mean by its command ``u`` over ``dt`` [s] (the velocity model);
+        returns ``(a, b, Q_i)``: the motion Jacobian ``F_i = [[1, 0, a], [0, 1, b], [0, 0, 1]]``
+        at the old heading and the process noise (3, 3) of the step."""
+        x, k = self.x, 3 * i
+        v, w = float(u.v), float(u.omega)
+        th = float(x[k + 2])
+        c, s = math.cos(th), math.sin(th)
+        q00, q01, q02, q11, q12, q22 = process_cov_terms(self.ctx.members[i].ctx.motion_noise,
+                                                         th, c, s, v, w, dt)
+        x[k] += v * dt * c
+        x[k + 1] += v * dt * s
+        x[k + 2] = wrap(th + w * dt)
+        return -v * dt * s, v * dt * c, np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
+
     def predict(self, controls: Sequence[Control], dt: float) -> None:
-        x, P = self.x, self.P
-        for i, (m, u) in enumerate(zip(self.ctx.members, controls, strict=True)):
+        P = self.P
+        if len(controls) != len(self.ctx.members):
+            raise FilterError(f"{len(controls)} commands for {len(self.ctx.members)} robots")
+        for i, u in enumerate(controls):
             k = 3 * i
-            v, w = float(u.v), float(u.omega)
-            th = float(x[k + 2])
-            c, s = math.cos(th), math.sin(th)
-            q00, q01, q02, q11, q12, q22 = process_cov_terms(m.ctx.motion_noise, th, c, s, v, w, dt)
-            a, b = -v * dt * s, v * dt * c  # F_i = [[1, 0, a], [0, 1, b], [0, 0, 1]]
+            a, b, Q = self._move(i, u, dt)
             P[k, :] += a * P[k + 2, :]
             P[k + 1, :] += b * P[k + 2, :]
             P[:, k] += a * P[:, k + 2]
             P[:, k + 1] += b * P[:, k + 2]
-            P[k:k + 3, k:k + 3] += np.array([[q00, q01, q02], [q01, q11, q12], [q02, q12, q22]])
-            x[k] += v * dt * c
-            x[k + 1] += v * dt * s
-            x[k + 2] = wrap(th + w * dt)
+            P[k:k + 3, k:k + 3] += Q
 
     # -- update ----------------------------------------------------------------------------
     def rows(self, measurements: Sequence[Sequence[Measurement]]) -> list[list[JointRow]]:
@@ -282,25 +292,36 @@ class CentralisedEKF(_TeamBase):
                 # pose and position fixes: not used by the team filters (no such sensor here)
         return groups
 
-    def _passes_gate(self, g: list[JointRow]) -> bool:
+    def _block_of(self, g: list[JointRow]) -> tuple[np.ndarray, dict[int, int]]:
+        """The covariance of the states group ``g`` touches, and where each state index
+        sits in it."""
         idx = sorted({i for r in g for i in r[0]})
-        pos = {s: t for t, s in enumerate(idx)}
-        H = np.zeros((len(g), len(idx)))
+        return self.P[np.ix_(idx, idx)], {s: t for t, s in enumerate(idx)}
+
+    def _passes_gate(self, g: list[JointRow]) -> bool:
+        """Whether group ``g``'s squared Mahalanobis distance is within ``gate_chi2``."""
+        C, pos = self._block_of(g)
+        H = np.zeros((len(g), len(C)))
         for a, (ix, hv, _, _) in enumerate(g):
             for s, v in zip(ix, hv, strict=True):
                 H[a, pos[s]] += v
         nu = np.array([r[2] for r in g])
-        S = H @ self.P[np.ix_(idx, idx)] @ H.T + np.diag([r[3] for r in g])
+        S = H @ C @ H.T + np.diag([r[3] for r in g])
         return float(nu @ np.linalg.solve(S, nu)) <= self.gate
 
-    def update(self, measurements: Sequence[Sequence[Measurement]]) -> None:
+    def gated_rows(self, measurements: Sequence[Sequence[Measurement]]) -> list[list[JointRow]]:
+        """:meth:`rows`, less the groups the gate drops (counted in ``rejected``)."""
         groups = self.rows(measurements)
-        if not groups:
-            return
-        if self.gate > 0.0:
+        if self.gate > 0.0 and groups:
             kept = [g for g in groups if self._passes_gate(g)]
             self.rejected += len(groups) - len(kept)
             groups = kept
+        return groups
+
+    def update(self, measurements: Sequence[Sequence[Measurement]]) -> None:
+        groups = self.gated_rows(measurements)
+        if not groups:
+            return
         P = self.P
         d = np.zeros(self.x.shape[0])  # x - x_pred accumulated over the rows
         for g in groups:
@@ -358,20 +379,13 @@ class PairwiseDecentralisedEKF(CentralisedEKF):
         del self.P
 
     def predict(self, controls: Sequence[Control], dt: float) -> None:
-        x = self.x
-        for i, (m, u) in enumerate(zip(self.ctx.members, controls, strict=True)):
-            k = 3 * i
-            v, w = float(u.v), float(u.omega)
-            th = float(x[k + 2])
-            c, s = math.cos(th), math.sin(th)
-            q00, q01, q02, q11, q12, q22 = process_cov_terms(m.ctx.motion_noise, th, c, s, v, w, dt)
-            F = np.array([[1.0, 0.0, -v * dt * s], [0.0, 1.0, v * dt * c], [0.0, 0.0, 1.0]])
-            self.S[i] = F @ self.S[i] @ F.T + np.array([[q00, q01, q02], [q01, q11, q12],
-                                                        [q02, q12, q22]])
+        if len(controls) != len(self.ctx.members):
+            raise FilterError(f"{len(controls)} commands for {len(self.ctx.members)} robots")
+        for i, u in enumerate(controls):
+            a, b, Q = self._move(i, u, dt)
+            F = np.array([[1.0, 0.0, a], [0.0, 1.0, b], [0.0, 0.0, 1.0]])
+            self.S[i] = F @ self.S[i] @ F.T + Q
             self.sig[i] = F @ self.sig[i]  # every s_ij, j != i (s_ii is unused)
-            x[k] += v * dt * c
-            x[k + 1] += v * dt * s
-            x[k + 2] = wrap(th + w * dt)
 
     def _block(self, robots: list[int]) -> np.ndarray:
         """The joint covariance of ``robots`` (one or two), from S and the factors."""
@@ -384,26 +398,16 @@ class PairwiseDecentralisedEKF(CentralisedEKF):
         C[3:, :3] = C[:3, 3:].T
         return C
 
-    def _passes_gate(self, g: list[JointRow]) -> bool:
+    def _block_of(self, g: list[JointRow]) -> tuple[np.ndarray, dict[int, int]]:
+        """The joint covariance of the robots group ``g`` touches (from S and the factors),
+        and where each state index sits in it."""
         robots = sorted({i // 3 for r in g for i in r[0]})
-        C = self._block(robots)
-        H = np.zeros((len(g), len(C)))
-        pos = {3 * r + t: 3 * n + t for n, r in enumerate(robots) for t in range(3)}
-        for a, (ix, hv, _, _) in enumerate(g):
-            for s_, v in zip(ix, hv, strict=True):
-                H[a, pos[s_]] += v
-        nu = np.array([r[2] for r in g])
-        S = H @ C @ H.T + np.diag([r[3] for r in g])
-        return float(nu @ np.linalg.solve(S, nu)) <= self.gate
+        return self._block(robots), {3 * r + t: 3 * n + t for n, r in enumerate(robots) for t in range(3)}
 
     def update(self, measurements: Sequence[Sequence[Measurement]]) -> None:
-        groups = self.rows(measurements)
+        groups = self.gated_rows(measurements)
         if not groups:
             return
-        if self.gate > 0.0:
-            kept = [g for g in groups if self._passes_gate(g)]
-            self.rejected += len(groups) - len(kept)
-            groups = kept
         d = np.zeros(self.x.shape[0])  # x - x_pred accumulated over the rows
         for g in groups:
             robots = sorted({i // 3 for r in g for i in r[0]})
