@@ -91,6 +91,22 @@ def shipped() -> dict[str, dict[str, Any]]:
             for p in sorted(scenario_dir().glob("*.toml"))}
 
 
+def mutate(rng: random.Random, document: dict[str, Any]) -> dict[str, Any]:
+    """A copy of a scenario document with one to three leaves replaced by an extreme value
+    (or, one time in seven, deleted)."""
+    data = json.loads(json.dumps(document))
+    for _ in range(rng.randint(1, 3)):
+        leaves = _leaves(data)
+        if not leaves:
+            break
+        path = rng.choice(leaves)
+        if rng.random() < 0.15:
+            _delete(data, path)
+        else:
+            _set(data, path, rng.choice(EXTREMES))
+    return data
+
+
 def mutated_scenarios(rng: random.Random, n: int) -> list[Case]:
     """``n`` scenarios, each a shipped one with one to three leaves replaced by an extreme
     value or deleted, run headless for a second with the EKF and dead reckoning."""
@@ -98,16 +114,7 @@ def mutated_scenarios(rng: random.Random, n: int) -> list[Case]:
     names = sorted(base)
     cases = []
     for i in range(n):
-        data = json.loads(json.dumps(base[rng.choice(names)]))
-        for _ in range(rng.randint(1, 3)):
-            leaves = _leaves(data)
-            if not leaves:
-                break
-            path = rng.choice(leaves)
-            if rng.random() < 0.15:
-                _delete(data, path)
-            else:
-                _set(data, path, rng.choice(EXTREMES))
+        data = mutate(rng, base[rng.choice(names)])
         data["default_filters"] = ["ekf", "dead_reckoning"]
         argv = ["run", "s.toml", "--duration", "1"]
         if rng.random() < 0.2:
@@ -127,16 +134,7 @@ def mutated_team_scenarios(rng: random.Random, n: int) -> list[Case]:
     names = sorted(base)
     cases = []
     for i in range(n):
-        data = json.loads(json.dumps(base[rng.choice(names)]))
-        for _ in range(rng.randint(1, 3)):
-            leaves = _leaves(data)
-            if not leaves:
-                break
-            path = rng.choice(leaves)
-            if rng.random() < 0.15:
-                _delete(data, path)
-            else:
-                _set(data, path, rng.choice(EXTREMES))
+        data = mutate(rng, base[rng.choice(names)])
         argv = ["run", "t.toml", "--duration", "1"]
         if i % 5 == 4:
             argv = ["play", "t.toml", "--frames", "3", "--screenshot", "shot.png"]
