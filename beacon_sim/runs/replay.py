@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Set
+from pathlib import Path
 from typing import Any
 
 from beacon_sim.core.simulation import Simulation
@@ -95,14 +96,14 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
         if verify:
             why = tick_mismatch(recording, rec, sim)
             if why is not None:
-                raise _mismatch(recording, rec.tick, rec.line, why)
+                raise mismatch_error(recording, rec.tick, rec.line, why)
             checked += tick_checked(recording, rec)
             cp = recording.checkpoints.get(rec.tick)
             if cp is not None and (cp["checksum"] != sim.truth_checksum
                                    or cp.get("pose") != [float(v) for v in sim.pose]
                                    or cp.get("readings_checksum", sim.readings_checksum)
                                    != sim.readings_checksum):
-                raise _mismatch(recording, _first_bad_tick(recording, rec.tick), rec.line,
+                raise mismatch_error(recording, _first_bad_tick(recording, rec.tick), rec.line,
                                 "the checkpoint")
         steps.append(step)
         runner.feed(step)
@@ -111,7 +112,7 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     if verify and end is not None and (
             end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum
             or end.get("readings_checksum", sim.readings_checksum) != sim.readings_checksum):
-        raise _mismatch(recording, sim.tick, len(recording.ticks), "the final checksum")
+        raise mismatch_error(recording, sim.tick, len(recording.ticks), "the final checksum")
     status = verification_status(recording, checked, len(recording.ticks), at_end=True)
     result = RunResult(scenario, recording.seed, steps, runner, wall, sim_ns / 1e9, sim.truth_checksum)
     result.extra["replay"] = {
@@ -160,12 +161,21 @@ def _first_bad_tick(recording: Recording, tick: int) -> int:
     return (max(prev) + 1) if prev else 1
 
 
-def _mismatch(recording: Recording, tick: int, line: int, what: str) -> ReplayMismatch:
+def mismatch_error(recording: Recording, tick: int, line: int, what: str) -> ReplayMismatch:
+    """The error of a replay that differs from its recording at ``tick`` (file line ``line``),
+    checked against ``what``."""
     return ReplayMismatch(
         f"{recording.path}:{line}: replay differs from the recording at tick {tick} "
         f"(t = {tick * recording.scenario.dt:g} s; checked against {what}): was it edited, or "
         f"recorded by another version of beacon-sim (recorded by "
         f"{recording.header.get('program_version')})?")
+
+
+def replay_label(path: Path) -> str:
+    """What the panel says drives a replay: ``replay`` and the file's name, shortened in the
+    middle past 28 characters."""
+    name = path.name
+    return "replay " + (name if len(name) <= 28 else name[:12] + "..." + name[-13:])
 
 
 class ReplaySession(Session):
@@ -193,8 +203,7 @@ class ReplaySession(Session):
 
     @property
     def drive_mode(self) -> str:
-        name = self.recording.path.name
-        return "replay " + (name if len(name) <= 28 else name[:12] + "..." + name[-13:])
+        return replay_label(self.recording.path)
 
     def next_control(self) -> Control:
         """The recorded control of the next tick (the last one once the recording ends)."""

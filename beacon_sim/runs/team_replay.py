@@ -33,8 +33,9 @@ from beacon_sim.io.recording import TeamRecording, TeamTickRecord
 from beacon_sim.runs.recorder import TeamReadingsHash, team_commands_to_sim
 from beacon_sim.runs.replay import (
     ReplayMismatch,
-    _mismatch,
+    mismatch_error,
     recorded_params,
+    replay_label,
     tick_checked,
     verification_status,
 )
@@ -131,7 +132,7 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
         if verify:
             why = team_tick_mismatch(rec, sim.truth_checksum, readings.checksum)
             if why is not None:
-                raise _mismatch(recording, rec.tick, rec.line, why)
+                raise mismatch_error(recording, rec.tick, rec.line, why)
             checked += tick_checked(recording, rec)
             cp = recording.checkpoints.get(rec.tick)
             if cp is not None and (cp["checksum"] != sim.truth_checksum
@@ -139,7 +140,7 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
                                    or cp.get("readings_checksum", readings.checksum)
                                    != readings.checksum):
                 prev = [k for k in recording.checkpoints if k < rec.tick]
-                raise _mismatch(recording, (max(prev) + 1) if prev else 1, rec.line,
+                raise mismatch_error(recording, (max(prev) + 1) if prev else 1, rec.line,
                                 "the checkpoint")
         steps.append(step)
         runner.feed(step.tick, step.time, [s.control for s in step.steps], step.dt,
@@ -150,7 +151,7 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
             end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum
             or end.get("readings_checksum", readings.checksum) != readings.checksum
             or end["poses"] != sim.poses.tolist()):
-        raise _mismatch(recording, sim.tick, len(recording.ticks), "the final checksum")
+        raise mismatch_error(recording, sim.tick, len(recording.ticks), "the final checksum")
     status = verification_status(recording, checked, len(recording.ticks), at_end=True)
     result = TeamRunResult(team, recording.seed, steps, runner.tracks, sim.truth_checksum, wall)
     replay = {
@@ -203,8 +204,7 @@ class TeamReplaySession(TeamSession):
 
     @property
     def drive_mode(self) -> str:
-        name = self.recording.path.name
-        return "replay " + (name if len(name) <= 28 else name[:12] + "..." + name[-13:])
+        return replay_label(self.recording.path)
 
     def next_control(self) -> Control:
         """The driven robot's recorded command of the next tick (its driver's where it chose)."""
