@@ -467,6 +467,17 @@ def check_display() -> None:
         pygame.display.init()
     except pygame.error as exc:
         raise UsageError(f"cannot open a window: {exc}") from None
+    driver = pygame.display.get_driver()
+    if driver in HEADLESS_DRIVERS:  # SDL fell back to drawing nowhere: DISPLAY has no server
+        pygame.display.quit()
+        where = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or "the display"
+        raise UsageError(f"cannot open a window on {where} (no display server answers there;"
+                         " SDL would draw invisibly); for a headless window set"
+                         " SDL_VIDEODRIVER=dummy, or use beacon-sim run")
+
+
+#: SDL video drivers that show nothing; chosen only by SDL_VIDEODRIVER, never as a fallback.
+HEADLESS_DRIVERS = frozenset({"offscreen", "dummy"})
 
 
 @dataclass(frozen=True)

@@ -220,16 +220,17 @@ class BatchSimulation:
         # Truth: every run's command with its own motion noise, the model on arrays.
         noise = self.scenario.motion_noise
         sv, sw = noise.control_std(cv, cw)
+        g = np.broadcast_to(noise.slip_gain(cv, cw), (R,)).tolist()  # slip scales with the command
         for burst in self._bursts.get(k, ()):   # math.hypot per run, as the single run does
-            sv = np.array([math.hypot(x, burst.v_std) for x in sv.tolist()])
-            sw = np.array([math.hypot(x, burst.omega_std) for x in sw.tolist()])
+            sv = np.array([math.hypot(x, gi * burst.v_std) for x, gi in zip(sv.tolist(), g, strict=True)])
+            sw = np.array([math.hypot(x, gi * burst.omega_std) for x, gi in zip(sw.tolist(), g, strict=True)])
         E = np.empty((R, 5))
         for i, s in enumerate(sims):
             s._motion_rng.standard_normal(out=E[i])
         v = cv + sv * E[:, 0]
         w = cw + sw * E[:, 1]
         pose = move(old, v, w, dt)
-        pose += np.asarray(noise.pose_std) * E[:, 2:]
+        pose += noise.pose_std_at(cv, cw) * E[:, 2:]
         pose[:, 2] = (pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
         inside = world.contains(pose[:, :2])
         if not np.all(inside):

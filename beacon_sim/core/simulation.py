@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import hashlib
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from beacon_sim.core.drivers import Driver
 from beacon_sim.core.events import Blackout, Kidnap, NoiseBurst, active_ticks, first_tick_at
-from beacon_sim.core.motion import move
+from beacon_sim.core.motion import SLIP_MODELS, move, with_slip
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import sense
 from beacon_sim.core.streams import stream
@@ -98,15 +99,18 @@ class Simulation:
 
         # Truth: the command executed with noise (plus any noise burst in force).
         noise = self.scenario.motion_noise
+        # Slip scales with the command (MotionNoise.slip_gain): a stopped robot stays put,
+        # in a noise burst too. The five draws are made whatever the command (stable streams).
         sv, sw = noise.control_std(control.v, control.omega)
+        g = noise.slip_gain(control.v, control.omega)
         for burst in self._burst_ticks.get(k, ()):
-            sv = math.hypot(sv, burst.v_std)
-            sw = math.hypot(sw, burst.omega_std)
+            sv = math.hypot(sv, g * burst.v_std)
+            sw = math.hypot(sw, g * burst.omega_std)
         e = self._motion_rng.standard_normal(5)
         v = control.v + sv * e[0]
         w = control.omega + sw * e[1]
         pose = move(self.pose, v, w, self.dt)
-        pose += np.asarray(noise.pose_std) * e[2:]
+        pose += noise.pose_std_at(control.v, control.omega) * e[2:]
         pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
         if not self.world.contains(pose[:2]):
             # The bumper: a move that would leave the room is not made. The robot stays where
@@ -167,3 +171,18 @@ def _kidnap_text(kid: Kidnap) -> str:
     if kid.offset is not None:
         return "by " + ", ".join(f"{v:+.2f}" for v in kid.offset)
     return "random"
+
+
+#: The slip model a recording's header names ("slip_model") when it was made under the
+#: current one; a header without the key was made before issue 25: "legacy".
+CURRENT_SLIP_MODEL = "scaled"
+RECORDED_BEFORE_SLIP_MODEL = "legacy"
+
+
+def scenario_with_slip(scenario: Scenario, model: str) -> Scenario:
+    """``scenario`` with the truth's and the filters' motion noise under the slip model
+    ``model`` (:data:`~beacon_sim.core.motion.SLIP_MODELS`; ValueError for another)."""
+    if model not in SLIP_MODELS:
+        raise ValueError(f"slip_model {model!r}: expected one of {', '.join(SLIP_MODELS)}")
+    return replace(scenario, motion_noise=with_slip(scenario.motion_noise, model),
+                   model_motion_noise=with_slip(scenario.model_motion_noise, model))
