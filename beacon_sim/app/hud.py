@@ -9,7 +9,7 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import controls, palette
-from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2
+from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids
 from beacon_sim.runs.scene import NEES_BAND, Scene
 
 
@@ -69,8 +69,15 @@ class Hud:
         self._blit(surf, f"beacons in view: {len(seen)}", "hud",
                    palette.WARN if not seen else palette.TEXT, (x, y))
         y += lh
+        missed = sorted(missed_ids(session.scenario.sensors, session.scenario.world,
+                                   session.true_pose, seen))
         self._blit(surf, f"  IDs {ids}", "small", palette.TEXT_DIM, (x, y))
-        y += f["small"].get_linesize() + 6
+        y += sl
+        if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
+            self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
+                       palette.WARN, (x, y))
+            y += sl
+        y += 6
         y = self.rule(surf, rect, x, y)
 
         for i, name in enumerate(session.names):

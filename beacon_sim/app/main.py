@@ -223,7 +223,7 @@ class App:
         elif action in ("reset", "global_reset"):
             s.command({"kind": action})
             self.clear_trails()
-            self.flash("filters reset" if action == "reset" else "global belief")
+            self.flash("filters reset" if action == "reset" else self.global_reset_text())
         elif action.startswith("toggle"):
             i = int(action[len("toggle"):]) - 1
             if i < len(s.names):
@@ -270,6 +270,19 @@ class App:
             self._layout(self.screen.get_size())
         else:
             raise ValueError(f"no handler for the action {action!r}")
+
+    def global_reset_text(self) -> str:
+        """What G did, filter by filter: a uniform belief where the filter supports one; a
+        Gaussian (one peak) cannot spread over the room and is left as it was."""
+        filters = getattr(self.session, "filters", {})
+        spread = [n for n, f in filters.items() if getattr(f, "supports_global", False)]
+        kept = [n for n in filters if n not in spread]
+        parts = []
+        if spread:
+            parts.append(f"global belief: {', '.join(spread)} spread over the room")
+        if kept:
+            parts.append(f"{', '.join(kept)} cannot (one Gaussian peak): unchanged")
+        return "; ".join(parts) or "global belief: no filter to reset"
 
     def clear_trails(self) -> None:
         """Forget every trail (the truth's and the filters'), keep the current points."""
@@ -496,6 +509,7 @@ class PlayOptions:
     paused: bool = False  # start paused (Space runs, . steps)
     speed: float | None = None  # start at this speed factor (nearest of loop.SPEEDS)
     gif: str | None = None  # also write the session as an animated GIF here
+    gif_width: int | None = 640  # the GIF's width [px]; None: the window's
 
 
 def play(options: PlayOptions) -> int:
@@ -520,7 +534,7 @@ def run_window(app: App, options: PlayOptions) -> None:
     """Run an opened window as the command line asked (paused, speed, GIF, ``--frames``),
     save ``--screenshot`` from its last frame and the GIF, and close it."""
     o = options
-    start(app, o.paused, o.speed, o.gif)
+    start(app, o.paused, o.speed, o.gif, o.gif_width)
     try:
         app.run(o.frames)
         if o.screenshot:
@@ -530,8 +544,10 @@ def run_window(app: App, options: PlayOptions) -> None:
         app.close()
 
 
-def start(app: App, paused: bool = False, speed: float | None = None, gif: str | None = None) -> None:
-    """The command line's starting state: paused, the speed factor, a GIF being captured."""
+def start(app: App, paused: bool = False, speed: float | None = None, gif: str | None = None,
+          gif_width: int | None = 640) -> None:
+    """The command line's starting state: paused, the speed factor, a GIF being captured
+    (``gif_width`` [px] wide; None: as wide as the window)."""
     if paused:
         app.clock.paused = True
     if speed is not None:
@@ -539,7 +555,7 @@ def start(app: App, paused: bool = False, speed: float | None = None, gif: str |
     if gif:
         from beacon_sim.app.gif import GifRecorder
 
-        app.gif = GifRecorder(gif)
+        app.gif = GifRecorder(gif, width=gif_width or app.screen.get_width())
 
 
 def finish_gif(app: App) -> None:

@@ -192,7 +192,8 @@ class TeamReplayApp(ReplayApp, TeamApp):
 def show_replay(recording: Recording | TeamRecording, specs: list[str], params: dict[str, dict[str, Any]],
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
-                end: float | None = None) -> int:
+                end: float | None = None, size: tuple[int, int] = (1280, 800),
+                gif_width: int | None = 640) -> int:
     """The replay window until quit (or ``frames`` frames, each counting 1/60 s); saves the
     last frame to ``screenshot``. Returns 2 when the truth differs from the recording.
 
@@ -206,17 +207,17 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
     session: ReplaySession | TeamReplaySession
     if isinstance(recording, TeamRecording):
         session = TeamReplaySession(recording, specs, params)
-        app: ReplayApp = TeamReplayApp(session, scripted=frames is not None or gif is not None)
+        app: ReplayApp = TeamReplayApp(session, size, scripted=frames is not None or gif is not None)
     else:
         session = ReplaySession(recording, specs, params)
-        app = ReplayApp(session, scripted=frames is not None or gif is not None)
+        app = ReplayApp(session, size, scripted=frames is not None or gif is not None)
     dt = session.scenario.dt
     if start:
         app.seek(min(round(start / dt), session.total_ticks))
     if end is not None:
         app.end_tick = min(round(end / dt), session.total_ticks)
     app.stop_at_end = gif is not None
-    start_app(app, paused=paused and gif is None, gif=gif)
+    start_app(app, paused=paused and gif is None, gif=gif, gif_width=gif_width)
     try:
         app.run(frames)
         if screenshot:

@@ -95,7 +95,9 @@ class MotionNoise:
         (legacy), or ``min(1, |v| / FULL_SLIP_V + |omega| / FULL_SLIP_OMEGA)`` (scaled)."""
         if self.slip == "legacy":
             return 1.0
-        g = np.minimum(1.0, np.abs(v) / FULL_SLIP_V + np.abs(omega) / FULL_SLIP_OMEGA)
+        # each term capped at 1 before dividing: no overflow for a wild command
+        g = np.minimum(1.0, np.minimum(np.abs(v), FULL_SLIP_V) / FULL_SLIP_V
+                       + np.minimum(np.abs(omega), FULL_SLIP_OMEGA) / FULL_SLIP_OMEGA)
         return float(g) if np.ndim(g) == 0 else g
 
     def control_std(self, v, omega):
