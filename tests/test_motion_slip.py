@@ -157,7 +157,7 @@ def test_an_old_recording_replays_with_the_legacy_model(tmp_path):
     assert res.truth_checksum == rec.truth_checksum
     header["slip_model"] = "scaled"
     path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
-    with pytest.raises(RecordingError, match="differs|tick"):
+    with pytest.raises(RecordingError, match=r"differs|tick"):
         replay_recording(load_recording(path))
     header["slip_model"] = "icy"
     path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")

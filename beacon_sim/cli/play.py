@@ -11,7 +11,6 @@ from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.loading import FilterLoadError, load_filter_class
 
-
 #: The smallest window [px] everything fits in (the panel's lines, the help overlay).
 MIN_SIZE = (800, 600)
 MAX_SIDE = 10000
