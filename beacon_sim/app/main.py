@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pygame
 
-from beacon_sim.app import controls
+from beacon_sim.app import controls, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.bound import LiveBound
 from beacon_sim.app.hud import Hud, fps_of
@@ -70,6 +70,8 @@ class App:
         pygame.display.init()
         pygame.font.init()
         self.screen = pygame.display.set_mode(size, pygame.RESIZABLE)
+        self.screen.fill(palette.OUTSIDE)  # never a black window, even for a moment
+        pygame.display.flip()
         pygame.display.set_caption(f"beacon-sim: {session.scenario.name}")
         pygame.display.set_icon(window_icon())
         pygame.key.set_repeat(300, 50)
@@ -98,6 +100,7 @@ class App:
             self.bound = LiveBound(session.scenario)
             session.on_step.append(self.bound.feed)
         self.chart = StripChart(session.names, session.scenario.dt)
+        self.pace = DeliveredSpeed()
         self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
 
@@ -319,6 +322,7 @@ class App:
         self.ticks_this_frame = self.ticks_due(real_dt)
         for _ in range(self.ticks_this_frame):
             self.after_tick(self.session.tick())
+        self.pace.sample(self.now, self.session.time, self.clock.speed, self.clock.paused)
         self.draw()
         if self.gif is not None:
             self.gif.offer(self.screen)
@@ -370,6 +374,7 @@ class App:
         self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
                            dashes=dashes, extra=extra if (steps or bound is not None) else None)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
+                "delivered": self.pace.factor,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
                 "reload_errors": self.reload_errors,
                 "bound": bound.sigmas() if bound is not None else None}
@@ -446,6 +451,9 @@ class App:
                 signal.signal(sig, handler)
 
     def _loop(self, max_frames: int | None) -> None:
+        if self.frames == 0:  # the first picture at once, before any tick (t = 0 of a run)
+            pygame.event.pump()
+            self.draw()
         timer = pygame.time.Clock()
         last = time.perf_counter()
         while self.running and (max_frames is None or self.frames < max_frames):
@@ -463,6 +471,38 @@ class App:
     def close(self) -> None:
         self.session.close()
         pygame.display.quit()
+
+
+class DeliveredSpeed:
+    """The speed factor the simulation actually delivers: simulated seconds per second of
+    the window's clock over the last :attr:`SPAN_S` (None until that long has been seen at
+    one speed and running). Under load the clock drops ticks, so the panel's "x8" can be
+    0.85 in truth; the panel shows this figure when it falls short."""
+
+    SPAN_S = 2.0
+
+    def __init__(self) -> None:
+        self.samples: deque[tuple[float, float]] = deque()
+        self._key: tuple | None = None
+
+    def sample(self, now: float, sim_time: float, speed: float, paused: bool) -> None:
+        """After a frame: the window's clock [s], the simulated time [s], the asked speed."""
+        key = (speed, paused)
+        if key != self._key or (self.samples and sim_time < self.samples[-1][1]):
+            self.samples.clear()  # a new speed, a pause or a seek back: measure afresh
+            self._key = key
+        self.samples.append((now, sim_time))
+        while len(self.samples) > 2 and now - self.samples[1][0] >= self.SPAN_S:
+            self.samples.popleft()
+
+    @property
+    def factor(self) -> float | None:
+        if len(self.samples) < 2 or self._key is None or self._key[1]:
+            return None
+        (t0, s0), (t1, s1) = self.samples[0], self.samples[-1]
+        if t1 - t0 < self.SPAN_S * 0.99:
+            return None
+        return (s1 - s0) / (t1 - t0)
 
 
 def check_display() -> None:

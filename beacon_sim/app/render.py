@@ -153,6 +153,12 @@ def ipx(v) -> int:
     return math.floor(float(v) + 0.5)
 
 
+def sensors_read(scenario, tick: int) -> list:
+    """The scenario's sensors that have been read by ``tick`` (one period has passed): before
+    its first reading a sensor has missed nothing."""
+    return [s for s in scenario.sensors if tick >= max(1, round(s.period / scenario.dt))]
+
+
 def missed_ids(sensors, world, pose, seen) -> set[int]:
     """IDs of the beacons within some beacon sensor's range and field of view at the true
     ``pose`` that are not in ``seen`` (missed by detection probability, or blacked out)."""
@@ -203,6 +209,8 @@ class WorldRenderer:
         self._static: tuple[tuple, pygame.Surface] | None = None
         self.last_world = None  # the world of the scene being drawn (for the step view)
         self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
+        self.axis_rects: list[pygame.Rect] = []  # the axis labels of the static layer [px]
+        self.beacon_rects: list[pygame.Rect] = []  # beacons and their labels, last drawn [px]
 
     def text(self, s: str, font: str, colour) -> pygame.Surface:
         key = (s, font, colour)
@@ -249,7 +257,8 @@ class WorldRenderer:
                     self.trail(surf, view, session.trails[name], colours[name], 2)
         self.rays(surf, view, sc.world, pose, session.readings())
         seen = session.seen_ids()
-        self.beacons(surf, view, sc.world, seen, missed_ids(sc.sensors, sc.world, pose, seen))
+        self.beacons(surf, view, sc.world, seen,
+                     missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
         self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
         if show.particles:
             for name, bel in beliefs.items():
@@ -358,15 +367,17 @@ class WorldRenderer:
         area = pygame.Rect(view.area)
         fmt = (lambda v: f"{v:g}") if step >= 1 else (lambda v: f"{v:.1f}")
         ylab = min(max(world_rect.bottom + 6, area.top + 2), area.bottom - 24)
+        self.axis_rects = []  # where the labels are (window px): beacon labels keep off them
         for x in np.arange(math.ceil(max(x0, xmin) / step) * step, min(x1, xmax) + 1e-9, step):
             px = view.to_px(np.array([x, 0.0]))[0]
             t = self.text(fmt(x + 0.0), "small", palette.TEXT_DIM)
-            surf.blit(t, (int(px - t.get_width() / 2), ylab))
+            self.axis_rects.append(surf.blit(t, (int(px - t.get_width() / 2), ylab)))
         xlab = max(min(world_rect.left - 6, area.right - 40), area.left + 2)
         for y in np.arange(math.ceil(max(y0, ymin) / step) * step, min(y1, ymax) + 1e-9, step):
             py = view.to_px(np.array([0.0, y]))[1]
             t = self.text(fmt(y + 0.0), "small", palette.TEXT_DIM)
-            surf.blit(t, (max(xlab - t.get_width(), area.left + 2), int(py - t.get_height() / 2)))
+            self.axis_rects.append(
+                surf.blit(t, (max(xlab - t.get_width(), area.left + 2), int(py - t.get_height() / 2))))
         unit = self.text(f"grid {step:g} m", "small", palette.TEXT_DIM)
         box = unit.get_rect(topleft=(area.left + 8, area.top + 6))
         surf.fill(palette.OUTSIDE, box.inflate(8, 4))
@@ -541,11 +552,14 @@ class WorldRenderer:
                        (x - w // 2, y - half - h - 4), (x - w // 2, y + half + 4),
                        (x + half + 6 + w, y - h // 2), (x - half - 6 - 2 * w, y - h // 2)]
             rects = [pygame.Rect(cx, cy, w, h) for cx, cy in corners]
-            at = next((r for r in rects if r.collidelist(placed) < 0 and r.collidelist(squares) < 0),
-                      rects[0])
+            at = next((r for r in rects if r.collidelist(placed) < 0 and r.collidelist(squares) < 0
+                       and r.inflate(4, 0).collidelist(self.axis_rects) < 0),
+                      next((r for r in rects if r.collidelist(placed) < 0
+                            and r.collidelist(squares) < 0), rects[0]))
             placed.append(at)
             surf.fill(palette.BACKGROUND, at.inflate(6, -2))
             surf.blit(t, at)
+        self.beacon_rects = squares + placed
 
     @staticmethod
     def _cross(surf, at, r: int, colour, width: int) -> None:
@@ -592,7 +606,20 @@ class WorldRenderer:
             return
         area = pygame.Rect(view.area)
         side = max(min(int(0.3 * min(area.width, area.height)), 360), 150)
-        rect = pygame.Rect(area.right - side - 12, area.top + 12, side, side)
+        lh = self.fonts["small"].get_linesize()
+        strip_h = lh * (len(small) + 2) + 10
+        # a corner of the world's area that does not cover the robot (top right first)
+        robot_px = view.to_px(np.asarray(pose[:2], dtype=float))
+        robot_box = pygame.Rect(ipx(robot_px[0] - r_px) - 8, ipx(robot_px[1] - r_px) - 8,
+                                ipx(2 * r_px) + 16, ipx(2 * r_px) + 16)
+        blocks = [pygame.Rect(area.right - side - 12, area.top + 12, side, side + strip_h + 2),
+                  pygame.Rect(area.right - side - 12, area.bottom - side - strip_h - 14, side,
+                              side + strip_h + 2),
+                  pygame.Rect(area.left + 12, area.top + 40, side, side + strip_h + 2),
+                  pygame.Rect(area.left + 12, area.bottom - side - strip_h - 14, side,
+                              side + strip_h + 2)]
+        block = next((b for b in blocks if not b.colliderect(robot_box)), blocks[0])
+        rect = pygame.Rect(block.left, block.top, side, side)
         # the zoom: the largest small ellipse (or the spread of the means) half the inset
         centre = np.asarray(pose[:2], dtype=float)
         reach = max(max(a for *_, a in small) / 2.0,
@@ -632,11 +659,10 @@ class WorldRenderer:
         pygame.draw.rect(surf, palette.TEXT, rect, 2)
         # the scale bar and the sizes, on a strip along the inset's bottom
         font = "small"
-        lh = self.fonts[font].get_linesize()
         bar_m = nice_step(scale, side / 4)
         bar_px = bar_m * scale
         y = rect.bottom + 6
-        strip = pygame.Rect(rect.left, rect.bottom + 2, rect.width, lh * (len(small) + 2) + 10)
+        strip = pygame.Rect(rect.left, rect.bottom + 2, rect.width, strip_h)
         surf.fill(palette.PANEL, strip)
         pygame.draw.rect(surf, palette.PANEL_EDGE, strip, 1)
         x0 = rect.left + 10
