@@ -244,8 +244,12 @@ class Hud:
         self._blit(surf, "H: help    Esc: quit", "small", palette.TEXT, (x, y))
         surf.set_clip(old_clip)
 
-    def step_legend(self, surf, area: pygame.Rect, session, steps: bool, bound: bool) -> None:
-        """What the step view and the bound show, in a box at the bottom left of the world."""
+    def step_legend(self, surf, area: pygame.Rect, session, steps: bool, bound: bool,
+                    avoid=(), world: pygame.Rect | None = None) -> pygame.Rect:
+        """What the step view and the bound show, in a box at the bottom left of the world's
+        area, or at its top left, where it covers none of the rectangles ``avoid`` (the axis
+        labels) and, if it can, not the room (``world``); else raised above the labels it
+        would cover. Returns the box."""
         lines = []
         if steps:
             used = sorted(session.used_ids()) if hasattr(session, "used_ids") else []
@@ -260,14 +264,23 @@ class Hud:
         for line in lines:
             out += wrap_text(font, line, area.width - 40)
         lh = font.get_linesize()
-        box = pygame.Rect(area.left + 8, area.bottom - lh * len(out) - 16,
-                          max(font.size(t)[0] for t in out) + 20, lh * len(out) + 10)
+        w, h = max(font.size(t)[0] for t in out) + 20, lh * len(out) + 10
+        low = pygame.Rect(area.left + 8, area.bottom - 6 - h, w, h)
+        high = pygame.Rect(area.left + 8, area.top + lh + 14, w, h)  # under "grid 2 m"
+        free = [b for b in (low, high) if b.collidelist(list(avoid)) < 0]
+        box = next((b for b in free if world is None or not b.colliderect(world)),
+                   free[0] if free else low)
+        covered = [r for r in avoid if r.colliderect(box)]
+        if covered:
+            box.bottom = min(r.top for r in covered) - 4
         shade = pygame.Surface(box.size, pygame.SRCALPHA)
         shade.fill((*palette.PANEL, 225))
         surf.blit(shade, box)
         pygame.draw.rect(surf, palette.PANEL_EDGE, box, 2)
         for k, t in enumerate(out):
             self._blit(surf, t, "small", palette.TEXT, (box.left + 10, box.top + 5 + k * lh))
+        self.step_box = box
+        return box
 
     def banner(self, surf, area: pygame.Rect, text: str) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved)."""

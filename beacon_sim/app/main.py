@@ -384,7 +384,8 @@ class App:
                             self.session.visible, now=self.now, busy=self.ticks_this_frame > 0)
         if steps or bound is not None:
             self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
-                                 bound is not None)
+                                 bound is not None, avoid=self.renderer.axis_rects,
+                                 world=self.renderer._world_rect(self.view))
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
         self.draw_extra(surf)
