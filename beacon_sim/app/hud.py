@@ -335,8 +335,8 @@ class Hud:
             if c != col:
                 col, y = c, y0
             x = box.left + 20 + col * col_w
-            self.help_rects.append(self._blit(surf, group, "small", palette.OVERLAY_KEY, (x, y + 4)))
-            y += int(lh * 1.1)
+            self.help_rects.append(self._blit(surf, group, "small", palette.OVERLAY_KEY, (x, y)))
+            y += max(int(lh * 1.1), f["small"].get_linesize() + 1)
             for keys, parts, desc in rs:
                 self.help_rects.append(self._blit(surf, keys, font, palette.OVERLAY_KEY, (x, y)))
                 for part in parts:
