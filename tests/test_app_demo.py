@@ -91,7 +91,7 @@ def test_three_beacons_the_kf_ellipse_is_magnified_with_its_size():
         run_to(app, 52.9)  # three beacons in view, the KF's sigma 0.02 m (docs/window.md)
         s = app.session
         assert len(s.seen_ids()) == 3
-        mean, cov = s.estimate("kf")
+        _, cov = s.estimate("kf")
         across = ellipse_diameter(cov)
         assert across * app.view.scale < 2 * s.scenario.robot_radius * app.view.scale + 30
         mag = app.renderer.last_magnifier
@@ -132,8 +132,8 @@ def test_ellipses_are_drawn_after_every_wedge(monkeypatch):
 # --- the strip chart is not scaled by dead reckoning ----------------------------------------
 def test_the_strip_chart_scale_leaves_dead_reckoning_out():
     class Scene:
-        time = 0.0
-        status: dict = {}
+        def __init__(self):
+            self.time, self.status = 0.0, {}
 
         def seen_ids(self):
             return set()
@@ -327,8 +327,9 @@ def test_the_first_frame_is_drawn_before_any_tick_with_the_particles_spread():
         heavy = palette.particle_colours(app.colours["pf"])[0]
         mask = np.all(arr == heavy, axis=2)
         wr = app.renderer._world_rect(app.view)
-        quads = [mask[wr.left:wr.centerx, wr.top:wr.centery], mask[wr.centerx:wr.right, wr.top:wr.centery],
-                 mask[wr.left:wr.centerx, wr.centery:wr.bottom], mask[wr.centerx:wr.right, wr.centery:wr.bottom]]
+        xs = (slice(wr.left, wr.centerx), slice(wr.centerx, wr.right))
+        ys = (slice(wr.top, wr.centery), slice(wr.centery, wr.bottom))
+        quads = [mask[x, y] for x in xs for y in ys]
         assert all(q.sum() > 500 for q in quads)  # the ring of possible positions: everywhere
     finally:
         app.close()
