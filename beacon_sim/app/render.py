@@ -25,6 +25,8 @@ ELLIPSE_LEVEL = 0.95
 ELLIPSE_SCALE2 = CHI2_2DOF[ELLIPSE_LEVEL]
 #: The step view's prior (after predict): dashed, as in the textbook figures [px on, off].
 PRIOR_DASH = (14, 10)
+#: The magnifier's words above the sizes of the ellipses it shows.
+MAGNIFIER_HEADING = "95 % ellipse, across:"
 #: A beacon in a sensor's range that was not detected: a dashed ring [px on, off].
 MISSED_DASH = (6, 5)
 
@@ -605,9 +607,13 @@ class WorldRenderer:
         if not small:
             return
         area = pygame.Rect(view.area)
-        side = max(min(int(0.3 * min(area.width, area.height)), 360), 150)
-        lh = self.fonts["small"].get_linesize()
-        strip_h = lh * (len(small) + 2) + 10
+        font = self.fonts["small"]
+        lh = font.get_linesize()
+        # wide enough for its words (the bar is at most half the width, its length beside it)
+        side = max(min(int(0.3 * min(area.width, area.height)), 360), 150,
+                   font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
+                   max(font.size(f"{key}  99 mm")[0] for key, *_ in small) + 50)
+        strip_h = lh * (len(small) + 3) + 10
         # a corner of the world's area that does not cover the robot (top right first)
         robot_px = view.to_px(np.asarray(pose[:2], dtype=float))
         robot_box = pygame.Rect(ipx(robot_px[0] - r_px) - 8, ipx(robot_px[1] - r_px) - 8,
@@ -658,7 +664,7 @@ class WorldRenderer:
         surf.set_clip(old_clip)
         pygame.draw.rect(surf, palette.TEXT, rect, 2)
         # the scale bar and the sizes, on a strip along the inset's bottom
-        font = "small"
+        font_key = "small"
         bar_m = nice_step(scale, side / 4)
         bar_px = bar_m * scale
         y = rect.bottom + 6
@@ -667,13 +673,14 @@ class WorldRenderer:
         pygame.draw.rect(surf, palette.PANEL_EDGE, strip, 1)
         x0 = rect.left + 10
         pygame.draw.line(surf, palette.TEXT, (x0, y + lh // 2), (ipx(x0 + bar_px), y + lh // 2), 4)
-        t = self.text(f"{format_length(bar_m)}   zoom x{scale / view.scale:.0f}", font, palette.TEXT)
-        surf.blit(t, (ipx(x0 + bar_px) + 8, y))
+        surf.blit(self.text(format_length(bar_m), font_key, palette.TEXT), (ipx(x0 + bar_px) + 8, y))
         y += lh
-        surf.blit(self.text("95 % ellipse, across:", font, palette.TEXT_DIM), (x0, y))
+        surf.blit(self.text(f"zoom x{scale / view.scale:.0f}", font_key, palette.TEXT), (x0, y))
+        y += lh
+        surf.blit(self.text(MAGNIFIER_HEADING, font_key, palette.TEXT_DIM), (x0, y))
         for key, *_rest, axis in small:
             y += lh
-            t = self.text(f"{key}  {format_length(axis)}", font, palette.TEXT)
+            t = self.text(f"{key}  {format_length(axis)}", font_key, palette.TEXT)
             pygame.draw.line(surf, colours[key], (x0, y + lh // 2), (x0 + 18, y + lh // 2), 5)
             surf.blit(t, (x0 + 26, y))
         self.last_magnifier = {"rect": rect, "scale": scale, "across_px": drawn}
