@@ -163,3 +163,50 @@ def test_an_old_recording_replays_with_the_legacy_model(tmp_path):
     path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
     with pytest.raises(RecordingError, match="slip_model"):
         load_recording(path)
+
+
+def _pushing(v, omega, slip="scaled"):
+    """assignment_kf without events, its driver pushing (v, omega) from near the left wall
+    towards it (heading pi)."""
+    from beacon_sim.core.drivers import ConstantSpec
+
+    sc = replace(load_scenario("assignment_kf"), events=(), driver=ConstantSpec(v, omega),
+                 initial_pose=(0.6, 4.0, np.pi))
+    return scenario_with_slip(sc, slip)
+
+
+def _bumped_turns(sc, ticks=200):
+    """(number of bumps, the largest change of pose on a bumped tick)."""
+    sim = Simulation(sc)
+    before, bumps, moved = sim.pose.copy(), 0, 0.0
+    for _ in range(ticks):
+        step = sim.step()
+        if any(e.kind == "bump" for e in step.events):
+            bumps += 1
+            assert step.control.v == 0.0
+            moved = max(moved, float(np.max(np.abs(step.true_pose - before))))
+        before = step.true_pose.copy()
+    return bumps, moved
+
+
+def test_a_robot_pushed_straight_into_a_wall_does_not_turn_on_a_bump():
+    bumps, moved = _bumped_turns(_pushing(0.5, 0.0))
+    assert bumps > 20 and moved == 0.0  # told (0, 0): neither moves nor turns
+    bumps, moved = _bumped_turns(_pushing(0.5, 0.0, "legacy"))
+    assert bumps > 20 and moved > 0.0   # the legacy model jittered the heading at the wall
+
+
+@pytest.mark.parametrize("omega", [0.0, 0.05, 0.3])
+def test_the_batched_simulation_bumps_as_the_single_one(omega):
+    sc = _pushing(0.6, omega)
+    batch = BatchSimulation(sc, [3, 4])
+    singles = [Simulation(sc, 3), Simulation(sc, 4)]
+    bumps = 0
+    for _ in range(300):
+        for s, st in zip(singles, batch.step(), strict=True):
+            mine = s.step()
+            bumps += sum(e.kind == "bump" for e in mine.events)
+            assert np.array_equal(mine.true_pose, st.true_pose)
+            assert mine.control == st.control
+    assert bumps > 10
+    assert batch.truth_checksums() == [s.truth_checksum for s in singles]

@@ -35,7 +35,7 @@ from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, Rand
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense
-from beacon_sim.core.simulation import Simulation, _kidnap_text
+from beacon_sim.core.simulation import Simulation, _kidnap_text, bumped_heading
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 
 _BEACON_KINDS = ("bearing", "range_bearing")
@@ -235,6 +235,9 @@ class BatchSimulation:
         inside = world.contains(pose[:, :2])
         if not np.all(inside):
             for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
+                if noise.slip_gain(0.0, cw[i]) != g[i]:   # the told command's turn and slip
+                    pose[i, 2] = bumped_heading(noise, self._bursts.get(k, ()), old[i, 2], cw[i],
+                                                E[i, 1], E[i, 4], dt)
                 pose[i] = world.clip(np.array([old[i, 0], old[i, 1], pose[i, 2]]))
                 if v0[i] != 0.0:
                     extra.setdefault(i, []).append(EventRecord("bump", k, k * dt, "stopped at the wall"))

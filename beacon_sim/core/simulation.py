@@ -13,6 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import Driver
 from beacon_sim.core.events import Blackout, Kidnap, NoiseBurst, active_ticks, first_tick_at
 from beacon_sim.core.motion import SLIP_MODELS, move, with_slip
@@ -116,6 +117,10 @@ class Simulation:
             # The bumper: a move that would leave the room is not made. The robot stays where
             # it was (it may still turn), and the command the filters see is what it did:
             # v = 0. Runs that never reach a wall are not affected (same draws, same truth).
+            # Its turn is the told command's, with that command's slip (bumped_heading).
+            if noise.slip_gain(0.0, control.omega) != g:
+                pose[2] = bumped_heading(noise, self._burst_ticks.get(k, ()), self.pose[2],
+                                         control.omega, e[1], e[4], self.dt)
             pose = self.world.clip(np.array([self.pose[0], self.pose[1], pose[2]]))
             if control.v != 0.0:
                 events.append(EventRecord("bump", k, k * self.dt, "stopped at the wall"))
@@ -163,6 +168,21 @@ class Simulation:
         for i in range(n):
             steps.append(self.step(None if controls is None else controls[i]))
         return steps
+
+
+def bumped_heading(noise, bursts, theta0: float, omega: float, e_omega: float, e_theta: float,
+                   dt: float) -> float:
+    """The heading [rad] after a tick the bumper stopped: the command the filters are told,
+    v = 0 and ``omega`` [rad/s], executed with that command's noise (the draws ``e_omega``,
+    ``e_theta`` of the tick). Slip scales with the command, so a robot pushed straight into
+    a wall does not turn (issue 25); with ``slip_gain`` equal for the given and the told
+    command (the legacy model, or a turn of 0.1 rad/s and more) the caller keeps its own."""
+    sw = float(noise.control_std(0.0, omega)[1])
+    g = noise.slip_gain(0.0, omega)
+    for burst in bursts:
+        sw = math.hypot(sw, g * burst.omega_std)
+    th = wrap(theta0 + (omega + sw * e_omega) * dt) + float(noise.pose_std_at(0.0, omega)[2]) * e_theta
+    return (th + math.pi) % (2 * math.pi) - math.pi
 
 
 def _kidnap_text(kid: Kidnap) -> str:
