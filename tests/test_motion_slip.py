@@ -210,3 +210,30 @@ def test_the_batched_simulation_bumps_as_the_single_one(omega):
             assert mine.control == st.control
     assert bumps > 10
     assert batch.truth_checksums() == [s.truth_checksum for s in singles]
+
+
+def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
+    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.io.recording import load_team_recording
+    from beacon_sim.runs.recorder import TeamRecorder
+    from beacon_sim.runs.team_live import TeamSession
+    from beacon_sim.runs.team_replay import replay_team_recording
+
+    team = load_team_scenario("team_sparse")
+    path = tmp_path / "team_wall.jsonl"
+    rec = TeamRecorder(path, team, team.seed, ["independent"], {})
+    s = TeamSession(team, ["independent"], recorder=rec)
+    for _ in range(10):
+        s.drive("w")
+    s.drive("a")
+    bumps = 0
+    for _ in range(600):
+        step = s.tick()
+        if any(e.kind == "bump" for e in step.steps[s.driven].events):
+            bumps += 1
+            s.drive("w")
+    s.close()
+    assert bumps >= 2
+    out = replay_team_recording(load_team_recording(path))
+    assert out.replay["checksum_status"].startswith("verified")
+    assert out.result.truth_checksum == s.sim.truth_checksum
