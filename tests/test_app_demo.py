@@ -66,7 +66,8 @@ def spy_blits(monkeypatch):
 
 
 # --- DISPLAY pointing at no server ----------------------------------------------------------
-def test_a_display_with_no_server_is_one_line_and_exit_2(tmp_path):
+@pytest.mark.parametrize("command", ["play", "replay"])
+def test_a_display_with_no_server_is_one_line_and_exit_2(tmp_path, command):
     sock = Path("/tmp/.X11-unix")
     free = next(n for n in range(99, 400) if not (sock / f"X{n}").exists())
     env = {k: v for k, v in os.environ.items() if k not in ("SDL_VIDEODRIVER", "WAYLAND_DISPLAY")}
@@ -74,8 +75,14 @@ def test_a_display_with_no_server_is_one_line_and_exit_2(tmp_path):
     runtime.mkdir(mode=0o700)
     env.update(DISPLAY=f":{free}", PYTHONPATH=os.pathsep.join(sys.path), SDL_AUDIODRIVER="dummy",
                PYGAME_HIDE_SUPPORT_PROMPT="1", XDG_RUNTIME_DIR=str(runtime))
-    done = subprocess.run([sys.executable, "-m", "beacon_sim", "play", "default", "--frames", "5",
-                           "--filter", "dead_reckoning"], env=env, cwd=tmp_path,
+    args = ["play", "default", "--frames", "5", "--filter", "dead_reckoning"]
+    if command == "replay":
+        sc = load_scenario("default")
+        with Recorder(tmp_path / "r.jsonl", sc, sc.seed, ["dead_reckoning"], {}) as rec:
+            for k in range(1, 11):
+                rec.record_tick(k, Control(0.3, 0.1), [])
+        args = ["replay", str(tmp_path / "r.jsonl"), "--frames", "5"]
+    done = subprocess.run([sys.executable, "-m", "beacon_sim", *args], env=env, cwd=tmp_path,
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 2, done.stderr
     lines = [ln for ln in done.stderr.splitlines() if ln.strip()]

@@ -200,9 +200,10 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
     ``start`` / ``end`` [s]: seek to ``start`` first, stop at ``end``. With ``gif`` the
     window is scripted (1/60 s per frame, as fast as it draws), captures every 6th frame
     from ``start`` to ``end`` (default: the end of the recording) and writes the GIF."""
-    from beacon_sim.app.main import finish_gif
+    from beacon_sim.app.main import check_display, finish_gif
     from beacon_sim.app.main import start as start_app
 
+    check_display()  # no window to show it in: one line, exit 2 (not an invisible replay)
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     session: ReplaySession | TeamReplaySession
     if isinstance(recording, TeamRecording):
