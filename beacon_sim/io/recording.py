@@ -20,6 +20,11 @@ One JSON object per line (format described in docs/replay.md):
 Version 1 files (no readings checksums, no scenario checksum) are still read; a replay says
 they are verified for the truth only.
 
+The header's ``"slip_model"`` (issue 25: ``"scaled"``, slip scaling with the command) names
+the motion noise the run was made with; a file without it was made before and replays with
+``"legacy"`` (noise at standstill). The tick's ``u`` is the command as given, also on a
+tick the bumper stopped (the filters were told v = 0).
+
 A team session (several robots, docs/multi-robot.md) is the same format with
 ``"kind": "team"`` in the header (and ``"robots"``: their names); the scenario is the team
 file, ``filters`` team filter specs. Its tick lines add ``"d"`` (the index of the driven
