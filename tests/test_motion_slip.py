@@ -237,3 +237,31 @@ def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
     out = replay_team_recording(load_team_recording(path))
     assert out.replay["checksum_status"].startswith("verified")
     assert out.result.truth_checksum == s.sim.truth_checksum
+
+
+def test_an_old_team_recording_replays_with_the_legacy_model(tmp_path):
+    """A team file without "slip_model": every robot replays with the legacy slip."""
+    from beacon_sim.core.team import TeamSimulation, team_with_slip
+    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.io.recording import load_team_recording
+    from beacon_sim.runs.recorder import TeamRecorder
+    from beacon_sim.runs.team_replay import replay_team_recording
+
+    team = load_team_scenario("team_sparse")
+    path = tmp_path / "old_team.jsonl"
+    rec = TeamRecorder(path, team, team.seed, ["independent"], {})
+    rec.shadow = TeamSimulation(team_with_slip(team, "legacy"), team.seed)  # before issue 25
+    for k in range(1, 121):
+        rec.record_tick(k, 0, Control(0.0, 0.0) if k > 40 else Control(0.3, 0.2))
+    rec.close()
+    lines = path.read_text().splitlines()
+    header = json.loads(lines[0])
+    del header["slip_model"]
+    path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
+    out = replay_team_recording(load_team_recording(path))
+    assert out.replay["checksum_status"].startswith("verified")
+    assert out.result.truth_checksum == rec.truth_checksum
+    header["slip_model"] = "scaled"  # the same file read under the new model differs
+    path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
+    with pytest.raises(RecordingError):
+        replay_team_recording(load_team_recording(path))
