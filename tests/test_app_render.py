@@ -15,7 +15,7 @@ import pytest
 
 from beacon_sim.app import shapes
 from beacon_sim.app.loop import SPEEDS, StepClock
-from beacon_sim.app.palette import OKABE_ITO, filter_colours, filter_styles
+from beacon_sim.app.palette import OKABE_ITO, filter_colours, filter_styles, particle_colours
 from beacon_sim.app.render import View, WorldRenderer, nice_step
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import GridBelief
@@ -57,20 +57,22 @@ def test_grid_step_is_1_2_5_and_at_least_the_minimum_spacing():
 
 
 def test_particles_are_written_as_blocks_through_the_pixel_array():
-    """3x3 px blocks up to 20,000 particles (seen on a projector), 2x2 above."""
+    """3x3 px blocks up to 20,000 particles (seen on a projector), 2x2 above, in the filter's
+    colour darkened to 4.5:1 against the floor (issue 25)."""
     surf = pygame.Surface((400, 400))
     surf.fill((255, 255, 255))
     v = View((0.0, 0.0, 4.0, 4.0), (0, 0, 400, 400))  # scale (400 - 88) / 4 = 78 px/m
     poses = np.array([[1.0, 1.0, 0.0], [3.0, 2.0, 1.0], [50.0, 50.0, 0.0]])  # last one off-screen
     WorldRenderer({}).particles(surf, v, poses, (0, 114, 178))
+    shade = particle_colours((0, 114, 178))[0]
     for x, y in ([1.0, 1.0], [3.0, 2.0]):
         px = int(200 + (x - 2.0) * 78)
         py = int(200 - (y - 2.0) * 78)
         for dx in (0, 1, 2):
             for dy in (0, 1, 2):
-                assert tuple(surf.get_at((px + dx, py + dy)))[:3] == (0, 114, 178)
+                assert tuple(surf.get_at((px + dx, py + dy)))[:3] == shade
     arr = pygame.surfarray.array3d(surf)
-    blue = np.all(arr == (0, 114, 178), axis=2)
+    blue = np.all(arr == shade, axis=2)
     assert blue.sum() == 18
 
 

@@ -131,8 +131,12 @@ def test_tab_switches_the_driven_robot_and_w_drives_it_while_the_others_follow_d
     frames(app, 1)
     assert s.driven == 1 and s.driven_name == "relay"
     assert "relay" in app.banner_text  # the window says who is driven now
-    # the keys take over the relay's last command (it was following its waypoints)
-    assert s.keyboard.control.v == pytest.approx(s.last_step.steps[1].control.v) != 0
+    # the keys take over the relay's last command (it was following its waypoints), rounded
+    # to the keyboard's steps (issue 25: no fractional omega left curving the robot)
+    last = s.last_step.steps[1].control
+    lim = s.keyboard.limits
+    assert s.keyboard.control.v == pytest.approx(round(last.v / lim.v_step) * lim.v_step) != 0
+    assert s.keyboard.control.omega == pytest.approx(round(last.omega / lim.omega_step) * lim.omega_step)
     key(pygame.K_x)
     frames(app, 1)
     start = s.poses[1].copy()

@@ -62,7 +62,8 @@ def test_turning_moves_the_heading():
 
 
 def test_blur_adds_the_motion_noise_variance():
-    noise = MotionNoise(v_std=0.2)
+    # the legacy slip: noise at standstill (the scaled slip of issue 25 has none, below)
+    noise = MotionNoise(v_std=0.2, slip="legacy")
     hf = make_hf(noise=noise)
     hf.reset(GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([0.04, 0.04, 0.01])))
     _, c0 = hf.estimate()
@@ -71,6 +72,12 @@ def test_blur_adds_the_motion_noise_variance():
     _, c1 = hf.estimate()
     assert c1[0, 0] - c0[0, 0] == pytest.approx(0.02, rel=0.1)
     assert c1[1, 1] - c0[1, 1] == pytest.approx(0.02, rel=0.1)
+    still = make_hf(noise=MotionNoise(v_std=0.2))
+    still.reset(GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([0.04, 0.04, 0.01])))
+    _, c0 = still.estimate()
+    for _ in range(50):
+        still.predict(Control(0.0, 0.0), 0.1)
+    assert still.estimate()[1][0, 0] == pytest.approx(c0[0, 0], abs=1e-6)
 
 
 def test_discretisation_noise_is_a_cell_and_a_bin_per_grid_noise_seconds():

@@ -12,6 +12,7 @@ from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.scenario import load_scenario, parse_scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
+from beacon_sim.core.simulation import scenario_with_slip
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.pcrb import measurement_information, pcrb
 from beacon_sim.evaluation.summary import evaluate
@@ -21,14 +22,15 @@ BEACONS = [{"id": 1, "x": 2.0, "y": 2.0}, {"id": 2, "x": 8.0, "y": 3.0},
 
 
 def _static(sensor: dict, pose_std=(0.05, 0.04, 0.02)):
-    """A robot standing still (v = 0, so F = I) with additive pose noise: linear-Gaussian."""
-    return parse_scenario({
+    """A robot standing still (v = 0, so F = I) with additive pose noise: linear-Gaussian.
+    The legacy slip model: the "scaled" one (issue 25) has no noise at standstill."""
+    return scenario_with_slip(parse_scenario({
         "name": "static", "dt": 0.1,
         "world": {"bounds": [0.0, 0.0, 10.0, 10.0], "beacons": BEACONS},
         "robot": {"initial_pose": [5.0, 4.0, 0.3], "motion_noise": {"pose_std": list(pose_std)}},
         "sensors": [sensor],
         "driver": {"kind": "constant", "v": 0.0, "omega": 0.0},
-    }, "<test>")
+    }, "<test>"), "legacy")
 
 
 def _kalman_covariances(P0, Q, R_of_step, T):

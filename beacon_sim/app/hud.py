@@ -9,7 +9,7 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import controls, palette
-from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2
+from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids, sensors_read
 from beacon_sim.runs.scene import NEES_BAND, Scene
 
 
@@ -27,6 +27,25 @@ def wrap_text(font: pygame.font.Font, text: str, width: int) -> list[str]:
     if line:
         lines.append(line)
     return lines
+
+
+#: The panel says the delivered speed when it is below this fraction of the asked one.
+SHORT_OF_SPEED = 0.9
+
+
+def fit_text(font: pygame.font.Font, text: str, width: int) -> str:
+    """``text``, or its middle cut out (``assignment_kf_2026...1733.jsonl``) to fit ``width``
+    pixels: both ends stay readable."""
+    if font.size(text)[0] <= width:
+        return text
+    keep = len(text)
+    while keep > 2:
+        keep -= 1
+        head, tail = text[: (keep + 1) // 2], text[len(text) - keep // 2:]
+        cut = f"{head}...{tail}"
+        if font.size(cut)[0] <= width:
+            return cut
+    return text[:1] + "..."
 
 
 class Hud:
@@ -69,8 +88,15 @@ class Hud:
         self._blit(surf, f"beacons in view: {len(seen)}", "hud",
                    palette.WARN if not seen else palette.TEXT, (x, y))
         y += lh
+        missed = sorted(missed_ids(sensors_read(session.scenario, session.tick_count),
+                                   session.scenario.world, session.true_pose, seen))
         self._blit(surf, f"  IDs {ids}", "small", palette.TEXT_DIM, (x, y))
-        y += f["small"].get_linesize() + 6
+        y += sl
+        if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
+            self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
+                       palette.WARN, (x, y))
+            y += sl
+        y += 6
         y = self.rule(surf, rect, x, y)
 
         for i, name in enumerate(session.names):
@@ -117,6 +143,7 @@ class Hud:
         """The panel's background and left edge; returns (x, text width, y) [px]."""
         surf.fill(palette.PANEL, rect)
         pygame.draw.line(surf, palette.PANEL_EDGE, rect.topleft, rect.bottomleft, 3)
+        self.text_right = rect.right - 10  # where a panel line must end [px]
         return rect.left + 16, rect.width - 28, rect.top + 10
 
     def title_and_clock(self, surf, x: int, w: int, y: int, title: str, t: float,
@@ -131,7 +158,13 @@ class Hud:
         self._blit(surf, f"x{speed:g}  {state}", "hud",
                    palette.WARN if info.get("paused") else palette.TEXT,
                    (max(x + int(w * 0.55), r.right + lh // 2), y))
-        return y + lh
+        y += lh
+        got = info.get("delivered")
+        if got is not None and not info.get("paused") and got < SHORT_OF_SPEED * speed:
+            # the machine cannot keep up: say what the class actually sees
+            self._blit(surf, f"delivering only x{got:.2g} (busy)", "small", palette.WARN, (x, y))
+            y += self.fonts["small"].get_linesize()
+        return y
 
     def command(self, surf, x: int, y: int, c, mode: str) -> int:
         """The command in force (v, omega) and who drives."""
@@ -155,9 +188,13 @@ class Hud:
         if visible:
             surf.fill(colour, sw)
         pygame.draw.rect(surf, colour, sw, 3)
-        label = f"{i + 1}  {name}" + ("" if visible else "  (hidden)")
-        self._blit(surf, label, "hud", palette.TEXT if visible else palette.TEXT_DIM,
-                   (sw.right + lh // 4, y))
+        room = getattr(self, "text_right", 10**6) - (sw.right + lh // 4)
+        font = self.fonts["hud"]
+        label = f"{i + 1}  {name}"
+        if not visible:  # "(hidden)", or the shorter "(off)" where that does not fit
+            label += "  (hidden)" if font.size(label + "  (hidden)")[0] <= room else "  (off)"
+        self._blit(surf, fit_text(font, label, room), "hud",
+                   palette.TEXT if visible else palette.TEXT_DIM, (sw.right + lh // 4, y))
         return y + lh
 
     def notes(self, surf, x: int, w: int, y: int, notes) -> int:
@@ -188,8 +225,14 @@ class Hud:
         sl = f["small"].get_linesize()
         lines = [part for line in legend for part in wrap_text(f["small"], line, w)]
         rec = info.get("recording")
-        where = "REPLAY" if info.get("mode") == "replay" else (f"REC {rec}" if rec else "not recording")
-        lines.append(f"FPS {info.get('fps', 0):4.0f}   " + where)
+        lines.append(f"FPS {info.get('fps', 0):4.0f}")
+        if info.get("mode") == "replay":
+            lines[-1] += "   REPLAY"
+        elif rec:  # the file's name (the folder is recordings/), its middle cut if need be
+            name = getattr(rec, "name", str(rec))
+            lines.append(fit_text(f["small"], f"REC {name}", rect.right - 16 - x))
+        else:
+            lines[-1] += "   not recording"
         y = max(y + 6, rect.bottom - (len(lines) + 1) * sl - 16)
         pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
         y += 6
@@ -201,8 +244,12 @@ class Hud:
         self._blit(surf, "H: help    Esc: quit", "small", palette.TEXT, (x, y))
         surf.set_clip(old_clip)
 
-    def step_legend(self, surf, area: pygame.Rect, session, steps: bool, bound: bool) -> None:
-        """What the step view and the bound show, in a box at the bottom left of the world."""
+    def step_legend(self, surf, area: pygame.Rect, session, steps: bool, bound: bool,
+                    avoid=(), world: pygame.Rect | None = None) -> pygame.Rect:
+        """What the step view and the bound show, in a box at the bottom left of the world's
+        area, or at its top left, where it covers none of the rectangles ``avoid`` (the axis
+        labels) and, if it can, not the room (``world``); else raised above the labels it
+        would cover. Returns the box."""
         lines = []
         if steps:
             used = sorted(session.used_ids()) if hasattr(session, "used_ids") else []
@@ -217,14 +264,23 @@ class Hud:
         for line in lines:
             out += wrap_text(font, line, area.width - 40)
         lh = font.get_linesize()
-        box = pygame.Rect(area.left + 8, area.bottom - lh * len(out) - 16,
-                          max(font.size(t)[0] for t in out) + 20, lh * len(out) + 10)
+        w, h = max(font.size(t)[0] for t in out) + 20, lh * len(out) + 10
+        low = pygame.Rect(area.left + 8, area.bottom - 6 - h, w, h)
+        high = pygame.Rect(area.left + 8, area.top + lh + 14, w, h)  # under "grid 2 m"
+        free = [b for b in (low, high) if b.collidelist(list(avoid)) < 0]
+        box = next((b for b in free if world is None or not b.colliderect(world)),
+                   free[0] if free else low)
+        covered = [r for r in avoid if r.colliderect(box)]
+        if covered:
+            box.bottom = min(r.top for r in covered) - 4
         shade = pygame.Surface(box.size, pygame.SRCALPHA)
         shade.fill((*palette.PANEL, 225))
         surf.blit(shade, box)
         pygame.draw.rect(surf, palette.PANEL_EDGE, box, 2)
         for k, t in enumerate(out):
             self._blit(surf, t, "small", palette.TEXT, (box.left + 10, box.top + 5 + k * lh))
+        self.step_box = box
+        return box
 
     def banner(self, surf, area: pygame.Rect, text: str) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved)."""
@@ -243,7 +299,10 @@ class Hud:
             surf.blit(img, img.get_rect(midtop=(r.centerx, r.top + k * lh)))
 
     def help(self, surf) -> None:
-        """Every binding of the mode's table (``controls.bindings``), grouped, over a dark translucent box."""
+        """Every binding of the mode's table (``controls.bindings``), grouped, over a dark
+        translucent box, in one or two columns sized to their text: the panel's font if
+        that fits the window, else the small one, descriptions wrapped if need be (nothing
+        overlaps or is cut at 1024x768)."""
         W, H = surf.get_size()
         f = self.fonts
         lines = controls.help_lines(self.mode)
@@ -252,14 +311,15 @@ class Hud:
             if not groups or groups[-1][0] != group:
                 groups.append((group, []))
             groups[-1][1].append((keys, desc))
-        lh = f["hud"].get_linesize()
-        total = sum(len(g[1]) + 1.4 for g in groups)
-        ncol = 1 if total * lh + 120 < H else 2
-        col_w = min((W - 80) // ncol, 640)
-        key_w = max(f["hud"].size(k)[0] for _, k, _ in lines) + 24
-        per_col = math.ceil(total / ncol)
-        height = int(per_col * lh + 110)
-        box = pygame.Rect(0, 0, col_w * ncol + 40, min(height, H - 20))
+        layout = self._help_layout(groups, W, H)
+        font, ncol, key_w, desc_w, wrapped = layout
+        lh = f[font].get_linesize()
+        rows = [(g, [(k, wrapped[(k, d)], d) for k, d in rs]) for g, rs in groups]
+        heights = [1.4 + sum(len(w) for _, w, _ in rs) for _, rs in rows]
+        cols, tallest = split_columns(heights, ncol)
+        col_w = key_w + desc_w + 30
+        title_h = f["title"].get_linesize() + 22
+        box = pygame.Rect(0, 0, col_w * ncol + 40, min(int(tallest * lh + title_h + 20), H - 10))
         box.center = (W // 2, H // 2)
         shade = pygame.Surface(box.size, pygame.SRCALPHA)
         shade.fill((*palette.OVERLAY_BG, 235))
@@ -268,23 +328,64 @@ class Hud:
         self._blit(surf, "Keys and mouse  (H or F1 closes)", "title", palette.OVERLAY_TEXT,
                    (box.left + 20, box.top + 12))
         self.help_drawn = []
-        col, used = 0, 0.0
-        y0 = box.top + 12 + f["title"].get_linesize() + 10
-        y = y0
-        for group, rows in groups:
-            if ncol > 1 and col == 0 and used + len(rows) + 1.4 > per_col + 0.5:
-                col, y = 1, y0
+        self.help_rects: list[pygame.Rect] = []  # every text drawn (tests: no overlap, inside)
+        y0 = box.top + title_h
+        y, col = y0, 0
+        for (group, rs), c in zip(rows, cols, strict=True):
+            if c != col:
+                col, y = c, y0
             x = box.left + 20 + col * col_w
-            self._blit(surf, group, "small", palette.OVERLAY_KEY, (x, y + 4))
-            y += int(lh * 1.1)
-            used += 1.4
-            for keys, desc in rows:
-                self._blit(surf, keys, "hud", palette.OVERLAY_KEY, (x, y))
-                self._blit(surf, desc, "hud", palette.OVERLAY_TEXT, (x + key_w, y))
+            self.help_rects.append(self._blit(surf, group, "small", palette.OVERLAY_KEY, (x, y)))
+            y += max(int(lh * 1.1), f["small"].get_linesize() + 1)
+            for keys, parts, desc in rs:
+                self.help_rects.append(self._blit(surf, keys, font, palette.OVERLAY_KEY, (x, y)))
+                for part in parts:
+                    self.help_rects.append(self._blit(surf, part, font, palette.OVERLAY_TEXT,
+                                                      (x + key_w, y)))
+                    y += lh
                 self.help_drawn.append((keys, desc))
-                y += lh
-                used += 1
             y += int(lh * 0.3)
+        self.help_box = box
+
+    def _help_layout(self, groups, W: int, H: int):
+        """(font, columns, key column width, description width, {(keys, desc): lines}) for
+        the help overlay: the largest font whose one or two columns fit ``W`` x ``H``."""
+        f = self.fonts
+        pairs = [kd for _, rs in groups for kd in rs]
+        for font in ("hud", "small"):
+            lh = f[font].get_linesize()
+            key_w = max(f[font].size(k)[0] for k, _ in pairs) + 24
+            title_h = f["title"].get_linesize() + 22
+            for ncol in (1, 2):
+                room = (W - 60) // ncol - 30 - key_w  # px for a description
+                if room < 120:
+                    continue
+                wrapped = {(k, d): wrap_text(f[font], d, room) or [""] for k, d in pairs}
+                desc_w = max(f[font].size(p)[0] for w in wrapped.values() for p in w)
+                heights = [1.4 + sum(len(wrapped[kd]) for kd in rs) for _, rs in groups]
+                _, tallest = split_columns(heights, ncol)
+                if tallest * lh + title_h + 20 <= H - 10:
+                    if font == "hud" and any(len(w) > 1 for w in wrapped.values()):
+                        continue  # rather the small font on one line than the large one wrapped
+                    return font, ncol, key_w, desc_w, wrapped
+        font = "small"
+        key_w = max(f[font].size(k)[0] for k, _ in pairs) + 24
+        room = max((W - 60) // 2 - 30 - key_w, 80)
+        wrapped = {(k, d): wrap_text(f[font], d, room) or [""] for k, d in pairs}
+        desc_w = max(f[font].size(p)[0] for w in wrapped.values() for p in w)
+        return font, 2, key_w, desc_w, wrapped
+
+
+def split_columns(heights: list[float], ncol: int) -> tuple[list[int], float]:
+    """Groups of ``heights`` rows, in order, into ``ncol`` (1 or 2) columns without splitting
+    a group: (each group's column, the taller column's rows). Two columns: the split that
+    makes the taller one shortest."""
+    if ncol == 1 or len(heights) < 2:
+        return [0] * len(heights), float(sum(heights))
+    best = min(range(1, len(heights)),
+               key=lambda k: max(sum(heights[:k]), sum(heights[k:])))
+    return ([0] * best + [1] * (len(heights) - best),
+            float(max(sum(heights[:best]), sum(heights[best:]))))
 
 
 def nees_text(nees: float) -> str:

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pygame
 
-from beacon_sim.app import controls
+from beacon_sim.app import controls, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.bound import LiveBound
 from beacon_sim.app.hud import Hud, fps_of
@@ -70,6 +70,8 @@ class App:
         pygame.display.init()
         pygame.font.init()
         self.screen = pygame.display.set_mode(size, pygame.RESIZABLE)
+        self.screen.fill(palette.OUTSIDE)  # never a black window, even for a moment
+        pygame.display.flip()
         pygame.display.set_caption(f"beacon-sim: {session.scenario.name}")
         pygame.display.set_icon(window_icon())
         pygame.key.set_repeat(300, 50)
@@ -98,6 +100,7 @@ class App:
             self.bound = LiveBound(session.scenario)
             session.on_step.append(self.bound.feed)
         self.chart = StripChart(session.names, session.scenario.dt)
+        self.pace = DeliveredSpeed()
         self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
 
@@ -223,7 +226,7 @@ class App:
         elif action in ("reset", "global_reset"):
             s.command({"kind": action})
             self.clear_trails()
-            self.flash("filters reset" if action == "reset" else "global belief")
+            self.flash("filters reset" if action == "reset" else self.global_reset_text())
         elif action.startswith("toggle"):
             i = int(action[len("toggle"):]) - 1
             if i < len(s.names):
@@ -271,6 +274,19 @@ class App:
         else:
             raise ValueError(f"no handler for the action {action!r}")
 
+    def global_reset_text(self) -> str:
+        """What G did, filter by filter: a uniform belief where the filter supports one; a
+        Gaussian (one peak) cannot spread over the room and is left as it was."""
+        filters = getattr(self.session, "filters", {})
+        spread = [n for n, f in filters.items() if getattr(f, "supports_global", False)]
+        kept = [n for n in filters if n not in spread]
+        parts = []
+        if spread:
+            parts.append(f"global belief: {', '.join(spread)} spread over the room")
+        if kept:
+            parts.append(f"{', '.join(kept)} cannot (one Gaussian peak): unchanged")
+        return "; ".join(parts) or "global belief: no filter to reset"
+
     def clear_trails(self) -> None:
         """Forget every trail (the truth's and the filters'), keep the current points."""
         s = self.session
@@ -306,6 +322,7 @@ class App:
         self.ticks_this_frame = self.ticks_due(real_dt)
         for _ in range(self.ticks_this_frame):
             self.after_tick(self.session.tick())
+        self.pace.sample(self.now, self.session.time, self.clock.speed, self.clock.paused)
         self.draw()
         if self.gif is not None:
             self.gif.offer(self.screen)
@@ -357,6 +374,7 @@ class App:
         self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
                            dashes=dashes, extra=extra if (steps or bound is not None) else None)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
+                "delivered": self.pace.factor,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
                 "reload_errors": self.reload_errors,
                 "bound": bound.sigmas() if bound is not None else None}
@@ -366,7 +384,8 @@ class App:
                             self.session.visible, now=self.now, busy=self.ticks_this_frame > 0)
         if steps or bound is not None:
             self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
-                                 bound is not None)
+                                 bound is not None, avoid=self.renderer.axis_rects,
+                                 world=self.renderer._world_rect(self.view))
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
         self.draw_extra(surf)
@@ -433,6 +452,9 @@ class App:
                 signal.signal(sig, handler)
 
     def _loop(self, max_frames: int | None) -> None:
+        if self.frames == 0:  # the first picture at once, before any tick (t = 0 of a run)
+            pygame.event.pump()
+            self.draw()
         timer = pygame.time.Clock()
         last = time.perf_counter()
         while self.running and (max_frames is None or self.frames < max_frames):
@@ -452,6 +474,38 @@ class App:
         pygame.display.quit()
 
 
+class DeliveredSpeed:
+    """The speed factor the simulation actually delivers: simulated seconds per second of
+    the window's clock over the last :attr:`SPAN_S` (None until that long has been seen at
+    one speed and running). Under load the clock drops ticks, so the panel's "x8" can be
+    0.85 in truth; the panel shows this figure when it falls short."""
+
+    SPAN_S = 2.0
+
+    def __init__(self) -> None:
+        self.samples: deque[tuple[float, float]] = deque()
+        self._key: tuple | None = None
+
+    def sample(self, now: float, sim_time: float, speed: float, paused: bool) -> None:
+        """After a frame: the window's clock [s], the simulated time [s], the asked speed."""
+        key = (speed, paused)
+        if key != self._key or (self.samples and sim_time < self.samples[-1][1]):
+            self.samples.clear()  # a new speed, a pause or a seek back: measure afresh
+            self._key = key
+        self.samples.append((now, sim_time))
+        while len(self.samples) > 2 and now - self.samples[1][0] >= self.SPAN_S:
+            self.samples.popleft()
+
+    @property
+    def factor(self) -> float | None:
+        if len(self.samples) < 2 or self._key is None or self._key[1]:
+            return None
+        (t0, s0), (t1, s1) = self.samples[0], self.samples[-1]
+        if t1 - t0 < self.SPAN_S * 0.99:
+            return None
+        return (s1 - s0) / (t1 - t0)
+
+
 def check_display() -> None:
     """Raise ``UsageError`` (one line, exit 2) when no window can open: on Linux, no X or
     Wayland display and no SDL video driver chosen (a window would run invisibly)."""
@@ -467,6 +521,17 @@ def check_display() -> None:
         pygame.display.init()
     except pygame.error as exc:
         raise UsageError(f"cannot open a window: {exc}") from None
+    driver = pygame.display.get_driver()
+    if driver in HEADLESS_DRIVERS:  # SDL fell back to drawing nowhere: DISPLAY has no server
+        pygame.display.quit()
+        where = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") or "the display"
+        raise UsageError(f"cannot open a window on {where} (no display server answers there;"
+                         " SDL would draw invisibly); for a headless window set"
+                         " SDL_VIDEODRIVER=dummy, or use beacon-sim run")
+
+
+#: SDL video drivers that show nothing; chosen only by SDL_VIDEODRIVER, never as a fallback.
+HEADLESS_DRIVERS = frozenset({"offscreen", "dummy"})
 
 
 @dataclass(frozen=True)
@@ -485,6 +550,7 @@ class PlayOptions:
     paused: bool = False  # start paused (Space runs, . steps)
     speed: float | None = None  # start at this speed factor (nearest of loop.SPEEDS)
     gif: str | None = None  # also write the session as an animated GIF here
+    gif_width: int | None = 640  # the GIF's width [px]; None: the window's
 
 
 def play(options: PlayOptions) -> int:
@@ -509,7 +575,7 @@ def run_window(app: App, options: PlayOptions) -> None:
     """Run an opened window as the command line asked (paused, speed, GIF, ``--frames``),
     save ``--screenshot`` from its last frame and the GIF, and close it."""
     o = options
-    start(app, o.paused, o.speed, o.gif)
+    start(app, o.paused, o.speed, o.gif, o.gif_width)
     try:
         app.run(o.frames)
         if o.screenshot:
@@ -519,8 +585,10 @@ def run_window(app: App, options: PlayOptions) -> None:
         app.close()
 
 
-def start(app: App, paused: bool = False, speed: float | None = None, gif: str | None = None) -> None:
-    """The command line's starting state: paused, the speed factor, a GIF being captured."""
+def start(app: App, paused: bool = False, speed: float | None = None, gif: str | None = None,
+          gif_width: int | None = 640) -> None:
+    """The command line's starting state: paused, the speed factor, a GIF being captured
+    (``gif_width`` [px] wide; None: as wide as the window)."""
     if paused:
         app.clock.paused = True
     if speed is not None:
@@ -528,7 +596,7 @@ def start(app: App, paused: bool = False, speed: float | None = None, gif: str |
     if gif:
         from beacon_sim.app.gif import GifRecorder
 
-        app.gif = GifRecorder(gif)
+        app.gif = GifRecorder(gif, width=gif_width or app.screen.get_width())
 
 
 def finish_gif(app: App) -> None:

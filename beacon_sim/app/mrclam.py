@@ -18,7 +18,15 @@ def show_mrclam(run: MrclamRun, frames: int | None = None, screenshot: str | Non
     """The window over a finished MRCLAM run, until quit (or ``frames`` frames of 1/60 s);
     ``screenshot`` saves the last frame. Without a display it says so and returns 0 (the
     table printed before is the result)."""
+    from beacon_sim.app.main import check_display
+    from beacon_sim.errors import UsageError
+
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    try:
+        check_display()  # a DISPLAY with no server: say so rather than draw invisibly
+    except UsageError as exc:
+        print(f"note: {exc}; results above are headless", file=sys.stderr)
+        return 0
     try:
         app = ReplayApp(MrclamPlayback(run), scripted=frames is not None)
     except pygame.error as exc:

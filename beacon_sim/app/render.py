@@ -15,6 +15,7 @@ import pygame
 
 from beacon_sim.app import palette, shapes
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
+from beacon_sim.core.sensors import visible_beacons
 from beacon_sim.filters.base import GridBelief, ParticleBelief
 from beacon_sim.runs.scene import Scene
 from beacon_sim.runs.styles import BOUND_STYLE
@@ -24,6 +25,10 @@ ELLIPSE_LEVEL = 0.95
 ELLIPSE_SCALE2 = CHI2_2DOF[ELLIPSE_LEVEL]
 #: The step view's prior (after predict): dashed, as in the textbook figures [px on, off].
 PRIOR_DASH = (14, 10)
+#: The magnifier's words above the sizes of the ellipses it shows.
+MAGNIFIER_HEADING = "95 % ellipse, across:"
+#: A beacon in a sensor's range that was not detected: a dashed ring [px on, off].
+MISSED_DASH = (6, 5)
 
 
 class View:
@@ -150,6 +155,41 @@ def ipx(v) -> int:
     return math.floor(float(v) + 0.5)
 
 
+def sensors_read(scenario, tick: int) -> list:
+    """The scenario's sensors that have been read by ``tick`` (one period has passed): before
+    its first reading a sensor has missed nothing."""
+    return [s for s in scenario.sensors if tick >= max(1, round(s.period / scenario.dt))]
+
+
+def missed_ids(sensors, world, pose, seen) -> set[int]:
+    """IDs of the beacons within some beacon sensor's range and field of view at the true
+    ``pose`` that are not in ``seen`` (missed by detection probability, or blacked out)."""
+    ids = np.array([b.id for b in world.beacons], dtype=np.int64)
+    if not len(ids):
+        return set()
+    inside = np.zeros(len(ids), dtype=bool)
+    for spec in sensors:  # every kind of sensor detects beacons one by one
+        inside |= visible_beacons(spec, np.asarray(pose, dtype=float), world)
+    return {int(i) for i in ids[inside]} - set(seen)
+
+
+def ellipse_diameter(cov) -> float:
+    """The major axis [m] of the 95 % ellipse of the x-y block of ``cov``."""
+    c = np.asarray(cov, dtype=float)[:2, :2]
+    if not np.all(np.isfinite(c)):
+        return math.inf
+    return 2.0 * math.sqrt(max(float(np.linalg.eigvalsh(c)[-1]), 0.0) * ELLIPSE_SCALE2)
+
+
+def format_length(metres: float) -> str:
+    """``4 cm``, ``0.5 mm``, ``1.2 m``: a length in the unit that reads best."""
+    if metres >= 1.0:
+        return f"{metres:.2g} m"
+    if metres >= 0.01:
+        return f"{metres * 100:.2g} cm"
+    return f"{metres * 1000:.2g} mm"
+
+
 def nice_step(scale: float, min_px: float = 70.0) -> float:
     """Grid spacing [m] from 1-2-5 steps so that lines are at least ``min_px`` apart."""
     target = min_px / scale
@@ -170,6 +210,9 @@ class WorldRenderer:
         self._text_cache: dict[tuple, pygame.Surface] = {}
         self._static: tuple[tuple, pygame.Surface] | None = None
         self.last_world = None  # the world of the scene being drawn (for the step view)
+        self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
+        self.axis_rects: list[pygame.Rect] = []  # the axis labels of the static layer [px]
+        self.beacon_rects: list[pygame.Rect] = []  # beacons and their labels, last drawn [px]
 
     def text(self, s: str, font: str, colour) -> pygame.Surface:
         key = (s, font, colour)
@@ -215,7 +258,9 @@ class WorldRenderer:
                 if session.visible[name]:
                     self.trail(surf, view, session.trails[name], colours[name], 2)
         self.rays(surf, view, sc.world, pose, session.readings())
-        self.beacons(surf, view, sc.world, session.seen_ids())
+        seen = session.seen_ids()
+        self.beacons(surf, view, sc.world, seen,
+                     missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
         self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
         if show.particles:
             for name, bel in beliefs.items():
@@ -234,6 +279,9 @@ class WorldRenderer:
             if est is not None:
                 estimates.append((name, *est))
         self.estimates(surf, view, estimates, colours, dashes, sc.robot_radius, show.ellipses)
+        self.last_magnifier = None
+        if show.ellipses:
+            self.magnifier(surf, view, pose, estimates, colours, dashes, sc.robot_radius)
         if drag is not None:
             self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
         surf.set_clip(old_clip)
@@ -259,9 +307,14 @@ class WorldRenderer:
         for key, mean, _ in estimates:
             self._arrow(surf, view, mean, colours[key], radius, arrow)
         if ellipses:
-            for key, mean, cov in sorted(estimates, key=lambda e: dashes.get(e[0]) is not None):
+            order = sorted(estimates, key=lambda e: dashes.get(e[0]) is not None)
+            if wedges:  # every wedge first: a small ellipse is never under a wedge
+                for key, mean, cov in order:
+                    self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), radius,
+                                     wedge=True, ellipse=False)
+            for key, mean, cov in order:
                 self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), radius,
-                                 wedge=wedges)
+                                 wedge=False)
 
     def trail(self, surf, view: View, trail, colour, width: int) -> None:
         """A :class:`~beacon_sim.runs.scene.Trail`'s pieces as polylines ``width`` px wide."""
@@ -316,15 +369,17 @@ class WorldRenderer:
         area = pygame.Rect(view.area)
         fmt = (lambda v: f"{v:g}") if step >= 1 else (lambda v: f"{v:.1f}")
         ylab = min(max(world_rect.bottom + 6, area.top + 2), area.bottom - 24)
+        self.axis_rects = []  # where the labels are (window px): beacon labels keep off them
         for x in np.arange(math.ceil(max(x0, xmin) / step) * step, min(x1, xmax) + 1e-9, step):
             px = view.to_px(np.array([x, 0.0]))[0]
             t = self.text(fmt(x + 0.0), "small", palette.TEXT_DIM)
-            surf.blit(t, (int(px - t.get_width() / 2), ylab))
+            self.axis_rects.append(surf.blit(t, (int(px - t.get_width() / 2), ylab)))
         xlab = max(min(world_rect.left - 6, area.right - 40), area.left + 2)
         for y in np.arange(math.ceil(max(y0, ymin) / step) * step, min(y1, ymax) + 1e-9, step):
             py = view.to_px(np.array([0.0, y]))[1]
             t = self.text(fmt(y + 0.0), "small", palette.TEXT_DIM)
-            surf.blit(t, (max(xlab - t.get_width(), area.left + 2), int(py - t.get_height() / 2)))
+            self.axis_rects.append(
+                surf.blit(t, (max(xlab - t.get_width(), area.left + 2), int(py - t.get_height() / 2))))
         unit = self.text(f"grid {step:g} m", "small", palette.TEXT_DIM)
         box = unit.get_rect(topleft=(area.left + 8, area.top + 6))
         surf.fill(palette.OUTSIDE, box.inflate(8, 4))
@@ -357,10 +412,12 @@ class WorldRenderer:
 
     def particles(self, surf: pygame.Surface, view: View, poses: np.ndarray, colour,
                   weights: np.ndarray | None = None) -> None:
-        """Each particle as a 2x2 pixel block, written through a pixel array (no draw calls).
+        """Each particle as a 3x3 pixel block (2x2 above 20,000 particles), written through a
+        pixel array (no draw calls), in the filter's colour darkened to a contrast of 4.5:1
+        against the floor (``palette.particle_colours``).
 
-        With ``weights``, particles below half the mean weight (1 / 2N) are drawn in a pale
-        shade first, so that the ones carrying the belief stand out.
+        With ``weights``, particles below half the mean weight (1 / 2N) are drawn in a
+        lighter shade (still 3:1) first, so that the ones carrying the belief stand out.
         """
         clip = surf.get_clip()
         poses = np.asarray(poses)
@@ -372,11 +429,12 @@ class WorldRenderer:
         ix = fx.astype(np.int32)
         iy = fy.astype(np.int32)
         ok = (ix >= clip.left) & (ix < clip.right - 1) & (iy >= clip.top) & (iy < clip.bottom - 1)
-        layers = [(ok, colour)]
+        heavy, pale = palette.particle_colours(colour)  # >= 4.5:1 and 3:1 against the floor
+        layers = [(ok, heavy)]
         if weights is not None and len(weights) == len(poses):
             light = np.asarray(weights) < 0.5 / max(len(poses), 1)
             if light.any():
-                layers = [(ok & light, palette.lighten(colour, 0.6)), (ok & ~light, colour)]
+                layers = [(ok & light, pale), (ok & ~light, heavy)]
         # Blocks of 3x3 px up to 20,000 particles (visible on a projector), 2x2 above.
         big = len(poses) <= 20_000
         if big:
@@ -469,8 +527,10 @@ class WorldRenderer:
             elif m.kind in ("pose", "position"):
                 self._cross(surf, view.to_px(m.z[0, :2]), 9, palette.RAY, 3)
 
-    def beacons(self, surf, view: View, world, seen) -> None:
-        """Every beacon as a square with its ID; those in ``seen`` (IDs) on a green disc."""
+    def beacons(self, surf, view: View, world, seen, missed=frozenset()) -> None:
+        """Every beacon as a square with its ID; those in ``seen`` (IDs) on a green disc, those
+        in ``missed`` (in a sensor's range and field of view, not detected) in a dashed
+        vermillion ring."""
         pxs = [(ipx(x), ipx(y)) for x, y in view.to_px(world.beacon_xy)]
         half = 9
         squares = [pygame.Rect(x - half, y - half, 2 * half, 2 * half) for x, y in pxs]
@@ -478,6 +538,9 @@ class WorldRenderer:
             if bcn.id in seen:
                 pygame.draw.circle(surf, palette.BEACON_SEEN, (x, y), half + 7)
                 pygame.draw.circle(surf, palette.BEACON_SEEN_RING, (x, y), half + 7, 3)
+            elif bcn.id in missed:
+                ring = circle(np.array([x, y], dtype=float), half + 8, 40)
+                polyline(surf, palette.WARN, ring, 3, MISSED_DASH, closed=True)
             pygame.draw.rect(surf, palette.BEACON, rect)
             pygame.draw.rect(surf, palette.BACKGROUND, rect.inflate(-8, -8))
         # Labels: top-right of the beacon unless that hides another beacon or label (real
@@ -491,11 +554,14 @@ class WorldRenderer:
                        (x - w // 2, y - half - h - 4), (x - w // 2, y + half + 4),
                        (x + half + 6 + w, y - h // 2), (x - half - 6 - 2 * w, y - h // 2)]
             rects = [pygame.Rect(cx, cy, w, h) for cx, cy in corners]
-            at = next((r for r in rects if r.collidelist(placed) < 0 and r.collidelist(squares) < 0),
-                      rects[0])
+            at = next((r for r in rects if r.collidelist(placed) < 0 and r.collidelist(squares) < 0
+                       and r.inflate(4, 0).collidelist(self.axis_rects) < 0),
+                      next((r for r in rects if r.collidelist(placed) < 0
+                            and r.collidelist(squares) < 0), rects[0]))
             placed.append(at)
             surf.fill(palette.BACKGROUND, at.inflate(6, -2))
             surf.blit(t, at)
+        self.beacon_rects = squares + placed
 
     @staticmethod
     def _cross(surf, at, r: int, colour, width: int) -> None:
@@ -511,12 +577,12 @@ class WorldRenderer:
         pygame.draw.polygon(surf, palette.TEXT, tri, 2)
 
     def uncertainty(self, surf, view: View, mean, cov, colour, dash, radius: float,
-                    width: int | None = None, wedge: bool = True) -> None:
-        """The 95 % ellipse of x-y and (``wedge``) the +-2 sigma heading wedge, in ``dash``
-        style."""
+                    width: int | None = None, wedge: bool = True, ellipse: bool = True) -> None:
+        """The 95 % ellipse of x-y (``ellipse``) and the +-2 sigma heading wedge (``wedge``),
+        in ``dash`` style."""
         lw = width or getattr(self, "lw", 4)
         pts = view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 96))
-        if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
+        if ellipse and np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
             polyline(surf, colour, pts, lw, dash, closed=True)
         if not wedge:
             return
@@ -524,6 +590,100 @@ class WorldRenderer:
         r = max(3.2 * radius, 55.0 / view.scale)
         w = view.to_px(shapes.wedge(mean, 2.0 * sigma, r))
         polyline(surf, colour, w, max(lw - 1, 2), dash, closed=True)
+
+    def magnifier(self, surf, view: View, pose, estimates, colours, dashes, radius: float) -> None:
+        """A magnified inset (top right of the world) when an estimate's 95 % ellipse is
+        smaller than the robot's outline on screen (a converged KF's 2 cm lie inside it):
+        the true position (black cross), those estimates (dot) and their ellipses at a
+        zoom where the largest is about half the inset, a scale bar, and each ellipse's size
+        in words. A frame marks the magnified part around the robot. ``last_magnifier``
+        holds what was drawn (for tests): rect, px per metre, {name: ellipse across [px]}."""
+        r_px = max(radius, 14.0 / view.scale) * view.scale
+        small = []
+        for key, mean, cov in estimates:
+            axis = ellipse_diameter(cov)  # the 95 % ellipse's major axis [m]
+            if math.isfinite(axis) and axis * view.scale < 2.0 * r_px:
+                small.append((key, mean, cov, axis))
+        if not small:
+            return
+        area = pygame.Rect(view.area)
+        font = self.fonts["small"]
+        lh = font.get_linesize()
+        # wide enough for its words (the bar is at most half the width, its length beside it)
+        side = max(min(int(0.3 * min(area.width, area.height)), 360), 150,
+                   font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
+                   max(font.size(f"{key}  99 mm")[0] for key, *_ in small) + 50)
+        strip_h = lh * (len(small) + 3) + 10
+        # a corner of the world's area that does not cover the robot (top right first)
+        robot_px = view.to_px(np.asarray(pose[:2], dtype=float))
+        robot_box = pygame.Rect(ipx(robot_px[0] - r_px) - 8, ipx(robot_px[1] - r_px) - 8,
+                                ipx(2 * r_px) + 16, ipx(2 * r_px) + 16)
+        blocks = [pygame.Rect(area.right - side - 12, area.top + 12, side, side + strip_h + 2),
+                  pygame.Rect(area.right - side - 12, area.bottom - side - strip_h - 14, side,
+                              side + strip_h + 2),
+                  pygame.Rect(area.left + 12, area.top + 40, side, side + strip_h + 2),
+                  pygame.Rect(area.left + 12, area.bottom - side - strip_h - 14, side,
+                              side + strip_h + 2)]
+        block = next((b for b in blocks if not b.colliderect(robot_box)), blocks[0])
+        rect = pygame.Rect(block.left, block.top, side, side)
+        # the zoom: the largest small ellipse (or the spread of the means) half the inset
+        centre = np.asarray(pose[:2], dtype=float)
+        reach = max(max(a for *_, a in small) / 2.0,
+                    max(float(np.hypot(*(m[:2] - centre))) for _, m, _, _ in small), 1e-4)
+        scale = min(0.25 * side / reach, 1e6)
+        if scale < 4.0 * view.scale:  # not worth a magnifier
+            return
+        sub = View(view.bounds, (rect.left, rect.top, rect.width, rect.height))
+        sub.scale, sub.centre = scale, centre
+        # where the inset looks, marked on the map
+        half = 0.5 * side / scale
+        a, b = view.to_px(np.array([[centre[0] - half, centre[1] + half],
+                                    [centre[0] + half, centre[1] - half]]))
+        mark = pygame.Rect(ipx(a[0]), ipx(a[1]), max(ipx(b[0] - a[0]), 3), max(ipx(b[1] - a[1]), 3))
+        pygame.draw.rect(surf, palette.TEXT, mark.inflate(6, 6), 2)
+        pygame.draw.line(surf, palette.TEXT_DIM, mark.inflate(6, 6).topright, rect.bottomleft, 1)
+        old_clip = surf.get_clip()
+        surf.fill(palette.BACKGROUND, rect)
+        surf.set_clip(rect)
+        step = nice_step(scale, side / 5)
+        g0 = np.floor((centre - half) / step) * step
+        for k in range(int(2 * half / step) + 2):
+            x, y = sub.to_px(g0 + k * step)
+            pygame.draw.line(surf, palette.GRID_MINOR, (ipx(x), rect.top), (ipx(x), rect.bottom), 1)
+            pygame.draw.line(surf, palette.GRID_MINOR, (rect.left, ipx(y)), (rect.right, ipx(y)), 1)
+        c = sub.to_px(centre)
+        self._cross(surf, c, 8, palette.ROBOT, 3)
+        lw = max(getattr(self, "lw", 4) - 1, 2)
+        drawn = {}
+        for key, mean, cov, axis in sorted(small, key=lambda e: dashes.get(e[0]) is not None):
+            m = sub.to_px(mean[:2])
+            pygame.draw.circle(surf, colours[key], (ipx(m[0]), ipx(m[1])), lw + 1)
+            self.uncertainty(surf, sub, mean, cov, colours[key], dashes.get(key), radius,
+                             width=lw, wedge=False)
+            drawn[key] = axis * scale
+        surf.set_clip(old_clip)
+        pygame.draw.rect(surf, palette.TEXT, rect, 2)
+        # the scale bar and the sizes, on a strip along the inset's bottom
+        font_key = "small"
+        bar_m = nice_step(scale, side / 4)
+        bar_px = bar_m * scale
+        y = rect.bottom + 6
+        strip = pygame.Rect(rect.left, rect.bottom + 2, rect.width, strip_h)
+        surf.fill(palette.PANEL, strip)
+        pygame.draw.rect(surf, palette.PANEL_EDGE, strip, 1)
+        x0 = rect.left + 10
+        pygame.draw.line(surf, palette.TEXT, (x0, y + lh // 2), (ipx(x0 + bar_px), y + lh // 2), 4)
+        surf.blit(self.text(format_length(bar_m), font_key, palette.TEXT), (ipx(x0 + bar_px) + 8, y))
+        y += lh
+        surf.blit(self.text(f"zoom x{scale / view.scale:.0f}", font_key, palette.TEXT), (x0, y))
+        y += lh
+        surf.blit(self.text(MAGNIFIER_HEADING, font_key, palette.TEXT_DIM), (x0, y))
+        for key, *_rest, axis in small:
+            y += lh
+            t = self.text(f"{key}  {format_length(axis)}", font_key, palette.TEXT)
+            pygame.draw.line(surf, colours[key], (x0, y + lh // 2), (x0 + 18, y + lh // 2), 5)
+            surf.blit(t, (x0 + 26, y))
+        self.last_magnifier = {"rect": rect, "scale": scale, "across_px": drawn}
 
     def priors(self, surf, view: View, steps: dict, colours, used_ids: set[int]) -> None:
         """The step view: for each filter the 95 % ellipse after predict (the prior, dashed,

@@ -192,31 +192,33 @@ class TeamReplayApp(ReplayApp, TeamApp):
 def show_replay(recording: Recording | TeamRecording, specs: list[str], params: dict[str, dict[str, Any]],
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
-                end: float | None = None) -> int:
+                end: float | None = None, size: tuple[int, int] = (1280, 800),
+                gif_width: int | None = 640) -> int:
     """The replay window until quit (or ``frames`` frames, each counting 1/60 s); saves the
     last frame to ``screenshot``. Returns 2 when the truth differs from the recording.
 
     ``start`` / ``end`` [s]: seek to ``start`` first, stop at ``end``. With ``gif`` the
     window is scripted (1/60 s per frame, as fast as it draws), captures every 6th frame
     from ``start`` to ``end`` (default: the end of the recording) and writes the GIF."""
-    from beacon_sim.app.main import finish_gif
+    from beacon_sim.app.main import check_display, finish_gif
     from beacon_sim.app.main import start as start_app
 
+    check_display()  # no window to show it in: one line, exit 2 (not an invisible replay)
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     session: ReplaySession | TeamReplaySession
     if isinstance(recording, TeamRecording):
         session = TeamReplaySession(recording, specs, params)
-        app: ReplayApp = TeamReplayApp(session, scripted=frames is not None or gif is not None)
+        app: ReplayApp = TeamReplayApp(session, size, scripted=frames is not None or gif is not None)
     else:
         session = ReplaySession(recording, specs, params)
-        app = ReplayApp(session, scripted=frames is not None or gif is not None)
+        app = ReplayApp(session, size, scripted=frames is not None or gif is not None)
     dt = session.scenario.dt
     if start:
         app.seek(min(round(start / dt), session.total_ticks))
     if end is not None:
         app.end_tick = min(round(end / dt), session.total_ticks)
     app.stop_at_end = gif is not None
-    start_app(app, paused=paused and gif is None, gif=gif)
+    start_app(app, paused=paused and gif is None, gif=gif, gif_width=gif_width)
     try:
         app.run(frames)
         if screenshot:

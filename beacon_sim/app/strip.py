@@ -16,6 +16,10 @@ import pygame
 
 from beacon_sim.app import palette
 from beacon_sim.app.render import ipx, polyline
+from beacon_sim.runs.styles import filter_kind
+
+#: The filter kind that does not set the chart's scale (see :meth:`StripChart.y_range`).
+DEAD_RECKONING_KIND = "dead_reckoning"
 
 #: Seconds of history shown.
 SPAN_S = 60.0
@@ -69,6 +73,20 @@ class StripChart:
             self.two_sigma[name][k] = 2.0 * st.pos_sigma if ok else np.nan
         self.n += 1
         self.version += 1
+
+    def y_range(self, shown) -> float:
+        """The largest error or 2-sigma [m] (at least 0.2) of the filters that set the scale:
+        the shown ones except dead reckoning (its error grows without bound and would flatten
+        every other line; its line is cut at the top), unless it is all that is shown."""
+        scaled = [n for n in shown if filter_kind(n) != DEAD_RECKONING_KIND] or list(shown)
+        w = self.window()
+        top = 0.2
+        for n in scaled:
+            for arr in (self.err[n][w], self.two_sigma[n][w]):
+                finite = arr[np.isfinite(arr)]
+                if len(finite):
+                    top = max(top, float(np.max(finite)))
+        return top
 
     def window(self) -> slice:
         """The samples within the last ``span`` seconds."""
@@ -145,13 +163,7 @@ class StripChart:
         blind shading, and each shown filter's two lines, about one point per 3 px."""
         w = self.window()
         t = self.t[w]
-        top = 0.2
-        for n in shown:
-            for arr in (self.err[n][w], self.two_sigma[n][w]):
-                finite = arr[np.isfinite(arr)]
-                if len(finite):
-                    top = max(top, float(np.max(finite)))
-        top = nice_top(top * 1.08)
+        top = nice_top(self.y_range(shown) * 1.08)
         layer, plot = self._static(image.get_size(), fonts, top)
         image.blit(layer, (0, 0))
         if plot.width < 40 or plot.height < 20 or not len(t):

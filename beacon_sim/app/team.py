@@ -18,6 +18,7 @@ drawn with the single-robot window's pieces (``render.WorldRenderer``, ``hud.Hud
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from pathlib import Path
@@ -77,6 +78,7 @@ class TeamRenderer(WorldRenderer):
             # smaller arrows than alone and no heading wedges: a dozen beliefs on three robots
             self.estimates(surf, view, ests, colours, dashes, radius, show.ellipses, ARROW_SCALE,
                            wedges=False)
+        self.tags: list[pygame.Rect] = []
         for i, (r, pose) in enumerate(zip(team.robots, poses, strict=True)):
             self.robot_ring(surf, view, pose, radii[i])
             self.name_tag(surf, view, pose, radii[i], r.name, i == session.driven)
@@ -123,12 +125,25 @@ class TeamRenderer(WorldRenderer):
         img = self.text(text, "label", fg)
         c = view.to_px(np.asarray(pose[:2]))
         r_px = max(radius * view.scale, 14.0) * (1.9 if driven else 1.3) + 6
-        # the tag's edge nearest the robot, r_px behind it (screen y down)
-        back = np.array([-np.cos(pose[2]), np.sin(pose[2])])
         half = np.array(img.get_size()) / 2 + 5
-        centre = c + back * (r_px + float(np.min(half / np.maximum(np.abs(back), 1e-9))))
-        frame = img.get_rect(center=(ipx(centre[0]), ipx(centre[1]))).inflate(10, 2)
-        frame.clamp_ip(surf.get_clip())  # the whole tag, its border included, stays in view
+        # behind the robot (screen y down), else turned by 45 degree steps: the first place
+        # that covers no beacon, beacon label or other tag
+        taken = [*self.beacon_rects, *getattr(self, "tags", [])]
+        frame = None
+        for turn in (0.0, 0.25, -0.25, 0.5, -0.5, 0.75, -0.75, 1.0):
+            a = pose[2] + math.pi * (1.0 + turn)
+            back = np.array([np.cos(a), -np.sin(a)])
+            centre = c + back * (r_px + float(np.min(half / np.maximum(np.abs(back), 1e-9))))
+            cand = img.get_rect(center=(ipx(centre[0]), ipx(centre[1]))).inflate(10, 2)
+            cand.clamp_ip(surf.get_clip())  # the whole tag, its border included, stays in view
+            if frame is None:
+                frame = cand
+            if cand.collidelist(taken) < 0:
+                frame = cand
+                break
+        assert frame is not None
+        if hasattr(self, "tags"):
+            self.tags.append(frame)
         surf.fill(bg, frame)
         pygame.draw.rect(surf, palette.TEXT, frame, 2)
         surf.blit(img, img.get_rect(center=frame.center))

@@ -46,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--paused", action="store_true", help="start paused (Space runs, . steps one tick)")
     p.add_argument("--speed", type=float, metavar="X", help="start at this speed factor (0.1 to 8)")
     p.add_argument("--gif", metavar="GIF", help="also write the session as an animated GIF (Pillow)")
+    p.add_argument("--gif-width", default="640", metavar="PX",
+                   help="the GIF's width in pixels, or 'window' for the window's (default 640)")
 
     p = sub.add_parser("run", help="one headless run; prints a summary")
     p.add_argument("scenario")
@@ -87,6 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gif", metavar="GIF", help="write an animated GIF of the replay (off screen) and stop")
     p.add_argument("--start", type=float, metavar="S", help="start at S seconds (with --gif or on screen)")
     p.add_argument("--end", type=float, metavar="S", help="with --gif: stop at S seconds")
+    p.add_argument("--size", default="1280x800", help="on screen: window size WxH in pixels")
+    p.add_argument("--gif-width", default="640", metavar="PX",
+                   help="the GIF's width in pixels, or 'window' for the window's (default 640)")
 
     p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv) or "
                                       "MCAP for Foxglove (.mcap)")

@@ -11,17 +11,38 @@ from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.loading import FilterLoadError, load_filter_class
 
+#: The smallest window [px] everything fits in (the panel's lines, the help overlay).
+MIN_SIZE = (800, 600)
+MAX_SIDE = 10000
+
 
 def parse_size(text: str) -> tuple[int, int]:
-    """``--size WxH`` [px], 200 to 10000 each."""
+    """``--size WxH`` [px]: at least :data:`MIN_SIZE`, at most 10000 each."""
     w, sep, h = text.lower().partition("x")
     try:
         size = (int(w), int(h))
     except ValueError:
         size = (0, 0)
-    if not sep or min(size) < 200 or max(size) > 10000:
+    if not sep or min(size) <= 0:
         raise UsageError(f"--size {text!r}: expected WxH in pixels, e.g. 1280x800")
+    if size[0] < MIN_SIZE[0] or size[1] < MIN_SIZE[1] or max(size) > MAX_SIDE:
+        raise UsageError(f"--size {text}: the window must be at least {MIN_SIZE[0]}x{MIN_SIZE[1]} "
+                         f"px (and at most {MAX_SIDE} a side), e.g. 1024x768 or 1920x1080")
     return size
+
+
+def parse_gif_width(text: str) -> int | None:
+    """``--gif-width PX`` (200 to 10000) or ``window`` (None: the window's width)."""
+    if str(text).lower() == "window":
+        return None
+    try:
+        width = int(text)
+    except ValueError:
+        width = 0
+    if not 200 <= width <= MAX_SIDE:
+        raise UsageError(f"--gif-width {text!r}: expected a width in pixels (200 to {MAX_SIDE}) "
+                         "or 'window'")
+    return width
 
 
 def choose_filters(scenario: Scenario, requested: list[str] | None) -> list[str]:
@@ -59,7 +80,7 @@ def play_command(args: argparse.Namespace) -> int:
     return play(PlayOptions(scenario, specs, scenario.seed if args.seed is None else int(args.seed),
                             params, size, args.frames, args.screenshot, record=not args.no_record,
                             autopilot=args.autopilot, paused=args.paused, speed=args.speed,
-                            gif=args.gif))
+                            gif=args.gif, gif_width=parse_gif_width(args.gif_width)))
 
 
 def play_team_command(args: argparse.Namespace) -> int:
@@ -85,7 +106,7 @@ def play_team_command(args: argparse.Namespace) -> int:
                                  params, size, args.frames, args.screenshot,
                                  record=not args.no_record,
                                  autopilot=args.autopilot, paused=args.paused, speed=args.speed,
-                                 gif=args.gif))
+                                 gif=args.gif, gif_width=parse_gif_width(args.gif_width)))
 
 
 def check_speed(speed: float | None) -> None:

@@ -10,7 +10,7 @@ import os
 import sys
 
 from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_failures
-from beacon_sim.cli.play import check_gif
+from beacon_sim.cli.play import check_gif, parse_gif_width, parse_size
 from beacon_sim.cli.run import print_team_run
 from beacon_sim.cli.tables import print_run
 from beacon_sim.errors import UsageError
@@ -63,7 +63,8 @@ def replay_command(args: argparse.Namespace) -> int:
 
         return show_replay(recording, specs, recorded_params(recording, params),
                            args.frames, args.screenshot, paused=args.paused, gif=args.gif,
-                           start=args.start, end=args.end)
+                           start=args.start, end=args.end, size=parse_size(args.size),
+                           gif_width=parse_gif_width(args.gif_width))
     try:
         result = replay_recording(recording, args.filters, params)
     except ReplayMismatch as exc:
@@ -108,7 +109,8 @@ def replay_team_command(args: argparse.Namespace, recording: TeamRecording) -> i
         from beacon_sim.app.replay import show_replay  # pygame only when a window opens
 
         return show_replay(recording, specs, merged, args.frames, args.screenshot,
-                           paused=args.paused, gif=args.gif, start=args.start, end=args.end)
+                           paused=args.paused, gif=args.gif, start=args.start, end=args.end,
+                           size=parse_size(args.size), gif_width=parse_gif_width(args.gif_width))
     try:
         out = replay_team_recording(recording, specs, merged)
     except ReplayMismatch as exc:

@@ -35,7 +35,7 @@ from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, Rand
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense
-from beacon_sim.core.simulation import Simulation, _kidnap_text
+from beacon_sim.core.simulation import Simulation, _kidnap_text, bumped_heading
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 
 _BEACON_KINDS = ("bearing", "range_bearing")
@@ -220,20 +220,24 @@ class BatchSimulation:
         # Truth: every run's command with its own motion noise, the model on arrays.
         noise = self.scenario.motion_noise
         sv, sw = noise.control_std(cv, cw)
+        g = np.broadcast_to(noise.slip_gain(cv, cw), (R,)).tolist()  # slip scales with the command
         for burst in self._bursts.get(k, ()):   # math.hypot per run, as the single run does
-            sv = np.array([math.hypot(x, burst.v_std) for x in sv.tolist()])
-            sw = np.array([math.hypot(x, burst.omega_std) for x in sw.tolist()])
+            sv = np.array([math.hypot(x, gi * burst.v_std) for x, gi in zip(sv.tolist(), g, strict=True)])
+            sw = np.array([math.hypot(x, gi * burst.omega_std) for x, gi in zip(sw.tolist(), g, strict=True)])
         E = np.empty((R, 5))
         for i, s in enumerate(sims):
             s._motion_rng.standard_normal(out=E[i])
         v = cv + sv * E[:, 0]
         w = cw + sw * E[:, 1]
         pose = move(old, v, w, dt)
-        pose += np.asarray(noise.pose_std) * E[:, 2:]
+        pose += noise.pose_std_at(cv, cw) * E[:, 2:]
         pose[:, 2] = (pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
         inside = world.contains(pose[:, :2])
         if not np.all(inside):
             for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
+                if noise.slip_gain(0.0, cw[i]) != g[i]:   # the told command's turn and slip
+                    pose[i, 2] = bumped_heading(noise, self._bursts.get(k, ()), old[i, 2], cw[i],
+                                                E[i, 1], E[i, 4], dt)
                 pose[i] = world.clip(np.array([old[i, 0], old[i, 1], pose[i, 2]]))
                 if v0[i] != 0.0:
                     extra.setdefault(i, []).append(EventRecord("bump", k, k * dt, "stopped at the wall"))

@@ -7,7 +7,7 @@ All functions accept a single pose of shape (3,) or a batch of shape (N, 3).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -60,13 +60,27 @@ def jacobian_control(pose, dt):
     )
 
 
+#: The slip models (``MotionNoise.slip``). "scaled": the constant noise terms (``v_std``,
+#: ``omega_std``, ``pose_std``) fade to zero as the command does, so a stopped robot does not
+#: move (issue 25). "legacy": they apply whatever the command, even at v = omega = 0 (before
+#: issue 25; recordings without a "slip_model" header key replay with it).
+SLIP_MODELS = ("scaled", "legacy")
+#: Under the "scaled" model the constant terms are at full strength once
+#: ``|v| / FULL_SLIP_V + |omega| / FULL_SLIP_OMEGA >= 1`` [m/s, rad/s] (half the keyboard's
+#: smallest steps: any key-driven motion slips fully), and scale linearly below.
+FULL_SLIP_V = 0.05
+FULL_SLIP_OMEGA = 0.1
+
+
 @dataclass(frozen=True)
 class MotionNoise:
     """Noise on the executed velocity command, and optional additive pose noise per step.
 
-    The standard deviation of the executed speed is ``v_std + v_frac * |v|`` [m/s] and of
-    the executed turn rate ``omega_std + omega_frac * |omega|`` [rad/s] (seed 002 uses
-    25 % of v). ``pose_std`` [m, m, rad] is white noise added to the pose every step.
+    The standard deviation of the executed speed is ``g v_std + v_frac * |v|`` [m/s] and of
+    the executed turn rate ``g omega_std + omega_frac * |omega|`` [rad/s] (seed 002 uses
+    25 % of v). ``g pose_std`` [m, m, rad] is white noise added to the pose every step. The
+    gain ``g`` (:meth:`slip_gain`) is 0 at v = omega = 0 and 1 once the robot moves at all
+    (``slip = "scaled"``), or always 1 (``slip = "legacy"``).
     """
 
     v_std: float = 0.0
@@ -74,13 +88,32 @@ class MotionNoise:
     omega_std: float = 0.0
     omega_frac: float = 0.0
     pose_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    slip: str = "scaled"
+
+    def slip_gain(self, v, omega):
+        """The factor ``g`` on the constant terms for a command (arrays broadcast): 1.0
+        (legacy), or ``min(1, |v| / FULL_SLIP_V + |omega| / FULL_SLIP_OMEGA)`` (scaled)."""
+        if self.slip == "legacy":
+            return 1.0
+        # each term capped at 1 before dividing: no overflow for a wild command
+        g = np.minimum(1.0, np.minimum(np.abs(v), FULL_SLIP_V) / FULL_SLIP_V
+                       + np.minimum(np.abs(omega), FULL_SLIP_OMEGA) / FULL_SLIP_OMEGA)
+        return float(g) if np.ndim(g) == 0 else g
 
     def control_std(self, v, omega):
         """Standard deviations ``(sigma_v, sigma_omega)`` for a command (arrays broadcast)."""
+        g = self.slip_gain(v, omega)
         return (
-            self.v_std + self.v_frac * np.abs(v),
-            self.omega_std + self.omega_frac * np.abs(omega),
+            g * self.v_std + self.v_frac * np.abs(v),
+            g * self.omega_std + self.omega_frac * np.abs(omega),
         )
+
+    def pose_std_at(self, v, omega) -> np.ndarray:
+        """The additive pose noise [m, m, rad] for a command: shape (3,), or (N, 3) for
+        commands of shape (N,)."""
+        g = self.slip_gain(v, omega)
+        ps = np.asarray(self.pose_std, dtype=float)
+        return ps * g if np.ndim(g) == 0 else np.asarray(g)[:, None] * ps
 
     def control_cov(self, v, omega):
         """M = diag(sigma_v^2, sigma_omega^2), shape (2, 2) [m^2/s^2, rad^2/s^2]."""
@@ -88,6 +121,14 @@ class MotionNoise:
         return np.diag([float(sv) ** 2, float(sw) ** 2])
 
     def process_cov(self, pose, v, omega, dt):
-        """Process noise covariance in state space, shape (3, 3): ``B M B^T + diag(pose_std^2)``."""
+        """Process noise covariance in state space, shape (3, 3):
+        ``B M B^T + diag(pose_std_at(v, omega)^2)``."""
         B = jacobian_control(pose, dt)
-        return B @ self.control_cov(v, omega) @ B.T + np.diag(np.square(self.pose_std))
+        return B @ self.control_cov(v, omega) @ B.T + np.diag(np.square(self.pose_std_at(v, omega)))
+
+
+def with_slip(noise: MotionNoise, model: str) -> MotionNoise:
+    """``noise`` under the slip model ``model`` (one of :data:`SLIP_MODELS`)."""
+    if model not in SLIP_MODELS:
+        raise ValueError(f"slip model {model!r}: expected one of {', '.join(SLIP_MODELS)}")
+    return noise if noise.slip == model else replace(noise, slip=model)

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import hashlib
 import math
+from dataclasses import replace
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import Driver
 from beacon_sim.core.events import Blackout, Kidnap, NoiseBurst, active_ticks, first_tick_at
-from beacon_sim.core.motion import move
+from beacon_sim.core.motion import SLIP_MODELS, move, with_slip
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import sense
 from beacon_sim.core.streams import stream
@@ -98,20 +100,27 @@ class Simulation:
 
         # Truth: the command executed with noise (plus any noise burst in force).
         noise = self.scenario.motion_noise
+        # Slip scales with the command (MotionNoise.slip_gain): a stopped robot stays put,
+        # in a noise burst too. The five draws are made whatever the command (stable streams).
         sv, sw = noise.control_std(control.v, control.omega)
+        g = noise.slip_gain(control.v, control.omega)
         for burst in self._burst_ticks.get(k, ()):
-            sv = math.hypot(sv, burst.v_std)
-            sw = math.hypot(sw, burst.omega_std)
+            sv = math.hypot(sv, g * burst.v_std)
+            sw = math.hypot(sw, g * burst.omega_std)
         e = self._motion_rng.standard_normal(5)
         v = control.v + sv * e[0]
         w = control.omega + sw * e[1]
         pose = move(self.pose, v, w, self.dt)
-        pose += np.asarray(noise.pose_std) * e[2:]
+        pose += noise.pose_std_at(control.v, control.omega) * e[2:]
         pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
         if not self.world.contains(pose[:2]):
             # The bumper: a move that would leave the room is not made. The robot stays where
             # it was (it may still turn), and the command the filters see is what it did:
             # v = 0. Runs that never reach a wall are not affected (same draws, same truth).
+            # Its turn is the told command's, with that command's slip (bumped_heading).
+            if noise.slip_gain(0.0, control.omega) != g:
+                pose[2] = bumped_heading(noise, self._burst_ticks.get(k, ()), self.pose[2],
+                                         control.omega, e[1], e[4], self.dt)
             pose = self.world.clip(np.array([self.pose[0], self.pose[1], pose[2]]))
             if control.v != 0.0:
                 events.append(EventRecord("bump", k, k * self.dt, "stopped at the wall"))
@@ -161,9 +170,39 @@ class Simulation:
         return steps
 
 
+def bumped_heading(noise, bursts, theta0: float, omega: float, e_omega: float, e_theta: float,
+                   dt: float) -> float:
+    """The heading [rad] after a tick the bumper stopped: the command the filters are told,
+    v = 0 and ``omega`` [rad/s], executed with that command's noise (the draws ``e_omega``,
+    ``e_theta`` of the tick). Slip scales with the command, so a robot pushed straight into
+    a wall does not turn (issue 25); with ``slip_gain`` equal for the given and the told
+    command (the legacy model, or a turn of 0.1 rad/s and more) the caller keeps its own."""
+    sw = float(noise.control_std(0.0, omega)[1])
+    g = noise.slip_gain(0.0, omega)
+    for burst in bursts:
+        sw = math.hypot(sw, g * burst.omega_std)
+    th = wrap(theta0 + (omega + sw * e_omega) * dt) + float(noise.pose_std_at(0.0, omega)[2]) * e_theta
+    return (th + math.pi) % (2 * math.pi) - math.pi
+
+
 def _kidnap_text(kid: Kidnap) -> str:
     if kid.pose is not None:
         return "to " + ", ".join(f"{v:.2f}" for v in kid.pose)
     if kid.offset is not None:
         return "by " + ", ".join(f"{v:+.2f}" for v in kid.offset)
     return "random"
+
+
+#: The slip model a recording's header names ("slip_model") when it was made under the
+#: current one; a header without the key was made before issue 25: "legacy".
+CURRENT_SLIP_MODEL = "scaled"
+RECORDED_BEFORE_SLIP_MODEL = "legacy"
+
+
+def scenario_with_slip(scenario: Scenario, model: str) -> Scenario:
+    """``scenario`` with the truth's and the filters' motion noise under the slip model
+    ``model`` (:data:`~beacon_sim.core.motion.SLIP_MODELS`; ValueError for another)."""
+    if model not in SLIP_MODELS:
+        raise ValueError(f"slip_model {model!r}: expected one of {', '.join(SLIP_MODELS)}")
+    return replace(scenario, motion_noise=with_slip(scenario.motion_noise, model),
+                   model_motion_noise=with_slip(scenario.model_motion_noise, model))

@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from beacon_sim.core.angles import wrap
-from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.simulation import Simulation, scenario_with_slip
 from beacon_sim.core.streams import stream
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS, relative_range_bearing
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
@@ -137,3 +137,10 @@ class TeamSimulation:
 
     def run(self, duration: float) -> list[TeamStep]:
         return [self.step() for _ in range(round(duration / self.dt))]
+
+
+def team_with_slip(team: TeamScenario, model: str) -> TeamScenario:
+    """``team`` with every robot's motion noise under the slip model ``model`` (see
+    :func:`~beacon_sim.core.simulation.scenario_with_slip`)."""
+    return replace(team, robots=tuple(replace(r, scenario=scenario_with_slip(r.scenario, model))
+                                      for r in team.robots))

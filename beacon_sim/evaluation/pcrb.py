@@ -147,14 +147,18 @@ def _process(scenario: Scenario, poses: np.ndarray, v, w, dt: float, burst_v: fl
     F[:, 0, 2] = -v * dt * s
     F[:, 1, 2] = v * dt * c
     sv, sw = noise.control_std(v, w)
-    sv2 = np.asarray(sv, dtype=float) ** 2 + burst_v**2
-    sw2 = np.asarray(sw, dtype=float) ** 2 + burst_w**2
+    g = np.asarray(noise.slip_gain(v, w), dtype=float)  # slip scales with the command
+    sv2 = np.asarray(sv, dtype=float) ** 2 + (g * burst_v) ** 2
+    sw2 = np.asarray(sw, dtype=float) ** 2 + (g * burst_w) ** 2
     Q = np.zeros((R, 3, 3))  # B M B^T, B = [[dt c, 0], [dt s, 0], [0, dt]]
     Q[:, 0, 0] = dt * dt * c * c * sv2
     Q[:, 0, 1] = Q[:, 1, 0] = dt * dt * c * s * sv2
     Q[:, 1, 1] = dt * dt * s * s * sv2
     Q[:, 2, 2] = dt * dt * sw2
-    Q += np.diag(np.square(noise.pose_std))[None]
+    ps2 = np.square(np.broadcast_to(noise.pose_std_at(v, w), (R, 3)))
+    Q[:, 0, 0] += ps2[:, 0]
+    Q[:, 1, 1] += ps2[:, 1]
+    Q[:, 2, 2] += ps2[:, 2]
     return F, Q
 
 

@@ -32,7 +32,7 @@ class DeadReckoning(BatchableFilter):
         super().__init__(ctx)
         self.mean = np.zeros(3)
         self.cov = np.eye(3)
-        self._pose_var: np.ndarray | None = None   # diag(pose_std^2), built on first use
+        self._pose_var: tuple[float, np.ndarray] | None = None   # (slip gain, diag(pose_std^2))
 
     def reset(self, initial: GaussianBelief | None) -> None:
         initial = initial or broad_gaussian(self.ctx.world)
@@ -49,16 +49,17 @@ class DeadReckoning(BatchableFilter):
             return
         # The same operations as jacobian_state, process_cov and move (so the bits of the
         # template's filter), with the heading's cos and sin taken once and diag(pose_std^2)
-        # built once.
+        # built once per slip gain (slip scales with the command: MotionNoise.slip_gain).
         v, w = control.v, control.omega
         m = self.mean
         th = m[2]
         c, s = np.cos(float(th)), np.sin(float(th))
         F = np.array([[1.0, 0.0, -v * dt * s], [0.0, 1.0, v * dt * c], [0.0, 0.0, 1.0]])
         B = np.array([[dt * c, 0.0], [dt * s, 0.0], [0.0, dt]])
-        if self._pose_var is None:
-            self._pose_var = np.diag(np.square(noise.pose_std))
-        Q = B @ noise.control_cov(v, w) @ B.T + self._pose_var
+        g = noise.slip_gain(v, w)
+        if self._pose_var is None or self._pose_var[0] != g:
+            self._pose_var = (g, np.diag(np.square(noise.pose_std_at(v, w))))
+        Q = B @ noise.control_cov(v, w) @ B.T + self._pose_var[1]
         mean = np.empty(3)
         mean[0] = m[0] + v * dt * c
         mean[1] = m[1] + v * dt * s

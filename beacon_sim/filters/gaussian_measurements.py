@@ -669,12 +669,13 @@ def process_cov_terms(noise: MotionNoise, theta: Any, c: Any, s: Any, v: Any, om
     if type(noise) is not MotionNoise:
         q = noise.process_cov(np.array([0.0, 0.0, theta]), v, omega, dt).tolist()
         return q[0][0], q[0][1], q[0][2], q[1][1], q[1][2], q[2][2]
-    sv = noise.v_std + noise.v_frac * abs(v)
-    sw = noise.omega_std + noise.omega_frac * abs(omega)
+    g = noise.slip_gain(v, omega)  # slip scales with the command (1.0 while moving)
+    sv = g * noise.v_std + noise.v_frac * abs(v)
+    sw = g * noise.omega_std + noise.omega_frac * abs(omega)
     qv = dt * dt * sv * sv
-    ps = noise.pose_std
-    return (qv * c * c + ps[0] * ps[0], qv * c * s, 0.0, qv * s * s + ps[1] * ps[1], 0.0,
-            dt * dt * sw * sw + ps[2] * ps[2])
+    p0, p1, p2 = (g * p for p in noise.pose_std)
+    return (qv * c * c + p0 * p0, qv * c * s, 0.0, qv * s * s + p1 * p1, 0.0,
+            dt * dt * sw * sw + p2 * p2)
 
 
 def cov_entries(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,

@@ -176,7 +176,7 @@ class HistogramFilter(FilterBase):
                         np.matmul(slab, self._yw, out=rows[h])
         # Motion noise, as a variance to blur with.
         sv, sw = noise.control_std(control.v, control.omega)
-        ps = noise.pose_std
+        ps = noise.pose_std_at(control.v, control.omega)  # slip scales with the command
         self.var_xy += (sv * dt) ** 2 + 0.5 * (ps[0] ** 2 + ps[1] ** 2)
         self.var_th += (sw * dt) ** 2 + ps[2] ** 2
         # Discretisation noise. A slab moves exactly along its bin's centre heading, up to half

@@ -195,7 +195,7 @@ class ParticleFilter(FilterBase):
         x += c
         y += s
         th += w
-        ps = noise.pose_std
+        ps = noise.pose_std_at(control.v, control.omega)  # slip scales with the command
         if any(ps):
             for row, std in zip((x, y, th), ps, strict=True):
                 if std > 0:

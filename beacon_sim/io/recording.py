@@ -20,6 +20,11 @@ One JSON object per line (format described in docs/replay.md):
 Version 1 files (no readings checksums, no scenario checksum) are still read; a replay says
 they are verified for the truth only.
 
+The header's ``"slip_model"`` (issue 25: ``"scaled"``, slip scaling with the command) names
+the motion noise the run was made with; a file without it was made before and replays with
+``"legacy"`` (noise at standstill). The tick's ``u`` is the command as given, also on a
+tick the bumper stopped (the filters were told v = 0).
+
 A team session (several robots, docs/multi-robot.md) is the same format with
 ``"kind": "team"`` in the header (and ``"robots"``: their names); the scenario is the team
 file, ``filters`` team filter specs. Its tick lines add ``"d"`` (the index of the driven
@@ -47,7 +52,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from beacon_sim.core.motion import SLIP_MODELS
 from beacon_sim.core.scenario import Scenario, ScenarioError, parse_scenario
+from beacon_sim.core.simulation import RECORDED_BEFORE_SLIP_MODEL, scenario_with_slip
+from beacon_sim.core.team import team_with_slip
 from beacon_sim.core.team_scenario import TeamScenario, is_team_document, parse_team_scenario
 from beacon_sim.core.types import Control
 from beacon_sim.version import __version__
@@ -418,6 +426,15 @@ def _check_dt(path: Path, header: dict[str, Any], dt: float) -> None:
         raise _fail(path, 1, f"corrupted header: dt {header['dt']} but the scenario says {dt}")
 
 
+def _slip_model(path: Path, header: Mapping[str, Any]) -> str:
+    """The header's "slip_model" (issue 25); "legacy" for a file made before it."""
+    model = header.get("slip_model", RECORDED_BEFORE_SLIP_MODEL)
+    if model not in SLIP_MODELS:
+        raise _fail(path, 1, f"corrupted header: slip_model = {model!r} (expected "
+                             f"{' or '.join(repr(m) for m in SLIP_MODELS)})")
+    return str(model)
+
+
 def load_recording(path) -> Recording:
     """Read a single-robot recording (json only; nothing is executed).
 
@@ -434,7 +451,7 @@ def load_recording(path) -> Recording:
     file = f"{path} (scenario {header.get('scenario_source', header['scenario_name'])})"
     scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"])
     _check_dt(path, header, scenario.dt)
-    scenario = replace(scenario, seed=int(header["seed"]))
+    scenario = replace(scenario_with_slip(scenario, _slip_model(path, header)), seed=int(header["seed"]))
     return Recording(path, header, scenario, ticks, checkpoints, end, notes)
 
 
@@ -448,6 +465,7 @@ def load_team_recording(path) -> TeamRecording:
     file = f"{path} (scenario {header.get('scenario_source', header['scenario_name'])})"
     team = rebuild_team_scenario(header["scenario_toml"], file, header["scenario_name"])
     _check_dt(path, header, team.dt)
+    team = team_with_slip(team, _slip_model(path, header))
     n = len(team.robots)
     for rec in ticks:
         try:

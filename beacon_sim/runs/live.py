@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.drivers import KeyboardSpec
-from beacon_sim.core.keyboard_drive import KeyboardDrive
+from beacon_sim.core.keyboard_drive import KeyboardDrive, KeyboardLimits
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
@@ -130,11 +130,12 @@ class Session:
         self.autopilot = self.has_autopilot and not self.autopilot
         if not self.autopilot:
             self.keyboard.v, self.keyboard.omega = self._last_control()
-            self.keyboard._clamp()
 
     def _last_control(self) -> tuple[float, float]:
-        c = self.controls[-1] if self.controls else Control()
-        return c.v, c.omega
+        """The last command, rounded to the keyboard's steps (taking over from the autopilot:
+        its omega +0.036 would keep the robot curving after the keys are let go) and clamped
+        to the keyboard's limits."""
+        return taken_over(self.controls[-1] if self.controls else Control(), self.keyboard.limits)
 
     def next_control(self) -> Control:
         if self.autopilot:
@@ -358,6 +359,16 @@ class Session:
         if self.recorder is not None:
             self.recorder.close()
             self.recorder = None
+
+
+def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
+    """``(v, omega)`` the keyboard starts from when it takes over command ``c``: each rounded
+    to the nearest multiple of its step (``v_step``, ``omega_step``), clamped to the limits."""
+    v = round(c.v / limits.v_step) * limits.v_step
+    w = round(c.omega / limits.omega_step) * limits.omega_step
+    v = round(min(max(v, limits.v_min), limits.v_max), 9)
+    w = round(min(max(w, -limits.omega_max), limits.omega_max), 9)
+    return v + 0.0, w + 0.0
 
 
 def make_recorder(scenario: Scenario, seed: int, specs: list[str],

@@ -24,7 +24,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.simulation import CURRENT_SLIP_MODEL, Simulation
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Control
@@ -79,6 +79,7 @@ class _LineWriter:
             "seed": self.seed, "dt": scenario.dt,
             "filters": list(filters), "params": {k: dict(v) for k, v in (params or {}).items()},
             "checkpoint_every": self.checkpoint_every,
+            "slip_model": CURRENT_SLIP_MODEL,  # the shadow's (issue 25); absent: "legacy"
             **(extra or {}),
         }
         self._file.write(dumps(header) + "\n")
@@ -175,9 +176,13 @@ class Recorder(_LineWriter):
             validate_command(c)
         self._check_tick(tick)
         apply_commands(commands, self.shadow, {}, self.shadow.scenario)
+        if control is None:  # the driver's command (the same draws step(None) would make)
+            control = self.shadow.driver.control(self.shadow.time, self.shadow.pose)
         step = self.shadow.step(control)
+        # "u" is the command the truth executed, not step.control (v = 0 after a bump, what
+        # the filters are told): replaying step.control would re-run a different tick.
         line: dict[str, Any] = {"type": "tick", "k": step.tick,
-                                "u": [step.control.v, step.control.omega],
+                                "u": [control.v, control.omega],
                                 "h": self.shadow.truth_checksum[:8],
                                 "r": self.shadow.readings_checksum[:8]}
         if commands:
@@ -274,7 +279,8 @@ class TeamRecorder(_LineWriter):
         team_commands_to_sim(commands, self.shadow)
         step = self.shadow.step({} if autopilot else {int(driven): control})
         self.readings.update(step)
-        u = step.steps[int(driven)].control
+        # the command as given (a bump sets step.control's v to 0; replay needs what ran)
+        u = control if not autopilot else step.steps[int(driven)].control
         line: dict[str, Any] = {"type": "tick", "k": step.tick, "d": int(driven),
                                 "u": [u.v, u.omega]}
         if autopilot:

@@ -42,6 +42,7 @@ from beacon_sim.filters.team_runner import (
     validate_team_estimates,
 )
 from beacon_sim.io.recording import default_recording_path
+from beacon_sim.runs.live import taken_over
 from beacon_sim.runs.recorder import TeamRecorder
 from beacon_sim.runs.scene import FilterStatus, Trail
 from beacon_sim.runs.team import build_team_spec, team_filter_name
@@ -232,10 +233,10 @@ class TeamSession:
             self._take_over()
 
     def _take_over(self) -> None:
-        """The keyboard starts from the driven robot's last command (no jolt)."""
-        c = self.last_controls[self.driven]
-        self.keyboard.v, self.keyboard.omega = c.v, c.omega
-        self.keyboard._clamp()
+        """The keyboard starts from the driven robot's last command (no jolt), rounded to the
+        keyboard's steps (see :func:`~beacon_sim.runs.live.taken_over`)."""
+        self.keyboard.v, self.keyboard.omega = taken_over(self.last_controls[self.driven],
+                                                          self.keyboard.limits)
 
     def next_robot(self, step: int = 1) -> str:
         """Tab: drive the next robot (the one driven so far goes back to its driver); the
