@@ -17,13 +17,9 @@ from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, rep
 from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options, check_common
-from beacon_sim.core.scenario import ScenarioError
 from beacon_sim.core.threads import limit_blas_threads
-from beacon_sim.errors import UsageError
-from beacon_sim.filters.base import FilterError
+from beacon_sim.errors import BeaconSimError, UsageError
 from beacon_sim.filters.runner import note_user_interrupt
-from beacon_sim.io.mrclam import MrclamError
-from beacon_sim.io.recording import RecordingError
 from beacon_sim.version import __version__
 
 
@@ -168,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
             raise UsageError("beacon-sim: expected a command (see beacon-sim --help)")
         check_common(args)
         return COMMANDS[args.command](args)
-    except (UsageError, ScenarioError, FilterError, RecordingError, MrclamError) as exc:
+    except BeaconSimError as exc:  # ScenarioError, FilterError, RecordingError, UsageError, ...
         text = " ".join(str(exc).split()) or type(exc).__name__  # one line
         print(text if text.startswith("beacon-sim") else f"beacon-sim: {text}", file=sys.stderr)
         return 2

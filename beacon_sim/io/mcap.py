@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.io.tables import prefixed, reading_matrix
 
 INSTALL_HINT = "MCAP export needs the mcap package: pip install 'beacon-sim[mcap]'"
 FRAME = "world"
@@ -238,16 +239,18 @@ def messages(scenario: Scenario, arrays: dict[str, np.ndarray]):
                 "timestamp": _time(ns), "level": LOG_ERROR, "name": f"filters/{name}",
                 "message": f"{name} switched off: {failed}", "file": "", "line": 0}
     periods = {s.name: round(s.period * 1e9) for s in scenario.sensors}
-    mt = arrays["meas_tick"]
+    readings = prefixed(arrays, "readings")
+    z = reading_matrix(readings)
+    mt = readings["tick"]
     for k in np.unique(mt):
         idx = np.flatnonzero(mt == k)
-        rows = [(str(arrays["meas_sensor"][j]), str(arrays["meas_kind"][j]), arrays["meas_z"][j],
-                 int(arrays["meas_beacon_id"][j])) for j in idx]
+        rows = [(str(readings["sensor"][j]), str(readings["kind"][j]), z[j],
+                 int(readings["beacon_id"][j])) for j in idx]
         ns = int(k) * dt_ns
         yield "/readings", "foxglove.SceneUpdate", ns, readings_update(ns, truth[k], rows, scenario, periods)
-    for j in range(len(arrays["event_tick"])):
-        ns = int(arrays["event_tick"][j]) * dt_ns
-        kind, detail = str(arrays["event_kind"][j]), str(arrays["event_detail"][j])
+    for j in range(len(arrays["events_tick"])):
+        ns = int(arrays["events_tick"][j]) * dt_ns
+        kind, detail = str(arrays["events_kind"][j]), str(arrays["events_detail"][j])
         yield "/events", "foxglove.Log", ns, {
             "timestamp": _time(ns), "level": LOG_WARNING if kind == "kidnap" else LOG_INFO,
             "name": "events", "message": f"{kind}: {detail}" if detail else kind, "file": "", "line": 0}

@@ -50,6 +50,7 @@ from typing import Any
 from beacon_sim.core.scenario import Scenario, ScenarioError, parse_scenario
 from beacon_sim.core.team_scenario import TeamScenario, is_team_document, parse_team_scenario
 from beacon_sim.core.types import Control
+from beacon_sim.errors import BeaconSimError
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
@@ -63,7 +64,7 @@ FLUSH_EVERY_S = 0.5
 RECORDINGS_DIR = "recordings"
 
 
-class RecordingError(ValueError):
+class RecordingError(BeaconSimError):
     """A recording file that cannot be read or replayed. The message is one line."""
 
 
