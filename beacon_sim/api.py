@@ -10,6 +10,7 @@ Frames and units as everywhere: world frame, metres, radians, seconds; a pose is
 
 from __future__ import annotations
 
+import importlib
 import sys
 import types
 import warnings
@@ -29,7 +30,6 @@ from beacon_sim.core.team_scenario import load_team_scenario as _load_team_scena
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.errors import BeaconSimError, UsageError
 from beacon_sim.evaluation import plots
-from beacon_sim.evaluation.grading import GradeError
 from beacon_sim.evaluation.montecarlo import RunOutput, finish_filter
 from beacon_sim.evaluation.summary import evaluate
 from beacon_sim.filters.base import (
@@ -53,8 +53,10 @@ from beacon_sim.runs.team import TeamRunResult, check_team_specs, run_team_headl
 #: The public API. Functions and results; what a filter author needs (the filter base and
 #: protocol, the beliefs, the readings' and controls' types, and the models as modules:
 #: ``motion``, ``measurement_models``, ``angles``); the errors, all ``BeaconSimError``.
+#: ``GradeError`` comes from the module's ``__getattr__`` (the grading module loads on first use).
 __all__ = ["BeaconSimError", "Control", "Filter", "FilterBase", "FilterContext", "FilterError",
-           "FilterLoadError", "GaussianBelief", "GradeError", "GridBelief", "Measurement", "MrclamError",
+           "FilterLoadError", "GaussianBelief", "GradeError",  # noqa: F822
+           "GridBelief", "Measurement", "MrclamError",
            "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
            "UsageError", "angles", "load_scenario", "load_tables", "load_team_scenario",
            "measurement_models", "motion", "replay", "run", "run_team"]
@@ -190,10 +192,15 @@ def load_tables(path: str | Path) -> dict[str, Any]:
 
 def _pandas():
     try:
-        import pandas
+        return importlib.import_module("pandas")
     except ImportError as exc:
         raise ImportError("tables as DataFrames need pandas: pip install 'beacon-sim[pandas]'") from exc
-    return pandas
+
+
+def __getattr__(name: str):
+    if name == "GradeError":  # the grading module loads on first use (it is heavy)
+        return importlib.import_module("beacon_sim.evaluation.grading").GradeError
+    raise AttributeError(f"module 'beacon_sim.api' has no attribute {name!r}")
 
 
 class Columns(dict):

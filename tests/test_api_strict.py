@@ -56,7 +56,7 @@ def test_params_for_a_filter_that_does_not_run_is_the_clis_error(capsys):
     with pytest.raises(bs.FilterLoadError) as got:
         bs.run("default", ["ekf"], params={"pf": {"n_particles": 300}}, duration=1)
     assert str(got.value) == cli
-    with pytest.raises(bs.FilterLoadError, match="no filter 'pf'"):  # the default filters: ekf, dead_reckoning
+    with pytest.raises(bs.FilterLoadError, match="no filter 'pf'"):  # default: ekf, dead_reckoning
         bs.run("default", params={"pf": {"n_particles": 300}}, duration=1)
     with pytest.raises(bs.UsageError, match="expected \\{filter name"):
         bs.run("default", ["ekf"], params={"ekf": 3}, duration=1)

@@ -485,6 +485,7 @@ class PlayOptions:
     paused: bool = False  # start paused (Space runs, . steps)
     speed: float | None = None  # start at this speed factor (nearest of loop.SPEEDS)
     gif: str | None = None  # also write the session as an animated GIF here
+    foxglove: int | None = None  # also stream the session to Foxglove on this port (127.0.0.1)
 
 
 def play(options: PlayOptions) -> int:
@@ -499,7 +500,14 @@ def play(options: PlayOptions) -> int:
         session.toggle_autopilot()
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     app = App(session, o.size, scripted=o.frames is not None, recording=rec_path)
-    run_window(app, o)
+    from beacon_sim.app.foxglove import stream
+
+    live = stream(session, o.foxglove)
+    try:
+        run_window(app, o)
+    finally:
+        if live is not None:
+            live.close()
     if rec_path is not None:
         print(f"recorded to {rec_path}", file=sys.stderr)
     return 0

@@ -192,7 +192,7 @@ class TeamReplayApp(ReplayApp, TeamApp):
 def show_replay(recording: Recording | TeamRecording, specs: list[str], params: dict[str, dict[str, Any]],
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
-                end: float | None = None) -> int:
+                end: float | None = None, foxglove: int | None = None) -> int:
     """The replay window until quit (or ``frames`` frames, each counting 1/60 s); saves the
     last frame to ``screenshot``. Returns 2 when the truth differs from the recording.
 
@@ -217,6 +217,9 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
         app.end_tick = min(round(end / dt), session.total_ticks)
     app.stop_at_end = gif is not None
     start_app(app, paused=paused and gif is None, gif=gif)
+    from beacon_sim.app.foxglove import stream
+
+    live = stream(session, foxglove)  # --foxglove PORT: streamed live too (not a team replay)
     try:
         app.run(frames)
         if screenshot:
@@ -230,6 +233,8 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
         return 2 if s.mismatch else 0
     finally:
         app.close()
+        if live is not None:
+            live.close()
 
 
 __all__ = ["ReplayApp", "TeamReplayApp", "show_replay"]

@@ -45,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--paused", action="store_true", help="start paused (Space runs, . steps one tick)")
     p.add_argument("--speed", type=float, metavar="X", help="start at this speed factor (0.1 to 8)")
     p.add_argument("--gif", metavar="GIF", help="also write the session as an animated GIF (Pillow)")
+    add_foxglove_option(p, "the session")
 
     p = sub.add_parser("run", help="one headless run; prints a summary")
     p.add_argument("scenario", help="a shipped scenario's name (beacon-sim list), a .toml file "
@@ -91,6 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gif", metavar="GIF", help="write an animated GIF of the replay (off screen) and stop")
     p.add_argument("--start", type=float, metavar="S", help="start at S seconds (with --gif or on screen)")
     p.add_argument("--end", type=float, metavar="S", help="with --gif: stop at S seconds")
+    add_foxglove_option(p, "the replay window's session")
 
     p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv) or "
                                       "MCAP for Foxglove (.mcap)")
@@ -133,6 +135,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--team", action="store_true",
                    help="a team filter for scenarios with several robots (docs/multi-robot.md)")
     return parser
+
+
+def add_foxglove_option(p: argparse.ArgumentParser, what: str) -> None:
+    """``--foxglove [PORT]`` (default port 8765): stream live to Foxglove on 127.0.0.1."""
+    p.add_argument("--foxglove", type=int, nargs="?", const=8765, metavar="PORT",
+                   help=f"also stream {what} live to Foxglove: a WebSocket server on 127.0.0.1:PORT "
+                        "(default 8765; 0 picks a free port; needs the mcap extra)")
 
 
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {

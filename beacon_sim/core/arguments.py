@@ -39,7 +39,7 @@ def check_duration(duration: object, dt: float | None = None, max_ticks: int | N
     if duration is None:
         return None
     if isinstance(duration, bool) or not isinstance(duration, numbers.Real) \
-            or not (duration > 0 and math.isfinite(duration)):
+            or not (float(duration) > 0 and math.isfinite(duration)):
         raise error(f"{_named(label, duration)}: expected a positive number of seconds")
     duration = float(duration)
     if dt is not None:
@@ -55,6 +55,6 @@ def check_duration(duration: object, dt: float | None = None, max_ticks: int | N
 def check_tick(dt: object, lo: float, hi: float, label: str = "dt=",
                error: type[BeaconSimError] = UsageError) -> float:
     """``dt`` [s]: a number from ``lo`` to ``hi``."""
-    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not lo <= dt <= hi:
+    if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not lo <= float(dt) <= hi:
         raise error(f"{_named(label, dt)}: expected a tick from {lo:g} to {hi:g} s")
     return float(dt)
