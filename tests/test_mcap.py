@@ -128,8 +128,8 @@ def _rgb(c: dict) -> tuple:
 
 
 def test_colours_trails_and_plottable_numbers(tmp_path):
-    r = bs.run("sparse_kidnap", ["ekf", "pf", "dead_reckoning"], seed=2, duration=12,
-               params={"pf": {"n_particles": 300}})
+    r = bs.run("sparse_kidnap", ["ekf", "pf", "dead_reckoning"], seed=2, duration=30,
+               params={"pf": {"n_particles": 300}})  # a kidnap at 25 s
     (out,) = r.export(tmp_path / "run.mcap")
     _, msgs = read(out)
     # each filter's arrow and ellipse in its own colour, the truth's in another
@@ -149,10 +149,17 @@ def test_colours_trails_and_plottable_numbers(tmp_path):
         for e in m["entities"]:
             src, _, piece = e["id"].partition("/trail/")
             points.setdefault(src, {})[int(piece)] = [xy({"position": p}) for p in e["lines"][0]["points"]]
+    kidnaps = [int(t) for t, kind in zip(r.events["tick"], r.events["kind"], strict=True) if kind == "kidnap"]
+    assert kidnaps  # the truth's path is cut there
     for src, pieces in points.items():
-        path = [pt for k in sorted(pieces) for pt in (pieces[k] if k == 0 else pieces[k][1:])]
+        path, starts = [], []
+        for k in sorted(pieces):
+            joined = bool(path) and pieces[k][0] == path[-1]  # a piece goes on where the last ended
+            starts.append(len(path) if not joined else None)
+            path += pieces[k][1:] if joined else pieces[k]
         want = r.truth[:, :2] if src == "truth" else r.estimates[src][:, :2]
         np.testing.assert_array_equal(np.array(path), want)  # the whole path, piece by piece
+        assert [s for s in starts if s] == (kidnaps if src == "truth" else [])
         line = last[src]["lines"][0]
         assert _rgb(line["color"]) == colours[src]
     assert len(points["truth"]) > 1  # the path is cut into pieces

@@ -230,7 +230,8 @@ class Publisher:
         length = 2.0 * self.scenario.robot_radius
         self.channel("/truth/scene", "SceneUpdate").log(m.SceneUpdate(entities=[
             self._entity(ns, "truth/arrow", arrows=[self._arrow(truth, TRUTH_COLOUR, length)])]), log_time=ns)
-        trail_entities = [self._trail("truth", ns, x, y, TRUTH_COLOUR)]
+        kidnapped = any(kind == "kidnap" for kind, _ in events)  # the truth's path jumps: cut it
+        trail_entities = [self._trail("truth", ns, x, y, TRUTH_COLOUR, cut=kidnapped)]
         for i, name in enumerate(self.names):
             est = estimates.get(name)
             if est is None:
@@ -285,13 +286,15 @@ class Publisher:
         return self._entity(ns, f"{name}/estimate", metadata=meta, spheres=[ellipse],
                             arrows=[self._arrow(mean, rgb, length)])
 
-    def _trail(self, source: str, ns: int, x: float, y: float, rgb: tuple[float, float, float]):
+    def _trail(self, source: str, ns: int, x: float, y: float, rgb: tuple[float, float, float],
+               cut: bool = False):
         """The current piece of ``source``'s path, with the new point: one entity per piece
-        (``source/trail/K``), kept until deleted, so the whole path shows."""
+        (``source/trail/K``), kept until deleted, so the whole path shows. A full piece is
+        followed by one starting where it ended; ``cut`` (a kidnap) starts one afresh."""
         pts = self._trails.setdefault(source, [])
-        if len(pts) >= TRAIL_PIECE:  # a new piece, starting where the last one ended
+        if len(pts) >= TRAIL_PIECE or (cut and pts):
             self._trail_start[source] = self._trail_start.get(source, 0) + 1
-            pts[:] = pts[-1:]
+            pts[:] = [] if cut else pts[-1:]
         pts.append((float(x), float(y)))
         m = self.msg
         line = m.LinePrimitive(type=m.LinePrimitiveLineType.LineStrip, pose=self._pose(0, 0),
