@@ -37,8 +37,14 @@ class Decoder:
             msg = cls.FromString(data)
             return MessageToDict(msg, preserving_proto_field_name=True)
         if encoding == "jsonschema":
+            validator = self._cache.get(key)
+            if validator is None:
+                doc_schema = json.loads(schema)
+                cls = jsonschema.validators.validator_for(doc_schema)
+                cls.check_schema(doc_schema)  # a valid JSON Schema, checked once
+                validator = self._cache[key] = cls(doc_schema)
             doc = json.loads(data)
-            jsonschema.validate(doc, json.loads(schema))  # raises on a message the schema refuses
+            validator.validate(doc)  # raises on a message the schema refuses
             return doc
         raise AssertionError(f"unexpected schema encoding {encoding!r}")
 

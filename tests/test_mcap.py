@@ -19,15 +19,16 @@ from beacon_sim.cli.main import main
 FOXGLOVE = {"foxglove.PoseInFrame", "foxglove.FrameTransform", "foxglove.SceneUpdate", "foxglove.Log"}
 
 
-def read(path):
+def read(path, topics=None):
     """(summary, {topic: [(log_time, schema name, decoded message, publish_time)]}): every
-    message decoded with its channel's schema (raises on one that does not decode)."""
+    message (of ``topics``, default all) decoded with its channel's schema (raises on one that
+    does not decode)."""
     dec = Decoder()
     with path.open("rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
         by_topic: dict[str, list] = {}
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
+        for schema, channel, message in reader.iter_messages(topics=topics, log_time_order=False):
             msg = dec.decode(schema.name, schema.encoding, schema.data, message.data)
             by_topic.setdefault(channel.topic, []).append((message.log_time, schema.name, msg,
                                                            message.publish_time))
@@ -128,10 +129,10 @@ def _rgb(c: dict) -> tuple:
 
 
 def test_colours_trails_and_plottable_numbers(tmp_path):
-    r = bs.run("sparse_kidnap", ["ekf", "pf", "dead_reckoning"], seed=2, duration=30,
-               params={"pf": {"n_particles": 300}})  # a kidnap at 25 s
+    r = bs.run("sparse_kidnap", ["ekf", "ukf", "dead_reckoning"], seed=2, duration=30)  # a kidnap at 25 s
     (out,) = r.export(tmp_path / "run.mcap")
-    _, msgs = read(out)
+    _, msgs = read(out, ["/truth/scene", "/trails", *(f"/filters/{n}/{t}" for n in r.filter_names
+                                                       for t in ("scene", "stats"))])
     # each filter's arrow and ellipse in its own colour, the truth's in another
     colours = {"truth": _rgb(msgs["/truth/scene"][5][2]["entities"][0]["arrows"][0]["color"])}
     for name in r.filter_names:
@@ -201,3 +202,23 @@ def test_headless_run_from_the_api_logs_a_failed_filter(tmp_path):
     assert log["level"] == "ERROR" and "Breaks switched off: RuntimeError: on purpose" in log["message"]
     assert msgs["/events"][0][0] == 31 * 50_000_000
     assert len(msgs["/readings"]) == len({int(t) for t in r.readings["tick"]})
+
+
+def test_the_decoder_refuses_what_the_schemas_refuse():
+    """The decoding above is a real check: a message its schema refuses raises."""
+    import json
+
+    import jsonschema
+    from google.protobuf.message import DecodeError
+
+    from beacon_sim.io.foxglove import STATS_SCHEMA, foxglove_modules
+
+    dec = Decoder()
+    with pytest.raises(jsonschema.ValidationError):
+        dec.decode("beacon_sim.FilterStats", "jsonschema", json.dumps(STATS_SCHEMA).encode(), b'{"tick": 1}')
+    _, _, m = foxglove_modules()
+    schema = m.PoseInFrame.get_schema()
+    good = m.PoseInFrame(frame_id="world").encode()
+    assert dec.decode(schema.name, schema.encoding, schema.data, good)["frame_id"] == "world"
+    with pytest.raises(DecodeError):
+        dec.decode(schema.name, schema.encoding, schema.data, b"\xff\xff\xff")
