@@ -117,3 +117,16 @@ def test_a_filter_author_needs_only_public_names():
     imports = [ln.strip() for ln in code.splitlines() if ln.strip().startswith(("import ", "from "))]
     assert imports and all("beacon_sim." not in ln for ln in imports), imports
     assert "bs.motion" in code and "bs.measurement_models" in code
+
+
+def test_replay_checks_params_as_replay_set(tmp_path, capsys):
+    from test_recording import SCENARIO, live_run
+
+    p = tmp_path / "rec_test.toml"
+    p.write_text(SCENARIO)
+    rec = tmp_path / "run.jsonl"
+    live_run(p, rec, ticks=20)
+    cli = _cli_error(["replay", str(rec), "--headless", "--set", "pf.n_particles=10"], capsys)
+    with pytest.raises(bs.FilterLoadError) as got:
+        bs.replay(rec, params={"pf": {"n_particles": 10}})
+    assert str(got.value) == cli
