@@ -14,8 +14,15 @@ lower layers never load the upper ones::
 
 from beacon_sim.version import __version__
 
-__all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "TeamRun", "__version__",
-           "load_scenario", "load_team_scenario", "replay", "run", "run_team"]
+#: The public API (docs/python-api.md): the run functions and their results, what a filter
+#: author needs (``FilterBase``, the beliefs, ``Control`` / ``Measurement``, and the modules
+#: ``motion``, ``measurement_models`` and ``angles``) and the errors, all ``BeaconSimError``
+#: (a ``ValueError``).
+__all__ = ["BeaconSimError", "Control", "Filter", "FilterBase", "FilterContext", "FilterError",
+           "FilterLoadError", "GaussianBelief", "GradeError", "GridBelief", "Measurement", "MrclamError",
+           "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
+           "UsageError", "__version__", "angles", "load_scenario", "load_tables", "load_team_scenario",
+           "measurement_models", "motion", "replay", "run", "run_team"]
 
 
 def __getattr__(name: str):

@@ -10,32 +10,58 @@ Frames and units as everywhere: world frame, metres, radians, seconds; a pose is
 
 from __future__ import annotations
 
+import importlib
 import sys
 import types
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from beacon_sim.core import angles, measurement_models, motion
+from beacon_sim.core.arguments import check_duration, check_seed
 from beacon_sim.core.metrics import pose_errors
-from beacon_sim.core.scenario import Scenario, ScenarioError, parse_scenario, resolve_scenario_path
+from beacon_sim.core.scenario import MAX_TICKS, Scenario, ScenarioError, parse_scenario, resolve_scenario_path
 from beacon_sim.core.scenario import load_scenario as _load_scenario
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.team_scenario import load_team_scenario as _load_team_scenario
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.errors import BeaconSimError, UsageError
 from beacon_sim.evaluation import plots
 from beacon_sim.evaluation.montecarlo import RunOutput, finish_filter
 from beacon_sim.evaluation.summary import evaluate
-from beacon_sim.filters.base import Filter, FilterBase, FilterContext, GaussianBelief
-from beacon_sim.filters.loading import FilterLoadError
-from beacon_sim.io.export import filter_arrays, step_arrays, trace_arrays, write_export
-from beacon_sim.io.recording import Recording, load_recording
+from beacon_sim.filters.base import (
+    Filter,
+    FilterBase,
+    FilterContext,
+    FilterError,
+    GaussianBelief,
+    GridBelief,
+    ParticleBelief,
+)
+from beacon_sim.filters.loading import FilterLoadError, check_param_names
+from beacon_sim.io.export import filter_arrays, load_export, step_arrays, trace_arrays, write_export
+from beacon_sim.io.mrclam import MrclamError
+from beacon_sim.io.recording import Recording, RecordingError, load_recording
+from beacon_sim.io.tables import TABLES, metrics_table, prefixed, reading_matrix, tables
 from beacon_sim.runs.headless import RunResult, run_headless
-from beacon_sim.runs.replay import replay_recording
+from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording
 from beacon_sim.runs.team import TeamRunResult, check_team_specs, run_team_headless
 
-__all__ = ["Filter", "FilterBase", "FilterContext", "GaussianBelief", "Run", "TeamRun", "load_scenario",
-           "load_team_scenario", "replay", "run", "run_team"]
+#: The public API. Functions and results; what a filter author needs (the filter base and
+#: protocol, the beliefs, the readings' and controls' types, and the models as modules:
+#: ``motion``, ``measurement_models``, ``angles``); the errors, all ``BeaconSimError``.
+#: ``GradeError`` comes from the module's ``__getattr__`` (the grading module loads on first use).
+__all__ = ["BeaconSimError", "Control", "Filter", "FilterBase", "FilterContext", "FilterError",
+           "FilterLoadError", "GaussianBelief", "GradeError",  # noqa: F822
+           "GridBelief", "Measurement", "MrclamError",
+           "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
+           "UsageError", "angles", "load_scenario", "load_tables", "load_team_scenario",
+           "measurement_models", "motion", "replay", "run", "run_team"]
+#: The export formats of :meth:`Run.export`.
+EXPORT_SUFFIXES = (".npz", ".csv", ".mcap")
 
 #: Filter classes handed to :func:`run` as objects are reached through this module, so they
 #: go the same way as a filter named ``pkg.mod:Class`` (the same construction, seeding and
@@ -117,9 +143,26 @@ def run(scenario: Scenario | str | Path, filters: Sequence[str | type] | None = 
     Same scenario and seed give the same run, bit for bit.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    result = run_headless(sc, _specs(filters), seed=seed, duration=duration,
-                          params={k: dict(v) for k, v in (params or {}).items()})
-    return Run(result)
+    seed, duration = _check_run(sc, seed, duration)
+    specs = _specs(filters)
+    plain = _plain_params(params)
+    check_param_names(plain, list(sc.default_filters if specs is None else specs))  # as --set
+    return Run(run_headless(sc, specs, seed=seed, duration=duration, params=plain))
+
+
+def _check_run(sc: Scenario, seed: Any, duration: Any) -> tuple[int | None, float | None]:
+    """``seed`` and ``duration`` checked as ``--seed`` and ``--duration`` are (the same code,
+    :mod:`beacon_sim.core.arguments`); a bad one raises :class:`UsageError`."""
+    return check_seed(seed, "seed="), check_duration(duration, sc.dt, MAX_TICKS, "duration=")
+
+
+def _plain_params(params: Mapping[str, Mapping[str, Any]] | None) -> dict[str, dict[str, Any]]:
+    if params is None:
+        return {}
+    if not isinstance(params, Mapping) or not all(isinstance(v, Mapping) for v in params.values()):
+        raise UsageError(f"params={params!r}: expected {{filter name: {{key: value}}}}, "
+                         "e.g. {'pf': {'n_particles': 500}}")
+    return {str(k): dict(v) for k, v in params.items()}
 
 
 def replay(recording: str | Path | Recording, filters: Sequence[str | type] | None = None, *,
@@ -127,9 +170,57 @@ def replay(recording: str | Path | Recording, filters: Sequence[str | type] | No
     """A recording (``beacon-sim play`` writes them) replayed bit for bit, like
     ``beacon-sim replay FILE --headless``; ``filters`` None runs the recorded built-in ones."""
     rec = recording if isinstance(recording, Recording) else load_recording(recording)
-    result = replay_recording(rec, _specs(filters),
-                              {k: dict(v) for k, v in (params or {}).items()})
-    return Run(result, rec)
+    specs = _specs(filters)
+    plain = _plain_params(params)
+    check_param_names(plain, recorded_filter_specs(rec, specs)[0])  # as replay --set
+    return Run(replay_recording(rec, specs, plain), rec)
+
+
+def load_tables(path: str | Path) -> dict[str, Any]:
+    """The tidy tables of an export (``run.npz``, or the ``run.csv`` files) as pandas
+    DataFrames: ``truth``, ``readings``, ``events`` and, when filters ran, ``estimates``
+    (columns as :meth:`Run.tables`). Files written before issue 28, with the old names, load
+    too. Needs pandas (``pip install 'beacon-sim[pandas]'``)."""
+    pd = _pandas()
+    try:
+        tabs = load_export(path)
+    except (ValueError, KeyError) as exc:
+        why = str(exc) if isinstance(exc, ValueError) else f"{path}: no column {exc}"
+        raise RecordingError(why) from None
+    return {name: pd.DataFrame(cols) for name, cols in tabs.items()}
+
+
+def _pandas():
+    try:
+        return importlib.import_module("pandas")
+    except ImportError as exc:
+        raise ImportError("tables as DataFrames need pandas: pip install 'beacon-sim[pandas]'") from exc
+
+
+def __getattr__(name: str):
+    if name == "GradeError":  # the grading module loads on first use (it is heavy)
+        return importlib.import_module("beacon_sim.evaluation.grading").GradeError
+    raise AttributeError(f"module 'beacon_sim.api' has no attribute {name!r}")
+
+
+class Columns(dict):
+    """A table's columns (name -> 1-D array, all the same length): ``pd.DataFrame(cols)``
+    takes it as it is. The names before issue 28 (``time``, ``z``, ``pose_before``,
+    ``pose_after``) still work, with a ``DeprecationWarning``."""
+
+    def __missing__(self, key: str) -> np.ndarray:
+        if key == "time" and "time_s" in self:
+            value = self["time_s"]
+        elif key == "z" and "kind" in self and "bearing_rad" in self:
+            value = reading_matrix(self)
+        elif key in ("pose_before", "pose_after") and f"x_{key[5:]}_m" in self:
+            w = key[5:]
+            value = np.column_stack([self[f"x_{w}_m"], self[f"y_{w}_m"], self[f"theta_{w}_rad"]])
+        else:
+            raise KeyError(key)
+        warnings.warn(f"{key!r} is an old name: see Run.readings / Run.events (issue 28)",
+                      DeprecationWarning, stacklevel=2)
+        return value
 
 
 class Run:
@@ -170,7 +261,7 @@ class Run:
     @property
     def time(self) -> np.ndarray:
         """(T + 1,) simulated time of each row of :attr:`truth` [s]."""
-        return self._arrays["truth_time"]
+        return self._arrays["truth_time_s"]
 
     @property
     def truth(self) -> np.ndarray:
@@ -197,21 +288,41 @@ class Run:
         return pose_errors(self.estimates[name], self.truth[1:])
 
     @property
-    def readings(self) -> dict[str, np.ndarray]:
-        """One row per reading: ``tick``, ``time`` [s], ``sensor``, ``kind``, ``beacon_id``
-        (-1 for a fix), ``z`` (M, 3) NaN-padded (bearing [rad]; range [m], bearing [rad];
-        fix x, y [m] (, theta [rad])), ``hdop``."""
-        return {k[5:]: v for k, v in self._arrays.items() if k.startswith("meas_")}
+    def readings(self) -> Columns:
+        """The ``readings`` table (one row per reading, M rows): ``tick``, ``time_s``,
+        ``sensor``, ``kind``, ``beacon_id`` (-1 for a fix), ``range_m``, ``bearing_rad``,
+        ``x_m``, ``y_m``, ``theta_rad`` (NaN where the kind has no such number), ``hdop``."""
+        return Columns(prefixed(self._arrays, "readings"))
 
     @property
-    def events(self) -> dict[str, np.ndarray]:
-        """One row per event: ``tick``, ``time`` [s], ``kind``, ``detail``, ``pose_before``
-        and ``pose_after`` (E, 3) (NaN unless a kidnap)."""
-        return {k[6:]: v for k, v in self._arrays.items() if k.startswith("event_")}
+    def events(self) -> Columns:
+        """The ``events`` table (one row per event): ``tick``, ``time_s``, ``kind``,
+        ``detail``, ``x_before_m`` .. ``theta_after_rad`` (a kidnap's poses; NaN otherwise)."""
+        return Columns(prefixed(self._arrays, "events"))
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything above as the flat arrays ``beacon-sim export`` writes (docs/replay.md)."""
         return dict(self._arrays)
+
+    def columns(self, table: str = "estimates") -> Columns:
+        """One tidy table as columns of numpy arrays (no pandas needed): ``truth``,
+        ``estimates``, ``readings``, ``events`` or ``metrics`` (docs/python-api.md)."""
+        if table == "metrics":
+            return Columns(metrics_table(self.metrics()))
+        if table not in TABLES:
+            raise UsageError(f"table {table!r}: expected one of {', '.join((*TABLES, 'metrics'))}")
+        return Columns(tables(self._arrays)[table])
+
+    def to_frame(self, table: str = "estimates"):
+        """One tidy table as a pandas ``DataFrame`` (long form: ``df.plot`` and seaborn take
+        it directly, e.g. ``sns.lineplot(run.to_frame(), x="time_s", y="err_pos_m",
+        hue="filter")``). Needs pandas (``pip install 'beacon-sim[pandas]'``)."""
+        return _pandas().DataFrame(self.columns(table))
+
+    def tables(self) -> dict[str, Any]:
+        """Every tidy table as a DataFrame: ``{"truth": ..., "estimates": ..., "readings": ...,
+        "events": ..., "metrics": ...}``."""
+        return {name: self.to_frame(name) for name in (*TABLES, "metrics")}
 
     def metrics(self) -> dict[str, Any]:
         """What ``beacon-sim run --json`` prints for this run (RMSE, ANEES, counts, checksum;
@@ -246,6 +357,8 @@ class Run:
         """Write the run to ``.npz``, ``.csv`` (several files) or ``.mcap`` (Foxglove; needs
         the ``mcap`` extra); returns the files written."""
         path = Path(path)
+        if path.suffix not in EXPORT_SUFFIXES:
+            raise UsageError(f"{path}: expected a .npz, .csv or .mcap file name")
         if path.suffix == ".mcap":
             from beacon_sim.io.mcap import write_mcap
 
@@ -271,9 +384,10 @@ def run_team(scenario: TeamScenario | str | Path, filters: Sequence[str | type] 
     ``predict``, ``update``, ``estimates``); None runs the scenario's ``default_filters``.
     """
     team = scenario if isinstance(scenario, TeamScenario) else load_team_scenario(scenario)
+    seed, duration = _check_run(team.robots[0].scenario, seed, duration)
     specs = _specs(filters)
     names = list(team.default_filters if specs is None else specs)
-    plain = {k: dict(v) for k, v in (params or {}).items()}
+    plain = _plain_params(params)
     check_team_specs(names, team, plain)
     return TeamRun(run_team_headless(team, names, seed=seed, duration=duration, params=plain))
 

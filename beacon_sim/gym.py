@@ -25,6 +25,7 @@ from gymnasium import spaces
 
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.types import Control, Step
+from beacon_sim.errors import UsageError
 from beacon_sim.runs.live import Session
 
 #: Numbers per observation slot: a beacon sensor's slot is one beacon, a fix sensor's slot
@@ -32,24 +33,57 @@ from beacon_sim.runs.live import Session
 BEACON_SLOT = ("seen", "range_m", "cos_bearing", "sin_bearing")
 FIX_SLOT = ("fresh", "x_m", "y_m", "cos_theta", "sin_theta")
 ENV_ID = "beacon_sim/Localize-v0"
+#: What ``gymnasium.make`` takes in a fresh process: Gymnasium 1.x loads no plug-ins, so the
+#: module that registers the ID is named before the colon and imported by ``make``.
+MAKE_ID = f"beacon_sim.gym:{ENV_ID}"
 
 Reward = Callable[["BeaconEnv", list[Step]], float]
 
 
-def neg_log_det(filter_name: str | None = None) -> Reward:
+class NegLogDet:
     """Active localisation: ``-log det P`` of ``filter_name``'s covariance after the step
     (P is 3 x 3 over x [m], y [m], theta [rad]; the first filter when None). Shrinking the
-    uncertainty ellipsoid's volume by a factor e earns one unit."""
+    uncertainty ellipsoid's volume by a factor e earns one unit. A class, not a closure, so
+    an env holding it pickles."""
 
-    def reward(env: BeaconEnv, steps: list[Step]) -> float:
-        _, cov = env.estimate(filter_name or env.filter_names[0])
+    def __init__(self, filter_name: str | None = None):
+        self.filter_name = filter_name
+        self.__name__ = f"neg_log_det({filter_name or ''})"
+
+    def __repr__(self) -> str:
+        return self.__name__
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, NegLogDet) and other.filter_name == self.filter_name
+
+    def __hash__(self) -> int:
+        return hash((NegLogDet, self.filter_name))
+
+    def __call__(self, env: BeaconEnv, steps: list[Step]) -> float:
+        _, cov = env.estimate(self.filter_name or env.filter_names[0])
         if not np.all(np.isfinite(cov)):
             return -float(env.failed_penalty)
         sign, logdet = np.linalg.slogdet(cov)
         return -float(logdet) if sign > 0 else -float(env.failed_penalty)
 
-    reward.__name__ = reward.__qualname__ = f"neg_log_det({filter_name or ''})"
-    return reward
+
+def neg_log_det(filter_name: str | None = None) -> Reward:
+    """The shipped reward, :class:`NegLogDet` of ``filter_name`` (the first filter when None)."""
+    return NegLogDet(filter_name)
+
+
+def check_action(action: Any) -> np.ndarray:
+    """``action`` as a float64 ``[v, omega]``: exactly two finite numbers, else a one-line
+    :class:`~beacon_sim.errors.UsageError` (a ValueError) saying what was expected."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise UsageError(f"action {action!r}: expected two numbers [v m/s, omega rad/s]") from None
+    if a.shape != (2,):
+        raise UsageError(f"action of shape {a.shape}: expected shape (2,), [v m/s, omega rad/s]")
+    if not np.all(np.isfinite(a)):
+        raise UsageError(f"action {a.tolist()}: expected finite numbers [v m/s, omega rad/s] (NaN or inf)")
+    return a
 
 
 class _Session(Session):
@@ -136,6 +170,8 @@ class BeaconEnv(gymnasium.Env):
         self.tracked = tracked
         self.steps_taken = 0
         self._drawer: Any = None
+        self._run_seed: int | None = None
+        self._actions: list[Control] = []   # this episode's, to rebuild it when unpickled
 
     # --- the Gymnasium interface --------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -144,9 +180,7 @@ class BeaconEnv(gymnasium.Env):
         generator."""
         super().reset(seed=seed)
         run_seed = int(seed) if seed is not None else int(self.np_random.integers(2**31 - 1))
-        if self.session is not None:
-            self.session.close()
-        self.session = _Session(self.scenario, self.specs, run_seed, dict(self.params))
+        self._start(run_seed)
         self.filter_names = list(self.session.names)
         if self.tracked is None:
             self.tracked = self.filter_names[0]
@@ -162,10 +196,8 @@ class BeaconEnv(gymnasium.Env):
         """Apply ``action = [v, omega]`` [m/s, rad/s] for ``ticks_per_step`` ticks."""
         if self.session is None:
             raise RuntimeError("call reset() before step()")
-        a = np.clip(np.asarray(action, dtype=np.float64).reshape(2), self.action_space.low,
-                    self.action_space.high)
-        self.session.action = Control(float(a[0]), float(a[1]))
-        steps = [self.session.tick() for _ in range(self.ticks_per_step)]
+        a = np.clip(check_action(action), self.action_space.low, self.action_space.high)
+        steps = self._advance(Control(float(a[0]), float(a[1])))
         self.steps_taken += 1
         failed = self.session.runner.tracks[self.tracked].failed is not None
         reward = -self.failed_penalty if failed else float(self.reward_fn(self, steps))
@@ -189,6 +221,36 @@ class BeaconEnv(gymnasium.Env):
             self._drawer = None
         if self.session is not None:
             self.session.close()
+
+    # --- the episode's session, and pickling -----------------------------------------------
+    def _start(self, run_seed: int) -> None:
+        if self.session is not None:
+            self.session.close()
+        self.session = _Session(self.scenario, self.specs, run_seed, dict(self.params))
+        self._run_seed = run_seed
+        self._actions = []
+
+    def _advance(self, control: Control) -> list[Step]:
+        assert self.session is not None
+        self.session.action = control
+        self._actions.append(control)
+        return [self.session.tick() for _ in range(self.ticks_per_step)]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The env without its live session (filters, generators, a hash) and window: an
+        episode in progress is its seed and actions, re-simulated when unpickled."""
+        state = self.__dict__.copy()
+        state["session"] = None
+        state["_drawer"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if self._run_seed is not None:  # the same seed and actions: the same state, bit for bit
+            actions = self._actions
+            self._start(self._run_seed)
+            for control in actions:
+                self._advance(control)
 
     # --- helpers --------------------------------------------------------------------------
     def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -302,5 +364,10 @@ class _Drawer:
             self.pygame.display.quit()
 
 
+#: The default env's episode length in steps (``default`` scenario: 60 s of 2 ticks of 50 ms),
+#: the registered spec's ``max_episode_steps``; another scenario passes its own to ``make``.
+DEFAULT_MAX_STEPS = 1200
+
 if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="beacon_sim.gym:BeaconEnv")
+    gymnasium.register(id=ENV_ID, entry_point="beacon_sim.gym:BeaconEnv",
+                       max_episode_steps=DEFAULT_MAX_STEPS)

@@ -35,22 +35,24 @@ def test_npz_round_trip(recorded, tmp_path):
     np.testing.assert_array_equal(a["truth"][0], recording.scenario.initial_pose)
     np.testing.assert_array_equal(a["truth"][1:], np.array([s.true_pose for s in steps]))
     np.testing.assert_array_equal(a["control"], [[s.control.v, s.control.omega] for s in steps])
-    np.testing.assert_allclose(a["truth_time"], np.arange(161) * 0.1)
+    np.testing.assert_allclose(a["truth_time_s"], np.arange(161) * 0.1)
     # every reading comes back in its row
     for s in steps:
-        rows = a["meas_tick"] == s.tick
+        rows = a["readings_tick"] == s.tick
         want = [r for m in s.measurements for r in m.z]
         ids = [i for m in s.measurements for i in m.beacon_ids]
         assert rows.sum() == len(want)
         if want:
-            np.testing.assert_array_equal(a["meas_z"][rows][:, :2], np.array(want))
-            assert np.isnan(a["meas_z"][rows][:, 2]).all()
-            np.testing.assert_array_equal(a["meas_beacon_id"][rows], ids)
-            assert set(a["meas_kind"][rows]) == {"range_bearing"}
+            got = np.column_stack([a["readings_range_m"][rows], a["readings_bearing_rad"][rows]])
+            np.testing.assert_array_equal(got, np.array(want))
+            assert np.isnan(a["readings_x_m"][rows]).all() and np.isnan(a["readings_theta_rad"][rows]).all()
+            np.testing.assert_array_equal(a["readings_beacon_id"][rows], ids)
+            assert set(a["readings_kind"][rows]) == {"range_bearing"}
     # events: the scheduled kidnap (12 s) and the two user kidnaps (ticks 40, 130)
-    assert sorted(a["event_tick"].tolist()) == [40, 120, 130]
-    i = int(np.flatnonzero(a["event_tick"] == 40)[0])
-    np.testing.assert_array_equal(a["event_pose_after"][i], [3.0, 7.0, -2.5])
+    assert sorted(a["events_tick"].tolist()) == [40, 120, 130]
+    i = int(np.flatnonzero(a["events_tick"] == 40)[0])
+    np.testing.assert_array_equal([a[f"events_{c}_after_{u}"][i] for c, u in (("x", "m"), ("y", "m"),
+                                   ("theta", "rad"))], [3.0, 7.0, -2.5])
     assert [json.loads(c)["kind"] for c in a["command_json"]] == ["kidnap", "reset", "kidnap", "toggle"]
     assert json.loads(str(a["header_json"]))["seed"] == 11
     # the recorded filters, replayed: their estimates are the live ones, bit for bit
@@ -68,19 +70,19 @@ def test_csv_round_trip(recorded, tmp_path):
     out = tmp_path / "trace.csv"
     assert main(["export", str(rec_path), "--out", str(out)]) == 0
     paths = csv_paths(out)
-    with paths["ticks"].open() as f:
+    with paths["truth"].open() as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 161
     got = np.array([[float(r["x_m"]), float(r["y_m"]), float(r["theta_rad"])] for r in rows[1:]])
     np.testing.assert_array_equal(got, np.array([s.true_pose for s in steps]))  # repr is exact
     assert [float(r["v_mps"]) for r in rows[1:]] == [s.control.v for s in steps]
-    with paths["measurements"].open() as f:
+    with paths["readings"].open() as f:
         meas = list(csv.DictReader(f))
     assert len(meas) == sum(len(m) for s in steps for m in s.measurements)
     first = next(s for s in steps if s.measurements)
     m = first.measurements[0]
     assert int(meas[0]["tick"]) == first.tick and int(meas[0]["beacon_id"]) == int(m.beacon_ids[0])
-    assert float(meas[0]["z0"]) == m.z[0, 0] and float(meas[0]["z1"]) == m.z[0, 1]
+    assert float(meas[0]["range_m"]) == m.z[0, 0] and float(meas[0]["bearing_rad"]) == m.z[0, 1]
     with paths["events"].open() as f:
         events = list(csv.DictReader(f))
     assert [int(e["tick"]) for e in events] == [40, 120, 130]

@@ -551,6 +551,7 @@ class PlayOptions:
     speed: float | None = None  # start at this speed factor (nearest of loop.SPEEDS)
     gif: str | None = None  # also write the session as an animated GIF here
     gif_width: int | None = 640  # the GIF's width [px]; None: the window's
+    foxglove: int | None = None  # also stream the session to Foxglove on this port (127.0.0.1)
 
 
 def play(options: PlayOptions) -> int:
@@ -565,7 +566,14 @@ def play(options: PlayOptions) -> int:
         session.toggle_autopilot()
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     app = App(session, o.size, scripted=o.frames is not None, recording=rec_path)
-    run_window(app, o)
+    from beacon_sim.app.foxglove import stream
+
+    live = stream(session, o.foxglove)
+    try:
+        run_window(app, o)
+    finally:
+        if live is not None:
+            live.close()
     if rec_path is not None:
         print(f"recorded to {rec_path}", file=sys.stderr)
     return 0

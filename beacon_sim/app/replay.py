@@ -193,7 +193,7 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
                 end: float | None = None, size: tuple[int, int] = (1280, 800),
-                gif_width: int | None = 640) -> int:
+                gif_width: int | None = 640, foxglove: int | None = None) -> int:
     """The replay window until quit (or ``frames`` frames, each counting 1/60 s); saves the
     last frame to ``screenshot``. Returns 2 when the truth differs from the recording.
 
@@ -219,6 +219,9 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
         app.end_tick = min(round(end / dt), session.total_ticks)
     app.stop_at_end = gif is not None
     start_app(app, paused=paused and gif is None, gif=gif, gif_width=gif_width)
+    from beacon_sim.app.foxglove import stream
+
+    live = stream(session, foxglove)  # --foxglove PORT: streamed live too (not a team replay)
     try:
         app.run(frames)
         if screenshot:
@@ -232,6 +235,8 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
         return 2 if s.mismatch else 0
     finally:
         app.close()
+        if live is not None:
+            live.close()
 
 
 __all__ = ["ReplayApp", "TeamReplayApp", "show_replay"]

@@ -11,6 +11,7 @@ import tempfile
 from pathlib import Path
 from typing import Any, NoReturn
 
+from beacon_sim.core import arguments
 from beacon_sim.core.scenario import MAX_TICKS, Scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.loading import FilterLoadError, check_param_names, parse_set_options, sensor_note
@@ -45,15 +46,8 @@ def check_set_names(args: argparse.Namespace, specs: list[str]) -> None:
 def check_duration(duration: float | None, scenario: Scenario | None = None) -> None:
     """``--duration S``: a positive, finite number of seconds (or absent); with a scenario,
     at least one tick of its ``dt`` and at most ``MAX_TICKS`` ticks."""
-    if duration is not None and not (duration > 0 and math.isfinite(duration)):
-        raise UsageError(f"--duration {duration}: expected a positive number of seconds")
-    if duration is not None and scenario is not None:
-        ticks = round(duration / scenario.dt)
-        if ticks < 1:
-            raise UsageError(f"--duration {duration:g}: shorter than one tick of {scenario.dt:g} s")
-        if ticks > MAX_TICKS:
-            raise UsageError(f"--duration {duration:g}: over {MAX_TICKS:,} ticks of "
-                             f"{scenario.dt:g} s (at most {MAX_TICKS * scenario.dt:g} s)")
+    # the same check as the Python API's duration= (core/arguments.py)
+    arguments.check_duration(duration, None if scenario is None else scenario.dt, MAX_TICKS, "--duration")
 
 
 def _probe_dir(option: str, path: str, folder: Path) -> None:
@@ -93,9 +87,7 @@ def _writable_dir(option: str, path: str) -> None:
 def check_common(args: argparse.Namespace) -> None:
     """The options several commands share, checked before anything runs: seeds, counts,
     times and output paths (one line, exit status 2, for each mistake)."""
-    seed = getattr(args, "seed", None)
-    if seed is not None and not 0 <= seed <= 2**63 - 1:
-        raise UsageError(f"--seed {seed}: expected a seed from 0 to 2^63 - 1")
+    arguments.check_seed(getattr(args, "seed", None), "--seed")  # as the API's seed=
     check_duration(getattr(args, "duration", None))
     check_frames(getattr(args, "frames", None))
     for option in ("runs", "jobs", "robot"):

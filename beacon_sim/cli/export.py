@@ -62,7 +62,7 @@ def export_command(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
     else:
         written = write_export(arrays, out)
-    print(f"exported {len(arrays['control'])} ticks, {len(arrays['meas_tick'])} readings, "
-          f"{len(arrays['event_tick'])} events, {len(arrays['filter_names'])} filters "
+    print(f"exported {len(arrays['control'])} ticks, {len(arrays['readings_tick'])} readings, "
+          f"{len(arrays['events_tick'])} events, {len(arrays['filter_names'])} filters "
           f"to {', '.join(map(str, written))}")
     return 0

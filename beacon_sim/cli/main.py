@@ -8,6 +8,7 @@ and no traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -17,13 +18,9 @@ from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, rep
 from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options, check_common
-from beacon_sim.core.scenario import ScenarioError
 from beacon_sim.core.threads import limit_blas_threads
-from beacon_sim.errors import UsageError
-from beacon_sim.filters.base import FilterError
+from beacon_sim.errors import BeaconSimError, UsageError
 from beacon_sim.filters.runner import note_user_interrupt
-from beacon_sim.io.mrclam import MrclamError
-from beacon_sim.io.recording import RecordingError
 from beacon_sim.version import __version__
 
 
@@ -34,9 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", parser_class=Parser)
 
     p = sub.add_parser("play", help="open the simulator window")
-    p.add_argument("scenario", nargs="?", default="default")
+    p.add_argument("scenario", nargs="?", default="default",
+                   help="a shipped scenario's name (beacon-sim list) or a .toml file (default: default)")
     add_filter_options(p)
-    p.add_argument("--seed", type=int)
+    p.add_argument("--seed", type=int, metavar="N",
+                   help="the run's seed, 0 to 2^63 - 1 (default: the scenario's)")
     p.add_argument("--no-record", action="store_true", help="do not record this session")
     p.add_argument("--frames", type=int, help="quit after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the last frame to PNG")
@@ -48,29 +47,35 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gif", metavar="GIF", help="also write the session as an animated GIF (Pillow)")
     p.add_argument("--gif-width", default="640", metavar="PX",
                    help="the GIF's width in pixels, or 'window' for the window's (default 640)")
+    add_foxglove_option(p, "the session")
 
     p = sub.add_parser("run", help="one headless run; prints a summary")
-    p.add_argument("scenario")
+    p.add_argument("scenario", help="a shipped scenario's name (beacon-sim list), a .toml file "
+                                    "or a team scenario")
     add_filter_options(p)
-    p.add_argument("--seed", type=int)
+    p.add_argument("--seed", type=int, metavar="N",
+                   help="the run's seed, 0 to 2^63 - 1 (default: the scenario's)")
     p.add_argument("--duration", type=float, metavar="S", help="seconds to simulate")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
     p = sub.add_parser("check", help="conformance report for a filter")
-    p.add_argument("filter")
-    p.add_argument("--scenario", default="default")
+    p.add_argument("filter", help="a built-in name, pkg.mod:Class or file.py:Class")
+    p.add_argument("--scenario", default="default", help="the scenario to check it on (default: default)")
 
     sub.add_parser("list", help="shipped scenarios and available filters")
 
     p = sub.add_parser("eval", help="Monte Carlo comparison of filters over seeds")
-    p.add_argument("scenarios", nargs="+", metavar="SCENARIO")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO",
+                   help="one or more scenarios (names or .toml files), each evaluated in turn")
     add_filter_options(p)
-    p.add_argument("--runs", type=int, default=20)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--duration", type=float, metavar="S")
+    p.add_argument("--runs", type=int, default=20, metavar="N",
+                   help="Monte Carlo runs per scenario, seeds SEED .. SEED + N - 1 (default 20)")
+    p.add_argument("--seed", type=int, default=0, metavar="SEED", help="the first run's seed (default 0)")
+    p.add_argument("--duration", type=float, metavar="S",
+                   help="seconds to simulate per run (default: each scenario's duration)")
     p.add_argument("--jobs", type=int, help="parallel processes (default: all cores)")
     p.add_argument("--out", metavar="DIR", help="write CSV, JSON and PNG plots here")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print the results as one JSON object")
     p.add_argument("--no-batch", action="store_true",
                    help="run the filters one run at a time (default: batched across runs when possible)")
     p.add_argument("--strict", action="store_true",
@@ -79,10 +84,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stop a filter whose steps take over S seconds in one run (default 300)")
 
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
-    p.add_argument("file")
+    p.add_argument("file", help="a recording (.jsonl) written by beacon-sim play")
     add_filter_options(p)
-    p.add_argument("--headless", action="store_true")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--headless", action="store_true", help="no window: replay and print the summary")
+    p.add_argument("--json", action="store_true", help="with --headless: print one JSON object")
     p.add_argument("--frames", type=int, help="on screen: quit after N frames of 1/60 s")
     p.add_argument("--screenshot", metavar="PNG", help="on screen: save the last frame to PNG")
     p.add_argument("--paused", action="store_true", help="on screen: start paused")
@@ -92,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", default="1280x800", help="on screen: window size WxH in pixels")
     p.add_argument("--gif-width", default="640", metavar="PX",
                    help="the GIF's width in pixels, or 'window' for the window's (default 640)")
+    add_foxglove_option(p, "the replay window's session")
 
     p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv) or "
                                       "MCAP for Foxglove (.mcap)")
@@ -102,14 +108,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, metavar="S", help="a scenario: seconds to simulate")
 
     p = sub.add_parser("mrclam", help="replay a UTIAS MRCLAM data set folder")
-    p.add_argument("dir")
+    p.add_argument("dir", help="the data set's folder (Robot1_Odometry.dat, "
+                               "Landmark_Groundtruth.dat, ...)")
     p.add_argument("--robot", type=int, help="the robot, 1 to 5 (required without --team)")
     p.add_argument("--team", action="store_true",
                    help="all five robots at once, alone against cooperatively with their "
                         "sightings of each other (docs/multi-robot.md); headless")
     add_filter_options(p)
-    p.add_argument("--headless", action="store_true")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--headless", action="store_true", help="no window: run and print the summary")
+    p.add_argument("--json", action="store_true", help="with --headless: print one JSON object")
     p.add_argument("--duration", type=float, metavar="S", help="only the first S seconds")
     p.add_argument("--calibrate", action="store_true",
                    help="print the noise settings estimated from the data and stop")
@@ -129,10 +136,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
 
     p = sub.add_parser("new-filter", help="write a working, commented filter template")
-    p.add_argument("path")
+    p.add_argument("path", help="the .py file to write (refused if it exists)")
     p.add_argument("--team", action="store_true",
                    help="a team filter for scenarios with several robots (docs/multi-robot.md)")
     return parser
+
+
+def add_foxglove_option(p: argparse.ArgumentParser, what: str) -> None:
+    """``--foxglove [PORT]`` (default port 8765): stream live to Foxglove on 127.0.0.1."""
+    p.add_argument("--foxglove", type=int, nargs="?", const=8765, metavar="PORT",
+                   help=f"also stream {what} live to Foxglove: a WebSocket server on 127.0.0.1:PORT "
+                        "(default 8765; 0 picks a free port; needs the mcap extra)")
 
 
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
@@ -156,6 +170,16 @@ def _on_sigint(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so the interpreter's final flush of what the closed
+    pipe never took raises nothing at exit."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # no real file descriptor (a test's capture)
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``beacon-sim`` console script; returns the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -172,8 +196,13 @@ def main(argv: list[str] | None = None) -> int:
         if args.command is None:
             raise UsageError("beacon-sim: expected a command (see beacon-sim --help)")
         check_common(args)
-        return COMMANDS[args.command](args)
-    except (UsageError, ScenarioError, FilterError, RecordingError, MrclamError) as exc:
+        status = COMMANDS[args.command](args)
+        sys.stdout.flush()  # a closed pipe shows here, inside the try, not at exit
+        return status
+    except BrokenPipeError:  # `beacon-sim list | head`: the reader left; quiet, as Unix tools
+        _silence_stdout()
+        return 128 + signal.SIGPIPE if hasattr(signal, "SIGPIPE") else 1
+    except BeaconSimError as exc:  # ScenarioError, FilterError, RecordingError, UsageError, ...
         text = " ".join(str(exc).split()) or type(exc).__name__  # one line
         print(text if text.startswith("beacon-sim") else f"beacon-sim: {text}", file=sys.stderr)
         return 2

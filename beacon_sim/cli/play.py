@@ -80,7 +80,8 @@ def play_command(args: argparse.Namespace) -> int:
     return play(PlayOptions(scenario, specs, scenario.seed if args.seed is None else int(args.seed),
                             params, size, args.frames, args.screenshot, record=not args.no_record,
                             autopilot=args.autopilot, paused=args.paused, speed=args.speed,
-                            gif=args.gif, gif_width=parse_gif_width(args.gif_width)))
+                            gif=args.gif, gif_width=parse_gif_width(args.gif_width),
+                            foxglove=check_foxglove(args)))
 
 
 def play_team_command(args: argparse.Namespace) -> int:
@@ -90,6 +91,8 @@ def play_team_command(args: argparse.Namespace) -> int:
     from beacon_sim.runs.team import check_team_specs
 
     team = load_team_scenario(args.scenario)
+    if getattr(args, "foxglove", None) is not None:
+        raise UsageError("--foxglove: not for team scenarios yet (one robot only)")
     size = parse_size(args.size)
     check_frames(args.frames)
     params = filter_params(args)
@@ -107,6 +110,21 @@ def play_team_command(args: argparse.Namespace) -> int:
                                  record=not args.no_record,
                                  autopilot=args.autopilot, paused=args.paused, speed=args.speed,
                                  gif=args.gif, gif_width=parse_gif_width(args.gif_width)))
+
+
+def check_foxglove(args: argparse.Namespace) -> int | None:
+    """``--foxglove [PORT]``: a port from 0 (any free one) to 65535, and foxglove-sdk installed
+    (the ``mcap`` extra); returns the port or None."""
+    port = getattr(args, "foxglove", None)
+    if port is None:
+        return None
+    if not 0 <= port <= 65535:
+        raise UsageError(f"--foxglove {port}: expected a port from 0 to 65535")
+    try:
+        import foxglove  # noqa: F401
+    except ImportError:
+        raise UsageError("--foxglove needs foxglove-sdk: pip install 'beacon-sim[mcap]'") from None
+    return port
 
 
 def check_speed(speed: float | None) -> None:

@@ -10,7 +10,7 @@ import os
 import sys
 
 from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_failures
-from beacon_sim.cli.play import check_gif, parse_gif_width, parse_size
+from beacon_sim.cli.play import check_foxglove, check_gif, parse_gif_width, parse_size
 from beacon_sim.cli.run import print_team_run
 from beacon_sim.cli.tables import print_run
 from beacon_sim.errors import UsageError
@@ -64,7 +64,9 @@ def replay_command(args: argparse.Namespace) -> int:
         return show_replay(recording, specs, recorded_params(recording, params),
                            args.frames, args.screenshot, paused=args.paused, gif=args.gif,
                            start=args.start, end=args.end, size=parse_size(args.size),
-                           gif_width=parse_gif_width(args.gif_width))
+                           gif_width=parse_gif_width(args.gif_width), foxglove=check_foxglove(args))
+    if getattr(args, "foxglove", None) is not None:
+        raise UsageError("--foxglove streams the replay window: drop --headless")
     try:
         result = replay_recording(recording, args.filters, params)
     except ReplayMismatch as exc:
@@ -91,6 +93,8 @@ def replay_team_command(args: argparse.Namespace, recording: TeamRecording) -> i
     from beacon_sim.runs.team import check_team_specs, team_filter_name
     from beacon_sim.runs.team_replay import recorded_team_specs, replay_team_recording
 
+    if getattr(args, "foxglove", None) is not None:
+        raise UsageError("--foxglove: not for team recordings yet (one robot only)")
     params = filter_params(args)
     specs, skipped = recorded_team_specs(recording, args.filters or None)
     merged = recorded_params(recording, params)

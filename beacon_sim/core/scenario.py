@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Final, NoReturn, overload
 
+from beacon_sim.core import arguments
 from beacon_sim.core.drivers import (
     CircleSpec,
     ConstantSpec,
@@ -31,9 +32,10 @@ from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensors import SENSOR_KINDS, SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon
 from beacon_sim.core.world import World
+from beacon_sim.errors import BeaconSimError
 
 
-class ScenarioError(ValueError):
+class ScenarioError(BeaconSimError):
     """A scenario file is missing, unreadable or invalid. The message is one line."""
 
 
@@ -78,8 +80,14 @@ class Scenario:
         raise KeyError(name)
 
     def with_changes(self, **changes) -> Scenario:
-        """A copy with some fields replaced (e.g. ``seed``)."""
-        return replace(self, **changes)
+        """A copy with some fields replaced (e.g. ``seed``); ``dt``, ``duration`` and
+        ``seed`` are checked as in a file (core/arguments.py), a bad one is a ScenarioError."""
+        new = replace(self, **changes)
+        if {"dt", "duration", "seed"} & set(changes):
+            arguments.check_tick(new.dt, MIN_DT, MAX_DT, "dt=", ScenarioError)
+            arguments.check_duration(new.duration, new.dt, MAX_TICKS, "duration=", ScenarioError)
+            arguments.check_seed(new.seed, "seed=", ScenarioError)
+        return new
 
 
 class _Required(enum.Enum):

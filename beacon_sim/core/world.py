@@ -30,6 +30,11 @@ class World:
         """Beacon IDs, shape (n,), in the order of ``beacons``."""
         return read_only(np.array([b.id for b in self.beacons], dtype=int))
 
+    def __getstate__(self) -> dict:
+        """Pickled without the cached properties (rebuilt on use; a mappingproxy does not
+        pickle), so a scenario that has run still pickles."""
+        return {k: v for k, v in self.__dict__.items() if k in self.__dataclass_fields__}
+
     @cached_property
     def _index_of_id(self) -> Mapping[int, int]:
         return MappingProxyType({b.id: i for i, b in enumerate(self.beacons)})

@@ -35,6 +35,7 @@ import numpy as np
 
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
+from beacon_sim.errors import BeaconSimError
 from beacon_sim.evaluation.montecarlo import RunOutput, default_jobs, init_worker, one_run
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.evaluation.team import TeamRunOutput, evaluate_team, team_one_run
@@ -46,7 +47,7 @@ REFERENCE = "__reference__"
 REFERENCE_SPEC = "ekf"
 
 
-class GradeError(ValueError):
+class GradeError(BeaconSimError):
     """A bad grading folder or configuration file (one line, exit status 2)."""
 
 

@@ -24,9 +24,10 @@ from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.core.world import World
+from beacon_sim.errors import BeaconSimError
 
 
-class FilterError(ValueError):
+class FilterError(BeaconSimError):
     """A filter was asked for something it cannot do (bad parameter, unknown sensor...)."""
 
 

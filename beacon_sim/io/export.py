@@ -1,12 +1,12 @@
 """A run as flat arrays for a notebook: ``.npz`` or ``.csv`` (``beacon-sim export``); the
-same arrays feed the MCAP export (:mod:`beacon_sim.io.mcap`).
+same arrays feed the tidy tables (:mod:`beacon_sim.io.tables`) and the MCAP export
+(:mod:`beacon_sim.io.mcap`).
 
 Frames and units as everywhere: world frame, metres, radians, seconds.
 """
 
 from __future__ import annotations
 
-import csv
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -17,24 +17,29 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
 from beacon_sim.filters.runner import FilterTrack
 from beacon_sim.io.recording import Recording
+from beacon_sim.io.tables import (
+    POSE_AFTER,
+    POSE_BEFORE,
+    read_table_csv,
+    reading_values,
+    tables,
+    write_table_csv,
+)
 
 
 def step_arrays(scenario: Scenario, steps: Sequence[Step]) -> dict[str, np.ndarray]:
     """Simulated ``steps`` (ticks 1..T of a run of ``scenario``) as flat arrays.
 
-    Keys: ``truth_tick`` (T+1,), ``truth_time`` (T+1,) [s], ``truth`` (T+1, 3) [m, m, rad]
-    (row 0 is the initial pose); ``control`` (T, 2) [m/s, rad/s] for ticks 1..T;
-    ``meas_tick``, ``meas_time``, ``meas_sensor``, ``meas_kind``, ``meas_beacon_id`` (-1 for a
-    fix), ``meas_z`` (M, 3) NaN-padded (bearing [rad]; range, bearing [m, rad]; pose x, y,
-    theta; position x, y), ``meas_hdop``; ``event_tick``, ``event_time``, ``event_kind``,
-    ``event_detail``, ``event_pose_before``, ``event_pose_after`` (E, 3; NaN when not a kidnap).
-    All in the world frame.
+    Keys: ``truth_tick`` (T+1,), ``truth_time_s`` (T+1,) [s], ``truth`` (T+1, 3) [m, m, rad]
+    (row 0 is the initial pose); ``control`` (T, 2) [m/s, rad/s] for ticks 1..T; the
+    ``readings`` table as ``readings_<column>`` (M,) and the ``events`` table as
+    ``events_<column>`` (E,), columns as in :mod:`beacon_sim.io.tables`. All in the world frame.
     """
     sc = scenario
     truth = np.vstack([np.array(sc.initial_pose, dtype=float)] + [s.true_pose for s in steps])
     ticks = np.arange(len(steps) + 1)
     out: dict[str, np.ndarray] = {
-        "truth_tick": ticks, "truth_time": ticks * sc.dt, "truth": truth,
+        "truth_tick": ticks, "truth_time_s": ticks * sc.dt, "truth": truth,
         "control": np.array([[s.control.v, s.control.omega] for s in steps], dtype=float).reshape(-1, 2),
     }
     mt, msens, mkind, mid, mz, mh = [], [], [], [], [], []
@@ -50,23 +55,26 @@ def step_arrays(scenario: Scenario, steps: Sequence[Step]) -> dict[str, np.ndarr
                 row[: m.z.shape[1]] = m.z[i]
                 mz.append(row)
                 mh.append(m.hdop)
-    out["meas_tick"] = np.array(mt, dtype=int)
-    out["meas_time"] = out["meas_tick"] * sc.dt
-    out["meas_sensor"] = np.array(msens, dtype=str)
-    out["meas_kind"] = np.array(mkind, dtype=str)
-    out["meas_beacon_id"] = np.array(mid, dtype=int)
-    out["meas_z"] = np.array(mz, dtype=float).reshape(-1, 3)
-    out["meas_hdop"] = np.array(mh, dtype=float)
+    kinds = np.array(mkind, dtype=str)
+    out["readings_tick"] = np.array(mt, dtype=int)
+    out["readings_time_s"] = out["readings_tick"] * sc.dt
+    out["readings_sensor"] = np.array(msens, dtype=str)
+    out["readings_kind"] = kinds
+    out["readings_beacon_id"] = np.array(mid, dtype=int)
+    for c, v in reading_values(kinds, np.array(mz, dtype=float).reshape(-1, 3)).items():
+        out[f"readings_{c}"] = v
+    out["readings_hdop"] = np.array(mh, dtype=float)
     ev = [e for s in steps for e in s.events]
     nan3 = np.full(3, np.nan)
-    out["event_tick"] = np.array([e.tick for e in ev], dtype=int)
-    out["event_time"] = np.array([e.time for e in ev], dtype=float)
-    out["event_kind"] = np.array([e.kind for e in ev], dtype=str)
-    out["event_detail"] = np.array([e.detail for e in ev], dtype=str)
-    out["event_pose_before"] = np.array([nan3 if e.pose_before is None else e.pose_before
-                                         for e in ev], dtype=float).reshape(-1, 3)
-    out["event_pose_after"] = np.array([nan3 if e.pose_after is None else e.pose_after
-                                        for e in ev], dtype=float).reshape(-1, 3)
+    out["events_tick"] = np.array([e.tick for e in ev], dtype=int)
+    out["events_time_s"] = np.array([e.time for e in ev], dtype=float)
+    out["events_kind"] = np.array([e.kind for e in ev], dtype=str)
+    out["events_detail"] = np.array([e.detail for e in ev], dtype=str)
+    before = np.array([nan3 if e.pose_before is None else e.pose_before for e in ev], dtype=float)
+    after = np.array([nan3 if e.pose_after is None else e.pose_after for e in ev], dtype=float)
+    for pose, cols in ((before.reshape(-1, 3), POSE_BEFORE), (after.reshape(-1, 3), POSE_AFTER)):
+        for j, c in enumerate(cols):
+            out[f"events_{c}"] = pose[:, j].copy()
     return out
 
 
@@ -112,70 +120,61 @@ def trace_arrays(recording: Recording, steps: Sequence[Step],
 
 
 def csv_paths(out: Path) -> dict[str, Path]:
-    """The files a ``.csv`` export writes: ``X.csv`` (one row per tick: truth and control),
-    ``X.measurements.csv``, ``X.events.csv`` and, when filters ran, ``X.estimates.csv`` (one
-    row per filter and tick)."""
+    """The files a ``.csv`` export writes, one per table of :mod:`beacon_sim.io.tables`:
+    ``X.csv`` (truth: one row per tick, with the command), ``X.readings.csv``,
+    ``X.events.csv`` and, when filters ran, ``X.estimates.csv`` (one row per filter and tick)."""
     stem = out.with_suffix("")
-    return {"ticks": out, "measurements": Path(f"{stem}.measurements.csv"),
+    return {"truth": out, "readings": Path(f"{stem}.readings.csv"),
             "events": Path(f"{stem}.events.csv"), "estimates": Path(f"{stem}.estimates.csv")}
 
 
-#: The covariance columns of ``X.estimates.csv``: the upper triangle of the 3 x 3 matrix.
-COV_COLUMNS = ("cov_xx", "cov_xy", "cov_xt", "cov_yy", "cov_yt", "cov_tt")
-_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+#: Before issue 28 the readings file was ``X.measurements.csv``.
+OLD_CSV_FILES = {"readings": "measurements"}
 
 
 def write_csv(arrays: dict[str, np.ndarray], out: Path) -> list[Path]:
     paths = csv_paths(out)
     if "filter_names" not in arrays:
         del paths["estimates"]
-    else:
-        with paths["estimates"].open("w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["tick", "time_s", "filter", "x_m", "y_m", "theta_rad", *COV_COLUMNS])
-            for i, name in enumerate(arrays["filter_names"]):
-                for k in range(arrays["est_mean"].shape[1]):
-                    m, c = arrays["est_mean"][i, k], arrays["est_cov"][i, k]
-                    if np.isnan(m).all():
-                        continue  # no estimate on this tick (the filter was switched off)
-                    w.writerow([k + 1, repr(float(arrays["truth_time"][k + 1])), str(name),
-                                *(repr(float(v)) for v in m),
-                                *(repr(float(c[a, b])) for a, b in _UPPER)])
-    with paths["ticks"].open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["tick", "time_s", "x_m", "y_m", "theta_rad", "v_mps", "omega_radps"])
-        ctrl = np.vstack([np.full((1, 2), np.nan), arrays["control"]])
-        for i in range(len(arrays["truth_tick"])):
-            w.writerow([int(arrays["truth_tick"][i]), repr(float(arrays["truth_time"][i])),
-                        *(repr(float(v)) for v in arrays["truth"][i]),
-                        *(repr(float(v)) for v in ctrl[i])])
-    with paths["measurements"].open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["tick", "time_s", "sensor", "kind", "beacon_id", "z0", "z1", "z2", "hdop"])
-        for i in range(len(arrays["meas_tick"])):
-            w.writerow([int(arrays["meas_tick"][i]), repr(float(arrays["meas_time"][i])),
-                        arrays["meas_sensor"][i], arrays["meas_kind"][i],
-                        int(arrays["meas_beacon_id"][i]),
-                        *(repr(float(v)) for v in arrays["meas_z"][i]),
-                        repr(float(arrays["meas_hdop"][i]))])
-    with paths["events"].open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["tick", "time_s", "kind", "detail", "x_before", "y_before", "theta_before",
-                    "x_after", "y_after", "theta_after"])
-        for i in range(len(arrays["event_tick"])):
-            w.writerow([int(arrays["event_tick"][i]), repr(float(arrays["event_time"][i])),
-                        arrays["event_kind"][i], arrays["event_detail"][i],
-                        *(repr(float(v)) for v in arrays["event_pose_before"][i]),
-                        *(repr(float(v)) for v in arrays["event_pose_after"][i])])
-    return list(paths.values())
+    tabs = tables(arrays)
+    return [write_table_csv(tabs[name], path) for name, path in paths.items()]
 
 
 def write_export(arrays: dict[str, np.ndarray], out: Path) -> list[Path]:
-    """Write ``arrays`` to ``out`` (``.npz``: one compressed file; ``.csv``: three files, see
-    :func:`csv_paths`); returns the files written."""
+    """Write ``arrays`` to ``out`` (``.npz``: one compressed file; ``.csv``: one file per
+    table, see :func:`csv_paths`); returns the files written. ``.mcap`` is
+    :func:`beacon_sim.io.mcap.write_mcap`."""
     if out.suffix == ".npz":
         np.savez_compressed(out, allow_pickle=False, **arrays)
         return [out]
     if out.suffix == ".csv":
         return write_csv(arrays, out)
-    raise ValueError(f"{out}: expected a .npz or .csv file name")
+    raise ValueError(f"{out}: expected a .npz, .csv or .mcap file name")
+
+
+def load_export(path: str | Path) -> dict[str, dict[str, np.ndarray]]:
+    """The tables (:func:`beacon_sim.io.tables.tables`) of an export: a ``.npz`` file or the
+    ``.csv`` files of :func:`csv_paths` (give ``X.csv``), written now or before issue 28 (old
+    names are renamed). A table the export does not have (estimates without filters) is
+    absent. Raises ``ValueError`` naming the file for anything else."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        if "truth" not in arrays:
+            raise ValueError(f"{path}: not a beacon-sim export (no 'truth' array)")
+        out = tables(arrays)
+        if "filter_names" not in arrays:
+            del out["estimates"]
+        return out
+    if path.suffix != ".csv":
+        raise ValueError(f"{path}: expected a .npz or .csv export")
+    out = {}
+    for name, p in csv_paths(path).items():
+        if not p.is_file() and name in OLD_CSV_FILES:
+            p = Path(f"{path.with_suffix('')}.{OLD_CSV_FILES[name]}.csv")
+        if p.is_file():
+            out[name] = read_table_csv(p, name)
+        elif name != "estimates":
+            raise ValueError(f"{p}: missing (a .csv export has {', '.join(csv_paths(path))} files)")
+    return out

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.errors import BeaconSimError
 
 #: Subjects 1-5 are the robots in every MRCLAM data set; landmarks are 6 and up.
 ROBOT_SUBJECTS = range(1, 6)
@@ -30,7 +31,7 @@ ROBOT_SUBJECTS = range(1, 6)
 MAX_TRUTH_GAP_S = 0.5
 
 
-class MrclamError(ValueError):
+class MrclamError(BeaconSimError):
     """A missing or malformed MRCLAM file; the message names the file and line."""
 
 

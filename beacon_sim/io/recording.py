@@ -58,6 +58,7 @@ from beacon_sim.core.simulation import RECORDED_BEFORE_SLIP_MODEL, scenario_with
 from beacon_sim.core.team import team_with_slip
 from beacon_sim.core.team_scenario import TeamScenario, is_team_document, parse_team_scenario
 from beacon_sim.core.types import Control
+from beacon_sim.errors import BeaconSimError
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
@@ -71,7 +72,7 @@ FLUSH_EVERY_S = 0.5
 RECORDINGS_DIR = "recordings"
 
 
-class RecordingError(ValueError):
+class RecordingError(BeaconSimError):
     """A recording file that cannot be read or replayed. The message is one line."""
 
 
