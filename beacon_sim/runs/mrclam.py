@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from collections.abc import Set
+from collections.abc import Mapping, Set
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,6 +32,8 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
+from beacon_sim.filters.registry import MRCLAM_DEFAULTS
+from beacon_sim.filters.registry import MRCLAM_GATE_CHI2 as MRCLAM_GATE_CHI2  # re-exported
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, guarded_call, one_line, validate_estimate
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
 from beacon_sim.runs.headless import ACCURACY_KEYS
@@ -47,9 +49,6 @@ SEED_001_EKF_MSE = (1.7875, 1.889, 7.7997)
 #: (landmark survey, range bias, timing) persist over seconds; a white-noise model told the
 #: one-step (or 1 s) spread averages them away and is overconfident (docs/replay.md).
 CALIBRATION_WINDOW_S = 10.0
-#: Chi-square gate for one range-bearing reading (2 dof, 99.9 %): on by default in MRCLAM
-#: runs of the EKF and UKF.
-MRCLAM_GATE_CHI2 = 13.8155
 #: Sub-step [s] of the ground-truth path when odometry is compared with it.
 SUB_S = 0.1
 #: Floor of the outlier share the particle and grid filters are told (a mixture with a
@@ -62,14 +61,7 @@ MIN_OUTLIER_RATE = 0.01
 #: that the long blind stretches and outliers set off, scattering particles over the room:
 #: jumps of metres) is off; roughening after resampling keeps the cloud from collapsing
 #: below what the shared reading errors allow.
-MRCLAM_PARAMS: dict[str, dict[str, Any]] = {
-    "ekf": {"gate_chi2": MRCLAM_GATE_CHI2},
-    "ukf": {"gate_chi2": MRCLAM_GATE_CHI2},
-    "pf": {"n_particles": 4000, "augmented": False, "roughen": 1.25},
-    # No uniform floor: on real data with a known start it turns an unlucky run of outliers
-    # into a jump across the room (robot 5: 4.5 m); the outlier mixture already caps them.
-    "histogram": {"floor": 0.0},
-}
+MRCLAM_PARAMS: Mapping[str, Mapping[str, Any]] = MRCLAM_DEFAULTS  # from the filters' records
 #: Initial belief: ground truth at the start with these standard deviations [m, m, rad]
 #: (local localization with a known start, as seed 001).
 INITIAL_STD = (0.05, 0.05, 0.05)
