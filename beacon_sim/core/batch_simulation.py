@@ -152,10 +152,8 @@ class BatchSimulation:
         self.pose = np.stack([s.pose for s in self._sims])          # (R, 3)
         self.pose.flags.writeable = False
         first = self._sims[0]                                      # the schedules: same for all
-        self._every = first._every
+        self.schedule = first.schedule
         self._kidnaps = first._kidnaps
-        self._blackouts = first._blackout_ticks
-        self._bursts = first._burst_ticks
         self._edges = first._interval_edges
         self._hash_readings = readings_checksums
         self._truth_pending: list[np.ndarray] = []   # poses not yet in the truth checksums
@@ -220,7 +218,7 @@ class BatchSimulation:
         # Truth: every run's command with its own motion noise, the model on arrays.
         noise = self.scenario.motion_noise
         sv, sw = noise.control_std(cv, cw)
-        for burst in self._bursts.get(k, ()):   # math.hypot per run, as the single run does
+        for burst in self.schedule.bursts_at(k):   # math.hypot per run, as the single run does
             sv = np.array([math.hypot(x, burst.v_std) for x in sv.tolist()])
             sw = np.array([math.hypot(x, burst.omega_std) for x in sw.tolist()])
         E = np.empty((R, 5))
@@ -230,7 +228,7 @@ class BatchSimulation:
         w = cw + sw * E[:, 1]
         pose = move(old, v, w, dt)
         pose += np.asarray(noise.pose_std) * E[:, 2:]
-        pose[:, 2] = (pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        pose[:, 2] = wrap(pose[:, 2])
         inside = world.contains(pose[:, :2])
         if not np.all(inside):
             for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
@@ -254,11 +252,10 @@ class BatchSimulation:
             self._sync()
 
         readings: list[BeaconReadings | OtherReadings] = []
-        blackouts = self._blackouts.get(k, ())
         for spec in self.scenario.sensors:
-            if k % self._every[spec.name]:
+            if not self.schedule.due(spec.name, k):
                 continue
-            blacked = any(b.covers(spec.name) for b in blackouts)
+            blacked = self.schedule.blacked_out(spec.name, k)
             got: BeaconReadings | OtherReadings | None
             if spec.kind in _BEACON_KINDS:
                 got = self._sense_beacons(spec, pose)

@@ -12,10 +12,12 @@ import math
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import Driver
-from beacon_sim.core.events import Blackout, Kidnap, NoiseBurst, active_ticks, first_tick_at
+from beacon_sim.core.events import Blackout, Kidnap, active_ticks, first_tick_at
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.sensors import sense
 from beacon_sim.core.streams import stream
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
@@ -42,21 +44,14 @@ class Simulation:
         self._events_rng = stream(self.seed, "events")
         self._sensor_rngs = {s.name: stream(self.seed, "sensor", s.name) for s in scenario.sensors}
         self.driver = Driver(scenario.driver, scenario.world, stream(self.seed, "driver"))
-        self._every = {s.name: round(s.period / self.dt) for s in scenario.sensors}
+        self.schedule = tick_schedule(scenario)  # sensor periods, blackouts, bursts
         self._kidnaps: dict[int, list[Kidnap]] = {}
-        self._blackout_ticks: dict[int, list[Blackout]] = {}
-        self._burst_ticks: dict[int, list[NoiseBurst]] = {}
         self._interval_edges: dict[int, list[EventRecord]] = {}
         for ev in scenario.events:
             if isinstance(ev, Kidnap):
                 self._kidnaps.setdefault(first_tick_at(ev.time, self.dt), []).append(ev)
                 continue
             ticks = active_ticks(ev, self.dt)
-            for k in ticks:
-                if isinstance(ev, Blackout):
-                    self._blackout_ticks.setdefault(k, []).append(ev)
-                else:
-                    self._burst_ticks.setdefault(k, []).append(ev)
             what = ", ".join(ev.sensors) if isinstance(ev, Blackout) and ev.sensors else ""
             self._interval_edges.setdefault(ticks.start, []).append(
                 EventRecord(f"{ev.kind}_start", ticks.start, ticks.start * self.dt, what))
@@ -99,7 +94,7 @@ class Simulation:
         # Truth: the command executed with noise (plus any noise burst in force).
         noise = self.scenario.motion_noise
         sv, sw = noise.control_std(control.v, control.omega)
-        for burst in self._burst_ticks.get(k, ()):
+        for burst in self.schedule.bursts_at(k):
             sv = math.hypot(sv, burst.v_std)
             sw = math.hypot(sw, burst.omega_std)
         e = self._motion_rng.standard_normal(5)
@@ -107,7 +102,7 @@ class Simulation:
         w = control.omega + sw * e[1]
         pose = move(self.pose, v, w, self.dt)
         pose += np.asarray(noise.pose_std) * e[2:]
-        pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
+        pose[2] = wrap(pose[2])
         if not self.world.contains(pose[:2]):
             # The bumper: a move that would leave the room is not made. The robot stays where
             # it was (it may still turn), and the command the filters see is what it did:
@@ -136,13 +131,12 @@ class Simulation:
         self._hash.update(pose.tobytes())
 
         measurements: list[Measurement] = []
-        blackouts = self._blackout_ticks.get(k, ())
         for spec in self.scenario.sensors:
-            if k % self._every[spec.name]:
+            if not self.schedule.due(spec.name, k):
                 continue
             rng = self._sensor_rngs[spec.name]
             m = sense(spec, pose, self.world, rng)  # draw even when blacked out: stable streams
-            if m is not None and not any(b.covers(spec.name) for b in blackouts):
+            if m is not None and not self.schedule.blacked_out(spec.name, k):
                 measurements.append(m)
                 h = self._readings_hash
                 h.update(f"{k} {m.sensor} {m.kind} {m.z.shape}".encode())
