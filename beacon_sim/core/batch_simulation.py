@@ -32,6 +32,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, RandomGoalSpec, WaypointsSpec
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense
@@ -412,12 +413,12 @@ class BatchSimulation:
         dx, dy = diff[..., 0], diff[..., 1]
         seen = np.hypot(dx, dy) <= spec.max_range
         if spec.fov < 2.0 * math.pi:
-            rel = wrap(np.arctan2(dy, dx) - pose[:, 2, None])
+            rel = wrap(relative_bearing(dx, dy, pose[:, 2, None]))
             seen &= np.abs(rel) <= 0.5 * spec.fov
         seen &= u_detect < spec.detection_prob
         if not seen.any():
             return None
-        bearing = wrap(np.arctan2(dy, dx) - pose[:, 2, None])  # (R, n)
+        bearing = wrap(relative_bearing(dx, dy, pose[:, 2, None]))  # (R, n)
         if spec.kind == "bearing":
             z = bearing[..., None] + noise * spec.noise.bearing_std
         else:

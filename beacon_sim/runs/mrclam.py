@@ -25,6 +25,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardLimits
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.metrics import summary
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.scenario import InitialBelief, Scenario
@@ -199,7 +200,7 @@ def calibrate(data: MrclamData, t_end: float | None = None,
         dx = lxy[:, 0] - pose[:, 0]
         dy = lxy[:, 1] - pose[:, 1]
         e_r = ms[:, 2] - np.hypot(dx, dy)
-        e_b = wrap(ms[:, 3] - (np.arctan2(dy, dx) - pose[:, 2]))
+        e_b = wrap(ms[:, 3] - relative_bearing(dx, dy, pose[:, 2]))
         flipped = np.abs(e_b) > math.pi / 2
         core_r, core_b = e_r[~flipped], e_b[~flipped]
         groups = np.floor((ms[~flipped, 0] - ms[0, 0]) / window_s)
