@@ -15,7 +15,7 @@ from test_mrclam import make_folder
 from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters import registry
-from beacon_sim.filters.base import FilterError
+from beacon_sim.filters.base import Batchable, BatchedFilter, FilterError
 from beacon_sim.filters.loading import BUILTIN_FILTERS, available_filters, build_filter, load_filter_class
 from beacon_sim.filters.param_ranges import check_resources
 from beacon_sim.filters.params import Param, Range
@@ -121,9 +121,12 @@ def test_every_record_agrees_with_its_class(name):
         return
     flt = build_filter(name, load_scenario("default"), seed=1)
     if record.batched is None:
-        assert not hasattr(flt, "batched"), f"{name} has a batched form its record does not name"
+        assert not isinstance(flt, Batchable), f"{name} has a batched form its record does not name"
     else:
-        assert type(flt.batched(2)) is record.load_batched()
+        assert isinstance(flt, Batchable)
+        form = flt.batched(2)
+        assert type(form) is record.load_batched() and isinstance(form, BatchedFilter)
+        assert form.mean.shape == (2, 3) and form.cov.shape == (2, 3, 3)
 
 
 def test_the_records_are_the_only_tables():
