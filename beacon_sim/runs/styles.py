@@ -117,7 +117,7 @@ def team_filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
         member = name.split(":", 1)[1] if name.startswith("independent:") else None
         if name in TEAM_STYLES:
             colour, dash = TEAM_STYLES[name]
-        elif member in KIND_STYLES:
+        elif member is not None and member in KIND_STYLES:
             colour, dash = KIND_STYLES[member]
         else:
             colour, dash = OTHER_STYLES[others % len(OTHER_STYLES)]
