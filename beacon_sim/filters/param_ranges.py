@@ -12,21 +12,14 @@ from typing import Any
 
 from beacon_sim.core.world import World
 from beacon_sim.filters.params import MAX_GRID_BEACON_CELLS, MAX_GRID_CELLS, MAX_PARTICLES, Param
-from beacon_sim.filters.registry import record_for_class
-
-
-def class_key(cls: type) -> str:
-    """``module:QualName`` of a filter class (how a record names it)."""
-    return f"{cls.__module__}:{cls.__qualname__}"
+from beacon_sim.filters.registry import class_key, record_for_class
 
 
 def check_value(cls: type, key: str, value: Any, default: Any) -> None:
     """Raise :class:`FilterError` when ``value`` is not a finite number (for a number
     parameter), not an integer (for an integer one) or outside the documented range."""
     record = record_for_class(cls)
-    r = record.ranges.get(key) if record is not None else None
-    param = Param(default) if r is None else Param(default, r.low, r.high, r.doc)
-    param.check(cls.__name__, key, value)
+    Param.of(default, record.ranges.get(key) if record else None).check(cls.__name__, key, value)
 
 
 def check_params(cls: type, params: Mapping[str, Any], world: World) -> None:

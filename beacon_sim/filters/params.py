@@ -45,6 +45,11 @@ class Param:
     high: float | None = None
     doc: str = ""
 
+    @classmethod
+    def of(cls, default: Any, declared: Range | None) -> Param:
+        """The contract of a parameter with ``default`` and a declared range (or none)."""
+        return cls(default) if declared is None else cls(default, *declared)
+
     def check(self, owner: str, key: str, value: Any) -> None:
         """Raise :class:`FilterError` (one line, naming ``owner`` and ``key``) when ``value``
         is not an integer for an integer parameter, not finite for a number parameter, or

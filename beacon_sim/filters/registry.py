@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from beacon_sim.core.world import World
-from beacon_sim.filters.params import Param, Range, grid_memory, particle_memory
+from beacon_sim.filters.params import MAX_PARTICLES, Param, Range, grid_memory, particle_memory
 
 #: Chi-square gate for one range-bearing reading (2 dof, 99.9 %): on by default in MRCLAM
 #: runs of the EKF and UKF.
@@ -84,11 +84,7 @@ class FilterRecord:
         """Every parameter of the class as a :class:`Param`: the default from the class's
         ``defaults``, the range and text from :attr:`ranges`."""
         defaults = getattr(self.load(), "defaults", None) or {}
-        out: dict[str, Param] = {}
-        for key, default in defaults.items():
-            r = self.ranges.get(key)
-            out[key] = Param(default) if r is None else Param(default, r.low, r.high, r.doc)
-        return out
+        return {key: Param.of(default, self.ranges.get(key)) for key, default in defaults.items()}
 
 
 def _load(target: str) -> Any:
@@ -98,7 +94,7 @@ def _load(target: str) -> Any:
 
 _GATE = Range(0.0, 1e6, "chi-square gate on a reading's NIS; 0 = no gate")
 _FRACTION = (0.0, 1.0)
-_N = (1, 1_000_000)
+_N = (1, MAX_PARTICLES)
 
 RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
     FilterRecord("kf", "beacon_sim.filters.kf:KalmanFilter", ("blue", "solid"),
@@ -171,10 +167,14 @@ def team_records() -> Iterator[FilterRecord]:
     return (r for r in RECORDS.values() if r.team)
 
 
+def class_key(cls: type) -> str:
+    """``module:QualName`` of a class (how a record's target names it)."""
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
 def record_for_class(cls: type) -> FilterRecord | None:
-    """The record whose target is ``cls`` (by ``module:QualName``), or None (a student's
-    class)."""
-    key = f"{cls.__module__}:{cls.__qualname__}"
+    """The record whose target is ``cls``, or None (a student's class)."""
+    key = class_key(cls)
     return next((r for r in RECORDS.values() if r.target == key), None)
 
 
@@ -211,4 +211,4 @@ MRCLAM_DEFAULTS: Mapping[str, Mapping[str, Any]] = RecordTable(lambda r: dict(r.
 
 
 __all__ = ["COLOUR_NAMES", "DASH_NAMES", "MRCLAM_DEFAULTS", "MRCLAM_GATE_CHI2", "RECORDS", "TARGETS",
-           "FilterRecord", "RecordTable", "record_for_class", "single_records", "team_records"]
+           "FilterRecord", "RecordTable", "class_key", "record_for_class", "single_records", "team_records"]
