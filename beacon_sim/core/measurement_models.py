@@ -14,12 +14,13 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 
 
-def relative_bearing(dx, dy, theta):
+def relative_bearing(dx, dy, theta, out=None):
     """The bearing model, the one place it is written: the direction [rad] of the offset
     ``(dx, dy)`` [m] (beacon minus robot, world frame) seen from heading ``theta`` [rad],
     ``atan2(dy, dx) - theta`` (seed 000 eq. 6), NOT wrapped: callers wrap it, or the
-    innovation ``wrap(z - h)``, as their arithmetic needs. Arrays broadcast."""
-    return np.arctan2(dy, dx) - theta
+    innovation ``wrap(z - h)``, as their arithmetic needs. Arrays broadcast; ``out``, an
+    array of the result's shape, receives it without allocating."""
+    return np.subtract(np.arctan2(dy, dx), theta, out=out)
 
 
 def relative_bearing_scalar(dx: float, dy: float, theta: float) -> float:

@@ -175,12 +175,12 @@ class StackedReadings:
             if bxy is None:  # pose or position fix
                 out[:, a:b] = poses[:, :b - a]
             elif kind == "bearing":
-                out[:, a:b] = relative_bearing(bxy[:, 0] - x, bxy[:, 1] - y, th)
+                relative_bearing(bxy[:, 0] - x, bxy[:, 1] - y, th, out=out[:, a:b])
             else:  # range_bearing
                 dx = bxy[:, 0] - x
                 dy = bxy[:, 1] - y
                 np.hypot(dx, dy, out=out[:, a:b:2])
-                out[:, a + 1:b:2] = relative_bearing(dx, dy, th)
+                relative_bearing(dx, dy, th, out=out[:, a + 1:b:2])
         sel = self.angle_sel
         if wrap and sel is not None:
             out[:, sel] = wrap_angle(out[:, sel])
