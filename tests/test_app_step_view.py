@@ -15,13 +15,13 @@ import pygame
 import pytest
 
 from beacon_sim.app import controls
-from beacon_sim.app.bound import LiveBound
 from beacon_sim.app.main import SCRIPTED_FRAME_S, App
 from beacon_sim.app.render import ELLIPSE_SCALE2, ipx
 from beacon_sim.cli.main import main
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.evaluation.live_bound import LiveBound
 from beacon_sim.evaluation.pcrb import pcrb
 from beacon_sim.filters.loading import build_filter
 from beacon_sim.runs.live import Session

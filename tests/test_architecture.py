@@ -1,9 +1,15 @@
 """The layers of docs/architecture.md, as pyproject.toml's import-linter contracts: no upward
-import, no circle, pygame only in app/, matplotlib only in the evaluation's plots."""
+import, no circle, pygame only in app/, matplotlib only in the evaluation's plots; and one
+home per idea (the angle wrap, a sensor period in ticks, the bearing model), no module
+importing another's private names."""
 
+import ast
+import io
+import re
 import shutil
 import subprocess
 import sys
+import tokenize
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,3 +38,71 @@ def test_the_contract_check_catches_an_upward_import(tmp_path):
     r = lint_imports(tmp_path)
     assert r.returncode != 0
     assert "beacon_sim.core.angles -> beacon_sim.cli.main" in r.stdout
+
+
+# -- one home per idea (issue 22) ------------------------------------------------------------
+
+PACKAGE = ROOT / "beacon_sim"
+#: Each idea, the pattern that writes it out, and the only modules allowed to: its home, and
+#: the hot paths that keep a fused fast form held to the home by tests/test_single_homes.py
+#: and tests/test_ekf.py. Only code counts (comments and docstrings may state the formula).
+HOMES = {
+    "the angle wrap": (r"%\s*\(?\s*2(\.0)?\s*\*\s*(np|math)\.pi|%\s*_?TWO_PI|np\.mod\([^)]*pi",
+                       {"core/angles.py"}),
+    "a sensor period in ticks": (r"round\([^)]*period[^)]*/", {"core/schedule.py"}),
+    "the bearing model": (r"atan2\(\s*\w+\s*,\s*\w+\s*\)\s*-\s*\w",
+                          {"core/measurement_models.py", "filters/ekf.py", "filters/ukf.py"}),
+}
+#: Private names imported from another module today (the owners' files; none may be added).
+KNOWN_PRIVATE_IMPORTS = {("core/batch_simulation.py", "_kidnap_text"),
+                         ("runs/team_mrclam.py", "_command_integrals"),
+                         ("core/team_scenario.py", "_sensor_noise"), ("core/team_scenario.py", "_Table")}
+
+
+def _code_lines(path: Path):
+    """(line number, text) of the lines of ``path`` that are code: not comments, not inside
+    a docstring."""
+    doc_lines: set[int] = set()
+    prev = tokenize.NEWLINE
+    for tok in tokenize.generate_tokens(io.StringIO(path.read_text(encoding="utf-8")).readline):
+        if tok.type == tokenize.STRING and prev in (tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
+                                                    tokenize.NL):
+            doc_lines.update(range(tok.start[0], tok.end[0] + 1))
+        if tok.type not in (tokenize.COMMENT, tokenize.NL):
+            prev = tok.type
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+        if n not in doc_lines and not line.lstrip().startswith("#"):
+            yield n, line.split("  #")[0]
+
+
+def test_each_idea_is_written_in_its_home_only():
+    stray = []
+    for idea, (pattern, homes) in HOMES.items():
+        rx = re.compile(pattern)
+        for path in sorted(PACKAGE.rglob("*.py")):
+            rel = path.relative_to(PACKAGE).as_posix()
+            if rel in homes:
+                continue
+            stray += [f"{rel}:{n}: {idea}: {line.strip()}"
+                      for n, line in _code_lines(path) if rx.search(line)]
+    assert not stray, "written outside its home (call core/angles, core/schedule or " \
+                      "core/measurement_models):\n" + "\n".join(stray)
+
+
+def test_the_home_check_catches_a_stray_wrap(tmp_path):
+    f = tmp_path / "x.py"
+    f.write_text('"""a docstring with (a + pi) % (2 * np.pi) - pi"""\n# a comment: % (2 * math.pi)\n'
+                 "y = (a + math.pi) % (2 * math.pi) - math.pi\n", encoding="utf-8")
+    hits = [n for n, line in _code_lines(f) if re.search(HOMES["the angle wrap"][0], line)]
+    assert hits == [3]
+
+
+def test_no_module_imports_another_modules_private_names():
+    found = set()
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("beacon_sim"):
+                for alias in node.names:
+                    if alias.name.startswith("_") and not alias.name.startswith("__"):
+                        found.add((path.relative_to(PACKAGE).as_posix(), alias.name))
+    assert found <= KNOWN_PRIVATE_IMPORTS, f"private names imported: {sorted(found - KNOWN_PRIVATE_IMPORTS)}"

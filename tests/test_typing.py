@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 from mypy import api
 
+from beacon_sim.filters.registry import single_records
 from beacon_sim.filters.template import render_template
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,25 +30,22 @@ def test_package_is_marked_typed() -> None:
 
 def test_builtin_filters_and_the_template_implement_the_protocol(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Structural check: every built-in filter and a freshly rendered template are a
-    ``Filter`` for mypy (the runner only finds out at run time)."""
+    """Structural check: every built-in filter (the registry's records) and a freshly
+    rendered template are a ``Filter`` for mypy (the runner only finds out at run time),
+    and every batched form a record names is a ``BatchedFilter``."""
     (tmp_path / "my_filter.py").write_text(render_template("MyFilter", "my_filter.py"),
                                            encoding="utf-8")
+    records = list(single_records())   # every built-in filter, from the registry
+    imports = "".join(f"from {r.module} import {r.target.partition(':')[2]}\n" for r in records)
+    built = ", ".join(f"{r.target.partition(':')[2]}(ctx)" for r in records)
+    batched = ", ".join(f"{r.target.partition(':')[2]}(ctx).batched(2)" for r in records if r.batched)
     (tmp_path / "uses.py").write_text(
-        "from beacon_sim.filters.base import Filter, FilterContext\n"
-        "from beacon_sim.filters.dead_reckoning import DeadReckoning\n"
-        "from beacon_sim.filters.ekf import ExtendedKalmanFilter\n"
-        "from beacon_sim.filters.histogram import HistogramFilter\n"
-        "from beacon_sim.filters.kf import KalmanFilter\n"
-        "from beacon_sim.filters.particle import ParticleFilter\n"
-        "from beacon_sim.filters.ukf import UnscentedKalmanFilter\n"
-        "from my_filter import MyFilter\n"
-        "\n"
-        "\n"
+        "from beacon_sim.filters.base import BatchedFilter, Filter, FilterContext\n" + imports
+        + "from my_filter import MyFilter\n\n\n"
         "def build(ctx: FilterContext) -> list[Filter]:\n"
-        "    return [DeadReckoning(ctx), ExtendedKalmanFilter(ctx), HistogramFilter(ctx),\n"
-        "            KalmanFilter(ctx), ParticleFilter(ctx), UnscentedKalmanFilter(ctx),\n"
-        "            MyFilter(ctx)]\n",
+        f"    return [{built}, MyFilter(ctx)]\n\n\n"
+        "def build_batched(ctx: FilterContext) -> list[BatchedFilter]:\n"
+        f"    return [{batched}]\n",
         encoding="utf-8")
     monkeypatch.chdir(tmp_path)
     report, status = _mypy(["--config-file", str(ROOT / "pyproject.toml"),

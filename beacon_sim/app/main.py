@@ -24,7 +24,6 @@ import pygame
 
 from beacon_sim.app import controls, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
-from beacon_sim.app.bound import LiveBound
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import ShowOptions, View, WorldRenderer
@@ -32,6 +31,7 @@ from beacon_sim.app.strip import StripChart
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Step
+from beacon_sim.evaluation.live_bound import LiveBound
 from beacon_sim.filters.runner import note_user_interrupt
 from beacon_sim.runs.live import Session, make_recorder
 

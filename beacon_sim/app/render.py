@@ -15,6 +15,7 @@ import pygame
 
 from beacon_sim.app import palette, shapes
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
+from beacon_sim.core.schedule import period_ticks
 from beacon_sim.core.sensors import visible_beacons
 from beacon_sim.filters.base import GridBelief, ParticleBelief
 from beacon_sim.runs.scene import Scene
@@ -158,7 +159,7 @@ def ipx(v) -> int:
 def sensors_read(scenario, tick: int) -> list:
     """The scenario's sensors that have been read by ``tick`` (one period has passed): before
     its first reading a sensor has missed nothing."""
-    return [s for s in scenario.sensors if tick >= max(1, round(s.period / scenario.dt))]
+    return [s for s in scenario.sensors if tick >= period_ticks(s.period, scenario.dt)]
 
 
 def missed_ids(sensors, world, pose, seen) -> set[int]:

@@ -32,6 +32,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, RandomGoalSpec, WaypointsSpec
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense
@@ -152,10 +153,8 @@ class BatchSimulation:
         self.pose = np.stack([s.pose for s in self._sims])          # (R, 3)
         self.pose.flags.writeable = False
         first = self._sims[0]                                      # the schedules: same for all
-        self._every = first._every
+        self.schedule = first.schedule
         self._kidnaps = first._kidnaps
-        self._blackouts = first._blackout_ticks
-        self._bursts = first._burst_ticks
         self._edges = first._interval_edges
         self._hash_readings = readings_checksums
         self._truth_pending: list[np.ndarray] = []   # poses not yet in the truth checksums
@@ -221,7 +220,7 @@ class BatchSimulation:
         noise = self.scenario.motion_noise
         sv, sw = noise.control_std(cv, cw)
         g = np.broadcast_to(noise.slip_gain(cv, cw), (R,)).tolist()  # slip scales with the command
-        for burst in self._bursts.get(k, ()):   # math.hypot per run, as the single run does
+        for burst in self.schedule.bursts_at(k):   # math.hypot per run, as the single run does
             sv = np.array([math.hypot(x, gi * burst.v_std) for x, gi in zip(sv.tolist(), g, strict=True)])
             sw = np.array([math.hypot(x, gi * burst.omega_std) for x, gi in zip(sw.tolist(), g, strict=True)])
         E = np.empty((R, 5))
@@ -231,12 +230,12 @@ class BatchSimulation:
         w = cw + sw * E[:, 1]
         pose = move(old, v, w, dt)
         pose += noise.pose_std_at(cv, cw) * E[:, 2:]
-        pose[:, 2] = (pose[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        pose[:, 2] = wrap(pose[:, 2])
         inside = world.contains(pose[:, :2])
         if not np.all(inside):
             for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
                 if noise.slip_gain(0.0, cw[i]) != g[i]:   # the told command's turn and slip
-                    pose[i, 2] = bumped_heading(noise, self._bursts.get(k, ()), old[i, 2], cw[i],
+                    pose[i, 2] = bumped_heading(noise, self.schedule.bursts_at(k), old[i, 2], cw[i],
                                                 E[i, 1], E[i, 4], dt)
                 pose[i] = world.clip(np.array([old[i, 0], old[i, 1], pose[i, 2]]))
                 if v0[i] != 0.0:
@@ -258,11 +257,10 @@ class BatchSimulation:
             self._sync()
 
         readings: list[BeaconReadings | OtherReadings] = []
-        blackouts = self._blackouts.get(k, ())
         for spec in self.scenario.sensors:
-            if k % self._every[spec.name]:
+            if not self.schedule.due(spec.name, k):
                 continue
-            blacked = any(b.covers(spec.name) for b in blackouts)
+            blacked = self.schedule.blacked_out(spec.name, k)
             got: BeaconReadings | OtherReadings | None
             if spec.kind in _BEACON_KINDS:
                 got = self._sense_beacons(spec, pose)
@@ -419,12 +417,12 @@ class BatchSimulation:
         dx, dy = diff[..., 0], diff[..., 1]
         seen = np.hypot(dx, dy) <= spec.max_range
         if spec.fov < 2.0 * math.pi:
-            rel = wrap(np.arctan2(dy, dx) - pose[:, 2, None])
+            rel = wrap(relative_bearing(dx, dy, pose[:, 2, None]))
             seen &= np.abs(rel) <= 0.5 * spec.fov
         seen &= u_detect < spec.detection_prob
         if not seen.any():
             return None
-        bearing = wrap(np.arctan2(dy, dx) - pose[:, 2, None])  # (R, n)
+        bearing = wrap(relative_bearing(dx, dy, pose[:, 2, None]))  # (R, n)
         if spec.kind == "bearing":
             z = bearing[..., None] + noise * spec.noise.bearing_std
         else:

@@ -7,15 +7,32 @@ otherwise; the ``*_many`` forms take poses of shape (N, 3) for particle and grid
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from beacon_sim.core.angles import wrap
 
 
+def relative_bearing(dx, dy, theta, out=None):
+    """The bearing model, the one place it is written: the direction [rad] of the offset
+    ``(dx, dy)`` [m] (beacon minus robot, world frame) seen from heading ``theta`` [rad],
+    ``atan2(dy, dx) - theta`` (seed 000 eq. 6), NOT wrapped: callers wrap it, or the
+    innovation ``wrap(z - h)``, as their arithmetic needs. Arrays broadcast; ``out``, an
+    array of the result's shape, receives it without allocating."""
+    return np.subtract(np.arctan2(dy, dx), theta, out=out)
+
+
+def relative_bearing_scalar(dx: float, dy: float, theta: float) -> float:
+    """:func:`relative_bearing` for Python floats with ``math.atan2`` (no array overhead:
+    the per-reading hot paths; numpy's array atan2 may round differently in the last bit)."""
+    return math.atan2(dy, dx) - theta
+
+
 def bearing(pose, beacon_xy):
     """Bearing to each beacon [rad], shape (m,): ``atan2(yb - y, xb - x) - theta`` (seed 000 eq. 6)."""
     d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
-    return wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+    return wrap(relative_bearing(d[:, 0], d[:, 1], pose[2]))
 
 
 def bearing_jacobian(pose, beacon_xy):
@@ -34,7 +51,7 @@ def range_bearing(pose, beacon_xy):
     d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
     out = np.empty((d.shape[0], 2))
     out[:, 0] = np.hypot(d[:, 0], d[:, 1])
-    out[:, 1] = wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+    out[:, 1] = wrap(relative_bearing(d[:, 0], d[:, 1], pose[2]))
     return out
 
 
@@ -71,7 +88,7 @@ def bearing_many(poses, beacon_xy):
     b = np.asarray(beacon_xy, dtype=float).reshape(-1, 2)
     dx = b[None, :, 0] - poses[:, 0:1]
     dy = b[None, :, 1] - poses[:, 1:2]
-    return wrap(np.arctan2(dy, dx) - poses[:, 2:3])
+    return wrap(relative_bearing(dx, dy, poses[:, 2:3]))
 
 
 def range_many(poses, beacon_xy):

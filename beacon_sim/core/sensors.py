@@ -16,6 +16,7 @@ import numpy as np
 from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.geometry import hdop
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.types import MEASUREMENT_DIMS, Measurement
 from beacon_sim.core.world import World
 
@@ -101,7 +102,7 @@ def visible_beacons(spec: SensorSpec, pose: np.ndarray, world: World) -> np.ndar
     in_range = np.hypot(d[:, 0], d[:, 1]) <= spec.max_range
     if spec.fov >= 2.0 * math.pi:
         return in_range
-    rel = wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+    rel = wrap(relative_bearing(d[:, 0], d[:, 1], pose[2]))
     return in_range & (np.abs(rel) <= 0.5 * spec.fov)
 
 

@@ -15,9 +15,10 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import Driver
-from beacon_sim.core.events import Blackout, Kidnap, NoiseBurst, active_ticks, first_tick_at
+from beacon_sim.core.events import Blackout, Kidnap, active_ticks, first_tick_at
 from beacon_sim.core.motion import SLIP_MODELS, move, with_slip
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.sensors import sense
 from beacon_sim.core.streams import stream
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
@@ -44,21 +45,14 @@ class Simulation:
         self._events_rng = stream(self.seed, "events")
         self._sensor_rngs = {s.name: stream(self.seed, "sensor", s.name) for s in scenario.sensors}
         self.driver = Driver(scenario.driver, scenario.world, stream(self.seed, "driver"))
-        self._every = {s.name: round(s.period / self.dt) for s in scenario.sensors}
+        self.schedule = tick_schedule(scenario)  # sensor periods, blackouts, bursts
         self._kidnaps: dict[int, list[Kidnap]] = {}
-        self._blackout_ticks: dict[int, list[Blackout]] = {}
-        self._burst_ticks: dict[int, list[NoiseBurst]] = {}
         self._interval_edges: dict[int, list[EventRecord]] = {}
         for ev in scenario.events:
             if isinstance(ev, Kidnap):
                 self._kidnaps.setdefault(first_tick_at(ev.time, self.dt), []).append(ev)
                 continue
             ticks = active_ticks(ev, self.dt)
-            for k in ticks:
-                if isinstance(ev, Blackout):
-                    self._blackout_ticks.setdefault(k, []).append(ev)
-                else:
-                    self._burst_ticks.setdefault(k, []).append(ev)
             what = ", ".join(ev.sensors) if isinstance(ev, Blackout) and ev.sensors else ""
             self._interval_edges.setdefault(ticks.start, []).append(
                 EventRecord(f"{ev.kind}_start", ticks.start, ticks.start * self.dt, what))
@@ -104,7 +98,7 @@ class Simulation:
         # in a noise burst too. The five draws are made whatever the command (stable streams).
         sv, sw = noise.control_std(control.v, control.omega)
         g = noise.slip_gain(control.v, control.omega)
-        for burst in self._burst_ticks.get(k, ()):
+        for burst in self.schedule.bursts_at(k):
             sv = math.hypot(sv, g * burst.v_std)
             sw = math.hypot(sw, g * burst.omega_std)
         e = self._motion_rng.standard_normal(5)
@@ -112,14 +106,14 @@ class Simulation:
         w = control.omega + sw * e[1]
         pose = move(self.pose, v, w, self.dt)
         pose += noise.pose_std_at(control.v, control.omega) * e[2:]
-        pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
+        pose[2] = wrap(pose[2])
         if not self.world.contains(pose[:2]):
             # The bumper: a move that would leave the room is not made. The robot stays where
             # it was (it may still turn), and the command the filters see is what it did:
             # v = 0. Runs that never reach a wall are not affected (same draws, same truth).
             # Its turn is the told command's, with that command's slip (bumped_heading).
             if noise.slip_gain(0.0, control.omega) != g:
-                pose[2] = bumped_heading(noise, self._burst_ticks.get(k, ()), self.pose[2],
+                pose[2] = bumped_heading(noise, self.schedule.bursts_at(k), self.pose[2],
                                          control.omega, e[1], e[4], self.dt)
             pose = self.world.clip(np.array([self.pose[0], self.pose[1], pose[2]]))
             if control.v != 0.0:
@@ -145,13 +139,12 @@ class Simulation:
         self._hash.update(pose.tobytes())
 
         measurements: list[Measurement] = []
-        blackouts = self._blackout_ticks.get(k, ())
         for spec in self.scenario.sensors:
-            if k % self._every[spec.name]:
+            if not self.schedule.due(spec.name, k):
                 continue
             rng = self._sensor_rngs[spec.name]
             m = sense(spec, pose, self.world, rng)  # draw even when blacked out: stable streams
-            if m is not None and not any(b.covers(spec.name) for b in blackouts):
+            if m is not None and not self.schedule.blacked_out(spec.name, k):
                 measurements.append(m)
                 h = self._readings_hash
                 h.update(f"{k} {m.sensor} {m.kind} {m.z.shape}".encode())
@@ -182,7 +175,7 @@ def bumped_heading(noise, bursts, theta0: float, omega: float, e_omega: float, e
     for burst in bursts:
         sw = math.hypot(sw, g * burst.omega_std)
     th = wrap(theta0 + (omega + sw * e_omega) * dt) + float(noise.pose_std_at(0.0, omega)[2]) * e_theta
-    return (th + math.pi) % (2 * math.pi) - math.pi
+    return wrap(th)
 
 
 def _kidnap_text(kid: Kidnap) -> str:

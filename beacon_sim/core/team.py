@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.simulation import Simulation, scenario_with_slip
 from beacon_sim.core.streams import stream
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS, relative_range_bearing
@@ -97,7 +98,7 @@ class TeamSimulation:
         self.ids = team.ids
         self._rngs = [{s.name: stream(self.seed, "robot_sensor", f"{r.id}/{s.name}")
                        for s in r.robot_sensors} for r in team.robots]
-        self._every = [{s.name: round(s.period / self.dt) for s in r.robot_sensors} for r in team.robots]
+        self._schedules = [tick_schedule(r.scenario, r.robot_sensors) for r in team.robots]
         self._hash = hashlib.sha256()
 
     @property
@@ -127,7 +128,7 @@ class TeamSimulation:
         for i, robot in enumerate(self.team.robots):
             mine: list[Measurement] = []
             for spec in robot.robot_sensors:
-                if k % self._every[i][spec.name]:
+                if not self._schedules[i].due(spec.name, k):
                     continue
                 m = sense_robots(spec, i, poses, self.ids, self._rngs[i][spec.name])
                 if m is not None:

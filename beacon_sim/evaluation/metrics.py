@@ -16,6 +16,7 @@ import numpy as np
 
 from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
@@ -162,7 +163,7 @@ def nis_batch(records, prior_means: np.ndarray, prior_covs: np.ndarray,
         d = world.beacon_xy[index[ids]] - prior_means[js, :2]
         q = np.maximum(np.sum(d * d, axis=1), 1e-300)
         hb = np.stack([d[:, 1] / q, -d[:, 0] / q, -np.ones_like(q)], axis=1)
-        nub = wrap(z[:, pick] - (np.arctan2(d[:, 1], d[:, 0]) - prior_means[js, 2]))
+        nub = wrap(z[:, pick] - relative_bearing(d[:, 0], d[:, 1], prior_means[js, 2]))
         tick.append(js)
         nu.append(nub)
         H.append(hb)

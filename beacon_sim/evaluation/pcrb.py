@@ -43,13 +43,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from beacon_sim.core.events import Blackout, NoiseBurst, active_ticks
 from beacon_sim.core.geometry import hdop
+from beacon_sim.core.measurement_models import bearing_many
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.schedule import TickSchedule, tick_schedule
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.team_models import relative_range_bearing, relative_rows
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
@@ -65,8 +65,7 @@ def _visible(spec: SensorSpec, pos: np.ndarray, theta: np.ndarray, bxy: np.ndarr
     d = bxy[None, :, :] - pos[:, None, :]
     vis = np.hypot(d[..., 0], d[..., 1]) <= spec.max_range
     if spec.fov < 2.0 * math.pi:
-        rel = np.arctan2(d[..., 1], d[..., 0]) - theta[:, None]
-        rel = np.mod(rel + math.pi, 2.0 * math.pi) - math.pi
+        rel = bearing_many(np.column_stack([pos, theta]), bxy)
         vis &= np.abs(rel) <= 0.5 * spec.fov
     return vis
 
@@ -162,8 +161,9 @@ def _process(scenario: Scenario, poses: np.ndarray, v, w, dt: float, burst_v: fl
     return F, Q
 
 
-def _update(P: np.ndarray, info: np.ndarray) -> np.ndarray:
-    """``(P^-1 + I_z)^-1`` for batches (R, n, n), valid for singular P (Woodbury)."""
+def information_update(P: np.ndarray, info: np.ndarray) -> np.ndarray:
+    """The bound after readings of information ``info``: ``(P^-1 + I_z)^-1`` for batches
+    (R, n, n) of covariances ``P``, valid for singular P (Woodbury)."""
     w, V = np.linalg.eigh(0.5 * (info + np.swapaxes(info, 1, 2)))
     L = V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]  # I_z = L L^T
     Lt = np.swapaxes(L, 1, 2)
@@ -173,47 +173,25 @@ def _update(P: np.ndarray, info: np.ndarray) -> np.ndarray:
     return 0.5 * (P + np.swapaxes(P, 1, 2))
 
 
-@dataclass(frozen=True)
-class Schedule:
-    """When a scenario's sensors read (every so many ticks), and which ticks have blackouts
-    and noise bursts: what every step of the bound needs besides the poses."""
-
-    every: dict[str, int]
-    blackout: dict[int, list[Blackout]]
-    burst: dict[int, list[NoiseBurst]]
-
-
-def schedule(scenario: Scenario) -> Schedule:
-    dt = scenario.dt
-    blackout: dict[int, list[Blackout]] = {}
-    burst: dict[int, list[NoiseBurst]] = {}
-    for ev in scenario.events:
-        if isinstance(ev, Blackout | NoiseBurst):
-            table = blackout if isinstance(ev, Blackout) else burst
-            for k in active_ticks(ev, dt):
-                table.setdefault(k, []).append(ev)
-    return Schedule({s.name: round(s.period / dt) for s in scenario.sensors}, blackout, burst)
-
-
 def start_cov(scenario: Scenario) -> np.ndarray:
     """The bound's covariance at the start (3, 3): zero (the simulation's known start), or
     the broad world-uniform Gaussian for a scenario with a global initial belief."""
     return broad_gaussian(scenario.world).cov if initial_belief(scenario) is None else np.zeros((3, 3))
 
 
-def step_terms(scenario: Scenario, sched: Schedule, k: int, prev: np.ndarray, control: np.ndarray,
+def step_terms(scenario: Scenario, sched: TickSchedule, k: int, prev: np.ndarray, control: np.ndarray,
                now: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """One robot's terms of step ``k`` (1-based) for a batch of runs: ``F`` and ``Q``
     (R, 3, 3) of the truth's motion from the poses ``prev`` (R, 3) with the commands
     ``control`` (R, 2), and the expected information (R, 3, 3) of the readings taken at the
     new poses ``now`` (R, 3), or None when no sensor reads on this tick."""
-    bursts = sched.burst.get(k, ())
+    bursts = sched.bursts_at(k)
     bv = math.sqrt(sum(b.v_std**2 for b in bursts))
     bw = math.sqrt(sum(b.omega_std**2 for b in bursts))
     F, Q = _process(scenario, prev, control[:, 0], control[:, 1], scenario.dt, bv, bw)
     info = None
     for spec in scenario.sensors:
-        if k % sched.every[spec.name] or any(b.covers(spec.name) for b in sched.blackout.get(k, ())):
+        if not sched.reads(spec.name, k):
             continue
         i_z = measurement_information(spec, now, scenario.world.beacon_xy)
         info = i_z if info is None else info + i_z
@@ -253,7 +231,7 @@ def pcrb(scenario: Scenario, truths: np.ndarray, controls: np.ndarray,
         initial_cov = start_cov(scenario)
     P = np.broadcast_to(np.asarray(initial_cov, dtype=float), (R, 3, 3)).copy()
     P_lost = np.asarray(broad_gaussian(scenario.world).cov, dtype=float)
-    sched = schedule(scenario)
+    sched = tick_schedule(scenario)
     out = np.empty((R, T, 3, 3))
     for k in range(1, T + 1):
         F, Q, info = step_terms(scenario, sched, k, truths[:, k - 1], controls[:, k - 1], truths[:, k])
@@ -261,7 +239,7 @@ def pcrb(scenario: Scenario, truths: np.ndarray, controls: np.ndarray,
         if restart_at_kidnap and kidnapped is not None and kidnapped[:, k - 1].any():
             P[kidnapped[:, k - 1]] = P_lost
         if info is not None:
-            P = _update(P, info)  # P = (P_pred^-1 + I_z)^-1
+            P = information_update(P, info)  # P = (P_pred^-1 + I_z)^-1
         out[:, k - 1] = P
     return out
 
@@ -325,8 +303,7 @@ def team_pcrb(team: TeamScenario, truths: np.ndarray, controls: np.ndarray,
     R, T, N = controls.shape[:3]
     n = 3 * N
     scenarios = [r.scenario for r in team.robots]
-    scheds = [schedule(sc) for sc in scenarios]
-    every = [{s.name: round(s.period / team.dt) for s in r.robot_sensors} for r in team.robots]
+    scheds = [tick_schedule(r.scenario, r.robot_sensors) for r in team.robots]
     P = np.zeros((R, n, n))
     for i, sc in enumerate(scenarios):
         P[:, 3 * i:3 * i + 3, 3 * i:3 * i + 3] = start_cov(sc)
@@ -346,12 +323,12 @@ def team_pcrb(team: TeamScenario, truths: np.ndarray, controls: np.ndarray,
                 read = True
             if robot_sensing:
                 for spec in team.robots[i].robot_sensors:
-                    if k % every[i][spec.name] == 0:
+                    if scheds[i].due(spec.name, k):
                         info += robot_information(spec, i, truths[:, k])
                         read = True
         P = F @ P @ np.swapaxes(F, 1, 2) + Q
         if read:
-            P = _update(P, info)
+            P = information_update(P, info)
         out[:, k - 1] = P
     return out
 

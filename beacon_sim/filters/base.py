@@ -116,6 +116,45 @@ class Filter(Protocol):
     def belief(self) -> Belief: ...
 
 
+@runtime_checkable
+class BatchedFilter(Protocol):
+    """The batched form of a filter: one object running R Monte Carlo runs of it as arrays
+    (``evaluation/montecarlo.py``; a built-in filter's record names its class).
+
+    Attributes
+    ----------
+    mean : ndarray (R, 3) [m, m, rad]
+    cov : ndarray (R, 3, 3)
+    own_nis : bool
+        True when ``update`` leaves the NIS of the tick's readings in ``last_nis``.
+    last_nis : ndarray (R,) or None
+    """
+
+    mean: np.ndarray
+    cov: np.ndarray
+    own_nis: ClassVar[bool]
+    last_nis: np.ndarray | None
+
+    def predict(self, v: np.ndarray, w: np.ndarray, dt: float) -> None:
+        """Every run's motion update with its command ``v``, ``w`` (R,) [m/s, rad/s]."""
+
+    def update(self, readings: Any) -> None:
+        """Every run's measurement update with the tick's readings, packed as
+        ``filters.gaussian_measurements.StackedReadings`` (R runs x M slots)."""
+
+
+@runtime_checkable
+class Batchable(Protocol):
+    """A filter that has a batched form."""
+
+    @property
+    def batch_blocker(self) -> str | None:
+        """Why this filter, with its parameters and context, cannot be batched (None: it can)."""
+
+    def batched(self, runs: int) -> BatchedFilter:
+        """This filter, from its current belief, for ``runs`` runs at once."""
+
+
 class _Estimating(Protocol):
     """A filter as far as :meth:`FilterBase.belief` needs it (the subclass defines
     ``estimate``)."""

@@ -209,7 +209,9 @@ class ExtendedKalmanFilter(VelocityGaussian):
                     dx = bx - x
                     dy = by - y
                     q = dx * dx + dy * dy
-                    # bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10)
+                    # bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10):
+                    # measurement_models.relative_bearing_scalar inlined (a call per reading
+                    # costs 5 %; tests/test_ekf.py holds the update to the model's)
                     hb = wrap_(atan2(dy, dx) - th)
                     brow = (dy / q, -dx / q, -1.0, wrap_(zrow[-1] - hb), vb, hb)
                     if kind == "bearing":

@@ -31,6 +31,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap as wrap_angle
 from beacon_sim.core.batch_simulation import BatchTick, BeaconReadings
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
@@ -174,12 +175,12 @@ class StackedReadings:
             if bxy is None:  # pose or position fix
                 out[:, a:b] = poses[:, :b - a]
             elif kind == "bearing":
-                np.subtract(np.arctan2(bxy[:, 1] - y, bxy[:, 0] - x), th, out=out[:, a:b])
+                relative_bearing(bxy[:, 0] - x, bxy[:, 1] - y, th, out=out[:, a:b])
             else:  # range_bearing
                 dx = bxy[:, 0] - x
                 dy = bxy[:, 1] - y
                 np.hypot(dx, dy, out=out[:, a:b:2])
-                np.subtract(np.arctan2(dy, dx), th, out=out[:, a + 1:b:2])
+                relative_bearing(dx, dy, th, out=out[:, a + 1:b:2])
         sel = self.angle_sel
         if wrap and sel is not None:
             out[:, sel] = wrap_angle(out[:, sel])
@@ -218,7 +219,7 @@ class StackedReadings:
             Hb[..., 0] = dy / q
             Hb[..., 1] = -dx / q
             Hb[..., 2] = -1.0
-            h[..., rows] = wrap_angle(np.arctan2(dy, dx) - th)
+            h[..., rows] = wrap_angle(relative_bearing(dx, dy, th))
             if kind == "range_bearing":
                 rr = np.sqrt(q)
                 Hr = H[..., a:b:2, :]
@@ -266,7 +267,7 @@ class StackedReadings:
             cols = a + ji * width
             if kind == "range_bearing":
                 out[rows, cols] = np.hypot(dx, dy)
-            out[rows, cols + width - 1] = np.arctan2(dy, dx) - th
+            out[rows, cols + width - 1] = relative_bearing(dx, dy, th)
         sel = self.angle_sel
         if wrap and sel is not None:
             out[:, sel] = wrap_angle(out[:, sel])
@@ -303,7 +304,7 @@ class StackedReadings:
             H[ri, cb, 0] = dy / q
             H[ri, cb, 1] = -dx / q
             H[ri, cb, 2] = -1.0
-            hb = wrap_angle(np.arctan2(dy, dx) - mean[ri, 2])
+            hb = wrap_angle(relative_bearing(dx, dy, mean[ri, 2]))
             nu[ri, cb] = wrap_angle(z[ri, cb] - hb)
             if kind == "range_bearing":
                 rr = np.sqrt(q)

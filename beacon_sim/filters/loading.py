@@ -26,17 +26,12 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.streams import stream
 from beacon_sim.filters.base import Filter, FilterContext, FilterError, GaussianBelief, broad_gaussian
 from beacon_sim.filters.param_ranges import check_params
+from beacon_sim.filters.registry import TARGETS
 from beacon_sim.filters.runner import FilterExit, run_filter_code
 
-#: Built-in filters: name -> "module:Class", imported only when used.
-BUILTIN_FILTERS = {
-    "kf": "beacon_sim.filters.kf:KalmanFilter",
-    "ekf": "beacon_sim.filters.ekf:ExtendedKalmanFilter",
-    "ukf": "beacon_sim.filters.ukf:UnscentedKalmanFilter",
-    "pf": "beacon_sim.filters.particle:ParticleFilter",
-    "histogram": "beacon_sim.filters.histogram:HistogramFilter",
-    "dead_reckoning": "beacon_sim.filters.dead_reckoning:DeadReckoning",
-}
+#: Built-in filters: name -> "module:Class", imported only when used (read from the
+#: records in filters/registry.py).
+BUILTIN_FILTERS = TARGETS
 
 ENTRY_POINT_GROUP = "beacon_sim.filters"
 

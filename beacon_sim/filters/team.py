@@ -40,6 +40,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.measurement_models import relative_bearing_scalar
 from beacon_sim.core.streams import stream
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS, relative_rows, teammate_position
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
@@ -264,7 +265,7 @@ class CentralisedEKF(_TeamBase):
                         bx, by = self._beacons[bid]
                         dx, dy = bx - xi, by - yi
                         q = dx * dx + dy * dy
-                        hb = wrap(math.atan2(dy, dx) - ti)
+                        hb = wrap(relative_bearing_scalar(dx, dy, ti))
                         brow = (idx_i, (dy / q, -dx / q, -1.0), wrap(zrow[-1] - hb), float(std[-1]) ** 2)
                         if m.kind == "bearing":
                             groups.append([brow])

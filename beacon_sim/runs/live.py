@@ -21,6 +21,7 @@ import numpy as np
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardDrive, KeyboardLimits
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
@@ -105,7 +106,7 @@ class Session:
         self.truth_trail.add(sc.initial_pose)
         self.trails = {n: Trail() for n in self.names}
         self.status = {n: FilterStatus(n) for n in self.names}
-        self._every = {s.name: max(1, round(s.period / sc.dt)) for s in sc.sensors}
+        self._every = tick_schedule(sc).every
         for n in self.names:
             est = self.estimate(n)
             if est is not None:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from collections.abc import Set
+from collections.abc import Mapping, Set
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +25,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardLimits
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.metrics import summary
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.scenario import InitialBelief, Scenario
@@ -32,6 +33,8 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
+from beacon_sim.filters.registry import MRCLAM_DEFAULTS
+from beacon_sim.filters.registry import MRCLAM_GATE_CHI2 as MRCLAM_GATE_CHI2  # re-exported
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, guarded_call, one_line, validate_estimate
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
 from beacon_sim.runs.headless import ACCURACY_KEYS
@@ -47,9 +50,6 @@ SEED_001_EKF_MSE = (1.7875, 1.889, 7.7997)
 #: (landmark survey, range bias, timing) persist over seconds; a white-noise model told the
 #: one-step (or 1 s) spread averages them away and is overconfident (docs/replay.md).
 CALIBRATION_WINDOW_S = 10.0
-#: Chi-square gate for one range-bearing reading (2 dof, 99.9 %): on by default in MRCLAM
-#: runs of the EKF and UKF.
-MRCLAM_GATE_CHI2 = 13.8155
 #: Sub-step [s] of the ground-truth path when odometry is compared with it.
 SUB_S = 0.1
 #: Floor of the outlier share the particle and grid filters are told (a mixture with a
@@ -62,14 +62,7 @@ MIN_OUTLIER_RATE = 0.01
 #: that the long blind stretches and outliers set off, scattering particles over the room:
 #: jumps of metres) is off; roughening after resampling keeps the cloud from collapsing
 #: below what the shared reading errors allow.
-MRCLAM_PARAMS: dict[str, dict[str, Any]] = {
-    "ekf": {"gate_chi2": MRCLAM_GATE_CHI2},
-    "ukf": {"gate_chi2": MRCLAM_GATE_CHI2},
-    "pf": {"n_particles": 4000, "augmented": False, "roughen": 1.25},
-    # No uniform floor: on real data with a known start it turns an unlucky run of outliers
-    # into a jump across the room (robot 5: 4.5 m); the outlier mixture already caps them.
-    "histogram": {"floor": 0.0},
-}
+MRCLAM_PARAMS: Mapping[str, Mapping[str, Any]] = MRCLAM_DEFAULTS  # from the filters' records
 #: Initial belief: ground truth at the start with these standard deviations [m, m, rad]
 #: (local localization with a known start, as seed 001).
 INITIAL_STD = (0.05, 0.05, 0.05)
@@ -207,7 +200,7 @@ def calibrate(data: MrclamData, t_end: float | None = None,
         dx = lxy[:, 0] - pose[:, 0]
         dy = lxy[:, 1] - pose[:, 1]
         e_r = ms[:, 2] - np.hypot(dx, dy)
-        e_b = wrap(ms[:, 3] - (np.arctan2(dy, dx) - pose[:, 2]))
+        e_b = wrap(ms[:, 3] - relative_bearing(dx, dy, pose[:, 2]))
         flipped = np.abs(e_b) > math.pi / 2
         core_r, core_b = e_r[~flipped], e_b[~flipped]
         groups = np.floor((ms[~flipped, 0] - ms[0, 0]) / window_s)

@@ -10,6 +10,10 @@ so the dashed UKF drawn over the solid EKF leaves both visible.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
+from beacon_sim.filters.registry import FilterRecord, RecordTable
+
 RGB = tuple[int, int, int]
 Dash = tuple[int, ...] | None
 
@@ -35,33 +39,40 @@ DOTTED: Dash = (5, 8)
 DASH_DOT: Dash = (20, 7, 5, 7)
 SHORT_DASH: Dash = (9, 8)
 
-#: Colour and line style by filter kind. Kinds not listed (a student's filter) take
-#: ``OTHER_STYLES`` in turn.
-KIND_STYLES: dict[str, tuple[RGB, Dash]] = {
-    "kf": (OKABE_ITO[0], SOLID),  # blue
-    "ekf": (OKABE_ITO[1], SOLID),  # vermillion
-    "ukf": (OKABE_ITO[3], DASHED),  # bluish green
-    "pf": (OKABE_ITO[2], DOTTED),  # reddish purple
-    "histogram": (OKABE_ITO[4], DASH_DOT),  # orange
-    "dead_reckoning": (DEAD_RECKONING, SHORT_DASH),  # grey
+#: Colours by the names the filters' records use (filters/registry.py).
+COLOURS: dict[str, RGB] = {
+    "blue": OKABE_ITO[0], "vermillion": OKABE_ITO[1], "reddish purple": OKABE_ITO[2],
+    "bluish green": OKABE_ITO[3], "orange": OKABE_ITO[4], "sky blue": OKABE_ITO[5],
+    "yellow": OKABE_ITO[6], "grey": DEAD_RECKONING, "black": (0, 0, 0),
 }
+#: Line styles by the names the filters' records use.
+DASHES: dict[str, Dash] = {
+    "solid": SOLID, "dashed": DASHED, "dotted": DOTTED, "dash-dot": DASH_DOT, "short dash": SHORT_DASH,
+}
+
+
+def record_style(record: FilterRecord) -> tuple[RGB, Dash]:
+    """``(colour, dash pattern)`` of a built-in filter's record."""
+    colour, dash = record.style
+    return COLOURS[colour], DASHES[dash]
+
+
+#: Colour and line style by filter kind, from the records (kf blue and solid, ekf
+#: vermillion and solid, ukf bluish green and dashed, pf reddish purple and dotted,
+#: histogram orange and dash-dot, dead reckoning grey and short dashes). Kinds not listed
+#: (a student's filter) take ``OTHER_STYLES`` in turn.
+KIND_STYLES: Mapping[str, tuple[RGB, Dash]] = RecordTable(record_style)
 OTHER_STYLES: list[tuple[RGB, Dash]] = [
     (OKABE_ITO[5], DASH_DOT), ((0, 0, 0), DASHED), (OKABE_ITO[5], SOLID), ((0, 0, 0), DOTTED),
     (OKABE_ITO[6], SOLID)]
 STYLE_CYCLE: list[Dash] = [SOLID, DASHED, DOTTED, DASH_DOT, SHORT_DASH]
 
-#: Team filters (issue 18, ``filters/team.py``) by name: the baseline that ignores the
-#: teammates is grey like dead reckoning; the joint EKF blue and solid; the pairwise
-#: decentralised EKF orange, dash-dot; covariance intersection bluish green and dashed;
-#: naive fusion, the overconfident counter-example, vermillion and dotted. Others (a
+#: Team filters (issue 18, ``filters/team.py``) by name, from their records: the baseline
+#: that ignores the teammates is grey like dead reckoning; the joint EKF blue and solid; the
+#: pairwise decentralised EKF orange, dash-dot; covariance intersection bluish green and
+#: dashed; naive fusion, the overconfident counter-example, vermillion and dotted. Others (a
 #: student's team filter) take ``OTHER_STYLES`` in turn.
-TEAM_STYLES: dict[str, tuple[RGB, Dash]] = {
-    "independent": (DEAD_RECKONING, SHORT_DASH),
-    "centralised": (OKABE_ITO[0], SOLID),
-    "decentralised": (OKABE_ITO[4], DASH_DOT),
-    "ci": (OKABE_ITO[3], DASHED),
-    "naive": (OKABE_ITO[1], DOTTED),
-}
+TEAM_STYLES: Mapping[str, tuple[RGB, Dash]] = RecordTable(record_style, team=True)
 
 #: The best achievable covariance (the PCRB) wherever it is drawn: black, dotted.
 BOUND_STYLE: tuple[RGB, Dash] = ((0, 0, 0), (3, 6))
@@ -106,7 +117,7 @@ def team_filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
         member = name.split(":", 1)[1] if name.startswith("independent:") else None
         if name in TEAM_STYLES:
             colour, dash = TEAM_STYLES[name]
-        elif member in KIND_STYLES:
+        elif member is not None and member in KIND_STYLES:
             colour, dash = KIND_STYLES[member]
         else:
             colour, dash = OTHER_STYLES[others % len(OTHER_STYLES)]

@@ -201,7 +201,7 @@ class TeamRunResult:
             if not tr.means:
                 filters[name] = {"robots": {}, "no_steps": True, "us_per_step": tr.us_per_step}
                 continue
-            robots = {}
+            robots: dict[str, dict[str, Any]] = {}
             for i, r in enumerate(self.team.robots):
                 fig = self.robot_summary(name, i)
                 robots[r.name] = {**fig, "anees_verdict": anees_verdict(fig["anees"], *band)}

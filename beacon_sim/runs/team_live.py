@@ -30,6 +30,7 @@ import numpy as np
 
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardDrive
+from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Control, Measurement
@@ -110,8 +111,7 @@ class TeamSession:
         self.last_controls: list[Control] = [Control() for _ in team.robots]
         # robot index -> sensor name -> (tick, reading): the latest reading within its period
         self._readings: list[dict[str, tuple[int, Measurement]]] = [{} for _ in team.robots]
-        self._every = [{s.name: max(1, round(s.period / team.dt))
-                        for s in (*r.scenario.sensors, *r.robot_sensors)} for r in team.robots]
+        self._every = [tick_schedule(r.scenario, r.robot_sensors).every for r in team.robots]
         self.truth_trails = [Trail() for _ in team.robots]
         for tr, r in zip(self.truth_trails, team.robots, strict=True):
             tr.add(r.scenario.initial_pose)

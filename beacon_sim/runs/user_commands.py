@@ -14,6 +14,7 @@ Commands are applied before the simulation step of the tick they are recorded wi
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from functools import partial
 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
@@ -52,9 +53,9 @@ def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
             if name in failed:
                 continue
             if kind == "reset":
-                _, why, tb = guarded_call(lambda f=f: reset_filter(f, scenario), limit_s)
+                _, why, tb = guarded_call(partial(reset_filter, f, scenario), limit_s)
             elif kind == "global_reset" and getattr(f, "supports_global", False):
-                _, why, tb = guarded_call(lambda f=f: f.reset(None), limit_s)
+                _, why, tb = guarded_call(partial(f.reset, None), limit_s)
             else:
                 continue
             if why is not None:

@@ -1,0 +1,214 @@
+"""The built-in filters: one record each (docs/filters.md, "Adding a built-in filter").
+
+A record says everything the rest of the program needs to know about a built-in filter:
+its name, where its class is (imported only when used), its batched form for Monte Carlo
+runs, the documented range of each parameter (beside the class's ``defaults``), how it is
+drawn, and the parameters a MRCLAM run gives it. The tables other modules read are
+derived from these records: ``BUILTIN_FILTERS`` (filters/loading.py), the parameter checks
+(filters/param_ranges.py), ``KIND_STYLES`` and ``TEAM_STYLES`` (runs/styles.py) and
+``MRCLAM_PARAMS`` (runs/mrclam.py). Adding a built-in filter = its module + one record.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from beacon_sim.core.world import World
+from beacon_sim.filters.params import MAX_PARTICLES, Param, Range, grid_memory, particle_memory
+
+#: Chi-square gate for one range-bearing reading (2 dof, 99.9 %): on by default in MRCLAM
+#: runs of the EKF and UKF.
+MRCLAM_GATE_CHI2 = 13.8155
+
+#: The colour names a record may use (runs/styles.py maps them to Okabe-Ito RGB).
+COLOUR_NAMES = ("blue", "vermillion", "reddish purple", "bluish green", "orange", "sky blue",
+                "yellow", "grey", "black")
+#: The line styles a record may use (runs/styles.py maps them to dash patterns).
+DASH_NAMES = ("solid", "dashed", "dotted", "dash-dot", "short dash")
+
+#: A memory bound: raises FilterError when the parameters ask for too much in this world.
+MemoryCheck = Callable[[str, Mapping[str, Any], World], None]
+
+
+@dataclass(frozen=True)
+class FilterRecord:
+    """One built-in filter.
+
+    Attributes
+    ----------
+    name : str
+        The name users type (``--filter ekf``); also its kind for drawing.
+    target : str
+        ``"module:Class"`` of the filter class (a team filter: the callable that builds it).
+    style : (str, str)
+        Colour (one of :data:`COLOUR_NAMES`) and line style (one of :data:`DASH_NAMES`).
+    ranges : mapping str -> Range
+        The documented range of the number parameters, keyed as the class's ``defaults``.
+    batched : str or None
+        ``"module:Class"`` of the form ``flt.batched(R)`` returns (R runs as arrays), or
+        None when the filter has none.
+    mrclam : mapping
+        Parameters a MRCLAM run gives it unless the caller sets them.
+    memory : callable or None
+        The bound on what its parameters may allocate (``filters/params.py``).
+    team : bool
+        True for a team filter (``filters/team.py``), built from a ``TeamContext``.
+    """
+
+    name: str
+    target: str
+    style: tuple[str, str]
+    ranges: Mapping[str, Range] = field(default_factory=dict)
+    batched: str | None = None
+    mrclam: Mapping[str, Any] = field(default_factory=dict)
+    memory: MemoryCheck | None = None
+    team: bool = False
+
+    @property
+    def module(self) -> str:
+        return self.target.partition(":")[0]
+
+    def load(self) -> Any:
+        """The filter class (imports its module)."""
+        return _load(self.target)
+
+    def load_batched(self) -> type | None:
+        """The batched class, or None."""
+        return None if self.batched is None else _load(self.batched)
+
+    def params(self) -> dict[str, Param]:
+        """Every parameter of the class as a :class:`Param`: the default from the class's
+        ``defaults``, the range and text from :attr:`ranges`."""
+        defaults = getattr(self.load(), "defaults", None) or {}
+        return {key: Param.of(default, self.ranges.get(key)) for key, default in defaults.items()}
+
+
+def _load(target: str) -> Any:
+    module, _, name = target.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+_GATE = Range(0.0, 1e6, "chi-square gate on a reading's NIS; 0 = no gate")
+_FRACTION = (0.0, 1.0)
+_N = (1, MAX_PARTICLES)
+
+RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
+    FilterRecord("kf", "beacon_sim.filters.kf:KalmanFilter", ("blue", "solid"),
+                 batched="beacon_sim.filters.kf:BatchedKF"),
+    FilterRecord("ekf", "beacon_sim.filters.ekf:ExtendedKalmanFilter", ("vermillion", "solid"),
+                 ranges={"gate_chi2": _GATE},
+                 batched="beacon_sim.filters.ekf:BatchedEKF",
+                 mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
+    FilterRecord("ukf", "beacon_sim.filters.ukf:UnscentedKalmanFilter", ("bluish green", "dashed"),
+                 ranges={"alpha": Range(1e-4, 10.0, "sigma-point spread"),
+                         "beta": Range(0.0, 100.0, "prior knowledge of the distribution (2: Gaussian)"),
+                         "kappa": Range(-2.5, 100.0, "secondary scaling"),
+                         "gate_chi2": _GATE},
+                 batched="beacon_sim.filters.ukf:BatchedUKF",
+                 mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
+    FilterRecord("pf", "beacon_sim.filters.particle:ParticleFilter", ("reddish purple", "dotted"),
+                 ranges={"n_particles": Range(*_N, "particles (fixed size)"),
+                         "n_min": Range(*_N, "fewest particles (adaptive size)"),
+                         "n_max": Range(*_N, "most particles (adaptive size)"),
+                         "ess_threshold": Range(*_FRACTION, "resample when ESS < this share of N"),
+                         "alpha_slow": Range(*_FRACTION, "long-term likelihood average rate (per update)"),
+                         "alpha_fast": Range(*_FRACTION, "short-term likelihood average rate (per update)"),
+                         "inject_max": Range(*_FRACTION, "most random particles per resampling [share]"),
+                         "kld_epsilon": Range(1e-6, 1.0, "KLD bound between sample and true posterior"),
+                         "kld_z": Range(0.0, 10.0, "upper standard normal quantile"),
+                         "kld_bin_xy": Range(1e-3, 1e3, "KLD histogram bin [m]"),
+                         "kld_bin_theta": Range(1e-3, 2 * math.pi, "KLD histogram bin [rad]"),
+                         "ver_max": Range(0.0, 1e12, "seed 002: stop drawing past this summed fit"),
+                         "roughen": Range(0.0, 100.0, "jitter after resampling [kernel bandwidths]"),
+                         "cluster_cell": Range(1e-3, 1e6, "coarse grid for finding the dominant mode [m]"),
+                         "cluster_radius": Range(1e-3, 1e6, "particles this near the mode form it [m]"),
+                         "heading_k_a": Range(0.0, 100.0, "K_a of seed 002 eq. 13"),
+                         "temper_ess": Range(*_FRACTION, "progressive correction below this ESS share")},
+                 mrclam={"n_particles": 4000, "augmented": False, "roughen": 1.25},
+                 memory=particle_memory),
+    FilterRecord("histogram", "beacon_sim.filters.histogram:HistogramFilter", ("orange", "dash-dot"),
+                 ranges={"cell": Range(1e-3, 1e3, "x-y cell size [m]"),
+                         "heading_bins": Range(4, 3600, "heading bins over 2 pi"),
+                         "floor": Range(0.0, 0.999, "share spread uniformly after an update"),
+                         "blur_min": Range(1e-6, 1e3, "motion blur once its variance reaches this * cell^2"),
+                         "grid_noise": Range(0.0, 1e6, "a cell^2/12 of noise per this driving [s]")},
+                 # No uniform floor on real data with a known start: it turns an unlucky run
+                 # of outliers into a jump across the room (robot 5: 4.5 m).
+                 mrclam={"floor": 0.0},
+                 memory=grid_memory),
+    FilterRecord("dead_reckoning", "beacon_sim.filters.dead_reckoning:DeadReckoning",
+                 ("grey", "short dash"),
+                 batched="beacon_sim.filters.dead_reckoning:BatchedDeadReckoning"),
+    # Team filters (filters/team.py): the baseline that ignores the teammates is grey like
+    # dead reckoning; naive fusion, the overconfident counter-example, vermillion and dotted.
+    FilterRecord("independent", "beacon_sim.filters.team:IndependentTeam", ("grey", "short dash"),
+                 team=True),
+    FilterRecord("centralised", "beacon_sim.filters.team:CentralisedEKF", ("blue", "solid"),
+                 ranges={"gate_chi2": _GATE}, team=True),
+    FilterRecord("decentralised", "beacon_sim.filters.team:PairwiseDecentralisedEKF",
+                 ("orange", "dash-dot"), ranges={"gate_chi2": _GATE}, team=True),
+    FilterRecord("ci", "beacon_sim.filters.team:CovarianceIntersectionTeam", ("bluish green", "dashed"),
+                 ranges={"gate_chi2": _GATE}, team=True),
+    FilterRecord("naive", "beacon_sim.filters.team:_naive", ("vermillion", "dotted"), team=True),
+)}
+
+
+def single_records() -> Iterator[FilterRecord]:
+    """The single-robot built-in filters, in listing order."""
+    return (r for r in RECORDS.values() if not r.team)
+
+
+def team_records() -> Iterator[FilterRecord]:
+    """The team filters, in listing order."""
+    return (r for r in RECORDS.values() if r.team)
+
+
+def class_key(cls: type) -> str:
+    """``module:QualName`` of a class (how a record's target names it)."""
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+def record_for_class(cls: type) -> FilterRecord | None:
+    """The record whose target is ``cls``, or None (a student's class)."""
+    key = class_key(cls)
+    return next((r for r in RECORDS.values() if r.target == key), None)
+
+
+class RecordTable(Mapping[str, Any]):
+    """A read-only table ``name -> value(record)`` over the single-robot records (or the
+    team ones, ``team=True``) that ``keep`` selects, computed from :data:`RECORDS` each
+    time it is read, so a record added later (a test's toy filter) shows in it too."""
+
+    def __init__(self, value: Callable[[FilterRecord], Any], team: bool = False,
+                 keep: Callable[[FilterRecord], bool] = lambda r: True):
+        self._value, self._team, self._keep = value, team, keep
+
+    def _records(self) -> dict[str, FilterRecord]:
+        return {n: r for n, r in RECORDS.items() if r.team == self._team and self._keep(r)}
+
+    def __getitem__(self, name: str) -> Any:
+        return self._value(self._records()[name])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._records())
+
+    def __len__(self) -> int:
+        return len(self._records())
+
+    def __repr__(self) -> str:
+        return repr(dict(self))
+
+
+#: name -> "module:Class" of every single-robot built-in filter.
+TARGETS: Mapping[str, str] = RecordTable(lambda r: r.target)
+#: name -> the parameters a MRCLAM run gives it (only filters that have some).
+MRCLAM_DEFAULTS: Mapping[str, Mapping[str, Any]] = RecordTable(lambda r: dict(r.mrclam),
+                                                            keep=lambda r: bool(r.mrclam))
+
+
+__all__ = ["COLOUR_NAMES", "DASH_NAMES", "MRCLAM_DEFAULTS", "MRCLAM_GATE_CHI2", "RECORDS", "TARGETS",
+           "FilterRecord", "RecordTable", "class_key", "record_for_class", "single_records", "team_records"]
