@@ -35,19 +35,15 @@ from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
+from beacon_sim.filters.guard import validate_estimate
+from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (
     build_filter,
     filter_display_name,
     filter_names,
     load_filter_class,
 )
-from beacon_sim.filters.runner import (
-    FilterTimeout,
-    exit_text,
-    is_filter_failure,
-    one_line,
-    time_limit,
-)
+from beacon_sim.filters.watchdog import failure_line, is_filter_failure
 from beacon_sim.runs.progress import Progress
 
 
@@ -189,8 +185,9 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     records: list = []  # measurements of the ticks that had any
     priors = {n: (np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)) for n in names}
     ns = dict.fromkeys(names, 0)
+    cpu = dict.fromkeys(names, 0)  # CPU time of each filter's steps [ns]: the run limit's budget
     done = dict.fromkeys(names, 0)
-    clock = time.perf_counter_ns
+    cpu_clock = time.thread_time_ns
     for i in range(T):
         step = sim.step()
         truth[i + 1] = step.true_pose
@@ -202,29 +199,23 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
         for name, f in built.items():
             if failed[name]:
                 continue
-            left = None if run_limit_s is None else run_limit_s - ns[name] / 1e9
-            try:
-                with time_limit(left):
-                    t0 = clock()
-                    f.predict(step.control, step.dt)
-                    t1 = clock()
-                    if step.measurements:  # the predicted belief, for the NIS (not timed)
-                        priors[name][0][j], priors[name][1][j] = f.estimate()
-                    t2 = clock()
-                    f.update(step.measurements)
-                    mean, cov = f.estimate()
-                    t3 = clock()
-                    means[name][i] = mean
-                    covs[name][i] = cov
-            except FilterTimeout:
-                failed[name] = f"time limit: over {run_limit_s:g} s of filter time in the run"
+            left = None if run_limit_s is None else run_limit_s - cpu[name] / 1e9
+            c0 = cpu_clock()
+            got, why, _ = call_guarded(lambda: _timed_step(f, step), left, cpu=True,  # noqa: B023
+                                       over=f"time limit: over {run_limit_s:g} s of filter time in the run")
+            cpu[name] += cpu_clock() - c0
+            if why is not None:  # a user's filter: switch it off, go on with the others
+                failed[name] = why
                 continue
-            except BaseException as exc:  # a user's filter: switch it off, go on with the others
-                if not is_filter_failure(exc):  # the user's own Ctrl-C
-                    raise
-                failed[name] = _failure_text(exc)
+            wall, prior, est = got  # type: ignore[misc]
+            why = _store(est, means[name], covs[name], i)
+            if why is None and prior is not None:
+                why = _store(prior, priors[name][0], priors[name][1], j)
+                why = None if why is None else "after predict: " + why
+            if why is not None:  # a wrong shape or type: the guard's plain message
+                failed[name] = why
                 continue
-            ns[name] += (t1 - t0) + (t3 - t2)
+            ns[name] += wall
             done[name] += 1
     out = RunOutput(index, seed, truth, controls, kidnapped, sim.truth_checksum)
     n_rec = len(records)
@@ -239,9 +230,42 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     return out
 
 
+def _store(est: object, means: np.ndarray, covs: np.ndarray, i: int) -> str | None:
+    """Write ``est`` (a ``(mean (3,), cov (3, 3))`` pair) into row ``i`` of ``means`` and
+    ``covs``; its values are judged later (:func:`finish_filter`). Anything else: the
+    guard's one plain line (a wrong shape says so, not numpy's "could not broadcast")."""
+    if isinstance(est, tuple | list) and len(est) == 2:
+        m, c = est
+        if type(m) is np.ndarray and type(c) is np.ndarray and m.shape == (3,) and c.shape == (3, 3):
+            means[i] = m
+            covs[i] = c
+            return None
+    checked = validate_estimate(est)
+    if isinstance(checked, str):
+        return checked
+    means[i], covs[i] = checked
+    return None
+
+
+def _timed_step(f: Any, step: Any) -> tuple[int, Any, Any]:
+    """One step of one filter: (wall time of predict + update + estimate [ns], the estimate
+    after predict when the tick has readings (for the NIS, not timed) or None, the
+    estimate)."""
+    clock = time.perf_counter_ns
+    t0 = clock()
+    f.predict(step.control, step.dt)
+    t1 = clock()
+    prior = f.estimate() if step.measurements else None
+    t2 = clock()
+    f.update(step.measurements)
+    est = f.estimate()
+    t3 = clock()
+    return (t1 - t0) + (t3 - t2), prior, est
+
+
 def _failure_text(exc: BaseException) -> str:
     """One line for what a filter's code raised (SystemExit and KeyboardInterrupt included)."""
-    return exit_text(exc) if isinstance(exc, SystemExit | KeyboardInterrupt) else one_line(exc)
+    return failure_line(exc)
 
 
 def _task(args) -> RunOutput:

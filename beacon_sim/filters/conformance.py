@@ -36,6 +36,7 @@ from beacon_sim.filters.base import (
     GridBelief,
     ParticleBelief,
 )
+from beacon_sim.filters.host import call_guarded, guarded_call
 from beacon_sim.filters.loading import (
     build_filter,
     filter_display_name,
@@ -43,7 +44,7 @@ from beacon_sim.filters.loading import (
     merged_params,
     reset_filter,
 )
-from beacon_sim.filters.runner import FilterTimeout, guarded_call, one_line, time_limit
+from beacon_sim.filters.watchdog import one_line
 
 N_STEPS = 100
 SEED = 12345
@@ -112,20 +113,20 @@ class _Feed:
 
 def _feed(flt: Filter, steps: Sequence[Step], limit_s: float) -> _Feed:
     """Feed ``steps`` to ``flt`` (predict, update, estimate each), stopping at the first
-    exception or after ``limit_s`` seconds of one step (an endless loop)."""
+    exception or after ``limit_s`` seconds of CPU time in one step (an endless loop)."""
     out: list[object] = []
     ns = 0
     for k, st in enumerate(steps, 1):
+        def one(st: Step = st) -> object:
+            flt.predict(st.control, st.dt)
+            flt.update(st.measurements)
+            return flt.estimate()
+
         t0 = time.perf_counter_ns()
-        try:
-            with time_limit(limit_s):
-                flt.predict(st.control, st.dt)
-                flt.update(st.measurements)
-                est = flt.estimate()
-        except FilterTimeout:
-            return _Feed(out, (k, f"time limit: a step took over {limit_s:g} s"), ns)
-        except Exception as exc:
-            return _Feed(out, (k, one_line(exc)), ns)
+        est, why, _ = call_guarded(one, limit_s, cpu=True,
+                                   over=f"time limit: a step took over {limit_s:g} s")
+        if why is not None:
+            return _Feed(out, (k, why), ns)
         ns += time.perf_counter_ns() - t0
         out.append(est)
     return _Feed(out, None, ns)
