@@ -35,7 +35,7 @@ from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
-from beacon_sim.filters.guard import validate_estimate
+from beacon_sim.filters.guard import estimate_arrays
 from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (
     build_filter,
@@ -234,16 +234,10 @@ def _store(est: object, means: np.ndarray, covs: np.ndarray, i: int) -> str | No
     """Write ``est`` (a ``(mean (3,), cov (3, 3))`` pair) into row ``i`` of ``means`` and
     ``covs``; its values are judged later (:func:`finish_filter`). Anything else: the
     guard's one plain line (a wrong shape says so, not numpy's "could not broadcast")."""
-    if isinstance(est, tuple | list) and len(est) == 2:
-        m, c = est
-        if type(m) is np.ndarray and type(c) is np.ndarray and m.shape == (3,) and c.shape == (3, 3):
-            means[i] = m
-            covs[i] = c
-            return None
-    checked = validate_estimate(est)
-    if isinstance(checked, str):
-        return checked
-    means[i], covs[i] = checked
+    got = estimate_arrays(est)
+    if isinstance(got, str):
+        return got
+    means[i], covs[i] = got
     return None
 
 

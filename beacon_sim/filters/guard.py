@@ -165,6 +165,19 @@ def validate_belief(bel: object) -> Belief | str:
     return f"belief() returned {_type_name(bel)}, expected a GaussianBelief, ParticleBelief or GridBelief"
 
 
+def estimate_arrays(est: object) -> tuple[np.ndarray, np.ndarray] | str:
+    """What ``estimate()`` returned as ``(mean (3,), cov (3, 3))`` float arrays whose values
+    are judged later, over the whole run (``evaluation.montecarlo.finish_filter``), or the
+    guard's one line for anything of the wrong form. Arrays of the right shapes pass as
+    they are (NaN included); anything else is judged in full by :func:`validate_estimate`."""
+    if isinstance(est, tuple | list) and len(est) == 2:
+        m, c = est
+        if (type(m) is np.ndarray and type(c) is np.ndarray and m.shape == (3,)
+                and c.shape == (3, 3) and m.dtype.kind in "biuf" and c.dtype.kind in "biuf"):
+            return m.astype(float, copy=False), c.astype(float, copy=False)
+    return validate_estimate(est)
+
+
 def shape_text(mean: object, cov: object) -> str:
     """The one plain message for an estimate of the wrong shape, the same in every front end
     (``eval``, ``grade``, ``check``, the window), instead of numpy's "could not broadcast"."""
@@ -176,4 +189,5 @@ def shape_text(mean: object, cov: object) -> str:
     return f"estimate() returned shapes {shape(mean)} and {shape(cov)}, expected (3,) and (3, 3)"
 
 
-__all__ = ["MAX_COV", "MAX_MEAN", "check_estimate", "shape_text", "validate_belief", "validate_estimate"]
+__all__ = ["MAX_COV", "MAX_MEAN", "check_estimate", "estimate_arrays", "shape_text", "validate_belief",
+           "validate_estimate"]

@@ -112,15 +112,17 @@ class time_limit:  # used as ``with time_limit(s):``, like the function it was
     """Raise :class:`FilterTimeout` in the calling thread if the block runs longer than
     ``seconds`` [s] (None or infinity: no limit). ``cpu=False``: wall time. ``cpu=True``:
     the thread's CPU time where it can be measured (else wall time), with a wall-time
-    backstop (``CPU_BACKSTOP_FACTOR * seconds + CPU_BACKSTOP_S``) for code that sleeps. A
+    backstop (``CPU_BACKSTOP_FACTOR * seconds + CPU_BACKSTOP_S``) for code that sleeps
+    (``backstop=False``: none; only where something else watches the wall clock). A
     class rather than a generator-based context manager: it runs around every filter step
     (a few microseconds less per step)."""
 
-    __slots__ = ("_armed", "_outer", "_tid", "cpu", "seconds")
+    __slots__ = ("_armed", "_outer", "_tid", "backstop", "cpu", "seconds")
 
-    def __init__(self, seconds: float | None, cpu: bool = False):
+    def __init__(self, seconds: float | None, cpu: bool = False, backstop: bool = True):
         self.seconds = seconds
         self.cpu = cpu and _CPU_OK
+        self.backstop = backstop or not self.cpu
         self._armed = False
 
     def __enter__(self) -> time_limit:
@@ -131,6 +133,8 @@ class time_limit:  # used as ``with time_limit(s):``, like the function it was
         seconds = max(seconds, 0.0)
         tid = threading.get_ident()
         wall = seconds * CPU_BACKSTOP_FACTOR + CPU_BACKSTOP_S if self.cpu else seconds
+        if not self.backstop:  # CPU time only (the isolated child: its grader keeps the wall clock)
+            wall = math.inf
         with _WD_LOCK:
             if _WD_THREAD is None:
                 _WD_THREAD = threading.Thread(target=_watchdog_loop, name="beacon-sim watchdog",
@@ -194,9 +198,16 @@ def exit_text(exc: BaseException) -> str:
     return f"{type(exc).__name__} raised by the filter"
 
 
+class FilterFailed(Exception):
+    """A filter's failure already put in one line elsewhere (by the child process that
+    hosts it, :mod:`beacon_sim.filters.isolated`): :func:`one_line` gives the line as it is."""
+
+
 def one_line(exc: BaseException) -> str:
-    """``Type: message`` on one line."""
+    """``Type: message`` on one line (a :class:`FilterFailed`: its message alone)."""
     text = str(exc).strip().splitlines()
+    if isinstance(exc, FilterFailed):
+        return text[0] if text else "the filter failed"
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
@@ -206,5 +217,5 @@ def failure_line(exc: BaseException) -> str:
     return exit_text(exc) if isinstance(exc, SystemExit | KeyboardInterrupt) else one_line(exc)
 
 
-__all__ = ["FilterExit", "FilterTimeout", "cpu_clock_available", "exit_text", "failure_line",
+__all__ = ["FilterExit", "FilterFailed", "FilterTimeout", "cpu_clock_available", "exit_text", "failure_line",
            "is_filter_failure", "note_user_interrupt", "one_line", "time_limit", "user_interrupted"]
