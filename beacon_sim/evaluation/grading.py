@@ -35,9 +35,21 @@ import numpy as np
 
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
-from beacon_sim.evaluation.montecarlo import RunOutput, default_jobs, init_worker, one_run
+from beacon_sim.evaluation.montecarlo import (
+    RunOutput,
+    SimulatedRun,
+    default_jobs,
+    init_worker,
+    isolated_run,
+    one_run,
+    simulate_run,
+)
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.evaluation.team import TeamRunOutput, evaluate_team, team_one_run
+from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
+from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
+from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS
+from beacon_sim.filters.runner import SLOW_STEP_MS
 from beacon_sim.runs.team import MEMBER_PREFIX
 
 #: The student name of the built-in filter graded beside the students on team scenarios.
@@ -58,8 +70,11 @@ class GradeConfig:
     seeds : the run seeds, the same for every student (default 0 to 4).
     duration : seconds per run [s] (default 60; None: each scenario's own).
     time_limit : a filter's time limit per run [s] (default 60).
-    memory_limit_gb : a local worker's address-space limit [GB] (default 4; 0: none).
+    memory_limit_gb : each student's child process's address-space limit [GB] (default 4;
+        0: none), on local processes and Dask workers alike.
     class_name : the filter class in each file (default: found in the file).
+    sandbox : ``auto``, ``bwrap`` or ``process`` (docs/grading.md, "What grading protects
+        against"); ``auto``: bubblewrap where it works, else the process level.
     """
 
     scenarios: tuple[str, ...] = ("default",)
@@ -68,6 +83,7 @@ class GradeConfig:
     time_limit: float = 60.0
     memory_limit_gb: float = 4.0
     class_name: str | None = None
+    sandbox: str = "auto"
 
 
 #: The longest run a grading configuration may ask for [s] (one simulated day).
@@ -141,8 +157,16 @@ def load_config(path: str | Path | None) -> GradeConfig:
         time_limit=_config_number(path, data, "time_limit", GradeConfig.time_limit, hi=86400.0),
         memory_limit_gb=_config_number(path, data, "memory_limit_gb", GradeConfig.memory_limit_gb,
                                        hi=1e4, allow_zero=True),
-        class_name=_config_name(path, data))
+        class_name=_config_name(path, data),
+        sandbox=_config_sandbox(path, data))
     return cfg
+
+
+def _config_sandbox(path: str | Path, data: dict[str, Any]) -> str:
+    value = data.get("sandbox", "auto")
+    if value not in SANDBOXES:
+        raise GradeError(f"{path}: sandbox = {value!r}: expected one of {', '.join(SANDBOXES)}")
+    return str(value)
 
 
 @dataclass(frozen=True)
@@ -153,27 +177,28 @@ class Student:
     path: Path
     spec: str | None
     problem: str | None = None
+    class_name: str | None = None
 
 
-def find_class(path: Path, class_name: str | None = None) -> str:
+def find_class(path: Path, class_name: str | None = None) -> str | None:
     """The filter class of a student's file, read without running it (``ast``): the one
-    named ``class_name``, else the last top-level class defining predict, update or
-    estimate, else the last top-level class. Raises GradeError (syntax error, no class)."""
+    named ``class_name``; else the last top-level class defining all of reset, predict,
+    update and estimate; else None (the class that implements the interface, perhaps by
+    inheritance, or the file's module-level functions: chosen in the student's own child
+    process, :func:`~beacon_sim.filters.loading.choose_filter`). Raises GradeError (syntax
+    error, no such class)."""
     try:
         tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
-    except (SyntaxError, UnicodeDecodeError, OSError) as exc:
+    except (SyntaxError, UnicodeDecodeError, OSError, ValueError) as exc:
         raise GradeError(f"does not import: {type(exc).__name__}: {exc}") from None
     classes = [n for n in tree.body if isinstance(n, ast.ClassDef)]
     if class_name is not None:
-        if any(c.name == class_name for c in classes):
+        if any(c.name == class_name for c in classes) or class_name == FUNCTIONS:
             return class_name
         raise GradeError(f"no class {class_name!r}")
-    filters = [c for c in classes if any(isinstance(f, ast.FunctionDef) and f.name in
-                                         ("predict", "update", "estimate") for f in c.body)]
-    chosen = (filters or classes)[-1:] if classes else []
-    if not chosen:
-        raise GradeError("no class in the file")
-    return chosen[0].name
+    full = [c for c in classes if {f.name for f in c.body if isinstance(f, ast.FunctionDef)}
+            >= set(FILTER_METHODS)]
+    return full[-1].name if full else None
 
 
 def find_students(folder: str | Path, class_name: str | None = None) -> list[Student]:
@@ -190,7 +215,8 @@ def find_students(folder: str | Path, class_name: str | None = None) -> list[Stu
         except GradeError as exc:
             out.append(Student(path.stem, path, None, str(exc)))
             continue
-        out.append(Student(path.stem, path, f"{path.resolve()}:{cls}"))
+        out.append(Student(path.stem, path, f"{path.resolve()}:{cls}" if cls else str(path.resolve()),
+                           class_name=cls))
     if not out:
         raise GradeError(f"{folder}: no filter files (*.py)")
     return out
@@ -217,6 +243,7 @@ class TaskResult:
     run: RunOutput | TeamRunOutput | None
     problem: str | None = None
     wall_s: float = 0.0
+    report: dict[str, Any] | None = None  # what the student's child said of the run
 
 
 def run_task(task: Task) -> TaskResult:
@@ -304,6 +331,175 @@ def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = N
     return [r for r in out if r is not None]
 
 
+#: How many ticks the two probes of a student's filter run (the first scenario and seed):
+#: once with the global RNGs seeded differently (is it deterministic?) and once with every
+#: reading withheld (does it use the readings?).
+PROBE_TICKS = 200
+#: The most of a student's log the leaderboard keeps and links [bytes].
+LOG_BYTES = 256 << 10
+
+
+@dataclass
+class StudentJob:
+    """Everything one student's runs need, picklable (a Dask task): the file's bytes (not
+    its path: a worker needs no shared file system), the simulated runs (scenario, seed)
+    in task order, and the grading settings."""
+
+    student: str
+    filename: str
+    source: bytes
+    class_name: str | None
+    sims: list[SimulatedRun]
+    time_limit: float
+    memory_limit_gb: float
+    sandbox: str
+
+
+@dataclass
+class StudentResult:
+    """One student's runs (task order), the findings of the probes and the child's log."""
+
+    student: str
+    results: list[TaskResult]
+    findings: dict[str, Any]
+    log: str
+    sandbox: str
+
+
+def _limits(job: StudentJob) -> Limits:
+    runs = len(job.sims) + 2
+    return Limits(memory_gb=job.memory_limit_gb, cpu_s=job.time_limit * runs * 1.5 + 60.0,
+                  log_bytes=LOG_BYTES)
+
+
+def run_student(job: StudentJob) -> StudentResult:
+    """Every run of one student's filter in a child process of its own (started afresh after
+    a run that killed or broke it), on the simulations the grader made; the scoring stays
+    here. Then the two probes (see :data:`PROBE_TICKS`). Never raises for the filter's sake."""
+    import tempfile
+
+    t_start = time.perf_counter()
+    findings: dict[str, Any] = {"global_rng": False, "heading_wrapped": True, "deterministic": None,
+                                "readings_used": None, "form": None}
+    results: list[TaskResult] = []
+    with tempfile.TemporaryDirectory(prefix="beacon-sim-grade-") as tmp:
+        src = Path(tmp) / job.filename
+        src.write_bytes(job.source)
+        log = Path(tmp) / "log.txt"
+        limits = _limits(job)
+        timeout = max(MIN_REPLY_TIMEOUT_S, 5.0 * job.time_limit)
+        child: FilterChild | None = None
+        load_problem: str | None = None
+        try:
+            for k, sr in enumerate(job.sims):
+                task = Task(job.student, job.filename, sr.label, sr.seed, None, job.time_limit, sr.index)
+                t0 = time.perf_counter()
+                if load_problem is None and child is None:
+                    try:
+                        child = FilterChild(src, job.class_name, log, job.sandbox, limits, timeout)
+                        findings["form"] = child.form
+                    except ChildFailure as exc:
+                        load_problem = str(exc)
+                if load_problem is not None or child is None:
+                    results.append(TaskResult(task, None, load_problem, time.perf_counter() - t0))
+                    continue
+                run, rep = isolated_run(child, sr, job.time_limit, keep_means=sr.index == 0)
+                if rep.get("np_global") or rep.get("py_global"):
+                    findings["global_rng"] = True
+                if rep.get("heading_unwrapped"):
+                    findings["heading_wrapped"] = False
+                if rep.get("failed_child"):  # a fresh child for the next run
+                    child.close()
+                    child = None
+                results.append(TaskResult(task, run, None, time.perf_counter() - t0,
+                                          {k2: v for k2, v in rep.items() if k2 != "means"}))
+                if k == 0 and child is not None and not rep.get("failed_child"):
+                    child = _probe(child, sr, job, findings, results[-1])
+        finally:
+            if child is not None:
+                child.close()
+        text = log.read_bytes()[:LOG_BYTES].decode("utf-8", "replace") if log.exists() else ""
+    findings["wall_s"] = time.perf_counter() - t_start
+    return StudentResult(job.student, results, findings, text, job.sandbox)
+
+
+def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict[str, Any],
+           graded: TaskResult) -> FilterChild | None:
+    """The probes on the first run's first :data:`PROBE_TICKS` ticks: with the global RNGs
+    seeded differently, and with the readings withheld. Returns the child (None when a
+    probe broke it)."""
+    if graded.run is None:
+        return child
+    fr = next(iter(graded.run.filters.values()))
+    if fr.failed or fr.means is None:
+        return child
+    n = min(PROBE_TICKS, len(sr.frames))
+    first = fr.means[:n]
+    _, rep = isolated_run(child, sr, job.time_limit, global_seed=sr.seed + 1_000_003, ticks=n)
+    if rep.get("failed_child"):
+        child.close()
+        return None
+    findings["deterministic"] = bool(np.array_equal(rep["means"], first, equal_nan=True))
+    if sr.frames_blind is not None:
+        _, rep = isolated_run(child, sr, job.time_limit, blind=True, ticks=n)
+        if rep.get("failed_child"):
+            child.close()
+            return None
+        readings = any(len(r) for r in sr.records[:int(sr.record_index[n - 1]) + 1])
+        findings["readings_used"] = (not readings) or not bool(
+            np.array_equal(rep["means"], first, equal_nan=True))
+    return child
+
+
+def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, scheduler: Any = None,
+                 progress: Callable[[int, int], None] | None = None) -> list[StudentResult]:
+    """Every student's job, in order: ``jobs`` at once on local threads (each drives its
+    student's child process, where the work is), or as Dask tasks (``scheduler``) whose
+    results are released once gathered (nothing finished is computed again)."""
+    out: list[StudentResult | None] = [None] * len(jobs_list)
+    total = sum(len(j.sims) for j in jobs_list)
+    done = 0
+
+    def finish(i: int, res: StudentResult) -> None:
+        nonlocal done
+        out[i] = res
+        done += len(res.results)
+        if progress:
+            progress(done, total)
+
+    if scheduler is not None:
+        from dask.distributed import Client, as_completed
+
+        client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
+        try:
+            futures = client.map(run_student, list(jobs_list), pure=False)
+            index = {f.key: i for i, f in enumerate(futures)}
+            for fut in as_completed(futures):
+                i = index[fut.key]
+                try:
+                    finish(i, fut.result())
+                except Exception as exc:  # the worker itself was lost (not the child)
+                    job = jobs_list[i]
+                    finish(i, StudentResult(job.student, [
+                        TaskResult(Task(job.student, job.filename, sr.label, sr.seed, None,
+                                        job.time_limit, sr.index), None,
+                                   f"worker lost: {type(exc).__name__}") for sr in job.sims],
+                        {}, "", job.sandbox))
+                fut.release()  # gathered: the scheduler may forget it (never recomputed)
+        finally:
+            if client is not scheduler:
+                client.close()
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        n = default_jobs() if jobs is None else max(1, int(jobs))
+        with ThreadPoolExecutor(max_workers=max(1, min(n, len(jobs_list)))) as pool:
+            futs = {pool.submit(run_student, j): i for i, j in enumerate(jobs_list)}
+            for fut, i in futs.items():
+                finish(i, fut.result())
+    return [r for r in out if r is not None]
+
+
 def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320,
               height: int = 110) -> str:
     """A small inline SVG of position error [m] against time [s], one line per scenario."""
@@ -326,21 +522,41 @@ def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
           scheduler: Any = None, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
-    order, ``config``, ``wall_s``) that :func:`write_csv` and :func:`write_html` write."""
+    order, ``config``, ``wall_s``, ``sandbox``, ``logs``) that :func:`write_outputs` writes.
+
+    Each single-robot (scenario, seed) is simulated once, here; each student's filter runs
+    in a child process of its own (:func:`run_student`) that receives only what a filter
+    may see; the scoring stays here. Team scenarios are graded in process (not isolated)."""
     t0 = time.perf_counter()
     students = find_students(folder, config.class_name)
     try:
         scenarios: dict[str, Scenario | TeamScenario] = {
             s: load_team_scenario(s) if is_team_scenario(s) else load_scenario(s) for s in config.scenarios}
-    except ValueError as exc:  # ScenarioError: one line
+        sandbox = resolve_sandbox(config.sandbox)
+    except (ValueError, SandboxError) as exc:  # ScenarioError: one line
         raise GradeError(str(exc)) from None
-    tasks = [Task(st.name, st.spec, sc, seed, config.duration, config.time_limit, i)
-             for st in students if st.spec for sc in config.scenarios
-             for i, seed in enumerate(config.seeds)]
     team_names = [n for n, sc in scenarios.items() if isinstance(sc, TeamScenario)]
+    single = [n for n in config.scenarios if n not in team_names]
+    sims: list[SimulatedRun] = []
+    for n in single:
+        sc = scenarios[n]
+        assert isinstance(sc, Scenario)
+        duration = sc.duration if config.duration is None else config.duration
+        for i, seed in enumerate(config.seeds):
+            sims.append(simulate_run(sc, seed, duration, i, blind=not sims, label=n))
+    student_jobs = [StudentJob(st.name, st.path.name, st.path.read_bytes(),
+                               config.class_name or st.class_name, sims, config.time_limit,
+                               config.memory_limit_gb, sandbox)
+                    for st in students if st.spec and sims]
+    done_students = run_students(student_jobs, jobs, scheduler, progress) if student_jobs else []
+    results = [r for sr in done_students for r in sr.results]
+    tasks = [Task(st.name, st.spec, sc, seed, config.duration, config.time_limit, i)
+             for st in students if st.spec for sc in team_names
+             for i, seed in enumerate(config.seeds)]
     tasks += [Task(REFERENCE, REFERENCE_SPEC, sc, seed, config.duration, config.time_limit, i)
               for sc in team_names for i, seed in enumerate(config.seeds)]
-    results = run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, progress)
+    if tasks:
+        results += run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, None)
     by: dict[tuple[str, str], list[TaskResult]] = {}
     for r in results:
         by.setdefault((r.task.student, r.task.scenario), []).append(r)
@@ -352,13 +568,61 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         if runs and all(isinstance(r, TeamRunOutput) for r in runs):
             ref = _team_figures(scenarios[name], runs)  # type: ignore[arg-type]
             reference[name] = {k: v for k, v in ref.items() if k != "curve"}
+    found = {sr.student: sr for sr in done_students}
     for st in students:
-        rows.append(_student_row(st, config, scenarios, by, n_runs, reference))
+        row = _student_row(st, config, scenarios, by, n_runs, reference)
+        _add_findings(row, found.get(st.name))
+        rows.append(row)
     rows.sort(key=rank_key)
     for k, row in enumerate(rows, 1):
         row["rank"] = k
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
-            "students": len(students), "runs_per_student": n_runs, "reference": reference}
+            "students": len(students), "runs_per_student": n_runs, "reference": reference,
+            "sandbox": sandbox, "isolated": bool(single), "team_in_process": team_names,
+            "logs": {sr.student: sr.log for sr in done_students}}
+
+
+#: A result this far below the bound is "suspicious" (RMSE/PCRB), and an ANEES below this
+#: (errors far smaller than the filter's own covariance says: 3 is consistent).
+SUSPICIOUS_RMSE_OVER_PCRB = 0.5
+SUSPICIOUS_ANEES = 0.1
+
+
+def _add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
+    """The row's flags: suspicious (kept out of the ranking), and ``check``'s findings
+    (global RNG, deterministic, heading wrapped, readings used, time per step) as columns
+    and warnings."""
+    flags: list[str] = []
+    f = res.findings if res is not None else {}
+    row["global_rng"] = f.get("global_rng")
+    row["deterministic"] = f.get("deterministic")
+    row["heading_wrapped"] = f.get("heading_wrapped") if res is not None else None
+    row["readings_used"] = f.get("readings_used")
+    row["form"] = f.get("form")
+    row["log"] = bool(res and res.log)
+    row["suspicious"] = None
+    if not row["failed_runs"]:
+        ratio, anees = row.get("rmse_over_pcrb"), row.get("anees")
+        if ratio is not None and ratio < SUSPICIOUS_RMSE_OVER_PCRB:
+            row["suspicious"] = (f"RMSE/PCRB {ratio:.2f} is under {SUSPICIOUS_RMSE_OVER_PCRB:g}: "
+                                 "better than the bound allows")
+        elif anees is not None and anees < SUSPICIOUS_ANEES:
+            row["suspicious"] = (f"ANEES {anees:.3f} is far below its band (3 is consistent): errors "
+                                 "far smaller than the filter's own covariance")
+    if row["suspicious"]:
+        flags.append("suspicious: " + row["suspicious"])
+    if row["global_rng"]:
+        flags.append("draws from the global np.random / random generator (reproducible here "
+                     "only because the grader seeds them; use ctx.rng)")
+    if row["deterministic"] is False:
+        flags.append("not deterministic: the estimates change when only the global RNG's seed does")
+    if row["heading_wrapped"] is False:
+        flags.append("heading not wrapped to [-pi, pi)")
+    if row["readings_used"] is False:
+        flags.append("uses none of the readings: the estimates do not change when they are withheld")
+    if row.get("us_per_step") is not None and row["us_per_step"] > SLOW_STEP_MS * 1e3:
+        flags.append(f"slow: {row['us_per_step'] / 1e3:.0f} ms per step (over {SLOW_STEP_MS:g} ms)")
+    row["flags"] = flags
 
 
 def _team_figures(team: TeamScenario, runs: list[TeamRunOutput]) -> dict[str, Any]:
@@ -442,11 +706,13 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
 
 
 def rank_key(row: dict[str, Any]) -> tuple:
-    """Working filters first by position RMSE, then failed ones (fewest failed runs first):
-    a failed filter never ranks above a working one."""
+    """Working filters first by position RMSE, then suspicious ones (kept out of the
+    ranking), then failed ones (fewest failed runs first): a failed filter never ranks
+    above a working one."""
     failed = row["failed_runs"] > 0
     rmse = row["pos_rmse_m"] if row["pos_rmse_m"] is not None else math.inf
-    return (failed, row["failed_runs"] if failed else 0, rmse, row["student"])
+    return (failed, bool(row.get("suspicious")), row["failed_runs"] if failed else 0, rmse,
+            row["student"])
 
 
 CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_rad", "anees",

@@ -230,6 +230,123 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     return out
 
 
+@dataclass
+class SimulatedRun:
+    """One (scenario, seed) simulated once by the grader, to be streamed to every
+    student's child: the truth (kept in the grader) and, per tick, the request that carries
+    what a filter may see (control, dt, readings), pickled once."""
+
+    scenario: Scenario
+    index: int
+    seed: int
+    truth: np.ndarray  # (T + 1, 3)
+    controls: np.ndarray  # (T, 2)
+    kidnapped: np.ndarray  # (T,)
+    truth_checksum: str
+    records: list  # the readings of the ticks that had any (for the NIS)
+    record_index: np.ndarray  # (T,) int: the index in ``records`` of tick i's readings
+    frames: list[bytes]  # (T,) "step" requests
+    frames_blind: list[bytes] | None = None  # the same without readings (the probe)
+    label: str = ""  # the scenario as the user named it (a shipped name or a path)
+
+
+def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
+                 blind: bool = False, label: str | None = None) -> SimulatedRun:
+    """Simulate one run as :func:`one_run` does, without filters; ``blind``: also the
+    requests with every reading withheld (does the filter use the readings?)."""
+    from beacon_sim.filters.wire import encode_request
+
+    sim = Simulation(scenario, seed)
+    T = round(duration / scenario.dt)
+    truth = np.empty((T + 1, 3))
+    truth[0] = sim.pose
+    controls = np.empty((T, 2))
+    kidnapped = np.zeros(T, dtype=bool)
+    records: list = []
+    rec = np.zeros(T, dtype=int)
+    frames, blind_frames = [], []
+    for i in range(T):
+        step = sim.step()
+        truth[i + 1] = step.true_pose
+        controls[i] = (step.control.v, step.control.omega)
+        kidnapped[i] = step.kidnapped
+        rec[i] = len(records)
+        if step.measurements:
+            records.append(step.measurements)
+        frames.append(encode_request("step", step.control, step.dt, tuple(step.measurements),
+                                     bool(step.measurements)))
+        if blind:
+            blind_frames.append(encode_request("step", step.control, step.dt, (), False))
+    return SimulatedRun(scenario, index, seed, truth, controls, kidnapped, sim.truth_checksum,
+                        records, rec, frames, blind_frames if blind else None,
+                        scenario.name if label is None else label)
+
+
+def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_means: bool = False,
+                 blind: bool = False, global_seed: int | None = None,
+                 ticks: int | None = None) -> tuple[RunOutput, dict[str, Any]]:
+    """:func:`one_run` of the filter in ``child`` (a :class:`~beacon_sim.filters.isolated.FilterChild`)
+    on the simulated run ``sr``: the same numbers bit for bit, the truth never sent. Returns
+    the run and what the child reported (``np_global`` / ``py_global``: the filter drew from
+    the global generators; ``failed_child``: the child must not be reused). ``blind``: the
+    readings withheld (a probe, not a graded run); ``global_seed``: the global RNGs' seed
+    (default the run's seed); ``ticks``: only the first ``ticks`` ticks (a probe)."""
+    from beacon_sim.core.streams import stream
+    from beacon_sim.filters.base import FilterContext
+    from beacon_sim.filters.isolated import ChildFailure
+    from beacon_sim.filters.loading import initial_belief
+    from beacon_sim.filters.wire import ESTIMATE, parse_estimate
+
+    scenario = sr.scenario
+    name = child.class_name
+    T = len(sr.frames) if ticks is None else min(ticks, len(sr.frames))
+    means, covs = np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)
+    n_rec = len(sr.records)
+    pm, pc = np.full((n_rec, 3), np.nan), np.full((n_rec, 3, 3), np.nan)
+    failed: str | None = None
+    report: dict[str, Any] = {}
+    ns = done = 0
+    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+                        motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
+                        params=dict(scenario.filter_params.get(name, {})),
+                        rng=stream(sr.seed, "filter", name))
+    frames = sr.frames_blind if blind and sr.frames_blind is not None else sr.frames
+    try:
+        child.build(ctx, initial_belief(scenario), sr.seed if global_seed is None else global_seed,
+                    run_limit_s, name)
+        for i in range(T):
+            tag, payload = child.request(frames[i])
+            if tag != ESTIMATE:
+                raise ChildFailure("the filter's process broke the protocol", died=True)
+            wall, prior, (mean, cov) = parse_estimate(payload)
+            means[i], covs[i] = mean, cov
+            if prior is not None:
+                j = sr.record_index[i]
+                pm[j], pc[j] = prior
+            ns += wall
+            done += 1
+        report = child.end()
+    except ChildFailure as exc:
+        failed = str(exc) or "the filter failed"
+        report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
+    theta = means[:done, 2]
+    report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
+    if ticks is not None:  # a probe: its estimates only
+        report["means"] = means
+        return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
+                         sr.truth_checksum), report
+    out = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
+    good = np.all(np.isfinite(pm), axis=1) & np.all(np.isfinite(pc), axis=(1, 2))
+    n_good = int(np.argmin(good)) if not good.all() else n_rec
+    sensors = {s.name: s for s in scenario.model_sensors}
+    with np.errstate(all="ignore"):
+        nis_sum, nis_dof = nis_batch(sr.records[:n_good], pm[:n_good], pc[:n_good], sensors,
+                                     scenario.world)
+    out.filters[name] = finish_filter(means, covs, sr.truth, done, failed, nis_sum, nis_dof, ns,
+                                      keep_means)
+    return out, report
+
+
 def _store(est: object, means: np.ndarray, covs: np.ndarray, i: int) -> str | None:
     """Write ``est`` (a ``(mean (3,), cov (3, 3))`` pair) into row ``i`` of ``means`` and
     ``covs``; its values are judged later (:func:`finish_filter`). Anything else: the
@@ -477,5 +594,5 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
     return np.stack([getattr(r.filters[name], attr) for r in runs])
 
 
-__all__ = ["FilterRun", "RunOutput", "batch_reason", "batch_runs", "filter_names", "finish_filter",
-           "one_run", "run_monte_carlo", "stack"]
+__all__ = ["FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs", "filter_names",
+           "finish_filter", "isolated_run", "one_run", "run_monte_carlo", "simulate_run", "stack"]

@@ -86,7 +86,7 @@ class FilterChild:
         self.reply_timeout_s = reply_timeout_s
         self.dead: str | None = None
         log.parent.mkdir(parents=True, exist_ok=True)
-        self._log = open(os.devnull if log.exists() and log.stat().st_size > MAX_LOG_BYTES else log, "ab")  # noqa: SIM115
+        self._log = open(os.devnull if log.exists() and log.stat().st_size > MAX_LOG_BYTES else log, "ab")
         self._proc: Launched | None = launch(source, self._log, sandbox, limits)
         try:
             doc = self.call_json("load", self._proc.source_in_child, class_name)
