@@ -29,6 +29,8 @@ def grade_command(args: argparse.Namespace) -> int:
         if not (args.time_limit > 0 and math.isfinite(args.time_limit)):
             raise UsageError(f"--time-limit {args.time_limit}: expected a positive number of seconds")
         cfg = dataclasses.replace(cfg, time_limit=args.time_limit)
+    if getattr(args, "sandbox", None):
+        cfg = dataclasses.replace(cfg, sandbox=args.sandbox)
     scheduler = args.scheduler
     if scheduler is not None:
         try:
@@ -53,7 +55,12 @@ def grade_command(args: argparse.Namespace) -> int:
     for r in board["rows"]:
         score = ("FAILED " + str(r["failed_runs"]) + "/" + str(r["runs"]) if r["failed_runs"]
                  else f"{r['pos_rmse_m']:.4f} m  {r['anees_verdict']}")
+        if r.get("suspicious"):
+            score = "SUSPICIOUS (not ranked) " + score
         print(f"{r['rank']:>3}  {r['student']:<20} {score}")
+        for flag in r.get("flags", []):
+            if not flag.startswith("suspicious"):
+                print(f"{'':>5}warning: {flag}")
         for sc, t in r.get("team", {}).items():  # a team scenario: each robot's figures
             robots = ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in t["robots"].items()
                                if v["pos_rmse_m"] is not None)
@@ -65,6 +72,7 @@ def grade_command(args: argparse.Namespace) -> int:
                   f"ANEES {ref['anees']:.2f}  "
                   + ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in ref["robots"].items()))
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
-          f"({'Dask ' + str(scheduler) if scheduler else 'local processes'})")
+          f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
+          f"in its own process, sandbox: {board.get('sandbox', 'process')})")
     failed = any(r["failed_runs"] for r in board["rows"])
     return 1 if failed and args.strict else 0

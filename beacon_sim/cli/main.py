@@ -121,6 +121,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, help="local processes (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     p.add_argument("--time-limit", type=float, metavar="S", help="a filter's time limit per run [s]")
+    p.add_argument("--sandbox", choices=("auto", "bwrap", "process"),
+                   help="how each student's process is contained (default auto: bubblewrap "
+                        "where it works, else the process level; docs/grading.md)")
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
 
     p = sub.add_parser("new-filter", help="write a working, commented filter template")

@@ -418,7 +418,10 @@ def run_student(job: StudentJob) -> StudentResult:
         finally:
             if child is not None:
                 child.close()
-        text = log.read_bytes()[:LOG_BYTES].decode("utf-8", "replace") if log.exists() else ""
+        raw = log.read_bytes() if log.exists() else b""
+        text = raw[:LOG_BYTES + 100].decode("utf-8", "replace")
+        if len(raw) > LOG_BYTES + 100:
+            text += f"\n[log cut at {LOG_BYTES} bytes]\n"
     findings["wall_s"] = time.perf_counter() - t_start
     return StudentResult(job.student, results, findings, text, job.sandbox)
 
@@ -716,7 +719,19 @@ def rank_key(row: dict[str, Any]) -> tuple:
 
 
 CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_rad", "anees",
-               "anees_verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs", "failures")
+               "anees_verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs", "failures",
+               "suspicious", "global_rng", "deterministic", "heading_wrapped", "readings_used", "flags")
+
+
+def status(row: dict[str, Any]) -> str:
+    """FAILED (no score), SUSPICIOUS (kept out of the ranking) or ok."""
+    if row["failed_runs"]:
+        return "FAILED"
+    return "SUSPICIOUS" if row.get("suspicious") else "ok"
+
+
+def _yes_no(v: object) -> str:
+    return "" if v is None else ("yes" if v else "no")
 
 
 def _failure_text(f: dict[str, Any]) -> str:
@@ -731,19 +746,23 @@ def write_csv(board: dict[str, Any], path: Path) -> Path:
         w = csv.writer(fh)
         w.writerow(CSV_COLUMNS)
         for r in board["rows"]:
-            w.writerow([r["rank"], r["student"], r["file"], "FAILED" if r["failed_runs"] else "ok",
+            w.writerow([r["rank"], r["student"], r["file"], status(r),
                         *("" if r[k] is None else r[k] for k in ("pos_rmse_m", "heading_rmse_rad",
                                                                  "anees")),
                         r["anees_verdict"], "" if r["rmse_over_pcrb"] is None else r["rmse_over_pcrb"],
                         "" if r["us_per_step"] is None else f"{r['us_per_step']:.1f}",
                         r["failed_runs"], r["runs"],
-                        " | ".join(_failure_text(f) for f in r["failures"][:5])])
+                        " | ".join(_failure_text(f) for f in r["failures"][:5]),
+                        r.get("suspicious") or "", *(_yes_no(r.get(k)) for k in (
+                            "global_rng", "deterministic", "heading_wrapped", "readings_used")),
+                        " | ".join(r.get("flags", []))])
     return path
 
 
 _CSS = """body{font-family:sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse}
 th,td{border:1px solid #ccc;padding:4px 8px;vertical-align:top}th{background:#eef;cursor:pointer}
-tr.failed td{background:#fdecea}td.num{text-align:right;font-variant-numeric:tabular-nums}
+tr.failed td{background:#fdecea}tr.suspicious td{background:#fff3cd}
+.flag{font-size:85%;color:#8a5a00;max-width:28em}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .why{font-size:85%;color:#a00;max-width:28em}.note{color:#555;font-size:90%}"""
 
 _JS = """
@@ -786,6 +805,15 @@ def _reference_note(board: dict[str, Any]) -> str:
             + "; ".join(parts) + ".")
 
 
+def _sandbox_text(board: dict[str, Any]) -> str:
+    level = board.get("sandbox", "process")
+    text = ("bubblewrap sandbox: no network, read-only system, its own file alone" if level == "bwrap"
+            else "process level: its own user, folder and limits, no OS sandbox")
+    if board.get("team_in_process"):
+        text += "; team scenarios in process, not isolated"
+    return text
+
+
 def write_html(board: dict[str, Any], path: Path) -> Path:
     """A self-contained leaderboard page (inline CSS, JS and SVG plots): click a column
     to sort (``#sort=COLUMN`` or ``#sort=COLUMN-desc`` in the address sorts on load)."""
@@ -813,11 +841,14 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
         more = len(r["failures"]) - 4
         if more > 0:
             why += f"<br>... and {more} more"
-        status = "FAILED" if r["failed_runs"] else "ok"
-        body.append(f'<tr class="{"failed" if r["failed_runs"] else "ok"}" data-failed='
-                    f'"{1 if r["failed_runs"] else 0}" {data}>'
-                    + "".join(cell(r, k) for k, _ in cols)
-                    + f'<td>{status}<div class="why">{why}</div></td>'
+        flags = "<br>".join(html.escape(f) for f in r.get("flags", []))
+        st = status(r)
+        kind = {"FAILED": "failed", "SUSPICIOUS": "suspicious"}.get(st, "ok")
+        log = (f' <a href="logs/{html.escape(r["student"])}.log">log</a>'
+               if r.get("log") else "")
+        order = {"ok": 0, "suspicious": 1, "failed": 2}[kind]  # the page's sort keeps this order
+        body.append(f'<tr class="{kind}" data-failed="{order}" {data}>' + "".join(cell(r, k) for k, _ in cols)
+                    + f'<td>{st}{log}<div class="why">{why}</div><div class="flag">{flags}</div></td>'
                     + f"<td>{r['plot']}</td></tr>")
     head = "".join(f'<th data-col="{k}">{html.escape(t)}</th>' for k, t in cols)
     page = f"""<!DOCTYPE html>
@@ -828,7 +859,10 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
 {html.escape(', '.join(cfg['scenarios']))}; seeds {html.escape(', '.join(map(str, cfg['seeds'])))};
 {'each scenario' + chr(39) + 's duration' if cfg['duration'] is None else f"{cfg['duration']:g} s"} per run;
 time limit {cfg['time_limit']:g} s per run. A filter that failed in any run has no score and
-ranks below every working filter, whatever the column sorted. Click a column to sort.
+ranks below every working filter, whatever the column sorted; a suspicious result (far below
+the Cramer-Rao bound) is kept out of the ranking, below the working filters, with its reason.
+Each student's filter ran in a process of its own ({html.escape(_sandbox_text(board))}).
+Click a column to sort.
 Plot: position error [m] against time [s] of the first seed.{_reference_note(board)}</p>
 <table id="board"><thead><tr>{head}<th>status and failures</th><th>error, first seed</th></tr></thead>
 <tbody>
@@ -844,7 +878,12 @@ Plot: position error [m] against time [s] of the first seed.{_reference_note(boa
 def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:
     """``grade.csv``, ``grade.html`` and ``grade.json`` (the rows without the plots) in ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    doc = {k: v for k, v in board.items() if k != "rows"}
+    logs = board.get("logs") or {}
+    if logs:
+        (out / "logs").mkdir(exist_ok=True)
+        for student, text in logs.items():
+            (out / "logs" / f"{student}.log").write_text(text, encoding="utf-8")
+    doc = {k: v for k, v in board.items() if k not in ("rows", "logs")}
     doc["rows"] = [{k: v for k, v in r.items() if k != "plot"} for r in board["rows"]]
     (out / "grade.json").write_text(json.dumps(doc, indent=1, default=float), encoding="utf-8")
     return [write_csv(board, out / "grade.csv"), write_html(board, out / "grade.html"),

@@ -188,6 +188,7 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     cpu = dict.fromkeys(names, 0)  # CPU time of each filter's steps [ns]: the run limit's budget
     done = dict.fromkeys(names, 0)
     cpu_clock = time.thread_time_ns
+    over = None if run_limit_s is None else f"time limit: over {run_limit_s:g} s of filter time in the run"
     for i in range(T):
         step = sim.step()
         truth[i + 1] = step.true_pose
@@ -202,7 +203,7 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
             left = None if run_limit_s is None else run_limit_s - cpu[name] / 1e9
             c0 = cpu_clock()
             got, why, _ = call_guarded(lambda: _timed_step(f, step), left, cpu=True,  # noqa: B023
-                                       over=f"time limit: over {run_limit_s:g} s of filter time in the run")
+                                       over=over)
             cpu[name] += cpu_clock() - c0
             if why is not None:  # a user's filter: switch it off, go on with the others
                 failed[name] = why
