@@ -174,3 +174,19 @@ def test_both_containment_levels_grade_the_same(tmp_path, sandbox, alone):
     assert {k: _row(b, "honest")[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
     assert "exited with status 3" in _row(b, "os_exit")["failures"][0]["reason"]
     assert not (tmp_path / "c" / "pwned.txt").exists()
+
+
+def test_a_result_far_below_the_bound_is_suspicious_and_kept_out_of_the_ranking(tmp_path, alone):
+    """Re-simulating a shipped scenario with guessed small seeds (the one way to the truth
+    left at the process level) gives a result far below the PCRB: flagged, not ranked."""
+    import dataclasses
+
+    b = grade(_klass(tmp_path / "c", ["honest", "resimulate"]),
+              dataclasses.replace(CONFIG, sandbox="process"), jobs=2)
+    row, honest = _row(b, "resimulate"), _row(b, "honest")
+    if row["pos_rmse_m"] is not None and row["pos_rmse_m"] < honest["pos_rmse_m"]:
+        assert row["suspicious"] and "RMSE/PCRB" in row["suspicious"], row
+        assert row["rank"] > honest["rank"] and any(f.startswith("suspicious") for f in row["flags"])
+    assert {k: honest[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
+    write_outputs(b, tmp_path / "out")
+    assert "SUSPICIOUS" in (tmp_path / "out" / "grade.csv").read_text()
