@@ -75,6 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exit status 1 when any filter failed in any run")
     p.add_argument("--time-limit", type=float, metavar="S",
                    help="stop a filter whose steps take over S seconds in one run (default 300)")
+    p.add_argument("--sandbox", choices=("auto", "bwrap", "process", "none"),
+                   help="filter files run in a process of their own (default auto: bubblewrap "
+                        "where it works; none: in this process; docs/grading.md)")
 
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
     p.add_argument("file")

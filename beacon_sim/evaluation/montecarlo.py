@@ -285,13 +285,16 @@ def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
 
 def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_means: bool = False,
                  blind: bool = False, global_seed: int | None = None,
-                 ticks: int | None = None) -> tuple[RunOutput, dict[str, Any]]:
+                 ticks: int | None = None, name: str | None = None,
+                 params: dict[str, Any] | None = None) -> tuple[RunOutput, dict[str, Any]]:
     """:func:`one_run` of the filter in ``child`` (a :class:`~beacon_sim.filters.isolated.FilterChild`)
     on the simulated run ``sr``: the same numbers bit for bit, the truth never sent. Returns
     the run and what the child reported (``np_global`` / ``py_global``: the filter drew from
     the global generators; ``failed_child``: the child must not be reused). ``blind``: the
     readings withheld (a probe, not a graded run); ``global_seed``: the global RNGs' seed
-    (default the run's seed); ``ticks``: only the first ``ticks`` ticks (a probe)."""
+    (default the run's seed); ``ticks``: only the first ``ticks`` ticks (a probe); ``name``:
+    the filter's name in the run (default its class's: its random generator's stream);
+    ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
     from beacon_sim.core.streams import stream
     from beacon_sim.filters.base import FilterContext
     from beacon_sim.filters.isolated import ChildFailure
@@ -299,7 +302,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     from beacon_sim.filters.wire import ESTIMATE, parse_estimate
 
     scenario = sr.scenario
-    name = child.class_name
+    name = name or child.class_name
     T = len(sr.frames) if ticks is None else min(ticks, len(sr.frames))
     means, covs = np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)
     n_rec = len(sr.records)
@@ -309,7 +312,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     ns = done = 0
     ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                        params=dict(scenario.filter_params.get(name, {})),
+                        params=dict(scenario.filter_params.get(name, {})) if params is None else params,
                         rng=stream(sr.seed, "filter", name))
     frames = sr.frames_blind if blind and sr.frames_blind is not None else sr.frames
     try:
@@ -562,6 +565,73 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
     return [o for o in out if o is not None]
 
 
+def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, seed: int = 0,
+                             duration: float | None = None, jobs: int | None = None,
+                             params: dict[str, dict[str, Any]] | None = None,
+                             run_limit_s: float | None = None, sandbox: str = "auto",
+                             memory_gb: float = 4.0, log_dir: Any = None,
+                             batch: bool | None = None) -> list[RunOutput]:
+    """:func:`run_monte_carlo` with every filter file (``path.py:Class``) in a child process
+    of its own (:mod:`beacon_sim.filters.isolated`): the built-in filters run as before (the
+    same numbers), each file filter's runs are streamed from simulations made here, and the
+    records are merged in ``specs`` order. The same figures as in process, bit for bit,
+    for a filter that does not reach for the truth."""
+    import tempfile
+    from pathlib import Path
+
+    from beacon_sim.filters.containment import Limits, resolve_sandbox
+    from beacon_sim.filters.isolated import ChildFailure, FilterChild, is_file_spec
+    from beacon_sim.filters.loading import merged_params, split_label
+
+    duration = scenario.duration if duration is None else duration
+    params = params or {}
+    names = filter_names(specs)
+    inside = [s for s in specs if not is_file_spec(s)]
+    base = run_monte_carlo(scenario, inside, runs, seed, duration, jobs, params, progress=False,
+                           batch=batch, run_limit_s=run_limit_s) if inside else None
+    sims = [simulate_run(scenario, seed + i, duration, i) for i in range(runs)]
+    level = resolve_sandbox(sandbox)
+    logs = Path(log_dir) if log_dir is not None else Path(tempfile.mkdtemp(prefix="beacon-sim-eval-"))
+    limits = Limits(memory_gb=memory_gb, cpu_s=None if run_limit_s is None else run_limit_s * runs * 1.5 + 60)
+    isolated: dict[str, list[FilterRun]] = {}
+    for spec, name in zip(specs, names, strict=True):
+        if not is_file_spec(spec):
+            continue
+        bare = split_label(spec)[1]
+        target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
+        fp = merged_params(spec, scenario, params.get(filter_display_name(spec)))
+        records: list[FilterRun] = []
+        child: FilterChild | None = None
+        why: str | None = None
+        for sr in sims:
+            if why is None and child is None:
+                try:
+                    child = FilterChild(Path(target), cls or None, logs / f"{name}.log", level, limits,
+                                        max(60.0, 5 * (run_limit_s or 60.0)))
+                except ChildFailure as exc:
+                    why = str(exc)
+            if child is None:
+                T = len(sr.frames)
+                records.append(finish_filter(np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan),
+                                             sr.truth, 0, why or "failed", 0.0, 0, 0, sr.index == 0))
+                continue
+            out, rep = isolated_run(child, sr, run_limit_s, keep_means=sr.index == 0, name=name, params=fp)
+            records.append(out.filters[name])
+            if rep.get("failed_child"):
+                child.close()
+                child = None
+        if child is not None:
+            child.close()
+        isolated[name] = records
+    result = []
+    for i, sr in enumerate(sims):
+        run = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
+        for name in names:
+            run.filters[name] = isolated[name][i] if name in isolated else base[i].filters[name]  # type: ignore[index]
+        result.append(run)
+    return result
+
+
 def limit_worker_memory(gb: float) -> None:
     """A local worker's address-space limit, so a filter that hoards memory gets a
     MemoryError (a failed run) instead of the kernel's out-of-memory killer."""
@@ -596,4 +666,5 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
 
 
 __all__ = ["FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs", "filter_names",
-           "finish_filter", "isolated_run", "one_run", "run_monte_carlo", "simulate_run", "stack"]
+           "finish_filter", "isolated_run", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
+           "simulate_run", "stack"]

@@ -274,4 +274,15 @@ def is_user_code(spec: str) -> bool:
     return spec not in BUILTIN_FILTERS and (":" in spec or spec.endswith(".py"))
 
 
-__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter", "is_user_code"]
+def is_file_spec(spec: str) -> bool:
+    """Whether a filter spec names a file (``path.py:Class`` or ``path.py``): the filters
+    ``eval``, ``check`` and ``grade`` host in a child process."""
+    from beacon_sim.filters.loading import split_label
+
+    spec = split_label(spec)[1]
+    target = spec.rpartition(":")[0] if ":" in spec else spec
+    return target.endswith(".py")
+
+
+__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter", "is_file_spec",
+           "is_user_code"]
