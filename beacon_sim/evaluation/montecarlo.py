@@ -35,7 +35,7 @@ from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
-from beacon_sim.filters.guard import estimate_arrays
+from beacon_sim.filters.guard import MAX_COV, MAX_MEAN, estimate_arrays
 from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (
     build_filter,
@@ -88,12 +88,20 @@ def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     if first < n:
         return first, "estimate() returned NaN or infinity"
     scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
+    huge = (scale > MAX_COV) | (np.max(np.abs(means), axis=1) > MAX_MEAN)  # the guard's "diverged"
+    first = int(np.argmax(huge)) if huge.any() else n
+    if first < n:
+        return first, (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
+                       f"{MAX_COV:g} (diverged)")
     asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2)) > 1e-6 * scale
     sym = 0.5 * (covs + np.swapaxes(covs, 1, 2))
     notpsd = np.zeros(n, dtype=bool)
     unsure = ~_cholesky_ok(sym)   # Cholesky's pivots all positive: no eigenvalue below the bound
     if unsure.any():
-        notpsd[unsure] = np.linalg.eigvalsh(sym[unsure])[:, 0] < -1e-9 * scale[unsure]
+        try:
+            notpsd[unsure] = np.linalg.eigvalsh(sym[unsure])[:, 0] < -1e-9 * scale[unsure]
+        except np.linalg.LinAlgError:  # no convergence: not a usable covariance either
+            notpsd[unsure] = True
     for mask in (asym, notpsd):
         if mask.any():
             first = min(first, int(np.argmax(mask)))
@@ -587,8 +595,11 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
     params = params or {}
     names = filter_names(specs)
     inside = [s for s in specs if not is_file_spec(s)]
+    # Not batched: the built-ins' numbers stay those of a run beside a file filter in process
+    # (a batched run differs in the last bits).
     base = run_monte_carlo(scenario, inside, runs, seed, duration, jobs, params, progress=False,
-                           batch=batch, run_limit_s=run_limit_s) if inside else None
+                           batch=False if len(inside) < len(specs) else batch,
+                           run_limit_s=run_limit_s) if inside else None
     sims = [simulate_run(scenario, seed + i, duration, i) for i in range(runs)]
     level = resolve_sandbox(sandbox)
     logs = Path(log_dir) if log_dir is not None else Path(tempfile.mkdtemp(prefix="beacon-sim-eval-"))

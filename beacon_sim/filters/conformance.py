@@ -36,6 +36,7 @@ from beacon_sim.filters.base import (
     GridBelief,
     ParticleBelief,
 )
+from beacon_sim.filters.guard import MAX_COV, MAX_MEAN
 from beacon_sim.filters.host import call_guarded, guarded_call
 from beacon_sim.filters.loading import (
     build_filter,
@@ -179,10 +180,17 @@ def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
             problems.setdefault("finite", f"step {k}: NaN or infinity in the estimate")
             continue
         scale = max(float(np.max(np.abs(cov))), 1e-12)
+        if scale > MAX_COV or float(np.max(np.abs(mean))) > MAX_MEAN:  # the guard's "diverged"
+            problems.setdefault("finite", f"step {k}: a mean beyond {MAX_MEAN:g} or a covariance "
+                                f"entry over {MAX_COV:g} (diverged)")
+            continue
         asym = float(np.max(np.abs(cov - cov.T)))
         if asym > 1e-9 * scale:
             problems.setdefault("symmetric", f"step {k}: cov - cov^T up to {asym:.3g}")
-        low = float(np.min(np.linalg.eigvalsh(0.5 * (cov + cov.T))))
+        try:
+            low = float(np.min(np.linalg.eigvalsh(0.5 * (cov + cov.T))))
+        except np.linalg.LinAlgError:
+            low = -math.inf
         if low < -1e-9 * scale:
             problems.setdefault("psd", f"step {k}: smallest eigenvalue {low:.3g}")
         if not -math.pi <= mean[2] < math.pi:
