@@ -57,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="conformance report for a filter")
     p.add_argument("filter")
     p.add_argument("--scenario", default="default")
+    p.add_argument("--sandbox", choices=("auto", "bwrap", "process", "none"),
+                   help="a filter file runs in a process of its own (default auto; none: in "
+                        "this process)")
 
     sub.add_parser("list", help="shipped scenarios and available filters")
 

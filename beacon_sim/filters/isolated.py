@@ -15,6 +15,7 @@ as a :class:`~beacon_sim.filters.watchdog.FilterFailed` whose message is that re
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import shutil
 import signal
@@ -95,6 +96,7 @@ class FilterChild:
             raise
         self.class_name: str = str(doc.get("name", "?"))
         self.form: str = str(doc.get("form", "class"))
+        self.info = doc  # missing methods, sensor kinds, module: what ``check`` reports
 
     # -- the pipe -------------------------------------------------------------------
     def request(self, frame: bytes) -> tuple[bytes, bytes]:
@@ -187,10 +189,13 @@ class FilterChild:
 
     # -- one run ----------------------------------------------------------------------
     def build(self, ctx: FilterContext, initial: GaussianBelief | None, global_seed: int,
-              run_limit_s: float | None, spec: str) -> None:
+              run_limit_s: float | None, spec: str, step_limit_s: float | None = None) -> None:
         """Build and reset a fresh filter in the child for one run (the global RNGs seeded
-        from ``global_seed``, the run's CPU-time limit armed)."""
-        self.call_json("build", ctx, initial, int(global_seed), run_limit_s, spec)
+        from ``global_seed``, the run's CPU-time limit armed; ``step_limit_s``: each
+        request's CPU-time limit too)."""
+        # A fresh copy of the world: no cached properties (a read-only mapping cannot be pickled).
+        ctx = dataclasses.replace(ctx, world=dataclasses.replace(ctx.world))
+        self.call_json("build", ctx, initial, int(global_seed), run_limit_s, spec, step_limit_s)
 
     def end(self) -> dict[str, Any]:
         """End the run: whether the filter drew from the global ``np.random`` / ``random``."""
@@ -207,12 +212,16 @@ class IsolatedFilter:
     child's reason)."""
 
     def __init__(self, child: FilterChild, ctx: FilterContext, initial: GaussianBelief | None,
-                 global_seed: int, run_limit_s: float | None, spec: str):
+                 global_seed: int, run_limit_s: float | None, spec: str,
+                 step_limit_s: float | None = None):
         self.child = child
         self.supports_global = True  # the child resets with the scenario's own belief
         self._pending: tuple[Control, float] | None = None
-        self._est: tuple[np.ndarray, np.ndarray] | None = None
-        child.build(ctx, initial, global_seed, run_limit_s, spec)
+        self._est: Any = None
+        #: The wall time of the last predict + update + estimate in the child [ns] (its own
+        #: cost, without the exchange), or None.
+        self.last_step_ns: int | None = None
+        child.build(ctx, initial, global_seed, run_limit_s, spec, step_limit_s)
 
     def reset(self, initial: GaussianBelief | None) -> None:
         self._pending, self._est = None, None
@@ -234,9 +243,8 @@ class IsolatedFilter:
             control, dt = self._pending
             self._pending = None
             tag, payload = self.child.call("step", control, dt, meas, False)
-            if tag != ESTIMATE:
-                raise ChildFailure("the filter's process broke the protocol")
-            self._est = parse_estimate(payload)[2]
+            self._est = _estimate_of(tag, payload)
+            self.last_step_ns = parse_estimate(payload)[0] if tag == ESTIMATE else None
             return
         self._est = None
         self.child.call("update", meas)
@@ -245,10 +253,11 @@ class IsolatedFilter:
         self._flush()
         if self._est is None:
             tag, payload = self.child.call("estimate")
-            if tag != ESTIMATE:
-                raise ChildFailure("the filter's process broke the protocol")
-            self._est = parse_estimate(payload)[2]
-        return self._est[0].copy(), self._est[1].copy()
+            self._est = _estimate_of(tag, payload)
+        est: Any = self._est
+        if isinstance(est, tuple) and len(est) == 2 and all(isinstance(a, np.ndarray) for a in est):
+            return est[0].copy(), est[1].copy()
+        return est
 
     def belief(self) -> Belief:
         self._flush()
@@ -263,6 +272,24 @@ class IsolatedFilter:
         if kind == "grid" and len(arrays) == 3 and arrays[1].size == 2 and arrays[2].size == 1:
             return GridBelief(arrays[0], (float(arrays[1][0]), float(arrays[1][1])), float(arrays[2]))
         raise ChildFailure("the filter's process sent a malformed belief")
+
+
+def _estimate_of(tag: bytes, payload: bytes) -> Any:
+    """What the child's answer says the filter's ``estimate()`` returned: the pair of arrays;
+    with a step limit (``check``) also an unusable one as it was (arrays of another shape,
+    None, or a stand-in of the same kind) for the checks to judge."""
+    if tag == ESTIMATE:
+        return parse_estimate(payload)[2]
+    if tag != BELIEF:
+        raise ChildFailure("the filter's process broke the protocol")
+    kind, arrays, head = decode_belief(payload)
+    if kind == "estimate" and len(arrays) == 2:
+        return arrays[0], arrays[1]
+    if kind == "estimate-unusable":
+        if head.get("none"):
+            return None
+        return ("not numbers", "not numbers") if head.get("pair") else ("not a pair",)
+    raise ChildFailure("the filter's process broke the protocol")
 
 
 def is_user_code(spec: str) -> bool:
