@@ -572,8 +572,9 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
             ref = _team_figures(scenarios[name], runs)  # type: ignore[arg-type]
             reference[name] = {k: v for k, v in ref.items() if k != "curve"}
     found = {sr.student: sr for sr in done_students}
+    scored = _score_together(scenarios, single, by, students, len(config.seeds))
     for st in students:
-        row = _student_row(st, config, scenarios, by, n_runs, reference)
+        row = _student_row(st, config, scenarios, by, n_runs, reference, scored)
         _add_findings(row, found.get(st.name))
         rows.append(row)
     rows.sort(key=rank_key)
@@ -645,9 +646,42 @@ def _team_figures(team: TeamScenario, runs: list[TeamRunOutput]) -> dict[str, An
             "curve": (meta["dt"] * np.arange(1, meta["steps"] + 1), err)}
 
 
+def _score_together(scenarios: dict[str, Scenario | TeamScenario], names: list[str],
+                    by: dict[tuple[str, str], list[TaskResult]], students: list[Student],
+                    n_seeds: int) -> dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]]:
+    """Every student's runs of each single-robot scenario scored in one
+    :func:`~beacon_sim.evaluation.summary.evaluate` (the bound, the same for all, computed
+    once): (student, scenario) -> (its row of figures, its curves, the times). A filter's
+    figures depend on its own runs and the truth only, so they are those of scoring it alone."""
+    out: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] = {}
+    for name in names:
+        sc = scenarios[name]
+        whole = []
+        for st in students:
+            res = sorted(by.get((st.name, name), []), key=lambda r: r.task.index)
+            if len(res) == n_seeds and all(isinstance(r.run, RunOutput) for r in res):
+                whole.append((st.name, [r.run for r in res]))
+        if not whole:
+            continue
+        merged = []
+        for i in range(n_seeds):
+            first: Any = whole[0][1][i]
+            run = RunOutput(first.index, first.seed, first.truth, first.controls, first.kidnapped,
+                            first.truth_checksum)
+            for student, runs in whole:
+                run.filters[student] = next(iter(runs[i].filters.values()))
+            merged.append(run)
+        meta, curve = evaluate(sc, merged, Thresholds())  # type: ignore[arg-type]
+        for student, _ in whole:
+            out[(student, name)] = (meta["filters"][student], curve["filters"][student], curve["time"])
+    return out
+
+
 def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario | TeamScenario],
                  by: dict[tuple[str, str], list[TaskResult]], n_runs: int,
-                 reference: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+                 reference: dict[str, dict[str, Any]] | None = None,
+                 scored: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] | None = None
+                 ) -> dict[str, Any]:
     row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
                            "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
                            "anees_verdict": "FAILED", "rmse_over_pcrb": None, "us_per_step": None,
@@ -685,16 +719,19 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                                                  if tf["pos_rmse_m"] is not None and ref.get("pos_rmse_m")
                                                  else None)
             continue
-        meta, curve = evaluate(sc, runs, Thresholds())
-        fr = next(iter(meta["filters"].values()))
+        if (st.name, name) in (scored or {}):  # the class's runs scored together (one PCRB)
+            fr, c, times = (scored or {})[(st.name, name)]
+        else:
+            meta, curve = evaluate(sc, runs, Thresholds())
+            fr = next(iter(meta["filters"].values()))
+            c, times = next(iter(curve["filters"].values())), curve["time"]
         for f in fr["failures"]:
             failures.append({"scenario": name, **f})
         for key in figures:
             if fr.get(key) is not None:
                 figures[key].append(float(fr[key]))
         verdicts.append(fr["anees_verdict"])
-        c = next(iter(curve["filters"].values()))
-        curves.append((name, curve["time"], np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
+        curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
     row["failures"] = failures
     row["failed_runs"] = len(failures)
     if team_rows:
