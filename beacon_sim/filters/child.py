@@ -25,7 +25,10 @@ from typing import Any
 #: child as ``nobody``, who may not be able to read the Python installation afterwards).
 PRELOAD = ("numpy", "numpy.linalg", "numpy.random", "math", "cmath", "random", "collections",
            "dataclasses", "functools", "itertools", "typing", "copy", "inspect", "gc", "abc",
-           "enum", "statistics", "bisect", "heapq", "operator", "warnings",
+           "enum", "statistics", "bisect", "heapq", "operator", "warnings", "csv", "html",
+           "tomllib", "re", "string", "textwrap", "pathlib", "datetime", "decimal", "fractions",
+           "array", "queue", "threading", "logging", "contextlib", "numbers", "pprint",
+           "beacon_sim.core.scenario", "beacon_sim.core.simulation", "beacon_sim.filters.template",
            "beacon_sim.core.angles", "beacon_sim.core.measurement_models", "beacon_sim.core.motion",
            "beacon_sim.filters.base", "beacon_sim.filters.kf", "beacon_sim.filters.ekf",
            "beacon_sim.filters.ukf", "beacon_sim.filters.particle", "beacon_sim.filters.histogram",
@@ -321,6 +324,10 @@ def main(argv: list[str]) -> int:
                 why = "construction failed: " + why
             elif req[0] == "load":
                 why = str(exc) if isinstance(exc, ValueError) else why
+                if cfg.get("drop_user") and ("ModuleNotFoundError" in why or "PermissionError" in why):
+                    why += (" (the filter runs as the user nobody, who cannot read this Python "
+                            "installation: only modules loaded before are importable; use "
+                            "--sandbox bwrap, or a Python installed where nobody can read it)")
             try:
                 server.fail(why, traceback.format_exc())
             except OSError:
