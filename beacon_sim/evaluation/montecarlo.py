@@ -35,7 +35,7 @@ from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
-from beacon_sim.filters.guard import MAX_COV, MAX_MEAN, estimate_arrays
+from beacon_sim.filters.guard import estimate_arrays
 from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (
     build_filter,
@@ -80,6 +80,11 @@ class RunOutput:
     filters: dict[str, FilterRun] = field(default_factory=dict)
 
 
+#: A mean or covariance entry beyond this is a diverged filter for the metrics: their products
+#: would overflow (the guard of a live run stops a filter far earlier, at 1e12).
+OVERFLOW_COV = 1e100
+
+
 def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     """Index of the first unusable estimate (non-finite, asymmetric or not PSD) and why."""
     n = means.shape[0]
@@ -88,24 +93,24 @@ def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     if first < n:
         return first, "estimate() returned NaN or infinity"
     scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
-    huge = (scale > MAX_COV) | (np.max(np.abs(means), axis=1) > MAX_MEAN)  # the guard's "diverged"
-    first = int(np.argmax(huge)) if huge.any() else n
-    if first < n:
-        return first, (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
-                       f"{MAX_COV:g} (diverged)")
+    # Beyond OVERFLOW_COV the metrics' products overflow (and eigvalsh may not converge).
+    huge = (scale > OVERFLOW_COV) | (np.max(np.abs(means), axis=1) > OVERFLOW_COV)
     asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2)) > 1e-6 * scale
     sym = 0.5 * (covs + np.swapaxes(covs, 1, 2))
     notpsd = np.zeros(n, dtype=bool)
-    unsure = ~_cholesky_ok(sym)   # Cholesky's pivots all positive: no eigenvalue below the bound
+    unsure = ~_cholesky_ok(sym) & ~huge  # Cholesky's pivots all positive: no eigenvalue below the bound
     if unsure.any():
         try:
             notpsd[unsure] = np.linalg.eigvalsh(sym[unsure])[:, 0] < -1e-9 * scale[unsure]
         except np.linalg.LinAlgError:  # no convergence: not a usable covariance either
             notpsd[unsure] = True
-    for mask in (asym, notpsd):
+    for mask in (huge, asym, notpsd):
         if mask.any():
             first = min(first, int(np.argmax(mask)))
     if first < n:
+        if huge[first]:
+            return first, (f"estimate() returned a mean or a covariance entry over {OVERFLOW_COV:g} "
+                           "(diverged)")
         return first, ("covariance is not symmetric" if asym[first]
                        else "covariance is not positive semi-definite")
     return n, None
