@@ -31,10 +31,22 @@ def _is_team_file(path: Path, class_name: str | None) -> bool:
         tree = ast.parse(path.read_text(encoding="utf-8"))
     except (SyntaxError, UnicodeDecodeError, OSError, ValueError):
         return False
-    for node in tree.body:
-        if isinstance(node, ast.ClassDef) and (class_name is None or node.name == class_name):
-            names = {f.name for f in node.body if isinstance(f, ast.FunctionDef)}
-            if "estimates" in names and "estimate" not in names:
+    classes = {n.name: n for n in tree.body if isinstance(n, ast.ClassDef)}
+
+    def methods(name: str, seen: frozenset[str] = frozenset()) -> set[str]:
+        node = classes.get(name)
+        if node is None or name in seen:
+            return set()
+        own = {f.name for f in node.body if isinstance(f, ast.FunctionDef)}
+        for base in node.bases:  # the bases defined in the same file
+            if isinstance(base, ast.Name):
+                own |= methods(base.id, seen | {name})
+        return own
+
+    for name in classes:
+        if class_name is None or name == class_name:
+            m = methods(name)
+            if "estimates" in m and "estimate" not in m:
                 return True
     return False
 
