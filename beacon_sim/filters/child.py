@@ -325,9 +325,8 @@ def main(argv: list[str]) -> int:
             elif req[0] == "load":
                 why = str(exc) if isinstance(exc, ValueError) else why
                 if cfg.get("drop_user") and ("ModuleNotFoundError" in why or "PermissionError" in why):
-                    why += (" (the filter runs as the user nobody, who cannot read this Python "
-                            "installation: only modules loaded before are importable; use "
-                            "--sandbox bwrap, or a Python installed where nobody can read it)")
+                    why += (" (as the user nobody, who cannot read this Python installation, only "
+                            "preloaded modules import: use --sandbox bwrap)")
             try:
                 server.fail(why, traceback.format_exc())
             except OSError:

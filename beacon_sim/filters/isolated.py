@@ -84,6 +84,7 @@ class FilterChild:
     def __init__(self, source: Path, class_name: str | None, log: Path, sandbox: str,
                  limits: Limits, reply_timeout_s: float = MIN_REPLY_TIMEOUT_S):
         self.limits, self.sandbox = limits, sandbox
+        self.source_name = source.name
         self.reply_timeout_s = reply_timeout_s
         self.dead: str | None = None
         log.parent.mkdir(parents=True, exist_ok=True)
@@ -111,7 +112,9 @@ class FilterChild:
             raise ChildFailure(self._death(exc), died=True) from None
         if tag == FAIL:
             doc = parse_json(payload)
-            raise ChildFailure(str(doc.get("why", "the filter failed"))[:300], str(doc.get("tb", "")))
+            why = str(doc.get("why", "the filter failed"))  # the child's copy named as the file
+            why = why.replace(self._proc.source_in_child, self.source_name)
+            raise ChildFailure(why[:400], str(doc.get("tb", "")))
         return tag, payload
 
     def call(self, op: str, *args: Any) -> tuple[bytes, bytes]:
