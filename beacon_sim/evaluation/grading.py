@@ -431,7 +431,7 @@ def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict
     """The probes on the first run's first :data:`PROBE_TICKS` ticks: with the global RNGs
     seeded differently, and with the readings withheld. Returns the child (None when a
     probe broke it)."""
-    if graded.run is None:
+    if not isinstance(graded.run, RunOutput):
         return child
     fr = next(iter(graded.run.filters.values()))
     if fr.failed or fr.means is None:
@@ -669,7 +669,7 @@ def _score_together(scenarios: dict[str, Scenario | TeamScenario], names: list[s
             run = RunOutput(first.index, first.seed, first.truth, first.controls, first.kidnapped,
                             first.truth_checksum)
             for student, runs in whole:
-                run.filters[student] = next(iter(runs[i].filters.values()))
+                run.filters[student] = next(iter(runs[i].filters.values()))  # type: ignore[union-attr,assignment]
             merged.append(run)
         meta, curve = evaluate(sc, merged, Thresholds())  # type: ignore[arg-type]
         for student, _ in whole:
@@ -722,7 +722,7 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         if (st.name, name) in (scored or {}):  # the class's runs scored together (one PCRB)
             fr, c, times = (scored or {})[(st.name, name)]
         else:
-            meta, curve = evaluate(sc, runs, Thresholds())
+            meta, curve = evaluate(sc, runs, Thresholds())  # type: ignore[arg-type]
             fr = next(iter(meta["filters"].values()))
             c, times = next(iter(curve["filters"].values())), curve["time"]
         for f in fr["failures"]:

@@ -217,7 +217,7 @@ class _Server:
         post = estimate_arrays(est)
         if isinstance(post, str):
             return self.loose(est) if self.step_limit_s is not None else self.fail(post)
-        pri = None
+        pri: Any = None
         if want_prior:
             pri = estimate_arrays(prior)
             if isinstance(pri, str):
@@ -264,6 +264,8 @@ class _Server:
         return None
 
     def op_belief(self) -> None:
+        import numpy as np
+
         from beacon_sim.filters.base import GaussianBelief, GridBelief, ParticleBelief
         from beacon_sim.filters.wire import encode_belief
 
@@ -273,7 +275,7 @@ class _Server:
         elif isinstance(b, ParticleBelief):
             self.send(encode_belief("particles", [b.poses, b.weights], {}))
         elif isinstance(b, GridBelief):
-            self.send(encode_belief("grid", [b.prob, b.origin, b.cell], {}))
+            self.send(encode_belief("grid", [b.prob, np.asarray(b.origin), np.asarray(b.cell)], {}))
         else:
             self.fail(f"belief() returned {type(b).__name__}, expected a GaussianBelief, "
                       "ParticleBelief or GridBelief")
