@@ -190,3 +190,21 @@ def test_a_result_far_below_the_bound_is_suspicious_and_kept_out_of_the_ranking(
     assert {k: honest[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
     write_outputs(b, tmp_path / "out")
     assert "SUSPICIOUS" in (tmp_path / "out" / "grade.csv").read_text()
+
+
+def test_a_page_per_student_and_pseudonyms_on_the_class_page(board, tmp_path):
+    import csv
+
+    write_outputs(board, tmp_path / "named")
+    page = (tmp_path / "named" / "students" / "os_exit.html").read_text()
+    assert "exited with status 3" in page and "../grade.html" in page and "<svg" in page
+    assert 'href="students/honest.html"' in (tmp_path / "named" / "grade.html").read_text()
+    anon = {**board, "config": {**board["config"], "pseudonyms": True}}
+    write_outputs(anon, tmp_path / "anon")
+    html = (tmp_path / "anon" / "grade.html").read_text()
+    with open(tmp_path / "anon" / "pseudonyms.csv", newline="") as fh:
+        mapping = {r["student"]: r["pseudonym"] for r in csv.DictReader(fh)}
+    assert set(mapping) == set(HONEST + HOSTILE)
+    for student, alias in mapping.items():
+        assert f'data-student="{student}"' not in html and f'data-student="{alias}"' in html
+        assert (tmp_path / "anon" / "students" / f"{alias}.html").exists()

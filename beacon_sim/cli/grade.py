@@ -31,6 +31,8 @@ def grade_command(args: argparse.Namespace) -> int:
         cfg = dataclasses.replace(cfg, time_limit=args.time_limit)
     if getattr(args, "sandbox", None):
         cfg = dataclasses.replace(cfg, sandbox=args.sandbox)
+    if getattr(args, "pseudonyms", False):
+        cfg = dataclasses.replace(cfg, pseudonyms=True)
     scheduler = args.scheduler
     if scheduler is not None:
         try:

@@ -75,6 +75,8 @@ class GradeConfig:
     class_name : the filter class in each file (default: found in the file).
     sandbox : ``auto``, ``bwrap`` or ``process`` (docs/grading.md, "What grading protects
         against"); ``auto``: bubblewrap where it works, else the process level.
+    pseudonyms : the class page (grade.html) names students by a pseudonym; the teacher's
+        files (grade.csv, grade.json, pseudonyms.csv) keep the real names.
     """
 
     scenarios: tuple[str, ...] = ("default",)
@@ -84,6 +86,7 @@ class GradeConfig:
     memory_limit_gb: float = 4.0
     class_name: str | None = None
     sandbox: str = "auto"
+    pseudonyms: bool = False
 
 
 #: The longest run a grading configuration may ask for [s] (one simulated day).
@@ -158,8 +161,16 @@ def load_config(path: str | Path | None) -> GradeConfig:
         memory_limit_gb=_config_number(path, data, "memory_limit_gb", GradeConfig.memory_limit_gb,
                                        hi=1e4, allow_zero=True),
         class_name=_config_name(path, data),
-        sandbox=_config_sandbox(path, data))
+        sandbox=_config_sandbox(path, data),
+        pseudonyms=_config_bool(path, data, "pseudonyms"))
     return cfg
+
+
+def _config_bool(path: str | Path, data: dict[str, Any], key: str) -> bool:
+    value = data.get(key, False)
+    if not isinstance(value, bool):
+        raise GradeError(f"{path}: {key} = {value!r}: expected true or false")
+    return value
 
 
 def _config_sandbox(path: str | Path, data: dict[str, Any]) -> str:
@@ -734,6 +745,7 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
     row["failures"] = failures
     row["failed_runs"] = len(failures)
+    row["run_detail"] = _run_detail(st, config, by)
     if team_rows:
         row["team"] = team_rows
     row["us_per_step"] = float(np.mean(figures["us_per_step"])) if figures["us_per_step"] else None
@@ -743,6 +755,25 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
             row[key] = float(np.mean(figures[key])) if figures[key] else None
         row["anees_verdict"] = verdicts[0] if len(set(verdicts)) == 1 else "/".join(verdicts)
     return row
+
+
+def _run_detail(st: Student, config: GradeConfig, by: dict[tuple[str, str], list[TaskResult]]
+                ) -> list[dict[str, Any]]:
+    """One line per run of a student (the student's page): scenario, seed, position RMSE
+    [m] over the steps it ran, steps, cost [us/step], and why it failed."""
+    out = []
+    for name in config.scenarios:
+        for r in sorted(by.get((st.name, name), []), key=lambda r: r.task.index):
+            line: dict[str, Any] = {"scenario": name, "seed": r.task.seed, "pos_rmse_m": None,
+                                    "steps": 0, "us_per_step": None, "failed": r.problem}
+            if isinstance(r.run, RunOutput):
+                fr = next(iter(r.run.filters.values()))
+                e = fr.err[np.isfinite(fr.err[:, 0]) & np.isfinite(fr.err[:, 1])]
+                rmse = float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))) if len(e) else None
+                line.update(pos_rmse_m=rmse, steps=int(fr.steps),
+                            us_per_step=fr.step_ns / 1e3 / max(fr.steps, 1), failed=fr.failed)
+            out.append(line)
+    return out
 
 
 def rank_key(row: dict[str, Any]) -> tuple:
@@ -851,6 +882,22 @@ def _sandbox_text(board: dict[str, Any]) -> str:
     return text
 
 
+def pseudonym(student: str, board: dict[str, Any]) -> str:
+    """A student's stable pseudonym on the class page: the same for the same class and
+    configuration, not guessable from the name without the configuration's seeds."""
+    import hashlib
+
+    cfg = board["config"]
+    key = f"{student}|{cfg['seeds']}|{cfg['scenarios']}".encode()
+    return "student-" + hashlib.sha256(key).hexdigest()[:6]
+
+
+def _shown(board: dict[str, Any]) -> dict[str, str]:
+    """Student -> the name the class page shows (the pseudonym with ``pseudonyms``)."""
+    anon = bool(board["config"].get("pseudonyms"))
+    return {r["student"]: pseudonym(r["student"], board) if anon else r["student"] for r in board["rows"]}
+
+
 def write_html(board: dict[str, Any], path: Path) -> Path:
     """A self-contained leaderboard page (inline CSS, JS and SVG plots): click a column
     to sort (``#sort=COLUMN`` or ``#sort=COLUMN-desc`` in the address sorts on load)."""
@@ -872,7 +919,9 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
         return f"<td>{html.escape(str(v))}</td>"
 
     body = []
-    for r in board["rows"]:
+    shown = _shown(board)
+    for r0 in board["rows"]:
+        r = {**r0, "student": shown[r0["student"]]}
         data = " ".join(f'data-{k}="{html.escape("" if r[k] is None else str(r[k]))}"' for k, _ in cols)
         why = "<br>".join(html.escape(_failure_text(f)) for f in r["failures"][:4])
         more = len(r["failures"]) - 4
@@ -881,8 +930,10 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
         flags = "<br>".join(html.escape(f) for f in r.get("flags", []))
         st = status(r)
         kind = {"FAILED": "failed", "SUSPICIOUS": "suspicious"}.get(st, "ok")
-        log = (f' <a href="logs/{html.escape(r["student"])}.log">log</a>'
-               if r.get("log") else "")
+        log = f' <a href="students/{html.escape(r["student"])}.html">page</a>'
+        if r.get("log"):
+            log += f' <a href="logs/{html.escape(r["student"])}.log">log</a>'
+
         order = {"ok": 0, "suspicious": 1, "failed": 2}[kind]  # the page's sort keeps this order
         body.append(f'<tr class="{kind}" data-failed="{order}" {data}>' + "".join(cell(r, k) for k, _ in cols)
                     + f'<td>{st}{log}<div class="why">{why}</div><div class="flag">{flags}</div></td>'
@@ -912,14 +963,63 @@ Plot: position error [m] against time [s] of the first seed.{_reference_note(boa
     return path
 
 
+def write_student_page(board: dict[str, Any], row: dict[str, Any], path: Path, shown: str,
+                       log: str) -> Path:
+    """One student's page: the figures, each run, failures, warnings, the plot and the log."""
+    def num(v: object, fmt: str) -> str:
+        return "&ndash;" if v is None else format(v, fmt)
+
+    runs = "".join(
+        f"<tr><td>{html.escape(str(d['scenario']))}</td><td class=num>{d['seed']}</td>"
+        f"<td class=num>{num(d['pos_rmse_m'], '.4f')}</td><td class=num>{d['steps']}</td>"
+        f"<td class=num>{num(d['us_per_step'], '.1f')}</td>"
+        f"<td class=why>{html.escape(d['failed'] or '')}</td></tr>" for d in row.get("run_detail", []))
+    flags = "".join(f"<li>{html.escape(f)}</li>" for f in row.get("flags", []))
+    fails = "".join(f"<li>{html.escape(_failure_text(f))}</li>" for f in row["failures"])
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(shown)}: beacon-sim grade</title>
+<style>{_CSS}</style></head><body>
+<h1>{html.escape(shown)}</h1>
+<p class="note"><a href="../grade.html">the class page</a>. Rank {row['rank']} of {board['students']};
+status {status(row)}; position RMSE {num(row['pos_rmse_m'], '.4f')} m; heading RMSE
+{num(row['heading_rmse_rad'], '.4f')} rad; ANEES {num(row['anees'], '.2f')}
+({html.escape(str(row['anees_verdict']))});
+RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} us per step.</p>
+<h2>Runs</h2>
+<table><thead><tr><th>scenario</th><th>seed</th><th>pos RMSE [m]</th><th>steps</th><th>cost [us/step]</th>
+<th>failure</th></tr></thead><tbody>{runs}</tbody></table>
+{'<h2>Failures</h2><ul class="why">' + fails + '</ul>' if fails else ''}
+{'<h2>Warnings</h2><ul class="flag">' + flags + '</ul>' if flags else ''}
+<h2>Position error [m] against time [s], first seed</h2>{row['plot']}
+<h2>Log (stdout and stderr, cut at {LOG_BYTES // 1024} KB)</h2>
+<pre>{html.escape(log) or '(nothing printed)'}</pre>
+</body></html>
+"""
+    path.write_text(page, encoding="utf-8")
+    return path
+
+
 def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:
-    """``grade.csv``, ``grade.html`` and ``grade.json`` (the rows without the plots) in ``out``."""
+    """``grade.csv``, ``grade.html``, ``grade.json`` (the rows without the plots), a page per
+    student (``students/``), the logs (``logs/``) and, with pseudonyms, ``pseudonyms.csv``
+    in ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     logs = board.get("logs") or {}
+    shown = _shown(board)
     if logs:
         (out / "logs").mkdir(exist_ok=True)
         for student, text in logs.items():
-            (out / "logs" / f"{student}.log").write_text(text, encoding="utf-8")
+            (out / "logs" / f"{shown.get(student, student)}.log").write_text(text, encoding="utf-8")
+    (out / "students").mkdir(exist_ok=True)
+    for r in board["rows"]:
+        write_student_page(board, r, out / "students" / f"{shown[r['student']]}.html", shown[r["student"]],
+                           logs.get(r["student"], ""))
+    if board["config"].get("pseudonyms"):
+        with open(out / "pseudonyms.csv", "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(("pseudonym", "student", "file"))
+            for r in board["rows"]:
+                w.writerow((shown[r["student"]], r["student"], r["file"]))
     doc = {k: v for k, v in board.items() if k not in ("rows", "logs")}
     doc["rows"] = [{k: v for k, v in r.items() if k != "plot"} for r in board["rows"]]
     (out / "grade.json").write_text(json.dumps(doc, indent=1, default=float), encoding="utf-8")
