@@ -66,15 +66,6 @@ def figures(board: dict, names: list[str]) -> dict[str, tuple]:
     return {r["student"]: tuple(r[k] for k in FIGURES) for r in board["rows"] if r["student"] in names}
 
 
-def _cpu() -> float:
-    """CPU time [s] of this process and of its waited-for children (the students' children,
-    a base grade's pool workers), user + system."""
-    import resource
-
-    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
-
-
 def base_grade(base: Path, folder: Path, cfg: GradeConfig, jobs: int) -> float:
     """Wall time [s] of the in-process grade of the commit in ``base`` (a subprocess)."""
     code = (f"import time; from beacon_sim.evaluation.grading import GradeConfig, grade; "
@@ -133,23 +124,18 @@ def main() -> None:
     if args.base is not None:  # the cost of a graded run: the honest class, isolated vs in process
         hon = tmp / "alone"
         runs = len(honest) * args.seeds
-        wall = {"iso": [], "base": []}
-        cpu = {"iso": [], "base": []}
-        for _ in range(2):  # interleaved, the machine's load drifts
-            c0, t0 = _cpu(), time.perf_counter()
+        wall: dict[str, list[float]] = {"iso": [], "base": []}
+        for _ in range(2):  # interleaved, best of 2: the machine's load drifts
+            t0 = time.perf_counter()
             grade(hon, cfg, jobs=args.jobs)
             wall["iso"].append(time.perf_counter() - t0)
-            cpu["iso"].append(_cpu() - c0)
-            c0 = _cpu()
             wall["base"].append(base_grade(args.base, hon, cfg, args.jobs))
-            cpu["base"].append(_cpu() - c0)
         iso, inproc = min(wall["iso"]), min(wall["base"])
-        ciso, cbase = min(cpu["iso"]), min(cpu["base"])
-        print(f"FIGURE graded_run_isolated {iso / runs * 1e3:.0f} ms wall, {ciso / runs * 1e3:.0f} ms CPU "
-              f"per run ({runs} runs, simulation once per seed, scoring included; best of 2)")
-        print(f"FIGURE graded_run_in_process_base {inproc / runs * 1e3:.0f} ms wall, "
-              f"{cbase / runs * 1e3:.0f} ms CPU per run (the base commit's grade; best of 2)")
-        print(f"FIGURE isolated_over_in_process wall {iso / inproc:.2f} x, CPU {ciso / cbase:.2f} x")
+        print(f"FIGURE graded_run_isolated {iso / runs * 1e3:.0f} ms per run ({runs} runs, simulation "
+              "once per seed, child start, probes and scoring included; best of 2)")
+        print(f"FIGURE graded_run_in_process_base {inproc / runs * 1e3:.0f} ms per run (the base "
+              "commit's grade, each run simulating its own truth; best of 2)")
+        print(f"FIGURE isolated_over_in_process {iso / inproc:.2f} x (wall time, {args.jobs} jobs)")
     shutil.rmtree(tmp, ignore_errors=True)
 
 
