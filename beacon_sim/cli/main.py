@@ -124,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scenarios, seeds, duration, time_limit (docs/grading.md)")
     p.add_argument("--out", metavar="DIR",
                    help="where grade.csv, grade.html, grade.json go (default DIR/grade_out)")
-    p.add_argument("--jobs", type=int, help="local processes (default: all cores)")
+    p.add_argument("--jobs", type=int, help="students graded at once locally (default: cores + 1)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     p.add_argument("--time-limit", type=float, metavar="S", help="a filter's time limit per run [s]")
     p.add_argument("--sandbox", choices=("auto", "bwrap", "process"),

@@ -506,7 +506,9 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
     else:
         from concurrent.futures import ThreadPoolExecutor
 
-        n = default_jobs() if jobs is None else max(1, int(jobs))
+        # One more student than cores: a student's thread and its child take turns (lockstep),
+        # so cores + 1 keeps every core busy (measured: 20 % less wall time on 2 cores).
+        n = default_jobs() + 1 if jobs is None else max(1, int(jobs))
         with ThreadPoolExecutor(max_workers=max(1, min(n, len(jobs_list)))) as pool:
             futs = {pool.submit(run_student, j): i for i, j in enumerate(jobs_list)}
             for fut, i in futs.items():
