@@ -66,7 +66,7 @@ def figures(board: dict, names: list[str]) -> dict[str, tuple]:
     return {r["student"]: tuple(r[k] for k in FIGURES) for r in board["rows"] if r["student"] in names}
 
 
-def base_grade(base: Path, folder: Path, cfg: GradeConfig, jobs: int) -> float:
+def base_grade(base: Path, folder: Path, cfg: GradeConfig, jobs: int | None) -> float:
     """Wall time [s] of the in-process grade of the commit in ``base`` (a subprocess)."""
     code = (f"import time; from beacon_sim.evaluation.grading import GradeConfig, grade; "
             f"t = time.perf_counter(); grade({str(folder)!r}, GradeConfig(scenarios={cfg.scenarios!r}, "
@@ -83,7 +83,8 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--time-limit", type=float, default=10.0)
-    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--jobs", type=int, default=None,
+                    help="students at once (default: each grade's own default)")
     ap.add_argument("--base", type=Path)
     ap.add_argument("--no-dask", action="store_true")
     args = ap.parse_args()
@@ -98,7 +99,7 @@ def main() -> None:
     t0 = time.perf_counter()
     board = grade(klass, cfg, jobs=args.jobs)
     local_s = time.perf_counter() - t0
-    print(f"FIGURE grade_local_wall {local_s:.1f} s (sandbox {board['sandbox']}, jobs {args.jobs}, "
+    print(f"FIGURE grade_local_wall {local_s:.1f} s (sandbox {board['sandbox']}, jobs {args.jobs or 'default'}, "
           f"{args.seeds} seeds x {args.duration:g} s)")
     write_class(tmp / "alone", 21, hostile=False)
     alone = grade(tmp / "alone", cfg, jobs=args.jobs)
@@ -111,12 +112,12 @@ def main() -> None:
     if not args.no_dask:
         from dask.distributed import Client, LocalCluster
 
-        with LocalCluster(n_workers=args.jobs, threads_per_worker=1, processes=True,
+        with LocalCluster(n_workers=args.jobs or 2, threads_per_worker=1, processes=True,
                           dashboard_address=None) as cluster, Client(cluster) as client:
             t0 = time.perf_counter()
             remote = grade(klass, cfg, scheduler=client)
             dask_s = time.perf_counter() - t0
-        print(f"FIGURE grade_dask_wall {dask_s:.1f} s (LocalCluster {args.jobs} workers x 1 thread)")
+        print(f"FIGURE grade_dask_wall {dask_s:.1f} s (LocalCluster {args.jobs or 2} workers x 1 thread)")
         print(f"FIGURE honest_identical_to_alone_dask {figures(remote, honest) == figures(alone, honest)}")
         everyone = [r["student"] for r in board["rows"]]
         print(f"FIGURE dask_identical_to_local {figures(remote, everyone) == figures(board, everyone)}")
@@ -135,7 +136,8 @@ def main() -> None:
               "once per seed, child start, probes and scoring included; best of 2)")
         print(f"FIGURE graded_run_in_process_base {inproc / runs * 1e3:.0f} ms per run (the base "
               "commit's grade, each run simulating its own truth; best of 2)")
-        print(f"FIGURE isolated_over_in_process {iso / inproc:.2f} x (wall time, {args.jobs} jobs)")
+        print(f"FIGURE isolated_over_in_process {iso / inproc:.2f} x (wall time, jobs: "
+              f"{args.jobs or 'each default'})")
     shutil.rmtree(tmp, ignore_errors=True)
 
 
