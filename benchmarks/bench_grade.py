@@ -99,8 +99,8 @@ def main() -> None:
     t0 = time.perf_counter()
     board = grade(klass, cfg, jobs=args.jobs)
     local_s = time.perf_counter() - t0
-    print(f"FIGURE grade_local_wall {local_s:.1f} s (sandbox {board['sandbox']}, jobs {args.jobs or 'default'}, "
-          f"{args.seeds} seeds x {args.duration:g} s)")
+    print(f"FIGURE grade_local_wall {local_s:.1f} s (sandbox {board['sandbox']}, jobs "
+          f"{args.jobs or 'default'}, {args.seeds} seeds x {args.duration:g} s)")
     write_class(tmp / "alone", 21, hostile=False)
     alone = grade(tmp / "alone", cfg, jobs=args.jobs)
     same = figures(board, honest) == figures(alone, honest)
