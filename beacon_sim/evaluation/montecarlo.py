@@ -312,7 +312,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     from beacon_sim.filters.base import FilterContext
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
-    from beacon_sim.filters.wire import ESTIMATE, parse_estimate
+    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
 
     scenario = sr.scenario
     name = name or child.class_name
@@ -346,6 +346,10 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     except ChildFailure as exc:
         failed = str(exc) or "the filter failed"
         report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
+    except WireError as exc:  # a malformed answer: the child is not to be trusted further
+        child.kill()
+        failed = f"the filter's process {exc} and was stopped"
+        report = {"failed_child": True, "died": True, "traceback": ""}
     theta = means[:done, 2]
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
     if ticks is not None:  # a probe: its estimates only

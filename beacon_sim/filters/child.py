@@ -94,6 +94,8 @@ def _contain(cfg: dict[str, Any]) -> None:
     if cfg.get("drop_user") and hasattr(os, "geteuid") and os.geteuid() == 0:
         import importlib
 
+        limit(resource.RLIMIT_NPROC, 256)  # the processes of nobody: no fork bomb
+
         for name in PRELOAD:
             try:
                 importlib.import_module(name)
