@@ -21,7 +21,7 @@ from beacon_sim.filters.containment import bwrap_problem
 ATTACKS = Path(__file__).parent / "attacks"
 HONEST = ("honest", "honest_tuned")
 HOSTILE = ("frame_walk", "gc_search", "truth_tamper", "patch_grading", "os_exit", "file_writes",
-           "global_rng", "helper_last", "functions")
+           "global_rng", "helper_last", "functions", "forge_reply")
 CONFIG = GradeConfig(scenarios=("default",), seeds=(0, 1), duration=4.0, time_limit=30.0)
 FIGURES = ("pos_rmse_m", "heading_rmse_rad", "anees", "anees_verdict", "rmse_over_pcrb",
            "failed_runs", "plot")
@@ -111,9 +111,14 @@ def test_os_exit_fails_its_own_student_with_the_real_reason(board):
     row = _row(board, "os_exit")
     assert row["failed_runs"] == 2 and row["pos_rmse_m"] is None
     assert all("exited with status 3" in f["reason"] for f in row["failures"]), row["failures"]
-    others = [r for r in board["rows"] if r["student"] != "os_exit"]
+    others = [r for r in board["rows"] if r["student"] not in ("os_exit", "forge_reply")]
     assert not any("exited" in f["reason"] or "died" in f["reason"] for r in others for f in r["failures"])
-    assert board["rows"][-1]["student"] == "os_exit"  # ranked below every working filter
+    assert board["rows"][-1]["student"] in ("os_exit", "forge_reply")  # below every working filter
+
+
+def test_a_forged_answer_on_the_pipe_fails_its_own_student(board):
+    row = _row(board, "forge_reply")
+    assert row["failed_runs"] == 2 and all("broke the protocol" in f["reason"] for f in row["failures"])
 
 
 def test_files_in_the_working_directory_and_the_class_folder_are_untouched(board, klass, workdir):
