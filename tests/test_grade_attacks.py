@@ -213,3 +213,15 @@ def test_a_page_per_student_and_pseudonyms_on_the_class_page(board, tmp_path):
     for student, alias in mapping.items():
         assert f'data-student="{student}"' not in html and f'data-student="{alias}"' in html
         assert (tmp_path / "anon" / "students" / f"{alias}.html").exists()
+
+
+def test_regrading_reuses_unchanged_students_and_runs_a_changed_file(tmp_path, alone):
+    klass = _klass(tmp_path / "c", HONEST)
+    cache = tmp_path / "cache"
+    first = grade(klass, CONFIG, jobs=2, cache=cache)
+    assert first["cached_students"] == []
+    shutil.copyfile(ATTACKS / "os_exit.py", klass / "honest_tuned.py")  # a corrected (here: broken) file
+    again = grade(klass, CONFIG, jobs=2, cache=cache)
+    assert again["cached_students"] == ["honest"]
+    assert {k: _row(again, "honest")[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
+    assert "exited with status 3" in _row(again, "honest_tuned")["failures"][0]["reason"]

@@ -50,7 +50,8 @@ def grade_command(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     try:
-        board = grade(args.dir, cfg, jobs=args.jobs, scheduler=scheduler, progress=progress)
+        board = grade(args.dir, cfg, jobs=args.jobs, scheduler=scheduler, progress=progress,
+                      cache=None if getattr(args, "no_cache", False) else out / "cache")
     except GradeError as exc:
         raise UsageError(str(exc)) from None
     written = write_outputs(board, out)
@@ -73,6 +74,9 @@ def grade_command(args: argparse.Namespace) -> int:
             print(f"reference on {sc} (built-in independent EKF): team {ref['pos_rmse_m']:.4f} m  "
                   f"ANEES {ref['anees']:.2f}  "
                   + ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in ref["robots"].items()))
+    if board.get("cached_students"):
+        print(f"{len(board['cached_students'])} student(s) unchanged since the last grade: results "
+              f"reused from {out / 'cache'} (--no-cache runs them again)")
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
           f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
           f"in its own process, sandbox: {board.get('sandbox', 'process')})")

@@ -130,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sandbox", choices=("auto", "bwrap", "process"),
                    help="how each student's process is contained (default auto: bubblewrap "
                         "where it works, else the process level; docs/grading.md)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="run every student again (default: a student whose file and settings are "
+                        "unchanged reuses OUT/cache)")
     p.add_argument("--pseudonyms", action="store_true",
                    help="the class page names students by pseudonyms (pseudonyms.csv maps them)")
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")

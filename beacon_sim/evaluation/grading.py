@@ -536,13 +536,18 @@ def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320
 
 
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
-          scheduler: Any = None, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+          scheduler: Any = None, progress: Callable[[int, int], None] | None = None,
+          cache: str | Path | None = None) -> dict[str, Any]:
     """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
     order, ``config``, ``wall_s``, ``sandbox``, ``logs``) that :func:`write_outputs` writes.
 
     Each single-robot (scenario, seed) is simulated once, here; each student's filter runs
     in a child process of its own (:func:`run_student`) that receives only what a filter
-    may see; the scoring stays here. Team scenarios are graded in process (not isolated)."""
+    may see; the scoring stays here. Team scenarios are graded in process (not isolated).
+
+    ``cache``: a folder of earlier results, by the file's hash and the configuration
+    (:func:`cache_key`): a student whose file and settings are unchanged is not run again
+    (re-grading one late or corrected file costs that file alone)."""
     t0 = time.perf_counter()
     students = find_students(folder, config.class_name)
     try:
@@ -564,7 +569,10 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
                                config.class_name or st.class_name, sims, config.time_limit,
                                config.memory_limit_gb, sandbox)
                     for st in students if st.spec and sims]
-    done_students = run_students(student_jobs, jobs, scheduler, progress) if student_jobs else []
+    if cache is not None and not _students_cannot_write_here(sandbox):
+        cache = None  # a child running as this user could plant a pickle: no cache
+    done_students, cached = _run_cached(student_jobs, jobs, scheduler, progress,
+                                        Path(cache) if cache is not None else None)
     results = [r for sr in done_students for r in sr.results]
     tasks = [Task(st.name, st.spec, sc, seed, config.duration, config.time_limit, i)
              for st in students if st.spec for sc in team_names
@@ -596,7 +604,68 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
             "students": len(students), "runs_per_student": n_runs, "reference": reference,
             "sandbox": sandbox, "isolated": bool(single), "team_in_process": team_names,
+            "cached_students": cached,
             "logs": {sr.student: sr.log for sr in done_students}}
+
+
+def _students_cannot_write_here(sandbox: str) -> bool:
+    """Whether the students' children cannot write the grader's files (the cache of pickles
+    is read back): inside bubblewrap, or as ``nobody`` under a root grader."""
+    import os
+
+    return sandbox == "bwrap" or (hasattr(os, "geteuid") and os.geteuid() == 0)
+
+
+def cache_key(job: StudentJob) -> str:
+    """A student's results are reused when this is unchanged: the file's bytes and name, the
+    class, the limits, the sandbox level, beacon-sim's version and every simulated run
+    (scenario, seed, length, the truth's checksum)."""
+    import hashlib
+
+    from beacon_sim.version import __version__
+
+    h = hashlib.sha256(job.source)
+    meta = [job.filename, job.class_name, job.time_limit, job.memory_limit_gb, job.sandbox, __version__,
+            PROBE_TICKS, [(sr.label, sr.seed, len(sr.frames), sr.truth_checksum, repr(sr.scenario))
+                          for sr in job.sims]]
+    h.update(json.dumps(meta, default=str).encode())
+    return h.hexdigest()
+
+
+def _run_cached(student_jobs: list[StudentJob], jobs: int | None, scheduler: Any,
+                progress: Callable[[int, int], None] | None, cache: Path | None
+                ) -> tuple[list[StudentResult], list[str]]:
+    """:func:`run_students` for the students whose results are not in ``cache`` (a folder of
+    pickles the grader wrote itself: numbers and texts, nothing of a student's code); the
+    others' results from it. Returns the results in order and the students taken from it."""
+    import pickle
+
+    if cache is None:
+        return (run_students(student_jobs, jobs, scheduler, progress) if student_jobs else []), []
+    cache.mkdir(parents=True, exist_ok=True)
+    found: dict[int, StudentResult] = {}
+    for i, job in enumerate(student_jobs):
+        f = cache / f"{cache_key(job)}.pickle"
+        if f.is_file():
+            try:
+                found[i] = pickle.loads(f.read_bytes())
+            except Exception:  # a damaged entry: run the student again
+                pass
+    todo = [j for i, j in enumerate(student_jobs) if i not in found]
+    fresh = iter(run_students(todo, jobs, scheduler, progress) if todo else [])
+    out = []
+    for i, job in enumerate(student_jobs):
+        if i in found:
+            out.append(found[i])
+            continue
+        res = next(fresh)
+        out.append(res)
+        if any(r.problem and r.problem.startswith("worker lost") for r in res.results):
+            continue  # the machine's failure, not the student's: run it again next time
+        tmp = cache / f".{cache_key(job)}.tmp"
+        tmp.write_bytes(pickle.dumps(res, protocol=pickle.HIGHEST_PROTOCOL))
+        tmp.replace(cache / f"{cache_key(job)}.pickle")
+    return out, [student_jobs[i].student for i in sorted(found)]
 
 
 #: A result this far below the bound is "suspicious" (RMSE/PCRB), and an ANEES below this
