@@ -225,3 +225,15 @@ def test_regrading_reuses_unchanged_students_and_runs_a_changed_file(tmp_path, a
     assert again["cached_students"] == ["honest"]
     assert {k: _row(again, "honest")[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
     assert "exited with status 3" in _row(again, "honest_tuned")["failures"][0]["reason"]
+
+
+def test_team_scenarios_host_each_robots_filter_in_a_child_too(tmp_path):
+    """On a team scenario the student's filter is every robot's own, each copy in a child
+    process: an honest EKF scores exactly as the built-in reference, the frame walker finds
+    nothing, os._exit fails its own student with the real reason."""
+    cfg = GradeConfig(scenarios=("team_sparse",), seeds=(0,), duration=3.0, time_limit=30.0)
+    b = grade(_klass(tmp_path / "c", ["honest", "frame_walk", "os_exit"]), cfg, jobs=2)
+    ref = b["reference"]["team_sparse"]["pos_rmse_m"]
+    assert _row(b, "honest")["pos_rmse_m"] == ref == _row(b, "frame_walk")["pos_rmse_m"]
+    assert "exited with status 3" in _row(b, "os_exit")["failures"][0]["reason"]
+    assert b["team_in_process"] == []

@@ -48,7 +48,7 @@ from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.evaluation.team import TeamRunOutput, evaluate_team, team_one_run
 from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
 from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
-from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS
+from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS, isolated_spec
 from beacon_sim.filters.runner import SLOW_STEP_MS
 from beacon_sim.runs.team import MEMBER_PREFIX
 
@@ -543,7 +543,8 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
 
     Each single-robot (scenario, seed) is simulated once, here; each student's filter runs
     in a child process of its own (:func:`run_student`) that receives only what a filter
-    may see; the scoring stays here. Team scenarios are graded in process (not isolated).
+    may see; the scoring stays here. On a team scenario each robot's copy of the student's
+    filter is a child process of its own (the team simulation runs in a worker of the grader).
 
     ``cache``: a folder of earlier results, by the file's hash and the configuration
     (:func:`cache_key`): a student whose file and settings are unchanged is not run again
@@ -574,7 +575,9 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     done_students, cached = _run_cached(student_jobs, jobs, scheduler, progress,
                                         Path(cache) if cache is not None else None)
     results = [r for sr in done_students for r in sr.results]
-    tasks = [Task(st.name, st.spec, sc, seed, config.duration, config.time_limit, i)
+    # Team scenarios: each robot's copy of the student's filter in a child process of its own.
+    tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), sc, seed,
+                  config.duration, config.time_limit, i)
              for st in students if st.spec for sc in team_names
              for i, seed in enumerate(config.seeds)]
     tasks += [Task(REFERENCE, REFERENCE_SPEC, sc, seed, config.duration, config.time_limit, i)
@@ -603,7 +606,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         row["rank"] = k
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
             "students": len(students), "runs_per_student": n_runs, "reference": reference,
-            "sandbox": sandbox, "isolated": bool(single), "team_in_process": team_names,
+            "sandbox": sandbox, "isolated": True, "team_in_process": [],
             "cached_students": cached,
             "logs": {sr.student: sr.log for sr in done_students}}
 

@@ -229,6 +229,9 @@ def filter_display_name(spec: str) -> str:
     label, spec = split_label(spec)
     if label:
         return label
+    m = _ISOLATED.match(spec)
+    if m is not None:
+        return filter_display_name(m.group(3))
     if ":" not in spec and spec.endswith(".py"):
         return Path(spec).stem
     return spec.rpartition(":")[2] if ":" in spec else spec
@@ -316,6 +319,8 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     :class:`~beacon_sim.filters.runner.FilterRunner` when it first fails, and
     ``beacon-sim check`` names what is missing.
     """
+    if spec.startswith(ISOLATED_PREFIX):  # a file hosted in a child process (grade's team runs)
+        return _build_isolated(spec, scenario, seed, name, params)
     cls = load_filter_class(spec)
     name = name or filter_display_name(spec)
     ctx = FilterContext(
@@ -328,6 +333,51 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
         rng=stream(seed, "filter", name),
     )
     return build_from_context(cls, ctx, initial_belief(scenario), spec, limit_s=limit_s)
+
+
+#: ``isolated[SANDBOX,LIMIT_S]:path.py:Class``: the file's filter in a child process of its
+#: own (:mod:`beacon_sim.filters.isolated`), with that containment level and CPU-time limit
+#: per run. What ``grade`` gives each robot of a team scenario.
+ISOLATED_PREFIX = "isolated["
+_ISOLATED = re.compile(r"^isolated\[(auto|bwrap|process),([0-9.eE+-]+|none)\]:(.+)$")
+
+
+def isolated_spec(spec: str, sandbox: str, limit_s: float | None) -> str:
+    """The spec that hosts the file filter ``spec`` in a child process (see ``ISOLATED_PREFIX``)."""
+    return f"isolated[{sandbox},{'none' if limit_s is None else repr(float(limit_s))}]:{spec}"
+
+
+def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
+                    params: dict[str, Any] | None) -> Filter:
+    """A proxy of the file filter in ``spec`` in a fresh child process, closed with the proxy."""
+    import tempfile
+    import weakref
+
+    from beacon_sim.filters.containment import Limits, resolve_sandbox
+    from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
+
+    m = _ISOLATED.match(spec)
+    if m is None:
+        raise FilterLoadError(f"{spec}: expected isolated[SANDBOX,LIMIT_S]:path.py:Class")
+    sandbox, limit, inner = m.group(1), m.group(2), m.group(3)
+    limit_s = None if limit == "none" else float(limit)
+    bare = split_label(inner)[1]
+    target, _, cls_name = bare.rpartition(":") if ":" in bare else (bare, "", "")
+    log = Path(tempfile.mkdtemp(prefix="beacon-sim-member-")) / "log.txt"
+    child = FilterChild(Path(target), cls_name or None, log, resolve_sandbox(sandbox),
+                        Limits(cpu_s=None if limit_s is None else 1.5 * limit_s + 60),
+                        reply_timeout_s=max(60.0, 5 * (limit_s or 12.0)))
+    name = name or filter_display_name(inner)
+    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+                        motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
+                        params=merged_params(inner, scenario, params), rng=stream(seed, "filter", name))
+    try:
+        flt = IsolatedFilter(child, ctx, initial_belief(scenario), seed, limit_s, inner)
+    except BaseException:
+        child.close()
+        raise
+    weakref.finalize(flt, child.close)
+    return flt  # type: ignore[return-value]
 
 
 def build_from_context(cls: type, ctx: FilterContext, initial: GaussianBelief | None, spec: str,
