@@ -13,8 +13,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.filters.conformance import print_report, run_checks
 from beacon_sim.filters.containment import SandboxError
-from beacon_sim.filters.isolated import is_file_spec
-from beacon_sim.filters.loading import FilterLoadError, load_filter_class, split_label
+from beacon_sim.filters.loading import FilterLoadError, is_file_spec, load_filter_class, split_label
 from beacon_sim.runs.team_conformance import run_team_checks
 
 

@@ -29,13 +29,13 @@ from beacon_sim.evaluation.team import (
 )
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.containment import SandboxError
-from beacon_sim.filters.isolated import is_file_spec
 from beacon_sim.filters.loading import (
     FilterLoadError,
     build_filter,
     check_param_names,
     filter_display_name,
     filter_names,
+    is_file_spec,
     parse_set_options,
     split_label,
 )

@@ -597,8 +597,8 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
     from pathlib import Path
 
     from beacon_sim.filters.containment import Limits, resolve_sandbox
-    from beacon_sim.filters.isolated import ChildFailure, FilterChild, is_file_spec
-    from beacon_sim.filters.loading import merged_params, split_label
+    from beacon_sim.filters.isolated import ChildFailure, FilterChild
+    from beacon_sim.filters.loading import is_file_spec, merged_params, split_label
 
     duration = scenario.duration if duration is None else duration
     params = params or {}

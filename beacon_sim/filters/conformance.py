@@ -41,13 +41,14 @@ from beacon_sim.filters.base import (
 from beacon_sim.filters.containment import Limits, resolve_sandbox
 from beacon_sim.filters.guard import MAX_COV, MAX_MEAN
 from beacon_sim.filters.host import call_guarded, guarded_call
-from beacon_sim.filters.isolated import FilterChild, IsolatedFilter, is_file_spec
+from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
 from beacon_sim.filters.loading import (
     FilterLoadError,
     build_filter,
     build_from_context,
     filter_display_name,
     initial_belief,
+    is_file_spec,
     load_filter_class,
     merged_params,
     split_label,

@@ -295,24 +295,4 @@ def _estimate_of(tag: bytes, payload: bytes) -> Any:
     raise ChildFailure("the filter's process broke the protocol")
 
 
-def is_user_code(spec: str) -> bool:
-    """Whether a filter spec names a file or a module (user code, hosted in a child by
-    ``eval``, ``check`` and ``grade``), rather than a built-in filter."""
-    from beacon_sim.filters.loading import BUILTIN_FILTERS, split_label
-
-    spec = split_label(spec)[1]
-    return spec not in BUILTIN_FILTERS and (":" in spec or spec.endswith(".py"))
-
-
-def is_file_spec(spec: str) -> bool:
-    """Whether a filter spec names a file (``path.py:Class`` or ``path.py``): the filters
-    ``eval``, ``check`` and ``grade`` host in a child process."""
-    from beacon_sim.filters.loading import split_label
-
-    spec = split_label(spec)[1]
-    target = spec.rpartition(":")[0] if ":" in spec else spec
-    return target.endswith(".py")
-
-
-__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter", "is_file_spec",
-           "is_user_code"]
+__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter"]

@@ -223,6 +223,14 @@ def load_filter_class(spec: str) -> type:
     return _get_class(module, class_name, target)
 
 
+def is_file_spec(spec: str) -> bool:
+    """Whether a filter spec names a file (``path.py:Class`` or ``path.py``): the filters
+    ``eval``, ``check`` and ``grade`` host in a child process of their own."""
+    spec = split_label(spec)[1]
+    target = spec.rpartition(":")[0] if ":" in spec else spec
+    return target.endswith(".py")
+
+
 def filter_display_name(spec: str) -> str:
     """Short name for a filter spec: its label (``alice`` for ``alice=./a.py:MyEkf``),
     ``ekf``, or ``MyFilter`` for ``my.py:MyFilter``."""
@@ -377,7 +385,7 @@ def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
         child.close()
         raise
     weakref.finalize(flt, child.close)
-    return flt  # type: ignore[return-value]
+    return flt
 
 
 def build_from_context(cls: type, ctx: FilterContext, initial: GaussianBelief | None, spec: str,
