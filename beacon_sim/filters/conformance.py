@@ -170,8 +170,9 @@ class _LocalHost:
 class _ChildHost:
     """The filter in a child process of its own (a file): its code never runs here."""
 
-    def __init__(self, child: FilterChild):
+    def __init__(self, child: FilterChild, log: Path | None = None):
         self.child = child
+        self.log = log  # the child's stdout and stderr
         info = child.info
         self.where = f"{info.get('module', '?')}.{child.class_name} (in a process of its own)"
         self.sensor_kinds = info.get("sensor_kinds")
@@ -216,7 +217,7 @@ def _open_host(spec: str, isolated: bool, sandbox: str) -> _Host:
         log = Path(tempfile.mkdtemp(prefix="beacon-sim-check-")) / "log.txt"
         child = FilterChild(path, cls or None, log, resolve_sandbox(sandbox), Limits(),
                             reply_timeout_s=max(60.0, 4 * STEP_LIMIT_S))
-        return _ChildHost(child)
+        return _ChildHost(child, log)
     return _LocalHost(load_filter_class(spec))
 
 
@@ -302,6 +303,9 @@ def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True,
         return _checks(host, spec, scenario, results, add)
     finally:
         host.close()
+        log = getattr(host, "log", None)
+        if log is not None and log.exists() and log.stat().st_size:  # not a check: where it went
+            add("output", True, f"the filter printed {log.stat().st_size} bytes: see {log}")
 
 
 def _checks(host: _Host, spec: str, scenario: Scenario, results: list[CheckResult],
