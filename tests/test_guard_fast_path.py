@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from beacon_sim.filters.runner import _validate_any, validate_estimate
+from beacon_sim.filters.guard import _validate_any, validate_estimate
 
 
 def _same(a, b) -> bool:

@@ -1,21 +1,72 @@
-"""``beacon-sim check FILTER [--scenario S]``: the conformance report for a filter."""
+"""``beacon-sim check FILTER [--scenario S] [--sandbox LEVEL]``: the conformance report for a
+filter. A filter file runs in a process of its own (docs/grading.md): its code never runs in
+``check``'s process, so a file that exits, loops or raises ``KeyboardInterrupt`` fails a
+check instead of ending the program."""
 
 from __future__ import annotations
 
 import argparse
+import ast
+from pathlib import Path
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.filters.conformance import print_report, run_checks
-from beacon_sim.filters.loading import load_filter_class
+from beacon_sim.filters.containment import SandboxError
+from beacon_sim.filters.loading import FilterLoadError, is_file_spec, load_filter_class, split_label
 from beacon_sim.runs.team_conformance import run_team_checks
+
+
+def _file_of(spec: str) -> tuple[Path, str | None]:
+    bare = split_label(spec)[1]
+    target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
+    return Path(target), cls or None
+
+
+def _is_team_file(path: Path, class_name: str | None) -> bool:
+    """Whether the file's filter is a team filter (a class with ``estimates()`` and no
+    ``estimate()``), read without running it."""
+    try:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+    except (SyntaxError, UnicodeDecodeError, OSError, ValueError):
+        return False
+    classes = {n.name: n for n in tree.body if isinstance(n, ast.ClassDef)}
+
+    def methods(name: str, seen: frozenset[str] = frozenset()) -> set[str]:
+        node = classes.get(name)
+        if node is None or name in seen:
+            return set()
+        own = {f.name for f in node.body if isinstance(f, ast.FunctionDef)}
+        for base in node.bases:  # the bases defined in the same file
+            if isinstance(base, ast.Name):
+                own |= methods(base.id, seen | {name})
+        return own
+
+    for name in classes:
+        if class_name is None or name == class_name:
+            m = methods(name)
+            if "estimates" in m and "estimate" not in m:
+                return True
+    return False
 
 
 def check_command(args: argparse.Namespace) -> int:
     """The report; exit status 0 when every check passes, 1 when one fails, 2 (one line)
     when the name is not a filter at all (unknown name, missing file or class). A team
     filter class (one with ``estimates()``) is checked on a team scenario (default
-    ``team_sparse``)."""
+    ``team_sparse``), in this process."""
+    sandbox = getattr(args, "sandbox", None) or "auto"
+    if is_file_spec(args.filter) and sandbox != "none":
+        path, cls_name = _file_of(args.filter)
+        if not path.is_file():
+            raise FilterLoadError(f"{path}: no such filter file")
+        if not _is_team_file(path, cls_name):
+            try:
+                results = run_checks(args.filter, load_scenario(args.scenario), sandbox=sandbox)
+            except SandboxError as exc:
+                raise FilterLoadError(str(exc)) from None
+            print_report(args.filter, results)
+            return 0 if all(r.passed for r in results) else 1
     cls = load_filter_class(args.filter)  # FilterLoadError: one line, exit status 2
     if callable(getattr(cls, "estimates", None)) and not callable(getattr(cls, "estimate", None)):
         name = args.scenario if is_team_scenario(args.scenario) else "team_sparse"
@@ -23,6 +74,6 @@ def check_command(args: argparse.Namespace) -> int:
         print_report(args.filter, results)
         return 0 if all(r.passed for r in results) else 1
     scenario = load_scenario(args.scenario)
-    results = run_checks(args.filter, scenario)
+    results = run_checks(args.filter, scenario, isolated=sandbox != "none")
     print_report(args.filter, results)
     return 0 if all(r.passed for r in results) else 1

@@ -18,7 +18,7 @@ from beacon_sim.cli.common import check_duration
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.evaluation.montecarlo import run_monte_carlo
+from beacon_sim.evaluation.montecarlo import run_monte_carlo, run_monte_carlo_isolated
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.evaluation.team import (
@@ -28,12 +28,16 @@ from beacon_sim.evaluation.team import (
     write_team_outputs,
 )
 from beacon_sim.filters.base import FilterError
+from beacon_sim.filters.containment import SandboxError
 from beacon_sim.filters.loading import (
+    FilterLoadError,
     build_filter,
     check_param_names,
     filter_display_name,
     filter_names,
+    is_file_spec,
     parse_set_options,
+    split_label,
 )
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
 from beacon_sim.runs.team import check_team_specs
@@ -59,6 +63,12 @@ def _validate(args: argparse.Namespace) -> None:
         raise UsageError(f"--out {args.out}: exists and is not a folder")
 
 
+def _isolated(args: argparse.Namespace) -> bool:
+    """Whether filter files run in processes of their own (the default; ``--sandbox none``:
+    in this process, as before)."""
+    return getattr(args, "sandbox", None) != "none"
+
+
 def eval_command(args: argparse.Namespace) -> int:
     """Run the evaluation the parsed ``args`` ask for; returns the exit status."""
     _validate(args)
@@ -74,6 +84,12 @@ def eval_command(args: argparse.Namespace) -> int:
         specs = list(args.filters or sc.default_filters)
         check_param_names(params, specs)
         for name, spec in zip(filter_names(specs), specs, strict=True):
+            if _isolated(args) and is_file_spec(spec):  # its code runs in its own process only
+                target = split_label(spec)[1]
+                target = target.rpartition(":")[0] if ":" in target else target
+                if not Path(target).is_file():
+                    raise FilterLoadError(f"{target}: no such filter file")
+                continue
             try:
                 build_filter(spec, sc, 0, name=name, params=params.get(filter_display_name(spec)))
             except FilterError:
@@ -87,10 +103,18 @@ def eval_command(args: argparse.Namespace) -> int:
     for sc in scenarios:
         specs = list(args.filters or sc.default_filters)
         try:
-            runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
-                                   jobs=args.jobs, params=params,
-                                   batch=False if getattr(args, "no_batch", False) else None,
-                                   run_limit_s=getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S)
+            limit = getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S
+            batch = False if getattr(args, "no_batch", False) else None
+            if _isolated(args) and any(is_file_spec(s) for s in specs):
+                runs = run_monte_carlo_isolated(sc, specs, args.runs, seed=args.seed or 0,
+                                                duration=args.duration, jobs=args.jobs, params=params,
+                                                run_limit_s=limit, sandbox=args.sandbox or "auto",
+                                                batch=batch)
+            else:
+                runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
+                                       jobs=args.jobs, params=params, batch=batch, run_limit_s=limit)
+        except SandboxError as exc:
+            raise UsageError(str(exc)) from None
         except (SystemExit, KeyboardInterrupt) as exc:
             # Raised by a filter's code inside the Monte Carlo loop (which switches off only
             # filters that raise an Exception): never a silent exit, and never status 0.

@@ -29,6 +29,10 @@ def grade_command(args: argparse.Namespace) -> int:
         if not (args.time_limit > 0 and math.isfinite(args.time_limit)):
             raise UsageError(f"--time-limit {args.time_limit}: expected a positive number of seconds")
         cfg = dataclasses.replace(cfg, time_limit=args.time_limit)
+    if getattr(args, "sandbox", None):
+        cfg = dataclasses.replace(cfg, sandbox=args.sandbox)
+    if getattr(args, "pseudonyms", False):
+        cfg = dataclasses.replace(cfg, pseudonyms=True)
     scheduler = args.scheduler
     if scheduler is not None:
         try:
@@ -46,14 +50,20 @@ def grade_command(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     try:
-        board = grade(args.dir, cfg, jobs=args.jobs, scheduler=scheduler, progress=progress)
+        board = grade(args.dir, cfg, jobs=args.jobs, scheduler=scheduler, progress=progress,
+                      cache=None if getattr(args, "no_cache", False) else out / "cache")
     except GradeError as exc:
         raise UsageError(str(exc)) from None
     written = write_outputs(board, out)
     for r in board["rows"]:
         score = ("FAILED " + str(r["failed_runs"]) + "/" + str(r["runs"]) if r["failed_runs"]
                  else f"{r['pos_rmse_m']:.4f} m  {r['anees_verdict']}")
+        if r.get("suspicious"):
+            score = "SUSPICIOUS (not ranked) " + score
         print(f"{r['rank']:>3}  {r['student']:<20} {score}")
+        for flag in r.get("flags", []):
+            if not flag.startswith("suspicious"):
+                print(f"{'':>5}warning: {flag}")
         for sc, t in r.get("team", {}).items():  # a team scenario: each robot's figures
             robots = ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in t["robots"].items()
                                if v["pos_rmse_m"] is not None)
@@ -64,7 +74,11 @@ def grade_command(args: argparse.Namespace) -> int:
             print(f"reference on {sc} (built-in independent EKF): team {ref['pos_rmse_m']:.4f} m  "
                   f"ANEES {ref['anees']:.2f}  "
                   + ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in ref["robots"].items()))
+    if board.get("cached_students"):
+        print(f"{len(board['cached_students'])} student(s) unchanged since the last grade: results "
+              f"reused from {out / 'cache'} (--no-cache runs them again)")
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
-          f"({'Dask ' + str(scheduler) if scheduler else 'local processes'})")
+          f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
+          f"in its own process, sandbox: {board.get('sandbox', 'process')})")
     failed = any(r["failed_runs"] for r in board["rows"])
     return 1 if failed and args.strict else 0

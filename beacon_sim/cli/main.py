@@ -59,8 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
     p = sub.add_parser("check", help="conformance report for a filter")
-    p.add_argument("filter", help="a built-in name, pkg.mod:Class or file.py:Class")
+    p.add_argument("filter", help="a built-in name, pkg.mod:Class, file.py:Class or a file of functions")
     p.add_argument("--scenario", default="default", help="the scenario to check it on (default: default)")
+    p.add_argument("--sandbox", choices=("auto", "bwrap", "process", "none"),
+                   help="a filter file runs in a process of its own (default auto; none: in "
+                        "this process)")
 
     sub.add_parser("list", help="shipped scenarios and available filters")
 
@@ -82,6 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="exit status 1 when any filter failed in any run")
     p.add_argument("--time-limit", type=float, metavar="S",
                    help="stop a filter whose steps take over S seconds in one run (default 300)")
+    p.add_argument("--sandbox", choices=("auto", "bwrap", "process", "none"),
+                   help="filter files run in a process of their own (default auto: bubblewrap "
+                        "where it works; none: in this process; docs/grading.md)")
 
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
     p.add_argument("file", help="a recording (.jsonl) written by beacon-sim play")
@@ -130,9 +136,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scenarios, seeds, duration, time_limit (docs/grading.md)")
     p.add_argument("--out", metavar="DIR",
                    help="where grade.csv, grade.html, grade.json go (default DIR/grade_out)")
-    p.add_argument("--jobs", type=int, help="local processes (default: all cores)")
+    p.add_argument("--jobs", type=int, help="students graded at once locally (default: cores + 1)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     p.add_argument("--time-limit", type=float, metavar="S", help="a filter's time limit per run [s]")
+    p.add_argument("--sandbox", choices=("auto", "bwrap", "process"),
+                   help="how each student's process is contained (default auto: bubblewrap "
+                        "where it works, else the process level; docs/grading.md)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="run every student again (default: a student whose file and settings are "
+                        "unchanged reuses OUT/cache)")
+    p.add_argument("--pseudonyms", action="store_true",
+                   help="the class page names students by pseudonyms (pseudonyms.csv maps them)")
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
 
     p = sub.add_parser("new-filter", help="write a working, commented filter template")

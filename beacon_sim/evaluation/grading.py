@@ -36,9 +36,21 @@ import numpy as np
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
 from beacon_sim.errors import BeaconSimError
-from beacon_sim.evaluation.montecarlo import RunOutput, default_jobs, init_worker, one_run
+from beacon_sim.evaluation.montecarlo import (
+    RunOutput,
+    SimulatedRun,
+    default_jobs,
+    init_worker,
+    isolated_run,
+    one_run,
+    simulate_run,
+)
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.evaluation.team import TeamRunOutput, evaluate_team, team_one_run
+from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
+from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
+from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS, isolated_spec
+from beacon_sim.filters.runner import SLOW_STEP_MS
 from beacon_sim.runs.team import MEMBER_PREFIX
 
 #: The student name of the built-in filter graded beside the students on team scenarios.
@@ -59,8 +71,13 @@ class GradeConfig:
     seeds : the run seeds, the same for every student (default 0 to 4).
     duration : seconds per run [s] (default 60; None: each scenario's own).
     time_limit : a filter's time limit per run [s] (default 60).
-    memory_limit_gb : a local worker's address-space limit [GB] (default 4; 0: none).
+    memory_limit_gb : each student's child process's address-space limit [GB] (default 4;
+        0: none), on local processes and Dask workers alike.
     class_name : the filter class in each file (default: found in the file).
+    sandbox : ``auto``, ``bwrap`` or ``process`` (docs/grading.md, "What grading protects
+        against"); ``auto``: bubblewrap where it works, else the process level.
+    pseudonyms : the class page (grade.html) names students by a pseudonym; the teacher's
+        files (grade.csv, grade.json, pseudonyms.csv) keep the real names.
     """
 
     scenarios: tuple[str, ...] = ("default",)
@@ -69,6 +86,8 @@ class GradeConfig:
     time_limit: float = 60.0
     memory_limit_gb: float = 4.0
     class_name: str | None = None
+    sandbox: str = "auto"
+    pseudonyms: bool = False
 
 
 #: The longest run a grading configuration may ask for [s] (one simulated day).
@@ -142,8 +161,24 @@ def load_config(path: str | Path | None) -> GradeConfig:
         time_limit=_config_number(path, data, "time_limit", GradeConfig.time_limit, hi=86400.0),
         memory_limit_gb=_config_number(path, data, "memory_limit_gb", GradeConfig.memory_limit_gb,
                                        hi=1e4, allow_zero=True),
-        class_name=_config_name(path, data))
+        class_name=_config_name(path, data),
+        sandbox=_config_sandbox(path, data),
+        pseudonyms=_config_bool(path, data, "pseudonyms"))
     return cfg
+
+
+def _config_bool(path: str | Path, data: dict[str, Any], key: str) -> bool:
+    value = data.get(key, False)
+    if not isinstance(value, bool):
+        raise GradeError(f"{path}: {key} = {value!r}: expected true or false")
+    return value
+
+
+def _config_sandbox(path: str | Path, data: dict[str, Any]) -> str:
+    value = data.get("sandbox", "auto")
+    if value not in SANDBOXES:
+        raise GradeError(f"{path}: sandbox = {value!r}: expected one of {', '.join(SANDBOXES)}")
+    return str(value)
 
 
 @dataclass(frozen=True)
@@ -154,27 +189,28 @@ class Student:
     path: Path
     spec: str | None
     problem: str | None = None
+    class_name: str | None = None
 
 
-def find_class(path: Path, class_name: str | None = None) -> str:
+def find_class(path: Path, class_name: str | None = None) -> str | None:
     """The filter class of a student's file, read without running it (``ast``): the one
-    named ``class_name``, else the last top-level class defining predict, update or
-    estimate, else the last top-level class. Raises GradeError (syntax error, no class)."""
+    named ``class_name``; else the last top-level class defining all of reset, predict,
+    update and estimate; else None (the class that implements the interface, perhaps by
+    inheritance, or the file's module-level functions: chosen in the student's own child
+    process, :func:`~beacon_sim.filters.loading.choose_filter`). Raises GradeError (syntax
+    error, no such class)."""
     try:
         tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
-    except (SyntaxError, UnicodeDecodeError, OSError) as exc:
+    except (SyntaxError, UnicodeDecodeError, OSError, ValueError) as exc:
         raise GradeError(f"does not import: {type(exc).__name__}: {exc}") from None
     classes = [n for n in tree.body if isinstance(n, ast.ClassDef)]
     if class_name is not None:
-        if any(c.name == class_name for c in classes):
+        if any(c.name == class_name for c in classes) or class_name == FUNCTIONS:
             return class_name
         raise GradeError(f"no class {class_name!r}")
-    filters = [c for c in classes if any(isinstance(f, ast.FunctionDef) and f.name in
-                                         ("predict", "update", "estimate") for f in c.body)]
-    chosen = (filters or classes)[-1:] if classes else []
-    if not chosen:
-        raise GradeError("no class in the file")
-    return chosen[0].name
+    full = [c for c in classes if {f.name for f in c.body if isinstance(f, ast.FunctionDef)}
+            >= set(FILTER_METHODS)]
+    return full[-1].name if full else None
 
 
 def find_students(folder: str | Path, class_name: str | None = None) -> list[Student]:
@@ -191,7 +227,8 @@ def find_students(folder: str | Path, class_name: str | None = None) -> list[Stu
         except GradeError as exc:
             out.append(Student(path.stem, path, None, str(exc)))
             continue
-        out.append(Student(path.stem, path, f"{path.resolve()}:{cls}"))
+        out.append(Student(path.stem, path, f"{path.resolve()}:{cls}" if cls else str(path.resolve()),
+                           class_name=cls))
     if not out:
         raise GradeError(f"{folder}: no filter files (*.py)")
     return out
@@ -218,6 +255,7 @@ class TaskResult:
     run: RunOutput | TeamRunOutput | None
     problem: str | None = None
     wall_s: float = 0.0
+    report: dict[str, Any] | None = None  # what the student's child said of the run
 
 
 def run_task(task: Task) -> TaskResult:
@@ -305,6 +343,180 @@ def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = N
     return [r for r in out if r is not None]
 
 
+#: How many ticks the two probes of a student's filter run (the first scenario and seed):
+#: once with the global RNGs seeded differently (is it deterministic?) and once with every
+#: reading withheld (does it use the readings?).
+PROBE_TICKS = 200
+#: The most of a student's log the leaderboard keeps and links [bytes].
+LOG_BYTES = 256 << 10
+
+
+@dataclass
+class StudentJob:
+    """Everything one student's runs need, picklable (a Dask task): the file's bytes (not
+    its path: a worker needs no shared file system), the simulated runs (scenario, seed)
+    in task order, and the grading settings."""
+
+    student: str
+    filename: str
+    source: bytes
+    class_name: str | None
+    sims: list[SimulatedRun]
+    time_limit: float
+    memory_limit_gb: float
+    sandbox: str
+
+
+@dataclass
+class StudentResult:
+    """One student's runs (task order), the findings of the probes and the child's log."""
+
+    student: str
+    results: list[TaskResult]
+    findings: dict[str, Any]
+    log: str
+    sandbox: str
+
+
+def _limits(job: StudentJob) -> Limits:
+    runs = len(job.sims) + 2
+    return Limits(memory_gb=job.memory_limit_gb, cpu_s=job.time_limit * runs * 1.5 + 60.0,
+                  log_bytes=LOG_BYTES)
+
+
+def run_student(job: StudentJob) -> StudentResult:
+    """Every run of one student's filter in a child process of its own (started afresh after
+    a run that killed or broke it), on the simulations the grader made; the scoring stays
+    here. Then the two probes (see :data:`PROBE_TICKS`). Never raises for the filter's sake."""
+    import tempfile
+
+    t_start = time.perf_counter()
+    findings: dict[str, Any] = {"global_rng": False, "heading_wrapped": True, "deterministic": None,
+                                "readings_used": None, "form": None}
+    results: list[TaskResult] = []
+    with tempfile.TemporaryDirectory(prefix="beacon-sim-grade-") as tmp:
+        src = Path(tmp) / job.filename
+        src.write_bytes(job.source)
+        log = Path(tmp) / "log.txt"
+        limits = _limits(job)
+        timeout = max(MIN_REPLY_TIMEOUT_S, 5.0 * job.time_limit)
+        child: FilterChild | None = None
+        load_problem: str | None = None
+        try:
+            for k, sr in enumerate(job.sims):
+                task = Task(job.student, job.filename, sr.label, sr.seed, None, job.time_limit, sr.index)
+                t0 = time.perf_counter()
+                if load_problem is None and child is None:
+                    try:
+                        child = FilterChild(src, job.class_name, log, job.sandbox, limits, timeout)
+                        findings["form"] = child.form
+                    except ChildFailure as exc:
+                        load_problem = str(exc)
+                if load_problem is not None or child is None:
+                    results.append(TaskResult(task, None, load_problem, time.perf_counter() - t0))
+                    continue
+                run, rep = isolated_run(child, sr, job.time_limit, keep_means=sr.index == 0)
+                if rep.get("np_global") or rep.get("py_global"):
+                    findings["global_rng"] = True
+                if rep.get("heading_unwrapped"):
+                    findings["heading_wrapped"] = False
+                if rep.get("failed_child"):  # a fresh child for the next run
+                    child.close()
+                    child = None
+                results.append(TaskResult(task, run, None, time.perf_counter() - t0,
+                                          {k2: v for k2, v in rep.items() if k2 != "means"}))
+                if k == 0 and child is not None and not rep.get("failed_child"):
+                    child = _probe(child, sr, job, findings, results[-1])
+        finally:
+            if child is not None:
+                child.close()
+        raw = log.read_bytes() if log.exists() else b""
+        text = raw[:LOG_BYTES + 100].decode("utf-8", "replace")
+        if len(raw) > LOG_BYTES + 100:
+            text += f"\n[log cut at {LOG_BYTES} bytes]\n"
+    findings["wall_s"] = time.perf_counter() - t_start
+    return StudentResult(job.student, results, findings, text, job.sandbox)
+
+
+def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict[str, Any],
+           graded: TaskResult) -> FilterChild | None:
+    """The probes on the first run's first :data:`PROBE_TICKS` ticks: with the global RNGs
+    seeded differently, and with the readings withheld. Returns the child (None when a
+    probe broke it)."""
+    if not isinstance(graded.run, RunOutput):
+        return child
+    fr = next(iter(graded.run.filters.values()))
+    if fr.failed or fr.means is None:
+        return child
+    n = min(PROBE_TICKS, len(sr.frames))
+    first = fr.means[:n]
+    _, rep = isolated_run(child, sr, job.time_limit, global_seed=sr.seed + 1_000_003, ticks=n)
+    if rep.get("failed_child"):
+        child.close()
+        return None
+    findings["deterministic"] = bool(np.array_equal(rep["means"], first, equal_nan=True))
+    if sr.frames_blind is not None:
+        _, rep = isolated_run(child, sr, job.time_limit, blind=True, ticks=n)
+        if rep.get("failed_child"):
+            child.close()
+            return None
+        readings = any(len(r) for r in sr.records[:int(sr.record_index[n - 1]) + 1])
+        findings["readings_used"] = (not readings) or not bool(
+            np.array_equal(rep["means"], first, equal_nan=True))
+    return child
+
+
+def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, scheduler: Any = None,
+                 progress: Callable[[int, int], None] | None = None) -> list[StudentResult]:
+    """Every student's job, in order: ``jobs`` at once on local threads (each drives its
+    student's child process, where the work is), or as Dask tasks (``scheduler``) whose
+    results are released once gathered (nothing finished is computed again)."""
+    out: list[StudentResult | None] = [None] * len(jobs_list)
+    total = sum(len(j.sims) for j in jobs_list)
+    done = 0
+
+    def finish(i: int, res: StudentResult) -> None:
+        nonlocal done
+        out[i] = res
+        done += len(res.results)
+        if progress:
+            progress(done, total)
+
+    if scheduler is not None:
+        from dask.distributed import Client, as_completed
+
+        client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
+        try:
+            futures = client.map(run_student, list(jobs_list), pure=False)
+            index = {f.key: i for i, f in enumerate(futures)}
+            for fut in as_completed(futures):
+                i = index[fut.key]
+                try:
+                    finish(i, fut.result())
+                except Exception as exc:  # the worker itself was lost (not the child)
+                    job = jobs_list[i]
+                    finish(i, StudentResult(job.student, [
+                        TaskResult(Task(job.student, job.filename, sr.label, sr.seed, None,
+                                        job.time_limit, sr.index), None,
+                                   f"worker lost: {type(exc).__name__}") for sr in job.sims],
+                        {}, "", job.sandbox))
+                fut.release()  # gathered: the scheduler may forget it (never recomputed)
+        finally:
+            if client is not scheduler:
+                client.close()
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        # One more student than cores: a student's thread and its child take turns (lockstep),
+        # so cores + 1 keeps every core busy (measured: 20 % less wall time on 2 cores).
+        n = default_jobs() + 1 if jobs is None else max(1, int(jobs))
+        with ThreadPoolExecutor(max_workers=max(1, min(n, len(jobs_list)))) as pool:
+            futs = {pool.submit(run_student, j): i for i, j in enumerate(jobs_list)}
+            for fut, i in futs.items():
+                finish(i, fut.result())
+    return [r for r in out if r is not None]
+
+
 def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320,
               height: int = 110) -> str:
     """A small inline SVG of position error [m] against time [s], one line per scenario."""
@@ -325,23 +537,54 @@ def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320
 
 
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
-          scheduler: Any = None, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+          scheduler: Any = None, progress: Callable[[int, int], None] | None = None,
+          cache: str | Path | None = None) -> dict[str, Any]:
     """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
-    order, ``config``, ``wall_s``) that :func:`write_csv` and :func:`write_html` write."""
+    order, ``config``, ``wall_s``, ``sandbox``, ``logs``) that :func:`write_outputs` writes.
+
+    Each single-robot (scenario, seed) is simulated once, here; each student's filter runs
+    in a child process of its own (:func:`run_student`) that receives only what a filter
+    may see; the scoring stays here. On a team scenario each robot's copy of the student's
+    filter is a child process of its own (the team simulation runs in a worker of the grader).
+
+    ``cache``: a folder of earlier results, by the file's hash and the configuration
+    (:func:`cache_key`): a student whose file and settings are unchanged is not run again
+    (re-grading one late or corrected file costs that file alone)."""
     t0 = time.perf_counter()
     students = find_students(folder, config.class_name)
     try:
         scenarios: dict[str, Scenario | TeamScenario] = {
             s: load_team_scenario(s) if is_team_scenario(s) else load_scenario(s) for s in config.scenarios}
-    except ValueError as exc:  # ScenarioError: one line
+        sandbox = resolve_sandbox(config.sandbox)
+    except (ValueError, SandboxError) as exc:  # ScenarioError: one line
         raise GradeError(str(exc)) from None
-    tasks = [Task(st.name, st.spec, sc, seed, config.duration, config.time_limit, i)
-             for st in students if st.spec for sc in config.scenarios
-             for i, seed in enumerate(config.seeds)]
     team_names = [n for n, sc in scenarios.items() if isinstance(sc, TeamScenario)]
+    single = [n for n in config.scenarios if n not in team_names]
+    sims: list[SimulatedRun] = []
+    for n in single:
+        sc = scenarios[n]
+        assert isinstance(sc, Scenario)
+        duration = sc.duration if config.duration is None else config.duration
+        for i, seed in enumerate(config.seeds):
+            sims.append(simulate_run(sc, seed, duration, i, blind=not sims, label=n))
+    student_jobs = [StudentJob(st.name, st.path.name, st.path.read_bytes(),
+                               config.class_name or st.class_name, sims, config.time_limit,
+                               config.memory_limit_gb, sandbox)
+                    for st in students if st.spec and sims]
+    if cache is not None and not _students_cannot_write_here(sandbox):
+        cache = None  # a child running as this user could plant a pickle: no cache
+    done_students, cached = _run_cached(student_jobs, jobs, scheduler, progress,
+                                        Path(cache) if cache is not None else None)
+    results = [r for sr in done_students for r in sr.results]
+    # Team scenarios: each robot's copy of the student's filter in a child process of its own.
+    tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), sc, seed,
+                  config.duration, config.time_limit, i)
+             for st in students if st.spec for sc in team_names
+             for i, seed in enumerate(config.seeds)]
     tasks += [Task(REFERENCE, REFERENCE_SPEC, sc, seed, config.duration, config.time_limit, i)
               for sc in team_names for i, seed in enumerate(config.seeds)]
-    results = run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, progress)
+    if tasks:
+        results += run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, None)
     by: dict[tuple[str, str], list[TaskResult]] = {}
     for r in results:
         by.setdefault((r.task.student, r.task.scenario), []).append(r)
@@ -353,13 +596,123 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         if runs and all(isinstance(r, TeamRunOutput) for r in runs):
             ref = _team_figures(scenarios[name], runs)  # type: ignore[arg-type]
             reference[name] = {k: v for k, v in ref.items() if k != "curve"}
+    found = {sr.student: sr for sr in done_students}
+    scored = _score_together(scenarios, single, by, students, len(config.seeds))
     for st in students:
-        rows.append(_student_row(st, config, scenarios, by, n_runs, reference))
+        row = _student_row(st, config, scenarios, by, n_runs, reference, scored)
+        _add_findings(row, found.get(st.name))
+        rows.append(row)
     rows.sort(key=rank_key)
     for k, row in enumerate(rows, 1):
         row["rank"] = k
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
-            "students": len(students), "runs_per_student": n_runs, "reference": reference}
+            "students": len(students), "runs_per_student": n_runs, "reference": reference,
+            "sandbox": sandbox, "isolated": True, "team_in_process": [],
+            "cached_students": cached,
+            "logs": {sr.student: sr.log for sr in done_students}}
+
+
+def _students_cannot_write_here(sandbox: str) -> bool:
+    """Whether the students' children cannot write the grader's files (the cache of pickles
+    is read back): inside bubblewrap, or as ``nobody`` under a root grader."""
+    import os
+
+    return sandbox == "bwrap" or (hasattr(os, "geteuid") and os.geteuid() == 0)
+
+
+def cache_key(job: StudentJob) -> str:
+    """A student's results are reused when this is unchanged: the file's bytes and name, the
+    class, the limits, the sandbox level, beacon-sim's version and every simulated run
+    (scenario, seed, length, the truth's checksum)."""
+    import hashlib
+
+    from beacon_sim.version import __version__
+
+    h = hashlib.sha256(job.source)
+    meta = [job.filename, job.class_name, job.time_limit, job.memory_limit_gb, job.sandbox, __version__,
+            PROBE_TICKS, [(sr.label, sr.seed, len(sr.frames), sr.truth_checksum, repr(sr.scenario))
+                          for sr in job.sims]]
+    h.update(json.dumps(meta, default=str).encode())
+    return h.hexdigest()
+
+
+def _run_cached(student_jobs: list[StudentJob], jobs: int | None, scheduler: Any,
+                progress: Callable[[int, int], None] | None, cache: Path | None
+                ) -> tuple[list[StudentResult], list[str]]:
+    """:func:`run_students` for the students whose results are not in ``cache`` (a folder of
+    pickles the grader wrote itself: numbers and texts, nothing of a student's code); the
+    others' results from it. Returns the results in order and the students taken from it."""
+    import pickle
+
+    if cache is None:
+        return (run_students(student_jobs, jobs, scheduler, progress) if student_jobs else []), []
+    cache.mkdir(parents=True, exist_ok=True)
+    found: dict[int, StudentResult] = {}
+    for i, job in enumerate(student_jobs):
+        f = cache / f"{cache_key(job)}.pickle"
+        if f.is_file():
+            try:
+                found[i] = pickle.loads(f.read_bytes())
+            except Exception:  # a damaged entry: run the student again
+                pass
+    todo = [j for i, j in enumerate(student_jobs) if i not in found]
+    fresh = iter(run_students(todo, jobs, scheduler, progress) if todo else [])
+    out = []
+    for i, job in enumerate(student_jobs):
+        if i in found:
+            out.append(found[i])
+            continue
+        res = next(fresh)
+        out.append(res)
+        if any(r.problem and r.problem.startswith("worker lost") for r in res.results):
+            continue  # the machine's failure, not the student's: run it again next time
+        tmp = cache / f".{cache_key(job)}.tmp"
+        tmp.write_bytes(pickle.dumps(res, protocol=pickle.HIGHEST_PROTOCOL))
+        tmp.replace(cache / f"{cache_key(job)}.pickle")
+    return out, [student_jobs[i].student for i in sorted(found)]
+
+
+#: A result this far below the bound is "suspicious" (RMSE/PCRB), and an ANEES below this
+#: (errors far smaller than the filter's own covariance says: 3 is consistent).
+SUSPICIOUS_RMSE_OVER_PCRB = 0.5
+SUSPICIOUS_ANEES = 0.1
+
+
+def _add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
+    """The row's flags: suspicious (kept out of the ranking), and ``check``'s findings
+    (global RNG, deterministic, heading wrapped, readings used, time per step) as columns
+    and warnings."""
+    flags: list[str] = []
+    f = res.findings if res is not None else {}
+    row["global_rng"] = f.get("global_rng")
+    row["deterministic"] = f.get("deterministic")
+    row["heading_wrapped"] = f.get("heading_wrapped") if res is not None else None
+    row["readings_used"] = f.get("readings_used")
+    row["form"] = f.get("form")
+    row["log"] = bool(res and res.log)
+    row["suspicious"] = None
+    if not row["failed_runs"]:
+        ratio, anees = row.get("rmse_over_pcrb"), row.get("anees")
+        if ratio is not None and ratio < SUSPICIOUS_RMSE_OVER_PCRB:
+            row["suspicious"] = (f"RMSE/PCRB {ratio:.2f} is under {SUSPICIOUS_RMSE_OVER_PCRB:g}: "
+                                 "better than the bound allows")
+        elif anees is not None and anees < SUSPICIOUS_ANEES:
+            row["suspicious"] = (f"ANEES {anees:.3f} is far below its band (3 is consistent): errors "
+                                 "far smaller than the filter's own covariance")
+    if row["suspicious"]:
+        flags.append("suspicious: " + row["suspicious"])
+    if row["global_rng"]:
+        flags.append("draws from the global np.random / random generator (reproducible here "
+                     "only because the grader seeds them; use ctx.rng)")
+    if row["deterministic"] is False:
+        flags.append("not deterministic: the estimates change when only the global RNG's seed does")
+    if row["heading_wrapped"] is False:
+        flags.append("heading not wrapped to [-pi, pi)")
+    if row["readings_used"] is False:
+        flags.append("uses none of the readings: the estimates do not change when they are withheld")
+    if row.get("us_per_step") is not None and row["us_per_step"] > SLOW_STEP_MS * 1e3:
+        flags.append(f"slow: {row['us_per_step'] / 1e3:.0f} ms per step (over {SLOW_STEP_MS:g} ms)")
+    row["flags"] = flags
 
 
 def _team_figures(team: TeamScenario, runs: list[TeamRunOutput]) -> dict[str, Any]:
@@ -379,9 +732,42 @@ def _team_figures(team: TeamScenario, runs: list[TeamRunOutput]) -> dict[str, An
             "curve": (meta["dt"] * np.arange(1, meta["steps"] + 1), err)}
 
 
+def _score_together(scenarios: dict[str, Scenario | TeamScenario], names: list[str],
+                    by: dict[tuple[str, str], list[TaskResult]], students: list[Student],
+                    n_seeds: int) -> dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]]:
+    """Every student's runs of each single-robot scenario scored in one
+    :func:`~beacon_sim.evaluation.summary.evaluate` (the bound, the same for all, computed
+    once): (student, scenario) -> (its row of figures, its curves, the times). A filter's
+    figures depend on its own runs and the truth only, so they are those of scoring it alone."""
+    out: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] = {}
+    for name in names:
+        sc = scenarios[name]
+        whole = []
+        for st in students:
+            res = sorted(by.get((st.name, name), []), key=lambda r: r.task.index)
+            if len(res) == n_seeds and all(isinstance(r.run, RunOutput) for r in res):
+                whole.append((st.name, [r.run for r in res]))
+        if not whole:
+            continue
+        merged = []
+        for i in range(n_seeds):
+            first: Any = whole[0][1][i]
+            run = RunOutput(first.index, first.seed, first.truth, first.controls, first.kidnapped,
+                            first.truth_checksum)
+            for student, runs in whole:
+                run.filters[student] = next(iter(runs[i].filters.values()))  # type: ignore[union-attr,assignment]
+            merged.append(run)
+        meta, curve = evaluate(sc, merged, Thresholds())  # type: ignore[arg-type]
+        for student, _ in whole:
+            out[(student, name)] = (meta["filters"][student], curve["filters"][student], curve["time"])
+    return out
+
+
 def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario | TeamScenario],
                  by: dict[tuple[str, str], list[TaskResult]], n_runs: int,
-                 reference: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+                 reference: dict[str, dict[str, Any]] | None = None,
+                 scored: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] | None = None
+                 ) -> dict[str, Any]:
     row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
                            "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
                            "anees_verdict": "FAILED", "rmse_over_pcrb": None, "us_per_step": None,
@@ -419,18 +805,22 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                                                  if tf["pos_rmse_m"] is not None and ref.get("pos_rmse_m")
                                                  else None)
             continue
-        meta, curve = evaluate(sc, runs, Thresholds())
-        fr = next(iter(meta["filters"].values()))
+        if (st.name, name) in (scored or {}):  # the class's runs scored together (one PCRB)
+            fr, c, times = (scored or {})[(st.name, name)]
+        else:
+            meta, curve = evaluate(sc, runs, Thresholds())  # type: ignore[arg-type]
+            fr = next(iter(meta["filters"].values()))
+            c, times = next(iter(curve["filters"].values())), curve["time"]
         for f in fr["failures"]:
             failures.append({"scenario": name, **f})
         for key in figures:
             if fr.get(key) is not None:
                 figures[key].append(float(fr[key]))
         verdicts.append(fr["anees_verdict"])
-        c = next(iter(curve["filters"].values()))
-        curves.append((name, curve["time"], np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
+        curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
     row["failures"] = failures
     row["failed_runs"] = len(failures)
+    row["run_detail"] = _run_detail(st, config, by)
     if team_rows:
         row["team"] = team_rows
     row["us_per_step"] = float(np.mean(figures["us_per_step"])) if figures["us_per_step"] else None
@@ -442,16 +832,49 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
     return row
 
 
+def _run_detail(st: Student, config: GradeConfig, by: dict[tuple[str, str], list[TaskResult]]
+                ) -> list[dict[str, Any]]:
+    """One line per run of a student (the student's page): scenario, seed, position RMSE
+    [m] over the steps it ran, steps, cost [us/step], and why it failed."""
+    out = []
+    for name in config.scenarios:
+        for r in sorted(by.get((st.name, name), []), key=lambda r: r.task.index):
+            line: dict[str, Any] = {"scenario": name, "seed": r.task.seed, "pos_rmse_m": None,
+                                    "steps": 0, "us_per_step": None, "failed": r.problem}
+            if isinstance(r.run, RunOutput):
+                fr = next(iter(r.run.filters.values()))
+                e = fr.err[np.isfinite(fr.err[:, 0]) & np.isfinite(fr.err[:, 1])]
+                rmse = float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))) if len(e) else None
+                line.update(pos_rmse_m=rmse, steps=int(fr.steps),
+                            us_per_step=fr.step_ns / 1e3 / max(fr.steps, 1), failed=fr.failed)
+            out.append(line)
+    return out
+
+
 def rank_key(row: dict[str, Any]) -> tuple:
-    """Working filters first by position RMSE, then failed ones (fewest failed runs first):
-    a failed filter never ranks above a working one."""
+    """Working filters first by position RMSE, then suspicious ones (kept out of the
+    ranking), then failed ones (fewest failed runs first): a failed filter never ranks
+    above a working one."""
     failed = row["failed_runs"] > 0
     rmse = row["pos_rmse_m"] if row["pos_rmse_m"] is not None else math.inf
-    return (failed, row["failed_runs"] if failed else 0, rmse, row["student"])
+    return (failed, bool(row.get("suspicious")), row["failed_runs"] if failed else 0, rmse,
+            row["student"])
 
 
 CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_rad", "anees",
-               "anees_verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs", "failures")
+               "anees_verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs", "failures",
+               "suspicious", "global_rng", "deterministic", "heading_wrapped", "readings_used", "flags")
+
+
+def status(row: dict[str, Any]) -> str:
+    """FAILED (no score), SUSPICIOUS (kept out of the ranking) or ok."""
+    if row["failed_runs"]:
+        return "FAILED"
+    return "SUSPICIOUS" if row.get("suspicious") else "ok"
+
+
+def _yes_no(v: object) -> str:
+    return "" if v is None else ("yes" if v else "no")
 
 
 def _failure_text(f: dict[str, Any]) -> str:
@@ -466,19 +889,23 @@ def write_csv(board: dict[str, Any], path: Path) -> Path:
         w = csv.writer(fh)
         w.writerow(CSV_COLUMNS)
         for r in board["rows"]:
-            w.writerow([r["rank"], r["student"], r["file"], "FAILED" if r["failed_runs"] else "ok",
+            w.writerow([r["rank"], r["student"], r["file"], status(r),
                         *("" if r[k] is None else r[k] for k in ("pos_rmse_m", "heading_rmse_rad",
                                                                  "anees")),
                         r["anees_verdict"], "" if r["rmse_over_pcrb"] is None else r["rmse_over_pcrb"],
                         "" if r["us_per_step"] is None else f"{r['us_per_step']:.1f}",
                         r["failed_runs"], r["runs"],
-                        " | ".join(_failure_text(f) for f in r["failures"][:5])])
+                        " | ".join(_failure_text(f) for f in r["failures"][:5]),
+                        r.get("suspicious") or "", *(_yes_no(r.get(k)) for k in (
+                            "global_rng", "deterministic", "heading_wrapped", "readings_used")),
+                        " | ".join(r.get("flags", []))])
     return path
 
 
 _CSS = """body{font-family:sans-serif;margin:1.5em;color:#222}table{border-collapse:collapse}
 th,td{border:1px solid #ccc;padding:4px 8px;vertical-align:top}th{background:#eef;cursor:pointer}
-tr.failed td{background:#fdecea}td.num{text-align:right;font-variant-numeric:tabular-nums}
+tr.failed td{background:#fdecea}tr.suspicious td{background:#fff3cd}
+.flag{font-size:85%;color:#8a5a00;max-width:28em}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .why{font-size:85%;color:#a00;max-width:28em}.note{color:#555;font-size:90%}"""
 
 _JS = """
@@ -521,6 +948,31 @@ def _reference_note(board: dict[str, Any]) -> str:
             + "; ".join(parts) + ".")
 
 
+def _sandbox_text(board: dict[str, Any]) -> str:
+    level = board.get("sandbox", "process")
+    text = ("bubblewrap sandbox: no network, read-only system, its own file alone" if level == "bwrap"
+            else "process level: its own user, folder and limits, no OS sandbox")
+    if board.get("team_in_process"):
+        text += "; team scenarios in process, not isolated"
+    return text
+
+
+def pseudonym(student: str, board: dict[str, Any]) -> str:
+    """A student's stable pseudonym on the class page: the same for the same class and
+    configuration, not guessable from the name without the configuration's seeds."""
+    import hashlib
+
+    cfg = board["config"]
+    key = f"{student}|{cfg['seeds']}|{cfg['scenarios']}".encode()
+    return "student-" + hashlib.sha256(key).hexdigest()[:6]
+
+
+def _shown(board: dict[str, Any]) -> dict[str, str]:
+    """Student -> the name the class page shows (the pseudonym with ``pseudonyms``)."""
+    anon = bool(board["config"].get("pseudonyms"))
+    return {r["student"]: pseudonym(r["student"], board) if anon else r["student"] for r in board["rows"]}
+
+
 def write_html(board: dict[str, Any], path: Path) -> Path:
     """A self-contained leaderboard page (inline CSS, JS and SVG plots): click a column
     to sort (``#sort=COLUMN`` or ``#sort=COLUMN-desc`` in the address sorts on load)."""
@@ -542,17 +994,24 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
         return f"<td>{html.escape(str(v))}</td>"
 
     body = []
-    for r in board["rows"]:
+    shown = _shown(board)
+    for r0 in board["rows"]:
+        r = {**r0, "student": shown[r0["student"]]}
         data = " ".join(f'data-{k}="{html.escape("" if r[k] is None else str(r[k]))}"' for k, _ in cols)
         why = "<br>".join(html.escape(_failure_text(f)) for f in r["failures"][:4])
         more = len(r["failures"]) - 4
         if more > 0:
             why += f"<br>... and {more} more"
-        status = "FAILED" if r["failed_runs"] else "ok"
-        body.append(f'<tr class="{"failed" if r["failed_runs"] else "ok"}" data-failed='
-                    f'"{1 if r["failed_runs"] else 0}" {data}>'
-                    + "".join(cell(r, k) for k, _ in cols)
-                    + f'<td>{status}<div class="why">{why}</div></td>'
+        flags = "<br>".join(html.escape(f) for f in r.get("flags", []))
+        st = status(r)
+        kind = {"FAILED": "failed", "SUSPICIOUS": "suspicious"}.get(st, "ok")
+        log = f' <a href="students/{html.escape(r["student"])}.html">page</a>'
+        if r.get("log"):
+            log += f' <a href="logs/{html.escape(r["student"])}.log">log</a>'
+
+        order = {"ok": 0, "suspicious": 1, "failed": 2}[kind]  # the page's sort keeps this order
+        body.append(f'<tr class="{kind}" data-failed="{order}" {data}>' + "".join(cell(r, k) for k, _ in cols)
+                    + f'<td>{st}{log}<div class="why">{why}</div><div class="flag">{flags}</div></td>'
                     + f"<td>{r['plot']}</td></tr>")
     head = "".join(f'<th data-col="{k}">{html.escape(t)}</th>' for k, t in cols)
     page = f"""<!DOCTYPE html>
@@ -563,7 +1022,10 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
 {html.escape(', '.join(cfg['scenarios']))}; seeds {html.escape(', '.join(map(str, cfg['seeds'])))};
 {'each scenario' + chr(39) + 's duration' if cfg['duration'] is None else f"{cfg['duration']:g} s"} per run;
 time limit {cfg['time_limit']:g} s per run. A filter that failed in any run has no score and
-ranks below every working filter, whatever the column sorted. Click a column to sort.
+ranks below every working filter, whatever the column sorted; a suspicious result (far below
+the Cramer-Rao bound) is kept out of the ranking, below the working filters, with its reason.
+Each student's filter ran in a process of its own ({html.escape(_sandbox_text(board))}).
+Click a column to sort.
 Plot: position error [m] against time [s] of the first seed.{_reference_note(board)}</p>
 <table id="board"><thead><tr>{head}<th>status and failures</th><th>error, first seed</th></tr></thead>
 <tbody>
@@ -576,10 +1038,64 @@ Plot: position error [m] against time [s] of the first seed.{_reference_note(boa
     return path
 
 
+def write_student_page(board: dict[str, Any], row: dict[str, Any], path: Path, shown: str,
+                       log: str) -> Path:
+    """One student's page: the figures, each run, failures, warnings, the plot and the log."""
+    def num(v: object, fmt: str) -> str:
+        return "&ndash;" if v is None else format(v, fmt)
+
+    runs = "".join(
+        f"<tr><td>{html.escape(str(d['scenario']))}</td><td class=num>{d['seed']}</td>"
+        f"<td class=num>{num(d['pos_rmse_m'], '.4f')}</td><td class=num>{d['steps']}</td>"
+        f"<td class=num>{num(d['us_per_step'], '.1f')}</td>"
+        f"<td class=why>{html.escape(d['failed'] or '')}</td></tr>" for d in row.get("run_detail", []))
+    flags = "".join(f"<li>{html.escape(f)}</li>" for f in row.get("flags", []))
+    fails = "".join(f"<li>{html.escape(_failure_text(f))}</li>" for f in row["failures"])
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(shown)}: beacon-sim grade</title>
+<style>{_CSS}</style></head><body>
+<h1>{html.escape(shown)}</h1>
+<p class="note"><a href="../grade.html">the class page</a>. Rank {row['rank']} of {board['students']};
+status {status(row)}; position RMSE {num(row['pos_rmse_m'], '.4f')} m; heading RMSE
+{num(row['heading_rmse_rad'], '.4f')} rad; ANEES {num(row['anees'], '.2f')}
+({html.escape(str(row['anees_verdict']))});
+RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} us per step.</p>
+<h2>Runs</h2>
+<table><thead><tr><th>scenario</th><th>seed</th><th>pos RMSE [m]</th><th>steps</th><th>cost [us/step]</th>
+<th>failure</th></tr></thead><tbody>{runs}</tbody></table>
+{'<h2>Failures</h2><ul class="why">' + fails + '</ul>' if fails else ''}
+{'<h2>Warnings</h2><ul class="flag">' + flags + '</ul>' if flags else ''}
+<h2>Position error [m] against time [s], first seed</h2>{row['plot']}
+<h2>Log (stdout and stderr, cut at {LOG_BYTES // 1024} KB)</h2>
+<pre>{html.escape(log) or '(nothing printed)'}</pre>
+</body></html>
+"""
+    path.write_text(page, encoding="utf-8")
+    return path
+
+
 def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:
-    """``grade.csv``, ``grade.html`` and ``grade.json`` (the rows without the plots) in ``out``."""
+    """``grade.csv``, ``grade.html``, ``grade.json`` (the rows without the plots), a page per
+    student (``students/``), the logs (``logs/``) and, with pseudonyms, ``pseudonyms.csv``
+    in ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    doc = {k: v for k, v in board.items() if k != "rows"}
+    logs = board.get("logs") or {}
+    shown = _shown(board)
+    if logs:
+        (out / "logs").mkdir(exist_ok=True)
+        for student, text in logs.items():
+            (out / "logs" / f"{shown.get(student, student)}.log").write_text(text, encoding="utf-8")
+    (out / "students").mkdir(exist_ok=True)
+    for r in board["rows"]:
+        write_student_page(board, r, out / "students" / f"{shown[r['student']]}.html", shown[r["student"]],
+                           logs.get(r["student"], ""))
+    if board["config"].get("pseudonyms"):
+        with open(out / "pseudonyms.csv", "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(("pseudonym", "student", "file"))
+            for r in board["rows"]:
+                w.writerow((shown[r["student"]], r["student"], r["file"]))
+    doc = {k: v for k, v in board.items() if k not in ("rows", "logs")}
     doc["rows"] = [{k: v for k, v in r.items() if k != "plot"} for r in board["rows"]]
     (out / "grade.json").write_text(json.dumps(doc, indent=1, default=float), encoding="utf-8")
     return [write_csv(board, out / "grade.csv"), write_html(board, out / "grade.html"),

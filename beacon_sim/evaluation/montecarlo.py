@@ -35,19 +35,15 @@ from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
+from beacon_sim.filters.guard import estimate_arrays
+from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (
     build_filter,
     filter_display_name,
     filter_names,
     load_filter_class,
 )
-from beacon_sim.filters.runner import (
-    FilterTimeout,
-    exit_text,
-    is_filter_failure,
-    one_line,
-    time_limit,
-)
+from beacon_sim.filters.watchdog import failure_line, is_filter_failure
 from beacon_sim.runs.progress import Progress
 
 
@@ -84,6 +80,11 @@ class RunOutput:
     filters: dict[str, FilterRun] = field(default_factory=dict)
 
 
+#: A mean or covariance entry beyond this is a diverged filter for the metrics: their products
+#: would overflow (the guard of a live run stops a filter far earlier, at 1e12).
+OVERFLOW_COV = 1e100
+
+
 def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     """Index of the first unusable estimate (non-finite, asymmetric or not PSD) and why."""
     n = means.shape[0]
@@ -92,16 +93,24 @@ def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     if first < n:
         return first, "estimate() returned NaN or infinity"
     scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
+    # Beyond OVERFLOW_COV the metrics' products overflow (and eigvalsh may not converge).
+    huge = (scale > OVERFLOW_COV) | (np.max(np.abs(means), axis=1) > OVERFLOW_COV)
     asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2)) > 1e-6 * scale
     sym = 0.5 * (covs + np.swapaxes(covs, 1, 2))
     notpsd = np.zeros(n, dtype=bool)
-    unsure = ~_cholesky_ok(sym)   # Cholesky's pivots all positive: no eigenvalue below the bound
+    unsure = ~_cholesky_ok(sym) & ~huge  # Cholesky's pivots all positive: no eigenvalue below the bound
     if unsure.any():
-        notpsd[unsure] = np.linalg.eigvalsh(sym[unsure])[:, 0] < -1e-9 * scale[unsure]
-    for mask in (asym, notpsd):
+        try:
+            notpsd[unsure] = np.linalg.eigvalsh(sym[unsure])[:, 0] < -1e-9 * scale[unsure]
+        except np.linalg.LinAlgError:  # no convergence: not a usable covariance either
+            notpsd[unsure] = True
+    for mask in (huge, asym, notpsd):
         if mask.any():
             first = min(first, int(np.argmax(mask)))
     if first < n:
+        if huge[first]:
+            return first, (f"estimate() returned a mean or a covariance entry over {OVERFLOW_COV:g} "
+                           "(diverged)")
         return first, ("covariance is not symmetric" if asym[first]
                        else "covariance is not positive semi-definite")
     return n, None
@@ -189,8 +198,10 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     records: list = []  # measurements of the ticks that had any
     priors = {n: (np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)) for n in names}
     ns = dict.fromkeys(names, 0)
+    cpu = dict.fromkeys(names, 0)  # CPU time of each filter's steps [ns]: the run limit's budget
     done = dict.fromkeys(names, 0)
-    clock = time.perf_counter_ns
+    cpu_clock = time.thread_time_ns
+    over = None if run_limit_s is None else f"time limit: over {run_limit_s:g} s of filter time in the run"
     for i in range(T):
         step = sim.step()
         truth[i + 1] = step.true_pose
@@ -202,29 +213,23 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
         for name, f in built.items():
             if failed[name]:
                 continue
-            left = None if run_limit_s is None else run_limit_s - ns[name] / 1e9
-            try:
-                with time_limit(left):
-                    t0 = clock()
-                    f.predict(step.control, step.dt)
-                    t1 = clock()
-                    if step.measurements:  # the predicted belief, for the NIS (not timed)
-                        priors[name][0][j], priors[name][1][j] = f.estimate()
-                    t2 = clock()
-                    f.update(step.measurements)
-                    mean, cov = f.estimate()
-                    t3 = clock()
-                    means[name][i] = mean
-                    covs[name][i] = cov
-            except FilterTimeout:
-                failed[name] = f"time limit: over {run_limit_s:g} s of filter time in the run"
+            left = None if run_limit_s is None else run_limit_s - cpu[name] / 1e9
+            c0 = cpu_clock()
+            got, why, _ = call_guarded(lambda: _timed_step(f, step), left, cpu=True,  # noqa: B023
+                                       over=over)
+            cpu[name] += cpu_clock() - c0
+            if why is not None:  # a user's filter: switch it off, go on with the others
+                failed[name] = why
                 continue
-            except BaseException as exc:  # a user's filter: switch it off, go on with the others
-                if not is_filter_failure(exc):  # the user's own Ctrl-C
-                    raise
-                failed[name] = _failure_text(exc)
+            wall, prior, est = got  # type: ignore[misc]
+            why = _store(est, means[name], covs[name], i)
+            if why is None and prior is not None:
+                why = _store(prior, priors[name][0], priors[name][1], j)
+                why = None if why is None else "after predict: " + why
+            if why is not None:  # a wrong shape or type: the guard's plain message
+                failed[name] = why
                 continue
-            ns[name] += (t1 - t0) + (t3 - t2)
+            ns[name] += wall
             done[name] += 1
     out = RunOutput(index, seed, truth, controls, kidnapped, sim.truth_checksum)
     n_rec = len(records)
@@ -239,9 +244,160 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     return out
 
 
+@dataclass
+class SimulatedRun:
+    """One (scenario, seed) simulated once by the grader, to be streamed to every
+    student's child: the truth (kept in the grader) and, per tick, the request that carries
+    what a filter may see (control, dt, readings), pickled once."""
+
+    scenario: Scenario
+    index: int
+    seed: int
+    truth: np.ndarray  # (T + 1, 3)
+    controls: np.ndarray  # (T, 2)
+    kidnapped: np.ndarray  # (T,)
+    truth_checksum: str
+    records: list  # the readings of the ticks that had any (for the NIS)
+    record_index: np.ndarray  # (T,) int: the index in ``records`` of tick i's readings
+    frames: list[bytes]  # (T,) "step" requests
+    frames_blind: list[bytes] | None = None  # the same without readings (the probe)
+    label: str = ""  # the scenario as the user named it (a shipped name or a path)
+
+
+def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
+                 blind: bool = False, label: str | None = None) -> SimulatedRun:
+    """Simulate one run as :func:`one_run` does, without filters; ``blind``: also the
+    requests with every reading withheld (does the filter use the readings?)."""
+    from beacon_sim.filters.wire import encode_request
+
+    sim = Simulation(scenario, seed)
+    T = round(duration / scenario.dt)
+    truth = np.empty((T + 1, 3))
+    truth[0] = sim.pose
+    controls = np.empty((T, 2))
+    kidnapped = np.zeros(T, dtype=bool)
+    records: list = []
+    rec = np.zeros(T, dtype=int)
+    frames, blind_frames = [], []
+    for i in range(T):
+        step = sim.step()
+        truth[i + 1] = step.true_pose
+        controls[i] = (step.control.v, step.control.omega)
+        kidnapped[i] = step.kidnapped
+        rec[i] = len(records)
+        if step.measurements:
+            records.append(step.measurements)
+        frames.append(encode_request("step", step.control, step.dt, tuple(step.measurements),
+                                     bool(step.measurements)))
+        if blind:
+            blind_frames.append(encode_request("step", step.control, step.dt, (), False))
+    return SimulatedRun(scenario, index, seed, truth, controls, kidnapped, sim.truth_checksum,
+                        records, rec, frames, blind_frames if blind else None,
+                        scenario.name if label is None else label)
+
+
+def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_means: bool = False,
+                 blind: bool = False, global_seed: int | None = None,
+                 ticks: int | None = None, name: str | None = None,
+                 params: dict[str, Any] | None = None) -> tuple[RunOutput, dict[str, Any]]:
+    """:func:`one_run` of the filter in ``child`` (a :class:`~beacon_sim.filters.isolated.FilterChild`)
+    on the simulated run ``sr``: the same numbers bit for bit, the truth never sent. Returns
+    the run and what the child reported (``np_global`` / ``py_global``: the filter drew from
+    the global generators; ``failed_child``: the child must not be reused). ``blind``: the
+    readings withheld (a probe, not a graded run); ``global_seed``: the global RNGs' seed
+    (default the run's seed); ``ticks``: only the first ``ticks`` ticks (a probe); ``name``:
+    the filter's name in the run (default its class's: its random generator's stream);
+    ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
+    from beacon_sim.core.streams import stream
+    from beacon_sim.filters.base import FilterContext
+    from beacon_sim.filters.isolated import ChildFailure
+    from beacon_sim.filters.loading import initial_belief
+    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
+
+    scenario = sr.scenario
+    name = name or child.class_name
+    T = len(sr.frames) if ticks is None else min(ticks, len(sr.frames))
+    means, covs = np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)
+    n_rec = len(sr.records)
+    pm, pc = np.full((n_rec, 3), np.nan), np.full((n_rec, 3, 3), np.nan)
+    failed: str | None = None
+    report: dict[str, Any] = {}
+    ns = done = 0
+    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+                        motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
+                        params=dict(scenario.filter_params.get(name, {})) if params is None else params,
+                        rng=stream(sr.seed, "filter", name))
+    frames = sr.frames_blind if blind and sr.frames_blind is not None else sr.frames
+    try:
+        child.build(ctx, initial_belief(scenario), sr.seed if global_seed is None else global_seed,
+                    run_limit_s, name)
+        for i in range(T):
+            tag, payload = child.request(frames[i])
+            if tag != ESTIMATE:
+                raise ChildFailure("the filter's process broke the protocol", died=True)
+            wall, prior, (mean, cov) = parse_estimate(payload)
+            means[i], covs[i] = mean, cov
+            if prior is not None:
+                j = sr.record_index[i]
+                pm[j], pc[j] = prior
+            ns += wall
+            done += 1
+        report = child.end()
+    except ChildFailure as exc:
+        failed = str(exc) or "the filter failed"
+        report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
+    except WireError as exc:  # a malformed answer: the child is not to be trusted further
+        child.kill()
+        failed = f"the filter's process {exc} and was stopped"
+        report = {"failed_child": True, "died": True, "traceback": ""}
+    theta = means[:done, 2]
+    report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
+    if ticks is not None:  # a probe: its estimates only
+        report["means"] = means
+        return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
+                         sr.truth_checksum), report
+    out = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
+    good = np.all(np.isfinite(pm), axis=1) & np.all(np.isfinite(pc), axis=(1, 2))
+    n_good = int(np.argmin(good)) if not good.all() else n_rec
+    sensors = {s.name: s for s in scenario.model_sensors}
+    with np.errstate(all="ignore"):
+        nis_sum, nis_dof = nis_batch(sr.records[:n_good], pm[:n_good], pc[:n_good], sensors,
+                                     scenario.world)
+    out.filters[name] = finish_filter(means, covs, sr.truth, done, failed, nis_sum, nis_dof, ns,
+                                      keep_means)
+    return out, report
+
+
+def _store(est: object, means: np.ndarray, covs: np.ndarray, i: int) -> str | None:
+    """Write ``est`` (a ``(mean (3,), cov (3, 3))`` pair) into row ``i`` of ``means`` and
+    ``covs``; its values are judged later (:func:`finish_filter`). Anything else: the
+    guard's one plain line (a wrong shape says so, not numpy's "could not broadcast")."""
+    got = estimate_arrays(est)
+    if isinstance(got, str):
+        return got
+    means[i], covs[i] = got
+    return None
+
+
+def _timed_step(f: Any, step: Any) -> tuple[int, Any, Any]:
+    """One step of one filter: (wall time of predict + update + estimate [ns], the estimate
+    after predict when the tick has readings (for the NIS, not timed) or None, the
+    estimate)."""
+    clock = time.perf_counter_ns
+    t0 = clock()
+    f.predict(step.control, step.dt)
+    t1 = clock()
+    prior = f.estimate() if step.measurements else None
+    t2 = clock()
+    f.update(step.measurements)
+    est = f.estimate()
+    t3 = clock()
+    return (t1 - t0) + (t3 - t2), prior, est
+
+
 def _failure_text(exc: BaseException) -> str:
     """One line for what a filter's code raised (SystemExit and KeyboardInterrupt included)."""
-    return exit_text(exc) if isinstance(exc, SystemExit | KeyboardInterrupt) else one_line(exc)
+    return failure_line(exc)
 
 
 def _task(args) -> RunOutput:
@@ -426,6 +582,76 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
     return [o for o in out if o is not None]
 
 
+def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, seed: int = 0,
+                             duration: float | None = None, jobs: int | None = None,
+                             params: dict[str, dict[str, Any]] | None = None,
+                             run_limit_s: float | None = None, sandbox: str = "auto",
+                             memory_gb: float = 4.0, log_dir: Any = None,
+                             batch: bool | None = None) -> list[RunOutput]:
+    """:func:`run_monte_carlo` with every filter file (``path.py:Class``) in a child process
+    of its own (:mod:`beacon_sim.filters.isolated`): the built-in filters run as before (the
+    same numbers), each file filter's runs are streamed from simulations made here, and the
+    records are merged in ``specs`` order. The same figures as in process, bit for bit,
+    for a filter that does not reach for the truth."""
+    import tempfile
+    from pathlib import Path
+
+    from beacon_sim.filters.containment import Limits, resolve_sandbox
+    from beacon_sim.filters.isolated import ChildFailure, FilterChild
+    from beacon_sim.filters.loading import is_file_spec, merged_params, split_label
+
+    duration = scenario.duration if duration is None else duration
+    params = params or {}
+    names = filter_names(specs)
+    inside = [s for s in specs if not is_file_spec(s)]
+    # Not batched: the built-ins' numbers stay those of a run beside a file filter in process
+    # (a batched run differs in the last bits).
+    base = run_monte_carlo(scenario, inside, runs, seed, duration, jobs, params, progress=False,
+                           batch=False if len(inside) < len(specs) else batch,
+                           run_limit_s=run_limit_s) if inside else None
+    sims = [simulate_run(scenario, seed + i, duration, i) for i in range(runs)]
+    level = resolve_sandbox(sandbox)
+    logs = Path(log_dir) if log_dir is not None else Path(tempfile.mkdtemp(prefix="beacon-sim-eval-"))
+    limits = Limits(memory_gb=memory_gb, cpu_s=None if run_limit_s is None else run_limit_s * runs * 1.5 + 60)
+    isolated: dict[str, list[FilterRun]] = {}
+    for spec, name in zip(specs, names, strict=True):
+        if not is_file_spec(spec):
+            continue
+        bare = split_label(spec)[1]
+        target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
+        fp = merged_params(spec, scenario, params.get(filter_display_name(spec)))
+        records: list[FilterRun] = []
+        child: FilterChild | None = None
+        why: str | None = None
+        for sr in sims:
+            if why is None and child is None:
+                try:
+                    child = FilterChild(Path(target), cls or None, logs / f"{name}.log", level, limits,
+                                        max(60.0, 5 * (run_limit_s or 60.0)))
+                except ChildFailure as exc:
+                    why = str(exc)
+            if child is None:
+                T = len(sr.frames)
+                records.append(finish_filter(np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan),
+                                             sr.truth, 0, why or "failed", 0.0, 0, 0, sr.index == 0))
+                continue
+            out, rep = isolated_run(child, sr, run_limit_s, keep_means=sr.index == 0, name=name, params=fp)
+            records.append(out.filters[name])
+            if rep.get("failed_child"):
+                child.close()
+                child = None
+        if child is not None:
+            child.close()
+        isolated[name] = records
+    result = []
+    for i, sr in enumerate(sims):
+        run = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
+        for name in names:
+            run.filters[name] = isolated[name][i] if name in isolated else base[i].filters[name]  # type: ignore[index]
+        result.append(run)
+    return result
+
+
 def limit_worker_memory(gb: float) -> None:
     """A local worker's address-space limit, so a filter that hoards memory gets a
     MemoryError (a failed run) instead of the kernel's out-of-memory killer."""
@@ -459,5 +685,6 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
     return np.stack([getattr(r.filters[name], attr) for r in runs])
 
 
-__all__ = ["FilterRun", "RunOutput", "batch_reason", "batch_runs", "filter_names", "finish_filter",
-           "one_run", "run_monte_carlo", "stack"]
+__all__ = ["FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs", "filter_names",
+           "finish_filter", "isolated_run", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
+           "simulate_run", "stack"]

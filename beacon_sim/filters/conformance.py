@@ -18,9 +18,11 @@ from __future__ import annotations
 
 import math
 import random
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -36,14 +38,22 @@ from beacon_sim.filters.base import (
     GridBelief,
     ParticleBelief,
 )
+from beacon_sim.filters.containment import Limits, resolve_sandbox
+from beacon_sim.filters.guard import MAX_COV, MAX_MEAN
+from beacon_sim.filters.host import call_guarded, guarded_call
+from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
 from beacon_sim.filters.loading import (
+    FilterLoadError,
     build_filter,
+    build_from_context,
     filter_display_name,
+    initial_belief,
+    is_file_spec,
     load_filter_class,
     merged_params,
-    reset_filter,
+    split_label,
 )
-from beacon_sim.filters.runner import FilterTimeout, guarded_call, one_line, time_limit
+from beacon_sim.filters.watchdog import FilterFailed, one_line
 
 N_STEPS = 100
 SEED = 12345
@@ -61,8 +71,8 @@ class CheckResult:
     advice: str = ""
 
 
-def _scenario_for(cls: type, scenario: Scenario) -> tuple[Scenario, str]:
-    kinds = getattr(cls, "sensor_kinds", None)
+def _scenario_for(host: Any, scenario: Scenario) -> tuple[Scenario, str]:
+    kinds = getattr(host, "sensor_kinds", None)
     if not kinds or any(s.kind in kinds for s in scenario.sensors):
         return scenario, ""
     from beacon_sim.core.resources import shipped_scenarios
@@ -112,36 +122,103 @@ class _Feed:
 
 def _feed(flt: Filter, steps: Sequence[Step], limit_s: float) -> _Feed:
     """Feed ``steps`` to ``flt`` (predict, update, estimate each), stopping at the first
-    exception or after ``limit_s`` seconds of one step (an endless loop)."""
+    exception or after ``limit_s`` seconds of CPU time in one step (an endless loop)."""
     out: list[object] = []
     ns = 0
     for k, st in enumerate(steps, 1):
+        def one(st: Step = st) -> object:
+            flt.predict(st.control, st.dt)
+            flt.update(st.measurements)
+            return flt.estimate()
+
         t0 = time.perf_counter_ns()
-        try:
-            with time_limit(limit_s):
-                flt.predict(st.control, st.dt)
-                flt.update(st.measurements)
-                est = flt.estimate()
-        except FilterTimeout:
-            return _Feed(out, (k, f"time limit: a step took over {limit_s:g} s"), ns)
-        except Exception as exc:
-            return _Feed(out, (k, one_line(exc)), ns)
-        ns += time.perf_counter_ns() - t0
+        est, why, _ = call_guarded(one, limit_s, cpu=True,
+                                   over=f"time limit: a step took over {limit_s:g} s")
+        if why is not None:
+            return _Feed(out, (k, why), ns)
+        own = getattr(flt, "last_step_ns", None)  # a filter in a child: its own cost there
+        ns += own if isinstance(own, int) else time.perf_counter_ns() - t0
         out.append(est)
     return _Feed(out, None, ns)
 
 
-def _run(cls: type, scenario: Scenario, spec: str, steps: Sequence[Step],
+class _LocalHost:
+    """The filter's class in this process (a built-in filter, or ``isolated=False``)."""
+
+    def __init__(self, cls: type):
+        self.cls = cls
+        self.where = f"{cls.__module__}.{cls.__name__}"
+        self.sensor_kinds = getattr(cls, "sensor_kinds", None)
+        self.missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
+                        if not callable(getattr(cls, m, None))]
+
+    def make(self, scenario: Scenario, spec: str, global_seed: int | None = None) -> Filter:
+        """A fresh filter, built and reset (the global RNGs seeded first, when given)."""
+        if global_seed is not None:
+            np.random.seed(global_seed)  # noqa: NPY002 - the point of the check
+            random.seed(global_seed)
+        return build_from_context(self.cls, _context(scenario, spec), initial_belief(scenario), spec,
+                                  limit_s=STEP_LIMIT_S)
+
+    def drew_global(self) -> tuple[bool, bool] | None:
+        return None  # judged from this process's own generators
+
+    def close(self) -> None:
+        pass
+
+
+class _ChildHost:
+    """The filter in a child process of its own (a file): its code never runs here."""
+
+    def __init__(self, child: FilterChild, log: Path | None = None):
+        self.child = child
+        self.log = log  # the child's stdout and stderr
+        info = child.info
+        self.where = f"{info.get('module', '?')}.{child.class_name} (in a process of its own)"
+        self.sensor_kinds = info.get("sensor_kinds")
+        self.missing = list(info.get("missing") or [])
+
+    def make(self, scenario: Scenario, spec: str, global_seed: int | None = None) -> Filter:
+        return IsolatedFilter(self.child, _context(scenario, spec), initial_belief(scenario),
+                              0 if global_seed is None else global_seed, None, spec,
+                              step_limit_s=STEP_LIMIT_S)
+
+    def drew_global(self) -> tuple[bool, bool] | None:
+        rep = self.child.end()
+        return bool(rep.get("np_global")), bool(rep.get("py_global"))
+
+    def close(self) -> None:
+        self.child.close()
+
+
+_Host = _LocalHost | _ChildHost
+
+
+def _run(host: _Host, scenario: Scenario, spec: str, steps: Sequence[Step],
          global_seed: int) -> _Feed:
     """Build, reset and feed the steps with the global RNGs seeded."""
-    np.random.seed(global_seed)  # noqa: NPY002 - the point of the check
-    random.seed(global_seed)
     try:
-        flt: Filter = cls(_context(scenario, spec))
-        reset_filter(flt, scenario)
+        flt = host.make(scenario, spec, global_seed)
     except Exception as exc:
         return _Feed([], (0, one_line(exc)), 0)
     return _feed(flt, steps, STEP_LIMIT_S)
+
+
+def _open_host(spec: str, isolated: bool, sandbox: str) -> _Host:
+    """Where the checked filter runs: a file in a child process (``isolated``), else here.
+    Raises FilterError (the name is no filter: one line, exit status 2) or FilterFailed
+    (the file does not import)."""
+    if isolated and is_file_spec(spec):
+        bare = split_label(spec)[1]
+        target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
+        path = Path(target)
+        if not path.is_file():
+            raise FilterLoadError(f"{path}: no such filter file")
+        log = Path(tempfile.mkdtemp(prefix="beacon-sim-check-")) / "log.txt"
+        child = FilterChild(path, cls or None, log, resolve_sandbox(sandbox), Limits(),
+                            reply_timeout_s=max(60.0, 4 * STEP_LIMIT_S))
+        return _ChildHost(child, log)
+    return _LocalHost(load_filter_class(spec))
 
 
 def _same(a: object, b: object) -> bool:
@@ -178,10 +255,17 @@ def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
             problems.setdefault("finite", f"step {k}: NaN or infinity in the estimate")
             continue
         scale = max(float(np.max(np.abs(cov))), 1e-12)
+        if scale > MAX_COV or float(np.max(np.abs(mean))) > MAX_MEAN:  # the guard's "diverged"
+            problems.setdefault("finite", f"step {k}: a mean beyond {MAX_MEAN:g} or a covariance "
+                                f"entry over {MAX_COV:g} (diverged)")
+            continue
         asym = float(np.max(np.abs(cov - cov.T)))
         if asym > 1e-9 * scale:
             problems.setdefault("symmetric", f"step {k}: cov - cov^T up to {asym:.3g}")
-        low = float(np.min(np.linalg.eigvalsh(0.5 * (cov + cov.T))))
+        try:
+            low = float(np.min(np.linalg.eigvalsh(0.5 * (cov + cov.T))))
+        except np.linalg.LinAlgError:
+            low = -math.inf
         if low < -1e-9 * scale:
             problems.setdefault("psd", f"step {k}: smallest eigenvalue {low:.3g}")
         if not -math.pi <= mean[2] < math.pi:
@@ -189,8 +273,13 @@ def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
     return problems
 
 
-def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
+def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True,
+               sandbox: str = "auto") -> list[CheckResult]:
     """Run every check on the filter named ``spec`` with ``scenario``'s map and sensors.
+
+    A filter file runs in a child process of its own (``isolated``, the default; ``sandbox``
+    as for ``grade``): its code never runs in this process, and a filter that exits, loops
+    or raises ``KeyboardInterrupt`` fails a check instead of ending the program.
 
     Each check stands on its own, so one fault gives one FAIL: a filter that raises at step
     k fails "runs" and is judged by the other checks on the steps before k; a NaN fails
@@ -205,19 +294,30 @@ def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
         return bool(passed)
 
     try:
-        cls = load_filter_class(spec)
-    except FilterError as exc:
+        host = _open_host(spec, isolated, sandbox)
+    except (FilterError, FilterFailed) as exc:
         add("loads", False, str(exc), "check the spelling: a built-in name, pkg.mod:Class or "
             "path/to/file.py:Class, and that the file imports without errors")
         return results
-    add("loads", True, f"{cls.__module__}.{cls.__name__}")
+    try:
+        return _checks(host, spec, scenario, results, add)
+    finally:
+        host.close()
+        log = getattr(host, "log", None)
+        if log is not None and log.exists() and log.stat().st_size:  # not a check: where it went
+            add("output", True, f"the filter printed {log.stat().st_size} bytes: see {log}")
 
-    scenario, note = _scenario_for(cls, scenario)
+
+def _checks(host: _Host, spec: str, scenario: Scenario, results: list[CheckResult],
+            add: Callable[..., bool]) -> list[CheckResult]:
+    """The checks after the filter loaded (see :func:`run_checks`)."""
+    add("loads", True, host.where)
+
+    scenario, note = _scenario_for(host, scenario)
     if note:
         add("scenario", True, note)
 
-    missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
-               if not callable(getattr(cls, m, None))]
+    missing = host.missing
     if not add("interface", not missing, f"missing: {', '.join(missing)}" if missing else
                "reset, predict, update, estimate, belief",
                "implement every method of beacon_sim.filters.base.Filter (subclass FilterBase "
@@ -225,9 +325,7 @@ def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
         return results
 
     def fresh() -> Filter:
-        flt: Filter = cls(_context(scenario, spec))
-        reset_filter(flt, scenario)
-        return flt
+        return host.make(scenario, spec)
 
     try:
         flt = fresh()
@@ -332,11 +430,17 @@ def run_checks(spec: str, scenario: Scenario) -> list[CheckResult]:
         random.seed(1)
         ref_np = np.random.get_state(legacy=False)  # noqa: NPY002
         ref_py = random.getstate()
-        run1 = _run(cls, scenario, spec, steps, 1)
+        run1 = _run(host, scenario, spec, steps, 1)
         now_np = np.random.get_state(legacy=False)  # noqa: NPY002
         drew_np = not _same_np_state(now_np, ref_np)
         drew_py = random.getstate() != ref_py
-        run2 = _run(cls, scenario, spec, steps, 2)
+        try:
+            child_drew = host.drew_global()
+        except FilterFailed:
+            child_drew = None
+        if child_drew is not None:
+            drew_np, drew_py = child_drew
+        run2 = _run(host, scenario, spec, steps, 2)
     finally:
         np.random.set_state(state_np)  # noqa: NPY002
         random.setstate(state_py)

@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import difflib
 import importlib
-import importlib.metadata
 import importlib.util
 import re
 import sys
 import traceback
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +27,9 @@ from beacon_sim.filters.base import Filter, FilterContext, FilterError, Gaussian
 from beacon_sim.filters.param_ranges import check_params
 from beacon_sim.filters.registry import TARGETS
 from beacon_sim.filters.runner import FilterExit, run_filter_code
+
+if TYPE_CHECKING:
+    import importlib.metadata
 
 #: Built-in filters: name -> "module:Class", imported only when used (read from the
 #: records in filters/registry.py).
@@ -50,6 +52,8 @@ class FilterLoadError(FilterError):
 
 def entry_point_filters() -> dict[str, importlib.metadata.EntryPoint]:
     """Filters that installed packages register in the ``beacon_sim.filters`` group."""
+    import importlib.metadata  # here, not at the top: 0.2 s of every child process's start
+
     return {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
 
 
@@ -60,10 +64,12 @@ def available_filters() -> list[str]:
     return names + sorted(set(entry_point_filters()) - set(names))
 
 
-def _load_file(path: Path, class_name: str) -> type:
+def import_file(path: Path, module_name: str | None = None) -> ModuleType:
+    """Import a filter file as a module of its own (under a time limit); FilterLoadError
+    when it is missing, not Python, or fails to import (even by calling ``sys.exit``)."""
     if not path.is_file():
         raise FilterLoadError(f"{path}: no such filter file")
-    module_name = f"beacon_sim_user_{abs(hash(path.resolve()))}"
+    module_name = module_name or f"beacon_sim_user_{abs(hash(path.resolve()))}"
     spec = importlib.util.spec_from_file_location(module_name, path)
     if spec is None or spec.loader is None:  # e.g. no .py suffix: Python cannot import it
         raise FilterLoadError(f"{path}: not a Python source file (expected path/to/file.py:Class)")
@@ -76,10 +82,16 @@ def _load_file(path: Path, class_name: str) -> type:
         sys.modules.pop(module_name, None)
         why = str(exc) if isinstance(exc, FilterExit) else f"{type(exc).__name__}: {exc}"
         raise FilterLoadError(f"{path}: cannot import: {one_line_text(why)}") from exc
-    return _get_class(module, class_name, str(path))
+    return module
+
+
+def _load_file(path: Path, class_name: str) -> type:
+    return _get_class(import_file(path), class_name, str(path))
 
 
 def _get_class(module: ModuleType, class_name: str, where: str) -> type:
+    if class_name == FUNCTIONS and getattr(module, FUNCTIONS, None) is None:
+        return function_filter_class(module, where)
     cls = getattr(module, class_name, None)
     if cls is None:
         classes = sorted(n for n, v in vars(module).items()
@@ -87,6 +99,83 @@ def _get_class(module: ModuleType, class_name: str, where: str) -> type:
         hint = f"; filter classes there: {', '.join(classes)}" if classes else ""
         raise FilterLoadError(f"{where}: no class {class_name!r}{hint}")
     return cls
+
+
+#: The methods that make a class (or a module of functions) a filter; ``belief`` is optional.
+FILTER_METHODS = ("reset", "predict", "update", "estimate")
+#: The "class name" of a file whose filter is its module-level functions (``file.py:functions``).
+FUNCTIONS = "functions"
+
+
+def implements_filter(obj: object) -> bool:
+    """Whether ``obj`` (a class or a module) has every method of :data:`FILTER_METHODS`."""
+    return all(callable(getattr(obj, m, None)) for m in FILTER_METHODS)
+
+
+def choose_filter(module: ModuleType, class_name: str | None, where: str) -> type:
+    """The filter a module defines: the class ``class_name`` when given; else the last
+    class defined in the module that implements the interface (a helper class with an
+    unrelated ``update`` is not chosen); else the module's own functions (``reset``,
+    ``predict``, ``update``, ``estimate``, optionally ``belief``: :func:`function_filter_class`)."""
+    if class_name == FUNCTIONS:
+        return function_filter_class(module, where)
+    if class_name is not None:
+        return _get_class(module, class_name, where)
+    own = [v for v in vars(module).values() if isinstance(v, type)
+           and getattr(v, "__module__", None) == module.__name__ and implements_filter(v)]
+    if own:
+        return own[-1]
+    if implements_filter(module):
+        return function_filter_class(module, where)
+    raise FilterLoadError(f"{where}: no filter: define a class with reset, predict, update and "
+                          "estimate, or those four functions at module level")
+
+
+def function_filter_class(module: ModuleType, where: str) -> type:
+    """A filter class whose methods call a module's functions ``reset(initial)``,
+    ``predict(control, dt)``, ``update(measurements)``, ``estimate()`` and optionally
+    ``belief()`` (docs/writing-a-filter.md, "A file of functions"). The module may define
+    ``init(ctx)``, called with the :class:`FilterContext` when the filter is built. One
+    module is one filter: its state lives in the module's globals."""
+    missing = [m for m in FILTER_METHODS if not callable(getattr(module, m, None))]
+    if missing:
+        raise FilterLoadError(f"{where}: no filter functions {', '.join(missing)} at module level")
+    mod = module
+
+    class FunctionFilter:
+        """The module's functions as a filter object."""
+
+        supports_global = bool(getattr(mod, "supports_global", False))
+        sensor_kinds = getattr(mod, "sensor_kinds", None)
+
+        def __init__(self, ctx: FilterContext):
+            self.ctx = ctx
+            init = getattr(mod, "init", None)
+            if callable(init):
+                init(ctx)
+
+        def reset(self, initial: GaussianBelief | None) -> None:
+            mod.reset(initial)
+
+        def predict(self, control: Any, dt: float) -> None:
+            mod.predict(control, dt)
+
+        def update(self, measurements: Any) -> None:
+            mod.update(measurements)
+
+        def estimate(self) -> Any:
+            return mod.estimate()
+
+        def belief(self) -> Any:
+            fn = getattr(mod, "belief", None)
+            if callable(fn):
+                return fn()
+            mean, cov = mod.estimate()
+            return GaussianBelief(mean, cov)
+
+    FunctionFilter.__module__ = module.__name__
+    FunctionFilter.__qualname__ = FunctionFilter.__name__ = "functions"
+    return FunctionFilter
 
 
 _LABEL = re.compile(r"^([A-Za-z0-9_][A-Za-z0-9_.'+-]*)=(.+)$")
@@ -105,6 +194,8 @@ def load_filter_class(spec: str) -> type:
     spec = split_label(spec)[1]
     if spec in BUILTIN_FILTERS:
         spec = BUILTIN_FILTERS[spec]
+    elif ":" not in spec and spec.endswith(".py"):  # a file: its filter class or functions
+        return choose_filter(import_file(Path(spec)), None, spec)
     elif ":" not in spec:
         eps = entry_point_filters()
         if spec in eps:
@@ -127,18 +218,32 @@ def load_filter_class(spec: str) -> type:
     return _get_class(module, class_name, target)
 
 
+def is_file_spec(spec: str) -> bool:
+    """Whether a filter spec names a file (``path.py:Class`` or ``path.py``): the filters
+    ``eval``, ``check`` and ``grade`` host in a child process of their own."""
+    spec = split_label(spec)[1]
+    target = spec.rpartition(":")[0] if ":" in spec else spec
+    return target.endswith(".py")
+
+
 def filter_display_name(spec: str) -> str:
     """Short name for a filter spec: its label (``alice`` for ``alice=./a.py:MyEkf``),
     ``ekf``, or ``MyFilter`` for ``my.py:MyFilter``."""
     label, spec = split_label(spec)
     if label:
         return label
+    m = _ISOLATED.match(spec)
+    if m is not None:
+        return filter_display_name(m.group(3))
+    if ":" not in spec and spec.endswith(".py"):
+        return Path(spec).stem
     return spec.rpartition(":")[2] if ":" in spec else spec
 
 
 def _file_stem(spec: str) -> str | None:
     """``alice`` for ``path/to/alice.py:MyEkf``; None for other specs."""
-    target = split_label(spec)[1].rpartition(":")[0]
+    spec = split_label(spec)[1]
+    target = spec.rpartition(":")[0] if ":" in spec else spec
     return Path(target).stem if target.endswith(".py") else None
 
 
@@ -217,6 +322,8 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     :class:`~beacon_sim.filters.runner.FilterRunner` when it first fails, and
     ``beacon-sim check`` names what is missing.
     """
+    if spec.startswith(ISOLATED_PREFIX):  # a file hosted in a child process (grade's team runs)
+        return _build_isolated(spec, scenario, seed, name, params)
     cls = load_filter_class(spec)
     name = name or filter_display_name(spec)
     ctx = FilterContext(
@@ -228,7 +335,61 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
         params=merged_params(spec, scenario, params),
         rng=stream(seed, "filter", name),
     )
-    check_params(cls, ctx.params, scenario.world)  # finite, in range, fits in memory
+    return build_from_context(cls, ctx, initial_belief(scenario), spec, limit_s=limit_s)
+
+
+#: ``isolated[SANDBOX,LIMIT_S]:path.py:Class``: the file's filter in a child process of its
+#: own (:mod:`beacon_sim.filters.isolated`), with that containment level and CPU-time limit
+#: per run. What ``grade`` gives each robot of a team scenario.
+ISOLATED_PREFIX = "isolated["
+_ISOLATED = re.compile(r"^isolated\[(auto|bwrap|process),([0-9.eE+-]+|none)\]:(.+)$")
+
+
+def isolated_spec(spec: str, sandbox: str, limit_s: float | None) -> str:
+    """The spec that hosts the file filter ``spec`` in a child process (see ``ISOLATED_PREFIX``)."""
+    return f"isolated[{sandbox},{'none' if limit_s is None else repr(float(limit_s))}]:{spec}"
+
+
+def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
+                    params: dict[str, Any] | None) -> Filter:
+    """A proxy of the file filter in ``spec`` in a fresh child process, closed with the proxy."""
+    import tempfile
+    import weakref
+
+    from beacon_sim.filters.containment import Limits, resolve_sandbox
+    from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
+
+    m = _ISOLATED.match(spec)
+    if m is None:
+        raise FilterLoadError(f"{spec}: expected isolated[SANDBOX,LIMIT_S]:path.py:Class")
+    sandbox, limit, inner = m.group(1), m.group(2), m.group(3)
+    limit_s = None if limit == "none" else float(limit)
+    bare = split_label(inner)[1]
+    target, _, cls_name = bare.rpartition(":") if ":" in bare else (bare, "", "")
+    log = Path(tempfile.mkdtemp(prefix="beacon-sim-member-")) / "log.txt"
+    child = FilterChild(Path(target), cls_name or None, log, resolve_sandbox(sandbox),
+                        Limits(cpu_s=None if limit_s is None else 1.5 * limit_s + 60),
+                        reply_timeout_s=max(60.0, 5 * (limit_s or 12.0)))
+    name = name or filter_display_name(inner)
+    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+                        motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
+                        params=merged_params(inner, scenario, params), rng=stream(seed, "filter", name))
+    try:
+        flt = IsolatedFilter(child, ctx, initial_belief(scenario), seed, limit_s, inner)
+    except BaseException:
+        child.close()
+        raise
+    weakref.finalize(flt, child.close)
+    return flt
+
+
+def build_from_context(cls: type, ctx: FilterContext, initial: GaussianBelief | None, spec: str,
+                       *, limit_s: float = BUILD_LIMIT_S) -> Filter:
+    """Construct ``cls(ctx)`` and reset it to ``initial`` (None: a global start; a broad
+    Gaussian for a filter that cannot represent a uniform belief), each under a time limit:
+    what :func:`build_filter` does, and what the isolated child does with the context the
+    grader sends it."""
+    check_params(cls, ctx.params, ctx.world)  # finite, in range, fits in memory
     try:
         flt: Filter = run_filter_code(lambda: cls(ctx), limit_s, "__init__")
     except FilterError:
@@ -236,7 +397,14 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     except TypeError as exc:
         raise FilterLoadError(f"{spec}: cannot construct with a FilterContext: "
                               f"{one_line_text(str(exc))}") from exc
-    run_filter_code(lambda: reset_filter(flt, scenario), limit_s, "reset")
+
+    def reset() -> None:
+        init = initial
+        if init is None and not getattr(flt, "supports_global", False):
+            init = broad_gaussian(ctx.world)
+        flt.reset(init)
+
+    run_filter_code(reset, limit_s, "reset")
     return flt
 
 
@@ -293,6 +461,23 @@ def reset_filter(flt: Filter, scenario: Scenario) -> None:
     flt.reset(init)
 
 
-__all__ = ["BUILTIN_FILTERS", "FilterLoadError", "available_filters", "build_filter", "build_filters",
-           "check_param_names",
-           "filter_display_name", "filter_names", "initial_belief", "load_filter_class", "split_label"]
+__all__ = [
+    "BUILTIN_FILTERS",
+    "FILTER_METHODS",
+    "FUNCTIONS",
+    "FilterLoadError",
+    "available_filters",
+    "build_filter",
+    "build_filters",
+    "build_from_context",
+    "check_param_names",
+    "choose_filter",
+    "filter_display_name",
+    "filter_names",
+    "function_filter_class",
+    "implements_filter",
+    "import_file",
+    "initial_belief",
+    "load_filter_class",
+    "split_label",
+]

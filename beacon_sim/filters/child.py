@@ -1,0 +1,341 @@
+"""The child process that hosts one student's filter: ``python -m beacon_sim.filters.child
+READ_FD WRITE_FD CONFIG_JSON`` (started by :mod:`beacon_sim.filters.isolated`, never by hand).
+
+It starts from a clean interpreter (no fork of the grader: nothing of the grader's memory,
+no truth, no other student's results), contains itself before any student code runs
+(resource limits; bounded stdout and stderr; the unprivileged user ``nobody`` when started
+as root outside a sandbox), then serves requests over the pipe in lockstep
+(:mod:`beacon_sim.filters.wire`): it receives only what a filter may see (its
+``FilterContext``, its initial belief, then each tick's control, dt and readings) and
+answers with estimates. The global ``random`` and ``np.random`` generators are seeded from
+the run's seed, and the end of a run reports whether the filter drew from them.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import random
+import sys
+import time
+from typing import Any
+
+#: Modules loaded before privileges are dropped (a root grader without a sandbox runs the
+#: child as ``nobody``, who may not be able to read the Python installation afterwards).
+PRELOAD = ("numpy", "numpy.linalg", "numpy.random", "math", "cmath", "random", "collections",
+           "dataclasses", "functools", "itertools", "typing", "copy", "inspect", "gc", "abc",
+           "enum", "statistics", "bisect", "heapq", "operator", "warnings", "csv", "html",
+           "tomllib", "re", "string", "textwrap", "pathlib", "datetime", "decimal", "fractions",
+           "array", "queue", "threading", "logging", "contextlib", "numbers", "pprint",
+           "beacon_sim.core.scenario", "beacon_sim.core.simulation", "beacon_sim.filters.template",
+           "beacon_sim.core.angles", "beacon_sim.core.measurement_models", "beacon_sim.core.motion",
+           "beacon_sim.filters.base", "beacon_sim.filters.kf", "beacon_sim.filters.ekf",
+           "beacon_sim.filters.ukf", "beacon_sim.filters.particle", "beacon_sim.filters.histogram",
+           "beacon_sim.filters.dead_reckoning", "beacon_sim.filters.resampling")
+NOBODY = 65534
+
+
+class _BoundedOutput(io.TextIOBase):
+    """``sys.stdout`` / ``sys.stderr`` of the child: written straight to the log's file
+    descriptor up to ``limit`` bytes, then one line saying the rest was cut."""
+
+    def __init__(self, fd: int, limit: int, shared: list[int]):
+        self._fd, self._limit, self._used = fd, limit, shared
+
+    def write(self, s: str) -> int:
+        if self._used[0] < self._limit:
+            data = s.encode("utf-8", "replace")[: self._limit - self._used[0]]
+            self._used[0] += len(data)
+            try:
+                os.write(self._fd, data)
+                if self._used[0] >= self._limit:
+                    os.write(self._fd, f"\n[output cut at {self._limit} bytes]\n".encode())
+            except OSError:
+                pass
+        return len(s)
+
+    def writable(self) -> bool:
+        return True
+
+    def flush(self) -> None:
+        pass
+
+
+def _contain(cfg: dict[str, Any]) -> None:
+    """Resource limits (the hard limit equal to the soft one: the filter cannot raise them),
+    bounded output, then (root, no sandbox) the unprivileged user."""
+    import resource
+
+    def limit(which: int, value: int) -> None:
+        try:
+            _, hard = resource.getrlimit(which)
+            v = value if hard == resource.RLIM_INFINITY else min(value, hard)
+            resource.setrlimit(which, (v, v))
+        except (ValueError, OSError):
+            pass
+
+    limit(resource.RLIMIT_CORE, 0)
+    if cfg.get("fsize_bytes"):
+        limit(resource.RLIMIT_FSIZE, int(cfg["fsize_bytes"]))
+    if cfg.get("memory_bytes"):
+        limit(resource.RLIMIT_AS, int(cfg["memory_bytes"]))
+    if cfg.get("cpu_s"):
+        try:
+            _, hard = resource.getrlimit(resource.RLIMIT_CPU)
+            soft = int(cfg["cpu_s"])
+            resource.setrlimit(resource.RLIMIT_CPU, (soft, soft + 5 if hard == resource.RLIM_INFINITY
+                                                      else min(soft + 5, hard)))
+        except (ValueError, OSError):
+            pass
+    shared = [0]
+    sys.stdout = _BoundedOutput(1, int(cfg.get("log_bytes", 1 << 20)), shared)
+    sys.stderr = _BoundedOutput(2, int(cfg.get("log_bytes", 1 << 20)), shared)
+    if cfg.get("drop_user") and hasattr(os, "geteuid") and os.geteuid() == 0:
+        import importlib
+
+        limit(resource.RLIMIT_NPROC, 256)  # the processes of nobody: no fork bomb
+
+        for name in PRELOAD:
+            try:
+                importlib.import_module(name)
+            except ImportError:
+                pass
+        os.setgroups([])
+        os.setgid(NOBODY)
+        os.setuid(NOBODY)
+
+
+def _np_state() -> Any:
+    import numpy as np
+
+    return np.random.get_state(legacy=False)  # noqa: NPY002 - the check of its use
+
+
+def _same_np(a: Any, b: Any) -> bool:
+    import numpy as np
+
+    return (a["bit_generator"] == b["bit_generator"] and np.array_equal(a["state"]["key"], b["state"]["key"])
+            and a["state"]["pos"] == b["state"]["pos"] and a["has_gauss"] == b["has_gauss"]
+            and a["gauss"] == b["gauss"])
+
+
+class _Server:
+    """The requests of :mod:`beacon_sim.filters.isolated`, one at a time."""
+
+    def __init__(self, wfd: int):
+        self.wfd = wfd
+        self.cls: type | None = None
+        self.flt: Any = None
+        self.limit: Any = None   # the run's CPU-time limit, armed from build to end
+        self.limit_s: float | None = None
+        self.rng_states: tuple[Any, Any] | None = None
+        self.step_limit_s: float | None = None  # each request's CPU-time limit (check)
+
+    def step_limited(self, fn: Any) -> Any:
+        """``fn()`` under the step limit, if one is set: over it, the step's one line."""
+        if self.step_limit_s is None:
+            return fn()
+        from beacon_sim.filters.watchdog import FilterFailed, FilterTimeout, time_limit
+
+        try:
+            with time_limit(self.step_limit_s, cpu=True, backstop=False):
+                return fn()
+        except FilterTimeout:
+            raise FilterFailed(f"time limit: a step took over {self.step_limit_s:g} s") from None
+
+    def send(self, frame: bytes) -> None:
+        from beacon_sim.filters.wire import send_frame
+
+        send_frame(self.wfd, frame)
+
+    def fail(self, why: str, tb: str = "") -> None:
+        from beacon_sim.filters.wire import FAIL, reply_json
+
+        self.send(reply_json(FAIL, {"why": why, "tb": tb}))
+
+    def handle(self, req: tuple[Any, ...]) -> None:
+        from beacon_sim.filters.wire import OK, reply_json
+
+        op = req[0]
+        getattr(self, "op_" + op)(*req[1:])
+        if op in ("predict", "update", "reset"):
+            self.send(reply_json(OK, {}))
+
+    def op_load(self, path: str, class_name: str | None) -> None:
+        from pathlib import Path
+
+        from beacon_sim.filters.loading import choose_filter, import_file
+        from beacon_sim.filters.wire import OK, reply_json
+
+        module = import_file(Path(path), "student")
+        self.cls = choose_filter(module, class_name, Path(path).name)
+        form = "functions" if self.cls.__qualname__ == "functions" else "class"
+        missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
+                   if not callable(getattr(self.cls, m, None))]
+        kinds = getattr(self.cls, "sensor_kinds", None)
+        kinds = [str(k) for k in kinds] if isinstance(kinds, list | tuple) else None
+        self.send(reply_json(OK, {"name": self.cls.__qualname__, "form": form, "missing": missing,
+                                  "module": str(self.cls.__module__), "sensor_kinds": kinds,
+                                  "supports_global": bool(getattr(self.cls, "supports_global", False))}))
+
+    def op_build(self, ctx: Any, initial: Any, global_seed: int, run_limit_s: float | None,
+                 spec: str, step_limit_s: float | None = None) -> None:
+        import numpy as np
+
+        from beacon_sim.filters.loading import build_from_context
+        from beacon_sim.filters.watchdog import time_limit
+        from beacon_sim.filters.wire import OK, reply_json
+
+        self.end_limit()
+        np.random.seed(global_seed % 2**32)  # noqa: NPY002 - a global-RNG filter is reproducible
+        random.seed(global_seed)
+        self.rng_states = (_np_state(), random.getstate())
+        assert self.cls is not None
+        self.flt = build_from_context(self.cls, ctx, initial, spec)
+        self.limit_s, self.step_limit_s = run_limit_s, step_limit_s
+        if run_limit_s is not None:
+            self.limit = time_limit(run_limit_s, cpu=True, backstop=False)
+            self.limit.__enter__()
+        self.send(reply_json(OK, {}))
+
+    def op_step(self, control: Any, dt: float, measurements: Any, want_prior: bool) -> None:
+        from beacon_sim.filters.guard import estimate_arrays
+        from beacon_sim.filters.wire import reply_estimate
+
+        f, clock = self.flt, time.perf_counter_ns
+
+        def step() -> tuple[int, Any, Any]:
+            t0 = clock()
+            f.predict(control, dt)
+            t1 = clock()
+            prior = f.estimate() if want_prior else None
+            t2 = clock()
+            f.update(measurements)
+            est = f.estimate()
+            return (t1 - t0) + (clock() - t2), prior, est
+
+        wall, prior, est = self.step_limited(step)
+        post = estimate_arrays(est)
+        if isinstance(post, str):
+            return self.loose(est) if self.step_limit_s is not None else self.fail(post)
+        pri: Any = None
+        if want_prior:
+            pri = estimate_arrays(prior)
+            if isinstance(pri, str):
+                return self.fail("after predict: " + pri)
+        self.send(reply_estimate(wall, pri, post))
+        return None
+
+    def loose(self, est: Any) -> None:
+        """An unusable estimate sent as it is, for ``check`` to judge (the step limit is set
+        only there): arrays of numbers of any shape, or what it was instead."""
+        import numpy as np
+
+        from beacon_sim.filters.wire import encode_belief
+
+        if isinstance(est, tuple | list) and len(est) == 2:
+            try:
+                arrays = [np.asarray(est[0], dtype=float), np.asarray(est[1], dtype=float)]
+                if all(a.size <= 10_000 for a in arrays):
+                    self.send(encode_belief("estimate", arrays, {}))
+                    return
+            except (TypeError, ValueError):
+                self.send(encode_belief("estimate-unusable", [], {"pair": True}))
+                return
+        self.send(encode_belief("estimate-unusable", [], {"pair": False, "none": est is None}))
+
+    def op_predict(self, control: Any, dt: float) -> None:
+        self.step_limited(lambda: self.flt.predict(control, dt))
+
+    def op_update(self, measurements: Any) -> None:
+        self.step_limited(lambda: self.flt.update(measurements))
+
+    def op_reset(self, initial: Any) -> None:
+        self.step_limited(lambda: self.flt.reset(initial))
+
+    def op_estimate(self) -> None:
+        from beacon_sim.filters.guard import estimate_arrays
+        from beacon_sim.filters.wire import reply_estimate
+
+        est = self.step_limited(self.flt.estimate)
+        post = estimate_arrays(est)
+        if isinstance(post, str):
+            return self.loose(est) if self.step_limit_s is not None else self.fail(post)
+        self.send(reply_estimate(0, None, post))
+        return None
+
+    def op_belief(self) -> None:
+        import numpy as np
+
+        from beacon_sim.filters.base import GaussianBelief, GridBelief, ParticleBelief
+        from beacon_sim.filters.wire import encode_belief
+
+        b = self.step_limited(self.flt.belief)
+        if isinstance(b, GaussianBelief):
+            self.send(encode_belief("gaussian", [b.mean, b.cov], {}))
+        elif isinstance(b, ParticleBelief):
+            self.send(encode_belief("particles", [b.poses, b.weights], {}))
+        elif isinstance(b, GridBelief):
+            self.send(encode_belief("grid", [b.prob, np.asarray(b.origin), np.asarray(b.cell)], {}))
+        else:
+            self.fail(f"belief() returned {type(b).__name__}, expected a GaussianBelief, "
+                      "ParticleBelief or GridBelief")
+
+    def end_limit(self) -> None:
+        if self.limit is not None:
+            self.limit.__exit__(None, None, None)
+            self.limit = None
+
+    def op_end(self) -> None:
+        from beacon_sim.filters.wire import REPORT, reply_json
+
+        self.end_limit()
+        np_used = py_used = False
+        if self.rng_states is not None:
+            np_used = not _same_np(_np_state(), self.rng_states[0])
+            py_used = random.getstate() != self.rng_states[1]
+        self.send(reply_json(REPORT, {"np_global": np_used, "py_global": py_used}))
+
+
+def main(argv: list[str]) -> int:
+    """Serve the grader until it closes the pipe."""
+    rfd, wfd, cfg = int(argv[0]), int(argv[1]), json.loads(argv[2])
+    import traceback  # everything the child needs, before it may lose the right to read it
+
+    import beacon_sim.filters.guard
+    import beacon_sim.filters.loading
+    import beacon_sim.filters.watchdog  # noqa: F401
+    from beacon_sim.filters.host import failure_of
+    from beacon_sim.filters.wire import read_request
+
+    _contain(cfg)
+
+    server = _Server(wfd)
+    while True:
+        req = read_request(rfd)
+        if req is None:
+            return 0
+        try:
+            server.handle(req)
+        except BaseException as exc:  # the filter's code (or its time): one line to the grader
+            over = (f"time limit: over {server.limit_s:g} s of filter time in the run"
+                    if server.limit_s is not None else None)
+            why = failure_of(exc, server.limit_s, over)
+            if why is None:
+                why = f"{type(exc).__name__} raised by the filter"
+            if req[0] == "build":
+                why = "construction failed: " + why
+            elif req[0] == "load":
+                why = str(exc) if isinstance(exc, ValueError) else why
+                if cfg.get("drop_user") and ("ModuleNotFoundError" in why or "PermissionError" in why):
+                    why += (" (as the user nobody, who cannot read this Python installation, only "
+                            "preloaded modules import: use --sandbox bwrap)")
+            try:
+                server.fail(why, traceback.format_exc())
+            except OSError:
+                return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,225 @@
+"""How a student's child process is started and contained (docs/grading.md, "What grading
+protects against").
+
+Two levels:
+
+- ``process``: a fresh interpreter (``python -s -B -m beacon_sim.filters.child``), an empty
+  temporary working directory, stdin closed, stdout and stderr to the student's log (cut at
+  ``log_bytes``), a scrubbed environment, its own session (so the whole group can be
+  stopped), resource limits (address space, CPU seconds, file size, no core files) set by
+  the child before any student code runs, and the user ``nobody`` when the grader is root.
+- ``bwrap``: the same inside bubblewrap (Debian's ``bubblewrap``): no network, new PID,
+  IPC and UTS namespaces, an unprivileged user namespace, a read-only view of the system,
+  the Python installation and the ``beacon_sim`` package alone, the student's own file
+  read-only, and nothing else of the machine (no other student's file, no grading output).
+
+``auto`` chooses ``bwrap`` when it works on this machine, else ``process``.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+SANDBOXES = ("auto", "bwrap", "process")
+NOBODY = 65534
+#: Where the child sees its working directory and its file inside bubblewrap.
+BOX_WORK = "/sandbox/work"
+BOX_SRC = "/sandbox/submission"
+
+
+class SandboxError(ValueError):
+    """A sandbox level that cannot work here (one line, exit status 2)."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """A child's limits: address space [GB] (0: none), CPU time of the whole child [s]
+    (None: none), the size of any file it writes [bytes], its log [bytes]."""
+
+    memory_gb: float = 4.0
+    cpu_s: float | None = None
+    fsize_bytes: int = 8 << 20
+    log_bytes: int = 256 << 10
+
+
+@functools.lru_cache(maxsize=1)
+def bwrap_problem() -> str | None:
+    """Why bubblewrap cannot run a sandbox here (not installed, no user namespaces), or None."""
+    exe = shutil.which("bwrap")
+    if exe is None:
+        return "bwrap is not installed (Debian: apt-get install bubblewrap)"
+    try:
+        r = subprocess.run([exe, "--unshare-all", "--die-with-parent", "--ro-bind", "/", "/",
+                            "--dev", "/dev", "--proc", "/proc", "true"],
+                           capture_output=True, timeout=30, check=False)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"bwrap does not run: {exc}"
+    if r.returncode != 0:
+        err = r.stderr.decode("utf-8", "replace").strip().splitlines()
+        return f"bwrap does not work here: {err[0] if err else 'status ' + str(r.returncode)}"
+    return None
+
+
+def resolve_sandbox(choice: str) -> str:
+    """``auto`` -> ``bwrap`` where it works, else ``process``; ``bwrap`` where it cannot
+    work raises :class:`SandboxError` naming why."""
+    if choice not in SANDBOXES:
+        raise SandboxError(f"--sandbox {choice}: expected one of {', '.join(SANDBOXES)}")
+    if choice == "process":
+        return "process"
+    why = bwrap_problem()
+    if why is None:
+        return "bwrap"
+    if choice == "bwrap":
+        raise SandboxError(f"--sandbox bwrap: {why}")
+    return "process"
+
+
+def package_root() -> Path:
+    """The folder that holds the ``beacon_sim`` package this grader runs."""
+    return Path(__file__).resolve().parents[2]  # beacon_sim/filters/containment.py
+
+
+def child_env(home: str) -> dict[str, str]:
+    """The child's whole environment: nothing of the grader's but what Python needs."""
+    return {"PATH": "/usr/local/bin:/usr/bin:/bin", "PYTHONPATH": str(package_root()),
+            "HOME": home, "TMPDIR": home, "LANG": "C.UTF-8", "PYTHONHASHSEED": "0",
+            "PYTHONDONTWRITEBYTECODE": "1", "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+            "MKL_NUM_THREADS": "1"}
+
+
+def _ro_binds() -> list[str]:
+    """bubblewrap arguments binding the system, the Python installation and the package
+    read-only (each path once, the package alone of its folder)."""
+    args: list[str] = []
+    for top in ("/usr", "/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32"):
+        p = Path(top)
+        if p.is_symlink():
+            args += ["--symlink", os.readlink(p), top]
+        elif p.is_dir():
+            args += ["--ro-bind", top, top]
+    for f in ("/etc/ld.so.cache", "/etc/localtime", "/etc/passwd", "/etc/group"):
+        if Path(f).exists():
+            args += ["--ro-bind", f, f]
+    root = package_root()
+    prefixes = {Path(sys.base_prefix).resolve(), Path(sys.prefix).resolve()}
+    checkout = not any(root.is_relative_to(x) for x in prefixes)
+    seen: list[Path] = []
+    for p in [*prefixes, *(Path(q).resolve() for q in sys.path if q and Path(q).is_dir())]:
+        if checkout and (root.is_relative_to(p) or p.is_relative_to(root)):
+            continue  # a checkout (the package's folder, its tests): only the package is bound
+        if p == Path("/") or str(p).startswith(("/usr", "/bin", "/lib", "/proc", "/dev")):
+            continue
+        if any(p.is_relative_to(q) for q in seen):
+            continue
+        seen = [q for q in seen if not q.is_relative_to(p)] + [p]
+    for p in seen:
+        args += ["--ro-bind", str(p), str(p)]
+    exe = Path(sys.executable)
+    if exe.is_symlink():  # the venv's python points into the base installation
+        target = exe.resolve()
+        if not any(target.is_relative_to(s) for s in seen):
+            args += ["--ro-bind", str(target), str(target)]
+    args += ["--ro-bind", str(root / "beacon_sim"), str(root / "beacon_sim")]
+    return args
+
+
+@dataclass
+class Launched:
+    """A started child: the process, the grader's ends of the pipes, its temporary folder
+    and what it was started with."""
+
+    proc: subprocess.Popen[bytes]
+    to_child: int
+    from_child: int
+    tmp: Path
+    sandbox: str
+    source_in_child: str
+
+
+def launch(source: Path, log: IO[bytes], sandbox: str, limits: Limits) -> Launched:
+    """Start a child for the filter file ``source`` (copied read-only into the child's own
+    folder), with stdout and stderr to ``log``. ``sandbox``: ``bwrap`` or ``process``."""
+    tmp = Path(tempfile.mkdtemp(prefix="beacon-sim-child-"))
+    src, work = tmp / "src", tmp / "work"
+    src.mkdir()
+    work.mkdir()
+    copy = src / source.name
+    shutil.copyfile(source, copy)
+    root = hasattr(os, "geteuid") and os.geteuid() == 0
+    os.chmod(copy, 0o444)
+    os.chmod(src, 0o555)
+    os.chmod(tmp, 0o755)
+    drop = root and sandbox == "process"
+    if drop:
+        os.chown(work, NOBODY, NOBODY)
+        os.chmod(work, 0o700)
+    r_child, w_parent = os.pipe()
+    r_parent, w_child = os.pipe()
+    cfg: dict[str, Any] = {
+        "memory_bytes": int(limits.memory_gb * 2**30) if limits.memory_gb > 0 else 0,
+        "cpu_s": int(limits.cpu_s) + 1 if limits.cpu_s else 0,
+        "fsize_bytes": limits.fsize_bytes, "log_bytes": limits.log_bytes, "drop_user": drop}
+    child = [sys.executable, "-s", "-B", "-m", "beacon_sim.filters.child",
+             str(r_child), str(w_child), json.dumps(cfg)]
+    if sandbox == "bwrap":
+        env = child_env(BOX_WORK)
+        argv = [shutil.which("bwrap") or "bwrap", "--unshare-all", "--die-with-parent",
+                "--new-session", "--clearenv", *_ro_binds(),
+                "--dev", "/dev", "--proc", "/proc", "--tmpfs", "/tmp",
+                "--bind", str(work), BOX_WORK, "--ro-bind", str(src), BOX_SRC,
+                "--chdir", BOX_WORK, "--uid", str(NOBODY), "--gid", str(NOBODY)]
+        for k, v in env.items():
+            argv += ["--setenv", k, v]
+        argv += child
+        source_in_child = f"{BOX_SRC}/{source.name}"
+        popen_env = {"PATH": "/usr/bin:/bin"}
+    else:
+        argv = child
+        source_in_child = str(copy)
+        popen_env = child_env(str(work))
+    try:
+        proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                cwd=str(work), env=popen_env, pass_fds=(r_child, w_child),
+                                start_new_session=True, close_fds=True)
+    finally:
+        os.close(r_child)
+        os.close(w_child)
+    return Launched(proc, w_parent, r_parent, tmp, sandbox, source_in_child)
+
+
+def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
+    """Why a child ended, in words: its exit status, its signal (and the limit that sends
+    it), or that it was stopped."""
+    import signal
+
+    if returncode is None:
+        return "the filter's process did not answer and was stopped"
+    sig = -returncode if returncode < 0 else (returncode - 128 if sandbox == "bwrap" and returncode > 128
+                                               else 0)
+    if sig > 0:
+        try:
+            name = signal.Signals(sig).name
+        except ValueError:
+            name = f"signal {sig}"
+        extra = {"SIGXCPU": f" (its CPU time limit, {limits.cpu_s:g} s)" if limits.cpu_s else
+                 " (its CPU time limit)",
+                 "SIGXFSZ": f" (its file size limit, {limits.fsize_bytes} bytes: an output flood?)",
+                 "SIGKILL": (f" (killed: its memory limit is {limits.memory_gb:g} GB, or it was stopped)"
+                             if limits.memory_gb else " (killed)"),
+                 "SIGSEGV": " (a crash in compiled code, or its memory limit)"}.get(name, "")
+        return f"the filter's process was killed by {name}{extra}"
+    return f"the filter's process exited with status {returncode}"
+
+
+__all__ = ["SANDBOXES", "Launched", "Limits", "SandboxError", "bwrap_problem", "child_env",
+           "exit_reason", "launch", "package_root", "resolve_sandbox"]

@@ -1,0 +1,193 @@
+"""The guard: what every front end (``run``, ``eval``, ``grade``, the window, the isolated
+host) uses to judge what a filter returned, so that nothing a filter returns reaches a
+metric or the renderer unchecked.
+
+:func:`validate_estimate` judges ``estimate()`` (a ``(mean (3,), cov (3, 3))`` pair [m, m,
+rad], world frame); :func:`validate_belief` judges ``belief()``. Both return fresh float
+arrays or one line saying why the value is unusable.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from beacon_sim.filters.base import Belief, GaussianBelief, GridBelief, ParticleBelief
+
+_F8 = np.dtype(float)
+
+#: The largest |mean| entry [m or rad] and covariance entry [m^2 or rad^2] an estimate may
+#: hold: beyond them the filter has diverged (and the metrics' products would overflow).
+MAX_MEAN = 1e9
+MAX_COV = 1e12
+
+
+def _as_numbers(x: object) -> np.ndarray | None:
+    """``x`` as a float array, or None when it is not numbers (strings, objects, complex)."""
+    if type(x) is np.ndarray and x.dtype == _F8:  # the usual case, fast
+        return x.copy()
+    try:
+        a = np.asarray(x)
+    except Exception:  # an object whose __array__ raises
+        return None
+    if a.dtype.kind not in "biuf":
+        return None
+    return a.astype(float, copy=True)
+
+
+def _type_name(x: object) -> str:
+    return "None" if x is None else type(x).__name__
+
+
+def _not_psd(a: float, b: float, d: float, e: float, f: float, g: float) -> bool:
+    """Whether the symmetric 3x3 ``[[a, b, d], [b, e, f], [d, f, g]]`` (finite floats) has
+    an eigenvalue below ``-1e-9 * max|entry|``: the matrix plus ``1e-9 max|entry| I`` is
+    tested for positive definiteness by its leading principal minors (Sylvester), a few
+    float operations instead of an eigen-decomposition. Same verdict as
+    ``eigvalsh(c).min() < -1e-9 * scale`` up to rounding."""
+    tol = 1e-9 * max(abs(a), abs(b), abs(d), abs(e), abs(f), abs(g), 1e-12)
+    a, e, g = a + tol, e + tol, g + tol
+    if a <= 0.0:
+        return True
+    if a * e - b * b <= 0.0:
+        return True
+    return a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0
+
+
+def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
+    """The one guard of what ``estimate()`` returned: ``(mean (3,), cov (3, 3))`` as fresh
+    float arrays [m, m, rad], or one line saying why it is unusable (not a pair, not
+    numbers, wrong shapes, NaN or infinity, covariance not symmetric, not positive
+    semi-definite). Cheap (a few microseconds): it runs on every step of every filter."""
+    if isinstance(est, tuple | list) and len(est) == 2:
+        fast = _validate_plain(est[0], est[1])
+        if fast is not None:
+            return fast
+    return _validate_any(est)
+
+
+def _validate_plain(m0: object, c0: object) -> tuple[np.ndarray, np.ndarray] | str | None:
+    """:func:`validate_estimate` for the usual case, float64 arrays of the right shapes with
+    finite entries, in fewer operations; None for anything else (the full check then runs
+    and names what is wrong). A sum of the entries that is finite proves every entry finite
+    (a NaN or an infinity would make it NaN or infinite); one that overflows goes the
+    long way too, so the verdicts are the same."""
+    if not (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _F8
+            and c0.dtype is _F8 and m0.shape == (3,) and c0.shape == (3, 3)):
+        return None
+    mean, cov = m0.copy(), c0.copy()
+    (a, b, d), (b2, e, f), (d2, f2, g) = cov.tolist()
+    x, y, t = mean.tolist()
+    if not (math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g) and math.isfinite(x + y + t)):
+        return None
+    scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
+    if scale > MAX_COV or max(abs(x), abs(y), abs(t)) > MAX_MEAN:
+        return (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
+                f"{MAX_COV:g} (diverged)")
+    if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
+        return "covariance is not symmetric"
+    if _not_psd(a, 0.5 * (b + b2), 0.5 * (d + d2), e, 0.5 * (f + f2), g):
+        return "covariance is not positive semi-definite"
+    return mean, cov
+
+
+def _validate_any(est: object) -> tuple[np.ndarray, np.ndarray] | str:
+    """:func:`validate_estimate` for anything a filter may return."""
+    if not isinstance(est, tuple | list) or len(est) != 2:
+        return f"estimate() returned {_type_name(est)}, expected a (mean, cov) pair"
+    mean, cov = _as_numbers(est[0]), _as_numbers(est[1])
+    if mean is None or cov is None:
+        return (f"estimate() returned {_type_name(est[0])} and {_type_name(est[1])}, "
+                "expected arrays of numbers")
+    if mean.shape != (3,) or cov.shape != (3, 3):
+        return f"estimate() returned shapes {mean.shape} and {cov.shape}, expected (3,) and (3, 3)"
+    c = cov.tolist()
+    m = mean.tolist()
+    if not all(map(math.isfinite, (*m, *c[0], *c[1], *c[2]))):
+        return "estimate() returned NaN or infinity"
+    (a, b, d), (b2, e, f), (d2, f2, g) = c
+    scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
+    if scale > MAX_COV or max(abs(m[0]), abs(m[1]), abs(m[2])) > MAX_MEAN:
+        return (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
+                f"{MAX_COV:g} (diverged)")
+    if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
+        return "covariance is not symmetric"
+    b, d, f = 0.5 * (b + b2), 0.5 * (d + d2), 0.5 * (f + f2)
+    if _not_psd(a, b, d, e, f, g):
+        return "covariance is not positive semi-definite"
+    return mean, cov
+
+
+def check_estimate(mean: object, cov: object) -> str | None:
+    """Why an estimate is unusable (see :func:`validate_estimate`), or None."""
+    r = validate_estimate((mean, cov))
+    return r if isinstance(r, str) else None
+
+
+def validate_belief(bel: object) -> Belief | str:
+    """The guard of what ``belief()`` returned, for drawing: a belief whose arrays are float,
+    finite and of the right shapes, or one line saying why not.
+
+    GaussianBelief: as :func:`validate_estimate`. ParticleBelief: poses (N, 3) [m, m, rad]
+    with N >= 1, weights (N,) >= 0 with a positive sum. GridBelief: prob 2-D >= 0 with a
+    positive sum, origin two finite numbers [m], cell > 0 [m].
+    """
+    if isinstance(bel, GaussianBelief):
+        r = validate_estimate((bel.mean, bel.cov))
+        if isinstance(r, str):
+            return "belief(): " + r.replace("estimate() returned", "Gaussian has")
+        return GaussianBelief(*r)
+    if isinstance(bel, ParticleBelief):
+        poses, w = _as_numbers(bel.poses), _as_numbers(bel.weights)
+        if poses is None or w is None:
+            return "belief(): particle poses or weights are not arrays of numbers"
+        if poses.ndim != 2 or poses.shape[1] != 3 or poses.shape[0] < 1 or w.shape != (len(poses),):
+            return (f"belief(): particle poses {poses.shape} and weights {w.shape}, "
+                    "expected (N, 3) and (N,)")
+        if not (np.isfinite(poses).all() and np.isfinite(w).all()):
+            return "belief(): particles with NaN or infinity"
+        if (w < 0).any() or not w.sum() > 0:
+            return "belief(): particle weights must be >= 0 with a positive sum"
+        return ParticleBelief(poses, w)
+    if isinstance(bel, GridBelief):
+        prob = _as_numbers(bel.prob)
+        origin = _as_numbers(bel.origin)
+        cell = _as_numbers(bel.cell)
+        if prob is None or origin is None or cell is None or prob.ndim != 2 or origin.shape != (2,) \
+                or cell.shape != () or min(prob.shape) < 1:
+            return "belief(): grid needs prob (nx, ny), origin (x, y) [m] and a cell size [m]"
+        if not (np.isfinite(prob).all() and np.isfinite(origin).all() and math.isfinite(float(cell))):
+            return "belief(): grid with NaN or infinity"
+        if (prob < 0).any() or not prob.sum() > 0 or not float(cell) > 0:
+            return "belief(): grid probabilities must be >= 0 with a positive sum, cell > 0"
+        return GridBelief(prob, (float(origin[0]), float(origin[1])), float(cell))
+    return f"belief() returned {_type_name(bel)}, expected a GaussianBelief, ParticleBelief or GridBelief"
+
+
+def estimate_arrays(est: object) -> tuple[np.ndarray, np.ndarray] | str:
+    """What ``estimate()`` returned as ``(mean (3,), cov (3, 3))`` float arrays whose values
+    are judged later, over the whole run (``evaluation.montecarlo.finish_filter``), or the
+    guard's one line for anything of the wrong form. Arrays of the right shapes pass as
+    they are (NaN included); anything else is judged in full by :func:`validate_estimate`."""
+    if isinstance(est, tuple | list) and len(est) == 2:
+        m, c = est
+        if (type(m) is np.ndarray and type(c) is np.ndarray and m.shape == (3,)
+                and c.shape == (3, 3) and m.dtype.kind in "biuf" and c.dtype.kind in "biuf"):
+            return m.astype(float, copy=False), c.astype(float, copy=False)
+    return validate_estimate(est)
+
+
+def shape_text(mean: object, cov: object) -> str:
+    """The one plain message for an estimate of the wrong shape, the same in every front end
+    (``eval``, ``grade``, ``check``, the window), instead of numpy's "could not broadcast"."""
+    def shape(x: object) -> str:
+        try:
+            return str(np.shape(x))  # type: ignore[call-overload]
+        except Exception:  # an object numpy cannot even look at
+            return type(x).__name__
+    return f"estimate() returned shapes {shape(mean)} and {shape(cov)}, expected (3,) and (3, 3)"
+
+
+__all__ = ["MAX_COV", "MAX_MEAN", "check_estimate", "estimate_arrays", "shape_text", "validate_belief",
+           "validate_estimate"]

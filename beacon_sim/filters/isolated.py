@@ -1,0 +1,298 @@
+"""A filter in a child process of its own (the grader's side): :class:`FilterChild` starts
+and talks to the child (:mod:`beacon_sim.filters.child`, contained as
+:mod:`beacon_sim.filters.containment` says), and :class:`IsolatedFilter` is the proxy
+that satisfies :class:`~beacon_sim.filters.base.Filter`, so the runner, ``eval`` and
+``check`` drive it like any filter.
+
+The child gets only what a filter may see: its :class:`~beacon_sim.filters.base.FilterContext`
+(beacon map, dt, motion noise, sensors, parameters, its random generator), its initial
+belief, then each tick's control, dt and readings, in lockstep (tick k+1 is sent only
+after estimate k came back). A child that dies, breaks the protocol or does not answer in
+time fails with the real reason (:func:`~beacon_sim.filters.containment.exit_reason`),
+as a :class:`~beacon_sim.filters.watchdog.FilterFailed` whose message is that reason.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import shutil
+import signal
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.base import Belief, FilterContext, GaussianBelief, GridBelief, ParticleBelief
+from beacon_sim.filters.containment import Launched, Limits, exit_reason, launch
+from beacon_sim.filters.watchdog import FilterFailed
+from beacon_sim.filters.wire import (
+    BELIEF,
+    ESTIMATE,
+    FAIL,
+    OK,
+    REPORT,
+    WireError,
+    decode_belief,
+    encode_request,
+    parse_estimate,
+    parse_json,
+    read_reply,
+    send_frame,
+)
+
+#: The longest the grader waits for one answer of a child [s] of wall time, at least: a
+#: filter that sleeps (uses no CPU, so its CPU-time limit never comes) is stopped then.
+MIN_REPLY_TIMEOUT_S = 60.0
+#: A child's log beyond this many bytes is not appended to by its successors [bytes].
+MAX_LOG_BYTES = 1 << 20
+
+
+class ChildFailure(FilterFailed):
+    """The child reported its filter's failure, or died: ``str`` is the one line, ``tb``
+    the traceback it sent (if any), ``died`` whether the process is gone."""
+
+    def __init__(self, why: str, tb: str = "", died: bool = False):
+        super().__init__(why)
+        self.tb, self.died = tb, died
+
+
+class FilterChild:
+    """One student's child process, started fresh from a clean interpreter; it may serve
+    all of that student's runs (one filter object at a time), never another student's.
+
+    Parameters
+    ----------
+    source : Path
+        The student's file (copied read-only into the child's own folder).
+    class_name : str or None
+        The filter class (None: the class that implements the interface, else the file's
+        functions; ``functions``: the functions).
+    log : Path
+        The student's log: the child's stdout and stderr, cut at ``limits.log_bytes``.
+    sandbox : str
+        ``bwrap`` or ``process`` (:func:`~beacon_sim.filters.containment.resolve_sandbox`).
+    limits : Limits
+        Memory, CPU, file size and log limits of the child.
+    reply_timeout_s : float
+        The longest wait for one answer [s] of wall time.
+    """
+
+    def __init__(self, source: Path, class_name: str | None, log: Path, sandbox: str,
+                 limits: Limits, reply_timeout_s: float = MIN_REPLY_TIMEOUT_S):
+        self.limits, self.sandbox = limits, sandbox
+        self.source_name = source.name
+        self.reply_timeout_s = reply_timeout_s
+        self.dead: str | None = None
+        log.parent.mkdir(parents=True, exist_ok=True)
+        self._log = open(os.devnull if log.exists() and log.stat().st_size > MAX_LOG_BYTES else log, "ab")
+        self._proc: Launched | None = launch(source, self._log, sandbox, limits)
+        try:
+            doc = self.call_json("load", self._proc.source_in_child, class_name)
+        except BaseException:
+            self.close()
+            raise
+        self.class_name: str = str(doc.get("name", "?"))
+        self.form: str = str(doc.get("form", "class"))
+        self.info = doc  # missing methods, sensor kinds, module: what ``check`` reports
+
+    # -- the pipe -------------------------------------------------------------------
+    def request(self, frame: bytes) -> tuple[bytes, bytes]:
+        """Send a frame made by :func:`~beacon_sim.filters.wire.encode_request` and read the
+        answer; a FAIL answer or a dead child raises :class:`ChildFailure`."""
+        if self.dead is not None or self._proc is None:
+            raise ChildFailure(self.dead or "the filter's process is closed", died=True)
+        try:
+            send_frame(self._proc.to_child, frame)
+            tag, payload = read_reply(self._proc.from_child, self.reply_timeout_s)
+        except (WireError, OSError) as exc:
+            raise ChildFailure(self._death(exc), died=True) from None
+        if tag == FAIL:
+            doc = parse_json(payload)
+            why = str(doc.get("why", "the filter failed"))  # the child's copy named as the file
+            why = why.replace(self._proc.source_in_child, self.source_name)
+            raise ChildFailure(why[:400], str(doc.get("tb", "")))
+        return tag, payload
+
+    def call(self, op: str, *args: Any) -> tuple[bytes, bytes]:
+        """One request ``(op, *args)`` and its answer (see :meth:`request`)."""
+        return self.request(encode_request(op, *args))
+
+    def call_json(self, op: str, *args: Any) -> dict[str, Any]:
+        """A request whose answer is OK or REPORT with a JSON object."""
+        try:
+            tag, payload = self.call(op, *args)
+            if tag not in (OK, REPORT):
+                raise WireError(f"broke the protocol (answered {op} with {tag!r})")
+            return parse_json(payload)
+        except WireError as exc:
+            raise ChildFailure(self._death(exc), died=True) from None
+
+    def _death(self, exc: BaseException) -> str:
+        """Why the child cannot go on, in words; it is stopped if still running."""
+        proc = self._proc
+        text = str(exc)
+        if proc is None:
+            self.dead = "the filter's process is closed"
+            return self.dead
+        if "no answer in time" in text:
+            self.kill()
+            self.dead = (f"the filter's process did not answer for {self.reply_timeout_s:g} s "
+                         "(wall time) and was stopped")
+        elif "broke the protocol" in text:
+            self.kill()
+            self.dead = f"the filter's process {text} and was stopped"
+        else:
+            try:
+                code: int | None = proc.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.kill()
+                code = None
+            self.dead = exit_reason(code, self.sandbox, self.limits)
+        return self.dead
+
+    def kill(self) -> None:
+        """Stop the child and everything it started (its session)."""
+        proc = self._proc
+        if proc is None or proc.proc.poll() is not None:
+            return
+        with contextlib.suppress(OSError):
+            os.killpg(proc.proc.pid, signal.SIGKILL)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.proc.wait(timeout=10)
+
+    def close(self) -> None:
+        """Close the pipe (the child exits), stop it if it does not, remove its folder."""
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        for fd in (proc.to_child, proc.from_child):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        try:
+            proc.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            with contextlib.suppress(OSError):
+                os.killpg(proc.proc.pid, signal.SIGKILL)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.proc.wait(timeout=10)
+        with contextlib.suppress(OSError):
+            os.killpg(proc.proc.pid, signal.SIGKILL)  # anything it left running
+        shutil.rmtree(proc.tmp, ignore_errors=True)
+        self._log.close()
+
+    def __enter__(self) -> FilterChild:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- one run ----------------------------------------------------------------------
+    def build(self, ctx: FilterContext, initial: GaussianBelief | None, global_seed: int,
+              run_limit_s: float | None, spec: str, step_limit_s: float | None = None) -> None:
+        """Build and reset a fresh filter in the child for one run (the global RNGs seeded
+        from ``global_seed``, the run's CPU-time limit armed; ``step_limit_s``: each
+        request's CPU-time limit too)."""
+        # A fresh copy of the world: no cached properties (a read-only mapping cannot be pickled).
+        ctx = dataclasses.replace(ctx, world=dataclasses.replace(ctx.world))
+        self.call_json("build", ctx, initial, int(global_seed), run_limit_s, spec, step_limit_s)
+
+    def end(self) -> dict[str, Any]:
+        """End the run: whether the filter drew from the global ``np.random`` / ``random``."""
+        return self.call_json("end")
+
+
+class IsolatedFilter:
+    """The proxy of a filter in a :class:`FilterChild`: a
+    :class:`~beacon_sim.filters.base.Filter` for the runner, ``eval`` and ``check``.
+
+    ``predict`` is held until ``update`` so that a step is one exchange with the child
+    (predict, update and estimate there); a failure raises :class:`ChildFailure` (a
+    :class:`~beacon_sim.filters.watchdog.FilterFailed`: the runner's one line is the
+    child's reason)."""
+
+    def __init__(self, child: FilterChild, ctx: FilterContext, initial: GaussianBelief | None,
+                 global_seed: int, run_limit_s: float | None, spec: str,
+                 step_limit_s: float | None = None):
+        self.child = child
+        self.supports_global = True  # the child resets with the scenario's own belief
+        self._pending: tuple[Control, float] | None = None
+        self._est: Any = None
+        #: The wall time of the last predict + update + estimate in the child [ns] (its own
+        #: cost, without the exchange), or None.
+        self.last_step_ns: int | None = None
+        child.build(ctx, initial, global_seed, run_limit_s, spec, step_limit_s)
+
+    def reset(self, initial: GaussianBelief | None) -> None:
+        self._pending, self._est = None, None
+        self.child.call("reset", initial)
+
+    def predict(self, control: Control, dt: float) -> None:
+        self._flush()
+        self._pending, self._est = (control, dt), None
+
+    def _flush(self) -> None:
+        if self._pending is not None:
+            control, dt = self._pending
+            self._pending = None
+            self.child.call("predict", control, dt)
+
+    def update(self, measurements: Any) -> None:
+        meas: tuple[Measurement, ...] = tuple(measurements)
+        if self._pending is not None:
+            control, dt = self._pending
+            self._pending = None
+            tag, payload = self.child.call("step", control, dt, meas, False)
+            self._est = _estimate_of(tag, payload)
+            self.last_step_ns = parse_estimate(payload)[0] if tag == ESTIMATE else None
+            return
+        self._est = None
+        self.child.call("update", meas)
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        self._flush()
+        if self._est is None:
+            tag, payload = self.child.call("estimate")
+            self._est = _estimate_of(tag, payload)
+        est: Any = self._est
+        if isinstance(est, tuple) and len(est) == 2 and all(isinstance(a, np.ndarray) for a in est):
+            return est[0].copy(), est[1].copy()
+        return est
+
+    def belief(self) -> Belief:
+        self._flush()
+        tag, payload = self.child.call("belief")
+        if tag != BELIEF:
+            raise ChildFailure("the filter's process broke the protocol")
+        kind, arrays, _ = decode_belief(payload)
+        if kind == "gaussian" and len(arrays) == 2:
+            return GaussianBelief(arrays[0], arrays[1])
+        if kind == "particles" and len(arrays) == 2:
+            return ParticleBelief(arrays[0], arrays[1])
+        if kind == "grid" and len(arrays) == 3 and arrays[1].size == 2 and arrays[2].size == 1:
+            return GridBelief(arrays[0], (float(arrays[1][0]), float(arrays[1][1])), float(arrays[2]))
+        raise ChildFailure("the filter's process sent a malformed belief")
+
+
+def _estimate_of(tag: bytes, payload: bytes) -> Any:
+    """What the child's answer says the filter's ``estimate()`` returned: the pair of arrays;
+    with a step limit (``check``) also an unusable one as it was (arrays of another shape,
+    None, or a stand-in of the same kind) for the checks to judge."""
+    if tag == ESTIMATE:
+        return parse_estimate(payload)[2]
+    if tag != BELIEF:
+        raise ChildFailure("the filter's process broke the protocol")
+    kind, arrays, head = decode_belief(payload)
+    if kind == "estimate" and len(arrays) == 2:
+        return arrays[0], arrays[1]
+    if kind == "estimate-unusable":
+        if head.get("none"):
+            return None
+        return ("not numbers", "not numbers") if head.get("pair") else ("not a pair",)
+    raise ChildFailure("the filter's process broke the protocol")
+
+
+__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter"]

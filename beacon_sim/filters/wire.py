@@ -1,0 +1,168 @@
+"""The pipe between the grader and a filter's child process (:mod:`beacon_sim.filters.child`,
+:mod:`beacon_sim.filters.isolated`): frames of bytes, in lockstep.
+
+Grader -> child: ``length (4 bytes) + pickle`` of a tuple ``(op, *args)``: the child trusts
+the grader. Child -> grader: ``tag (1 byte) + length (4 bytes) + payload``, never a pickle
+(unpickling lets the sender run code in the receiver): estimates are raw float64 numbers,
+messages are UTF-8 JSON of bounded size, and the grader reads at most
+``MAX_REPLY_BYTES`` per frame.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import select
+import struct
+import time
+from typing import Any
+
+import numpy as np
+
+#: Reply tags (child -> grader).
+OK, FAIL, ESTIMATE, BELIEF, REPORT = b"K", b"F", b"E", b"B", b"R"
+#: The largest reply frame the grader reads [bytes] (a belief of a million particles fits).
+MAX_REPLY_BYTES = 64 << 20
+#: The longest text (a failure's reason or traceback) a reply carries [characters].
+MAX_TEXT = 4000
+
+_HEAD = struct.Struct("<I")
+_RHEAD = struct.Struct("<cI")
+#: An ESTIMATE payload: has_prior flag, wall ns of predict + update + estimate, prior mean (3)
+#: and cov (9), posterior mean (3) and cov (9) [m, m, rad], float64 little-endian.
+_EST = struct.Struct("<qq24d")
+
+
+class WireError(RuntimeError):
+    """The other end closed the pipe, broke the protocol, or did not answer in time."""
+
+
+def _read_exact(fd: int, n: int, deadline: float | None) -> bytes:
+    out = bytearray()
+    while len(out) < n:
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise WireError("no answer in time")
+            ready, _, _ = select.select([fd], [], [], left)
+            if not ready:
+                raise WireError("no answer in time")
+        chunk = os.read(fd, min(n - len(out), 1 << 20))
+        if not chunk:
+            raise WireError("closed")
+        out += chunk
+    return bytes(out)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        n = os.write(fd, view)
+        view = view[n:]
+
+
+# -- grader -> child -------------------------------------------------------------------
+
+def encode_request(op: str, *args: Any) -> bytes:
+    """One request frame (pickled once, so a tick can be sent to many children as is)."""
+    body = pickle.dumps((op, *args), protocol=pickle.HIGHEST_PROTOCOL)
+    return _HEAD.pack(len(body)) + body
+
+
+def send_frame(fd: int, frame: bytes) -> None:
+    """Write a frame made by :func:`encode_request` (or a reply) to ``fd``."""
+    _write_all(fd, frame)
+
+
+def read_request(fd: int) -> tuple[Any, ...] | None:
+    """The next request (child side), or None when the grader closed the pipe."""
+    try:
+        (n,) = _HEAD.unpack(_read_exact(fd, _HEAD.size, None))
+        return pickle.loads(_read_exact(fd, n, None))
+    except WireError:
+        return None
+
+
+# -- child -> grader -------------------------------------------------------------------
+
+def reply(tag: bytes, payload: bytes = b"") -> bytes:
+    """A reply frame."""
+    return _RHEAD.pack(tag, len(payload)) + payload
+
+
+def reply_json(tag: bytes, doc: dict[str, Any]) -> bytes:
+    """A reply carrying a small JSON object (texts cut at ``MAX_TEXT`` characters)."""
+    doc = {k: (v[:MAX_TEXT] if isinstance(v, str) else v) for k, v in doc.items()}
+    return reply(tag, json.dumps(doc).encode("utf-8"))
+
+
+def reply_estimate(wall_ns: int, prior: tuple[np.ndarray, np.ndarray] | None,
+                   post: tuple[np.ndarray, np.ndarray]) -> bytes:
+    """An ESTIMATE reply: the estimate after predict (or none) and after update."""
+    pm, pc = prior if prior is not None else (np.full(3, np.nan), np.full((3, 3), np.nan))
+    values = np.concatenate([np.ravel(pm), np.ravel(pc), np.ravel(post[0]), np.ravel(post[1])])
+    return reply(ESTIMATE, _EST.pack(prior is not None, int(wall_ns), *values.tolist()))
+
+
+def read_reply(fd: int, timeout_s: float | None) -> tuple[bytes, bytes]:
+    """The next reply (grader side): (tag, payload). Raises :class:`WireError` when the
+    child closed the pipe (it died), sent a frame over ``MAX_REPLY_BYTES`` or an unknown
+    tag, or said nothing for ``timeout_s`` [s] of wall time."""
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    tag, n = _RHEAD.unpack(_read_exact(fd, _RHEAD.size, deadline))
+    if tag not in (OK, FAIL, ESTIMATE, BELIEF, REPORT) or n > MAX_REPLY_BYTES:
+        raise WireError(f"broke the protocol (a {n}-byte frame tagged {tag!r})")
+    return tag, _read_exact(fd, n, deadline)
+
+
+def parse_json(payload: bytes) -> dict[str, Any]:
+    """A JSON reply's object (a child that sends anything else broke the protocol)."""
+    try:
+        doc = json.loads(payload.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise WireError("broke the protocol (a reply that is not JSON)") from exc
+    if not isinstance(doc, dict):
+        raise WireError("broke the protocol (a reply that is not a JSON object)")
+    return doc
+
+
+def parse_estimate(payload: bytes) -> tuple[int, tuple[np.ndarray, np.ndarray] | None,
+                                             tuple[np.ndarray, np.ndarray]]:
+    """(wall ns, prior or None, posterior) of an ESTIMATE reply, as fresh float arrays."""
+    if len(payload) != _EST.size:
+        raise WireError("broke the protocol (an estimate of the wrong size)")
+    has_prior, wall_ns, *values = _EST.unpack(payload)
+    v = np.array(values)
+    prior = (v[0:3].copy(), v[3:12].reshape(3, 3)) if has_prior else None
+    return int(wall_ns), prior, (v[12:15].copy(), v[15:24].reshape(3, 3))
+
+
+def encode_belief(kind: str, arrays: list[np.ndarray], extra: dict[str, Any]) -> bytes:
+    """A BELIEF reply: a JSON header (kind, shapes, extra numbers) then raw float64 arrays."""
+    arrays = [np.ascontiguousarray(a, dtype="<f8") for a in arrays]
+    head = json.dumps({"kind": kind, "shapes": [list(a.shape) for a in arrays], **extra}).encode()
+    return reply(BELIEF, _HEAD.pack(len(head)) + head + b"".join(a.tobytes() for a in arrays))
+
+
+def decode_belief(payload: bytes) -> tuple[str, list[np.ndarray], dict[str, Any]]:
+    """(kind, arrays, header) of a BELIEF reply; sizes are checked against the header."""
+    try:
+        (n,) = _HEAD.unpack(payload[:4])
+        head = json.loads(payload[4:4 + n].decode("utf-8"))
+        body = memoryview(payload)[4 + n:]
+        arrays, at = [], 0
+        for shape in head["shapes"]:
+            size = int(np.prod(shape, dtype=np.int64)) * 8
+            if size < 0 or at + size > len(body):
+                raise ValueError("short")
+            arrays.append(np.frombuffer(body[at:at + size], dtype="<f8").reshape(shape).copy())
+            at += size
+        return str(head["kind"]), arrays, head
+    except (ValueError, KeyError, TypeError, struct.error) as exc:
+        raise WireError("broke the protocol (a malformed belief)") from exc
+
+
+__all__ = ["BELIEF", "ESTIMATE", "FAIL", "OK", "REPORT", "WireError", "decode_belief",
+           "encode_belief", "encode_request", "parse_estimate", "parse_json", "read_reply",
+           "read_request", "reply", "reply_estimate", "reply_json", "send_frame"]
