@@ -117,7 +117,8 @@ def hide_ids(measurement: Measurement | None, sensor: SensorSpec, clutter: Clutt
         raise ValueError(f"hide_ids: reading of {measurement.sensor!r} ({measurement.kind}) "
                          f"given with sensor {sensor.name!r} ({sensor.kind})")
     z_true = np.empty((0, d)) if measurement is None else np.asarray(measurement.z, dtype=float)
-    ids_true = np.empty(0, dtype=int) if measurement is None else np.asarray(measurement.beacon_ids, dtype=int)
+    ids_true = (np.empty(0, dtype=int) if measurement is None
+                else np.asarray(measurement.beacon_ids, dtype=int))
     z_false = draw_clutter(sensor, clutter, rng)
     z = np.vstack([z_true, z_false])
     truth = np.concatenate([ids_true, np.full(z_false.shape[0], UNKNOWN_ID, dtype=int)])

@@ -282,7 +282,7 @@ def jcbb(lin: Linearised, beacon_ids: np.ndarray, prob: float = GATE_PROB,
         for j in candidates[i]:
             if j in used:
                 continue
-            trial = pairing + ((i, j),)
+            trial = (*pairing, (i, j))
             value = joint_nis(lin, trial)
             if value <= gate(prob, lin.dim * len(trial)):
                 visit(i + 1, trial, used | {j}, value)
