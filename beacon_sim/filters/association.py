@@ -326,13 +326,15 @@ def particle_ml_association(kind: str, z: np.ndarray, poses: np.ndarray, beacon_
     n_part, m, n = poses.shape[0], z.shape[0], xy.shape[0]
     if n == 0 or m == 0:
         return np.full((n_part, m), -1, dtype=int), np.full((n_part, m), -np.inf)
-    b = mm.bearing_many(poses, xy)  # (N, n)
-    if kind == "bearing":
-        zhat = b[:, :, None]
-    else:
-        zhat = np.stack([mm.range_many(poses, xy), b], axis=-1)  # (N, n, 2)
-    nu = residual(kind, z[None, :, None, :], zhat[:, None, :, :])  # (N, m, n, d)
-    d2 = np.sum(nu * nu / r, axis=-1)  # (N, m, n)
+    # One (N, m, n) array per reading component, never (N, m, n, d): fewer temporaries.
+    nu_b = wrap(z[None, :, None, -1] - mm.bearing_many(poses, xy)[:, None, :])
+    d2 = nu_b * nu_b
+    d2 *= 1.0 / r[-1]
+    if kind == "range_bearing":
+        nu_r = z[None, :, None, 0] - mm.range_many(poses, xy)[:, None, :]
+        nu_r *= nu_r
+        nu_r *= 1.0 / r[0]
+        d2 += nu_r
     best = np.argmin(d2, axis=2)  # first minimum: ties go to the lower beacon row
     d2_best = np.take_along_axis(d2, best[..., None], axis=2)[..., 0]
     log_norm = -0.5 * (r.size * math.log(2.0 * math.pi) + float(np.sum(np.log(r))))
