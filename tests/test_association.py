@@ -200,6 +200,25 @@ def test_jcbb_finds_what_an_exhaustive_search_finds(seed):
     assert jc.beacon_ids == tuple(dict(pairing).get(i) for i in range(4))
 
 
+@pytest.mark.parametrize("singular", [False, True])
+def test_jcbbs_incremental_joint_nis_equals_the_stacked_one(singular):
+    """JCBB grows the joint NIS pair by pair in information form; it must equal the direct
+    ``nu^T (H P H^T + R)^-1 nu`` over the stack, for a singular P too."""
+    rng = np.random.default_rng(17)
+    xy = rng.uniform(-6, 6, (5, 2))
+    z = np.column_stack([rng.uniform(0, 8, 4), rng.uniform(-math.pi, math.pi, 4)])
+    A = rng.normal(size=(3, 2 if singular else 3)) * 0.3
+    lin = assoc.linearise("range_bearing", z, np.array([0.2, -0.1, 1.0]), A @ A.T, xy, [0.2, 0.05])
+    joint = assoc._JointInformation(lin)
+    for cols in itertools.permutations(range(5), 4):
+        state = (0.0, np.zeros(3), np.zeros((3, 3)))
+        for i, j in enumerate(cols):
+            a, b, M, values = joint.grow(state, i, [j])
+            state = (float(a[0]), b[0], M[0])
+            direct = assoc.joint_nis(lin, tuple(zip(range(i + 1), cols[: i + 1], strict=True)))
+            assert values[0] == pytest.approx(direct, rel=1e-8)
+
+
 def test_jcbb_falls_back_to_nearest_neighbour_at_its_node_cap():
     lin = assoc.linearise("bearing", LOOKALIKE_Z, np.zeros(3), LOOKALIKE_P, LOOKALIKE_XY, [0.01])
     capped = assoc.jcbb(lin, LOOKALIKE_IDS, max_nodes=2)
@@ -274,6 +293,13 @@ def test_association_refuses_what_it_cannot_associate():
         assoc.linearise("pose", np.zeros((1, 3)), np.zeros(3), np.eye(3), LOOKALIKE_XY, [0.1])
     with pytest.raises(ValueError, match="needs 2 values"):
         assoc.linearise("range_bearing", np.zeros((1, 2)), np.zeros(3), np.eye(3), LOOKALIKE_XY, [0.1])
+    with pytest.raises(ValueError, match="finite and > 0"):
+        assoc.linearise("bearing", np.zeros((1, 1)), np.zeros(3), np.eye(3), LOOKALIKE_XY, [0.0])
+    with pytest.raises(ValueError, match="shape"):
+        assoc.linearise("bearing", np.zeros((1, 1)), np.zeros(2), np.eye(3), LOOKALIKE_XY, [0.1])
+    # A reading that is not a number fits no beacon.
+    nan = assoc.linearise("bearing", [[math.nan]], np.zeros(3), np.eye(3) * 0.01, LOOKALIKE_XY, [0.05])
+    assert np.all(nan.d2 == math.inf) and assoc.jcbb(nan, LOOKALIKE_IDS).beacon_ids == (None,)
     # A beacon on the robot has no bearing: it is never compatible, nothing raises.
     lin = assoc.linearise("bearing", [[0.0]], np.zeros(3), np.eye(3) * 0.01, [[0.0, 0.0], [5.0, 0.0]], [0.05])
     assert lin.d2[0, 0] == math.inf
