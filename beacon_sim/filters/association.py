@@ -46,7 +46,8 @@ GATE_PROB = 0.99
 #: Default cap on the nodes JCBB may visit before it gives up and returns nearest neighbour.
 #: A node costs about 10-40 us (one batched 3 x 3 solve for all its candidates; measured on a
 #: loaded 2-core machine), so the cap bounds a tick's search at roughly 20-80 ms. Typical ticks
-#: take tens of nodes; 15 readings among 40 beacons with a 1 m position uncertainty, ~340.
+#: take tens of nodes; 15 readings + 3 clutter among 40 beacons with a 1 m position
+#: uncertainty, ~850 (``benchmarks/bench_association.py``).
 MAX_NODES = 2_000
 
 #: A pairing: (reading index, beacon row index) pairs, in reading order.
