@@ -297,6 +297,12 @@ def test_association_refuses_what_it_cannot_associate():
         assoc.linearise("bearing", np.zeros((1, 1)), np.zeros(3), np.eye(3), LOOKALIKE_XY, [0.0])
     with pytest.raises(ValueError, match="shape"):
         assoc.linearise("bearing", np.zeros((1, 1)), np.zeros(2), np.eye(3), LOOKALIKE_XY, [0.1])
+    lin2 = assoc.linearise("bearing", [[0.0]], np.zeros(3), np.eye(3) * 0.01, LOOKALIKE_XY, [0.05])
+    with pytest.raises(ValueError, match="3 beacon IDs for 2 beacons"):
+        assoc.jcbb(lin2, np.array([1, 2, 3]))
+    best, loglik = assoc.particle_ml_association("bearing", [[math.nan]], np.zeros((2, 3)), LOOKALIKE_XY,
+                                                 [0.05], prob=0.99)
+    assert best.tolist() == [[-1], [-1]] and np.all(loglik == -np.inf)
     # A reading that is not a number fits no beacon.
     nan = assoc.linearise("bearing", [[math.nan]], np.zeros(3), np.eye(3) * 0.01, LOOKALIKE_XY, [0.05])
     assert np.all(nan.d2 == math.inf) and assoc.jcbb(nan, LOOKALIKE_IDS).beacon_ids == (None,)

@@ -211,6 +211,11 @@ def joint_nis(lin: Linearised, pairing: Pairing) -> float:
     return value if math.isfinite(value) else math.inf
 
 
+def _check_ids(lin: Linearised, beacon_ids: np.ndarray) -> None:
+    if len(beacon_ids) != lin.H.shape[0]:
+        raise ValueError(f"association: {len(beacon_ids)} beacon IDs for {lin.H.shape[0]} beacons")
+
+
 def _association(lin: Linearised, pairing: Pairing, beacon_ids: np.ndarray, method: str,
                  nodes: int = 0) -> Association:
     ids: list[int | None] = [None] * lin.nu.shape[0]
@@ -245,6 +250,7 @@ def nearest_neighbour(lin: Linearised, beacon_ids: np.ndarray, prob: float = GAT
     the optimal assignment; and each test is one reading's alone, blind to the pose error the
     readings share (what :func:`jcbb` adds). Readings left over get None.
     """
+    _check_ids(lin, beacon_ids)
     return _association(lin, _nn_pairing(lin, prob), beacon_ids, "nn")
 
 
@@ -304,6 +310,7 @@ def jcbb(lin: Linearised, beacon_ids: np.ndarray, prob: float = GATE_PROB,
     Bounded: after ``max_nodes`` nodes the search stops and the result is
     :func:`nearest_neighbour`'s, with ``method = "nn-fallback"`` (so a tick never stalls).
     """
+    _check_ids(lin, beacon_ids)
     g = gate(prob, lin.dim)
     candidates = [[int(j) for j in np.argsort(lin.d2[i], kind="stable") if lin.d2[i, j] <= g]
                   for i in range(lin.nu.shape[0])]
@@ -384,6 +391,7 @@ def particle_ml_association(kind: str, z: np.ndarray, poses: np.ndarray, beacon_
         nu_r *= nu_r
         nu_r *= 1.0 / r[0]
         d2 += nu_r
+    d2[np.isnan(d2)] = np.inf  # a reading or pose that is not a number fits no beacon
     best = np.argmin(d2, axis=2)  # first minimum: ties go to the lower beacon row
     d2_best = np.take_along_axis(d2, best[..., None], axis=2)[..., 0]
     log_norm = -0.5 * (r.size * math.log(2.0 * math.pi) + float(np.sum(np.log(r))))
