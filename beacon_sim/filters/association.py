@@ -1,0 +1,401 @@
+"""Data association: which beacon of a known map each reading without an ID came from.
+
+Unknown correspondence (seed 003: "doors in a corridor look alike"): a beacon sensor reports
+bearings ``[b]`` or range-bearings ``[r, b]`` (rows of ``z``, shape (m, d), d = 1 or 2, in the
+robot frame, [m, rad]) but not which beacon each row belongs to. This module answers that for
+a Gaussian pose belief (mean (3,), covariance P (3, 3) [m, m, rad]) and for a particle set
+(poses (N, 3)). Beacons are given as positions ``beacon_xy`` (n, 2) [m] in the world frame and
+their ``beacon_ids`` (n,).
+
+- :func:`linearise`: every reading against every beacon: the innovation ``nu_ij = z_i - h_j``
+  (bearing residual wrapped to [-pi, pi)), ``H_j`` (d, 3), ``S_j = H_j P H_j^T + R`` and the
+  squared Mahalanobis distance ``d2_ij = nu_ij^T S_j^-1 nu_ij``.
+- :func:`gate`: the chi-square quantile a distance must not exceed (``prob`` of the true
+  pairings pass, with d degrees of freedom).
+- :func:`nearest_neighbour`: greedy nearest neighbour inside the gate.
+- :func:`jcbb`: joint compatibility branch and bound (Neira and Tardos 2001), with a node cap
+  and a fallback to nearest neighbour.
+- :func:`joint_nis`: the joint NIS of a pairing, with the cross terms the shared pose error
+  induces between readings.
+- :func:`particle_ml_association`: per particle and reading, the most likely beacon and its
+  log-likelihood, vectorised over particles (for the particle filter).
+
+The result of the Gaussian methods is an :class:`Association`: for each reading, the ID of the
+beacon it was given to, or None (clutter, or no beacon compatible with it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from beacon_sim.core import measurement_models as mm
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.metrics import chi2_quantile
+
+#: The reading kinds that need association and the width of one row.
+READING_DIMS = {"bearing": 1, "range_bearing": 2}
+
+#: Default probability that a true pairing passes the gate (and the joint test).
+GATE_PROB = 0.99
+
+#: Default cap on the nodes JCBB may visit before it gives up and returns nearest neighbour.
+#: A node costs about 10-40 us (one batched 3 x 3 solve for all its candidates; measured on a
+#: loaded 2-core machine), so the cap bounds a tick's search at roughly 20-80 ms. Typical ticks
+#: take tens of nodes; 15 readings + 3 clutter among 40 beacons with a 1 m position
+#: uncertainty, ~850 (``benchmarks/bench_association.py``).
+MAX_NODES = 2_000
+
+#: A pairing: (reading index, beacon row index) pairs, in reading order.
+Pairing = tuple[tuple[int, int], ...]
+
+
+@dataclass(frozen=True)
+class Association:
+    """For each reading, the beacon it was given to (the filter interface will report this).
+
+    Attributes
+    ----------
+    beacon_ids : tuple of (int or None), length m
+        The ID of the beacon each reading was associated with; None: no beacon (clutter).
+    method : str
+        ``"nn"``, ``"jcbb"``, or ``"nn-fallback"`` (JCBB hit its node cap: nearest neighbour).
+    joint_nis : float
+        Joint NIS of the pairs (with the cross terms; 0 when nothing is paired).
+    dof : int
+        Degrees of freedom of ``joint_nis``: paired readings times the reading width.
+    nodes : int
+        Search nodes JCBB visited (0 for nearest neighbour).
+    """
+
+    beacon_ids: tuple[int | None, ...]
+    method: str
+    joint_nis: float = 0.0
+    dof: int = 0
+    nodes: int = 0
+
+    @property
+    def n_paired(self) -> int:
+        """How many readings were given a beacon."""
+        return sum(b is not None for b in self.beacon_ids)
+
+
+@dataclass(frozen=True, eq=False)
+class Linearised:
+    """Every reading against every beacon, linearised at the mean.
+
+    Attributes
+    ----------
+    kind : str
+        ``"bearing"`` or ``"range_bearing"``.
+    nu : ndarray, shape (m, n, d)
+        Innovations ``z_i - h_j(mean)`` [m, rad]; bearing residuals wrapped.
+    H : ndarray, shape (n, d, 3)
+        Jacobian of beacon j's expected reading with respect to the pose.
+    P : ndarray, shape (3, 3)
+        Pose covariance [m^2, m^2, rad^2].
+    r : ndarray, shape (d,)
+        Reading noise variances (diagonal R) [m^2, rad^2].
+    S : ndarray, shape (n, d, d)
+        Innovation covariance of one reading paired with beacon j.
+    d2 : ndarray, shape (m, n)
+        Squared Mahalanobis distances; ``inf`` where undefined (beacon on the robot).
+    """
+
+    kind: str
+    nu: np.ndarray
+    H: np.ndarray
+    P: np.ndarray
+    r: np.ndarray
+    S: np.ndarray
+    d2: np.ndarray
+
+    @property
+    def dim(self) -> int:
+        """Width d of one reading."""
+        return READING_DIMS[self.kind]
+
+
+def _check(kind: str, z: np.ndarray, beacon_xy: np.ndarray, reading_std: Sequence[float]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if kind not in READING_DIMS:
+        raise ValueError(f"association: kind {kind!r} is not one of {sorted(READING_DIMS)}")
+    d = READING_DIMS[kind]
+    z = np.asarray(z, dtype=float).reshape(-1, d)
+    xy = np.asarray(beacon_xy, dtype=float).reshape(-1, 2)
+    r = np.asarray(reading_std, dtype=float).reshape(-1) ** 2
+    if r.shape != (d,):
+        raise ValueError(f"association: reading_std for {kind!r} needs {d} values, got {r.size}")
+    if not np.all(np.isfinite(r) & (r > 0.0)):
+        raise ValueError(f"association: reading_std must be finite and > 0, got {list(np.sqrt(r))}")
+    return z, xy, r
+
+
+def expected(kind: str, pose: np.ndarray, beacon_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Expected readings (n, d) and their Jacobians (n, d, 3) of every beacon from ``pose``."""
+    if kind == "bearing":
+        return mm.bearing(pose, beacon_xy)[:, None], mm.bearing_jacobian(pose, beacon_xy)[:, None, :]
+    return mm.range_bearing(pose, beacon_xy), mm.range_bearing_jacobian(pose, beacon_xy)
+
+
+def residual(kind: str, z: np.ndarray, zhat: np.ndarray) -> np.ndarray:
+    """``z - zhat`` with the bearing column (the last one) wrapped to [-pi, pi)."""
+    nu = np.asarray(z, dtype=float) - np.asarray(zhat, dtype=float)
+    nu[..., -1] = wrap(nu[..., -1])
+    return nu
+
+
+def linearise(kind: str, z: np.ndarray, mean: np.ndarray, cov: np.ndarray,
+              beacon_xy: np.ndarray, reading_std: Sequence[float]) -> Linearised:
+    """Innovations, S and squared Mahalanobis distances of every (reading, beacon) pair.
+
+    Parameters
+    ----------
+    kind : ``"bearing"`` or ``"range_bearing"``
+    z : ndarray, shape (m, d) [m, rad]
+    mean : ndarray, shape (3,) [m, m, rad]
+    cov : ndarray, shape (3, 3)
+    beacon_xy : ndarray, shape (n, 2) [m]
+    reading_std : the sensor's ``reading_std()``: ``[sb]`` or ``[sr, sb]`` [m, rad]
+    """
+    z, xy, r = _check(kind, z, beacon_xy, reading_std)
+    mean = np.asarray(mean, dtype=float)
+    P = np.asarray(cov, dtype=float)
+    if mean.shape != (3,) or P.shape != (3, 3):
+        raise ValueError(f"association: mean must have shape (3,) and cov (3, 3), got {mean.shape} "
+                         f"and {P.shape}")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zhat, H = expected(kind, mean, xy)
+        nu = residual(kind, z[:, None, :], zhat[None, :, :])
+        S = H @ P @ H.transpose(0, 2, 1) + np.diag(r)
+        ok = np.all(np.isfinite(S), axis=(1, 2))
+        S_safe = np.where(ok[:, None, None], S, np.eye(r.size))
+        w = np.linalg.solve(S_safe[None, :, :, :], nu[..., None])[..., 0]
+        d2 = np.einsum("mnd,mnd->mn", nu, w)
+    d2 = np.where(ok[None, :] & np.isfinite(d2), d2, np.inf)
+    return Linearised(kind, nu, H, P, r, S, d2)
+
+
+@lru_cache(maxsize=256)
+def gate(prob: float, dof: int) -> float:
+    """The chi-square ``prob`` quantile with ``dof`` degrees of freedom (a squared
+    Mahalanobis distance at or below it passes)."""
+    return chi2_quantile(prob, dof)
+
+
+def joint_nis(lin: Linearised, pairing: Pairing) -> float:
+    """Joint NIS of a pairing [(reading i, beacon row j), ...].
+
+    The innovations of the paired readings are stacked into one vector ``nu`` (k d,) and
+    their Jacobians into ``H`` (k d, 3); ``S = H P H^T + R`` over the stack is full, not
+    block diagonal: its off-diagonal blocks ``H_a P H_b^T`` are the correlation the one
+    shared pose error puts between the readings. ``NIS = nu^T S^-1 nu``.
+    """
+    if not pairing:
+        return 0.0
+    rows = np.array([i for i, _ in pairing])
+    cols = np.array([j for _, j in pairing])
+    nu = lin.nu[rows, cols].reshape(-1)
+    H = lin.H[cols].reshape(-1, 3)
+    S = H @ lin.P @ H.T + np.diag(np.tile(lin.r, len(pairing)))
+    if not np.all(np.isfinite(S)):
+        return math.inf
+    try:
+        value = float(nu @ np.linalg.solve(S, nu))
+    except np.linalg.LinAlgError:
+        return math.inf
+    return value if math.isfinite(value) else math.inf
+
+
+def _check_ids(lin: Linearised, beacon_ids: np.ndarray) -> None:
+    if len(beacon_ids) != lin.H.shape[0]:
+        raise ValueError(f"association: {len(beacon_ids)} beacon IDs for {lin.H.shape[0]} beacons")
+
+
+def _association(lin: Linearised, pairing: Pairing, beacon_ids: np.ndarray, method: str,
+                 nodes: int = 0) -> Association:
+    ids: list[int | None] = [None] * lin.nu.shape[0]
+    for i, j in pairing:
+        ids[i] = int(beacon_ids[j])
+    return Association(tuple(ids), method, joint_nis(lin, pairing), lin.dim * len(pairing), nodes)
+
+
+def _nn_pairing(lin: Linearised, prob: float) -> Pairing:
+    g = gate(prob, lin.dim)
+    cand = np.argwhere(lin.d2 <= g)
+    # Ascending distance; ties broken by reading then beacon index (stable: deterministic).
+    order = np.lexsort((cand[:, 1], cand[:, 0], lin.d2[cand[:, 0], cand[:, 1]]))
+    used_r: set[int] = set()
+    used_b: set[int] = set()
+    pairs = []
+    for i, j in cand[order]:
+        if int(i) not in used_r and int(j) not in used_b:
+            used_r.add(int(i))
+            used_b.add(int(j))
+            pairs.append((int(i), int(j)))
+    return tuple(sorted(pairs))
+
+
+def nearest_neighbour(lin: Linearised, beacon_ids: np.ndarray, prob: float = GATE_PROB
+                      ) -> Association:
+    """Greedy nearest neighbour with a Mahalanobis gate.
+
+    Among all (reading, beacon) pairs with ``d2 <= gate(prob, d)``, the closest pair is taken
+    first, then the closest of the rest whose reading and beacon are both still free, and so
+    on: each reading gets at most one beacon and each beacon at most one reading. Greedy, not
+    the optimal assignment; and each test is one reading's alone, blind to the pose error the
+    readings share (what :func:`jcbb` adds). Readings left over get None.
+    """
+    _check_ids(lin, beacon_ids)
+    return _association(lin, _nn_pairing(lin, prob), beacon_ids, "nn")
+
+
+class _NodeCap(Exception):
+    """JCBB visited more nodes than allowed."""
+
+
+class _JointInformation:
+    """The joint NIS of growing pairings in O(1) per added pair, for the JCBB search.
+
+    With R diagonal, Woodbury's identity turns the stacked ``nu^T (H P H^T + R)^-1 nu`` into
+    ``a - b^T (I + P M)^-1 P b`` with the sums over the pairs ``a = nu^T R^-1 nu`` (scalar),
+    ``b = H^T R^-1 nu`` (3,) and ``M = H^T R^-1 H`` (3, 3): adding a pair adds its terms and
+    costs one 3 x 3 solve, whatever the number of pairs. Valid for a singular P too
+    (``I + P M`` is invertible for P, M positive semi-definite). :func:`joint_nis` is the
+    direct form, used for the reported figure; the tests hold the two together.
+    """
+
+    def __init__(self, lin: Linearised):
+        w = 1.0 / lin.r  # (d,)
+        self.P = lin.P
+        self.a = np.einsum("mnd,d,mnd->mn", lin.nu, w, lin.nu)  # (m, n)
+        self.b = np.einsum("ndk,d,mnd->mnk", lin.H, w, lin.nu)  # (m, n, 3)
+        self.M = np.einsum("ndk,d,ndl->nkl", lin.H, w, lin.H)  # (n, 3, 3)
+        self.eye = np.eye(3)
+
+    def grow(self, state: tuple[float, np.ndarray, np.ndarray], i: int, cols: list[int]
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The sums with pair (i, j) added, for every j of ``cols`` at once (c,), (c, 3),
+        (c, 3, 3), and the joint NIS of each grown pairing (c,) (``inf`` where undefined)."""
+        a = state[0] + self.a[i, cols]
+        b = state[1] + self.b[i, cols]
+        M = state[2] + self.M[cols]
+        Pb = b @ self.P  # (c, 3): P b for each (P symmetric)
+        with np.errstate(invalid="ignore", over="ignore"):
+            try:
+                x = np.linalg.solve(self.eye + self.P @ M, Pb[..., None])[..., 0]
+                value = a - np.einsum("ck,ck->c", b, x)
+            except np.linalg.LinAlgError:
+                value = np.full(len(cols), np.inf)
+        return a, b, M, np.where(np.isfinite(value), value, np.inf)
+
+
+def jcbb(lin: Linearised, beacon_ids: np.ndarray, prob: float = GATE_PROB,
+         max_nodes: int = MAX_NODES) -> Association:
+    """Joint compatibility branch and bound (Neira and Tardos 2001).
+
+    Depth-first over the readings, those with the fewest individually compatible beacons
+    first (readings with none are clutter and skipped). At reading i, each beacon that is individually
+    compatible with it (``d2 <= gate(prob, d)``, nearest first) and not yet used is tried; the
+    branch is kept only if the whole pairing so far stays jointly compatible
+    (``joint_nis <= gate(prob, d k)`` for k pairs, with the cross terms). Then the branch that
+    leaves reading i unpaired (clutter) is tried. A branch is cut when even pairing every
+    reading left could not reach the best number of pairs found. The answer: the most
+    pairs; among pairings with as many, the lowest joint NIS.
+
+    Bounded: after ``max_nodes`` nodes the search stops and the result is
+    :func:`nearest_neighbour`'s, with ``method = "nn-fallback"`` (so a tick never stalls).
+    """
+    _check_ids(lin, beacon_ids)
+    g = gate(prob, lin.dim)
+    candidates = [[int(j) for j in np.argsort(lin.d2[i], kind="stable") if lin.d2[i, j] <= g]
+                  for i in range(lin.nu.shape[0])]
+    # Most constrained first: readings with the fewest candidates branch least near the root.
+    # Readings with none are clutter whatever happens and are left out of the search.
+    order = sorted((i for i, c in enumerate(candidates) if c), key=lambda i: (len(candidates[i]), i))
+    m = len(order)
+    joint = _JointInformation(lin)
+    best: list = [(), 0.0]  # pairing, its joint NIS
+    nodes = 0
+
+    def visit(k: int, pairing: Pairing, used: frozenset[int],
+              state: tuple[float, np.ndarray, np.ndarray], nis_value: float) -> None:
+        nonlocal nodes
+        nodes += 1
+        if nodes > max_nodes:
+            raise _NodeCap
+        if len(pairing) + (m - k) < len(best[0]):
+            return  # cannot reach the best count
+        if k == m:
+            if len(pairing) > len(best[0]) or nis_value < best[1]:
+                best[0], best[1] = pairing, nis_value
+            return
+        i = order[k]
+        free = [j for j in candidates[i] if j not in used]
+        if free:
+            a, b, M, values = joint.grow(state, i, free)
+            limit = gate(prob, lin.dim * (len(pairing) + 1))
+            for c, j in enumerate(free):
+                if values[c] <= limit:
+                    visit(k + 1, (*pairing, (i, j)), used | {j}, (float(a[c]), b[c], M[c]), float(values[c]))
+        visit(k + 1, pairing, used, state, nis_value)  # reading i is clutter
+
+    try:
+        visit(0, (), frozenset(), (0.0, np.zeros(3), np.zeros((3, 3))), 0.0)
+    except _NodeCap:
+        return _association(lin, _nn_pairing(lin, prob), beacon_ids, "nn-fallback", max_nodes)
+    return _association(lin, tuple(sorted(best[0])), beacon_ids, "jcbb", nodes)
+
+
+def particle_ml_association(kind: str, z: np.ndarray, poses: np.ndarray, beacon_xy: np.ndarray,
+                            reading_std: Sequence[float], prob: float | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """Per particle and reading, the maximum-likelihood beacon and its log-likelihood.
+
+    Each particle is a pose with no uncertainty of its own, so the likelihood of reading i
+    from beacon j is the Gaussian ``N(nu_ij; 0, R)`` (diagonal R, bearing residual wrapped).
+    Readings are associated independently (two readings may pick the same beacon), as in
+    FastSLAM's per-particle maximum likelihood.
+
+    Parameters
+    ----------
+    kind, z, beacon_xy, reading_std : as in :func:`linearise`
+    poses : ndarray, shape (N, 3) [m, m, rad]
+    prob : float, optional
+        When given, a best beacon whose squared distance ``nu^T R^-1 nu`` exceeds
+        ``gate(prob, d)`` is rejected: its index becomes -1 (the log-likelihood stays the
+        best beacon's, for the caller to replace by a clutter density if it wants).
+
+    Returns
+    -------
+    best : ndarray of int, shape (N, m)
+        Row index into ``beacon_xy`` of each particle's choice for each reading (-1: gated out).
+    loglik : ndarray, shape (N, m)
+        ``log N(nu; 0, R)`` of that choice (includes the Gaussian's normalising constant).
+    """
+    z, xy, r = _check(kind, z, beacon_xy, reading_std)
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    n_part, m, n = poses.shape[0], z.shape[0], xy.shape[0]
+    if n == 0 or m == 0:
+        return np.full((n_part, m), -1, dtype=int), np.full((n_part, m), -np.inf)
+    # One (N, m, n) array per reading component, never (N, m, n, d): fewer temporaries.
+    nu_b = wrap(z[None, :, None, -1] - mm.bearing_many(poses, xy)[:, None, :])
+    d2 = nu_b * nu_b
+    d2 *= 1.0 / r[-1]
+    if kind == "range_bearing":
+        nu_r = z[None, :, None, 0] - mm.range_many(poses, xy)[:, None, :]
+        nu_r *= nu_r
+        nu_r *= 1.0 / r[0]
+        d2 += nu_r
+    d2[np.isnan(d2)] = np.inf  # a reading or pose that is not a number fits no beacon
+    best = np.argmin(d2, axis=2)  # first minimum: ties go to the lower beacon row
+    d2_best = np.take_along_axis(d2, best[..., None], axis=2)[..., 0]
+    log_norm = -0.5 * (r.size * math.log(2.0 * math.pi) + float(np.sum(np.log(r))))
+    loglik = log_norm - 0.5 * d2_best
+    if prob is not None:
+        best = np.where(d2_best <= gate(prob, r.size), best, -1)
+    return best, loglik
