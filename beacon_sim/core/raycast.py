@@ -20,6 +20,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.occupancy import UNKNOWN, OccupancyGrid
+from beacon_sim.errors import UsageError
 
 #: Crossings examined per round: rays that hit early stop after the first round.
 _BLOCK = 64
@@ -46,14 +47,18 @@ def cast_rays(grid: OccupancyGrid, origins, angles, max_range: float, *,
     ranges : ndarray, shape (n,) [m], in [0, max_range]
     """
     if not max_range > 0:
-        raise ValueError(f"max_range must be > 0 [m], got {max_range!r}")
+        raise UsageError(f"max_range must be > 0 [m], got {max_range!r}")
     angles = np.atleast_1d(np.asarray(angles, dtype=float))
     origins = np.broadcast_to(np.asarray(origins, dtype=float), angles.shape + (2,))
     uv = grid.world_to_grid(origins)
     heading = angles - grid.origin[2]  # into the grid's axes
     cells = grid.occupied if blocking is None else np.asarray(blocking, dtype=bool)
-    t = _cast_grid(cells, uv[:, 0], uv[:, 1], np.cos(heading), np.sin(heading),
-                   max_range / grid.resolution)
+    # Snap the rounding of cos/sin at multiples of pi/2 (sin(pi) = 1.2e-16) to zero, so that
+    # a ray along a grid line at heading pi behaves as at -pi and at 0.
+    cu, cv = np.cos(heading), np.sin(heading)
+    cu[np.abs(cu) < 1e-12] = 0.0
+    cv[np.abs(cv) < 1e-12] = 0.0
+    t = _cast_grid(cells, uv[:, 0], uv[:, 1], cu, cv, max_range / grid.resolution)
     return np.minimum(t * grid.resolution, max_range)
 
 
@@ -70,9 +75,9 @@ def beam_angles(n_beams: int, fov: float) -> np.ndarray:
     points straight ahead.
     """
     if n_beams < 1:
-        raise ValueError(f"n_beams must be >= 1, got {n_beams!r}")
+        raise UsageError(f"n_beams must be >= 1, got {n_beams!r}")
     if not 0 < fov:
-        raise ValueError(f"fov must be > 0 [rad], got {fov!r}")
+        raise UsageError(f"fov must be > 0 [rad], got {fov!r}")
     if n_beams == 1:
         return np.zeros(1)
     if fov >= 2 * np.pi:
@@ -152,7 +157,7 @@ def _cast_grid(occ: np.ndarray, u0: np.ndarray, v0: np.ndarray, cu: np.ndarray, 
     axes = []
     for t0, dt, i_s, s_mine, j_s, c_other, p0_other, along_u in (
             (tu0, du, i0, su, j0, cv, v0, True), (tv0, dv, j0, sv, i0, cu, u0, False)):
-        s = np.where(c_other > 0, 1, -1)
+        s = np.where(c_other >= 0, 1, -1)  # not moving along the other axis: floor
         neg = (s < 0).astype(np.int64)
         if along_u:   # mine = column, other = row
             a_coef = s * w2
