@@ -268,13 +268,37 @@ class LikelihoodField:
         # Everything in the padded grid's frame [cells]: the pose's position, its heading
         # relative to the grid's axes, the end points in the robot frame.
         uv = self.grid.world_to_grid(poses[:, :2])
-        outside = (uv[:, 0] < -1) | (uv[:, 0] > cols + 1) | (uv[:, 1] < -1) | (uv[:, 1] > rows + 1)
-        u = (np.clip(uv[:, 0], -1, cols + 1) + pad).astype(dtype)
-        v = (np.clip(uv[:, 1], -1, rows + 1) + pad).astype(dtype)
         heading = poses[:, 2] - self.grid.origin[2]
+        ex = z * np.cos(a) / self.grid.resolution
+        ey = z * np.sin(a) / self.grid.resolution
+        # Poses on the map (or within one cell of it) take the fast path: their end points all
+        # land in the padded table, so no bounds check is needed; the rest are checked.
+        near = (uv[:, 0] >= -1) & (uv[:, 0] <= cols + 1) & (uv[:, 1] >= -1) & (uv[:, 1] <= rows + 1)
+        out = np.empty(len(poses))
+        fast = np.flatnonzero(near)
+        if fast.size == len(poses):
+            out[:] = self._sum_fast(uv, heading, ex, ey, table, width, pad, dtype)
+        else:
+            out[fast] = self._sum_fast(uv[fast], heading[fast], ex, ey, table, width, pad, dtype)
+            far = np.flatnonzero(~near)
+            col = (uv[far, 0, None] + np.multiply.outer(np.cos(heading[far]), ex)
+                   - np.multiply.outer(np.sin(heading[far]), ey) + pad)
+            row = (uv[far, 1, None] + np.multiply.outer(np.sin(heading[far]), ex)
+                   + np.multiply.outer(np.cos(heading[far]), ey) + pad)
+            c = np.floor(col)
+            r = np.floor(row)
+            ok = (c >= 0) & (c < width) & (r >= 0) & (r < len(table) // width)
+            idx = np.where(ok, r * width + c, 0).astype(np.int64)
+            out[far] = np.where(ok, table.take(idx), tables["off_map"]).sum(axis=1, dtype=np.float64)
+        return out
+
+    @staticmethod
+    def _sum_fast(uv, heading, ex, ey, table, width, pad, dtype) -> np.ndarray:
+        """Sum of the table at the end points of poses whose end points all lie inside it."""
+        u = (uv[:, 0] + pad).astype(dtype)
+        v = (uv[:, 1] + pad).astype(dtype)
         c, s = np.cos(heading).astype(dtype), np.sin(heading).astype(dtype)
-        ex = (z * np.cos(a) / self.grid.resolution).astype(dtype)
-        ey = (z * np.sin(a) / self.grid.resolution).astype(dtype)
+        ex, ey = ex.astype(dtype), ey.astype(dtype)
         # end point = position + R(heading) e; the padding keeps it >= 0, so truncation is floor.
         col = np.multiply.outer(c, ex)
         col -= np.multiply.outer(s, ey)
@@ -285,6 +309,4 @@ class LikelihoodField:
         idx = row.astype(np.int32)
         idx *= width
         idx += col.astype(np.int32)
-        out = table.take(idx).sum(axis=1, dtype=np.float64)
-        out[outside] = tables["off_map"] * z.size
-        return out
+        return table.take(idx).sum(axis=1, dtype=np.float64)
