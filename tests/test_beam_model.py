@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -45,7 +46,7 @@ def continuous_integral(z_star: float, params: RangeModelParams) -> float:
 @pytest.mark.parametrize("z_star", [0.0, 0.05, 1.0, 4.0, 7.9, 8.0])
 @pytest.mark.parametrize("params", [PARAMS, RangeModelParams(laser_max_range=8.0)], ids=["custom", "amcl"])
 def test_the_beam_model_integrates_to_one(z_star, params):
-    w_hit, w_short, w_max, w_rand = params.weights
+    _w_hit, w_short, w_max, _w_rand = params.weights
     atoms = w_max + (w_short if z_star == 0.0 else 0.0)
     # The short part is steep near 0 for a small z*; Simpson on 400k points is still 1e-7 good.
     assert continuous_integral(z_star, params) + atoms == pytest.approx(1.0, abs=2e-6)
@@ -64,7 +65,8 @@ def test_the_density_at_a_point_by_hand():
     z = 1.0
     short = lam * math.exp(-lam * z) / (1 - math.exp(-lam * z_star))
     hit = math.exp(-0.5 * ((z - z_star) / s) ** 2) / (s * math.sqrt(2 * math.pi)) / eta
-    assert beam_density(z, z_star, PARAMS) == pytest.approx(w[0] * hit + w[1] * short + w[3] * rand, rel=1e-13)
+    want = w[0] * hit + w[1] * short + w[3] * rand
+    assert beam_density(z, z_star, PARAMS) == pytest.approx(want, rel=1e-13)
     # At z_max: the point mass counts 1, plus the hit part's tail; no random part.
     hit = math.exp(-0.5 * ((z_max - z_star) / s) ** 2) / (s * math.sqrt(2 * math.pi)) / eta
     assert beam_density(z_max, z_star, PARAMS) == pytest.approx(w[0] * hit + w[2], rel=1e-13)
@@ -86,7 +88,7 @@ def chi_square_statistic(samples: np.ndarray, z_star: float, params: RangeModelP
     z_max = params.laser_max_range
     edges = np.linspace(0.0, z_max, bins + 1)
     probs = []
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
+    for a, b in itertools.pairwise(edges):
         z = np.linspace(a, b, 2001)
         z[0], z[-1] = np.nextafter(a, b), np.nextafter(b, a)
         p = beam_density(z, z_star, params)
@@ -205,7 +207,7 @@ def reference_log_likelihood(field: LikelihoodField, poses, ranges, rel) -> np.n
 def test_the_likelihood_field_matches_table_6_3():
     g = room()
     field = LikelihoodField(g, RangeModelParams(laser_max_range=6.0, laser_likelihood_max_dist=1.0))
-    truth = g.grid_to_world([20.0, 40.0]).tolist() + [0.7]
+    truth = [*g.grid_to_world([20.0, 40.0]).tolist(), 0.7]
     rel, ranges = scan(g, truth, 24, 2 * math.pi, 6.0)
     rng = np.random.default_rng(3)
     # Noise keeps end points off the cell boundaries the exact ranges end on (there, which side

@@ -83,7 +83,7 @@ class RangeModelParams:
 
 def _phi(x: np.ndarray) -> np.ndarray:
     """Standard normal CDF (math.erf per element: exact, used only where it is not 0 or 1)."""
-    return 0.5 * (1.0 + _erf(np.asarray(x, dtype=float) / _SQRT2).astype(float))
+    return 0.5 * (1.0 + np.asarray(_erf(np.asarray(x, dtype=float) / _SQRT2), dtype=float))
 
 
 def hit_mass(z_star, params: RangeModelParams) -> np.ndarray:
@@ -222,7 +222,7 @@ class LikelihoodField:
     def _padding(self) -> int:
         """Cells of border around the table: every end point of a pose on the map (or within
         one cell of it) lands in the padded table."""
-        return int(math.ceil(self.params.laser_max_range / self.grid.resolution)) + 2
+        return math.ceil(self.params.laser_max_range / self.grid.resolution) + 2
 
     @cached_property
     def _log_table(self) -> dict:

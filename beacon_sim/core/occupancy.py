@@ -16,6 +16,7 @@ Pillow (the ``gif`` extra) and says so in one line when it is absent.
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Iterable, Sequence
@@ -72,10 +73,12 @@ class OccupancyGrid:
             raise MapError("occupancy grid: cells must be 0 (free), 100 (occupied) or -1 (unknown)")
         res = float(self.resolution)
         if not math.isfinite(res) or res <= 0:
-            raise MapError(f"occupancy grid: resolution must be a number > 0 [m/cell], got {self.resolution!r}")
+            raise MapError(f"occupancy grid: resolution must be a number > 0 [m/cell], "
+                           f"got {self.resolution!r}")
         origin = tuple(float(v) for v in self.origin)
         if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
-            raise MapError(f"occupancy grid: origin must be 3 finite numbers [x, y, yaw], got {self.origin!r}")
+            raise MapError(f"occupancy grid: origin must be 3 finite numbers [x, y, yaw], "
+                           f"got {self.origin!r}")
         object.__setattr__(self, "cells", read_only(cells.astype(np.int8)))
         object.__setattr__(self, "resolution", res)
         object.__setattr__(self, "origin", origin)
@@ -172,8 +175,8 @@ def from_walls(bounds: tuple[float, float, float, float], resolution: float, *,
     if not (xmax > xmin and ymax > ymin):
         raise MapError(f"walls: bounds must be (xmin, ymin, xmax, ymax) with xmax > xmin and ymax > ymin, "
                        f"got {bounds!r}")
-    cols = int(math.ceil((xmax - xmin) / res - 1e-9))
-    rows = int(math.ceil((ymax - ymin) / res - 1e-9))
+    cols = math.ceil((xmax - xmin) / res - 1e-9)
+    rows = math.ceil((ymax - ymin) / res - 1e-9)
     if rows * cols > MAX_CELLS:
         raise MapError(f"walls: {cols}x{rows} cells is over the cap of {MAX_CELLS} cells")
     occ = np.zeros((rows, cols), dtype=bool)
@@ -198,7 +201,7 @@ def _draw_polyline(occ: np.ndarray, uv: np.ndarray, *, closed: bool) -> None:
     """Mark every cell each segment of the polyline ``uv`` [cells] passes through."""
     pts = np.vstack([uv, uv[:1]]) if closed else uv
     rows, cols = occ.shape
-    for a, b in zip(pts[:-1], pts[1:], strict=True):
+    for a, b in itertools.pairwise(pts):
         d = b - a
         length = float(np.hypot(*d))
         if length == 0.0:
@@ -294,7 +297,8 @@ def load_map(yaml_path: str | Path) -> OccupancyGrid:
     meta = parse_map_yaml(text, str(path))
     for key in REQUIRED_KEYS:
         if key not in meta:
-            raise MapError(f"{path}: missing key {key!r} (a map_server YAML needs {', '.join(REQUIRED_KEYS)})")
+            raise MapError(f"{path}: missing key {key!r} "
+                           f"(a map_server YAML needs {', '.join(REQUIRED_KEYS)})")
     resolution = _number(meta, "resolution", str(path))
     if resolution <= 0:
         raise MapError(f"{path}: key 'resolution' must be > 0 [m/cell], got {meta['resolution']!r}")
@@ -325,7 +329,8 @@ def load_map(yaml_path: str | Path) -> OccupancyGrid:
     cells = np.full(p.shape, UNKNOWN, dtype=np.int8)
     cells[p > occ_t] = OCCUPIED
     cells[p < free_t] = FREE
-    return OccupancyGrid(cells[::-1].copy(), resolution, tuple(float(v) for v in origin))
+    x, y, yaw = (float(v) for v in origin)
+    return OccupancyGrid(cells[::-1].copy(), resolution, (x, y, yaw))
 
 
 def save_map(grid: OccupancyGrid, yaml_path: str | Path, *, image: str | None = None,
@@ -341,9 +346,10 @@ def save_map(grid: OccupancyGrid, yaml_path: str | Path, *, image: str | None = 
         raise MapError(f"{path}: need 0 <= free_thresh < occupied_thresh <= 1, got "
                        f"{free_thresh}, {occupied_thresh}")
     image_name = image or path.with_suffix(".pgm").name
-    values = np.full(grid.shape, 205, dtype=np.uint8)
-    values[grid.cells == FREE] = 254
-    values[grid.cells == OCCUPIED] = 0
+    grey_free, grey_occupied, grey_unknown = _save_greys(free_thresh, occupied_thresh, path)
+    values = np.full(grid.shape, grey_unknown, dtype=np.uint8)
+    values[grid.cells == FREE] = grey_free
+    values[grid.cells == OCCUPIED] = grey_occupied
     if negate:
         values = 255 - values
     image_path = path.parent / image_name
@@ -354,6 +360,22 @@ def save_map(grid: OccupancyGrid, yaml_path: str | Path, *, image: str | None = 
         f"negate: {negate}\noccupied_thresh: {occupied_thresh!r}\nfree_thresh: {free_thresh!r}\n"
         "mode: trinary\n", encoding="utf-8")
     return image_path
+
+
+def _save_greys(free_thresh: float, occupied_thresh: float, path: Path) -> tuple[int, int, int]:
+    """Grey values (negate 0) that load back as free, occupied and unknown under the given
+    thresholds: map_saver's 254, 0 and 205 where they do, the nearest that do otherwise."""
+    def p(v: int) -> float:
+        return (255.0 - v) / 255.0
+    free = 254 if p(254) < free_thresh else 255
+    occupied = 0
+    middle = round(255.0 * (1.0 - (free_thresh + occupied_thresh) / 2))
+    unknown = 205 if free_thresh <= p(205) <= occupied_thresh else middle
+    if not (p(free) < free_thresh and p(occupied) > occupied_thresh
+            and free_thresh <= p(unknown) <= occupied_thresh):
+        raise MapError(f"{path}: thresholds free {free_thresh}, occupied {occupied_thresh} leave no "
+                       "8-bit grey value for a free, occupied or unknown cell")
+    return free, occupied, unknown
 
 
 def read_image(path: Path) -> np.ndarray:

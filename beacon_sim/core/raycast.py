@@ -49,7 +49,7 @@ def cast_rays(grid: OccupancyGrid, origins, angles, max_range: float, *,
     if not max_range > 0:
         raise UsageError(f"max_range must be > 0 [m], got {max_range!r}")
     angles = np.atleast_1d(np.asarray(angles, dtype=float))
-    origins = np.broadcast_to(np.asarray(origins, dtype=float), angles.shape + (2,))
+    origins = np.broadcast_to(np.asarray(origins, dtype=float), (*angles.shape, 2))
     uv = grid.world_to_grid(origins)
     heading = angles - grid.origin[2]  # into the grid's axes
     cells = grid.occupied if blocking is None else np.asarray(blocking, dtype=bool)
@@ -155,7 +155,7 @@ def _cast_grid(occ: np.ndarray, u0: np.ndarray, v0: np.ndarray, cu: np.ndarray, 
     # down onto a line is below it). With s = sv: row = s floor(s v) - (s < 0). The padded
     # flat index (row + 1) w2 + col + 1 is then floor(q) A + B + C k, q = s v.
     axes = []
-    for t0, dt, i_s, s_mine, j_s, c_other, p0_other, along_u in (
+    for t0, dt, i_s, s_mine, _j_s, c_other, p0_other, along_u in (
             (tu0, du, i0, su, j0, cv, v0, True), (tv0, dv, j0, sv, i0, cu, u0, False)):
         s = np.where(c_other >= 0, 1, -1)  # not moving along the other axis: floor
         neg = (s < 0).astype(np.int64)
