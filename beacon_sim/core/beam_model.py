@@ -218,25 +218,20 @@ class LikelihoodField:
         return (w_hit * np.exp(-0.5 * (d / p.sigma_hit) ** 2) / (p.sigma_hit * math.sqrt(2 * math.pi))
                 + w_rand / p.laser_max_range)
 
-    @cached_property
-    def _padding(self) -> int:
-        """Cells of border around the table: every end point of a pose on the map (or within
-        one cell of it) lands in the padded table."""
-        return math.ceil(self.params.laser_max_range / self.grid.resolution) + 2
+    #: Cells of border around the table, holding the off-map value: end points are clipped
+    #: into it (a small table stays in cache; a border as wide as the range would not).
+    _padding = 1
 
     @cached_property
     def _log_table(self) -> dict:
         """log beam_probability per cell, padded with the off-map value, float64 and float32."""
         pad = self._padding
         rows, cols = self.grid.shape
-        if (rows + 2 * pad) * (cols + 2 * pad) > 64_000_000:
-            raise UsageError("likelihood field: laser_max_range over the map's resolution needs a "
-                             "table over 64 million cells; lower laser_max_range")
         off_map = float(np.log(self.beam_probability(self.params.laser_likelihood_max_dist)))
         table = np.full((rows + 2 * pad, cols + 2 * pad), off_map)
         table[pad:pad + rows, pad:pad + cols] = np.log(self.beam_probability(self.distance))
         return {np.float64: table.ravel(), np.float32: table.astype(np.float32).ravel(),
-                "width": cols + 2 * pad, "off_map": off_map}
+                "width": cols + 2 * pad, "height": rows + 2 * pad, "off_map": off_map}
 
     def log_likelihood(self, poses, ranges, rel_angles, *, dtype=np.float64) -> np.ndarray:
         """log p(scan | pose) per pose: the sum over beams below z_max of log(z_hit N(d; 0,
@@ -262,51 +257,64 @@ class LikelihoodField:
         use = (ranges < self.params.laser_max_range) & (ranges >= 0) & np.isfinite(ranges)
         z, a = ranges[use], rel[use]
         tables = self._log_table
-        width, pad = tables["width"], self._padding
-        table = tables[dtype]
-        rows, cols = self.grid.shape
         # Everything in the padded grid's frame [cells]: the pose's position, its heading
         # relative to the grid's axes, the end points in the robot frame.
         uv = self.grid.world_to_grid(poses[:, :2])
         heading = poses[:, 2] - self.grid.origin[2]
         ex = z * np.cos(a) / self.grid.resolution
         ey = z * np.sin(a) / self.grid.resolution
-        # Poses on the map (or within one cell of it) take the fast path: their end points all
-        # land in the padded table, so no bounds check is needed; the rest are checked.
-        near = (uv[:, 0] >= -1) & (uv[:, 0] <= cols + 1) & (uv[:, 1] >= -1) & (uv[:, 1] <= rows + 1)
-        out = np.empty(len(poses))
-        fast = np.flatnonzero(near)
-        if fast.size == len(poses):
-            out[:] = self._sum_fast(uv, heading, ex, ey, table, width, pad, dtype)
-        else:
-            out[fast] = self._sum_fast(uv[fast], heading[fast], ex, ey, table, width, pad, dtype)
-            far = np.flatnonzero(~near)
-            col = (uv[far, 0, None] + np.multiply.outer(np.cos(heading[far]), ex)
-                   - np.multiply.outer(np.sin(heading[far]), ey) + pad)
-            row = (uv[far, 1, None] + np.multiply.outer(np.sin(heading[far]), ex)
-                   + np.multiply.outer(np.cos(heading[far]), ey) + pad)
-            c = np.floor(col)
-            r = np.floor(row)
-            ok = (c >= 0) & (c < width) & (r >= 0) & (r < len(table) // width)
-            idx = np.where(ok, r * width + c, 0).astype(np.int64)
-            out[far] = np.where(ok, table.take(idx), tables["off_map"]).sum(axis=1, dtype=np.float64)
-        return out
+        return self._sum_table(uv, heading, ex, ey, tables[dtype], tables["width"], tables["height"],
+                               self._padding, dtype)
 
-    @staticmethod
-    def _sum_fast(uv, heading, ex, ey, table, width, pad, dtype) -> np.ndarray:
-        """Sum of the table at the end points of poses whose end points all lie inside it."""
+    #: Poses scored per block: the block's work arrays (a few hundred kB) are allocated once
+    #: and reused, so no call page-faults on fresh memory and the arrays stay in cache.
+    _BLOCK_POSES = 2048
+
+    @cached_property
+    def _work(self) -> dict:
+        """Reusable work arrays, keyed by (number of beams, dtype). Not thread-safe: give each
+        thread its own field."""
+        return {}
+
+    def _sum_table(self, uv, heading, ex, ey, table, width, height, pad, dtype) -> np.ndarray:
+        """Sum over beams of the padded table at the end points (clipped into the border)."""
+        n, b = len(uv), len(ex)
+        out = np.empty(n)
+        if b == 0:
+            out[:] = 0.0
+            return out
+        key = (b, dtype)
+        if key not in self._work:
+            m = self._BLOCK_POSES
+            self._work[key] = (np.empty((m, b), dtype), np.empty((m, b), dtype), np.empty((m, b), dtype),
+                               np.empty((m, b), np.int32), np.empty((m, b), np.int32),
+                               np.empty((m, b), table.dtype))
+        col_w, row_w, tmp_w, idx_w, idx2_w, val_w = self._work[key]
         u = (uv[:, 0] + pad).astype(dtype)
         v = (uv[:, 1] + pad).astype(dtype)
         c, s = np.cos(heading).astype(dtype), np.sin(heading).astype(dtype)
         ex, ey = ex.astype(dtype), ey.astype(dtype)
-        # end point = position + R(heading) e; the padding keeps it >= 0, so truncation is floor.
-        col = np.multiply.outer(c, ex)
-        col -= np.multiply.outer(s, ey)
-        col += u[:, None]
-        row = np.multiply.outer(s, ex)
-        row += np.multiply.outer(c, ey)
-        row += v[:, None]
-        idx = row.astype(np.int32)
-        idx *= width
-        idx += col.astype(np.int32)
-        return table.take(idx).sum(axis=1, dtype=np.float64)
+        for start in range(0, n, self._BLOCK_POSES):
+            stop = min(start + self._BLOCK_POSES, n)
+            m = stop - start
+            col, row, tmp, idx, idx2, val = (w[:m] for w in (col_w, row_w, tmp_w, idx_w, idx2_w, val_w))
+            cb, sb = c[start:stop, None], s[start:stop, None]
+            # end point = position + R(heading) e [cells], then clipped into [0, size - 1]:
+            # the border cells hold the off-map value, and after clipping truncation is floor.
+            np.multiply(cb, ex, out=col)
+            np.multiply(sb, ey, out=tmp)
+            col -= tmp
+            col += u[start:stop, None]
+            np.clip(col, 0, width - 1, out=col)
+            np.multiply(sb, ex, out=row)
+            np.multiply(cb, ey, out=tmp)
+            row += tmp
+            row += v[start:stop, None]
+            np.clip(row, 0, height - 1, out=row)
+            idx[...] = row           # truncation toward zero: floor, the values being >= 0
+            idx *= width
+            idx2[...] = col
+            idx += idx2
+            table.take(idx, out=val)
+            val.sum(axis=1, dtype=np.float64, out=out[start:stop])
+        return out
