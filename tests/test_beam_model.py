@@ -17,6 +17,7 @@ from beacon_sim.core.beam_model import (
     log_beam_likelihood,
     sample_beam,
 )
+from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.occupancy import FREE, OCCUPIED, OccupancyGrid
 from beacon_sim.core.raycast import beam_angles, scan
 from beacon_sim.errors import UsageError
@@ -100,9 +101,9 @@ def chi_square_statistic(samples: np.ndarray, z_star: float, params: RangeModelP
     return float(np.sum((observed - expected) ** 2 / expected)), bins
 
 
-def chi2_critical(df: int, z: float = 3.09) -> float:
-    """The chi-square quantile (99.9 % for z = 3.09), Wilson and Hilferty's approximation."""
-    return df * (1 - 2 / (9 * df) + z * math.sqrt(2 / (9 * df))) ** 3
+def chi2_critical(df: int) -> float:
+    """The 99.9 % chi-square quantile: a seeded test that fails by chance once in 1000 seeds."""
+    return chi2_quantile(0.999, df)
 
 
 @pytest.mark.parametrize("z_star", [0.4, 3.0, 7.9])
