@@ -95,6 +95,14 @@ def test_walls_segments_and_polygons():
     assert set(zip(*np.nonzero(s.occupied), strict=True)) == {(0, 0), (0, 1), (1, 2), (1, 3)}
 
 
+def test_a_room_outline_on_the_bounds_has_four_walls():
+    g = from_walls((0, 0, 10, 4), 0.05, segments=[[(0, 0), (10, 0), (10, 4), (0, 4), (0, 0)]])
+    assert g.shape == (80, 200)
+    occ = g.occupied
+    assert occ[0, :].all() and occ[-1, :].all() and occ[:, 0].all() and occ[:, -1].all()
+    assert not occ[1:-1, 1:-1].any()
+
+
 def test_walls_bad_input():
     with pytest.raises(MapError, match="bounds"):
         from_walls((0, 0, 0, 1), 0.1)

@@ -164,7 +164,8 @@ def from_walls(bounds: tuple[float, float, float, float], resolution: float, *,
     """Rasterise walls into a grid covering ``bounds`` (xmin, ymin, xmax, ymax) [m].
 
     ``segments`` are polylines ``[(x0, y0), (x1, y1), ...]`` [m]: every cell a line passes
-    through is occupied. ``polygons`` are closed outlines: their edges are drawn the same
+    through is occupied (a line on the far edge, x = xmax or y = ymax, occupies the last
+    column or row). ``polygons`` are closed outlines: their edges are drawn the same
     way and every cell whose centre lies inside (even-odd rule) is filled. All other cells
     are free. The grid's origin is (xmin, ymin, 0).
     """
@@ -220,6 +221,10 @@ def _draw_polyline(occ: np.ndarray, uv: np.ndarray, *, closed: bool) -> None:
         p = a + ts[:, None] * d
         c = np.floor(p[:, 0]).astype(int)
         r = np.floor(p[:, 1]).astype(int)
+        # A wall on the far edge of the bounds (x = xmax or y = ymax) belongs to the last
+        # column / row, not to the cell beyond the grid.
+        c[(c == cols) & (p[:, 0] <= cols * (1 + 1e-9))] = cols - 1
+        r[(r == rows) & (p[:, 1] <= rows * (1 + 1e-9))] = rows - 1
         ok = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
         occ[r[ok], c[ok]] = True
 
