@@ -169,6 +169,13 @@ def test_distance_transform_against_brute_force(seed):
     np.testing.assert_array_equal(distance_transform(occ), brute_force_distance(occ))
 
 
+@pytest.mark.parametrize("cap", [0.0, 1.0, 2.5, 7.0])
+def test_a_capped_distance_transform_is_exact_below_the_cap(cap):
+    rng = np.random.default_rng(42)
+    occ = rng.random((35, 41)) < 0.01
+    np.testing.assert_array_equal(distance_transform(occ, cap), np.minimum(brute_force_distance(occ), cap))
+
+
 def test_distance_transform_edge_cases():
     assert np.all(np.isinf(distance_transform(np.zeros((3, 4), dtype=bool))))
     assert np.all(distance_transform(np.ones((3, 4), dtype=bool)) == 0.0)

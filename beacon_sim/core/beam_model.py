@@ -158,7 +158,7 @@ def log_beam_likelihood(z, z_star, params: RangeModelParams) -> np.ndarray:
 # --------------------------------------------------------------------------- likelihood field
 
 
-def distance_transform(occupied: np.ndarray) -> np.ndarray:
+def distance_transform(occupied: np.ndarray, max_distance: float | None = None) -> np.ndarray:
     """Exact Euclidean distance [cells] from each cell centre to the nearest occupied cell
     centre, shape of ``occupied`` (rows, cols); ``inf`` everywhere when none is occupied.
 
@@ -166,11 +166,16 @@ def distance_transform(occupied: np.ndarray) -> np.ndarray:
     distance to the nearest occupied cell in the same column, g, by running maxima of
     indices; then D^2(r, c) = min over c' of (c - c')^2 + g(r, c')^2, taking offsets
     |c - c'| = 0, 1, 2, ... until the offset alone exceeds every distance found.
+
+    With ``max_distance`` [cells] the result is ``min(distance, max_distance)``, still exact
+    below the cap, and the second pass stops at that offset (the likelihood field needs no
+    more; an open 4096 x 4096 map would otherwise take thousands of passes).
     """
     occ = np.asarray(occupied, dtype=bool)
     rows, cols = occ.shape
+    cap = np.inf if max_distance is None else float(max_distance)
     if not occ.any():
-        return np.full(occ.shape, np.inf)
+        return np.full(occ.shape, cap)
     r = np.arange(rows, dtype=float)[:, None]
     above = np.where(occ, r, -np.inf)
     np.maximum.accumulate(above, axis=0, out=above)          # last occupied row <= r
@@ -180,11 +185,11 @@ def distance_transform(occupied: np.ndarray) -> np.ndarray:
     g2 = np.minimum(r - above, below - r) ** 2               # column-wise squared distance
     d2 = g2.copy()
     for off in range(1, cols):
-        if off * off >= d2.max():
+        if off * off >= d2.max() or off > cap:
             break
         np.minimum(d2[:, off:], g2[:, :-off] + off * off, out=d2[:, off:])
         np.minimum(d2[:, :-off], g2[:, off:] + off * off, out=d2[:, :-off])
-    return np.sqrt(d2)
+    return np.minimum(np.sqrt(d2), cap)
 
 
 @dataclass(frozen=True)
@@ -207,8 +212,9 @@ class LikelihoodField:
     def distance(self) -> np.ndarray:
         """Distance [m] of each cell centre to the nearest occupied cell, capped at
         ``laser_likelihood_max_dist``, shape grid.shape, float64."""
-        d = distance_transform(self.grid.occupied) * self.grid.resolution
-        return np.minimum(d, self.params.laser_likelihood_max_dist)
+        cap = self.params.laser_likelihood_max_dist
+        d = distance_transform(self.grid.occupied, cap / self.grid.resolution) * self.grid.resolution
+        return np.minimum(d, cap)
 
     def beam_probability(self, d) -> np.ndarray:
         """z_hit N(d; 0, sigma_hit^2) + z_rand / z_max for distances ``d`` [m] (Table 6.3)."""
