@@ -4,6 +4,9 @@ Run:  .venv/bin/python benchmarks/bench_raycast.py [--quick]
 
 - one 180-beam scan (full circle, 10 m max range) ray cast on a 400 x 400 grid at 0.05 m
   (a 20 m x 20 m floor with outer walls and 60 random pillars);  target <= 1 ms;
+- the beam model's expected ranges for 1,000 particles x 60 beams (60,000 rays, what a
+  particle filter with the beam model casts per update); no target, shown beside the
+  likelihood field it is the reason AMCL users pick the field;
 - the likelihood-field log-likelihood of 10,000 particles x 60 beams (all below max range) on
   the same map (float32 end points, the fast path; float64 shown beside it);  target <= 5 ms.
 
@@ -22,7 +25,7 @@ from figures import Clock, figure
 
 from beacon_sim.core.beam_model import LikelihoodField, RangeModelParams
 from beacon_sim.core.occupancy import FREE, OCCUPIED, OccupancyGrid
-from beacon_sim.core.raycast import scan
+from beacon_sim.core.raycast import beam_angles, expected_ranges, scan
 
 MAX_RANGE = 10.0
 
@@ -72,10 +75,14 @@ def main() -> None:
     particles = np.column_stack([rng.uniform(0.5, 19.5, 10_000), rng.uniform(0.5, 19.5, 10_000),
                                  rng.uniform(-np.pi, np.pi, 10_000)])
     n_lf = max(10, n // 4)
+    beams60 = beam_angles(60, 2 * np.pi)
+    beam_ms, beam_cpu = rounds(lambda: expected_ranges(grid, particles[:1000], beams60, MAX_RANGE),
+                               max(3, n // 40))
     lf32, lf32_cpu = rounds(lambda: field.log_likelihood(particles, ranges, rel, dtype=np.float32), n_lf)
     lf64, lf64_cpu = rounds(lambda: field.log_likelihood(particles, ranges, rel, dtype=np.float64), n_lf)
 
     table = [("ray cast, one 180-beam scan, 400x400 grid, 10 m", scan_ms, scan_cpu, "1"),
+             ("beam model: ray cast 1k particles x 60 beams, 10 m", beam_ms, beam_cpu, "-"),
              ("likelihood field, 10k particles x 60 beams, float32", lf32, lf32_cpu, "5"),
              ("likelihood field, 10k particles x 60 beams, float64", lf64, lf64_cpu, "-")]
     print(f"{'what':58s} {'wall ms':>8s} {'cpu ms':>8s} {'target':>7s}")
@@ -83,6 +90,7 @@ def main() -> None:
         print(f"{what:58s} {wall:8.3f} {cpu:8.3f} {target:>7s}")
     figure("ray cast, one 180-beam scan on a 400x400 grid (10 m range)", scan_ms, "ms",
            target=1.0, cpu=scan_cpu)
+    figure("beam model: ray cast of 1k particles x 60 beams (10 m)", beam_ms, "ms", cpu=beam_cpu)
     figure("likelihood field, 10k particles x 60 beams (float32)", lf32, "ms", target=5.0, cpu=lf32_cpu)
     figure("likelihood field, 10k particles x 60 beams (float64)", lf64, "ms", cpu=lf64_cpu)
 

@@ -175,6 +175,20 @@ def test_scan_and_expected_ranges_agree():
         np.testing.assert_array_equal(row, cast_rays(g, p[:2], p[2] + rel, 20.0))
 
 
+def test_many_rays_in_chunks_match_one_pose_at_a_time():
+    g = OccupancyGrid(box(), 0.1)
+    cells = box()
+    cells[40:45, 20:70] = OCCUPIED
+    g = OccupancyGrid(cells, 0.1)
+    rng = np.random.default_rng(2)
+    poses = np.column_stack([rng.uniform(0.5, 9.5, 50), rng.uniform(0.5, 9.5, 50),
+                             rng.uniform(-math.pi, math.pi, 50)])
+    rel = beam_angles(30, 2 * math.pi)
+    many = expected_ranges(g, poses, rel, 20.0)     # 1500 rays: more than one chunk
+    for p, row in zip(poses, many, strict=True):
+        np.testing.assert_array_equal(row, cast_rays(g, p[:2], p[2] + rel, 20.0))
+
+
 def test_bad_max_range():
     with pytest.raises(UsageError, match="max_range"):
         cast_rays(OccupancyGrid(box(), 0.1), (1, 1), [0.0], 0.0)

@@ -24,6 +24,8 @@ from beacon_sim.errors import UsageError
 
 #: Crossings examined per round: rays that hit early stop after the first round.
 _BLOCK = 64
+#: Rays cast together: many rays (particles x beams) go in chunks of this many.
+_RAYS_PER_CHUNK = 1024
 
 
 def cast_rays(grid: OccupancyGrid, origins, angles, max_range: float, *,
@@ -58,7 +60,15 @@ def cast_rays(grid: OccupancyGrid, origins, angles, max_range: float, *,
     cu, cv = np.cos(heading), np.sin(heading)
     cu[np.abs(cu) < 1e-12] = 0.0
     cv[np.abs(cv) < 1e-12] = 0.0
-    t = _cast_grid(cells, uv[:, 0], uv[:, 1], cu, cv, max_range / grid.resolution)
+    t_max = max_range / grid.resolution
+    n = angles.size
+    if n <= _RAYS_PER_CHUNK:
+        t = _cast_grid(cells, uv[:, 0], uv[:, 1], cu, cv, t_max)
+    else:  # chunks keep the work arrays small (in cache, no page faults on fresh memory)
+        t = np.empty(n)
+        for a in range(0, n, _RAYS_PER_CHUNK):
+            b = min(a + _RAYS_PER_CHUNK, n)
+            t[a:b] = _cast_grid(cells, uv[a:b, 0], uv[a:b, 1], cu[a:b], cv[a:b], t_max)
     return np.minimum(t * grid.resolution, max_range)
 
 
