@@ -156,6 +156,9 @@ def test_png_maps(tmp_path, monkeypatch):
     path = write_map(tmp_path, np.zeros((1, 1)), image="m.png")
     g = load_map(path)
     assert g.cells.tolist() == [[FREE, FREE, UNKNOWN], [OCCUPIED, FREE, FREE]]
+    grey16 = np.array([[0, 65535], [30000, 65535]], dtype=np.uint16)   # p = 1, 0 / 0.54, 0
+    Image.fromarray(grey16).save(tmp_path / "m.png")
+    assert load_map(path).cells.tolist() == [[UNKNOWN, FREE], [OCCUPIED, FREE]]   # row 0: bottom
     monkeypatch.setitem(sys.modules, "PIL", None)   # as if Pillow were not installed
     with pytest.raises(MapError, match="needs Pillow"):
         load_map(path)

@@ -406,9 +406,11 @@ def _read_png(path: Path) -> np.ndarray:
             if w * h > MAX_CELLS:
                 raise MapError(f"{path}: image of {w}x{h} pixels is over the cap of {MAX_CELLS} pixels")
             mode = img.mode
-            if mode in ("L", "I", "I;16", "1", "P", "LA"):
+            if mode in ("L", "1", "LA"):          # grey (alpha ignored, as map_server's trinary mode)
                 arr = np.asarray(img.convert("L"), dtype=float)
-            else:
+            elif mode.startswith("I"):            # 16-bit grey: scaled to 0..255, not clipped
+                arr = np.asarray(img, dtype=float) * (255.0 / 65535.0)
+            else:                                 # colour and palette: the channels' mean
                 arr = np.asarray(img.convert("RGB"), dtype=float).mean(axis=2)
     except OSError as exc:
         raise MapError(f"{path}: cannot read the map image ({exc.__class__.__name__})") from None
