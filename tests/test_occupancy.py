@@ -209,6 +209,9 @@ def test_bad_images(tmp_path):
         load_map(path)
     with pytest.raises(MapError, match="cannot read the map file"):
         load_map(tmp_path / "absent.yaml")
+    (tmp_path / "big.yaml").write_text("# " + "x" * 1_000_001)
+    with pytest.raises(MapError, match="too big for a map YAML"):
+        load_map(tmp_path / "big.yaml")
 
 
 def test_pgm_comments_and_16_bit(tmp_path):

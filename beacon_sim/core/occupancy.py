@@ -36,6 +36,9 @@ UNKNOWN = -1
 #: The largest image accepted, in pixels (cells): 16.7 million (4096 x 4096), ~17 MB as int8.
 MAX_CELLS = 4096 * 4096
 
+#: The largest PGM file read [bytes]: MAX_CELLS values of up to 5 digits and a space (P2).
+MAX_PGM_BYTES = 6 * MAX_CELLS + 4096
+
 #: The keys a map_server YAML must have (``negate`` defaults to 0, ``mode`` to trinary).
 REQUIRED_KEYS = ("image", "resolution", "origin", "occupied_thresh", "free_thresh")
 
@@ -296,6 +299,8 @@ def load_map(yaml_path: str | Path) -> OccupancyGrid:
     """
     path = Path(yaml_path)
     try:
+        if path.stat().st_size > 1_000_000:
+            raise MapError(f"{path}: {path.stat().st_size} bytes is too big for a map YAML (1 MB at most)")
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise MapError(f"{path}: cannot read the map file ({exc.__class__.__name__})") from None
@@ -388,6 +393,10 @@ def read_image(path: Path) -> np.ndarray:
     if path.suffix.lower() == ".png":
         return _read_png(path)
     try:
+        size = path.stat().st_size
+        if size > MAX_PGM_BYTES:
+            raise MapError(f"{path}: {size} bytes is over the cap for a map image ({MAX_PGM_BYTES} bytes, "
+                           f"{MAX_CELLS} pixels)")
         data = path.read_bytes()
     except OSError as exc:
         raise MapError(f"{path}: cannot read the map image ({exc.__class__.__name__})") from None
