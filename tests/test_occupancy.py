@@ -226,3 +226,14 @@ def test_yaml_comments_and_quotes():
     assert meta == {"image": "a b.pgm", "origin": [1, -2.5, 0]}
     with pytest.raises(MapError, match=r"x\.yaml: line 1"):
         parse_map_yaml("just words\n", "x.yaml")
+
+
+def test_the_example_of_docs_maps_runs():
+    """docs/maps.md's Python block, run as written: the truth scores above a far pose."""
+    from pathlib import Path
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "maps.md").read_text()
+    code = doc.split("```python\n", 1)[1].split("```", 1)[0]
+    scope: dict = {}
+    exec(compile(code, "docs/maps.md", "exec"), scope)
+    assert scope["ranges"].shape == (180,) and scope["ranges"].min() > 0
+    assert scope["log_w"][0] > scope["log_w"][1]
