@@ -246,17 +246,19 @@ EVIL = "raise SystemExit('a scenario made me run code')\n"
 def recording_text(tmp: Path) -> str:
     """A short real recording of ``default`` (written by the Recorder)."""
     from beacon_sim.core.scenario import load_scenario
-    from beacon_sim.core.simulation import Simulation
+    from beacon_sim.runs.live import Session
     from beacon_sim.runs.recorder import Recorder
 
     sc = load_scenario("sparse_kidnap")
     path = tmp / "base.jsonl"
-    with Recorder(path, sc, 3, ["ekf", "pf"], {"pf": {"n_particles": 300}}) as rec:
-        sim = Simulation(sc, 3)
-        for k in range(1, 31):
-            cmds = [{"kind": "reset"}] if k == 10 else []
-            rec.record_tick(k, None, cmds)
-            sim.step()
+    params = {"pf": {"n_particles": 300}}
+    session = Session(sc, ["ekf", "pf"], 3, params, Recorder(path, sc, 3, ["ekf", "pf"], params))
+    session.toggle_autopilot()  # the scenario's driver, as a recorder without a window records
+    for k in range(1, 31):
+        if k == 10:
+            session.command({"kind": "reset"})
+        session.tick()
+    session.close()
     return path.read_text(encoding="utf-8")
 
 
@@ -570,3 +572,208 @@ def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, 
             + mutated_team_scenarios(random.Random(seed + 18), team)
             + [dataclasses.replace(c, name="team-" + c.name)
                for c in bad_recordings(random.Random(seed + 19), team_recording_text(tmp), 20)])
+
+
+# --------------------------------------------------------------------------- issue 24
+#: The front ends that read a scenario file, as command lines (``s.toml`` in the case folder).
+SCENARIO_FRONT_ENDS: list[list[str]] = [
+    ["run", "s.toml", "--duration", "2"],
+    ["play", "s.toml", "--frames", "3", "--no-record", "--autopilot"],
+    ["eval", "s.toml", "--runs", "1", "--jobs", "1", "--duration", "2"],
+    ["check", "ekf", "--scenario", "s.toml"],
+]
+#: The front ends that read a recording (``r.jsonl``): headless and the window.
+RECORDING_FRONT_ENDS: list[list[str]] = [
+    ["replay", "r.jsonl", "--headless"],
+    ["replay", "r.jsonl", "--frames", "3"],
+]
+#: The front ends that read an MRCLAM folder (``m``).
+MRCLAM_FRONT_ENDS: list[list[str]] = [
+    ["mrclam", "m", "--robot", "1", "--headless", "--filter", "ekf", "--filter", "ukf"],
+    ["mrclam", "m", "--robot", "1", "--frames", "3", "--filter", "ekf"],
+    ["mrclam", "m", "--robot", "1", "--calibrate"],
+]
+
+
+def _deep(n: int, open_: str = "[", close: str = "]") -> str:
+    return open_ * n + close * n
+
+
+def issue24_scenarios() -> dict[str, str]:
+    """Scenario texts of issue 24 (each named by what is wrong), and new kinds."""
+    room = _ROOM + _SENSOR
+    big_beacons = ", ".join(f"{{id={i},x=1,y=1}}" for i in range(1_000_000))
+    return {
+        # the issue's
+        "range-std-zero": room + "range_std = 0\n",
+        "blackout-sensors-nested": room + '[[events]]\nkind = "blackout"\ntime = 1\nduration = 1\n'
+                                          "sensors = [[1]]\n",
+        "bounds-millimetres": _ROOM.replace("[0, 0, 10, 8]", "[0, 0, 0.003, 0.003]")
+                              .replace("[5, 4, 0]", "[0.001, 0.001, 0]")
+                              .replace("x = 2, y = 2", "x = 0.002, y = 0.002")
+                              .replace("x = 8, y = 6", "x = 0.001, y = 0.002"),
+        "nested-array-deep": "x = " + _deep(5000) + "\n" + _ROOM,
+        "beacons-million": _ROOM.split("beacons")[0] + f"beacons = [{big_beacons}]\n"
+                           "[robot]\ninitial_pose = [5, 4, 0]\n",
+        "description-50mb": f'description = "{"d" * 50_000_000}"\n' + _ROOM,
+        # new kinds
+        "bearing-std-zero": room + "bearing_std = 0\n",
+        "model-range-std-zero": room + "[model.sensors.b]\nrange_std = 0\n",
+        "position-std-zero": _ROOM + _SENSOR.replace("range_bearing", "position") + "position_std = 0\n",
+        "heading-std-zero": _ROOM + '[[sensors]]\nkind = "compass"\nname = "c"\nheading_std = 0\n',
+        "blackout-sensors-table": room + '[[events]]\nkind = "blackout"\ntime = 1\nduration = 1\n'
+                                         "sensors = [{ a = 1 }]\n",
+        "blackout-sensors-int": room + '[[events]]\nkind = "blackout"\ntime = 1\nduration = 1\n'
+                                       "sensors = 3\n",
+        "nested-table-deep": "x = " + _deep(3000, "{ a = ", " }").replace("{ a =  }", "{ a = 1 }")
+                             + "\n" + _ROOM,
+        "nested-array-500": "x = " + _deep(500) + "\n" + _ROOM,
+        "integer-5000-digits": room + "min_beacons = " + "9" * 5000 + "\n",
+        "seed-5000-digits": "seed = " + "1" * 5000 + "\n" + _ROOM,
+        "bounds-reversed": _ROOM.replace("[0, 0, 10, 8]", "[10, 8, 0, 0]"),
+        "bounds-sliver": _ROOM.replace("[0, 0, 10, 8]", "[0, 0, 10, 1e-6]")
+                              .replace("[5, 4, 0]", "[5, 0, 0]"),
+        "beacons-over-cap": (_ROOM.split("beacons")[0] + "beacons = ["
+                             + ", ".join(f"{{id={i},x=1,y=1}}" for i in range(10_001))
+                             + "]\n[robot]\ninitial_pose = [5, 4, 0]\n"),
+        "events-over-cap": _ROOM + "".join(f'[[events]]\nkind = "kidnap"\ntime = {i}\nrandom = true\n'
+                                           for i in range(10_001)),
+        "long-line-key": room + "k" * 2_000_000 + " = 1\n",
+        "control-characters-name": 'name = "a\\u0000b\\u001b[2J"\n' + room,
+        "range-std-negative-zero": room + "range_std = -0.0\n",
+        "range-std-subnormal": room + "range_std = 5e-324\n",
+        "sensor-name-table": _ROOM + '[[sensors]]\nkind = "range_bearing"\nname = { a = 1 }\n',
+    }
+
+
+def issue24_recordings(base: str) -> dict[str, str]:
+    """Corruptions of a real single-robot recording (issue 24's and new kinds)."""
+    lines = base.splitlines()
+    reset = '"c":[{"kind":"reset"}]'
+    assert reset in base, "the base recording holds a reset"
+
+    def cmd(text: str) -> str:
+        return base.replace(reset, '"c":[' + text + "]")
+
+    def tick_u(u: str, at: int = 5) -> str:
+        out = []
+        for ln in lines:
+            if ln.startswith(f'{{"type":"tick","k":{at},'):
+                obj = json.loads(ln)
+                ln = ln.replace(json.dumps(obj["u"], separators=(",", ":")), u, 1)
+            out.append(ln)
+        return "\n".join(out) + "\n"
+
+    deep = _deep(100_000)
+    return {
+        # the issue's
+        "kidnap-pose-dict": cmd('{"kind":"kidnap","pose":{"x":1,"y":2,"theta":0}}'),
+        "kidnap-pose-int": cmd('{"kind":"kidnap","pose":3}'),
+        "kidnap-pose-strings": cmd('{"kind":"kidnap","pose":["1","2","3"]}'),
+        "toggle-list": cmd('{"kind":"toggle","filter":["ekf"]}'),
+        "toggle-dict": cmd('{"kind":"toggle","filter":{"a":1}}'),
+        "kidnap-pose-nan": cmd('{"kind":"kidnap","pose":[NaN,1,1]}'),
+        "integer-5000-digits": tick_u("[" + "9" * 5000 + ",0]"),
+        "nested-line": "\n".join([*lines[:5], '{"type":"tick","x":' + deep + "}", *lines[5:]]) + "\n",
+        "nested-last-line": base + '{"type":"tick","x":' + deep + "}\n",
+        "control-nan": tick_u("[NaN,0]"),
+        "control-inf": tick_u("[Infinity,0]"),
+        "control-huge": tick_u("[1e308,0]"),
+        # new kinds
+        "control-omega-nan": tick_u("[0.1,NaN]"),
+        "control-neg-inf": tick_u("[-Infinity,0]"),
+        "control-over-speed": tick_u("[1000.0,0]"),
+        "control-strings": tick_u('["0.1","0"]'),
+        "control-bool": tick_u("[true,false]"),
+        "kidnap-pose-inf": cmd('{"kind":"kidnap","pose":[1,Infinity,0]}'),
+        "kidnap-pose-bools": cmd('{"kind":"kidnap","pose":[true,false,true]}'),
+        "kidnap-pose-outside": cmd('{"kind":"kidnap","pose":[1e6,1e6,0]}'),
+        "kidnap-theta-huge": cmd('{"kind":"kidnap","pose":[1,1,1e300]}'),
+        "kidnap-pose-null": cmd('{"kind":"kidnap","pose":null}'),
+        "toggle-number": cmd('{"kind":"toggle","filter":5}'),
+        "toggle-unknown": cmd('{"kind":"toggle","filter":"nosuch"}'),
+        "commands-many": cmd(",".join(['{"kind":"reset"}'] * 5000)),
+        "tick-k-float": base.replace('"k":5,', '"k":5.0,', 1),
+        "tick-k-huge": base.replace('"k":5,', '"k":' + "9" * 400 + ",", 1),
+        "seed-5000-digits": "\n".join([lines[0].replace('"seed":3', '"seed":' + "1" * 5000),
+                                       *lines[1:]]) + "\n",
+        "header-nested-params": "\n".join(
+            [lines[0].replace('"params":{', '"params":{"deep":' + deep + ",", 1), *lines[1:]]) + "\n",
+        "line-too-long": "\n".join([*lines[:3], '{"type":"tick","pad":"' + "x" * 20_000_000 + '"}',
+                                    *lines[3:]]) + "\n",
+        "bom-header": "\ufeff" + base,
+        "crlf-lines": base.replace("\n", "\r\n"),
+        "dt-nan": "\n".join([lines[0].replace('"dt":0.1', '"dt":NaN'), *lines[1:]]) + "\n",
+        "checkpoint-k-negative": base.replace('{"type":"checkpoint","k":10',
+                                              '{"type":"checkpoint","k":-10', 1),
+        "checksum-number": base.replace('"h":"', '"h":1,"hh":"', 1),
+        "filters-many": "\n".join([lines[0].replace('"filters":["ekf","pf"]',
+                                                    '"filters":[' + ",".join(['"ekf"'] * 100_000) + "]"),
+                                   *lines[1:]]) + "\n",
+        "duplicate-keys": base.replace('{"type":"tick","k":5,', '{"type":"tick","k":5,"k":6,', 1),
+    }
+
+
+def issue24_mrclam(rng: random.Random) -> dict[str, dict[str, str]]:
+    """MRCLAM folders with the issue's bad data (a landmark or a range of 1e308) and new kinds."""
+    def folder(edit) -> dict[str, str]:
+        files = mrclam_folder(random.Random(0), "none")
+        edit(files)
+        return files
+
+    def set_row(name: str, j: int, row: str):
+        def edit(files: dict[str, str]) -> None:
+            rows = files[name].split("\r\n")
+            rows[j] = row
+            files[name] = "\r\n".join(rows)
+        return edit
+
+    def first_measurement(row_of):
+        def edit(files: dict[str, str]) -> None:
+            rows = files["Robot1_Measurement.dat"].split("\r\n")
+            t = rows[3].split()[0]
+            rows[3] = row_of(t)
+            files["Robot1_Measurement.dat"] = "\r\n".join(rows)
+        return edit
+
+    return {
+        "landmark-x-huge": folder(set_row("Landmark_Groundtruth.dat", 0, "6 \t 1e308 \t 1 \t 0 \t 0")),
+        "landmark-y-negative-huge": folder(set_row("Landmark_Groundtruth.dat", 1,
+                                                   "7 \t 4 \t -1e308 \t 0 \t 0")),
+        "landmark-x-far": folder(set_row("Landmark_Groundtruth.dat", 2, "8 \t 1e7 \t 4 \t 0 \t 0")),
+        "range-huge": folder(first_measurement(lambda t: f"{t} \t 27 \t 1e308 \t 0.1")),
+        "range-negative": folder(first_measurement(lambda t: f"{t} \t 27 \t -2 \t 0.1")),
+        "bearing-huge": folder(first_measurement(lambda t: f"{t} \t 27 \t 2 \t 1e308")),
+        "barcode-5000-digits": folder(first_measurement(lambda t: f"{t} \t {'9' * 5000} \t 2 \t 0.1")),
+        "odometry-v-huge": folder(set_row("Robot1_Odometry.dat", 5, "1248272272.891 \t 1e308 \t 0")),
+        "odometry-omega-huge": folder(set_row("Robot1_Odometry.dat", 5, "1248272272.891 \t 0.1 \t 1e300")),
+        "truth-x-huge": folder(set_row("Robot1_Groundtruth.dat", 5, "1248272272.891 \t 1e308 \t 2 \t 0")),
+        "long-line": folder(set_row("Robot1_Odometry.dat", 5, "1" * 5_000_000)),
+        "landmark-id-huge": folder(set_row("Landmark_Groundtruth.dat", 3, "9" * 30 + " \t 1 \t 4 \t 0 \t 0")),
+    }
+
+
+def issue24_cases(tmp: Path) -> list[Case]:
+    """Issue 24's inputs that ended in a traceback, and new kinds, each through every front
+    end that reads it (scenarios: run, play, eval, check; recordings: replay headless and
+    window; MRCLAM: mrclam headless, window, calibrate); the duration and the ``recordings``
+    folder on the command line."""
+    cases = []
+    for name, text in issue24_scenarios().items():
+        for argv in SCENARIO_FRONT_ENDS:
+            cases.append(Case(f"i24-scenario-{name}-{argv[0]}", list(argv), {"s.toml": text}))
+    for name, text in issue24_recordings(recording_text(tmp)).items():
+        for argv in RECORDING_FRONT_ENDS:
+            where = "headless" if "--headless" in argv else "window"
+            cases.append(Case(f"i24-recording-{name}-{where}", list(argv), {"r.jsonl": text}))
+    for name, files in issue24_mrclam(random.Random(24)).items():
+        for argv in MRCLAM_FRONT_ENDS:
+            cases.append(Case(f"i24-mrclam-{name}-{argv[4].lstrip('-')}", list(argv),
+                              {f"m/{k}": v for k, v in files.items()}))
+    for cmd in (["run", "default"], ["eval", "default", "--runs", "1"], ["play", "default", "--frames", "2"],
+                ["mrclam", "m", "--robot", "1", "--headless"]):
+        for d in ("1e308", "1e300", "9" * 400, "1e19"):
+            cases.append(Case(f"i24-duration-{d[:6]}-{cmd[0]}", [*cmd, "--duration", d],
+                              {f"m/{k}": v for k, v in mrclam_folder(random.Random(0), "none").items()}
+                              if cmd[0] == "mrclam" else {}))
+    return cases

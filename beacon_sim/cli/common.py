@@ -48,7 +48,11 @@ def check_duration(duration: float | None, scenario: Scenario | None = None) -> 
     if duration is not None and not (duration > 0 and math.isfinite(duration)):
         raise UsageError(f"--duration {duration}: expected a positive number of seconds")
     if duration is not None and scenario is not None:
-        ticks = round(duration / scenario.dt)
+        ratio = duration / scenario.dt  # a float: 1e308 / 0.1 is inf, never rounded to an int
+        if ratio > MAX_TICKS + 0.5:
+            raise UsageError(f"--duration {duration:g}: over {MAX_TICKS:,} ticks of "
+                             f"{scenario.dt:g} s (at most {MAX_TICKS * scenario.dt:g} s)")
+        ticks = round(ratio)
         if ticks < 1:
             raise UsageError(f"--duration {duration:g}: shorter than one tick of {scenario.dt:g} s")
         if ticks > MAX_TICKS:
