@@ -391,6 +391,7 @@ class FileParts:
     settings_line: int = 0
     estimates: dict[int, dict[str, Any]] = field(default_factory=dict)  # tick -> line
     signature: str = "not signed"
+    signature_error: str | None = None  # a signature line that does not match (names it)
 
 
 @dataclass
@@ -666,9 +667,12 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
             mac = obj.get("hmac")
             if signer is not None:
                 if not (isinstance(mac, str) and hmac.compare_digest(mac, signer.hexdigest())):
-                    raise _fail(path, n, f"signature does not match: the lines before it were changed "
-                                         f"after they were written, or signed with another key than "
-                                         f"{KEY_VARIABLE}'s")
+                    # reported by the replay after its own checks (which name the field)
+                    parts.signature_error = (
+                        f"{path}:{n}: signature does not match: the lines before it were changed "
+                        f"after they were written, or signed with another key than {KEY_VARIABLE}'s")
+                    signer = None
+                    continue
                 signed_to = n
                 signer.add(text)
             continue
@@ -703,7 +707,8 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
     if end is None:
         notes.append(f"{path}: no end line (the run was interrupted); replaying the "
                      f"{len(ticks)} complete ticks")
-    parts.signature = _signature_status(header, key, signed_to, last_line(lines))
+    parts.signature = "signature does not match" if parts.signature_error else \
+        _signature_status(header, key, signed_to, last_line(lines))
     return header, ticks, checkpoints, end, notes, parts
 
 

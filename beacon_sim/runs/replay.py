@@ -153,7 +153,10 @@ def settings_compared(recording: Recording | TeamRecording, specs: list[str],
 
 def with_signature(status: str, recording: Recording | TeamRecording) -> str:
     """The status with what the signature proved ("signed and verified" in place of
-    "verified" when the HMAC matched; "not signed" when a key was given)."""
+    "verified" when the HMAC matched; "not signed" when a key was given). A signature that
+    does not match raises ReplayMismatch (after the replay's own checks, which name a field)."""
+    if recording.parts.signature_error:
+        raise ReplayMismatch(recording.parts.signature_error)
     sig = recording.parts.signature
     if sig == "signed and verified" and status.startswith("verified"):
         return "signed and " + status
@@ -359,6 +362,8 @@ class ReplaySession(Session):
         why = self.verifier.check_settings()
         if why is not None and self.mismatch is None:
             self.mismatch = f"{self.recording.path}:{self.recording.parts.settings_line}: {why}"
+        if self.mismatch is None and self.recording.parts.signature_error:
+            self.mismatch = self.recording.parts.signature_error
 
     @property
     def total_ticks(self) -> int:
@@ -435,7 +440,9 @@ def session_status(session: Any, truth: str, readings: str) -> str:
     end = rec.end
     if session.at_end and end is not None:
         if end["checksum"] != truth or end.get("readings_checksum", readings) != readings:
-            return "MISMATCH with the end line's checksum"
+            session.mismatch = (f"{rec.path}: replay differs from the recording at its end "
+                                f"(checked against the final checksum)")
+            return f"MISMATCH: {session.mismatch}"
         if "estimates" in end:
             why = session.verifier.compare_line(
                 session.sim.tick, {"digests": end["estimates"], "notes": end.get("notes", {})})
@@ -444,5 +451,9 @@ def session_status(session: Any, truth: str, readings: str) -> str:
                 return f"MISMATCH: {session.mismatch}"
     status = verification_status(rec, session._checked, session.sim.tick, session.at_end,
                                  coverage=session.verifier.coverage())
-    status = with_signature(status, rec)
+    try:
+        status = with_signature(status, rec)
+    except ReplayMismatch as exc:
+        session.mismatch = str(exc)
+        return f"MISMATCH: {session.mismatch}"
     return status if session.at_end else f"{status} (up to tick {session.sim.tick})"

@@ -217,6 +217,8 @@ class TeamReplaySession(TeamSession):
         why = self.verifier.check_settings()
         if why is not None:
             self.mismatch = f"{self.recording.path}:{self.recording.parts.settings_line}: {why}"
+        elif self.recording.parts.signature_error:
+            self.mismatch = self.recording.parts.signature_error
 
     def _apply_recorded_driving(self) -> None:
         """Who the next recorded tick drives (the panel shows it)."""
