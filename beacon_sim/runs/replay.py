@@ -144,11 +144,13 @@ def settings_error(recording: Recording | TeamRecording, why: str) -> ReplayMism
 
 
 def settings_compared(recording: Recording | TeamRecording, specs: list[str],
-                      recorded_specs: list[str], params: dict[str, dict[str, Any]] | None) -> bool:
-    """Whether a replay runs exactly the recorded filters with the recorded parameters (so
-    their settings and estimates can be compared with the file's)."""
+                      recorded_specs: list[str], used: dict[str, dict[str, Any]]) -> bool:
+    """Whether a replay runs exactly the recorded filters with the recorded parameters
+    (``used``: the parameters it builds them with), so that their settings and estimates
+    can be compared with the file's."""
+    clean = {k: v for k, v in used.items() if v}
     return list(specs) == list(recorded_specs) \
-        and recorded_params(recording, params) == recording.params
+        and clean == {k: v for k, v in recording.params.items() if v}
 
 
 def with_signature(status: str, recording: Recording | TeamRecording) -> str:
@@ -214,13 +216,14 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     :class:`ReplayMismatch` naming the first tick (or line) and the field that differs.
     """
     specs, skipped = recorded_filter_specs(recording, filters)
-    built, broken = build_filters(specs, recording, recorded_params(recording, params))
+    used = recorded_params(recording, params)
+    built, broken = build_filters(specs, recording, used)
     runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
     for name, (why, tb) in broken.items():
         runner.tracks[name].failed, runner.tracks[name].traceback = why, tb
     verifier = FilterVerifier(
         recording, runner.tracks,
-        settings_compared(recording, specs, recorded_filter_specs(recording, None)[0], params),
+        settings_compared(recording, specs, recorded_filter_specs(recording, None)[0], used),
         filter_names(skipped) if skipped else [])
     if verify:
         why = verifier.check_settings()

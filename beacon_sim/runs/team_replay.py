@@ -122,8 +122,9 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
     recorded parameters (``params``, from ``--set``, on top). Raises
     :class:`~beacon_sim.runs.replay.ReplayMismatch` naming the first tick that differs."""
     specs, skipped = recorded_team_specs(recording, filters)
-    runner = _build_runner(recording, specs, recorded_params(recording, params))
-    verifier = team_verifier(recording, runner, specs, params)
+    used = recorded_params(recording, params)
+    runner = _build_runner(recording, specs, used)
+    verifier = team_verifier(recording, runner, specs, used)
     if verify:
         why = verifier.check_settings()
         if why is not None:
@@ -186,11 +187,12 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
 
 
 def team_verifier(recording: TeamRecording, runner: TeamFilterRunner, specs: list[str],
-                  params: dict[str, dict[str, Any]] | None) -> FilterVerifier:
-    """The filter settings and estimates check of a team replay (runs/replay.FilterVerifier)."""
+                  used: dict[str, dict[str, Any]]) -> FilterVerifier:
+    """The filter settings and estimates check of a team replay (runs/replay.FilterVerifier;
+    ``used``: the parameters the replay built the team filters with)."""
     recorded, skipped = recorded_team_specs(recording, None)
     return FilterVerifier(recording, runner.tracks,
-                          settings_compared(recording, specs, recorded, params),
+                          settings_compared(recording, specs, recorded, used),
                           [team_filter_name(s) for s in skipped])
 
 
