@@ -89,11 +89,15 @@ def test_version_1_replays_verified_for_the_truth_only(recorded, tmp_path):
 
 
 def test_no_checksums_is_not_verified(recorded, tmp_path):
+    def v2(h):  # (a version 3 file without its checkpoint lines is refused as edited)
+        h["version"] = 2
+        h["scenario_sha256"] = h["scenario_sha256"][:16]
+
     def strip(obj):
         obj.pop("h", None)
         obj.pop("r", None)
         return obj["type"] == "tick"
-    bare = _rewrite(recorded, tmp_path / "bare.jsonl", line=strip)
+    bare = _rewrite(recorded, tmp_path / "bare.jsonl", v2, line=strip)
     status = replay_recording(load_recording(bare)).extra["replay"]["checksum_status"]
     assert status.startswith("not verified")
 

@@ -117,7 +117,7 @@ def test_the_effective_parameters_come_from_the_built_filter(tmp_path):
     ("digest", "the estimates of filter dead_reckoning"),
     ("end-digest", "the estimates of filter ekf (their digest after tick 60) at the end"),
     ("estimates-extra-filter", "filter 'pf' of the estimates line is not among"),
-])
+])  # (an edit of the checkpoint or estimates lines' order: test_a_moved_checkpoint_is_an_edit)
 def test_an_edited_recording_is_never_verified_and_the_field_is_named(recorded, tmp_path, edit, field):
     path, _ = recorded
     objs = objects(path)
@@ -147,6 +147,19 @@ def test_an_edited_recording_is_never_verified_and_the_field_is_named(recorded, 
     s = ReplaySession(rec, recorded_filter_specs(rec, None)[0], recorded_params(rec, None))
     s.seek(s.total_ticks)
     assert s.checksum_status().startswith("MISMATCH") and field.split(" (")[0] in s.mismatch
+
+
+@pytest.mark.parametrize("edit", ["drop-checkpoint", "drop-estimates", "move-checkpoint"])
+def test_a_moved_or_removed_checkpoint_is_an_edit(recorded, tmp_path, edit):
+    objs = objects(recorded[0])
+    i = next(i for i, o in enumerate(objs) if o["type"] == ("estimates" if "estimates" in edit
+                                                             else "checkpoint"))
+    if edit.startswith("drop"):
+        del objs[i]
+    else:
+        objs[i]["k"] -= 1
+    with pytest.raises(RecordingError, match=r"was the file edited|after the line of tick"):
+        load_recording(write(tmp_path / "e.jsonl", objs))
 
 
 def test_a_16_digit_scenario_checksum_in_version_3_is_an_edit(recorded, tmp_path):
@@ -275,7 +288,7 @@ def test_a_team_recording_stores_settings_and_an_edit_is_named(tmp_path):
     assert objs[1]["type"] == "filters" and set(objs[1]["filters"]) == set(specs)
     assert replay_team_recording(load_team_recording(path)).replay["checksum_status"] == "verified"
     objs[0]["params"] = {"centralised": {"gate_chi2": 1.0}}
-    with pytest.raises(ReplayMismatch, match="centralised.gate_chi2"):
+    with pytest.raises(ReplayMismatch, match=r"centralised\.gate_chi2"):
         replay_team_recording(load_team_recording(write(tmp_path / "e.jsonl", objs)))
 
 

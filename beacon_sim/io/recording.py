@@ -685,11 +685,17 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
         elif kind == "checkpoint":
             if type(obj.get("k")) is not int or not _state_line_ok(obj, team):
                 raise _fail(path, n, "malformed checkpoint line")
+            if header["version"] >= 3 and (not ticks or obj["k"] != ticks[-1].tick):
+                raise _fail(path, n, f"checkpoint of tick {obj['k']} after the line of tick "
+                                     f"{ticks[-1].tick if ticks else 0}")
             checkpoints[obj["k"]] = obj
-        elif kind == "estimates" and header is not None and header["version"] >= 3:
+        elif kind == "estimates" and header["version"] >= 3:
             if type(obj.get("k")) is not int or not _digests_ok(obj.get("digests")) \
                     or not _state_line_ok({"checksum": "", **obj, "estimates": {}}, False):
                 raise _fail(path, n, "malformed estimates line")
+            if not ticks or obj["k"] != ticks[-1].tick or obj["k"] in parts.estimates:
+                raise _fail(path, n, f"estimates of tick {obj['k']} after the line of tick "
+                                     f"{ticks[-1].tick if ticks else 0}")
             parts.estimates[obj["k"]] = {**obj, "line": n}
         elif kind == "filters" and header is not None and header["version"] >= 3 \
                 and parts.settings is None and not ticks:
@@ -704,12 +710,32 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
             raise _fail(path, n, f"unknown line type {_short(kind)}")
     if header is None:
         raise _fail(path, 1, "corrupted header (missing)")
+    if header["version"] >= 3:
+        _check_every_checkpoint(path, header, ticks, checkpoints, parts, end is not None)
     if end is None:
         notes.append(f"{path}: no end line (the run was interrupted); replaying the "
                      f"{len(ticks)} complete ticks")
     parts.signature = "signature does not match" if parts.signature_error else \
         _signature_status(header, key, signed_to, last_line(lines))
     return header, ticks, checkpoints, end, notes, parts
+
+
+def _check_every_checkpoint(path: Path, header: dict[str, Any], ticks: list[Any],
+                            checkpoints: dict[int, Any], parts: FileParts, ended: bool) -> None:
+    """A version 3 file holds a checkpoint (and, with a filters line, an estimates line)
+    after every ``checkpoint_every``-th tick: one removed or moved is an edit. A killed
+    run's file may lack the last one."""
+    every = header.get("checkpoint_every")
+    if type(every) is not int or every < 1:
+        raise _fail(path, 1, f"corrupted header: checkpoint_every = {_short(every)}")
+    last = ticks[-1].tick if ticks else 0
+    due = set(range(every, last + 1, every))
+    for what, got in [("checkpoint", set(checkpoints)),
+                      *([("estimates", set(parts.estimates))] if parts.settings is not None else [])]:
+        missing = sorted(due - got - (set() if ended else {max(due, default=0)}))
+        if missing:
+            raise _fail(path, 1, f"no {what} line after tick {missing[0]} (one every "
+                                 f"{every} ticks): was the file edited?")
 
 
 def last_line(lines: list[tuple[int, str, bool]]) -> int:

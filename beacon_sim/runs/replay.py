@@ -311,6 +311,8 @@ def verification_status(recording: Recording | TeamRecording, checked: int, tick
     alone means truth, readings, filter settings and estimates all matched."""
     if coverage is None:
         coverage = FilterVerifier(recording, {}, False, []).coverage()
+    if not ticks and not at_end:
+        return "nothing checked yet (no tick replayed)"
     end = recording.end
     if at_end and end is not None and (recording.version < 2 or "readings_checksum" in end):
         return "verified" + coverage
