@@ -714,6 +714,34 @@ def issue24_recordings(base: str) -> dict[str, str]:
     }
 
 
+def issue24_team_recordings(base: str) -> dict[str, str]:
+    """The same kinds on a real team recording (its kidnap of robot 1 replaced)."""
+    kidnap = '"c":[{"kind":"kidnap","robot":1}]'
+    assert kidnap in base, "the base team recording holds a kidnap"
+
+    def cmd(text: str) -> str:
+        return base.replace(kidnap, '"c":[' + text + "]")
+
+    line5 = '{"type":"tick","k":5,"d":0,"u":[0.1,0.0]'
+    assert line5 in base, "the base team recording drives robot 0 at 0.1 m/s on tick 5"
+
+    def tick(new: str) -> str:
+        return base.replace(line5, '{"type":"tick","k":5,' + new, 1)
+
+    return {
+        "team-kidnap-pose-dict": cmd('{"kind":"kidnap","robot":1,"pose":{"x":1}}'),
+        "team-kidnap-pose-nan": cmd('{"kind":"kidnap","robot":1,"pose":[NaN,1,1]}'),
+        "team-kidnap-pose-strings": cmd('{"kind":"kidnap","robot":1,"pose":["1","2","3"]}'),
+        "team-kidnap-robot-float": cmd('{"kind":"kidnap","robot":1.0}'),
+        "team-kidnap-robot-huge": cmd('{"kind":"kidnap","robot":' + "9" * 30 + "}"),
+        "team-toggle-list": cmd('{"kind":"toggle","filter":["ci"]}'),
+        "team-control-nan": tick('"d":0,"u":[NaN,0.0]'),
+        "team-control-huge": tick('"d":0,"u":[1e308,0.0]'),
+        "team-driven-huge": tick('"d":' + "9" * 5000 + ',"u":[0.1,0.0]'),
+        "team-nested-last-line": base + '{"type":"tick","x":' + _deep(100_000) + "}\n",
+    }
+
+
 def issue24_mrclam(rng: random.Random) -> dict[str, dict[str, str]]:
     """MRCLAM folders with the issue's bad data (a landmark or a range of 1e308) and new kinds."""
     def folder(edit) -> dict[str, str]:
@@ -762,7 +790,8 @@ def issue24_cases(tmp: Path) -> list[Case]:
     for name, text in issue24_scenarios().items():
         for argv in SCENARIO_FRONT_ENDS:
             cases.append(Case(f"i24-scenario-{name}-{argv[0]}", list(argv), {"s.toml": text}))
-    for name, text in issue24_recordings(recording_text(tmp)).items():
+    for name, text in {**issue24_recordings(recording_text(tmp)),
+                       **issue24_team_recordings(team_recording_text(tmp))}.items():
         for argv in RECORDING_FRONT_ENDS:
             where = "headless" if "--headless" in argv else "window"
             cases.append(Case(f"i24-recording-{name}-{where}", list(argv), {"r.jsonl": text}))
@@ -777,3 +806,73 @@ def issue24_cases(tmp: Path) -> list[Case]:
                               {f"m/{k}": v for k, v in mrclam_folder(random.Random(0), "none").items()}
                               if cmd[0] == "mrclam" else {}))
     return cases
+
+
+#: Issue 24's kinds (and some new ones) that must be refused: exit 2 and this in the one
+#: line on stderr (the file, the key or line, what was expected). Keyed by the case's kind.
+ISSUE24_REFUSED: dict[str, str] = {
+    "scenario-range-std-zero": "s.toml: sensors[0].range_std = 0: expected a number in [1e-06",
+    "scenario-bearing-std-zero": "sensors[0].bearing_std = 0: expected",
+    "scenario-model-range-std-zero": "model.sensors.b.range_std = 0: expected",
+    "scenario-position-std-zero": "sensors[0].position_std = 0: expected",
+    "scenario-heading-std-zero": "sensors[0].heading_std = 0: expected",
+    "scenario-range-std-negative-zero": "range_std = -0.0: expected",
+    "scenario-range-std-subnormal": "range_std = 5e-324: expected",
+    "scenario-blackout-sensors-nested": "events[0].sensors = [[1]]: expected a list of sensor names",
+    "scenario-blackout-sensors-table": "events[0].sensors",
+    "scenario-bounds-millimetres": "world.bounds",
+    "scenario-bounds-sliver": "world.bounds",
+    "scenario-nested-array-deep": "nested too deep",
+    "scenario-nested-table-deep": "nested too deep",
+    "scenario-nested-array-500": "nested too deep",
+    "scenario-beacons-million": "bytes: a scenario file holds at most",
+    "scenario-description-over-cap": "bytes: a scenario file holds at most",
+    "scenario-beacons-over-cap": "world.beacons",
+    "scenario-events-over-cap": "at most 10,000 events",
+    "scenario-integer-5000-digits": "s.toml: not valid TOML",
+    "scenario-seed-5000-digits": "s.toml: not valid TOML",
+    "recording-kidnap-pose-dict": "r.jsonl:12: kidnap pose",
+    "recording-kidnap-pose-int": "r.jsonl:12: kidnap pose 3",
+    "recording-kidnap-pose-strings": "r.jsonl:12: kidnap pose",
+    "recording-kidnap-pose-nan": "r.jsonl:12: kidnap pose [nan",
+    "recording-kidnap-pose-inf": "r.jsonl:12: kidnap pose",
+    "recording-kidnap-theta-huge": "r.jsonl:12: kidnap pose",
+    "recording-toggle-list": "r.jsonl:12: toggle of ['ekf']",
+    "recording-toggle-dict": "r.jsonl:12: toggle of",
+    "recording-integer-5000-digits": "r.jsonl:7: not a usable number",
+    "recording-nested-line": "r.jsonl:6: nested too deep",
+    "recording-nested-last-line": "nested too deep",
+    "recording-control-nan": "r.jsonl:7: control u = [nan, 0]",
+    "recording-control-inf": "r.jsonl:7: control u = [inf, 0]",
+    "recording-control-huge": "r.jsonl:7: control u = [1e+308, 0]",
+    "recording-control-omega-nan": "r.jsonl:7: control u",
+    "recording-control-over-speed": "r.jsonl:7: control u",
+    "recording-commands-many": "user commands on one tick",
+    "recording-line-too-long": "r.jsonl:4: a line longer than",
+    "recording-header-nested-params": "r.jsonl:1: nested too deep",
+    "recording-filters-many": "r.jsonl:1: corrupted header",
+    "recording-checkpoint-k-negative": "checkpoint of tick -10",
+    "recording-team-kidnap-pose-dict": "kidnap pose",
+    "recording-team-kidnap-pose-nan": "kidnap pose [nan",
+    "recording-team-kidnap-robot-float": "kidnap of robot 1.0",
+    "recording-team-toggle-list": "toggle of ['ci']",
+    "recording-team-control-nan": "control u = [nan",
+    "recording-team-control-huge": "control u = [1e+308",
+    "recording-team-driven-huge": "not a usable number",
+    "mrclam-landmark-x-huge": "Landmark_Groundtruth.dat:1: bad data: x = 1e+308",
+    "mrclam-landmark-y-negative-huge": "bad data: y = -1e+308",
+    "mrclam-range-huge": "Robot1_Measurement.dat:4: bad data: range = 1e+308",
+    "mrclam-range-negative": "bad data: range = -2",
+    "mrclam-odometry-v-huge": "bad data: v = 1e+308",
+    "mrclam-truth-x-huge": "Robot1_Groundtruth.dat:6: bad data: x",
+    "duration-1e308-run": "--duration 1e+308: over 1,000,000 ticks",
+    "duration-1e308-eval": "--duration 1e+308: over 1,000,000 ticks",
+}
+
+
+def case_kind(case: Case) -> str:
+    """The kind of an issue-24 case (its name without ``i24-`` and the front end)."""
+    name = case.name.removeprefix("i24-")
+    if name.startswith("duration-"):
+        return name
+    return name.rsplit("-", 1)[0]
