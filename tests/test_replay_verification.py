@@ -5,10 +5,12 @@ signs the file; two sessions never write one file; the window shows a mismatch."
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import hashlib
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -179,6 +181,26 @@ def test_other_filters_or_set_are_verified_for_truth_and_readings_only(recorded,
     assert status.startswith("verified: truth and readings; other filters")
     # the recorded filters named explicitly, in order: everything is compared
     assert replay_recording(rec, list(FILTERS)).extra["replay"]["checksum_status"] == "verified"
+
+
+def test_filters_switched_off_or_reloaded_live_are_listed_not_compared(tmp_path):
+    """A filter the window switched off (e.g. over its time limit) or reloaded live cannot
+    be compared after that: the status lists it instead of claiming it, or of a mismatch."""
+    sc = load_scenario("default")
+    path = tmp_path / "r.jsonl"
+    s = Session(sc, FILTERS, 1, {}, Recorder(path, sc, 1, FILTERS, {}))
+    s.toggle_autopilot()
+    for k in range(1, 61):
+        if k == 25:  # a hot reload installs a new track
+            s.runner.tracks["ekf"] = dataclasses.replace(s.runner.tracks["ekf"])
+        if k == 40:
+            s.runner.fail("dead_reckoning", "time limit: a step took over 0.5 s", "", s.sim.time)
+        s.tick()
+    s.close()
+    status = status_of(path)
+    assert re.fullmatch(r"verified except: dead_reckoning: switched off live at tick \d+: time limit: "
+                        r"a step took over 0.5 s; ekf: reloaded live at tick \d+: its estimates are "
+                        r"not compared", status), status
 
 
 def test_a_file_without_filter_settings_says_so(tmp_path):
