@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import enum
+import hashlib
 import math
 import os
 import re
@@ -120,8 +121,9 @@ MIN_WORLD_SIDE: Final = 0.1
 
 # Caps on the input itself, checked before parsing (docs/scenarios.md, "Caps"); each can be
 # raised with the environment variable ``BEACON_SIM_MAX_<NAME>`` (a whole number).
-#: Largest scenario file [bytes] (10,000 beacons and 10,000 events take under 1 MiB).
-MAX_SCENARIO_BYTES: Final = 4 * 2**20
+#: Largest scenario file [bytes] (10,000 beacons and 10,000 events take under 1 MiB; a
+#: file of this size parses in about a second).
+MAX_SCENARIO_BYTES: Final = 2 * 2**20
 #: Deepest nesting of arrays and tables in a scenario or a recording line (the shipped
 #: files nest at most 5 deep).
 MAX_NESTING: Final = 32
@@ -195,19 +197,29 @@ def parse_toml_text(text: str, file: str) -> dict[str, Any]:
     return data
 
 
+#: The last document read (key: path and the SHA-256 of its text), so that telling a team
+#: file from a single-robot one and then loading it parses the file once.
+_last_read: list[Any] = [None, None]
+
+
 def read_toml(path: Path) -> dict[str, Any]:
     """A scenario file's TOML document: its size checked first (``MAX_SCENARIO_BYTES``),
-    then decoded and checked (ScenarioError, one line)."""
+    then decoded and checked (ScenarioError, one line). Callers do not modify it."""
     cap = env_limit("SCENARIO_BYTES", MAX_SCENARIO_BYTES)
     try:
-        size = path.stat().st_size
-        if size > cap:
-            raise ScenarioError(f"{path}: {size:,} bytes: a scenario file holds at most {cap:,} "
-                                f"(BEACON_SIM_MAX_SCENARIO_BYTES raises the cap)")
+        st = path.stat()
+        if st.st_size > cap:
+            raise ScenarioError(f"{path}: {st.st_size:,} bytes: a scenario file holds at most "
+                                f"{cap:,} (BEACON_SIM_MAX_SCENARIO_BYTES raises the cap)")
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
-    return parse_toml_text(text, str(path))
+    key = (str(path), hashlib.sha256(text.encode("utf-8")).digest())
+    if _last_read[0] == key:
+        return _last_read[1]
+    data = parse_toml_text(text, str(path))
+    _last_read[:] = [key, data]
+    return data
 
 Vec3 = tuple[float, float, float]
 Vec4 = tuple[float, float, float, float]

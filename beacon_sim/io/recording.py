@@ -102,7 +102,7 @@ KEY_VARIABLE = "BEACON_SIM_RECORDING_KEY"
 # raised with the environment variable BEACON_SIM_MAX_<NAME>.
 #: Largest recording file [bytes] (a 10^6-tick run writes about 120 MB).
 MAX_RECORDING_BYTES = 2**30
-#: Longest line [characters] (the header holds the scenario, at most 4 MiB).
+#: Longest line [characters] (the header holds the scenario, at most 2 MiB).
 MAX_LINE_CHARS = 16 * 2**20
 #: Most user commands on one tick (the window queues a few per frame).
 MAX_COMMANDS = 100
