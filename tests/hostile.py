@@ -582,10 +582,12 @@ SCENARIO_FRONT_ENDS: list[list[str]] = [
     ["eval", "s.toml", "--runs", "1", "--jobs", "1", "--duration", "2"],
     ["check", "ekf", "--scenario", "s.toml"],
 ]
-#: The front ends that read a recording (``r.jsonl``): headless and the window.
+#: The front ends that read a recording (``r.jsonl``): replay headless and in the window,
+#: and export.
 RECORDING_FRONT_ENDS: list[list[str]] = [
     ["replay", "r.jsonl", "--headless"],
     ["replay", "r.jsonl", "--frames", "3"],
+    ["export", "r.jsonl", "--out", "r.npz"],
 ]
 #: The front ends that read an MRCLAM folder (``m``).
 MRCLAM_FRONT_ENDS: list[list[str]] = [
@@ -783,9 +785,9 @@ def issue24_mrclam(rng: random.Random) -> dict[str, dict[str, str]]:
 
 def issue24_cases(tmp: Path) -> list[Case]:
     """Issue 24's inputs that ended in a traceback, and new kinds, each through every front
-    end that reads it (scenarios: run, play, eval, check; recordings: replay headless and
-    window; MRCLAM: mrclam headless, window, calibrate); the duration and the ``recordings``
-    folder on the command line."""
+    end that reads it (scenarios: run, play, eval, check; recordings: replay headless, in
+    the window, export; MRCLAM: mrclam headless, window, calibrate); ``--duration`` in run,
+    eval and mrclam. (A ``recordings`` that is not a folder: tests/test_replay_verification.py.)"""
     cases = []
     for name, text in issue24_scenarios().items():
         for argv in SCENARIO_FRONT_ENDS:
@@ -793,7 +795,8 @@ def issue24_cases(tmp: Path) -> list[Case]:
     for name, text in {**issue24_recordings(recording_text(tmp)),
                        **issue24_team_recordings(team_recording_text(tmp))}.items():
         for argv in RECORDING_FRONT_ENDS:
-            where = "headless" if "--headless" in argv else "window"
+            where = "headless" if "--headless" in argv else "export" if argv[0] == "export" \
+                else "window"
             cases.append(Case(f"i24-recording-{name}-{where}", list(argv), {"r.jsonl": text}))
     for name, files in issue24_mrclam(random.Random(24)).items():
         for argv in MRCLAM_FRONT_ENDS:
