@@ -1,7 +1,28 @@
 """Test-wide settings: pygame renders off-screen and makes no sound."""
 
 import os
+from pathlib import Path
+
+import pytest
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+
+#: Where ``play`` records when run from the checkout: tests write only under tmp_path.
+_CHECKOUT_RECORDINGS = Path(__file__).resolve().parents[1] / "recordings"
+
+
+def _recordings_in_the_checkout() -> set[Path]:
+    return set(_CHECKOUT_RECORDINGS.glob("*")) if _CHECKOUT_RECORDINGS.is_dir() else set()
+
+
+@pytest.fixture(autouse=True)
+def _no_recordings_in_the_checkout():
+    """Fail the test that leaves a new file in the checkout's recordings/ (issue 24: a test
+    that plays must pass --no-record or chdir to its tmp_path)."""
+    before = _recordings_in_the_checkout()
+    yield
+    new = sorted(p.name for p in _recordings_in_the_checkout() - before)
+    assert not new, f"the test wrote into the checkout's recordings/: {new[:3]}"

@@ -246,17 +246,19 @@ EVIL = "raise SystemExit('a scenario made me run code')\n"
 def recording_text(tmp: Path) -> str:
     """A short real recording of ``default`` (written by the Recorder)."""
     from beacon_sim.core.scenario import load_scenario
-    from beacon_sim.core.simulation import Simulation
+    from beacon_sim.runs.live import Session
     from beacon_sim.runs.recorder import Recorder
 
     sc = load_scenario("sparse_kidnap")
     path = tmp / "base.jsonl"
-    with Recorder(path, sc, 3, ["ekf", "pf"], {"pf": {"n_particles": 300}}) as rec:
-        sim = Simulation(sc, 3)
-        for k in range(1, 31):
-            cmds = [{"kind": "reset"}] if k == 10 else []
-            rec.record_tick(k, None, cmds)
-            sim.step()
+    params = {"pf": {"n_particles": 300}}
+    session = Session(sc, ["ekf", "pf"], 3, params, Recorder(path, sc, 3, ["ekf", "pf"], params))
+    session.toggle_autopilot()  # the scenario's driver, as a recorder without a window records
+    for k in range(1, 31):
+        if k == 10:
+            session.command({"kind": "reset"})
+        session.tick()
+    session.close()
     return path.read_text(encoding="utf-8")
 
 
@@ -570,3 +572,310 @@ def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, 
             + mutated_team_scenarios(random.Random(seed + 18), team)
             + [dataclasses.replace(c, name="team-" + c.name)
                for c in bad_recordings(random.Random(seed + 19), team_recording_text(tmp), 20)])
+
+
+# --------------------------------------------------------------------------- issue 24
+#: The front ends that read a scenario file, as command lines (``s.toml`` in the case folder).
+SCENARIO_FRONT_ENDS: list[list[str]] = [
+    ["run", "s.toml", "--duration", "2"],
+    ["play", "s.toml", "--frames", "3", "--no-record", "--autopilot"],
+    ["eval", "s.toml", "--runs", "1", "--jobs", "1", "--duration", "2"],
+    ["check", "ekf", "--scenario", "s.toml"],
+]
+#: The front ends that read a recording (``r.jsonl``): replay headless and in the window,
+#: and export.
+RECORDING_FRONT_ENDS: list[list[str]] = [
+    ["replay", "r.jsonl", "--headless"],
+    ["replay", "r.jsonl", "--frames", "3"],
+    ["export", "r.jsonl", "--out", "r.npz"],
+]
+#: The front ends that read an MRCLAM folder (``m``).
+MRCLAM_FRONT_ENDS: list[list[str]] = [
+    ["mrclam", "m", "--robot", "1", "--headless", "--filter", "ekf", "--filter", "ukf"],
+    ["mrclam", "m", "--robot", "1", "--frames", "3", "--filter", "ekf"],
+    ["mrclam", "m", "--robot", "1", "--calibrate"],
+]
+
+
+def _deep(n: int, open_: str = "[", close: str = "]") -> str:
+    return open_ * n + close * n
+
+
+def issue24_scenarios() -> dict[str, str]:
+    """Scenario texts of issue 24 (each named by what is wrong), and new kinds."""
+    room = _ROOM + _SENSOR
+    big_beacons = ", ".join(f"{{id={i},x=1,y=1}}" for i in range(1_000_000))
+    return {
+        # the issue's
+        "range-std-zero": room + "range_std = 0\n",
+        "blackout-sensors-nested": room + '[[events]]\nkind = "blackout"\ntime = 1\nduration = 1\n'
+                                          "sensors = [[1]]\n",
+        "bounds-millimetres": _ROOM.replace("[0, 0, 10, 8]", "[0, 0, 0.003, 0.003]")
+                              .replace("[5, 4, 0]", "[0.001, 0.001, 0]")
+                              .replace("x = 2, y = 2", "x = 0.002, y = 0.002")
+                              .replace("x = 8, y = 6", "x = 0.001, y = 0.002"),
+        "nested-array-deep": "x = " + _deep(5000) + "\n" + _ROOM,
+        "beacons-million": _ROOM.split("beacons")[0] + f"beacons = [{big_beacons}]\n"
+                           "[robot]\ninitial_pose = [5, 4, 0]\n",
+        "description-over-cap": f'description = "{"d" * 5_000_000}"\n' + _ROOM,
+        # new kinds
+        "bearing-std-zero": room + "bearing_std = 0\n",
+        "model-range-std-zero": room + "[model.sensors.b]\nrange_std = 0\n",
+        "position-std-zero": _ROOM + _SENSOR.replace("range_bearing", "position") + "position_std = 0\n",
+        "heading-std-zero": _ROOM + '[[sensors]]\nkind = "pose"\nname = "c"\nheading_std = 0\n',
+        "blackout-sensors-table": room + '[[events]]\nkind = "blackout"\ntime = 1\nduration = 1\n'
+                                         "sensors = [{ a = 1 }]\n",
+        "blackout-sensors-int": room + '[[events]]\nkind = "blackout"\ntime = 1\nduration = 1\n'
+                                       "sensors = 3\n",
+        "nested-table-deep": "x = " + _deep(3000, "{ a = ", " }").replace("{ a =  }", "{ a = 1 }")
+                             + "\n" + _ROOM,
+        "nested-array-500": "x = " + _deep(500) + "\n" + _ROOM,
+        "integer-5000-digits": room + "min_beacons = " + "9" * 5000 + "\n",
+        "seed-5000-digits": "seed = " + "1" * 5000 + "\n" + _ROOM,
+        "bounds-reversed": _ROOM.replace("[0, 0, 10, 8]", "[10, 8, 0, 0]"),
+        "bounds-sliver": _ROOM.replace("[0, 0, 10, 8]", "[0, 0, 10, 1e-6]")
+                              .replace("[5, 4, 0]", "[5, 0, 0]"),
+        "beacons-over-cap": (_ROOM.split("beacons")[0] + "beacons = ["
+                             + ", ".join(f"{{id={i},x=1,y=1}}" for i in range(10_001))
+                             + "]\n[robot]\ninitial_pose = [5, 4, 0]\n"),
+        "events-over-cap": _ROOM + "".join(f'[[events]]\nkind = "kidnap"\ntime = {i}\nrandom = true\n'
+                                           for i in range(10_001)),
+        "long-line-key": room + "k" * 2_000_000 + " = 1\n",
+        "control-characters-name": 'name = "a\\u0000b\\u001b[2J"\n' + room,
+        "range-std-negative-zero": room + "range_std = -0.0\n",
+        "range-std-subnormal": room + "range_std = 5e-324\n",
+        "sensor-name-table": _ROOM + '[[sensors]]\nkind = "range_bearing"\nname = { a = 1 }\n',
+    }
+
+
+def issue24_recordings(base: str) -> dict[str, str]:
+    """Corruptions of a real single-robot recording (issue 24's and new kinds)."""
+    lines = base.splitlines()
+    reset = '"c":[{"kind":"reset"}]'
+    assert reset in base, "the base recording holds a reset"
+
+    def cmd(text: str) -> str:
+        return base.replace(reset, '"c":[' + text + "]")
+
+    def tick_u(u: str, at: int = 5) -> str:
+        out = []
+        for ln in lines:
+            if ln.startswith(f'{{"type":"tick","k":{at},'):
+                obj = json.loads(ln)
+                ln = ln.replace(json.dumps(obj["u"], separators=(",", ":")), u, 1)
+            out.append(ln)
+        return "\n".join(out) + "\n"
+
+    deep = _deep(100_000)
+    return {
+        # the issue's
+        "kidnap-pose-dict": cmd('{"kind":"kidnap","pose":{"x":1,"y":2,"theta":0}}'),
+        "kidnap-pose-int": cmd('{"kind":"kidnap","pose":3}'),
+        "kidnap-pose-strings": cmd('{"kind":"kidnap","pose":["1","2","3"]}'),
+        "toggle-list": cmd('{"kind":"toggle","filter":["ekf"]}'),
+        "toggle-dict": cmd('{"kind":"toggle","filter":{"a":1}}'),
+        "kidnap-pose-nan": cmd('{"kind":"kidnap","pose":[NaN,1,1]}'),
+        "integer-5000-digits": tick_u("[" + "9" * 5000 + ",0]"),
+        "nested-line": "\n".join([*lines[:5], '{"type":"tick","x":' + deep + "}", *lines[5:]]) + "\n",
+        "nested-last-line": base + '{"type":"tick","x":' + deep + "}\n",
+        "control-nan": tick_u("[NaN,0]"),
+        "control-inf": tick_u("[Infinity,0]"),
+        "control-huge": tick_u("[1e308,0]"),
+        # new kinds
+        "control-omega-nan": tick_u("[0.1,NaN]"),
+        "control-neg-inf": tick_u("[-Infinity,0]"),
+        "control-over-speed": tick_u("[1000.0,0]"),
+        "control-strings": tick_u('["0.1","0"]'),
+        "control-bool": tick_u("[true,false]"),
+        "kidnap-pose-inf": cmd('{"kind":"kidnap","pose":[1,Infinity,0]}'),
+        "kidnap-pose-bools": cmd('{"kind":"kidnap","pose":[true,false,true]}'),
+        "kidnap-pose-outside": cmd('{"kind":"kidnap","pose":[1e6,1e6,0]}'),
+        "kidnap-theta-huge": cmd('{"kind":"kidnap","pose":[1,1,1e300]}'),
+        "kidnap-pose-null": cmd('{"kind":"kidnap","pose":null}'),
+        "toggle-number": cmd('{"kind":"toggle","filter":5}'),
+        "toggle-unknown": cmd('{"kind":"toggle","filter":"nosuch"}'),
+        "commands-many": cmd(",".join(['{"kind":"reset"}'] * 5000)),
+        "tick-k-float": base.replace('"k":5,', '"k":5.0,', 1),
+        "tick-k-huge": base.replace('"k":5,', '"k":' + "9" * 400 + ",", 1),
+        "seed-5000-digits": "\n".join([lines[0].replace('"seed":3', '"seed":' + "1" * 5000),
+                                       *lines[1:]]) + "\n",
+        "header-nested-params": "\n".join(
+            [lines[0].replace('"params":{', '"params":{"deep":' + deep + ",", 1), *lines[1:]]) + "\n",
+        "line-too-long": "\n".join([*lines[:3], '{"type":"tick","pad":"' + "x" * 20_000_000 + '"}',
+                                    *lines[3:]]) + "\n",
+        "bom-header": "\ufeff" + base,
+        "crlf-lines": base.replace("\n", "\r\n"),
+        "dt-nan": "\n".join([lines[0].replace('"dt":0.1', '"dt":NaN'), *lines[1:]]) + "\n",
+        "checkpoint-k-negative": base.replace('{"type":"checkpoint","k":10',
+                                              '{"type":"checkpoint","k":-10', 1),
+        "checksum-number": base.replace('"h":"', '"h":1,"hh":"', 1),
+        "filters-many": "\n".join([lines[0].replace('"filters":["ekf","pf"]',
+                                                    '"filters":[' + ",".join(['"ekf"'] * 100_000) + "]"),
+                                   *lines[1:]]) + "\n",
+        "duplicate-keys": base.replace('{"type":"tick","k":5,', '{"type":"tick","k":5,"k":6,', 1),
+    }
+
+
+def issue24_team_recordings(base: str) -> dict[str, str]:
+    """The same kinds on a real team recording (its kidnap of robot 1 replaced)."""
+    kidnap = '"c":[{"kind":"kidnap","robot":1}]'
+    assert kidnap in base, "the base team recording holds a kidnap"
+
+    def cmd(text: str) -> str:
+        return base.replace(kidnap, '"c":[' + text + "]")
+
+    line5 = '{"type":"tick","k":5,"d":0,"u":[0.1,0.0]'
+    assert line5 in base, "the base team recording drives robot 0 at 0.1 m/s on tick 5"
+
+    def tick(new: str) -> str:
+        return base.replace(line5, '{"type":"tick","k":5,' + new, 1)
+
+    return {
+        "team-kidnap-pose-dict": cmd('{"kind":"kidnap","robot":1,"pose":{"x":1}}'),
+        "team-kidnap-pose-nan": cmd('{"kind":"kidnap","robot":1,"pose":[NaN,1,1]}'),
+        "team-kidnap-pose-strings": cmd('{"kind":"kidnap","robot":1,"pose":["1","2","3"]}'),
+        "team-kidnap-robot-float": cmd('{"kind":"kidnap","robot":1.0}'),
+        "team-kidnap-robot-huge": cmd('{"kind":"kidnap","robot":' + "9" * 30 + "}"),
+        "team-toggle-list": cmd('{"kind":"toggle","filter":["ci"]}'),
+        "team-control-nan": tick('"d":0,"u":[NaN,0.0]'),
+        "team-control-huge": tick('"d":0,"u":[1e308,0.0]'),
+        "team-driven-huge": tick('"d":' + "9" * 5000 + ',"u":[0.1,0.0]'),
+        "team-nested-last-line": base + '{"type":"tick","x":' + _deep(100_000) + "}\n",
+    }
+
+
+def issue24_mrclam(rng: random.Random) -> dict[str, dict[str, str]]:
+    """MRCLAM folders with the issue's bad data (a landmark or a range of 1e308) and new kinds."""
+    def folder(edit) -> dict[str, str]:
+        files = mrclam_folder(random.Random(0), "none")
+        edit(files)
+        return files
+
+    def set_row(name: str, j: int, row: str):
+        def edit(files: dict[str, str]) -> None:
+            rows = files[name].split("\r\n")
+            rows[j] = row
+            files[name] = "\r\n".join(rows)
+        return edit
+
+    def first_measurement(row_of):
+        def edit(files: dict[str, str]) -> None:
+            rows = files["Robot1_Measurement.dat"].split("\r\n")
+            t = rows[3].split()[0]
+            rows[3] = row_of(t)
+            files["Robot1_Measurement.dat"] = "\r\n".join(rows)
+        return edit
+
+    return {
+        "landmark-x-huge": folder(set_row("Landmark_Groundtruth.dat", 0, "6 \t 1e308 \t 1 \t 0 \t 0")),
+        "landmark-y-negative-huge": folder(set_row("Landmark_Groundtruth.dat", 1,
+                                                   "7 \t 4 \t -1e308 \t 0 \t 0")),
+        "landmark-x-far": folder(set_row("Landmark_Groundtruth.dat", 2, "8 \t 1e7 \t 4 \t 0 \t 0")),
+        "range-huge": folder(first_measurement(lambda t: f"{t} \t 27 \t 1e308 \t 0.1")),
+        "range-negative": folder(first_measurement(lambda t: f"{t} \t 27 \t -2 \t 0.1")),
+        "bearing-huge": folder(first_measurement(lambda t: f"{t} \t 27 \t 2 \t 1e308")),
+        "barcode-5000-digits": folder(first_measurement(lambda t: f"{t} \t {'9' * 5000} \t 2 \t 0.1")),
+        "odometry-v-huge": folder(set_row("Robot1_Odometry.dat", 5, "1248272272.891 \t 1e308 \t 0")),
+        "odometry-omega-huge": folder(set_row("Robot1_Odometry.dat", 5, "1248272272.891 \t 0.1 \t 1e300")),
+        "truth-x-huge": folder(set_row("Robot1_Groundtruth.dat", 5, "1248272272.891 \t 1e308 \t 2 \t 0")),
+        "long-line": folder(set_row("Robot1_Odometry.dat", 5, "1" * 5_000_000)),
+        "landmark-id-huge": folder(set_row("Landmark_Groundtruth.dat", 3, "9" * 30 + " \t 1 \t 4 \t 0 \t 0")),
+    }
+
+
+def issue24_cases(tmp: Path) -> list[Case]:
+    """Issue 24's inputs that ended in a traceback, and new kinds, each through every front
+    end that reads it (scenarios: run, play, eval, check; recordings: replay headless, in
+    the window, export; MRCLAM: mrclam headless, window, calibrate); ``--duration`` in run,
+    eval and mrclam. (A ``recordings`` that is not a folder: tests/test_replay_verification.py.)"""
+    cases = []
+    for name, text in issue24_scenarios().items():
+        for argv in SCENARIO_FRONT_ENDS:
+            cases.append(Case(f"i24-scenario-{name}-{argv[0]}", list(argv), {"s.toml": text}))
+    for name, text in {**issue24_recordings(recording_text(tmp)),
+                       **issue24_team_recordings(team_recording_text(tmp))}.items():
+        for argv in RECORDING_FRONT_ENDS:
+            where = "headless" if "--headless" in argv else "export" if argv[0] == "export" \
+                else "window"
+            cases.append(Case(f"i24-recording-{name}-{where}", list(argv), {"r.jsonl": text}))
+    for name, files in issue24_mrclam(random.Random(24)).items():
+        for argv in MRCLAM_FRONT_ENDS:
+            cases.append(Case(f"i24-mrclam-{name}-{argv[4].lstrip('-')}", list(argv),
+                              {f"m/{k}": v for k, v in files.items()}))
+    for cmd in (["run", "default"], ["eval", "default", "--runs", "1"],
+                ["mrclam", "m", "--robot", "1", "--headless"]):
+        for d in ("1e308", "1e300", "9" * 400, "1e19"):
+            cases.append(Case(f"i24-duration-{d[:6]}-{cmd[0]}", [*cmd, "--duration", d],
+                              {f"m/{k}": v for k, v in mrclam_folder(random.Random(0), "none").items()}
+                              if cmd[0] == "mrclam" else {}))
+    return cases
+
+
+#: Issue 24's kinds (and some new ones) that must be refused: exit 2 and this in the one
+#: line on stderr (the file, the key or line, what was expected). Keyed by the case's kind.
+ISSUE24_REFUSED: dict[str, str] = {
+    "scenario-range-std-zero": "s.toml: sensors[0].range_std = 0: expected a number in [1e-06",
+    "scenario-bearing-std-zero": "sensors[0].bearing_std = 0: expected",
+    "scenario-model-range-std-zero": "model.sensors.b.range_std = 0: expected",
+    "scenario-position-std-zero": "sensors[0].position_std = 0: expected",
+    "scenario-heading-std-zero": "sensors[0].heading_std = 0: expected",
+    "scenario-range-std-negative-zero": "range_std = -0.0: expected",
+    "scenario-range-std-subnormal": "range_std = 5e-324: expected",
+    "scenario-blackout-sensors-nested": "events[0].sensors = [[1]]: expected a list of sensor names",
+    "scenario-blackout-sensors-table": "events[0].sensors",
+    "scenario-bounds-millimetres": "world.bounds",
+    "scenario-bounds-sliver": "world.bounds",
+    "scenario-nested-array-deep": "nested too deep",
+    "scenario-nested-table-deep": "nested too deep",
+    "scenario-nested-array-500": "nested too deep",
+    "scenario-beacons-million": "bytes: a scenario file holds at most",
+    "scenario-description-over-cap": "bytes: a scenario file holds at most",
+    "scenario-beacons-over-cap": "world.beacons",
+    "scenario-events-over-cap": "at most 10,000 events",
+    "scenario-integer-5000-digits": "s.toml: not valid TOML",
+    "scenario-seed-5000-digits": "s.toml: not valid TOML",
+    "recording-kidnap-pose-dict": "r.jsonl:12: kidnap pose",
+    "recording-kidnap-pose-int": "r.jsonl:12: kidnap pose 3",
+    "recording-kidnap-pose-strings": "r.jsonl:12: kidnap pose",
+    "recording-kidnap-pose-nan": "r.jsonl:12: kidnap pose [nan",
+    "recording-kidnap-pose-inf": "r.jsonl:12: kidnap pose",
+    "recording-kidnap-theta-huge": "r.jsonl:12: kidnap pose",
+    "recording-toggle-list": "r.jsonl:12: toggle of ['ekf']",
+    "recording-toggle-dict": "r.jsonl:12: toggle of",
+    "recording-integer-5000-digits": "r.jsonl:7: not a usable number",
+    "recording-nested-line": "r.jsonl:6: nested too deep",
+    "recording-nested-last-line": "nested too deep",
+    "recording-control-nan": "r.jsonl:7: control u = [nan, 0]",
+    "recording-control-inf": "r.jsonl:7: control u = [inf, 0]",
+    "recording-control-huge": "r.jsonl:7: control u = [1e+308, 0]",
+    "recording-control-omega-nan": "r.jsonl:7: control u",
+    "recording-control-over-speed": "r.jsonl:7: control u",
+    "recording-commands-many": "user commands on one tick",
+    "recording-line-too-long": "r.jsonl:4: a line longer than",
+    "recording-header-nested-params": "r.jsonl:1: nested too deep",
+    "recording-filters-many": "r.jsonl:1: corrupted header",
+    "recording-checkpoint-k-negative": "checkpoint of tick -10",
+    "recording-team-kidnap-pose-dict": "kidnap pose",
+    "recording-team-kidnap-pose-nan": "kidnap pose [nan",
+    "recording-team-kidnap-robot-float": "kidnap of robot 1.0",
+    "recording-team-toggle-list": "toggle of ['ci']",
+    "recording-team-control-nan": "control u = [nan",
+    "recording-team-control-huge": "control u = [1e+308",
+    "recording-team-driven-huge": "not a usable number",
+    "mrclam-landmark-x-huge": "Landmark_Groundtruth.dat:1: bad data: x = 1e+308",
+    "mrclam-landmark-y-negative-huge": "bad data: y = -1e+308",
+    "mrclam-range-huge": "Robot1_Measurement.dat:4: bad data: range = 1e+308",
+    "mrclam-range-negative": "bad data: range = -2",
+    "mrclam-odometry-v-huge": "bad data: v = 1e+308",
+    "mrclam-truth-x-huge": "Robot1_Groundtruth.dat:6: bad data: x",
+    "duration-1e308-run": "--duration 1e+308: over 1,000,000 ticks",
+    "duration-1e308-eval": "--duration 1e+308: over 1,000,000 ticks",
+}
+
+
+def case_kind(case: Case) -> str:
+    """The kind of an issue-24 case (its name without ``i24-`` and the front end)."""
+    name = case.name.removeprefix("i24-")
+    if name.startswith("duration-"):
+        return name
+    return name.rsplit("-", 1)[0]

@@ -271,8 +271,10 @@ def test_help_lists_tab_and_only_the_team_keys(app):
     assert "P" not in keys and "B" not in keys  # particles, bound: single-robot only
 
 
-def test_cli_play_opens_the_team_window_and_saves_a_screenshot(tmp_path, capsys):
+def test_cli_play_opens_the_team_window_and_saves_a_screenshot(tmp_path, capsys, monkeypatch):
     from beacon_sim.cli.main import main
+
+    monkeypatch.chdir(tmp_path)  # play records to ./recordings: never into the checkout
 
     out = tmp_path / "team.png"
     assert main(["play", "team_sparse", "--autopilot", "--frames", "30", "--screenshot",

@@ -21,7 +21,15 @@ import numpy as np
 import pytest
 
 from beacon_sim.cli.main import main
-from tests.hostile import FAULTY_FILTERS, FILTER_CLASSES, Case, corpus
+from tests.hostile import (
+    FAULTY_FILTERS,
+    FILTER_CLASSES,
+    ISSUE24_REFUSED,
+    Case,
+    case_kind,
+    corpus,
+    issue24_cases,
+)
 
 #: Wall time one case may take in-process [s] (the slowest take about 2 s on a busy machine).
 CASE_LIMIT_S = 30.0
@@ -119,6 +127,53 @@ def test_corpus_sample_as_subprocesses(cases, tmp_path):
         why = judge(case, p.returncode, p.stderr, time.perf_counter() - t0 - 2.0)
         if why:
             bad.append(f"{case.name} {case.argv}: {why}")
+    assert not bad, "\n".join(bad)
+
+
+#: Issue 24's bound on every case [s] (in-process; generous for a busy machine).
+ISSUE24_LIMIT_S = 10.0
+
+
+@pytest.fixture(scope="module")
+def issue24(tmp_path_factory) -> list[Case]:
+    return issue24_cases(tmp_path_factory.mktemp("issue24-base"))
+
+
+def test_issue_24_inputs_through_every_front_end(issue24, tmp_path):
+    """Issue 24's inputs that ended in a traceback, and new kinds, each through every front
+    end that reads it: exit 0 or 2, at most two lines on stderr, no traceback, within 10 s;
+    those that must be refused (ISSUE24_REFUSED) exit 2 with a line naming the file and the
+    key or line."""
+    kinds = {case_kind(c) for c in issue24}
+    assert len(kinds) >= 60 and set(ISSUE24_REFUSED) <= kinds
+    bad = []
+    for i, case in enumerate(issue24):
+        status, stderr, seconds = run_in_process(case, tmp_path / f"c{i}")
+        why = judge(case, status, stderr, seconds)
+        if why is None and seconds > ISSUE24_LIMIT_S:
+            why = f"took {seconds:.1f} s"
+        want = ISSUE24_REFUSED.get(case_kind(case))
+        if why is None and want is not None and (status != 2 or want not in stderr):
+            why = f"expected exit 2 with {want!r}, got {status}: {stderr.strip()[-200:]!r}"
+        if why:
+            bad.append(f"{case.name} {case.argv[:3]}: {why}")
+    assert not bad, f"{len(bad)} of {len(issue24)} cases broke the rules:\n" + "\n".join(bad[:30])
+
+
+def test_issue_24_sample_as_subprocesses(issue24, tmp_path):
+    """Every 40th issue-24 case as a real process (exit status, stderr, memory limit)."""
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy")
+    bad = []
+    for i, case in enumerate(issue24[::40]):
+        folder = tmp_path / f"s{i}"
+        _write(case, folder)
+        t0 = time.perf_counter()
+        p = subprocess.run([sys.executable, "-m", "beacon_sim", *case.argv], cwd=folder, env=env,
+                           capture_output=True, text=True, timeout=ISSUE24_LIMIT_S + 30,
+                           preexec_fn=_limit_memory)
+        why = judge(case, p.returncode, p.stderr, time.perf_counter() - t0 - 2.0)
+        if why:
+            bad.append(f"{case.name}: {why}")
     assert not bad, "\n".join(bad)
 
 

@@ -77,6 +77,7 @@ def live_run(scenario_file: Path, out: Path, ticks: int = 200, seed: int = 11,
     built = {f: build_filter(f, sc, seed, name=f) for f in filters}
     runner = FilterRunner(built)
     rec = Recorder(out, sc, seed, list(filters), {})
+    rec.attach(runner)  # the filters' settings and estimate digests go into the file
     rng = np.random.default_rng(5)  # the "user" at the keyboard
     commands = {40: [{"kind": "kidnap", "pose": [3.0, 7.0, -2.5]}], 90: [{"kind": "reset"}],
                 130: [{"kind": "kidnap"}], 150: [{"kind": "toggle", "filter": "ekf"}]}

@@ -1,6 +1,7 @@
-"""What replay claims (issue 15): the checksums of a version 2 recording cover the readings
-and the scenario text as well as the truth; version 1 files still replay, verified for the
-truth only; a recording without checksums says 'not verified'."""
+"""What replay claims (issues 15 and 24): the checksums of a recording cover the readings and
+the scenario text as well as the truth (version 3: also the filter settings and estimates,
+tests/test_replay_verification.py); version 1 files still replay, verified for the truth
+only; a recording without checksums says 'not verified'."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pytest
 
 from beacon_sim.core.scenario import ScenarioError, load_scenario
 from beacon_sim.io.recording import FORMAT_VERSION, RecordingError, load_recording
+from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.replay import ReplayMismatch, replay_recording
 
@@ -19,9 +21,11 @@ from beacon_sim.runs.replay import ReplayMismatch, replay_recording
 def recorded(tmp_path):
     sc = load_scenario("default")
     path = tmp_path / "run.jsonl"
-    with Recorder(path, sc, 4, ["ekf"]) as rec:
-        for k in range(1, 61):
-            rec.record_tick(k, None)
+    session = Session(sc, ["ekf"], 4, {}, Recorder(path, sc, 4, ["ekf"]))
+    session.toggle_autopilot()
+    for _ in range(60):
+        session.tick()
+    session.close()
     return path
 
 
@@ -40,8 +44,8 @@ def _rewrite(path, out, header=None, line=None):
     return out
 
 
-def test_version_2_is_verified(recorded):
-    assert json.loads(recorded.read_text().splitlines()[0])["version"] == FORMAT_VERSION == 2
+def test_version_3_is_verified(recorded):
+    assert json.loads(recorded.read_text().splitlines()[0])["version"] == FORMAT_VERSION == 3
     res = replay_recording(load_recording(recorded))
     assert res.extra["replay"]["checksum_status"] == "verified"
 
@@ -55,7 +59,7 @@ def test_edited_sensor_noise_is_caught(recorded, tmp_path):
 
     def edit_and_rehash(h):
         edit(h)
-        h["scenario_sha256"] = hashlib.sha256(h["scenario_toml"].encode()).hexdigest()[:16]
+        h["scenario_sha256"] = hashlib.sha256(h["scenario_toml"].encode()).hexdigest()
     clever = _rewrite(recorded, tmp_path / "clever.jsonl", edit_and_rehash)
     with pytest.raises(ReplayMismatch, match="readings checksum"):
         replay_recording(load_recording(clever))
@@ -64,7 +68,7 @@ def test_edited_sensor_noise_is_caught(recorded, tmp_path):
 def test_moved_beacon_is_caught(recorded, tmp_path):
     def edit(h):
         h["scenario_toml"] = h["scenario_toml"].replace("x = 1.5, y = 1.5", "x = 1.6, y = 1.5")
-        h["scenario_sha256"] = hashlib.sha256(h["scenario_toml"].encode()).hexdigest()[:16]
+        h["scenario_sha256"] = hashlib.sha256(h["scenario_toml"].encode()).hexdigest()
     with pytest.raises(ReplayMismatch):
         replay_recording(load_recording(_rewrite(recorded, tmp_path / "b.jsonl", edit)))
 
@@ -77,17 +81,23 @@ def test_version_1_replays_verified_for_the_truth_only(recorded, tmp_path):
     def strip(obj):
         obj.pop("r", None)
         obj.pop("readings_checksum", None)
+        obj.pop("estimates", None)
+        return obj["type"] not in ("filters", "estimates")
     old = _rewrite(recorded, tmp_path / "v1.jsonl", v1, strip)
     status = replay_recording(load_recording(old)).extra["replay"]["checksum_status"]
-    assert status.startswith("verified (truth only")
+    assert status == "verified: truth only; readings and filter settings not recorded (a version 1 file)"
 
 
 def test_no_checksums_is_not_verified(recorded, tmp_path):
+    def v2(h):  # (a version 3 file without its checkpoint lines is refused as edited)
+        h["version"] = 2
+        h["scenario_sha256"] = h["scenario_sha256"][:16]
+
     def strip(obj):
         obj.pop("h", None)
         obj.pop("r", None)
         return obj["type"] == "tick"
-    bare = _rewrite(recorded, tmp_path / "bare.jsonl", line=strip)
+    bare = _rewrite(recorded, tmp_path / "bare.jsonl", v2, line=strip)
     status = replay_recording(load_recording(bare)).extra["replay"]["checksum_status"]
     assert status.startswith("not verified")
 

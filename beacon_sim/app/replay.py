@@ -23,6 +23,7 @@ from typing import Any
 import pygame
 
 from beacon_sim.app import palette
+from beacon_sim.app.hud import wrap_text
 from beacon_sim.app.main import App
 from beacon_sim.app.team import TeamApp
 from beacon_sim.io.recording import Recording, TeamRecording
@@ -146,9 +147,33 @@ class ReplayApp(App):
         return [(tick, palette.WARN if kind == "kidnap" else palette.TEXT_DIM)
                 for tick, kind in self.session.marks()]
 
+    def draw_mismatch(self, surf) -> None:
+        """While a replay differs from its recording: a banner across the bottom of the world
+        view, for as long as the window shows the replay (what differs, where, and that the
+        run is not verified)."""
+        why = getattr(self.session, "mismatch", None)
+        if not why:
+            return
+        x, y, w, h = self.view.area
+        font = self.fonts["hud"]
+        title = self.fonts["banner"].render("NOT VERIFIED: the replay differs from the recording",
+                                            True, palette.BANNER_TEXT)
+        lines = wrap_text(font, why, w - 60)[:3]
+        imgs = [font.render(line, True, palette.BANNER_TEXT) for line in lines]
+        lh = font.get_linesize()
+        box = pygame.Rect(0, 0, min(w - 20, max([title.get_width(), *(i.get_width() for i in imgs)]) + 36),
+                          title.get_height() + lh * len(imgs) + 22)
+        box.midbottom = (x + w // 2, y + h - 10)
+        pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)
+        pygame.draw.rect(surf, palette.TEXT, box, 3, border_radius=10)
+        surf.blit(title, title.get_rect(midtop=(box.centerx, box.top + 8)))
+        for k, img in enumerate(imgs):
+            surf.blit(img, img.get_rect(midtop=(box.centerx, box.top + 12 + title.get_height() + k * lh)))
+
     def draw_extra(self, surf) -> None:
         """The timeline: elapsed / total, the bar with the recorded commands marked, the
-        position marker."""
+        position marker; the mismatch banner when the replay differs."""
+        self.draw_mismatch(surf)
         s = self.session
         r = self.timeline_rect
         surf.fill(palette.PANEL, r)

@@ -43,7 +43,13 @@ def check_duration(duration: object, dt: float | None = None, max_ticks: int | N
         raise error(f"{_named(label, duration)}: expected a positive number of seconds")
     duration = float(duration)
     if dt is not None:
-        ticks = round(duration / dt)
+        ratio = duration / dt  # a float: 1e308 / 0.1 is inf, which round() cannot take
+        if max_ticks is not None and ratio > max_ticks + 0.5:
+            raise error(f"{_named(label, duration, 'g')}: over {max_ticks:,} ticks of "
+                        f"{dt:g} s (at most {max_ticks * dt:g} s)")
+        if not math.isfinite(ratio):
+            raise error(f"{_named(label, duration, 'g')}: too long for a tick of {dt:g} s")
+        ticks = round(ratio)
         if ticks < 1:
             raise error(f"{_named(label, duration, 'g')}: shorter than one tick of {dt:g} s")
         if max_ticks is not None and ticks > max_ticks:

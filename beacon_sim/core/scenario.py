@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import difflib
 import enum
+import hashlib
 import math
+import os
 import re
 import tomllib
 from collections.abc import Sequence
@@ -119,6 +121,113 @@ MAX_BEACONS: Final = 10_000
 MAX_SENSORS: Final = 100
 MAX_EVENTS: Final = 10_000
 MAX_EVENT_TICKS: Final = 2_000_000
+#: Smallest sensor noise standard deviation [m or rad]: a filter divides by its square
+#: (zero, or a subnormal, would divide by zero or overflow in the bound and the filters).
+MIN_SENSOR_STD: Final = 1e-6
+#: Shortest side of the world [m] (the window draws a grid of it, the drivers pick goals in it).
+MIN_WORLD_SIDE: Final = 0.1
+
+# Caps on the input itself, checked before parsing (docs/scenarios.md, "Caps"); each can be
+# raised with the environment variable ``BEACON_SIM_MAX_<NAME>`` (a whole number).
+#: Largest scenario file [bytes] (10,000 beacons and 10,000 events take under 1 MiB; a
+#: file of this size parses in about a second).
+MAX_SCENARIO_BYTES: Final = 2 * 2**20
+#: Deepest nesting of arrays and tables in a scenario or a recording line (the shipped
+#: files nest at most 5 deep).
+MAX_NESTING: Final = 32
+#: Most decimal digits of an integer in a scenario or a recording (2^63 has 19).
+MAX_INT_DIGITS: Final = 20
+
+
+def env_limit(name: str, default: int) -> int:
+    """A cap: ``default``, or the whole number in the environment variable
+    ``BEACON_SIM_MAX_<name>`` (to raise it)."""
+    var = f"BEACON_SIM_MAX_{name}"
+    raw = os.environ.get(var)
+    if raw is None:
+        return default
+    try:
+        value = int(raw.replace("_", ""))
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ScenarioError(f"{var}={raw[:40]!r}: expected a positive whole number (a cap; "
+                            f"the default is {default:,})")
+    return value
+
+
+def document_shape(obj: Any, limit: int) -> tuple[int, int]:
+    """(how deep arrays and tables nest in ``obj``, counted up to ``limit + 1``; the largest
+    absolute integer in it), so that a hostile document costs no more than the cap."""
+    depth, level, biggest = 0, [obj], 0
+    while level and depth <= limit:
+        nxt: list[Any] = []
+        for x in level:
+            if isinstance(x, dict):
+                nxt.extend(x.values())
+            elif isinstance(x, list | tuple):
+                nxt.extend(x)
+            elif type(x) is int and not -biggest <= x <= biggest:
+                biggest = abs(x)
+        if not nxt:
+            break
+        depth += 1
+        level = nxt
+    return depth, biggest
+
+
+def check_document(data: Any, file: str) -> None:
+    """The caps every decoded scenario (or recording line) obeys: nesting depth
+    (``MAX_NESTING``) and integer size (``MAX_INT_DIGITS``); ScenarioError, one line."""
+    limit = env_limit("NESTING", MAX_NESTING)
+    digits = env_limit("INT_DIGITS", MAX_INT_DIGITS)
+    depth, biggest = document_shape(data, limit)
+    if depth > limit:
+        raise ScenarioError(f"{file}: arrays or tables nested deeper than {limit} levels "
+                            f"(BEACON_SIM_MAX_NESTING raises the cap)")
+    if biggest >= 10**digits:
+        raise ScenarioError(f"{file}: an integer of more than {digits} digits (at most {digits}; "
+                            f"BEACON_SIM_MAX_INT_DIGITS raises the cap)")
+
+
+def parse_toml_text(text: str, file: str) -> dict[str, Any]:
+    """A TOML document decoded and checked against the caps (ScenarioError, one line)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{file}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ScenarioError(f"{file}: arrays or tables nested too deep to read (at most "
+                            f"{env_limit('NESTING', MAX_NESTING)} levels)") from None
+    except ValueError as exc:  # e.g. an integer over Python's 4,300-digit limit
+        raise ScenarioError(f"{file}: not valid TOML: {str(exc).splitlines()[0][:100]}") from None
+    check_document(data, file)
+    return data
+
+
+#: The last document read (key: path and the SHA-256 of its text), so that telling a team
+#: file from a single-robot one and then loading it parses the file once.
+_last_read: list[Any] = [None, None]
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """A scenario file's TOML document: its size checked first (``MAX_SCENARIO_BYTES``),
+    then decoded and checked (ScenarioError, one line). Callers do not modify it."""
+    cap = env_limit("SCENARIO_BYTES", MAX_SCENARIO_BYTES)
+    try:
+        st = path.stat()
+        if st.st_size > cap:
+            raise ScenarioError(f"{path}: {st.st_size:,} bytes: a scenario file holds at most "
+                                f"{cap:,} (BEACON_SIM_MAX_SCENARIO_BYTES raises the cap)")
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from None
+    key = (str(path), hashlib.sha256(text.encode("utf-8")).digest())
+    if _last_read[0] == key:
+        return _last_read[1]
+    data = parse_toml_text(text, str(path))
+    _last_read[:] = [key, data]
+    return data
 
 Vec3 = tuple[float, float, float]
 Vec4 = tuple[float, float, float, float]
@@ -331,10 +440,10 @@ def _motion_noise(t: _Table, base: MotionNoise | None = None) -> MotionNoise:
 
 def _sensor_noise(t: _Table, base: SensorNoise) -> SensorNoise:
     return SensorNoise(
-        bearing_std=t.number("bearing_std", base.bearing_std, lo=0, hi=MAX_STD),
-        range_std=t.number("range_std", base.range_std, lo=0, hi=MAX_STD),
-        position_std=t.number("position_std", base.position_std, lo=0, hi=MAX_STD),
-        heading_std=t.number("heading_std", base.heading_std, lo=0, hi=MAX_STD),
+        bearing_std=t.number("bearing_std", base.bearing_std, lo=MIN_SENSOR_STD, hi=MAX_STD),
+        range_std=t.number("range_std", base.range_std, lo=MIN_SENSOR_STD, hi=MAX_STD),
+        position_std=t.number("position_std", base.position_std, lo=MIN_SENSOR_STD, hi=MAX_STD),
+        heading_std=t.number("heading_std", base.heading_std, lo=MIN_SENSOR_STD, hi=MAX_STD),
     )
 
 
@@ -432,7 +541,8 @@ def _event(t: _Table, sensor_names: set[str], dt: float) -> Event:
             t.fail(t.key("random"), False, "true (or give pose or offset instead)")
     elif kind == "blackout":
         sensors = t.raw("sensors", [])
-        if not isinstance(sensors, list) or any(s not in sensor_names for s in sensors):
+        if not isinstance(sensors, list) or len(sensors) > MAX_SENSORS \
+                or any(not isinstance(s, str) or s not in sensor_names for s in sensors):
             t.fail(t.key("sensors"), sensors,
                    "a list of sensor names from: " + ", ".join(sorted(sensor_names)))
         ev = Blackout(time=time, duration=t.number("duration", lo=0, hi=latest, lo_open=True),
@@ -459,8 +569,9 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
 
     w = top.sub("world")
     bounds = w.vector4("bounds")
-    if not (bounds[2] > bounds[0] and bounds[3] > bounds[1]):
-        w.fail(w.key("bounds"), list(bounds), "[xmin, ymin, xmax, ymax] with xmax > xmin, ymax > ymin")
+    if not (bounds[2] - bounds[0] >= MIN_WORLD_SIDE and bounds[3] - bounds[1] >= MIN_WORLD_SIDE):
+        w.fail(w.key("bounds"), list(bounds), f"[xmin, ymin, xmax, ymax] with xmax - xmin and "
+                                              f"ymax - ymin at least {MIN_WORLD_SIDE:g} m")
     beacons: list[Beacon] = []
     raw_beacons = w.raw("beacons", [])
     if isinstance(raw_beacons, list) and len(raw_beacons) > MAX_BEACONS:
@@ -600,12 +711,4 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         With a one-line message naming the file, key, value and what was expected.
     """
     path = resolve_scenario_path(name_or_path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    return parse_scenario(data, str(path), name=path.stem)
+    return parse_scenario(read_toml(path), str(path), name=path.stem)

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -42,6 +41,7 @@ from beacon_sim.core.scenario import (
     _sensor_noise,
     _Table,
     parse_scenario,
+    read_toml,
     resolve_scenario_path,
 )
 from beacon_sim.core.sensors import SensorNoise
@@ -282,7 +282,7 @@ def is_team_scenario(name_or_path: str | Path) -> bool:
     single-robot scenario then gives the usual one-line error."""
     try:
         path = resolve_team_path(name_or_path)
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = read_toml(path)
     except Exception:
         return False
     return is_team_document(data)
@@ -291,12 +291,7 @@ def is_team_scenario(name_or_path: str | Path) -> bool:
 def load_team_scenario(name_or_path: str | Path) -> TeamScenario:
     """Load and validate a team scenario by shipped name or file path (ScenarioError: one line)."""
     path = resolve_team_path(name_or_path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path)
     if not is_team_document(data):
         raise ScenarioError(f"{path}: not a team scenario (no [[robots]]); use load_scenario")
     return parse_team_scenario(data, str(path), name=path.stem)

@@ -35,10 +35,47 @@ class MrclamError(BeaconSimError):
     """A missing or malformed MRCLAM file; the message names the file and line."""
 
 
-def read_table(path: Path, ncols: int, columns: str) -> np.ndarray:
+#: Bad data (refused, naming the file, line and column): a coordinate or range beyond this
+#: [m] (the data sets' room is about 6 m by 8 m), an angle beyond this [rad] (headings and
+#: bearings are wrapped, so a few turns at most), a speed beyond this [m/s] or turn rate
+#: [rad/s], a subject or barcode beyond this number.
+MAX_COORD_M = 1e6
+MAX_ANGLE_RAD = 1e3
+MAX_SPEED = 100.0
+MAX_TURN = 100.0
+MAX_ID = 1e9
+#: (column name, lowest, highest) of each file's columns, for :func:`read_table`.
+_T = (-math.inf, math.inf)  # time stamps: any finite number (their order is checked later)
+COLUMNS = {
+    "Barcodes.dat": [("subject", 0, MAX_ID), ("barcode", 0, MAX_ID)],
+    "Landmark_Groundtruth.dat": [("subject", 0, MAX_ID), ("x", -MAX_COORD_M, MAX_COORD_M),
+                                 ("y", -MAX_COORD_M, MAX_COORD_M), ("sigma_x", 0, MAX_COORD_M),
+                                 ("sigma_y", 0, MAX_COORD_M)],
+    "Odometry": [("time", *_T), ("v", -MAX_SPEED, MAX_SPEED), ("omega", -MAX_TURN, MAX_TURN)],
+    "Measurement": [("time", *_T), ("barcode", 0, MAX_ID), ("range", 0, MAX_COORD_M),
+                    ("bearing", -MAX_ANGLE_RAD, MAX_ANGLE_RAD)],
+    "Groundtruth": [("time", *_T), ("x", -MAX_COORD_M, MAX_COORD_M), ("y", -MAX_COORD_M, MAX_COORD_M),
+                    ("theta", -MAX_ANGLE_RAD, MAX_ANGLE_RAD)],
+}
+
+
+def _check_ranges(path: Path, table: np.ndarray, lines: list[int],
+                  ranges: list[tuple[str, float, float]]) -> None:
+    """Refuse the first value outside its column's range as bad data (file, line, column)."""
+    for j, (name, lo, hi) in enumerate(ranges):
+        bad = np.flatnonzero((table[:, j] < lo) | (table[:, j] > hi))
+        if bad.size:
+            i = int(bad[0])
+            raise MrclamError(f"{path}:{lines[i]}: bad data: {name} = {table[i, j]:g} (expected "
+                              f"{lo:g} to {hi:g})")
+
+
+def read_table(path: Path, ncols: int, columns: str,
+               ranges: list[tuple[str, float, float]] | None = None) -> np.ndarray:
     """Rows of ``ncols`` numbers from an MRCLAM ``.dat`` file, shape (n, ncols).
 
     Lines starting with ``#`` and blank lines are skipped; CRLF and tabs/spaces are fine.
+    ``ranges``: (name, lowest, highest) per column; a value outside is refused as bad data.
     """
     if not path.is_file():
         raise MrclamError(f"{path}: missing (an MRCLAM folder holds {path.name} with columns "
@@ -49,6 +86,7 @@ def read_table(path: Path, ncols: int, columns: str) -> np.ndarray:
         bad_line = path.read_bytes()[: exc.start].count(b"\n") + 1
         raise MrclamError(f"{path}:{bad_line}: not a text line (byte {exc.start})") from None
     rows: list[list[float]] = []
+    numbers: list[int] = []
     for n, line in enumerate(raw.splitlines(), start=1):
         s = line.strip()
         if not s or s.startswith("#"):
@@ -64,9 +102,13 @@ def read_table(path: Path, ncols: int, columns: str) -> np.ndarray:
         if not all(math.isfinite(v) for v in row):
             raise MrclamError(f"{path}:{n}: not a finite number in {s[:60]!r}")
         rows.append(row)
+        numbers.append(n)
     if not rows:
         raise MrclamError(f"{path}: no data rows (columns {columns})")
-    return np.array(rows, dtype=float)
+    table = np.array(rows, dtype=float)
+    if ranges is not None:
+        _check_ranges(path, table, numbers, ranges)
+    return table
 
 
 @dataclass
@@ -134,11 +176,14 @@ def load_mrclam(folder, robot: int, robot_sightings: bool = False) -> MrclamData
         raise MrclamError(f"{folder}: no such folder (expected an MRCLAM data set folder)")
     if robot not in ROBOT_SUBJECTS:
         raise MrclamError(f"--robot {robot}: expected 1 to 5")
-    bc = read_table(folder / "Barcodes.dat", 2, "subject, barcode")
-    lm = read_table(folder / "Landmark_Groundtruth.dat", 5, "subject, x, y, sigma_x, sigma_y")
-    od = read_table(folder / f"Robot{robot}_Odometry.dat", 3, "time, v, omega")
-    ms = read_table(folder / f"Robot{robot}_Measurement.dat", 4, "time, barcode, range, bearing")
-    gt = read_table(folder / f"Robot{robot}_Groundtruth.dat", 4, "time, x, y, theta")
+    bc = read_table(folder / "Barcodes.dat", 2, "subject, barcode", COLUMNS["Barcodes.dat"])
+    lm = read_table(folder / "Landmark_Groundtruth.dat", 5, "subject, x, y, sigma_x, sigma_y",
+                    COLUMNS["Landmark_Groundtruth.dat"])
+    od = read_table(folder / f"Robot{robot}_Odometry.dat", 3, "time, v, omega", COLUMNS["Odometry"])
+    ms = read_table(folder / f"Robot{robot}_Measurement.dat", 4, "time, barcode, range, bearing",
+                    COLUMNS["Measurement"])
+    gt = read_table(folder / f"Robot{robot}_Groundtruth.dat", 4, "time, x, y, theta",
+                    COLUMNS["Groundtruth"])
 
     barcodes = {int(b): int(s) for s, b in bc}
     landmarks = {int(r[0]): (float(r[1]), float(r[2])) for r in lm}

@@ -2,11 +2,15 @@
 
 One JSON object per line (format described in docs/replay.md):
 
-- line 1, the header: ``{"type": "header", "format": "beacon-sim-recording", "version": 2,
+- line 1, the header: ``{"type": "header", "format": "beacon-sim-recording", "version": 3,
   "program_version", "created", "scenario_name", "scenario_source", "scenario_toml" (the
-  full text of the scenario file), "scenario_sha256" (its checksum), "seed", "dt", "filters"
-  (specs), "params" ({NAME: {KEY: VALUE}}, the ``--set`` overrides), "checkpoint_every"
-  (ticks)}``;
+  full text of the scenario file), "scenario_sha256" (its SHA-256, 64 hex digits), "seed",
+  "dt", "filters" (specs), "params" ({NAME: {KEY: VALUE}}, the ``--set`` overrides),
+  "checkpoint_every" (ticks), "signed" (true when an HMAC signs the file)}``, plus the
+  keys of :data:`MODEL_KEYS`;
+- line 2 (version 3, when the recorder saw the filters): ``{"type": "filters", "filters":
+  {NAME: {"params": {KEY: VALUE} | null, "failed": why (absent when built)}}}``, the
+  effective parameters of every built filter (its merged ``params``, defaults included);
 - one line per tick: ``{"type": "tick", "k": tick, "u": [v, omega], "h": "8 hex digits",
   "r": "8 hex digits"}`` (truth and readings checksums)
   plus ``"c": [commands]`` when the user gave commands on that tick (:data:`COMMAND_KINDS`;
@@ -15,10 +19,18 @@ One JSON object per line (format described in docs/replay.md):
   that differs;
 - every ``checkpoint_every`` ticks (one simulated second): ``{"type": "checkpoint", "k",
   "time", "pose": [x, y, theta], "checksum", "readings_checksum"}``;
-- last: ``{"type": "end", "ticks", "pose", "checksum", "readings_checksum"}``.
+- version 3, after the estimates of every checkpoint's tick: ``{"type": "estimates", "k",
+  "digests": {NAME: 64 hex digits | null}}`` (:class:`EstimateDigests`; null: not compared,
+  e.g. the filter was reloaded live), and ``"notes": {NAME: why}`` when a filter was
+  switched off or reloaded live;
+- last: ``{"type": "end", "ticks", "pose", "checksum", "readings_checksum"}`` (version 3
+  adds ``"estimates"`` and ``"notes"`` as on an estimates line, for the last tick);
+- signed files (``BEACON_SIM_RECORDING_KEY`` set when recording): after each checkpoint's
+  estimates and after the end line, ``{"type": "signature", "hmac": 64 hex digits}``, the
+  HMAC-SHA256 of every byte of the file before that line (:class:`Signer`).
 
-Version 1 files (no readings checksums, no scenario checksum) are still read; a replay says
-they are verified for the truth only.
+Version 1 files (no readings checksums, no scenario checksum) and version 2 files (no
+filter settings, no estimates) are still read; a replay says what they cover.
 
 The header's ``"slip_model"`` (issue 25: ``"scaled"``, slip scaling with the command) names
 the motion noise the run was made with; a file without it was made before and replays with
@@ -44,16 +56,29 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import hmac
 import json
 import math
-import tomllib
+import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
+
+import numpy as np
 
 from beacon_sim.core.motion import SLIP_MODELS
-from beacon_sim.core.scenario import Scenario, ScenarioError, parse_scenario
+from beacon_sim.core.scenario import (
+    MAX_COORD,
+    MAX_SENSORS,
+    MAX_SPEED,
+    Scenario,
+    ScenarioError,
+    check_document,
+    env_limit,
+    parse_scenario,
+    parse_toml_text,
+)
 from beacon_sim.core.simulation import RECORDED_BEFORE_SLIP_MODEL, scenario_with_slip
 from beacon_sim.core.team import team_with_slip
 from beacon_sim.core.team_scenario import TeamScenario, is_team_document, parse_team_scenario
@@ -62,11 +87,39 @@ from beacon_sim.errors import BeaconSimError
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 #: Versions this program reads. Version 1 files carry checksums of the truth only; version 2
 #: adds the readings (``r`` per tick, ``readings_checksum``) and the scenario text
-#: (``scenario_sha256`` in the header).
-READ_VERSIONS = (1, 2)
+#: (``scenario_sha256`` in the header, 16 hex digits); version 3 the effective filter
+#: parameters (the filters line), digests of the estimates (estimates lines), the full
+#: SHA-256 of the scenario and the optional HMAC signature.
+READ_VERSIONS = (1, 2, 3)
+#: The header keys a version 3 writer puts in every header.
+HEADER_KEYS = frozenset({
+    "type", "format", "version", "program_version", "created", "scenario_name",
+    "scenario_source", "scenario_toml", "scenario_sha256", "seed", "dt", "filters", "params",
+    "checkpoint_every", "signed", "kind", "robots"})
+#: Header keys that shape the truth beyond the scenario text, the seed and dt (e.g. a motion
+#: model's version): the one place a new such key is declared. A version 3 header holding a
+#: key in neither HEADER_KEYS nor MODEL_KEYS is refused (an edit, or a newer writer); the
+#: replay checks the truth these keys shape through the truth and readings checksums.
+MODEL_KEYS: tuple[str, ...] = ("slip_model",)  # issue 25: the motion noise model
+#: The environment variable holding the key of the optional HMAC signature.
+KEY_VARIABLE = "BEACON_SIM_RECORDING_KEY"
+
+# Caps on a recording, checked before it is parsed (docs/replay.md, "Caps"); each can be
+# raised with the environment variable BEACON_SIM_MAX_<NAME>.
+#: Largest recording file [bytes] (a 10^6-tick run writes about 120 MB).
+MAX_RECORDING_BYTES = 2**30
+#: Longest line [characters] (the header holds the scenario, at most 2 MiB).
+MAX_LINE_CHARS = 16 * 2**20
+#: Most user commands on one tick (the window queues a few per frame).
+MAX_COMMANDS = 100
+#: Largest recorded turn rate [rad/s]: a circle driver's speed / radius at most reaches
+#: 100 m/s / 1 mm (speeds are at most MAX_SPEED).
+MAX_RECORDED_TURN = 1e5
+#: Longest filter name in a toggle command [characters].
+MAX_NAME_CHARS = 200
 #: Flush the file when this much simulated or wall time [s] has passed since the last flush.
 FLUSH_EVERY_S = 0.5
 RECORDINGS_DIR = "recordings"
@@ -83,13 +136,37 @@ class RecordingError(BeaconSimError):
 COMMAND_KINDS = ("kidnap", "reset", "global_reset", "toggle")
 
 
+def _short(x: Any) -> str:
+    text = repr(x)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_pose(pose: Any) -> None:
+    """Raise ValueError unless ``pose`` is ``[x, y, theta]``: three finite numbers within
+    MAX_COORD [m, m, rad]."""
+    if not (isinstance(pose, list | tuple) and len(pose) == 3
+            and all(_number(x) and _finite_in(x, MAX_COORD) for x in pose)):
+        raise ValueError(f"kidnap pose {_short(pose)}: expected [x, y, theta], three finite "
+                         f"numbers within +-{MAX_COORD:g} (metres, radians)")
+
+
+def check_toggle(cmd: Mapping) -> None:
+    name = cmd.get("filter")
+    if not isinstance(name, str) or len(name) > MAX_NAME_CHARS:
+        raise ValueError(f"toggle of {_short(name)}: expected a filter name (a string of at "
+                         f"most {MAX_NAME_CHARS} characters)")
+
+
 def validate_command(cmd: Mapping) -> None:
-    """Raise ValueError for a command this version does not know."""
+    """Raise ValueError for a command this version does not know, or one whose values are
+    not what it takes (a kidnap pose of three finite numbers, a toggle's filter name)."""
     kind = cmd.get("kind")
     if kind not in COMMAND_KINDS:
-        raise ValueError(f"unknown user command {kind!r}; expected one of {COMMAND_KINDS}")
-    if kind == "kidnap" and "pose" in cmd and len(cmd["pose"]) != 3:
-        raise ValueError(f"kidnap pose {cmd['pose']!r}: expected [x, y, theta]")
+        raise ValueError(f"unknown user command {_short(kind)}; expected one of {COMMAND_KINDS}")
+    if kind == "kidnap" and "pose" in cmd:
+        check_pose(cmd["pose"])
+    if kind == "toggle":
+        check_toggle(cmd)
 
 
 #: The header's ``kind`` of a team session's recording (absent: one robot).
@@ -106,18 +183,17 @@ def validate_team_command(cmd: Mapping, n_robots: int | None = None) -> None:
     outside ``0 .. n_robots - 1``)."""
     kind = cmd.get("kind")
     if kind not in TEAM_COMMAND_KINDS:
-        raise ValueError(f"unknown team command {kind!r}; expected one of {TEAM_COMMAND_KINDS}")
+        raise ValueError(f"unknown team command {_short(kind)}; expected one of {TEAM_COMMAND_KINDS}")
     if kind == "kidnap":
         robot = cmd.get("robot")
         if not isinstance(robot, int) or isinstance(robot, bool) or robot < 0 \
                 or (n_robots is not None and robot >= n_robots):
-            raise ValueError(f"kidnap of robot {robot!r}: expected a robot index"
+            raise ValueError(f"kidnap of robot {_short(robot)}: expected a robot index"
                              + (f" from 0 to {n_robots - 1}" if n_robots else ""))
-        if "pose" in cmd and not (isinstance(cmd["pose"], list | tuple) and len(cmd["pose"]) == 3
-                                  and all(_number(x) and math.isfinite(x) for x in cmd["pose"])):
-            raise ValueError(f"kidnap pose {cmd['pose']!r}: expected [x, y, theta]")
-    if kind == "toggle" and not isinstance(cmd.get("filter"), str):
-        raise ValueError(f"toggle of {cmd.get('filter')!r}: expected a filter name")
+        if "pose" in cmd:
+            check_pose(cmd["pose"])
+    if kind == "toggle":
+        check_toggle(cmd)
 
 
 def default_recording_path(scenario_name: str, when: _dt.datetime | None = None) -> Path:
@@ -136,6 +212,34 @@ def default_recording_path(scenario_name: str, when: _dt.datetime | None = None)
     return path
 
 
+def open_exclusive(path: Path) -> tuple[TextIO, Path]:
+    """Create ``path`` for writing, exclusively (``O_EXCL``: never a file another session
+    has just created); when the name is taken, ``<stem>-2.jsonl``, ``-3``, ... instead.
+    Returns the open file and its path. Its folder is created; one that cannot be (a file, a
+    dangling symlink or a symlink loop in its place) is a RecordingError saying so."""
+    folder = path.parent
+    if os.path.lexists(folder) and not folder.is_dir():
+        what = ("a symlink loop or a symlink to nothing" if folder.is_symlink() and not folder.exists()
+                else "a file")
+        raise RecordingError(f"{folder}: cannot record there: it is {what}, not a folder (move it "
+                             f"away, or pass --no-record)")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RecordingError(f"{folder}: cannot create the recordings folder: "
+                             f"{exc.strerror or exc}") from None
+    base = path.with_suffix("")
+    for n in range(1, 10_000):
+        candidate = path if n == 1 else Path(f"{base}-{n}{path.suffix}")
+        try:
+            return candidate.open("x", encoding="utf-8", newline="\n"), candidate
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise RecordingError(f"{candidate}: cannot record there: {exc.strerror or exc}") from None
+    raise RecordingError(f"{path}: 10,000 recordings of that name already exist")
+
+
 def scenario_text(scenario: Scenario | TeamScenario) -> str:
     try:
         return Path(scenario.source).read_text(encoding="utf-8")
@@ -144,9 +248,85 @@ def scenario_text(scenario: Scenario | TeamScenario) -> str:
             from None
 
 
-def text_checksum(text: str) -> str:
-    """SHA-256 (first 16 hex digits) of a scenario's text, as stored in a version 2 header."""
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+def text_checksum(text: str, version: int = FORMAT_VERSION) -> str:
+    """SHA-256 of a scenario's text as a header of that version stores it: 64 hex digits
+    (version 3), the first 16 (version 2)."""
+    digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    return digest if version >= 3 else digest[:16]
+
+
+def recording_key() -> bytes | None:
+    """The HMAC key from :data:`KEY_VARIABLE` (None when unset or empty)."""
+    key = os.environ.get(KEY_VARIABLE, "")
+    return key.encode("utf-8") if key else None
+
+
+class Signer:
+    """A running HMAC-SHA256 over the bytes of a recording, line by line (the writer's and
+    the reader's: the same bytes give the same ``hexdigest`` before each signature line)."""
+
+    def __init__(self, key: bytes):
+        self._mac = hmac.new(key, digestmod=hashlib.sha256)
+
+    def add(self, line: str) -> None:
+        """One line of the file as written (its newline included)."""
+        self._mac.update(line.encode("utf-8"))
+
+    def hexdigest(self) -> str:
+        return self._mac.hexdigest()
+
+
+def estimate_bytes(tick: int, mean: np.ndarray, cov: np.ndarray) -> bytes:
+    """What an estimate adds to its filter's digest: the tick (int64) then the mean and the
+    covariance as float64, little-endian, C order (a team filter's: every robot's)."""
+    return (np.int64(tick).astype("<i8").tobytes()
+            + np.ascontiguousarray(mean, dtype="<f8").tobytes()
+            + np.ascontiguousarray(cov, dtype="<f8").tobytes())
+
+
+class EstimateDigests:
+    """A running SHA-256 per filter over the estimates it gave (:func:`estimate_bytes`), tick
+    by tick: what a version 3 recording stores at its checkpoints and at its end, and what a
+    replay recomputes. ``update`` reads a runner's tracks (``ticks``, ``means``, ``covs``)
+    once per tick, after the filters were fed."""
+
+    def __init__(self) -> None:
+        self._hash: dict[str, Any] = {}
+
+    def update(self, tick: int, tracks: Mapping[str, Any]) -> None:
+        for name, track in tracks.items():
+            h = self._hash.get(name)
+            if h is None:
+                h = self._hash[name] = hashlib.sha256()
+            if track.ticks and track.ticks[-1] == tick:
+                h.update(estimate_bytes(tick, track.means[-1], track.covs[-1]))
+
+    def digest(self, name: str) -> str:
+        """The filter's digest so far (the digest of nothing before its first estimate)."""
+        return (self._hash.get(name) or hashlib.sha256()).hexdigest()
+
+
+def effective_params(flt: Any) -> dict[str, Any] | None:
+    """A built filter's effective parameters (its merged ``params``, defaults included; an
+    independent team's member filters' too) as JSON values, or None when it has none."""
+    params = getattr(flt, "params", None)
+    if not isinstance(params, Mapping):
+        return None
+    out: dict[str, Any] = {str(k): v for k, v in params.items()}
+    members = getattr(flt, "filters", None)
+    if isinstance(members, list) and members and all(hasattr(m, "params") for m in members):
+        out = {**out, "members": [effective_params(m) for m in members]}
+    return json.loads(json.dumps(out, default=_jsonable, allow_nan=True))
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, set | frozenset | tuple):
+        return list(x)
+    return repr(x)
 
 
 def dumps(obj: Mapping[str, Any]) -> str:
@@ -212,6 +392,18 @@ class _HeaderFields:
 
 
 @dataclass
+class FileParts:
+    """What a recording file holds besides its ticks (version 3: the filters line, the
+    estimates lines; a signed file: how far its signature was checked)."""
+
+    settings: dict[str, dict[str, Any]] | None = None  # the filters line's "filters"
+    settings_line: int = 0
+    estimates: dict[int, dict[str, Any]] = field(default_factory=dict)  # tick -> line
+    signature: str = "not signed"
+    signature_error: str | None = None  # a signature line that does not match (names it)
+
+
+@dataclass
 class Recording(_HeaderFields):
     """A recording read back. ``complete`` is False when the end line is missing (killed)."""
 
@@ -222,6 +414,7 @@ class Recording(_HeaderFields):
     checkpoints: dict[int, dict[str, Any]] = field(default_factory=dict)
     end: dict[str, Any] | None = None
     warnings: list[str] = field(default_factory=list)
+    parts: FileParts = field(default_factory=FileParts)
 
 
 @dataclass
@@ -236,6 +429,7 @@ class TeamRecording(_HeaderFields):
     checkpoints: dict[int, dict[str, Any]] = field(default_factory=dict)
     end: dict[str, Any] | None = None
     warnings: list[str] = field(default_factory=list)
+    parts: FileParts = field(default_factory=FileParts)
 
     @property
     def scenario(self) -> TeamScenario:
@@ -244,19 +438,13 @@ class TeamRecording(_HeaderFields):
 
 
 def rebuild_scenario(text: str, file: str, name: str) -> Scenario:
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{file}: not valid TOML: {exc}") from None
-    return parse_scenario(data, file, name=name)
+    """A scenario from its stored text (the same checks and caps as loading the file)."""
+    return parse_scenario(parse_toml_text(text, file), file, name=name)
 
 
 def rebuild_team_scenario(text: str, file: str, name: str) -> TeamScenario:
     """A team scenario from its stored text (the same checks as loading the file)."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{file}: not valid TOML: {exc}") from None
+    data = parse_toml_text(text, file)
     if not is_team_document(data):
         raise ScenarioError(f"{file}: a team recording whose scenario has no [[robots]]")
     return parse_team_scenario(data, file, name=name)
@@ -272,10 +460,25 @@ def _fail(path: Path, line: int, what: str) -> RecordingError:
 
 
 def _iter_lines(path: Path) -> Iterator[tuple[int, str, bool]]:
-    """(line number, text, ends with newline) for each line of the file."""
+    """(line number, text, ends with newline) for each line of the file, within the caps
+    (:data:`MAX_RECORDING_BYTES`, :data:`MAX_LINE_CHARS`)."""
     try:
+        size_cap = env_limit("RECORDING_BYTES", MAX_RECORDING_BYTES)
+        line_cap = env_limit("LINE_CHARS", MAX_LINE_CHARS)
+    except ScenarioError as exc:
+        raise RecordingError(str(exc)) from None
+    try:
+        size = path.stat().st_size
+        if size > size_cap:
+            raise RecordingError(f"{path}: {size:,} bytes: a recording holds at most {size_cap:,} "
+                                 "(BEACON_SIM_MAX_RECORDING_BYTES raises the cap)")
         with path.open("r", encoding="utf-8", newline="") as f:
-            for n, raw in enumerate(f, start=1):
+            n = 0
+            while raw := f.readline(line_cap + 1):
+                n += 1
+                if len(raw) > line_cap:
+                    raise RecordingError(f"{path}:{n}: a line longer than {line_cap:,} characters "
+                                         "(BEACON_SIM_MAX_LINE_CHARS raises the cap)")
                 yield n, raw, raw.endswith("\n")
     except FileNotFoundError:
         raise RecordingError(f"{path}: no such recording") from None
@@ -287,6 +490,24 @@ def _iter_lines(path: Path) -> Iterator[tuple[int, str, bool]]:
         raise RecordingError(f"{path}: cannot read: {exc}") from None
 
 
+def _decode(path: Path, n: int, text: str) -> Any:
+    """One line's JSON (None when it is not valid JSON), within the caps on nesting and
+    integers (RecordingError naming the line)."""
+    try:
+        obj = json.loads(text)
+    except json.JSONDecodeError:
+        return None
+    except RecursionError:
+        raise _fail(path, n, "nested too deep to read") from None
+    except ValueError as exc:  # an integer over Python's 4,300-digit limit
+        raise _fail(path, n, f"not a usable number: {str(exc).splitlines()[0][:80]}") from None
+    try:
+        check_document(obj, f"{path}:{n}")
+    except ScenarioError as exc:
+        raise RecordingError(str(exc)) from None
+    return obj
+
+
 def _check_header(path: Path, header: Any) -> None:
     if not isinstance(header, dict) or header.get("type") != "header" \
             or header.get("format") != FORMAT_NAME:
@@ -294,7 +515,7 @@ def _check_header(path: Path, header: Any) -> None:
                              f"{FORMAT_NAME!r} header)")
     version = header.get("version")
     if version not in READ_VERSIONS or isinstance(version, bool):
-        raise _fail(path, 1, f"recording format version {version!r} is not supported by "
+        raise _fail(path, 1, f"recording format version {_short(version)} is not supported by "
                              f"beacon-sim {__version__} (it reads versions "
                              f"{', '.join(map(str, READ_VERSIONS))})")
     kind = header.get("kind")
@@ -303,6 +524,11 @@ def _check_header(path: Path, header: Any) -> None:
                              f"{__version__} (it reads single-robot and {TEAM_KIND!r} recordings)")
     if kind == TEAM_KIND and version < 2:
         raise _fail(path, 1, "corrupted header: a team recording is version 2 or later")
+    if version >= 3:
+        unknown = sorted(k for k in header if k not in HEADER_KEYS and k not in MODEL_KEYS)
+        if unknown:
+            raise _fail(path, 1, f"corrupted header: unknown key {unknown[0][:40]!r} (a version 3 "
+                                 "header holds the keys of io/recording.py HEADER_KEYS and MODEL_KEYS)")
     need: dict[str, type | tuple[type, ...]] = {
         "scenario_toml": str, "scenario_name": str, "seed": int, "dt": (int, float),
         "filters": list, "params": dict}
@@ -310,14 +536,19 @@ def _check_header(path: Path, header: Any) -> None:
         need["scenario_sha256"] = str
     for key, typ in need.items():
         if not isinstance(header.get(key), typ) or isinstance(header.get(key), bool):
-            value = repr(header.get(key))
-            raise _fail(path, 1, f"corrupted header: {key} = {value[:60]}")
+            raise _fail(path, 1, f"corrupted header: {key} = {_short(header.get(key))}")
     if not 0 <= header["seed"] <= 2**63 - 1:
-        raise _fail(path, 1, f"corrupted header: seed = {header['seed']!r}")
+        raise _fail(path, 1, f"corrupted header: seed = {_short(header['seed'])}")
+    if not math.isfinite(header["dt"]):
+        raise _fail(path, 1, f"corrupted header: dt = {header['dt']!r}")
+    if len(header["filters"]) > MAX_SENSORS or len(header["params"]) > MAX_SENSORS:
+        raise _fail(path, 1, f"corrupted header: more than {MAX_SENSORS} filters or params")
     if not all(isinstance(f, str) for f in header["filters"]) \
             or not all(isinstance(v, dict) for v in header["params"].values()):
         raise _fail(path, 1, "corrupted header: filters or params")
-    if version >= 2 and text_checksum(header["scenario_toml"]) != header["scenario_sha256"]:
+    if "signed" in header and not isinstance(header["signed"], bool):
+        raise _fail(path, 1, f"corrupted header: signed = {_short(header['signed'])}")
+    if version >= 2 and text_checksum(header["scenario_toml"], version) != header["scenario_sha256"]:
         raise _fail(path, 1, "the stored scenario was edited (its checksum scenario_sha256 "
                              "differs): not the scenario this run was recorded with")
 
@@ -326,19 +557,35 @@ def _number(x) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool)
 
 
+def _finite_in(x: float, limit: float) -> bool:
+    """Whether the number ``x`` (int or float) is finite and within +-``limit``."""
+    try:
+        return math.isfinite(float(x)) and abs(x) <= limit
+    except OverflowError:  # an integer too large for a float
+        return False
+
+
 def _tick_line(path: Path, n: int, text: str, obj: dict, expected: int,
                team: bool) -> TickRecord:
-    """One tick line, checked (``team``: also the driven robot, autopilot, team commands)."""
+    """One tick line, checked (``team``: also the driven robot, autopilot, team commands):
+    the control finite and within MAX_SPEED [m/s] / MAX_RECORDED_TURN [rad/s], at most
+    MAX_COMMANDS user commands, each valid."""
     k, u, c = obj.get("k"), obj.get("u"), obj.get("c", [])
-    if not (isinstance(k, int) and isinstance(u, list) and len(u) == 2
+    if not (type(k) is int and isinstance(u, list) and len(u) == 2
             and all(_number(x) for x in u) and isinstance(c, list)):
         raise _fail(path, n, f"malformed tick line: {text.strip()[:80]}")
     if k != expected:
-        raise _fail(path, n, f"tick {k} where tick {expected} was expected")
+        raise _fail(path, n, f"tick {_short(k)} where tick {expected} was expected")
+    if not (_finite_in(u[0], MAX_SPEED) and _finite_in(u[1], MAX_RECORDED_TURN)):
+        raise _fail(path, n, f"control u = [{_short(u[0])}, {_short(u[1])}]: expected finite "
+                             f"numbers, |v| <= {MAX_SPEED:g} m/s and |omega| <= "
+                             f"{MAX_RECORDED_TURN:g} rad/s")
+    if len(c) > MAX_COMMANDS:
+        raise _fail(path, n, f"{len(c):,} user commands on one tick: expected at most {MAX_COMMANDS}")
     for cmd in c:
         try:
             if not isinstance(cmd, dict):
-                raise ValueError(f"user command {cmd!r} is not an object")
+                raise ValueError(f"user command {_short(cmd)} is not an object")
             (validate_team_command if team else validate_command)(cmd)
         except ValueError as exc:
             raise _fail(path, n, str(exc)) from None
@@ -349,7 +596,7 @@ def _tick_line(path: Path, n: int, text: str, obj: dict, expected: int,
     if not team:
         return TickRecord(k, control, c, h, n, r)
     d, a = obj.get("d"), obj.get("a", False)
-    if not isinstance(d, int) or isinstance(d, bool) or d < 0 or not isinstance(a, bool):
+    if type(d) is not int or d < 0 or not isinstance(a, bool):
         raise _fail(path, n, f"malformed team tick line (d: the driven robot, a: autopilot): "
                              f"{text.strip()[:80]}")
     return TeamTickRecord(k, control, c, h, n, r, driven=d, autopilot=a)
@@ -359,16 +606,35 @@ def _state_line_ok(obj: dict, team: bool) -> bool:
     """A checkpoint or end line's checksums (and, for a team, its poses) have the right types."""
     if not isinstance(obj.get("checksum"), str) or not isinstance(obj.get("readings_checksum", ""), str):
         return False
+    if "estimates" in obj and not _digests_ok(obj["estimates"]):
+        return False
+    if "notes" in obj and not (isinstance(obj["notes"], dict)
+                               and all(isinstance(v, str) for v in obj["notes"].values())):
+        return False
     return not team or (isinstance(obj.get("poses"), list)
                         and all(isinstance(p, list) and len(p) == 3 and all(_number(x) for x in p)
                                 for p in obj["poses"]))
 
 
+def _digests_ok(d: Any) -> bool:
+    return isinstance(d, dict) and len(d) <= MAX_SENSORS \
+        and all(v is None or isinstance(v, str) for v in d.values())
+
+
+def _settings_ok(obj: dict) -> bool:
+    f = obj.get("filters")
+    return isinstance(f, dict) and len(f) <= MAX_SENSORS and all(
+        isinstance(v, dict) and (v.get("params") is None or isinstance(v["params"], dict))
+        and isinstance(v.get("failed", ""), str) for v in f.values())
+
+
 def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[str, Any]],
-                                    dict[str, Any] | None, list[str]]:
-    """(header, ticks, checkpoints, end, warnings) of a recording of either kind (json only;
-    nothing is executed). A truncated or unreadable *last* line is skipped with a warning;
-    anything else malformed raises :class:`RecordingError` naming the file and line."""
+                                    dict[str, Any] | None, list[str], FileParts]:
+    """(header, ticks, checkpoints, end, warnings, the other parts) of a recording of either
+    kind (json only; nothing is executed). A truncated or unreadable *last* line is skipped
+    with a warning; anything else malformed raises :class:`RecordingError` naming the file
+    and line. A signed file's signature lines are checked with the key in
+    :data:`KEY_VARIABLE` (a difference raises RecordingError)."""
     lines = list(_iter_lines(path))
     if not lines:
         raise RecordingError(f"{path}: empty file, not a recording")
@@ -378,14 +644,17 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
     checkpoints: dict[int, dict[str, Any]] = {}
     end = None
     notes: list[str] = []
+    parts = FileParts()
+    key = recording_key()
+    signer: Signer | None = None
+    signed_to = 0  # the last line a matching signature covers
     last = len(lines)
     for n, text, complete in lines:
         if not text.strip():
+            if signer:
+                signer.add(text)
             continue
-        try:
-            obj = json.loads(text)
-        except json.JSONDecodeError:
-            obj = None
+        obj = _decode(path, n, text)
         if obj is None or not complete:
             if n == last and n > 1:
                 notes.append(f"{path}:{n}: incomplete last line skipped (the program was "
@@ -398,28 +667,102 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
             _check_header(path, obj)
             header = obj
             team = is_team_header(obj)
+            if key is not None and obj.get("signed"):
+                signer = Signer(key)
+                signer.add(text)
             continue
+        kind = obj.get("type") if isinstance(obj, dict) else None
+        if kind == "signature" and header is not None and header.get("signed"):
+            mac = obj.get("hmac")
+            if signer is not None:
+                if not (isinstance(mac, str) and hmac.compare_digest(mac, signer.hexdigest())):
+                    # reported by the replay after its own checks (which name the field)
+                    parts.signature_error = (
+                        f"{path}:{n}: signature does not match: the lines before it were changed "
+                        f"after they were written, or signed with another key than {KEY_VARIABLE}'s")
+                    signer = None
+                    continue
+                signed_to = n
+                signer.add(text)
+            continue
+        if signer:
+            signer.add(text)
         if end is not None:
             raise _fail(path, n, "data after the end line")
-        kind = obj.get("type") if isinstance(obj, dict) else None
         if kind == "tick":
             ticks.append(_tick_line(path, n, text, obj, ticks[-1].tick + 1 if ticks else 1, team))
         elif kind == "checkpoint":
-            if not isinstance(obj.get("k"), int) or not _state_line_ok(obj, team):
+            if type(obj.get("k")) is not int or not _state_line_ok(obj, team):
                 raise _fail(path, n, "malformed checkpoint line")
+            if header["version"] >= 3 and (not ticks or obj["k"] != ticks[-1].tick):
+                raise _fail(path, n, f"checkpoint of tick {obj['k']} after the line of tick "
+                                     f"{ticks[-1].tick if ticks else 0}")
             checkpoints[obj["k"]] = obj
+        elif kind == "estimates" and header["version"] >= 3:
+            if type(obj.get("k")) is not int or not _digests_ok(obj.get("digests")) \
+                    or not _state_line_ok({"checksum": "", **obj, "estimates": {}}, False):
+                raise _fail(path, n, "malformed estimates line")
+            if not ticks or obj["k"] != ticks[-1].tick or obj["k"] in parts.estimates:
+                raise _fail(path, n, f"estimates of tick {obj['k']} after the line of tick "
+                                     f"{ticks[-1].tick if ticks else 0}")
+            parts.estimates[obj["k"]] = {**obj, "line": n}
+        elif kind == "filters" and header is not None and header["version"] >= 3 \
+                and parts.settings is None and not ticks:
+            if not _settings_ok(obj):
+                raise _fail(path, n, "malformed filters line")
+            parts.settings, parts.settings_line = obj["filters"], n
         elif kind == "end":
             if not _state_line_ok(obj, team):
                 raise _fail(path, n, "malformed end line")
             end = obj
         else:
-            raise _fail(path, n, f"unknown line type {kind!r}")
+            raise _fail(path, n, f"unknown line type {_short(kind)}")
     if header is None:
         raise _fail(path, 1, "corrupted header (missing)")
+    if header["version"] >= 3:
+        _check_every_checkpoint(path, header, ticks, checkpoints, parts, end is not None)
     if end is None:
         notes.append(f"{path}: no end line (the run was interrupted); replaying the "
                      f"{len(ticks)} complete ticks")
-    return header, ticks, checkpoints, end, notes
+    parts.signature = "signature does not match" if parts.signature_error else \
+        _signature_status(header, key, signed_to, last_line(lines))
+    return header, ticks, checkpoints, end, notes, parts
+
+
+def _check_every_checkpoint(path: Path, header: dict[str, Any], ticks: list[Any],
+                            checkpoints: dict[int, Any], parts: FileParts, ended: bool) -> None:
+    """A version 3 file holds a checkpoint (and, with a filters line, an estimates line)
+    after every ``checkpoint_every``-th tick: one removed or moved is an edit. A killed
+    run's file may lack the last one."""
+    every = header.get("checkpoint_every")
+    if type(every) is not int or every < 1:
+        raise _fail(path, 1, f"corrupted header: checkpoint_every = {_short(every)}")
+    last = ticks[-1].tick if ticks else 0
+    due = set(range(every, last + 1, every))
+    for what, got in [("checkpoint", set(checkpoints)),
+                      *([("estimates", set(parts.estimates))] if parts.settings is not None else [])]:
+        missing = sorted(due - got - (set() if ended else {max(due, default=0)}))
+        if missing:
+            raise _fail(path, 1, f"no {what} line after tick {missing[0]} (one every "
+                                 f"{every} ticks): was the file edited?")
+
+
+def last_line(lines: list[tuple[int, str, bool]]) -> int:
+    """The number of the last line that is not blank."""
+    return max((n for n, text, _ in lines if text.strip()), default=0)
+
+
+def _signature_status(header: dict[str, Any], key: bytes | None, signed_to: int, last: int) -> str:
+    """What the signature proves, in words (docs/replay.md, "Signed recordings")."""
+    if not header.get("signed"):
+        return "not signed"
+    if key is None:
+        return f"signed (not checked: {KEY_VARIABLE} is not set)"
+    if signed_to == last:
+        return "signed and verified"
+    if signed_to:
+        return f"signed and verified up to line {signed_to} (the lines after it are not signed)"
+    return "signed, but no signature line (the run was interrupted before the first)"
 
 
 def _check_dt(path: Path, header: dict[str, Any], dt: float) -> None:
@@ -445,7 +788,7 @@ def load_recording(path) -> Recording:
     :func:`load_team_recording` or :func:`load_any_recording`).
     """
     path = Path(path)
-    header, ticks, checkpoints, end, notes = _read_file(path)
+    header, ticks, checkpoints, end, notes, parts = _read_file(path)
     if is_team_header(header):
         raise _fail(path, 1, "a team session's recording: beacon-sim replay reads it "
                              "(this command takes single-robot recordings)")
@@ -453,14 +796,14 @@ def load_recording(path) -> Recording:
     scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"])
     _check_dt(path, header, scenario.dt)
     scenario = replace(scenario_with_slip(scenario, _slip_model(path, header)), seed=int(header["seed"]))
-    return Recording(path, header, scenario, ticks, checkpoints, end, notes)
+    return Recording(path, header, scenario, ticks, checkpoints, end, notes, parts)
 
 
 def load_team_recording(path) -> TeamRecording:
     """Read a team session's recording (json only; nothing is executed; the same rules as
     :func:`load_recording`, and every robot index in range)."""
     path = Path(path)
-    header, ticks, checkpoints, end, notes = _read_file(path)
+    header, ticks, checkpoints, end, notes, parts = _read_file(path)
     if not is_team_header(header):
         raise _fail(path, 1, "a single-robot recording, not a team session's")
     file = f"{path} (scenario {header.get('scenario_source', header['scenario_name'])})"
@@ -481,17 +824,14 @@ def load_team_recording(path) -> TeamRecording:
             raise _fail(path, 1, f"corrupted {'end' if k < 0 else f'checkpoint {k}'}: "
                                  f"{len(obj['poses'])} poses for {n} robots")
     team = replace(team, seed=int(header["seed"]))
-    return TeamRecording(path, header, team, ticks, checkpoints, end, notes)
+    return TeamRecording(path, header, team, ticks, checkpoints, end, notes, parts)
 
 
 def load_any_recording(path) -> Recording | TeamRecording:
     """A recording of either kind (single-robot or team), by its header."""
     path = Path(path)
-    for _, text, _ in _iter_lines(path):
-        try:
-            first = json.loads(text)
-        except json.JSONDecodeError:
-            first = None
+    for n, text, _ in _iter_lines(path):
+        first = _decode(path, n, text)
         if isinstance(first, dict) and is_team_header(first):
             return load_team_recording(path)
         break

@@ -86,6 +86,8 @@ class Session:
             self.runner.fail(name, why, tb)
         self.runner.priors = {}
         self._keep_priors()
+        if self.recorder is not None and hasattr(self.recorder, "attach"):
+            self.recorder.attach(self.runner)  # the recording stores the filters' settings
         # Called with every Step after the filters are fed (the window's live bound); kept
         # over a replay's rebuild (a seek back re-runs __post_init__).
         self.on_step: list[Callable[[Step], None]] = getattr(self, "on_step", [])
@@ -375,5 +377,6 @@ def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
 def make_recorder(scenario: Scenario, seed: int, specs: list[str],
                   params: dict[str, dict[str, Any]]) -> tuple[Recorder, Path]:
     """A recorder writing to ``recordings/<scenario>_<time>.jsonl``, and that path."""
-    path = Path(default_recording_path(scenario.name))
-    return Recorder(path, scenario, seed, list(specs), params), path
+    recorder = Recorder(Path(default_recording_path(scenario.name)), scenario, seed, list(specs),
+                        params)
+    return recorder, recorder.path  # (another name when that one was just taken)

@@ -33,10 +33,15 @@ from beacon_sim.io.recording import (
     FORMAT_NAME,
     FORMAT_VERSION,
     TEAM_KIND,
+    EstimateDigests,
     RecordingError,
+    Signer,
     dumps,
+    effective_params,
+    open_exclusive,
     rebuild_scenario,
     rebuild_team_scenario,
+    recording_key,
     scenario_text,
     text_checksum,
     validate_command,
@@ -51,11 +56,20 @@ class _LineWriter:
     (at least every :data:`FLUSH_EVERY_S` of simulated or wall time, so a killed program's
     file replays to within a second of the kill), checkpoints and the end line. A subclass
     sets ``self.shadow`` (with ``tick``, ``time``, ``truth_checksum``) and writes the
-    state lines (:meth:`_state_line`)."""
+    state lines (:meth:`_state_line`).
+
+    The file is created exclusively (two sessions never write one file: the second gets
+    ``-2`` appended). With :data:`~beacon_sim.io.recording.KEY_VARIABLE` set, a running
+    HMAC signs it (a signature line after every checkpoint and after the end line).
+
+    :meth:`attach` hands the recorder the session's filter runner: the filters line (every
+    filter's effective parameters) is written at once, and the digests of the filters'
+    estimates after each checkpoint's tick and at the end (version 3)."""
 
     path: Path
     _file: TextIO | None
     shadow: Any
+    _runner: Any = None
 
     def _open(self, path, scenario: Any, text: str, seed: int, filters: list[str],
               params: dict | None, checkpoint_every: int | None,
@@ -68,8 +82,14 @@ class _LineWriter:
         self.ticks = 0
         self._expected_tick: int | None = None
         self._warned_gap = False
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = self.path.open("w", encoding="utf-8", newline="\n")
+        self._file, self.path = open_exclusive(self.path)
+        key = recording_key()
+        self._signer = Signer(key) if key is not None else None
+        self.digests = EstimateDigests()
+        self._notes: dict[str, str] = {}
+        self._frozen: dict[str, str] = {}  # reloaded live: the digest when it was reloaded
+        self._track_ids: dict[str, int] = {}
+        self._digested = 0  # the last tick whose estimates are in the digests
         header = {
             "type": "header", "format": FORMAT_NAME, "version": FORMAT_VERSION,
             "program_version": __version__,
@@ -78,14 +98,70 @@ class _LineWriter:
             "scenario_toml": text, "scenario_sha256": text_checksum(text),
             "seed": self.seed, "dt": scenario.dt,
             "filters": list(filters), "params": {k: dict(v) for k, v in (params or {}).items()},
-            "checkpoint_every": self.checkpoint_every,
+            "checkpoint_every": self.checkpoint_every, "signed": self._signer is not None,
             "slip_model": CURRENT_SLIP_MODEL,  # the shadow's (issue 25); absent: "legacy"
             **(extra or {}),
         }
-        self._file.write(dumps(header) + "\n")
+        self._write(header)
         self._file.flush()
         self._last_flush_wall = time.monotonic()
         self._last_flush_tick = 0
+
+    def _write(self, obj: dict[str, Any]) -> None:
+        """One line (signed when a key is set)."""
+        assert self._file is not None
+        text = dumps(obj) + "\n"
+        self._file.write(text)
+        if self._signer is not None:
+            self._signer.add(text)
+
+    def _sign(self) -> None:
+        if self._signer is not None:
+            self._write({"type": "signature", "hmac": self._signer.hexdigest()})
+
+    def attach(self, runner: Any) -> None:
+        """The session's filter runner (anything with ``tracks``: name -> track with
+        ``filter``, ``failed``, ``ticks``, ``means``, ``covs``), before the first tick: writes
+        the filters line (each filter's effective parameters, from the built filter) and
+        digests its estimates from then on."""
+        if self._file is None or self.ticks:
+            return
+        self._runner = runner
+        settings: dict[str, dict[str, Any]] = {}
+        for name, track in runner.tracks.items():
+            self._track_ids[name] = id(track)
+            entry: dict[str, Any] = {"params": effective_params(track.filter)
+                                     if track.filter is not None else None}
+            if track.failed:
+                entry["failed"] = str(track.failed)[:200]
+            settings[name] = entry
+        self._write({"type": "filters", "filters": settings})
+
+    def _digest_tick(self, tick: int) -> None:
+        """The attached filters' estimates of ``tick`` into their digests (noting a filter
+        switched off or reloaded live); an estimates line after a checkpoint's tick."""
+        if self._runner is None or tick <= self._digested:
+            return
+        self._digested = tick
+        tracks = {}
+        for name, track in self._runner.tracks.items():
+            if name not in self._track_ids:
+                continue
+            if id(track) != self._track_ids[name] and name not in self._frozen:
+                self._frozen[name] = self.digests.digest(name)
+                self._notes[name] = f"reloaded live at tick {tick}: its estimates are not compared"
+            if track.failed and name not in self._notes:
+                self._notes[name] = f"switched off live at tick {tick}: {str(track.failed)[:160]}"
+            if name not in self._frozen:
+                tracks[name] = track
+        self.digests.update(tick, tracks)
+        if tick % self.checkpoint_every == 0:
+            self._write({"type": "estimates", "k": tick, "digests": self._digest_map(),
+                         **({"notes": dict(self._notes)} if self._notes else {})})
+            self._sign()
+
+    def _digest_map(self) -> dict[str, str | None]:
+        return {n: None if n in self._frozen else self.digests.digest(n) for n in self._track_ids}
 
     @property
     def truth_checksum(self) -> str:
@@ -107,9 +183,11 @@ class _LineWriter:
         """The tick line, a checkpoint every ``checkpoint_every`` ticks, a flush when due."""
         assert self._file is not None
         self.ticks += 1
-        self._file.write(dumps(line) + "\n")
+        self._write(line)
         if tick % self.checkpoint_every == 0:
-            self._file.write(dumps(self._state_line("checkpoint")) + "\n")
+            self._write(self._state_line("checkpoint"))
+            if self._runner is None:
+                self._sign()
         now = time.monotonic()
         if (now - self._last_flush_wall >= FLUSH_EVERY_S
                 or (tick - self._last_flush_tick) * self.dt >= FLUSH_EVERY_S):
@@ -124,7 +202,14 @@ class _LineWriter:
         """Write the end line (final truth checksum) and close the file. Idempotent."""
         if self._file is None:
             return
-        self._file.write(dumps(self._state_line("end")) + "\n")
+        self._digest_tick(self.shadow.tick)
+        end = self._state_line("end")
+        if self._runner is not None:
+            end["estimates"] = self._digest_map()
+            if self._notes:
+                end["notes"] = dict(self._notes)
+        self._write(end)
+        self._sign()
         self._file.close()
         self._file = None
 
@@ -175,6 +260,7 @@ class Recorder(_LineWriter):
         for c in commands:
             validate_command(c)
         self._check_tick(tick)
+        self._digest_tick(self.shadow.tick)
         apply_commands(commands, self.shadow, {}, self.shadow.scenario)
         if control is None:  # the driver's command (the same draws step(None) would make)
             control = self.shadow.driver.control(self.shadow.time, self.shadow.pose)
@@ -276,6 +362,7 @@ class TeamRecorder(_LineWriter):
         if not 0 <= int(driven) < n:
             raise ValueError(f"driven robot {driven}: expected an index from 0 to {n - 1}")
         self._check_tick(tick)
+        self._digest_tick(self.shadow.tick)
         team_commands_to_sim(commands, self.shadow)
         step = self.shadow.step({} if autopilot else {int(driven): control})
         self.readings.update(step)

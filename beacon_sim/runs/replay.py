@@ -16,15 +16,158 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control, Step
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.loading import build_filters as build_all
+from beacon_sim.filters.loading import filter_names
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
-from beacon_sim.io.recording import Recording, RecordingError, TickRecord
+from beacon_sim.io.recording import (
+    EstimateDigests,
+    Recording,
+    RecordingError,
+    TeamRecording,
+    TickRecord,
+    effective_params,
+    recording_key,
+)
 from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.user_commands import apply_commands
 
 
 class ReplayMismatch(RecordingError):
-    """The replayed truth differs from the recorded one."""
+    """The replayed truth, readings, filter settings or estimates differ from the recorded
+    ones (the message names the field)."""
+
+
+def _first_difference(recorded: Any, replayed: Any, where: str) -> str:
+    """``where.KEY`` of the first parameter that differs, with both values."""
+    if isinstance(recorded, dict) and isinstance(replayed, dict):
+        for k in sorted(set(recorded) | set(replayed)):
+            if recorded.get(k, "(absent)") != replayed.get(k, "(absent)"):
+                return _first_difference(recorded.get(k, "(absent)"), replayed.get(k, "(absent)"),
+                                         f"{where}.{k}")
+    rec, rep = repr(recorded), repr(replayed)
+    return f"{where} recorded as {rec[:40]}, but {rep[:40]} now"
+
+
+class FilterVerifier:
+    """What a replay checks about the filters (version 3 files): the filters line's
+    effective parameters against the filters the replay built (so an edited header
+    ``filters`` list or ``params``, or an edited ``[filters.NAME]`` in the stored scenario,
+    is named), then each filter's estimate digests at every estimates line and at the end.
+
+    Compared only when the replay runs the recorded filters with the recorded parameters
+    (``compare``); a filter the replay skipped (named by file) or that was switched off or
+    reloaded live is listed in :meth:`exceptions` instead. Works on single-robot and team
+    runners alike (their ``tracks``)."""
+
+    def __init__(self, recording: Recording | TeamRecording, tracks: dict[str, Any],
+                 compare: bool, skipped: list[str]):
+        self.recording = recording
+        self.tracks = tracks
+        self.compare = compare and recording.parts.settings is not None
+        self.skipped = list(skipped)
+        self.digests = EstimateDigests()
+        self.unchecked: dict[str, str] = {}  # name -> why its estimates were not compared
+        self.compared_lines = 0
+
+    def check_settings(self) -> str | None:
+        """Why the built filters are not the recorded ones (naming the field), or None."""
+        if not self.compare:
+            return None
+        settings = self.recording.parts.settings or {}
+        line = self.recording.parts.settings_line
+        names = set(self.tracks)
+        recorded = set(settings) - set(self.skipped)
+        if names != recorded:
+            extra = sorted(names - recorded) or sorted(recorded - names)
+            return (f"the header's filters list differs from the filters line (line {line}: "
+                    f"filter {extra[0]!r} is in one of them only)")
+        for name in sorted(names):
+            track = self.tracks[name]
+            if "failed" in settings[name]:  # (e.g. over the window's time limit to build)
+                self.unchecked[name] = f"not built live ({str(settings[name]['failed'])[:80]})"
+                continue
+            replayed = effective_params(track.filter) if track.filter is not None else None
+            rec = settings[name].get("params")
+            if rec != replayed:
+                return (f"the filter settings (line {line}) differ from the header's params and "
+                        f"the stored scenario: {_first_difference(rec, replayed, name)}")
+        return None
+
+    def fold(self, tick: int) -> None:
+        """The tick's estimates into the digests (once per tick, after the filters were fed)."""
+        self.digests.update(tick, self.tracks)
+
+    def compare_line(self, tick: int, line: dict[str, Any] | None) -> str | None:
+        """Why the digests differ from an estimates line's (or the end line's) of ``tick``
+        (naming the filter), or None."""
+        if line is None or not self.compare:
+            return None
+        notes = line.get("notes", {})
+        recorded = line.get("digests", line.get("estimates", {}))
+        for name, digest in sorted(recorded.items()):
+            if name in self.skipped:
+                continue
+            if name not in self.tracks:
+                return f"filter {name!r} of the estimates line is not among the recorded filters"
+            if digest is None or name in self.unchecked:
+                self.unchecked.setdefault(name, notes.get(name, "not compared"))
+                continue
+            if digest != self.digests.digest(name):
+                if name in notes or self.tracks[name].failed:
+                    self.unchecked[name] = notes.get(name) or f"switched off in this replay: " \
+                                                              f"{self.tracks[name].failed}"
+                    continue
+                return f"the estimates of filter {name} (their digest after tick {tick})"
+        self.compared_lines += 1
+        return None
+
+    def coverage(self) -> str:
+        """What the check covered beyond truth and readings, as the status's suffix ("" when
+        everything was compared)."""
+        rec = self.recording
+        if rec.version == 1:
+            return ": truth only; readings and filter settings not recorded (a version 1 file)"
+        if rec.version == 2:
+            return ": truth and readings; filter settings not recorded (a version 2 file)"
+        if rec.parts.settings is None:
+            return ": truth and readings; filter settings not recorded"
+        if not self.compare:
+            return (": truth and readings; other filters or parameters than the recorded ones, "
+                    "so the estimates are not compared")
+        if not self.compared_lines and rec.parts.estimates == {} and not (rec.end or {}).get("estimates"):
+            return ": truth, readings and filter settings; no estimates recorded"
+        out = [f"{n} not run (named by a file or module)" for n in self.skipped]
+        out += [f"{n}: {why}" for n, why in sorted(self.unchecked.items())]
+        return (" except: " + "; ".join(out)) if out else ""
+
+
+def settings_error(recording: Recording | TeamRecording, why: str) -> ReplayMismatch:
+    """The error of a replay whose filters are not the recorded ones (``why`` names the field)."""
+    return ReplayMismatch(f"{recording.path}:{recording.parts.settings_line}: {why}: was it edited?")
+
+
+def settings_compared(recording: Recording | TeamRecording, specs: list[str],
+                      recorded_specs: list[str], used: dict[str, dict[str, Any]]) -> bool:
+    """Whether a replay runs exactly the recorded filters with the recorded parameters
+    (``used``: the parameters it builds them with), so that their settings and estimates
+    can be compared with the file's."""
+    clean = {k: v for k, v in used.items() if v}
+    return list(specs) == list(recorded_specs) \
+        and clean == {k: v for k, v in recording.params.items() if v}
+
+
+def with_signature(status: str, recording: Recording | TeamRecording) -> str:
+    """The status with what the signature proved ("signed and verified" in place of
+    "verified" when the HMAC matched; "not signed" when a key was given). A signature that
+    does not match raises ReplayMismatch (after the replay's own checks, which name a field)."""
+    if recording.parts.signature_error:
+        raise ReplayMismatch(recording.parts.signature_error)
+    sig = recording.parts.signature
+    if sig == "signed and verified" and status.startswith("verified"):
+        return "signed and " + status
+    if sig == "not signed":
+        return status + ("; not signed" if recording_key() is not None else "")
+    return f"{status}; {sig}"
 
 
 def _is_safe_spec(spec: str) -> bool:
@@ -42,7 +185,7 @@ def recorded_filter_specs(recording: Recording, requested: list[str] | None) -> 
             [s for s in recording.filters if not _is_safe_spec(s)])
 
 
-def recorded_params(recording: Recording,
+def recorded_params(recording: Recording | TeamRecording,
                   params: dict[str, dict[str, Any]] | None) -> dict[str, dict[str, Any]]:
     """The recorded filter parameters with ``params`` (from ``--set``) on top."""
     merged = recording.params
@@ -68,23 +211,34 @@ def build_filters(specs: list[str], recording: Recording,
 def replay_recording(recording: Recording, filters: list[str] | None = None,
                      params: dict[str, dict[str, Any]] | None = None,
                      verify: bool = True) -> RunResult:
-    """Re-simulate a recording, feeding the filters; check the truth against the file.
+    """Re-simulate a recording, feeding the filters; check the truth, the readings and (a
+    version 3 file, the recorded filters) the filter settings and estimates against the file.
 
     ``filters`` None runs the recorded built-in filters with the recorded parameters
     (filters named by module or file path are skipped: pass them explicitly). Raises
-    :class:`ReplayMismatch` naming the first tick whose truth differs.
+    :class:`ReplayMismatch` naming the first tick (or line) and the field that differs.
     """
     specs, skipped = recorded_filter_specs(recording, filters)
-    built, broken = build_filters(specs, recording, recorded_params(recording, params))
+    used = recorded_params(recording, params)
+    built, broken = build_filters(specs, recording, used)
     runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
     for name, (why, tb) in broken.items():
         runner.tracks[name].failed, runner.tracks[name].traceback = why, tb
+    verifier = FilterVerifier(
+        recording, runner.tracks,
+        settings_compared(recording, specs, recorded_filter_specs(recording, None)[0], used),
+        filter_names(skipped) if skipped else [])
+    if verify:
+        why = verifier.check_settings()
+        if why is not None:
+            raise settings_error(recording, why)
     scenario = recording.scenario
     sim = Simulation(scenario, recording.seed)
     steps: list[Step] = []
     checked = 0
     t0 = time.perf_counter()
     sim_ns = 0
+    estimates = recording.parts.estimates
     for rec in recording.ticks:
         a = time.perf_counter_ns()
         if rec.commands:
@@ -107,17 +261,29 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
                                 "the checkpoint")
         steps.append(step)
         runner.feed(step)
+        if verify:
+            line = estimates.get(rec.tick)
+            verifier.fold(rec.tick)
+            why = verifier.compare_line(rec.tick, line)
+            if why is not None:
+                raise mismatch_error(recording, rec.tick, line["line"] if line else rec.line, why)
     wall = time.perf_counter() - t0
     end = recording.end
     if verify and end is not None and (
             end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum
             or end.get("readings_checksum", sim.readings_checksum) != sim.readings_checksum):
         raise mismatch_error(recording, sim.tick, len(recording.ticks), "the final checksum")
-    status = verification_status(recording, checked, len(recording.ticks), at_end=True)
+    if verify and end is not None and "estimates" in end:
+        why = verifier.compare_line(sim.tick, {"digests": end["estimates"],
+                                               "notes": end.get("notes", {})})
+        if why is not None:
+            raise mismatch_error(recording, sim.tick, len(recording.ticks), why + " at the end")
+    status = verification_status(recording, checked, len(recording.ticks), at_end=True,
+                                 coverage=verifier.coverage())
     result = RunResult(scenario, recording.seed, steps, runner, wall, sim_ns / 1e9, sim.truth_checksum)
     result.extra["replay"] = {
         "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
-        "checksum_status": status if verify else "not checked",
+        "checksum_status": with_signature(status, recording) if verify else "not checked",
         "recorded_checksum": end["checksum"] if end else None,
         "skipped_filters": skipped, "warnings": list(recording.warnings),
     }
@@ -140,19 +306,23 @@ def tick_checked(recording: Recording, rec: TickRecord) -> int:
                and (recording.version < 2 or rec.readings_checksum is not None))
 
 
-def verification_status(recording: Recording, checked: int, ticks: int, at_end: bool) -> str:
+def verification_status(recording: Recording | TeamRecording, checked: int, ticks: int,
+                        at_end: bool, coverage: str | None = None) -> str:
     """What a replay may claim, in words (docs/replay.md, "What replay verifies"). The end
     line's checksums cover every tick; without it only the ticks that carry checksums count.
-    Version 1 files cover the truth only."""
-    covers = "" if recording.version >= 2 else \
-        " (truth only: a version 1 file does not cover the readings and the scenario)"
+    ``coverage`` (:meth:`FilterVerifier.coverage`) says what was not compared: "verified"
+    alone means truth, readings, filter settings and estimates all matched."""
+    if coverage is None:
+        coverage = FilterVerifier(recording, {}, False, []).coverage()
+    if not ticks and not at_end:
+        return "nothing checked yet (no tick replayed)"
     end = recording.end
     if at_end and end is not None and (recording.version < 2 or "readings_checksum" in end):
-        return "verified" + covers
+        return "verified" + coverage
     if ticks and checked == ticks:
-        return "verified up to the last complete tick" + covers
+        return "verified up to the last complete tick" + coverage
     if checked or (end is not None and at_end):
-        return f"partly verified: {checked} of {ticks} ticks carry checksums" + covers
+        return f"partly verified: {checked} of {ticks} ticks carry checksums" + coverage
     return "not verified: the recording holds no checksums"
 
 
@@ -185,9 +355,23 @@ class ReplaySession(Session):
     def __init__(self, recording: Recording, specs: list[str],
                  params: dict[str, dict[str, Any]] | None = None):
         self.recording = recording
-        self.mismatch: str | None = None  # first tick whose truth differs from the file
+        self.mismatch: str | None = None  # the first difference from the file (names the field)
         self._checked = 0  # ticks so far that carried their checksums
         super().__init__(recording.scenario, list(specs), recording.seed, dict(params or {}))
+        self._new_verifier()
+
+    def _new_verifier(self) -> None:
+        """The filter settings and estimates check, for the filters just built."""
+        recorded, skipped = recorded_filter_specs(self.recording, None)
+        self.verifier = FilterVerifier(
+            self.recording, self.runner.tracks,
+            settings_compared(self.recording, self.specs, recorded, self.params),
+            filter_names(skipped) if skipped else [])
+        why = self.verifier.check_settings()
+        if why is not None and self.mismatch is None:
+            self.mismatch = f"{self.recording.path}:{self.recording.parts.settings_line}: {why}"
+        if self.mismatch is None and self.recording.parts.signature_error:
+            self.mismatch = self.recording.parts.signature_error
 
     @property
     def total_ticks(self) -> int:
@@ -223,6 +407,7 @@ class ReplaySession(Session):
             self.mismatch = None
             self._checked = 0
             self.__post_init__()  # a fresh simulation, fresh filters, empty trails
+            self._new_verifier()
             for name in keep_flips:
                 if name in self.visible:
                     self.visible[name] = not self.visible[name]
@@ -237,22 +422,46 @@ class ReplaySession(Session):
             if c["kind"] == "toggle" and c.get("filter") in self.visible:
                 self.visible[c["filter"]] = not self.visible[c["filter"]]
         step = super().tick()
+        self.verifier.fold(rec.tick)
         if self.mismatch is None:
-            why = tick_mismatch(self.recording, rec, self.sim)
+            line = self.recording.parts.estimates.get(rec.tick)
+            why = tick_mismatch(self.recording, rec, self.sim) \
+                or self.verifier.compare_line(rec.tick, line)
             if why is not None:
-                self.mismatch = (f"{self.recording.path}:{rec.line}: replay differs from the "
-                                 f"recording at tick {rec.tick} (t = {self.sim.time:g} s; {why})")
+                self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: replay "
+                                 f"differs from the recording at tick {rec.tick} "
+                                 f"(t = {self.sim.time:g} s; {why})")
             self._checked += tick_checked(self.recording, rec)
         return step
 
     def checksum_status(self) -> str:
         """"verified", "MISMATCH ...", or how far the check went."""
-        if self.mismatch:
-            return f"MISMATCH: {self.mismatch}"
-        end = self.recording.end
-        if self.at_end and end is not None and (
-                end["checksum"] != self.sim.truth_checksum
-                or end.get("readings_checksum", self.sim.readings_checksum) != self.sim.readings_checksum):
-            return "MISMATCH with the end line's checksum"
-        status = verification_status(self.recording, self._checked, self.sim.tick, self.at_end)
-        return status if self.at_end else f"{status} (up to tick {self.sim.tick})"
+        return session_status(self, self.sim.truth_checksum, self.sim.readings_checksum)
+
+
+def session_status(session: Any, truth: str, readings: str) -> str:
+    """A replay window's status (single robot or team): "MISMATCH: ..." naming the field,
+    or what was verified so far (the end line's checksums and estimates once at the end)."""
+    if session.mismatch:
+        return f"MISMATCH: {session.mismatch}"
+    rec = session.recording
+    end = rec.end
+    if session.at_end and end is not None:
+        if end["checksum"] != truth or end.get("readings_checksum", readings) != readings:
+            session.mismatch = (f"{rec.path}: replay differs from the recording at its end "
+                                f"(checked against the final checksum)")
+            return f"MISMATCH: {session.mismatch}"
+        if "estimates" in end:
+            why = session.verifier.compare_line(
+                session.sim.tick, {"digests": end["estimates"], "notes": end.get("notes", {})})
+            if why is not None:
+                session.mismatch = f"{rec.path}: the end line: {why}"
+                return f"MISMATCH: {session.mismatch}"
+    status = verification_status(rec, session._checked, session.sim.tick, session.at_end,
+                                 coverage=session.verifier.coverage())
+    try:
+        status = with_signature(status, rec)
+    except ReplayMismatch as exc:
+        session.mismatch = str(exc)
+        return f"MISMATCH: {session.mismatch}"
+    return status if session.at_end else f"{status} (up to tick {session.sim.tick})"

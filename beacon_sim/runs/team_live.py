@@ -99,6 +99,8 @@ class TeamSession:
                                        keep=KEEP_ESTIMATES)
         for name, reason in why.items():
             self.runner.tracks[name].failed = f"could not be built: {reason}"
+        if self.recorder is not None and hasattr(self.recorder, "attach"):
+            self.recorder.attach(self.runner)  # the recording stores the filters' settings
         self.sim = TeamSimulation(team, seed)
         self.robot_names = [r.name for r in team.robots]
         self.driven = 0
@@ -356,8 +358,8 @@ def reset_team_filters(runner: TeamFilterRunner, team: TeamScenario, limit_s: fl
 def make_team_recorder(team: TeamScenario, seed: int, specs: list[str],
                        params: dict[str, dict[str, Any]]) -> tuple[TeamRecorder, Path]:
     """A team recorder writing to ``recordings/<scenario>_<time>.jsonl``, and that path."""
-    path = Path(default_recording_path(team.name))
-    return TeamRecorder(path, team, seed, list(specs), params), path
+    recorder = TeamRecorder(Path(default_recording_path(team.name)), team, seed, list(specs), params)
+    return recorder, recorder.path  # (another name when that one was just taken)
 
 
 __all__ = ["KEEP_ESTIMATES", "TeamSession", "make_team_recorder", "reset_team_filters"]

@@ -32,12 +32,17 @@ from beacon_sim.filters.team_runner import TeamFilterRunner, build_team_filters
 from beacon_sim.io.recording import TeamRecording, TeamTickRecord
 from beacon_sim.runs.recorder import TeamReadingsHash, team_commands_to_sim
 from beacon_sim.runs.replay import (
+    FilterVerifier,
     ReplayMismatch,
     mismatch_error,
     recorded_params,
     replay_label,
+    session_status,
+    settings_compared,
+    settings_error,
     tick_checked,
     verification_status,
+    with_signature,
 )
 from beacon_sim.runs.team import MEMBER_PREFIX, TeamRunResult, build_team_spec, team_filter_name
 from beacon_sim.runs.team_live import TeamSession, reset_team_filters
@@ -117,7 +122,13 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
     recorded parameters (``params``, from ``--set``, on top). Raises
     :class:`~beacon_sim.runs.replay.ReplayMismatch` naming the first tick that differs."""
     specs, skipped = recorded_team_specs(recording, filters)
-    runner = _build_runner(recording, specs, recorded_params(recording, params))
+    used = recorded_params(recording, params)
+    runner = _build_runner(recording, specs, used)
+    verifier = team_verifier(recording, runner, specs, used)
+    if verify:
+        why = verifier.check_settings()
+        if why is not None:
+            raise settings_error(recording, why)
     team = recording.team
     sim = TeamSimulation(team, recording.seed)
     readings = TeamReadingsHash()
@@ -145,6 +156,12 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
         steps.append(step)
         runner.feed(step.tick, step.time, [s.control for s in step.steps], step.dt,
                     [step.measurements(i) for i in range(len(step.steps))])
+        if verify:
+            line = recording.parts.estimates.get(rec.tick)
+            verifier.fold(rec.tick)
+            why = verifier.compare_line(rec.tick, line)
+            if why is not None:
+                raise mismatch_error(recording, rec.tick, line["line"] if line else rec.line, why)
     wall = time.perf_counter() - t0
     end = recording.end
     if verify and end is not None and (
@@ -152,15 +169,31 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
             or end.get("readings_checksum", readings.checksum) != readings.checksum
             or end["poses"] != sim.poses.tolist()):
         raise mismatch_error(recording, sim.tick, len(recording.ticks), "the final checksum")
-    status = verification_status(recording, checked, len(recording.ticks), at_end=True)
+    if verify and end is not None and "estimates" in end:
+        why = verifier.compare_line(sim.tick, {"digests": end["estimates"],
+                                               "notes": end.get("notes", {})})
+        if why is not None:
+            raise mismatch_error(recording, sim.tick, len(recording.ticks), why + " at the end")
+    status = verification_status(recording, checked, len(recording.ticks), at_end=True,
+                                 coverage=verifier.coverage())
     result = TeamRunResult(team, recording.seed, steps, runner.tracks, sim.truth_checksum, wall)
     replay = {
         "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
-        "checksum_status": status if verify else "not checked",
+        "checksum_status": with_signature(status, recording) if verify else "not checked",
         "recorded_checksum": end["checksum"] if end else None,
         "skipped_filters": skipped, "warnings": list(recording.warnings),
     }
     return TeamReplayResult(result, replay, readings.checksum)
+
+
+def team_verifier(recording: TeamRecording, runner: TeamFilterRunner, specs: list[str],
+                  used: dict[str, dict[str, Any]]) -> FilterVerifier:
+    """The filter settings and estimates check of a team replay (runs/replay.FilterVerifier;
+    ``used``: the parameters the replay built the team filters with)."""
+    recorded, skipped = recorded_team_specs(recording, None)
+    return FilterVerifier(recording, runner.tracks,
+                          settings_compared(recording, specs, recorded, used),
+                          [team_filter_name(s) for s in skipped])
 
 
 class TeamReplaySession(TeamSession):
@@ -178,10 +211,16 @@ class TeamReplaySession(TeamSession):
         self._fresh()
 
     def _fresh(self) -> None:
-        self.mismatch: str | None = None  # first tick whose truth or readings differ
+        self.mismatch: str | None = None  # the first difference from the file (names the field)
         self._checked = 0
         self._readings_hash = TeamReadingsHash()
         self._apply_recorded_driving()
+        self.verifier = team_verifier(self.recording, self.runner, self.specs, self.params)
+        why = self.verifier.check_settings()
+        if why is not None:
+            self.mismatch = f"{self.recording.path}:{self.recording.parts.settings_line}: {why}"
+        elif self.recording.parts.signature_error:
+            self.mismatch = self.recording.parts.signature_error
 
     def _apply_recorded_driving(self) -> None:
         """Who the next recorded tick drives (the panel shows it)."""
@@ -241,28 +280,22 @@ class TeamReplaySession(TeamSession):
                 self.visible[c["filter"]] = not self.visible[c["filter"]]
         step = super().tick()
         self._readings_hash.update(step)
+        self.verifier.fold(rec.tick)
         if self.mismatch is None:
-            why = team_tick_mismatch(rec, self.sim.truth_checksum, self._readings_hash.checksum)
+            line = self.recording.parts.estimates.get(rec.tick)
+            why = team_tick_mismatch(rec, self.sim.truth_checksum, self._readings_hash.checksum) \
+                or self.verifier.compare_line(rec.tick, line)
             if why is not None:
-                self.mismatch = (f"{self.recording.path}:{rec.line}: replay differs from the "
-                                 f"recording at tick {rec.tick} (t = {self.sim.time:g} s; {why})")
+                self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: "
+                                 f"replay differs from the recording at tick {rec.tick} "
+                                 f"(t = {self.sim.time:g} s; {why})")
             self._checked += tick_checked(self.recording, rec)
         self._apply_recorded_driving()
         return step
 
     def checksum_status(self) -> str:
         """"verified", "MISMATCH ...", or how far the check went."""
-        if self.mismatch:
-            return f"MISMATCH: {self.mismatch}"
-        end = self.recording.end
-        if self.at_end and end is not None and (
-                end["checksum"] != self.sim.truth_checksum
-                or end.get("readings_checksum", self._readings_hash.checksum)
-                != self._readings_hash.checksum):
-            return "MISMATCH with the end line's checksum"
-        status = verification_status(self.recording, self._checked, self.sim.tick,
-                                     self.at_end)
-        return status if self.at_end else f"{status} (up to tick {self.sim.tick})"
+        return session_status(self, self.sim.truth_checksum, self._readings_hash.checksum)
 
 
 __all__ = ["ReplayMismatch", "TeamReplayResult", "TeamReplaySession", "is_builtin_team_spec",
