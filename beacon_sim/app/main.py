@@ -25,6 +25,7 @@ import pygame
 from beacon_sim.app import controls, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.bound import LiveBound
+from beacon_sim.app.heap import HeapSettler
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import ShowOptions, View, WorldRenderer
@@ -94,6 +95,9 @@ class App:
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
         self.ticks_this_frame = 0  # simulation ticks run in the current frame
+        # Freeze the heap after frames (heap.py); run() switches it on, so that tests which
+        # build many windows in one process do not freeze each other's garbage.
+        self.settle_heap = False
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
@@ -101,6 +105,7 @@ class App:
             session.on_step.append(self.bound.feed)
         self.chart = StripChart(session.names, session.scenario.dt)
         self.pace = DeliveredSpeed()
+        self.heap = HeapSettler()  # keeps full garbage collections out of the frames (heap.py)
         self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
 
@@ -327,6 +332,8 @@ class App:
         if self.gif is not None:
             self.gif.offer(self.screen)
         self.frames += 1
+        if self.settle_heap:
+            self.heap.offer(self.now, self.ticks_this_frame > 0)
 
     def after_tick(self, step) -> None:
         """What the window does after each tick: the strip chart, banners for events."""
@@ -441,6 +448,7 @@ class App:
         """The main loop, until quit (or ``max_frames`` frames). SIGINT and SIGTERM close the
         window as the close button does, whatever a filter does (see :meth:`_on_signal`)."""
         self._signals = 0
+        self.settle_heap = True
         previous = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
