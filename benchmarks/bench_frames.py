@@ -16,7 +16,8 @@ thread) and its interval (``time.perf_counter``: scripted frames do not wait, so
 the wall time the frame took). Printed: median and 99th percentile per round, the medians of
 the rounds, and FIGURE lines for the heavy view's p99 (targets 8 ms at 1280x800, 10 ms at
 1920x1080, at load < 2) and for the light view against the base commit (no slower: <= 1.1x).
-The processes call what ``App.run`` calls (the heap settling of ``app/heap.py``).
+The processes switch on what ``App.run`` does (the heap settling of ``app/heap.py``, the
+smooth drawing of ``App.draw``).
 
     python benchmarks/bench_frames.py [--rounds 5] [--frames 240] [--base 62f69b5]
         [--views heavy light] [--sizes 1280x800 1920x1080]
@@ -71,7 +72,9 @@ def worker(view: str, size: str) -> None:
     session = Session(load_scenario(scenario), specs, None, {"pf": {"n_particles": 10_000}})
     session.toggle_autopilot()
     app = App(session, (w, h), scripted=True)
-    app.settle_heap = True  # what App.run does (an older commit has no such switch: no-op)
+    # What App.run switches on (an older commit has no such switches: no effect there).
+    app.settle_heap = True
+    app.smooth = True
     for _ in range(WARMUP):
         app.frame(SCRIPTED_FRAME_S)
     print(json.dumps({"ready": str(Path(beacon_sim.__file__).parent)}), flush=True)

@@ -15,7 +15,7 @@ import sys
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -98,6 +98,15 @@ class App:
         # Freeze the heap after frames (heap.py); run() switches it on, so that tests which
         # build many windows in one process do not freeze each other's garbage.
         self.settle_heap = False
+        # The world's picture, kept while nothing it shows changes (see world_key); with
+        # smooth on (run() switches it on), a frame that runs a tick shows the kept picture
+        # and the next frame draws the new one, so no frame pays for the tick and the whole
+        # world's drawing (results are unchanged: only the picture comes a frame later).
+        self.smooth = False
+        self.world_version = 0  # bumped by anything the key cannot see (cleared trails...)
+        self._world: tuple[tuple, tuple, pygame.Surface] | None = None
+        self.world_stale = False  # the screen shows the world one tick behind the session
+        self._previous_ticks = 0  # ticks run in the previous frame
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
@@ -155,6 +164,7 @@ class App:
     # --- layout ---------------------------------------------------------------------------
     def _layout(self, size) -> None:
         W, H = size
+        self.world_version += 1
         self.ui_scale = ui_scale(W, H)
         self.fonts = load_fonts(H, W)
         self.renderer = self.RENDERER(self.fonts)
@@ -295,6 +305,7 @@ class App:
     def clear_trails(self) -> None:
         """Forget every trail (the truth's and the filters'), keep the current points."""
         s = self.session
+        self.world_version += 1
         s.truth_trail.__init__(s.truth_trail.min_step, s.truth_trail.max_points)
         s.truth_trail.add(s.true_pose)
         for name, tr in s.trails.items():
@@ -332,6 +343,7 @@ class App:
         if self.gif is not None:
             self.gif.offer(self.screen)
         self.frames += 1
+        self._previous_ticks = self.ticks_this_frame
         if self.settle_heap:
             self.heap.offer(self.now, self.ticks_this_frame > 0)
 
@@ -358,6 +370,7 @@ class App:
 
     def swap_filter(self, name: str, flt) -> str:
         """Replace a running filter (hot reload of a student's file); says how it caught up."""
+        self.world_version += 1
         return self.session.replace_filter(name, flt)
 
     def draw(self) -> None:
@@ -378,8 +391,22 @@ class App:
             if steps:
                 self.renderer.priors(surf, view, steps, self.colours, self.session.used_ids())
 
-        self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
-                           dashes=dashes, extra=extra if (steps or bound is not None) else None)
+        key = self.world_key(drag, steps, bound)
+        area = pygame.Rect(self.view.area).clip(surf.get_rect())
+        kept = self._world
+        if key is not None and kept is not None and kept[2].get_size() == area.size and (
+                kept[:2] == key or (kept[0] == key[0] and self.defer_tick())):
+            surf.blit(kept[2], area)  # nothing changed, or a tick shown on the next frame
+            self.world_stale = kept[:2] != key
+        else:
+            self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
+                               dashes=dashes, extra=extra if (steps or bound is not None) else None)
+            self.world_stale = False
+            if key is not None:
+                image = kept[2] if kept is not None and kept[2].get_size() == area.size \
+                    else pygame.Surface(area.size, 0, surf)
+                image.blit(surf, (0, 0), area)
+                self._world = (*key, image)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
                 "delivered": self.pace.factor,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
@@ -400,6 +427,26 @@ class App:
             self.hud.help(surf)
         pygame.display.flip()
 
+    def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
+        """What the world's picture depends on, as (everything but the tick, the tick); None
+        where it is not kept (a replay, a team: they draw every frame as before). Between
+        two ticks a live session's world changes only through what the first part holds."""
+        s = self.session
+        if type(s) is not Session:
+            return None
+        tracks = tuple((n, id(t.filter), bool(t.failed)) for n, t in s.runner.tracks.items())
+        static = (self.world_version, id(s), self.view.key, self.screen.get_size(),
+                  astuple(self.show), tuple(s.visible.items()), tracks,
+                  tuple(bool(st.failed) for st in s.status.values()), drag, tuple(steps),
+                  bound is not None, self.clock.paused, tuple(self.colours.items()))
+        return static, s.tick_count
+
+    def defer_tick(self) -> bool:
+        """Show this frame's ticks on the next frame (keep the previous picture now): when
+        smooth is on, this frame ran ticks and the previous one did not (so the next frame
+        is free to draw; at high speed, with ticks every frame, every frame draws)."""
+        return self.smooth and self.ticks_this_frame > 0 and self._previous_ticks == 0
+
     def step_view(self) -> dict[str, tuple]:
         """Filter name -> (prior, posterior) of the last tick, each (mean, cov), for the
         visible Gaussian filters, while paused with the step view on; else empty."""
@@ -419,6 +466,12 @@ class App:
         """Anything a mode adds under the help overlay (the replay's timeline)."""
 
     def save_screenshot(self, path) -> None:
+        if self.world_stale:  # the picture is a tick behind (smooth): draw the present one
+            smooth, self.smooth = self.smooth, False
+            try:
+                self.draw()
+            finally:
+                self.smooth = smooth
         path = Path(path)
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -449,6 +502,7 @@ class App:
         window as the close button does, whatever a filter does (see :meth:`_on_signal`)."""
         self._signals = 0
         self.settle_heap = True
+        self.smooth = True
         previous = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
