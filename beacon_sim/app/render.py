@@ -124,8 +124,12 @@ def polyline(surf, colour, pts, width: int, dash=None, closed: bool = False) -> 
         pygame.draw.lines(surf, colour, False, pts, width)
         if len(pts) > 200:
             return
-        for p in pts[1:-1]:  # round joints: thick pygame lines leave notches at corners
-            pygame.draw.circle(surf, colour, (ipx(p[0]), ipx(p[1])), max(width // 2 - 1, 1))
+        # Round joints: thick pygame lines leave notches at corners. A thick line is drawn as
+        # 1 px lines side by side, offset along x or along y by its slope, so a notch is left
+        # where the line turns or where the offset's axis changes; elsewhere (most vertices of
+        # a 96-point ellipse) the next segment covers the joint and no circle is drawn.
+        for x, y in pts[1:-1][notched_joints(pts)].tolist():
+            pygame.draw.circle(surf, colour, (ipx(x), ipx(y)), max(width // 2 - 1, 1))
         return
     seg = np.hypot(*np.diff(pts, axis=0).T)
     s = np.concatenate([[0.0], np.cumsum(seg)])
@@ -148,6 +152,25 @@ def polyline(surf, colour, pts, width: int, dash=None, closed: bool = False) -> 
             pygame.draw.lines(surf, colour, False, xy[a:b], width)
         else:
             pygame.draw.circle(surf, colour, xy[a], r)
+
+
+#: A joint turning by more than this [rad] gets a round cap (see :func:`polyline`).
+JOINT_TURN = math.radians(8.0)
+
+
+def notched_joints(pts: np.ndarray) -> np.ndarray:
+    """Which interior vertices of the polyline ``pts`` (k, 2) [px] a thick pygame line leaves
+    a notch at: a turn of more than ``JOINT_TURN``, or the segments on either side drawn
+    with their 1 px strokes offset along different axes (one steeper than 45 degrees, one
+    not). Zero-length segments count as turns. Returns a boolean mask of k - 2 entries."""
+    d = np.diff(pts, axis=0)
+    a, b = d[:-1], d[1:]
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    dot = (a * b).sum(axis=1)
+    turn = np.abs(np.arctan2(cross, dot))
+    steep = np.abs(d[:, 1]) > np.abs(d[:, 0])
+    degenerate = ~((a != 0).any(axis=1) & (b != 0).any(axis=1))
+    return (turn > JOINT_TURN) | (steep[:-1] != steep[1:]) | degenerate
 
 
 def ipx(v) -> int:
