@@ -104,9 +104,13 @@ class App:
         # world's drawing (results are unchanged: only the picture comes a frame later).
         self.smooth = False
         self.world_version = 0  # bumped by anything the key cannot see (cleared trails...)
-        self._world: tuple[tuple, tuple, pygame.Surface] | None = None
+        self._world: tuple[tuple, int] | None = None  # the key of the picture in _canvas
+        self._canvas: pygame.Surface | None = None  # the world is drawn here, then blitted
+        self._pending: tuple[tuple, int, Any] | None = None  # a half-drawn picture: key, phases
         self.world_stale = False  # the screen shows the world one tick behind the session
         self._previous_ticks = 0  # ticks run in the previous frame
+        self.tick_cpu = 0.0  # CPU time of this frame's ticks [s]
+        self.phase_cpu = [0.0, 0.0]  # CPU time of the world's two drawing phases [s], smoothed
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
@@ -336,8 +340,10 @@ class App:
             self.handle(event)
         self.poll_watchers()  # a filter object is swapped here, between ticks
         self.ticks_this_frame = self.ticks_due(real_dt)
+        c0 = time.process_time()
         for _ in range(self.ticks_this_frame):
             self.after_tick(self.session.tick())
+        self.tick_cpu = time.process_time() - c0
         self.pace.sample(self.now, self.session.time, self.clock.speed, self.clock.paused)
         self.draw()
         if self.gif is not None:
@@ -392,21 +398,13 @@ class App:
                 self.renderer.priors(surf, view, steps, self.colours, self.session.used_ids())
 
         key = self.world_key(drag, steps, bound)
-        area = pygame.Rect(self.view.area).clip(surf.get_rect())
-        kept = self._world
-        if key is not None and kept is not None and kept[2].get_size() == area.size and (
-                kept[:2] == key or (kept[0] == key[0] and self.defer_tick())):
-            surf.blit(kept[2], area)  # nothing changed, or a tick shown on the next frame
-            self.world_stale = kept[:2] != key
-        else:
-            self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
-                               dashes=dashes, extra=extra if (steps or bound is not None) else None)
+        args = (self.view, self.session, self.colours, self.show, drag, dashes,
+                extra if (steps or bound is not None) else None)
+        if key is None:
+            self.renderer.draw(surf, *args)
             self.world_stale = False
-            if key is not None:
-                image = kept[2] if kept is not None and kept[2].get_size() == area.size \
-                    else pygame.Surface(area.size, 0, surf)
-                image.blit(surf, (0, 0), area)
-                self._world = (*key, image)
+        else:
+            self.draw_world(surf, key, args)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
                 "delivered": self.pace.factor,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
@@ -426,6 +424,62 @@ class App:
         if self.help:
             self.hud.help(surf)
         pygame.display.flip()
+
+    def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int], args: tuple) -> None:
+        """The world's picture for ``key`` (see :meth:`world_key`) onto ``surf``: the one kept
+        when nothing changed; else drawn into the canvas (``WorldRenderer.phases``) and kept.
+        A frame that runs a tick after a frame that did not (:meth:`defer_tick`) shows the
+        kept picture and draws the first part of the new one (under the robot); the next
+        frame draws the rest and shows it."""
+        area = pygame.Rect(self.view.area).clip(surf.get_rect())
+        canvas = self._canvas
+        if canvas is None or canvas.get_size() != surf.get_size():
+            canvas = self._canvas = pygame.Surface(surf.get_size(), 0, surf)
+            self._world = None
+            if self._pending is not None:  # begun on the old canvas
+                self._pending[2].close()
+                self._pending = None
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            if pending[:2] == key:
+                c0 = time.process_time()
+                for _ in pending[2]:  # the second part, from the same state
+                    pass
+                self._smooth_cost(1, time.process_time() - c0)
+                self._world = key
+            else:
+                pending[2].close()
+        if self._world == key:
+            self.world_stale = False
+        elif self._world is not None and self._world[0] == key[0] and self.defer_tick():
+            surf.blit(canvas, area, area)  # the previous tick's picture, once more
+            self.world_stale = True
+            # The first part now too when that evens out the two frames: a tick that cost
+            # less than the second part (the lighter views); else all on the next frame.
+            if self.tick_cpu <= self.phase_cpu[1]:
+                phases = self.renderer.phases(canvas, *args)
+                c0 = time.process_time()
+                next(phases)
+                self._smooth_cost(0, time.process_time() - c0)
+                self._pending, self._world = (*key, phases), None
+            else:
+                self._world = (self._world[0], -1)  # drawn afresh on the next frame
+            return
+        else:
+            phases = self.renderer.phases(canvas, *args)
+            c0 = time.process_time()
+            next(phases)
+            c1 = time.process_time()
+            for _ in phases:
+                pass
+            self._smooth_cost(0, c1 - c0)
+            self._smooth_cost(1, time.process_time() - c1)
+            self._world, self.world_stale = key, False
+        surf.blit(canvas, area, area)
+
+    def _smooth_cost(self, i: int, cpu: float) -> None:
+        """Fold one measurement [s] into ``phase_cpu[i]`` (a slow moving average)."""
+        self.phase_cpu[i] += 0.2 * (cpu - self.phase_cpu[i])
 
     def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
         """What the world's picture depends on, as (everything but the tick, the tick); None

@@ -257,6 +257,16 @@ class WorldRenderer:
 
         Order: the true robot is an outline drawn UNDER every belief, and the ellipses and
         wedges come last, solid ones first, so that nothing hides an estimate."""
+        for _ in self.phases(surf, view, session, colours, show, drag, dashes, extra):
+            pass
+
+    def phases(self, surf: pygame.Surface, view: View, session: Scene, colours, show: ShowOptions,
+               drag=None, dashes=None, extra=None):
+        """:meth:`draw` in two parts, a generator: the first ``next`` draws what lies under
+        the robot (floor, sensor range, heat maps, trails, rays, beacons, the true robot), the
+        second what lies over it (particles, ``extra``, estimates, magnifier), from the same
+        session state (the window spreads the two over two frames). The clip is restored
+        at the end; abandoned half way, the surface holds the first part only."""
         sc = session.scenario
         self.last_world = sc.world
         pose = session.true_pose
@@ -285,6 +295,10 @@ class WorldRenderer:
         self.beacons(surf, view, sc.world, seen,
                      missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
         self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
+        surf.set_clip(old_clip)
+        yield
+        old_clip = surf.get_clip()
+        surf.set_clip(pygame.Rect(view.area))
         if show.particles:
             for name, bel in beliefs.items():
                 if isinstance(bel, ParticleBelief):
