@@ -98,10 +98,11 @@ class App:
         # Freeze the heap after frames (heap.py); run() switches it on, so that tests which
         # build many windows in one process do not freeze each other's garbage.
         self.settle_heap = False
-        # The world's picture, kept while nothing it shows changes (see world_key); with
-        # smooth on (run() switches it on), a frame that runs a tick shows the kept picture
-        # and the next frame draws the new one, so no frame pays for the tick and the whole
-        # world's drawing (results are unchanged: only the picture comes a frame later).
+        # With smooth on (run() switches it on; off, every draw() draws everything, as tests
+        # of the drawing expect), the world's picture is kept while nothing it shows changes
+        # (world_key), and a frame that runs a tick shows the kept picture while the next
+        # frame draws the new one, so no frame pays for the tick and the whole world's
+        # drawing (results are unchanged: only the picture comes a frame later).
         self.smooth = False
         self.world_version = 0  # bumped by anything the key cannot see (cleared trails...)
         self._world: tuple[tuple, int] | None = None  # the key of the picture in _canvas
@@ -483,10 +484,10 @@ class App:
 
     def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
         """What the world's picture depends on, as (everything but the tick, the tick); None
-        where it is not kept (a replay, a team: they draw every frame as before). Between
+        where it is not kept (smooth off; a replay, a team: they draw every frame). Between
         two ticks a live session's world changes only through what the first part holds."""
         s = self.session
-        if type(s) is not Session:
+        if not self.smooth or type(s) is not Session:
             return None
         tracks = tuple((n, id(t.filter), bool(t.failed)) for n, t in s.runner.tracks.items())
         static = (self.world_version, id(s), self.view.key, self.screen.get_size(),
@@ -519,13 +520,17 @@ class App:
     def draw_extra(self, surf) -> None:
         """Anything a mode adds under the help overlay (the replay's timeline)."""
 
-    def save_screenshot(self, path) -> None:
-        if self.world_stale:  # the picture is a tick behind (smooth): draw the present one
+    def show_present(self) -> None:
+        """When the screen shows the world a tick behind (smooth), draw the present one."""
+        if self.world_stale:
             smooth, self.smooth = self.smooth, False
             try:
                 self.draw()
             finally:
                 self.smooth = smooth
+
+    def save_screenshot(self, path) -> None:
+        self.show_present()
         path = Path(path)
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -556,7 +561,7 @@ class App:
         window as the close button does, whatever a filter does (see :meth:`_on_signal`)."""
         self._signals = 0
         self.settle_heap = True
-        self.smooth = True
+        smooth, self.smooth = self.smooth, True  # for the loop: a later draw() draws it all
         previous = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
@@ -566,6 +571,8 @@ class App:
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
+            self.smooth = smooth
+        self.show_present()  # the last frame shows the present, not a tick behind
 
     def _loop(self, max_frames: int | None) -> None:
         if self.frames == 0:  # the first picture at once, before any tick (t = 0 of a run)
