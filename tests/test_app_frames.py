@@ -83,9 +83,11 @@ def test_every_frame_shows_the_present_or_the_previous_ticks_picture():
         assert np.array_equal(world_pixels(app), previous)
         stale_frames = 0
         for i in range(60):
-            if i == 31:
+            if i == 33:
                 app.act("toggle2")  # hide pf between two ticks
             app.frame(SCRIPTED_FRAME_S)
+            if i == 33:
+                assert app.ticks_this_frame == 0
             present = fresh_world(app)
             shown = world_pixels(app)
             if app.world_stale:
