@@ -28,7 +28,7 @@ from beacon_sim.app.bound import LiveBound
 from beacon_sim.app.heap import HeapSettler
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
-from beacon_sim.app.render import ShowOptions, View, WorldRenderer
+from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import TeamScenario
@@ -107,11 +107,12 @@ class App:
         self.world_version = 0  # bumped by anything the key cannot see (cleared trails...)
         self._world: tuple[tuple, int] | None = None  # the key of the picture in _canvas
         self._canvas: pygame.Surface | None = None  # the world is drawn here, then blitted
-        self._pending: tuple[tuple, int, Any] | None = None  # a half-drawn picture: key, phases
+        # a half-drawn picture: its key, the phases generator, the steps done
+        self._pending: tuple[tuple, int, Any, int] | None = None
         self.world_stale = False  # the screen shows the world one tick behind the session
         self._previous_ticks = 0  # ticks run in the previous frame
         self.tick_cpu = 0.0  # CPU time of this frame's ticks [s]
-        self.phase_cpu = [0.0, 0.0]  # CPU time of the world's two drawing phases [s], smoothed
+        self.phase_cpu = [0.0] * PHASES  # CPU time of each drawing step [s], smoothed
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
@@ -430,8 +431,8 @@ class App:
         """The world's picture for ``key`` (see :meth:`world_key`) onto ``surf``: the one kept
         when nothing changed; else drawn into the canvas (``WorldRenderer.phases``) and kept.
         A frame that runs a tick after a frame that did not (:meth:`defer_tick`) shows the
-        kept picture and draws the first part of the new one (under the robot); the next
-        frame draws the rest and shows it."""
+        kept picture and draws the first layers of the new one, as many as keep it lighter
+        than the next frame, which draws the rest and shows it."""
         area = pygame.Rect(self.view.area).clip(surf.get_rect())
         canvas = self._canvas
         if canvas is None or canvas.get_size() != surf.get_size():
@@ -443,10 +444,7 @@ class App:
         pending, self._pending = self._pending, None
         if pending is not None:
             if pending[:2] == key:
-                c0 = time.process_time()
-                for _ in pending[2]:  # the second part, from the same state
-                    pass
-                self._smooth_cost(1, time.process_time() - c0)
+                self._run_phases(pending[2], pending[3], PHASES)  # the rest, same state
                 self._world = key
             else:
                 pending[2].close()
@@ -455,32 +453,34 @@ class App:
         elif self._world is not None and self._world[0] == key[0] and self.defer_tick():
             surf.blit(canvas, area, area)  # the previous tick's picture, once more
             self.world_stale = True
-            # The first part now too when that evens out the two frames: a tick that cost
-            # less than the second part (the lighter views); else all on the next frame.
-            if self.tick_cpu <= self.phase_cpu[1]:
-                phases = self.renderer.phases(canvas, *args)
-                c0 = time.process_time()
-                next(phases)
-                self._smooth_cost(0, time.process_time() - c0)
-                self._pending, self._world = (*key, phases), None
-            else:
-                self._world = (self._world[0], -1)  # drawn afresh on the next frame
+            phases = self.renderer.phases(canvas, *args)
+            # Layers now while this frame (the tick and them) stays lighter than the next.
+            now, later, done = self.tick_cpu, sum(self.phase_cpu), 0
+            while done < PHASES and now + self.phase_cpu[done] <= later - self.phase_cpu[done]:
+                now += self.phase_cpu[done]
+                later -= self.phase_cpu[done]
+                done += 1
+            self._pending = (*key, phases, self._run_phases(phases, 0, done))
+            self._world = None
             return
         else:
-            phases = self.renderer.phases(canvas, *args)
-            c0 = time.process_time()
-            next(phases)
-            c1 = time.process_time()
-            for _ in phases:
-                pass
-            self._smooth_cost(0, c1 - c0)
-            self._smooth_cost(1, time.process_time() - c1)
+            self._run_phases(self.renderer.phases(canvas, *args), 0, PHASES)
             self._world, self.world_stale = key, False
         surf.blit(canvas, area, area)
 
-    def _smooth_cost(self, i: int, cpu: float) -> None:
-        """Fold one measurement [s] into ``phase_cpu[i]`` (a slow moving average)."""
-        self.phase_cpu[i] += 0.2 * (cpu - self.phase_cpu[i])
+    def _run_phases(self, phases, first: int, stop: int) -> int:
+        """Run the steps ``first`` .. ``stop - 1`` of a ``WorldRenderer.phases`` generator,
+        folding each one's CPU time into ``phase_cpu`` (a slow moving average); returns the
+        step to go on from."""
+        for i in range(first, stop):
+            c0 = time.process_time()
+            try:
+                next(phases)
+            except StopIteration:
+                return PHASES
+            finally:
+                self.phase_cpu[i] += 0.2 * (time.process_time() - c0 - self.phase_cpu[i])
+        return stop
 
     def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
         """What the world's picture depends on, as (everything but the tick, the tick); None

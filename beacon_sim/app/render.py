@@ -224,6 +224,10 @@ def nice_step(scale: float, min_px: float = 70.0) -> float:
     return 10.0 ** (exp + 1)
 
 
+#: The steps of :meth:`WorldRenderer.phases` (the yields plus the last part).
+PHASES = 5
+
+
 class WorldRenderer:
     """Draws one frame of the world into a surface (the HUD is drawn by ``hud``)."""
 
@@ -262,66 +266,67 @@ class WorldRenderer:
 
     def phases(self, surf: pygame.Surface, view: View, session: Scene, colours, show: ShowOptions,
                drag=None, dashes=None, extra=None):
-        """:meth:`draw` in two parts, a generator: the first ``next`` draws what lies under
-        the robot (floor, sensor range, heat maps, trails, rays, beacons, the true robot), the
-        second what lies over it (particles, ``extra``, estimates, magnifier), from the same
-        session state (the window spreads the two over two frames). The clip is restored
-        at the end; abandoned half way, the surface holds the first part only."""
+        """:meth:`draw` as a generator of :data:`PHASES` steps, in the order of :meth:`draw`:
+        each ``next`` draws one more layer (the floor and the heat maps, the trails, rays,
+        beacons and the true robot, the particles, ``extra`` and the estimates, the
+        magnifier), all from the same session state (the window spreads them over two
+        frames). The clip is restored when it ends or is closed half way."""
         sc = session.scenario
         self.last_world = sc.world
         pose = session.true_pose
         dashes = dashes or {}
         old_clip = self.begin(surf, view)
-        self.sensor_discs(surf, view, sc.sensors, pose)
-
-        beliefs = {}
-        for name in session.names:
-            if not session.visible[name] or session.status[name].failed:
-                continue
-            try:
-                beliefs[name] = session.belief(name)
-            except Exception as exc:  # a student's belief(): show it, keep the window alive
-                session.status[name].failed = f"belief(): {type(exc).__name__}: {exc}"
-        for name, bel in beliefs.items():
-            if isinstance(bel, GridBelief):
-                self._heat(surf, view, name, bel, colours[name], session.tick_count)
-        if show.trails:
-            self.trail(surf, view, session.truth_trail, palette.TRUTH_TRAIL, 5)
+        try:
+            self.sensor_discs(surf, view, sc.sensors, pose)
+            beliefs = {}
             for name in session.names:
-                if session.visible[name]:
-                    self.trail(surf, view, session.trails[name], colours[name], 2)
-        self.rays(surf, view, sc.world, pose, session.readings())
-        seen = session.seen_ids()
-        self.beacons(surf, view, sc.world, seen,
-                     missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
-        self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
-        surf.set_clip(old_clip)
-        yield
-        old_clip = surf.get_clip()
-        surf.set_clip(pygame.Rect(view.area))
-        if show.particles:
+                if not session.visible[name] or session.status[name].failed:
+                    continue
+                try:
+                    beliefs[name] = session.belief(name)
+                except Exception as exc:  # a student's belief(): show it, keep the window alive
+                    session.status[name].failed = f"belief(): {type(exc).__name__}: {exc}"
             for name, bel in beliefs.items():
-                if isinstance(bel, ParticleBelief):
-                    self.particles(surf, view, bel.poses, colours[name], bel.weights)
-        if extra is not None:
-            extra(surf, view, self.lw)
-        estimates = []
-        for name in session.names:
-            if name not in beliefs:
-                continue
-            try:
-                est = session.estimate(name)
-            except Exception:  # before the first tick a student's estimate() may raise
-                continue
-            if est is not None:
-                estimates.append((name, *est))
-        self.estimates(surf, view, estimates, colours, dashes, sc.robot_radius, show.ellipses)
-        self.last_magnifier = None
-        if show.ellipses:
-            self.magnifier(surf, view, pose, estimates, colours, dashes, sc.robot_radius)
-        if drag is not None:
-            self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
-        surf.set_clip(old_clip)
+                if isinstance(bel, GridBelief):
+                    self._heat(surf, view, name, bel, colours[name], session.tick_count)
+            yield
+            if show.trails:
+                self.trail(surf, view, session.truth_trail, palette.TRUTH_TRAIL, 5)
+                for name in session.names:
+                    if session.visible[name]:
+                        self.trail(surf, view, session.trails[name], colours[name], 2)
+            self.rays(surf, view, sc.world, pose, session.readings())
+            seen = session.seen_ids()
+            self.beacons(surf, view, sc.world, seen,
+                         missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
+            self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
+            yield
+            if show.particles:
+                for name, bel in beliefs.items():
+                    if isinstance(bel, ParticleBelief):
+                        self.particles(surf, view, bel.poses, colours[name], bel.weights)
+            yield
+            if extra is not None:
+                extra(surf, view, self.lw)
+            estimates = []
+            for name in session.names:
+                if name not in beliefs:
+                    continue
+                try:
+                    est = session.estimate(name)
+                except Exception:  # before the first tick a student's estimate() may raise
+                    continue
+                if est is not None:
+                    estimates.append((name, *est))
+            self.estimates(surf, view, estimates, colours, dashes, sc.robot_radius, show.ellipses)
+            yield
+            self.last_magnifier = None
+            if show.ellipses:
+                self.magnifier(surf, view, pose, estimates, colours, dashes, sc.robot_radius)
+            if drag is not None:
+                self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
+        finally:
+            surf.set_clip(old_clip)
 
     # --- the pieces every window draws (the single-robot and the team window) --------------
     def begin(self, surf: pygame.Surface, view: View) -> pygame.Rect:
