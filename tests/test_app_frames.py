@@ -129,6 +129,7 @@ def test_run_switches_smooth_on_for_its_loop_and_ends_on_the_present():
     try:
         app.run(45)  # frame 45 runs a tick
         assert app.smooth is False and not app.world_stale
+        assert gc.get_freeze_count() == 0  # the loop released the heap it froze
         assert np.array_equal(world_pixels(app), fresh_world(app))
     finally:
         app.close()
@@ -146,6 +147,9 @@ def test_the_heap_settles_at_the_start_then_every_period_on_a_frame_without_a_ti
         assert settler.offer(1.25, busy=False)
         assert not settler.offer(2.0, busy=False)
         assert settler.offer(2.3, busy=False)
+        settler.release()
+        assert gc.get_freeze_count() == 0
+        assert settler.offer(2.4, busy=True)  # settled afresh after a release
     finally:
         gc.unfreeze()
 

@@ -10,8 +10,10 @@ since. Objects are still freed by reference counting as before; what a frozen ob
 be any more is collected as part of a cycle (a frozen cycle that becomes garbage stays in
 memory). The window settles at its start and then every :data:`SETTLE_EVERY_S` seconds of
 its clock on a frame with no simulation tick, after a collection of the young generations
-(a fraction of a millisecond), so what is frozen is what survived. Nothing here changes a
-result: the collector frees memory, it never runs the simulation or the filters.
+(a fraction of a millisecond), so what is frozen is what survived; when its loop ends it
+unfreezes (:meth:`HeapSettler.release`), so the process's garbage is collectable again.
+Nothing here changes a result: the collector frees memory, it never runs the simulation or
+the filters.
 """
 
 from __future__ import annotations
@@ -48,3 +50,10 @@ class HeapSettler:
             settle(full=False)
         self.last = now
         return True
+
+    def release(self) -> None:
+        """Unfreeze what was frozen (``gc.unfreeze``: back in the oldest generation, where a
+        later full collection sees it), and settle afresh at the next offer."""
+        if self.last is not None:
+            gc.unfreeze()
+            self.last = None

@@ -95,8 +95,9 @@ class App:
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
         self.ticks_this_frame = 0  # simulation ticks run in the current frame
-        # Freeze the heap after frames (heap.py); run() switches it on, so that tests which
-        # build many windows in one process do not freeze each other's garbage.
+        # Freeze the heap after frames (heap.py); run() switches it on for its loop (and
+        # unfreezes at its end), so that tests which build many windows in one process do
+        # not freeze each other's garbage.
         self.settle_heap = False
         # With smooth on (run() switches it on; off, every draw() draws everything, as tests
         # of the drawing expect), the world's picture is kept while nothing it shows changes
@@ -560,8 +561,9 @@ class App:
         """The main loop, until quit (or ``max_frames`` frames). SIGINT and SIGTERM close the
         window as the close button does, whatever a filter does (see :meth:`_on_signal`)."""
         self._signals = 0
-        self.settle_heap = True
-        smooth, self.smooth = self.smooth, True  # for the loop: a later draw() draws it all
+        # For the loop only: a later draw() draws everything, a later frame() freezes nothing.
+        settle, self.settle_heap = self.settle_heap, True
+        smooth, self.smooth = self.smooth, True
         previous = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
@@ -571,7 +573,8 @@ class App:
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-            self.smooth = smooth
+            self.smooth, self.settle_heap = smooth, settle
+            self.heap.release()  # the loop's frozen heap is collectable again
         self.show_present()  # the last frame shows the present, not a tick behind
 
     def _loop(self, max_frames: int | None) -> None:
