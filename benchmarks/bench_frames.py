@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tarfile
@@ -140,11 +141,20 @@ def main() -> None:
     if args.worker:
         worker(*args.worker)
         return
-    from figures import figure
-
     codes = {"new": ROOT}
     if args.base.lower() != "none":
         codes["base"] = extract(args.base)
+    try:
+        measure(args, codes)
+    finally:
+        if "base" in codes:
+            shutil.rmtree(codes["base"], ignore_errors=True)
+
+
+def measure(args: argparse.Namespace, codes: dict[str, Path]) -> None:
+    """Start the worker processes, ask them for the rounds in turn, print the figures."""
+    from figures import figure
+
     procs = {}
     for view in args.views:
         for size in args.sizes:
