@@ -216,3 +216,30 @@ def test_polyline_with_fewer_round_caps_looks_the_same(dash):
     differ = (surfs[0] != surfs[1]).any(axis=2).sum()
     assert drawn > 1000
     assert differ <= 0.002 * drawn  # a handful of pixels of a 4 px wide ring
+
+
+def test_particles_through_one_flat_index_equal_the_two_index_path():
+    """The contiguous surface takes the flat-index path, a subsurface (rows padded to the
+    parent's pitch) the (x, y) path; the pixels are the same."""
+    from beacon_sim.app.assets import load_fonts
+    from beacon_sim.app.render import View, WorldRenderer
+
+    pygame.font.init()
+    renderer = WorldRenderer(load_fonts(400, 640))
+    view = View((0.0, 0.0, 12.0, 8.0), (0, 0, 600, 400))
+    rng = np.random.default_rng(7)
+    poses = np.c_[rng.normal(6, 2.5, 3000), rng.normal(4, 2.0, 3000), rng.normal(0, 1, 3000)]
+    weights = rng.random(3000)
+    weights /= weights.sum()
+    out = []
+    for padded in (False, True):
+        parent = pygame.Surface((640 if padded else 600, 400))
+        surf = parent.subsurface(pygame.Rect(0, 0, 600, 400)) if padded else parent
+        assert pygame.surfarray.pixels2d(surf).T.flags.c_contiguous is not padded
+        surf.fill((250, 250, 240))
+        surf.set_clip(pygame.Rect(view.area))
+        renderer.particles(surf, view, poses, (200, 100, 150), weights)
+        out.append(pygame.surfarray.array3d(surf))
+    drawn = (out[0] != np.array([250, 250, 240])).any(axis=2).sum()
+    assert 5000 < drawn < 600 * 400 // 2  # the particles were drawn, the floor shows
+    assert np.array_equal(out[0], out[1])

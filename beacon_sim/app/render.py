@@ -487,11 +487,20 @@ class WorldRenderer:
             offsets += [(2, 0), (2, 1), (0, 2), (1, 2), (2, 2)]
         arr = pygame.surfarray.pixels2d(surf)
         try:
-            for mask, col in layers:
-                x, y = ix[mask], iy[mask]
-                value = surf.map_rgb(col)
-                for dx, dy in offsets:
-                    arr[x + dx, y + dy] = value
+            rows = arr.T  # (height, width): C-ordered when the pitch is 4 px a pixel
+            if rows.flags.c_contiguous:  # one index per particle, a constant per offset
+                flat, width = rows.reshape(-1), rows.shape[1]
+                for mask, col in layers:
+                    at = iy[mask].astype(np.intp) * width + ix[mask]
+                    value = surf.map_rgb(col)
+                    for dx, dy in offsets:
+                        flat[at + (dy * width + dx)] = value
+            else:
+                for mask, col in layers:
+                    x, y = ix[mask], iy[mask]
+                    value = surf.map_rgb(col)
+                    for dx, dy in offsets:
+                        arr[x + dx, y + dy] = value
         finally:
             del arr
 
