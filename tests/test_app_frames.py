@@ -75,7 +75,8 @@ def test_smooth_frames_give_the_results_of_a_headless_session_bit_for_bit():
 def test_every_frame_shows_the_present_or_the_previous_ticks_picture():
     """A kept picture equals a fresh drawing of the state it was drawn from; a frame that
     ran a tick may show the previous tick's picture (then the next frame shows the present),
-    and a change between ticks (a filter hidden) shows at once."""
+    a change between ticks (a filter hidden) shows at once, and a banner drawn over the
+    world for a few frames leaves no trace when it goes."""
     app = make_app(smooth=True)
     try:
         app.frame(SCRIPTED_FRAME_S)
@@ -85,9 +86,15 @@ def test_every_frame_shows_the_present_or_the_previous_ticks_picture():
         for i in range(60):
             if i == 33:
                 app.act("toggle2")  # hide pf between two ticks
+            if i == 40:
+                app.flash("a banner over the world")
+                app.banner_until = app.now + 0.1  # 6 frames
             app.frame(SCRIPTED_FRAME_S)
             if i == 33:
                 assert app.ticks_this_frame == 0
+            if app.now < app.banner_until:
+                assert app._on_screen is None
+                continue
             present = fresh_world(app)
             shown = world_pixels(app)
             if app.world_stale:

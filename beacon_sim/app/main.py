@@ -111,9 +111,13 @@ class App:
         # a half-drawn picture: its key, the phases generator, the steps done
         self._pending: tuple[tuple, int, Any, int] | None = None
         self.world_stale = False  # the screen shows the world one tick behind the session
+        # the key of the world's picture on the screen, untouched by anything drawn over it
+        # since (a banner, the help...); None when unknown
+        self._on_screen: tuple[tuple, int] | None = None
         self._previous_ticks = 0  # ticks run in the previous frame
         self.tick_cpu = 0.0  # CPU time of this frame's ticks [s]
         self.phase_cpu = [0.0] * PHASES  # CPU time of each drawing step [s], smoothed
+        self.blit_cpu = 0.0  # CPU time of putting the world's picture on the screen [s]
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
@@ -403,11 +407,12 @@ class App:
         key = self.world_key(drag, steps, bound)
         args = (self.view, self.session, self.colours, self.show, drag, dashes,
                 extra if (steps or bound is not None) else None)
+        shown = None  # the key of the world's picture left on the screen
         if key is None:
             self.renderer.draw(surf, *args)
             self.world_stale = False
         else:
-            self.draw_world(surf, key, args)
+            shown = self.draw_world(surf, key, args)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
                 "delivered": self.pace.factor,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
@@ -426,14 +431,21 @@ class App:
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
+        # Nothing drawn over the world: the next frame may leave its picture as it is.
+        overlaid = bool(steps) or bound is not None or self.now < self.banner_until or self.help
+        self._on_screen = None if overlaid or type(self).draw_extra is not App.draw_extra \
+            else shown
         pygame.display.flip()
 
-    def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int], args: tuple) -> None:
+    def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int],
+                   args: tuple) -> tuple[tuple, int]:
         """The world's picture for ``key`` (see :meth:`world_key`) onto ``surf``: the one kept
         when nothing changed; else drawn into the canvas (``WorldRenderer.phases``) and kept.
         A frame that runs a tick after a frame that did not (:meth:`defer_tick`) shows the
         kept picture and draws the first layers of the new one, as many as keep it lighter
-        than the next frame, which draws the rest and shows it."""
+        than the next frame, which draws the rest and shows it. The kept picture is not
+        blitted when the screen still holds it (:attr:`_on_screen`). Returns the key of the
+        picture shown."""
         area = pygame.Rect(self.view.area).clip(surf.get_rect())
         canvas = self._canvas
         if canvas is None or canvas.get_size() != surf.get_size():
@@ -451,23 +463,31 @@ class App:
                 pending[2].close()
         if self._world == key:
             self.world_stale = False
+            if self._on_screen == key:
+                return key  # on the screen already
         elif self._world is not None and self._world[0] == key[0] and self.defer_tick():
-            surf.blit(canvas, area, area)  # the previous tick's picture, once more
+            shown = self._world
+            if self._on_screen != shown:
+                surf.blit(canvas, area, area)  # the previous tick's picture, once more
             self.world_stale = True
             phases = self.renderer.phases(canvas, *args)
-            # Layers now while this frame (the tick and them) stays lighter than the next.
-            now, later, done = self.tick_cpu, sum(self.phase_cpu), 0
-            while done < PHASES and now + self.phase_cpu[done] <= later - self.phase_cpu[done]:
+            # A layer now when that lowers the heavier of this frame (the tick and the layers
+            # so far) and the next (the other layers and showing the picture).
+            now, later, done = self.tick_cpu, sum(self.phase_cpu) + self.blit_cpu, 0
+            while done < PHASES and now + self.phase_cpu[done] < later:
                 now += self.phase_cpu[done]
                 later -= self.phase_cpu[done]
                 done += 1
             self._pending = (*key, phases, self._run_phases(phases, 0, done))
             self._world = None
-            return
+            return shown
         else:
             self._run_phases(self.renderer.phases(canvas, *args), 0, PHASES)
             self._world, self.world_stale = key, False
+        c0 = time.process_time()
         surf.blit(canvas, area, area)
+        self.blit_cpu += 0.2 * (time.process_time() - c0 - self.blit_cpu)
+        return key
 
     def _run_phases(self, phases, first: int, stop: int) -> int:
         """Run the steps ``first`` .. ``stop - 1`` of a ``WorldRenderer.phases`` generator,
