@@ -2,8 +2,8 @@
 
 A full collection walks every tracked object of the process: the modules, numpy, pygame,
 fonts, the session's history. In the window that is 12-17 ms at once (measured on the
-2-core machine at 1280x800, `benchmarks/bench_frames.py`), a visible stutter once every few
-seconds, and it finds nothing to free (the window makes almost no cyclic garbage).
+2-core machine, heavy view at 1280x800: two such frames in 240), a visible stutter every
+few seconds, and it finds nothing to free (the window makes almost no cyclic garbage).
 :func:`settle` collects once and moves every object that exists then into the
 collector's permanent generation (``gc.freeze``): later collections walk only what was made
 since. Objects are still freed by reference counting as before; what a frozen object cannot
@@ -20,15 +20,15 @@ from __future__ import annotations
 
 import gc
 
-#: Seconds of the window's clock between two settles (the session's history grows by
-#: about 20 tracked objects a tick; settled every 30 s, a full collection stays below 1 ms).
+#: Seconds of the window's clock between two settles (the heap grows by about 3 tracked
+#: objects a tick on global_kidnap; a full collection after a settle took 0.04-0.07 ms).
 SETTLE_EVERY_S = 30.0
 
 
 def settle(full: bool = True) -> None:
     """Collect (every generation with ``full``, else the two young ones) and freeze what
     is left, so that later collections skip it."""
-    gc.collect() if full else gc.collect(1)
+    gc.collect(2 if full else 1)
     gc.freeze()
 
 
