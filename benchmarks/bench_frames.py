@@ -88,7 +88,10 @@ def worker(view: str, size: str) -> None:
             wall.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
             ticks.append(app.ticks_this_frame)
-        print(json.dumps({"cpu": cpu, "wall": wall, "ticks": ticks,
+        # A filter switched off (the window's time limit on a step, under load) lightens the
+        # view: reported beside the round.
+        failed = [n for n, t in session.runner.tracks.items() if t.failed]
+        print(json.dumps({"cpu": cpu, "wall": wall, "ticks": ticks, "failed": failed,
                           "load": os.getloadavg()[0]}), flush=True)
     app.close()
 
@@ -184,7 +187,9 @@ def measure(args: argparse.Namespace, codes: dict[str, Path]) -> None:
                     print(f"round {r + 1} {code:4} {view:12} {size:9}: CPU p50 {row['p50']:5.2f} "
                           f"p99 {row['p99']:5.2f} ms (tick frames p50 {row['tick_p50']:5.2f}, "
                           f"others {row['rest_p50']:5.2f}); interval p50 {row['wall_p50']:5.2f} "
-                          f"p99 {row['wall_p99']:5.2f} ms; load {row['load']:.1f}", flush=True)
+                          f"p99 {row['wall_p99']:5.2f} ms; load {row['load']:.1f}"
+                          + (f"; SWITCHED OFF: {', '.join(res['failed'])}" if res.get("failed")
+                             else ""), flush=True)
     for p in procs.values():
         assert p.stdin is not None
         p.stdin.close()
