@@ -5,7 +5,9 @@ Runs the default scenario on autopilot at x1 with ekf + ukf + pf + histogram all
 and prints the median and 99th percentile of the frame time and the load average: events,
 the simulation ticks due (dt = 0.05 s: one tick every third frame), every filter's update,
 drawing and flip. Targets on the 2-core machine: p99 <= 8 ms at load < 2 and <= 16.7 ms (60 FPS) at
-load 4 with 10,000 particles; median <= 33 ms with 100,000.
+load 4 with 10,000 particles; median <= 33 ms with 100,000. The frames run as ``App.run``
+runs them (smooth drawing and heap settling, issue 27); ``bench_frames.py`` compares views
+and window sizes against an older commit.
 
     python benchmarks/bench_frame.py [--frames 400] [--particles 10000 100000]
 """
@@ -40,6 +42,7 @@ def bench(n_particles: int, frames: int, warmup: int = 30, chart: bool = True) -
     app = App(session, (1280, 800), scripted=True)
     if chart:
         app.act("chart")  # the strip chart on: the classroom view's heaviest frame
+    app.smooth = app.settle_heap = True  # what App.run switches on (issue 27)
     try:
         for _ in range(warmup):
             app.frame(SCRIPTED_FRAME_S)
@@ -50,6 +53,7 @@ def bench(n_particles: int, frames: int, warmup: int = 30, chart: bool = True) -
             app.frame(SCRIPTED_FRAME_S)
             times[i] = time.perf_counter() - t0
             cpu[i] = time.process_time() - c0
+        app.smooth = False  # every draw() draws everything again
         draw = []
         for _ in range(60):  # drawing alone (no tick), the part the window adds
             app.now += SCRIPTED_FRAME_S

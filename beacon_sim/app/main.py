@@ -15,7 +15,7 @@ import sys
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,9 +24,10 @@ import pygame
 
 from beacon_sim.app import controls, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
+from beacon_sim.app.heap import HeapSettler
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
-from beacon_sim.app.render import ShowOptions, View, WorldRenderer
+from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import TeamScenario
@@ -94,6 +95,29 @@ class App:
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
         self.ticks_this_frame = 0  # simulation ticks run in the current frame
+        # Freeze the heap after frames (heap.py); run() switches it on for its loop (and
+        # unfreezes at its end), so that tests which build many windows in one process do
+        # not freeze each other's garbage.
+        self.settle_heap = False
+        # With smooth on (run() switches it on; off, every draw() draws everything, as tests
+        # of the drawing expect), the world's picture is kept while nothing it shows changes
+        # (world_key), and a frame that runs a tick shows the kept picture while the next
+        # frame draws the new one, so no frame pays for the tick and the whole world's
+        # drawing (results are unchanged: only the picture comes a frame later).
+        self.smooth = False
+        self.world_version = 0  # bumped by anything the key cannot see (cleared trails...)
+        self._world: tuple[tuple, int] | None = None  # the key of the picture in _canvas
+        self._canvas: pygame.Surface | None = None  # the world is drawn here, then blitted
+        # a half-drawn picture: its key, the phases generator, the steps done
+        self._pending: tuple[tuple, int, Any, int] | None = None
+        self.world_stale = False  # the screen shows the world one tick behind the session
+        # the key of the world's picture on the screen, untouched by anything drawn over it
+        # since (a banner, the help...); None when unknown
+        self._on_screen: tuple[tuple, int] | None = None
+        self._previous_ticks = 0  # ticks run in the previous frame
+        self.tick_cpu = 0.0  # CPU time of this frame's ticks [s]
+        self.phase_cpu = [0.0] * PHASES  # CPU time of each drawing step [s], smoothed
+        self.blit_cpu = 0.0  # CPU time of putting the world's picture on the screen [s]
         self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
@@ -101,6 +125,7 @@ class App:
             session.on_step.append(self.bound.feed)
         self.chart = StripChart(session.names, session.scenario.dt)
         self.pace = DeliveredSpeed()
+        self.heap = HeapSettler()  # keeps full garbage collections out of the frames (heap.py)
         self.chart_rect: pygame.Rect | None = None
         self._layout(self.screen.get_size())
 
@@ -150,6 +175,7 @@ class App:
     # --- layout ---------------------------------------------------------------------------
     def _layout(self, size) -> None:
         W, H = size
+        self.world_version += 1
         self.ui_scale = ui_scale(W, H)
         self.fonts = load_fonts(H, W)
         self.renderer = self.RENDERER(self.fonts)
@@ -290,6 +316,7 @@ class App:
     def clear_trails(self) -> None:
         """Forget every trail (the truth's and the filters'), keep the current points."""
         s = self.session
+        self.world_version += 1
         s.truth_trail.__init__(s.truth_trail.min_step, s.truth_trail.max_points)
         s.truth_trail.add(s.true_pose)
         for name, tr in s.trails.items():
@@ -320,13 +347,18 @@ class App:
             self.handle(event)
         self.poll_watchers()  # a filter object is swapped here, between ticks
         self.ticks_this_frame = self.ticks_due(real_dt)
+        c0 = time.process_time()
         for _ in range(self.ticks_this_frame):
             self.after_tick(self.session.tick())
+        self.tick_cpu = time.process_time() - c0
         self.pace.sample(self.now, self.session.time, self.clock.speed, self.clock.paused)
         self.draw()
         if self.gif is not None:
             self.gif.offer(self.screen)
         self.frames += 1
+        self._previous_ticks = self.ticks_this_frame
+        if self.settle_heap:
+            self.heap.offer(self.now, self.ticks_this_frame > 0)
 
     def after_tick(self, step) -> None:
         """What the window does after each tick: the strip chart, banners for events."""
@@ -351,6 +383,7 @@ class App:
 
     def swap_filter(self, name: str, flt) -> str:
         """Replace a running filter (hot reload of a student's file); says how it caught up."""
+        self.world_version += 1
         return self.session.replace_filter(name, flt)
 
     def draw(self) -> None:
@@ -371,8 +404,15 @@ class App:
             if steps:
                 self.renderer.priors(surf, view, steps, self.colours, self.session.used_ids())
 
-        self.renderer.draw(surf, self.view, self.session, self.colours, self.show, drag,
-                           dashes=dashes, extra=extra if (steps or bound is not None) else None)
+        key = self.world_key(drag, steps, bound)
+        args = (self.view, self.session, self.colours, self.show, drag, dashes,
+                extra if (steps or bound is not None) else None)
+        shown = None  # the key of the world's picture left on the screen
+        if key is None:
+            self.renderer.draw(surf, *args)
+            self.world_stale = False
+        else:
+            shown = self.draw_world(surf, key, args)
         info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
                 "delivered": self.pace.factor,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
@@ -391,7 +431,97 @@ class App:
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
+        # Nothing drawn over the world: the next frame may leave its picture as it is.
+        overlaid = bool(steps) or bound is not None or self.now < self.banner_until or self.help
+        self._on_screen = None if overlaid or type(self).draw_extra is not App.draw_extra \
+            else shown
         pygame.display.flip()
+
+    def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int],
+                   args: tuple) -> tuple[tuple, int]:
+        """The world's picture for ``key`` (see :meth:`world_key`) onto ``surf``: the one kept
+        when nothing changed; else drawn into the canvas (``WorldRenderer.phases``) and kept.
+        A frame that runs a tick after a frame that did not (:meth:`defer_tick`) shows the
+        kept picture and draws the first layers of the new one, as many as keep it lighter
+        than the next frame, which draws the rest and shows it. The kept picture is not
+        blitted when the screen still holds it (:attr:`_on_screen`). Returns the key of the
+        picture shown."""
+        area = pygame.Rect(self.view.area).clip(surf.get_rect())
+        canvas = self._canvas
+        if canvas is None or canvas.get_size() != surf.get_size():
+            canvas = self._canvas = pygame.Surface(surf.get_size(), 0, surf)
+            self._world = None
+            if self._pending is not None:  # begun on the old canvas
+                self._pending[2].close()
+                self._pending = None
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            if pending[:2] == key:
+                self._run_phases(pending[2], pending[3], PHASES)  # the rest, same state
+                self._world = key
+            else:
+                pending[2].close()
+        if self._world == key:
+            self.world_stale = False
+            if self._on_screen == key:
+                return key  # on the screen already
+        elif self._world is not None and self._world[0] == key[0] and self.defer_tick():
+            shown = self._world
+            if self._on_screen != shown:
+                surf.blit(canvas, area, area)  # the previous tick's picture, once more
+            self.world_stale = True
+            phases = self.renderer.phases(canvas, *args)
+            # A layer now when that lowers the heavier of this frame (the tick and the layers
+            # so far) and the next (the other layers and showing the picture).
+            now, later, done = self.tick_cpu, sum(self.phase_cpu) + self.blit_cpu, 0
+            while done < PHASES and now + self.phase_cpu[done] < later:
+                now += self.phase_cpu[done]
+                later -= self.phase_cpu[done]
+                done += 1
+            self._pending = (*key, phases, self._run_phases(phases, 0, done))
+            self._world = None
+            return shown
+        else:
+            self._run_phases(self.renderer.phases(canvas, *args), 0, PHASES)
+            self._world, self.world_stale = key, False
+        c0 = time.process_time()
+        surf.blit(canvas, area, area)
+        self.blit_cpu += 0.2 * (time.process_time() - c0 - self.blit_cpu)
+        return key
+
+    def _run_phases(self, phases, first: int, stop: int) -> int:
+        """Run the steps ``first`` .. ``stop - 1`` of a ``WorldRenderer.phases`` generator,
+        folding each one's CPU time into ``phase_cpu`` (a slow moving average); returns the
+        step to go on from."""
+        for i in range(first, stop):
+            c0 = time.process_time()
+            try:
+                next(phases)
+            except StopIteration:
+                return PHASES
+            finally:
+                self.phase_cpu[i] += 0.2 * (time.process_time() - c0 - self.phase_cpu[i])
+        return stop
+
+    def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
+        """What the world's picture depends on, as (everything but the tick, the tick); None
+        where it is not kept (smooth off; a replay, a team: they draw every frame). Between
+        two ticks a live session's world changes only through what the first part holds."""
+        s = self.session
+        if not self.smooth or type(s) is not Session:
+            return None
+        tracks = tuple((n, id(t.filter), bool(t.failed)) for n, t in s.runner.tracks.items())
+        static = (self.world_version, id(s), self.view.key, self.screen.get_size(),
+                  astuple(self.show), tuple(s.visible.items()), tracks,
+                  tuple(bool(st.failed) for st in s.status.values()), drag, tuple(steps),
+                  bound is not None, self.clock.paused, tuple(self.colours.items()))
+        return static, s.tick_count
+
+    def defer_tick(self) -> bool:
+        """Show this frame's ticks on the next frame (keep the previous picture now): when
+        smooth is on, this frame ran ticks and the previous one did not (so the next frame
+        is free to draw; at high speed, with ticks every frame, every frame draws)."""
+        return self.smooth and self.ticks_this_frame > 0 and self._previous_ticks == 0
 
     def step_view(self) -> dict[str, tuple]:
         """Filter name -> (prior, posterior) of the last tick, each (mean, cov), for the
@@ -411,7 +541,17 @@ class App:
     def draw_extra(self, surf) -> None:
         """Anything a mode adds under the help overlay (the replay's timeline)."""
 
+    def show_present(self) -> None:
+        """When the screen shows the world a tick behind (smooth), draw the present one."""
+        if self.world_stale:
+            smooth, self.smooth = self.smooth, False
+            try:
+                self.draw()
+            finally:
+                self.smooth = smooth
+
     def save_screenshot(self, path) -> None:
+        self.show_present()
         path = Path(path)
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -441,6 +581,9 @@ class App:
         """The main loop, until quit (or ``max_frames`` frames). SIGINT and SIGTERM close the
         window as the close button does, whatever a filter does (see :meth:`_on_signal`)."""
         self._signals = 0
+        # For the loop only: a later draw() draws everything, a later frame() freezes nothing.
+        settle, self.settle_heap = self.settle_heap, True
+        smooth, self.smooth = self.smooth, True
         previous = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
@@ -450,6 +593,9 @@ class App:
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
+            self.smooth, self.settle_heap = smooth, settle
+            self.heap.release()  # the loop's frozen heap is collectable again
+        self.show_present()  # the last frame shows the present, not a tick behind
 
     def _loop(self, max_frames: int | None) -> None:
         if self.frames == 0:  # the first picture at once, before any tick (t = 0 of a run)

@@ -125,8 +125,12 @@ def polyline(surf, colour, pts, width: int, dash=None, closed: bool = False) -> 
         pygame.draw.lines(surf, colour, False, pts, width)
         if len(pts) > 200:
             return
-        for p in pts[1:-1]:  # round joints: thick pygame lines leave notches at corners
-            pygame.draw.circle(surf, colour, (ipx(p[0]), ipx(p[1])), max(width // 2 - 1, 1))
+        # Round joints: thick pygame lines leave notches at corners. A thick line is drawn as
+        # 1 px lines side by side, offset along x or along y by its slope, so a notch is left
+        # where the line turns or where the offset's axis changes; elsewhere (most vertices of
+        # a 96-point ellipse) the next segment covers the joint and no circle is drawn.
+        for x, y in pts[1:-1][notched_joints(pts)].tolist():
+            pygame.draw.circle(surf, colour, (ipx(x), ipx(y)), max(width // 2 - 1, 1))
         return
     seg = np.hypot(*np.diff(pts, axis=0).T)
     s = np.concatenate([[0.0], np.cumsum(seg)])
@@ -149,6 +153,25 @@ def polyline(surf, colour, pts, width: int, dash=None, closed: bool = False) -> 
             pygame.draw.lines(surf, colour, False, xy[a:b], width)
         else:
             pygame.draw.circle(surf, colour, xy[a], r)
+
+
+#: A joint turning by more than this [rad] gets a round cap (see :func:`polyline`).
+JOINT_TURN = math.radians(8.0)
+
+
+def notched_joints(pts: np.ndarray) -> np.ndarray:
+    """Which interior vertices of the polyline ``pts`` (k, 2) [px] a thick pygame line leaves
+    a notch at: a turn of more than ``JOINT_TURN``, or the segments on either side drawn
+    with their 1 px strokes offset along different axes (one steeper than 45 degrees, one
+    not). Zero-length segments count as turns. Returns a boolean mask of k - 2 entries."""
+    d = np.diff(pts, axis=0)
+    a, b = d[:-1], d[1:]
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    dot = (a * b).sum(axis=1)
+    turn = np.abs(np.arctan2(cross, dot))
+    steep = np.abs(d[:, 1]) > np.abs(d[:, 0])
+    degenerate = ~((a != 0).any(axis=1) & (b != 0).any(axis=1))
+    return (turn > JOINT_TURN) | (steep[:-1] != steep[1:]) | degenerate
 
 
 def ipx(v) -> int:
@@ -202,6 +225,10 @@ def nice_step(scale: float, min_px: float = 70.0) -> float:
     return 10.0 ** (exp + 1)
 
 
+#: The steps of :meth:`WorldRenderer.phases` (the yields plus the last part).
+PHASES = 5
+
+
 class WorldRenderer:
     """Draws one frame of the world into a surface (the HUD is drawn by ``hud``)."""
 
@@ -235,57 +262,72 @@ class WorldRenderer:
 
         Order: the true robot is an outline drawn UNDER every belief, and the ellipses and
         wedges come last, solid ones first, so that nothing hides an estimate."""
+        for _ in self.phases(surf, view, session, colours, show, drag, dashes, extra):
+            pass
+
+    def phases(self, surf: pygame.Surface, view: View, session: Scene, colours, show: ShowOptions,
+               drag=None, dashes=None, extra=None):
+        """:meth:`draw` as a generator of :data:`PHASES` steps, in the order of :meth:`draw`:
+        each ``next`` draws one more layer (the floor and the heat maps, the trails, rays,
+        beacons and the true robot, the particles, ``extra`` and the estimates, the
+        magnifier), all from the same session state (the window spreads them over two
+        frames). The clip is restored when it ends or is closed half way."""
         sc = session.scenario
         self.last_world = sc.world
         pose = session.true_pose
         dashes = dashes or {}
         old_clip = self.begin(surf, view)
-        self.sensor_discs(surf, view, sc.sensors, pose)
-
-        beliefs = {}
-        for name in session.names:
-            if not session.visible[name] or session.status[name].failed:
-                continue
-            try:
-                beliefs[name] = session.belief(name)
-            except Exception as exc:  # a student's belief(): show it, keep the window alive
-                session.status[name].failed = f"belief(): {type(exc).__name__}: {exc}"
-        for name, bel in beliefs.items():
-            if isinstance(bel, GridBelief):
-                self._heat(surf, view, name, bel, colours[name], session.tick_count)
-        if show.trails:
-            self.trail(surf, view, session.truth_trail, palette.TRUTH_TRAIL, 5)
+        try:
+            self.sensor_discs(surf, view, sc.sensors, pose)
+            beliefs = {}
             for name in session.names:
-                if session.visible[name]:
-                    self.trail(surf, view, session.trails[name], colours[name], 2)
-        self.rays(surf, view, sc.world, pose, session.readings())
-        seen = session.seen_ids()
-        self.beacons(surf, view, sc.world, seen,
-                     missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
-        self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
-        if show.particles:
+                if not session.visible[name] or session.status[name].failed:
+                    continue
+                try:
+                    beliefs[name] = session.belief(name)
+                except Exception as exc:  # a student's belief(): show it, keep the window alive
+                    session.status[name].failed = f"belief(): {type(exc).__name__}: {exc}"
             for name, bel in beliefs.items():
-                if isinstance(bel, ParticleBelief):
-                    self.particles(surf, view, bel.poses, colours[name], bel.weights)
-        if extra is not None:
-            extra(surf, view, self.lw)
-        estimates = []
-        for name in session.names:
-            if name not in beliefs:
-                continue
-            try:
-                est = session.estimate(name)
-            except Exception:  # before the first tick a student's estimate() may raise
-                continue
-            if est is not None:
-                estimates.append((name, *est))
-        self.estimates(surf, view, estimates, colours, dashes, sc.robot_radius, show.ellipses)
-        self.last_magnifier = None
-        if show.ellipses:
-            self.magnifier(surf, view, pose, estimates, colours, dashes, sc.robot_radius)
-        if drag is not None:
-            self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
-        surf.set_clip(old_clip)
+                if isinstance(bel, GridBelief):
+                    self._heat(surf, view, name, bel, colours[name], session.tick_count)
+            yield
+            if show.trails:
+                self.trail(surf, view, session.truth_trail, palette.TRUTH_TRAIL, 5)
+                for name in session.names:
+                    if session.visible[name]:
+                        self.trail(surf, view, session.trails[name], colours[name], 2)
+            self.rays(surf, view, sc.world, pose, session.readings())
+            seen = session.seen_ids()
+            self.beacons(surf, view, sc.world, seen,
+                         missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
+            self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
+            yield
+            if show.particles:
+                for name, bel in beliefs.items():
+                    if isinstance(bel, ParticleBelief):
+                        self.particles(surf, view, bel.poses, colours[name], bel.weights)
+            yield
+            if extra is not None:
+                extra(surf, view, self.lw)
+            estimates = []
+            for name in session.names:
+                if name not in beliefs:
+                    continue
+                try:
+                    est = session.estimate(name)
+                except Exception:  # before the first tick a student's estimate() may raise
+                    continue
+                if est is not None:
+                    estimates.append((name, *est))
+            self.estimates(surf, view, estimates, colours, dashes, sc.robot_radius, show.ellipses)
+            yield
+            self.last_magnifier = None
+            if show.ellipses:
+                self.magnifier(surf, view, pose, estimates, colours, dashes, sc.robot_radius)
+            if drag is not None:
+                self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
+        finally:
+            surf.set_clip(old_clip)
 
     # --- the pieces every window draws (the single-robot and the team window) --------------
     def begin(self, surf: pygame.Surface, view: View) -> pygame.Rect:
@@ -446,11 +488,20 @@ class WorldRenderer:
             offsets += [(2, 0), (2, 1), (0, 2), (1, 2), (2, 2)]
         arr = pygame.surfarray.pixels2d(surf)
         try:
-            for mask, col in layers:
-                x, y = ix[mask], iy[mask]
-                value = surf.map_rgb(col)
-                for dx, dy in offsets:
-                    arr[x + dx, y + dy] = value
+            rows = arr.T  # (height, width): C-ordered when the pitch is 4 px a pixel
+            if rows.flags.c_contiguous:  # one index per particle, a constant per offset
+                flat, width = rows.reshape(-1), rows.shape[1]
+                for mask, col in layers:
+                    at = iy[mask].astype(np.intp) * width + ix[mask]
+                    value = surf.map_rgb(col)
+                    for dx, dy in offsets:
+                        flat[at + (dy * width + dx)] = value
+            else:
+                for mask, col in layers:
+                    x, y = ix[mask], iy[mask]
+                    value = surf.map_rgb(col)
+                    for dx, dy in offsets:
+                        arr[x + dx, y + dy] = value
         finally:
             del arr
 
