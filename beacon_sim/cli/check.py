@@ -14,7 +14,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.filters.conformance import print_report, run_checks
 from beacon_sim.filters.containment import SandboxError
-from beacon_sim.filters.isolated import hosted_source
+from beacon_sim.filters.hosting import hosted_source
 from beacon_sim.filters.loading import FilterLoadError, load_filter_class
 from beacon_sim.runs.team_conformance import run_team_checks
 

@@ -31,7 +31,7 @@ from beacon_sim.evaluation.team import (
 )
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.containment import SandboxError
-from beacon_sim.filters.isolated import hosted_source
+from beacon_sim.filters.hosting import hosted_source
 from beacon_sim.filters.loading import (
     FilterLoadError,
     build_filter,

@@ -608,7 +608,7 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
                              batch: bool | None = None, scheduler: Any = None) -> list[RunOutput]:
     """:func:`run_monte_carlo` with every filter file (``path.py:Class``), module filter
     (``pkg.mod:Class``) and entry-point filter in a child process of its own
-    (:mod:`beacon_sim.filters.isolated`, :func:`~beacon_sim.filters.isolated.hosted_source`):
+    (:mod:`beacon_sim.filters.isolated`, :func:`~beacon_sim.filters.hosting.hosted_source`):
     the built-in filters run as before (the same numbers), each hosted filter's runs are
     streamed from simulations made here, and the records are merged in ``specs`` order.
     The same figures as in process, bit for bit, for a filter that does not reach for the
@@ -619,7 +619,7 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
     from pathlib import Path
 
     from beacon_sim.filters.containment import resolve_sandbox
-    from beacon_sim.filters.isolated import hosted_source
+    from beacon_sim.filters.hosting import hosted_source
     from beacon_sim.filters.loading import merged_params
 
     duration = scenario.duration if duration is None else duration

@@ -41,7 +41,8 @@ from beacon_sim.filters.base import (
 from beacon_sim.filters.containment import Limits, resolve_sandbox
 from beacon_sim.filters.guard import MAX_COV, MAX_MEAN
 from beacon_sim.filters.host import call_guarded, guarded_call
-from beacon_sim.filters.isolated import FilterChild, IsolatedFilter, hosted_source
+from beacon_sim.filters.hosting import hosted_source
+from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
 from beacon_sim.filters.loading import (
     FilterLoadError,
     build_filter,

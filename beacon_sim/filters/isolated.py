@@ -33,7 +33,6 @@ from beacon_sim.filters.containment import (
     ModuleSource,
     exit_reason,
     launch,
-    module_source,
 )
 from beacon_sim.filters.watchdog import FilterFailed
 from beacon_sim.filters.wire import (
@@ -58,47 +57,6 @@ MIN_REPLY_TIMEOUT_S = 60.0
 MAX_LOG_BYTES = 1 << 20
 
 
-def hosted_source(spec: str) -> tuple[Path | ModuleSource, str | None] | None:
-    """Where the filter named ``spec`` comes from when ``eval``, ``check`` and ``grade`` host
-    it in a child process: a file (``path.py[:Class]``), a module (``pkg.mod:Class``) or an
-    entry point's module, with the class name (None: the file's choice). None for the
-    built-in filters and ``beacon_sim``'s own modules (they may run in process) and for
-    names that are no filter (loading them in process says why, in one line). A module
-    that cannot be found raises :class:`~beacon_sim.filters.loading.FilterLoadError`;
-    nothing of the module runs here."""
-    from beacon_sim.filters.loading import (
-        BUILTIN_FILTERS,
-        FilterLoadError,
-        entry_point_filters,
-        is_file_spec,
-        split_label,
-    )
-
-    bare = split_label(spec)[1]
-    if is_file_spec(spec):
-        target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
-        return Path(target), cls or None
-    if bare in BUILTIN_FILTERS:
-        return None
-    if ":" in bare:
-        module, _, cls = bare.rpartition(":")
-        if "/" in module or "\\" in module or not module:
-            return None
-    else:
-        ep = entry_point_filters().get(bare)
-        if ep is None:
-            return None
-        module, _, cls = ep.value.partition(":")
-        module, cls = module.strip(), cls.strip()
-    if module.partition(".")[0] == "beacon_sim":
-        return None
-    found = module_source(module)
-    if found is None:
-        raise FilterLoadError(f"{spec}: cannot import module {module!r}: no such module on the "
-                              "import path")
-    return found, cls or None
-
-
 class ChildFailure(FilterFailed):
     """The child reported its filter's failure, or died: ``str`` is the one line, ``tb``
     the traceback it sent (if any), ``died`` whether the process is gone."""
@@ -115,8 +73,9 @@ class FilterChild:
     Parameters
     ----------
     source : Path or ModuleSource
-        The student's file, or the module filter's package (:func:`hosted_source`), copied
-        read-only into the child's own folder.
+        The student's file, or the module filter's package
+        (:func:`~beacon_sim.filters.hosting.hosted_source`), copied read-only into the
+        child's own folder.
     class_name : str or None
         The filter class (None: the class that implements the interface, else the file's
         functions; ``functions``: the functions).
@@ -344,4 +303,4 @@ def _estimate_of(tag: bytes, payload: bytes) -> Any:
     raise ChildFailure("the filter's process broke the protocol")
 
 
-__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter", "hosted_source"]
+__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter"]
