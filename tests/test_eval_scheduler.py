@@ -124,6 +124,21 @@ def test_eval_hosts_a_module_filter_in_a_child(capsys, probe_package, sandbox):
     assert got["Probe"]["anees"] == pytest.approx(got["probe_ekf"]["anees"], rel=1e-9)
 
 
+def test_eval_hosts_an_entry_point_filter_in_a_child(capsys, probe_package, tmp_path):
+    """An installed package's entry point (group ``beacon_sim.filters``) is hosted as its
+    module ``pkg.mod:Class`` is."""
+    dist = tmp_path / "lib" / "probe_dist-1.0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: probe-dist\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text("[beacon_sim.filters]\nprobe_ep = probepkg.probe:Probe\n")
+    code = main(["eval", "default", "--runs", "1", "--duration", "2", "--json", "--filter",
+                 "probe_ep", "--filter", "ekf", "--sandbox", "process"])
+    assert code == 0
+    got = json.loads(capsys.readouterr().out)["filters"]
+    assert got["probe_ep"]["failed_runs"] == 0
+    assert got["probe_ep"]["anees"] == pytest.approx(got["ekf"]["anees"], rel=1e-9)
+
+
 def test_eval_in_process_would_be_seen_by_the_probe(capsys, probe_package):
     """The probe's own control: in the grader's process (``--sandbox none``) it is seen."""
     code = main(["eval", "default", "--runs", "1", "--duration", "2", "--json", "--filter",
