@@ -45,7 +45,7 @@ PROBE = textwrap.dedent("""
 def cluster():
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as c, distributed.Client(c) as client:
+                                  dashboard_address=":0") as c, distributed.Client(c) as client:
         yield client
 
 
@@ -71,6 +71,22 @@ def test_dask_runs_equal_local_runs_bit_for_bit(cluster):
         dask = run_monte_carlo(sc, ["ekf", "pf"], 3, seed=5, duration=3.0, batch=batch,
                                scheduler=cluster)
         _same(local, dask)
+    # By address, as ``eval --scheduler tcp://...`` does (a client of its own, closed after).
+    address = cluster.scheduler.address
+    _same(run_monte_carlo(sc, ["ekf"], 2, seed=5, duration=3.0, jobs=1),
+          run_monte_carlo(sc, ["ekf"], 2, seed=5, duration=3.0, scheduler=address))
+
+
+def test_eval_cli_on_dask_prints_the_local_table(cluster, capsys):
+    argv = ["eval", "default", "--runs", "2", "--duration", "3", "--filter", "ekf", "--filter",
+            f"{ATTACKS / 'honest.py'}:MyEkf", "--sandbox", "process", "--json"]
+    assert main([*argv, "--jobs", "1"]) == 0
+    local = json.loads(capsys.readouterr().out)["filters"]
+    assert main([*argv, "--scheduler", cluster.scheduler.address]) == 0
+    dask = json.loads(capsys.readouterr().out)["filters"]
+    for name in ("ekf", "MyEkf"):
+        for key in ("pos_rmse_m", "heading_rmse_rad", "anees", "rmse_over_pcrb", "failed_runs"):
+            assert local[name][key] == dask[name][key], (name, key)
 
 
 def test_dask_hosts_a_file_filter_with_the_local_figures(cluster):

@@ -758,7 +758,7 @@ def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
     try:
         futures = client.map(fn, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
-        for fut in as_completed(futures):
+        for fut in as_completed(futures, loop=client.loop):  # not the default client's loop
             i = index[fut.key]
             result = fut.result()
             fut.release()
