@@ -99,6 +99,21 @@ def test_dask_hosts_a_file_filter_with_the_local_figures(cluster):
     assert all(r.filters["MyEkf"].failed is None for r in dask)
 
 
+def test_a_lost_worker_is_one_cluster_error_not_a_traceback():
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    from beacon_sim.evaluation.montecarlo import ClusterError, on_dask
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                         dashboard_address=":0") as c, Client(c) as client:
+        got: list = []
+        with pytest.raises(ClusterError, match=r"task 1 of 1 was lost \(KilledWorker"):
+            on_dask(client, os._exit, [3], lambda i, r: got.append(r))
+        assert got == []
+
+
 def test_eval_cli_bad_scheduler_is_one_line_exit_2(capsys):
     assert main(["eval", "default", "--runs", "1", "--duration", "1", "--scheduler", "nowhere"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

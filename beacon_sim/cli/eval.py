@@ -20,7 +20,12 @@ from beacon_sim.cli.common import check_duration
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.evaluation.montecarlo import dask_client, run_monte_carlo, run_monte_carlo_isolated
+from beacon_sim.evaluation.montecarlo import (
+    ClusterError,
+    dask_client,
+    run_monte_carlo,
+    run_monte_carlo_isolated,
+)
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.evaluation.team import (
@@ -159,7 +164,7 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
                 runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
                                        jobs=args.jobs, params=params, batch=batch, run_limit_s=limit,
                                        scheduler=scheduler)
-        except SandboxError as exc:
+        except (SandboxError, ClusterError) as exc:
             raise UsageError(str(exc)) from None
         except (SystemExit, KeyboardInterrupt) as exc:
             # Raised by a filter's code inside the Monte Carlo loop (which switches off only

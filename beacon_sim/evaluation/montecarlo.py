@@ -728,6 +728,14 @@ def _hosted_task(args: tuple[Any, ...]) -> list[FilterRun]:
     return hosted_runs(*args)
 
 
+class ClusterError(RuntimeError):
+    """The Dask cluster lost a task (its worker died, the scheduler went away)."""
+
+
+#: The exceptions of ``dask.distributed`` that mean a task was lost, not that it raised.
+_LOST = ("KilledWorker", "CommClosedError", "CancelledError", "FutureCancelledError")
+
+
 def dask_client(scheduler: Any) -> tuple[Any, bool]:
     """A ``dask.distributed`` Client for ``scheduler`` (a Client: itself; a cluster or an
     address: a new one) and whether it is ours to close."""
@@ -760,7 +768,13 @@ def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
         index = {f.key: i for i, f in enumerate(futures)}
         for fut in as_completed(futures, loop=client.loop):  # not the default client's loop
             i = index[fut.key]
-            result = fut.result()
+            try:
+                result = fut.result()
+            except Exception as exc:  # the worker died or the cluster went away: one line
+                if type(exc).__name__ in _LOST:
+                    raise ClusterError(f"Dask: task {i + 1} of {len(futures)} was lost "
+                                       f"({type(exc).__name__}: {str(exc)[:200]})") from None
+                raise
             fut.release()
             done(i, result)
     finally:
@@ -801,6 +815,7 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
     return np.stack([getattr(r.filters[name], attr) for r in runs])
 
 
-__all__ = ["FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs", "dask_client",
-           "dask_workers", "filter_names", "finish_filter", "hosted_runs", "isolated_run", "on_dask",
-           "one_run", "run_monte_carlo", "run_monte_carlo_isolated", "simulate_run", "stack"]
+__all__ = ["ClusterError", "FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs",
+           "dask_client", "dask_workers", "filter_names", "finish_filter", "hosted_runs",
+           "isolated_run", "on_dask", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
+           "simulate_run", "stack"]
