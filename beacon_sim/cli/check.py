@@ -1,5 +1,6 @@
 """``beacon-sim check FILTER [--scenario S] [--sandbox LEVEL]``: the conformance report for a
-filter. A filter file runs in a process of its own (docs/grading.md): its code never runs in
+filter. A filter file, a module filter (``pkg.mod:Class``) or an entry-point filter runs in a
+process of its own (docs/grading.md): its code never runs in
 ``check``'s process, so a file that exits, loops or raises ``KeyboardInterrupt`` fails a
 check instead of ending the program."""
 
@@ -13,14 +14,9 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.filters.conformance import print_report, run_checks
 from beacon_sim.filters.containment import SandboxError
-from beacon_sim.filters.loading import FilterLoadError, is_file_spec, load_filter_class, split_label
+from beacon_sim.filters.hosting import hosted_source
+from beacon_sim.filters.loading import FilterLoadError, load_filter_class
 from beacon_sim.runs.team_conformance import run_team_checks
-
-
-def _file_of(spec: str) -> tuple[Path, str | None]:
-    bare = split_label(spec)[1]
-    target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
-    return Path(target), cls or None
 
 
 def _is_team_file(path: Path, class_name: str | None) -> bool:
@@ -56,11 +52,13 @@ def check_command(args: argparse.Namespace) -> int:
     filter class (one with ``estimates()``) is checked on a team scenario (default
     ``team_sparse``), in this process."""
     sandbox = getattr(args, "sandbox", None) or "auto"
-    if is_file_spec(args.filter) and sandbox != "none":
-        path, cls_name = _file_of(args.filter)
-        if not path.is_file():
-            raise FilterLoadError(f"{path}: no such filter file")
-        if not _is_team_file(path, cls_name):
+    where = hosted_source(args.filter) if sandbox != "none" else None  # a file or a module
+    if where is not None:
+        source, cls_name = where
+        path = source if isinstance(source, Path) else source.origin()
+        if isinstance(source, Path) and not source.is_file():
+            raise FilterLoadError(f"{source}: no such filter file")
+        if path is None or not _is_team_file(path, cls_name):
             try:
                 results = run_checks(args.filter, load_scenario(args.scenario), sandbox=sandbox)
             except SandboxError as exc:

@@ -1,5 +1,6 @@
 """``beacon-sim eval SCENARIO ... [--filter F ...] [--runs N] [--seed S] [--jobs J]
-[--out DIR] [--json] [--strict]``: Monte Carlo comparison of filters, with the PCRB.
+[--scheduler ADDRESS] [--out DIR] [--json] [--strict]``: Monte Carlo comparison of
+filters, with the PCRB (``--scheduler``: on a Dask cluster, the same results).
 
 Prints a table per scenario (or one JSON object with ``--json``); with ``--out DIR`` also
 writes the files of :func:`beacon_sim.evaluation.report.write_outputs`. A filter that
@@ -13,12 +14,18 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 from beacon_sim.cli.common import check_duration
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.evaluation.montecarlo import run_monte_carlo, run_monte_carlo_isolated
+from beacon_sim.evaluation.montecarlo import (
+    ClusterError,
+    dask_client,
+    run_monte_carlo,
+    run_monte_carlo_isolated,
+)
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.evaluation.team import (
@@ -29,15 +36,14 @@ from beacon_sim.evaluation.team import (
 )
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.containment import SandboxError
+from beacon_sim.filters.hosting import hosted_source
 from beacon_sim.filters.loading import (
     FilterLoadError,
     build_filter,
     check_param_names,
     filter_display_name,
     filter_names,
-    is_file_spec,
     parse_set_options,
-    split_label,
 )
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
 from beacon_sim.runs.team import check_team_specs
@@ -74,6 +80,8 @@ def eval_command(args: argparse.Namespace) -> int:
     _validate(args)
     team = [is_team_scenario(s) for s in args.scenarios]
     if any(team):
+        if getattr(args, "scheduler", None) is not None:
+            raise UsageError("eval --scheduler: team scenarios run locally only (use --jobs)")
         if not all(team):
             raise UsageError("eval: team scenarios and single-robot scenarios in one evaluation; "
                              "evaluate them in two commands")
@@ -84,11 +92,10 @@ def eval_command(args: argparse.Namespace) -> int:
         specs = list(args.filters or sc.default_filters)
         check_param_names(params, specs)
         for name, spec in zip(filter_names(specs), specs, strict=True):
-            if _isolated(args) and is_file_spec(spec):  # its code runs in its own process only
-                target = split_label(spec)[1]
-                target = target.rpartition(":")[0] if ":" in target else target
-                if not Path(target).is_file():
-                    raise FilterLoadError(f"{target}: no such filter file")
+            where = hosted_source(spec) if _isolated(args) else None
+            if where is not None:  # a file or module: its code runs in its own process only
+                if isinstance(where[0], Path) and not where[0].is_file():
+                    raise FilterLoadError(f"{where[0]}: no such filter file")
                 continue
             try:
                 build_filter(spec, sc, 0, name=name, params=params.get(filter_display_name(spec)))
@@ -99,21 +106,65 @@ def eval_command(args: argparse.Namespace) -> int:
                     raise
         check_duration(args.duration, sc)
     out = Path(args.out) if args.out else None
+    client, own = _connect(getattr(args, "scheduler", None))
+    try:
+        results = _evaluate_all(args, scenarios, params, client)
+    finally:
+        if own:
+            client.close()
+    metas = [m for _, m, _ in results]
+    document = metas[0] if len(metas) == 1 else {"scenarios": metas}
+    if args.json:
+        print(json.dumps(document, default=float))
+    if out is not None:
+        write_outputs(out, results, document)
+    failed = {(m["scenario"], name): r["failed_runs"] for m in metas
+              for name, r in m["filters"].items() if r.get("failed_runs")}
+    for (scenario, name), n in failed.items():
+        print(f"beacon-sim eval: {name} failed in {n} run(s) of {scenario} (no score)",
+              file=sys.stderr)
+    return 1 if failed and getattr(args, "strict", False) else 0
+
+
+def _connect(address: str | None) -> tuple[Any, bool]:
+    """A Dask client for ``--scheduler ADDRESS`` (None: none) and whether to close it; a
+    bad address or an unreachable scheduler is one line, exit status 2."""
+    if address is None:
+        return None, False
+    if "://" not in address:
+        raise UsageError(f"--scheduler {address}: expected a Dask scheduler address such as "
+                         "tcp://host:8786")
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError:
+        raise UsageError("--scheduler needs Dask: pip install 'beacon-sim[grade]'") from None
+    try:
+        return dask_client(address)
+    except (OSError, TimeoutError, ValueError) as exc:
+        why = str(exc).strip().splitlines()
+        raise UsageError(f"--scheduler {address}: cannot reach the Dask scheduler "
+                         f"({why[0] if why else type(exc).__name__})") from None
+
+
+def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[str, dict[str, Any]],
+                  scheduler: Any) -> list[tuple[Any, dict[str, Any], Any]]:
+    """Every scenario's runs (locally, or on Dask) and its summary."""
     results = []
     for sc in scenarios:
         specs = list(args.filters or sc.default_filters)
         try:
             limit = getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S
             batch = False if getattr(args, "no_batch", False) else None
-            if _isolated(args) and any(is_file_spec(s) for s in specs):
+            if _isolated(args) and any(hosted_source(s) is not None for s in specs):
                 runs = run_monte_carlo_isolated(sc, specs, args.runs, seed=args.seed or 0,
                                                 duration=args.duration, jobs=args.jobs, params=params,
                                                 run_limit_s=limit, sandbox=args.sandbox or "auto",
-                                                batch=batch)
+                                                batch=batch, scheduler=scheduler)
             else:
                 runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
-                                       jobs=args.jobs, params=params, batch=batch, run_limit_s=limit)
-        except SandboxError as exc:
+                                       jobs=args.jobs, params=params, batch=batch, run_limit_s=limit,
+                                       scheduler=scheduler)
+        except (SandboxError, ClusterError) as exc:
             raise UsageError(str(exc)) from None
         except (SystemExit, KeyboardInterrupt) as exc:
             # Raised by a filter's code inside the Monte Carlo loop (which switches off only
@@ -128,18 +179,7 @@ def eval_command(args: argparse.Namespace) -> int:
         if not args.json:
             print("\n".join(table_lines(meta)))
             print()
-    metas = [m for _, m, _ in results]
-    document = metas[0] if len(metas) == 1 else {"scenarios": metas}
-    if args.json:
-        print(json.dumps(document, default=float))
-    if out is not None:
-        write_outputs(out, results, document)
-    failed = {(m["scenario"], name): r["failed_runs"] for m in metas
-              for name, r in m["filters"].items() if r.get("failed_runs")}
-    for (scenario, name), n in failed.items():
-        print(f"beacon-sim eval: {name} failed in {n} run(s) of {scenario} (no score)",
-              file=sys.stderr)
-    return 1 if failed and getattr(args, "strict", False) else 0
+    return results
 
 
 def team_eval_command(args: argparse.Namespace) -> int:

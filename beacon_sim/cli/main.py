@@ -88,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sandbox", choices=("auto", "bwrap", "process", "none"),
                    help="filter files run in a process of their own (default auto: bubblewrap "
                         "where it works; none: in this process; docs/grading.md)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on a Dask cluster, e.g. tcp://host:8786 (the same results as local "
+                        "--jobs; docs/evaluation.md)")
 
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
     p.add_argument("file", help="a recording (.jsonl) written by beacon-sim play")

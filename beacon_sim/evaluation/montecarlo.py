@@ -517,8 +517,13 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
                     progress: bool | None = None,
                     on_run: Callable[[RunOutput], None] | None = None,
                     batch: bool | None = None,
-                    run_limit_s: float | None = None) -> list[RunOutput]:
+                    run_limit_s: float | None = None,
+                    scheduler: Any = None) -> list[RunOutput]:
     """``runs`` runs with seeds ``seed, seed + 1, ...``; returns them in seed order.
+
+    ``scheduler``: None runs on ``jobs`` local processes; a Dask scheduler's address
+    (``tcp://host:8786``), a ``dask.distributed`` Client or cluster runs the same tasks
+    there (:func:`on_dask`), with the same results bit for bit.
 
     ``run_limit_s`` [s]: each filter's time limit per run (:func:`one_run`; the batched
     built-in filters have none).
@@ -532,6 +537,7 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
     (ValueError when it is not possible).
     """
     duration = scenario.duration if duration is None else duration
+    jobs_given = jobs
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
     jobs = min(jobs, runs)
     params = params or {}
@@ -545,6 +551,8 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
             raise ValueError(f"cannot batch: {why}")
         batch = why is None
     if batch:
+        if scheduler is not None and jobs_given is None:  # one batch per Dask worker
+            jobs = min(runs, max(1, dask_workers(scheduler)))
         bounds = [round(k * runs / jobs) for k in range(jobs + 1)]
         chunks = [list(range(a, b)) for a, b in pairwise(bounds) if b > a]
         btasks = [(scenario, list(specs), params, [seed + i for i in c], duration, c, 0) for c in chunks]
@@ -556,7 +564,9 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
                 if on_run:
                     on_run(r)
 
-        if len(btasks) == 1:
+        if scheduler is not None:
+            on_dask(scheduler, _batch_task, btasks, lambda _i, done: collect(done))
+        elif len(btasks) == 1:
             collect(_batch_task(btasks[0]))
         else:
             with ProcessPoolExecutor(max_workers=len(btasks), initializer=init_worker) as pool:
@@ -565,7 +575,15 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
         return [o for o in out if o is not None]
     tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0, run_limit_s)
              for i in range(runs)]
-    if jobs == 1:
+    if scheduler is not None:
+        def one(i: int, r: RunOutput) -> None:
+            out[i] = r
+            bar.advance()
+            if on_run:
+                on_run(r)
+
+        on_dask(scheduler, _task, tasks, one)
+    elif jobs == 1:
         for i, t in enumerate(tasks):
             out[i] = _task(t)
             bar.advance()
@@ -587,46 +605,104 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
                              params: dict[str, dict[str, Any]] | None = None,
                              run_limit_s: float | None = None, sandbox: str = "auto",
                              memory_gb: float = 4.0, log_dir: Any = None,
-                             batch: bool | None = None) -> list[RunOutput]:
-    """:func:`run_monte_carlo` with every filter file (``path.py:Class``) in a child process
-    of its own (:mod:`beacon_sim.filters.isolated`): the built-in filters run as before (the
-    same numbers), each file filter's runs are streamed from simulations made here, and the
-    records are merged in ``specs`` order. The same figures as in process, bit for bit,
-    for a filter that does not reach for the truth."""
+                             batch: bool | None = None, scheduler: Any = None) -> list[RunOutput]:
+    """:func:`run_monte_carlo` with every filter file (``path.py:Class``), module filter
+    (``pkg.mod:Class``) and entry-point filter in a child process of its own
+    (:mod:`beacon_sim.filters.isolated`, :func:`~beacon_sim.filters.hosting.hosted_source`):
+    the built-in filters run as before (the same numbers), each hosted filter's runs are
+    streamed from simulations made here, and the records are merged in ``specs`` order.
+    The same figures as in process, bit for bit, for a filter that does not reach for the
+    truth. ``scheduler`` (as for :func:`run_monte_carlo`): the built-ins' runs and one task
+    per hosted filter (its child started on the worker; a file is sent with the task, a
+    module must be importable there) run on Dask."""
     import tempfile
     from pathlib import Path
 
-    from beacon_sim.filters.containment import Limits, resolve_sandbox
-    from beacon_sim.filters.isolated import ChildFailure, FilterChild
-    from beacon_sim.filters.loading import is_file_spec, merged_params, split_label
+    from beacon_sim.filters.containment import resolve_sandbox
+    from beacon_sim.filters.hosting import hosted_source
+    from beacon_sim.filters.loading import merged_params
 
     duration = scenario.duration if duration is None else duration
     params = params or {}
     names = filter_names(specs)
-    inside = [s for s in specs if not is_file_spec(s)]
+    hosted = {spec: hosted_source(spec) for spec in specs}
+    inside = [s for s in specs if hosted[s] is None]
     # Not batched: the built-ins' numbers stay those of a run beside a file filter in process
     # (a batched run differs in the last bits).
     base = run_monte_carlo(scenario, inside, runs, seed, duration, jobs, params, progress=False,
                            batch=False if len(inside) < len(specs) else batch,
-                           run_limit_s=run_limit_s) if inside else None
+                           run_limit_s=run_limit_s, scheduler=scheduler) if inside else None
     sims = [simulate_run(scenario, seed + i, duration, i) for i in range(runs)]
-    level = resolve_sandbox(sandbox)
+    level = resolve_sandbox(sandbox) if scheduler is None else sandbox  # on Dask: the worker's
     logs = Path(log_dir) if log_dir is not None else Path(tempfile.mkdtemp(prefix="beacon-sim-eval-"))
-    limits = Limits(memory_gb=memory_gb, cpu_s=None if run_limit_s is None else run_limit_s * runs * 1.5 + 60)
-    isolated: dict[str, list[FilterRun]] = {}
+    tasks: list[tuple[Any, ...]] = []
+    task_names: list[str] = []
     for spec, name in zip(specs, names, strict=True):
-        if not is_file_spec(spec):
+        where = hosted[spec]
+        if where is None:
             continue
-        bare = split_label(spec)[1]
-        target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
+        source, cls = where
+        shipped: Any = source
+        if scheduler is not None:  # a file travels with its task; a module is found there
+            shipped = (source.name, source.read_bytes()) if isinstance(source, Path) else source.module
         fp = merged_params(spec, scenario, params.get(filter_display_name(spec)))
+        tasks.append((shipped, cls, name, fp, sims, run_limit_s, runs, level, memory_gb,
+                      None if scheduler is not None else str(logs / f"{name}.log")))
+        task_names.append(name)
+    isolated: dict[str, list[FilterRun]] = {}
+    if scheduler is not None:
+        on_dask(scheduler, _hosted_task, tasks,
+                lambda i, recs: isolated.__setitem__(task_names[i], recs))
+    else:
+        for name, t in zip(task_names, tasks, strict=True):
+            isolated[name] = _hosted_task(t)
+    result = []
+    for i, sr in enumerate(sims):
+        run = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
+        for name in names:
+            run.filters[name] = isolated[name][i] if name in isolated else base[i].filters[name]  # type: ignore[index]
+        result.append(run)
+    return result
+
+
+def hosted_runs(source: Any, cls: str | None, name: str, fp: dict[str, Any],
+                sims: list[SimulatedRun], run_limit_s: float | None, runs: int, sandbox: str,
+                memory_gb: float, log: str | None) -> list[FilterRun]:
+    """Every run of one hosted filter, in a child of its own (a new one after a child
+    that must not be reused): ``source`` a file's path, ``(file name, its bytes)`` (sent
+    to a Dask worker) or a module's :class:`~beacon_sim.filters.containment.ModuleSource`;
+    ``sandbox`` a level (``auto`` resolved here); ``log`` the child's log (None: a
+    temporary one)."""
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from beacon_sim.filters.containment import Limits, module_source, resolve_sandbox
+    from beacon_sim.filters.isolated import ChildFailure, FilterChild
+    from beacon_sim.filters.loading import FilterLoadError
+
+    tmp = Path(tempfile.mkdtemp(prefix="beacon-sim-hosted-"))
+    try:
+        if isinstance(source, tuple):
+            file = tmp / Path(source[0]).name
+            file.write_bytes(source[1])
+            source = file
+        elif isinstance(source, str):
+            found = module_source(source)
+            if found is None:
+                raise FilterLoadError(f"{source}: cannot import module {source!r} on this Dask worker")
+            source = found
+        level = resolve_sandbox(sandbox)
+        log_path = Path(log) if log is not None else tmp / "log.txt"
+        limits = Limits(memory_gb=memory_gb,
+                        cpu_s=None if run_limit_s is None else run_limit_s * runs * 1.5 + 60)
         records: list[FilterRun] = []
         child: FilterChild | None = None
         why: str | None = None
         for sr in sims:
             if why is None and child is None:
                 try:
-                    child = FilterChild(Path(target), cls or None, logs / f"{name}.log", level, limits,
+                    child = FilterChild(source, cls, log_path, level, limits,
                                         max(60.0, 5 * (run_limit_s or 60.0)))
                 except ChildFailure as exc:
                     why = str(exc)
@@ -635,21 +711,75 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
                 records.append(finish_filter(np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan),
                                              sr.truth, 0, why or "failed", 0.0, 0, 0, sr.index == 0))
                 continue
-            out, rep = isolated_run(child, sr, run_limit_s, keep_means=sr.index == 0, name=name, params=fp)
+            out, rep = isolated_run(child, sr, run_limit_s, keep_means=sr.index == 0, name=name,
+                                    params=fp)
             records.append(out.filters[name])
             if rep.get("failed_child"):
                 child.close()
                 child = None
         if child is not None:
             child.close()
-        isolated[name] = records
-    result = []
-    for i, sr in enumerate(sims):
-        run = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
-        for name in names:
-            run.filters[name] = isolated[name][i] if name in isolated else base[i].filters[name]  # type: ignore[index]
-        result.append(run)
-    return result
+        return records
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _hosted_task(args: tuple[Any, ...]) -> list[FilterRun]:
+    return hosted_runs(*args)
+
+
+class ClusterError(RuntimeError):
+    """The Dask cluster lost a task (its worker died, the scheduler went away)."""
+
+
+#: The exceptions of ``dask.distributed`` that mean a task was lost, not that it raised.
+_LOST = ("KilledWorker", "CommClosedError", "CancelledError", "FutureCancelledError")
+
+
+def dask_client(scheduler: Any) -> tuple[Any, bool]:
+    """A ``dask.distributed`` Client for ``scheduler`` (a Client: itself; a cluster or an
+    address: a new one) and whether it is ours to close."""
+    from dask.distributed import Client
+
+    if isinstance(scheduler, Client):
+        return scheduler, False
+    return Client(scheduler, timeout="20s", set_as_default=False), True
+
+
+def dask_workers(scheduler: Any) -> int:
+    """How many workers the Dask cluster has now."""
+    client, own = dask_client(scheduler)
+    try:
+        return len(client.scheduler_info().get("workers", {}))
+    finally:
+        if own:
+            client.close()
+
+
+def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
+            done: Callable[[int, Any], None]) -> None:
+    """``fn(task)`` for every task on Dask, ``done(index, result)`` as each finishes; each
+    result is released once gathered (the scheduler forgets it: never computed again)."""
+    from dask.distributed import as_completed
+
+    client, own = dask_client(scheduler)
+    try:
+        futures = client.map(fn, list(tasks), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for fut in as_completed(futures, loop=client.loop):  # not the default client's loop
+            i = index[fut.key]
+            try:
+                result = fut.result()
+            except Exception as exc:  # the worker died or the cluster went away: one line
+                if type(exc).__name__ in _LOST:
+                    raise ClusterError(f"Dask: task {i + 1} of {len(futures)} was lost "
+                                       f"({type(exc).__name__}: {str(exc)[:200]})") from None
+                raise
+            fut.release()
+            done(i, result)
+    finally:
+        if own:
+            client.close()
 
 
 def limit_worker_memory(gb: float) -> None:
@@ -685,6 +815,7 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
     return np.stack([getattr(r.filters[name], attr) for r in runs])
 
 
-__all__ = ["FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs", "filter_names",
-           "finish_filter", "isolated_run", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
+__all__ = ["ClusterError", "FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs",
+           "dask_client", "dask_workers", "filter_names", "finish_filter", "hosted_runs",
+           "isolated_run", "on_dask", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
            "simulate_run", "stack"]

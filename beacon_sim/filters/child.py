@@ -168,8 +168,18 @@ class _Server:
         from beacon_sim.filters.loading import choose_filter, import_file
         from beacon_sim.filters.wire import OK, reply_json
 
-        module = import_file(Path(path), "student")
-        self.cls = choose_filter(module, class_name, Path(path).name)
+        if path.startswith("module:"):  # a module filter: its package copied onto the path
+            import importlib
+
+            from beacon_sim.filters.loading import IMPORT_LIMIT_S
+            from beacon_sim.filters.runner import run_filter_code
+
+            name = path.removeprefix("module:")
+            module = run_filter_code(lambda: importlib.import_module(name), IMPORT_LIMIT_S, "import")
+            self.cls = choose_filter(module, class_name, name)
+        else:
+            module = import_file(Path(path), "student")
+            self.cls = choose_filter(module, class_name, Path(path).name)
         form = "functions" if self.cls.__qualname__ == "functions" else "class"
         missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
                    if not callable(getattr(self.cls, m, None))]

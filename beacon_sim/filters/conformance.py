@@ -41,6 +41,7 @@ from beacon_sim.filters.base import (
 from beacon_sim.filters.containment import Limits, resolve_sandbox
 from beacon_sim.filters.guard import MAX_COV, MAX_MEAN
 from beacon_sim.filters.host import call_guarded, guarded_call
+from beacon_sim.filters.hosting import hosted_source
 from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
 from beacon_sim.filters.loading import (
     FilterLoadError,
@@ -48,10 +49,8 @@ from beacon_sim.filters.loading import (
     build_from_context,
     filter_display_name,
     initial_belief,
-    is_file_spec,
     load_filter_class,
     merged_params,
-    split_label,
 )
 from beacon_sim.filters.watchdog import FilterFailed, one_line
 
@@ -208,14 +207,13 @@ def _open_host(spec: str, isolated: bool, sandbox: str) -> _Host:
     """Where the checked filter runs: a file in a child process (``isolated``), else here.
     Raises FilterError (the name is no filter: one line, exit status 2) or FilterFailed
     (the file does not import)."""
-    if isolated and is_file_spec(spec):
-        bare = split_label(spec)[1]
-        target, _, cls = bare.rpartition(":") if ":" in bare else (bare, "", "")
-        path = Path(target)
-        if not path.is_file():
+    where = hosted_source(spec) if isolated else None  # a file or a module filter
+    if where is not None:
+        path, cls = where
+        if isinstance(path, Path) and not path.is_file():
             raise FilterLoadError(f"{path}: no such filter file")
         log = Path(tempfile.mkdtemp(prefix="beacon-sim-check-")) / "log.txt"
-        child = FilterChild(path, cls or None, log, resolve_sandbox(sandbox), Limits(),
+        child = FilterChild(path, cls, log, resolve_sandbox(sandbox), Limits(),
                             reply_timeout_s=max(60.0, 4 * STEP_LIMIT_S))
         return _ChildHost(child, log)
     return _LocalHost(load_filter_class(spec))

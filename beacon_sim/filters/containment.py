@@ -19,6 +19,7 @@ Two levels:
 from __future__ import annotations
 
 import functools
+import importlib.util
 import json
 import os
 import shutil
@@ -34,10 +35,73 @@ NOBODY = 65534
 #: Where the child sees its working directory and its file inside bubblewrap.
 BOX_WORK = "/sandbox/work"
 BOX_SRC = "/sandbox/submission"
+#: What the child is asked to load for a module filter: this, then the module's name.
+MODULE_PREFIX = "module:"
 
 
 class SandboxError(ValueError):
     """A sandbox level that cannot work here (one line, exit status 2)."""
+
+
+@dataclass(frozen=True)
+class ModuleSource:
+    """A filter named by module (``pkg.mod:Class``, or an entry point's module): the module's
+    dotted name and the files of its top-level package (its folders, or its one file),
+    which the child gets as a read-only copy in its own folder, first on its import path."""
+
+    module: str
+    roots: tuple[Path, ...]
+
+    @property
+    def name(self) -> str:
+        return self.module
+
+    def origin(self) -> Path | None:
+        """The module's own file in the grader's copy (None: not found), read without
+        running it."""
+        parts = self.module.split(".")
+        for root in self.roots:
+            if root.is_file():
+                return root if len(parts) == 1 else None
+            base = root.joinpath(*parts[1:])
+            for p in (base / "__init__.py", base.with_suffix(".py")):
+                if p.is_file():
+                    return p
+        return None
+
+
+def module_source(module: str) -> ModuleSource | None:
+    """Where the module ``module`` comes from, found without running any of its code (only
+    its top-level package is looked up); None when it is not importable from a file."""
+    top = module.partition(".")[0]
+    try:
+        spec = importlib.util.find_spec(top)
+    except (ImportError, ValueError):
+        return None
+    if spec is None:
+        return None
+    if spec.submodule_search_locations:
+        roots = tuple(Path(p) for p in spec.submodule_search_locations if Path(p).is_dir())
+    elif spec.origin and Path(spec.origin).is_file():
+        roots = (Path(spec.origin),)
+    else:
+        return None
+    return ModuleSource(module, roots) if roots else None
+
+
+def _copy_module(source: ModuleSource, dest: Path) -> None:
+    """Copy the module's top-level package into ``dest`` (no byte code), read-only."""
+    for root in source.roots:
+        if root.is_dir():
+            shutil.copytree(root, dest / root.name, ignore=shutil.ignore_patterns("__pycache__"),
+                            dirs_exist_ok=True)
+        else:
+            shutil.copyfile(root, dest / root.name)
+    for d, dirs, files in os.walk(dest):
+        for f in files:
+            os.chmod(os.path.join(d, f), 0o444)
+        for sub in dirs:
+            os.chmod(os.path.join(d, sub), 0o555)
 
 
 @dataclass(frozen=True)
@@ -89,9 +153,11 @@ def package_root() -> Path:
     return Path(__file__).resolve().parents[2]  # beacon_sim/filters/containment.py
 
 
-def child_env(home: str) -> dict[str, str]:
-    """The child's whole environment: nothing of the grader's but what Python needs."""
-    return {"PATH": "/usr/local/bin:/usr/bin:/bin", "PYTHONPATH": str(package_root()),
+def child_env(home: str, extra_path: str | None = None) -> dict[str, str]:
+    """The child's whole environment: nothing of the grader's but what Python needs
+    (``extra_path``: a module filter's copy, after the package on the import path)."""
+    path = str(package_root()) + (os.pathsep + extra_path if extra_path else "")
+    return {"PATH": "/usr/local/bin:/usr/bin:/bin", "PYTHONPATH": path,
             "HOME": home, "TMPDIR": home, "LANG": "C.UTF-8", "PYTHONHASHSEED": "0",
             "PYTHONDONTWRITEBYTECODE": "1", "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
             "MKL_NUM_THREADS": "1"}
@@ -146,17 +212,23 @@ class Launched:
     source_in_child: str
 
 
-def launch(source: Path, log: IO[bytes], sandbox: str, limits: Limits) -> Launched:
+def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Limits) -> Launched:
     """Start a child for the filter file ``source`` (copied read-only into the child's own
-    folder), with stdout and stderr to ``log``. ``sandbox``: ``bwrap`` or ``process``."""
+    folder), or the module filter's package (copied the same way, imported by name), with
+    stdout and stderr to ``log``. ``sandbox``: ``bwrap`` or ``process``."""
     tmp = Path(tempfile.mkdtemp(prefix="beacon-sim-child-"))
     src, work = tmp / "src", tmp / "work"
     src.mkdir()
     work.mkdir()
-    copy = src / source.name
-    shutil.copyfile(source, copy)
+    module = isinstance(source, ModuleSource)
+    if isinstance(source, ModuleSource):
+        _copy_module(source, src)
+        copy = src
+    else:
+        copy = src / source.name
+        shutil.copyfile(source, copy)
+        os.chmod(copy, 0o444)
     root = hasattr(os, "geteuid") and os.geteuid() == 0
-    os.chmod(copy, 0o444)
     os.chmod(src, 0o555)
     os.chmod(tmp, 0o755)
     drop = root and sandbox == "process"
@@ -172,7 +244,7 @@ def launch(source: Path, log: IO[bytes], sandbox: str, limits: Limits) -> Launch
     child = [sys.executable, "-s", "-B", "-m", "beacon_sim.filters.child",
              str(r_child), str(w_child), json.dumps(cfg)]
     if sandbox == "bwrap":
-        env = child_env(BOX_WORK)
+        env = child_env(BOX_WORK, BOX_SRC if module else None)
         argv = [shutil.which("bwrap") or "bwrap", "--unshare-all", "--die-with-parent",
                 "--new-session", "--clearenv", *_ro_binds(),
                 "--dev", "/dev", "--proc", "/proc", "--tmpfs", "/tmp",
@@ -186,7 +258,9 @@ def launch(source: Path, log: IO[bytes], sandbox: str, limits: Limits) -> Launch
     else:
         argv = child
         source_in_child = str(copy)
-        popen_env = child_env(str(work))
+        popen_env = child_env(str(work), str(src) if module else None)
+    if module:
+        source_in_child = MODULE_PREFIX + source.name
     try:
         proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                 cwd=str(work), env=popen_env, pass_fds=(r_child, w_child),
@@ -221,5 +295,6 @@ def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
     return f"the filter's process exited with status {returncode}"
 
 
-__all__ = ["SANDBOXES", "Launched", "Limits", "SandboxError", "bwrap_problem", "child_env",
-           "exit_reason", "launch", "package_root", "resolve_sandbox"]
+__all__ = ["MODULE_PREFIX", "SANDBOXES", "Launched", "Limits", "ModuleSource", "SandboxError",
+           "bwrap_problem", "child_env", "exit_reason", "launch", "module_source", "package_root",
+           "resolve_sandbox"]

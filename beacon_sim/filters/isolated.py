@@ -27,7 +27,13 @@ import numpy as np
 
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import Belief, FilterContext, GaussianBelief, GridBelief, ParticleBelief
-from beacon_sim.filters.containment import Launched, Limits, exit_reason, launch
+from beacon_sim.filters.containment import (
+    Launched,
+    Limits,
+    ModuleSource,
+    exit_reason,
+    launch,
+)
 from beacon_sim.filters.watchdog import FilterFailed
 from beacon_sim.filters.wire import (
     BELIEF,
@@ -66,8 +72,10 @@ class FilterChild:
 
     Parameters
     ----------
-    source : Path
-        The student's file (copied read-only into the child's own folder).
+    source : Path or ModuleSource
+        The student's file, or the module filter's package
+        (:func:`~beacon_sim.filters.hosting.hosted_source`), copied read-only into the
+        child's own folder.
     class_name : str or None
         The filter class (None: the class that implements the interface, else the file's
         functions; ``functions``: the functions).
@@ -81,7 +89,7 @@ class FilterChild:
         The longest wait for one answer [s] of wall time.
     """
 
-    def __init__(self, source: Path, class_name: str | None, log: Path, sandbox: str,
+    def __init__(self, source: Path | ModuleSource, class_name: str | None, log: Path, sandbox: str,
                  limits: Limits, reply_timeout_s: float = MIN_REPLY_TIMEOUT_S):
         self.limits, self.sandbox = limits, sandbox
         self.source_name = source.name
