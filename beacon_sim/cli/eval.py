@@ -34,6 +34,7 @@ from beacon_sim.filters.loading import (
     filter_display_name,
     filter_names,
     parse_set_options,
+    sensor_note,
 )
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
 from beacon_sim.runs.team import check_team_specs
@@ -103,6 +104,10 @@ def eval_command(args: argparse.Namespace) -> int:
         results.append((sc, meta, curves))
         if not args.json:
             print("\n".join(table_lines(meta)))
+            for spec in specs:   # a filter the scenario's sensors cannot feed: say so, as run does
+                note = sensor_note(spec, sc)
+                if note:
+                    print(note)
             print()
     metas = [m for _, m, _ in results]
     document = metas[0] if len(metas) == 1 else {"scenarios": metas}
