@@ -54,8 +54,9 @@ def interval_lines(meta: dict[str, Any]) -> list[str]:
             parts.append(f"ANEES {r['anees']:.2f} {interval_text(iv['anees'], '.2f')}")
         for k, rec in enumerate(r.get("recovery", [])):
             med = "never" if rec["median_s"] is None else f"{rec['median_s']:.1f} s"
-            parts.append(f"recovery {k + 1} {med} {interval_text(rec.get('median_s_interval'), '.1f')}"
-                         f" {rec['recovered']}/{rec['runs']} {interval_text(rec.get('recovered_interval'), '.0f')}")
+            med_iv = interval_text(rec.get("median_s_interval"), ".1f")
+            count_iv = interval_text(rec.get("recovered_interval"), ".0f")
+            parts.append(f"recovery {k + 1} {med} {med_iv} {rec['recovered']}/{rec['runs']} {count_iv}")
         if parts:
             lines.append(f"  {name}: " + ", ".join(p.rstrip() for p in parts))
         if r.get("below_bound_reason"):

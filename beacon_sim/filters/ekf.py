@@ -52,6 +52,7 @@ from beacon_sim.filters.gaussian_measurements import (
     StackedReadings,
     cov_entries,
     cov_matrix,
+    effective_gate,
     kalman_update,
     process_cov_terms,
 )
@@ -173,7 +174,7 @@ class ExtendedKalmanFilter(VelocityGaussian):
     def __init__(self, ctx: FilterContext):
         self.models = ReadingModels(ctx)
         super().__init__(ctx)
-        self.gate = float(self.params["gate_chi2"])
+        self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.joseph = bool(self.params["joseph"])
         self.rejected = 0  # readings dropped by the gate so far
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap as wrap_angle
 from beacon_sim.core.batch_simulation import BatchTick, BeaconReadings
+from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
@@ -720,6 +721,33 @@ class BatchedGaussian:
         """No measurement update (dead reckoning)."""
 
 
+#: Degrees of freedom of one gated group of rows: a beacon's reading or a fix.
+READING_DOF = {"bearing": 1, "range_bearing": 2, "position": 2, "pose": 3}
+#: The gate's chi-square quantile when the scenario tells the filters its readings have
+#: outliers and ``gate_chi2`` is not given.
+OUTLIER_GATE_QUANTILE = 0.99
+
+
+def outlier_gate(ctx: FilterContext) -> float:
+    """The ``gate_chi2`` an EKF or UKF uses when its parameters do not give one: 0 (no
+    gate) unless a sensor the filter is told of (``ctx.sensors``) declares outliers
+    (``outlier_rate > 0``); then the chi-square ``OUTLIER_GATE_QUANTILE`` point for the
+    most degrees of freedom a gated group of those sensors has (9.21 for range-bearing,
+    6.63 for bearings alone). Written into the filter's parameters, so a recording keeps the
+    gate it ran with."""
+    dofs = [READING_DOF.get(s.kind, 0) for s in ctx.sensors if s.outlier_rate > 0.0]
+    dofs = [d for d in dofs if d > 0]
+    return chi2_quantile(OUTLIER_GATE_QUANTILE, max(dofs)) if dofs else 0.0
+
+
+def effective_gate(flt: FilterBase) -> float:
+    """Set ``flt.params["gate_chi2"]`` to :func:`outlier_gate` when the filter's context did
+    not give it, and return the gate."""
+    if "gate_chi2" not in flt.ctx.params:
+        flt.params["gate_chi2"] = outlier_gate(flt.ctx)
+    return float(flt.params["gate_chi2"])
+
+
 class BatchableFilter(FilterBase):
     """A filter with a form that runs R runs at once (:meth:`batched`).
 
@@ -755,9 +783,32 @@ class BatchableFilter(FilterBase):
         raise NotImplementedError
 
 
-__all__ = ["ALL_ROWS", "BEACON_KINDS", "FIX_KINDS", "KINDS", "LOW_RANK_ROWS", "PRESENT_FRACTION",
-           "BatchableFilter",
-           "BatchedGaussian", "ReadingModels", "SlotPacker", "StackedReadings", "add_diagonal",
-           "corrected_mean", "cov_entries", "cov_matrix", "kalman_update", "kalman_update_low_rank", "nis",
-           "nis_low_rank",
-           "process_cov_terms", "solve", "stack", "symmetrise"]
+__all__ = [
+    "ALL_ROWS",
+    "BEACON_KINDS",
+    "FIX_KINDS",
+    "KINDS",
+    "LOW_RANK_ROWS",
+    "OUTLIER_GATE_QUANTILE",
+    "PRESENT_FRACTION",
+    "READING_DOF",
+    "BatchableFilter",
+    "BatchedGaussian",
+    "ReadingModels",
+    "SlotPacker",
+    "StackedReadings",
+    "add_diagonal",
+    "corrected_mean",
+    "cov_entries",
+    "cov_matrix",
+    "effective_gate",
+    "kalman_update",
+    "kalman_update_low_rank",
+    "nis",
+    "nis_low_rank",
+    "outlier_gate",
+    "process_cov_terms",
+    "solve",
+    "stack",
+    "symmetrise",
+]

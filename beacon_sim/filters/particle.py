@@ -63,8 +63,8 @@ class ParticleFilter(FilterBase):
         "inject_max": 0.25,         # cap on the share of random particles per resampling
         "recovery_fit": "best",     # best | mean: the fit w_fast / w_slow average (see update)
         "lost_cov": True,           # covariance admits being lost (see _with_lost_share)
-        "lost_chi2": 0.999,         # a tick is unexplained when even the best particle's
-                                    # chi-square exceeds this quantile for its readings
+        "lost_chi2": 0.999,         # a reading is unexplained when even the best particle's
+                                    # chi-square exceeds this quantile for its dof
         "adaptive": "off",          # off | kld | seed002
         "kld_epsilon": 0.05,        # KLD bound between sample and true posterior
         "kld_z": 2.326,             # upper standard normal quantile (0.99)
@@ -121,6 +121,8 @@ class ParticleFilter(FilterBase):
         self.w_fast = 0.0
         self.inject_prob = 0.0
         self.lost = 0.0
+        self.lost_at = LOST_AT
+        self._tally: list[float] = [0, 0, 0.0]
         self._spread_floor: np.ndarray | None = None
         self._chi2_cut: dict[int, float] = {}
         self.ess = 0.0
@@ -250,7 +252,7 @@ class ParticleFilter(FilterBase):
         # Per-reading likelihood of the tick (for augmented MCL): sum_i w_i exp(ll_i), ^(1/dims).
         self._prior_w[:n] = self._wn[:n]
         best = float(np.max(ll))
-        self._update_lost(best)
+        self._update_lost()
         if self.params["recovery_fit"] == "best":
             # The best particle's fit: near 1 per reading whenever some particle is where
             # the readings say, however wide the cloud (see _update_recovery).
@@ -293,6 +295,7 @@ class ParticleFilter(FilterBase):
         ll[:] = 0.0
         extra = np.zeros(n) if any(m.kind == "position" for m in measurements) else None
         dims = 0
+        self._tally = [0, 0, 0.0]     # readings, readings no particle explains, expected outliers
         for m in measurements:
             dims += self._loglik(m, ll, extra)
         if self.params["heading_weight"]:
@@ -365,20 +368,41 @@ class ParticleFilter(FilterBase):
         _, prior = weighted_pose_stats(self._P[:, :n], self._prior_w[:n])
         return prior / max(self.ess, 1.0)
 
-    def _update_lost(self, best: float) -> None:
-        """``lost``: the short-term (rate ``alpha_fast``) share of recent ticks that no
-        particle explains, i.e. whose best particle's ``-2 log-likelihood`` (constants left
-        out: the chi-square of its innovations) exceeds the ``lost_chi2`` quantile of a
-        chi-square with the tick's reading count. While tracking, the true pose passes
-        the test with probability ``lost_chi2`` and the best particle does at least as
-        well, so ``lost`` stays 0 but for a rare blip; after a kidnap it climbs by
-        ``alpha_fast`` of what is left each tick."""
-        dims = max(self._dims, 1)
-        cut = self._chi2_cut.get(dims)
+    def _update_lost(self) -> None:
+        """``lost``: the short-term (rate ``alpha_fast``) share of recent readings that no
+        particle explains, beyond the share of outliers the sensors declare.
+
+        A reading is unexplained when even the particle that fits it best has a chi-square
+        (``-2`` times its Gaussian log-likelihood, constants left out) above the
+        ``lost_chi2`` quantile for the reading's degrees of freedom (1 bearing, 2
+        range-bearing or position, 3 pose). While tracking, the true pose passes that test
+        with probability ``lost_chi2`` and the best particle does at least as well, so
+        ``lost`` stays near 0 (near the outlier rate ``eps`` before the correction); after
+        a kidnap it climbs by ``alpha_fast`` of what is left on each tick with readings.
+        The per-tick share, ``(unexplained / readings - eps) / (1 - eps)``, is averaged;
+        ``lost_at`` is ``LOST_AT`` plus three standard deviations of that average when
+        every reading is an outlier with probability ``eps`` (one reading a tick: 0.6 at
+        eps = 0.2), so that declared outliers alone do not make the filter think it lost."""
+        k, bad, eps_sum = self._tally
+        if k <= 0:
+            return
+        eps = min(eps_sum / k, 0.99)
+        share = max(0.0, (bad / k - eps) / (1.0 - eps))
+        a = self.params["alpha_fast"]
+        self.lost += a * (share - self.lost)
+        self.lost_at = LOST_AT + 3.0 * math.sqrt(a / max(2.0 - a, 1e-9) * eps / (1.0 - eps))
+
+    def _count_unexplained(self, fits: np.ndarray, dof: int, eps: float) -> None:
+        """Tally readings for :meth:`_update_lost`: ``fits`` (k, n) or (n,), the Gaussian
+        log-likelihood of each reading at each particle (constants left out, <= 0)."""
+        cut = self._chi2_cut.get(dof)
         if cut is None:
-            cut = self._chi2_cut[dims] = chi2_quantile(self.params["lost_chi2"], dims)
-        failed = 1.0 if -2.0 * best > cut else 0.0
-        self.lost += self.params["alpha_fast"] * (failed - self.lost)
+            cut = self._chi2_cut[dof] = chi2_quantile(self.params["lost_chi2"], dof)
+        best = fits.max(axis=-1)
+        k = int(np.size(best))
+        self._tally[0] += k
+        self._tally[1] += int(np.count_nonzero(-2.0 * np.asarray(best, dtype=np.float64) > cut))
+        self._tally[2] += eps * k
 
     def _update_recovery(self, w_avg: float) -> None:
         """Augmented MCL: ``w_fast`` / ``w_slow`` of the tick's per-reading fit ``w_avg``.
@@ -403,12 +427,12 @@ class ParticleFilter(FilterBase):
             self.w_fast += p["alpha_fast"] * (w_avg - self.w_fast)
         ratio = self.w_fast / self.w_slow if self.w_slow > 0 else 1.0
         self.inject_prob = min(max(0.0, 1.0 - ratio), p["inject_max"])
-        if p["recovery_fit"] == "best" and self.lost < LOST_AT:
+        if p["recovery_fit"] == "best" and self.lost < self.lost_at:
             # Thrun's share is positive whenever the short-term average dips below the
             # long-term one, i.e. on half of the ticks by noise alone; random particles
             # injected while tracking fit a one-beacon reading as well as the cloud does
             # (a ring of poses) and pull the estimate off (0.12 m against 0.03 m on
-            # global_kidnap). Inject only while a recent tick was unexplained.
+            # global_kidnap). Inject only while recent readings went unexplained.
             self.inject_prob = 0.0
 
     def _loglik(self, m: Measurement, ll: np.ndarray, extra: np.ndarray | None) -> int:
@@ -458,6 +482,7 @@ class ParticleFilter(FilterBase):
                 T2 *= T2
                 T2 *= -0.5
                 T1 += T2                          # Gaussian range term
+            self._count_unexplained(T1, 1 if m.kind == "bearing" else 2, eps)
             if eps > 0:
                 # mixture with a uniform reading, log((1 - eps) p + eps u), relative to the peak
                 log_u = -math.log(TWO_PI) + 0.5 * math.log(TWO_PI * std[-1] ** 2)
@@ -474,6 +499,7 @@ class ParticleFilter(FilterBase):
             ey = (y - z[0, 1]) / std[1]
             row = -0.5 * (ex.astype(np.float64) ** 2 + ey ** 2)
             row += (np.cos(th - z[0, 2]) - 1.0) / std[2] ** 2
+            self._count_unexplained(row, 3, eps)
             if eps > 0:
                 area = self.ctx.world.width * self.ctx.world.height
                 log_u = -math.log(area * TWO_PI) + math.log(TWO_PI * std[0] * std[1]) \
@@ -492,6 +518,7 @@ class ParticleFilter(FilterBase):
             # 2-D normalisation 1 / (2 pi sd^2), relative to the reported fix's sd0:
             # it differs between particles through HDOP.
             const = -2.0 * np.log(sd / sd0)
+            self._count_unexplained(row, 2, eps)
             if eps > 0:
                 area = self.ctx.world.width * self.ctx.world.height
                 log_u = -math.log(area) + math.log(TWO_PI * sd0**2)
@@ -626,7 +653,7 @@ class ParticleFilter(FilterBase):
             mean, cov = weighted_pose_stats(P, w, self._work[:, 0, :])
             if self._spread_floor is not None:
                 cov = cov + self._spread_floor
-            if self.params["lost_cov"] and self.lost >= LOST_AT:
+            if self.params["lost_cov"] and self.lost >= self.lost_at:
                 cov = self._with_lost_share(mean, cov, self.lost)
             self._cache = (mean, cov)
         mean, cov = self._cache
@@ -637,13 +664,13 @@ class ParticleFilter(FilterBase):
         ``1 - p_lost``, anywhere in the world (uniform pose) with ``p_lost``".
 
         ``p_lost`` is ``lost`` (:meth:`_update_lost`), used while it is at least
-        ``LOST_AT`` (an unexplained tick among the last few): the filter's own measure that
-        no particle explains the readings. Without it, after a kidnap the weight falls on the
-        one best (still wrong) particle and the reported spread is that of its copies
-        (0.4 mm against a 3.85 m error on ``global_kidnap``); with it the covariance says
-        the filter may be lost until the readings are explained again. While tracking a
-        tick goes unexplained with probability ``1 - lost_chi2``, and the covariance is
-        widened for the few ticks after it: a negligible share of the steps."""
+        ``lost_at`` (without outliers: an unexplained reading among the last few ticks):
+        the filter's own measure that no particle explains the readings. Without it, after
+        a kidnap the weight falls on the one best (still wrong) particle and the reported
+        spread is that of its copies (0.4 mm against a 3.85 m error on ``global_kidnap``);
+        with it the covariance says the filter may be lost until the readings are
+        explained again. While tracking a reading goes unexplained with probability
+        ``1 - lost_chi2``; ``lost`` rarely reaches ``lost_at`` then, and only for a few ticks."""
         xmin, ymin, xmax, ymax = self.ctx.world.bounds
         d = np.array([0.5 * (xmin + xmax) - mean[0], 0.5 * (ymin + ymax) - mean[1]])
         U = np.zeros((3, 3))
@@ -762,8 +789,8 @@ def _above(cov: np.ndarray, floor: float) -> bool:
 #: (see ``ParticleFilter._collapse_floor``).
 COLLAPSE_ESS = 5.0
 
-#: ``lost`` from which the covariance admits being lost: an unexplained tick within the last
-#: four with a reading at the default ``alpha_fast`` (0.2 decays to 0.8^4 0.2 < 0.1).
+#: ``lost`` from which the covariance admits being lost, with no declared outliers: an
+#: unexplained reading in the last four ticks with readings at the default ``alpha_fast``.
 LOST_AT = 0.1
 
 _MAX_STAGES = 8   # progressive correction: the last stage takes what is left of the likelihood
