@@ -288,11 +288,25 @@ def pooled_calibration(data: MrclamData, others: list[MrclamData],
                        source=f"calibrated on other runs ({names}), not on the scored run")
 
 
-def leave_one_robot_out(data: MrclamData, robots: tuple[int, ...] = DATASET_ROBOTS) -> Calibration:
-    """:func:`pooled_calibration` from the other robots of ``data``'s data set folder."""
+def other_runs(data: MrclamData, robots: tuple[int, ...] = DATASET_ROBOTS) -> list[MrclamData]:
+    """The other robots of ``data``'s data set folder that it holds (a folder may hold one)."""
     from beacon_sim.io.mrclam import load_mrclam
 
-    others = [load_mrclam(data.folder, r) for r in robots if r != data.robot]
+    others = []
+    for r in robots:
+        if r != data.robot and (data.folder / f"Robot{r}_Groundtruth.dat").is_file():
+            others.append(load_mrclam(data.folder, r))
+    return others
+
+
+def leave_one_robot_out(data: MrclamData, t_end: float | None = None) -> Calibration:
+    """:func:`pooled_calibration` from the other robots of ``data``'s data set folder; when
+    the folder holds no other robot, the scored run's own calibration, labelled so."""
+    others = other_runs(data)
+    if not others:
+        return replace(calibrate(data, t_end),
+                       source="fitted on the scored run's own ground truth: the folder holds no "
+                              "other robot to calibrate from")
     return pooled_calibration(data, others)
 
 
@@ -304,7 +318,7 @@ CALIBRATIONS = ("others", "self")
 def calibration_for(data: MrclamData, how: str, t_end: float | None = None) -> Calibration:
     """The calibration ``how`` (one of ``CALIBRATIONS``) for ``data``'s run."""
     if how == "others":
-        return leave_one_robot_out(data)
+        return leave_one_robot_out(data, t_end)
     if how == "self":
         return replace(calibrate(data, t_end),
                        source="fitted on the scored run's own ground truth (optimistic: not for scoring)")
