@@ -88,5 +88,8 @@ def test_below_the_bound_names_a_reason():
     assert noise is not None and "Monte Carlo noise" in noise
     walls = below_bound_reason(sc, wall, keep, 0.1, 0.8, [0.75, 0.85])
     assert walls is not None and "walls" in walls
+    # the runs' truth holds the initial pose too (T + 1 rows): the same verdict
+    with_start = np.concatenate([wall[:, :1], wall], axis=1)
+    assert below_bound_reason(sc, with_start, keep, 0.1, 0.8, [0.75, 0.85]) == walls
     other = below_bound_reason(sc, inside, keep, 0.1, 0.8, [0.75, 0.85])
     assert other is not None and "none of the usual reasons" in other

@@ -117,7 +117,8 @@ def below_bound_reason(scenario: Scenario, truths: np.ndarray, keep: np.ndarray,
     runs within two bound-sigmas of the world's walls on over 5 % of the scored steps
     (filters that keep their estimate inside the world use information the bound leaves
     out), the scenario kidnaps the robot (the scored steps are the ones around the
-    kidnaps). ``truths`` (R, T, 3) [m, m, rad], ``keep`` bool (R, T): the scored steps."""
+    kidnaps). ``truths`` (R, T, 3), or (R, T + 1, 3) with the initial pose first, [m, m,
+    rad]; ``keep`` bool (R, T): the scored steps."""
     if ratio is None or not math.isfinite(ratio) or ratio >= BELOW_BOUND:
         return None
     if interval is not None and interval[1] is not None and interval[1] >= 1.0:
@@ -125,6 +126,8 @@ def below_bound_reason(scenario: Scenario, truths: np.ndarray, keep: np.ndarray,
         return (f"RMSE/PCRB {ratio:.2f} is below the bound but its 95 % interval over the "
                 f"{n} runs reaches 1: Monte Carlo noise (more runs narrow it)")
     xmin, ymin, xmax, ymax = scenario.world.bounds
+    if truths.shape[1] == keep.shape[1] + 1:   # the runs' truth holds the initial pose too
+        truths = truths[:, 1:]
     x, y = truths[..., 0][keep], truths[..., 1][keep]
     margin = 2.0 * b_pos
     near = (x - xmin < margin) | (xmax - x < margin) | (y - ymin < margin) | (ymax - y < margin)
