@@ -6,12 +6,15 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.summary import Thresholds, evaluate
+from beacon_sim.filters.gaussian_measurements import SlotPacker, nis
 from beacon_sim.filters.loading import build_filter
 
 
@@ -46,3 +49,39 @@ def test_filters_near_the_bound_with_declared_outliers():
     assert ekf["rmse_over_pcrb"] <= 1.3, ekf["rmse_over_pcrb"]
     assert pf["rmse_over_pcrb"] <= 1.4, pf["rmse_over_pcrb"]
     assert ekf["anees"] < 6 and pf["anees"] < 6
+
+
+@pytest.mark.parametrize("scenario, rate", [("default", 0.2), ("krejsa_bearing_only", 0.15),
+                                            ("ulps_circle", 0.1)])
+def test_batched_gate_equals_the_per_run_gate(scenario, rate):
+    """The batched EKF gates as the per-run EKF does: every step's mean and covariance to
+    1e-9, the same readings dropped, and the NIS of all readings (gated or not)."""
+    sc = with_outliers(scenario, rate)
+    seeds = [4, 9]
+    sims = [Simulation(sc, s) for s in seeds]
+    packer = SlotPacker(sc.world, sc.model_sensors)
+    scalar = [build_filter("ekf", sc, s) for s in seeds]
+    assert scalar[0].gate > 0 and scalar[0].batch_blocker is None
+    fb = scalar[0].batched(len(seeds))
+    worst = 0.0
+    for _ in range(round(20.0 / sc.dt)):
+        steps = [sim.step() for sim in sims]
+        v = np.array([s.control.v for s in steps])
+        w = np.array([s.control.omega for s in steps])
+        st = packer.pack([s.measurements for s in steps])
+        fb.predict(v, w, sc.dt)
+        for f, step in zip(scalar, steps, strict=True):
+            f.predict(step.control, step.dt)
+        if st is not None:
+            want_nis = nis(fb.mean, fb.cov, st)
+            fb.update(st)
+            assert fb.last_nis == pytest.approx(want_nis, rel=1e-12)
+        for i, (f, step) in enumerate(zip(scalar, steps, strict=True)):
+            f.update(step.measurements)
+            m, c = f.estimate()
+            dm = np.abs(fb.mean[i] - m)
+            dm[2] = min(dm[2], 2 * np.pi - dm[2])
+            worst = max(worst, dm.max(), np.abs(fb.cov[i] - c).max())
+    assert worst < 1e-9
+    assert [f.rejected for f in scalar] == fb.rejected.tolist()
+    assert sum(f.rejected for f in scalar) > 0          # the gate did reject outliers

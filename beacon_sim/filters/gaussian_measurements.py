@@ -740,6 +740,33 @@ def outlier_gate(ctx: FilterContext) -> float:
     return chi2_quantile(OUTLIER_GATE_QUANTILE, max(dofs)) if dofs else 0.0
 
 
+def gated_rows(st: StackedReadings, cov: np.ndarray, H: np.ndarray, nu: np.ndarray,
+               r: np.ndarray, gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The per-run EKF's gate on R runs at once: each beacon's reading (range and bearing
+    together) or fix whose squared Mahalanobis distance ``nu^T S^-1 nu``, ``S = H P H^T +
+    R`` against the predicted belief ``cov`` (R, 3, 3), exceeds ``gate`` gets H = 0 and
+    innovation 0 (it then changes nothing). ``H`` (R, M, 3), ``nu`` (R, M), ``r`` (M,) or
+    (R, M) as :meth:`StackedReadings.linearise` gives them; empty slots pass (their
+    innovation is 0). Returns ``(H, nu, rejected)``, ``rejected`` (R,) readings dropped."""
+    R = nu.shape[0]
+    rr = np.broadcast_to(r, nu.shape)
+    keep = np.ones(nu.shape, dtype=bool)
+    rejected = np.zeros(R, dtype=np.int64)
+    for kind, a, b, bxy in st.blocks:
+        width = (b - a) if bxy is None else (1 if kind == "bearing" else 2)
+        if width <= 0 or b <= a:
+            continue
+        Hb = H[:, a:b].reshape(R, -1, width, 3)
+        nb = nu[:, a:b].reshape(R, -1, width)
+        S = Hb @ cov[:, None] @ Hb.swapaxes(-1, -2)
+        S = S + rr[:, a:b].reshape(R, -1, width)[..., None] * np.eye(width)
+        d = np.einsum("rgi,rgi->rg", nb, np.linalg.solve(S, nb[..., None])[..., 0])
+        bad = d > gate
+        rejected += bad.sum(axis=1)
+        keep[:, a:b] &= ~np.repeat(bad, width, axis=1)
+    return np.where(keep[..., None], H, 0.0), np.where(keep, nu, 0.0), rejected
+
+
 def effective_gate(flt: FilterBase) -> float:
     """Set ``flt.params["gate_chi2"]`` to :func:`outlier_gate` when the filter's context did
     not give it, and return the gate."""
@@ -802,6 +829,7 @@ __all__ = [
     "cov_entries",
     "cov_matrix",
     "effective_gate",
+    "gated_rows",
     "kalman_update",
     "kalman_update_low_rank",
     "nis",
