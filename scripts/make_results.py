@@ -329,8 +329,8 @@ def main() -> int:
                "| e²/σ² per component |", "|---|---|---|---|---|---|", *band_rows, "",
                "With beacons in range the KF's NEES is 3, as an honest filter's; in the blind "
                "stretch (no beacon in range, 40 % of the time) it rises, and those steps are the "
-               "ones above the band. The excess is in the cross-track direction (y here, the "
-               "robot drives mostly along x): a heading error moves the robot sideways as it "
+               "ones above the band. The excess is in the position (e²/σ² above 1 in x and y, "
+               "1.0 in heading): a heading error moves the robot sideways as it "
                "drives, and the KF with A = I does not carry the heading's variance into the "
                "position's, so its covariance is too small there. The EKF's Jacobian does, and "
                "its NEES stays at 3 in the blind stretch too. The KF's ANEES is the average of "
