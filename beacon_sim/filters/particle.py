@@ -15,10 +15,15 @@
   that injected particles are weighted before anyone sees the estimate.
 - Recovery: augmented MCL (Thrun et al., Probabilistic Robotics, table 8.3; ROS AMCL's
   ``recovery_alpha_slow/fast``): short- and long-term averages ``w_fast`` / ``w_slow`` of the
-  measurement likelihood; at each resampling a share ``max(0, 1 - w_fast / w_slow)`` of the
-  particles is replaced by uniform random poses. The likelihood is taken per scalar reading
-  (geometric mean, noise constants left out), so its level does not depend on how many
-  beacons a tick happened to see.
+  best particle's fit per scalar reading (noise constants left out, so its level does not
+  depend on how many beacons a tick saw); at each resampling a share
+  ``max(0, 1 - w_fast / w_slow)`` of the particles is replaced by uniform random poses, but
+  only while the lost test says recent readings went unexplained (``recovery_fit = "mean"``:
+  Thrun's weighted-mean likelihood and no lost gate).
+- Lost test: a reading no particle explains at the ``lost_chi2`` point, beyond the declared
+  outlier share, raises ``lost``; while it is high the covariance is mixed with a uniform
+  pose over the world (``lost_cov``). A weight collapse (ESS < ``COLLAPSE_ESS``) keeps the
+  predicted spread / ESS as a floor and jitters the resampled copies by it (issue 26).
 - Adaptive count: KLD-sampling (Fox 2003) between ``n_min`` and ``n_max``, or seed 002's
   scheme (keep drawing until the summed fit of the drawn particles exceeds ``ver_max``).
 - Estimate: weighted mean and covariance, circular mean for heading, heading residuals
