@@ -254,7 +254,7 @@ class ParticleFilter(FilterBase):
         ll = self._fit[:n]
         logw = self._logw[:n]
         tmp = self._wn[:n]                   # float64 scratch, ends as the normalised weights
-        # Per-reading likelihood of the tick (for augmented MCL): sum_i w_i exp(ll_i), ^(1/dims).
+        # The predicted weights (for the collapse floor), then the tick's fit for augmented MCL.
         self._prior_w[:n] = self._wn[:n]
         best = float(np.max(ll))
         self._update_lost()
