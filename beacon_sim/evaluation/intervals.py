@@ -47,7 +47,8 @@ def ratio_of_sums(num: np.ndarray, den: np.ndarray, sqrt: bool = False) -> list[
     return _ends(np.sqrt(v) if sqrt else v)
 
 
-def median_and_count(times: np.ndarray) -> tuple[list[float | None] | None, list[float] | None]:
+def median_and_count(times: np.ndarray) -> tuple[list[float | None] | None,
+                                                 list[float | None] | None]:
     """Intervals of the median recovery time (a run that never recovered counts as
     infinitely late; an end that is infinite is None, "never") and of the number of runs
     that recovered, from per-run times ``times`` (R,) [s] (inf: never)."""

@@ -254,7 +254,7 @@ def _evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds)
                 while len(rec) <= k:
                     rec.append([])
                 rec[k].append(v)
-        recovery = []
+        recovery: list[dict[str, Any]] = []
         for vals in rec:
             finite = [v for v in vals if math.isfinite(v)]
             # Median over all runs, a run that did not recover counting as infinitely late:
