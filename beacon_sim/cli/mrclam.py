@@ -55,7 +55,7 @@ def _print_run(d: dict[str, Any]) -> None:
           f"{d['odometry_rows']} odometry rows, {d['updates']} updates with {d['readings']} "
           f"landmark readings (dropped: {', '.join(f'{k} {v}' for k, v in d['dropped'].items())})")
     n = d["noise"]
-    print(f"noise from the data (beacon-sim mrclam ... --calibrate): v_std {n['v_std']:.4f} m/s, "
+    print(f"noise {d.get('calibration_source', 'from the data')}: v_std {n['v_std']:.4f} m/s, "
           f"omega_std {n['omega_std']:.4f} rad/s per {n['step_dt']:g} s, range_std "
           f"{n['range_std']:.4f} m, bearing_std {n['bearing_std']:.4f} rad")
     print(f"{'filter':<16}{'MSE x m2':>10}{'MSE y m2':>10}{'MSE th rad2':>12}{'pos RMSE m':>11}"
@@ -141,7 +141,8 @@ def mrclam_command(args: argparse.Namespace) -> int:
             _print_calibration(data, cal)
         return 0
     try:
-        run = run_mrclam(data, args.filters, duration, filter_params(args))
+        run = run_mrclam(data, args.filters, duration, filter_params(args),
+                         calibration=getattr(args, "calibration", None) or "others")
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
     d = run.as_json()

@@ -11,11 +11,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from beacon_sim.evaluation.intervals import text as interval_text
+
 #: A failed filter's accuracy cells are empty (None), its row says ``failed_runs`` and the
 #: first failure (seed, time, reason).
 COLUMNS = ("filter", "pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
-           "anees_lo", "anees_hi", "anees_verdict", "nees_steps_in_band", "anis", "anis_verdict",
-           "divergences", "recovery", "us_per_step", "rmse_over_pcrb", "pcrb_pos_rmse_m", "failed_runs",
+           "anees_lo", "anees_hi", "anees_verdict", "verdict", "nees_steps_in_band", "anis", "anis_verdict",
+           "divergences", "recovery", "us_per_step", "rmse_over_pcrb", "rmse_over_pcrb_lo",
+           "rmse_over_pcrb_hi", "anees_ci_lo", "anees_ci_hi", "pcrb_pos_rmse_m", "failed_runs",
            "first_failure")
 
 
@@ -34,6 +37,35 @@ def recovery_text(recovery: list[dict]) -> str:
     return "; ".join(parts)
 
 
+def interval_lines(meta: dict[str, Any]) -> list[str]:
+    """One line per scored filter: RMSE/PCRB, ANEES, recovery time and recovered count
+    with their 95 % bootstrap intervals over runs, and why RMSE/PCRB is below the bound
+    when it is."""
+    seeds = f"seeds {meta['seed']}..{meta['seed'] + meta['runs'] - 1}"
+    lines = []
+    for name, r in meta["filters"].items():
+        if r.get("failed_runs") or "intervals" not in r:
+            continue
+        iv = r["intervals"]
+        parts = []
+        if r.get("rmse_over_pcrb") is not None:
+            parts.append(f"RMSE/PCRB {r['rmse_over_pcrb']:.2f} {interval_text(iv['rmse_over_pcrb'], '.2f')}")
+        if r.get("anees") is not None:
+            parts.append(f"ANEES {r['anees']:.2f} {interval_text(iv['anees'], '.2f')}")
+        for k, rec in enumerate(r.get("recovery", [])):
+            med = "never" if rec["median_s"] is None else f"{rec['median_s']:.1f} s"
+            med_iv = interval_text(rec.get("median_s_interval"), ".1f")
+            count_iv = interval_text(rec.get("recovered_interval"), ".0f")
+            parts.append(f"recovery {k + 1} {med} {med_iv} {rec['recovered']}/{rec['runs']} {count_iv}")
+        if parts:
+            lines.append(f"  {name}: " + ", ".join(p.rstrip() for p in parts))
+        if r.get("below_bound_reason"):
+            lines.append(f"  {name}: {r['below_bound_reason']}")
+    if lines:
+        lines.insert(0, f"95 % bootstrap intervals over the {meta['runs']} runs ({seeds}):")
+    return lines
+
+
 def table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
     """The terminal table of one scenario. ``timing`` False leaves out us/step (the only
     column that changes from one identical run to the next)."""
@@ -42,8 +74,9 @@ def table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
              f"(dt {meta['dt']:g} s), seeds {meta['seed']}..{meta['seed'] + meta['runs'] - 1}; "
              f"PCRB position {b['pos_rmse_m']:.4f} m, heading {b['heading_rmse_rad']:.4f} rad"]
     lo, hi = next(iter(meta["filters"].values()))["anees_band"] if meta["filters"] else (0, 0)
+    width = max([12] + [len(_verdict(r)) + 1 for r in meta["filters"].values()])
     head = (f"{'filter':<16}{'pos RMSE':>9}{'head RMSE':>10}{'MSE x':>9}{'MSE y':>9}"
-            f"{'MSE th':>9}{'ANEES':>8} {'verdict':<12}{'ANIS':>6}{'div':>5}"
+            f"{'MSE th':>9}{'ANEES':>8} {'verdict':<{width}}{'ANIS':>6}{'div':>5}"
             f"{'RMSE/PCRB':>10}{'us/step' if timing else '':>9}  recovery per kidnap")
     lines.append(head)
     for name, r in meta["filters"].items():
@@ -58,7 +91,7 @@ def table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
         line = (f"{name:<16}{_num(r['pos_rmse_m'], '.4f'):>9}{_num(r['heading_rmse_rad'], '.4f'):>10}"
                 f"{_num(r['mse_x'], '.2e'):>9}{_num(r['mse_y'], '.2e'):>9}"
                 f"{_num(r['mse_theta'], '.2e'):>9}{_num(r['anees'], '.2f'):>8} "
-                f"{r['anees_verdict']:<12}{_num(r['anis'], '.2f'):>6}{r['divergences']:>5}"
+                f"{_verdict(r):<{width}}{_num(r['anis'], '.2f'):>6}{r['divergences']:>5}"
                 f"{_num(r['rmse_over_pcrb'], '.2f'):>10}"
                 f"{_num(r['us_per_step'], '.1f') if timing else '':>9}  {recovery_text(r['recovery'])}")
         lines.append(line)
@@ -67,8 +100,16 @@ def table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
     lines.append(f"ANEES 95 % band for {meta['runs']} runs: [{lo:.2f}, {hi:.2f}] (3 dof); ANIS is "
                  "per degree of freedom (1 for an honest filter); div = runs lost "
                  f"(error > {meta['thresholds']['divergence_m']:g} m at the end); recovery: median "
-                 f"time until the error stays < {meta['thresholds']['recovery_m']:g} m")
+                 f"time until the error stays < {meta['thresholds']['recovery_m']:g} m; verdict: "
+                 "the ANEES word, and how far the error is from the bound when over 1.2x")
+    lines += interval_lines(meta)
     return lines
+
+
+def _verdict(r: dict[str, Any]) -> str:
+    """The row's verdict (calibration and accuracy against the bound); older results have
+    only the ANEES word."""
+    return str(r.get("verdict", r["anees_verdict"]))
 
 
 def _csv_row(meta: dict[str, Any], name: str, r: dict[str, Any]) -> dict[str, Any]:
@@ -77,12 +118,21 @@ def _csv_row(meta: dict[str, Any], name: str, r: dict[str, Any]) -> dict[str, An
         "pos_rmse_m": r["pos_rmse_m"], "heading_rmse_rad": r["heading_rmse_rad"],
         "mse_x": r["mse_x"], "mse_y": r["mse_y"], "mse_theta": r["mse_theta"],
         "anees": r["anees"], "anees_lo": r["anees_band"][0], "anees_hi": r["anees_band"][1],
-        "anees_verdict": r["anees_verdict"], "nees_steps_in_band": r["nees_steps_in_band"],
+        "anees_verdict": r["anees_verdict"], "verdict": _verdict(r),
+        "nees_steps_in_band": r["nees_steps_in_band"],
         "anis": r["anis"], "anis_verdict": r["anis_verdict"], "divergences": r["divergences"],
         "recovery": recovery_text(r["recovery"]), "us_per_step": r["us_per_step"],
-        "rmse_over_pcrb": r["rmse_over_pcrb"], "pcrb_pos_rmse_m": meta["pcrb"]["pos_rmse_m"],
+        "rmse_over_pcrb": r["rmse_over_pcrb"],
+        "rmse_over_pcrb_lo": _end(r, "rmse_over_pcrb", 0), "rmse_over_pcrb_hi": _end(r, "rmse_over_pcrb", 1),
+        "anees_ci_lo": _end(r, "anees", 0), "anees_ci_hi": _end(r, "anees", 1),
+        "pcrb_pos_rmse_m": meta["pcrb"]["pos_rmse_m"],
         "failed_runs": r.get("failed_runs", 0), "first_failure": r["failed"][0] if r["failed"] else "",
     }
+
+
+def _end(r: dict[str, Any], key: str, i: int) -> float | None:
+    iv = (r.get("intervals") or {}).get(key)
+    return None if iv is None else iv[i]
 
 
 def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:

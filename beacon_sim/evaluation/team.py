@@ -38,7 +38,7 @@ from beacon_sim.evaluation.montecarlo import (
     init_worker,
 )
 from beacon_sim.evaluation.pcrb import bound_rmse, robot_blocks, team_pcrb
-from beacon_sim.evaluation.summary import Thresholds, evaluate, model_mask
+from beacon_sim.evaluation.summary import Thresholds, evaluate, model_mask, overall_verdict
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
 from beacon_sim.runs.team import anees_verdict, run_team_headless, team_filter_name
 
@@ -225,7 +225,12 @@ def team_table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
     lines = [f"{meta['scenario']} (team of {len(meta['robots'])}): {meta['runs']} runs x "
              f"{meta['steps']} steps (dt {meta['dt']:g} s), seeds "
              f"{meta['seed']}..{meta['seed'] + meta['runs'] - 1}"]
-    head = (f"{'filter':<16}{'robot':<12}{'pos RMSE':>9}{'head RMSE':>10}{'ANEES':>8} {'verdict':<12}"
+    def verdict(v: dict[str, Any]) -> str:   # the ANEES word and the distance from the bound
+        return overall_verdict(v["anees_verdict"], v.get("rmse_over_pcrb"))
+
+    width = max([12] + [len(verdict(v)) + 1 for r in meta["filters"].values() if not r["failed_runs"]
+                        for v in (*r["robots"].values(), r["team"])])
+    head = (f"{'filter':<16}{'robot':<12}{'pos RMSE':>9}{'head RMSE':>10}{'ANEES':>8} {'verdict':<{width}}"
             f"{'PCRB':>9}{'alone':>8}{'RMSE/PCRB':>10}{'us/step' if timing else '':>9}")
     lines.append(head)
     b = meta["pcrb"]
@@ -240,12 +245,12 @@ def team_table_lines(meta: dict[str, Any], timing: bool = True) -> list[str]:
             pb = b["robots"][rn]
             lines.append(f"{name if k == 0 else '':<16}{rn:<12}{_num(v['pos_rmse_m'], '.4f'):>9}"
                          f"{_num(v['heading_rmse_rad'], '.4f'):>10}{_num(v['anees'], '.2f'):>8} "
-                         f"{v['anees_verdict']:<12}{_num(pb['pos_rmse_m'], '.4f'):>9}"
+                         f"{verdict(v):<{width}}{_num(pb['pos_rmse_m'], '.4f'):>9}"
                          f"{_num(pb['alone_pos_rmse_m'], '.3f'):>8}{_num(v['rmse_over_pcrb'], '.2f'):>10}")
         t = r["team"]
         lines.append(f"{'':<16}{'team':<12}{_num(t['pos_rmse_m'], '.4f'):>9}"
                      f"{_num(t['heading_rmse_rad'], '.4f'):>10}{_num(t['anees'], '.2f'):>8} "
-                     f"{t['anees_verdict']:<12}{_num(b['team_pos_rmse_m'], '.4f'):>9}"
+                     f"{verdict(t):<{width}}{_num(b['team_pos_rmse_m'], '.4f'):>9}"
                      f"{_num(b['team_alone_pos_rmse_m'], '.3f'):>8}{_num(t['rmse_over_pcrb'], '.2f'):>10}"
                      f"{_num(r['us_per_step'], '.0f') if timing else '':>9}")
     lo, hi = next(iter(meta["filters"].values()))["anees_band"] if meta["filters"] else (0, 0)

@@ -52,7 +52,10 @@ from beacon_sim.filters.gaussian_measurements import (
     StackedReadings,
     cov_entries,
     cov_matrix,
+    effective_gate,
+    gated_rows,
     kalman_update,
+    nis,
     process_cov_terms,
 )
 
@@ -167,19 +170,19 @@ class ExtendedKalmanFilter(VelocityGaussian):
     """
 
     defaults: ClassVar[dict] = {"gate_chi2": 0.0, "joseph": True}
-    batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": 0.0}  # no batched gate
+    batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": None}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
         self.models = ReadingModels(ctx)
         super().__init__(ctx)
-        self.gate = float(self.params["gate_chi2"])
+        self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.joseph = bool(self.params["joseph"])
         self.rejected = 0  # readings dropped by the gate so far
 
     def batched(self, runs: int) -> BatchedEKF:
         mean, cov = self.estimate()
-        return BatchedEKF(mean, cov, runs, self.ctx.motion_noise, self.joseph)
+        return BatchedEKF(mean, cov, runs, self.ctx.motion_noise, self.joseph, self.gate)
 
     # -- update --------------------------------------------------------------------------
     def linearise(self, measurements: Sequence[Measurement]) -> list[Sequence[Row]]:
@@ -288,17 +291,29 @@ class ExtendedKalmanFilter(VelocityGaussian):
 
 
 class BatchedEKF(BatchedVelocityGaussian):
-    """:class:`ExtendedKalmanFilter` for R runs (``gate_chi2 = 0``): its prediction, and its
-    update in stacked matrix form, which leaves the tick's NIS in ``last_nis``."""
+    """:class:`ExtendedKalmanFilter` for R runs: its prediction, its gate (``gate`` > 0:
+    :func:`~beacon_sim.filters.gaussian_measurements.gated_rows`, the per-run filter's test
+    on arrays), and its update in stacked matrix form. ``last_nis`` is the NIS of all the
+    tick's readings against the predicted belief, gated or not (as the per-run NIS)."""
 
     own_nis = True
 
     def __init__(self, mean0: np.ndarray, cov0: np.ndarray, runs: int, noise: MotionNoise,
-                 joseph: bool = True):
+                 joseph: bool = True, gate: float = 0.0):
         super().__init__(mean0, cov0, runs, noise)
         self.joseph = joseph
+        self.gate = float(gate)
+        self.rejected = np.zeros(runs, dtype=np.int64)  # readings dropped by the gate, per run
 
     def update(self, st: StackedReadings) -> None:
         H, nu, r = st.linearise(self.mean)
+        if self.gate > 0.0:
+            prior_nis = nis(self.mean, self.cov, st)
+            H, nu, dropped = gated_rows(st, self.cov, H, nu, r, self.gate)
+            self.rejected += dropped
+            self.mean, self.cov, _ = kalman_update(self.mean, self.cov, H, nu, r, self.joseph,
+                                                   strict=False)
+            self.last_nis = prior_nis
+            return
         self.mean, self.cov, self.last_nis = kalman_update(self.mean, self.cov, H, nu, r, self.joseph,
                                                            want_nis=True, strict=False)

@@ -32,6 +32,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap as wrap_angle
 from beacon_sim.core.batch_simulation import BatchTick, BeaconReadings
 from beacon_sim.core.measurement_models import relative_bearing
+from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
@@ -722,6 +723,60 @@ class BatchedGaussian:
         """No measurement update (dead reckoning)."""
 
 
+#: Degrees of freedom of one gated group of rows: a beacon's reading or a fix.
+READING_DOF = {"bearing": 1, "range_bearing": 2, "position": 2, "pose": 3}
+#: The gate's chi-square quantile when the scenario tells the filters its readings have
+#: outliers and ``gate_chi2`` is not given.
+OUTLIER_GATE_QUANTILE = 0.99
+
+
+def outlier_gate(ctx: FilterContext) -> float:
+    """The ``gate_chi2`` an EKF or UKF uses when its parameters do not give one: 0 (no
+    gate) unless a sensor the filter is told of (``ctx.sensors``) declares outliers
+    (``outlier_rate > 0``); then the chi-square ``OUTLIER_GATE_QUANTILE`` point for the
+    most degrees of freedom a gated group of those sensors has (9.21 for range-bearing,
+    6.63 for bearings alone). Written into the filter's parameters, so a recording keeps the
+    gate it ran with."""
+    dofs = [READING_DOF.get(s.kind, 0) for s in ctx.sensors if s.outlier_rate > 0.0]
+    dofs = [d for d in dofs if d > 0]
+    return chi2_quantile(OUTLIER_GATE_QUANTILE, max(dofs)) if dofs else 0.0
+
+
+def gated_rows(st: StackedReadings, cov: np.ndarray, H: np.ndarray, nu: np.ndarray,
+               r: np.ndarray, gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The per-run EKF's gate on R runs at once: each beacon's reading (range and bearing
+    together) or fix whose squared Mahalanobis distance ``nu^T S^-1 nu``, ``S = H P H^T +
+    R`` against the predicted belief ``cov`` (R, 3, 3), exceeds ``gate`` gets H = 0 and
+    innovation 0 (it then changes nothing). ``H`` (R, M, 3), ``nu`` (R, M), ``r`` (M,) or
+    (R, M) as :meth:`StackedReadings.linearise` gives them; empty slots pass (their
+    innovation is 0). Returns ``(H, nu, rejected)``, ``rejected`` (R,) readings dropped."""
+    R = nu.shape[0]
+    rr = np.broadcast_to(r, nu.shape)
+    keep = np.ones(nu.shape, dtype=bool)
+    rejected = np.zeros(R, dtype=np.int64)
+    for kind, a, b, bxy in st.blocks:
+        width = (b - a) if bxy is None else (1 if kind == "bearing" else 2)
+        if width <= 0 or b <= a:
+            continue
+        Hb = H[:, a:b].reshape(R, -1, width, 3)
+        nb = nu[:, a:b].reshape(R, -1, width)
+        S = Hb @ cov[:, None] @ Hb.swapaxes(-1, -2)
+        S = S + rr[:, a:b].reshape(R, -1, width)[..., None] * np.eye(width)
+        d = np.einsum("rgi,rgi->rg", nb, np.linalg.solve(S, nb[..., None])[..., 0])
+        bad = d > gate
+        rejected += bad.sum(axis=1)
+        keep[:, a:b] &= ~np.repeat(bad, width, axis=1)
+    return np.where(keep[..., None], H, 0.0), np.where(keep, nu, 0.0), rejected
+
+
+def effective_gate(flt: FilterBase) -> float:
+    """Set ``flt.params["gate_chi2"]`` to :func:`outlier_gate` when the filter's context did
+    not give it, and return the gate."""
+    if "gate_chi2" not in flt.ctx.params:
+        flt.params["gate_chi2"] = outlier_gate(flt.ctx)
+    return float(flt.params["gate_chi2"])
+
+
 class BatchableFilter(FilterBase):
     """A filter with a form that runs R runs at once (:meth:`batched`).
 
@@ -757,9 +812,33 @@ class BatchableFilter(FilterBase):
         raise NotImplementedError
 
 
-__all__ = ["ALL_ROWS", "BEACON_KINDS", "FIX_KINDS", "KINDS", "LOW_RANK_ROWS", "PRESENT_FRACTION",
-           "BatchableFilter",
-           "BatchedGaussian", "ReadingModels", "SlotPacker", "StackedReadings", "add_diagonal",
-           "corrected_mean", "cov_entries", "cov_matrix", "kalman_update", "kalman_update_low_rank", "nis",
-           "nis_low_rank",
-           "process_cov_terms", "solve", "stack", "symmetrise"]
+__all__ = [
+    "ALL_ROWS",
+    "BEACON_KINDS",
+    "FIX_KINDS",
+    "KINDS",
+    "LOW_RANK_ROWS",
+    "OUTLIER_GATE_QUANTILE",
+    "PRESENT_FRACTION",
+    "READING_DOF",
+    "BatchableFilter",
+    "BatchedGaussian",
+    "ReadingModels",
+    "SlotPacker",
+    "StackedReadings",
+    "add_diagonal",
+    "corrected_mean",
+    "cov_entries",
+    "cov_matrix",
+    "effective_gate",
+    "gated_rows",
+    "kalman_update",
+    "kalman_update_low_rank",
+    "nis",
+    "nis_low_rank",
+    "outlier_gate",
+    "process_cov_terms",
+    "solve",
+    "stack",
+    "symmetrise",
+]

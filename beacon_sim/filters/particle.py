@@ -15,10 +15,15 @@
   that injected particles are weighted before anyone sees the estimate.
 - Recovery: augmented MCL (Thrun et al., Probabilistic Robotics, table 8.3; ROS AMCL's
   ``recovery_alpha_slow/fast``): short- and long-term averages ``w_fast`` / ``w_slow`` of the
-  measurement likelihood; at each resampling a share ``max(0, 1 - w_fast / w_slow)`` of the
-  particles is replaced by uniform random poses. The likelihood is taken per scalar reading
-  (geometric mean, noise constants left out), so its level does not depend on how many
-  beacons a tick happened to see.
+  best particle's fit per scalar reading (noise constants left out, so its level does not
+  depend on how many beacons a tick saw); at each resampling a share
+  ``max(0, 1 - w_fast / w_slow)`` of the particles is replaced by uniform random poses, but
+  only while the lost test says recent readings went unexplained (``recovery_fit = "mean"``:
+  Thrun's weighted-mean likelihood and no lost gate).
+- Lost test: a reading no particle explains at the ``lost_chi2`` point, beyond the declared
+  outlier share, raises ``lost``; while it is high the covariance is mixed with a uniform
+  pose over the world (``lost_cov``). A weight collapse (ESS < ``COLLAPSE_ESS``) keeps the
+  predicted spread / ESS as a floor and jitters the resampled copies by it (issue 26).
 - Adaptive count: KLD-sampling (Fox 2003) between ``n_min`` and ``n_max``, or seed 002's
   scheme (keep drawing until the summed fit of the drawn particles exceeds ``ver_max``).
 - Estimate: weighted mean and covariance, circular mean for heading, heading residuals
@@ -35,6 +40,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.geometry import hdop
+from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.resampling import RESAMPLERS, resample
@@ -60,6 +66,10 @@ class ParticleFilter(FilterBase):
         "alpha_slow": 0.01,         # long-term likelihood average rate (per update)
         "alpha_fast": 0.2,          # short-term likelihood average rate (per update)
         "inject_max": 0.25,         # cap on the share of random particles per resampling
+        "recovery_fit": "best",     # best | mean: the fit w_fast / w_slow average (see update)
+        "lost_cov": True,           # covariance admits being lost (see _with_lost_share)
+        "lost_chi2": 0.999,         # a reading is unexplained when even the best particle's
+                                    # chi-square exceeds this quantile for its dof
         "adaptive": "off",          # off | kld | seed002
         "kld_epsilon": 0.05,        # KLD bound between sample and true posterior
         "kld_z": 2.326,             # upper standard normal quantile (0.99)
@@ -84,6 +94,8 @@ class ParticleFilter(FilterBase):
             raise FilterError(f"pf: resampler {p['resampler']!r}: use one of {', '.join(RESAMPLERS)}")
         if p["adaptive"] not in ("off", "kld", "seed002"):
             raise FilterError(f"pf: adaptive {p['adaptive']!r}: use off, kld or seed002")
+        if p["recovery_fit"] not in ("best", "mean"):
+            raise FilterError(f"pf: recovery_fit {p['recovery_fit']!r}: use best or mean")
         if p["estimate"] not in ("mean", "cluster"):
             raise FilterError(f"pf: estimate {p['estimate']!r}: use mean or cluster")
         if p["dtype"] not in ("float32", "float64"):
@@ -103,6 +115,7 @@ class ParticleFilter(FilterBase):
         self._wn = np.zeros(cap)             # normalised weights (kept in step with _logw)
         self._fit = np.zeros(cap)            # log-likelihood of the last update, per particle
         self._essbuf = np.empty(cap)         # float64 scratch of the ESS tests
+        self._prior_w = np.empty(cap)        # the weights before this update
         self._b1 = np.empty(cap, dtype=self.dtype)
         self._b2 = np.empty(cap, dtype=self.dtype)
         self._c = np.empty(cap, dtype=self.dtype)
@@ -112,6 +125,11 @@ class ParticleFilter(FilterBase):
         self.w_slow = 0.0
         self.w_fast = 0.0
         self.inject_prob = 0.0
+        self.lost = 0.0
+        self.lost_at = LOST_AT
+        self._tally: list[float] = [0, 0, 0.0]
+        self._spread_floor: np.ndarray | None = None
+        self._chi2_cut: dict[int, float] = {}
         self.ess = 0.0
         self._pending_resample = False
         self._cache: tuple[np.ndarray, np.ndarray] | None = None
@@ -148,6 +166,8 @@ class ParticleFilter(FilterBase):
         self._fit[:n] = 0.0
         self.w_slow = self.w_fast = 0.0
         self.inject_prob = 0.0
+        self.lost = 0.0
+        self._spread_floor = None
         self.ess = float(n)
         self._pending_resample = False
         self._cache = None
@@ -234,14 +254,24 @@ class ParticleFilter(FilterBase):
         ll = self._fit[:n]
         logw = self._logw[:n]
         tmp = self._wn[:n]                   # float64 scratch, ends as the normalised weights
-        # Per-reading likelihood of the tick (for augmented MCL): sum_i w_i exp(ll_i), ^(1/dims).
-        np.add(logw, ll, out=tmp)
-        log_marg = _logsumexp_inplace(tmp)
-        w_avg = math.exp(log_marg / max(self._dims, 1))
+        # The predicted weights (for the collapse floor), then the tick's fit for augmented MCL.
+        self._prior_w[:n] = self._wn[:n]
+        best = float(np.max(ll))
+        self._update_lost()
+        if self.params["recovery_fit"] == "best":
+            # The best particle's fit: near 1 per reading whenever some particle is where
+            # the readings say, however wide the cloud (see _update_recovery).
+            w_avg = math.exp(best / max(self._dims, 1))
+        else:
+            np.add(logw, ll, out=tmp)
+            log_marg = _logsumexp_inplace(tmp)
+            w_avg = math.exp(log_marg / max(self._dims, 1))
+        staged = False
         target = self.params["temper_ess"] * n
         if target > 0 and _ess(_plus(logw, ll, extra, self._essbuf[:n]), self._essbuf[:n]) < target:
             self._progressive_update(measurements, target)
             logw, tmp = self._logw[:n], self._wn[:n]
+            staged = True
         else:
             logw += ll
             if extra is not None:
@@ -252,6 +282,9 @@ class ParticleFilter(FilterBase):
         np.exp(logw, out=tmp)
         tmp *= 1.0 / tmp.sum()
         self.ess = 1.0 / float(np.dot(tmp, tmp))
+        self._spread_floor = None
+        if self.ess < COLLAPSE_ESS and not staged:
+            self._spread_floor = self._collapse_floor(n)
         self._update_recovery(w_avg)
         self._pending_resample = (self.ess < self.params["ess_threshold"] * n
                                   or self.inject_prob > 0.0)
@@ -267,6 +300,7 @@ class ParticleFilter(FilterBase):
         ll[:] = 0.0
         extra = np.zeros(n) if any(m.kind == "position" for m in measurements) else None
         dims = 0
+        self._tally = [0, 0, 0.0]     # readings, readings no particle explains, expected outliers
         for m in measurements:
             dims += self._loglik(m, ll, extra)
         if self.params["heading_weight"]:
@@ -325,7 +359,68 @@ class ParticleFilter(FilterBase):
             self._extra = self._tick_loglik(measurements)
             self._dims = dims
 
+    def _collapse_floor(self, n: int) -> np.ndarray:
+        """The covariance the estimate cannot be below after an update that left fewer than
+        ``COLLAPSE_ESS`` effective particles: the predicted cloud's covariance divided by
+        the effective sample size, the spread of a weighted mean of that many draws of it.
+
+        Without it a reading far sharper than the cloud (or one that fits a wrong
+        particle best, after a kidnap) puts all the weight on one particle; the set then
+        reports the spread of one particle's copies (a fraction of a millimetre on
+        ``global_kidnap`` while the error was metres) and resampling keeps that. The
+        floor is added to the covariance until the next resampling, which jitters the
+        copies by it (:meth:`_resample`), so the set keeps the uncertainty it had."""
+        _, prior = weighted_pose_stats(self._P[:, :n], self._prior_w[:n])
+        return prior / max(self.ess, 1.0)
+
+    def _update_lost(self) -> None:
+        """``lost``: the short-term (rate ``alpha_fast``) share of recent readings that no
+        particle explains, beyond the share of outliers the sensors declare.
+
+        A reading is unexplained when even the particle that fits it best has a chi-square
+        (``-2`` times its Gaussian log-likelihood, constants left out) above the
+        ``lost_chi2`` quantile for the reading's degrees of freedom (1 bearing, 2
+        range-bearing or position, 3 pose). While tracking, the true pose passes that test
+        with probability ``lost_chi2`` and the best particle does at least as well, so
+        ``lost`` stays near 0 (near the outlier rate ``eps`` before the correction); after
+        a kidnap it climbs by ``alpha_fast`` of what is left on each tick with readings.
+        The per-tick share, ``(unexplained / readings - eps) / (1 - eps)``, is averaged;
+        ``lost_at`` is ``LOST_AT`` plus three standard deviations of that average when
+        every reading is an outlier with probability ``eps`` (one reading a tick: 0.6 at
+        eps = 0.2), so that declared outliers alone do not make the filter think it lost."""
+        k, bad, eps_sum = self._tally
+        if k <= 0:
+            return
+        eps = min(eps_sum / k, 0.99)
+        share = max(0.0, (bad / k - eps) / (1.0 - eps))
+        a = self.params["alpha_fast"]
+        self.lost += a * (share - self.lost)
+        self.lost_at = LOST_AT + 3.0 * math.sqrt(a / max(2.0 - a, 1e-9) * eps / (1.0 - eps))
+
+    def _count_unexplained(self, fits: np.ndarray, dof: int, eps: float) -> None:
+        """Tally readings for :meth:`_update_lost`: ``fits`` (k, n) or (n,), the Gaussian
+        log-likelihood of each reading at each particle (constants left out, <= 0)."""
+        cut = self._chi2_cut.get(dof)
+        if cut is None:
+            cut = self._chi2_cut[dof] = chi2_quantile(self.params["lost_chi2"], dof)
+        best = fits.max(axis=-1)
+        k = int(np.size(best))
+        self._tally[0] += k
+        self._tally[1] += int(np.count_nonzero(-2.0 * np.asarray(best, dtype=np.float64) > cut))
+        self._tally[2] += eps * k
+
     def _update_recovery(self, w_avg: float) -> None:
+        """Augmented MCL: ``w_fast`` / ``w_slow`` of the tick's per-reading fit ``w_avg``.
+
+        With ``recovery_fit = "mean"`` (Thrun's form) the fit is the weighted mean
+        likelihood. That also falls when the cloud is merely wide (after a blind stretch
+        the predicted readings spread over several noise widths): on ``default`` it then
+        injected up to 25 % random particles per resampling while tracking, and a single
+        range-bearing reading, which fits a whole ring of poses, let those win (seed 5001:
+        a 3.6 m excursion, PF 0.965 m against the EKF's 0.122 m). ``"best"`` (default) takes
+        the fit of the best particle instead: it stays high while any particle explains
+        the readings, and falls only when none does (a kidnap, a wrong mode); and random
+        particles are injected only while ``lost`` says a recent tick was unexplained."""
         p = self.params
         if not p["augmented"]:
             self.inject_prob = 0.0
@@ -337,6 +432,13 @@ class ParticleFilter(FilterBase):
             self.w_fast += p["alpha_fast"] * (w_avg - self.w_fast)
         ratio = self.w_fast / self.w_slow if self.w_slow > 0 else 1.0
         self.inject_prob = min(max(0.0, 1.0 - ratio), p["inject_max"])
+        if p["recovery_fit"] == "best" and self.lost < self.lost_at:
+            # Thrun's share is positive whenever the short-term average dips below the
+            # long-term one, i.e. on half of the ticks by noise alone; random particles
+            # injected while tracking fit a one-beacon reading as well as the cloud does
+            # (a ring of poses) and pull the estimate off (0.12 m against 0.03 m on
+            # global_kidnap). Inject only while recent readings went unexplained.
+            self.inject_prob = 0.0
 
     def _loglik(self, m: Measurement, ll: np.ndarray, extra: np.ndarray | None) -> int:
         """Add the log-likelihood of ``m`` at every particle to ``ll`` (noise constants that
@@ -385,6 +487,7 @@ class ParticleFilter(FilterBase):
                 T2 *= T2
                 T2 *= -0.5
                 T1 += T2                          # Gaussian range term
+            self._count_unexplained(T1, 1 if m.kind == "bearing" else 2, eps)
             if eps > 0:
                 # mixture with a uniform reading, log((1 - eps) p + eps u), relative to the peak
                 log_u = -math.log(TWO_PI) + 0.5 * math.log(TWO_PI * std[-1] ** 2)
@@ -401,6 +504,7 @@ class ParticleFilter(FilterBase):
             ey = (y - z[0, 1]) / std[1]
             row = -0.5 * (ex.astype(np.float64) ** 2 + ey ** 2)
             row += (np.cos(th - z[0, 2]) - 1.0) / std[2] ** 2
+            self._count_unexplained(row, 3, eps)
             if eps > 0:
                 area = self.ctx.world.width * self.ctx.world.height
                 log_u = -math.log(area * TWO_PI) + math.log(TWO_PI * std[0] * std[1]) \
@@ -419,6 +523,7 @@ class ParticleFilter(FilterBase):
             # 2-D normalisation 1 / (2 pi sd^2), relative to the reported fix's sd0:
             # it differs between particles through HDOP.
             const = -2.0 * np.log(sd / sd0)
+            self._count_unexplained(row, 2, eps)
             if eps > 0:
                 area = self.ctx.world.width * self.ctx.world.height
                 log_u = -math.log(area) + math.log(TWO_PI * sd0**2)
@@ -467,7 +572,10 @@ class ParticleFilter(FilterBase):
         self.n = m
         self._logw[:m] = -math.log(m)
         self._wn[:m] = 1.0 / m
-        if p["roughen"] > 0:
+        if self._spread_floor is not None:
+            self._jitter(m, self._spread_floor)
+            self._spread_floor = None
+        elif p["roughen"] > 0:
             self._roughen(m)
         self._pending_resample = False
         self._cache = None
@@ -505,6 +613,18 @@ class ParticleFilter(FilterBase):
         count = int(ok[0]) + 1 if ok.size else n_max
         return int(np.clip(count, n_min, n_max))
 
+    def _jitter(self, n: int, cov: np.ndarray) -> None:
+        """Add Gaussian noise of covariance ``cov`` (3x3) to the first ``n`` particles
+        (heading wrapped, positions kept inside the world)."""
+        vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+        L = vecs * np.sqrt(np.maximum(vals, 0.0))
+        P = self._P[:, :n]
+        P += (L @ self.ctx.rng.standard_normal((3, n))).astype(self.dtype)
+        self._wrap_inplace(P[2])
+        xmin, ymin, xmax, ymax = self.ctx.world.bounds
+        np.clip(P[0], xmin, xmax, out=P[0])
+        np.clip(P[1], ymin, ymax, out=P[1])
+
     def _roughen(self, n: int, factor: float | None = None) -> None:
         """Gaussian jitter with ``factor`` (default: the ``roughen`` parameter) times the
         kernel bandwidth (Silverman's rule, 3-D: ``h = n^(-1/7)`` of each dimension's spread)."""
@@ -535,9 +655,34 @@ class ParticleFilter(FilterBase):
             if self._work is None or self._work.shape[1] < 4:
                 self._work = np.empty((5, max(4, len(self.ctx.world.beacons)), self.capacity),
                                       dtype=self.dtype)
-            self._cache = weighted_pose_stats(P, w, self._work[:, 0, :])
+            mean, cov = weighted_pose_stats(P, w, self._work[:, 0, :])
+            if self._spread_floor is not None:
+                cov = cov + self._spread_floor
+            if self.params["lost_cov"] and self.lost >= self.lost_at:
+                cov = self._with_lost_share(mean, cov, self.lost)
+            self._cache = (mean, cov)
         mean, cov = self._cache
         return mean.copy(), cov.copy()
+
+    def _with_lost_share(self, mean: np.ndarray, cov: np.ndarray, p_lost: float) -> np.ndarray:
+        """Second moment about ``mean`` of the mixture "the cloud with probability
+        ``1 - p_lost``, anywhere in the world (uniform pose) with ``p_lost``".
+
+        ``p_lost`` is ``lost`` (:meth:`_update_lost`), used while it is at least
+        ``lost_at`` (without outliers: an unexplained reading among the last few ticks):
+        the filter's own measure that no particle explains the readings. Without it, after
+        a kidnap the weight falls on the one best (still wrong) particle and the reported
+        spread is that of its copies (0.4 mm against a 3.85 m error on ``global_kidnap``);
+        with it the covariance says the filter may be lost until the readings are
+        explained again. While tracking a reading goes unexplained with probability
+        ``1 - lost_chi2``; ``lost`` rarely reaches ``lost_at`` then, and only for a few ticks."""
+        xmin, ymin, xmax, ymax = self.ctx.world.bounds
+        d = np.array([0.5 * (xmin + xmax) - mean[0], 0.5 * (ymin + ymax) - mean[1]])
+        U = np.zeros((3, 3))
+        U[:2, :2] = np.diag([(xmax - xmin) ** 2 / 12.0, (ymax - ymin) ** 2 / 12.0]) + np.outer(d, d)
+        U[2, 2] = math.pi ** 2 / 3.0                # uniform heading about any mean
+        out = (1.0 - p_lost) * cov + p_lost * U
+        return 0.5 * (out + out.T)
 
     def _dominant_cluster(self, P: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Indices of the particles of the heaviest mode: the coarse x-y cell with the most
@@ -644,6 +789,14 @@ def _above(cov: np.ndarray, floor: float) -> bool:
     q = a12 - l20 * a01
     return a22 - floor - l20 * a02 - q * q / p1 > 0.0
 
+
+#: Fewer effective particles than this after an update: the weight has collapsed
+#: (see ``ParticleFilter._collapse_floor``).
+COLLAPSE_ESS = 5.0
+
+#: ``lost`` from which the covariance admits being lost, with no declared outliers: an
+#: unexplained reading in the last four ticks with readings at the default ``alpha_fast``.
+LOST_AT = 0.1
 
 _MAX_STAGES = 8   # progressive correction: the last stage takes what is left of the likelihood
 

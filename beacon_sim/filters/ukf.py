@@ -53,6 +53,7 @@ from beacon_sim.filters.gaussian_measurements import (
     corrected_mean,
     cov_entries,
     cov_matrix,
+    effective_gate,
     process_cov_terms,
     solve,
     stack,
@@ -371,7 +372,7 @@ class UnscentedKalmanFilter(BatchableFilter):
         self.sqrt_c = math.sqrt(self.c)
         self._wm, self._wc = self.Wm.tolist(), self.Wc.tolist()
         self.models = ReadingModels(ctx)
-        self.gate = float(p["gate_chi2"])
+        self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.rejected = 0  # readings dropped by the gate so far
         self._Wm_now, self._Wc_now = self.Wm, self.Wc  # the weights of the last sigma points
         self._x = self._y = self._th = 0.0             # the mean [m, m, rad]

@@ -17,7 +17,7 @@ import math
 import time
 import traceback
 from collections.abc import Mapping, Set
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -26,7 +26,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardLimits
 from beacon_sim.core.measurement_models import relative_bearing
-from beacon_sim.core.metrics import summary
+from beacon_sim.core.metrics import chi2_quantile, nees, pose_errors, summary
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.scenario import InitialBelief, Scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
@@ -129,6 +129,8 @@ class Calibration:
     window_s: float
     stats: dict[str, float]
     outlier_rate: float = MIN_OUTLIER_RATE
+    #: Where the noise came from, in words (printed beside every MRCLAM result).
+    source: str = "fitted on the scored run's own ground truth"
 
 
 def calibrate(data: MrclamData, t_end: float | None = None,
@@ -229,6 +231,93 @@ def calibrate(data: MrclamData, t_end: float | None = None,
     return Calibration(motion, sensor, step_dt, window_s, stats, outlier_rate)
 
 
+#: The robots of an MRCLAM data set (leave-one-robot-out calibrates from the others).
+DATASET_ROBOTS = (1, 2, 3, 4, 5)
+
+
+def pooled_calibration(data: MrclamData, others: list[MrclamData],
+                       window_s: float = CALIBRATION_WINDOW_S) -> Calibration:
+    """The noise for ``data``'s run calibrated from other runs only (``others``: other
+    robots of the data set, or another data set), never from ``data``'s ground truth.
+
+    Each of ``others`` is calibrated whole (:func:`calibrate`); the error variances are
+    pooled, weighted by what each measured them from (odometry windows, readings): the
+    window errors ``s_d``, ``s_a`` and the told reading variances (shared-error factor
+    included), and the outlier share. The filter step ``step_dt`` is ``data``'s own median
+    odometry interval (timing, not ground truth), and the motion noise is rescaled to it as
+    in :func:`calibrate`."""
+    if not others:
+        raise MrclamError(f"{data.folder}: no other run to calibrate robot {data.robot} from")
+    cals = [calibrate(o, None, window_s) for o in others]
+    od = data.odometry
+    step_dt = float(np.median(np.diff(od[:, 0]))) if len(od) > 1 else 0.01
+    step_dt = step_dt if step_dt > 0 else 0.01
+
+    def pooled(key: str, weight: str, fallback: str) -> float:
+        w = np.array([max(float(c.stats.get(weight, 0)), 0.0) for c in cals])
+        v = np.array([float(c.stats.get(key, math.nan)) ** 2 for c in cals])
+        ok = np.isfinite(v) & (w > 0)
+        if not ok.any():
+            return float(np.sqrt(np.mean([getattr(c.sensor, fallback, 0.0) ** 2 for c in cals])))
+        return float(np.sqrt(np.sum(w[ok] * v[ok]) / np.sum(w[ok])))
+
+    s_d = pooled("fwd_err_std_m", "windows", "range_std")
+    s_a = pooled("turn_err_std_rad", "windows", "bearing_std")
+    s_r = pooled("range_err_std_m", "readings", "range_std")
+    s_b = pooled("bearing_err_std_rad", "readings", "bearing_std")
+    reads = np.array([float(c.stats.get("readings", 0)) for c in cals])
+    rates = np.array([c.outlier_rate for c in cals])
+    outlier_rate = max(MIN_OUTLIER_RATE, float(np.sum(reads * rates) / reads.sum()) if reads.sum() > 0
+                       else MIN_OUTLIER_RATE)
+    scale = math.sqrt(window_s * step_dt)
+    motion = MotionNoise(v_std=s_d / scale, omega_std=s_a / scale)
+    sensor = SensorNoise(bearing_std=max(s_b, 1e-4), range_std=max(s_r, 1e-4))
+    names = ", ".join(f"{o.folder.name} robot {o.robot}" for o in others)
+    stats = {"fwd_err_std_m": s_d, "turn_err_std_rad": s_a, "range_err_std_m": s_r,
+             "bearing_err_std_rad": s_b, "outlier_rate": outlier_rate,
+             "windows": float(sum(c.stats.get("windows", 0) for c in cals)),
+             "readings": float(reads.sum())}
+    return Calibration(motion, sensor, step_dt, window_s, stats, outlier_rate,
+                       source=f"calibrated on other runs ({names}), not on the scored run")
+
+
+def other_runs(data: MrclamData, robots: tuple[int, ...] = DATASET_ROBOTS) -> list[MrclamData]:
+    """The other robots of ``data``'s data set folder that it holds (a folder may hold one)."""
+    from beacon_sim.io.mrclam import load_mrclam
+
+    others = []
+    for r in robots:
+        if r != data.robot and (data.folder / f"Robot{r}_Groundtruth.dat").is_file():
+            others.append(load_mrclam(data.folder, r))
+    return others
+
+
+def leave_one_robot_out(data: MrclamData, t_end: float | None = None) -> Calibration:
+    """:func:`pooled_calibration` from the other robots of ``data``'s data set folder; when
+    the folder holds no other robot, the scored run's own calibration, labelled so."""
+    others = other_runs(data)
+    if not others:
+        return replace(calibrate(data, t_end),
+                       source="fitted on the scored run's own ground truth: the folder holds no "
+                              "other robot to calibrate from")
+    return pooled_calibration(data, others)
+
+
+#: How a MRCLAM run's noise is calibrated: from the data set's other robots (the default),
+#: or from the scored run's own ground truth (fitted on the answer; labelled as such).
+CALIBRATIONS = ("others", "self")
+
+
+def calibration_for(data: MrclamData, how: str, t_end: float | None = None) -> Calibration:
+    """The calibration ``how`` (one of ``CALIBRATIONS``) for ``data``'s run."""
+    if how == "others":
+        return leave_one_robot_out(data, t_end)
+    if how == "self":
+        return replace(calibrate(data, t_end),
+                       source="fitted on the scored run's own ground truth (optimistic: not for scoring)")
+    raise MrclamError(f"calibration {how!r}: use one of {', '.join(CALIBRATIONS)}")
+
+
 # --------------------------------------------------------------------------------------------
 # A scenario-like context for the filters
 
@@ -305,7 +394,13 @@ class MrclamRun:
                 times = np.array(tr.times)
                 truth, ok = self.data.truth_at(times)
                 if ok.any():
-                    row.update(summary(np.array(tr.means)[ok], np.array(tr.covs)[ok], truth[ok]))
+                    means, covs = np.array(tr.means)[ok], np.array(tr.covs)[ok]
+                    row.update(summary(means, covs, truth[ok]))
+                    e = pose_errors(means, truth[ok])
+                    v = nees(e, covs)
+                    row["nees_above_99"] = float(np.mean(v > chi2_quantile(0.99, 3)))
+                    steps = np.hypot(*np.diff(np.array(tr.means)[:, :2], axis=0).T)
+                    row["largest_jump_m"] = float(steps.max()) if steps.size else 0.0
                 row["evaluated_s"] = float(np.sum(np.diff(times)[ok[1:]])) if len(times) > 1 else 0.0
             row["us_per_step"] = tr.ns / 1e3 / max(tr.calls, 1)
             for attr in ("rejected", "n_rejected", "gated"):
@@ -330,6 +425,7 @@ class MrclamRun:
                       "range_std": cal.sensor.range_std, "bearing_std": cal.sensor.bearing_std,
                       "step_dt": cal.step_dt},
             "calibration": cal.stats,
+            "calibration_source": cal.source,
             "filters": self.evaluate(),
             "wall_s": self.wall_s,
         }
@@ -358,7 +454,7 @@ def _predict_all(tracks, control: Control, dt: float, max_step: float) -> None:
 
 def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: float | None = None,
                params: dict[str, dict[str, Any]] | None = None,
-               calibration: Calibration | None = None) -> MrclamRun:
+               calibration: Calibration | str | None = "others") -> MrclamRun:
     """Run filters over one robot's data, interleaving odometry and readings by time stamp.
 
     Each filter starts at the ground truth of the first odometry time (``INITIAL_STD``),
@@ -379,7 +475,9 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     od = data.odometry
     t_start = data.t0
     t_end = float(od[-1, 0]) if duration is None else min(float(od[-1, 0]), t_start + duration)
-    cal = calibration or calibrate(data, t_end)
+    if calibration is None:
+        calibration = "self"
+    cal = calibration_for(data, calibration, t_end) if isinstance(calibration, str) else calibration
     scenario = mrclam_scenario(data, cal, t_start, t_end)
     specs = list(scenario.default_filters if filters is None else filters)
     check_param_names(params, specs)
