@@ -143,3 +143,51 @@ def test_a_good_grading_configuration_is_read(tmp_path):
     c = load_config(cfg)
     assert (c.scenarios, c.seeds, c.duration, c.time_limit, c.memory_limit_gb) == \
         (("default", "team_sparse"), (3, 4), None, 5.0, 0.0)
+
+
+BLIND = '''
+import math
+import numpy as np
+from beacon_sim.filters.base import FilterBase, GaussianBelief
+
+
+class Blind(FilterBase):
+    """Dead reckoning written by a student: ignores every reading."""
+
+    def reset(self, initial):
+        self.m = np.array(initial.mean, float)
+        self.P = np.array(initial.cov, float)
+
+    def predict(self, control, dt):
+        th = self.m[2]
+        self.m = self.m + np.array([control.v * dt * math.cos(th), control.v * dt * math.sin(th),
+                                    control.omega * dt])
+        self.m[2] = (self.m[2] + math.pi) % (2 * math.pi) - math.pi
+        self.P = self.P + np.diag([0.02, 0.02, 0.01]) * dt
+
+    def update(self, measurements):
+        pass
+
+    def estimate(self):
+        return self.m.copy(), self.P.copy()
+'''
+
+
+def test_no_row_says_a_bare_consistent_beside_an_error_over_twice_the_bound(tmp_path):
+    """Issue 26: the page's and the CSV's verdict weigh the error against the bound."""
+    klass = tmp_path / "class"
+    klass.mkdir()
+    (klass / "blind.py").write_text(BLIND)
+    shutil.copy(Path(__file__).parent / "attacks" / "honest.py", klass / "honest.py")
+    board = grade(klass, GradeConfig(scenarios=("default",), seeds=(0,), duration=40.0), jobs=2)
+    far = [r for r in board["rows"] if r["rmse_over_pcrb"] is not None and r["rmse_over_pcrb"] > 2]
+    assert [r["student"] for r in far] == ["blind"]  # the honest EKF is near the bound
+    for r in board["rows"]:
+        if r in far:
+            assert ", but " in r["verdict"] and "x the bound" in r["verdict"], r["verdict"]
+        else:
+            assert r["verdict"] == r["anees_verdict"] or "x the bound" in r["verdict"]
+    write_outputs(board, tmp_path / "out")
+    row = next(r for r in _rows(tmp_path / "out" / "grade.csv") if r["student"] == "blind")
+    assert ", but " in row["verdict"]
+    assert far[0]["verdict"] in (tmp_path / "out" / "grade.html").read_text()

@@ -45,7 +45,7 @@ from beacon_sim.evaluation.montecarlo import (
     one_run,
     simulate_run,
 )
-from beacon_sim.evaluation.summary import Thresholds, evaluate
+from beacon_sim.evaluation.summary import Thresholds, evaluate, overall_verdict
 from beacon_sim.evaluation.team import TeamRunOutput, evaluate_team, team_one_run
 from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
 from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
@@ -770,7 +770,8 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                  ) -> dict[str, Any]:
     row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
                            "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
-                           "anees_verdict": "FAILED", "rmse_over_pcrb": None, "us_per_step": None,
+                           "anees_verdict": "FAILED", "verdict": "FAILED", "rmse_over_pcrb": None,
+                           "us_per_step": None,
                            "failed_runs": n_runs, "failures": [], "plot": ""}
     if st.spec is None:
         row["failures"] = [{"scenario": "-", "seed": None, "time_s": None, "reason": st.problem}]
@@ -829,6 +830,9 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         for key in ("pos_rmse_m", "heading_rmse_rad", "anees", "rmse_over_pcrb"):
             row[key] = float(np.mean(figures[key])) if figures[key] else None
         row["anees_verdict"] = verdicts[0] if len(set(verdicts)) == 1 else "/".join(verdicts)
+        # what the page shows: the ANEES word with the distance from the bound (issue 26), so
+        # no row says a bare "consistent" beside an error over twice the bound
+        row["verdict"] = overall_verdict(row["anees_verdict"], row["rmse_over_pcrb"])
     return row
 
 
@@ -862,8 +866,9 @@ def rank_key(row: dict[str, Any]) -> tuple:
 
 
 CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_rad", "anees",
-               "anees_verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs", "failures",
-               "suspicious", "global_rng", "deterministic", "heading_wrapped", "readings_used", "flags")
+               "anees_verdict", "verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs",
+               "failures", "suspicious", "global_rng", "deterministic", "heading_wrapped", "readings_used",
+               "flags")
 
 
 def status(row: dict[str, Any]) -> str:
@@ -892,7 +897,8 @@ def write_csv(board: dict[str, Any], path: Path) -> Path:
             w.writerow([r["rank"], r["student"], r["file"], status(r),
                         *("" if r[k] is None else r[k] for k in ("pos_rmse_m", "heading_rmse_rad",
                                                                  "anees")),
-                        r["anees_verdict"], "" if r["rmse_over_pcrb"] is None else r["rmse_over_pcrb"],
+                        r["anees_verdict"], r.get("verdict", r["anees_verdict"]),
+                        "" if r["rmse_over_pcrb"] is None else r["rmse_over_pcrb"],
                         "" if r["us_per_step"] is None else f"{r['us_per_step']:.1f}",
                         r["failed_runs"], r["runs"],
                         " | ".join(_failure_text(f) for f in r["failures"][:5]),
@@ -979,11 +985,11 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
     cfg = board["config"]
     cols = [("rank", "rank"), ("student", "student"), ("pos_rmse_m", "pos RMSE [m]"),
             ("heading_rmse_rad", "heading RMSE [rad]"), ("anees", "ANEES"),
-            ("anees_verdict", "consistency"), ("rmse_over_pcrb", "RMSE/PCRB"),
+            ("verdict", "consistency"), ("rmse_over_pcrb", "RMSE/PCRB"),
             ("us_per_step", "cost [us/step]"), ("failed_runs", "failed runs")]
 
     def cell(r: dict[str, Any], key: str) -> str:
-        v = r[key]
+        v = r.get(key, r["anees_verdict"]) if key == "verdict" else r[key]
         if v is None:
             return '<td class="num">&ndash;</td>'
         if isinstance(v, float):
