@@ -317,10 +317,10 @@ class App:
         """Forget every trail (the truth's and the filters'), keep the current points."""
         s = self.session
         self.world_version += 1
-        s.truth_trail.__init__(s.truth_trail.min_step, s.truth_trail.max_points)
+        s.truth_trail.clear()
         s.truth_trail.add(s.true_pose)
         for name, tr in s.trails.items():
-            tr.__init__(tr.min_step, tr.max_points)
+            tr.clear()
             try:
                 est = s.estimate(name)
             except Exception:
