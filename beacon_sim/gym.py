@@ -128,6 +128,9 @@ class BeaconEnv(gymnasium.Env):
 
     #: Gymnasium's metadata; an instance's ``render_fps`` is one step per ``ticks_per_step * dt``.
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 20}  # noqa: RUF012
+    #: [v, omega] [m/s, rad/s] and the encoded readings (docs/gym.md): both boxes.
+    action_space: spaces.Box
+    observation_space: spaces.Box
 
     def __init__(self, scenario: Scenario | str | Path = "default", filters: Sequence[str] = ("ekf",),
                  reward: Reward | None = None, tracked: str | None = None,
@@ -180,8 +183,7 @@ class BeaconEnv(gymnasium.Env):
         generator."""
         super().reset(seed=seed)
         run_seed = int(seed) if seed is not None else int(self.np_random.integers(2**31 - 1))
-        self._start(run_seed)
-        self.filter_names = list(self.session.names)
+        self.filter_names = list(self._start(run_seed).names)
         if self.tracked is None:
             self.tracked = self.filter_names[0]
         elif self.tracked not in self.filter_names:
@@ -199,7 +201,8 @@ class BeaconEnv(gymnasium.Env):
         a = np.clip(check_action(action), self.action_space.low, self.action_space.high)
         steps = self._advance(Control(float(a[0]), float(a[1])))
         self.steps_taken += 1
-        failed = self.session.runner.tracks[self.tracked].failed is not None
+        tracked = self.tracked or self.filter_names[0]  # reset() set it
+        failed = self.session.runner.tracks[tracked].failed is not None
         reward = -self.failed_penalty if failed else float(self.reward_fn(self, steps))
         truncated = self.steps_taken >= self.max_steps and not failed
         obs = self.encode(steps)
@@ -223,12 +226,13 @@ class BeaconEnv(gymnasium.Env):
             self.session.close()
 
     # --- the episode's session, and pickling -----------------------------------------------
-    def _start(self, run_seed: int) -> None:
+    def _start(self, run_seed: int) -> _Session:
         if self.session is not None:
             self.session.close()
         self.session = _Session(self.scenario, self.specs, run_seed, dict(self.params))
         self._run_seed = run_seed
         self._actions = []
+        return self.session
 
     def _advance(self, control: Control) -> list[Step]:
         assert self.session is not None

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -115,3 +116,13 @@ def test_export_rejects_unknown_suffix(recorded, tmp_path, capsys):
     rec_path, _, _ = recorded
     assert main(["export", str(rec_path), "--out", str(tmp_path / "x.txt")]) == 2
     assert ".npz, .csv or .mcap" in capsys.readouterr().err
+
+
+def test_export_refuses_a_team_recording_in_one_line(tmp_path, capsys):
+    """A team recording is not exported as if it were one robot's: exit 2, one line."""
+    team = Path(__file__).parent / "data" / "old_recordings" / "v2_team_sparse.jsonl"
+    out = tmp_path / "x.npz"
+    assert main(["export", str(team), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "a team recording" in err and "\n" not in err
+    assert not out.exists()

@@ -197,6 +197,16 @@ def test_bad_header_is_a_clear_error(scenario_file, tmp_path, first_line, messag
     assert "\n" not in str(info.value)
 
 
+def test_blank_first_line_is_a_missing_header(tmp_path):
+    """A blank line 1 followed by a checkpoint line: the header is missing (exit 2 text),
+    not a TypeError from reading the checkpoint against no header."""
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('\n{"type": "checkpoint", "k": 1, "checksum": "ab"}\n')
+    with pytest.raises(RecordingError, match="corrupted header") as info:
+        load_recording(bad)
+    assert f"{bad}:1:" in str(info.value)
+
+
 def test_header_missing_a_field_is_corrupted(scenario_file, tmp_path):
     out = tmp_path / "run.jsonl"
     live_run(scenario_file, out, ticks=5)

@@ -1,5 +1,5 @@
-"""The typed layers stay typed: mypy (configured in pyproject.toml: beacon_sim/core and
-beacon_sim/filters) reports no error, and the filters users write against the installed
+"""The typed layers stay typed: mypy (configured in pyproject.toml: beacon_sim/core,
+beacon_sim/filters and beacon_sim/io) reports no error, and the filters users write against the installed
 package type-check against the ``Filter`` protocol."""
 
 from pathlib import Path

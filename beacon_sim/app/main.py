@@ -17,7 +17,7 @@ import time
 from collections import deque
 from dataclasses import astuple, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pygame
@@ -36,11 +36,23 @@ from beacon_sim.evaluation.live_bound import LiveBound
 from beacon_sim.filters.runner import note_user_interrupt
 from beacon_sim.runs.live import Session, make_recorder
 
+if TYPE_CHECKING:  # imported where used: the window opens without them
+    from beacon_sim.app.gif import GifRecorder
+    from beacon_sim.filters.hot_reload import FilterFileWatcher
+
 #: Frame time a scripted (``--frames``) session pretends each frame took [s].
 SCRIPTED_FRAME_S = 1.0 / 60.0
 BANNER_S = 2.5
 QUIT_CONFIRM_S = 3.0  # a second Q or Esc within this time quits [s]
 DRIVE_KEYS = {"faster": "w", "slower": "s", "left": "a", "right": "d", "stop": "x"}
+
+
+def display_surface() -> pygame.Surface:
+    """The window's surface (``set_mode`` made it; None only once the display is closed)."""
+    surf = pygame.display.get_surface()
+    if surf is None:
+        raise pygame.error("the window's display surface is gone")
+    return surf
 
 
 class App:
@@ -118,7 +130,7 @@ class App:
         self.tick_cpu = 0.0  # CPU time of this frame's ticks [s]
         self.phase_cpu = [0.0] * PHASES  # CPU time of each drawing step [s], smoothed
         self.blit_cpu = 0.0  # CPU time of putting the world's picture on the screen [s]
-        self.gif = None  # a gif.GifRecorder offered every frame after drawing (--gif)
+        self.gif: GifRecorder | None = None  # offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
         if isinstance(session, Session):
             self.bound = LiveBound(session.scenario)
@@ -127,6 +139,8 @@ class App:
         self.pace = DeliveredSpeed()
         self.heap = HeapSettler()  # keeps full garbage collections out of the frames (heap.py)
         self.chart_rect: pygame.Rect | None = None
+        # the world's view [m -> px]; _layout gives it its area (and on every resize)
+        self.view = View(session.scenario.world.bounds, (0, 0, 1, 1))
         self._layout(self.screen.get_size())
 
     def filter_styles(self, names: list[str]) -> dict[str, tuple]:
@@ -136,19 +150,20 @@ class App:
         return filter_styles(names)
 
     # --- hot reload -----------------------------------------------------------------------
-    def _make_watchers(self, interval: float) -> dict[str, object]:
+    def _make_watchers(self, interval: float) -> dict[str, FilterFileWatcher]:
         """A file watcher for every filter given as ``path.py:Class``, on the window's clock
         (``self.now``: real seconds, or 1/60 s per frame when scripted)."""
         from beacon_sim.filters.hot_reload import FilterFileWatcher
         from beacon_sim.filters.loading import filter_display_name
 
         s = self.session
-        out: dict[str, object] = {}
+        out: dict[str, FilterFileWatcher] = {}
         if not isinstance(s, Session):  # a finished run played back: nothing to reload
             return out
         for spec, name in zip(s.specs, s.names, strict=True):
             if not spec.rpartition(":")[0].endswith(".py"):
                 continue
+            assert s.seed is not None  # Session.__post_init__ chose it
             w = FilterFileWatcher(spec, s.scenario, s.seed, name=name,
                                   params=s.params.get(filter_display_name(spec)),
                                   interval=interval, clock=lambda: self.now)
@@ -191,10 +206,7 @@ class App:
             area = (ax, ay, aw, ah - ch)
         else:
             self.chart_rect = None
-        if hasattr(self, "view"):
-            self.view.set_area(area)
-        else:
-            self.view = View(self.session.scenario.world.bounds, area)
+        self.view.set_area(area)
 
     def world_area(self, width: int, height: int) -> tuple[int, int, int, int]:
         """The part of the window (x, y, w, h) [px] the world is drawn in, left of the panel."""
@@ -209,17 +221,17 @@ class App:
             for action in self.keys.actions(event):
                 self.act(action)
         elif event.type == pygame.MOUSEBUTTONDOWN:
-            action = controls.mouse_action(event.button, self.MODE)
-            if action == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos):
+            clicked = controls.mouse_action(event.button, self.MODE)
+            if clicked == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos):
                 self.drag_start = event.pos
-            elif action == "pan":
+            elif clicked == "pan":
                 self.pan_from = event.pos
         elif event.type == pygame.MOUSEBUTTONUP:
-            action = controls.mouse_action(event.button, self.MODE)
-            if action == "kidnap_click" and self.drag_start is not None:
+            clicked = controls.mouse_action(event.button, self.MODE)
+            if clicked == "kidnap_click" and self.drag_start is not None:
                 self.kidnap_at(self.drag_start, event.pos)
                 self.drag_start = None
-            elif action == "pan":
+            elif clicked == "pan":
                 self.pan_from = None
         elif event.type == pygame.MOUSEMOTION and self.pan_from is not None:
             self.view.pan(event.pos[0] - self.pan_from[0], event.pos[1] - self.pan_from[1])
@@ -227,7 +239,7 @@ class App:
         elif event.type == pygame.MOUSEWHEEL:
             self.view.zoom(1.15 ** event.y, pygame.mouse.get_pos())
         elif event.type in (pygame.VIDEORESIZE, pygame.WINDOWSIZECHANGED):
-            self.screen = pygame.display.get_surface()
+            self.screen = display_surface()
             self._layout(self.screen.get_size())
 
     def act(self, action: str) -> None:
@@ -295,7 +307,7 @@ class App:
                 pygame.display.toggle_fullscreen()
             except pygame.error as exc:
                 self.flash(f"fullscreen: {exc}")
-            self.screen = pygame.display.get_surface()
+            self.screen = display_surface()
             self._layout(self.screen.get_size())
         else:
             raise ValueError(f"no handler for the action {action!r}")
@@ -317,10 +329,10 @@ class App:
         """Forget every trail (the truth's and the filters'), keep the current points."""
         s = self.session
         self.world_version += 1
-        s.truth_trail.__init__(s.truth_trail.min_step, s.truth_trail.max_points)
+        s.truth_trail.clear()
         s.truth_trail.add(s.true_pose)
         for name, tr in s.trails.items():
-            tr.__init__(tr.min_step, tr.max_points)
+            tr.clear()
             try:
                 est = s.estimate(name)
             except Exception:
@@ -704,6 +716,7 @@ def play(options: PlayOptions) -> int:
     """Open the window on a live session; returns the exit status."""
     o = options
     check_display()
+    assert isinstance(o.scenario, Scenario)  # a team scenario opens app.team.play_team
     recorder, rec_path = (None, None)
     if o.record:
         recorder, rec_path = make_recorder(o.scenario, o.seed, o.filters, o.params)
@@ -758,13 +771,14 @@ def finish_gif(app: App) -> None:
     if app.gif is None:
         return
     n = app.gif.save()
-    if not n:
+    size = app.gif.size  # set by the first frame captured
+    if not n or size is None:
         print(f"beacon-sim: no frame captured, {app.gif.path} not written", file=sys.stderr)
         return
     kb = app.gif.path.stat().st_size / 1024
     full = " (stopped capturing at the frame limit)" if app.gif.full else ""
-    print(f"wrote {app.gif.path}: {n} frames of {app.gif.duration_ms} ms, {app.gif.size[0]}x"
-          f"{app.gif.size[1]} px, {kb:.0f} KB{full}", file=sys.stderr)
+    print(f"wrote {app.gif.path}: {n} frames of {app.gif.duration_ms} ms, {size[0]}x"
+          f"{size[1]} px, {kb:.0f} KB{full}", file=sys.stderr)
 
 
 __all__ = ["App", "PlayOptions", "finish_gif", "play", "run_window", "start"]

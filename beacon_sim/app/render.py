@@ -17,6 +17,7 @@ from beacon_sim.app import palette, shapes
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.core.schedule import period_ticks
 from beacon_sim.core.sensors import visible_beacons
+from beacon_sim.core.world import World
 from beacon_sim.filters.base import GridBelief, ParticleBelief
 from beacon_sim.runs.scene import Scene
 from beacon_sim.runs.styles import BOUND_STYLE
@@ -237,7 +238,8 @@ class WorldRenderer:
         self._heat_cache: dict[str, tuple[tuple, pygame.Surface, tuple[int, int]]] = {}
         self._text_cache: dict[tuple, pygame.Surface] = {}
         self._static: tuple[tuple, pygame.Surface] | None = None
-        self.last_world = None  # the world of the scene being drawn (for the step view)
+        self.last_world: World | None = None  # the world of the scene being drawn (step view)
+        self.lw = 4  # line width [px]; each frame's begin() sets it for the window's height
         self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
         self.axis_rects: list[pygame.Rect] = []  # the axis labels of the static layer [px]
         self.beacon_rects: list[pygame.Rect] = []  # beacons and their labels, last drawn [px]
@@ -632,7 +634,7 @@ class WorldRenderer:
                     width: int | None = None, wedge: bool = True, ellipse: bool = True) -> None:
         """The 95 % ellipse of x-y (``ellipse``) and the +-2 sigma heading wedge (``wedge``),
         in ``dash`` style."""
-        lw = width or getattr(self, "lw", 4)
+        lw = width or self.lw
         pts = view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 96))
         if ellipse and np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
             polyline(surf, colour, pts, lw, dash, closed=True)
@@ -705,7 +707,7 @@ class WorldRenderer:
             pygame.draw.line(surf, palette.GRID_MINOR, (rect.left, ipx(y)), (rect.right, ipx(y)), 1)
         c = sub.to_px(centre)
         self._cross(surf, c, 8, palette.ROBOT, 3)
-        lw = max(getattr(self, "lw", 4) - 1, 2)
+        lw = max(self.lw - 1, 2)
         drawn = {}
         for key, mean, cov, axis in sorted(small, key=lambda e: dashes.get(e[0]) is not None):
             m = sub.to_px(mean[:2])
@@ -742,7 +744,7 @@ class WorldRenderer:
         thinner) and a line from the prior's mean to the posterior's (what the update
         moved), and a black ring around each beacon the update used. The posterior itself is
         drawn solid by the normal pass, over this."""
-        lw = max(getattr(self, "lw", 4) - 1, 2)
+        lw = max(self.lw - 1, 2)
         for name, ((m0, c0), (m1, _)) in steps.items():
             colour = colours[name]
             pts = view.to_px(covariance_ellipse(m0[:2], c0[:2, :2], ELLIPSE_SCALE2, 96))
@@ -764,13 +766,13 @@ class WorldRenderer:
         pts = view.to_px(covariance_ellipse(np.asarray(pose)[:2], np.asarray(P)[:2, :2],
                                             ELLIPSE_SCALE2, 96))
         if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
-            polyline(surf, colour, pts, max(getattr(self, "lw", 4) - 1, 2), dash, closed=True)
+            polyline(surf, colour, pts, max(self.lw - 1, 2), dash, closed=True)
 
     def robot(self, surf, view: View, pose, radius: float) -> None:
         """The true robot as an OUTLINE (black chassis edge, grey wheels, heading mark): it is
         drawn under the beliefs and never covers an estimate or a small ellipse."""
         r = max(radius, 14.0 / view.scale)
-        lw = max(getattr(self, "lw", 4) - 1, 2)
+        lw = max(self.lw - 1, 2)
         body, wheels = shapes.chassis(pose, r)
         for wheel in wheels:
             pygame.draw.polygon(surf, palette.ROBOT_WHEEL, view.to_px(wheel), 2)

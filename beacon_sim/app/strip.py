@@ -10,6 +10,7 @@ session, a replay or an MRCLAM playback alike; going back in time (a seek) clear
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pygame
@@ -30,6 +31,17 @@ STALE_S = 0.25
 BLIND_SHADE = (255, 226, 204)  # a pale vermillion: "no beacon in view"
 
 
+@dataclass
+class _Rendered:
+    """The chart as last rendered off screen: what it showed (``key``), the samples'
+    ``version``, the image, and the window's clock ``at`` [s] when it was rendered."""
+
+    key: tuple
+    version: int
+    image: pygame.Surface
+    at: float
+
+
 class StripChart:
     """A ring of the last ``span`` seconds: time [s], beacons in view, and per filter the
     position error [m] and the 2-sigma of position [m] (2 sqrt of the largest eigenvalue of
@@ -46,7 +58,7 @@ class StripChart:
         self.two_sigma = {n: np.full(self._size, np.nan) for n in self.names}
         self.n = 0
         self.version = 0  # bumped by every change of the data (the render cache's key)
-        self._cache: dict | None = None
+        self._cache: _Rendered | None = None
         self._static_cache: tuple | None = None
 
     def clear(self) -> None:
@@ -110,19 +122,18 @@ class StripChart:
         key = (tuple(rect), id(fonts), shown, tuple(sorted(colours.items())),
                tuple(sorted((k, v) for k, v in dashes.items() if k in shown)))
         c = self._cache
-        fresh = c is not None and c["key"] == key
-        if fresh and c["version"] != self.version and now is not None:
-            age = now - c["at"]
+        fresh = c is not None and c.key == key
+        if c is not None and fresh and c.version != self.version and now is not None:
+            age = now - c.at
             fresh = age < REDRAW_S or (busy and age < STALE_S)
-        elif fresh and c["version"] != self.version:
+        elif fresh and c is not None and c.version != self.version:
             fresh = False
-        if not fresh:
-            image = c["image"] if c is not None and c["image"].get_size() == rect.size else \
+        if c is None or not fresh:
+            image = c.image if c is not None and c.image.get_size() == rect.size else \
                 pygame.Surface(rect.size)
             self.render(image, fonts, colours, dashes, shown)
-            c = self._cache = {"key": key, "version": self.version, "image": image,
-                               "at": now if now is not None else 0.0}
-        surf.blit(c["image"], rect)
+            c = self._cache = _Rendered(key, self.version, image, now if now is not None else 0.0)
+        surf.blit(c.image, rect)
 
     def _static(self, size: tuple[int, int], fonts, top: float) -> tuple[pygame.Surface, pygame.Rect]:
         """The chart without data (title, axes, grid, labels) for a y range ``top`` [m],

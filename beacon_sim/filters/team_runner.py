@@ -17,7 +17,7 @@ import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
 from functools import partial
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -35,6 +35,14 @@ from beacon_sim.filters.runner import (
     time_limit,
     validate_estimate,
 )
+from beacon_sim.filters.team import TeamFilter
+
+
+def team_filter_of(track: FilterTrack) -> TeamFilter | None:
+    """The team filter a team runner's track holds (None: not built). ``FilterTrack`` is
+    shared with single robots and types its object as a ``Filter``; a
+    :class:`TeamFilterRunner` only ever puts team filters in it."""
+    return cast("TeamFilter | None", track.filter)
 
 
 def validate_team_estimates(est: object, n_robots: int) -> tuple[np.ndarray, np.ndarray] | str:
@@ -97,7 +105,7 @@ class TeamFilterRunner:
         robot's readings (beacon and robot readings), record its checked estimates."""
         limit = self.step_limit_s
         for track in self.tracks.values():
-            f: Any = track.filter  # a TeamFilter (the track type is shared with single robots)
+            f = team_filter_of(track)
             if track.failed or f is None:
                 continue
             t0 = time.perf_counter_ns()

@@ -46,7 +46,7 @@ MAX_TURN = 100.0
 MAX_ID = 1e9
 #: (column name, lowest, highest) of each file's columns, for :func:`read_table`.
 _T = (-math.inf, math.inf)  # time stamps: any finite number (their order is checked later)
-COLUMNS = {
+COLUMNS: dict[str, list[tuple[str, float, float]]] = {
     "Barcodes.dat": [("subject", 0, MAX_ID), ("barcode", 0, MAX_ID)],
     "Landmark_Groundtruth.dat": [("subject", 0, MAX_ID), ("x", -MAX_COORD_M, MAX_COORD_M),
                                  ("y", -MAX_COORD_M, MAX_COORD_M), ("sigma_x", 0, MAX_COORD_M),

@@ -671,8 +671,10 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
                 signer = Signer(key)
                 signer.add(text)
             continue
+        if header is None:  # line 1 was blank: every later line needs the header
+            raise _fail(path, 1, "corrupted header (missing)")
         kind = obj.get("type") if isinstance(obj, dict) else None
-        if kind == "signature" and header is not None and header.get("signed"):
+        if kind == "signature" and header.get("signed"):
             mac = obj.get("hmac")
             if signer is not None:
                 if not (isinstance(mac, str) and hmac.compare_digest(mac, signer.hexdigest())):
@@ -706,7 +708,7 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
                 raise _fail(path, n, f"estimates of tick {obj['k']} after the line of tick "
                                      f"{ticks[-1].tick if ticks else 0}")
             parts.estimates[obj["k"]] = {**obj, "line": n}
-        elif kind == "filters" and header is not None and header["version"] >= 3 \
+        elif kind == "filters" and header["version"] >= 3 \
                 and parts.settings is None and not ticks:
             if not _settings_ok(obj):
                 raise _fail(path, n, "malformed filters line")

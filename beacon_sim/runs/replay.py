@@ -222,8 +222,8 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     used = recorded_params(recording, params)
     built, broken = build_filters(specs, recording, used)
     runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
-    for name, (why, tb) in broken.items():
-        runner.tracks[name].failed, runner.tracks[name].traceback = why, tb
+    for name, (broke, tb) in broken.items():
+        runner.tracks[name].failed, runner.tracks[name].traceback = broke, tb
     verifier = FilterVerifier(
         recording, runner.tracks,
         settings_compared(recording, specs, recorded_filter_specs(recording, None)[0], used),
@@ -299,7 +299,7 @@ def tick_mismatch(recording: Recording, rec: TickRecord, sim: Simulation) -> str
     return None
 
 
-def tick_checked(recording: Recording, rec: TickRecord) -> int:
+def tick_checked(recording: Recording | TeamRecording, rec: TickRecord) -> int:
     """1 when the tick carries every checksum its format version has (truth; version 2 also
     readings), else 0."""
     return int(rec.short_checksum is not None
@@ -331,7 +331,8 @@ def _first_bad_tick(recording: Recording, tick: int) -> int:
     return (max(prev) + 1) if prev else 1
 
 
-def mismatch_error(recording: Recording, tick: int, line: int, what: str) -> ReplayMismatch:
+def mismatch_error(recording: Recording | TeamRecording, tick: int, line: int,
+                   what: str) -> ReplayMismatch:
     """The error of a replay that differs from its recording at ``tick`` (file line ``line``),
     checked against ``what``."""
     return ReplayMismatch(

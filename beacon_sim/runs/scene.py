@@ -33,7 +33,11 @@ class Trail:
     def __init__(self, min_step: float = 0.02, max_points: int = 6000):
         self.min_step = min_step
         self.max_points = max_points
-        self.points = np.full((max_points, 2), np.nan)
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget every point (the same thinning and cap)."""
+        self.points = np.full((self.max_points, 2), np.nan)
         self.n = 0
         self._last = np.array([np.nan, np.nan])
 

@@ -23,6 +23,7 @@ reading of each sensor is kept for drawing.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +41,7 @@ from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.filters.team_runner import (
     TeamFilterRunner,
     build_team_filters,
+    team_filter_of,
     validate_team_estimates,
 )
 from beacon_sim.io.recording import default_recording_path
@@ -168,9 +170,10 @@ class TeamSession:
         tr = self.runner.tracks[name]
         if tr.means:
             return tr.means[-1], tr.covs[-1]
-        if tr.failed or tr.filter is None:
+        f = team_filter_of(tr)
+        if tr.failed or f is None:
             return None
-        value, why, tb = guarded_call(tr.filter.estimates, WINDOW_STEP_LIMIT_S)
+        value, why, tb = guarded_call(f.estimates, WINDOW_STEP_LIMIT_S)
         if why is None:
             checked = validate_team_estimates(value, self.n_robots)
             if not isinstance(checked, str):
@@ -325,12 +328,12 @@ class TeamSession:
     def clear_trails(self) -> None:
         """Forget every trail (truth and estimates), keep the current points."""
         for i, tr in enumerate(self.truth_trails):
-            tr.__init__(tr.min_step, tr.max_points)
+            tr.clear()
             tr.add(self.poses[i])
         for name, trails in self.trails.items():
             est = self.estimates(name) if not self.status[name].failed else None
             for i, tr in enumerate(trails):
-                tr.__init__(tr.min_step, tr.max_points)
+                tr.clear()
                 if est is not None:
                     tr.add(est[0][i])
 
@@ -348,9 +351,10 @@ def reset_team_filters(runner: TeamFilterRunner, team: TeamScenario, limit_s: fl
     live and on replay."""
     beliefs = initial_beliefs(team)
     for name, tr in runner.tracks.items():
-        if tr.failed or tr.filter is None:
+        f = team_filter_of(tr)
+        if tr.failed or f is None:
             continue
-        _, why, tb = guarded_call(lambda f=tr.filter: f.reset(beliefs), limit_s)
+        _, why, tb = guarded_call(partial(f.reset, beliefs), limit_s)
         if why is not None:
             runner.fail(name, f"reset: {why}", tb, time_s)
 
