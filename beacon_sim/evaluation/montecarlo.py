@@ -33,7 +33,7 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
-from beacon_sim.filters.base import FilterError
+from beacon_sim.filters.base import Batchable, FilterError
 from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
 from beacon_sim.filters.guard import estimate_arrays
 from beacon_sim.filters.host import call_guarded
@@ -426,10 +426,19 @@ def batch_reason(scenario: Scenario, specs: list[str], params: dict[str, dict[st
             flt = build_filter(spec, scenario, 0, params=params.get(filter_display_name(spec)))
         except Exception as exc:
             return str(exc)
+        if not isinstance(flt, Batchable):  # the batched contract (filters/base.py)
+            return f"{spec} has no batched form"
         why = flt.batch_blocker
         if why is not None:
             return f"{spec}: {why}"
     return None
+
+
+def _batchable(flt: object) -> Batchable:
+    """``flt`` as a filter with a batched form (batch_reason has checked it)."""
+    if not isinstance(flt, Batchable):
+        raise FilterError(f"{type(flt).__name__} has no batched form")
+    return flt
 
 
 def batch_runs(scenario: Scenario, specs: list[str], params: dict[str, dict[str, Any]],
@@ -441,8 +450,8 @@ def batch_runs(scenario: Scenario, specs: list[str], params: dict[str, dict[str,
     whose update gives it (``own_nis``)."""
     names = filter_names(specs)
     R = len(seeds)
-    batched = {name: build_filter(spec, scenario, seeds[0], name=name,
-                                  params=params.get(filter_display_name(spec))).batched(R)
+    batched = {name: _batchable(build_filter(spec, scenario, seeds[0], name=name,
+                                             params=params.get(filter_display_name(spec)))).batched(R)
                for name, spec in zip(names, specs, strict=True)}
     batch = BatchSimulation(scenario, seeds, readings_checksums=False)   # R single runs, bit for bit
     packer = SlotPacker(scenario.world, scenario.model_sensors)
@@ -470,7 +479,8 @@ def batch_runs(scenario: Scenario, specs: list[str], params: dict[str, dict[str,
             dt = tick.dt
             st = packer.pack_tick(tick)
             if st is not None:
-                dof = np.count_nonzero(st.valid, axis=1)
+                valid = st.valid if st.valid is not None else np.ones(st.z.shape, dtype=bool)
+                dof = np.count_nonzero(valid, axis=1)
                 has = dof > 0   # the run had a reading: its NIS is recorded
             for name, f in batched.items():
                 t0 = clock()
@@ -585,18 +595,20 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
         on_dask(scheduler, _task, tasks, one)
     elif jobs == 1:
         for i, t in enumerate(tasks):
-            out[i] = _task(t)
+            run = _task(t)
+            out[i] = run
             bar.advance()
             if on_run:
-                on_run(out[i])
+                on_run(run)
     else:
         with ProcessPoolExecutor(max_workers=jobs, initializer=init_worker) as pool:
             futures = {pool.submit(_task, t): i for i, t in enumerate(tasks)}
-            for fut in as_completed(futures):
-                out[futures[fut]] = fut.result()
+            for done in as_completed(futures):
+                run = done.result()
+                out[futures[done]] = run
                 bar.advance()
                 if on_run:
-                    on_run(out[futures[fut]])
+                    on_run(run)
     return [o for o in out if o is not None]
 
 

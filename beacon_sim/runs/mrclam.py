@@ -13,6 +13,7 @@ of the data set (Vicon), bearings relative to the heading and wrapped to [-pi, p
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import traceback
@@ -538,7 +539,7 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
                 if tr.failed:
                     continue
                 c = time.perf_counter_ns()
-                _, why, tb = guarded_call(lambda tr=tr, m=m: tr.filter.update([m]),
+                _, why, tb = guarded_call(functools.partial(tr.filter.update, [m]),
                                           HEADLESS_STEP_LIMIT_S)
                 if why is not None:
                     tr.failed, tr.traceback = f"update: {why}", tb
