@@ -76,20 +76,33 @@ def _validate_plain(m0: object, c0: object) -> tuple[np.ndarray, np.ndarray] | s
     if not (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _F8
             and c0.dtype is _F8 and m0.shape == (3,) and c0.shape == (3, 3)):
         return None
-    mean, cov = m0.copy(), c0.copy()
-    (a, b, d), (b2, e, f), (d2, f2, g) = cov.tolist()
-    x, y, t = mean.tolist()
+    (a, b, d), (b2, e, f), (d2, f2, g) = c0.tolist()
+    x, y, t = m0.tolist()
     if not (math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g) and math.isfinite(x + y + t)):
         return None
+    if b == b2 and d == d2 and f == f2:  # exactly symmetric, the usual case: fewer operations
+        scale = max(abs(a), abs(b), abs(d), abs(e), abs(f), abs(g), 1e-12)
+        if scale > MAX_COV or max(abs(x), abs(y), abs(t)) > MAX_MEAN:
+            return _DIVERGED
+        # _not_psd inline: its tolerance is 1e-9 * scale here (0.5 * (b + b) == b exactly)
+        tol = 1e-9 * scale
+        a, e, g = a + tol, e + tol, g + tol
+        if a <= 0.0 or a * e - b * b <= 0.0 \
+                or a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0:
+            return _NOT_PSD
+        return m0.copy(), c0.copy()
     scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
     if scale > MAX_COV or max(abs(x), abs(y), abs(t)) > MAX_MEAN:
-        return (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
-                f"{MAX_COV:g} (diverged)")
+        return _DIVERGED
     if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
         return "covariance is not symmetric"
     if _not_psd(a, 0.5 * (b + b2), 0.5 * (d + d2), e, 0.5 * (f + f2), g):
-        return "covariance is not positive semi-definite"
-    return mean, cov
+        return _NOT_PSD
+    return m0.copy(), c0.copy()
+
+
+_DIVERGED = f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over {MAX_COV:g} (diverged)"
+_NOT_PSD = "covariance is not positive semi-definite"
 
 
 def _validate_any(est: object) -> tuple[np.ndarray, np.ndarray] | str:
