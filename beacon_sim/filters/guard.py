@@ -60,7 +60,7 @@ def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
     float arrays [m, m, rad], or one line saying why it is unusable (not a pair, not
     numbers, wrong shapes, NaN or infinity, covariance not symmetric, not positive
     semi-definite). Cheap (a few microseconds): it runs on every step of every filter."""
-    if isinstance(est, tuple | list) and len(est) == 2:
+    if (type(est) is tuple or isinstance(est, tuple | list)) and len(est) == 2:
         fast = _validate_plain(est[0], est[1])
         if fast is not None:
             return fast
@@ -70,29 +70,35 @@ def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
 def _validate_plain(m0: object, c0: object) -> tuple[np.ndarray, np.ndarray] | str | None:
     """:func:`validate_estimate` for the usual case, float64 arrays of the right shapes with
     finite entries, in fewer operations; None for anything else (the full check then runs
-    and names what is wrong). A sum of the entries that is finite proves every entry finite
-    (a NaN or an infinity would make it NaN or infinite); one that overflows goes the
-    long way too, so the verdicts are the same."""
+    and names what is wrong). The usual estimate (exactly symmetric, entries bounded by the
+    largest diagonal one) is judged by comparisons alone; otherwise a sum of the entries that
+    is finite proves every entry finite (a NaN or an infinity would make it NaN or
+    infinite), and one that overflows goes the long way too, so the verdicts are the same
+    (tests/test_guard_fast_path.py)."""
     if not (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _F8
             and c0.dtype is _F8 and m0.shape == (3,) and c0.shape == (3, 3)):
         return None
     (a, b, d), (b2, e, f), (d2, f2, g) = c0.tolist()
     x, y, t = m0.tolist()
-    if not (math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g) and math.isfinite(x + y + t)):
-        return None
-    if b == b2 and d == d2 and f == f2:  # exactly symmetric, the usual case: fewer operations
-        scale = max(abs(a), abs(b), abs(d), abs(e), abs(f), abs(g), 1e-12)
-        if scale > MAX_COV or max(abs(x), abs(y), abs(t)) > MAX_MEAN:
-            return _DIVERGED
-        # _not_psd inline: its tolerance is 1e-9 * scale here (0.5 * (b + b) == b exactly)
-        tol = 1e-9 * scale
+    if not (-MAX_MEAN <= x <= MAX_MEAN and -MAX_MEAN <= y <= MAX_MEAN and -MAX_MEAN <= t <= MAX_MEAN):
+        return None  # NaN, infinity or diverged: the full check says which
+    s = max(a, e, g)
+    # The usual case: exactly symmetric, every entry within [-s, s] (so finite: a NaN fails
+    # every comparison) with 1e-12 <= s <= MAX_COV; then s is exactly the largest |entry|
+    # (the scale below) and the symmetry test passes, so only the PSD test is left.
+    if (b == b2 and d == d2 and f == f2 and 1e-12 <= s <= MAX_COV and a >= -s and e >= -s
+            and g >= -s and -s <= b <= s and -s <= d <= s and -s <= f <= s):
+        # _not_psd inline: its tolerance is 1e-9 * s here (0.5 * (b + b) == b exactly)
+        tol = 1e-9 * s
         a, e, g = a + tol, e + tol, g + tol
         if a <= 0.0 or a * e - b * b <= 0.0 \
                 or a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0:
             return _NOT_PSD
         return m0.copy(), c0.copy()
+    if not math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g):
+        return None
     scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
-    if scale > MAX_COV or max(abs(x), abs(y), abs(t)) > MAX_MEAN:
+    if scale > MAX_COV:
         return _DIVERGED
     if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
         return "covariance is not symmetric"

@@ -202,7 +202,8 @@ class StepWatch:
                 self._fallback = time_limit(seconds, self.cpu)
                 self._fallback.__enter__()
                 return self
-        seconds = max(seconds, 0.0)
+        if seconds < 0.0:
+            seconds = 0.0
         if self.cpu:  # the watchdog takes the thread's CPU clock and time when it first sees these
             entry[3] = -1.0
             entry[4] = -1.0
