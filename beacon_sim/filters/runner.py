@@ -39,8 +39,8 @@ from beacon_sim.filters.guard import (  # noqa: F401 - re-exported
 from beacon_sim.filters.host import call_guarded, failure_of, guarded_call, run_filter_code  # noqa: F401
 from beacon_sim.filters.watchdog import (  # noqa: F401 - re-exported
     FilterExit,
-    StepWatch,
     FilterTimeout,
+    StepWatch,
     exit_text,
     failure_line,
     is_filter_failure,
@@ -206,7 +206,9 @@ class FilterRunner:
         """The message of a step stopped by its time limit (see :meth:`_limit`)."""
         if of_run:
             return f"time limit: over {self.run_limit_s:g} s of filter time in the run"
-        return f"time limit: a step took over {self.step_limit_s:g} s" if self.step_limit_s is not None else ""
+        if self.step_limit_s is None:
+            return ""
+        return f"time limit: a step took over {self.step_limit_s:g} s"
 
     def _step(self, track: FilterTrack, f: Filter, step: Step) -> object:
         """predict, (the prior for the step view), update, estimate: one step of one filter."""
@@ -243,7 +245,7 @@ class FilterRunner:
                     if plain:
                         f.predict(step.control, step.dt)
                         f.update(step.measurements)
-                        est = f.estimate()
+                        est: object = f.estimate()
                     else:
                         est = self._step(track, f, step)
             except BaseException as exc:  # the ladder of host.call_guarded, inline

@@ -302,5 +302,6 @@ def failure_line(exc: BaseException) -> str:
     return exit_text(exc) if isinstance(exc, SystemExit | KeyboardInterrupt) else one_line(exc)
 
 
-__all__ = ["FilterExit", "FilterFailed", "FilterTimeout", "StepWatch", "cpu_clock_available", "exit_text", "failure_line",
-           "is_filter_failure", "note_user_interrupt", "one_line", "time_limit", "user_interrupted"]
+__all__ = ["FilterExit", "FilterFailed", "FilterTimeout", "StepWatch", "cpu_clock_available", "exit_text",
+           "failure_line", "is_filter_failure", "note_user_interrupt", "one_line", "time_limit",
+           "user_interrupted"]
