@@ -46,6 +46,7 @@ _WD_THREAD: threading.Thread | None = None
 # steps with the deadline at infinity (not armed)
 _WD_SLOTS: dict[int, list[float]] = {}
 _WD_POLL_S = 0.02
+_INF = math.inf
 _WD_REFIRE_S = 0.1
 
 
@@ -192,7 +193,7 @@ class StepWatch:
 
     def __enter__(self) -> StepWatch:
         seconds = self.seconds
-        if seconds is None or not math.isfinite(seconds):
+        if seconds is None or not -_INF < seconds < _INF:  # no limit (None, infinite or NaN)
             return self
         tid = threading.get_ident()
         entry = _WD_SLOTS.get(tid)
