@@ -230,12 +230,13 @@ class FilterRunner:
         watch = self._watch
         clock = time.perf_counter_ns
         plain = not self.keep_prior  # no step view: _step's three calls inline
+        no_run_limit, step_limit = self.run_limit_s is None, self.step_limit_s
         for track in self.tracks.values():
             f = track.filter
             if track.failed or f is None:
                 continue
-            if self.run_limit_s is None:  # the usual case, without the method call
-                limit, of_run = self.step_limit_s, False
+            if no_run_limit:  # the usual case, without the method call
+                limit, of_run = step_limit, False
             else:
                 limit, of_run = self._limit(track)
             watch.seconds = limit

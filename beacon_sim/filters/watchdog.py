@@ -47,6 +47,8 @@ _WD_THREAD: threading.Thread | None = None
 _WD_SLOTS: dict[int, list[float]] = {}
 _WD_POLL_S = 0.02
 _INF = math.inf
+_get_ident = threading.get_ident
+_monotonic = time.monotonic
 _WD_REFIRE_S = 0.1
 
 
@@ -195,7 +197,7 @@ class StepWatch:
         seconds = self.seconds
         if seconds is None or not -_INF < seconds < _INF:  # no limit (None, infinite or NaN)
             return self
-        tid = threading.get_ident()
+        tid = _get_ident()
         entry = _WD_SLOTS.get(tid)
         if entry is None or _WD_ARMED.get(tid) is not entry or entry[0] != math.inf:
             entry = _own_slot(tid)
@@ -209,9 +211,9 @@ class StepWatch:
             entry[3] = -1.0
             entry[4] = -1.0
             entry[2] = seconds
-            entry[0] = time.monotonic() + seconds * CPU_BACKSTOP_FACTOR + CPU_BACKSTOP_S
+            entry[0] = _monotonic() + seconds * CPU_BACKSTOP_FACTOR + CPU_BACKSTOP_S
         else:
-            entry[0] = time.monotonic() + seconds
+            entry[0] = _monotonic() + seconds
         self._armed = entry
         return self
 
@@ -229,7 +231,7 @@ class StepWatch:
             entry[2] = -1.0
             if entry[1]:
                 entry[1] = 0.0
-                _raise_in(threading.get_ident(), None)  # a raise not yet delivered: withdraw it
+                _raise_in(_get_ident(), None)  # a raise not yet delivered: withdraw it
         return False
 
 
