@@ -141,3 +141,10 @@ def test_no_limit_no_watchdog_entry_armed():
     entry = watchdog._WD_SLOTS.get(threading.get_ident())
     assert entry is None or entry[0] == float("inf")
     assert runner.tracks["ok"].steps == 3
+
+
+def test_cpu_limits_set_after_construction_still_count():
+    runner = FilterRunner({"sleeps": Plain(sleep=0.4)}, step_limit_s=0.2)
+    runner.cpu_limits = True  # a CPU-time limit from now on: sleeping is not over it
+    _feed(runner, 1)
+    assert runner.tracks["sleeps"].failed is None

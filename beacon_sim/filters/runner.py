@@ -183,6 +183,7 @@ class FilterRunner:
         self.step_limit_s = step_limit_s
         self.run_limit_s = run_limit_s
         self._watch = StepWatch(cpu_limits)  # one for every step, armed in place
+        self._watch_cpu = cpu_limits
 
     def fail(self, name: str, reason: str, tb: str = "", time_s: float | None = None) -> None:
         """Switch ``name`` off with ``reason`` (one line), at simulated time ``time_s`` [s]."""
@@ -228,6 +229,9 @@ class FilterRunner:
         one :class:`StepWatch` armed in place, the ladder of :func:`call_guarded` inlined, the
         guard's fast path for the usual float64 estimate."""
         watch = self._watch
+        if self._watch_cpu is not self.cpu_limits:  # cpu_limits changed since: a watch to match
+            watch = self._watch = StepWatch(self.cpu_limits)
+            self._watch_cpu = self.cpu_limits
         clock = time.perf_counter_ns
         plain = not self.keep_prior  # no step view: _step's three calls inline
         no_run_limit, step_limit = self.run_limit_s is None, self.step_limit_s
