@@ -22,7 +22,7 @@ def _cases(rng: np.random.Generator, n: int):
         A = rng.normal(size=(3, 3)) * rng.choice([1e-12, 1e-6, 1.0, 1e6, 1e7])
         P = A @ A.T
         m = rng.normal(size=3) * rng.choice([1.0, 1e8, 2e9])
-        k = rng.integers(0, 9)
+        k = rng.integers(0, 11)
         if k == 1:
             P[rng.integers(3), rng.integers(3)] = rng.choice([np.nan, np.inf, -np.inf])
         elif k == 2:
@@ -39,6 +39,14 @@ def _cases(rng: np.random.Generator, n: int):
             P = np.zeros((3, 3))
         elif k == 7:
             m = np.array([1e308, 1e308, 1e308])  # finite, sum overflows
+        elif k in (8, 9):  # off by one ulp from symmetric (the general branch), PSD at the threshold
+            Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+            lam = np.array([rng.choice([0.0, -1e-16, -2e-9, -1e-3, 1e-10]), 1.0, 2.0])
+            P = (Q * lam) @ Q.T
+            P = 0.5 * (P + P.T)
+            if k == 9:
+                i, j = rng.choice(3, size=2, replace=False)
+                P[i, j] = np.nextafter(P[i, j], np.inf)
         yield m, P
 
 
@@ -53,6 +61,21 @@ def test_fast_path_verdicts_equal_the_full_check():
     assert {"ok", "estimate() returned NaN or infinity", "covariance is not symmetric",
             "covariance is not positive semi-definite"} <= kinds
     assert any("diverged" in k for k in kinds)
+
+
+def test_both_branches_are_exercised():
+    """The exactly symmetric branch and the general one both give verdicts of each kind."""
+    sym = np.diag([1.0, 2.0, 3.0])
+    sym[0, 1] = sym[1, 0] = 0.5
+    off = sym.copy()
+    off[0, 1] = np.nextafter(0.5, 1.0)
+    for P in (sym, off):
+        assert isinstance(validate_estimate((np.zeros(3), P)), tuple)
+        neg = P.copy()
+        neg[2, 2] = -1.0
+        assert validate_estimate((np.zeros(3), neg)) == _validate_any((np.zeros(3), neg)) \
+            == "covariance is not positive semi-definite"
+        assert "diverged" in validate_estimate((np.zeros(3), P * 1e13))
 
 
 def test_unusual_inputs_take_the_full_check():

@@ -1,6 +1,7 @@
 """The package stays typed: mypy (configured in pyproject.toml: the whole package, the
-window's session seam in app/team.py and app/replay.py excepted) reports no error, and the filters users write against the installed
-package type-check against the ``Filter`` protocol."""
+window's session seam in app/team.py and app/replay.py excepted) reports no error, and the
+filters users write against the installed package type-check against the ``Filter``
+protocol."""
 
 from pathlib import Path
 

@@ -59,37 +59,50 @@ def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
     """The one guard of what ``estimate()`` returned: ``(mean (3,), cov (3, 3))`` as fresh
     float arrays [m, m, rad], or one line saying why it is unusable (not a pair, not
     numbers, wrong shapes, NaN or infinity, covariance not symmetric, not positive
-    semi-definite). Cheap (a few microseconds): it runs on every step of every filter."""
+    semi-definite). Cheap (a microsecond or two): it runs on every step of every filter.
+
+    The usual case, float64 arrays of the right shapes, is judged here with float
+    comparisons; anything else, and anything the fast path cannot settle, takes the full
+    check (:func:`_validate_any`), which names what is wrong. The verdicts are the same
+    (tests/test_guard_fast_path.py): an exactly symmetric covariance whose entries lie
+    within [-s, s], s its largest diagonal entry with 1e-12 <= s <= MAX_COV, has every entry
+    finite (a NaN fails every comparison) and s as its largest |entry|, so only the PSD test
+    is left; otherwise a finite sum of the entries proves them finite (a NaN or an infinity
+    would make it NaN or infinite), and one that overflows goes the long way too."""
     if isinstance(est, tuple | list) and len(est) == 2:
-        fast = _validate_plain(est[0], est[1])
-        if fast is not None:
-            return fast
+        m0, c0 = est[0], est[1]
+        if (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _F8
+                and c0.dtype is _F8 and m0.shape == (3,) and c0.shape == (3, 3)):
+            (a, b, d), (b2, e, f), (d2, f2, g) = c0.tolist()
+            x, y, t = m0.tolist()
+            # NaN, infinity or a diverged mean fail here: the full check says which
+            if -MAX_MEAN <= x <= MAX_MEAN and -MAX_MEAN <= y <= MAX_MEAN and -MAX_MEAN <= t <= MAX_MEAN:
+                s = max(a, e, g)
+                if (b == b2 and d == d2 and f == f2 and 1e-12 <= s <= MAX_COV and a >= -s
+                        and e >= -s and g >= -s and -s <= b <= s and -s <= d <= s and -s <= f <= s):
+                    # _not_psd inline: its tolerance is 1e-9 * s here (0.5 * (b + b) == b exactly)
+                    tol = 1e-9 * s
+                    a, e, g = a + tol, e + tol, g + tol
+                    if a <= 0.0 or a * e - b * b <= 0.0 \
+                            or a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0:
+                        return _NOT_PSD
+                    return m0.copy(), c0.copy()
+                if math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g):
+                    scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2),
+                                abs(g), 1e-12)
+                    if scale > MAX_COV:
+                        return _DIVERGED
+                    if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
+                        return "covariance is not symmetric"
+                    if _not_psd(a, 0.5 * (b + b2), 0.5 * (d + d2), e, 0.5 * (f + f2), g):
+                        return _NOT_PSD
+                    return m0.copy(), c0.copy()
     return _validate_any(est)
 
 
-def _validate_plain(m0: object, c0: object) -> tuple[np.ndarray, np.ndarray] | str | None:
-    """:func:`validate_estimate` for the usual case, float64 arrays of the right shapes with
-    finite entries, in fewer operations; None for anything else (the full check then runs
-    and names what is wrong). A sum of the entries that is finite proves every entry finite
-    (a NaN or an infinity would make it NaN or infinite); one that overflows goes the
-    long way too, so the verdicts are the same."""
-    if not (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _F8
-            and c0.dtype is _F8 and m0.shape == (3,) and c0.shape == (3, 3)):
-        return None
-    mean, cov = m0.copy(), c0.copy()
-    (a, b, d), (b2, e, f), (d2, f2, g) = cov.tolist()
-    x, y, t = mean.tolist()
-    if not (math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g) and math.isfinite(x + y + t)):
-        return None
-    scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
-    if scale > MAX_COV or max(abs(x), abs(y), abs(t)) > MAX_MEAN:
-        return (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
-                f"{MAX_COV:g} (diverged)")
-    if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
-        return "covariance is not symmetric"
-    if _not_psd(a, 0.5 * (b + b2), 0.5 * (d + d2), e, 0.5 * (f + f2), g):
-        return "covariance is not positive semi-definite"
-    return mean, cov
+_DIVERGED = (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over {MAX_COV:g} "
+             "(diverged)")
+_NOT_PSD = "covariance is not positive semi-definite"
 
 
 def _validate_any(est: object) -> tuple[np.ndarray, np.ndarray] | str:

@@ -18,6 +18,7 @@ here, where other modules have always imported them from.
 from __future__ import annotations
 
 import time
+import traceback
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -35,10 +36,11 @@ from beacon_sim.filters.guard import (  # noqa: F401 - re-exported
     validate_belief,
     validate_estimate,
 )
-from beacon_sim.filters.host import call_guarded, guarded_call, run_filter_code  # noqa: F401
+from beacon_sim.filters.host import call_guarded, failure_of, guarded_call, run_filter_code  # noqa: F401
 from beacon_sim.filters.watchdog import (  # noqa: F401 - re-exported
     FilterExit,
     FilterTimeout,
+    StepWatch,
     exit_text,
     failure_line,
     is_filter_failure,
@@ -73,12 +75,19 @@ def note_step_time(track: FilterTrack, step_ns: int) -> None:
     One slow step (a first call that imports or allocates, a garbage collection) does not
     warn; a filter that is slow on every step does after ``SLOW_MIN_STEPS`` steps. The
     warning stays once given (it tells the user the filter cannot keep up in real time).
+    The sum of the recent steps is kept as it goes (exact integers), and the slowest one is
+    looked for only when that sum alone is over the line: the same verdict for less work.
     """
     recent = track.recent_step_ns
-    recent.append(int(step_ns))
-    if len(recent) < SLOW_MIN_STEPS:
+    step_ns = int(step_ns)
+    if len(recent) == recent.maxlen:
+        track.recent_sum_ns -= recent[0]
+    recent.append(step_ns)
+    track.recent_sum_ns += step_ns
+    n = len(recent)
+    if n < SLOW_MIN_STEPS or track.recent_sum_ns <= SLOW_STEP_MS * 1e6 * (n - 1):
         return
-    mean_ms = (sum(recent) - max(recent)) / (len(recent) - 1) / 1e6
+    mean_ms = (track.recent_sum_ns - max(recent)) / (n - 1) / 1e6
     if mean_ms > SLOW_STEP_MS:
         track.slow_warning = (f"slow: {mean_ms:.0f} ms per step (over {SLOW_STEP_MS:.0f} ms; "
                               f"the simulation cannot run in real time)")
@@ -112,6 +121,7 @@ class FilterTrack:
     failed_time_s: float | None = None  # simulated time of the step that failed [s]
     slow_warning: str | None = None
     recent_step_ns: deque[int] = field(default_factory=lambda: deque(maxlen=SLOW_WINDOW))
+    recent_sum_ns: int = 0  # the sum of recent_step_ns [ns], kept by note_step_time
 
     @property
     def us_per_step(self) -> float:
@@ -172,6 +182,8 @@ class FilterRunner:
                        for name, f in filters.items()}
         self.step_limit_s = step_limit_s
         self.run_limit_s = run_limit_s
+        self._watch = StepWatch(cpu_limits)  # one for every step, armed in place
+        self._watch_cpu = cpu_limits
 
     def fail(self, name: str, reason: str, tb: str = "", time_s: float | None = None) -> None:
         """Switch ``name`` off with ``reason`` (one line), at simulated time ``time_s`` [s]."""
@@ -180,17 +192,24 @@ class FilterRunner:
             return
         track.failed, track.traceback, track.failed_time_s = reason, tb, time_s
 
-    def _limit(self, track: FilterTrack) -> tuple[float | None, str]:
-        """The time this track's next step may take [s] and the message when it is over
-        (the step limit, or what is left of the run limit, whichever is shorter)."""
+    def _limit(self, track: FilterTrack) -> tuple[float | None, bool]:
+        """The time this track's next step may take [s], and whether that is what is left
+        of the run limit (the step limit, or what is left of the run limit, whichever is
+        shorter)."""
         step, run = self.step_limit_s, self.run_limit_s
         if run is not None:
             left = run - track.step_ns / 1e9
             if step is None or left < step:
-                return left, f"time limit: over {run:g} s of filter time in the run"
-        if step is None:
-            return None, ""
-        return step, f"time limit: a step took over {step:g} s"
+                return left, True
+        return step, False
+
+    def _over(self, of_run: bool) -> str:
+        """The message of a step stopped by its time limit (see :meth:`_limit`)."""
+        if of_run:
+            return f"time limit: over {self.run_limit_s:g} s of filter time in the run"
+        if self.step_limit_s is None:
+            return ""
+        return f"time limit: a step took over {self.step_limit_s:g} s"
 
     def _step(self, track: FilterTrack, f: Filter, step: Step) -> object:
         """predict, (the prior for the step view), update, estimate: one step of one filter."""
@@ -204,21 +223,47 @@ class FilterRunner:
         return f.estimate()
 
     def feed(self, step: Step) -> None:
-        """Predict with the step's command, update with its measurements, record."""
+        """Predict with the step's command, update with its measurements, record.
+
+        The per-step work around a filter is kept small (issue 27, ``benchmarks/bench_runner.py``):
+        one :class:`StepWatch` armed in place, the ladder of :func:`call_guarded` inlined, the
+        guard's fast path for the usual float64 estimate."""
+        watch = self._watch
+        if self._watch_cpu is not self.cpu_limits:  # cpu_limits changed since: a watch to match
+            watch = self._watch = StepWatch(self.cpu_limits)
+            self._watch_cpu = self.cpu_limits
+        clock = time.perf_counter_ns
+        plain = not self.keep_prior  # no step view: _step's three calls inline
+        no_run_limit, step_limit = self.run_limit_s is None, self.step_limit_s
         for track in self.tracks.values():
             f = track.filter
             if track.failed or f is None:
                 continue
-            limit, over = self._limit(track)
-            t0 = time.perf_counter_ns()
-            est, why, tb = call_guarded(lambda: self._step(track, f, step), limit,  # noqa: B023
-                                        cpu=self.cpu_limits, over=over)
-            elapsed = time.perf_counter_ns() - t0
-            if why is not None:
+            if no_run_limit:  # the usual case, without the method call
+                limit, of_run = step_limit, False
+            else:
+                limit, of_run = self._limit(track)
+            watch.seconds = limit
+            t0 = clock()
+            try:
+                with watch:
+                    if plain:
+                        f.predict(step.control, step.dt)
+                        f.update(step.measurements)
+                        est: object = f.estimate()
+                    else:
+                        est = self._step(track, f, step)
+            except BaseException as exc:  # the ladder of host.call_guarded, inline
+                over = self._over(of_run)
+                why = failure_of(exc, limit, over)
+                if why is None:
+                    raise
+                tb = traceback.format_exc()
                 if why == over:
-                    track.step_ns += elapsed
+                    track.step_ns += clock() - t0
                 self.fail(track.name, why, tb, step.time)
                 continue
+            elapsed = clock() - t0
             track.step_ns += elapsed
             track.steps += 1
             note_step_time(track, elapsed)

@@ -42,7 +42,13 @@ _WD_LOCK = threading.Lock()
 # -1, the thread's CPU time when the watchdog first saw the entry [s] or -1]
 _WD_ARMED: dict[int, list[float]] = {}
 _WD_THREAD: threading.Thread | None = None
+# thread id -> that thread's own entry for :class:`StepWatch`, kept in ``_WD_ARMED`` between
+# steps with the deadline at infinity (not armed)
+_WD_SLOTS: dict[int, list[float]] = {}
 _WD_POLL_S = 0.02
+_INF = math.inf
+_get_ident = threading.get_ident
+_monotonic = time.monotonic
 _WD_REFIRE_S = 0.1
 
 
@@ -52,6 +58,7 @@ def _after_fork() -> None:
     _WD_THREAD = None
     _WD_LOCK = threading.Lock()
     _WD_ARMED.clear()
+    _WD_SLOTS.clear()
 
 
 if hasattr(os, "register_at_fork"):
@@ -95,6 +102,14 @@ def _cpu_over(tid: int, entry: list[float]) -> bool:
     return now - entry[4] >= entry[2]
 
 
+def _start_watchdog() -> None:
+    """Start the watchdog thread if it is not running (call with ``_WD_LOCK`` held)."""
+    global _WD_THREAD
+    if _WD_THREAD is None:
+        _WD_THREAD = threading.Thread(target=_watchdog_loop, name="beacon-sim watchdog", daemon=True)
+        _WD_THREAD.start()
+
+
 def _watchdog_loop() -> None:
     while True:
         time.sleep(_WD_POLL_S)
@@ -126,7 +141,6 @@ class time_limit:  # used as ``with time_limit(s):``, like the function it was
         self._armed = False
 
     def __enter__(self) -> time_limit:
-        global _WD_THREAD
         seconds = self.seconds
         if seconds is None or not math.isfinite(seconds):
             return self
@@ -136,10 +150,7 @@ class time_limit:  # used as ``with time_limit(s):``, like the function it was
         if not self.backstop:  # CPU time only (the isolated child: its grader keeps the wall clock)
             wall = math.inf
         with _WD_LOCK:
-            if _WD_THREAD is None:
-                _WD_THREAD = threading.Thread(target=_watchdog_loop, name="beacon-sim watchdog",
-                                              daemon=True)
-                _WD_THREAD.start()
+            _start_watchdog()
             outer = _WD_ARMED.get(tid)  # a limit around this one (nested): the earlier deadline wins
             deadline = time.monotonic() + wall
             if outer is not None:
@@ -160,6 +171,83 @@ class time_limit:  # used as ``with time_limit(s):``, like the function it was
             if outer is not None:
                 _WD_ARMED[tid] = outer
         return False
+
+
+class StepWatch:
+    """:class:`time_limit` for a loop of many short steps (the runner's filter steps), the
+    same limits and verdicts at a fraction of the cost: one object reused for every step
+    (set ``seconds``, then ``with watch:``), and the thread's entry in the watchdog's table
+    kept between steps with its deadline at infinity, so arming a step is a clock read and
+    a few writes (no allocation, no lock); only the end of a step takes the lock (a raise
+    the watchdog fired as the step ended must be withdrawn before the step is over).
+
+    Where another limit is already armed in the thread (a :class:`time_limit` around the
+    loop, or a StepWatch inside a step), it falls back to :class:`time_limit`, which nests.
+    """
+
+    __slots__ = ("_armed", "_fallback", "cpu", "seconds")
+
+    def __init__(self, cpu: bool = False):
+        self.cpu = cpu and _CPU_OK
+        self.seconds: float | None = None
+        self._armed: list[float] | None = None
+        self._fallback: time_limit | None = None
+
+    def __enter__(self) -> StepWatch:
+        seconds = self.seconds
+        if seconds is None or not -_INF < seconds < _INF:  # no limit (None, infinite or NaN)
+            return self
+        tid = _get_ident()
+        entry = _WD_SLOTS.get(tid)
+        if entry is None or _WD_ARMED.get(tid) is not entry or entry[0] != math.inf:
+            entry = _own_slot(tid)
+            if entry is None:  # another limit is armed here: the general way, which nests
+                self._fallback = time_limit(seconds, self.cpu)
+                self._fallback.__enter__()
+                return self
+        if seconds < 0.0:
+            seconds = 0.0
+        if self.cpu:  # the watchdog takes the thread's CPU clock and time when it first sees these
+            entry[3] = -1.0
+            entry[4] = -1.0
+            entry[2] = seconds
+            entry[0] = _monotonic() + seconds * CPU_BACKSTOP_FACTOR + CPU_BACKSTOP_S
+        else:
+            entry[0] = _monotonic() + seconds
+        self._armed = entry
+        return self
+
+    def __exit__(self, *exc: object) -> Literal[False]:
+        entry = self._armed
+        if entry is None:
+            fallback = self._fallback
+            if fallback is not None:
+                self._fallback = None
+                fallback.__exit__(*exc)
+            return False
+        self._armed = None
+        with _WD_LOCK:
+            entry[0] = math.inf
+            entry[2] = -1.0
+            if entry[1]:
+                entry[1] = 0.0
+                _raise_in(_get_ident(), None)  # a raise not yet delivered: withdraw it
+        return False
+
+
+def _own_slot(tid: int) -> list[float] | None:
+    """The thread's :class:`StepWatch` entry, (re)placed in the watchdog's table; None when
+    another limit is armed in the thread."""
+    with _WD_LOCK:
+        _start_watchdog()
+        current = _WD_ARMED.get(tid)
+        slot = _WD_SLOTS.get(tid)
+        if current is not None and (current is not slot or current[0] != math.inf):
+            return None
+        if slot is None:
+            slot = _WD_SLOTS[tid] = [math.inf, 0.0, -1.0, -1.0, -1.0]
+        _WD_ARMED[tid] = slot
+        return slot
 
 
 # A Ctrl-C (SIGINT) or SIGTERM from the user, as opposed to a ``KeyboardInterrupt`` or a
@@ -217,5 +305,6 @@ def failure_line(exc: BaseException) -> str:
     return exit_text(exc) if isinstance(exc, SystemExit | KeyboardInterrupt) else one_line(exc)
 
 
-__all__ = ["FilterExit", "FilterFailed", "FilterTimeout", "cpu_clock_available", "exit_text", "failure_line",
-           "is_filter_failure", "note_user_interrupt", "one_line", "time_limit", "user_interrupted"]
+__all__ = ["FilterExit", "FilterFailed", "FilterTimeout", "StepWatch", "cpu_clock_available", "exit_text",
+           "failure_line", "is_filter_failure", "note_user_interrupt", "one_line", "time_limit",
+           "user_interrupted"]
