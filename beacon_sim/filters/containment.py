@@ -181,8 +181,11 @@ def _ro_binds() -> list[str]:
     checkout = not any(root.is_relative_to(x) for x in prefixes)
     seen: list[Path] = []
     for p in [*prefixes, *(Path(q).resolve() for q in sys.path if q and Path(q).is_dir())]:
-        if checkout and (root.is_relative_to(p) or p.is_relative_to(root)):
+        in_prefix = any(p.is_relative_to(x) for x in prefixes)  # the interpreter, its site-packages
+        if checkout and not in_prefix and (root.is_relative_to(p) or p.is_relative_to(root)):
             continue  # a checkout (the package's folder, its tests): only the package is bound
+        # (a virtual environment inside the checkout, as CI's .ci-venv, is bound: the child
+        # needs its interpreter and site-packages; the rest of the checkout stays unseen)
         if p == Path("/") or str(p).startswith(("/usr", "/bin", "/lib", "/proc", "/dev")):
             continue
         if any(p.is_relative_to(q) for q in seen):
@@ -246,8 +249,10 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
     if sandbox == "bwrap":
         env = child_env(BOX_WORK, BOX_SRC if module else None)
         argv = [shutil.which("bwrap") or "bwrap", "--unshare-all", "--die-with-parent",
-                "--new-session", "--clearenv", *_ro_binds(),
-                "--dev", "/dev", "--proc", "/proc", "--tmpfs", "/tmp",
+                # an empty /tmp first: a bind made before it (a checkout or a virtual
+                # environment under /tmp, as a CI clone may be) would be hidden by it
+                "--new-session", "--clearenv", "--tmpfs", "/tmp", *_ro_binds(),
+                "--dev", "/dev", "--proc", "/proc",
                 "--bind", str(work), BOX_WORK, "--ro-bind", str(src), BOX_SRC,
                 "--chdir", BOX_WORK, "--uid", str(NOBODY), "--gid", str(NOBODY)]
         for k, v in env.items():
