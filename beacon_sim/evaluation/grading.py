@@ -42,6 +42,7 @@ from beacon_sim.evaluation.montecarlo import (
     default_jobs,
     init_worker,
     isolated_run,
+    on_dask,
     one_run,
     simulate_run,
 )
@@ -303,21 +304,9 @@ def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = N
             progress(done, len(tasks))
 
     if scheduler is not None:
-        from dask.distributed import Client, as_completed
-
-        client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
-        try:
-            futures = client.map(run_task, list(tasks), pure=False)
-            index = {f.key: i for i, f in enumerate(futures)}
-            for fut in as_completed(futures):
-                i = index[fut.key]
-                try:
-                    finish(i, fut.result())
-                except Exception as exc:  # KilledWorker: the filter took the worker down
-                    finish(i, TaskResult(tasks[i], None, f"worker lost: {type(exc).__name__}"))
-        finally:
-            if client is not scheduler:
-                client.close()
+        on_dask(scheduler, run_task, list(tasks), finish,  # KilledWorker: the filter took it down
+                lost=lambda i, exc: finish(i, TaskResult(tasks[i], None,
+                                                         f"worker lost: {type(exc).__name__}")))
         return [r for r in out if r is not None]
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
     from concurrent.futures import ProcessPoolExecutor
@@ -483,27 +472,15 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
             progress(done, total)
 
     if scheduler is not None:
-        from dask.distributed import Client, as_completed
+        def lost(i: int, exc: Exception) -> None:  # the worker itself was lost (not the child)
+            job = jobs_list[i]
+            finish(i, StudentResult(job.student, [
+                TaskResult(Task(job.student, job.filename, sr.label, sr.seed, None,
+                                job.time_limit, sr.index), None,
+                           f"worker lost: {type(exc).__name__}") for sr in job.sims],
+                {}, "", job.sandbox))
 
-        client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
-        try:
-            futures = client.map(run_student, list(jobs_list), pure=False)
-            index = {f.key: i for i, f in enumerate(futures)}
-            for fut in as_completed(futures):
-                i = index[fut.key]
-                try:
-                    finish(i, fut.result())
-                except Exception as exc:  # the worker itself was lost (not the child)
-                    job = jobs_list[i]
-                    finish(i, StudentResult(job.student, [
-                        TaskResult(Task(job.student, job.filename, sr.label, sr.seed, None,
-                                        job.time_limit, sr.index), None,
-                                   f"worker lost: {type(exc).__name__}") for sr in job.sims],
-                        {}, "", job.sandbox))
-                fut.release()  # gathered: the scheduler may forget it (never recomputed)
-        finally:
-            if client is not scheduler:
-                client.close()
+        on_dask(scheduler, run_student, list(jobs_list), finish, lost=lost)
     else:
         from concurrent.futures import ThreadPoolExecutor
 

@@ -769,9 +769,14 @@ def dask_workers(scheduler: Any) -> int:
 
 
 def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
-            done: Callable[[int, Any], None]) -> None:
+            done: Callable[[int, Any], None],
+            lost: Callable[[int, Exception], None] | None = None) -> None:
     """``fn(task)`` for every task on Dask, ``done(index, result)`` as each finishes; each
-    result is released once gathered (the scheduler forgets it: never computed again)."""
+    result is released once gathered (the scheduler forgets it: never computed again).
+
+    A task that raised or whose worker died: ``lost(index, exc)`` when given (grading:
+    that task's student fails, the others go on), else a one-line :class:`ClusterError`
+    for a lost worker and the exception itself otherwise."""
     from dask.distributed import as_completed
 
     client, own = dask_client(scheduler)
@@ -783,6 +788,10 @@ def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
             try:
                 result = fut.result()
             except Exception as exc:  # the worker died or the cluster went away: one line
+                fut.release()
+                if lost is not None:
+                    lost(i, exc)
+                    continue
                 if type(exc).__name__ in _LOST:
                     raise ClusterError(f"Dask: task {i + 1} of {len(futures)} was lost "
                                        f"({type(exc).__name__}: {str(exc)[:200]})") from None
