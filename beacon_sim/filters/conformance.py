@@ -271,156 +271,200 @@ def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
     return problems
 
 
-def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True,
-               sandbox: str = "auto") -> list[CheckResult]:
-    """Run every check on the filter named ``spec`` with ``scenario``'s map and sensors.
-
-    A filter file runs in a child process of its own (``isolated``, the default; ``sandbox``
-    as for ``grade``): its code never runs in this process, and a filter that exits, loops
-    or raises ``KeyboardInterrupt`` fails a check instead of ending the program.
-
-    Each check stands on its own, so one fault gives one FAIL: a filter that raises at step
-    k fails "runs" and is judged by the other checks on the steps before k; a NaN fails
-    "finite" only (the determinism check counts NaN equal to NaN, the empty update check
-    only asks that an empty update neither raises nor spoils a usable estimate). The last
-    line is the cost per step beside the built-in ekf's on the same steps (not a check).
-    """
-    results: list[CheckResult] = []
-
-    def add(name: str, passed: object, message: str = "", advice: str = "") -> bool:
-        results.append(CheckResult(name, bool(passed), message, "" if passed else advice))
-        return bool(passed)
-
-    try:
-        host = _open_host(spec, isolated, sandbox)
-    except (FilterError, FilterFailed) as exc:
-        add("loads", False, str(exc), "check the spelling: a built-in name, pkg.mod:Class or "
-            "path/to/file.py:Class, and that the file imports without errors")
-        return results
-    try:
-        return _checks(host, spec, scenario, results, add)
-    finally:
-        host.close()
-        log = getattr(host, "log", None)
-        if log is not None and log.exists() and log.stat().st_size:  # not a check: where it went
-            add("output", True, f"the filter printed {log.stat().st_size} bytes: see {log}")
+def _loads_failed(exc: Exception) -> CheckResult:
+    """"loads" failed: the name is no filter, or its file does not import."""
+    return CheckResult("loads", False, str(exc), "check the spelling: a built-in name, "
+                       "pkg.mod:Class or path/to/file.py:Class, and that the file imports "
+                       "without errors")
 
 
-def _checks(host: _Host, spec: str, scenario: Scenario, results: list[CheckResult],
-            add: Callable[..., bool]) -> list[CheckResult]:
-    """The checks after the filter loaded (see :func:`run_checks`)."""
-    add("loads", True, host.where)
+def _result(name: str, passed: object, message: str = "", advice: str = "") -> CheckResult:
+    """A CheckResult whose advice is kept only when the check failed."""
+    return CheckResult(name, bool(passed), message, "" if passed else advice)
 
-    scenario, note = _scenario_for(host, scenario)
-    if note:
-        add("scenario", True, note)
 
+def check_loads(host: _Host) -> CheckResult:
+    """Does the filter load? (It did, when there is a host: say where it came from.)"""
+    return _result("loads", True, host.where)
+
+
+def check_scenario(host: _Host, scenario: Scenario) -> tuple[Scenario, list[CheckResult]]:
+    """Which scenario the filter is checked on, and a note when it is not the given one."""
+    used, note = _scenario_for(host, scenario)
+    return used, ([_result("scenario", True, note)] if note else [])
+
+
+def check_interface(host: _Host) -> CheckResult:
+    """Does the class have the five methods of ``beacon_sim.filters.base.Filter``?"""
     missing = host.missing
-    if not add("interface", not missing, f"missing: {', '.join(missing)}" if missing else
-               "reset, predict, update, estimate, belief",
-               "implement every method of beacon_sim.filters.base.Filter (subclass FilterBase "
-               "to get belief() for free)"):
-        return results
+    return _result("interface", not missing,
+                   f"missing: {', '.join(missing)}" if missing
+                   else "reset, predict, update, estimate, belief",
+                   "implement every method of beacon_sim.filters.base.Filter (subclass "
+                   "FilterBase to get belief() for free)")
 
-    def fresh() -> Filter:
-        return host.make(scenario, spec)
 
+def check_constructs(fresh: Callable[[], Filter]) -> tuple[Filter | None, CheckResult]:
+    """Is the filter built from a FilterContext and reset? Returns it (None when not)."""
     try:
         flt = fresh()
     except Exception as exc:
-        add("constructs", False, one_line(exc),
-            "the class must take one argument, a FilterContext (call super().__init__(ctx) "
-            "when subclassing FilterBase), and reset(initial) must accept a GaussianBelief "
-            "or None")
-        return results
-    add("constructs", True, "built from a FilterContext and reset")
+        return None, _result("constructs", False, one_line(exc),
+                             "the class must take one argument, a FilterContext (call "
+                             "super().__init__(ctx) when subclassing FilterBase), and "
+                             "reset(initial) must accept a GaussianBelief or None")
+    return flt, _result("constructs", True, "built from a FilterContext and reset")
 
-    steps = Simulation(scenario, SEED).run(N_STEPS * scenario.dt)
-    n_meas = sum(len(m) for s in steps for m in s.measurements)
 
-    est0, why0, _ = guarded_call(flt.estimate, STEP_LIMIT_S)
-    first = [] if why0 else [est0]
-    run = _feed(flt, steps, STEP_LIMIT_S)
+def check_runs(run: _Feed, n_meas: int) -> CheckResult:
+    """Did every step (predict, update, estimate) return, within the time limit?"""
     if run.error is None:
-        add("runs", True, f"{N_STEPS} steps, {n_meas} readings")
-    else:
-        add("runs", False, f"step {run.error[0]}: {run.error[1]}",
-            "run `beacon-sim run SCENARIO --filter YOURS` to see the traceback; predict and "
-            "update must accept the Control and the list of Measurement of every step, and "
-            "a step must not loop for ever")
-    problems = _value_problems(first + run.estimates)
-    if first and "shapes" in problems and problems["shapes"].startswith("step 1:"):
+        return _result("runs", True, f"{N_STEPS} steps, {n_meas} readings")
+    return _result("runs", False, f"step {run.error[0]}: {run.error[1]}",
+                   "run `beacon-sim run SCENARIO --filter YOURS` to see the traceback; predict "
+                   "and update must accept the Control and the list of Measurement of every "
+                   "step, and a step must not loop for ever")
+
+
+def estimate_problems(after_reset: list[object], estimates: Sequence[object]) -> dict[str, str]:
+    """The value problems of the estimate after reset (if any) and of the steps' estimates,
+    a shapes fault of the first one said to be "after reset" (see :func:`_value_problems`)."""
+    problems = _value_problems(after_reset + list(estimates))
+    if after_reset and "shapes" in problems and problems["shapes"].startswith("step 1:"):
         problems["shapes"] = "after reset:" + problems["shapes"][len("step 1:"):]
-    add("shapes", "shapes" not in problems, problems.get("shapes", "mean (3,), cov (3, 3)"),
-        "estimate() must return (mean, cov) with mean shape (3,) [x, y, theta] and cov (3, 3)")
-    add("finite", "finite" not in problems, problems.get("finite", "no NaN or infinity"),
-        "look for a division by a zero range or weight sum, or a covariance that was not "
-        "kept positive definite")
-    add("symmetric covariance", "symmetric" not in problems,
-        problems.get("symmetric", "cov == cov^T"),
-        "symmetrise after the update (P = (P + P^T) / 2) or use the Joseph form "
-        "(I - KH) P (I - KH)^T + K R K^T")
-    add("positive semi-definite covariance", "psd" not in problems,
-        problems.get("psd", "no negative eigenvalue"),
-        "use the Joseph form for the covariance update; P - K S K^T loses definiteness "
-        "through rounding")
-    add("heading wrapped", "heading" not in problems, problems.get("heading", "in [-pi, pi)"),
-        "wrap the heading after predict and update with beacon_sim.core.angles.wrap, and "
-        "wrap every angle residual with angles.diff")
+    return problems
 
-    # Belief type, on a filter that ran the steps it could (a fresh one when it raised).
+
+def check_shapes(problems: dict[str, str]) -> CheckResult:
+    """Is every estimate a (mean, cov) pair of shapes (3,) and (3, 3)?"""
+    return _result("shapes", "shapes" not in problems,
+                   problems.get("shapes", "mean (3,), cov (3, 3)"),
+                   "estimate() must return (mean, cov) with mean shape (3,) [x, y, theta] and "
+                   "cov (3, 3)")
+
+
+def check_finite(problems: dict[str, str]) -> CheckResult:
+    """Is every estimate free of NaN and infinity, and not diverged?"""
+    return _result("finite", "finite" not in problems,
+                   problems.get("finite", "no NaN or infinity"),
+                   "look for a division by a zero range or weight sum, or a covariance that "
+                   "was not kept positive definite")
+
+
+def check_covariance_symmetric(problems: dict[str, str]) -> CheckResult:
+    """Is every covariance symmetric?"""
+    return _result("symmetric covariance", "symmetric" not in problems,
+                   problems.get("symmetric", "cov == cov^T"),
+                   "symmetrise after the update (P = (P + P^T) / 2) or use the Joseph form "
+                   "(I - KH) P (I - KH)^T + K R K^T")
+
+
+def check_covariance_psd(problems: dict[str, str]) -> CheckResult:
+    """Is every covariance positive semi-definite?"""
+    return _result("positive semi-definite covariance", "psd" not in problems,
+                   problems.get("psd", "no negative eigenvalue"),
+                   "use the Joseph form for the covariance update; P - K S K^T loses "
+                   "definiteness through rounding")
+
+
+def check_heading_wrapped(problems: dict[str, str]) -> CheckResult:
+    """Is every heading in [-pi, pi)?"""
+    return _result("heading wrapped", "heading" not in problems,
+                   problems.get("heading", "in [-pi, pi)"),
+                   "wrap the heading after predict and update with beacon_sim.core.angles.wrap, "
+                   "and wrap every angle residual with angles.diff")
+
+
+def check_belief(flt: Filter) -> CheckResult:
+    """Does ``belief()`` return one of the three belief types?"""
     b, why, _ = guarded_call(flt.belief, STEP_LIMIT_S)
-    if why is None:
-        ok = isinstance(b, GaussianBelief | ParticleBelief | GridBelief)
-        add("belief", ok, type(b).__name__,
-            "belief() must return a GaussianBelief, ParticleBelief or GridBelief")
-    else:
-        add("belief", False, why, "belief() must not raise")
+    if why is not None:
+        return _result("belief", False, why, "belief() must not raise")
+    return _result("belief", isinstance(b, GaussianBelief | ParticleBelief | GridBelief),
+                   type(b).__name__,
+                   "belief() must return a GaussianBelief, ParticleBelief or GridBelief")
 
-    # Empty update, on a fresh filter right after reset (no other fault can have shown yet).
+
+@dataclass
+class _EmptyTrial:
+    """Two empty updates on a fresh filter: the estimates before and after, why the updates
+    failed (``Type: message``) and why the estimate after them failed, or None."""
+
+    before: object
+    after: object
+    why: str | None
+    why_after: str | None
+
+
+def _empty_trial(fresh: Callable[[], Filter]) -> _EmptyTrial:
+    """``update([])`` and ``update(())`` on a fresh filter right after reset."""
     try:
         ef = fresh()
-        pre = _Feed([], None, 0)
         before, _, _ = guarded_call(ef.estimate, STEP_LIMIT_S)
+
         def empty() -> None:
             ef.update([])
             ef.update(())
 
         _, why, _ = guarded_call(empty, STEP_LIMIT_S)
-        after, why2, _ = guarded_call(ef.estimate, STEP_LIMIT_S)
+        after, why_after, _ = guarded_call(ef.estimate, STEP_LIMIT_S)
     except Exception as exc:
-        pre, why, why2 = _Feed([], None, 0), one_line(exc), None
-        before = after = None
-    if pre.error is not None or why2 is not None:
-        add("empty update", True, "not judged: the filter failed before (see above)")
-    elif why is not None:
-        add("empty update", False, why, "update([]) happens on every tick without readings: "
-            "return early when the list is empty")
-    else:
-        usable_before = _estimate_problem(before) is None and not _value_problems([before])
-        spoilt = usable_before and bool(_estimate_problem(after) or _value_problems([after]))
-        moved = not spoilt and not _same(before, after)
-        add("empty update", not spoilt,
-            "spoils the estimate" if spoilt else ("accepted" + ("; the mean moved" if moved else "")),
-            "update([]) happens on every tick without readings: return without changing "
-            "the belief")
-    if run.error is not None and not results[-1].passed and why == run.error[1]:
-        # One fault seen twice: blame the empty update only if an update with readings works.
-        with_readings = next((st for st in steps if st.measurements), None)
-        try:
-            probe = fresh()
-            ok = with_readings is not None and _feed(probe, [with_readings], STEP_LIMIT_S).error is None
-        except Exception:
-            ok = False
-        k = next(i for i, r in enumerate(results) if r.name == "runs")
-        if ok:
-            results[k] = CheckResult("runs", True, f"stopped at step {run.error[0]}, a step "
-                                     "without readings: the empty update fault below")
-        else:
-            results[-1] = CheckResult("empty update", True, "not judged: update fails with "
-                                      "readings too (see runs)")
+        return _EmptyTrial(None, None, one_line(exc), None)
+    return _EmptyTrial(before, after, why, why_after)
 
-    # Determinism and the global RNG.
+
+def check_empty_update(trial: _EmptyTrial) -> CheckResult:
+    """Is an empty update accepted without spoiling a usable estimate?"""
+    if trial.why_after is not None:
+        return _result("empty update", True, "not judged: the filter failed before (see above)")
+    if trial.why is not None:
+        return _result("empty update", False, trial.why, "update([]) happens on every tick "
+                       "without readings: return early when the list is empty")
+    before, after = trial.before, trial.after
+    usable_before = _estimate_problem(before) is None and not _value_problems([before])
+    spoilt = usable_before and bool(_estimate_problem(after) or _value_problems([after]))
+    moved = not spoilt and not _same(before, after)
+    return _result("empty update", not spoilt,
+                   "spoils the estimate" if spoilt
+                   else ("accepted" + ("; the mean moved" if moved else "")),
+                   "update([]) happens on every tick without readings: return without "
+                   "changing the belief")
+
+
+def blame_one_fault(runs: CheckResult, empty: CheckResult, run: _Feed, trial: _EmptyTrial,
+                    steps: Sequence[Step],
+                    fresh: Callable[[], Filter]) -> tuple[CheckResult, CheckResult]:
+    """One fault seen twice ("runs" and "empty update" failing with the same error): blame
+    the empty update only if an update with readings works, else "runs" only. Returns the
+    two results, changed or not."""
+    if run.error is None or empty.passed or trial.why != run.error[1]:
+        return runs, empty
+    with_readings = next((st for st in steps if st.measurements), None)
+    try:
+        probe = fresh()
+        ok = with_readings is not None and _feed(probe, [with_readings], STEP_LIMIT_S).error is None
+    except Exception:
+        ok = False
+    if ok:
+        return CheckResult("runs", True, f"stopped at step {run.error[0]}, a step without "
+                           "readings: the empty update fault below"), empty
+    return runs, CheckResult("empty update", True, "not judged: update fails with readings too "
+                             "(see runs)")
+
+
+@dataclass
+class _RngTrial:
+    """Two runs of the same steps with the global RNGs seeded 1 and 2, and whether the first
+    drew from the global ``np.random`` / ``random`` generators."""
+
+    run1: _Feed
+    run2: _Feed
+    drew_np: bool
+    drew_py: bool
+
+
+def _rng_trial(host: _Host, scenario: Scenario, spec: str, steps: Sequence[Step]) -> _RngTrial:
+    """Run twice with the global RNGs seeded differently; their states are restored after."""
     state_np = np.random.get_state(legacy=False)  # noqa: NPY002
     state_py = random.getstate()
     try:
@@ -442,28 +486,114 @@ def _checks(host: _Host, spec: str, scenario: Scenario, results: list[CheckResul
     finally:
         np.random.set_state(state_np)  # noqa: NPY002
         random.setstate(state_py)
+    return _RngTrial(run1, run2, drew_np, drew_py)
+
+
+def check_determinism(trial: _RngTrial) -> CheckResult:
+    """Are the estimates bit-identical when only the global np.random seed changes?"""
+    run1, run2 = trial.run1, trial.run2
     diff_at = next((k for k, (a, b) in enumerate(zip(run1.estimates, run2.estimates, strict=False), 1)
                     if not _same(a, b)), None)
     if diff_at is None and (run1.error is None) != (run2.error is None):
         diff_at = min(len(run1.estimates), len(run2.estimates)) + 1
-    add("deterministic", diff_at is None,
-        "same estimates bit for bit with the global RNG seeded 1 and 2" if diff_at is None
-        else f"estimates differ from step {diff_at} when only the global np.random seed changes",
-        "draw random numbers only from ctx.rng (a numpy Generator), never from np.random.* "
-        "or random.*")
-    add("no global RNG", not (drew_np or drew_py),
-        "the global np.random and random states were left untouched" if not (drew_np or drew_py)
-        else "the filter drew from the global " + ("np.random" if drew_np else "random") + " generator",
-        "replace np.random.normal(...) / np.random.rand(...) by self.ctx.rng.normal(...) / "
-        "self.ctx.rng.random(...) (store ctx.rng in __init__)")
+    return _result("deterministic", diff_at is None,
+                   "same estimates bit for bit with the global RNG seeded 1 and 2" if diff_at is None
+                   else f"estimates differ from step {diff_at} when only the global np.random "
+                   "seed changes",
+                   "draw random numbers only from ctx.rng (a numpy Generator), never from "
+                   "np.random.* or random.*")
 
-    # Cost beside the built-in EKF (information, not a check).
+
+def check_global_rng(trial: _RngTrial) -> CheckResult:
+    """Did the filter leave the global np.random and random generators untouched?"""
+    drew_np, drew_py = trial.drew_np, trial.drew_py
+    return _result("no global RNG", not (drew_np or drew_py),
+                   "the global np.random and random states were left untouched"
+                   if not (drew_np or drew_py)
+                   else "the filter drew from the global "
+                   + ("np.random" if drew_np else "random") + " generator",
+                   "replace np.random.normal(...) / np.random.rand(...) by "
+                   "self.ctx.rng.normal(...) / self.ctx.rng.random(...) (store ctx.rng in "
+                   "__init__)")
+
+
+def report_cost(run: _Feed, scenario: Scenario, steps: Sequence[Step]) -> CheckResult:
+    """The cost per step [us] beside the built-in ekf's on the same steps (not a check)."""
     mine = run.step_ns / 1e3 / max(len(run.estimates), 1)
     ref = _feed(build_filter("ekf", scenario, SEED), steps, STEP_LIMIT_S)
     ekf_us = ref.step_ns / 1e3 / max(len(ref.estimates), 1)
-    add("cost", True, f"{mine:.1f} us per step (predict + update + estimate); the built-in "
-        f"ekf: {ekf_us:.1f} us on the same steps ({mine / max(ekf_us, 1e-9):.1f}x)")
+    return _result("cost", True, f"{mine:.1f} us per step (predict + update + estimate); the "
+                   f"built-in ekf: {ekf_us:.1f} us on the same steps "
+                   f"({mine / max(ekf_us, 1e-9):.1f}x)")
+
+
+def report_output(host: _Host) -> list[CheckResult]:
+    """Where the filter's printed output went, if it printed anything (not a check)."""
+    log = getattr(host, "log", None)
+    if log is not None and log.exists() and log.stat().st_size:
+        return [_result("output", True, f"the filter printed {log.stat().st_size} bytes: see {log}")]
+    return []
+
+
+def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True,
+               sandbox: str = "auto") -> list[CheckResult]:
+    """Run every check on the filter named ``spec`` with ``scenario``'s map and sensors.
+
+    A filter file runs in a child process of its own (``isolated``, the default; ``sandbox``
+    as for ``grade``): its code never runs in this process, and a filter that exits, loops
+    or raises ``KeyboardInterrupt`` fails a check instead of ending the program.
+
+    Each check stands on its own, so one fault gives one FAIL: a filter that raises at step
+    k fails "runs" and is judged by the other checks on the steps before k; a NaN fails
+    "finite" only (the determinism check counts NaN equal to NaN, the empty update check
+    only asks that an empty update neither raises nor spoils a usable estimate). The last
+    line is the cost per step beside the built-in ekf's on the same steps (not a check).
+    """
+    try:
+        host = _open_host(spec, isolated, sandbox)
+    except (FilterError, FilterFailed) as exc:
+        return [_loads_failed(exc)]
+    results: list[CheckResult] = []
+    try:
+        results += _checks(host, spec, scenario)
+    finally:
+        host.close()
+        results += report_output(host)
     return results
+
+
+def _checks(host: _Host, spec: str, scenario: Scenario) -> list[CheckResult]:
+    """The checks after the filter loaded, in order (see :func:`run_checks`); the list stops
+    after "interface" or "constructs" when that one fails."""
+    results = [check_loads(host)]
+    scenario, notes = check_scenario(host, scenario)
+    results += notes
+    results.append(check_interface(host))
+    if not results[-1].passed:
+        return results
+
+    def fresh() -> Filter:
+        return host.make(scenario, spec)
+
+    flt, constructs = check_constructs(fresh)
+    results.append(constructs)
+    if flt is None:
+        return results
+
+    steps = Simulation(scenario, SEED).run(N_STEPS * scenario.dt)
+    n_meas = sum(len(m) for s in steps for m in s.measurements)
+    est0, why0, _ = guarded_call(flt.estimate, STEP_LIMIT_S)
+    run = _feed(flt, steps, STEP_LIMIT_S)
+    runs = check_runs(run, n_meas)
+    problems = estimate_problems([] if why0 else [est0], run.estimates)
+    values = [check_shapes(problems), check_finite(problems), check_covariance_symmetric(problems),
+              check_covariance_psd(problems), check_heading_wrapped(problems)]
+    belief = check_belief(flt)  # on a filter that ran the steps it could
+    trial = _empty_trial(fresh)  # a fresh filter right after reset: no other fault shown yet
+    runs, empty = blame_one_fault(runs, check_empty_update(trial), run, trial, steps, fresh)
+    rng = _rng_trial(host, scenario, spec, steps)
+    return [*results, runs, *values, belief, empty, check_determinism(rng), check_global_rng(rng),
+            report_cost(run, scenario, steps)]
 
 
 def print_report(spec: str, results: list[CheckResult]) -> None:
