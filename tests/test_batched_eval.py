@@ -26,7 +26,7 @@ from beacon_sim.filters.loading import build_filter
 SEEDS = [2, 3, 11]
 CASES = [  # scenario, duration [s], filters (with parameters)
     ("default", 25.0, [("ekf", {}), ("ekf", {"joseph": False}), ("ukf", {}), ("kf", {}),
-                       ("dead_reckoning", {})]),
+                       ("dead_reckoning", {}), ("ukf", {"gate_chi2": 9.21})]),
     ("krejsa_bearing_only", 45.0, [("ekf", {}), ("ukf", {}), ("ukf", {"scaled": False, "kappa": 1.0}),
                                    ("dead_reckoning", {})]),
     ("assignment_kf", 40.0, [("kf", {}), ("ekf", {}), ("ukf", {"alpha": 0.5, "beta": 2.0})]),
@@ -168,16 +168,25 @@ def test_batching_is_chosen_only_when_every_filter_has_a_batched_form():
     sc = load_scenario("default")
     assert batch_reason(sc, ["kf", "ekf", "ukf", "dead_reckoning"], {}) is None
     assert "pf" in batch_reason(sc, ["ekf", "pf"], {})
-    # the EKF's gate is batched (tests/test_outlier_gate.py), the UKF's is not
+    # the EKF's and the UKF's gates are batched (tests/test_outlier_gate.py)
     assert batch_reason(sc, ["ekf"], {"ekf": {"gate_chi2": 9.21}}) is None
-    assert "gate_chi2" in batch_reason(sc, ["ukf"], {"ukf": {"gate_chi2": 9.21}})
+    assert batch_reason(sc, ["ukf"], {"ukf": {"gate_chi2": 9.21}}) is None
     assert batch_reason(sc, ["ekf", "ukf"], {"ekf": {"joseph": False}, "ukf": {"scaled": False}}) is None
     assert "no batched form" in batch_reason(sc, [f"{__name__}:_GatedLater"], {})
     with pytest.raises(ValueError, match="cannot batch"):
         run_monte_carlo(sc, ["ekf", "histogram"], 1, duration=1.0, jobs=1, batch=True)
-    # A gated UKF runs one run at a time (the per-run path).
-    runs = run_monte_carlo(sc, ["ukf"], 1, duration=5.0, jobs=1, params={"ukf": {"gate_chi2": 9.21}})
-    assert runs[0].filters["ukf"].steps == 100
+    # A gated UKF (on by default with declared outliers) gives the same runs batched and not.
+    def outliers(sensors):
+        return tuple(dataclasses.replace(s, outlier_rate=0.2) for s in sensors)
+
+    noisy = dataclasses.replace(sc, sensors=outliers(sc.sensors), model_sensors=outliers(sc.model_sensors))
+    assert batch_reason(noisy, ["ukf"], {}) is None
+    runs = {b: run_monte_carlo(noisy, ["ukf"], 2, duration=10.0, jobs=1, batch=b) for b in (True, False)}
+    for a, b in zip(runs[True], runs[False], strict=True):
+        fa, fb = a.filters["ukf"], b.filters["ukf"]
+        assert fa.steps == fb.steps == 200
+        np.testing.assert_allclose(fa.err, fb.err, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fa.var, fb.var, rtol=1e-9, atol=1e-12)
 
 
 def test_each_filter_declares_what_its_batched_form_reproduces():

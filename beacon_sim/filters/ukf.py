@@ -25,7 +25,7 @@ clipped to zero, so a degenerate covariance never stops the filter.
 R runs at once (:class:`BatchedUKF`, for ``evaluation.montecarlo``): the same weights,
 Cholesky (:func:`cholesky3`) and update (:func:`innovation`, :func:`correct`) on arrays with
 a leading run axis; the prediction is the per-step loop over sigma points written on
-arrays (R, 7).
+arrays (R, 7); the gate (:func:`unscented_gate`) tests each run's readings against its own S.
 """
 
 from __future__ import annotations
@@ -362,7 +362,7 @@ class UnscentedKalmanFilter(BatchableFilter):
     defaults: ClassVar[dict] = {"alpha": 1.0, "beta": 2.0, "kappa": 0.0, "scaled": True,
                                 "gate_chi2": 0.0}
     batch_params: ClassVar[dict[str, Any]] = {"alpha": None, "beta": None, "kappa": None,
-                                              "scaled": None, "gate_chi2": 0.0}  # no batched gate
+                                              "scaled": None, "gate_chi2": None}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
@@ -411,7 +411,8 @@ class UnscentedKalmanFilter(BatchableFilter):
         return self.mean, self.cov
 
     def batched(self, runs: int) -> BatchedUKF:
-        return BatchedUKF(self.mean, self.cov, runs, self.ctx.motion_noise, self.sqrt_c, self.Wm, self.Wc)
+        return BatchedUKF(self.mean, self.cov, runs, self.ctx.motion_noise, self.sqrt_c, self.Wm, self.Wc,
+                          self.gate)
 
     def _columns(self) -> tuple[tuple[float, float, float], ...]:
         """The columns a_1..a_n of sqrt(c P) (the sigma points are m, m + a_i, m - a_i), and the
@@ -721,14 +722,49 @@ class UnscentedKalmanFilter(BatchableFilter):
         return None if keep.all() else keep
 
 
+def unscented_gate(st: StackedReadings, dZ: np.ndarray, Wc: np.ndarray, r: np.ndarray, nu: np.ndarray,
+                   gate: float) -> tuple[np.ndarray, np.ndarray]:
+    """The per-run UKF's gate on R runs at once: each beacon's reading (range and bearing
+    together) or fix whose squared Mahalanobis distance ``nu_b^T S_bb^-1 nu_b`` exceeds
+    ``gate``, with ``S_bb = sum_k Wc_k dZ_kb dZ_kb^T + R_bb`` its block of the unscented S
+    (the sigma points of the predicted belief), fails. ``dZ`` (R, 7, M) the residuals of the
+    expected readings, ``Wc`` (7,) or (R, 7), ``r`` and ``nu`` (R, M) as
+    :func:`innovation_parts` gives them; empty slots pass (their residuals are 0).
+
+    Returns ``(keep, rejected)``: ``keep`` (R, M) bool, False on the rows of failed
+    readings, and ``rejected`` (R,) the readings that failed, per run."""
+    R = nu.shape[0]
+    W = np.broadcast_to(Wc, (R, dZ.shape[-2]))
+    rr = np.broadcast_to(r, nu.shape)
+    keep = np.ones(nu.shape, dtype=bool)
+    rejected = np.zeros(R, dtype=np.int64)
+    for kind, a, b, bxy in st.blocks:
+        width = (b - a) if bxy is None else (1 if kind == "bearing" else 2)
+        if width <= 0 or b <= a:
+            continue
+        d = dZ[:, :, a:b].reshape(R, dZ.shape[-2], -1, width)        # (R, 7, G, width)
+        S = np.einsum("rk,rkgi,rkgj->rgij", W, d, d)
+        S = S + rr[:, a:b].reshape(R, -1, width)[..., None] * np.eye(width)
+        nb = nu[:, a:b].reshape(R, -1, width)
+        dist = np.einsum("rgi,rgi->rg", nb, np.linalg.solve(S, nb[..., None])[..., 0])
+        bad = dist > gate
+        rejected += bad.sum(axis=1)
+        keep[:, a:b] &= ~np.repeat(bad, width, axis=1)
+    return keep, rejected
+
+
 class BatchedUKF(BatchedGaussian):
-    """:class:`UnscentedKalmanFilter` for R runs (``gate_chi2 = 0``)."""
+    """:class:`UnscentedKalmanFilter` for R runs, with its gate (``gate`` > 0:
+    :func:`unscented_gate`; a failed reading's residuals and innovation are set to 0, so its
+    rows of S are R alone and it changes nothing, as when the per-run filter drops it)."""
 
     def __init__(self, mean0: np.ndarray, cov0: np.ndarray, runs: int, noise: MotionNoise,
-                 sqrt_c: float, Wm: np.ndarray, Wc: np.ndarray):
+                 sqrt_c: float, Wm: np.ndarray, Wc: np.ndarray, gate: float = 0.0):
         super().__init__(mean0, cov0, runs, noise)
         self.sqrt_c, self.Wm, self.Wc = sqrt_c, Wm, Wc
         self.Wm_now, self.Wc_now = Wm, Wc              # the weights of the last offsets()
+        self.gate = float(gate)
+        self.rejected = np.zeros(runs, dtype=np.int64)  # readings dropped by the gate, per run
 
     def offsets(self) -> np.ndarray:
         """Sigma-point offsets (R, 7, 3): 0, +- the columns of sqrt(c P) (:func:`cholesky3`;
@@ -788,6 +824,9 @@ class BatchedUKF(BatchedGaussian):
         Z = st.predict(X.reshape(R * n, 3), wrap=False).reshape(R, n, -1)
         if st.valid is not None:                        # empty slots: no reading, no residual
             Z = np.where(st.valid[:, None, :], Z, 0.0)
+        if self.gate > 0.0:
+            self._update_gated(st, Z, D)
+            return
         if Z.shape[-1] > LOW_RANK_ROWS:                 # many slots: linear in them
             dZ, _, Pxz, nu = innovation_parts(Z, D, st.z, st.angle_sel, self.Wm_now, self.Wc_now)
             self.mean, self.cov = correct_low_rank(self.mean, self.cov, dZ, self.Wc_now, st.r, Pxz, nu,
@@ -796,7 +835,26 @@ class BatchedUKF(BatchedGaussian):
         S, Pxz, nu = innovation(Z, D, st.z, st.r, st.angle_sel, self.Wm_now, self.Wc_now)
         self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu, strict=False)
 
+    def _update_gated(self, st: StackedReadings, Z: np.ndarray, D: np.ndarray) -> None:
+        """:meth:`update` with the gate: the readings that fail :func:`unscented_gate` get
+        zero residuals, cross-covariance and innovation before the update."""
+        dZ, WdZ, Pxz, nu = innovation_parts(Z, D, st.z, st.angle_sel, self.Wm_now, self.Wc_now)
+        r = np.broadcast_to(st.r, nu.shape)
+        keep, dropped = unscented_gate(st, dZ, self.Wc_now, r, nu, self.gate)
+        self.rejected += dropped
+        if not keep.all():
+            k = keep[:, None, :]
+            dZ, WdZ, Pxz, nu = (np.where(k, dZ, 0.0), np.where(k, WdZ, 0.0), np.where(k, Pxz, 0.0),
+                                np.where(keep, nu, 0.0))
+        if Z.shape[-1] > LOW_RANK_ROWS:
+            self.mean, self.cov = correct_low_rank(self.mean, self.cov, dZ, self.Wc_now, st.r, Pxz, nu,
+                                                   strict=False)
+            return
+        S = dZ.swapaxes(-1, -2) @ WdZ
+        add_diagonal(S, r)
+        self.mean, self.cov = correct(self.mean, self.cov, S, Pxz, nu, strict=False)
+
 
 __all__ = ["MAX_HEADING_OFFSET", "BatchedUKF", "UnscentedKalmanFilter", "cholesky3", "correct",
            "correct_low_rank", "heading_limited_weights", "innovation", "innovation_parts", "robust_sqrt",
-           "sigma_weights"]
+           "sigma_weights", "unscented_gate"]
