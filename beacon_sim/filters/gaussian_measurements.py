@@ -742,14 +742,17 @@ def outlier_gate(ctx: FilterContext) -> float:
     return chi2_quantile(OUTLIER_GATE_QUANTILE, max(dofs)) if dofs else 0.0
 
 
-def gated_rows(st: StackedReadings, cov: np.ndarray, H: np.ndarray, nu: np.ndarray,
-               r: np.ndarray, gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The per-run EKF's gate on R runs at once: each beacon's reading (range and bearing
-    together) or fix whose squared Mahalanobis distance ``nu^T S^-1 nu``, ``S = H P H^T +
-    R`` against the predicted belief ``cov`` (R, 3, 3), exceeds ``gate`` gets H = 0 and
-    innovation 0 (it then changes nothing). ``H`` (R, M, 3), ``nu`` (R, M), ``r`` (M,) or
-    (R, M) as :meth:`StackedReadings.linearise` gives them; empty slots pass (their
-    innovation is 0). Returns ``(H, nu, rejected)``, ``rejected`` (R,) readings dropped."""
+def gate_blocks(st: StackedReadings, nu: np.ndarray, r: np.ndarray, gate: float,
+                predicted_cov: Callable[[int, int, int], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The per-run filters' chi-square gate on R runs at once (one home for the EKF's and the
+    UKF's batched gate): each beacon's reading (range and bearing together) or fix whose
+    squared Mahalanobis distance ``nu_b^T S_b^-1 nu_b`` exceeds ``gate`` fails, with
+    ``S_b = predicted_cov(a, b, width) + R_b``; ``predicted_cov`` gives the block's predicted
+    part (R, G, width, width) for the rows ``a:b`` in groups of ``width``. ``nu`` (R, M), ``r``
+    (M,) or (R, M); empty slots pass (their innovation is 0).
+
+    Returns ``(keep, rejected)``: ``keep`` (R, M) bool, False on the rows of failed readings,
+    and ``rejected`` (R,) the readings that failed, per run."""
     R = nu.shape[0]
     rr = np.broadcast_to(r, nu.shape)
     keep = np.ones(nu.shape, dtype=bool)
@@ -758,14 +761,29 @@ def gated_rows(st: StackedReadings, cov: np.ndarray, H: np.ndarray, nu: np.ndarr
         width = (b - a) if bxy is None else (1 if kind == "bearing" else 2)
         if width <= 0 or b <= a:
             continue
-        Hb = H[:, a:b].reshape(R, -1, width, 3)
+        S = predicted_cov(a, b, width) + rr[:, a:b].reshape(R, -1, width)[..., None] * np.eye(width)
         nb = nu[:, a:b].reshape(R, -1, width)
-        S = Hb @ cov[:, None] @ Hb.swapaxes(-1, -2)
-        S = S + rr[:, a:b].reshape(R, -1, width)[..., None] * np.eye(width)
         d = np.einsum("rgi,rgi->rg", nb, np.linalg.solve(S, nb[..., None])[..., 0])
         bad = d > gate
         rejected += bad.sum(axis=1)
         keep[:, a:b] &= ~np.repeat(bad, width, axis=1)
+    return keep, rejected
+
+
+def gated_rows(st: StackedReadings, cov: np.ndarray, H: np.ndarray, nu: np.ndarray,
+               r: np.ndarray, gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The per-run EKF's gate on R runs at once (:func:`gate_blocks` with ``S = H P H^T +
+    R`` against the predicted belief ``cov`` (R, 3, 3)): a failed reading gets H = 0 and
+    innovation 0 (it then changes nothing). ``H`` (R, M, 3), ``nu`` (R, M), ``r`` (M,) or
+    (R, M) as :meth:`StackedReadings.linearise` gives them. Returns ``(H, nu, rejected)``,
+    ``rejected`` (R,) readings dropped."""
+    R = nu.shape[0]
+
+    def linearised(a: int, b: int, width: int) -> np.ndarray:
+        Hb = H[:, a:b].reshape(R, -1, width, 3)
+        return Hb @ cov[:, None] @ Hb.swapaxes(-1, -2)
+
+    keep, rejected = gate_blocks(st, nu, r, gate, linearised)
     return np.where(keep[..., None], H, 0.0), np.where(keep, nu, 0.0), rejected
 
 
@@ -831,6 +849,7 @@ __all__ = [
     "cov_entries",
     "cov_matrix",
     "effective_gate",
+    "gate_blocks",
     "gated_rows",
     "kalman_update",
     "kalman_update_low_rank",

@@ -54,6 +54,7 @@ from beacon_sim.filters.gaussian_measurements import (
     cov_entries,
     cov_matrix,
     effective_gate,
+    gate_blocks,
     process_cov_terms,
     solve,
     stack,
@@ -735,22 +736,12 @@ def unscented_gate(st: StackedReadings, dZ: np.ndarray, Wc: np.ndarray, r: np.nd
     readings, and ``rejected`` (R,) the readings that failed, per run."""
     R = nu.shape[0]
     W = np.broadcast_to(Wc, (R, dZ.shape[-2]))
-    rr = np.broadcast_to(r, nu.shape)
-    keep = np.ones(nu.shape, dtype=bool)
-    rejected = np.zeros(R, dtype=np.int64)
-    for kind, a, b, bxy in st.blocks:
-        width = (b - a) if bxy is None else (1 if kind == "bearing" else 2)
-        if width <= 0 or b <= a:
-            continue
+
+    def unscented(a: int, b: int, width: int) -> np.ndarray:
         d = dZ[:, :, a:b].reshape(R, dZ.shape[-2], -1, width)        # (R, 7, G, width)
-        S = np.einsum("rk,rkgi,rkgj->rgij", W, d, d)
-        S = S + rr[:, a:b].reshape(R, -1, width)[..., None] * np.eye(width)
-        nb = nu[:, a:b].reshape(R, -1, width)
-        dist = np.einsum("rgi,rgi->rg", nb, np.linalg.solve(S, nb[..., None])[..., 0])
-        bad = dist > gate
-        rejected += bad.sum(axis=1)
-        keep[:, a:b] &= ~np.repeat(bad, width, axis=1)
-    return keep, rejected
+        return np.einsum("rk,rkgi,rkgj->rgij", W, d, d)
+
+    return gate_blocks(st, nu, r, gate, unscented)
 
 
 class BatchedUKF(BatchedGaussian):
