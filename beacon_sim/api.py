@@ -42,13 +42,14 @@ from beacon_sim.filters.base import (
     ParticleBelief,
 )
 from beacon_sim.filters.loading import FilterLoadError, check_param_names
+from beacon_sim.filters.team_specs import check_team_specs
 from beacon_sim.io.export import filter_arrays, load_export, step_arrays, trace_arrays, write_export
 from beacon_sim.io.mrclam import MrclamError
 from beacon_sim.io.recording import Recording, RecordingError, load_recording
 from beacon_sim.io.tables import TABLES, metrics_table, prefixed, reading_matrix, tables
 from beacon_sim.runs.headless import RunResult, run_headless
 from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording
-from beacon_sim.runs.team import TeamRunResult, check_team_specs, run_team_headless
+from beacon_sim.runs.team import TeamRunResult, run_team_headless
 
 #: The public API. Functions and results; what a filter author needs (the filter base and
 #: protocol, the beliefs, the readings' and controls' types, and the models as modules:

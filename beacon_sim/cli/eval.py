@@ -47,7 +47,7 @@ from beacon_sim.filters.loading import (
     sensor_note,
 )
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
-from beacon_sim.runs.team import check_team_specs
+from beacon_sim.filters.team_specs import check_team_specs
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
 #: in a loop is stopped and marked, the evaluation goes on.

@@ -88,7 +88,7 @@ def play_team_command(args: argparse.Namespace) -> int:
     """``beacon-sim play TEAM_SCENARIO``: the team window (issue 18). ``--filter`` names team
     filters (default: the scenario's ``default_filters``); recorded unless ``--no-record``."""
     from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S
-    from beacon_sim.runs.team import check_team_specs
+    from beacon_sim.filters.team_specs import check_team_specs
 
     team = load_team_scenario(args.scenario)
     if getattr(args, "foxglove", None) is not None:

@@ -90,7 +90,7 @@ def replay_team_command(args: argparse.Namespace, recording: TeamRecording) -> i
     """``replay`` of a team session's recording: the recorded built-in team filters (or the
     ``--filter`` ones) on the re-simulated team, checked against the file's checksums; the
     figures of ``run`` on a team scenario."""
-    from beacon_sim.runs.team import check_team_specs, team_filter_name
+    from beacon_sim.filters.team_specs import check_team_specs, team_filter_name
     from beacon_sim.runs.team_replay import recorded_team_specs, replay_team_recording
 
     if getattr(args, "foxglove", None) is not None:

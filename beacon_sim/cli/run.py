@@ -20,8 +20,9 @@ from beacon_sim.cli.common import (
 from beacon_sim.cli.tables import failed_text, fmt, print_run
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
+from beacon_sim.filters.team_specs import check_team_specs
 from beacon_sim.runs.headless import run_headless
-from beacon_sim.runs.team import check_team_specs, run_team_headless
+from beacon_sim.runs.team import run_team_headless
 
 
 def run_command(args: argparse.Namespace) -> int:

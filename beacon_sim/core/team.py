@@ -7,7 +7,9 @@ noise, its beacon sensors, in the order of the file); then, at the new true pose
 robot sensor due on the tick reads the other robots in range and view (a Bernoulli draw
 with ``detection_prob`` each). Robots do not collide with each other.
 
-Random streams: robot i's simulation uses the seed :func:`robot_seed` ``(seed, id)``; each
+Random streams: robot i's simulation uses the seed :func:`robot_seed` ``(seed, id)`` (a
+team of one made from a single-robot file, ``TeamScenario.solo``, uses ``seed`` itself: its
+run is the single-robot run bit for bit); each
 robot sensor has its own stream (``stream(seed, "robot_sensor", "<id>/<name>")``) and draws
 a fixed number of numbers per reading, so adding a robot sensor or a filter changes no
 other robot's truth.
@@ -94,7 +96,8 @@ class TeamSimulation:
         self.seed = team.seed if seed is None else int(seed)
         self.dt = team.dt
         self.tick = 0
-        self.sims = [Simulation(r.scenario, robot_seed(self.seed, r.id)) for r in team.robots]
+        self.sims = [Simulation(r.scenario, self.seed if team.solo else robot_seed(self.seed, r.id))
+                     for r in team.robots]
         self.ids = team.ids
         self._rngs = [{s.name: stream(self.seed, "robot_sensor", f"{r.id}/{s.name}")
                        for s in r.robot_sensors} for r in team.robots]

@@ -117,10 +117,17 @@ class TeamScenario:
     robots: tuple[TeamRobot, ...]
     default_filters: tuple[str, ...] = DEFAULT_TEAM_FILTERS
     filter_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: Made from a single-robot document (:func:`team_of_one`): its one robot's simulation
+    #: draws from the run's own seed, so its truth is the single-robot run's, bit for bit.
+    solo: bool = False
 
     @property
     def ids(self) -> tuple[int, ...]:
         return tuple(r.id for r in self.robots)
+
+    @property
+    def n_robots(self) -> int:
+        return len(self.robots)
 
     def with_changes(self, **changes) -> TeamScenario:
         return replace(self, **changes)
@@ -257,6 +264,34 @@ def parse_team_scenario(data: dict[str, Any], file: str, name: str = "") -> Team
         duration=first.duration, seed=first.seed, world=first.world, keyboard=first.keyboard,
         robots=tuple(robots), default_filters=tuple(default_filters),
         filter_params=dict(first.filter_params))
+
+
+def team_of_one(scenario: Scenario) -> TeamScenario:
+    """A single-robot scenario as a team of one robot (ID 1, named ``robot``): the same
+    world, clock, keyboard, default filters and filter settings; the robot's own
+    :class:`Scenario` is ``scenario`` itself, and its simulation uses the run's seed
+    (``solo``), so a team-of-one run is the single-robot run bit for bit."""
+    robot = TeamRobot(name="robot", id=1, scenario=scenario)
+    return TeamScenario(
+        name=scenario.name, description=scenario.description, source=scenario.source,
+        dt=scenario.dt, duration=scenario.duration, seed=scenario.seed, world=scenario.world,
+        keyboard=scenario.keyboard, robots=(robot,), default_filters=scenario.default_filters,
+        filter_params=dict(scenario.filter_params), solo=True)
+
+
+def as_team(scenario: Scenario | TeamScenario) -> TeamScenario:
+    """``scenario`` as a team: a team scenario unchanged, a single-robot one as a team of one."""
+    return scenario if isinstance(scenario, TeamScenario) else team_of_one(scenario)
+
+
+def load_any_scenario(name_or_path: str | Path) -> TeamScenario:
+    """Any scenario by shipped name or path, as a team: a ``[[robots]]`` file as its team, a
+    single-robot file as a team of one (:func:`team_of_one`). ScenarioError: one line."""
+    from beacon_sim.core.scenario import load_scenario
+
+    if is_team_scenario(name_or_path):
+        return load_team_scenario(name_or_path)
+    return team_of_one(load_scenario(name_or_path))
 
 
 def resolve_team_path(name_or_path: str | Path) -> Path:

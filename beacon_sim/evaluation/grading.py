@@ -52,7 +52,7 @@ from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, reso
 from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
 from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS, isolated_spec
 from beacon_sim.filters.runner import SLOW_STEP_MS
-from beacon_sim.runs.team import MEMBER_PREFIX
+from beacon_sim.filters.team_specs import MEMBER_PREFIX
 
 #: The student name of the built-in filter graded beside the students on team scenarios.
 REFERENCE = "__reference__"

@@ -40,7 +40,8 @@ from beacon_sim.evaluation.montecarlo import (
 from beacon_sim.evaluation.pcrb import bound_rmse, robot_blocks, team_pcrb
 from beacon_sim.evaluation.summary import Thresholds, evaluate, model_mask, overall_verdict
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
-from beacon_sim.runs.team import anees_verdict, run_team_headless, team_filter_name
+from beacon_sim.filters.team_specs import team_filter_name
+from beacon_sim.runs.team import anees_verdict, run_team_headless
 
 
 @dataclass

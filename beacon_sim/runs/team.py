@@ -2,7 +2,7 @@
 robot's accuracy and consistency under each filter, and the team's.
 
 The truth does not depend on the filters. Every team filter runs under the guard of
-:class:`~beacon_sim.filters.team_runner.TeamFilterRunner`: one that cannot be built, raises,
+:class:`~beacon_sim.filters.team_runner.JointRunner`: one that cannot be built, raises,
 hangs or returns an unusable estimate is switched off with a message, the others go on, and
 it gets no score.
 """
@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from functools import partial
 from typing import Any
 
 import numpy as np
@@ -19,114 +18,9 @@ import numpy as np
 from beacon_sim.core.metrics import anees_band, nees, pose_errors, summary
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
-from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import (
-    BUILD_LIMIT_S,
-    build_filter,
-    filter_display_name,
-    load_filter_class,
-    split_label,
-)
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterTrack, failure_text, run_filter_code
-from beacon_sim.filters.team import (
-    TEAM_FILTERS,
-    IndependentTeam,
-    TeamFilter,
-    build_team_filter,
-    initial_beliefs,
-    team_context,
-)
-from beacon_sim.filters.team_runner import TeamFilterRunner, build_team_filters
-
-#: ``independent:F``: every robot's own single-robot filter F (a built-in name, pkg.mod:Class
-#: or file.py:Class), beacon readings only.
-MEMBER_PREFIX = "independent:"
-
-
-def team_filter_name(spec: str) -> str:
-    """The name a team filter spec is shown and ``--set`` under: its label, else the spec
-    (a student's team filter class ``my_team.py:MyTeam``: its class name, ``MyTeam``)."""
-    label, body = split_label(spec)
-    if label:
-        return label
-    if body in TEAM_FILTERS or body.startswith(MEMBER_PREFIX):
-        return body
-    return filter_display_name(body)
-
-
-def build_team_class(spec: str, team: TeamScenario, params: dict[str, Any] | None,
-                     seed: int) -> TeamFilter:
-    """A student's own team filter: a class (``file.py:Class``, ``pkg.mod:Class``) built with
-    a :class:`~beacon_sim.filters.team.TeamContext` and reset to the scenario's initial
-    beliefs. A single-robot filter class given here is a FilterError that says to use
-    ``independent:``."""
-    _, body = split_label(spec)
-    cls = load_filter_class(body)
-    if not callable(getattr(cls, "estimates", None)):
-        raise FilterError(f"{body}: {getattr(cls, '__name__', cls)!s} is not a team filter (it has no "
-                          f"estimates()); to run a single-robot filter on every robot use "
-                          f"independent:{body}")
-    name = team_filter_name(spec)
-    merged = {**team.filter_params.get(name, {}), **(params or {})}
-    f = cls(team_context(team, name, merged, seed))
-    f.reset(initial_beliefs(team))
-    return f
-
-
-def build_team_spec(spec: str, team: TeamScenario, params: dict[str, Any] | None = None,
-                    seed: int | None = None) -> TeamFilter:
-    """A team filter from a spec: a name of ``filters.team.TEAM_FILTERS``; a student's team
-    filter class (``my_team.py:MyTeam``, see :func:`build_team_class`); or ``independent:F``
-    (optionally labelled ``alice=independent:./alice.py:MyEkf``): every robot's own
-    single-robot filter F, built as ``run`` builds it for that robot's scenario (its
-    parameters: the scenario's ``[filters.F]`` then ``params``), wrapped in
-    :class:`~beacon_sim.filters.team.IndependentTeam`. Raises FilterError for a name or
-    parameter that cannot work; a filter's own failing code raises what it raises."""
-    name = team_filter_name(spec)
-    _, body = split_label(spec)
-    if not body.startswith(MEMBER_PREFIX):
-        if body not in TEAM_FILTERS and ":" in body:
-            return build_team_class(spec, team, params, team.seed if seed is None else seed)
-        return build_team_filter(body, team, params, seed)
-    member = body[len(MEMBER_PREFIX):]
-    if not member:
-        raise FilterError(f"{spec}: expected independent:FILTER, e.g. independent:ukf")
-    seed = team.seed if seed is None else seed
-    members = iter([build_filter(member, r.scenario, seed, name=f"{name}/{r.id}", params=params)
-                    for r in team.robots])
-    f = IndependentTeam(team_context(team, name, None, seed), member=lambda _ctx: next(members))
-    f.reset(initial_beliefs(team))
-    return f
-
-
-def check_team_specs(specs: list[str], team: TeamScenario,
-                     params: dict[str, dict[str, Any]] | None = None,
-                     limit_s: float = BUILD_LIMIT_S) -> None:
-    """Raise FilterError (one line, exit status 2 on the command line) for a team filter
-    name, a ``--set`` name or a parameter that cannot work, before anything runs. A
-    filter whose own code fails when built (raising, exiting, or still building after
-    ``limit_s`` [s]) is left to the run (it fails there, no score)."""
-    names = [team_filter_name(s) for s in specs]
-    if len(set(names)) < len(names):
-        raise FilterError(f"a team filter named twice in {', '.join(names)}")
-    for name in params or {}:
-        if name not in names:
-            raise FilterError(f"--set {name}.*: no team filter {name!r} in this run; the filters are "
-                              f"{', '.join(names)}")
-    for spec in specs:
-        _, body = split_label(spec)
-        if not body.startswith(MEMBER_PREFIX) and body not in TEAM_FILTERS and ":" not in body:
-            raise FilterError(f"no team filter named {body!r}; choose one of "
-                              f"{', '.join(TEAM_FILTERS)}, independent:FILTER or a team filter "
-                              "class (file.py:Class)")
-        try:
-            run_filter_code(partial(build_team_spec, spec, team,
-                                    (params or {}).get(team_filter_name(spec)), team.seed),
-                            limit_s, "construction")
-        except FilterError:
-            raise
-        except Exception:  # the filter's own code: a failed filter in the run, no score
-            pass
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterTrack, failure_text
+from beacon_sim.filters.team_runner import JointRunner, build_team_filters
+from beacon_sim.filters.team_specs import build_team_spec, team_filter_name
 
 
 def anees_verdict(value: float, lo: float, hi: float) -> str:
@@ -240,7 +134,7 @@ def run_team_headless(team: TeamScenario, filters: list[str] | None = None, seed
     built, why = build_team_filters(
         list(by_name), lambda n: build_team_spec(by_name[n], team, (params or {}).get(n), seed),
         step_limit_s)
-    runner = TeamFilterRunner(built, len(team.robots), step_limit_s)
+    runner = JointRunner(built, len(team.robots), step_limit_s)
     for name, reason in why.items():
         runner.tracks[name].failed = f"could not be built: {reason}"
     sim = TeamSimulation(team, seed)

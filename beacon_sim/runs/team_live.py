@@ -1,5 +1,5 @@
 """A live team session (issue 18), without pygame: the :class:`TeamSimulation`, the team
-filters side by side under the guard of :class:`~beacon_sim.filters.team_runner.TeamFilterRunner`,
+filters side by side under the guard of :class:`~beacon_sim.filters.team_runner.JointRunner`,
 the keyboard's command for the driven robot (Tab switches which), user commands, trails and
 the figures the team window shows.
 
@@ -39,16 +39,16 @@ from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S
 from beacon_sim.filters.runner import WINDOW_STEP_LIMIT_S, guarded_call, status_line
 from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.filters.team_runner import (
-    TeamFilterRunner,
+    JointRunner,
     build_team_filters,
     team_filter_of,
     validate_team_estimates,
 )
+from beacon_sim.filters.team_specs import build_team_spec, team_filter_name
 from beacon_sim.io.recording import default_recording_path
 from beacon_sim.runs.live import taken_over
 from beacon_sim.runs.recorder import TeamRecorder
 from beacon_sim.runs.scene import FilterStatus, Trail
-from beacon_sim.runs.team import build_team_spec, team_filter_name
 
 #: Estimates the runner keeps per team filter: the screen draws the latest; trails are
 #: grown tick by tick, so nothing older is needed.
@@ -97,7 +97,7 @@ class TeamSession:
         built, why = build_team_filters(
             self.names, lambda n: build_team_spec(specs[n], team, self.params.get(n), seed),
             WINDOW_BUILD_LIMIT_S)
-        self.runner = TeamFilterRunner(built, len(team.robots), step_limit_s=WINDOW_STEP_LIMIT_S,
+        self.runner = JointRunner(built, len(team.robots), step_limit_s=WINDOW_STEP_LIMIT_S,
                                        keep=KEEP_ESTIMATES)
         for name, reason in why.items():
             self.runner.tracks[name].failed = f"could not be built: {reason}"
@@ -344,7 +344,7 @@ class TeamSession:
             self.recorder = None
 
 
-def reset_team_filters(runner: TeamFilterRunner, team: TeamScenario, limit_s: float | None,
+def reset_team_filters(runner: JointRunner, team: TeamScenario, limit_s: float | None,
                        time_s: float) -> None:
     """The ``reset`` user command: every working team filter of ``runner`` back to the
     scenario's initial beliefs, under the guard (one that fails is switched off), the same

@@ -29,7 +29,7 @@ from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterContext, GaussianBelief
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, failure_text
 from beacon_sim.filters.team import TEAM_FILTERS, TeamContext, TeamMember
-from beacon_sim.filters.team_runner import TeamFilterRunner, build_team_filters, validate_team_estimates
+from beacon_sim.filters.team_runner import JointRunner, build_team_filters, validate_team_estimates
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, load_mrclam
 from beacon_sim.runs.mrclam import (
     INITIAL_STD,
@@ -140,7 +140,7 @@ def run_team_mrclam(folder, filters: list[str] | None = None, duration: float | 
         return f
 
     built, why = build_team_filters(names, build, HEADLESS_STEP_LIMIT_S)
-    runner = TeamFilterRunner(built, len(data), HEADLESS_STEP_LIMIT_S)
+    runner = JointRunner(built, len(data), HEADLESS_STEP_LIMIT_S)
     for n, reason in why.items():
         runner.tracks[n].failed = f"could not be built: {reason}"
     start: dict[str, tuple[np.ndarray, np.ndarray]] = {}

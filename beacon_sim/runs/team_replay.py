@@ -28,7 +28,8 @@ from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.types import Control
 from beacon_sim.filters.loading import split_label
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
-from beacon_sim.filters.team_runner import TeamFilterRunner, build_team_filters
+from beacon_sim.filters.team_runner import JointRunner, build_team_filters
+from beacon_sim.filters.team_specs import MEMBER_PREFIX, build_team_spec, team_filter_name
 from beacon_sim.io.recording import TeamRecording, TeamTickRecord
 from beacon_sim.runs.recorder import TeamReadingsHash, team_commands_to_sim
 from beacon_sim.runs.replay import (
@@ -44,7 +45,7 @@ from beacon_sim.runs.replay import (
     verification_status,
     with_signature,
 )
-from beacon_sim.runs.team import MEMBER_PREFIX, TeamRunResult, build_team_spec, team_filter_name
+from beacon_sim.runs.team import TeamRunResult
 from beacon_sim.runs.team_live import TeamSession, reset_team_filters
 
 
@@ -102,13 +103,13 @@ class TeamReplayResult:
 
 
 def _build_runner(recording: TeamRecording, specs: list[str],
-                  params: dict[str, dict[str, Any]]) -> TeamFilterRunner:
+                  params: dict[str, dict[str, Any]]) -> JointRunner:
     team = recording.team
     by_name = {team_filter_name(s): s for s in specs}
     built, why = build_team_filters(
         list(by_name), lambda n: build_team_spec(by_name[n], team, params.get(n), recording.seed),
         HEADLESS_STEP_LIMIT_S)
-    runner = TeamFilterRunner(built, len(team.robots), HEADLESS_STEP_LIMIT_S)
+    runner = JointRunner(built, len(team.robots), HEADLESS_STEP_LIMIT_S)
     for name, reason in why.items():
         runner.tracks[name].failed = f"could not be built: {reason}"
     return runner
@@ -186,7 +187,7 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
     return TeamReplayResult(result, replay, readings.checksum)
 
 
-def team_verifier(recording: TeamRecording, runner: TeamFilterRunner, specs: list[str],
+def team_verifier(recording: TeamRecording, runner: JointRunner, specs: list[str],
                   used: dict[str, dict[str, Any]]) -> FilterVerifier:
     """The filter settings and estimates check of a team replay (runs/replay.FilterVerifier;
     ``used``: the parameters the replay built the team filters with)."""
