@@ -215,14 +215,14 @@ def test_the_batched_simulation_bumps_as_the_single_one(omega):
 def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
     from beacon_sim.core.team_scenario import load_team_scenario
     from beacon_sim.io.recording import load_team_recording
+    from beacon_sim.runs.live import Session
     from beacon_sim.runs.recorder import TeamRecorder
-    from beacon_sim.runs.team_live import TeamSession
     from beacon_sim.runs.team_replay import replay_team_recording
 
     team = load_team_scenario("team_sparse")
     path = tmp_path / "team_wall.jsonl"
     rec = TeamRecorder(path, team, team.seed, ["independent"], {})
-    s = TeamSession(team, ["independent"], recorder=rec)
+    s = Session(team, ["independent"], recorder=rec)
     for _ in range(10):
         s.drive("w")
     s.drive("a")

@@ -21,7 +21,7 @@ import numpy as np
 import pygame
 import pytest
 
-from beacon_sim.app.team import TeamApp
+from beacon_sim.app.main import App
 from beacon_sim.cli.main import main
 from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.io.recording import (
@@ -31,9 +31,9 @@ from beacon_sim.io.recording import (
     load_recording,
     load_team_recording,
 )
+from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import TeamRecorder
 from beacon_sim.runs.replay import ReplayMismatch
-from beacon_sim.runs.team_live import TeamSession
 from beacon_sim.runs.team_replay import (
     TeamReplaySession,
     is_builtin_team_spec,
@@ -52,8 +52,8 @@ def scripted_session(path: Path, seed: int = 4):
     """A team session in the window, driven with keys, recorded to ``path``. Returns the live
     truth (T, N, 3) and every team filter's estimates per tick."""
     team = load_team_scenario("team_sparse")
-    session = TeamSession(team, list(FILTERS), seed, {}, TeamRecorder(path, team, seed, FILTERS))
-    app = TeamApp(session, (1100, 700), scripted=True)
+    session = Session(team, list(FILTERS), seed, {}, TeamRecorder(path, team, seed, FILTERS))
+    app = App(session, (1100, 700), scripted=True)
     truth: list[np.ndarray] = []
     est: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {n: [] for n in FILTERS}
     tick = session.tick
@@ -61,8 +61,10 @@ def scripted_session(path: Path, seed: int = 4):
     def recorded_tick():
         step = tick()
         truth.append(step.true_poses)
-        for n, tr in session.runner.tracks.items():
-            est[n].append((tr.means[-1].copy(), tr.covs[-1].copy()))
+        for n in session.names:
+            latest = session.filters_run.latest(n)
+            assert latest is not None
+            est[n].append((latest[0].copy(), latest[1].copy()))
         return step
 
     session.tick = recorded_tick
@@ -361,7 +363,7 @@ def test_autopilot_ticks_replay_the_drivers_state(tmp_path):
     autopilot ticks (``"a": true``) keeps the driver's waypoint index as it was live."""
     team = load_team_scenario("team_sparse")
     path = tmp_path / "autopilot.jsonl"
-    s = TeamSession(team, ["independent"], 1, {}, TeamRecorder(path, team, 1, ["independent"]))
+    s = Session(team, ["independent"], 1, {}, TeamRecorder(path, team, 1, ["independent"]))
     s.toggle_autopilot()
     index = s.sim.sims[0].driver._index
     for _ in range(200):

@@ -171,7 +171,7 @@ def validate_command(cmd: Mapping) -> None:
 
 #: The header's ``kind`` of a team session's recording (absent: one robot).
 TEAM_KIND = "team"
-#: The user commands a team recording may hold (applied by runs/team_live.py and
+#: The user commands a team recording may hold (applied by runs/live.py and
 #: runs/team_replay.py): ``{"kind": "kidnap", "robot": i}`` (K: a random pose) or with
 #: ``"pose": [x, y, theta]`` (click), robot i in team order; ``{"kind": "reset"}`` (R: every
 #: team filter back to the initial beliefs); ``{"kind": "toggle", "filter": NAME}`` (display).

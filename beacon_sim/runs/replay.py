@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.team import TeamStep
 from beacon_sim.core.types import Control, Step
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.loading import build_filters as build_all
@@ -407,7 +408,7 @@ class ReplaySession(Session):
             self.close()
             self.mismatch = None
             self._checked = 0
-            self.__post_init__()  # a fresh simulation, fresh filters, empty trails
+            self.restart()  # a fresh simulation, fresh filters, empty trails
             self._new_verifier()
             for name in keep_flips:
                 if name in self.visible:
@@ -415,7 +416,7 @@ class ReplaySession(Session):
         while self.sim.tick < tick:
             self.tick()
 
-    def tick(self) -> Step:
+    def tick(self) -> TeamStep:
         """The next recorded tick: its commands, its control, then the checksum check."""
         rec = self.recording.ticks[self.sim.tick]
         self.pending = [dict(c) for c in rec.commands]
@@ -426,7 +427,7 @@ class ReplaySession(Session):
         self.verifier.fold(rec.tick)
         if self.mismatch is None:
             line = self.recording.parts.estimates.get(rec.tick)
-            why = tick_mismatch(self.recording, rec, self.sim) \
+            why = tick_mismatch(self.recording, rec, self.sim.sims[0]) \
                 or self.verifier.compare_line(rec.tick, line)
             if why is not None:
                 self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: replay "

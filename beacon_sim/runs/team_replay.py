@@ -7,7 +7,7 @@ readings, per tick, at the checkpoints and at the end) and gives the figures of
 ``beacon-sim run`` on a team scenario (a :class:`~beacon_sim.runs.team.TeamRunResult`);
 :class:`TeamReplaySession` is the same one tick at a time, for the window.
 
-Each tick goes as it went live (``runs/team_live.TeamSession.tick``): the recorded user
+Each tick goes as it went live (``runs/live.Session.tick``): the recorded user
 commands (a kidnap of the robot it names, a reset of every team filter), then every robot
 steps, the recorded driven robot with its recorded command (or, where its own driver chose
 it live, the driver again, so that the driver's state follows), the others on their
@@ -31,6 +31,7 @@ from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
 from beacon_sim.filters.team_runner import JointRunner, build_team_filters
 from beacon_sim.filters.team_specs import MEMBER_PREFIX, build_team_spec, team_filter_name
 from beacon_sim.io.recording import TeamRecording, TeamTickRecord
+from beacon_sim.runs.live import Session, TeamTracks, reset_team_filters
 from beacon_sim.runs.recorder import TeamReadingsHash, team_commands_to_sim
 from beacon_sim.runs.replay import (
     FilterVerifier,
@@ -46,7 +47,6 @@ from beacon_sim.runs.replay import (
     with_signature,
 )
 from beacon_sim.runs.team import TeamRunResult
-from beacon_sim.runs.team_live import TeamSession, reset_team_filters
 
 
 def is_builtin_team_spec(spec: str) -> bool:
@@ -187,7 +187,7 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
     return TeamReplayResult(result, replay, readings.checksum)
 
 
-def team_verifier(recording: TeamRecording, runner: JointRunner, specs: list[str],
+def team_verifier(recording: TeamRecording, runner: JointRunner | TeamTracks, specs: list[str],
                   used: dict[str, dict[str, Any]]) -> FilterVerifier:
     """The filter settings and estimates check of a team replay (runs/replay.FilterVerifier;
     ``used``: the parameters the replay built the team filters with)."""
@@ -197,8 +197,8 @@ def team_verifier(recording: TeamRecording, runner: JointRunner, specs: list[str
                           [team_filter_name(s) for s in skipped])
 
 
-class TeamReplaySession(TeamSession):
-    """A :class:`~beacon_sim.runs.team_live.TeamSession` whose driven robot, commands and
+class TeamReplaySession(Session):
+    """A :class:`~beacon_sim.runs.live.Session` whose driven robot, commands and
     user commands come from a team recording, one tick at a time (the replay window's
     scene: the timeline methods of ``runs/replay.ReplaySession``)."""
 
@@ -216,7 +216,8 @@ class TeamReplaySession(TeamSession):
         self._checked = 0
         self._readings_hash = TeamReadingsHash()
         self._apply_recorded_driving()
-        self.verifier = team_verifier(self.recording, self.runner, self.specs, self.params)
+        self.verifier = team_verifier(self.recording, TeamTracks(self.filters_run), self.specs,
+                                      self.params)
         why = self.verifier.check_settings()
         if why is not None:
             self.mismatch = f"{self.recording.path}:{self.recording.parts.settings_line}: {why}"
@@ -262,7 +263,7 @@ class TeamReplaySession(TeamSession):
         tick = min(max(int(tick), 0), self.total_ticks)
         if tick < self.sim.tick:
             self.close()
-            self.__post_init__()
+            self.restart()
             self._fresh()
             for name in keep_flips:
                 if name in self.visible:
