@@ -120,7 +120,7 @@ def _drive_into_a_wall_turning(path, scenario="assignment_kf", ticks=900):
     s.drive("a")
     bumps = 0
     for _ in range(ticks):
-        step = s.tick()
+        step = s.tick().steps[0]
         bumps += sum(e.kind == "bump" for e in step.events)
         if step.events and any(e.kind == "bump" for e in step.events):
             s.drive("w")  # the driver keeps pushing into the wall, still turning
