@@ -328,7 +328,8 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     name = name or filter_display_name(spec)
     ctx = FilterContext(
         name=name,
-        world=scenario.world,
+        world=scenario.filter_world,
+        map_known=scenario.map_known,
         dt=scenario.dt,
         motion_noise=scenario.model_motion_noise,
         sensors=scenario.model_sensors,
@@ -371,9 +372,10 @@ def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
                         Limits(cpu_s=None if limit_s is None else 1.5 * limit_s + 60),
                         reply_timeout_s=max(60.0, 5 * (limit_s or 12.0)))
     name = name or filter_display_name(inner)
-    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+    ctx = FilterContext(name=name, world=scenario.filter_world, dt=scenario.dt,
                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                        params=merged_params(inner, scenario, params), rng=stream(seed, "filter", name))
+                        params=merged_params(inner, scenario, params), rng=stream(seed, "filter", name),
+                        map_known=scenario.map_known)
     try:
         flt = IsolatedFilter(child, ctx, initial_belief(scenario), seed, limit_s, inner)
     except BaseException:

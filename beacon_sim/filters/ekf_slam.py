@@ -1,0 +1,220 @@
+"""EKF-SLAM: one Gaussian over the pose and every landmark (docs/slam.md).
+
+State ``s = [x, y, theta, m1x, m1y, ..., mMx, mMy]`` [m, m, rad, m, ...], covariance P
+(3 + 2M square). Landmarks are added as they are first seen (direct initialisation from a
+range-bearing reading); anchors (beacons whose position the filter is given) are used as
+the localization EKF uses them and are not in the state.
+
+Prediction (only the pose moves; seed 000 eq. 7, 9)::
+
+    x = f(x, u)
+    P_xx = F P_xx F^T + Q,   P_xm = F P_xm          (F = df/dx, Q the process noise)
+
+Update, one reading at a time, relinearised at the current mean; the reading's Jacobian
+is non-zero only in the pose and its landmark's columns, ``H = [Hx, 0 ... Hm ... 0]``::
+
+    nu = wrap(z - h(x, m_j))
+    S = H P H^T + R,   K = P H^T S^-1
+    s = s + K nu,      P = P - K S K^T  (symmetrised)
+
+New landmark from ``z = [r, b]`` (``slam_base.place``: m = g(x, z))::
+
+    P_mm = Gx P_xx Gx^T + Gz R Gz^T,   P_m* = Gx P_x*         (Gx = dg/dx, Gz = dg/dz)
+
+Unknown correspondence (readings with ID -1): each tick's readings are paired with the
+landmarks and anchors by nearest neighbour on the squared Mahalanobis distance with the
+full S (the landmark's own uncertainty included), each landmark at most once; a reading
+inside the gate (``gate_prob``) updates its landmark; one farther than the
+``new_landmark_prob`` quantile from everything starts a new landmark; one in between is
+dropped (it could be either). Bearing-only readings update landmarks but cannot start one
+(no delayed initialisation yet).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import ClassVar
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.metrics import chi2_quantile
+from beacon_sim.core.motion import jacobian_state, move
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.base import FilterContext, GaussianBelief, LandmarkMap, broad_gaussian
+from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
+
+
+class EKFSLAM(SlamFilterBase):
+    """EKF-SLAM over the pose and the landmarks, known or unknown correspondence.
+
+    Parameters (``ctx.params``)
+    ---------------------------
+    gate_prob : float, default 0.99
+        Unknown correspondence: a reading may update a landmark when its squared
+        Mahalanobis distance is below this chi-square quantile.
+    new_landmark_prob : float, default 0.9999
+        Unknown correspondence: a reading farther than this quantile from every landmark
+        and anchor starts a new landmark.
+    max_landmarks : int, default 500
+        Most landmarks in the state (readings of further new ones are dropped).
+    """
+
+    defaults: ClassVar[dict] = {"gate_prob": 0.99, "new_landmark_prob": 0.9999, "max_landmarks": 500}
+
+    def __init__(self, ctx: FilterContext):
+        super().__init__(ctx)
+        self.mu = np.zeros(3)
+        self.P = np.eye(3)
+        self.ids: list[int] = []           # beacon ID of each landmark (-1: made up, unlabelled)
+        self.index: dict[int, int] = {}    # beacon ID -> landmark number
+        self.last_pairs: list[tuple[int, int | None]] = []  # (reading row, landmark or None)
+        self.reset(None)
+
+    # -- belief ----------------------------------------------------------------------------
+    def reset(self, initial: GaussianBelief | None) -> None:
+        initial = initial or broad_gaussian(self.ctx.world)
+        self.mu = np.array(initial.mean, dtype=float).reshape(3)
+        self.mu[2] = wrap(self.mu[2])
+        c = np.asarray(initial.cov, dtype=float).reshape(3, 3)
+        self.P = 0.5 * (c + c.T)
+        self.ids, self.index, self.last_pairs = [], {}, []
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.mu[:3].copy(), self.P[:3, :3].copy()
+
+    def joint(self) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
+        """The whole state: mean (3 + 2M,), covariance, and each landmark's beacon ID."""
+        return self.mu.copy(), self.P.copy(), tuple(self.ids)
+
+    def landmarks(self) -> LandmarkMap:
+        M = len(self.ids)
+        means = self.mu[3:].reshape(M, 2).copy()
+        covs = np.empty((M, 2, 2))
+        for j in range(M):
+            s = 3 + 2 * j
+            covs[j] = self.P[s:s + 2, s:s + 2]
+        ids = None if any(i < 0 for i in self.ids) else np.array(self.ids, dtype=int)
+        return LandmarkMap(ids, means, covs)
+
+    # -- prediction ------------------------------------------------------------------------
+    def predict(self, control: Control, dt: float) -> None:
+        v, w = float(control.v), float(control.omega)
+        pose = self.mu[:3]
+        F = jacobian_state(pose, v, dt)
+        Q = self.ctx.motion_noise.process_cov(pose, v, w, dt)
+        self.mu[:3] = move(pose, v, w, dt)
+        P = self.P
+        P[:3, :] = F @ P[:3, :]   # rows of the pose: F [P_xx P_xm]
+        P[:, :3] = P[:, :3] @ F.T  # then columns: P_xx -> F P_xx F^T, P_mx -> P_mx F^T
+        P[:3, :3] += Q
+
+    # -- update ----------------------------------------------------------------------------
+    def _model(self, rd: Reading, j: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """Innovation, Hx, Hm and the landmark's first state index (0 for an anchor)."""
+        lm = np.array(rd.anchor) if j is None else self.mu[3 + 2 * j:5 + 2 * j]
+        zhat, Hx, Hm = observe(rd.kind, self.mu[:3], lm)
+        return innovation(rd.z, zhat[0]), Hx[0], Hm[0], (0 if j is None else 3 + 2 * j)
+
+    def _gain(self, Hx: np.ndarray, Hm: np.ndarray, s: int, R: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """``P H^T`` (n, d) and ``S`` (d, d) for a reading with Jacobians Hx, Hm at column s."""
+        P = self.P
+        PHt = P[:, :3] @ Hx.T
+        if s:
+            PHt += P[:, s:s + 2] @ Hm.T
+        S = Hx @ PHt[:3] + (Hm @ PHt[s:s + 2] if s else 0.0) + R
+        return PHt, S
+
+    def _correct(self, rd: Reading, j: int | None) -> None:
+        nu, Hx, Hm, s = self._model(rd, j)
+        PHt, S = self._gain(Hx, Hm, s, rd.R)
+        K = np.linalg.solve(S, PHt.T).T          # K = P H^T S^-1 (S symmetric)
+        self.mu += K @ nu
+        self.mu[2] = wrap(self.mu[2])
+        self.P -= K @ PHt.T                      # P - K S K^T
+        self.P = 0.5 * (self.P + self.P.T)
+
+    def _add(self, rd: Reading, beacon_id: int) -> int | None:
+        if rd.kind != "range_bearing" or len(self.ids) >= int(self.params["max_landmarks"]):
+            return None
+        lm, Gx, Gz = place(self.mu[:3], rd.z)
+        Gx, Gz = Gx[0], Gz[0]
+        P = self.P
+        n = P.shape[0]
+        Pmx = Gx @ P[:3, :]                       # (2, n): cross terms with everything
+        Pmm = Gx @ P[:3, :3] @ Gx.T + Gz @ rd.R @ Gz.T
+        big = np.empty((n + 2, n + 2))
+        big[:n, :n] = P
+        big[n:, :n] = Pmx
+        big[:n, n:] = Pmx.T
+        big[n:, n:] = 0.5 * (Pmm + Pmm.T)
+        self.P = big
+        self.mu = np.concatenate([self.mu, lm[0]])
+        self.ids.append(beacon_id)
+        if beacon_id >= 0:
+            self.index[beacon_id] = len(self.ids) - 1
+        return len(self.ids) - 1
+
+    def _distances(self, rd: Reading) -> np.ndarray:
+        """Squared Mahalanobis distance of an unlabelled reading to every landmark, then
+        every anchor (M + A,)."""
+        out = []
+        for j in range(len(self.ids)):
+            nu, Hx, Hm, s = self._model(rd, j)
+            _, S = self._gain(Hx, Hm, s, rd.R)
+            out.append(float(nu @ np.linalg.solve(S, nu)))
+        for xy in self.anchors.values():
+            nu, Hx, Hm, _ = self._model(Reading(rd.kind, rd.z, rd.R, -1, xy), None)
+            _, S = self._gain(Hx, Hm, 0, rd.R)
+            out.append(float(nu @ np.linalg.solve(S, nu)))
+        return np.array(out)
+
+    def update(self, measurements: Sequence[Measurement]) -> None:
+        pending: list[Reading] = []
+        pairs: list[tuple[int, int | None]] = []
+        for row, rd in enumerate(self.readings(measurements)):
+            if unknown(rd):
+                pending.append(rd)
+                continue
+            if rd.anchor is not None:
+                self._correct(rd, None)
+                pairs.append((row, None))
+                continue
+            j = self.index.get(rd.beacon_id)
+            if j is None:
+                pairs.append((row, self._add(rd, rd.beacon_id)))
+            else:
+                self._correct(rd, j)
+                pairs.append((row, j))
+        if pending:
+            self._associate(pending)
+        self.last_pairs = pairs
+
+    def _associate(self, pending: list[Reading]) -> None:
+        """Nearest neighbour for the tick's unlabelled readings (see the module docstring)."""
+        M = len(self.ids)
+        anchors = list(self.anchors.values())
+        d2 = np.array([self._distances(rd) for rd in pending]).reshape(len(pending), M + len(anchors))
+        dof = [rd.z.size for rd in pending]
+        gate = np.array([chi2_quantile(float(self.params["gate_prob"]), k) for k in dof])
+        new = np.array([chi2_quantile(float(self.params["new_landmark_prob"]), k) for k in dof])
+        taken: set[int] = set()
+        chosen: dict[int, int] = {}
+        if d2.size:
+            for flat in np.argsort(d2, axis=None, kind="stable"):
+                i, j = divmod(int(flat), d2.shape[1])
+                if d2[i, j] > gate[i] or i in chosen or j in taken:
+                    continue
+                chosen[i] = j
+                taken.add(j)
+        for i, rd in enumerate(pending):
+            if i in chosen:
+                j = chosen[i]
+                if j < M:
+                    self._correct(rd, j)
+                else:
+                    self._correct(Reading(rd.kind, rd.z, rd.R, -1, anchors[j - M]), None)
+            elif d2.shape[1] == 0 or float(np.min(d2[i])) > new[i]:
+                self._add(rd, -1)
+
