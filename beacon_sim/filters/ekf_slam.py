@@ -38,9 +38,9 @@ from typing import ClassVar
 import numpy as np
 
 from beacon_sim.core.angles import wrap
-from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.motion import jacobian_state, move
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.association import gate as chi2_gate
 from beacon_sim.filters.base import FilterContext, GaussianBelief, LandmarkMap, broad_gaussian
 from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
 
@@ -197,8 +197,8 @@ class EKFSLAM(SlamFilterBase):
         anchors = list(self.anchors.values())
         d2 = np.array([self._distances(rd) for rd in pending]).reshape(len(pending), M + len(anchors))
         dof = [rd.z.size for rd in pending]
-        gate = np.array([chi2_quantile(float(self.params["gate_prob"]), k) for k in dof])
-        new = np.array([chi2_quantile(float(self.params["new_landmark_prob"]), k) for k in dof])
+        gate = np.array([chi2_gate(float(self.params["gate_prob"]), k) for k in dof])
+        new = np.array([chi2_gate(float(self.params["new_landmark_prob"]), k) for k in dof])
         taken: set[int] = set()
         chosen: dict[int, int] = {}
         if d2.size:

@@ -1,0 +1,329 @@
+"""FastSLAM 2.0 (Montemerlo, Thrun, Koller and Wegbreit 2003): particles over the path, each
+with its own map of independent 2-D landmark EKFs (docs/slam.md).
+
+FastSLAM 1.0 samples the new pose from the motion model alone and lets the readings only
+weight it; with a sensor much better than the odometry almost every sample is then wasted.
+FastSLAM 2.0 samples from a proposal that already uses the tick's readings. Per particle k,
+starting from the motion prediction ``mu = f(x_k, u)``, ``Sigma = Q`` and for each reading
+paired with landmark j (mean m_j, covariance C_j), linearised at the current ``mu``::
+
+    nu = wrap(z - h(mu, m_j))               Hx = dh/dx, Hm = dh/dm
+    Z = Hm C_j Hm^T + R                     the reading's noise plus the landmark's
+    L = Hx Sigma Hx^T + Z                   predictive covariance of the reading
+    K = Sigma Hx^T L^-1
+    mu = mu + K nu,  Sigma = Sigma - K Hx Sigma   (the information form of the paper's
+                                                   Sigma = (Hx^T Z^-1 Hx + Sigma^-1)^-1)
+    w_k = w_k N(nu; 0, L)                   the importance weight: the reading's likelihood
+                                            with the pose still unknown
+
+then ``x_k ~ N(mu, Sigma)``, and each paired landmark gets an EKF update from the sampled
+pose (``S = Hm C Hm^T + R``, ``K = C Hm^T S^-1``, ``m += K nu``, ``C -= K S K^T``).
+A reading of a landmark not yet in a particle's map puts one there (``slam_base.place``,
+``C = Gz R Gz^T``) and multiplies the weight by the density ``p0`` of a reading at the
+``new_landmark_prob`` distance.
+
+Association per particle (readings without IDs): each particle pairs each reading with its
+own most likely landmark (lowest ``d2 + log det L``); within the ``gate_prob`` gate it is
+used; beyond the ``new_landmark_prob`` quantile it starts a landmark; in between it only
+weighs the particle by ``p0``. Particles with different maps can hold different pairings.
+Anchors (beacons whose position the filter is given) are landmarks with C = 0 that are
+never updated. Resampling (systematic) when the effective sample size falls below
+``ess_threshold`` N.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import ClassVar
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.clutter import UNKNOWN_ID
+from beacon_sim.core.motion import MotionNoise, move
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.association import gate as chi2_gate
+from beacon_sim.filters.base import (
+    FilterContext,
+    GaussianBelief,
+    LandmarkMap,
+    ParticleBelief,
+    broad_gaussian,
+)
+from beacon_sim.filters.resampling import effective_sample_size, systematic
+from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
+
+#: Target of a reading for one particle: a slot index (>= 0), or one of these.
+NEW = -1      # start a landmark
+IGNORED = -2  # between the gate and the new-landmark distance: weight only
+
+
+def _solve_sym(S: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``S^-1 b`` for stacks of small symmetric matrices S (..., d, d), b (..., d)."""
+    return np.linalg.solve(S, b[..., None])[..., 0]
+
+
+def proposal_step(kind: str, z: np.ndarray, R: np.ndarray, mu: np.ndarray, Sig: np.ndarray,
+                  lm: np.ndarray, lc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One reading folded into K particles' pose proposals (the module docstring's equations).
+
+    Parameters
+    ----------
+    kind, z, R : the reading (d,) and its noise covariance (d, d)
+    mu, Sig : ndarray, shapes (K, 3), (K, 3, 3): each particle's proposal so far
+    lm, lc : ndarray, shapes (K, 2), (K, 2, 2): the landmark each particle pairs it with
+
+    Returns
+    -------
+    mu, Sig : the proposals with the reading in
+    loglik : ndarray, shape (K,): ``log N(nu; 0, L)``, the factor of the importance weight
+    """
+    zhat, Hx, Hm = observe(kind, mu, lm)
+    nu = innovation(z[None, :], zhat)
+    HxT = Hx.transpose(0, 2, 1)
+    Z = Hm @ lc @ Hm.transpose(0, 2, 1) + R      # reading noise plus landmark uncertainty
+    SHt = Sig @ HxT                               # Sigma Hx^T (K, 3, d)
+    L = Hx @ SHt + Z
+    K = np.linalg.solve(L, SHt.transpose(0, 2, 1)).transpose(0, 2, 1)
+    mu = mu + np.einsum("kij,kj->ki", K, nu)
+    mu[:, 2] = wrap(mu[:, 2])
+    Sig = Sig - K @ SHt.transpose(0, 2, 1)
+    Sig = 0.5 * (Sig + Sig.transpose(0, 2, 1))
+    d = nu.shape[1]
+    loglik = -0.5 * (np.einsum("ki,ki->k", nu, _solve_sym(L, nu)) + np.log(np.linalg.det(L))
+                     + d * math.log(2.0 * math.pi))
+    return mu, Sig, loglik
+
+
+class FastSLAM2(SlamFilterBase):
+    """FastSLAM 2.0 with per-particle landmark EKFs, known or unknown correspondence.
+
+    Parameters (``ctx.params``)
+    ---------------------------
+    n_particles : int, default 100
+    ess_threshold : float, default 0.5
+        Resample when the effective sample size drops below this share of N.
+    gate_prob, new_landmark_prob : float, defaults 0.99, 0.9999
+        Unknown correspondence, per particle (see the module docstring).
+    max_landmarks : int, default 500
+        Most landmarks per particle.
+    """
+
+    defaults: ClassVar[dict] = {"n_particles": 100, "ess_threshold": 0.5, "gate_prob": 0.99,
+                                "new_landmark_prob": 0.9999, "max_landmarks": 500}
+
+    def __init__(self, ctx: FilterContext):
+        super().__init__(ctx)
+        self.n = int(self.params["n_particles"])
+        self.rng = ctx.rng
+        self.n_anchor = len(self.anchors)
+        self.reset(None)
+
+    # -- state -----------------------------------------------------------------------------
+    def reset(self, initial: GaussianBelief | None) -> None:
+        initial = initial or broad_gaussian(self.ctx.world)
+        n = self.n
+        mean = np.asarray(initial.mean, dtype=float).reshape(3)
+        cov = np.asarray(initial.cov, dtype=float).reshape(3, 3)
+        self.poses = mean + self._draw(np.broadcast_to(0.5 * (cov + cov.T), (n, 3, 3)))
+        self.poses[:, 2] = wrap(self.poses[:, 2])
+        self.logw = np.zeros(n)
+        A = self.n_anchor
+        cap = max(8, A + 8)
+        self.lm = np.zeros((n, cap, 2))
+        self.lc = np.zeros((n, cap, 2, 2))
+        self.lid = np.full((n, cap), UNKNOWN_ID - 1, dtype=np.int64)  # -2: empty slot
+        for a, (bid, xy) in enumerate(self.anchors.items()):
+            self.lm[:, a] = xy
+            self.lid[:, a] = bid
+        self.count = np.full(n, A, dtype=np.int64)
+        self.prop_mu: np.ndarray | None = None   # the proposal between predict and update
+        self.prop_cov: np.ndarray | None = None
+
+    def _draw(self, cov: np.ndarray) -> np.ndarray:
+        """One zero-mean Gaussian sample per covariance (N, 3, 3) (semi-definite allowed)."""
+        w, V = np.linalg.eigh(cov)
+        root = V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]
+        return np.einsum("nij,nj->ni", root, self.rng.standard_normal((cov.shape[0], 3)))
+
+    def _grow(self, need: int) -> None:
+        cap = self.lm.shape[1]
+        if need <= cap:
+            return
+        new = max(need, 2 * cap)
+        n = self.n
+        self.lm = np.concatenate([self.lm, np.zeros((n, new - cap, 2))], axis=1)
+        self.lc = np.concatenate([self.lc, np.zeros((n, new - cap, 2, 2))], axis=1)
+        self.lid = np.concatenate([self.lid, np.full((n, new - cap), UNKNOWN_ID - 1)], axis=1)
+
+    @property
+    def weights(self) -> np.ndarray:
+        w = np.exp(self.logw - np.max(self.logw))
+        return w / np.sum(w)
+
+    def _poses_now(self) -> np.ndarray:
+        return self.poses if self.prop_mu is None else self.prop_mu
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        w = self.weights
+        p = self._poses_now()
+        th = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
+        mean = np.array([float(w @ p[:, 0]), float(w @ p[:, 1]), th])
+        d = p - mean
+        d[:, 2] = wrap(d[:, 2])
+        cov = (d * w[:, None]).T @ d
+        if self.prop_cov is not None:
+            cov += np.einsum("n,nij->ij", w, self.prop_cov)
+        return mean, 0.5 * (cov + cov.T)
+
+    def belief(self) -> ParticleBelief:
+        return ParticleBelief(self._poses_now().copy(), self.weights)
+
+    def landmarks(self) -> LandmarkMap:
+        """Known correspondence: each beacon's landmark as the weighted mixture over the
+        particles that have it. Unknown: the map of the particle with the largest weight."""
+        A = self.n_anchor
+        w = self.weights
+        ids_all = self.lid[:, A:]
+        labelled = ids_all[ids_all > UNKNOWN_ID]
+        if np.any(ids_all == UNKNOWN_ID):
+            k = int(np.argmax(w))
+            c = int(self.count[k])
+            return LandmarkMap(None, self.lm[k, A:c].copy(), self.lc[k, A:c].copy())
+        ids = np.unique(labelled)
+        means = np.zeros((ids.size, 2))
+        covs = np.zeros((ids.size, 2, 2))
+        for i, bid in enumerate(ids.tolist()):
+            has = self.lid == bid
+            rows = np.flatnonzero(has.any(axis=1))
+            cols = has[rows].argmax(axis=1)
+            wk = w[rows] / np.sum(w[rows])
+            m = self.lm[rows, cols]
+            means[i] = wk @ m
+            d = m - means[i]
+            covs[i] = np.einsum("n,nij->ij", wk, self.lc[rows, cols]) + (d * wk[:, None]).T @ d
+        return LandmarkMap(ids, means, covs)
+
+    # -- prediction ------------------------------------------------------------------------
+    def predict(self, control: Control, dt: float) -> None:
+        self._sample()  # a tick without update: the motion model alone is the proposal
+        v, w = float(control.v), float(control.omega)
+        noise = self.ctx.motion_noise
+        self.prop_cov = self._process_covs(v, w, dt) if type(noise) is MotionNoise \
+            else np.stack([noise.process_cov(p, v, w, dt) for p in self.poses])
+        self.prop_mu = move(self.poses, v, w, dt)
+
+    def _process_covs(self, v: float, w: float, dt: float) -> np.ndarray:
+        """Q at every particle's heading: B M B^T + diag(pose_std^2) (motion.process_cov)."""
+        noise = self.ctx.motion_noise
+        M = noise.control_cov(v, w)
+        th = self.poses[:, 2]
+        B = np.zeros((self.n, 3, 2))
+        B[:, 0, 0] = dt * np.cos(th)
+        B[:, 1, 0] = dt * np.sin(th)
+        B[:, 2, 1] = dt
+        return B @ M @ B.transpose(0, 2, 1) + np.diag(np.square(noise.pose_std_at(v, w)))
+
+    def _sample(self) -> None:
+        if self.prop_mu is None or self.prop_cov is None:
+            return
+        self.poses = self.prop_mu + self._draw(self.prop_cov)
+        self.poses[:, 2] = wrap(self.poses[:, 2])
+        self.prop_mu = self.prop_cov = None
+
+    # -- update ----------------------------------------------------------------------------
+    def _log_p0(self, rd: Reading) -> float:
+        """Log density of a reading at the new-landmark distance (the weight of a new one)."""
+        d = rd.z.size
+        t = chi2_gate(float(self.params["new_landmark_prob"]), d)
+        return -0.5 * t - 0.5 * math.log((2.0 * math.pi) ** d * float(np.linalg.det(rd.R)))
+
+    def _targets(self, rd: Reading, mu: np.ndarray, Sig: np.ndarray) -> np.ndarray:
+        """The slot each particle gives this reading (or NEW / IGNORED)."""
+        n = self.n
+        if not unknown(rd):
+            match = self.lid == rd.beacon_id
+            return np.where(match.any(axis=1), match.argmax(axis=1), NEW)
+        cmax = int(self.count.max())
+        if cmax == 0:
+            return np.full(n, NEW)
+        lm = self.lm[:, :cmax].reshape(-1, 2)
+        zhat, Hx, Hm = observe(rd.kind, np.repeat(mu, cmax, axis=0), lm)
+        nu = innovation(rd.z[None, :], zhat)
+        SigR = np.repeat(Sig, cmax, axis=0)
+        L = Hx @ SigR @ Hx.transpose(0, 2, 1) + Hm @ self.lc[:, :cmax].reshape(-1, 2, 2) \
+            @ Hm.transpose(0, 2, 1) + rd.R
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d2 = np.einsum("ni,ni->n", nu, _solve_sym(L, nu)).reshape(n, cmax)
+            score = d2 + np.log(np.linalg.det(L)).reshape(n, cmax)
+        valid = np.arange(cmax)[None, :] < self.count[:, None]
+        score = np.where(valid & np.isfinite(score), score, np.inf)
+        best = np.argmin(score, axis=1)
+        d2b = d2[np.arange(n), best]
+        d2b = np.where(np.isfinite(score[np.arange(n), best]), d2b, np.inf)
+        d = rd.z.size
+        gate = chi2_gate(float(self.params["gate_prob"]), d)
+        new = chi2_gate(float(self.params["new_landmark_prob"]), d)
+        return np.where(d2b <= gate, best, np.where(d2b > new, NEW, IGNORED))
+
+    def update(self, measurements: Sequence[Measurement]) -> None:
+        rows = list(self.readings(measurements))
+        if not rows:
+            self._sample()
+            return
+        if self.prop_mu is None or self.prop_cov is None:  # no predict since the last update
+            self.prop_mu, self.prop_cov = self.poses.copy(), np.zeros((self.n, 3, 3))
+        mu, Sig = self.prop_mu.copy(), self.prop_cov.copy()
+        done: list[tuple[Reading, np.ndarray]] = []
+        for rd in rows:
+            tgt = self._targets(rd, mu, Sig)
+            k = np.flatnonzero(tgt >= 0)
+            if k.size:
+                mu[k], Sig[k], loglik = proposal_step(rd.kind, rd.z, rd.R, mu[k], Sig[k],
+                                                      self.lm[k, tgt[k]], self.lc[k, tgt[k]])
+                self.logw[k] += loglik
+            other = tgt < 0
+            if np.any(other):
+                self.logw[other] += self._log_p0(rd)
+            done.append((rd, tgt))
+        self.prop_mu, self.prop_cov = mu, Sig
+        self._sample()
+        self._landmark_updates(done)
+        self.logw -= np.max(self.logw)
+        w = self.weights
+        if effective_sample_size(w) < float(self.params["ess_threshold"]) * self.n:
+            idx = systematic(w, self.n, self.rng)
+            self.poses, self.lm, self.lc = self.poses[idx], self.lm[idx], self.lc[idx]
+            self.lid, self.count = self.lid[idx], self.count[idx]
+            self.logw = np.zeros(self.n)
+
+    def _landmark_updates(self, done: list[tuple[Reading, np.ndarray]]) -> None:
+        """Each paired landmark's EKF update from the sampled pose; new landmarks placed."""
+        A = self.n_anchor
+        cap = A + int(self.params["max_landmarks"])
+        for rd, tgt in done:
+            if not unknown(rd):  # known IDs: look the slot up again (it may be new)
+                match = self.lid == rd.beacon_id
+                tgt = np.where(match.any(axis=1), match.argmax(axis=1), NEW)
+            k = np.flatnonzero(tgt >= A)
+            if k.size:
+                c = tgt[k]
+                zhat, _, Hm = observe(rd.kind, self.poses[k], self.lm[k, c])
+                nu = innovation(rd.z[None, :], zhat)
+                C = self.lc[k, c]
+                CHt = C @ Hm.transpose(0, 2, 1)
+                S = Hm @ CHt + rd.R
+                K = np.linalg.solve(S, CHt.transpose(0, 2, 1)).transpose(0, 2, 1)
+                self.lm[k, c] += np.einsum("kij,kj->ki", K, nu)
+                C = C - K @ CHt.transpose(0, 2, 1)
+                self.lc[k, c] = 0.5 * (C + C.transpose(0, 2, 1))
+            k = np.flatnonzero((tgt == NEW) & (self.count < cap))
+            if k.size and rd.kind == "range_bearing":
+                self._grow(int(self.count[k].max()) + 1)
+                m, _, Gz = place(self.poses[k], rd.z)
+                c = self.count[k]
+                self.lm[k, c] = m
+                self.lc[k, c] = Gz @ rd.R @ Gz.transpose(0, 2, 1)
+                self.lid[k, c] = rd.beacon_id
+                self.count[k] += 1
