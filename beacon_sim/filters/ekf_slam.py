@@ -58,15 +58,21 @@ class EKFSLAM(SlamFilterBase):
         and anchor starts a new landmark.
     max_landmarks : int, default 500
         Most landmarks in the state (readings of further new ones are dropped).
+    confirm_hits : int, default 2
+        Unknown correspondence: a new landmark is tentative until it has been given this
+        many readings; a tentative landmark the sensor should have seen and did not is
+        dropped (clutter). ``landmarks()`` reports only the confirmed ones.
     """
 
-    defaults: ClassVar[dict] = {"gate_prob": 0.99, "new_landmark_prob": 0.9999, "max_landmarks": 500}
+    defaults: ClassVar[dict] = {"gate_prob": 0.99, "new_landmark_prob": 0.9999, "max_landmarks": 500,
+                                "confirm_hits": 2}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
         self.mu = np.zeros(3)
         self.P = np.eye(3)
         self.ids: list[int] = []           # beacon ID of each landmark (-1: made up, unlabelled)
+        self.hits: list[int] = []          # readings each landmark was given
         self.index: dict[int, int] = {}    # beacon ID -> landmark number
         self.last_pairs: list[tuple[int, int | None]] = []  # (reading row, landmark or None)
         self.reset(None)
@@ -79,6 +85,7 @@ class EKFSLAM(SlamFilterBase):
         c = np.asarray(initial.cov, dtype=float).reshape(3, 3)
         self.P = 0.5 * (c + c.T)
         self.ids, self.index, self.last_pairs = [], {}, []
+        self.hits: list[int] = []  # readings each landmark was given
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         return self.mu[:3].copy(), self.P[:3, :3].copy()
@@ -88,12 +95,14 @@ class EKFSLAM(SlamFilterBase):
         return self.mu.copy(), self.P.copy(), tuple(self.ids)
 
     def landmarks(self) -> LandmarkMap:
-        M = len(self.ids)
-        means = self.mu[3:].reshape(M, 2).copy()
-        covs = np.empty((M, 2, 2))
-        for j in range(M):
+        """The landmarks in the state (unknown correspondence: the confirmed ones)."""
+        confirm = int(self.params["confirm_hits"])
+        rows = [j for j, (b, h) in enumerate(zip(self.ids, self.hits, strict=True)) if b >= 0 or h >= confirm]
+        means = self.mu[3:].reshape(-1, 2)[rows].copy()
+        covs = np.empty((len(rows), 2, 2))
+        for k, j in enumerate(rows):
             s = 3 + 2 * j
-            covs[j] = self.P[s:s + 2, s:s + 2]
+            covs[k] = self.P[s:s + 2, s:s + 2]
         ids = None if any(i < 0 for i in self.ids) else np.array(self.ids, dtype=int)
         return LandmarkMap(ids, means, covs)
 
@@ -152,23 +161,51 @@ class EKFSLAM(SlamFilterBase):
         self.P = big
         self.mu = np.concatenate([self.mu, lm[0]])
         self.ids.append(beacon_id)
+        self.hits.append(1)
         if beacon_id >= 0:
             self.index[beacon_id] = len(self.ids) - 1
         return len(self.ids) - 1
 
     def _distances(self, rd: Reading) -> np.ndarray:
         """Squared Mahalanobis distance of an unlabelled reading to every landmark, then
-        every anchor (M + A,)."""
-        out = []
-        for j in range(len(self.ids)):
-            nu, Hx, Hm, s = self._model(rd, j)
-            _, S = self._gain(Hx, Hm, s, rd.R)
-            out.append(float(nu @ np.linalg.solve(S, nu)))
-        for xy in self.anchors.values():
-            nu, Hx, Hm, _ = self._model(Reading(rd.kind, rd.z, rd.R, -1, xy), None)
-            _, S = self._gain(Hx, Hm, 0, rd.R)
-            out.append(float(nu @ np.linalg.solve(S, nu)))
-        return np.array(out)
+        every anchor (M + A,), with the full ``S = H P H^T + R`` of each pairing."""
+        M, P = len(self.ids), self.P
+        anchors = np.array(list(self.anchors.values()), dtype=float).reshape(-1, 2)
+        lm = np.concatenate([self.mu[3:].reshape(M, 2), anchors])
+        n = lm.shape[0]
+        pose = np.broadcast_to(self.mu[:3], (n, 3))
+        zhat, Hx, Hm = observe(rd.kind, pose, lm)
+        nu = innovation(rd.z[None, :], zhat)
+        Pxm = np.zeros((n, 3, 2))
+        Pmm = np.zeros((n, 2, 2))
+        if M:
+            Pxm[:M] = P[:3, 3:].reshape(3, M, 2).transpose(1, 0, 2)
+            idx = 3 + 2 * np.arange(M)
+            Pmm[:M, 0, 0], Pmm[:M, 0, 1] = P[idx, idx], P[idx, idx + 1]
+            Pmm[:M, 1, 0], Pmm[:M, 1, 1] = P[idx + 1, idx], P[idx + 1, idx + 1]
+        HmT, HxT = Hm.transpose(0, 2, 1), Hx.transpose(0, 2, 1)
+        cross = Hx @ Pxm @ HmT
+        S = Hx @ P[:3, :3] @ HxT + cross + cross.transpose(0, 2, 1) + Hm @ Pmm @ HmT + rd.R
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d2 = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+        return np.where(np.isfinite(d2), d2, np.inf)
+
+    def _remove(self, j: int) -> None:
+        """Marginalise landmark j out of the state (drop its rows and columns)."""
+        keep = np.r_[0:3 + 2 * j, 5 + 2 * j:self.mu.size]
+        self.mu = self.mu[keep]
+        self.P = self.P[np.ix_(keep, keep)]
+        del self.ids[j], self.hits[j]
+        self.index = {b: i for i, b in enumerate(self.ids) if b >= 0}
+
+    def _in_view(self, j: int, sensors: set[str]) -> bool:
+        """Whether landmark j is where one of these sensors should have seen it."""
+        zhat = observe("range_bearing", self.mu[:3], self.mu[3 + 2 * j:5 + 2 * j])[0][0]
+        for name in sensors:
+            spec = self.ctx.sensor(name)
+            if zhat[0] <= spec.max_range and (spec.fov >= 2 * np.pi or abs(zhat[1]) <= spec.fov / 2):
+                return True
+        return False
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         pending: list[Reading] = []
@@ -188,10 +225,17 @@ class EKFSLAM(SlamFilterBase):
                 self._correct(rd, j)
                 pairs.append((row, j))
         if pending:
-            self._associate(pending)
+            seen = self._associate(pending)
+            # A landmark made from one unlabelled reading is tentative until it is seen again
+            # (``confirm_hits``); missed while in view, it was clutter and is dropped.
+            fired = {m.sensor for m in measurements if m.kind in ("bearing", "range_bearing")}
+            for j in range(len(self.ids) - 1, -1, -1):
+                if self.ids[j] < 0 and self.hits[j] < int(self.params["confirm_hits"]) \
+                        and j not in seen and self._in_view(j, fired):
+                    self._remove(j)
         self.last_pairs = pairs
 
-    def _associate(self, pending: list[Reading]) -> None:
+    def _associate(self, pending: list[Reading]) -> set[int]:
         """Nearest neighbour for the tick's unlabelled readings (see the module docstring)."""
         M = len(self.ids)
         anchors = list(self.anchors.values())
@@ -208,13 +252,19 @@ class EKFSLAM(SlamFilterBase):
                     continue
                 chosen[i] = j
                 taken.add(j)
+        seen = set()
         for i, rd in enumerate(pending):
             if i in chosen:
                 j = chosen[i]
                 if j < M:
                     self._correct(rd, j)
+                    self.hits[j] += 1
+                    seen.add(j)
                 else:
                     self._correct(Reading(rd.kind, rd.z, rd.R, -1, anchors[j - M]), None)
             elif d2.shape[1] == 0 or float(np.min(d2[i])) > new[i]:
-                self._add(rd, -1)
+                j_new = self._add(rd, -1)
+                if j_new is not None:
+                    seen.add(j_new)
+        return seen
 

@@ -150,7 +150,9 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                  ranges={"gate_prob": Range(0.5, 1.0 - 1e-9, "chi-square share a true pairing passes"),
                          "new_landmark_prob": Range(0.5, 1.0 - 1e-12, "farther than this quantile "
                                                                      "from all: a new landmark"),
-                         "max_landmarks": Range(0, 10_000, "most landmarks in the state")}),
+                         "max_landmarks": Range(0, 10_000, "most landmarks in the state"),
+                         "confirm_hits": Range(1, 1000, "readings before a new unlabelled landmark "
+                                                        "is kept")}),
     FilterRecord("fastslam", "beacon_sim.filters.fastslam:FastSLAM2", ("yellow", "dash-dot"),
                  ranges={"n_particles": Range(1, 100_000, "particles, each with its own map"),
                          "ess_threshold": Range(*_FRACTION, "resample when ESS < this share of N"),

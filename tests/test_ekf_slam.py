@@ -1,0 +1,196 @@
+"""EKF-SLAM against the maths: the landmark model's Jacobians (pose and landmark) and the
+initialisation's against finite differences, the prediction against the full F P F^T, the
+joint ANEES over seeded Monte Carlo runs in its chi-square band, and unknown correspondence
+building the same map."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from slam_helpers import ring_scenario, run, true_beacons
+
+from beacon_sim.core import motion
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.evaluation.slam_metrics import gospa, joint_anees_band, joint_nees
+from beacon_sim.filters.base import GaussianBelief, LandmarkMap, MappingFilter
+from beacon_sim.filters.ekf_slam import EKFSLAM
+from beacon_sim.filters.loading import build_filter
+from beacon_sim.filters.slam_base import observe, place
+
+POSES = [np.array([1.0, 2.0, 0.3]), np.array([-1.0, 0.5, 3.1]), np.array([2.0, -3.0, -3.1])]
+LMS = [np.array([4.0, 3.0]), np.array([-2.5, -1.0]), np.array([2.2, -2.9])]
+
+
+def central(f, x, eps=1e-6):
+    cols = []
+    for j in range(x.size):
+        dx = np.zeros(x.size)
+        dx[j] = eps
+        d = np.asarray(f(x + dx)) - np.asarray(f(x - dx))
+        d[-1] = wrap(d[-1])  # the last row is a bearing (or a coordinate: wrapping a tiny value is a no-op)
+        cols.append(d / (2 * eps))
+    return np.stack(cols, axis=1)
+
+
+@pytest.mark.parametrize("kind", ["bearing", "range_bearing"])
+@pytest.mark.parametrize("i", range(3))
+def test_observation_jacobians_match_finite_differences(kind, i):
+    pose, lm = POSES[i], LMS[i]
+    zhat, Hx, Hm = observe(kind, pose, lm)
+    assert np.allclose(Hx[0], central(lambda p: observe(kind, p, lm)[0][0], pose), atol=1e-7)
+    assert np.allclose(Hm[0], central(lambda m: observe(kind, pose, m)[0][0], lm), atol=1e-7)
+    assert -np.pi <= zhat[0, -1] < np.pi
+
+
+@pytest.mark.parametrize("i", range(3))
+def test_initialisation_inverts_the_model_and_its_jacobians_match(i):
+    pose, z = POSES[i], np.array([2.5, -2.9])
+    lm, Gx, Gz = place(pose, z)
+    back = observe("range_bearing", pose, lm[0])[0][0]
+    assert np.allclose(back, z, atol=1e-12)
+    assert np.allclose(Gx[0], central(lambda p: place(p, z)[0][0], pose), atol=1e-7)
+    assert np.allclose(Gz[0], central(lambda q: place(pose, q)[0][0], z), atol=1e-7)
+
+
+def _filter_with_landmarks():
+    sc = ring_scenario(4)
+    f = build_filter("ekf_slam", sc, 0)
+    for bid, (x, y) in true_beacons(sc).items():  # map every beacon from the start pose
+        pose = f.estimate()[0]
+        z = observe("range_bearing", pose, np.array([x, y]))[0]
+        f.update([Measurement("beacons", "range_bearing", z, np.array([bid]))])
+    return f
+
+
+def test_prediction_is_the_full_state_jacobian_sandwich():
+    f = _filter_with_landmarks()
+    mu, P, _ = f.joint()
+    v, w, dt = 0.7, -0.4, 0.1
+    n = mu.size
+    F = np.eye(n)
+    F[:3, :3] = motion.jacobian_state(mu[:3], v, dt)
+    Q = np.zeros((n, n))
+    Q[:3, :3] = f.ctx.motion_noise.process_cov(mu[:3], v, w, dt)
+    f.predict(Control(v, w), dt)
+    mu2, P2, _ = f.joint()
+    assert np.allclose(P2, F @ P @ F.T + Q, atol=1e-14)
+    assert np.allclose(mu2[:3], motion.move(mu[:3], v, w, dt)) and np.array_equal(mu2[3:], mu[3:])
+
+
+def test_update_is_the_textbook_stacked_kalman_update():
+    f = _filter_with_landmarks()
+    f.predict(Control(0.5, 0.2), 0.5)
+    mu, P, ids = f.joint()
+    j = 2
+    lm = mu[3 + 2 * j:5 + 2 * j]
+    z = observe("range_bearing", mu[:3], lm)[0][0] + np.array([0.03, -0.02])
+    zhat, Hx, Hm = observe("range_bearing", mu[:3], lm)
+    H = np.zeros((2, mu.size))
+    H[:, :3], H[:, 3 + 2 * j:5 + 2 * j] = Hx[0], Hm[0]
+    R = np.diag(f.ctx.sensor("beacons").reading_std() ** 2)
+    S = H @ P @ H.T + R
+    K = P @ H.T @ np.linalg.inv(S)
+    nu = z - zhat[0]
+    f.update([Measurement("beacons", "range_bearing", z[None, :], np.array([ids[j]]))])
+    mu2, P2, _ = f.joint()
+    assert np.allclose(mu2, mu + K @ nu, atol=1e-12)
+    assert np.allclose(P2, P - K @ S @ K.T, atol=1e-12)
+
+
+def test_the_filter_is_a_mapping_filter_and_reports_its_map():
+    f = _filter_with_landmarks()
+    assert isinstance(f, MappingFilter)
+    lm = f.landmarks()
+    assert isinstance(lm, LandmarkMap) and lm.means.shape == (4, 2) and lm.covs.shape == (4, 2, 2)
+    assert list(lm.ids) == [1, 2, 3, 4]
+    assert np.allclose(lm.covs, lm.covs.transpose(0, 2, 1))
+    f.reset(GaussianBelief(np.zeros(3), np.eye(3)))
+    assert f.landmarks().means.shape == (0, 2)
+
+
+def _joint_anees(sc, runs, seed0=100):
+    """{tick: (joint ANEES, total dof)} at 5, 10 and 20 s over ``runs`` seeded runs."""
+    truth = true_beacons(sc)
+    times = {50: [], 100: [], 200: []}
+
+    def record(flt, st):
+        if st.tick in times:
+            mu, P, ids = flt.joint()
+            times[st.tick].append((joint_nees(mu, P, ids, st.true_pose, truth), mu.size))
+
+    for seed in range(runs):
+        run(sc, "ekf_slam", seed0 + seed, on_step=record)
+    out = {}
+    for tick, vals in times.items():
+        if not vals:
+            continue
+        total = sum(d for _, d in vals)
+        out[tick] = (sum(e for e, _ in vals) / total, total)
+    return out
+
+
+@pytest.mark.slow
+def test_joint_anees_is_in_its_band_over_seeded_monte_carlo_runs():
+    """20 runs of 20 s on the benign ring: the average joint NEES (pose and every landmark)
+    at 5, 10 and 20 s, against the chi-square band of the total degrees of freedom (99 %
+    each, three checks)."""
+    for tick, (anees, total) in _joint_anees(ring_scenario(6, duration=20.0), 20).items():
+        lo, hi = joint_anees_band(1, total, 0.99)
+        assert lo <= anees <= hi, f"t = {tick / 10:g} s: joint ANEES {anees:.3f} outside [{lo:.3f}, {hi:.3f}]"
+
+
+@pytest.mark.slow
+def test_joint_anees_catches_a_filter_told_too_little_noise():
+    """The same check fails for EKF-SLAM told a third of the sensor's noise."""
+    sc = ring_scenario(6, duration=10.0)
+    told = tuple(replace(s, noise=replace(s.noise, range_std=s.noise.range_std / 3,
+                                          bearing_std=s.noise.bearing_std / 3)) for s in sc.model_sensors)
+    res = _joint_anees(replace(sc, model_sensors=told), 8)
+    anees, total = res[100]
+    assert anees > joint_anees_band(1, total, 0.99)[1]
+
+
+def test_unknown_correspondence_builds_the_same_map_without_duplicates():
+    sc = ring_scenario(6, duration=15.0)
+    truth = np.array(list(true_beacons(sc).values()))
+    known, *_ = run(sc, "ekf_slam", 7)
+    blind, *_ = run(sc, "ekf_slam", 7, hide=True)
+    assert blind.landmarks().ids is None
+    gk = gospa(known.landmarks().means, truth, c=1.0)
+    gb = gospa(blind.landmarks().means, truth, c=1.0)
+    assert gk.missed == gk.false == 0
+    assert gb.missed == gb.false == 0, gb
+    assert gb.value < 2 * gk.value + 0.05
+
+
+def test_unknown_correspondence_with_clutter_keeps_the_map():
+    sc = ring_scenario(6, duration=15.0)
+    truth = np.array(list(true_beacons(sc).values()))
+    blind, *_ = run(sc, "ekf_slam", 8, hide=True, clutter=0.3)
+    g = gospa(blind.landmarks().means, truth, c=1.0)
+    assert g.missed == 0 and g.false <= 3, g
+
+
+def test_anchors_are_used_and_not_mapped():
+    sc = ring_scenario(6, duration=10.0, anchors=(1, 4))
+    assert sorted(b.id for b in sc.filter_world.beacons) == [1, 4]
+    f, pose, est, tru = run(sc, "ekf_slam", 3)
+    assert sorted(f.landmarks().ids.tolist()) == [2, 3, 5, 6]
+    assert np.hypot(*(est[-1, :2] - pose[:2])) < 0.1
+
+
+def test_same_seed_same_run_bit_for_bit():
+    sc = ring_scenario(5, duration=5.0)
+    a = run(sc, "ekf_slam", 4, hide=True)[0].joint()
+    b = run(sc, "ekf_slam", 4, hide=True)[0].joint()
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def test_bearing_only_readings_update_but_do_not_start_landmarks():
+    sc = ring_scenario(5, duration=3.0, bearing_only=True, anchors=(1, 2, 3))
+    f, pose, est, tru = run(sc, "ekf_slam", 5)
+    assert isinstance(f, EKFSLAM) and f.landmarks().means.shape == (0, 2)
+    assert np.hypot(*(est[-1, :2] - pose[:2])) < 0.2
