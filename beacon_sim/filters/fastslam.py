@@ -57,11 +57,24 @@ from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, ob
 #: Target of a reading for one particle: a slot index (>= 0), or one of these.
 NEW = -1      # start a landmark
 IGNORED = -2  # between the gate and the new-landmark distance: weight only
+#: ``lid`` of an empty landmark slot.
+EMPTY = UNKNOWN_ID - 1
 
 
-def _solve_sym(S: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``S^-1 b`` for stacks of small symmetric matrices S (..., d, d), b (..., d)."""
-    return np.linalg.solve(S, b[..., None])[..., 0]
+def inv_det(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse and determinant of a stack of 1 x 1 or 2 x 2 matrices S (..., d, d), written
+    out (numpy's batched solve costs ~1 us per tiny matrix; this, a few numpy calls in all)."""
+    if S.shape[-1] == 1:
+        det = S[..., 0, 0]
+        return 1.0 / S, det
+    a, b, c, d = S[..., 0, 0], S[..., 0, 1], S[..., 1, 0], S[..., 1, 1]
+    det = a * d - b * c
+    inv = np.empty_like(S)
+    inv[..., 0, 0] = d / det
+    inv[..., 0, 1] = -b / det
+    inv[..., 1, 0] = -c / det
+    inv[..., 1, 1] = a / det
+    return inv, det
 
 
 def proposal_step(kind: str, z: np.ndarray, R: np.ndarray, mu: np.ndarray, Sig: np.ndarray,
@@ -85,14 +98,14 @@ def proposal_step(kind: str, z: np.ndarray, R: np.ndarray, mu: np.ndarray, Sig: 
     Z = Hm @ lc @ Hm.transpose(0, 2, 1) + R      # reading noise plus landmark uncertainty
     SHt = Sig @ HxT                               # Sigma Hx^T (K, 3, d)
     L = Hx @ SHt + Z
-    K = np.linalg.solve(L, SHt.transpose(0, 2, 1)).transpose(0, 2, 1)
+    Linv, det = inv_det(L)
+    K = SHt @ Linv
     mu = mu + np.einsum("kij,kj->ki", K, nu)
     mu[:, 2] = wrap(mu[:, 2])
     Sig = Sig - K @ SHt.transpose(0, 2, 1)
     Sig = 0.5 * (Sig + Sig.transpose(0, 2, 1))
     d = nu.shape[1]
-    loglik = -0.5 * (np.einsum("ki,ki->k", nu, _solve_sym(L, nu)) + np.log(np.linalg.det(L))
-                     + d * math.log(2.0 * math.pi))
+    loglik = -0.5 * (np.einsum("ki,kij,kj->k", nu, Linv, nu) + np.log(det) + d * math.log(2.0 * math.pi))
     return mu, Sig, loglik
 
 
@@ -108,10 +121,13 @@ class FastSLAM2(SlamFilterBase):
         Unknown correspondence, per particle (see the module docstring).
     max_landmarks : int, default 500
         Most landmarks per particle.
+    confirm_hits : int, default 2
+        Unknown correspondence: an unlabelled landmark is tentative until given this many
+        readings; a tentative one in view that gets none is dropped (clutter).
     """
 
     defaults: ClassVar[dict] = {"n_particles": 100, "ess_threshold": 0.5, "gate_prob": 0.99,
-                                "new_landmark_prob": 0.9999, "max_landmarks": 500}
+                                "new_landmark_prob": 0.9999, "max_landmarks": 500, "confirm_hits": 2}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
@@ -133,11 +149,12 @@ class FastSLAM2(SlamFilterBase):
         cap = max(8, A + 8)
         self.lm = np.zeros((n, cap, 2))
         self.lc = np.zeros((n, cap, 2, 2))
-        self.lid = np.full((n, cap), UNKNOWN_ID - 1, dtype=np.int64)  # -2: empty slot
+        self.lid = np.full((n, cap), EMPTY, dtype=np.int64)  # beacon ID, -1 unlabelled
+        self.hits = np.zeros((n, cap), dtype=np.int64)        # readings each landmark was given
         for a, (bid, xy) in enumerate(self.anchors.items()):
             self.lm[:, a] = xy
             self.lid[:, a] = bid
-        self.count = np.full(n, A, dtype=np.int64)
+        self.count = np.full(n, A, dtype=np.int64)  # slots in use or freed: the high-water mark
         self.prop_mu: np.ndarray | None = None   # the proposal between predict and update
         self.prop_cov: np.ndarray | None = None
 
@@ -155,7 +172,8 @@ class FastSLAM2(SlamFilterBase):
         n = self.n
         self.lm = np.concatenate([self.lm, np.zeros((n, new - cap, 2))], axis=1)
         self.lc = np.concatenate([self.lc, np.zeros((n, new - cap, 2, 2))], axis=1)
-        self.lid = np.concatenate([self.lid, np.full((n, new - cap), UNKNOWN_ID - 1)], axis=1)
+        self.lid = np.concatenate([self.lid, np.full((n, new - cap), EMPTY)], axis=1)
+        self.hits = np.concatenate([self.hits, np.zeros((n, new - cap), dtype=np.int64)], axis=1)
 
     @property
     def weights(self) -> np.ndarray:
@@ -189,8 +207,9 @@ class FastSLAM2(SlamFilterBase):
         labelled = ids_all[ids_all > UNKNOWN_ID]
         if np.any(ids_all == UNKNOWN_ID):
             k = int(np.argmax(w))
-            c = int(self.count[k])
-            return LandmarkMap(None, self.lm[k, A:c].copy(), self.lc[k, A:c].copy())
+            lid, hits = self.lid[k, A:], self.hits[k, A:]
+            keep = (lid >= 0) | ((lid == UNKNOWN_ID) & (hits >= int(self.params["confirm_hits"])))
+            return LandmarkMap(None, self.lm[k, A:][keep].copy(), self.lc[k, A:][keep].copy())
         ids = np.unique(labelled)
         means = np.zeros((ids.size, 2))
         covs = np.zeros((ids.size, 2, 2))
@@ -254,10 +273,11 @@ class FastSLAM2(SlamFilterBase):
         SigR = np.repeat(Sig, cmax, axis=0)
         L = Hx @ SigR @ Hx.transpose(0, 2, 1) + Hm @ self.lc[:, :cmax].reshape(-1, 2, 2) \
             @ Hm.transpose(0, 2, 1) + rd.R
-        with np.errstate(invalid="ignore", divide="ignore"):
-            d2 = np.einsum("ni,ni->n", nu, _solve_sym(L, nu)).reshape(n, cmax)
-            score = d2 + np.log(np.linalg.det(L)).reshape(n, cmax)
-        valid = np.arange(cmax)[None, :] < self.count[:, None]
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            Linv, det = inv_det(L)
+            d2 = np.einsum("ni,nij,nj->n", nu, Linv, nu).reshape(n, cmax)
+            score = d2 + np.log(det).reshape(n, cmax)
+        valid = self.lid[:, :cmax] > EMPTY
         score = np.where(valid & np.isfinite(score), score, np.inf)
         best = np.argmin(score, axis=1)
         d2b = d2[np.arange(n), best]
@@ -295,17 +315,22 @@ class FastSLAM2(SlamFilterBase):
         if effective_sample_size(w) < float(self.params["ess_threshold"]) * self.n:
             idx = systematic(w, self.n, self.rng)
             self.poses, self.lm, self.lc = self.poses[idx], self.lm[idx], self.lc[idx]
-            self.lid, self.count = self.lid[idx], self.count[idx]
+            self.lid, self.count, self.hits = self.lid[idx], self.count[idx], self.hits[idx]
             self.logw = np.zeros(self.n)
 
     def _landmark_updates(self, done: list[tuple[Reading, np.ndarray]]) -> None:
-        """Each paired landmark's EKF update from the sampled pose; new landmarks placed."""
+        """Each paired landmark's EKF update from the sampled pose; new landmarks placed;
+        tentative unlabelled landmarks that were in view and not seen dropped."""
         A = self.n_anchor
         cap = A + int(self.params["max_landmarks"])
+        touched = np.zeros(self.lid.shape, dtype=bool)
+        any_unknown = False
         for rd, tgt in done:
             if not unknown(rd):  # known IDs: look the slot up again (it may be new)
                 match = self.lid == rd.beacon_id
                 tgt = np.where(match.any(axis=1), match.argmax(axis=1), NEW)
+            else:
+                any_unknown = True
             k = np.flatnonzero(tgt >= A)
             if k.size:
                 c = tgt[k]
@@ -314,16 +339,43 @@ class FastSLAM2(SlamFilterBase):
                 C = self.lc[k, c]
                 CHt = C @ Hm.transpose(0, 2, 1)
                 S = Hm @ CHt + rd.R
-                K = np.linalg.solve(S, CHt.transpose(0, 2, 1)).transpose(0, 2, 1)
+                K = CHt @ inv_det(S)[0]
                 self.lm[k, c] += np.einsum("kij,kj->ki", K, nu)
                 C = C - K @ CHt.transpose(0, 2, 1)
                 self.lc[k, c] = 0.5 * (C + C.transpose(0, 2, 1))
-            k = np.flatnonzero((tgt == NEW) & (self.count < cap))
+                self.hits[k, c] += 1
+                touched[k, c] = True
+            used = (self.lid[:, A:] > EMPTY).sum(axis=1)
+            k = np.flatnonzero((tgt == NEW) & (used < cap - A))
             if k.size and rd.kind == "range_bearing":
-                self._grow(int(self.count[k].max()) + 1)
+                if not np.all((self.lid[k] == EMPTY).any(axis=1)):
+                    self._grow(self.lid.shape[1] + 1)
+                    touched = np.pad(touched, ((0, 0), (0, self.lid.shape[1] - touched.shape[1])))
+                c = np.argmax(self.lid[k] == EMPTY, axis=1)  # the first free slot
                 m, _, Gz = place(self.poses[k], rd.z)
-                c = self.count[k]
                 self.lm[k, c] = m
                 self.lc[k, c] = Gz @ rd.R @ Gz.transpose(0, 2, 1)
                 self.lid[k, c] = rd.beacon_id
-                self.count[k] += 1
+                self.hits[k, c] = 1
+                self.count[k] = np.maximum(self.count[k], c + 1)
+                touched[k, c] = True
+        if any_unknown:
+            self._drop_tentative(touched, {rd.sensor for rd, _ in done if unknown(rd)})
+
+    def _drop_tentative(self, touched: np.ndarray, sensors: set[str]) -> None:
+        """Free the slots of unlabelled landmarks given fewer than ``confirm_hits`` readings
+        that were in view of a sensor that fired and got none this tick (clutter)."""
+        cmax = int(self.count.max())
+        lid, hits = self.lid[:, :cmax], self.hits[:, :cmax]
+        cand = (lid == UNKNOWN_ID) & (hits < int(self.params["confirm_hits"])) & ~touched[:, :cmax]
+        if not cand.any():
+            return
+        k, c = np.nonzero(cand)
+        zhat = observe("range_bearing", self.poses[k], self.lm[k, c])[0]
+        view = np.zeros(k.size, dtype=bool)
+        for name in sensors:
+            spec = self.ctx.sensor(name)
+            view |= (zhat[:, 0] <= spec.max_range) & (
+                (spec.fov >= 2 * math.pi) | (np.abs(zhat[:, 1]) <= spec.fov / 2))
+        self.lid[k[view], c[view]] = EMPTY
+        self.hits[k[view], c[view]] = 0

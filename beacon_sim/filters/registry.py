@@ -159,7 +159,9 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "gate_prob": Range(0.5, 1.0 - 1e-9, "chi-square share a true pairing passes"),
                          "new_landmark_prob": Range(0.5, 1.0 - 1e-12, "farther than this quantile "
                                                                      "from all: a new landmark"),
-                         "max_landmarks": Range(0, 10_000, "most landmarks per particle")}),
+                         "max_landmarks": Range(0, 10_000, "most landmarks per particle"),
+                         "confirm_hits": Range(1, 1000, "readings before a new unlabelled landmark "
+                                                        "is kept")}),
     # Team filters (filters/team.py): the baseline that ignores the teammates is grey like
     # dead reckoning; naive fusion, the overconfident counter-example, vermillion and dotted.
     FilterRecord("independent", "beacon_sim.filters.team:IndependentTeam", ("grey", "short dash"),

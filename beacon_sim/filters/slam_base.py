@@ -124,6 +124,7 @@ class Reading:
     R: np.ndarray
     beacon_id: int
     anchor: tuple[float, float] | None
+    sensor: str = ""
 
 
 class SlamFilterBase(FilterBase):
@@ -154,7 +155,8 @@ class SlamFilterBase(FilterBase):
             for z, bid in zip(np.asarray(m.z, dtype=float), np.asarray(m.beacon_ids).tolist(),
                               strict=True):
                 bid = int(bid)
-                yield Reading(m.kind, z, R, bid, self.anchors.get(bid) if bid != UNKNOWN_ID else None)
+                yield Reading(m.kind, z, R, bid, self.anchors.get(bid) if bid != UNKNOWN_ID else None,
+                              m.sensor)
 
     def landmarks(self) -> LandmarkMap:
         raise NotImplementedError
