@@ -177,7 +177,7 @@ def test_unknown_correspondence_with_clutter_keeps_the_map():
 def test_anchors_are_used_and_not_mapped():
     sc = ring_scenario(6, duration=10.0, anchors=(1, 4))
     assert sorted(b.id for b in sc.filter_world.beacons) == [1, 4]
-    f, pose, est, tru = run(sc, "ekf_slam", 3)
+    f, pose, est, _ = run(sc, "ekf_slam", 3)
     assert sorted(f.landmarks().ids.tolist()) == [2, 3, 5, 6]
     assert np.hypot(*(est[-1, :2] - pose[:2])) < 0.1
 
@@ -191,6 +191,6 @@ def test_same_seed_same_run_bit_for_bit():
 
 def test_bearing_only_readings_update_but_do_not_start_landmarks():
     sc = ring_scenario(5, duration=3.0, bearing_only=True, anchors=(1, 2, 3))
-    f, pose, est, tru = run(sc, "ekf_slam", 5)
+    f, pose, est, _ = run(sc, "ekf_slam", 5)
     assert isinstance(f, EKFSLAM) and f.landmarks().means.shape == (0, 2)
     assert np.hypot(*(est[-1, :2] - pose[:2])) < 0.2
