@@ -48,7 +48,7 @@ def test_an_unknown_map_withholds_every_beacon_but_the_anchors():
 @pytest.mark.parametrize("change, message", [
     (lambda d: d.setdefault("model", {}).update(map="secret"), "model.map = 'secret': expected one of"),
     (lambda d: d["world"]["beacons"][0].update(anchor=True), "world.beacons[0].anchor = true: an anchor"),
-    (lambda d: d["world"]["beacons"][0].update(anchor=1), "world.beacons[0].anchor = 1: expected true or false"),
+    (lambda d: d["world"]["beacons"][0].update(anchor=1), "beacons[0].anchor = 1: expected true or false"),
     (lambda d: d.setdefault("model", {}).update(mapp="unknown"), "did you mean 'model.map'"),
 ])
 def test_bad_map_keys_are_one_line_errors(change, message):
