@@ -75,3 +75,18 @@ def test_checked_map_shapes():
     assert isinstance(ok, LandmarkMap) and ok.means.shape == (1, 2)
     assert "means but" in checked_map(LandmarkMap(None, np.zeros((2, 2)), np.eye(2)[None]))
     assert "expected a LandmarkMap" in checked_map(object())
+
+
+def test_the_batched_ellipses_are_the_geometry_modules():
+    from beacon_sim.app.map_layer import ellipses
+
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(5, 2, 2))
+    covs = A @ A.transpose(0, 2, 1)
+    means = rng.normal(size=(5, 2))
+    got = ellipses(means, covs, 24)
+    for k in range(5):
+        ref = covariance_ellipse(means[k], covs[k], ELLIPSE_95, 24)
+        # the same curve (eigenvector signs may differ: compare as point sets)
+        d = np.min(np.linalg.norm(got[k][:, None] - ref[None], axis=2), axis=1)
+        assert np.all(d < 1e-9 * (1 + np.abs(ref).max()) + 1e-9)

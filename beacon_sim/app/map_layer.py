@@ -16,7 +16,7 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import palette
-from beacon_sim.core.geometry import CHI2_2DOF, covariance_ellipse
+from beacon_sim.core.geometry import CHI2_2DOF
 from beacon_sim.filters.base import LandmarkMap
 
 #: The squared Mahalanobis radius of the 95 % ellipse of a 2-D Gaussian.
@@ -74,14 +74,32 @@ class MapLayer:
         """Every landmark of every visible SLAM filter: its 95 % ellipse and a cross."""
         from beacon_sim.app.render import polyline  # the renderer imports this module
 
+        width = max(2, lw // 2)
         for name, lmap in self.maps(session, names).items():
+            if not len(lmap.means):
+                continue
             colour = colours[name]
+            cross = palette.darken(colour, 0.2)
             dash = dashes.get(name)
-            width = max(2, lw // 2)
-            for mean, cov in zip(lmap.means, lmap.covs, strict=True):
-                outline = view.to_px(covariance_ellipse(mean, cov, ELLIPSE_95, 40))
-                polyline(surf, colour, outline, width, dash, closed=True)
-                x, y = view.to_px(mean)
+            outlines = view.to_px(ellipses(lmap.means, lmap.covs).reshape(-1, 2)).reshape(
+                len(lmap.means), -1, 2)
+            for outline, (x, y) in zip(outlines, view.to_px(lmap.means), strict=True):
+                small = float(np.ptp(outline[:, 0]) + np.ptp(outline[:, 1])) < 40.0
+                if dash is None or small:  # a dash pattern does not show on a tiny ellipse
+                    pygame.draw.lines(surf, colour, True, outline, width)
+                else:
+                    polyline(surf, colour, outline, width, dash, closed=True)
                 c = CROSS_PX
-                pygame.draw.line(surf, palette.darken(colour, 0.2), (x - c, y - c), (x + c, y + c), 2)
-                pygame.draw.line(surf, palette.darken(colour, 0.2), (x - c, y + c), (x + c, y - c), 2)
+                pygame.draw.line(surf, cross, (x - c, y - c), (x + c, y + c), 2)
+                pygame.draw.line(surf, cross, (x - c, y + c), (x + c, y - c), 2)
+
+
+def ellipses(means: np.ndarray, covs: np.ndarray, n: int = 32) -> np.ndarray:
+    """The 95 % ellipses of M 2-D Gaussians at once, shape (M, n, 2) [m] (as
+    ``core.geometry.covariance_ellipse`` for each; one batched eigendecomposition)."""
+    covs = 0.5 * (covs + covs.transpose(0, 2, 1))
+    vals, vecs = np.linalg.eigh(covs)
+    radii = np.sqrt(np.clip(vals, 0.0, None) * ELLIPSE_95)          # (M, 2)
+    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    unit = np.stack([np.cos(t), np.sin(t)], axis=1)                  # (n, 2)
+    return means[:, None, :] + (unit[None] * radii[:, None, :]) @ vecs.transpose(0, 2, 1)

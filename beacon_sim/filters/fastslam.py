@@ -23,7 +23,8 @@ A reading of a landmark not yet in a particle's map puts one there (``slam_base.
 ``new_landmark_prob`` distance.
 
 Association per particle (readings without IDs): each particle pairs each reading with its
-own most likely landmark (lowest ``d2 + log det L``); within the ``gate_prob`` gate it is
+own most likely landmark (lowest ``d2 + log det L``, against the motion-only proposal, all
+the tick's readings at once); within the ``gate_prob`` gate it is
 used; beyond the ``new_landmark_prob`` quantile it starts a landmark; in between it only
 weighs the particle by ``p0``. Particles with different maps can hold different pairings.
 Anchors (beacons whose position the filter is given) are landmarks with C = 0 that are
@@ -258,34 +259,47 @@ class FastSLAM2(SlamFilterBase):
         t = chi2_gate(float(self.params["new_landmark_prob"]), d)
         return -0.5 * t - 0.5 * math.log((2.0 * math.pi) ** d * float(np.linalg.det(rd.R)))
 
-    def _targets(self, rd: Reading, mu: np.ndarray, Sig: np.ndarray) -> np.ndarray:
-        """The slot each particle gives this reading (or NEW / IGNORED)."""
-        n = self.n
-        if not unknown(rd):
-            match = self.lid == rd.beacon_id
-            return np.where(match.any(axis=1), match.argmax(axis=1), NEW)
+    def _known_targets(self, rd: Reading) -> np.ndarray:
+        """The slot of the reading's beacon in each particle's map (or NEW)."""
+        match = self.lid == rd.beacon_id
+        return np.where(match.any(axis=1), match.argmax(axis=1), NEW)
+
+    def _unknown_targets(self, rows: list[Reading], mu: np.ndarray, Sig: np.ndarray
+                         ) -> list[np.ndarray]:
+        """Per-particle maximum-likelihood association of unlabelled readings of one sensor
+        (one kind and R): the slot each particle gives each reading (or NEW / IGNORED).
+
+        All the tick's readings are associated against the proposal before any of them is
+        folded in: the expected reading, the Jacobians and L of every (particle, landmark)
+        pair do not depend on the reading, so they are computed once (N x C) and each reading
+        costs only its innovations."""
+        n, m = self.n, len(rows)
         cmax = int(self.count.max())
         if cmax == 0:
-            return np.full(n, NEW)
-        lm = self.lm[:, :cmax].reshape(-1, 2)
-        zhat, Hx, Hm = observe(rd.kind, np.repeat(mu, cmax, axis=0), lm)
-        nu = innovation(rd.z[None, :], zhat)
-        SigR = np.repeat(Sig, cmax, axis=0)
-        L = Hx @ SigR @ Hx.transpose(0, 2, 1) + Hm @ self.lc[:, :cmax].reshape(-1, 2, 2) \
-            @ Hm.transpose(0, 2, 1) + rd.R
+            return [np.full(n, NEW) for _ in rows]
+        kind, R = rows[0].kind, rows[0].R
+        lm = self.lm[:, :cmax]
+        zhat, Hx, Hm = observe(kind, np.repeat(mu, cmax, axis=0), lm.reshape(-1, 2))
+        d = zhat.shape[1]
+        Hx = Hx.reshape(n, cmax, d, 3)
+        Hm = Hm.reshape(n, cmax, d, 2)
+        L = Hx @ Sig[:, None] @ Hx.swapaxes(-1, -2) + Hm @ self.lc[:, :cmax] @ Hm.swapaxes(-1, -2) + R
+        z = np.stack([rd.z for rd in rows])                        # (m, d)
+        nu = innovation(z[None, :, None, :], zhat.reshape(n, 1, cmax, d))  # (n, m, C, d)
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             Linv, det = inv_det(L)
-            d2 = np.einsum("ni,nij,nj->n", nu, Linv, nu).reshape(n, cmax)
-            score = d2 + np.log(det).reshape(n, cmax)
-        valid = self.lid[:, :cmax] > EMPTY
+            d2 = np.einsum("nmci,ncij,nmcj->nmc", nu, Linv, nu)
+            score = d2 + np.log(det)[:, None, :]
+        valid = (self.lid[:, :cmax] > EMPTY)[:, None, :]
         score = np.where(valid & np.isfinite(score), score, np.inf)
-        best = np.argmin(score, axis=1)
-        d2b = d2[np.arange(n), best]
-        d2b = np.where(np.isfinite(score[np.arange(n), best]), d2b, np.inf)
-        d = rd.z.size
+        best = np.argmin(score, axis=2)                            # (n, m)
+        d2b = np.take_along_axis(d2, best[..., None], axis=2)[..., 0]
+        okb = np.isfinite(np.take_along_axis(score, best[..., None], axis=2)[..., 0])
+        d2b = np.where(okb, d2b, np.inf)
         gate = chi2_gate(float(self.params["gate_prob"]), d)
         new = chi2_gate(float(self.params["new_landmark_prob"]), d)
-        return np.where(d2b <= gate, best, np.where(d2b > new, NEW, IGNORED))
+        tgt = np.where(d2b <= gate, best, np.where(d2b > new, NEW, IGNORED))
+        return [tgt[:, i] for i in range(m)]
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         rows = list(self.readings(measurements))
@@ -295,9 +309,13 @@ class FastSLAM2(SlamFilterBase):
         if self.prop_mu is None or self.prop_cov is None:  # no predict since the last update
             self.prop_mu, self.prop_cov = self.poses.copy(), np.zeros((self.n, 3, 3))
         mu, Sig = self.prop_mu.copy(), self.prop_cov.copy()
+        targets: dict[int, np.ndarray] = {}
+        for sensor in dict.fromkeys(rd.sensor for rd in rows if unknown(rd)):
+            idx = [i for i, rd in enumerate(rows) if unknown(rd) and rd.sensor == sensor]
+            targets.update(zip(idx, self._unknown_targets([rows[i] for i in idx], mu, Sig), strict=True))
         done: list[tuple[Reading, np.ndarray]] = []
-        for rd in rows:
-            tgt = self._targets(rd, mu, Sig)
+        for i, rd in enumerate(rows):
+            tgt = targets[i] if i in targets else self._known_targets(rd)
             k = np.flatnonzero(tgt >= 0)
             if k.size:
                 mu[k], Sig[k], loglik = proposal_step(rd.kind, rd.z, rd.R, mu[k], Sig[k],
