@@ -71,13 +71,18 @@ def time_filter(spec: str, ticks: int, hide: bool, params=None) -> tuple[float, 
     seed_sim = Simulation(full, 1)
     for _ in range(12):  # six sensor ticks with every beacon in range: all 50 mapped (and confirmed)
         feed(seed_sim.step())
-    sim = Simulation(near, 1)
-    steps = [s for s in (sim.step() for _ in range(2 * ticks)) if s.measurements][:ticks]
-    readings = 0
-    with Clock() as c:
-        for s in steps:
-            readings += feed(s)
-    return 1e3 * c.wall / len(steps), 1e3 * c.cpu / len(steps), len(flt.landmarks().means), readings / len(steps)
+    sim = Simulation(near, 1)  # the same seed: the same true path, the 8 m sensor
+    for _ in range(12):
+        sim.step()
+    wall = cpu = 0.0
+    timed = readings = 0
+    while timed < ticks:  # every tick is fed; the ticks with readings are timed
+        st = sim.step()
+        with Clock() as c:
+            got = feed(st)
+        if st.measurements:
+            wall, cpu, timed, readings = wall + c.wall, cpu + c.cpu, timed + 1, readings + got
+    return 1e3 * wall / timed, 1e3 * cpu / timed, len(flt.landmarks().means), readings / timed
 
 
 def time_drawing(reps: int) -> tuple[float, float]:
