@@ -2,6 +2,7 @@
 60 FPS frame, and the cost of drawing the maps in the window.
 
 Run:  /work/venv/bin/python benchmarks/bench_slam.py [--quick]
+      /work/venv/bin/python benchmarks/bench_slam.py --accuracy 10   (the accuracy table instead)
 
 The world: 50 beacons in a 30 m x 30 m room, a range-bearing sensor of 8 m at 10 Hz (about
 6-10 beacons in view), a robot on a 9 m circle. Each filter first maps all 50 beacons (six
@@ -105,10 +106,79 @@ def time_drawing(reps: int) -> tuple[float, float]:
     return 1e3 * c.wall / reps, 1e3 * c.cpu / reps
 
 
+def accuracy(runs: int) -> None:
+    """``--accuracy``: the slam_loop scenario over seeded runs: the path's ATE, the map's
+    GOSPA (c = 1 m) and the final pose NEES of each SLAM filter, known and unknown
+    correspondence, beside the localization EKF given the true map and the known-map PCRB
+    (the floor for the path), each mean with a 95 % interval (1.96 standard errors)."""
+    from dataclasses import replace
+
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.evaluation.pcrb import pcrb
+    from beacon_sim.evaluation.slam_metrics import ate, gospa
+
+    sc = load_scenario("slam_loop")
+    cases = [("ekf_slam", False), ("ekf_slam", True), ("fastslam", False), ("fastslam", True)]
+    res: dict[str, dict[str, list[float]]] = {}
+    truths, controls = [], []
+    for r in range(runs):
+        seed = 1000 + r
+        sim_truth = None
+        for spec, hide in [("ekf", False), *cases]:
+            scen = replace(sc, map_known=True) if spec == "ekf" else sc
+            flt = build_filter(spec, scen, seed)
+            sim = Simulation(scen, seed)
+            rng = np.random.default_rng(seed + 7)
+            est, tru, ctl = [], [np.array(scen.initial_pose)], []
+            for _ in range(round(scen.duration / scen.dt)):
+                st = sim.step()
+                ms = st.measurements
+                if hide:
+                    fired = [x for x in scen.sensors if x.name in {m.sensor for m in ms}]
+                    ms, _ = hide_ids_all(ms, fired, {x.name: ClutterSpec() for x in fired}, rng)
+                flt.predict(st.control, st.dt)
+                flt.update(ms)
+                est.append(flt.estimate()[0])
+                tru.append(st.true_pose)
+                ctl.append((st.control.v, st.control.omega))
+            if sim_truth is None:
+                sim_truth = np.array(tru)
+                truths.append(sim_truth)
+                controls.append(np.array(ctl))
+            label = spec + (" (no IDs)" if hide else "")
+            row = res.setdefault(label, {"ate": [], "gospa": [], "nees": []})
+            e = np.array(est)
+            row["ate"].append(ate(e, sim_truth[1:]))
+            m, P = flt.estimate()
+            d = sim_truth[-1] - m
+            d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+            row["nees"].append(float(d @ np.linalg.solve(P, d)))
+            if spec != "ekf":
+                row["gospa"].append(gospa(flt.landmarks().means, sc.world.beacon_xy, c=1.0).value)
+    B = pcrb(sc, np.stack(truths), np.stack(controls))
+    floor = np.sqrt(np.mean(B[..., 0, 0] + B[..., 1, 1], axis=1))
+
+    def ci(v):
+        v = np.asarray(v, dtype=float)
+        return f"{v.mean():.3f} +- {1.96 * v.std(ddof=1) / math.sqrt(len(v)):.3f}" if len(v) > 1 else "-"
+
+    print(f"slam_loop, {runs} seeded runs (seeds 1000..{999 + runs}), 95 % intervals")
+    print(f"{'filter':<22} {'ATE [m]':>16} {'GOSPA map [m]':>16} {'final NEES (3 dof)':>20}")
+    for label, row in res.items():
+        print(f"{label:<22} {ci(row['ate']):>16} {ci(row['gospa']) if row['gospa'] else '(map given)':>16} "
+              f"{ci(row['nees']):>20}")
+    print(f"{'known-map PCRB':<22} {ci(floor):>16}   (RMS of sqrt(Pxx + Pyy) over the path)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--accuracy", type=int, default=0, metavar="RUNS",
+                    help="also the accuracy table on slam_loop over RUNS seeded runs")
     args = ap.parse_args()
+    if args.accuracy:
+        accuracy(args.accuracy)
+        return
     ticks = 20 if args.quick else 100
     print(f"{'filter':<42} {'ms/tick':>8} {'cpu ms':>8} {'landmarks':>9} {'readings':>9}")
     for spec, label, params in (("ekf_slam", "EKF-SLAM", None),
