@@ -96,13 +96,15 @@ def time_drawing(reps: int) -> tuple[float, float]:
     app = App(Session(scenario(1e6), ["ekf_slam", "fastslam"], 1), (1280, 800), scripted=True)
     for _ in range(12):
         app.session.tick()
+    from beacon_sim.app.render import polyline
+
     layer = app.renderer.map_layer
     names = ["ekf_slam", "fastslam"]
     assert all(len(m.means) == 50 for m in layer.maps(app.session, names).values())
     surf = pygame.Surface((1280, 800))
     with Clock() as c:
         for _ in range(reps):
-            layer.draw(surf, app.view, app.session, names, app.colours, app.dashes, 4)
+            layer.draw(surf, app.view, app.session, names, app.colours, app.dashes, 4, polyline)
     return 1e3 * c.wall / reps, 1e3 * c.cpu / reps
 
 

@@ -10,6 +10,7 @@ the reason, as a bad ``belief()`` does.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -70,10 +71,9 @@ class MapLayer:
         return out
 
     def draw(self, surf: pygame.Surface, view, session: Any, names: list[str], colours, dashes,
-             lw: int) -> None:
-        """Every landmark of every visible SLAM filter: its 95 % ellipse and a cross."""
-        from beacon_sim.app.render import polyline  # the renderer imports this module
-
+             lw: int, polyline: Callable[..., None]) -> None:
+        """Every landmark of every visible SLAM filter: its 95 % ellipse and a cross.
+        ``polyline``: the renderer's dashed-line function (``render.polyline``)."""
         width = max(2, lw // 2)
         for name, lmap in self.maps(session, names).items():
             if not len(lmap.means):

@@ -314,7 +314,7 @@ class WorldRenderer:
             if extra is not None:
                 extra(surf, view, self.lw)
             if show.ellipses:
-                self.map_layer.draw(surf, view, session, list(beliefs), colours, dashes, self.lw)
+                self.map_layer.draw(surf, view, session, list(beliefs), colours, dashes, self.lw, polyline)
             estimates = []
             for name in session.names:
                 if name not in beliefs:

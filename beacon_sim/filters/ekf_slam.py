@@ -85,7 +85,7 @@ class EKFSLAM(SlamFilterBase):
         c = np.asarray(initial.cov, dtype=float).reshape(3, 3)
         self.P = 0.5 * (c + c.T)
         self.ids, self.index, self.last_pairs = [], {}, []
-        self.hits: list[int] = []  # readings each landmark was given
+        self.hits = []
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         return self.mu[:3].copy(), self.P[:3, :3].copy()

@@ -311,8 +311,8 @@ class FastSLAM2(SlamFilterBase):
         mu, Sig = self.prop_mu.copy(), self.prop_cov.copy()
         targets: dict[int, np.ndarray] = {}
         for sensor in dict.fromkeys(rd.sensor for rd in rows if unknown(rd)):
-            idx = [i for i, rd in enumerate(rows) if unknown(rd) and rd.sensor == sensor]
-            targets.update(zip(idx, self._unknown_targets([rows[i] for i in idx], mu, Sig), strict=True))
+            pick = [i for i, rd in enumerate(rows) if unknown(rd) and rd.sensor == sensor]
+            targets.update(zip(pick, self._unknown_targets([rows[i] for i in pick], mu, Sig), strict=True))
         done: list[tuple[Reading, np.ndarray]] = []
         for i, rd in enumerate(rows):
             tgt = targets[i] if i in targets else self._known_targets(rd)
