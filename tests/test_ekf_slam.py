@@ -194,3 +194,51 @@ def test_bearing_only_readings_update_but_do_not_start_landmarks():
     f, pose, est, _ = run(sc, "ekf_slam", 5)
     assert isinstance(f, EKFSLAM) and f.landmarks().means.shape == (0, 2)
     assert np.hypot(*(est[-1, :2] - pose[:2])) < 0.2
+
+
+def _two_landmark_state(association):
+    """docs/association.md's hand-built case on a SLAM state: landmarks 5 m away at bearings
+    +-0.1 rad, mapped to 1 mm, the heading uncertain by 0.2 rad, bearings good to 0.01 rad."""
+    sc = ring_scenario(3)
+    sc = replace(sc, model_sensors=tuple(replace(s, kind="bearing") for s in sc.model_sensors))
+    f = build_filter("ekf_slam", sc, 0, params={"association": association})
+    xy = [(5 * np.cos(0.1), 5 * np.sin(0.1)), (5 * np.cos(-0.1), 5 * np.sin(-0.1))]
+    f.mu = np.array([0.0, 0.0, 0.0, *xy[0], *xy[1]])
+    f.P = np.diag([1e-4, 1e-4, 0.2 ** 2, 1e-6, 1e-6, 1e-6, 1e-6])
+    f.ids, f.hits = [-1, -1], [5, 5]
+    return f
+
+
+def test_jcbb_rejects_the_crossed_pairing_nearest_neighbour_takes():
+    """The robot truly turned 0.15 rad less than the estimate: it reads landmark 0 at 0.25 rad
+    and landmark 1 at 0.05. Nearest neighbour pairs the closest first (0.05 with landmark 0)
+    and crosses the pairs; JCBB finds the pairing one heading error explains."""
+    z = np.array([[0.25], [0.05]])
+    meas = [Measurement("beacons", "bearing", z, np.array([-1, -1]))]
+    nn = _two_landmark_state("nn")
+    pending = list(nn.readings(meas))
+    assert nn.joint_nis(pending, [(0, 1), (1, 0)]) > 100 > 1 > nn.joint_nis(pending, [(0, 0), (1, 1)])
+    jc = _two_landmark_state("jcbb")
+    jc.update(meas)
+    nn.update(meas)
+    assert jc.last_method == "jcbb" and nn.last_method == "nn"
+    assert jc.last_chosen == {0: 0, 1: 1}
+    assert nn.last_chosen == {0: 1, 1: 0}
+    # JCBB's pairing: one heading correction of -0.15 rad explains both readings
+    assert jc.mu[2] == pytest.approx(-0.15, abs=0.01)
+
+
+def test_unknown_correspondence_with_nn_and_jcbb_agree_on_a_benign_run():
+    sc = ring_scenario(6, duration=10.0)
+    truth = np.array(list(true_beacons(sc).values()))
+    for assoc in ("nn", "jcbb"):
+        f, *_ = run(sc, "ekf_slam", 9, hide=True, clutter=0.2, params={"association": assoc})
+        g = gospa(f.landmarks().means, truth, c=1.0)
+        assert g.missed == 0 and g.false == 0, (assoc, g)
+
+
+def test_a_bad_association_name_is_a_one_line_error():
+    from beacon_sim.filters.base import FilterError
+
+    with pytest.raises(FilterError, match="association = 'jbcc': expected 'jcbb' or 'nn'"):
+        build_filter("ekf_slam", ring_scenario(3), 0, params={"association": "jbcc"})

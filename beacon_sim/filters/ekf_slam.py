@@ -22,9 +22,11 @@ New landmark from ``z = [r, b]`` (``slam_base.place``: m = g(x, z))::
     P_mm = Gx P_xx Gx^T + Gz R Gz^T,   P_m* = Gx P_x*         (Gx = dg/dx, Gz = dg/dz)
 
 Unknown correspondence (readings with ID -1): each tick's readings are paired with the
-landmarks and anchors by nearest neighbour on the squared Mahalanobis distance with the
-full S (the landmark's own uncertainty included), each landmark at most once; a reading
-inside the gate (``gate_prob``) updates its landmark; one farther than the
+landmarks and anchors, each landmark at most once, by JCBB (joint compatibility branch and
+bound, Neira and Tardos 2001, over the full state: the stacked innovations of a pairing
+against ``H P H^T + R`` with every cross term) or by nearest neighbour on the squared
+Mahalanobis distance with the full S (parameter ``association``); a reading paired inside
+the gate (``gate_prob``) updates its landmark; one farther than the
 ``new_landmark_prob`` quantile from everything starts a new landmark; one in between is
 dropped (it could be either). Bearing-only readings update landmarks but cannot start one
 (no delayed initialisation yet).
@@ -41,7 +43,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import jacobian_state, move
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.association import gate as chi2_gate
-from beacon_sim.filters.base import FilterContext, GaussianBelief, LandmarkMap, broad_gaussian
+from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, LandmarkMap, broad_gaussian
 from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
 
 
@@ -58,6 +60,11 @@ class EKFSLAM(SlamFilterBase):
         and anchor starts a new landmark.
     max_landmarks : int, default 500
         Most landmarks in the state (readings of further new ones are dropped).
+    association : str, default "jcbb"
+        Unknown correspondence: ``"jcbb"`` (joint compatibility branch and bound over the
+        full state; nearest neighbour when it passes ``max_nodes``) or ``"nn"``.
+    max_nodes : int, default 1000
+        Most search nodes JCBB may visit in a tick.
     confirm_hits : int, default 2
         Unknown correspondence: a new landmark is tentative until it has been given this
         many readings; a tentative landmark the sensor should have seen and did not is
@@ -65,7 +72,7 @@ class EKFSLAM(SlamFilterBase):
     """
 
     defaults: ClassVar[dict] = {"gate_prob": 0.99, "new_landmark_prob": 0.9999, "max_landmarks": 500,
-                                "confirm_hits": 2}
+                                "confirm_hits": 2, "association": "jcbb", "max_nodes": 1000}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
@@ -75,6 +82,12 @@ class EKFSLAM(SlamFilterBase):
         self.hits: list[int] = []          # readings each landmark was given
         self.index: dict[int, int] = {}    # beacon ID -> landmark number
         self.last_pairs: list[tuple[int, int | None]] = []  # (reading row, landmark or None)
+        self.last_method = ""  # unknown correspondence: "jcbb", "nn" or "nn-fallback" last tick
+        self.last_nodes = 0
+        self.last_chosen: dict[int, int] = {}  # unlabelled reading -> landmark (or M + anchor)
+        if self.params["association"] not in ("jcbb", "nn"):
+            raise FilterError(f"{type(self).__name__}: parameter association = "
+                              f"{self.params['association']!r}: expected 'jcbb' or 'nn'")
         self.reset(None)
 
     # -- belief ----------------------------------------------------------------------------
@@ -235,23 +248,103 @@ class EKFSLAM(SlamFilterBase):
                     self._remove(j)
         self.last_pairs = pairs
 
+    def _pair_model(self, rd: Reading, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Innovation (d,) and the full-state Jacobian (d, n) of reading rd paired with
+        candidate j (landmarks first, then anchors)."""
+        M = len(self.ids)
+        if j < M:
+            nu, Hx, Hm, s = self._model(rd, j)
+        else:
+            nu, Hx, Hm, s = self._model(Reading(rd.kind, rd.z, rd.R, -1, list(self.anchors.values())[j - M]),
+                                        None)
+        H = np.zeros((nu.size, self.mu.size))
+        H[:, :3] = Hx
+        if s:
+            H[:, s:s + 2] = Hm
+        return nu, H
+
+    def joint_nis(self, pending: list[Reading], pairs: Sequence[tuple[int, int]]) -> float:
+        """Joint NIS of a pairing [(reading i, candidate j), ...]: the stacked innovations
+        against ``S = H P H^T + R`` over the stack, with the cross terms that the shared pose
+        and landmark errors put between the readings (Neira and Tardos 2001)."""
+        if not pairs:
+            return 0.0
+        models = [self._pair_model(pending[i], j) for i, j in pairs]
+        nu = np.concatenate([m[0] for m in models])
+        H = np.vstack([m[1] for m in models])
+        R = np.zeros((nu.size, nu.size))
+        k = 0
+        for i, _ in pairs:
+            d = pending[i].z.size
+            R[k:k + d, k:k + d] = pending[i].R
+            k += d
+        S = H @ self.P @ H.T + R
+        try:
+            return float(nu @ np.linalg.solve(S, nu))
+        except np.linalg.LinAlgError:
+            return float("inf")
+
+    def _jcbb(self, pending: list[Reading], d2: np.ndarray, gate: np.ndarray) -> dict[int, int] | None:
+        """Joint compatibility branch and bound over the full SLAM state (as
+        ``association.jcbb``, which works on a pose-only covariance): the most readings
+        paired, among those the lowest joint NIS, each pairing jointly inside the
+        ``gate_prob`` quantile for its degrees of freedom. None when the search passes
+        ``max_nodes`` (the caller falls back to nearest neighbour)."""
+        prob = float(self.params["gate_prob"])
+        cand = [[int(j) for j in np.argsort(d2[i], kind="stable") if d2[i, j] <= gate[i]]
+                for i in range(len(pending))]
+        order = sorted((i for i, c in enumerate(cand) if c), key=lambda i: (len(cand[i]), i))
+        best: list = [(), float("inf")]
+        nodes = 0
+        cap = int(self.params["max_nodes"])
+
+        def visit(k: int, pairs: tuple, used: frozenset, dof: int, value: float) -> bool:
+            nonlocal nodes
+            nodes += 1
+            if nodes > cap:
+                return False
+            if len(pairs) + (len(order) - k) < len(best[0]):
+                return True
+            if k == len(order):
+                if len(pairs) > len(best[0]) or (len(pairs) == len(best[0]) and value < best[1]):
+                    best[0], best[1] = pairs, value
+                return True
+            i = order[k]
+            d = pending[i].z.size
+            for j in cand[i]:
+                if j in used:
+                    continue
+                grown = (*pairs, (i, j))
+                v = self.joint_nis(pending, grown)
+                if v <= chi2_gate(prob, dof + d) and not visit(k + 1, grown, used | {j}, dof + d, v):
+                    return False
+            return visit(k + 1, pairs, used, dof, value)  # reading i left unpaired
+
+        if not visit(0, (), frozenset(), 0, 0.0):
+            return None
+        self.last_nodes = nodes
+        return dict(best[0])
+
     def _associate(self, pending: list[Reading]) -> set[int]:
-        """Nearest neighbour for the tick's unlabelled readings (see the module docstring)."""
+        """Pair the tick's unlabelled readings with landmarks and anchors (JCBB or nearest
+        neighbour, parameter ``association``), update, start new landmarks (see the module
+        docstring)."""
         M = len(self.ids)
         anchors = list(self.anchors.values())
         d2 = np.array([self._distances(rd) for rd in pending]).reshape(len(pending), M + len(anchors))
         dof = [rd.z.size for rd in pending]
         gate = np.array([chi2_gate(float(self.params["gate_prob"]), k) for k in dof])
         new = np.array([chi2_gate(float(self.params["new_landmark_prob"]), k) for k in dof])
-        taken: set[int] = set()
-        chosen: dict[int, int] = {}
-        if d2.size:
-            for flat in np.argsort(d2, axis=None, kind="stable"):
-                i, j = divmod(int(flat), d2.shape[1])
-                if d2[i, j] > gate[i] or i in chosen or j in taken:
-                    continue
-                chosen[i] = j
-                taken.add(j)
+        chosen = nn_pairs(d2, gate)
+        self.last_method = "nn"
+        if self.params["association"] == "jcbb" and d2.size:
+            found = self._jcbb(pending, d2, gate)
+            if found is not None:
+                chosen = found
+                self.last_method = "jcbb"
+            else:
+                self.last_method = "nn-fallback"
+        self.last_chosen = chosen
         seen = set()
         for i, rd in enumerate(pending):
             if i in chosen:
@@ -268,3 +361,17 @@ class EKFSLAM(SlamFilterBase):
                     seen.add(j_new)
         return seen
 
+
+def nn_pairs(d2: np.ndarray, gate: np.ndarray) -> dict[int, int]:
+    """Greedy nearest neighbour: the closest (reading, candidate) pair inside its reading's
+    gate first, then the closest of the rest with both free, and so on."""
+    chosen: dict[int, int] = {}
+    taken: set[int] = set()
+    if d2.size:
+        for flat in np.argsort(d2, axis=None, kind="stable"):
+            i, j = divmod(int(flat), d2.shape[1])
+            if d2[i, j] > gate[i] or i in chosen or j in taken:
+                continue
+            chosen[i] = j
+            taken.add(j)
+    return chosen

@@ -152,7 +152,8 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                                                                      "from all: a new landmark"),
                          "max_landmarks": Range(0, 10_000, "most landmarks in the state"),
                          "confirm_hits": Range(1, 1000, "readings before a new unlabelled landmark "
-                                                        "is kept")}),
+                                                        "is kept"),
+                         "max_nodes": Range(1, 10_000_000, "most JCBB search nodes per tick")}),
     FilterRecord("fastslam", "beacon_sim.filters.fastslam:FastSLAM2", ("yellow", "dash-dot"),
                  ranges={"n_particles": Range(1, 100_000, "particles, each with its own map"),
                          "ess_threshold": Range(*_FRACTION, "resample when ESS < this share of N"),
