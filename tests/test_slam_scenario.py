@@ -74,3 +74,31 @@ def test_the_slam_scenario_ships_and_both_filters_close_the_loop():
         est = flt.estimate()[0]
         assert np.hypot(*(est[:2] - truth[-1, :2])) < 0.3, name
     assert "not on the map" in (res.runner.tracks["ekf"].failed or "")
+
+
+def test_the_loop_closure_shrinks_the_whole_map_at_once():
+    """EKF-SLAM on slam_loop: from 60 s (coming back, the first beacons not yet in view again)
+    to 75 s (after seeing them), the summed 95 % ellipse areas of the landmarks not in view at
+    75 s shrink by more than half, and so does the pose's."""
+    from beacon_sim.core.sensors import visible_beacons
+    from beacon_sim.core.simulation import Simulation
+
+    sc = load_scenario("slam_loop")
+    f = build_filter("ekf_slam", sc, sc.seed)
+    sim = Simulation(sc, sc.seed)
+    snap = {}
+    for _ in range(round(76.0 / sc.dt)):
+        st = sim.step()
+        f.predict(st.control, st.dt)
+        f.update(st.measurements)
+        if round(st.time / sc.dt) in (round(60.0 / sc.dt), round(75.0 / sc.dt)):
+            lm = f.landmarks()
+            snap[round(st.time)] = ({int(i): float(np.sqrt(np.linalg.det(c))) for i, c in zip(lm.ids, lm.covs,
+                                                                                         strict=True)},
+                                    float(np.sqrt(np.linalg.det(f.estimate()[1][:2, :2]))), st.true_pose)
+    (before, pose_before, _), (after, pose_after, pose75) = snap[60], snap[75]
+    in_view = set(sc.world.beacon_ids[visible_beacons(sc.sensors[0], pose75, sc.world)].tolist())
+    far = [i for i in before if i not in in_view]
+    assert len(far) >= 5
+    assert sum(after[i] for i in far) < 0.5 * sum(before[i] for i in far)
+    assert pose_after < 0.5 * pose_before
