@@ -160,15 +160,16 @@ def accuracy(runs: int) -> None:
     B = pcrb(sc, np.stack(truths), np.stack(controls))
     floor = np.sqrt(np.mean(B[..., 0, 0] + B[..., 1, 1], axis=1))
 
-    def ci(v):
+    def ci(v, fmt=".3f"):
         v = np.asarray(v, dtype=float)
-        return f"{v.mean():.3f} +- {1.96 * v.std(ddof=1) / math.sqrt(len(v)):.3f}" if len(v) > 1 else "-"
+        half = 1.96 * v.std(ddof=1) / math.sqrt(len(v)) if len(v) > 1 else math.nan
+        return f"{v.mean():{fmt}} +- {half:{fmt}}"
 
     print(f"slam_loop, {runs} seeded runs (seeds 1000..{999 + runs}), 95 % intervals")
     print(f"{'filter':<22} {'ATE [m]':>16} {'GOSPA map [m]':>16} {'final NEES (3 dof)':>20}")
     for label, row in res.items():
         print(f"{label:<22} {ci(row['ate']):>16} {ci(row['gospa']) if row['gospa'] else '(map given)':>16} "
-              f"{ci(row['nees']):>20}")
+              f"{ci(row['nees'], '.3g'):>20}")
     print(f"{'known-map PCRB':<22} {ci(floor):>16}   (RMS of sqrt(Pxx + Pyy) over the path)")
 
 
