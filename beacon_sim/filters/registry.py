@@ -153,7 +153,9 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "max_landmarks": Range(0, 10_000, "most landmarks in the state"),
                          "confirm_hits": Range(1, 1000, "readings before a new unlabelled landmark "
                                                         "is kept"),
-                         "max_nodes": Range(1, 10_000_000, "most JCBB search nodes per tick")}),
+                         "max_nodes": Range(1, 10_000_000, "most JCBB search nodes per tick"),
+                         "min_parallax": Range(1e-3, 3.0, "angle between two bearings before a "
+                                                          "landmark is triangulated [rad]")}),
     FilterRecord("fastslam", "beacon_sim.filters.fastslam:FastSLAM2", ("yellow", "dash-dot"),
                  ranges={"n_particles": Range(1, 100_000, "particles, each with its own map"),
                          "ess_threshold": Range(*_FRACTION, "resample when ESS < this share of N"),
