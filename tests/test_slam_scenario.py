@@ -102,3 +102,13 @@ def test_the_loop_closure_shrinks_the_whole_map_at_once():
     assert len(far) >= 5
     assert sum(after[i] for i in far) < 0.5 * sum(before[i] for i in far)
     assert pose_after < 0.5 * pose_before
+
+
+def test_a_localization_filter_on_an_unknown_map_gets_a_note_first():
+    from beacon_sim.filters.loading import sensor_note
+
+    sc = load_scenario("slam_loop")
+    note = sensor_note("pf", sc)
+    assert note is not None and "has no landmarks()" in note and "\n" not in note
+    assert sensor_note("ekf_slam", sc) is None and sensor_note("dead_reckoning", sc) is None
+    assert sensor_note("pf", load_scenario("default")) is None

@@ -446,7 +446,18 @@ def one_line_text(text: str) -> str:
 def sensor_note(spec: str, scenario: Scenario) -> str | None:
     """A one-line note when a filter declares the measurement kinds it uses
     (``sensor_kinds``) and the scenario has no sensor of those kinds: it can only predict."""
-    kinds = getattr(load_filter_class(spec), "sensor_kinds", None)
+    from beacon_sim.filters.dead_reckoning import DeadReckoning
+
+    cls = load_filter_class(spec)
+    kinds = getattr(cls, "sensor_kinds", None)
+    beacon_kinds = {"bearing", "range_bearing"}
+    if not scenario.map_known and not hasattr(cls, "landmarks") \
+            and not (isinstance(cls, type) and issubclass(cls, DeadReckoning)) \
+            and (kinds is None or beacon_kinds & set(kinds)) \
+            and any(s.kind in beacon_kinds for s in scenario.sensors):
+        return (f"note: {filter_display_name(spec)} has no landmarks() and {scenario.name} does not "
+                f"give the filters the beacon map: a localization filter is switched off at its "
+                f"first reading of a beacon it was not given (docs/slam.md; try ekf_slam, fastslam)")
     if kinds is None or any(s.kind in kinds for s in scenario.sensors):
         return None
     have = ", ".join(sorted({s.kind for s in scenario.sensors})) or "no sensors"
