@@ -160,6 +160,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("path", help="the .py file to write (refused if it exists)")
     p.add_argument("--team", action="store_true",
                    help="a team filter for scenarios with several robots (docs/multi-robot.md)")
+    p.add_argument("--slam", action="store_true",
+                   help="a SLAM filter that maps the beacons itself (docs/slam.md)")
     return parser
 
 

@@ -323,7 +323,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     failed: str | None = None
     report: dict[str, Any] = {}
     ns = done = 0
-    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+    ctx = FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known, dt=scenario.dt,
                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
                         params=dict(scenario.filter_params.get(name, {})) if params is None else params,
                         rng=stream(sr.seed, "filter", name))

@@ -72,7 +72,8 @@ class FilterContext:
     name : str
         The filter's name in this run.
     world : World
-        Bounds and the beacon map.
+        Bounds and the beacon map the filter is given: every beacon, or on an unknown map
+        (SLAM, docs/slam.md) only the anchors.
     dt : float
         The simulation tick [s] (``predict`` also receives dt).
     motion_noise : MotionNoise
@@ -83,6 +84,9 @@ class FilterContext:
         The filter's parameters (scenario ``[filters.NAME]`` and ``--set`` overrides).
     rng : numpy.random.Generator
         The only random generator the filter may use.
+    map_known : bool
+        False when the scenario withholds the beacon map (``[model] map = "unknown"``):
+        ``world.beacons`` holds only the anchors and a filter must map the rest itself.
     """
 
     name: str
@@ -92,6 +96,7 @@ class FilterContext:
     sensors: tuple[SensorSpec, ...]
     params: Mapping[str, Any] = field(default_factory=dict)
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+    map_known: bool = True
 
     def sensor(self, name: str) -> SensorSpec:
         """The spec (with the filter's noise) of the sensor that produced a measurement."""
@@ -114,6 +119,32 @@ class Filter(Protocol):
     def estimate(self) -> tuple[np.ndarray, np.ndarray]: ...
 
     def belief(self) -> Belief: ...
+
+
+@dataclass(frozen=True, eq=False)
+class LandmarkMap:
+    """A SLAM filter's map estimate (docs/slam.md), world frame.
+
+    Attributes
+    ----------
+    ids : ndarray of int, shape (M,), or None
+        The beacon ID each landmark stands for (known correspondence), or None when the
+        filter made its landmarks up from unlabelled readings (unknown correspondence).
+    means : ndarray, shape (M, 2) [m]
+    covs : ndarray, shape (M, 2, 2) [m^2]
+    """
+
+    ids: np.ndarray | None
+    means: np.ndarray
+    covs: np.ndarray
+
+
+@runtime_checkable
+class MappingFilter(Filter, Protocol):
+    """A SLAM filter: a :class:`Filter` whose estimate carries the map as well.
+    ``estimate()`` stays the pose's (3,), (3, 3); ``landmarks()`` is the map."""
+
+    def landmarks(self) -> LandmarkMap: ...
 
 
 @runtime_checkable
