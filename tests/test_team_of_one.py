@@ -40,7 +40,7 @@ def test_team_of_one_is_the_single_robot_run(name):
         a, b = single.tracks[n], tr.track(n)
         assert np.array_equal(np.array(a.means), np.array(b.means))
         assert np.array_equal(np.array(a.covs), np.array(b.covs))
-        ticks, means, covs = tr.series(n)
+        _, means, _ = tr.series(n)
         assert means.shape == (120, 1, 3) and np.array_equal(means[:, 0], np.array(a.means))
 
 
