@@ -116,8 +116,12 @@ def test_the_single_robot_run_is_the_n_robot_run_with_n_1():
     assert means.shape == (T, 1, 3) and covs.shape == (T, 1, 3, 3) and ticks[0] == 1
     # a single-robot filter on every robot of a team and a team filter, in one run
     assert team.filters.is_member("independent:ekf") and not team.filters.is_member("centralised")
-    d = team.as_json()
+    d = team.as_json()  # a team's output keeps its keys
+    assert set(d) == {"scenario", "team", "seed", "steps", "sim_time_s", "robots", "anees_band",
+                      "team_anees_band", "readings", "truth_checksum", "filters"}
     for name in ("centralised", "independent:ekf"):
+        assert set(d["filters"][name]) == {"robots", "team_pos_rmse_m", "team_heading_rmse_rad",
+                                           "team_anees", "team_anees_verdict", "us_per_step"}
         assert set(d["filters"][name]["robots"]) == {r.name for r in team.team.robots}
         assert d["filters"][name]["team_pos_rmse_m"] > 0
 
