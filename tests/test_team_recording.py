@@ -137,7 +137,7 @@ def test_headless_replay_gives_the_same_truth_and_estimates_bit_for_bit(recorded
     assert isinstance(rec, TeamRecording) and rec.complete
     out = replay_team_recording(rec)
     assert out.replay["checksum_status"] == "verified"
-    assert np.array_equal(out.result.truth, truth)  # every robot, every tick, bit for bit
+    assert np.array_equal(out.result.true_poses, truth)  # every robot, every tick, bit for bit
     for name in FILTERS:
         tr = out.result.tracks[name]
         assert not tr.failed
@@ -148,7 +148,7 @@ def test_headless_replay_gives_the_same_truth_and_estimates_bit_for_bit(recorded
 def test_other_filters_run_on_the_same_truth(recorded):
     path, truth, _ = recorded
     out = replay_team_recording(load_team_recording(path), ["ci", "independent:ukf"])
-    assert np.array_equal(out.result.truth, truth)
+    assert np.array_equal(out.result.true_poses, truth)
     assert set(out.result.tracks) == {"ci", "independent:ukf"}
     assert all(not t.failed for t in out.result.tracks.values())
 
@@ -264,7 +264,7 @@ def test_a_truncated_recording_replays_up_to_the_last_full_tick(recorded, tmp_pa
     assert any("incomplete last line" in w for w in rec.warnings)
     out = replay_team_recording(rec)
     assert out.replay["checksum_status"] == "verified up to the last complete tick"
-    assert np.array_equal(out.result.truth, truth[:100])
+    assert np.array_equal(out.result.true_poses, truth[:100])
 
 
 @pytest.mark.parametrize("edit, message", [

@@ -281,7 +281,8 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
             raise mismatch_error(recording, sim.tick, len(recording.ticks), why + " at the end")
     status = verification_status(recording, checked, len(recording.ticks), at_end=True,
                                  coverage=verifier.coverage())
-    result = RunResult(scenario, recording.seed, steps, runner, wall, sim_ns / 1e9, sim.truth_checksum)
+    result = RunResult.of_single(scenario, recording.seed, steps, runner, wall, sim_ns / 1e9,
+                                 sim.truth_checksum)
     result.extra["replay"] = {
         "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
         "checksum_status": with_signature(status, recording) if verify else "not checked",

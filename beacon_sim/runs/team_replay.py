@@ -4,7 +4,7 @@ others (the team counterpart of runs/replay.py; the format is beacon_sim/io/reco
 
 :func:`replay_team_recording` re-simulates a file headless, checks its checksums (truth and
 readings, per tick, at the checkpoints and at the end) and gives the figures of
-``beacon-sim run`` on a team scenario (a :class:`~beacon_sim.runs.team.TeamRunResult`);
+``beacon-sim run`` on a team scenario (a :class:`~beacon_sim.runs.headless.RunResult`);
 :class:`TeamReplaySession` is the same one tick at a time, for the window.
 
 Each tick goes as it went live (``runs/live.Session.tick``): the recorded user
@@ -27,10 +27,11 @@ from typing import Any
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.types import Control
 from beacon_sim.filters.loading import split_label
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
-from beacon_sim.filters.team_runner import JointRunner, build_team_filters
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
+from beacon_sim.filters.team_runner import JointRunner, TeamRunner, build_team_filters
 from beacon_sim.filters.team_specs import MEMBER_PREFIX, build_team_spec, team_filter_name
 from beacon_sim.io.recording import TeamRecording, TeamTickRecord
+from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.live import Session, TeamTracks, reset_team_filters
 from beacon_sim.runs.recorder import TeamReadingsHash, team_commands_to_sim
 from beacon_sim.runs.replay import (
@@ -46,7 +47,6 @@ from beacon_sim.runs.replay import (
     verification_status,
     with_signature,
 )
-from beacon_sim.runs.team import TeamRunResult
 
 
 def is_builtin_team_spec(spec: str) -> bool:
@@ -94,7 +94,7 @@ class TeamReplayResult:
     prints them) and what the replay checked (``replay``: file, ticks, checksum status,
     skipped filters, warnings)."""
 
-    result: TeamRunResult
+    result: RunResult
     replay: dict[str, Any]
     readings_checksum: str
 
@@ -177,7 +177,9 @@ def replay_team_recording(recording: TeamRecording, filters: list[str] | None = 
             raise mismatch_error(recording, sim.tick, len(recording.ticks), why + " at the end")
     status = verification_status(recording, checked, len(recording.ticks), at_end=True,
                                  coverage=verifier.coverage())
-    result = TeamRunResult(team, recording.seed, steps, runner.tracks, sim.truth_checksum, wall)
+    result = RunResult(team, recording.seed, steps,
+                       TeamRunner.around(team, [FilterRunner({}) for _ in team.robots], runner),
+                       wall, wall, sim.truth_checksum)
     replay = {
         "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
         "checksum_status": with_signature(status, recording) if verify else "not checked",
