@@ -20,6 +20,7 @@ from beacon_sim.cli.common import (
 from beacon_sim.cli.tables import failed_text, fmt, print_run
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
+from beacon_sim.evaluation.association_metrics import association_report
 from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.team import check_team_specs, run_team_headless
 
@@ -39,6 +40,8 @@ def run_command(args: argparse.Namespace) -> int:
     else:
         print_run(data)
     print_failures(result.runner.tracks.values())
+    if getattr(args, "associations", False):  # issue 29
+        print(association_report(scenario, args.filters, args.seed, args.duration, filter_params(args)))
     return 0
 
 

@@ -526,7 +526,10 @@ def particle_loglik(flt: Any, m: Measurement, ll: np.ndarray) -> int:
     best, d2 = _particle_d2(m.kind, m.z, poses, w.xy, spec.reading_std())
     g = gate(w.prob, READING_DIMS[m.kind])
     w.choices[m.sensor] = np.where(d2 <= g, best, -1)
-    flt._count_unexplained((-0.5 * d2).T, READING_DIMS[m.kind], 0.0)
+    # Not counted by the filter's "lost" test (augmented MCL's random particles): with clutter
+    # a row no beacon explains is the expected case, and a tick of clutter alone looked like
+    # a kidnap; random particles then explained the clutter with some beacon and the cloud
+    # left the truth (default with clutter_rate = 0.3: 2.6 m RMSE against 0.09 m).
     ll += -0.5 * np.minimum(d2, g).sum(axis=1)
     return int(np.asarray(m.z).size)
 
@@ -550,10 +553,13 @@ class _GridWiring(_Wiring):
         pose = np.array([flt.xc[i], flt.yc[j], float(flt.theta[h])])
         out: dict[str, tuple[int | None, ...]] = {}
         for m in self.readings:
-            best, d2 = _particle_d2(m.kind, m.z, pose[None, :], self.xy,
-                                    flt.ctx.sensor(m.sensor).reading_std())
+            std = flt.ctx.sensor(m.sensor).reading_std()
+            # the grid knows the pose to a cell and a heading bin: the filter's own inflation
+            var = std ** 2 + (np.array([flt.cell ** 2 / 6.0, flt.bin ** 2 / 12.0])[-std.size:])
+            best, d2 = _particle_d2(m.kind, m.z, pose[None, :], self.xy, np.sqrt(var))
             g = gate(self.prob, READING_DIMS[m.kind])
-            out[m.sensor] = tuple(int(self.ids[b]) if d <= g else None for b, d in zip(best[0], d2[0], strict=True))
+            out[m.sensor] = tuple(int(self.ids[b]) if d <= g else None
+                                  for b, d in zip(best[0], d2[0], strict=True))
         return out
 
 
