@@ -593,21 +593,36 @@ def grid_mixture(flt: Any, measurements: Sequence[Measurement], cos_th: np.ndarr
         rmax = spec.max_range if math.isfinite(spec.max_range) else math.hypot(flt.ctx.world.width,
                                                                               flt.ctx.world.height)
         log_u = -math.log(2.0 * math.pi) - (math.log(rmax) if m.kind == "range_bearing" else 0.0)
+        base0 = math.log(c) + log_u           # the clutter term: the floor of the mixture
+        share = math.log((1.0 - c) / nb)
         for row in np.asarray(m.z, dtype=float):
             cz, sz = math.cos(row[-1]), math.sin(row[-1])
-            terms = np.full((nb + 1, *flt.grid.shape), math.log(c) + log_u)
+            # sum_b exp(term_b - base0), only where beacon b can explain the row (a range
+            # within 6 sigma, a cell within max_range): the rest of each term is below
+            # e^-18 of the floor and is left out.
+            acc = np.zeros(flt.grid.shape)
             for b in range(nb):
                 r = flt._r[b]
-                kappa = 1.0 / (std[-1] ** 2 + flt.bin ** 2 / 12 + cell_var / np.maximum(r, flt.cell) ** 2)
-                ca, sa = flt._ca[b], flt._sa[b]
-                # kappa (cos(z - alpha + theta) - 1) + log of the von Mises' normaliser
-                core = cos_th * (kappa * (cz * ca + sz * sa))[None] \
-                    - sin_th * (kappa * (sz * ca - cz * sa))[None]
-                base = -kappa + 0.5 * np.log(kappa / (2.0 * math.pi))
                 if m.kind == "range_bearing":
                     sr2 = std[0] ** 2 + cell_var
-                    base = base - 0.5 * (r - row[0]) ** 2 / sr2 - 0.5 * math.log(2.0 * math.pi * sr2)
-                terms[b + 1] = core + base[None] + math.log((1.0 - c) / nb)
-            mix = np.logaddexp.reduce(terms, axis=0)
+                    lr = -0.5 * (r - row[0]) ** 2 / sr2
+                    where = np.nonzero(lr > -18.0)
+                else:
+                    where = np.nonzero(r <= rmax + flt.cell)
+                if where[0].size == 0:
+                    continue
+                rw = r[where]
+                kappa = 1.0 / (std[-1] ** 2 + flt.bin ** 2 / 12 + cell_var / np.maximum(rw, flt.cell) ** 2)
+                ca, sa = flt._ca[b][where], flt._sa[b][where]
+                # kappa (cos(z - alpha + theta) - 1) + log of the von Mises' normaliser
+                core = cos_th[:, :, 0] * (kappa * (cz * ca + sz * sa))[None] \
+                    - sin_th[:, :, 0] * (kappa * (sz * ca - cz * sa))[None]
+                base = -kappa + 0.5 * np.log(kappa / (2.0 * math.pi)) + share - base0
+                if m.kind == "range_bearing":
+                    base = base + lr[where] - 0.5 * math.log(2.0 * math.pi * sr2)
+                core += base[None]
+                np.minimum(core, 700.0, out=core)
+                acc[:, where[0], where[1]] += np.exp(core)
+            mix = base0 + np.log1p(acc)
             total = mix if total is None else total + mix
     return labeled, total
