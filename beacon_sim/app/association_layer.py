@@ -16,8 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.app import palette
-
 #: The dash pattern (px on, px off) of a wrong association.
 WRONG_DASH = (14, 9)
 #: The colour of a wrong association.
