@@ -63,7 +63,7 @@ def association_lines(mean: np.ndarray, given: Mapping[str, tuple[int | None, ..
         for i, bid in enumerate(rows):
             if bid is None or bid not in ids:
                 continue
-            wrong = bool(aligned and int(true[i]) != int(bid))
+            wrong = bool(aligned and true is not None and int(true[i]) != int(bid))
             out.append((np.asarray(mean[:2], dtype=float), world.beacon_positions([bid])[0], wrong))
     return out
 

@@ -100,6 +100,8 @@ class {class_name}(FilterBase):
         for m in measurements:
             if m.kind == "range_bearing":
                 for z, beacon_id in zip(m.z, m.beacon_ids, strict=True):
+                    if beacon_id < 0:  # no ID (correspondence = "unknown"): writing-a-filter.md 8c
+                        continue
                     beacon_xy = self.beacons[int(beacon_id)]
                     h = mm.range_bearing(self.mean, beacon_xy)[0]             # expected z, (2,)
                     H = mm.range_bearing_jacobian(self.mean, beacon_xy)[0]    # (2, 3)
