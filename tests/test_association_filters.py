@@ -268,7 +268,7 @@ def test_lookalike_beacons_the_ekf_locks_one_door_off_the_pf_keeps_both_and_ends
             f.predict(step.control, step.dt)
             f.update(step.measurements)
         x = step.true_pose[0]
-        if step.time < 24.0:  # before the odd beacon comes into range
+        if step.time < 19.0:  # before the odd beacon comes into range
             b = pf.belief()
             near = b.weights[np.abs(b.poses[:, 0] - x) < 0.7].sum()
             door_off = b.weights[np.abs(b.poses[:, 0] - (x + 2.0)) < 0.7].sum()

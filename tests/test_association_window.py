@@ -19,7 +19,7 @@ def test_lines_go_from_the_estimate_to_the_beacon_given_and_wrong_ones_are_marke
     truth = {"doors": np.array([3, -1, 5, -1])}  # 4 for 3: wrong; clutter left out: right
     lines = layer.association_lines(mean, given, truth, world)
     assert [(tuple(b), w) for _, b, w in lines] == [((7.0, 1.0), True), ((9.0, 1.0), False),
-                                                     ((17.0, 5.0), True)]
+                                                     ((15.0, 5.0), True)]
     assert all(np.array_equal(a, mean[:2]) for a, _, _ in lines)
     # without the truth (or rows that do not match it) nothing is called wrong
     assert not any(w for _, _, w in layer.association_lines(mean, given, {}, world))
