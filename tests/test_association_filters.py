@@ -256,6 +256,7 @@ def test_metrics_on_a_benign_scenario_ekf_and_pf_associate_almost_everything():
 
 
 # -- the look-alike lesson ---------------------------------------------------------------------
+@pytest.mark.slow
 def test_lookalike_beacons_the_ekf_locks_one_door_off_the_pf_keeps_both_and_ends_right():
     sc = load_scenario("lookalike_beacons")
     ekf = build_filter("ekf", sc, sc.seed)
