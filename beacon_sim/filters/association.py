@@ -22,6 +22,12 @@ their ``beacon_ids`` (n,).
 
 The result of the Gaussian methods is an :class:`Association`: for each reading, the ID of the
 beacon it was given to, or None (clutter, or no beacon compatible with it).
+
+The filters' hooks (issue 29, step 2; each filter calls one at the start of its update and
+returns at once when every sensor tells its IDs): :func:`associate_gaussian` (EKF, UKF: NN or
+JCBB at the predicted belief, then a labeled reading), :func:`particle_loglik` (per-particle
+maximum likelihood), :func:`grid_mixture` (the histogram's mixture over the beacons). What
+they chose is reported by ``FilterBase.associations()``.
 """
 
 from __future__ import annotations
@@ -60,7 +66,7 @@ Pairing = tuple[tuple[int, int], ...]
 
 @dataclass(frozen=True)
 class Association:
-    """For each reading, the beacon it was given to (the filter interface will report this).
+    """For each reading, the beacon it was given to (what ``associations()`` reports).
 
     Attributes
     ----------
