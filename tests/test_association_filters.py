@@ -283,3 +283,22 @@ def test_lookalike_beacons_the_ekf_locks_one_door_off_the_pf_keeps_both_and_ends
     assert abs(mean[0] - step.true_pose[0] - 2.0) < 0.3  # still one door off at the end
     mean, _ = pf.estimate()
     assert np.hypot(*(mean[:2] - step.true_pose[:2])) < 0.2  # the odd beacon told them apart
+
+
+def test_run_associations_prints_the_table_or_puts_it_in_the_json(capsys):
+    import json
+
+    from beacon_sim.cli.main import main
+
+    assert main(["run", "lookalike_beacons", "--filter", "ekf", "--duration", "5", "--associations"]) == 0
+    out = capsys.readouterr().out
+    header = next(line for line in out.splitlines() if line.startswith("association"))
+    assert header.split()[1:4] == ["readings", "correct", "false"]
+    assert main(["run", "lookalike_beacons", "--filter", "ekf", "--duration", "5", "--associations",
+                 "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    ekf = data["associations"]["ekf"]
+    assert ekf["readings"] == ekf["correct"] + ekf["false"] + ekf["missed"] > 0
+    assert ekf["rmse_cost_m"] > 1.0  # one door off
+    assert main(["run", "default", "--filter", "ekf", "--duration", "1", "--associations"]) == 0
+    assert "nothing to score" in capsys.readouterr().out

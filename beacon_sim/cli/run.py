@@ -35,13 +35,17 @@ def run_command(args: argparse.Namespace) -> int:
                           params=filter_params(args), progress=sys.stderr.isatty())
     print_sensor_notes(list(args.filters or scenario.default_filters), scenario)
     data = result.as_json()
+    scored = None
+    if getattr(args, "associations", False):  # issue 29: a second run with the IDs told
+        scored = association_report(scenario, args.filters, args.seed, args.duration, filter_params(args))
+        data["associations"] = scored.json
     if args.json:
         print(json.dumps(data, indent=None, default=float))
     else:
         print_run(data)
     print_failures(result.runner.tracks.values())
-    if getattr(args, "associations", False):  # issue 29
-        print(association_report(scenario, args.filters, args.seed, args.duration, filter_params(args)))
+    if scored is not None and not args.json:
+        print(scored.text)
     return 0
 
 

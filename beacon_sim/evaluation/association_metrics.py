@@ -179,11 +179,36 @@ def format_scores(scores: dict[str, AssociationScore]) -> str:
     return "\n".join(lines)
 
 
+@dataclass(frozen=True)
+class AssociationReport:
+    """What ``run --associations`` prints: the table (``text``) or, with ``--json``, the
+    per-filter figures (``json``: filter -> figures, None when nothing hides IDs)."""
+
+    text: str
+    json: dict[str, dict[str, Any]] | None
+
+
+def scores_json(scores: dict[str, AssociationScore]) -> dict[str, dict[str, Any]]:
+    """Per filter, its figures as plain numbers (a failed filter: only ``failed``)."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, s in scores.items():
+        if s.failed:
+            out[name] = {"failed": s.failed}
+            continue
+        out[name] = {"reported": s.reported, "readings": s.readings, "correct": s.correct,
+                     "false": s.false, "missed": s.missed, "clutter": s.clutter,
+                     "fraction_correct": None if not s.readings else s.fraction_correct,
+                     "rmse_m": s.rmse, "rmse_known_m": s.rmse_known, "rmse_cost_m": s.rmse_cost}
+    return out
+
+
 def association_report(scenario: Scenario, filters: list[str] | None = None, seed: int | None = None,
                        duration: float | None = None, params: dict[str, dict[str, Any]] | None = None
-                       ) -> str:
-    """:func:`format_scores` of :func:`association_scores`, or a line saying there is nothing
-    to score (every sensor's correspondence known)."""
+                       ) -> AssociationReport:
+    """:func:`format_scores` and :func:`scores_json` of :func:`association_scores`, or a line
+    saying there is nothing to score (every sensor's correspondence known)."""
     if not has_unknown_correspondence(scenario):
-        return "association: every sensor of this scenario tells its beacon IDs (nothing to score)"
-    return format_scores(association_scores(scenario, filters, seed, duration, params))
+        return AssociationReport("association: every sensor of this scenario tells its beacon IDs "
+                                 "(nothing to score)", None)
+    scores = association_scores(scenario, filters, seed, duration, params)
+    return AssociationReport(format_scores(scores), scores_json(scores))
