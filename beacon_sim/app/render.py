@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pygame
 
-from beacon_sim.app import palette, shapes
+from beacon_sim.app import association_layer, palette, shapes
 from beacon_sim.app.map_layer import MapLayer
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.core.schedule import period_ticks
@@ -309,7 +309,7 @@ class WorldRenderer:
                     if session.visible[name]:
                         self.trail(surf, view, session.trail(name), colours[name], 2)
             self.rays(surf, view, sc.world, pose, session.readings())
-            seen = session.seen_ids()
+            seen = session.seen_ids() | association_layer.seen_by_truth(session)  # issue 29
             self.beacons(surf, view, sc.world, seen,
                          missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
             self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
@@ -323,6 +323,7 @@ class WorldRenderer:
                 extra(surf, view, self.lw)
             if show.ellipses:
                 self.map_layer.draw(surf, view, session, list(beliefs), colours, dashes, self.lw, polyline)
+            association_layer.draw(surf, view, session, colours, self.lw, polyline)  # issue 29
             estimates = []
             for name in session.names:
                 if name not in beliefs:

@@ -19,6 +19,7 @@ from beacon_sim.cli.common import (
 )
 from beacon_sim.cli.tables import failed_text, fmt, print_run
 from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.evaluation.association_metrics import association_report
 from beacon_sim.filters.team_specs import check_team_specs
 from beacon_sim.runs.headless import run_headless
 
@@ -40,6 +41,11 @@ def run_command(args: argparse.Namespace) -> int:
     if team.solo:
         print_sensor_notes(specs, team.robots[0].scenario)
     data = result.as_json()
+    scored = None
+    if getattr(args, "associations", False) and team.solo:  # issue 29: a second run, IDs told
+        scored = association_report(team.robots[0].scenario, args.filters, args.seed,
+                                    args.duration, params)
+        data["associations"] = scored.json
     if args.json:
         print(json.dumps(data, indent=None, default=float))
     elif team.solo:
@@ -47,6 +53,8 @@ def run_command(args: argparse.Namespace) -> int:
     else:
         print_team_run(data)
     print_failures(result.tracks.values())
+    if scored is not None and not args.json:
+        print(scored.text)
     return 0
 
 

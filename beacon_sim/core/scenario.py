@@ -427,7 +427,8 @@ _KNOWN: dict[str, set[str]] = {
     "robot": {"initial_pose", "radius", "motion_noise"},
     "robot.motion_noise": _NOISE_KEYS,
     "sensors[]": {"name", "kind", "period", "max_range", "fov", "detection_prob",
-                  "outlier_rate", "min_beacons", "beacon_height"} | _SENSOR_NOISE_KEYS,
+                  "outlier_rate", "min_beacons", "beacon_height", "correspondence",
+                  "clutter_rate"} | _SENSOR_NOISE_KEYS,
     "driver": {"kind", "v", "omega", "radius", "speed", "gain", "max_omega", "tolerance",
                "margin", "points", "loop"},
     "keyboard": {"v_step", "v_max", "v_min", "omega_step", "omega_max"},
@@ -479,11 +480,33 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
         min_beacons=t.integer("min_beacons", 2 if kind == "position" else 1, lo=1, hi=MAX_BEACONS),
         beacon_height=t.number("beacon_height", 0.0, lo=0, hi=MAX_COORD),
         noise=_sensor_noise(t, SensorNoise()),
+        **_correspondence(t, kind),
     )
     if kind == "position" and spec.min_beacons < 2:
         t.fail(t.key("min_beacons"), spec.min_beacons, "at least 2 for a position fix")
+    if spec.clutter_rate > 0 and kind == "range_bearing" and not math.isfinite(spec.max_range):
+        t.fail(t.key("max_range"), spec.max_range, "a finite range when clutter_rate > 0 (clutter "
+                                                   "ranges are uniform in [0, max_range])")
     t.finish()
     return spec
+
+
+#: Most false detections per reading a sensor may declare (issue 29).
+MAX_CLUTTER_RATE: Final = 100.0
+
+
+def _correspondence(t: _Table, kind: str) -> dict[str, Any]:
+    """The keys ``correspondence`` ("known" | "unknown", beacon sensors only) and
+    ``clutter_rate`` (false detections per reading, unknown correspondence only)."""
+    corr = t.string("correspondence", "known", choices=("known", "unknown"))
+    if corr == "unknown" and kind not in ("bearing", "range_bearing"):
+        t.fail(t.key("correspondence"), corr, f"'known' for a {kind} fix (only bearing and "
+                                              "range_bearing readings can hide their beacon)")
+    rate = t.number("clutter_rate", 0.0, lo=0, hi=MAX_CLUTTER_RATE)
+    if rate > 0 and corr != "unknown":
+        t.fail(t.key("clutter_rate"), rate, "0 unless correspondence = 'unknown' (a false "
+                                            "detection has no beacon ID to carry)")
+    return {"correspondence": corr, "clutter_rate": rate}
 
 
 def _driver(t: _Table, world: World) -> DriverSpec:

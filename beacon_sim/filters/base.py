@@ -8,6 +8,10 @@ A filter is any object with::
     update(measurements)      measurement update; the sequence may be empty
     estimate() -> (mean, cov) mean shape (3,) [m, m, rad], cov shape (3, 3)
     belief()                  GaussianBelief, ParticleBelief or GridBelief, for drawing
+
+and optionally ``associations() -> {sensor: (beacon ID or None, ...)}``: for each reading
+without IDs (unknown correspondence) of the last update, the beacon it was given to
+(issue 29; ``FilterBase`` provides it for the built-in filters, docs/association.md).
 """
 
 from __future__ import annotations
@@ -234,6 +238,12 @@ class FilterBase:
     def belief(self: _Estimating) -> Belief:
         mean, cov = self.estimate()
         return GaussianBelief(mean, cov)
+
+    def associations(self) -> dict[str, tuple[int | None, ...]]:
+        """Per sensor with unknown correspondence, the beacon ID (or None: clutter) each row
+        of its reading in the last update was given to; {} when there was none."""
+        wiring = self.__dict__.get("_association")
+        return {} if wiring is None else wiring.report(self)
 
 
 def broad_gaussian(world: World) -> GaussianBelief:

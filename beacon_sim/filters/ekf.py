@@ -44,6 +44,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterContext, GaussianBelief, broad_gaussian
 from beacon_sim.filters.gaussian_measurements import (
     BatchableFilter,
@@ -169,8 +170,9 @@ class ExtendedKalmanFilter(VelocityGaussian):
         Joseph-form covariance update; False uses ``P - K S K^T``.
     """
 
-    defaults: ClassVar[dict] = {"gate_chi2": 0.0, "joseph": True}
-    batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": None}
+    defaults: ClassVar[dict] = {"gate_chi2": 0.0, "joseph": True, **association.GAUSSIAN_PARAMS}
+    batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": None,
+                                              **dict.fromkeys(association.GAUSSIAN_PARAMS)}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
@@ -179,6 +181,7 @@ class ExtendedKalmanFilter(VelocityGaussian):
         self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.joseph = bool(self.params["joseph"])
         self.rejected = 0  # readings dropped by the gate so far
+        association.attach(self)  # unknown correspondence (issue 29)
 
     def batched(self, runs: int) -> BatchedEKF:
         mean, cov = self.estimate()
@@ -243,6 +246,7 @@ class ExtendedKalmanFilter(VelocityGaussian):
     def update(self, measurements: Sequence[Measurement]) -> None:
         if not measurements:
             return
+        measurements = association.associate_gaussian(self, measurements)  # unknown IDs: issue 29
         groups = self.linearise(measurements)
         if not groups:
             return

@@ -42,6 +42,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.resampling import RESAMPLERS, resample
 
@@ -247,6 +248,7 @@ class ParticleFilter(FilterBase):
         measurements = [m for m in measurements if len(m)]
         if not measurements:
             return
+        association.particle_start(self)  # issue 29: forget the last per-particle choices
         if self._pending_resample:
             self._resample()
         n = self.n
@@ -444,6 +446,8 @@ class ParticleFilter(FilterBase):
         """Add the log-likelihood of ``m`` at every particle to ``ll`` (noise constants that
         are the same for all particles left out, so every term is <= 0). Returns the number
         of scalar readings."""
+        if association.is_unlabeled(m):  # unknown correspondence: ML per particle (issue 29)
+            return association.particle_loglik(self, m, ll)
         n = self.n
         spec = self.ctx.sensor(m.sensor)
         x, y, th = self._P[0, :n], self._P[1, :n], self._P[2, :n]

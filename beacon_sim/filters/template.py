@@ -100,6 +100,8 @@ class {class_name}(FilterBase):
         for m in measurements:
             if m.kind == "range_bearing":
                 for z, beacon_id in zip(m.z, m.beacon_ids, strict=True):
+                    if beacon_id < 0:  # no ID (correspondence = "unknown"): writing-a-filter.md 8c
+                        continue
                     beacon_xy = self.beacons.get(int(beacon_id))
                     if beacon_xy is None:  # not on the map it was given (SLAM: new-filter --slam)
                         continue
