@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import statistics
 import time
 import tomllib
 
@@ -146,10 +147,9 @@ class TightPF:
         T1 *= self.kappa
         logw, wn = self.logw, self.w
         logw += T1.sum(axis=0, dtype=np.float64)
-        logw -= logw.max()
+        logw -= logw.max()                    # log-weights relative to the best
         np.exp(logw, out=wn)
         wn *= 1.0 / wn.sum()
-        np.log(wn, out=logw)
         # estimate
         E, wt = self.E, self.a
         wt[:] = wn
@@ -172,47 +172,47 @@ class TightPF:
             for row in range(3):
                 np.take(P[row], idx, out=self.P2[row])
             self.P, self.P2 = self.P2, self.P
-            logw.fill(-math.log(n))
+            logw.fill(0.0)
             wn.fill(1.0 / n)
         return mean, cov
 
 
 def pf_rows(n, reps, floor="minimal", tries=2):
-    """Our PF's step against a floor (``minimal``: :func:`minimal_pf_step`; ``tight``:
-    :class:`TightPF`), interleaved, best of two tries of each."""
-    meas = steps(reps + 5)
+    """Our PF's step (predict, update, estimate) against a floor (``minimal``:
+    :func:`minimal_pf_step`; ``tight``: :class:`TightPF`) on the same ``reps`` ticks,
+    interleaved: each round starts both from the same belief (a tracked start near the
+    truth) and times ours, then the floor. Returns (our best round, the floor's best round,
+    the median over the rounds of the ratio ours / floor), process CPU time in the clocks."""
+    meas = steps(reps + 3)
     ctx = FilterContext("pf", WORLD, DT, NOISE, (SPEC,), {"n_particles": n}, np.random.default_rng(1))
     pf = ParticleFilter(ctx)
-    pf.reset(GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([0.01, 0.01, 0.01])))
+    start = GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([0.01, 0.01, 0.01]))
     rng = np.random.default_rng(2)
-    p = np.array([5.0, 5.0, 0.0]) + rng.normal(0, 0.1, (n, 3))
-    w = np.full(n, 1.0 / n)
-    tight = TightPF(n, rng)
-
-    def peer(z):
-        nonlocal p, w
-        if floor == "tight":
-            tight.step(z)
-        else:
-            p, w, *_ = minimal_pf_step(p, w, z, rng)
-    for m in meas[:3]:   # warm-up
-        pf.predict(U, DT)
-        pf.update([m])
-        pf.estimate()
-        peer(m.z)
     ours = mine = None
-    for _ in range(tries):   # interleaved, best of the tries: the same load for both
+    ratios = []
+    for i in range(tries + 1):   # the first round warms up and is not counted
+        pf.reset(start)
+        p = np.array([5.0, 5.0, 0.0]) + rng.normal(0, 0.1, (n, 3))
+        w = np.full(n, 1.0 / n)
+        tight = TightPF(n, rng)
         with Clock() as a:
-            for m in meas[3:3 + reps]:
+            for m in meas[:reps]:
                 pf.predict(U, DT)
                 pf.update([m])
                 pf.estimate()
         with Clock() as b:
-            for m in meas[3:3 + reps]:
-                peer(m.z)
+            if floor == "tight":
+                for m in meas[:reps]:
+                    tight.step(m.z)
+            else:
+                for m in meas[:reps]:
+                    p, w, *_ = minimal_pf_step(p, w, m.z, rng)
+        if i == 0:
+            continue
+        ratios.append(a.cpu / b.cpu)
         ours = a if ours is None or a.cpu < ours.cpu else ours
         mine = b if mine is None or b.cpu < mine.cpu else mine
-    return ours, mine
+    return ours, mine, statistics.median(ratios)
 
 
 # ------------------------------------------------------------- a plain-Python sequential EKF
@@ -329,7 +329,7 @@ def main() -> None:
     print(f"load average at start: {os.getloadavg()[0]:.2f}; figures: wall (CPU)")
 
     # PF at 100k particles against the minimal numpy PF
-    ours, mine = pf_rows(100_000, 10 if q else 30)
+    ours, mine, _ = pf_rows(100_000, 10 if q else 30)
     n = 10 if q else 30
     print(f"pf 100k: ours {ours.wall / n * 1e3:.2f} ({ours.cpu / n * 1e3:.2f}) ms/step, minimal numpy "
           f"{mine.wall / n * 1e3:.2f} ({mine.cpu / n * 1e3:.2f}) ms/step")
