@@ -236,7 +236,9 @@ class ParticleFilter(FilterBase):
         x += c
         y += s
         th += w
-        ps = noise.pose_std_at(control.v, control.omega)  # slip scales with the command
+        # slip scales the additive pose noise with the command; none declared: nothing to add
+        pose_std = getattr(noise, "pose_std", None)
+        ps = noise.pose_std_at(control.v, control.omega) if pose_std is None or any(pose_std) else ()
         if any(ps):
             for row, std in zip((x, y, th), ps, strict=True):
                 if std > 0:
