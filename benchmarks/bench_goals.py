@@ -2,13 +2,16 @@
 
 Run:  python benchmarks/bench_goals.py [--quick]
 
-Rows (targets from the issue; docs/performance.md keeps the table):
+Rows (targets from the issues; docs/performance.md keeps the table):
 - pf step at 100k particles / a minimal hand-written numpy particle filter (<= 1.2x);
+- pf step / the tight numpy floor (``TightPF``: our models, every buffer kept) at 1k
+  (<= 1.3x) and 100k (<= 1.15x) particles, the median of interleaved rounds (issue 27);
 - ekf step / a plain-Python sequential EKF, 4 bearings a step (<= 1.2x);
 - ukf step / ekf step on the same problem (<= 2.5x);
 - the runner's guard of one estimate (<= 3 us), beside an EKF step;
 - headless `default`, 120 s, all six filters: CPU (<= 2.0 s), beside the bare simulation;
 - ukf step and a batched eval with 1000 beacons in view / 100 in view (<= 15x: linear);
+  the ekf step with 1000 in view / the ukf's (<= 1.0, issue 27; all counts: bench_readings.py);
 - a batched eval on a 1000-beacon map with 2 in view / the per-run path (sizing by readings).
 The eval (100 x 2,000 x 3 filters, 2 jobs) and the window's frame are bench_eval.py and
 bench_frame.py. Everything runs with numpy's BLAS on one thread (``figures.py``).
@@ -336,6 +339,15 @@ def main() -> None:
     figure("pf step, 100k particles (CPU)", ours.cpu / n * 1e3, "ms", peer="minimal numpy pf",
            peer_value=mine.cpu / n * 1e3, target=1.2, target_of="ratio")
 
+    # PF against the tight floor (issue 27): fixed per-call costs at 1k, the whole at 100k
+    floors = ((1_000, 100, 5 if q else 9, 1.3), (100_000, 10 if q else 20, 3 if q else 5, 1.15))
+    for count, reps, tries, target in floors:
+        a, b, ratio = pf_rows(count, reps, "tight", tries=tries)
+        print(f"pf {count:,}: ours {a.cpu / reps * 1e6:.0f} us CPU/step, tight numpy floor "
+              f"{b.cpu / reps * 1e6:.0f} us; median ratio of {tries} interleaved rounds {ratio:.2f}x")
+        figure(f"pf step, {count:,} particles / tight numpy floor (CPU, median of rounds)", ratio, "x",
+               target=target)
+
     # EKF against a plain-Python sequential EKF; UKF against the EKF
     sc, stp = krejsa("bearing", 300 if q else 1000)
     ekf, ukf = build_filter("ekf", sc, 0), build_filter("ukf", sc, 0)
@@ -393,6 +405,8 @@ def main() -> None:
         per[nb]["eval"] = eval_time(bsc, ["ekf", "ukf"], 4, 0.5 if q else 1.0, True, tries=2).cpu
         print(f"{nb} beacons in view: ekf {per[nb]['ekf']:.0f} us, ukf {per[nb]['ukf']:.0f} us CPU a step; "
               f"batched eval (4 runs) {per[nb]['eval']:.2f} s CPU")
+    figure("ekf step, 1000 beacons in view (CPU)", per[1000]["ekf"], "us", peer="our ukf",
+           peer_value=per[1000]["ukf"], target=1.0, target_of="ratio")
     figure("ukf step, 1000 beacons in view (CPU)", per[1000]["ukf"], "us", peer="100 in view",
            peer_value=per[100]["ukf"], target=15.0, target_of="ratio")
     figure("batched eval ekf+ukf, 1000 in view (CPU)", per[1000]["eval"], "s", peer="100 in view",
