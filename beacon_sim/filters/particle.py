@@ -279,9 +279,11 @@ class ParticleFilter(FilterBase):
         extra = self._extra = self._tick_loglik(measurements)
         ll = self._fit[:n]
         logw = self._logw[:n]
-        tmp = self._wn[:n]                   # float64 scratch, ends as the normalised weights
-        # The predicted weights (for the collapse floor), then the tick's fit for augmented MCL.
-        self._prior_w[:n] = self._wn[:n]
+        # The predicted weights stay as they are for the collapse floor (the two buffers
+        # swap: no copy); the other is scratch and ends as the normalised weights.
+        self._prior_w, self._wn = self._wn, self._prior_w
+        tmp = self._wn[:n]
+        # The tick's fit for augmented MCL.
         best = float(_max(ll))
         self._update_lost()
         if self.params["recovery_fit"] == "best":
@@ -302,8 +304,7 @@ class ParticleFilter(FilterBase):
             logw += ll
             if extra is not None:
                 logw += extra
-        tmp[:] = logw
-        logw -= _logsumexp_inplace(tmp)
+        logw -= _logsumexp_into(logw, tmp)
         np.maximum(logw, -700.0, out=logw)          # no denormals (they are slow)
         np.exp(logw, out=tmp)
         tmp *= 1.0 / _sum(tmp)
@@ -881,6 +882,18 @@ def _plus(logw: np.ndarray, ll: np.ndarray, extra: np.ndarray | None, out: np.nd
     if extra is not None:
         out += extra
     return out
+
+
+def _logsumexp_into(a: np.ndarray, out: np.ndarray) -> float:
+    """log(sum(exp(a))), with ``out`` (like ``a``) as scratch: :func:`_logsumexp_inplace` of a
+    copy of ``a``, without the copy (the same operations on the same values)."""
+    m = float(_max(a))
+    if not math.isfinite(m):
+        return m
+    np.subtract(a, m, out=out)
+    np.maximum(out, -700.0, out=out)
+    np.exp(out, out=out)
+    return m + math.log(float(_sum(out)))
 
 
 def _logsumexp_inplace(a: np.ndarray) -> float:
