@@ -92,3 +92,18 @@ def test_systematic_resampling_counts_equal_the_diff_of_the_boundaries(n_out):
         below = np.clip(np.ceil(c - u).astype(np.int64), 0, n_out)
         ref = np.repeat(np.arange(w.shape[0]), np.diff(below, prepend=0))
         assert np.array_equal(idx, ref)
+
+
+NOISES = [MotionNoise(), MotionNoise(v_std=0.02, v_frac=0.05, omega_std=0.03, omega_frac=0.1),
+          MotionNoise(v_std=1, v_frac=0, omega_std=0.5, omega_frac=2, slip="legacy")]
+
+
+@pytest.mark.parametrize("noise", NOISES)
+def test_control_std_of_one_command_on_floats_equals_the_array_form(noise):
+    for v, w in itertools.product(SPECIAL, SPECIAL):
+        fast = noise.control_std(v, w)
+        with np.errstate(all="ignore"):  # 1e308 * 2 overflows to inf in both forms
+            ref = noise.control_std(np.array(v), np.array(w))
+        for a, b in zip(fast, ref, strict=True):
+            assert type(a) is np.float64
+            assert same(float(a), float(b)), (v, w)

@@ -110,6 +110,10 @@ class MotionNoise:
     def control_std(self, v, omega):
         """Standard deviations ``(sigma_v, sigma_omega)`` for a command (arrays broadcast)."""
         g = self.slip_gain(v, omega)
+        if type(v) is float and type(omega) is float:
+            # one command on floats: the same operations, returned as np.float64 as below
+            return (np.float64(g * self.v_std + self.v_frac * abs(v)),
+                    np.float64(g * self.omega_std + self.omega_frac * abs(omega)))
         return (
             g * self.v_std + self.v_frac * np.abs(v),
             g * self.omega_std + self.omega_frac * np.abs(omega),

@@ -60,6 +60,7 @@ _clip = _find_clip()
 # results without their Python layers (1-1.5 us a call, a few per step).
 _max = np.maximum.reduce
 _sum = np.add.reduce
+_any = np.logical_or.reduce
 
 
 class ParticleFilter(FilterBase):
@@ -138,7 +139,7 @@ class ParticleFilter(FilterBase):
         self._hit = np.empty(cap, dtype=bool)
         self._trig_n = 0   # > 0: _c[:n], _s[:n] are cos, sin of the n particles' headings now
         self._sensor_of: dict[str, Any] = {}   # sensor name -> (spec, constants of _loglik)
-        self._beacons_of: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # IDs -> x, y
+        self._beacons_of: dict[bytes, tuple[np.ndarray, np.ndarray, np.dtype]] = {}  # IDs -> x, y
         self.n = 0
         self.w_slow = 0.0
         self.w_fast = 0.0
@@ -155,6 +156,7 @@ class ParticleFilter(FilterBase):
         self._last_v = 0.0
         self._dims = 1
         self._work: np.ndarray | None = None
+        self._views: dict[tuple[int, int], list[np.ndarray]] = {}  # (k, n) -> _scratch's views
         self._extra: np.ndarray | None = None
         self.reset(None)
 
@@ -264,7 +266,7 @@ class ParticleFilter(FilterBase):
         # float32 rounding can leave exactly pi (rarely: test first, assign only then)
         hit = self._hit[: a.shape[0]]
         np.greater_equal(a, math.pi, out=hit)
-        if hit.any():
+        if _any(hit):
             a[hit] = -math.pi
 
     # ----------------------------------------------------------------- measurements
@@ -431,11 +433,13 @@ class ParticleFilter(FilterBase):
         cut = self._chi2_cut.get(dof)
         if cut is None:
             cut = self._chi2_cut[dof] = chi2_quantile(self.params["lost_chi2"], dof)
-        best = _max(fits, axis=-1)
-        k = int(np.size(best))
+        best = _max(fits, axis=-1)   # an array (k,), or a numpy scalar for one row
+        k = int(best.size)
         self._tally[0] += k
         if k <= 16:   # a few readings: on floats (float32 -> float exactly, the same test)
-            self._tally[1] += sum(1 for b in np.atleast_1d(best).tolist() if -2.0 * b > cut)
+            vals = best.tolist()
+            self._tally[1] += sum(1 for b in vals if -2.0 * b > cut) if type(vals) is list \
+                else int(-2.0 * vals > cut)
         else:
             self._tally[1] += int(np.count_nonzero(-2.0 * np.asarray(best, dtype=np.float64) > cut))
         self._tally[2] += eps * k
@@ -699,6 +703,7 @@ class ParticleFilter(FilterBase):
             if self._work is None or self._work.shape[1] < 4:
                 self._work = np.empty((5, max(4, len(self.ctx.world.beacons)), self.capacity),
                                       dtype=self.dtype)
+                self._views.clear()
             mean, cov = weighted_pose_stats(P, w, self._work[:, 0, :], trig)
             if self._spread_floor is not None:
                 cov = cov + self._spread_floor
@@ -763,22 +768,28 @@ class ParticleFilter(FilterBase):
     def _beacon_columns(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The x and y [m] of these beacons as columns (k, 1) of the particles' dtype,
         remembered per set of IDs (an unknown ID raises as ``World.beacon_positions``)."""
-        key = ids.dtype.str.encode() + ids.tobytes()
+        key = ids.tobytes()
         cols = self._beacons_of.get(key)
-        if cols is None:
+        if cols is None or cols[2] != ids.dtype:
             bxy = self.ctx.world.beacon_positions(ids)
-            cols = (bxy[:, 0:1].astype(self.dtype), bxy[:, 1:2].astype(self.dtype))
+            cols = (bxy[:, 0:1].astype(self.dtype), bxy[:, 1:2].astype(self.dtype), ids.dtype)
             if len(self._beacons_of) >= 4096:
                 self._beacons_of.clear()
             self._beacons_of[key] = cols
-        return cols
+        return cols[0], cols[1]
 
     def _scratch(self, k: int, n: int) -> list[np.ndarray]:
-        """Five (k, n) work arrays, reused between calls."""
+        """Five (k, n) work arrays, reused between calls (the views too, per (k, n))."""
         if self._work is None or self._work.shape[1] < k:
             self._work = np.empty((5, max(k, len(self.ctx.world.beacons)), self.capacity),
                                   dtype=self.dtype)
-        return [self._work[i, :k, :n] for i in range(5)]
+            self._views.clear()
+        views = self._views.get((k, n))
+        if views is None:
+            if len(self._views) >= 64:
+                self._views.clear()
+            views = self._views[(k, n)] = [self._work[i, :k, :n] for i in range(5)]
+        return views
 
 
 def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = None,
