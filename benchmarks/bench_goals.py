@@ -162,8 +162,10 @@ class TightPF:
         np.subtract(y, my, out=E[1])
         e = E[2]
         np.subtract(th, mth, out=e)
-        e[e >= math.pi] -= TWO_PI
-        e[e < -math.pi] += TWO_PI
+        if np.logical_or.reduce(e >= math.pi):
+            e[e >= math.pi] -= TWO_PI
+        if np.logical_or.reduce(e < -math.pi):
+            e[e < -math.pi] += TWO_PI
         cov = ((E * wt) @ E.T).astype(np.float64)
         mean = np.array([mx, my, mth])
         # systematic resampling

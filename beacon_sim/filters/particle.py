@@ -830,8 +830,10 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = 
     np.subtract(P[1], my, out=E[1])
     e = E[2]
     np.subtract(P[2], mth, out=e)            # in (-2 pi, 2 pi): wrap by at most one turn
-    np.subtract(e, TWO_PI, out=e, where=e >= math.pi)
-    np.add(e, TWO_PI, out=e, where=e < -math.pi)
+    if _any(np.greater_equal(e, math.pi)):  # rarely: test first, wrap only then
+        np.subtract(e, TWO_PI, out=e, where=e >= math.pi)
+    if _any(np.less(e, -math.pi)):
+        np.add(e, TWO_PI, out=e, where=e < -math.pi)
     WE = np.multiply(E, wt)
     cov = (WE @ E.T).astype(np.float64)
     cov = 0.5 * (cov + cov.T)
