@@ -14,7 +14,7 @@ RESAMPLERS = ("systematic", "stratified", "residual", "multinomial")
 
 def _scaled_cumsum(weights: np.ndarray, n_out: int) -> np.ndarray:
     """``n_out * cumsum(w)`` with the last entry forced to exactly ``n_out`` (rounding)."""
-    c = np.cumsum(weights, dtype=np.float64)
+    c = np.add.accumulate(weights, dtype=np.float64)  # np.cumsum without its Python layers
     c *= n_out / c[-1]
     c[-1] = n_out
     return c
