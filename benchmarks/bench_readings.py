@@ -4,8 +4,9 @@ Run:  python benchmarks/bench_readings.py [--rounds 5] [--seconds 1.0]
 
 `default`'s room and tour with n beacons, all in view and seen on every tick (range-bearing,
 ``bench_goals.beacon_scenario``), n = 1, 10, 100, 1000. Each round times the EKF and then the
-UKF over the same recorded ticks (predict + update, process CPU time, per step); the figure
-is the median over the rounds of each round's EKF / UKF ratio. Target: <= 1.0 at every n
+UKF over the same recorded ticks (predict + update, process CPU time, per step); the FIGURE
+line's ratio is the EKF's median over the rounds against the UKF's, the table's last column
+the median of each round's own ratio (the two agree to a few %). Target: <= 1.0 at every n
 (the EKF no slower than the UKF). Above ``ekf.STACKED_ROWS`` rows a tick the EKF takes its
 stacked form on arrays, below it the row-by-row form on floats.
 """
