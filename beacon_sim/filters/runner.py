@@ -123,6 +123,9 @@ class FilterTrack:
     slow_warning: str | None = None
     recent_step_ns: deque[int] = field(default_factory=lambda: deque(maxlen=SLOW_WINDOW))
     recent_sum_ns: int = 0  # the sum of recent_step_ns [ns], kept by note_step_time
+    #: The filter time charged against a run limit [ns]: the filter thread's CPU time under
+    #: CPU limits (a verdict that does not depend on the machine's load), else ``step_ns``.
+    charged_ns: int = 0
 
     @property
     def us_per_step(self) -> float:
@@ -199,7 +202,7 @@ class FilterRunner:
         shorter)."""
         step, run = self.step_limit_s, self.run_limit_s
         if run is not None:
-            left = run - track.step_ns / 1e9
+            left = run - (track.charged_ns if self.cpu_limits else track.step_ns) / 1e9
             if step is None or left < step:
                 return left, True
         return step, False
@@ -247,6 +250,7 @@ class FilterRunner:
             else:
                 limit, of_run = self._limit(track)
             watch.seconds = limit
+            cpu0 = 0 if no_run_limit else time.thread_time_ns()
             t0 = clock()
             try:
                 with watch:
@@ -264,10 +268,14 @@ class FilterRunner:
                 tb = traceback.format_exc()
                 if why == over:
                     track.step_ns += clock() - t0
+                    if not no_run_limit:
+                        track.charged_ns += time.thread_time_ns() - cpu0
                 self.fail(track.name, why, tb, step.time)
                 continue
             elapsed = clock() - t0
             track.step_ns += elapsed
+            if not no_run_limit:
+                track.charged_ns += time.thread_time_ns() - cpu0
             track.steps += 1
             # note_step_time's usual case inline: the recent steps' sum is under the line
             recent = track.recent_step_ns
