@@ -79,6 +79,14 @@ class Simulation:
         HDOP, bit for bit): what a recording's replay checks besides the truth."""
         return self._readings_hash.hexdigest()[:16]
 
+    def _into_wall(self, pose: np.ndarray) -> bool:
+        """Whether the move to ``pose`` takes the robot's disc into a wall (a world with
+        walls only; a robot put inside one, by a kidnap, may drive out)."""
+        if self.world.grid is None:
+            return False
+        r = self.scenario.robot_radius
+        return not self.world.is_free(pose, r) and self.world.is_free(self.pose, r)
+
     def request_kidnap(self, pose=None) -> None:
         """Teleport the robot on the next step: to ``pose`` [x, y, theta], or a random pose
         (from the events stream) when None. Used by the window (K key, mouse click)."""
@@ -107,8 +115,8 @@ class Simulation:
         pose = move(self.pose, v, w, self.dt)
         pose += noise.pose_std_at(control.v, control.omega) * e[2:]
         pose[2] = wrap(pose[2])
-        if not self.world.contains(pose[:2]):
-            # The bumper: a move that would leave the room is not made. The robot stays where
+        if not self.world.contains(pose[:2]) or self._into_wall(pose):
+            # The bumper: a move that would leave the room (or enter a wall) is not made. The robot stays where
             # it was (it may still turn), and the command the filters see is what it did:
             # v = 0. Runs that never reach a wall are not affected (same draws, same truth).
             # Its turn is the told command's, with that command's slip (bumped_heading).
