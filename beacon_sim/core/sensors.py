@@ -187,8 +187,9 @@ def sense(
 def sense_scan(spec: SensorSpec, pose: np.ndarray, world: World,
                rng: np.random.Generator) -> Measurement:
     """One laser scan at the true ``pose``: rows ``[range, beam angle]`` [m, rad], the ranges
-    drawn from the beam model around the ray-cast distances to the walls (a world without
-    walls gives max_range plus the model's short and random readings)."""
+    drawn from the beam model around the ray-cast distances to the walls; a beam with no
+    wall within max_range reads max_range (no return) unless a short or random reading is
+    drawn (a world without walls: every beam)."""
     model = spec.range_model if spec.range_model is not None else \
         RangeModelParams(laser_max_range=spec.max_range)
     if world.grid is None:
@@ -196,5 +197,12 @@ def sense_scan(spec: SensorSpec, pose: np.ndarray, world: World,
         expected = np.full(spec.n_beams, model.laser_max_range)
     else:
         rel, expected = scan(world.grid, pose, spec.n_beams, spec.fov, model.laser_max_range)
-    z = np.column_stack([sample_beam(expected, model, rng), rel])
+    ranges = sample_beam(expected, model, rng)
+    # A beam that meets no wall within range gets no return: it reads max_range. Its hit
+    # part (drawn within a few sigma_hit below max_range) is snapped to it; its short and
+    # random readings stay (a random reading in that last band is snapped too: negligible).
+    no_return = (expected >= model.laser_max_range) & \
+        (ranges > model.laser_max_range - 5.0 * model.sigma_hit)
+    ranges[no_return] = model.laser_max_range
+    z = np.column_stack([ranges, rel])
     return Measurement(spec.name, spec.kind, z, np.arange(spec.n_beams))

@@ -12,15 +12,20 @@ users recognise them:
   motion model (the one the filter is told); walls do not stop particles (AMCL's neither):
   the scan does.
 - Measurement: ``laser_model_type`` ``likelihood_field`` (Probabilistic Robotics table 6.3,
-  the distance transform precomputed once: ``core/beam_model.LikelihoodField``) or ``beam``
+  the distance transform precomputed once: ``core/beam_model.LikelihoodField``), its beams
+  combined as AMCL and Beluga do (``beam_combination = "amcl"``: weight ``1 + sum pz^3``,
+  gentle enough that look-alike places keep their clouds) or as Thrun's product of
+  densities (``"product"``: sharper, and a cloud on one of two look-alike places dies
+  within a few scans by chance alone), or ``beam``
   (eq. 6.12, every beam ray cast from every particle: ~40 times dearer), on
   ``laser_max_beams`` beams taken evenly from the scan (AMCL's subsampling). Readings at
-  max range are skipped by the likelihood field, as in AMCL.
+  max range are skipped by the likelihood field, as in AMCL; a particle inside a wall (or
+  off the map) scores as if every beam ended off the map, the least a scan can score.
 - Recovery: augmented MCL (table 8.3): ``w_slow`` and ``w_fast`` follow the average
-  likelihood of a scan at rates ``recovery_alpha_slow`` / ``recovery_alpha_fast``; each
+  weight of a scan at rates ``recovery_alpha_slow`` / ``recovery_alpha_fast``; each
   resampling replaces a share ``max(0, 1 - w_fast / w_slow)`` of the particles by random
-  free poses. The likelihood of a scan is taken per beam (its geometric mean over the beams
-  used), so that 60 beams do not underflow and the level does not depend on the beam count.
+  free poses. AMCL's weights are averaged as they are; a product of densities is taken per
+  beam (its geometric mean over the beams used), so that 60 beams do not underflow.
 - Resampling: after every ``resample_interval``-th update. KLD-sampling (Fox 2003, AMCL's
   ``pf_err`` / ``pf_z``, here ``kld_err`` / ``kld_z``) sets the new count between
   ``min_particles`` and ``max_particles``: draws in random order until the count reaches the
@@ -98,6 +103,7 @@ class MonteCarloLocalization(FilterBase):
         "update_min_d": 0.0,               # [m] update only after moving this far ...
         "update_min_a": 0.0,               # [rad] ... or turning this much
         "laser_model_type": "likelihood_field",  # likelihood_field | beam
+        "beam_combination": "amcl",        # likelihood field: amcl (1 + sum pz^3) | product
         "laser_max_beams": 60,             # beams used per scan (nav2's default)
         "laser_z_hit": 0.5,
         "laser_z_short": 0.05,
@@ -116,6 +122,8 @@ class MonteCarloLocalization(FilterBase):
         if p["laser_model_type"] not in LASER_MODELS:
             raise FilterError(f"mcl: laser_model_type {p['laser_model_type']!r}: use "
                               f"{' or '.join(LASER_MODELS)}")
+        if p["beam_combination"] not in ("amcl", "product"):
+            raise FilterError(f"mcl: beam_combination {p['beam_combination']!r}: use amcl or product")
         if p["dtype"] not in ("float32", "float64"):
             raise FilterError(f"mcl: dtype {p['dtype']!r}: use float32 or float64")
         if not 1 <= int(p["min_particles"]) <= int(p["max_particles"]):
@@ -242,9 +250,29 @@ class MonteCarloLocalization(FilterBase):
         if field is not None:
             dtype = np.float32 if self.params["dtype"] == "float32" else np.float64
             used = int(np.count_nonzero(ranges < params.laser_max_range))
-            return field.log_likelihood(self.poses, ranges, rel, dtype=dtype), used
+            amcl = self.params["beam_combination"] == "amcl"
+            if amcl:
+                ll = field.amcl_log_weight(self.poses, ranges, rel, dtype=dtype)
+            else:
+                ll = field.log_likelihood(self.poses, ranges, rel, dtype=dtype)
+            # The field knows only where obstacles are, not that the robot cannot be inside
+            # one: a particle in a wall scores as if every beam ended off the map (the least
+            # a beam can score), so it never outweighs one in free space.
+            inside = ~self.in_free_space(self.poses)
+            if inside.any():
+                ll[inside] = math.log1p(used * field._amcl_table["off_map"]) if amcl \
+                    else used * field._log_table["off_map"]
+            return ll, used
         expected = expected_ranges(self.grid, self.poses, rel, params.laser_max_range)
         return log_beam_likelihood(ranges, expected, params), len(idx)
+
+    def in_free_space(self, poses: np.ndarray) -> np.ndarray:
+        """Whether each pose (n, 3) lies in a free cell of the map (off the map: no)."""
+        rc = self.grid.world_to_cell(poses[:, :2])
+        inside = self.grid.in_grid(rc)
+        rows, cols = self.grid.shape
+        free = self.grid.cells[np.clip(rc[:, 0], 0, rows - 1), np.clip(rc[:, 1], 0, cols - 1)] == 0
+        return inside & free
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         """Weight by every scan of the tick, then (every ``resample_interval`` updates)
@@ -267,7 +295,11 @@ class MonteCarloLocalization(FilterBase):
                 raise FilterError("mcl: every particle has zero likelihood")
             log_total = top + math.log(float(np.exp(joint - top).sum()))   # log sum w_i p_i
             self.logw = joint - log_total
-            w_avg = math.exp(log_total / used)     # per-beam (geometric mean) likelihood
+            # AMCL's weights are 1 + sum pz^3: their average as it is; a product of B beams'
+            # densities: per beam (its geometric mean), or 60 beams would underflow.
+            amcl = self.params["beam_combination"] == "amcl" and \
+                self.params["laser_model_type"] == "likelihood_field"
+            w_avg = math.exp(log_total if amcl else log_total / used)
             if self.w_slow == 0.0:
                 self.w_slow = self.w_fast = w_avg
             else:
