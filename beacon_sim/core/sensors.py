@@ -205,4 +205,4 @@ def sense_scan(spec: SensorSpec, pose: np.ndarray, world: World,
         (ranges > model.laser_max_range - 5.0 * model.sigma_hit)
     ranges[no_return] = model.laser_max_range
     z = np.column_stack([ranges, rel])
-    return Measurement(spec.name, spec.kind, z, np.arange(spec.n_beams))
+    return Measurement(spec.name, spec.kind, z, np.zeros(0, dtype=int))   # no beacon

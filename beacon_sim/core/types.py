@@ -70,7 +70,7 @@ class Measurement:
     beacon_ids : ndarray of int, shape (m,) for bearing/range_bearing
         The ID of the beacon each row belongs to (known correspondence). For pose and
         position fixes: the IDs of the beacons the fix was computed from. For a
-        range_finder: the beam indices 0..m-1.
+        range_finder: empty (a scan names no beacon).
     hdop : float
         Horizontal dilution of precision of a position fix (nan for other kinds).
     """
