@@ -138,7 +138,7 @@ def test_scan_noise_follows_the_beam_model_and_replays(tmp_path):
         sim = Simulation(sc, seed=3)
         runs.append(np.vstack([m.z for _ in range(20) for m in sim.step(Control(0.0, 0.0)).measurements]))
     np.testing.assert_array_equal(runs[0], runs[1])
-    rel, truth = scan(sc.world.grid, sc.initial_pose, 360, 2 * math.pi, 5.0)
+    _, truth = scan(sc.world.grid, sc.initial_pose, 360, 2 * math.pi, 5.0)
     z = runs[0][:, 0].reshape(20, 360)
     near = np.abs(z - truth) < 0.1
     assert 0.75 < near.mean() < 0.85                        # the hit share, 0.8

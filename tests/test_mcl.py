@@ -15,7 +15,7 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.mcl import MonteCarloLocalization, kld_bound, subsample_beams
+from beacon_sim.filters.mcl import kld_bound, subsample_beams
 
 
 def run(name: str, seed: int, seconds: float, params=None, every: float | None = None):
@@ -88,7 +88,7 @@ def test_the_likelihood_field_option_and_the_beam_model_agree_on_the_best_pose()
     truth = np.array([7.5, 6.0, 0.3])
     rel, r = scan(sc.world.grid, truth, 181, 4.712389, 8.0)
     m = Measurement("laser", "range_finder", np.column_stack([r, rel]), np.zeros(0, dtype=int))
-    cands = np.array([truth, truth + [0.3, 0, 0], truth + [0, -0.3, 0], truth + [0, 0, 0.3]])
+    cands = truth + np.array([[0, 0, 0], [0.3, 0, 0], [0, -0.3, 0], [0, 0, 0.3]])
     for model, combo in (("likelihood_field", "amcl"), ("likelihood_field", "product"), ("beam", "amcl")):
         f = build_filter("mcl", sc, 1, params={"laser_model_type": model, "beam_combination": combo,
                                                 "max_particles": 10, "min_particles": 1})

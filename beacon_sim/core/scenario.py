@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Final, NoReturn, overload
 
 from beacon_sim.core import arguments
+from beacon_sim.core.beam_model import RangeModelParams
 from beacon_sim.core.drivers import (
     CircleSpec,
     ConstantSpec,
@@ -30,7 +31,6 @@ from beacon_sim.core.drivers import (
 )
 from beacon_sim.core.events import Blackout, Event, Kidnap, NoiseBurst, active_ticks
 from beacon_sim.core.keyboard_drive import KeyboardLimits
-from beacon_sim.core.beam_model import RangeModelParams
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.occupancy import MapError, OccupancyGrid, from_walls, load_map
 from beacon_sim.core.sensors import SENSOR_KINDS, SensorNoise, SensorSpec

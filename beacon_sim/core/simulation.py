@@ -116,9 +116,9 @@ class Simulation:
         pose += noise.pose_std_at(control.v, control.omega) * e[2:]
         pose[2] = wrap(pose[2])
         if not self.world.contains(pose[:2]) or self._into_wall(pose):
-            # The bumper: a move that would leave the room (or enter a wall) is not made. The robot stays where
-            # it was (it may still turn), and the command the filters see is what it did:
-            # v = 0. Runs that never reach a wall are not affected (same draws, same truth).
+            # The bumper: a move that would leave the room (or enter a wall) is not made. The
+            # robot stays where it was (it may still turn), and the command the filters see
+            # is what it did: v = 0. Runs that never reach a wall are not affected (same draws, same truth).
             # Its turn is the told command's, with that command's slip (bumped_heading).
             if noise.slip_gain(0.0, control.omega) != g:
                 pose[2] = bumped_heading(noise, self.schedule.bursts_at(k), self.pose[2],

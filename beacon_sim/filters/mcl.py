@@ -137,7 +137,7 @@ class MonteCarloLocalization(FilterBase):
             raise FilterError("mcl: kld_err, kld_bin_xy and kld_bin_theta must be > 0")
         self.grid = ctx.world.grid if ctx.world.grid is not None else open_grid(ctx.world.bounds)
         self._models: dict[float, tuple[RangeModelParams, LikelihoodField | None]] = {}
-        rows, cols = self.grid.shape
+        cols = self.grid.shape[1]
         free = np.flatnonzero(self.grid.cells.ravel() == 0)
         if free.size == 0:
             raise FilterError("mcl: the map has no free cell")
