@@ -577,7 +577,7 @@ def _event(t: _Table, sensor_names: set[str], dt: float) -> Event:
     return ev
 
 
-def _walls(w: _Table, file: str) -> OccupancyGrid | None:
+def _walls(w: _Table, file: str, base_dir: Path) -> OccupancyGrid | None:
     """The map a ``world.map`` key names (a ROS map_server YAML, relative to the scenario
     file), or None; ``world.walls`` is read later, once the bounds are known."""
     if w.has("map") and w.has("walls"):
@@ -585,7 +585,7 @@ def _walls(w: _Table, file: str) -> OccupancyGrid | None:
     if not w.has("map"):
         return None
     name = w.string("map")
-    path = Path(name) if Path(name).is_absolute() else Path(file).parent / name
+    path = Path(name) if Path(name).is_absolute() else base_dir / name
     try:
         return load_map(path)
     except MapError as exc:
@@ -629,8 +629,10 @@ def _walls_grid(w: _Table, bounds: Vec4) -> OccupancyGrid:
         raise ScenarioError(f"{t.file}: {t.path}: {exc}") from None
 
 
-def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
-    """Validate a decoded TOML document and build the :class:`Scenario`."""
+def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
+                   base_dir: str | Path | None = None) -> Scenario:
+    """Validate a decoded TOML document and build the :class:`Scenario`. A ``world.map`` path
+    is relative to ``base_dir`` (default: the folder of ``file``)."""
     top = _Table(data, "", file)
     name = top.string("name", name or Path(file).stem)
     description = top.string("description", "")
@@ -642,7 +644,7 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     seed = top.integer("seed", 0, lo=0, hi=2**63 - 1)
 
     w = top.sub("world")
-    grid = _walls(w, file)
+    grid = _walls(w, file, Path(file).parent if base_dir is None else Path(base_dir))
     if grid is not None and not w.has("bounds"):
         bounds = _grid_bounds(grid)
     else:
