@@ -164,6 +164,13 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "laser_lambda_short": Range(1e-6, 1e3, "short-reading rate [1/m]"),
                          "laser_likelihood_max_dist": Range(1e-3, 1e3, "likelihood field's distance cap [m]"),
                          "laser_max_range": Range(-1.0, 1e6, "max range [m]; -1: the sensor's")}),
+    # Seed 004's discrete Bayes filter on the corridor scenario's scans (issue 30).
+    FilterRecord("corridor", "beacon_sim.filters.corridor:CorridorFilter", ("yellow", "dash-dot"),
+                 ranges={"x0": Range(-1e6, 1e6, "the corridor's start [m]"),
+                         "y_centre": Range(-1e6, 1e6, "its centre line [m]"),
+                         "width": Range(1e-3, 1e3, "its width [m]"),
+                         "cell": Range(1e-3, 1e3, "a cell's length [m]"),
+                         "wall_dist": Range(1e-3, 1e3, "a beam shorter than this is a wall [m]")}),
     FilterRecord("dead_reckoning", "beacon_sim.filters.dead_reckoning:DeadReckoning",
                  ("grey", "short dash"),
                  batched="beacon_sim.filters.dead_reckoning:BatchedDeadReckoning"),
