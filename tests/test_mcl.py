@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -66,12 +67,9 @@ def test_a_particle_in_a_wall_scores_least():
     grid = from_walls((0, 0, 4, 4), 0.05, segments=[[(0, 0), (4, 0), (4, 4), (0, 4), (0, 0)]],
                       polygons=[[(1.0, 1.0), (2.0, 1.0), (2.0, 2.0), (1.0, 2.0)]])
     sc = load_scenario("symmetric_room")
-    import dataclasses
-
     world = dataclasses.replace(sc.world, grid=grid, bounds=(0.0, 0.0, 4.0, 4.0))
     f = build_filter("mcl", dataclasses.replace(sc, world=world), 1,
                      params={"beam_combination": "product", "max_particles": 10, "min_particles": 1})
-    rel, r = scan(grid, (1.5, 1.5, 0.0), 40, 2 * math.pi, 2.5)   # from inside the block: all 0
     rel, r = scan(grid, (3.0, 3.0, 0.0), 40, 2 * math.pi, 2.5)
     m = Measurement("laser", "range_finder", np.column_stack([r, rel]), np.zeros(0, dtype=int))
     f.poses = np.array([[3.0, 3.0, 0.0], [1.5, 1.5, 0.0], [3.5, 0.5, 1.0]])
