@@ -166,3 +166,13 @@ def test_the_symmetric_room_keeps_two_clouds_until_the_partition_is_seen():
     assert all(t > 0.1 and m > 0.1 for t, m in before[2:]), before   # from t = 7.5 s
     assert all(m > 0.1 for _, m in after[:2]), after      # on the way: not yet seen
     assert after[-1][0] > 0.95 and after[-1][1] < 0.02, after
+
+
+@pytest.mark.slow
+def test_check_takes_a_scan_based_filter_on_a_map_scenario(capsys):
+    """``beacon-sim check mcl --scenario corridor``: every conformance check passes."""
+    from beacon_sim.cli.main import main
+
+    assert main(["check", "mcl", "--scenario", "corridor"]) == 0
+    out = capsys.readouterr().out
+    assert "14 of 14 checks passed" in out and "readings" in out
