@@ -241,3 +241,28 @@ def test_parse_scenario_without_a_file_reads_walls():
             "robot": {"initial_pose": [1.5, 1.5, 0.0]}}
     sc = parse_scenario(data, "<dict>")
     assert sc.world.grid.occupied.sum() > 0
+
+
+def test_beacons_and_walls_in_one_world(tmp_path):
+    """A world may hold walls and beacons: the scan sees the walls, the beacon sensor the
+    beacons (through walls: occlusion is not modelled), and an EKF ignores the scans."""
+    world = WALLS.replace("bounds = [0.0, 0.0, 4.0, 2.0]",
+                          "bounds = [0.0, 0.0, 4.0, 2.0]\nbeacons = [{ id = 1, x = 3.0, y = 1.5 }]")
+    text = write_room(tmp_path, world=world).read_text() + (
+        '\n[[sensors]]\nname = "beacons"\nkind = "range_bearing"\nperiod = 0.1\n')
+    path = tmp_path / "both.toml"
+    path.write_text(text)
+    sc = load_scenario(path)
+    sim = Simulation(sc)
+    kinds = {m.kind for m in sim.step(Control(0.0, 0.0)).measurements}
+    assert kinds == {"range_finder", "range_bearing"}
+    from beacon_sim.filters.loading import build_filter
+
+    ekf = build_filter("ekf", sc, 1)
+    before = ekf.estimate()[0]
+    st = sim.step(Control(0.0, 0.0))
+    ekf.predict(st.control, st.dt)
+    ekf.update([m for m in st.measurements if m.kind == "range_finder"])
+    np.testing.assert_array_equal(ekf.estimate()[0], before)
+    ekf.update(st.measurements)                      # the beacon reading moves it
+    assert not np.array_equal(ekf.estimate()[0], before)
