@@ -266,3 +266,28 @@ def test_beacons_and_walls_in_one_world(tmp_path):
     np.testing.assert_array_equal(ekf.estimate()[0], before)
     ekf.update(st.measurements)                      # the beacon reading moves it
     assert not np.array_equal(ekf.estimate()[0], before)
+
+
+def test_batched_runs_meet_the_walls_as_single_runs_do(tmp_path):
+    """core/batch_simulation (Monte Carlo's fast path) stops at walls bit for bit as
+    Simulation.step does: a robot driven at a wall, two seeds."""
+    from beacon_sim.core.batch_simulation import BatchSimulation
+
+    world = WALLS.replace("[0.0, 0.0]]]", "[0.0, 0.0]], [[3.0, 0.0], [3.0, 2.0]]]")
+    text = write_room(tmp_path, world=world, pose="[1.0, 1.0, 0.0]").read_text()
+    text = text.replace('[robot]', '[driver]\nkind = "constant"\nv = 0.5\nomega = 0.05\n\n[robot]')
+    text = text.replace("v_std = 0.0, v_frac = 0.0", "v_std = 0.02, v_frac = 0.1")
+    path = tmp_path / "drive.toml"
+    path.write_text(text)
+    sc = load_scenario(path)
+    batch = BatchSimulation(sc, [1, 2])
+    singles = [Simulation(sc, seed=s) for s in (1, 2)]
+    bumps = 0
+    for _ in range(60):
+        tick = batch.advance()
+        for i, sim in enumerate(singles):
+            st = sim.step()
+            assert tick.pose[i].tobytes() == st.true_pose.tobytes()
+            bumps += any(e.kind == "bump" for e in st.events)
+    assert bumps > 10
+    assert batch.truth_checksums() == [s.truth_checksum for s in singles]

@@ -80,12 +80,7 @@ class Simulation:
         return self._readings_hash.hexdigest()[:16]
 
     def _into_wall(self, pose: np.ndarray) -> bool:
-        """Whether the move to ``pose`` takes the robot's disc into a wall (a world with
-        walls only; a robot put inside one, by a kidnap, may drive out)."""
-        if self.world.grid is None:
-            return False
-        r = self.scenario.robot_radius
-        return not self.world.is_free(pose, r) and self.world.is_free(self.pose, r)
+        return into_wall(self.world, self.pose, pose, self.scenario.robot_radius)
 
     def request_kidnap(self, pose=None) -> None:
         """Teleport the robot on the next step: to ``pose`` [x, y, theta], or a random pose
@@ -169,6 +164,14 @@ class Simulation:
         for i in range(n):
             steps.append(self.step(None if controls is None else controls[i]))
         return steps
+
+
+def into_wall(world, old: np.ndarray, new: np.ndarray, radius: float) -> bool:
+    """Whether the move from ``old`` to ``new`` takes the robot's disc of ``radius`` [m] into
+    a wall (a world with walls only; a robot put inside one, by a kidnap, may drive out)."""
+    if world.grid is None:
+        return False
+    return not world.is_free(new, radius) and world.is_free(old, radius)
 
 
 def bumped_heading(noise, bursts, theta0: float, omega: float, e_omega: float, e_theta: float,
