@@ -86,7 +86,7 @@ def load_scenario(name_or_path: str | Path, changes: Mapping[str, Any] | None = 
     data = tomllib.loads(path.read_text(encoding="utf-8"))
     for key, value in changes.items():
         _set_key(data, key, value)
-    return parse_scenario(data, f"{path} (changed in code)", name=path.stem)
+    return parse_scenario(data, f"{path} (changed in code)", name=path.stem, base_dir=path.parent)
 
 
 def _set_key(data: dict, key: str, value: Any) -> None:

@@ -126,7 +126,8 @@ def test_the_tick_as_arrays_is_the_steps_and_packs_the_same_bits(name):
         st = packer.pack_tick(tick)
         _same_stacked(st, packer.pack([s.measurements for s in steps]))
         packed += st is not None
-    assert packed > 0
+    # a scan has no Gaussian slots: a scenario with only a range finder packs nothing
+    assert packed > 0 or all(s.kind == "range_finder" for s in sc.sensors)
     for bs in (arrays, mixed):
         assert bs.truth_checksums() == objects.truth_checksums()
         assert bs.readings_checksums() == objects.readings_checksums()

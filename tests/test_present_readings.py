@@ -31,7 +31,12 @@ def _mixed_map():
     return parse_scenario(data, "test", name="mixed")
 
 
-@pytest.mark.parametrize("name", [*shipped_scenarios(), "mixed"])
+#: The shipped scenarios with beacon readings (a range finder's scans have no Gaussian slots).
+WITH_BEACON_READINGS = [n for n in shipped_scenarios()
+                        if any(s.kind != "range_finder" for s in load_scenario(n).sensors)]
+
+
+@pytest.mark.parametrize("name", [*WITH_BEACON_READINGS, "mixed"])
 def test_present_readings_are_the_whole_map_computation_bit_for_bit(name):
     sc = _mixed_map() if name == "mixed" else load_scenario(name)
     R = 5

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pygame
 
-from beacon_sim.app import association_layer, palette, shapes
+from beacon_sim.app import association_layer, map_view, palette, shapes
 from beacon_sim.app.map_layer import MapLayer
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.core.schedule import period_ticks
@@ -245,6 +245,7 @@ class WorldRenderer:
         self._text_cache: dict[tuple, pygame.Surface] = {}
         self._static: tuple[tuple, pygame.Surface] | None = None
         self.last_world: World | None = None  # the world of the scene being drawn (step view)
+        self.last_world_sensors: tuple = ()   # its sensors (a scan's max range)
         self.lw = 4  # line width [px]; each frame's begin() sets it for the window's height
         self.map_layer = MapLayer()  # SLAM filters' estimated maps (app/map_layer.py)
         self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
@@ -286,6 +287,7 @@ class WorldRenderer:
         frames). The clip is restored when it ends or is closed half way."""
         sc = session.scenario
         self.last_world = sc.world
+        self.last_world_sensors = sc.sensors
         pose = session.true_pose
         dashes = dashes or {}
         old_clip = self.begin(surf, view)
@@ -494,7 +496,8 @@ class WorldRenderer:
 
     def _static_layer(self, view: View, world_rect: pygame.Rect) -> pygame.Surface:
         """Background, metric grid, bounds and axis labels: drawn once per view, then blitted."""
-        if self._static is not None and self._static[0] == view.key:
+        grid = getattr(self.last_world, "grid", None)
+        if self._static is not None and self._static[0] == (view.key, id(grid)):
             return self._static[1]
         area = pygame.Rect(view.area)
         layer = pygame.Surface(area.size)
@@ -503,10 +506,11 @@ class WorldRenderer:
         full.fill(palette.OUTSIDE)
         full.fill(palette.BACKGROUND, world_rect)
         self._grid(full, view, world_rect)
+        map_view.draw_map(full, view, grid)      # walls (issue 30)
         pygame.draw.rect(full, palette.BOUNDS, world_rect.inflate(4, 4), 3)
         self._axis_labels(full, view, world_rect)
         layer.blit(full, (0, 0), area)
-        self._static = (view.key, layer)
+        self._static = ((view.key, id(grid)), layer)
         return layer
 
     # --- pieces ---------------------------------------------------------------------------
@@ -687,6 +691,10 @@ class WorldRenderer:
         range, with a cross at its end; a bearing alone runs to the world's edge)."""
         far = 2.0 * math.hypot(world.width, world.height)
         for m in readings:
+            if m.kind == "range_finder":    # a laser scan (issue 30): app/map_view.py
+                spec = next((s for s in self.last_world_sensors if s.name == m.sensor), None)
+                map_view.draw_scan(surf, view, pose, m, spec.max_range if spec else math.inf)
+                continue
             if m.kind in ("pose", "position"):
                 bxy = world.beacon_positions(m.beacon_ids) if len(m.beacon_ids) else np.zeros((0, 2))
                 segs = shapes.rays(pose, m, bxy, far)

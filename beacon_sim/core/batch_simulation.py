@@ -36,7 +36,7 @@ from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense
-from beacon_sim.core.simulation import Simulation, _kidnap_text, bumped_heading
+from beacon_sim.core.simulation import Simulation, _kidnap_text, bumped_heading, into_wall
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 
 _BEACON_KINDS = ("bearing", "range_bearing")
@@ -236,6 +236,9 @@ class BatchSimulation:
         pose += noise.pose_std_at(cv, cw) * E[:, 2:]
         pose[:, 2] = wrap(pose[:, 2])
         inside = world.contains(pose[:, :2])
+        if world.grid is not None:                       # walls are solid (issue 30)
+            r = self.scenario.robot_radius
+            inside &= np.array([not into_wall(world, old[i], pose[i], r) for i in range(R)])
         if not np.all(inside):
             for i in np.flatnonzero(~inside).tolist():   # the bumper (see Simulation.step)
                 if noise.slip_gain(0.0, cw[i]) != g[i]:   # the told command's turn and slip

@@ -256,13 +256,41 @@ class LikelihoodField:
         -------
         ndarray, shape (n,)
         """
+        return self._table_sum(self._log_table, poses, ranges, rel_angles, dtype)
+
+    @cached_property
+    def _amcl_table(self) -> dict:
+        """AMCL's per-beam score pz^3 per cell, padded like ``_log_table``."""
+        pad = self._padding
+        rows, cols = self.grid.shape
+        p = self.params
+
+        def cube(d):
+            pz = p.z_hit * np.exp(-0.5 * (np.asarray(d) / p.sigma_hit) ** 2) + p.z_rand / p.laser_max_range
+            return pz ** 3
+
+        off_map = float(cube(p.laser_likelihood_max_dist))
+        table = np.full((rows + 2 * pad, cols + 2 * pad), off_map)
+        table[pad:pad + rows, pad:pad + cols] = cube(self.distance)
+        return {np.float64: table.ravel(), np.float32: table.astype(np.float32).ravel(),
+                "width": cols + 2 * pad, "height": rows + 2 * pad, "off_map": off_map}
+
+    def amcl_log_weight(self, poses, ranges, rel_angles, *, dtype=np.float64) -> np.ndarray:
+        """log of ROS AMCL's (and Beluga's) ad hoc likelihood-field weight per pose:
+        ``1 + sum over beams below z_max of pz^3``, ``pz = z_hit exp(-d^2 / (2 sigma_hit^2))
+        + z_rand / z_max`` with the weights as given (not normalised). Far less peaked than
+        the product of :meth:`log_likelihood`: a scan of B beams changes a weight by at most
+        1 + B, so clouds on look-alike places survive many scans. Shapes as log_likelihood."""
+        return np.log1p(self._table_sum(self._amcl_table, poses, ranges, rel_angles, dtype))
+
+    def _table_sum(self, tables: dict, poses, ranges, rel_angles, dtype) -> np.ndarray:
+        """Sum over the beams below z_max of ``tables`` at their end points, per pose."""
         dtype = np.float32 if dtype in (np.float32, "float32") else np.float64
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         ranges = np.asarray(ranges, dtype=float).ravel()
         rel = np.asarray(rel_angles, dtype=float).ravel()
         use = (ranges < self.params.laser_max_range) & (ranges >= 0) & np.isfinite(ranges)
         z, a = ranges[use], rel[use]
-        tables = self._log_table
         # Everything in the padded grid's frame [cells]: the pose's position, its heading
         # relative to the grid's axes, the end points in the robot frame.
         uv = self.grid.world_to_grid(poses[:, :2])

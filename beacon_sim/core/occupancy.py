@@ -47,7 +47,7 @@ class MapError(BeaconSimError):
     """A map file or map description is missing, unreadable or invalid (one line)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class OccupancyGrid:
     """A trinary occupancy grid.
 
@@ -89,6 +89,23 @@ class OccupancyGrid:
     def __getstate__(self) -> dict:
         """Pickled without the cached properties (rebuilt on use)."""
         return {k: v for k, v in self.__dict__.items() if k in self.__dataclass_fields__}
+
+    def __eq__(self, other: object) -> bool:
+        """Equal when the cells, the resolution and the origin are (a value, like the
+        scenario that holds it: a replay compares the scenario it rebuilt)."""
+        if not isinstance(other, OccupancyGrid):
+            return NotImplemented
+        return (self.resolution == other.resolution and self.origin == other.origin
+                and self.cells.shape == other.cells.shape and bool(np.array_equal(self.cells, other.cells)))
+
+    def __hash__(self) -> int:
+        return hash((self.resolution, self.origin, self.cells.shape, self._digest))
+
+    @cached_property
+    def _digest(self) -> bytes:
+        import hashlib
+
+        return hashlib.sha256(self.cells.tobytes()).digest()
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Final, NoReturn, overload
 
 from beacon_sim.core import arguments
+from beacon_sim.core.beam_model import RangeModelParams
 from beacon_sim.core.drivers import (
     CircleSpec,
     ConstantSpec,
@@ -31,6 +32,7 @@ from beacon_sim.core.drivers import (
 from beacon_sim.core.events import Blackout, Event, Kidnap, NoiseBurst, active_ticks
 from beacon_sim.core.keyboard_drive import KeyboardLimits
 from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.occupancy import MapError, OccupancyGrid, from_walls, load_map
 from beacon_sim.core.sensors import SENSOR_KINDS, SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon
 from beacon_sim.core.world import World
@@ -418,17 +420,25 @@ def _range_text(lo: float, hi: float, lo_open: bool = False) -> str:
 # the key it resembles was not written in the file.
 _NOISE_KEYS = {"v_std", "v_frac", "omega_std", "omega_frac", "pose_std"}
 _SENSOR_NOISE_KEYS = {"bearing_std", "range_std", "position_std", "heading_std"}
+#: A range finder's keys (docs/maps.md): beams per scan and the truth's beam model.
+_RANGE_MODEL_KEYS = ("z_hit", "z_short", "z_max", "z_rand", "sigma_hit", "lambda_short")
+_RANGE_FINDER_KEYS = {"n_beams", *_RANGE_MODEL_KEYS}
+#: Most beams in one scan.
+MAX_BEAMS: Final = 4096
+#: Most points in all the walls of a scenario together.
+MAX_WALL_POINTS: Final = 100_000
 _KNOWN: dict[str, set[str]] = {
     "": {"name", "description", "dt", "duration", "seed", "world", "robot", "sensors",
          "driver", "keyboard", "events", "initial_belief", "model", "default_filters",
          "filters"},
-    "world": {"bounds", "beacons"},
+    "world": {"bounds", "beacons", "map", "walls"},
+    "world.walls": {"resolution", "segments", "polygons"},
     "world.beacons[]": {"id", "x", "y", "anchor"},
     "robot": {"initial_pose", "radius", "motion_noise"},
     "robot.motion_noise": _NOISE_KEYS,
     "sensors[]": {"name", "kind", "period", "max_range", "fov", "detection_prob",
                   "outlier_rate", "min_beacons", "beacon_height", "correspondence",
-                  "clutter_rate"} | _SENSOR_NOISE_KEYS,
+                  "clutter_rate"} | _SENSOR_NOISE_KEYS | _RANGE_FINDER_KEYS,
     "driver": {"kind", "v", "omega", "radius", "speed", "gain", "max_omega", "tolerance",
                "margin", "points", "loop"},
     "keyboard": {"v_step", "v_max", "v_min", "omega_step", "omega_max"},
@@ -487,6 +497,17 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
     if spec.clutter_rate > 0 and kind == "range_bearing" and not math.isfinite(spec.max_range):
         t.fail(t.key("max_range"), spec.max_range, "a finite range when clutter_rate > 0 (clutter "
                                                    "ranges are uniform in [0, max_range])")
+    if kind == "range_finder":
+        if not math.isfinite(spec.max_range):
+            t.fail(t.key("max_range"), t.raw("max_range", "inf"),
+                   "a finite maximum range [m] for a range_finder (its no-return reading)")
+        d = RangeModelParams()
+        model = {k: t.number(k, getattr(d, k), lo=0, hi=MAX_STD,
+                             lo_open=k in ("sigma_hit", "lambda_short")) for k in _RANGE_MODEL_KEYS}
+        if sum(model[k] for k in ("z_hit", "z_short", "z_max", "z_rand")) <= 0:
+            t.fail(t.key("z_hit"), model["z_hit"], "weights z_hit + z_short + z_max + z_rand > 0")
+        spec = replace(spec, n_beams=t.integer("n_beams", 180, lo=1, hi=MAX_BEAMS),
+                       range_model=RangeModelParams(**model, laser_max_range=spec.max_range))
     t.finish()
     return spec
 
@@ -592,8 +613,62 @@ def _event(t: _Table, sensor_names: set[str], dt: float) -> Event:
     return ev
 
 
-def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
-    """Validate a decoded TOML document and build the :class:`Scenario`."""
+def _walls(w: _Table, file: str, base_dir: Path) -> OccupancyGrid | None:
+    """The map a ``world.map`` key names (a ROS map_server YAML, relative to the scenario
+    file), or None; ``world.walls`` is read later, once the bounds are known."""
+    if w.has("map") and w.has("walls"):
+        raise ScenarioError(f"{file}: world.map and world.walls: expected one of them, not both")
+    if not w.has("map"):
+        return None
+    name = w.string("map")
+    path = Path(name) if Path(name).is_absolute() else base_dir / name
+    try:
+        return load_map(path)
+    except MapError as exc:
+        raise ScenarioError(f"{file}: world.map = {name!r}: {exc}") from None
+
+
+def _grid_bounds(grid: OccupancyGrid) -> Vec4:
+    """The axis-aligned bounds [m] of a grid's corners (the world a map file covers)."""
+    rows, cols = grid.shape
+    corners = grid.grid_to_world([[0, 0], [cols, 0], [0, rows], [cols, rows]])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+
+
+def _walls_grid(w: _Table, bounds: Vec4) -> OccupancyGrid:
+    """The ``[world.walls]`` table rasterised over ``bounds``: polylines in ``segments`` and
+    solid outlines in ``polygons``, each a list of [x, y] points [m]."""
+    t = w.sub("walls")
+    res = t.number("resolution", 0.05, lo=1e-3, hi=MAX_COORD)
+    lines = {}
+    total = 0
+    for key in ("segments", "polygons"):
+        value = t.raw(key, [])
+        ok = isinstance(value, list) and all(
+            isinstance(line, list) and len(line) >= 2 and all(
+                isinstance(p, list) and len(p) == 2 and all(
+                    isinstance(v, int | float) and not isinstance(v, bool)
+                    and _finite_in(v, -MAX_COORD, MAX_COORD) for v in p) for p in line)
+            for line in value)
+        if ok:
+            total += sum(len(line) for line in value)
+        if not ok or total > MAX_WALL_POINTS:
+            shown = value if len(str(value)) < 120 else f"{str(value)[:80]}..."
+            t.fail(t.key(key), shown, f"a list of polylines, each a list of at least two [x, y] "
+                                      f"points [m] (at most {MAX_WALL_POINTS:,} points in all)")
+        lines[key] = [[(float(p[0]), float(p[1])) for p in line] for line in value]
+    t.finish()
+    try:
+        return from_walls(bounds, res, segments=lines["segments"], polygons=lines["polygons"])
+    except MapError as exc:
+        raise ScenarioError(f"{t.file}: {t.path}: {exc}") from None
+
+
+def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
+                   base_dir: str | Path | None = None) -> Scenario:
+    """Validate a decoded TOML document and build the :class:`Scenario`. A ``world.map`` path
+    is relative to ``base_dir`` (default: the folder of ``file``)."""
     top = _Table(data, "", file)
     name = top.string("name", name or Path(file).stem)
     description = top.string("description", "")
@@ -605,7 +680,11 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     seed = top.integer("seed", 0, lo=0, hi=2**63 - 1)
 
     w = top.sub("world")
-    bounds = w.vector4("bounds")
+    grid = _walls(w, file, Path(file).parent if base_dir is None else Path(base_dir))
+    if grid is not None and not w.has("bounds"):
+        bounds = _grid_bounds(grid)
+    else:
+        bounds = w.vector4("bounds")
     if not (bounds[2] - bounds[0] >= MIN_WORLD_SIDE and bounds[3] - bounds[1] >= MIN_WORLD_SIDE):
         w.fail(w.key("bounds"), list(bounds), f"[xmin, ymin, xmax, ymax] with xmax - xmin and "
                                               f"ymax - ymin at least {MIN_WORLD_SIDE:g} m")
@@ -626,14 +705,19 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
             anchors.append((b.id, bt.key("anchor")))
         bt.finish()
         beacons.append(b)
+    if w.has("walls"):
+        grid = _walls_grid(w, bounds)
     w.finish()
-    world = World(bounds=bounds, beacons=tuple(beacons))
+    world = World(bounds=bounds, beacons=tuple(beacons), grid=grid)
 
     r = top.sub("robot")
     initial_pose = r.vector3("initial_pose")
     if not world.contains(initial_pose[:2]):
         r.fail(r.key("initial_pose"), list(initial_pose), f"a position inside world.bounds {list(bounds)}")
     radius = r.number("radius", 0.2, lo=0, hi=MAX_COORD, lo_open=True)
+    if not world.is_free(initial_pose, radius):
+        r.fail(r.key("initial_pose"), list(initial_pose),
+               f"a position at least robot.radius = {radius:g} m from every wall")
     motion_noise = _motion_noise(r.sub("motion_noise", {}))
     r.finish()
 
@@ -645,8 +729,11 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     for i, n in enumerate(names):
         if n in names[:i]:
             raise ScenarioError(f"{file}: sensors[{i}].name = {n!r}: expected a unique name")
-    if sensors and not beacons:
+    if any(s.kind != "range_finder" for s in sensors) and not beacons:
         raise ScenarioError(f"{file}: world.beacons = []: expected at least one beacon for the sensors")
+    if any(s.kind == "range_finder" for s in sensors) and grid is None:
+        raise ScenarioError(f"{file}: world: a range_finder sensor needs walls: expected "
+                            f"world.map = \"file.yaml\" or a [world.walls] table")
 
     driver = _driver(top.sub("driver", {}), world)
     k = top.sub("keyboard", {})

@@ -4,6 +4,10 @@ A beacon is seen when it is within ``max_range``, inside the field of view and a
 draw with ``detection_prob`` succeeds. With probability ``outlier_rate`` a reading is
 replaced by a uniformly random (wrong) one. Each call draws a fixed number of random
 numbers, so the sensor stream's state depends only on how many times it was called.
+
+A ``range_finder`` (issue 30, docs/maps.md) is a laser scan of ``n_beams`` beams over ``fov``,
+ray cast on the world's walls from the true pose, each reading drawn from the beam model
+(its four parts, ``range_model``) with the sensor's stream.
 """
 
 from __future__ import annotations
@@ -15,8 +19,10 @@ import numpy as np
 
 from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.beam_model import RangeModelParams, sample_beam
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.measurement_models import relative_bearing
+from beacon_sim.core.raycast import beam_angles, scan
 from beacon_sim.core.types import MEASUREMENT_DIMS, Measurement
 from beacon_sim.core.world import World
 
@@ -69,6 +75,11 @@ class SensorSpec:
         sensors only: every ID is -1, ``core/clutter.UNKNOWN_ID``; the filter associates).
     clutter_rate : float
         Mean number of false detections per reading (Poisson), unknown correspondence only.
+    n_beams : int
+        range_finder: beams per scan (0 for the other kinds).
+    range_model : RangeModelParams or None
+        range_finder: the beam model the readings are drawn from (its ``laser_max_range``
+        is ``max_range``); None for the other kinds.
     """
 
     name: str
@@ -83,6 +94,8 @@ class SensorSpec:
     noise: SensorNoise = field(default_factory=SensorNoise)
     correspondence: str = "known"
     clutter_rate: float = 0.0
+    n_beams: int = 0
+    range_model: RangeModelParams | None = None
 
     def fix_std(self, n_beacons: int, hdop_value: float = 1.0) -> np.ndarray:
         """Standard deviations of one fix row: pose ``[sx, sy, sth]`` or position ``[sx, sy]``."""
@@ -121,6 +134,8 @@ def sense(
     Beacon sensors return one row per detected beacon (None when none is detected); fixes
     return a single row when at least ``min_beacons`` beacons are detected.
     """
+    if spec.kind == "range_finder":
+        return sense_scan(spec, pose, world, rng)
     n = len(world.beacons)
     d = MEASUREMENT_DIMS[spec.kind]
     # Fixed-size draws: the stream advances the same way whatever is seen.
@@ -174,3 +189,27 @@ def sense(
         if spec.kind == "pose":
             z[2] = -math.pi + 2.0 * math.pi * u_value[0, 2]
     return Measurement(spec.name, spec.kind, z[None, :], ids, hdop=h)
+
+
+def sense_scan(spec: SensorSpec, pose: np.ndarray, world: World,
+               rng: np.random.Generator) -> Measurement:
+    """One laser scan at the true ``pose``: rows ``[range, beam angle]`` [m, rad], the ranges
+    drawn from the beam model around the ray-cast distances to the walls; a beam with no
+    wall within max_range reads max_range (no return) unless a short or random reading is
+    drawn (a world without walls: every beam)."""
+    model = spec.range_model if spec.range_model is not None else \
+        RangeModelParams(laser_max_range=spec.max_range)
+    if world.grid is None:
+        rel = beam_angles(spec.n_beams, spec.fov)
+        expected = np.full(spec.n_beams, model.laser_max_range)
+    else:
+        rel, expected = scan(world.grid, pose, spec.n_beams, spec.fov, model.laser_max_range)
+    ranges = sample_beam(expected, model, rng)
+    # A beam that meets no wall within range gets no return: it reads max_range. Its hit
+    # part (drawn within a few sigma_hit below max_range) is snapped to it; its short and
+    # random readings stay (a random reading in that last band is snapped too: negligible).
+    no_return = (expected >= model.laser_max_range) & \
+        (ranges > model.laser_max_range - 5.0 * model.sigma_hit)
+    ranges[no_return] = model.laser_max_range
+    z = np.column_stack([ranges, rel])
+    return Measurement(spec.name, spec.kind, z, np.zeros(0, dtype=int))   # no beacon

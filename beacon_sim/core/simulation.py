@@ -83,6 +83,9 @@ class Simulation:
         HDOP, bit for bit): what a recording's replay checks besides the truth."""
         return self._readings_hash.hexdigest()[:16]
 
+    def _into_wall(self, pose: np.ndarray) -> bool:
+        return into_wall(self.world, self.pose, pose, self.scenario.robot_radius)
+
     def request_kidnap(self, pose=None) -> None:
         """Teleport the robot on the next step: to ``pose`` [x, y, theta], or a random pose
         (from the events stream) when None. Used by the window (K key, mouse click)."""
@@ -111,10 +114,10 @@ class Simulation:
         pose = move(self.pose, v, w, self.dt)
         pose += noise.pose_std_at(control.v, control.omega) * e[2:]
         pose[2] = wrap(pose[2])
-        if not self.world.contains(pose[:2]):
-            # The bumper: a move that would leave the room is not made. The robot stays where
-            # it was (it may still turn), and the command the filters see is what it did:
-            # v = 0. Runs that never reach a wall are not affected (same draws, same truth).
+        if not self.world.contains(pose[:2]) or self._into_wall(pose):
+            # The bumper: a move that would leave the room (or enter a wall) is not made. The
+            # robot stays where it was (it may still turn), and the command the filters see
+            # is what it did: v = 0. Runs that never reach a wall are not affected (same draws, same truth).
             # Its turn is the told command's, with that command's slip (bumped_heading).
             if noise.slip_gain(0.0, control.omega) != g:
                 pose[2] = bumped_heading(noise, self.schedule.bursts_at(k), self.pose[2],
@@ -171,6 +174,14 @@ class Simulation:
         for i in range(n):
             steps.append(self.step(None if controls is None else controls[i]))
         return steps
+
+
+def into_wall(world, old: np.ndarray, new: np.ndarray, radius: float) -> bool:
+    """Whether the move from ``old`` to ``new`` takes the robot's disc of ``radius`` [m] into
+    a wall (a world with walls only; a robot put inside one, by a kidnap, may drive out)."""
+    if world.grid is None:
+        return False
+    return not world.is_free(new, radius) and world.is_free(old, radius)
 
 
 def bumped_heading(noise, bursts, theta0: float, omega: float, e_omega: float, e_theta: float,

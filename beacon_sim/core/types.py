@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: Measurement kinds and the width of one row of ``Measurement.z``.
-MEASUREMENT_DIMS = {"bearing": 1, "range_bearing": 2, "pose": 3, "position": 2}
+#: ``range_finder`` (issue 30) is a laser scan: one row ``[range, beam angle]`` per beam.
+MEASUREMENT_DIMS = {"bearing": 1, "range_bearing": 2, "pose": 3, "position": 2, "range_finder": 2}
 
 
 def read_only(a: np.ndarray) -> np.ndarray:
@@ -63,10 +64,13 @@ class Measurement:
     z : ndarray, shape (m, d)
         One row per reading. bearing: ``[bearing]`` [rad] relative to the robot's heading;
         range_bearing: ``[range, bearing]`` [m, rad]; pose: ``[x, y, theta]`` [m, m, rad]
-        (m = 1); position: ``[x, y]`` [m] (m = 1).
+        (m = 1); position: ``[x, y]`` [m] (m = 1); range_finder: ``[range, beam angle]``
+        [m, rad] per beam, the angle relative to the heading (m = number of beams; a range
+        equal to the sensor's max_range is "no return").
     beacon_ids : ndarray of int, shape (m,) for bearing/range_bearing
         The ID of the beacon each row belongs to (known correspondence). For pose and
-        position fixes: the IDs of the beacons the fix was computed from.
+        position fixes: the IDs of the beacons the fix was computed from. For a
+        range_finder: empty (a scan names no beacon).
     hdop : float
         Horizontal dilution of precision of a position fix (nan for other kinds).
     """

@@ -1,4 +1,5 @@
-"""The world: a rectangular area [m] and the beacons in it."""
+"""The world: a rectangular area [m], the beacons in it and, optionally, walls (an occupancy
+grid, docs/maps.md): the robot cannot enter a cell nearer an occupied one than its radius."""
 
 from __future__ import annotations
 
@@ -9,15 +10,26 @@ from types import MappingProxyType
 
 import numpy as np
 
+from beacon_sim.core.beam_model import distance_transform
+from beacon_sim.core.occupancy import OccupancyGrid
 from beacon_sim.core.types import Beacon, read_only
+
+#: Clearances are exact up to this distance [m] (larger ones read as it): robot radii and
+#: kidnap margins are far below it.
+CLEARANCE_CAP = 5.0
+
+#: Tries of rejection sampling for a free random pose in a world with walls.
+_FREE_POSE_TRIES = 10_000
 
 
 @dataclass(frozen=True)
 class World:
-    """Bounds ``(xmin, ymin, xmax, ymax)`` [m] and beacons with unique IDs."""
+    """Bounds ``(xmin, ymin, xmax, ymax)`` [m], beacons with unique IDs and optional walls
+    (``grid``, an occupancy grid; None: an empty room)."""
 
     bounds: tuple[float, float, float, float]
     beacons: tuple[Beacon, ...]
+    grid: OccupancyGrid | None = None
 
     @cached_property
     def beacon_xy(self) -> np.ndarray:
@@ -72,9 +84,35 @@ class World:
         return out
 
     def random_pose(self, rng: np.random.Generator, margin: float = 0.0) -> np.ndarray:
-        """A pose drawn uniformly in the bounds (shrunk by ``margin`` [m]) and all headings."""
+        """A pose drawn uniformly in the bounds (shrunk by ``margin`` [m]) and all headings;
+        in a world with walls, redrawn until it is at least ``margin`` from every wall."""
         xmin, ymin, xmax, ymax = self.bounds
-        x = rng.uniform(xmin + margin, xmax - margin)
-        y = rng.uniform(ymin + margin, ymax - margin)
-        theta = rng.uniform(-np.pi, np.pi)
+        for _ in range(_FREE_POSE_TRIES if self.grid is not None else 1):
+            x = rng.uniform(xmin + margin, xmax - margin)
+            y = rng.uniform(ymin + margin, ymax - margin)
+            theta = rng.uniform(-np.pi, np.pi)
+            if self.grid is None or self.is_free((x, y), margin):
+                break
         return np.array([x, y, theta])
+
+    @cached_property
+    def clearance(self) -> np.ndarray | None:
+        """Distance [m] from each grid cell's centre to the nearest occupied cell's centre,
+        shape grid.shape (0 in occupied cells; None without walls)."""
+        if self.grid is None:
+            return None
+        cap = CLEARANCE_CAP / self.grid.resolution  # bounds the transform's passes on open maps
+        return read_only(distance_transform(self.grid.occupied, cap) * self.grid.resolution)
+
+    def is_free(self, xy, radius: float = 0.0) -> bool:
+        """Whether a disc of ``radius`` [m] centred at ``xy`` (2,) [m] is clear of the walls,
+        to a cell's precision: its cell is free and its clearance is at least ``radius``.
+        Outside the grid counts as free (the bounds stop the robot there)."""
+        if self.grid is None:
+            return True
+        rc = self.grid.world_to_cell(np.asarray(xy, dtype=float)[:2])
+        if not self.grid.in_grid(rc):
+            return True
+        assert self.clearance is not None
+        d = float(self.clearance[int(rc[0]), int(rc[1])])
+        return d > 0.0 and d >= min(radius, CLEARANCE_CAP)

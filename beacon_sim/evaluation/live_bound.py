@@ -55,6 +55,9 @@ class LiveBound:
         """One tick: predict along the command from the previous true pose, then add the
         expected information of the readings due at the new true pose. A step that does not
         follow the last one (a replay seeking back rebuilds from tick 1) restarts."""
+        if self.tick < 0 or any(s.kind == "range_finder" for s in self.scenario.sensors):
+            self.tick = -1      # no bound with a range finder (pcrb.measurement_information)
+            return
         if step.tick != self.tick + 1:
             self.reset()
             if step.tick != 1:  # joined mid-run: no history to build the bound from

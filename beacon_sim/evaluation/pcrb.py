@@ -79,6 +79,10 @@ def measurement_information(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray
     """Expected Fisher information of one reading of ``spec``, shape (R, 3, 3), at true
     ``poses`` (R, 3) [m, m, rad] with beacons at ``bxy`` (nb, 2) [m]."""
     R = poses.shape[0]
+    if spec.kind == "range_finder":
+        # A scan's information needs its ray casts' derivatives along the path: not computed
+        # (issue 30). NaN, so that no bound is shown rather than one that leaves it out.
+        return np.full((R, 3, 3), np.nan)
     pos, theta = poses[:, :2], poses[:, 2]
     vis = _visible(spec, pos, theta, bxy)
     p = spec.detection_prob * (1.0 - spec.outlier_rate)

@@ -387,6 +387,8 @@ class SlotPacker:
         a = 0
         for s in sensors:
             bxy: np.ndarray | None
+            if s.kind == "range_finder":   # a laser scan (issue 30): no Gaussian slots, unread
+                continue
             if s.kind in BEACON_KINDS:
                 var = [float(v) ** 2 for v in s.reading_std()]
                 width, n, bxy = len(var), len(var) * len(xy), xy
@@ -484,6 +486,8 @@ class SlotPacker:
         fix_var: list[np.ndarray] = []
         for i, measurements in enumerate(runs):
             for m in measurements:
+                if m.kind == "range_finder":   # scans have no slots (the filters ignore them)
+                    continue
                 try:
                     table = self.slots_of[m.sensor]
                 except KeyError:

@@ -45,7 +45,7 @@ def step_arrays(scenario: Scenario, steps: Sequence[Step]) -> dict[str, np.ndarr
     mt, msens, mkind, mid, mz, mh = [], [], [], [], [], []
     for s in steps:
         for m in s.measurements:
-            fix = m.kind in ("pose", "position")
+            fix = m.kind in ("pose", "position", "range_finder")   # no beacon ID per row
             for i in range(len(m)):
                 mt.append(s.tick)
                 msens.append(m.sensor)

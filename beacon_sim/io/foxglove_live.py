@@ -27,7 +27,7 @@ def step_readings(step: Step) -> list[tuple[str, str, np.ndarray, int]]:
     beacon -1 for a fix."""
     rows = []
     for m in step.measurements:
-        fix = m.kind in ("pose", "position")
+        fix = m.kind in ("pose", "position", "range_finder")   # no beacon ID per row
         for i in range(len(m)):
             rows.append((m.sensor, m.kind, np.asarray(m.z[i], dtype=float),
                          -1 if fix else int(m.beacon_ids[i])))

@@ -437,9 +437,11 @@ class TeamRecording(_HeaderFields):
         return self.team
 
 
-def rebuild_scenario(text: str, file: str, name: str) -> Scenario:
-    """A scenario from its stored text (the same checks and caps as loading the file)."""
-    return parse_scenario(parse_toml_text(text, file), file, name=name)
+def rebuild_scenario(text: str, file: str, name: str, source: str | None = None) -> Scenario:
+    """A scenario from its stored text (the same checks and caps as loading the file); a
+    map file it names is found beside ``source``, the scenario file recorded (issue 30)."""
+    base = Path(source).parent if source else None
+    return parse_scenario(parse_toml_text(text, file), file, name=name, base_dir=base)
 
 
 def rebuild_team_scenario(text: str, file: str, name: str) -> TeamScenario:
@@ -795,7 +797,8 @@ def load_recording(path) -> Recording:
         raise _fail(path, 1, "a team session's recording: beacon-sim replay reads it "
                              "(this command takes single-robot recordings)")
     file = f"{path} (scenario {header.get('scenario_source', header['scenario_name'])})"
-    scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"])
+    scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"],
+                                header.get("scenario_source"))
     _check_dt(path, header, scenario.dt)
     scenario = replace(scenario_with_slip(scenario, _slip_model(path, header)), seed=int(header["seed"]))
     return Recording(path, header, scenario, ticks, checkpoints, end, notes, parts)

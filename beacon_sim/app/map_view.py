@@ -1,0 +1,104 @@
+"""Drawing a world's walls and a laser scan (issue 30): the occupancy grid as dark cells under
+everything, and each beam of a range_finder reading from the robot to its end point, beams
+that hit something in blue with a dot at the hit, no-return (max-range) beams in light grey.
+
+Geometry stays in metres until the last step (``view.to_px``), as everywhere in app/.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pygame
+
+from beacon_sim.core.occupancy import OCCUPIED, UNKNOWN, OccupancyGrid
+from beacon_sim.core.types import Measurement
+
+#: Occupied cells: near-black, so that walls read as solid on a projector.
+WALL = (55, 55, 60)
+#: Unknown cells (map_server's grey): between the floor and the walls.
+UNKNOWN_CELL = (170, 170, 165)
+#: A beam that hit something (Okabe-Ito blue) and one with no return (max range).
+BEAM_HIT = (0, 114, 178)
+BEAM_NONE = (200, 200, 196)
+#: Largest scaled map image [px] (beyond it the visible part only is scaled).
+MAX_MAP_PIXELS = 6_000_000
+
+
+def grid_image(grid: OccupancyGrid) -> pygame.Surface:
+    """The grid as a (cols x rows) surface with alpha: walls and unknown cells opaque, free
+    cells transparent; screen rows run downwards, so the top line is the grid's last row."""
+    rows, cols = grid.shape
+    img = pygame.Surface((cols, rows), pygame.SRCALPHA)
+    rgb = np.zeros((cols, rows, 3), dtype=np.uint8)
+    alpha = np.zeros((cols, rows), dtype=np.uint8)
+    cells = grid.cells.T[:, ::-1]             # (cols, rows), y down
+    for value, colour in ((OCCUPIED, WALL), (UNKNOWN, UNKNOWN_CELL)):
+        mask = cells == value
+        rgb[mask] = colour
+        alpha[mask] = 255
+    pygame.surfarray.blit_array(img, rgb)
+    a = pygame.surfarray.pixels_alpha(img)
+    a[:] = alpha
+    del a
+    return img
+
+
+def draw_map(surf: pygame.Surface, view, grid: OccupancyGrid | None) -> None:
+    """The walls of ``grid`` (None: nothing) scaled into ``view`` on ``surf`` (window
+    coordinates). A rotated grid (origin yaw) is rotated as a whole; an axis-aligned one
+    too large to scale whole is cropped to the visible cells first."""
+    if grid is None:
+        return
+    img = grid_image(grid)
+    rows, cols = grid.shape
+    res, (ox, oy, yaw) = grid.resolution, grid.origin
+    scale = view.scale * res                                   # px per cell
+    if yaw == 0.0:
+        x0, y0, x1, y1 = view.visible_world()
+        c0 = max(0, math.floor((x0 - ox) / res))
+        c1 = min(cols, math.ceil((x1 - ox) / res))
+        r0 = max(0, math.floor((y0 - oy) / res))
+        r1 = min(rows, math.ceil((y1 - oy) / res))
+        if c1 <= c0 or r1 <= r0:
+            return
+        sub = img.subsurface(pygame.Rect(c0, rows - r1, c1 - c0, r1 - r0))
+        w, h = max(1, round((c1 - c0) * scale)), max(1, round((r1 - r0) * scale))
+        if w * h > MAX_MAP_PIXELS:
+            return
+        corner = view.to_px(np.array([ox + c0 * res, oy + r1 * res]))
+        surf.blit(pygame.transform.scale(sub, (w, h)), (round(corner[0]), round(corner[1])))
+        return
+    w, h = max(1, round(cols * scale)), max(1, round(rows * scale))
+    if w * h > MAX_MAP_PIXELS:
+        return
+    turned = pygame.transform.rotate(pygame.transform.scale(img, (w, h)), math.degrees(yaw))
+    centre = view.to_px(grid.grid_to_world(np.array([cols / 2, rows / 2])))
+    surf.blit(turned, turned.get_rect(center=(round(centre[0]), round(centre[1]))))
+
+
+def scan_segments(pose, m: Measurement) -> np.ndarray:
+    """Beam segments (n, 2, 2) [m] from the robot along each beam to its reading."""
+    p = np.asarray(pose[:2], dtype=float)
+    z = np.asarray(m.z, dtype=float)
+    a = pose[2] + z[:, 1]
+    end = p + z[:, :1] * np.stack([np.cos(a), np.sin(a)], axis=1)
+    return np.stack([np.broadcast_to(p, end.shape), end], axis=1)
+
+
+def draw_scan(surf: pygame.Surface, view, pose, m: Measurement, max_range: float, width: int = 1) -> None:
+    """One scan taken at ``pose``: no-return beams light grey, hits blue with a dot."""
+    segs = scan_segments(pose, m)
+    hit = np.asarray(m.z[:, 0]) < max_range
+    px = view.to_px(segs)
+    for (a, b), h in zip(px, hit, strict=True):
+        if not h:
+            pygame.draw.line(surf, BEAM_NONE, a, b, width)
+    for (a, b), h in zip(px, hit, strict=True):
+        if h:
+            pygame.draw.line(surf, BEAM_HIT, a, b, width)
+    dot = max(2, width + 1)
+    for (_, b), h in zip(px, hit, strict=True):
+        if h:
+            pygame.draw.circle(surf, BEAM_HIT, (round(b[0]), round(b[1])), dot)

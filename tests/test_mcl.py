@@ -1,0 +1,178 @@
+"""filters/mcl.py (issue 30): scan-based MCL with AMCL's names, on the shipped maps."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from beacon_sim.core.beam_model import LikelihoodField, RangeModelParams
+from beacon_sim.core.occupancy import from_walls
+from beacon_sim.core.raycast import scan
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.types import Measurement
+from beacon_sim.filters.base import FilterError
+from beacon_sim.filters.loading import build_filter
+from beacon_sim.filters.mcl import kld_bound, subsample_beams
+
+
+def run(name: str, seed: int, seconds: float, params=None, every: float | None = None):
+    """Run mcl on a shipped scenario; yields (step, filter) every ``every`` seconds."""
+    sc = load_scenario(name)
+    sim = Simulation(sc, seed=seed)
+    f = build_filter("mcl", sc, seed, params=params)
+    stride = round((every or seconds) / sc.dt)
+    for k in range(1, round(seconds / sc.dt) + 1):
+        st = sim.step()
+        f.predict(st.control, st.dt)
+        f.update(st.measurements)
+        if k % stride == 0:
+            yield st, f
+
+
+def test_subsample_beams_like_amcl():
+    np.testing.assert_array_equal(subsample_beams(181, 5), [0, 45, 90, 135, 180])
+    np.testing.assert_array_equal(subsample_beams(10, 60), np.arange(10))
+    assert len(subsample_beams(1081, 60)) == 60
+
+
+def test_kld_bound_is_fox_2003():
+    """n = (k - 1) / (2 err) (1 - 2 / (9 (k - 1)) + sqrt(2 / (9 (k - 1))) z)^3, by hand for
+    k = 2 and k = 101; one bin needs one sample."""
+    k = np.array([1, 2, 101])
+    n = kld_bound(k, 0.05, 2.326)
+    by_hand_2 = 1 / 0.1 * (1 - 2 / 9 + math.sqrt(2 / 9) * 2.326) ** 3
+    by_hand_101 = 100 / 0.1 * (1 - 2 / 900 + math.sqrt(2 / 900) * 2.326) ** 3
+    np.testing.assert_allclose(n, [1, math.ceil(by_hand_2), math.ceil(by_hand_101)])
+
+
+def test_global_start_is_uniform_over_free_cells():
+    sc = load_scenario("office")
+    f = build_filter("mcl", sc, 1)
+    f.reset(None)
+    assert f.n == f.params["max_particles"]
+    assert f.in_free_space(f.poses).all()
+    g = sc.world.grid
+    free_share = (g.cells == 0).mean()
+    # particles spread over the free cells: as many in the west half as its free share says
+    west = f.poses[:, 0] < 10.0
+    west_free = (g.cells[:, :200] == 0).sum() / (g.cells == 0).sum()
+    assert abs(west.mean() - west_free) < 0.03 and free_share < 1.0
+
+
+def test_a_particle_in_a_wall_scores_least():
+    grid = from_walls((0, 0, 4, 4), 0.05, segments=[[(0, 0), (4, 0), (4, 4), (0, 4), (0, 0)]],
+                      polygons=[[(1.0, 1.0), (2.0, 1.0), (2.0, 2.0), (1.0, 2.0)]])
+    sc = load_scenario("symmetric_room")
+    world = dataclasses.replace(sc.world, grid=grid, bounds=(0.0, 0.0, 4.0, 4.0))
+    f = build_filter("mcl", dataclasses.replace(sc, world=world), 1,
+                     params={"beam_combination": "product", "max_particles": 10, "min_particles": 1})
+    rel, r = scan(grid, (3.0, 3.0, 0.0), 40, 2 * math.pi, 2.5)
+    m = Measurement("laser", "range_finder", np.column_stack([r, rel]), np.zeros(0, dtype=int))
+    f.poses = np.array([[3.0, 3.0, 0.0], [1.5, 1.5, 0.0], [3.5, 0.5, 1.0]])
+    f.n = 3
+    ll, used = f.scan_log_likelihood(m)
+    field = LikelihoodField(grid, RangeModelParams(laser_max_range=2.5))
+    assert ll[1] == pytest.approx(used * field._log_table["off_map"])
+    assert ll[1] < ll[2] < ll[0]
+
+
+def test_the_likelihood_field_option_and_the_beam_model_agree_on_the_best_pose():
+    """Both measurement models rank the true pose above poses 0.3 m or 0.3 rad off."""
+    sc = load_scenario("office")
+    truth = np.array([7.5, 6.0, 0.3])
+    rel, r = scan(sc.world.grid, truth, 181, 4.712389, 8.0)
+    m = Measurement("laser", "range_finder", np.column_stack([r, rel]), np.zeros(0, dtype=int))
+    cands = truth + np.array([[0, 0, 0], [0.3, 0, 0], [0, -0.3, 0], [0, 0, 0.3]])
+    for model, combo in (("likelihood_field", "amcl"), ("likelihood_field", "product"), ("beam", "amcl")):
+        f = build_filter("mcl", sc, 1, params={"laser_model_type": model, "beam_combination": combo,
+                                                "max_particles": 10, "min_particles": 1})
+        f.poses, f.n = cands.copy(), len(cands)
+        ll, _ = f.scan_log_likelihood(m)
+        assert np.argmax(ll) == 0 and (ll[1:] < ll[0]).all(), (model, combo)
+
+
+def test_bad_parameters_are_named():
+    sc = load_scenario("corridor")
+    for params, words in (({"laser_model_type": "sonar"}, "laser_model_type 'sonar'"),
+                          ({"min_particles": 10, "max_particles": 5}, "min_particles <= max_particles"),
+                          ({"recovery_alpha_fast": 2.0}, "recovery_alpha_fast"),
+                          ({"laser_z_hitt": 0.5}, "did you mean 'laser_z_hit'")):
+        with pytest.raises(FilterError, match=words):
+            build_filter("mcl", sc, 1, params=params)
+
+
+def test_mcl_in_a_beacon_world_runs_on_odometry():
+    """No walls: an open grid, no scan to read; the filter predicts and stays finite."""
+    sc = load_scenario("default")
+    f = build_filter("mcl", sc, 1, params={"max_particles": 500, "min_particles": 100})
+    sim = Simulation(sc)
+    for _ in range(20):
+        st = sim.step()
+        f.predict(st.control, st.dt)
+        f.update(st.measurements)
+    mean, cov = f.estimate()
+    assert np.isfinite(mean).all() and np.isfinite(cov).all()
+    assert abs(mean[0] - st.true_pose[0]) < 0.3
+
+
+def test_same_seed_same_particles():
+    a = [f.poses.copy() for _, f in run("corridor", 4, 6.0, every=2.0)]
+    b = [f.poses.copy() for _, f in run("corridor", 4, 6.0, every=2.0)]
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_corridor_global_localization_converges_to_the_true_cell():
+    """Seed 004's corridor, started lost: after 60 s (the robot has passed the doors) the
+    estimate is in the robot's 1 m cell, facing its way, and stays there to 90 s; KLD-sampling
+    has shrunk the set from max_particles."""
+    checked = 0
+    for st, f in run("corridor", 4, 90.0, every=10.0):
+        if st.time < 60.0:
+            continue
+        mean, _ = f.estimate()
+        assert math.floor(mean[0]) == math.floor(st.true_pose[0]), st.time
+        assert math.cos(mean[2] - st.true_pose[2]) > 0.9
+        assert f.n < f.params["max_particles"]
+        checked += 1
+    assert checked == 4
+
+
+def mass_near(f, xy, radius=0.3) -> float:
+    w = f.weights()
+    return float(w[np.hypot(*(f.poses[:, :2] - xy).T) < radius].sum())
+
+
+@pytest.mark.slow
+def test_the_symmetric_room_keeps_two_clouds_until_the_partition_is_seen():
+    """Started lost in a room that looks the same turned half a turn about its centre (4, 2):
+    while the robot stays in the middle (the partition beyond the laser's 2.5 m) a cloud
+    stays on the truth and one on its mirror image; once the partition has been seen the
+    mirror's cloud is gone (masses within 0.3 m, every 2.5 s, the first 5 s skipped while the
+    clouds form)."""
+    centre = np.array([8.0, 4.0])
+    before, after = [], []
+    for st, f in run("symmetric_room", 7, 100.0, every=2.5):
+        truth = st.true_pose[:2]
+        if np.hypot(*(truth - (4.0, 2.0))) < 0.35:
+            continue          # truth and mirror too close to tell apart
+        pair = (mass_near(f, truth), mass_near(f, centre - truth))
+        (before if st.time <= 40.0 else after).append(pair)
+    assert len(before) >= 4
+    assert all(t > 0.1 and m > 0.1 for t, m in before[2:]), before   # from t = 7.5 s
+    assert all(m > 0.1 for _, m in after[:2]), after      # on the way: not yet seen
+    assert after[-1][0] > 0.95 and after[-1][1] < 0.02, after
+
+
+@pytest.mark.slow
+def test_check_takes_a_scan_based_filter_on_a_map_scenario(capsys):
+    """``beacon-sim check mcl --scenario corridor``: every conformance check passes."""
+    from beacon_sim.cli.main import main
+
+    assert main(["check", "mcl", "--scenario", "corridor"]) == 0
+    out = capsys.readouterr().out
+    assert "14 of 14 checks passed" in out and "readings" in out
