@@ -1,0 +1,106 @@
+"""Issue 29, step 4: SLAM where a user looks. ``check`` judges a SLAM filter's
+``landmarks()``; ``run --json`` gives each SLAM filter's ATE, map GOSPA and final joint NEES;
+the HUD says "no IDs" under unknown correspondence and does not call unlabelled beacons
+missed."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.filters import conformance
+from beacon_sim.filters.conformance import landmark_map_problems
+from beacon_sim.filters.loading import load_filter_class
+
+GOOD_COV = np.array([[[0.04, 0.01], [0.01, 0.09]]] * 2)
+
+
+def lmap(ids=None, means=None, covs=None):
+    return SimpleNamespace(ids=ids, means=np.zeros((2, 2)) if means is None else means,
+                           covs=GOOD_COV if covs is None else covs)
+
+
+# -- 1. check: landmarks() --------------------------------------------------------------
+def test_a_well_formed_map_has_no_problem():
+    assert landmark_map_problems(lmap()) == []
+    assert landmark_map_problems(lmap(ids=np.array([3, 7]))) == []
+    assert landmark_map_problems(lmap(means=np.zeros((0, 2)), covs=np.zeros((0, 2, 2)))) == []
+
+
+@pytest.mark.parametrize(("bad", "words"), [
+    (None, "expected a LandmarkMap"),
+    (lmap(means=np.zeros((2, 3))), "means of shape (2, 3)"),
+    (lmap(covs=np.zeros((2, 3, 3))), "covs of shape (2, 3, 3)"),
+    (lmap(covs=GOOD_COV[:1]), "2 means but 1 covs"),
+    (lmap(ids=np.array([1, 2, 3])), "3 ids but 2 means"),
+    (lmap(ids=np.array([1.0, 2.0])), "expected (M,) integers or None"),
+    (lmap(means=np.array([[0.0, np.nan], [1.0, 1.0]])), "NaN or infinity"),
+    (lmap(covs=np.array([GOOD_COV[0], [[0.04, 0.02], [0.0, 0.09]]])), "landmark 1 not symmetric"),
+    (lmap(covs=np.array([[[1.0, 0.0], [0.0, -0.5]], GOOD_COV[0]])), "landmark 0 not positive semi-definite"),
+])
+def test_each_fault_of_a_map_has_its_message(bad, words):
+    problems = landmark_map_problems(bad)
+    assert len(problems) == 1 and words in problems[0], problems
+
+
+def _by_name(results):
+    return {r.name: r for r in results}
+
+
+def test_check_judges_the_built_in_slam_filters_map_on_slam_loop():
+    for spec in ("ekf_slam", "fastslam"):
+        res = _by_name(conformance.run_checks(spec, load_scenario("default"), isolated=False))
+        lm = res["landmarks"]
+        assert lm.passed, lm.message
+        assert "on slam_loop" in lm.message  # the default scenario's map is known
+        assert int(lm.message.rsplit("up to ", 1)[1].split()[0]) >= 1  # it did map something
+    plain = _by_name(conformance.run_checks("ekf", load_scenario("default"), isolated=False))
+    assert "landmarks" not in plain  # a localization filter is not asked for a map
+
+
+BROKEN = '''
+import numpy as np
+from beacon_sim.filters.base import LandmarkMap
+from beacon_sim.filters.ekf_slam import EKFSLAM
+
+class SkewMap(EKFSLAM):
+    """EKF-SLAM reporting non-symmetric landmark covariances once it has a landmark."""
+    def landmarks(self):
+        lm = super().landmarks()
+        covs = lm.covs.copy()
+        covs[:, 0, 1] += 1.0
+        return LandmarkMap(lm.ids, lm.means, covs)
+
+class ShortIds(EKFSLAM):
+    def landmarks(self):
+        lm = super().landmarks()
+        return LandmarkMap(np.arange(len(lm.means) + 1), lm.means, lm.covs)
+'''
+
+
+@pytest.mark.parametrize(("cls", "words"), [("SkewMap", "not symmetric"), ("ShortIds", "ids but")])
+def test_check_fails_a_broken_map_with_a_clear_message(tmp_path, cls, words):
+    path = tmp_path / "broken_slam.py"
+    path.write_text(textwrap.dedent(BROKEN))
+    res = _by_name(conformance.run_checks(f"{path}:{cls}", load_scenario("slam_loop"), isolated=False))
+    lm = res["landmarks"]
+    assert not lm.passed and words in lm.message and lm.message.startswith("step ")
+    assert "LandmarkMap(ids, means, covs)" in lm.advice
+    assert res["runs"].passed  # one fault, one FAIL: the pose checks are untouched
+
+
+def test_the_slam_template_passes_the_map_check(tmp_path, capsys):
+    from beacon_sim.cli.main import main
+
+    path = tmp_path / "my_slam.py"
+    assert main(["new-filter", str(path), "--slam"]) == 0
+    capsys.readouterr()
+    assert callable(getattr(load_filter_class(f"{path}:MySlam"), "landmarks", None))
+    res = _by_name(conformance.run_checks(f"{path}:MySlam", load_scenario("slam_loop"), isolated=False))
+    assert res["landmarks"].passed, res["landmarks"].message
+    assert all(r.passed for r in res.values()), [r.message for r in res.values() if not r.passed]
