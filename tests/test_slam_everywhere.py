@@ -5,7 +5,6 @@ missed."""
 
 from __future__ import annotations
 
-import json
 import textwrap
 from types import SimpleNamespace
 
