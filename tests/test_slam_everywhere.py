@@ -103,3 +103,79 @@ def test_the_slam_template_passes_the_map_check(tmp_path, capsys):
     res = _by_name(conformance.run_checks(f"{path}:MySlam", load_scenario("slam_loop"), isolated=False))
     assert res["landmarks"].passed, res["landmarks"].message
     assert all(r.passed for r in res.values()), [r.message for r in res.values() if not r.passed]
+
+
+# -- 2. run --json: the SLAM figures -----------------------------------------------------
+DIES = '''
+from beacon_sim.filters.ekf_slam import EKFSLAM
+
+class Dies(EKFSLAM):
+    """EKF-SLAM that raises on its 60th update (3 s)."""
+    n = 0
+    def update(self, measurements):
+        self.n += 1
+        if self.n == 60:
+            raise RuntimeError("boom")
+        super().update(measurements)
+'''
+
+
+@pytest.fixture
+def slam_json(tmp_path, capsys):
+    from beacon_sim.cli.main import main
+
+    path = tmp_path / "dies.py"
+    path.write_text(textwrap.dedent(DIES))
+
+    def run(*extra):
+        args = ["run", "slam_loop", "--filter", "ekf_slam", "--filter", "fastslam",
+                "--filter", f"{path}:Dies", "--filter", "ekf", "--duration", "20",
+                "--set", "fastslam.n_particles=20", *extra]
+        assert main(args) == 0
+        return capsys.readouterr().out
+    return run
+
+
+def test_run_json_gives_each_slam_filter_its_map_and_path_figures(slam_json):
+    import json
+
+    out = slam_json("--json")
+    d = json.loads(out.splitlines()[0])
+    rows = d["filters"]
+    sc = load_scenario("slam_loop")
+    n_beacons = len(sc.world.beacons) - len(sc.anchor_ids)
+    for name in ("ekf_slam", "fastslam"):
+        s = rows[name]["slam"]
+        assert s["ate_m"] == pytest.approx(rows[name]["pos_rmse_m"], rel=1e-12)  # two roads, one RMS
+        assert 0 < s["map_landmarks"] <= n_beacons
+        paired = s["map_landmarks"] - s["map_false"]
+        assert paired + s["map_missed"] == n_beacons
+        # GOSPA (c = 1 m, p = 2) is at most sqrt(c^2 / 2 * (missed + false) + c^2 * paired)
+        assert 0 < s["map_gospa_m"] <= np.sqrt(0.5 * (s["map_missed"] + s["map_false"]) + paired)
+    ekf_slam = rows["ekf_slam"]["slam"]
+    assert ekf_slam["joint_dof"] == 3 + 2 * ekf_slam["map_landmarks"]  # no tentative ones with IDs
+    assert np.isfinite(ekf_slam["joint_nees"]) and ekf_slam["joint_nees"] > 0
+    assert rows["fastslam"]["slam"]["joint_nees"] is None  # no joint Gaussian to test
+    assert rows["Dies"]["failed"] and rows["Dies"]["slam"] is None  # a failed filter: no score
+    assert "slam" not in rows["ekf"]  # a localization filter has no map to score
+
+
+def test_run_json_slam_figures_follow_the_map_not_a_constant(slam_json):
+    import json
+
+    a = json.loads(slam_json("--json").splitlines()[0])["filters"]["ekf_slam"]["slam"]
+    b = json.loads(slam_json("--json").splitlines()[0])["filters"]["ekf_slam"]["slam"]
+    assert a == b  # same seed, same figures
+    c = json.loads(slam_json("--json", "--seed", "7").splitlines()[0])["filters"]["ekf_slam"]["slam"]
+    assert c["map_gospa_m"] != a["map_gospa_m"] and c["ate_m"] != a["ate_m"]
+
+
+def test_run_text_prints_the_slam_table(slam_json):
+    out = slam_json()
+    lines = out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("SLAM filter"))
+    assert "GOSPA m" in lines[head] and "joint NEES" in lines[head]
+    body = {ln.split()[0]: ln for ln in lines[head + 1:head + 4]}
+    assert set(body) == {"ekf_slam", "fastslam", "Dies"}
+    assert "FAILED: no score" in body["Dies"] and "n/a" in body["fastslam"]
+    assert len(body["ekf_slam"].split()) == 8  # every figure, the joint NEES and its dof
