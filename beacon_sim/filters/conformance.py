@@ -392,9 +392,10 @@ def landmark_map_problems(lm: object) -> list[str]:
     if lm is None or not all(hasattr(lm, a) for a in ("ids", "means", "covs")):
         return [f"landmarks() returned {type(lm).__name__}, expected a LandmarkMap (ids, means, covs)"]
     out: list[str] = []
+    got: Any = lm
     try:
-        means = np.asarray(lm.means, dtype=float)  # type: ignore[attr-defined]
-        covs = np.asarray(lm.covs, dtype=float)  # type: ignore[attr-defined]
+        means = np.asarray(got.means, dtype=np.float64)
+        covs = np.asarray(got.covs, dtype=np.float64)
     except (TypeError, ValueError):
         return ["landmarks(): means or covs are not arrays of numbers"]
     if means.ndim != 2 or means.shape[1:] != (2,):
@@ -404,7 +405,7 @@ def landmark_map_problems(lm: object) -> list[str]:
     m = means.shape[0] if means.ndim == 2 else None
     if m is not None and covs.ndim == 3 and covs.shape[0] != m:
         out.append(f"landmarks(): {m} means but {covs.shape[0]} covs")
-    ids = lm.ids  # type: ignore[attr-defined]
+    ids = got.ids
     if ids is not None:
         arr = np.asarray(ids)
         if arr.ndim != 1 or not np.issubdtype(arr.dtype, np.integer):
