@@ -179,3 +179,71 @@ def test_run_text_prints_the_slam_table(slam_json):
     assert set(body) == {"ekf_slam", "fastslam", "Dies"}
     assert "FAILED: no score" in body["Dies"] and "n/a" in body["fastslam"]
     assert len(body["ekf_slam"].split()) == 8  # every figure, the joint NEES and its dof
+
+
+# -- 3. the HUD under unknown correspondence ----------------------------------------------
+def test_ids_text_says_no_ids_instead_of_minus_one():
+    from beacon_sim.app.hud import ids_text
+
+    assert ids_text([1, 4], 0) == "  IDs 1, 4"
+    assert ids_text([], 3) == "  no IDs (3 readings)"
+    assert ids_text([], 1) == "  no IDs (1 reading)"
+    assert ids_text([2], 2) == "  IDs 2; no IDs (2 readings)"
+    assert ids_text([], 0) == "  IDs none"
+
+
+def panel_texts(session, monkeypatch, png=None):
+    """Every text the side panel drew for ``session`` in a 1280x800 window (never shown)."""
+    import pygame
+
+    from beacon_sim.app.hud import Hud
+    from beacon_sim.app.main import App
+
+    drawn = []
+    real = Hud._blit
+
+    def spy(self, surf, text, font, colour, at, bg=None):
+        drawn.append(text)
+        return real(self, surf, text, font, colour, at, bg)
+
+    monkeypatch.setattr(Hud, "_blit", spy)
+    app = App(session, (1280, 800), scripted=True)
+    app.draw()
+    if png is not None:
+        pygame.image.save(app.screen, str(png))
+    return drawn
+
+
+def test_the_panel_on_lookalike_beacons_says_no_ids_and_misses_none_it_saw(monkeypatch, tmp_path):
+    from beacon_sim.app import association_layer
+    from beacon_sim.runs.live import Session
+
+    s = Session(load_scenario("lookalike_beacons"), ["ekf"])
+    s.toggle_autopilot()
+    for _ in range(40):
+        s.tick()
+    while not any(len(m) for m in s.readings()):  # a tick whose readings are on show
+        s.tick()
+    truth = association_layer.seen_by_truth(s)
+    assert truth and s.seen_ids() <= {-1}  # readings without IDs, from real beacons
+    texts = panel_texts(s, monkeypatch, tmp_path / "panel.png")
+    assert (tmp_path / "panel.png").stat().st_size > 0
+    assert not any("IDs -1" in t or "-1" in t.split("IDs", 1)[-1] for t in texts if "IDs" in t)
+    rows = sum(int(np.count_nonzero(np.asarray(m.beacon_ids) == -1)) for m in s.readings())
+    assert f"  no IDs ({rows} reading{'s' if rows != 1 else ''})" in texts
+    assert f"beacons in view: {len(truth)}" in texts
+    missed = [t for t in texts if "missed in range" in t]
+    listed = {int(v) for t in missed for v in t.split(":", 1)[1].split(",")}
+    assert not listed & truth  # a beacon seen without its ID is not "missed"
+
+
+def test_the_panel_with_ids_still_lists_them(monkeypatch):
+    from beacon_sim.runs.live import Session
+
+    s = Session(load_scenario("default"), ["ekf"])
+    s.toggle_autopilot()
+    while not s.seen_ids():
+        s.tick()
+    texts = panel_texts(s, monkeypatch)
+    assert "  IDs " + ", ".join(map(str, sorted(s.seen_ids()))) in texts
+    assert not any("no IDs" in t for t in texts)
