@@ -208,9 +208,12 @@ def panel_texts(session, monkeypatch, png=None):
 
     monkeypatch.setattr(Hud, "_blit", spy)
     app = App(session, (1280, 800), scripted=True)
-    app.draw()
-    if png is not None:
-        pygame.image.save(app.screen, str(png))
+    try:
+        app.draw()
+        if png is not None:
+            pygame.image.save(app.screen, str(png))
+    finally:
+        app.close()
     return drawn
 
 
@@ -260,3 +263,18 @@ def test_a_slam_file_in_a_process_of_its_own_is_told_how_to_judge_its_map(tmp_pa
     assert res["landmarks"].passed and "--sandbox none" in res["landmarks"].message
     plain = _by_name(conformance.run_checks(str(tmp_path / "plain.py"), load_scenario("default")))
     assert "landmarks" not in plain
+
+
+def test_the_team_panel_does_not_show_minus_one_as_a_beacon(monkeypatch):
+    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.runs.live import Session
+
+    team = load_team_scenario("team_sparse")
+    s = Session(team, list(team.default_filters))
+    for _ in range(5):
+        s.tick()
+    seen = {0: {-1, 3}, 1: {-1}}  # robot 0: a beacon with its ID and one without; robot 1: without
+    monkeypatch.setattr(Session, "seen_ids", lambda self, i=None: seen.get(i, set()))
+    texts = panel_texts(s, monkeypatch)
+    assert "beacons 3; beacons without IDs" in texts and "beacons without IDs" in texts
+    assert not any("-1" in t for t in texts if t.startswith("beacons"))

@@ -169,11 +169,13 @@ class Hud:
         y = self.command(surf, x, y + lh, session.next_control(), session.drive_mode) + 4
         name_w = max(f["small"].size(n)[0] for n in session.robot_names) + 12
         for i, name in enumerate(session.robot_names):
-            seen = sorted(session.seen_ids(i))
+            ids = session.seen_ids(i)
+            seen = sorted(ids - {UNKNOWN_ID})
             mates = session.teammates_seen(i)
             self._blit(surf, name, "small", palette.TEXT, (x, y))
-            text = (f"beacons {', '.join(map(str, seen))}" if seen else "no beacon")
-            r = self._blit(surf, text, "small", palette.TEXT if seen else palette.WARN,
+            text = "; ".join([f"beacons {', '.join(map(str, seen))}"] * bool(seen)
+                             + ["beacons without IDs"] * (UNKNOWN_ID in ids)) or "no beacon"
+            r = self._blit(surf, text, "small", palette.TEXT if ids else palette.WARN,
                            (x + name_w, y))
             if mates:
                 sees = "; sees " + ", ".join(mates)
