@@ -278,3 +278,40 @@ def test_the_team_panel_does_not_show_minus_one_as_a_beacon(monkeypatch):
     texts = panel_texts(s, monkeypatch)
     assert "beacons 3; beacons without IDs" in texts and "beacons without IDs" in texts
     assert not any("-1" in t for t in texts if t.startswith("beacons"))
+
+
+def test_joint_nees_without_ids_pairs_the_landmarks_as_the_ids_would():
+    from beacon_sim.evaluation.slam_run import slam_figures
+    from beacon_sim.runs.headless import run_headless
+
+    res = run_headless(load_scenario("slam_loop"), ["ekf_slam"], seed=5, duration=30.0)
+    told = slam_figures(res)["ekf_slam"]
+    flt = res.runner.tracks["ekf_slam"].filter
+    mean, cov, ids = flt.joint()
+    assert len(ids) >= 4
+    flt.joint = lambda: (mean, cov, tuple(-1 for _ in ids))  # the same map, its IDs hidden
+    blind = slam_figures(res)["ekf_slam"]
+    assert blind["joint_dof"] == told["joint_dof"] == 3 + 2 * len(ids)
+    assert blind["joint_nees"] == pytest.approx(told["joint_nees"], rel=1e-9)
+    # one landmark pushed beyond the cut-off from every beacon: it is marginalised out
+    far = mean.copy()
+    far[3:5] += 50.0
+    flt.joint = lambda: (far, cov, tuple(-1 for _ in ids))
+    assert slam_figures(res)["ekf_slam"]["joint_dof"] == 3 + 2 * (len(ids) - 1)
+
+
+def test_run_on_slam_without_ids_gives_a_joint_nees(tmp_path, capsys):
+    import json
+
+    from beacon_sim.cli.main import main
+    from beacon_sim.core.resources import scenario_dir
+
+    text = (scenario_dir() / "slam_loop.toml").read_text()
+    assert 'kind = "range_bearing"\n' in text
+    path = tmp_path / "slam_noids.toml"
+    path.write_text(text.replace('kind = "range_bearing"\n',
+                                 'kind = "range_bearing"\ncorrespondence = "unknown"\n'))
+    assert main(["run", str(path), "--filter", "ekf_slam", "--duration", "30", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out.splitlines()[0])["filters"]["ekf_slam"]["slam"]
+    assert s["joint_nees"] is not None and s["joint_nees"] > 0
+    assert s["joint_dof"] % 2 == 1 and 5 <= s["joint_dof"] <= 3 + 2 * 12

@@ -1,6 +1,7 @@
 """A headless run's SLAM figures (docs/slam.md, "In `run`"): for each single-robot filter
 with ``landmarks()`` that was not switched off, the path's ATE [m], the final map's GOSPA
-[m] against the beacons the filters were not given, and the final joint NEES.
+[m] against the beacons the filters were not given, and the final joint NEES (landmarks
+without IDs paired with beacons by GOSPA's assignment).
 
 It lives here, not in ``runs/headless.py``, because the metrics are the evaluation layer's
 (``evaluation/slam_metrics.py``) and the layers forbid ``runs`` to import them; ``run``
@@ -35,17 +36,36 @@ def true_map(result: RunResult) -> tuple[np.ndarray, np.ndarray]:
 
 def _joint_nees(flt: Any, result: RunResult) -> tuple[float | None, int | None]:
     """The final joint NEES and its degrees of freedom (3 + 2M), from the filter's
-    ``joint()`` (mean, cov, landmark IDs); None when it has none or its landmarks carry no
-    beacon IDs (unknown correspondence: no truth to pair each with)."""
+    ``joint()`` (mean, cov, landmark IDs); None when it has no ``joint()``.
+
+    Landmarks with beacon IDs are compared with those beacons. Landmarks without (unknown
+    correspondence, ID < 0) are paired with the beacons by GOSPA's assignment (within its
+    cut-off) and the unpaired ones marginalised out (their rows and columns dropped, which
+    is the marginal of the Gaussian); the pairing picks the nearest beacons, so this NEES
+    leans low."""
     joint = getattr(flt, "joint", None)
     if not callable(joint):
         return None, None
     mean, cov, ids = joint()
+    mean, cov = np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
     truth = {b.id: (b.x, b.y) for b in result.scenario.world.beacons}
-    if any(int(i) not in truth for i in ids):
+    ids = [int(i) for i in ids]
+    if any(i >= 0 and i not in truth for i in ids):
         return None, None
-    value = joint_nees(mean, cov, ids, result.truth[-1], truth)
-    return (value if math.isfinite(value) else None), 3 + 2 * len(ids)
+    blind = [j for j, i in enumerate(ids) if i < 0]
+    if blind:
+        b_ids, b_xy = true_map(result)
+        taken = {i for i in ids if i >= 0}
+        free = [k for k, b in enumerate(b_ids.tolist()) if b not in taken]
+        xy = mean[3:3 + 2 * len(ids)].reshape(-1, 2)[blind]
+        pairs = gospa(xy, b_xy[free], c=GOSPA_CUTOFF_M).pairs
+        for r, k in pairs:
+            ids[blind[r]] = int(b_ids[free[k]])
+    keep = [j for j, i in enumerate(ids) if i >= 0]
+    rows = np.r_[0:3, np.array([[3 + 2 * j, 4 + 2 * j] for j in keep], dtype=int).reshape(-1)]
+    value = joint_nees(mean[rows], cov[np.ix_(rows, rows)], [ids[j] for j in keep],
+                       result.truth[-1], truth)
+    return (value if math.isfinite(value) else None), 3 + 2 * len(keep)
 
 
 def slam_figures(result: RunResult) -> dict[str, dict[str, Any] | None]:
@@ -93,4 +113,4 @@ def print_slam_table(figures: dict[str, dict[str, Any] | None]) -> None:
         print(f"{name:<16}{r['ate_m']:>9.3f}{r['map_gospa_m']:>9.3f}{r['map_landmarks']:>10}"
               f"{r['map_missed']:>8}{r['map_false']:>7}{nees:>12}{dof:>5}")
     print(f"(GOSPA cut-off {GOSPA_CUTOFF_M:g} m; joint NEES of the final pose and map, chi-square "
-          "with dof degrees of freedom; n/a: no joint Gaussian or no beacon IDs)")
+          "with dof degrees of freedom; landmarks without IDs paired by GOSPA; n/a: no joint Gaussian)")
