@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pygame
 
-from beacon_sim.app import controls, palette
+from beacon_sim.app import association_layer, controls, palette
 from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids, polyline, sensors_read
+from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.runs.scene import NEES_BAND, Scene
 
 
@@ -100,14 +101,13 @@ class Hud:
         sl = f["small"].get_linesize()
         y = self.title_and_clock(surf, x, w, y, session.scenario.name, session.time, info)
         y = self.command(surf, x, y, session.next_control(), session.drive_mode)
-        seen = sorted(session.seen_ids())
-        ids = ", ".join(map(str, seen)) if seen else "none"
+        labelled, unlabelled, seen = beacons_in_view(session)
         self._blit(surf, f"beacons in view: {len(seen)}", "hud",
                    palette.WARN if not seen else palette.TEXT, (x, y))
         y += lh
         missed = sorted(missed_ids(sensors_read(session.scenario, session.tick_count),
                                    session.scenario.world, session.true_pose, seen))
-        self._blit(surf, f"  IDs {ids}", "small", palette.TEXT_DIM, (x, y))
+        self._blit(surf, ids_text(labelled, unlabelled), "small", palette.TEXT_DIM, (x, y))
         y += sl
         if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
             self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
@@ -169,11 +169,13 @@ class Hud:
         y = self.command(surf, x, y + lh, session.next_control(), session.drive_mode) + 4
         name_w = max(f["small"].size(n)[0] for n in session.robot_names) + 12
         for i, name in enumerate(session.robot_names):
-            seen = sorted(session.seen_ids(i))
+            ids = session.seen_ids(i)
+            seen = sorted(ids - {UNKNOWN_ID})
             mates = session.teammates_seen(i)
             self._blit(surf, name, "small", palette.TEXT, (x, y))
-            text = (f"beacons {', '.join(map(str, seen))}" if seen else "no beacon")
-            r = self._blit(surf, text, "small", palette.TEXT if seen else palette.WARN,
+            text = "; ".join([f"beacons {', '.join(map(str, seen))}"] * bool(seen)
+                             + ["beacons without IDs"] * (UNKNOWN_ID in ids)) or "no beacon"
+            r = self._blit(surf, text, "small", palette.TEXT if ids else palette.WARN,
                            (x + name_w, y))
             if mates:
                 sees = "; sees " + ", ".join(mates)
@@ -521,6 +523,33 @@ class Hud:
         wrapped = {(k, d): wrap_text(f[font], d, room) or [""] for k, d in pairs}
         desc_w = max(f[font].size(p)[0] for w in wrapped.values() for p in w)
         return font, 2, key_w, desc_w, wrapped
+
+
+def beacons_in_view(session) -> tuple[list[int], int, set[int]]:
+    """What the panel says is in view: the beacon IDs the readings carry (sorted), how many
+    readings carry none (unknown correspondence, clutter included), and the beacons really
+    seen (those IDs and, for readings without IDs, the beacons they came from: the
+    simulator's truth, ``association_layer.seen_by_truth``), so none of them is "missed"."""
+    labelled: set[int] = set()
+    unlabelled = 0
+    for m in session.readings():
+        if m.kind.startswith("robot_"):
+            continue
+        ids = np.asarray(m.beacon_ids, dtype=np.int64)
+        labelled |= {int(i) for i in ids[ids != UNKNOWN_ID]}
+        unlabelled += int(np.count_nonzero(ids == UNKNOWN_ID))
+    return sorted(labelled), unlabelled, labelled | association_layer.seen_by_truth(session)
+
+
+def ids_text(labelled: list[int], unlabelled: int) -> str:
+    """The panel's line under "beacons in view": ``  IDs 1, 4``, ``  no IDs (3 readings)``,
+    both when sensors of both kinds read, or ``  IDs none``."""
+    parts = []
+    if labelled:
+        parts.append("IDs " + ", ".join(map(str, labelled)))
+    if unlabelled:
+        parts.append(f"no IDs ({unlabelled} reading{'s' if unlabelled != 1 else ''})")
+    return "  " + ("; ".join(parts) if parts else "IDs none")
 
 
 def split_columns(heights: list[float], ncol: int) -> tuple[list[int], float]:

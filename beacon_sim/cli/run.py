@@ -20,6 +20,7 @@ from beacon_sim.cli.common import (
 from beacon_sim.cli.tables import failed_text, fmt, print_run
 from beacon_sim.core.team_scenario import load_any_scenario
 from beacon_sim.evaluation.association_metrics import association_report
+from beacon_sim.evaluation.slam_run import print_slam_table, slam_figures
 from beacon_sim.filters.team_specs import check_team_specs
 from beacon_sim.runs.headless import run_headless
 
@@ -41,6 +42,9 @@ def run_command(args: argparse.Namespace) -> int:
     if team.solo:
         print_sensor_notes(specs, team.robots[0].scenario)
     data = result.as_json()
+    slam = slam_figures(result)  # issue 29: each SLAM filter's ATE, map GOSPA, joint NEES
+    for name, fig in slam.items():
+        data["filters"][name]["slam"] = fig
     scored = None
     if getattr(args, "associations", False) and team.solo:  # issue 29: a second run, IDs told
         scored = association_report(team.robots[0].scenario, args.filters, args.seed,
@@ -50,6 +54,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(json.dumps(data, indent=None, default=float))
     elif team.solo:
         print_run(data)
+        print_slam_table(slam)
     else:
         print_team_run(data)
     print_failures(result.tracks.values())

@@ -169,9 +169,10 @@ class _LocalHost:
 class _ChildHost:
     """The filter in a child process of its own (a file): its code never runs here."""
 
-    def __init__(self, child: FilterChild, log: Path | None = None):
+    def __init__(self, child: FilterChild, log: Path | None = None, source: Path | None = None):
         self.child = child
         self.log = log  # the child's stdout and stderr
+        self.source = source  # the filter's file (read, never run, here), when known
         info = child.info
         self.where = f"{info.get('module', '?')}.{child.class_name} (in a process of its own)"
         self.sensor_kinds = info.get("sensor_kinds")
@@ -215,7 +216,7 @@ def _open_host(spec: str, isolated: bool, sandbox: str) -> _Host:
         log = Path(tempfile.mkdtemp(prefix="beacon-sim-check-")) / "log.txt"
         child = FilterChild(path, cls, log, resolve_sandbox(sandbox), Limits(),
                             reply_timeout_s=max(60.0, 4 * STEP_LIMIT_S))
-        return _ChildHost(child, log)
+        return _ChildHost(child, log, path if isinstance(path, Path) else path.origin())
     return _LocalHost(load_filter_class(spec))
 
 
@@ -383,6 +384,112 @@ def check_belief(flt: Filter) -> CheckResult:
     return _result("belief", isinstance(b, GaussianBelief | ParticleBelief | GridBelief),
                    type(b).__name__,
                    "belief() must return a GaussianBelief, ParticleBelief or GridBelief")
+
+
+def landmark_map_problems(lm: object) -> list[str]:
+    """What is wrong with a ``landmarks()`` result (docs/slam.md): a LandmarkMap-like object
+    whose ``ids`` are None or M integers, ``means`` (M, 2) and ``covs`` (M, 2, 2) finite, each
+    cov symmetric and positive semi-definite. One message per fault; empty when it is right."""
+    if lm is None or not all(hasattr(lm, a) for a in ("ids", "means", "covs")):
+        return [f"landmarks() returned {type(lm).__name__}, expected a LandmarkMap (ids, means, covs)"]
+    out: list[str] = []
+    got: Any = lm
+    try:
+        means = np.asarray(got.means, dtype=np.float64)
+        covs = np.asarray(got.covs, dtype=np.float64)
+    except (TypeError, ValueError):
+        return ["landmarks(): means or covs are not arrays of numbers"]
+    if means.ndim != 2 or means.shape[1:] != (2,):
+        out.append(f"landmarks(): means of shape {means.shape}, expected (M, 2)")
+    if covs.ndim != 3 or covs.shape[1:] != (2, 2):
+        out.append(f"landmarks(): covs of shape {covs.shape}, expected (M, 2, 2)")
+    m = means.shape[0] if means.ndim == 2 else None
+    if m is not None and covs.ndim == 3 and covs.shape[0] != m:
+        out.append(f"landmarks(): {m} means but {covs.shape[0]} covs")
+    ids = got.ids
+    if ids is not None:
+        arr = np.asarray(ids)
+        if arr.ndim != 1 or not np.issubdtype(arr.dtype, np.integer):
+            out.append(f"landmarks(): ids of shape {arr.shape} and type {arr.dtype}, expected (M,) "
+                       "integers or None")
+        elif m is not None and arr.shape[0] != m:
+            out.append(f"landmarks(): {arr.shape[0]} ids but {m} means")
+    if not (np.all(np.isfinite(means)) and np.all(np.isfinite(covs))):
+        out.append("landmarks(): NaN or infinity in the means or covs")
+    elif covs.ndim == 3 and covs.shape[1:] == (2, 2) and len(covs):
+        scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
+        asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2))
+        bad = np.flatnonzero(asym > 1e-9 * scale)
+        if bad.size:
+            out.append(f"landmarks(): cov of landmark {int(bad[0])} not symmetric "
+                       f"(cov - cov^T up to {float(asym[bad[0]]):.3g})")
+        low = np.linalg.eigvalsh(0.5 * (covs + np.swapaxes(covs, 1, 2)))[:, 0]
+        neg = np.flatnonzero(low < -1e-9 * scale)
+        if neg.size:
+            out.append(f"landmarks(): cov of landmark {int(neg[0])} not positive semi-definite "
+                       f"(smallest eigenvalue {float(low[neg[0]]):.3g})")
+    return out
+
+
+def _slam_scenario(scenario: Scenario) -> tuple[Scenario, str]:
+    """The scenario the map check runs on: ``scenario`` when its map is withheld, else
+    ``slam_loop`` (on a known map a SLAM filter has no landmarks to report)."""
+    if not scenario.map_known:
+        return scenario, ""
+    return load_scenario("slam_loop"), " (on slam_loop: the given scenario's map is known)"
+
+
+def _defines_landmarks(path: Path, class_name: str | None) -> bool:
+    """Whether the file defines a class (``class_name``, or any) with a ``landmarks`` method
+    of its own, read without running it."""
+    import ast
+
+    try:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+    except (SyntaxError, UnicodeDecodeError, OSError, ValueError):
+        return False
+    return any(isinstance(n, ast.ClassDef) and (class_name is None or n.name == class_name)
+               and any(isinstance(f, ast.FunctionDef) and f.name == "landmarks" for f in n.body)
+               for n in tree.body)
+
+
+def check_landmarks(host: _Host, scenario: Scenario, spec: str) -> list[CheckResult]:
+    """For a SLAM filter (one with ``landmarks()``): after every one of the steps the map is
+    well formed (see :func:`landmark_map_problems`); the first step with a fault, one FAIL
+    naming every fault of that step. No result for a filter without ``landmarks()``; a filter
+    in a process of its own is not judged (its map stays in that process)."""
+    if isinstance(host, _ChildHost):
+        if host.source is None or not _defines_landmarks(host.source, host.child.class_name):
+            return []
+        return [_result("landmarks", True, "not judged: the filter runs in a process of its own "
+                        "and its map stays there (`beacon-sim check FILE --sandbox none` judges it)")]
+    if not callable(getattr(host.cls, "landmarks", None)):
+        return []
+    used, note = _slam_scenario(scenario)
+    advice = ("landmarks() must return LandmarkMap(ids, means, covs): ids None or (M,) ints, "
+              "means (M, 2) [m], covs (M, 2, 2) [m^2] symmetric positive semi-definite "
+              "(filters/base.py, docs/slam.md)")
+    try:
+        flt = host.make(used, spec)
+    except Exception as exc:
+        return [_result("landmarks", False, f"not built on {used.name}: {one_line(exc)}", advice)]
+    n_max = 0
+    for k, st in enumerate(Simulation(used, SEED).run(N_STEPS * used.dt), 1):
+        def one(st: Step = st) -> object:
+            flt.predict(st.control, st.dt)
+            flt.update(st.measurements)
+            return flt.landmarks()  # type: ignore[attr-defined]
+
+        lm, why, _ = call_guarded(one, STEP_LIMIT_S, cpu=True,
+                                  over=f"time limit: a step took over {STEP_LIMIT_S:g} s")
+        if why is not None:
+            return [_result("landmarks", False, f"step {k}{note}: {why}", advice)]
+        faults = landmark_map_problems(lm)
+        if faults:
+            return [_result("landmarks", False, f"step {k}{note}: " + "; ".join(faults), advice)]
+        n_max = max(n_max, len(np.asarray(lm.means).reshape(-1, 2)))  # type: ignore[attr-defined]
+    return [_result("landmarks", True, f"ids, means (M, 2), covs (M, 2, 2) finite, symmetric, PSD "
+                    f"on every step{note}; up to {n_max} landmarks")]
 
 
 @dataclass
@@ -592,8 +699,8 @@ def _checks(host: _Host, spec: str, scenario: Scenario) -> list[CheckResult]:
     trial = _empty_trial(fresh)  # a fresh filter right after reset: no other fault shown yet
     runs, empty = blame_one_fault(runs, check_empty_update(trial), run, trial, steps, fresh)
     rng = _rng_trial(host, scenario, spec, steps)
-    return [*results, runs, *values, belief, empty, check_determinism(rng), check_global_rng(rng),
-            report_cost(run, scenario, steps)]
+    return [*results, runs, *values, belief, *check_landmarks(host, scenario, spec), empty,
+            check_determinism(rng), check_global_rng(rng), report_cost(run, scenario, steps)]
 
 
 def print_report(spec: str, results: list[CheckResult]) -> None:
