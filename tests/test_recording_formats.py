@@ -16,8 +16,11 @@ from pathlib import Path
 import pytest
 
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.team_scenario import load_team_scenario, team_of_one
 from beacon_sim.core.types import Control
+from beacon_sim.io.recording import load_recording
+from beacon_sim.runs.recorder import Recorder
+from beacon_sim.runs.replay import TeamReplayResult, replay_recording
 
 OLD = Path(__file__).parent / "data" / "old_recordings"
 #: The filters of the scripted single-robot session, and its --set overrides.
@@ -86,3 +89,102 @@ def header_free(lines: list[str]) -> list[str]:
     head["created"] = head["program_version"] = ""
     head["scenario_source"] = Path(head["scenario_source"]).name
     return [json.dumps(head), *lines[1:]]
+
+
+def scripted_recording(kind: str, path: Path) -> Path:
+    """The scripted session of ``kind`` ("solo": SOLO_*, on sparse_kidnap with seed 11;
+    "team": TEAM_*, on team_sparse with seed 13) recorded by today's writer to ``path``."""
+    from beacon_sim.runs.live import Session
+    from beacon_sim.runs.team_live import TeamSession
+
+    if kind == "solo":
+        sc = load_scenario("sparse_kidnap")
+        rec = Recorder(path, sc, 11, SOLO_FILTERS, SOLO_PARAMS)
+        session = Session(sc, SOLO_FILTERS, 11, SOLO_PARAMS, rec)
+        drive_solo(session)
+    else:
+        team = load_team_scenario("team_sparse")
+        rec = Recorder(path, team, 13, TEAM_FILTERS, TEAM_PARAMS)
+        session = TeamSession(team, TEAM_FILTERS, 13, TEAM_PARAMS, rec)
+        drive_team(session)
+    session.close()
+    return rec.path
+
+
+@pytest.mark.parametrize(("kind", "old"), [("solo", "v3_sparse_kidnap.jsonl"),
+                                           ("team", "v3_team_sparse.jsonl")])
+def test_the_one_writer_writes_what_the_two_wrote(tmp_path, kind, old):
+    """Recorder (one robot) and TeamRecorder (a team) wrote the files under OLD before
+    issue 22; the one Recorder writes the same bytes from the same scripted session."""
+    path = scripted_recording(kind, tmp_path / f"{kind}.jsonl")
+    new = path.read_text(encoding="utf-8").splitlines()
+    before = (OLD / old).read_text(encoding="utf-8").splitlines()
+    assert len(new) == len(before)
+    assert header_free(new) == header_free(before)
+    assert ('"kind":"team"' in new[0]) == (kind == "team")
+
+
+def test_every_old_recording_reads_as_a_team_and_replays_to_its_truth():
+    """Every file under OLD (versions 1 to 3, one robot and teams) loads with the one reader
+    (a single robot's file as a team of one) and replays to the truth its end line holds;
+    a version 3 file, its filters' estimates too ("verified")."""
+    files = sorted(OLD.glob("*.jsonl"))
+    assert {f.name for f in files} >= {"v1_sparse_kidnap.jsonl", "v2_sparse_kidnap.jsonl",
+                                       "v2_team_sparse.jsonl", "v3_sparse_kidnap.jsonl",
+                                       "v3_team_sparse.jsonl"}
+    for f in files:
+        rec = load_recording(f)
+        assert rec.complete, f.name
+        team_file = "team" in f.name
+        assert rec.is_team == team_file and rec.team.solo == (not team_file)
+        assert rec.n_robots == (3 if team_file else 1)
+        if not team_file:
+            assert rec.scenario is rec.team.robots[0].scenario
+            assert rec.scenario.name == "sparse_kidnap" and rec.team.seed == rec.seed
+        out = replay_recording(rec)
+        if isinstance(out, TeamReplayResult):
+            truth, status = out.result.truth_checksum, out.replay["checksum_status"]
+        else:
+            truth, status = out.truth_checksum, out.extra["replay"]["checksum_status"]
+        assert truth == rec.end["checksum"], f.name
+        assert status.startswith("verified"), (f.name, status)
+        if rec.version == 3:
+            assert status == "verified", (f.name, status)
+
+
+def test_a_team_of_one_is_recorded_in_a_single_robots_format(tmp_path):
+    """Recorder given a Scenario, or the team of one made from it, writes the same file; the
+    single robot's call form (tick, control, commands) and the N-robot one (tick, driven,
+    control, autopilot, commands) record the same tick."""
+    sc = load_scenario("default")
+    files = []
+    for i, (scenario, new_form) in enumerate([(sc, True), (team_of_one(sc), True), (sc, False)]):
+        path = tmp_path / f"{i}.jsonl"
+        with Recorder(path, scenario, 5, ["ekf"]) as rec:
+            for k in range(1, 31):
+                control = Control(0.2, 0.1 * (k % 3))
+                cmds = [{"kind": "kidnap", "pose": [1.0, 1.0, 0.0]}] if k == 10 else []
+                if new_form:
+                    rec.record_tick(k, 0, control, False, cmds)
+                else:
+                    rec.record_tick(k, control, cmds)
+        files.append(header_free(path.read_text(encoding="utf-8").splitlines()))
+    assert files[0] == files[1] == files[2]
+    assert all('"d"' not in line and '"poses"' not in line for line in files[0])
+    rec = load_recording(tmp_path / "0.jsonl")
+    assert not rec.is_team and rec.ticks[9].commands == [{"kind": "kidnap", "pose": [1.0, 1.0, 0.0]}]
+    assert replay_recording(rec).extra["replay"]["checksum_status"] == \
+        "verified: truth and readings; filter settings not recorded"
+
+
+def test_a_single_robot_command_is_refused_in_a_teams_file_and_back(tmp_path):
+    """The two formats keep their own commands: a team's kidnap names a robot, a single
+    robot's has none and may be a global reset."""
+    team = load_team_scenario("team_sparse")
+    with Recorder(tmp_path / "t.jsonl", team, 2, ["independent"]) as rec, \
+            pytest.raises(ValueError, match="unknown team command 'global_reset'"):
+        rec.record_tick(1, 0, Control(), False, [{"kind": "global_reset"}])
+    with Recorder(tmp_path / "s.jsonl", load_scenario("default"), 2, ["ekf"]) as rec:
+        rec.record_tick(1, 0, Control(), False, [{"kind": "global_reset"}])
+        with pytest.raises(ValueError, match="unknown user command"):
+            rec.record_tick(2, 0, Control(), False, [{"kind": "exec"}])

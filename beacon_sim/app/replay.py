@@ -26,7 +26,7 @@ from beacon_sim.app import palette
 from beacon_sim.app.hud import wrap_text
 from beacon_sim.app.main import App
 from beacon_sim.app.team import TeamApp
-from beacon_sim.io.recording import Recording, TeamRecording
+from beacon_sim.io.recording import Recording
 from beacon_sim.runs.mrclam import MrclamPlayback
 from beacon_sim.runs.replay import ReplaySession
 from beacon_sim.runs.team_replay import TeamReplaySession
@@ -214,7 +214,7 @@ class TeamReplayApp(ReplayApp, TeamApp):
         ReplayApp.draw_extra(self, surf)  # the timeline
 
 
-def show_replay(recording: Recording | TeamRecording, specs: list[str], params: dict[str, dict[str, Any]],
+def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[str, Any]],
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
                 end: float | None = None, size: tuple[int, int] = (1280, 800),
@@ -231,7 +231,7 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
     check_display()  # no window to show it in: one line, exit 2 (not an invisible replay)
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     session: ReplaySession | TeamReplaySession
-    if isinstance(recording, TeamRecording):
+    if recording.is_team:
         session = TeamReplaySession(recording, specs, params)
         app: ReplayApp = TeamReplayApp(session, size, scripted=frames is not None or gif is not None)
     else:
