@@ -321,7 +321,7 @@ class Recorder:
         self._check_tick(tick)
         self._digest_tick(self.shadow.tick)
         team_commands_to_sim(commands, self.shadow)
-        step = self.shadow.step({} if autopilot else {driven: control})
+        step = self.shadow.step({} if autopilot or control is None else {driven: control})
         self.readings.update(step)
         # the command as given (a bump sets step.control's v to 0; replay needs what ran)
         u = step.steps[driven].control if autopilot or control is None else control

@@ -330,17 +330,17 @@ def apply_recorded_commands(recording: Recording, commands: list[dict], sim: Tea
                 f = m.tracks[name].filter
                 if f is None:
                     continue
-                _, why, tb = guarded_call(partial(reset_filter, f, robot.scenario), limit_s)
-                if why is not None:
-                    runner.fail(name, f"reset: robot {robot.name}: {why}", tb, time_s)
+                _, failed, tb = guarded_call(partial(reset_filter, f, robot.scenario), limit_s)
+                if failed is not None:
+                    runner.fail(name, f"reset: robot {robot.name}: {failed}", tb, time_s)
                     break
             continue
         jf = team_filter_of(runner.joint.tracks[name])
         if jf is None:
             continue
-        _, why, tb = guarded_call(partial(jf.reset, initial_beliefs(team)), limit_s)
-        if why is not None:
-            runner.fail(name, f"reset: {why}", tb, time_s)
+        _, failed, tb = guarded_call(partial(jf.reset, initial_beliefs(team)), limit_s)
+        if failed is not None:
+            runner.fail(name, f"reset: {failed}", tb, time_s)
 
 
 @dataclass
