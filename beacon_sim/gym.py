@@ -238,7 +238,7 @@ class BeaconEnv(gymnasium.Env):
         assert self.session is not None
         self.session.action = control
         self._actions.append(control)
-        return [self.session.tick() for _ in range(self.ticks_per_step)]
+        return [self.session.tick().steps[0] for _ in range(self.ticks_per_step)]
 
     def __getstate__(self) -> dict[str, Any]:
         """The env without its live session (filters, generators, a hash) and window: an

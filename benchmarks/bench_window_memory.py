@@ -20,12 +20,10 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 from beacon_sim.app.main import App
-from beacon_sim.app.team import TeamApp
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.runs.live import Session
-from beacon_sim.runs.team_live import TeamSession
 
 PAGE = resource.getpagesize()
 
@@ -68,9 +66,9 @@ def main() -> None:
     finally:
         app.close()
     team = load_team_scenario("team_sparse")
-    ts = TeamSession(team, list(team.default_filters))
+    ts = Session(team, list(team.default_filters))
     ts.autopilot = True
-    tapp = TeamApp(ts, (1280, 800), scripted=True)
+    tapp = App(ts, (1280, 800), scripted=True)
     try:
         soak(tapp, ts, team.dt, args.minutes, "team window, team_sparse, 4 team filters")
     finally:

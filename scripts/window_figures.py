@@ -60,13 +60,13 @@ def make_app(scenario: str, size: tuple[int, int], filters: list[str] | None = N
     from beacon_sim.runs.live import Session
 
     if is_team_scenario(scenario):
-        from beacon_sim.app.team import TeamApp
-        from beacon_sim.runs.team_live import TeamSession
+        from beacon_sim.app.main import App
+        from beacon_sim.runs.live import Session
 
         team = load_team_scenario(scenario)
-        ts = TeamSession(team, list(team.default_filters))
+        ts = Session(team, list(team.default_filters))
         ts.toggle_autopilot()
-        return TeamApp(ts, size, scripted=True)
+        return App(ts, size, scripted=True)
     sc = load_scenario(scenario)
     s = Session(sc, list(filters or sc.default_filters))
     s.toggle_autopilot()

@@ -266,13 +266,13 @@ def team_recording_text(tmp: Path) -> str:
     """A short real team recording of ``team_sparse`` (written by the Recorder): the
     keys drive the scout, Tab, a kidnap and a reset."""
     from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.runs.live import Session
     from beacon_sim.runs.recorder import Recorder
-    from beacon_sim.runs.team_live import TeamSession
 
     team = load_team_scenario("team_sparse")
     path = tmp / "team_base.jsonl"
-    s = TeamSession(team, ["independent", "centralised"], 2, {},
-                    Recorder(path, team, 2, ["independent", "centralised"]))
+    s = Session(team, ["independent", "centralised"], 2, {},
+                Recorder(path, team, 2, ["independent", "centralised"]))
     for k in range(1, 41):
         if k == 3:
             s.drive("w")

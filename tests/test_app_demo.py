@@ -246,12 +246,12 @@ def test_beacon_labels_keep_off_the_axis_labels_in_krejsa_bearing_only():
 
 
 def test_robot_names_keep_off_the_beacon_labels_in_team_sparse():
-    from beacon_sim.app.team import TeamApp
+    from beacon_sim.app.main import App
     from beacon_sim.core.team_scenario import load_team_scenario
-    from beacon_sim.runs.team_live import TeamSession
+    from beacon_sim.runs.live import Session
 
     team = load_team_scenario("team_sparse")
-    app = TeamApp(TeamSession(team, list(team.default_filters)), PROJECTOR, scripted=True)
+    app = App(Session(team, list(team.default_filters)), PROJECTOR, scripted=True)
     try:
         for n in (30, 200):
             app.run(n)
@@ -308,7 +308,8 @@ def test_beacons_in_the_sensor_disc_that_were_missed_are_marked(monkeypatch):
     try:
         s = app.session
         run_to(app, 1.0)
-        s.last_readings.clear()  # as if every beacon in range had been missed
+        for seen in s._readings:  # as if every beacon in range had been missed
+            seen.clear()
         drawn.clear()
         app.draw()
         missed = missed_ids(sc.sensors, world, s.true_pose, set())

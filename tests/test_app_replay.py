@@ -44,7 +44,7 @@ def recorded(tmp_path_factory):
         if t == 200:
             live.command({"kind": "reset"})
         live.tick()
-    state = {"pose": live.sim.pose.copy(), "checksum": live.sim.truth_checksum,
+    state = {"pose": live.true_pose.copy(), "checksum": live.sim.truth_checksum,
              "ekf": live.runner.tracks["ekf"].means[-1].copy()}
     live.close()
     return path, state
@@ -74,7 +74,7 @@ def test_replay_on_screen_reproduces_the_recorded_truth_and_estimates(recorded, 
         s = app.session
         assert s.sim.tick == TICKS and s.mismatch is None
         assert s.sim.truth_checksum == live["checksum"] == load_recording(path).end["checksum"]
-        np.testing.assert_array_equal(s.sim.pose, live["pose"])
+        np.testing.assert_array_equal(s.true_pose, live["pose"])
         np.testing.assert_array_equal(s.runner.tracks["ekf"].means[-1], live["ekf"])
         assert "verified" in app.banner_text
         assert "truth checksum verified" in capsys.readouterr().err
@@ -89,7 +89,7 @@ def test_seeking_back_then_forward_lands_on_the_straight_run_state(recorded):
         run_until(straight, 160)                      # x1: one tick every 3 frames, exact
         assert straight.session.sim.tick == 160
         ref = straight.session
-        ref_pose, ref_sum = ref.sim.pose.copy(), ref.sim.truth_checksum
+        ref_pose, ref_sum = ref.true_pose.copy(), ref.sim.truth_checksum
         ref_ekf = ref.runner.tracks["ekf"].means[-1].copy()
         ref_trail = ref.truth_trail.points[: ref.truth_trail.n].copy()
     finally:
@@ -114,7 +114,7 @@ def test_seeking_back_then_forward_lands_on_the_straight_run_state(recorded):
         app.run(app.frames + 1)
         s = app.session
         assert s.sim.tick == 160
-        np.testing.assert_array_equal(s.sim.pose, ref_pose)
+        np.testing.assert_array_equal(s.true_pose, ref_pose)
         assert s.sim.truth_checksum == ref_sum
         np.testing.assert_array_equal(s.runner.tracks["ekf"].means[-1], ref_ekf)
         np.testing.assert_array_equal(s.truth_trail.points[: s.truth_trail.n], ref_trail)

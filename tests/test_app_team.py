@@ -16,21 +16,21 @@ import pygame
 import pytest
 
 from beacon_sim.app import palette
+from beacon_sim.app.main import App
 from beacon_sim.app.render import ipx
-from beacon_sim.app.team import TeamApp
 from beacon_sim.core.team import TeamSimulation
 from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.core.types import Control
-from beacon_sim.runs.team_live import KEEP_ESTIMATES, TeamSession
+from beacon_sim.runs.live import KEEP_ESTIMATES, Session
 
 FILTERS = ["independent", "centralised", "ci"]
 
 
 def make_app(filters=FILTERS, seed=None, autopilot=False):
-    s = TeamSession(load_team_scenario("team_sparse"), list(filters), seed)
+    s = Session(load_team_scenario("team_sparse"), list(filters), seed)
     if autopilot:
         s.toggle_autopilot()
-    return TeamApp(s, (1280, 800), scripted=True)
+    return App(s, (1280, 800), scripted=True)
 
 
 def key(k):
@@ -234,7 +234,7 @@ def test_a_failing_team_filter_is_switched_off_with_its_message_and_the_others_g
         assert "ZeroDivisionError" in s.status["broken"].failed
         assert "my predict divides by zero" in s.status["broken"].failed
         assert not s.status["centralised"].failed
-        assert s.runner.tracks["centralised"].ticks[-1] == s.sim.tick == 20
+        assert s.filters_run.track("centralised").ticks[-1] == s.sim.tick == 20
         shown = [t for call in notes for t in call[4] if t]
         assert any(t.startswith("broken switched off:") and "divides by zero" in t for t in shown)
         # the broken filter's belief is no longer drawn; the centralised one's still is

@@ -105,13 +105,13 @@ def test_pause_freezes_simulated_time_and_dot_steps_once(app):
 
 def test_k_kidnaps_to_a_random_pose(app):
     frames(app, 3)
-    before = app.session.sim.pose.copy()
+    before = app.session.true_pose.copy()
     key(pygame.K_k)
     frames(app, 3)
     step = app.session.last_step
-    kidnaps = [e for e in step.events if e.kind == "kidnap"]
+    kidnaps = [e for e in step.steps[0].events if e.kind == "kidnap"]
     assert len(kidnaps) == 1 and "user" in kidnaps[0].detail
-    assert np.hypot(*(app.session.sim.pose[:2] - before[:2])) > 0.1
+    assert np.hypot(*(app.session.true_pose[:2] - before[:2])) > 0.1
     assert app.session.commands[step.tick] == [{"kind": "kidnap"}]
 
 
@@ -123,8 +123,8 @@ def test_click_kidnaps_to_the_point_and_drag_sets_the_heading(app):
     click(start, (start[0], start[1] - 60))  # drag up on screen: heading north (+pi/2)
     frames(app, 3)
     step = app.session.last_step
-    assert any(e.kind == "kidnap" for e in step.events)
-    pose = app.session.sim.pose
+    assert any(e.kind == "kidnap" for e in step.steps[0].events)
+    pose = app.session.true_pose
     assert np.hypot(*(pose[:2] - target)) <= 1.0 / app.view.scale  # within a pixel
     assert pose[2] == pytest.approx(math.pi / 2)
     # A plain click keeps the heading.
@@ -132,8 +132,8 @@ def test_click_kidnaps_to_the_point_and_drag_sets_the_heading(app):
     start = (ipx(p[0]), ipx(p[1]))
     click(start, start)
     frames(app, 3)
-    assert app.session.sim.pose[2] == pytest.approx(math.pi / 2)
-    assert np.hypot(*(app.session.sim.pose[:2] - [3.0, 6.0])) <= 1.0 / app.view.scale
+    assert app.session.true_pose[2] == pytest.approx(math.pi / 2)
+    assert np.hypot(*(app.session.true_pose[:2] - [3.0, 6.0])) <= 1.0 / app.view.scale
 
 
 def test_screenshot_has_the_robot_colour_where_the_robot_is(tmp_path):
@@ -147,7 +147,7 @@ def test_screenshot_has_the_robot_colour_where_the_robot_is(tmp_path):
         app.save_screenshot(path)
         img = pygame.image.load(str(path))
         assert img.get_size() == (1280, 800)
-        x, y = app.view.to_px(app.session.sim.pose[:2])
+        x, y = app.view.to_px(app.session.true_pose[:2])
         assert tuple(img.get_at((ipx(x), ipx(y))))[:3] == palette.ROBOT
         # Far from the robot (top right of the world, no beacon there) it is not robot-coloured.
         fx, fy = app.view.to_px(np.array([9.0, 4.5]))

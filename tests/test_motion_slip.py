@@ -123,8 +123,8 @@ def _drive_into_a_wall_turning(path, scenario="assignment_kf", ticks=900):
     bumps = 0
     for _ in range(ticks):
         step = s.tick()
-        bumps += sum(e.kind == "bump" for e in step.events)
-        if step.events and any(e.kind == "bump" for e in step.events):
+        bumps += sum(e.kind == "bump" for e in step.steps[0].events)
+        if step.steps[0].events and any(e.kind == "bump" for e in step.steps[0].events):
             s.drive("w")  # the driver keeps pushing into the wall, still turning
     s.close()
     return s, bumps
@@ -216,12 +216,12 @@ def test_the_batched_simulation_bumps_as_the_single_one(omega):
 
 def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
     from beacon_sim.core.team_scenario import load_team_scenario
-    from beacon_sim.runs.team_live import TeamSession
+    from beacon_sim.runs.live import Session
 
     team = load_team_scenario("team_sparse")
     path = tmp_path / "team_wall.jsonl"
     rec = Recorder(path, team, team.seed, ["independent"], {})
-    s = TeamSession(team, ["independent"], recorder=rec)
+    s = Session(team, ["independent"], recorder=rec)
     for _ in range(10):
         s.drive("w")
     s.drive("a")

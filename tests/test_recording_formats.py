@@ -19,6 +19,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import load_team_scenario, team_of_one
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import load_recording
+from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.replay import TeamReplayResult, replay_recording
 
@@ -94,9 +95,6 @@ def header_free(lines: list[str]) -> list[str]:
 def scripted_recording(kind: str, path: Path) -> Path:
     """The scripted session of ``kind`` ("solo": SOLO_*, on sparse_kidnap with seed 11;
     "team": TEAM_*, on team_sparse with seed 13) recorded by today's writer to ``path``."""
-    from beacon_sim.runs.live import Session
-    from beacon_sim.runs.team_live import TeamSession
-
     if kind == "solo":
         sc = load_scenario("sparse_kidnap")
         rec = Recorder(path, sc, 11, SOLO_FILTERS, SOLO_PARAMS)
@@ -105,7 +103,7 @@ def scripted_recording(kind: str, path: Path) -> Path:
     else:
         team = load_team_scenario("team_sparse")
         rec = Recorder(path, team, 13, TEAM_FILTERS, TEAM_PARAMS)
-        session = TeamSession(team, TEAM_FILTERS, 13, TEAM_PARAMS, rec)
+        session = Session(team, TEAM_FILTERS, 13, TEAM_PARAMS, rec)
         drive_team(session)
     session.close()
     return rec.path

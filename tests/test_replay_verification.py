@@ -43,7 +43,6 @@ from beacon_sim.runs.replay import (
     recorded_params,
     replay_recording,
 )
-from beacon_sim.runs.team_live import TeamSession
 
 OLD = Path(__file__).parent / "data" / "old_recordings"
 FILTERS = ["ekf", "dead_reckoning"]
@@ -300,7 +299,7 @@ def test_a_team_recording_stores_settings_and_an_edit_is_named(tmp_path):
     team = load_team_scenario("team_sparse")
     path = tmp_path / "team.jsonl"
     specs = ["independent", "centralised"]
-    s = TeamSession(team, specs, 2, {}, Recorder(path, team, 2, specs))
+    s = Session(team, specs, 2, {}, Recorder(path, team, 2, specs))
     for _ in range(45):
         s.tick()
     s.close()

@@ -42,6 +42,7 @@ def test_team_of_one_is_the_single_robot_run(name):
         assert np.array_equal(np.array(a.covs), np.array(b.covs))
         ticks, means, covs = tr.series(n)
         assert means.shape == (120, 1, 3) and np.array_equal(means[:, 0], np.array(a.means))
+        assert np.array_equal(covs[:, 0], np.array(a.covs)) and list(ticks) == list(a.ticks)
 
 
 def test_independent_member_copies_equal_the_joint_independent_team():
@@ -82,3 +83,26 @@ def test_a_copy_failing_on_one_robot_switches_the_filter_off_on_all(tmp_path):
     why = runner.failed(spec)
     assert why is not None and "robot two breaks" in why
     assert all(r.tracks[spec].failed for r in runner.members)
+
+
+def test_the_single_robot_session_is_the_team_session_with_one_robot():
+    from beacon_sim.runs.live import Session
+
+    sc = load_scenario("default")
+    single = Session(sc, ["ekf", "dead_reckoning"], seed=4)
+    team = Session(load_team_scenario("team_sparse"), ["independent:ekf", "ci"], seed=4)
+    assert type(single) is type(team) is Session
+    assert single.n_robots == 1 and single.team.solo and single.scenario is sc
+    assert team.n_robots == team.team.n_robots > 1 and not team.team.solo
+    sim = Simulation(sc, 4)
+    built, _ = build_filters(["ekf", "dead_reckoning"], sc, 4)
+    ref = FilterRunner(built)
+    for _ in range(50):
+        control = single.next_control()
+        step = single.tick()
+        ref.feed(sim.step(control))
+        team.tick()
+        assert np.array_equal(step.steps[0].true_pose, sim.pose)
+    est = single.estimate("ekf")
+    assert est is not None and np.array_equal(est[0], ref.tracks["ekf"].means[-1])
+    assert team.estimates("ci")[0].shape == (team.n_robots, 3)

@@ -21,14 +21,13 @@ import numpy as np
 import pygame
 import pytest
 
-from beacon_sim.app.team import TeamApp
+from beacon_sim.app.main import App
 from beacon_sim.cli.main import main
 from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.io.recording import Recording, RecordingError, load_recording
+from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import Recorder
-from beacon_sim.runs.replay import ReplayMismatch, is_builtin_spec, replay_recording
-from beacon_sim.runs.team_live import TeamSession
-from beacon_sim.runs.team_replay import TeamReplaySession
+from beacon_sim.runs.replay import ReplayMismatch, ReplaySession, is_builtin_spec, replay_recording
 
 FILTERS = ["independent", "centralised"]
 
@@ -42,8 +41,8 @@ def scripted_session(path: Path, seed: int = 4):
     """A team session in the window, driven with keys, recorded to ``path``. Returns the live
     truth (T, N, 3) and every team filter's estimates per tick."""
     team = load_team_scenario("team_sparse")
-    session = TeamSession(team, list(FILTERS), seed, {}, Recorder(path, team, seed, FILTERS))
-    app = TeamApp(session, (1100, 700), scripted=True)
+    session = Session(team, list(FILTERS), seed, {}, Recorder(path, team, seed, FILTERS))
+    app = App(session, (1100, 700), scripted=True)
     truth: list[np.ndarray] = []
     est: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {n: [] for n in FILTERS}
     tick = session.tick
@@ -51,8 +50,10 @@ def scripted_session(path: Path, seed: int = 4):
     def recorded_tick():
         step = tick()
         truth.append(step.true_poses)
-        for n, tr in session.runner.tracks.items():
-            est[n].append((tr.means[-1].copy(), tr.covs[-1].copy()))
+        for n in session.names:
+            latest = session.filters_run.latest(n)
+            assert latest is not None
+            est[n].append((latest[0].copy(), latest[1].copy()))
         return step
 
     session.tick = recorded_tick
@@ -287,7 +288,7 @@ def test_the_kinds_do_not_mix(recorded, tmp_path):
 def test_the_replay_window_seeks_to_the_same_picture(recorded):
     path, truth, _ = recorded
     rec = load_recording(path)
-    s = TeamReplaySession(rec, FILTERS)
+    s = ReplaySession(rec, FILTERS)
     s.seek(80)
     assert np.array_equal(s.poses, truth[79])
     state = (s.sim.truth_checksum, s.driven, s.estimates("centralised")[0].copy())
@@ -351,7 +352,7 @@ def test_autopilot_ticks_replay_the_drivers_state(tmp_path):
     autopilot ticks (``"a": true``) keeps the driver's waypoint index as it was live."""
     team = load_team_scenario("team_sparse")
     path = tmp_path / "autopilot.jsonl"
-    s = TeamSession(team, ["independent"], 1, {}, Recorder(path, team, 1, ["independent"]))
+    s = Session(team, ["independent"], 1, {}, Recorder(path, team, 1, ["independent"]))
     s.toggle_autopilot()
     index = s.sim.sims[0].driver._index
     for _ in range(200):

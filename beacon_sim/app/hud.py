@@ -9,7 +9,7 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import controls, palette
-from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids, sensors_read
+from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids, polyline, sensors_read
 from beacon_sim.runs.scene import NEES_BAND, Scene
 
 
@@ -48,6 +48,19 @@ def fit_text(font: pygame.font.Font, text: str, width: int) -> str:
     return text[:1] + "..."
 
 
+#: The world legend's entries that are not filters (a team's legend strip).
+LEGEND_MARKS = ("ray", "robot_ray", "robot", "driven")
+
+
+def short(font: pygame.font.Font, text: str, width: int) -> str:
+    """``text`` cut (with a trailing '.') to fit ``width`` pixels."""
+    if font.size(text)[0] <= width:
+        return text
+    while len(text) > 1 and font.size(text + ".")[0] > width:
+        text = text[:-1]
+    return text + "."
+
+
 class Hud:
     """Draws the panel, banner and help; remembers the help lines it drew (for tests)."""
 
@@ -76,7 +89,11 @@ class Hud:
         return r
 
     def panel(self, surf, rect: pygame.Rect, session: Scene, colours, info: dict) -> None:
-        """The side panel. ``info``: speed, paused, fps, recording (path or None), message."""
+        """The side panel. ``info``: speed, paused, fps, recording (path or None), message.
+        A team's panel is :meth:`team_panel`."""
+        if getattr(session, "n_robots", 1) > 1:
+            self.team_panel(surf, rect, session, colours, info)
+            return
         x, w, y = self.begin_panel(surf, rect)
         f = self.fonts
         lh = f["hud"].get_linesize()
@@ -139,6 +156,136 @@ class Hud:
         ], info)
 
     # --- the panel's pieces (the single-robot and the team panel) -------------------------
+    def team_panel(self, surf, rect: pygame.Rect, session, colours, info: dict) -> None:
+        """The panel of a team: time, the driven robot and its command, what each robot
+        sees, each filter's per-robot error and NEES (or why it was switched off)."""
+        x, w, y = self.begin_panel(surf, rect)
+        f = self.fonts
+        lh = f["hud"].get_linesize()
+        sl = f["small"].get_linesize()
+        y = self.title_and_clock(surf, x, w, y, session.team.name, session.time, info)
+        tab = "" if getattr(session, "replaying", False) else "  (Tab)"  # Tab drives; not in a replay
+        self._blit(surf, f"driving: {session.driven_name}{tab}", "hud", palette.TEXT, (x, y))
+        y = self.command(surf, x, y + lh, session.next_control(), session.drive_mode) + 4
+        name_w = max(f["small"].size(n)[0] for n in session.robot_names) + 12
+        for i, name in enumerate(session.robot_names):
+            seen = sorted(session.seen_ids(i))
+            mates = session.teammates_seen(i)
+            self._blit(surf, name, "small", palette.TEXT, (x, y))
+            text = (f"beacons {', '.join(map(str, seen))}" if seen else "no beacon")
+            r = self._blit(surf, text, "small", palette.TEXT if seen else palette.WARN,
+                           (x + name_w, y))
+            if mates:
+                sees = "; sees " + ", ".join(mates)
+                at = (r.right, y)
+                if r.right + f["small"].size(sees)[0] > rect.right - 8:  # no room: next line
+                    sees, at = sees[2:], (x + name_w, y + sl)
+                    y += sl
+                self._blit(surf, sees, "small", palette.ROBOT_RAY, at)
+            y += sl
+        y = self.rule(surf, rect, x, y + 4)
+
+        # Each team filter: its label, then the error and NEES of each robot in columns.
+        head_w = max(f["small"].size(t)[0] for t in ("err m", "NEES")) + 24
+        col_w = max((w - head_w) // max(session.n_robots, 1), 1)
+        cols = [x + head_w + k * col_w for k in range(session.n_robots)]
+        for cx, name in zip(cols, session.robot_names, strict=True):
+            self._blit(surf, short(f["small"], name, col_w - 6), "small", palette.TEXT_DIM, (cx, y))
+        y += sl
+        for k, name in enumerate(session.names):
+            st = session.status[name]
+            y = self.filter_label(surf, x, y, k, name, colours[name], session.visible[name])
+            note = st.warning or (f"{name} switched off: {st.failed}" if st.failed else None)
+            y = self.notes(surf, x, w, y, [note])
+            figures = session.robot_status[name]
+            if not st.failed and any(np.isfinite(r.pos_err) for r in figures):
+                self._blit(surf, "err m", "small", palette.TEXT_DIM, (x + 10, y))
+                for cx, rst in zip(cols, figures, strict=True):
+                    self._blit(surf, f"{rst.pos_err:.2f}", "small", palette.TEXT, (cx, y))
+                y += sl
+                self._blit(surf, "NEES", "small", palette.TEXT_DIM, (x + 10, y))
+                for cx, rst in zip(cols, figures, strict=True):
+                    self.nees(surf, rst, (cx, y), label=False)
+                y += sl
+            y += 4
+
+        self.footer(surf, rect, x, w, y, [
+            f"ellipse: {ELLIPSE_LEVEL:.0%} of each robot's x-y; NEES band 95 %: "
+            f"{NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}"], info)
+
+    def legend_rows(self, width: int, names: list[str]) -> list[list[tuple[str, str]]]:
+        """The legend's entries (text, what) in rows that fit ``width`` [px]: the readings
+        and robots, then one entry per team filter ``names``."""
+        f = self.fonts["small"]
+        sample = 3 * f.get_linesize()
+        items = [("beacon reading", "ray"), ("robot reading", "robot_ray"),
+                 ("true robot", "robot"), ("driven (Tab)", "driven")]
+        items += [(f"{name}: {ELLIPSE_LEVEL:.0%} ellipse", name) for name in names]
+        room = width - 40
+        rows: list[list[tuple[str, str]]] = [[]]
+        used = 0
+        for text, what in items:  # fill rows left to right; the filters start a new row
+            wide = sample + 12 + f.size(text)[0] + 24
+            if rows[-1] and (used + wide > room or (what not in LEGEND_MARKS and used
+                                                    and rows[-1][-1][1] in LEGEND_MARKS)):
+                rows.append([])
+                used = 0
+            rows[-1].append((text, what))
+            used += wide
+        return rows
+
+    def legend_height(self, width: int, names: list[str]) -> int:
+        """The height [px] the legend box takes under the world, margins included."""
+        return len(self.legend_rows(width, names)) * (self.fonts["small"].get_linesize() + 8) + 26
+
+    def world_legend(self, surf, area: pygame.Rect, session, colours, dashes,
+                     lw: int) -> pygame.Rect:
+        """What the lines in the world mean, with a sample of each, in a box at the top left
+        of ``area`` (the strip under the world view): the readings, the robots, each team
+        filter's style."""
+        f = self.fonts["small"]
+        sl = f.get_linesize()
+        sample = 3 * sl
+        rows = self.legend_rows(area.width, [n for n in session.names if session.visible[n]])
+        widths = [sum(sample + 12 + f.size(t)[0] + 24 for t, _ in row) for row in rows]
+        box = pygame.Rect(area.left + 8, area.top + 4, min(max(widths) + 12, area.width - 16),
+                          len(rows) * (sl + 8) + 10)
+        surf.fill(palette.OUTSIDE, area)  # the strip under the world, as around the world
+        old_clip = surf.get_clip()
+        surf.set_clip(area)
+        shade = pygame.Surface(box.size, pygame.SRCALPHA)
+        shade.fill((*palette.PANEL, 235))
+        surf.blit(shade, box)
+        pygame.draw.rect(surf, palette.PANEL_EDGE, box, 2)
+        y = box.top + 8
+        for row in rows:
+            x = box.left + 10
+            mid = y + sl // 2
+            for text, what in row:
+                a, b = (x, mid), (x + sample, mid)
+                if what == "ray":
+                    pygame.draw.line(surf, palette.RAY, a, b, 2)
+                elif what == "robot_ray":
+                    polyline(surf, palette.ROBOT_RAY, [a, (b[0] - 7, mid)], max(lw - 1, 3),
+                             palette.ROBOT_RAY_DASH)
+                    pygame.draw.circle(surf, palette.ROBOT_RAY, (b[0] - 7, mid), 7, 3)
+                elif what == "robot":
+                    r = pygame.Rect(0, 0, sl - 8, sl - 10)
+                    r.center = (x + sample // 2, mid)
+                    pygame.draw.rect(surf, palette.ROBOT, r, max(lw - 1, 2))
+                    pygame.draw.circle(surf, palette.ROBOT, r.center, sl // 2 + 2, 2)
+                elif what == "driven":
+                    pygame.draw.circle(surf, palette.DRIVEN, (x + sample // 2, mid), sl // 2 + 2)
+                    pygame.draw.circle(surf, palette.TEXT, (x + sample // 2, mid), sl // 2 + 2, 2)
+                else:
+                    polyline(surf, colours[what], [a, b], lw, dashes.get(what))
+                x += sample + 12
+                r = self._blit(surf, text, "small", palette.TEXT, (x, y))
+                x = r.right + 24
+            y += sl + 8
+        surf.set_clip(old_clip)
+        return box
+
     def begin_panel(self, surf, rect: pygame.Rect) -> tuple[int, int, int]:
         """The panel's background and left edge; returns (x, text width, y) [px]."""
         surf.fill(palette.PANEL, rect)

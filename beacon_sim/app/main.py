@@ -30,6 +30,7 @@ from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.team import TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Step
 from beacon_sim.evaluation.live_bound import LiveBound
@@ -68,7 +69,8 @@ class App:
         ``--frames``, tests and benchmarks).
     """
 
-    #: Which binding table the keys, the mouse and the help overlay use (controls.TABLES).
+    #: Which binding table the keys, the mouse and the help overlay use (controls.TABLES);
+    #: a live team's window uses ``team`` (Tab drives the next robot): :attr:`mode`.
     MODE = "play"
     #: What draws the world (a subclass may draw more: the team window's robots).
     RENDERER: type[WorldRenderer] = WorldRenderer
@@ -78,6 +80,10 @@ class App:
     def __init__(self, session: Session, size=(1280, 800), scripted: bool = False,
                  recording: Path | None = None, *, watch_interval: float = 1.0):
         self.session = session
+        #: Whether the window shows a team (``session.n_robots`` > 1): every robot, Tab,
+        #: per-robot figures, the legend strip under the world.
+        self.team_view = getattr(session, "n_robots", 1) > 1
+        self.mode = "team" if self.team_view and self.MODE == "play" else self.MODE
         self.scripted = scripted
         self.recording = recording
         pygame.display.init()
@@ -85,7 +91,8 @@ class App:
         self.screen = pygame.display.set_mode(size, pygame.RESIZABLE)
         self.screen.fill(palette.OUTSIDE)  # never a black window, even for a moment
         pygame.display.flip()
-        pygame.display.set_caption(f"beacon-sim: {session.scenario.name}")
+        title = session.team.name + " (team)" if self.team_view else session.scenario.name
+        pygame.display.set_caption(f"beacon-sim: {title}")
         pygame.display.set_icon(window_icon())
         pygame.key.set_repeat(300, 50)
         styles = self.filter_styles(session.names)
@@ -93,7 +100,7 @@ class App:
         self.dashes = {n: d for n, (_, d) in styles.items()}
         self.clock = StepClock(session.scenario.dt)
         self.show = ShowOptions()
-        self.keys = controls.KeyHandler(self.MODE)
+        self.keys = controls.KeyHandler(self.mode)
         self.help = False
         self.running = True
         self.frames = 0
@@ -132,7 +139,7 @@ class App:
         self.blit_cpu = 0.0  # CPU time of putting the world's picture on the screen [s]
         self.gif: GifRecorder | None = None  # offered every frame after drawing (--gif)
         self.bound: LiveBound | None = None  # the PCRB along the true path (B)
-        if isinstance(session, Session):
+        if isinstance(session, Session) and not self.team_view:
             self.bound = LiveBound(session.scenario)
             session.on_step.append(self.bound.feed)
         self.chart = StripChart(session.names, session.scenario.dt)
@@ -144,10 +151,11 @@ class App:
         self._layout(self.screen.get_size())
 
     def filter_styles(self, names: list[str]) -> dict[str, tuple]:
-        """``(colour, dash pattern)`` per filter name (``runs/styles.py``, by kind)."""
-        from beacon_sim.app.palette import filter_styles
-
-        return filter_styles(names)
+        """``(colour, dash pattern)`` per filter name (``runs/styles.py``, by kind; a team's
+        filters by team kind)."""
+        if self.team_view:
+            return palette.team_filter_styles(names)
+        return palette.filter_styles(names)
 
     # --- hot reload -----------------------------------------------------------------------
     def _make_watchers(self, interval: float) -> dict[str, FilterFileWatcher]:
@@ -194,7 +202,7 @@ class App:
         self.ui_scale = ui_scale(W, H)
         self.fonts = load_fonts(H, W)
         self.renderer = self.RENDERER(self.fonts)
-        self.hud = self.HUD(self.fonts, self.MODE)
+        self.hud = self.HUD(self.fonts, self.mode)
         # The panel scales with the text (340 px at 1280x800); the room gets most of the width.
         pw = int(min(340 * self.ui_scale, 0.4 * W))
         self.panel_rect = pygame.Rect(W - pw, 0, pw, H)
@@ -209,8 +217,17 @@ class App:
         self.view.set_area(area)
 
     def world_area(self, width: int, height: int) -> tuple[int, int, int, int]:
-        """The part of the window (x, y, w, h) [px] the world is drawn in, left of the panel."""
+        """The part of the window (x, y, w, h) [px] the world is drawn in, left of the panel;
+        on a team less the legend's strip under it (sized for every filter, shown or hidden,
+        so the world does not jump when one is hidden)."""
+        if self.team_view:
+            return (0, 0, width, height - self.hud.legend_height(width, self.session.names))
         return (0, 0, width, height)
+
+    def legend_area(self) -> pygame.Rect:
+        """A team's strip under the world view the legend is drawn in."""
+        x, y, w, h = self.view.area
+        return pygame.Rect(x, y + h, w, self.hud.legend_height(w, self.session.names))
 
     # --- events ---------------------------------------------------------------------------
     def handle(self, event) -> None:
@@ -221,13 +238,13 @@ class App:
             for action in self.keys.actions(event):
                 self.act(action)
         elif event.type == pygame.MOUSEBUTTONDOWN:
-            clicked = controls.mouse_action(event.button, self.MODE)
+            clicked = controls.mouse_action(event.button, self.mode)
             if clicked == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos):
                 self.drag_start = event.pos
             elif clicked == "pan":
                 self.pan_from = event.pos
         elif event.type == pygame.MOUSEBUTTONUP:
-            clicked = controls.mouse_action(event.button, self.MODE)
+            clicked = controls.mouse_action(event.button, self.mode)
             if clicked == "kidnap_click" and self.drag_start is not None:
                 self.kidnap_at(self.drag_start, event.pos)
                 self.drag_start = None
@@ -247,6 +264,8 @@ class App:
         s = self.session
         if action in DRIVE_KEYS:
             s.drive(DRIVE_KEYS[action])
+        elif action == "next_robot":
+            self.flash(f"driving {s.next_robot()}")
         elif action == "autopilot":
             s.toggle_autopilot()
             if not s.has_autopilot:
@@ -327,18 +346,8 @@ class App:
 
     def clear_trails(self) -> None:
         """Forget every trail (the truth's and the filters'), keep the current points."""
-        s = self.session
         self.world_version += 1
-        s.truth_trail.clear()
-        s.truth_trail.add(s.true_pose)
-        for name, tr in s.trails.items():
-            tr.clear()
-            try:
-                est = s.estimate(name)
-            except Exception:
-                est = None
-            if est is not None:
-                tr.add(est[0])
+        self.session.clear_trails()
 
     def kidnap_at(self, start_px, end_px) -> None:
         """Left click: kidnap to the clicked point; a drag sets the heading (else keep it)."""
@@ -375,7 +384,11 @@ class App:
     def after_tick(self, step) -> None:
         """What the window does after each tick: the strip chart, banners for events."""
         self.chart.record(self.session)
-        self.announce(step.events if isinstance(step, Step) else step)
+        if isinstance(step, TeamStep):
+            for name, s in zip(self.session.robot_names, step.steps, strict=True):
+                self.announce(s.events, who="the robot" if len(step.steps) == 1 else name)
+        else:
+            self.announce(step.events if isinstance(step, Step) else step)
 
     def announce(self, events, who: str = "the robot") -> None:
         """A banner for the events of a tick (bump, kidnap, the start of a blackout...)."""
@@ -425,7 +438,7 @@ class App:
             self.world_stale = False
         else:
             shown = self.draw_world(surf, key, args)
-        info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.MODE,
+        info = {"speed": self.clock.speed, "paused": self.clock.paused, "mode": self.mode,
                 "delivered": self.pace.factor,
                 "fps": fps_of(np.array(self.frame_times)), "recording": self.recording,
                 "reload_errors": self.reload_errors,
@@ -445,8 +458,8 @@ class App:
             self.hud.help(surf)
         # Nothing drawn over the world: the next frame may leave its picture as it is.
         overlaid = bool(steps) or bound is not None or self.now < self.banner_until or self.help
-        self._on_screen = None if overlaid or type(self).draw_extra is not App.draw_extra \
-            else shown
+        self._on_screen = None if overlaid or self.team_view \
+            or type(self).draw_extra is not App.draw_extra else shown
         pygame.display.flip()
 
     def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int],
@@ -520,7 +533,7 @@ class App:
         where it is not kept (smooth off; a replay, a team: they draw every frame). Between
         two ticks a live session's world changes only through what the first part holds."""
         s = self.session
-        if not self.smooth or type(s) is not Session:
+        if not self.smooth or type(s) is not Session or self.team_view:
             return None
         tracks = tuple((n, id(t.filter), bool(t.failed)) for n, t in s.runner.tracks.items())
         static = (self.world_version, id(s), self.view.key, self.screen.get_size(),
@@ -551,7 +564,11 @@ class App:
         return out
 
     def draw_extra(self, surf) -> None:
-        """Anything a mode adds under the help overlay (the replay's timeline)."""
+        """Anything a mode adds under the help overlay: a team's legend of the world's lines
+        (the replay adds its timeline)."""
+        if self.team_view:
+            self.hud.world_legend(surf, self.legend_area(), self.session, self.colours,
+                                  self.dashes, self.renderer.lw)
 
     def show_present(self) -> None:
         """When the screen shows the world a tick behind (smooth), draw the present one."""
@@ -696,7 +713,7 @@ HEADLESS_DRIVERS = frozenset({"offscreen", "dummy"})
 class PlayOptions:
     """What ``beacon-sim play`` opens (the command line checks and builds these)."""
 
-    scenario: Scenario | TeamScenario  # a team scenario opens the team window (app/team.py)
+    scenario: Scenario | TeamScenario  # one robot, or a team (Tab drives the next robot)
     filters: list[str]  # filter specs
     seed: int
     params: dict[str, dict[str, Any]] = field(default_factory=dict)  # ``--set`` overrides
@@ -713,10 +730,9 @@ class PlayOptions:
 
 
 def play(options: PlayOptions) -> int:
-    """Open the window on a live session; returns the exit status."""
+    """Open the window on a live session (one robot or a team); returns the exit status."""
     o = options
     check_display()
-    assert isinstance(o.scenario, Scenario)  # a team scenario opens app.team.play_team
     recorder, rec_path = (None, None)
     if o.record:
         recorder, rec_path = make_recorder(o.scenario, o.seed, o.filters, o.params)

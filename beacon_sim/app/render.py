@@ -230,6 +230,11 @@ def nice_step(scale: float, min_px: float = 70.0) -> float:
 PHASES = 5
 
 
+#: A team's estimate arrows at this fraction of a single robot's: a few filters' arrows on
+#: one robot leave its outline visible.
+TEAM_ARROW_SCALE = 0.65
+
+
 class WorldRenderer:
     """Draws one frame of the world into a surface (the HUD is drawn by ``hud``)."""
 
@@ -264,6 +269,9 @@ class WorldRenderer:
 
         Order: the true robot is an outline drawn UNDER every belief, and the ellipses and
         wedges come last, solid ones first, so that nothing hides an estimate."""
+        if getattr(session, "n_robots", 1) > 1:
+            self.draw_team(surf, view, session, colours, show, drag, dashes, extra)
+            return
         for _ in self.phases(surf, view, session, colours, show, drag, dashes, extra):
             pass
 
@@ -297,7 +305,7 @@ class WorldRenderer:
                 self.trail(surf, view, session.truth_trail, palette.TRUTH_TRAIL, 5)
                 for name in session.names:
                     if session.visible[name]:
-                        self.trail(surf, view, session.trails[name], colours[name], 2)
+                        self.trail(surf, view, session.trail(name), colours[name], 2)
             self.rays(surf, view, sc.world, pose, session.readings())
             seen = session.seen_ids()
             self.beacons(surf, view, sc.world, seen,
@@ -332,6 +340,113 @@ class WorldRenderer:
             surf.set_clip(old_clip)
 
     # --- the pieces every window draws (the single-robot and the team window) --------------
+
+    def draw_team(self, surf, view, session, colours, show, drag=None, dashes=None,
+                  extra=None) -> None:
+        """The world of a team (``session.n_robots`` > 1): every robot, ringed and tagged,
+        the driven one on a halo; each filter's estimate of each robot (arrow and x-y
+        ellipse, no heading wedges); beacon and robot-to-robot readings."""
+        team = session.team
+        self.last_world = team.world
+        dashes = dashes or {}
+        poses = session.poses
+        radii = [r.scenario.robot_radius for r in team.robots]
+        old_clip = self.begin(surf, view)
+        for r, pose in zip(team.robots, poses, strict=True):
+            self.sensor_discs(surf, view, r.scenario.sensors, pose)
+        shown = [n for n in session.names if session.visible[n] and not session.status[n].failed]
+        if show.trails:
+            for trail in session.truth_trails:
+                self.trail(surf, view, trail, palette.TRUTH_TRAIL, 5)
+            for name in shown:
+                for trail in session.trails[name]:
+                    self.trail(surf, view, trail, colours[name], 2)
+        for i, pose in enumerate(poses):
+            self.rays(surf, view, team.world, pose, session.beacon_readings(i))
+        for i, pose in enumerate(poses):
+            self.robot_rays(surf, view, session, pose, session.robot_readings(i))
+        self.beacons(surf, view, team.world, session.seen_ids())
+        self.driven_halo(surf, view, poses[session.driven], radii[session.driven])
+        for pose, radius in zip(poses, radii, strict=True):
+            self.robot(surf, view, pose, radius)  # the truth UNDER every belief
+        if extra is not None:
+            extra(surf, view, self.lw)
+        beliefs = {name: session.estimates(name) for name in shown}
+        for i, radius in enumerate(radii):
+            ests = [(name, est[0][i], est[1][i]) for name, est in beliefs.items() if est is not None]
+            # smaller arrows than alone and no heading wedges: a dozen beliefs on three robots
+            self.estimates(surf, view, ests, colours, dashes, radius, show.ellipses, TEAM_ARROW_SCALE,
+                           wedges=False)
+        self.tags: list[pygame.Rect] = []
+        for i, (r, pose) in enumerate(zip(team.robots, poses, strict=True)):
+            self.robot_ring(surf, view, pose, radii[i])
+            self.name_tag(surf, view, pose, radii[i], r.name, i == session.driven)
+        if drag is not None:
+            self._drag_ghost(surf, view, drag, session.true_pose, radii[session.driven])
+        surf.set_clip(old_clip)
+
+    def robot_rays(self, surf, view, session, pose, readings) -> None:
+        """Robot-to-robot readings taken at ``pose``: dashed purple lines, each ending in a
+        ring where the reading puts the seen robot (beacon readings are solid grey)."""
+        lw = max(self.lw - 1, 3)
+        for m in readings:
+            idx = [session.robot_index(int(b)) for b in m.beacon_ids]
+            seen_xy = np.array([session.poses[k][:2] if k is not None else pose[:2] for k in idx])
+            for a, b in view.to_px(shapes.robot_rays(pose, m, seen_xy)):
+                # Two robots that see each other: the two readings side by side, not on top.
+                d = b - a
+                n = np.array([-d[1], d[0]]) / max(float(np.hypot(*d)), 1e-9) * (lw - 1)
+                a, b = a + n, b + n
+                polyline(surf, palette.ROBOT_RAY, np.array([a, b]), lw, palette.ROBOT_RAY_DASH)
+                pygame.draw.circle(surf, palette.ROBOT_RAY, (ipx(b[0]), ipx(b[1])), 7, 3)
+
+    def driven_halo(self, surf, view, pose, radius: float) -> None:
+        """A yellow disc with a black rim under the robot the keys drive."""
+        r_px = max(radius * view.scale, 14.0) * 1.9
+        c = view.to_px(np.asarray(pose[:2]))
+        at = (ipx(c[0]), ipx(c[1]))
+        pygame.draw.circle(surf, palette.DRIVEN, at, round(r_px))
+        pygame.draw.circle(surf, palette.TEXT, at, round(r_px), 2)
+
+    def robot_ring(self, surf, view, pose, radius: float) -> None:
+        """A thin black ring around a true robot, over the beliefs: small ellipses and the
+        arrows on a robot hide its outline, the ring still says where it is (and, being
+        outside the chassis, covers no ellipse smaller than the robot)."""
+        c = view.to_px(np.asarray(pose[:2]))
+        r_px = max(radius * view.scale, 14.0) * 1.35
+        pygame.draw.circle(surf, palette.ROBOT, (ipx(c[0]), ipx(c[1])), round(r_px), 2)
+
+    def name_tag(self, surf, view, pose, radius: float, name: str, driven: bool) -> None:
+        """The robot's name on a tag behind it (opposite its heading, away from the heading
+        wedges and the arrows), white on black for the driven robot."""
+        text = f"{name} (driven)" if driven else name
+        fg, bg = (palette.BANNER_TEXT, palette.TEXT) if driven else (palette.TEXT, palette.PANEL)
+        img = self.text(text, "label", fg)
+        c = view.to_px(np.asarray(pose[:2]))
+        r_px = max(radius * view.scale, 14.0) * (1.9 if driven else 1.3) + 6
+        half = np.array(img.get_size()) / 2 + 5
+        # behind the robot (screen y down), else turned by 45 degree steps: the first place
+        # that covers no beacon, beacon label or other tag
+        taken = [*self.beacon_rects, *getattr(self, "tags", [])]
+        frame = None
+        for turn in (0.0, 0.25, -0.25, 0.5, -0.5, 0.75, -0.75, 1.0):
+            a = pose[2] + math.pi * (1.0 + turn)
+            back = np.array([np.cos(a), -np.sin(a)])
+            centre = c + back * (r_px + float(np.min(half / np.maximum(np.abs(back), 1e-9))))
+            cand = img.get_rect(center=(ipx(centre[0]), ipx(centre[1]))).inflate(10, 2)
+            cand.clamp_ip(surf.get_clip())  # the whole tag, its border included, stays in view
+            if frame is None:
+                frame = cand
+            if cand.collidelist(taken) < 0:
+                frame = cand
+                break
+        assert frame is not None
+        if hasattr(self, "tags"):
+            self.tags.append(frame)
+        surf.fill(bg, frame)
+        pygame.draw.rect(surf, palette.TEXT, frame, 2)
+        surf.blit(img, img.get_rect(center=frame.center))
+
     def begin(self, surf: pygame.Surface, view: View) -> pygame.Rect:
         """Start a frame of the world: the line width for the window's height, the static
         layer (background, grid, bounds, labels), the clip set to the view's area. Returns

@@ -9,27 +9,26 @@ filters and re-simulates from tick 0 (2,400 ticks take a fraction of a second), 
 picture at time t is exactly the one a straight run shows at t. Seeking forward just runs
 the ticks in between.
 
-A team session's recording opens :class:`TeamReplayApp`: the team window's drawing
-(``app/team.py``) with this timeline, driven by a
-:class:`~beacon_sim.runs.team_replay.TeamReplaySession`.
+A team's recording opens the same window in its team view (``App.team_view``), with this
+timeline, driven by the same :class:`~beacon_sim.runs.replay.ReplaySession` over its robots.
 """
 
 from __future__ import annotations
 
 import os
 import sys
-from typing import Any
+from typing import Any, cast
 
 import pygame
 
 from beacon_sim.app import palette
 from beacon_sim.app.hud import wrap_text
 from beacon_sim.app.main import App
-from beacon_sim.app.team import TeamApp
 from beacon_sim.io.recording import Recording
+from beacon_sim.runs.live import Session
 from beacon_sim.runs.mrclam import MrclamPlayback
 from beacon_sim.runs.replay import ReplaySession
-from beacon_sim.runs.team_replay import TeamReplaySession
+from beacon_sim.runs.scene import Timeline
 
 #: Left / Right arrows seek by this much simulated time [s].
 SEEK_STEP_S = 5.0
@@ -45,7 +44,7 @@ class ReplayApp(App):
 
     MODE = "replay"
 
-    def __init__(self, session: ReplaySession | MrclamPlayback | TeamReplaySession, size=(1280, 800),
+    def __init__(self, session: ReplaySession | MrclamPlayback, size=(1280, 800),
                  scripted: bool = False):
         self.reported = False
         self.end_tick: int | None = None  # stop the window here (--end, --gif)
@@ -53,7 +52,8 @@ class ReplayApp(App):
         self.user_flips: set[str] = set()  # filters the user showed / hid (kept over seeks)
         self.seek_to: int | None = None
         self.scrubbing = False
-        super().__init__(session, size, scripted)
+        self.timeline: Timeline = session
+        super().__init__(cast("Session", session), size, scripted)
 
     # --- layout ---------------------------------------------------------------------------
     def world_area(self, width: int, height: int) -> tuple[int, int, int, int]:
@@ -71,19 +71,19 @@ class ReplayApp(App):
         """The tick under a horizontal pixel position of the bar (clamped)."""
         bar = self._bar_rect()
         frac = min(max((x_px - bar.left) / bar.width, 0.0), 1.0)
-        return round(frac * self.session.total_ticks)
+        return round(frac * self.timeline.total_ticks)
 
     # --- seeking --------------------------------------------------------------------------
     def seek(self, tick: int) -> None:
         """Show the run at ``tick`` (the scene knows how: see its ``seek``)."""
-        self.session.seek(tick, self.user_flips)
+        self.timeline.seek(tick, self.user_flips)
         self.clock.accumulator = 0.0
 
     def ticks_due(self, real_dt: float) -> int:
         if self.seek_to is not None:  # at most one seek per frame (a drag sends many)
             target, self.seek_to = self.seek_to, None
             self.seek(target)
-        n = min(super().ticks_due(real_dt), self.session.total_ticks - self.session.tick_count)
+        n = min(super().ticks_due(real_dt), self.timeline.total_ticks - self.session.tick_count)
         return self.ticks_due_capped(max(n, 0))
 
     def ticks_due_capped(self, n: int) -> int:
@@ -96,15 +96,15 @@ class ReplayApp(App):
         super().frame(real_dt)
         s = self.session
         if (self.end_tick is not None and s.tick_count >= self.end_tick) or (
-                self.stop_at_end and s.at_end):
+                self.stop_at_end and self.timeline.at_end):
             self.running = False
-        if not self.reported and isinstance(s, ReplaySession | TeamReplaySession) \
-                and (s.at_end or s.mismatch):
+        if not self.reported and isinstance(s, ReplaySession) \
+                and (self.timeline.at_end or s.mismatch):
             self.reported = True
             status = s.checksum_status()
             self.flash(("end of the recording: truth checksum " + status) if not s.mismatch
                        else status)
-            print(f"replay {s.recording.path}: tick {s.tick_count} of {s.total_ticks}, truth "
+            print(f"replay {s.recording.path}: tick {s.tick_count} of {self.timeline.total_ticks}, truth "
                   f"checksum {status}", file=sys.stderr)
 
     # --- events ---------------------------------------------------------------------------
@@ -145,7 +145,7 @@ class ReplayApp(App):
         """(tick, colour) marks on the timeline: the recorded user commands (kidnaps in the
         warning colour, resets and toggles dim)."""
         return [(tick, palette.WARN if kind == "kidnap" else palette.TEXT_DIM)
-                for tick, kind in self.session.marks()]
+                for tick, kind in self.timeline.marks()]
 
     def draw_mismatch(self, surf) -> None:
         """While a replay differs from its recording: a banner across the bottom of the world
@@ -172,18 +172,19 @@ class ReplayApp(App):
 
     def draw_extra(self, surf) -> None:
         """The timeline: elapsed / total, the bar with the recorded commands marked, the
-        position marker; the mismatch banner when the replay differs."""
+        position marker; the mismatch banner when the replay differs (and a team's legend)."""
+        super().draw_extra(surf)
         self.draw_mismatch(surf)
         s = self.session
         r = self.timeline_rect
         surf.fill(palette.PANEL, r)
         pygame.draw.line(surf, palette.PANEL_EDGE, r.topleft, r.topright, 3)
         dt = s.scenario.dt
-        text = f"{s.tick_count * dt:6.1f} / {s.total_ticks * dt:.1f} s"
+        text = f"{s.tick_count * dt:6.1f} / {self.timeline.total_ticks * dt:.1f} s"
         img = self.fonts["hud"].render(text, True, palette.TEXT)
         surf.blit(img, img.get_rect(midleft=(r.left + 14, r.centery)))
         bar = self._bar_rect()
-        total = max(s.total_ticks, 1)
+        total = max(self.timeline.total_ticks, 1)
         pygame.draw.rect(surf, palette.GRID_MINOR, bar, border_radius=6)
         done = bar.copy()
         done.width = round(bar.width * min(s.tick_count / total, 1.0))
@@ -196,22 +197,13 @@ class ReplayApp(App):
         x = bar.left + round(bar.width * min(s.tick_count / total, 1.0))
         pygame.draw.line(surf, palette.TEXT, (x, r.top + 5), (x, r.bottom - 5), 5)
         pygame.draw.circle(surf, palette.TEXT, (x, bar.centery), 9)
-        if self.clock.paused or s.at_end:
-            label = "END" if s.at_end else "PAUSED"
+        if self.clock.paused or self.timeline.at_end:
+            label = "END" if self.timeline.at_end else "PAUSED"
             tag = self.fonts["small"].render(label, True, palette.BANNER_TEXT)
             box = tag.get_rect(bottomright=(bar.right - 6, bar.top - 4)).inflate(10, 2)
             if box.top > self.view.area[1]:
                 pygame.draw.rect(surf, palette.WARN, box, border_radius=4)
                 surf.blit(tag, tag.get_rect(center=box.center))
-
-
-class TeamReplayApp(ReplayApp, TeamApp):
-    """The replay window on a team recording: the team window's robots, beliefs, panel and
-    legend (:class:`~beacon_sim.app.team.TeamApp`) with the replay's timeline and keys."""
-
-    def draw_extra(self, surf) -> None:
-        TeamApp.draw_extra(self, surf)  # the legend of the world's lines
-        ReplayApp.draw_extra(self, surf)  # the timeline
 
 
 def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[str, Any]],
@@ -230,13 +222,8 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
 
     check_display()  # no window to show it in: one line, exit 2 (not an invisible replay)
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-    session: ReplaySession | TeamReplaySession
-    if recording.is_team:
-        session = TeamReplaySession(recording, specs, params)
-        app: ReplayApp = TeamReplayApp(session, size, scripted=frames is not None or gif is not None)
-    else:
-        session = ReplaySession(recording, specs, params)
-        app = ReplayApp(session, size, scripted=frames is not None or gif is not None)
+    session = ReplaySession(recording, specs, params)
+    app = ReplayApp(session, size, scripted=frames is not None or gif is not None)
     dt = session.scenario.dt
     if start:
         app.seek(min(round(start / dt), session.total_ticks))
@@ -253,7 +240,7 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
             app.save_screenshot(screenshot)
         finish_gif(app)
         s = app.session
-        assert isinstance(s, ReplaySession | TeamReplaySession)
+        assert isinstance(s, ReplaySession)
         if not app.reported:
             print(f"replay {recording.path}: stopped at tick {s.tick_count} of {s.total_ticks}, "
                   f"truth checksum {s.checksum_status()}", file=sys.stderr)
@@ -264,4 +251,4 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
             live.close()
 
 
-__all__ = ["ReplayApp", "TeamReplayApp", "show_replay"]
+__all__ = ["ReplayApp", "show_replay"]

@@ -6,10 +6,11 @@ import argparse
 import sys
 
 from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_sensor_notes
-from beacon_sim.core.scenario import Scenario, load_scenario
-from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
+from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.team_scenario import load_any_scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.filters.loading import FilterLoadError, load_filter_class
+from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S, FilterLoadError, load_filter_class
+from beacon_sim.filters.team_specs import check_team_specs
 
 #: The smallest window [px] everything fits in (the panel's lines, the help overlay).
 MIN_SIZE = (800, 600)
@@ -62,54 +63,35 @@ def choose_filters(scenario: Scenario, requested: list[str] | None) -> list[str]
 
 
 def play_command(args: argparse.Namespace) -> int:
-    if is_team_scenario(args.scenario or "default"):
-        return play_team_command(args)
-    scenario = load_scenario(args.scenario or "default")
+    """``beacon-sim play [SCENARIO]``: the window on one robot, or on a team (a ``[[robots]]``
+    file, whose ``--filter`` names team filter specs: Tab drives the next robot). Recorded
+    unless ``--no-record``."""
+    team = load_any_scenario(args.scenario or "default")
     size = parse_size(args.size)
     check_frames(args.frames)
     params = filter_params(args)
-    specs = choose_filters(scenario, args.filters)
-    check_set_names(args, specs)
-    print_sensor_notes(specs, scenario)
-    if args.autopilot and scenario.driver.kind == "keyboard":
-        raise UsageError(f"--autopilot: scenario {scenario.name} has no driver (driver.kind = keyboard)")
+    if team.solo:
+        scenario = team.robots[0].scenario
+        specs = choose_filters(scenario, args.filters)
+        check_set_names(args, specs)
+        print_sensor_notes(specs, scenario)
+    else:
+        if getattr(args, "foxglove", None) is not None:
+            raise UsageError("--foxglove: not for team scenarios yet (one robot only)")
+        specs = list(args.filters or team.default_filters)
+        check_team_specs(specs, team, params, WINDOW_BUILD_LIMIT_S)  # one line, exit 2, as in run
+    if args.autopilot and all(r.scenario.driver.kind == "keyboard" for r in team.robots):
+        raise UsageError(f"--autopilot: scenario {team.name} has no driver (driver.kind = keyboard)"
+                         if team.solo else f"--autopilot: no robot of {team.name} has a driver")
     check_speed(args.speed)
     check_gif(args.gif)
     from beacon_sim.app.main import PlayOptions, play  # pygame only when a window opens
 
-    return play(PlayOptions(scenario, specs, scenario.seed if args.seed is None else int(args.seed),
+    return play(PlayOptions(team, specs, team.seed if args.seed is None else int(args.seed),
                             params, size, args.frames, args.screenshot, record=not args.no_record,
                             autopilot=args.autopilot, paused=args.paused, speed=args.speed,
                             gif=args.gif, gif_width=parse_gif_width(args.gif_width),
-                            foxglove=check_foxglove(args)))
-
-
-def play_team_command(args: argparse.Namespace) -> int:
-    """``beacon-sim play TEAM_SCENARIO``: the team window (issue 18). ``--filter`` names team
-    filters (default: the scenario's ``default_filters``); recorded unless ``--no-record``."""
-    from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S
-    from beacon_sim.filters.team_specs import check_team_specs
-
-    team = load_team_scenario(args.scenario)
-    if getattr(args, "foxglove", None) is not None:
-        raise UsageError("--foxglove: not for team scenarios yet (one robot only)")
-    size = parse_size(args.size)
-    check_frames(args.frames)
-    params = filter_params(args)
-    names = list(args.filters or team.default_filters)
-    check_team_specs(names, team, params, WINDOW_BUILD_LIMIT_S)  # one line, exit 2, as in run
-    if args.autopilot and not any(r.scenario.driver.kind != "keyboard" for r in team.robots):
-        raise UsageError(f"--autopilot: no robot of {team.name} has a driver")
-    check_speed(args.speed)
-    check_gif(args.gif)
-    from beacon_sim.app.main import PlayOptions  # pygame only when a window opens
-    from beacon_sim.app.team import play_team
-
-    return play_team(PlayOptions(team, names, team.seed if args.seed is None else int(args.seed),
-                                 params, size, args.frames, args.screenshot,
-                                 record=not args.no_record,
-                                 autopilot=args.autopilot, paused=args.paused, speed=args.speed,
-                                 gif=args.gif, gif_width=parse_gif_width(args.gif_width)))
+                            foxglove=check_foxglove(args) if team.solo else None))
 
 
 def check_foxglove(args: argparse.Namespace) -> int | None:

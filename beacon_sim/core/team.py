@@ -115,8 +115,19 @@ class TeamSimulation:
 
     @property
     def truth_checksum(self) -> str:
-        """SHA-256 (16 hex digits) over the robots' truth checksums, tick by tick."""
+        """SHA-256 (16 hex digits) over the robots' true poses, tick by tick; a team of one
+        (``solo``) gives its robot's own, the single-robot run's checksum."""
+        if self.team.solo:
+            return self.sims[0].truth_checksum
         return self._hash.hexdigest()[:16]
+
+    @property
+    def readings_checksum(self) -> str:
+        """A team of one's readings checksum (the single-robot run's); a team's readings are
+        hashed by the recorder (``runs/recorder.TeamReadingsHash``)."""
+        if not self.team.solo:
+            raise AttributeError("a team's readings checksum is the recorder's")
+        return self.sims[0].readings_checksum
 
     def step(self, controls: dict[int, Control] | None = None) -> TeamStep:
         """Advance every robot one tick. ``controls`` maps a robot index to the command it

@@ -307,3 +307,58 @@ class TeamRunner:
         means = np.stack([np.array(list(tr.means)[:t]).reshape(-1, 3) for tr in tracks], axis=1)
         covs = np.stack([np.array(list(tr.covs)[:t]).reshape(-1, 3, 3) for tr in tracks], axis=1)
         return ticks, means, covs
+
+    def team_tracks(self) -> dict[str, Any]:
+        """Every filter as one track over the team (what a team recording digests): a team
+        filter's joint track; for a single-robot filter a :class:`StackedTrack` of its copies
+        (the same object each call)."""
+        views = self.__dict__.setdefault("_views", {})
+        out: dict[str, Any] = {}
+        for name in self.names:
+            if self.is_member(name):
+                if name not in views:
+                    views[name] = StackedTrack(name, [r.tracks[name] for r in self.members])
+                out[name] = views[name]
+            else:
+                out[name] = self.joint.tracks[name]
+        return out
+
+
+class _Copies:
+    """The copies of a single-robot filter on a team, seen as one filter: ``params`` (none
+    of its own) and ``filters`` (robot i's copy), as a team filter of independent copies."""
+
+    def __init__(self, tracks: list[FilterTrack]):
+        self._tracks = tracks
+        self.params: dict[str, Any] = {}
+
+    @property
+    def filters(self) -> list[Any]:
+        return [t.filter for t in self._tracks]
+
+
+class StackedTrack:
+    """A single-robot filter's copies on a team as one track whose latest estimate is every
+    robot's (``means[-1]`` (N, 3), ``covs[-1]`` (N, 3, 3)), at the tick all copies reached."""
+
+    def __init__(self, name: str, tracks: list[FilterTrack]):
+        self.name = name
+        self._tracks = tracks
+        self.filter = _Copies(tracks)
+
+    @property
+    def failed(self) -> str | None:
+        return next((t.failed for t in self._tracks if t.failed), None)
+
+    @property
+    def ticks(self) -> list[int]:
+        last = [t.ticks[-1] if t.ticks else None for t in self._tracks]
+        return [last[0]] if last[0] is not None and all(k == last[0] for k in last) else []
+
+    @property
+    def means(self) -> list[np.ndarray]:
+        return [np.array([t.means[-1] for t in self._tracks])] if self.ticks else []
+
+    @property
+    def covs(self) -> list[np.ndarray]:
+        return [np.array([t.covs[-1] for t in self._tracks])] if self.ticks else []

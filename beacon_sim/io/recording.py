@@ -48,7 +48,7 @@ theta]`` per robot) instead of ``"pose"``. The checksums are the team's
 (:class:`beacon_sim.core.team.TeamSimulation` ``truth_checksum``, and
 ``beacon_sim.runs.recorder.TeamReadingsHash`` over every robot's readings); a single-robot
 filter run on every robot (``independent:F``) is stored as one team filter
-(:class:`MemberTracks`). :func:`load_recording` reads both kinds into one
+(``filters/team_runner.StackedTrack``). :func:`load_recording` reads both kinds into one
 :class:`Recording` (a single robot's file as a team of one).
 
 This module is the format: reading a file (:func:`load_recording`) and the pieces the writer
@@ -64,10 +64,9 @@ import hmac
 import json
 import math
 import os
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any, TextIO
 
 import numpy as np
@@ -94,6 +93,7 @@ from beacon_sim.core.team_scenario import (
 )
 from beacon_sim.core.types import Control
 from beacon_sim.errors import BeaconSimError
+from beacon_sim.filters.team_runner import TeamRunner
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
@@ -312,71 +312,18 @@ class EstimateDigests:
         return (self._hash.get(name) or hashlib.sha256()).hexdigest()
 
 
-class MemberTracks:
-    """A single-robot filter's copies on every robot of a team (``independent:F`` in a
-    :class:`~beacon_sim.filters.team_runner.TeamRunner`) seen as one team track, as a team's
-    recording stores it: the latest estimate is every robot's, (N, 3) and (N, 3, 3), once
-    every copy has one for the same tick; its settings are ``{"members": [each copy's]}``
-    (the effective parameters of the former joint ``IndependentTeam``)."""
-
-    def __init__(self, name: str, parts: Sequence[Any]):
-        self.name = name
-        self.parts = list(parts)
-
-    @property
-    def identity(self) -> tuple[int, ...]:
-        """Which track objects these are (a copy reloaded live is a new object)."""
-        return tuple(id(p) for p in self.parts)
-
-    @property
-    def failed(self) -> str | None:
-        return next((p.failed for p in self.parts if p.failed), None)
-
-    @property
-    def filter(self) -> Any:
-        """An object whose ``params`` / ``filters`` :func:`effective_params` reads (None when a
-        copy was not built)."""
-        if any(p.filter is None for p in self.parts):
-            return None
-        return SimpleNamespace(params={}, filters=[p.filter for p in self.parts])
-
-    def _last_tick(self) -> int | None:
-        last = {p.ticks[-1] if p.ticks else None for p in self.parts}
-        return last.pop() if len(last) == 1 else None
-
-    @property
-    def ticks(self) -> list[int]:
-        """The tick of the latest team estimate (empty before every copy has one)."""
-        k = self._last_tick()
-        return [] if k is None else [k]
-
-    @property
-    def means(self) -> list[np.ndarray]:
-        return [np.array([p.means[-1] for p in self.parts])] if self.ticks else []
-
-    @property
-    def covs(self) -> list[np.ndarray]:
-        return [np.array([p.covs[-1] for p in self.parts])] if self.ticks else []
-
-
 def recorded_tracks(runner: Any) -> dict[str, Any]:
     """The tracks a recording stores, by filter name, in the run's order: a
     :class:`~beacon_sim.filters.team_runner.TeamRunner` on a team of one, its one robot's
-    tracks (a single robot's file); on a team, each team filter's joint track and each
-    single-robot filter's copies as one :class:`MemberTracks`. Anything else with
-    ``tracks`` (one FilterRunner or JointRunner): those."""
-    members = getattr(runner, "members", None)
-    if members is None:
+    tracks (a single robot's file); on a team, ``team_tracks()``: each team filter's joint
+    track, each single-robot filter's copies as one ``StackedTrack`` (every robot's estimate,
+    robot by robot: the former joint ``IndependentTeam``'s). Anything else with ``tracks``
+    (a FilterRunner or a JointRunner): those."""
+    if not isinstance(runner, TeamRunner):
         return dict(runner.tracks)
-    if len(members) == 1 and getattr(runner.team, "solo", False):
-        return dict(members[0].tracks)
-    return {name: MemberTracks(name, [m.tracks[name] for m in members]) if runner.is_member(name)
-            else runner.joint.tracks[name] for name in runner.names}
-
-
-def track_identity(track: Any) -> Any:
-    """Which track object(s) ``track`` is (a filter reloaded live gets a new track)."""
-    return track.identity if isinstance(track, MemberTracks) else id(track)
+    if runner.team.solo:
+        return dict(runner.members[0].tracks)
+    return runner.team_tracks()
 
 
 def effective_params(flt: Any) -> dict[str, Any] | None:

@@ -1,10 +1,18 @@
-"""A live session, without pygame: the simulation, the filters side by side, the keyboard's
-command, user commands, trails and the figures the panel shows (a :class:`~beacon_sim.runs.scene.Scene`).
+"""A live session, without pygame: the simulation of one robot or a team, the filters side by
+side, the keyboard's command for the driven robot, user commands, trails and the figures the
+panel shows (a :class:`~beacon_sim.runs.scene.Scene`).
 
-Every tick goes the same way (``Session.tick``): take the command (keyboard or autopilot),
-take the user commands queued since the last tick, hand both to the recorder, apply the
-commands through ``user_commands.apply_commands``, step the simulation, feed the filters.
-So a replay of (command, user commands) per tick reproduces the session bit for bit.
+A single robot is a team of one (issue 22): :class:`Session` runs any scenario as a team
+(``core.team_scenario.as_team``), its :class:`~beacon_sim.core.team.TeamSimulation` and a
+:class:`~beacon_sim.filters.team_runner.TeamRunner`. On a team of one it builds and feeds
+exactly what a single-robot session always did (the same truth, the same estimates, the same
+recording); on a team, Tab changes the driven robot and the others follow their drivers.
+
+Every tick goes the same way (``Session.tick``): take the driven robot's command (keyboard
+or autopilot), take the user commands queued since the last tick, hand both to the recorder,
+apply the commands through ``user_commands``, step every robot, feed the filters. So a
+replay of (driven robot, command, user commands) per tick reproduces the session bit for
+bit, whatever the frame rate.
 """
 
 from __future__ import annotations
@@ -12,7 +20,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -22,10 +30,11 @@ from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardDrive, KeyboardLimits
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.schedule import tick_schedule
-from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.team import TeamSimulation, TeamStep
+from beacon_sim.core.team_scenario import TeamScenario, as_team
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
-from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S, build_filters, reset_filter
+from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S, reset_filter
 from beacon_sim.filters.runner import (
     WINDOW_STEP_LIMIT_S,
     FilterRunner,
@@ -36,113 +45,194 @@ from beacon_sim.filters.runner import (
     validate_belief,
     validate_estimate,
 )
-from beacon_sim.io.recording import default_recording_path, validate_command
+from beacon_sim.filters.team import initial_beliefs
+from beacon_sim.filters.team_runner import JointRunner, TeamRunner, team_filter_of, validate_team_estimates
+from beacon_sim.io.recording import TEAM_COMMAND_KINDS, default_recording_path, validate_command
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
-from beacon_sim.runs.user_commands import apply_commands, apply_to_filters
+from beacon_sim.runs.user_commands import apply_to_filters
 
 #: A reloaded filter catches up over the session's history when that takes at most this
 #: long [s] (estimated from its first steps); otherwise it restarts from the initial belief.
 CATCH_UP_BUDGET_S = 1.5
-#: The session keeps every Step for a catch-up up to this much simulated time [s] (about
-#: 0.7 kB a tick: 20 minutes at 20 Hz is 17 MB); later reloads start from the initial belief.
+#: The session keeps every tick for a catch-up up to this much simulated time [s] (about
+#: 0.7 kB a tick and robot: 20 minutes at 20 Hz is 17 MB); later reloads start from the
+#: initial belief.
 HISTORY_S = 1200.0
 #: Estimates a window's session keeps per filter (the screen needs the latest; a rebuilt
 #: trail at most this many points, the trail's own cap): memory does not grow with time.
 KEEP_ESTIMATES = 6000
+#: Points of each estimate's trail on a team (one per filter and robot): about 20 s of a
+#: robot at 0.3 m/s, so that a dozen estimate trails do not bury the truth's (which keeps
+#: the usual 6000). A single robot's estimate trails keep the usual cap.
+TEAM_TRAIL_POINTS = 300
 
 
-@dataclass
 class Session:
-    """A scenario, a seed and named filters, advanced one tick at a time.
+    """A scenario (one robot or a team), a seed and named filters, advanced one tick at a time.
 
     Parameters
     ----------
-    scenario : Scenario
+    scenario : Scenario or TeamScenario
+        A single-robot scenario runs as a team of one.
     specs : list of str
-        Filter specs (built-in names, ``pkg.mod:Class``, ``file.py:Class``).
+        Filter specs: on a single robot, built-in names, ``pkg.mod:Class``, ``file.py:Class``;
+        on a team, team filter names or ``independent:F`` (see ``filters/team_specs.py``).
     seed : int, optional
         Defaults to the scenario's.
     params : dict, optional
         ``{filter_name: {param: value}}`` overrides (from ``--set``).
     recorder : object, optional
-        Anything with ``record_tick(tick, control, commands)`` and ``close()``.
+        Anything with ``record_tick(tick, driven, control, autopilot, commands)`` and
+        ``close()`` (``runs/recorder``: the session written as it goes).
     """
 
-    scenario: Scenario
-    specs: list[str]
-    seed: int | None = None
-    params: dict[str, dict[str, Any]] = field(default_factory=dict)
-    recorder: Any = None
-
-    def __post_init__(self) -> None:
-        sc = self.scenario
-        self.seed = sc.seed if self.seed is None else int(self.seed)
-        built, broken = build_filters(self.specs, sc, self.seed, self.params,
-                                      limit_s=WINDOW_BUILD_LIMIT_S)
-        self.names = list(built)
-        self.runner = FilterRunner(built, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES)
-        for name, (why, tb) in broken.items():
-            self.runner.fail(name, why, tb)
-        self.runner.priors = {}
-        self._keep_priors()
+    def __init__(self, scenario: Scenario | TeamScenario, specs: list[str], seed: int | None = None,
+                 params: dict[str, dict[str, Any]] | None = None, recorder: Any = None):
+        self.team = as_team(scenario)
+        self.specs = list(specs)
+        self.seed: int = self.team.seed if seed is None else int(seed)
+        self.params = dict(params or {})
+        self.recorder = recorder
+        # Called with the single robot's Step after the filters are fed (the window's live
+        # bound, the live MCAP stream); kept over a restart.
+        self.on_step: list[Callable[[Step], None]] = []
+        self.restart()
         if self.recorder is not None and hasattr(self.recorder, "attach"):
-            self.recorder.attach(self.runner)  # the recording stores the filters' settings
-        # Called with every Step after the filters are fed (the window's live bound); kept
-        # over a replay's rebuild (a seek back re-runs __post_init__).
-        self.on_step: list[Callable[[Step], None]] = getattr(self, "on_step", [])
-        self.sim = Simulation(sc, self.seed)
-        self.keyboard = KeyboardDrive(sc.keyboard)
-        self.has_autopilot = not isinstance(sc.driver, KeyboardSpec)
+            # the recording stores the filters' settings and digests their estimates
+            self.recorder.attach(self.filters_run)
+
+    def restart(self) -> None:
+        """A fresh start: a new simulation from tick 0, the filters built and reset again,
+        empty trails (what a replay's seek back uses)."""
+        team = self.team
+        self.filters_run = TeamRunner(team, self.specs, self.seed, self.params,
+                                      step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES,
+                                      build_limit_s=WINDOW_BUILD_LIMIT_S)
+        self.names = list(self.filters_run.names)
+        for runner in self.filters_run.members:
+            runner.priors = {}
+        self._keep_priors()
+        self.sim = TeamSimulation(team, self.seed)
+        self.n_robots = team.n_robots
+        self.robot_names = [r.name for r in team.robots]
+        self.driven = 0
+        self.keyboard = KeyboardDrive(team.keyboard)
         self.autopilot = False
         self.pending: list[dict] = []
+        self._shown: list[dict] = []  # a team's show / hide since the last tick
         self.visible = {n: True for n in self.names}
-        # the command of every tick, in order, over the kept history
-        self.controls: deque[Control] = deque(maxlen=round(HISTORY_S / sc.dt) + 1)
-        self.steps: list[Step] = []  # every tick's Step, for a reloaded filter to catch up
+        self.last_controls: list[Control] = [Control() for _ in team.robots]
+        # the driven robot's command of every tick, in order, over the kept history
+        self.controls: deque[Control] = deque(maxlen=round(HISTORY_S / team.dt) + 1)
+        self.steps: list[TeamStep] = []  # every tick, for a reloaded filter to catch up
         self.commands: dict[int, list[dict]] = {}  # tick -> user commands applied on it
-        self.last_step: Step | None = None
-        self.last_readings: dict[str, tuple[int, Measurement]] = {}
+        self.last_step: TeamStep | None = None
+        # robot index -> sensor name -> (tick, reading): the latest reading within its period
+        self._readings: list[dict[str, tuple[int, Measurement]]] = [{} for _ in team.robots]
+        self._every = [tick_schedule(r.scenario, r.robot_sensors).every for r in team.robots]
         self.recent_events: list[EventRecord] = []
-        self.truth_trail = Trail()
-        self.truth_trail.add(sc.initial_pose)
-        self.trails = {n: Trail() for n in self.names}
-        self.status = {n: FilterStatus(n) for n in self.names}
-        self._every = tick_schedule(sc).every
+        self.truth_trails = [Trail() for _ in team.robots]
+        for trail, r in zip(self.truth_trails, team.robots, strict=True):
+            trail.add(r.scenario.initial_pose)
+        points = {} if team.solo else {"max_points": TEAM_TRAIL_POINTS}
+        self.trails = {n: [Trail(**points) for _ in team.robots] for n in self.names}
+        self.robot_status = {n: [FilterStatus(n if team.solo else f"{n}/{r}")
+                                 for r in self.robot_names] for n in self.names}
+        self.status = {n: self.robot_status[n][0] if team.solo else FilterStatus(n)
+                       for n in self.names}
+        self._beliefs: dict[str, tuple[int, Any, Belief]] = {}
         for n in self.names:
-            est = self.estimate(n)
+            self._sync_status(n)
+            est = self.estimates(n)
             if est is not None:
-                self.trails[n].add(est[0])
+                for trail, mean in zip(self.trails[n], est[0], strict=True):
+                    trail.add(mean)
+
+    # --- what the session is ---------------------------------------------------------------
+    @property
+    def scenario(self) -> Scenario:
+        """The driven robot's scenario (on a team of one: the scenario itself)."""
+        return self.team.robots[self.driven].scenario
+
+    @property
+    def runner(self) -> FilterRunner:
+        """Robot 1's single-robot filters (on a team of one: every filter of the session)."""
+        return self.filters_run.members[0]
+
+    @property
+    def joint(self) -> JointRunner:
+        """The team filters (none on a team of one)."""
+        return self.filters_run.joint
+
+    @property
+    def driven_name(self) -> str:
+        return self.robot_names[self.driven]
+
+    def robot_index(self, robot_id: int) -> int | None:
+        for k, r in enumerate(self.team.robots):
+            if r.id == robot_id:
+                return k
+        return None
 
     # --- commands -------------------------------------------------------------------------
     def command(self, cmd: dict) -> None:
-        """Queue a user command for the next tick (``toggle`` also shows/hides at once)."""
+        """Queue a user command for the next tick (``toggle`` also shows/hides at once). On a
+        team a ``kidnap`` acts on the robot driven when it is given, a ``reset`` on every
+        filter."""
         validate_command(cmd)
-        if cmd["kind"] == "toggle" and cmd.get("filter") in self.visible:
+        kind = cmd["kind"]
+        if not self.team.solo and kind not in TEAM_COMMAND_KINDS:
+            raise ValueError(f"a team session has no command {kind!r}")
+        if kind == "toggle" and cmd.get("filter") in self.visible:
             self.visible[cmd["filter"]] = not self.visible[cmd["filter"]]
-        self.pending.append(dict(cmd))
+        if self.team.solo:
+            self.pending.append(dict(cmd))
+        elif kind == "toggle":
+            if cmd.get("filter") in self.visible:
+                self._shown.append({"kind": "toggle", "filter": cmd["filter"]})
+        else:
+            self.pending.append({**cmd, "robot": self.driven})
+
+    # --- driving --------------------------------------------------------------------------
+    @property
+    def has_autopilot(self) -> bool:
+        """Whether the driven robot has a driver of its own to hand over to (M)."""
+        return not isinstance(self.scenario.driver, KeyboardSpec)
 
     def drive(self, key: str) -> None:
-        """W/S/A/D/X on the keyboard's command; driving by hand switches the autopilot off."""
+        """W/S/A/D/X on the driven robot's command; driving by hand switches the autopilot off."""
         if self.autopilot:
             self.autopilot = False
-            self.keyboard.v, self.keyboard.omega = self._last_control()
+            self._take_over()
         self.keyboard.press(key)
 
     def toggle_autopilot(self) -> None:
         self.autopilot = self.has_autopilot and not self.autopilot
         if not self.autopilot:
-            self.keyboard.v, self.keyboard.omega = self._last_control()
+            self._take_over()
 
-    def _last_control(self) -> tuple[float, float]:
-        """The last command, rounded to the keyboard's steps (taking over from the autopilot:
-        its omega +0.036 would keep the robot curving after the keys are let go) and clamped
-        to the keyboard's limits."""
-        return taken_over(self.controls[-1] if self.controls else Control(), self.keyboard.limits)
+    def _take_over(self) -> None:
+        """The keyboard starts from the driven robot's last command (no jolt): see
+        :func:`taken_over`."""
+        self.keyboard.v, self.keyboard.omega = taken_over(self.last_controls[self.driven],
+                                                          self.keyboard.limits)
+
+    def next_robot(self, step: int = 1) -> str:
+        """Tab: drive the next robot (the one driven so far goes back to its driver); the
+        keyboard takes over the new one's last command. Returns its name."""
+        self.driven = (self.driven + step) % self.n_robots
+        if self.autopilot and not self.has_autopilot:
+            self.autopilot = False
+        if not self.autopilot:
+            self._take_over()
+        return self.driven_name
 
     def next_control(self) -> Control:
+        """The driven robot's command for the next tick."""
         if self.autopilot:
-            return self.sim.driver.control(self.sim.time, self.sim.pose)
+            sim = self.sim.sims[self.driven]
+            return sim.driver.control(sim.time, sim.pose)
         return self.keyboard.control
 
     @property
@@ -160,37 +250,78 @@ class Session:
         return self.sim.time
 
     @property
+    def poses(self) -> np.ndarray:
+        """Every robot's true pose now, shape (N, 3) [m, m, rad]."""
+        return self.sim.poses
+
+    @property
     def true_pose(self) -> np.ndarray:
-        return self.sim.pose
+        """The driven robot's true pose (3,) [m, m, rad]."""
+        return self.sim.sims[self.driven].pose
+
+    @property
+    def truth_trail(self) -> Trail:
+        """The driven robot's true path."""
+        return self.truth_trails[self.driven]
+
+    def trail(self, name: str) -> Trail:
+        """The driven robot's estimate trail under filter ``name``."""
+        return self.trails[name][self.driven]
 
     def belief(self, name: str) -> Belief | None:
-        """The filter's belief to draw, through the runner's guard (time limit, types,
-        shapes, finite values): None, and the filter switched off with the reason, when
-        ``belief()`` raises, hangs or returns something that cannot be drawn."""
-        tr = self.runner.tracks[name]
+        """The driven robot's belief under single-robot filter ``name``, to draw, through the
+        runner's guard (time limit, types, shapes, finite values): None, and the filter
+        switched off with the reason, when ``belief()`` raises, hangs or returns something
+        that cannot be drawn. None for a team filter (its robots' estimates are drawn)."""
+        if not self.filters_run.is_member(name):
+            return None
+        tr = self.filters_run.members[self.driven].tracks[name]
         if tr.failed or tr.filter is None:
             return None
         # A filter changes only in a tick (commands included) or when it is replaced: the
         # belief read and checked once per tick serves every frame until the next (a 10k-
         # particle or 86,400-cell belief is copied and checked, about 0.2 ms a frame).
-        cache = self.__dict__.setdefault("_beliefs", {})
-        hit = cache.get(name)
+        hit = self._beliefs.get(name)
         if hit is not None and hit[0] == self.sim.tick and hit[1] is tr.filter:
             return hit[2]
         bel = self._guarded_read(name, tr.filter.belief, validate_belief, "belief(): ")
         if bel is not None:
-            cache[name] = (self.sim.tick, tr.filter, bel)
+            self._beliefs[name] = (self.sim.tick, tr.filter, bel)
         return bel
 
     def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
-        """The latest estimate; before the first tick, the filter's initial belief (through
-        the guard: None, and the filter switched off, when it is unusable)."""
-        tr = self.runner.tracks[name]
-        if tr.means:
-            return tr.means[-1], tr.covs[-1]
-        if tr.failed or tr.filter is None:
+        """The driven robot's latest estimate (mean (3,), cov (3, 3)); before the first tick,
+        the filter's initial belief (through the guard: None, and the filter switched off,
+        when it is unusable)."""
+        est = self.estimates(name)
+        return None if est is None else (est[0][self.driven], est[1][self.driven])
+
+    def estimates(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """Every robot's latest estimate under ``name``: (means (N, 3), covs (N, 3, 3)); before
+        the first tick the filter's initial belief (through the guard: None, and the filter
+        switched off, when it is unusable)."""
+        latest = self.filters_run.latest(name)
+        if latest is not None:
+            return latest
+        if self.filters_run.failed(name):
             return None
-        return self._guarded_read(name, tr.filter.estimate, validate_estimate)
+        if self.filters_run.is_member(name):
+            means, covs = np.empty((self.n_robots, 3)), np.empty((self.n_robots, 3, 3))
+            for i, runner in enumerate(self.filters_run.members):
+                tr = runner.tracks[name]
+                if tr.filter is None:
+                    return None
+                est = self._guarded_read(name, tr.filter.estimate, validate_estimate)
+                if est is None:
+                    return None
+                means[i], covs[i] = est
+            return means, covs
+        f = team_filter_of(self.joint.tracks[name])
+        if f is None:
+            return None
+        return self._guarded_read(name, f.estimates,
+                                  partial(validate_team_estimates, n_robots=self.n_robots),
+                                  "estimates(): ")
 
     def _guarded_read(self, name: str, call: Callable[[], object],
                       validate: Callable[[object], Any], raised_prefix: str = "") -> Any:
@@ -201,29 +332,42 @@ class Session:
             checked = validate(value)
             if not isinstance(checked, str):
                 return checked
-            why = checked
+            why = checked if not raised_prefix.startswith("estimates") else raised_prefix + checked
         else:
             why = raised_prefix + why
         self._switch_off(name, why, tb)
         return None
 
     def _switch_off(self, name: str, why: str, tb: str = "") -> None:
-        self.runner.fail(name, why, tb, self.sim.time)
-        self.status[name].failed = self.runner.tracks[name].failed
-        self.status[name].warning = status_line(self.runner.tracks[name])
+        self.filters_run.fail(name, why, tb, self.sim.time)
+        self._sync_status(name)
+
+    def _sync_status(self, name: str) -> None:
+        st = self.status[name]
+        st.failed = self.filters_run.failed(name)
+        st.warning = status_line(self.filters_run.track(name, self.driven))
 
     @property
     def filters(self) -> dict[str, object]:
-        return {n: t.filter for n, t in self.runner.tracks.items() if t.filter is not None}
+        """The driven robot's working filter objects by name (a team filter's joint object)."""
+        out: dict[str, object] = {}
+        for n in self.names:
+            tr = self.filters_run.track(n, self.driven)
+            if tr.filter is not None:
+                out[n] = tr.filter
+        return out
 
     def replace_filter(self, name: str, flt: Filter, budget_s: float = CATCH_UP_BUDGET_S) -> str:
-        """Swap in a new filter object under ``name`` (hot reload), same colour.
+        """Swap in a new filter object under ``name`` (hot reload), same colour; one robot's
+        only (a team's filter copies are not hot reloaded: ValueError).
 
         The new filter is run over every tick of the session so far (the same Steps and the
         same resets the others had), so it appears where it would be had it run from the
         start. When that would take longer than ``budget_s`` [s] (judged on its first
         steps) it starts from the initial belief instead. Returns what happened, in words.
         """
+        if self.n_robots != 1 or not self.filters_run.is_member(name):
+            raise ValueError("hot reload replaces a single robot's filter")
         if len(self.steps) < self.sim.tick:  # the history was not kept this far
             reset_filter(flt, self.scenario)
             self._install(name, bounded_track(name, flt, KEEP_ESTIMATES))
@@ -231,7 +375,8 @@ class Session:
                     f"{HISTORY_S / 60:.0f} minutes of history to catch up over)")
         catch_up = FilterRunner({name: flt}, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES)
         t0 = time.perf_counter()
-        for i, step in enumerate(self.steps):
+        for i, team_step in enumerate(self.steps):
+            step = team_step.steps[0]
             cmds = self.commands.get(step.tick)
             if cmds and not catch_up.tracks[name].failed:
                 for _, (why, tb) in apply_to_filters(cmds, {name: flt}, self.scenario,
@@ -256,64 +401,67 @@ class Session:
     def _install(self, name: str, track: FilterTrack) -> None:
         """Put ``track`` in the runner under ``name``; rebuild its trail and status from it."""
         self.runner.tracks[name] = track
-        trail = self.trails[name] = Trail()
+        trail = self.trails[name][0] = Trail()
         for mean in track.means:
             trail.add(mean)
         st = self.status[name] = FilterStatus(name)
+        self.robot_status[name] = [st]
         st.failed, st.warning = track.failed, status_line(track)
-        if track.means and self.last_step is not None and track.ticks[-1] == self.last_step.tick:
-            st.measure(track.means[-1], track.covs[-1], self.last_step.true_pose)
+        last = self.last_step
+        if track.means and last is not None and track.ticks[-1] == last.tick:
+            st.measure(track.means[-1], track.covs[-1], last.steps[0].true_pose)
         self.runner.priors.pop(name, None)
         self._keep_priors()
 
     # --- the step view: predict, then update, of the last tick ------------------------------
     def _keep_priors(self) -> None:
-        """Ask the runner to keep the belief after predict of every Gaussian filter (one whose
-        ``belief()`` is a GaussianBelief); the others' beliefs have no single ellipse."""
-        keep = set()
-        for name, tr in self.runner.tracks.items():
-            if tr.filter is None or tr.failed:
-                continue
-            # a student's belief() may raise (or exit, or hang) before the first tick
-            bel, why, _ = guarded_call(tr.filter.belief, WINDOW_STEP_LIMIT_S)
-            if why is None and isinstance(bel, GaussianBelief):
-                keep.add(name)
-        self.runner.keep_prior = frozenset(keep)
+        """Ask each robot's runner to keep the belief after predict of every Gaussian filter
+        (one whose ``belief()`` is a GaussianBelief); the others' beliefs have no single
+        ellipse."""
+        for runner in self.filters_run.members:
+            keep = set()
+            for name, tr in runner.tracks.items():
+                if tr.filter is None or tr.failed:
+                    continue
+                # a student's belief() may raise (or exit, or hang) before the first tick
+                bel, why, _ = guarded_call(tr.filter.belief, WINDOW_STEP_LIMIT_S)
+                if why is None and isinstance(bel, GaussianBelief):
+                    keep.add(name)
+            runner.keep_prior = frozenset(keep)
 
     def predict_update(self, name: str) -> tuple[tuple[np.ndarray, np.ndarray],
                                                   tuple[np.ndarray, np.ndarray]] | None:
-        """The last tick of a Gaussian filter: ``((mean, cov) after predict, (mean, cov) after
-        update)`` [m, m, rad], or None (not Gaussian, switched off, no tick yet)."""
-        tr = self.runner.tracks.get(name)
-        prior = self.runner.priors.get(name)
+        """The driven robot's last tick under a Gaussian filter: ``((mean, cov) after
+        predict, (mean, cov) after update)`` [m, m, rad], or None (not Gaussian, a team
+        filter, switched off, no tick yet)."""
+        if not self.filters_run.is_member(name):
+            return None
+        runner = self.filters_run.members[self.driven]
+        tr = runner.tracks.get(name)
+        prior = runner.priors.get(name)
         if (tr is None or prior is None or tr.failed or self.last_step is None or not tr.ticks
                 or tr.ticks[-1] != self.last_step.tick):
             return None
         return prior, (tr.means[-1], tr.covs[-1])
 
     def used_ids(self) -> set[int]:
-        """The beacons in the last tick's readings: the ones its update used."""
+        """The beacons in the driven robot's last tick's readings: the ones its update used."""
         if self.last_step is None:
             return set()
-        return {int(i) for m in self.last_step.measurements for i in m.beacon_ids}
+        return {int(i) for m in self.last_step.steps[self.driven].measurements for i in m.beacon_ids}
 
     # --- one tick -------------------------------------------------------------------------
-    def tick(self) -> Step:
-        """Run one simulation tick with the current command and the queued user commands."""
+    def tick(self) -> TeamStep:
+        """Run one tick with the driven robot's command and the queued user commands."""
         control = self.next_control()
         cmds, self.pending = self.pending, []
         tick = self.sim.tick + 1
         if self.recorder is not None:
-            self.recorder.record_tick(tick, control, cmds)
-        working = {n: t.filter for n, t in self.runner.tracks.items() if t.filter and not t.failed}
-        for name, (why, tb) in apply_commands(cmds, self.sim, working, self.scenario,
-                                              WINDOW_STEP_LIMIT_S).items():
-            self._switch_off(name, why, tb)
-        if any(c["kind"] in ("reset", "global_reset") for c in cmds):
-            for tr in self.trails.values():
-                tr.brk()
-        step = self.sim.step(control)
-        self.runner.feed(step)
+            self.recorder.record_tick(tick, self.driven, control, self.autopilot, self._shown + cmds)
+        self._shown = []
+        self._apply(cmds)
+        step = self.sim.step({self.driven: control})
+        self.filters_run.feed(step)
         if step.time <= HISTORY_S:
             self.steps.append(step)
         self.controls.append(control)
@@ -322,46 +470,119 @@ class Session:
         self._after(step)
         return step
 
-    def _after(self, step: Step) -> None:
+    def _apply(self, cmds: list[dict]) -> None:
+        """User commands, before the tick's step (``runs/user_commands``): a kidnap of its
+        robot (a single robot's when it names none); resets of every robot's working filters
+        (under the guard: one that fails is switched off) and of the team filters."""
+        if not cmds:
+            return
+        for cmd in cmds:
+            validate_command(cmd)
+            if cmd["kind"] == "kidnap":
+                self.sim.sims[int(cmd.get("robot", 0))].request_kidnap(cmd.get("pose"))
+        for i, runner in enumerate(self.filters_run.members):
+            working = {n: t.filter for n, t in runner.tracks.items() if t.filter and not t.failed}
+            for name, (why, tb) in apply_to_filters(cmds, working, self.team.robots[i].scenario,
+                                                    WINDOW_STEP_LIMIT_S).items():
+                self._switch_off(name, why, tb)
+        if any(c["kind"] in ("reset", "global_reset") for c in cmds):
+            reset_team_filters(self.joint, self.team, WINDOW_STEP_LIMIT_S, self.sim.time)
+            for trails in self.trails.values():
+                for trail in trails:
+                    trail.brk()
+
+    def _after(self, step: TeamStep) -> None:
         self.last_step = step
-        for m in step.measurements:
-            self.last_readings[m.sensor] = (step.tick, m)
-        for name in list(self.last_readings):
-            if step.tick - self.last_readings[name][0] >= self._every.get(name, 1):
-                del self.last_readings[name]
-        if step.kidnapped:
-            self.truth_trail.brk()
-        self.truth_trail.add(step.true_pose)
-        if not self.autopilot and any(e.kind == "bump" for e in step.events):
-            self.keyboard.v = 0.0  # the bumper stopped the robot: the command says so too
-        self.recent_events.extend(step.events)
+        for i, s in enumerate(step.steps):
+            self.last_controls[i] = s.control
+            seen = self._readings[i]
+            for m in step.measurements(i):
+                seen[m.sensor] = (step.tick, m)
+            for sensor in list(seen):
+                if step.tick - seen[sensor][0] >= self._every[i].get(sensor, 1):
+                    del seen[sensor]
+            if s.kidnapped:
+                self.truth_trails[i].brk()
+            self.truth_trails[i].add(s.true_pose)
+            self.recent_events.extend(s.events)
         del self.recent_events[:-20]
-        truth = step.true_pose
-        for name, tr in self.runner.tracks.items():
-            st = self.status[name]
-            st.failed = tr.failed
-            st.warning = status_line(tr)
-            if tr.failed or not tr.ticks or tr.ticks[-1] != step.tick:
+        if not self.autopilot and any(e.kind == "bump" for e in step.steps[self.driven].events):
+            self.keyboard.v = 0.0  # the bumper stopped the robot: the command says so too
+        truth = step.true_poses
+        for name in self.names:
+            self._sync_status(name)
+            tr = self.filters_run.track(name, 0)
+            if self.status[name].failed or not tr.ticks or tr.ticks[-1] != step.tick:
                 continue
-            self.trails[name].add(tr.means[-1])
-            st.measure(tr.means[-1], tr.covs[-1], truth)
-        for listener in self.on_step:
-            listener(step)
+            latest = self.filters_run.latest(name)
+            if latest is None:
+                continue
+            means, covs = latest
+            for i in range(self.n_robots):
+                self.trails[name][i].add(means[i])
+                self.robot_status[name][i].measure(means[i], covs[i], truth[i])
+        if self.on_step:
+            for listener in self.on_step:
+                listener(step.steps[0])
 
-    def readings(self) -> list[Measurement]:
-        """The latest reading of each sensor still within its period."""
-        return [m for _, m in self.last_readings.values()]
+    def readings(self, i: int | None = None) -> list[Measurement]:
+        """Robot i's (default: the driven robot's) latest reading of each sensor still within
+        its period."""
+        return [m for _, m in self._readings[self.driven if i is None else i].values()]
 
-    def seen_ids(self) -> set[int]:
-        out: set[int] = set()
-        for m in self.readings():
-            out.update(int(i) for i in m.beacon_ids)
-        return out
+    def beacon_readings(self, i: int) -> list[Measurement]:
+        """Robot i's latest reading of each beacon sensor still within its period."""
+        return [m for m in self.readings(i) if not m.kind.startswith("robot_")]
+
+    def robot_readings(self, i: int) -> list[Measurement]:
+        """Robot i's latest reading of each robot sensor still within its period (kind
+        ``robot_range_bearing`` / ``robot_bearing``; ``beacon_ids`` are the robot IDs seen)."""
+        return [m for m in self.readings(i) if m.kind.startswith("robot_")]
+
+    def seen_ids(self, i: int | None = None) -> set[int]:
+        """Beacon IDs in view of robot i (every robot's when None)."""
+        robots = range(self.n_robots) if i is None else (i,)
+        return {int(b) for k in robots for m in self.beacon_readings(k) for b in m.beacon_ids}
+
+    def teammates_seen(self, i: int) -> list[str]:
+        """Names of the robots robot i sees now, in team order."""
+        ids = {int(b) for m in self.robot_readings(i) for b in m.beacon_ids}
+        return [r.name for r in self.team.robots if r.id in ids]
+
+    def clear_trails(self) -> None:
+        """Forget every trail (truth and estimates), keep the current points."""
+        for i, trail in enumerate(self.truth_trails):
+            trail.clear()
+            trail.add(self.poses[i])
+        for name, trails in self.trails.items():
+            est = self.estimates(name) if not self.status[name].failed else None
+            for i, trail in enumerate(trails):
+                trail.clear()
+                if est is not None:
+                    trail.add(est[0][i])
 
     def close(self) -> None:
+        """Write the recording's end line and close it (if the session is recorded)."""
         if self.recorder is not None:
             self.recorder.close()
             self.recorder = None
+
+
+def reset_team_filters(runner: JointRunner, team: TeamScenario, limit_s: float | None,
+                       time_s: float) -> None:
+    """The ``reset`` user command on the team filters: every working one back to the
+    scenario's initial beliefs, under the guard (one that fails is switched off), the same
+    live and on replay."""
+    if not runner.tracks:
+        return
+    beliefs = initial_beliefs(team)
+    for name, tr in runner.tracks.items():
+        f = team_filter_of(tr)
+        if tr.failed or f is None:
+            continue
+        _, why, tb = guarded_call(partial(f.reset, beliefs), limit_s)
+        if why is not None:
+            runner.fail(name, f"reset: {why}", tb, time_s)
 
 
 def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
@@ -374,7 +595,7 @@ def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
     return v + 0.0, w + 0.0
 
 
-def make_recorder(scenario: Scenario, seed: int, specs: list[str],
+def make_recorder(scenario: Scenario | TeamScenario, seed: int, specs: list[str],
                   params: dict[str, dict[str, Any]]) -> tuple[Recorder, Path]:
     """A recorder writing to ``recordings/<scenario>_<time>.jsonl``, and that path."""
     recorder = Recorder(Path(default_recording_path(scenario.name)), scenario, seed, list(specs),

@@ -671,5 +671,18 @@ class MrclamPlayback:
     def marks(self) -> list[tuple[int, str]]:
         return []  # no user commands in a data set
 
+    def trail(self, name: str) -> Trail:
+        """Filter ``name``'s estimate trail."""
+        return self.trails[name]
+
+    def clear_trails(self) -> None:
+        """Forget every trail, keep the current points."""
+        self.truth_trail = Trail()
+        self.truth_trail.add(self.true_pose)
+        self.trails = {n: Trail() for n in self.names}
+        for n, est in self.shown.items():
+            if est is not None:
+                self.trails[n].add(est[0])
+
     def close(self) -> None:
         """Nothing to close: the run is finished."""

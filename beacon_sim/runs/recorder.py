@@ -44,7 +44,6 @@ from beacon_sim.io.recording import (
     recording_key,
     scenario_text,
     text_checksum,
-    track_identity,
     validate_command,
 )
 from beacon_sim.runs.user_commands import apply_commands
@@ -170,7 +169,7 @@ class Recorder:
         self._runner = runner
         settings: dict[str, dict[str, Any]] = {}
         for name, track in recorded_tracks(runner).items():
-            self._track_ids[name] = track_identity(track)
+            self._track_ids[name] = id(track)
             entry: dict[str, Any] = {"params": effective_params(track.filter)
                                      if track.filter is not None else None}
             if track.failed:
@@ -188,7 +187,7 @@ class Recorder:
         for name, track in recorded_tracks(self._runner).items():
             if name not in self._track_ids:
                 continue
-            if track_identity(track) != self._track_ids[name] and name not in self._frozen:
+            if id(track) != self._track_ids[name] and name not in self._frozen:
                 self._frozen[name] = self.digests.digest(name)
                 self._notes[name] = f"reloaded live at tick {tick}: its estimates are not compared"
             if track.failed and name not in self._notes:
@@ -393,7 +392,3 @@ def _plain(cmd: dict) -> dict:
     elif "pose" in out:
         del out["pose"]
     return out
-
-
-#: Until the live sessions are one (issue 22): the team session's name for the one writer.
-TeamRecorder = Recorder

@@ -510,95 +510,115 @@ def replay_label(path: Path) -> str:
 
 
 class ReplaySession(Session):
-    """A :class:`~beacon_sim.runs.live.Session` whose controls and user commands come from a
-    recording, one tick at a time (the replay window's scene)."""
+    """A :class:`~beacon_sim.runs.live.Session` whose driven robot, commands and user
+    commands come from a recording of any number of robots, one tick at a time (the replay
+    window's scene, with the timeline's ``total_ticks``, ``at_end``, ``marks`` and
+    ``seek``). Each tick is checked as :func:`replay_recording` checks it; ``mismatch`` holds
+    the first difference (naming the field), ``checksum_status()`` what was verified."""
+
+    #: The panel shows who was driven, without the Tab hint (keys do not drive a replay).
+    replaying = True
 
     def __init__(self, recording: Recording, specs: list[str],
                  params: dict[str, dict[str, Any]] | None = None):
         self.recording = recording
+        super().__init__(recording.team, list(specs), recording.seed, dict(params or {}))
+        self._fresh()
+
+    def _fresh(self) -> None:
+        """The checks from tick 0, for the simulation and the filters just built."""
         self.mismatch: str | None = None  # the first difference from the file (names the field)
         self._checked = 0  # ticks so far that carried their checksums
-        super().__init__(recording.scenario, list(specs), recording.seed, dict(params or {}))
-        self._new_verifier()
-
-    def _new_verifier(self) -> None:
-        """The filter settings and estimates check, for the filters just built."""
-        self.verifier = replay_verifier(self.recording, self.runner, self.specs, self.params)
+        self.truth = ReplayedTruth(self.recording, self.sim)
+        self._apply_recorded_driving()
+        self.verifier = replay_verifier(self.recording, self.filters_run, self.specs, self.params)
         why = self.verifier.check_settings()
-        if why is not None and self.mismatch is None:
+        if why is not None:
             self.mismatch = f"{self.recording.path}:{self.recording.parts.settings_line}: {why}"
-        if self.mismatch is None and self.recording.parts.signature_error:
+        elif self.recording.parts.signature_error:
             self.mismatch = self.recording.parts.signature_error
+
+    def _apply_recorded_driving(self) -> None:
+        """Who the next recorded tick drives (the panel shows it)."""
+        ticks = self.recording.ticks
+        if ticks:
+            rec = ticks[min(self.sim.tick, len(ticks) - 1)]
+            self.driven, self.autopilot = rec.driven, rec.autopilot
 
     @property
     def total_ticks(self) -> int:
         return len(self.recording.ticks)
+
+    @property
+    def at_end(self) -> bool:
+        return self.sim.tick >= self.total_ticks
 
     def marks(self) -> list[tuple[int, str]]:
         """(tick, kind of the first user command) of the recorded user commands."""
         return [(rec.tick, rec.commands[0]["kind"]) for rec in self.recording.ticks if rec.commands]
 
     @property
-    def at_end(self) -> bool:
-        return self.sim.tick >= self.total_ticks
-
-    @property
     def drive_mode(self) -> str:
         return replay_label(self.recording.path)
 
     def next_control(self) -> Control:
-        """The recorded control of the next tick (the last one once the recording ends)."""
+        """The driven robot's recorded command of the next tick (its driver's where it chose
+        on a team's file; the last one once the recording ends)."""
         ticks = self.recording.ticks
         if not ticks:
             return Control()
-        return ticks[min(self.sim.tick, len(ticks) - 1)].control
+        rec = ticks[min(self.sim.tick, len(ticks) - 1)]
+        if rec.autopilot and not self.at_end:
+            return super().next_control()
+        return rec.control
 
     def seek(self, tick: int, keep_flips: Set[str] = frozenset()) -> None:
         """Show the run at ``tick``: forward by running the ticks in between, backward by
-        rebuilding the simulation and the filters and re-simulating from the start (the
-        recording holds no generator state). ``keep_flips``: filters the user showed / hid,
-        flipped again after a rebuild."""
+        restarting (a fresh simulation, fresh filters, empty trails) and re-simulating from
+        the start (the recording holds no generator state). ``keep_flips``: filters the user
+        showed / hid, flipped again after a restart."""
         tick = min(max(int(tick), 0), self.total_ticks)
         if tick < self.sim.tick:
             self.close()
-            self.mismatch = None
-            self._checked = 0
-            self.__post_init__()  # a fresh simulation, fresh filters, empty trails
-            self._new_verifier()
+            self.restart()
+            self._fresh()
             for name in keep_flips:
                 if name in self.visible:
                     self.visible[name] = not self.visible[name]
         while self.sim.tick < tick:
             self.tick()
 
-    def tick(self) -> Step:
-        """The next recorded tick: its commands, its control, then the checksum check."""
+    def tick(self) -> TeamStep:
+        """The next recorded tick: its commands, the driven robot's command, then the
+        checksum check."""
         rec = self.recording.ticks[self.sim.tick]
-        self.pending = [dict(c) for c in rec.commands]
-        for c in self.pending:  # recorded show / hide of a filter (display only)
+        self.driven, self.autopilot = rec.driven, rec.autopilot
+        self.pending = [dict(c) for c in rec.commands if c["kind"] != "toggle"]
+        for c in rec.commands:  # recorded show / hide of a filter (display only)
             if c["kind"] == "toggle" and c.get("filter") in self.visible:
                 self.visible[c["filter"]] = not self.visible[c["filter"]]
         step = super().tick()
+        self.truth.observe(step)
         self.verifier.fold(rec.tick)
         if self.mismatch is None:
             line = self.recording.parts.estimates.get(rec.tick)
-            why = checksums_mismatch(rec, self.sim.truth_checksum, self.sim.readings_checksum) \
-                or self.verifier.compare_line(rec.tick, line)
+            why = self.truth.tick_mismatch(rec) or self.verifier.compare_line(rec.tick, line)
             if why is not None:
-                self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: replay "
-                                 f"differs from the recording at tick {rec.tick} "
+                self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: "
+                                 f"replay differs from the recording at tick {rec.tick} "
                                  f"(t = {self.sim.time:g} s; {why})")
             self._checked += tick_checked(self.recording, rec)
+        self._apply_recorded_driving()
         return step
 
     def checksum_status(self) -> str:
         """"verified", "MISMATCH ...", or how far the check went."""
-        return session_status(self, self.sim.truth_checksum, self.sim.readings_checksum)
+        return session_status(self, self.truth.truth, self.truth.readings)
 
 
-def session_status(session: Any, truth: str, readings: str) -> str:
-    """A replay window's status (single robot or team): "MISMATCH: ..." naming the field,
-    or what was verified so far (the end line's checksums and estimates once at the end)."""
+def session_status(session: ReplaySession, truth: str, readings: str) -> str:
+    """A replay window's status: "MISMATCH: ..." naming the field, or what was verified so
+    far (the end line's checksums and estimates once at the end)."""
     if session.mismatch:
         return f"MISMATCH: {session.mismatch}"
     rec = session.recording

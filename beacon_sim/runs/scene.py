@@ -9,6 +9,7 @@ is a path drawn behind a robot or an estimate. No pygame here.
 from __future__ import annotations
 
 import math
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -113,14 +114,32 @@ class FilterStatus:
 
 
 class Scene(Protocol):
-    """What the renderer and the panel read after each tick (units: m, rad, s; world frame)."""
+    """What the renderer and the panel read after each tick (units: m, rad, s; world frame).
+    A team's scene (a live or replayed :class:`~beacon_sim.runs.live.Session` with
+    ``n_robots`` > 1) also gives every robot's poses, estimates and readings; the window
+    reads them through ``n_robots``."""
 
-    scenario: Scenario
     names: list[str]  # the filters, in display order
     visible: dict[str, bool]
     status: dict[str, FilterStatus]
-    truth_trail: Trail
-    trails: dict[str, Trail]
+
+    @property
+    def scenario(self) -> Scenario:
+        """The (driven) robot's scenario."""
+        ...
+
+    @property
+    def truth_trail(self) -> Trail:
+        """The (driven) robot's true path."""
+        ...
+
+    def trail(self, name: str) -> Trail:
+        """The (driven) robot's estimate trail under filter ``name``."""
+        ...
+
+    def clear_trails(self) -> None:
+        """Forget every trail, keep the current points."""
+        ...
 
     @property
     def tick_count(self) -> int:
@@ -158,4 +177,23 @@ class Scene(Protocol):
 
     def estimate(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
         """The filter's latest (mean (3,), covariance (3, 3)), or None."""
+        ...
+
+
+class Timeline(Protocol):
+    """A run played back on a timeline (a replay, a finished MRCLAM run): what the replay
+    window's timeline reads and drives."""
+
+    @property
+    def total_ticks(self) -> int: ...
+
+    @property
+    def at_end(self) -> bool: ...
+
+    def seek(self, tick: int, keep_flips: AbstractSet[str] = frozenset()) -> None:
+        """Show the run at ``tick`` (``keep_flips``: filters shown / hidden by the user)."""
+        ...
+
+    def marks(self) -> list[tuple[int, str]]:
+        """(tick, kind) of the recorded user commands."""
         ...
