@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from beacon_sim.core.scenario import load_scenario
@@ -21,7 +22,14 @@ from beacon_sim.core.types import Control
 from beacon_sim.io.recording import load_recording
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import Recorder
-from beacon_sim.runs.replay import TeamReplayResult, replay_recording
+from beacon_sim.runs.replay import (
+    ReplayMismatch,
+    ReplaySession,
+    TeamReplayResult,
+    recorded_filter_specs,
+    recorded_params,
+    replay_recording,
+)
 
 OLD = Path(__file__).parent / "data" / "old_recordings"
 #: The filters of the scripted single-robot session, and its --set overrides.
@@ -186,3 +194,44 @@ def test_a_single_robot_command_is_refused_in_a_teams_file_and_back(tmp_path):
         rec.record_tick(1, 0, Control(), False, [{"kind": "global_reset"}])
         with pytest.raises(ValueError, match="unknown user command"):
             rec.record_tick(2, 0, Control(), False, [{"kind": "exec"}])
+
+
+@pytest.mark.parametrize("old", ["v3_sparse_kidnap.jsonl", "v3_team_sparse.jsonl"])
+def test_the_one_replay_session_replays_either_kind_and_seeks_back_exactly(old):
+    """ReplaySession is the live Session over the file's robots (a single robot's: a team of
+    one): played to the end it is "verified"; seeking back and forward again lands on the
+    same truth and estimates as the straight run."""
+    rec = load_recording(OLD / old)
+    s = ReplaySession(rec, recorded_filter_specs(rec, None)[0], recorded_params(rec, None))
+    assert isinstance(s, Session) and s.n_robots == rec.n_robots and s.team.solo == (not rec.is_team)
+    s.seek(120)
+    straight = (s.sim.truth_checksum, s.poses.copy(),
+                {n: s.filters_run.latest(n)[0].copy() for n in s.names})
+    s.seek(s.total_ticks)
+    assert s.at_end and s.mismatch is None
+    assert s.checksum_status() == "verified"
+    assert s.sim.truth_checksum == rec.end["checksum"]
+    s.seek(40)
+    s.seek(120)
+    assert s.sim.truth_checksum == straight[0] and np.array_equal(s.poses, straight[1])
+    for n, mean in straight[2].items():
+        assert np.array_equal(s.filters_run.latest(n)[0], mean), n
+
+
+def test_an_edited_team_estimate_is_named_in_the_window_replay(tmp_path):
+    """The window's replay checks a team's estimate digests as the headless one does: an
+    edited digest is a MISMATCH naming the filter."""
+    lines = (OLD / "v3_team_sparse.jsonl").read_text(encoding="utf-8").splitlines()
+    k = next(i for i, line in enumerate(lines) if '"type":"estimates"' in line)
+    obj = json.loads(lines[k])
+    obj["digests"]["independent:ukf"] = "0" * 64
+    lines[k] = json.dumps(obj, separators=(",", ":"))
+    bad = tmp_path / "edited.jsonl"
+    bad.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    rec = load_recording(bad)
+    s = ReplaySession(rec, recorded_filter_specs(rec, None)[0], recorded_params(rec, None))
+    s.seek(s.total_ticks)
+    assert s.mismatch is not None and "independent:ukf" in s.mismatch
+    assert s.checksum_status().startswith("MISMATCH")
+    with pytest.raises(ReplayMismatch, match="the estimates of filter independent:ukf"):
+        replay_recording(rec)
