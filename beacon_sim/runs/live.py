@@ -45,12 +45,11 @@ from beacon_sim.filters.runner import (
     validate_belief,
     validate_estimate,
 )
-from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.filters.team_runner import JointRunner, TeamRunner, team_filter_of, validate_team_estimates
 from beacon_sim.io.recording import TEAM_COMMAND_KINDS, default_recording_path, validate_command
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
-from beacon_sim.runs.user_commands import apply_to_filters
+from beacon_sim.runs.user_commands import apply_to_filters, apply_to_run
 
 #: A reloaded filter catches up over the session's history when that takes at most this
 #: long [s] (estimated from its first steps); otherwise it restarts from the initial belief.
@@ -476,17 +475,10 @@ class Session:
         (under the guard: one that fails is switched off) and of the team filters."""
         if not cmds:
             return
-        for cmd in cmds:
-            validate_command(cmd)
-            if cmd["kind"] == "kidnap":
-                self.sim.sims[int(cmd.get("robot", 0))].request_kidnap(cmd.get("pose"))
-        for i, runner in enumerate(self.filters_run.members):
-            working = {n: t.filter for n, t in runner.tracks.items() if t.filter and not t.failed}
-            for name, (why, tb) in apply_to_filters(cmds, working, self.team.robots[i].scenario,
-                                                    WINDOW_STEP_LIMIT_S).items():
-                self._switch_off(name, why, tb)
+        for name in apply_to_run(cmds, self.sim, self.filters_run, WINDOW_STEP_LIMIT_S,
+                                 self.sim.time):
+            self._sync_status(name)
         if any(c["kind"] in ("reset", "global_reset") for c in cmds):
-            reset_team_filters(self.joint, self.team, WINDOW_STEP_LIMIT_S, self.sim.time)
             for trails in self.trails.values():
                 for trail in trails:
                     trail.brk()
@@ -566,23 +558,6 @@ class Session:
         if self.recorder is not None:
             self.recorder.close()
             self.recorder = None
-
-
-def reset_team_filters(runner: JointRunner, team: TeamScenario, limit_s: float | None,
-                       time_s: float) -> None:
-    """The ``reset`` user command on the team filters: every working one back to the
-    scenario's initial beliefs, under the guard (one that fails is switched off), the same
-    live and on replay."""
-    if not runner.tracks:
-        return
-    beliefs = initial_beliefs(team)
-    for name, tr in runner.tracks.items():
-        f = team_filter_of(tr)
-        if tr.failed or f is None:
-            continue
-        _, why, tb = guarded_call(partial(f.reset, beliefs), limit_s)
-        if why is not None:
-            runner.fail(name, f"reset: {why}", tb, time_s)
 
 
 def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:

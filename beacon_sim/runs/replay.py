@@ -20,16 +20,14 @@ from __future__ import annotations
 import time
 from collections.abc import Set
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 from typing import Any
 
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.types import Control, Step
-from beacon_sim.filters.loading import filter_names, reset_filter, split_label
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterTrack, guarded_call
-from beacon_sim.filters.team import initial_beliefs
-from beacon_sim.filters.team_runner import TeamRunner, team_filter_of
+from beacon_sim.filters.loading import filter_names, split_label
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterTrack
+from beacon_sim.filters.team_runner import TeamRunner
 from beacon_sim.filters.team_specs import MEMBER_PREFIX, team_filter_name
 from beacon_sim.io.recording import (
     EstimateDigests,
@@ -42,9 +40,9 @@ from beacon_sim.io.recording import (
 )
 from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.live import Session
-from beacon_sim.runs.recorder import TeamReadingsHash, team_commands_to_sim
+from beacon_sim.runs.recorder import TeamReadingsHash
 from beacon_sim.runs.team import TeamRunResult
-from beacon_sim.runs.user_commands import apply_commands
+from beacon_sim.runs.user_commands import apply_to_run
 
 
 class ReplayMismatch(RecordingError):
@@ -303,46 +301,6 @@ def recorded_controls(rec: TickRecord) -> dict[int, Control]:
     return {} if rec.autopilot else {rec.driven: rec.control}
 
 
-def apply_recorded_commands(recording: Recording, commands: list[dict], sim: TeamSimulation,
-                            runner: TeamRunner, limit_s: float | None, time_s: float) -> None:
-    """A tick's user commands on the truth and the filters, as the live session applied
-    them: a single robot's (``user_commands.apply_commands``), or a team's (a kidnap of
-    the robot it names; ``reset``: every working filter back to its robot's initial belief,
-    each team filter to the initial beliefs). A filter whose reset fails is switched off."""
-    if not commands:
-        return
-    team = recording.team
-    if not recording.is_team:
-        members = runner.members[0]
-        working = {n: t.filter for n, t in members.tracks.items() if t.filter and not t.failed}
-        for name, (why, tb) in apply_commands(commands, sim.sims[0], working,
-                                              team.robots[0].scenario, limit_s).items():
-            runner.fail(name, why, tb, time_s)
-        return
-    team_commands_to_sim(commands, sim)
-    if not any(c["kind"] == "reset" for c in commands):
-        return
-    for name in runner.names:
-        if runner.failed(name):
-            continue
-        if runner.is_member(name):
-            for robot, m in zip(team.robots, runner.members, strict=True):
-                f = m.tracks[name].filter
-                if f is None:
-                    continue
-                _, failed, tb = guarded_call(partial(reset_filter, f, robot.scenario), limit_s)
-                if failed is not None:
-                    runner.fail(name, f"reset: robot {robot.name}: {failed}", tb, time_s)
-                    break
-            continue
-        jf = team_filter_of(runner.joint.tracks[name])
-        if jf is None:
-            continue
-        _, failed, tb = guarded_call(partial(jf.reset, initial_beliefs(team)), limit_s)
-        if failed is not None:
-            runner.fail(name, f"reset: {failed}", tb, time_s)
-
-
 @dataclass
 class TeamReplayResult:
     """A team's recording replayed: the run's figures (``result.as_json()`` as ``run``
@@ -409,8 +367,7 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     estimates = recording.parts.estimates
     for rec in recording.ticks:
         a = time.perf_counter_ns()
-        apply_recorded_commands(recording, rec.commands, sim, runner, HEADLESS_STEP_LIMIT_S,
-                                sim.time)
+        apply_to_run(rec.commands, sim, runner, HEADLESS_STEP_LIMIT_S, sim.time)
         step = sim.step(recorded_controls(rec))
         truth.observe(step)
         sim_ns += time.perf_counter_ns() - a
