@@ -48,13 +48,7 @@ from beacon_sim.io.mrclam import MrclamError
 from beacon_sim.io.recording import Recording, RecordingError, load_recording
 from beacon_sim.io.tables import TABLES, metrics_table, prefixed, reading_matrix, tables
 from beacon_sim.runs.headless import RunResult, run_headless
-from beacon_sim.runs.replay import (
-    ReplayMismatch,
-    TeamReplayResult,
-    recorded_filter_specs,
-    replay_recording,
-)
-from beacon_sim.runs.team import TeamRunResult, run_team_headless
+from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording
 
 #: The public API. Functions and results; what a filter author needs (the filter base and
 #: protocol, the beliefs, the readings' and controls' types, and the models as modules:
@@ -182,9 +176,7 @@ def replay(recording: str | Path | Recording, filters: Sequence[str | type] | No
     if not rec.is_team:
         check_param_names(plain, recorded_filter_specs(rec, specs)[0])  # as replay --set
     out = replay_recording(rec, specs, plain)
-    if isinstance(out, TeamReplayResult):
-        return TeamRun(out.result)
-    return Run(out, rec)
+    return TeamRun(out) if rec.is_team else Run(out, rec)
 
 
 def load_tables(path: str | Path) -> dict[str, Any]:
@@ -387,7 +379,8 @@ def load_team_scenario(name_or_path: str | Path) -> TeamScenario:
 def run_team(scenario: TeamScenario | str | Path, filters: Sequence[str | type] | None = None, *,
              seed: int | None = None, duration: float | None = None,
              params: Mapping[str, Mapping[str, Any]] | None = None) -> TeamRun:
-    """One headless team run, exactly as ``beacon-sim run TEAM_SCENARIO --filter ...``.
+    """One headless team run, exactly as ``beacon-sim run TEAM_SCENARIO --filter ...`` (the
+    same :func:`~beacon_sim.runs.headless.run_headless` as :func:`run`, over N robots).
 
     ``filters``: team filter names (``"independent"``, ``"centralised"``,
     ``"decentralised"``, ``"ci"``, ``"naive"``), ``"independent:F"`` (single-robot filter F
@@ -400,18 +393,20 @@ def run_team(scenario: TeamScenario | str | Path, filters: Sequence[str | type] 
     names = list(team.default_filters if specs is None else specs)
     plain = _plain_params(params)
     check_team_specs(names, team, plain)
-    return TeamRun(run_team_headless(team, names, seed=seed, duration=duration, params=plain))
+    return TeamRun(run_headless(team, names, seed=seed, duration=duration, params=plain))
 
 
 class TeamRun:
     """The result of :func:`run_team`: one row per tick (``T`` ticks), robots in the
-    scenario's order; a filter switched off has NaN rows after it failed."""
+    scenario's order; a filter switched off has NaN rows after it failed. ``result`` is the
+    one :class:`~beacon_sim.runs.headless.RunResult`, as :class:`Run`'s."""
 
-    def __init__(self, result: TeamRunResult):
+    def __init__(self, result: RunResult):
         self.result = result
 
     def __repr__(self) -> str:
-        return (f"<TeamRun {self.result.team.name} seed={self.result.seed} ticks={len(self.result.steps)} "
+        return (f"<TeamRun {self.result.team.name} seed={self.result.seed} "
+                f"ticks={len(self.result.team_steps)} "
                 f"robots={self.robots} filters={self.filter_names}>")
 
     @property
@@ -420,37 +415,36 @@ class TeamRun:
 
     @property
     def filter_names(self) -> list[str]:
-        return list(self.result.tracks)
+        return self.result.names
 
     @property
     def time(self) -> np.ndarray:
         """(T,) simulated time after each tick [s]."""
-        return np.array([s.time for s in self.result.steps])
+        return np.array([s.time for s in self.result.team_steps])
 
     @property
     def truth(self) -> np.ndarray:
         """(T, N, 3) true poses after each tick [m, m, rad]."""
-        return self.result.truth
+        return self.result.true_poses
 
-    def _rows(self, name: str, attr: str, shape: tuple[int, ...]) -> np.ndarray:
-        tr = self.result.tracks[name]
-        out = np.full((len(self.result.steps), *shape), np.nan)
-        got = np.array(getattr(tr, attr))
+    def _rows(self, name: str, which: int) -> np.ndarray:
+        """Filter ``name``'s means (``which`` 1) or covariances (2), NaN where it has none."""
+        series = self.result.filters.series(name)
+        ticks, got = series[0], series[which]
+        out = np.full((len(self.result.team_steps), *got.shape[1:]), np.nan)
         if len(got):
-            out[np.array(tr.ticks) - 1] = got
+            out[ticks - 1] = got
         return out
 
     @property
     def estimates(self) -> dict[str, np.ndarray]:
         """Filter name -> (T, N, 3) each robot's estimated pose after each tick."""
-        n = len(self.robots)
-        return {name: self._rows(name, "means", (n, 3)) for name in self.filter_names}
+        return {name: self._rows(name, 1) for name in self.filter_names}
 
     @property
     def covariances(self) -> dict[str, np.ndarray]:
         """Filter name -> (T, N, 3, 3) each robot's covariance (the joint state's marginal)."""
-        n = len(self.robots)
-        return {name: self._rows(name, "covs", (n, 3, 3)) for name in self.filter_names}
+        return {name: self._rows(name, 2) for name in self.filter_names}
 
     def failed(self, name: str) -> str | None:
         """Why filter ``name`` was switched off (with the time), or None."""

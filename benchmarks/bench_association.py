@@ -12,6 +12,9 @@ Three cases, each on fixed seeded data:
   uncertain by 1 m: about 5 candidates per reading (the node count against ``MAX_NODES``).
 - ``particles``: per-particle maximum-likelihood association, 1000 particles x 7 readings x 12
   beacons.
+- ``filters``: each built-in filter's predict + update per tick with readings on the first 10 s
+  of ``lookalike_beacons`` (readings without IDs), against the same filter on the same run
+  with the IDs told (the peer): what associating costs inside the filters (issue 29, step 2).
 Target: JCBB on the typical tick within 2 ms (the window draws at 60 FPS, 16.7 ms a frame,
 with the sensors at 10 Hz). Best of ``--repeat`` tries.
 Usage: python benchmarks/bench_association.py [--repeat K]
@@ -106,6 +109,39 @@ def main() -> None:
                     args.repeat, 20)
     print(f"{'particles':<10} {'ML, 1000 x 7 x 12':<28} {pf_ms:10.3f}")
     figure("association: per-particle ML, 1000 particles x 7 readings x 12 beacons", pf_ms, "ms")
+    filters_cost(args.repeat)
+
+
+def filters_cost(repeat: int) -> None:
+    """Per tick with readings: predict + update [ms] with unknown IDs against known IDs."""
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.core.simulation import Simulation
+    from beacon_sim.evaluation.association_metrics import with_known_correspondence
+    from beacon_sim.filters.loading import build_filter
+
+    sc = load_scenario("lookalike_beacons")
+    runs = {}
+    for label, scen in (("unknown", sc), ("known", with_known_correspondence(sc))):
+        sim = Simulation(scen, scen.seed)
+        runs[label] = (scen, [sim.step() for _ in range(100)])
+    for name in ("ekf", "jcbb", "ukf", "pf", "histogram"):
+        spec, params = ("ekf", {"association": "jcbb"}) if name == "jcbb" else (name, None)
+        out = {}
+        for label, (scen, steps) in runs.items():
+            ticks = sum(1 for st in steps if st.measurements)
+            best = math.inf
+            for _ in range(repeat):
+                f = build_filter(spec, scen, scen.seed, params=params if label == "unknown" else None)
+                t = time.perf_counter()
+                for st in steps:
+                    f.predict(st.control, st.dt)
+                    f.update(st.measurements)
+                best = min(best, (time.perf_counter() - t) * 1e3 / ticks)
+            out[label] = best
+        label = name + " (unknown / known IDs)"
+        print(f"{'filters':<10} {label:<28} {out['unknown']:10.3f} {out['known']:10.3f}")
+        figure(f"association: {name} predict + update per reading tick, lookalike_beacons", out["unknown"],
+               "ms", peer="the same filter with the IDs told", peer_value=out["known"])
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ import os
 import numpy as np
 
 from beacon_sim.core.team_scenario import parse_team_scenario
-from beacon_sim.runs.team import run_team_headless
+from beacon_sim.runs.headless import run_headless
 
 
 def team_doc(n: int) -> dict:
@@ -48,9 +48,9 @@ def main() -> None:
     print(f"{'robots':>6} {'filter':>14} {'us/step':>9} {'robot rows/tick':>16}")
     for n in (2, 5, 10):
         team = parse_team_scenario(team_doc(n), f"bench_team_{n}")
-        r = run_team_headless(team, ["independent", "centralised", "decentralised", "ci"],
-                              duration=args.duration)
-        rows = sum(len(m) for s in r.steps for ms in s.robot_readings for m in ms) / len(r.steps)
+        r = run_headless(team, ["independent", "centralised", "decentralised", "ci"],
+                         duration=args.duration)
+        rows = sum(len(m) for s in r.team_steps for ms in s.robot_readings for m in ms) / len(r.team_steps)
         for name, tr in r.tracks.items():
             print(f"{n:>6} {name:>14} {tr.us_per_step:>9.0f} {rows:>16.1f}")
 

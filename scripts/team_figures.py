@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from beacon_sim.core.team_scenario import load_team_scenario
-from beacon_sim.runs.team import run_team_headless
+from beacon_sim.runs.headless import run_headless
 
 
 def main() -> None:
@@ -27,9 +27,9 @@ def main() -> None:
     ap.add_argument("--out", default="docs/figures")
     args = ap.parse_args()
     team = load_team_scenario("team_sparse")
-    r = run_team_headless(team, ["independent", "centralised", "ci"], seed=args.seed)
-    truth = r.truth
-    t = np.array([s.time for s in r.steps])
+    r = run_headless(team, ["independent", "centralised", "ci"], seed=args.seed)
+    truth = r.true_poses
+    t = np.array([s.time for s in r.team_steps])
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 4.8))
     b = np.array([[be.x, be.y] for be in team.world.beacons])
     ax.plot(b[:, 0], b[:, 1], "k^", label="beacons")

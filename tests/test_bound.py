@@ -28,6 +28,8 @@ FILTERS = {
     "sparse_kidnap": ["pf", "histogram"],
     "ulps_circle": ["ekf", "ukf", "pf"],
     "global_kidnap": ["pf", "histogram"],
+    "slam_loop": ["ekf_slam", "fastslam"],  # the known-map bound is a floor for SLAM too
+    "lookalike_beacons": ["ekf", "pf"],  # readings without IDs: the bound knows them (a floor)
 }
 RUNS = 8
 DURATION = 30.0  # [s]; sparse_kidnap: the 10 s between the global start window and its first kidnap

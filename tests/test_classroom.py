@@ -166,7 +166,7 @@ def test_the_bumper_stops_the_robot_at_the_wall_and_the_filters_follow():
     bumps = []
     for _ in range(round(30.0 / sc.dt)):
         s.keyboard.v = sc.keyboard.v_max  # W held
-        step = s.tick()
+        step = s.tick().steps[0]
         bumps += [e for e in step.events if e.kind == "bump"]
         if [e for e in step.events if e.kind == "bump"]:
             assert step.control.v == 0.0

@@ -36,7 +36,7 @@ def test_a_client_receives_a_live_session():
         assert client.server_info["name"] == "beacon-sim default"
         truths = {}
         for _ in range(60):
-            step = session.tick()
+            step = session.tick().steps[0]
             truths[step.tick] = step.true_pose.copy()
             client.pump(0.02)
         client.pump(30, until=lambda c: any(m["tick"] == 60

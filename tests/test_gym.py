@@ -118,7 +118,7 @@ def test_observations_of_a_real_episode_hold_its_readings():
     for _ in range(10):
         obs, *_ = env.step(np.array([0.4, 0.0], dtype=np.float32))
         assert env.observation_space.contains(obs)
-        m = env.session.last_step.measurements  # the step's second tick is a sensor tick
+        m = env.session.last_step.steps[0].measurements  # the step's second tick is a sensor tick
         seen = {int(b) for mm in m for b in mm.beacon_ids}
         ids = [b.id for b in env.scenario.world.beacons]
         assert {ids[k] for k in range(len(ids)) if obs[4 * k] == 1.0} == seen

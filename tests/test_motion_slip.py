@@ -122,9 +122,9 @@ def _drive_into_a_wall_turning(path, scenario="assignment_kf", ticks=900):
     s.drive("a")
     bumps = 0
     for _ in range(ticks):
-        step = s.tick()
-        bumps += sum(e.kind == "bump" for e in step.steps[0].events)
-        if step.steps[0].events and any(e.kind == "bump" for e in step.steps[0].events):
+        step = s.tick().steps[0]
+        bumps += sum(e.kind == "bump" for e in step.events)
+        if step.events and any(e.kind == "bump" for e in step.events):
             s.drive("w")  # the driver keeps pushing into the wall, still turning
     s.close()
     return s, bumps
@@ -234,8 +234,8 @@ def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
     s.close()
     assert bumps >= 2
     out = replay_recording(load_recording(path))
-    assert out.replay["checksum_status"].startswith("verified")
-    assert out.result.truth_checksum == s.sim.truth_checksum
+    assert out.extra["replay"]["checksum_status"].startswith("verified")
+    assert out.truth_checksum == s.sim.truth_checksum
 
 
 def test_an_old_team_recording_replays_with_the_legacy_model(tmp_path):
@@ -255,8 +255,8 @@ def test_an_old_team_recording_replays_with_the_legacy_model(tmp_path):
     del header["slip_model"]
     path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
     out = replay_recording(load_recording(path))
-    assert out.replay["checksum_status"].startswith("verified")
-    assert out.result.truth_checksum == rec.truth_checksum
+    assert out.extra["replay"]["checksum_status"].startswith("verified")
+    assert out.truth_checksum == rec.truth_checksum
     header["slip_model"] = "scaled"  # the same file read under the new model differs
     path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
     with pytest.raises(RecordingError):

@@ -38,7 +38,6 @@ from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.replay import (
     ReplayMismatch,
     ReplaySession,
-    TeamReplayResult,
     recorded_filter_specs,
     recorded_params,
     replay_recording,
@@ -222,10 +221,7 @@ def test_every_old_recording_loads_and_replays_to_the_same_truth(capsys):
         rec = load_recording(f)
         assert rec.complete and rec.version in (1, 2, 3)
         out = replay_recording(rec)
-        if isinstance(out, TeamReplayResult):
-            truth, status = out.result.truth_checksum, out.replay["checksum_status"]
-        else:
-            truth, status = out.truth_checksum, out.extra["replay"]["checksum_status"]
+        truth, status = out.truth_checksum, out.extra["replay"]["checksum_status"]
         assert truth == rec.end["checksum"], f.name
         truths[f.name] = truth
         covers = {1: "verified: truth only; readings and filter settings not recorded (a version 1 file)",
@@ -305,7 +301,7 @@ def test_a_team_recording_stores_settings_and_an_edit_is_named(tmp_path):
     s.close()
     objs = objects(path)
     assert objs[1]["type"] == "filters" and set(objs[1]["filters"]) == set(specs)
-    assert replay_recording(load_recording(path)).replay["checksum_status"] == "verified"
+    assert replay_recording(load_recording(path)).extra["replay"]["checksum_status"] == "verified"
     objs[0]["params"] = {"centralised": {"gate_chi2": 1.0}}
     with pytest.raises(ReplayMismatch, match=r"centralised\.gate_chi2"):
         replay_recording(load_recording(write(tmp_path / "e.jsonl", objs)))

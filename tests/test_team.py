@@ -1,4 +1,4 @@
-"""Issue 18: several robots that see each other (core/team*.py, filters/team.py, runs/team.py)."""
+"""Issue 18: several robots that see each other (core/team*.py, filters/team.py, runs/headless.py)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from beacon_sim.core.team_models import (
     teammate_position,
 )
 from beacon_sim.core.team_scenario import load_team_scenario, parse_team_scenario
-from beacon_sim.runs.team import run_team_headless
+from beacon_sim.runs.headless import run_headless
 
 
 @pytest.mark.parametrize("pi, pj", [([1.0, 2.0, 0.3], [4.0, -1.0, 2.0]),
@@ -118,14 +118,14 @@ def test_team_file_errors_name_the_robot(team):
 def test_centralised_equals_independent_without_robot_readings(team):
     blind = team.with_changes(robots=tuple(dataclasses.replace(r, robot_sensors=(), model_robot_sensors=())
                                            for r in team.robots))
-    r = run_team_headless(blind, ["independent", "centralised", "decentralised"], seed=2, duration=20.0)
+    r = run_headless(blind, ["independent", "centralised", "decentralised"], seed=2, duration=20.0)
     a = r.tracks["independent"]
     for name in ("centralised", "decentralised"):
         b = r.tracks[name]
         np.testing.assert_allclose(np.array(a.means), np.array(b.means), rtol=0, atol=1e-9)
         np.testing.assert_allclose(np.array(a.covs), np.array(b.covs), rtol=0, atol=1e-10)
     # ... and with robot readings they differ (the test can fail)
-    r2 = run_team_headless(team, ["independent", "centralised"], seed=2, duration=20.0)
+    r2 = run_headless(team, ["independent", "centralised"], seed=2, duration=20.0)
     gap = np.array(r2.tracks["independent"].means) - np.array(r2.tracks["centralised"].means)
     assert np.abs(gap).max() > 1e-3
 
@@ -135,8 +135,8 @@ SEEDS = (11, 12, 13, 14)
 
 @pytest.fixture(scope="module")
 def runs(team):
-    return [run_team_headless(team, ["independent", "centralised", "decentralised", "ci", "naive"],
-                              seed=s, duration=40.0)
+    return [run_headless(team, ["independent", "centralised", "decentralised", "ci", "naive"],
+                         seed=s, duration=40.0)
             for s in SEEDS]
 
 

@@ -14,7 +14,7 @@ from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.filters import team as team_filters
 from beacon_sim.filters.team import IndependentTeam
 from beacon_sim.filters.team_runner import validate_team_estimates
-from beacon_sim.runs.team import run_team_headless
+from beacon_sim.runs.headless import run_headless
 
 TEAM = Path(__file__).parent.parent / "scenarios" / "team" / "team_sparse.toml"
 
@@ -64,8 +64,8 @@ def team():
                                        ("asym", "robot 3: covariance is not symmetric")])
 def test_a_failing_team_filter_is_switched_off_and_the_others_go_on(team, monkeypatch, how, says):
     monkeypatch.setitem(team_filters.TEAM_FILTERS, "broken", _make(how))
-    res = run_team_headless(team, ["broken", "centralised"], seed=3, duration=2.0, step_limit_s=0.3)
-    ref = run_team_headless(team, ["centralised"], seed=3, duration=2.0)
+    res = run_headless(team, ["broken", "centralised"], seed=3, duration=2.0, step_limit_s=0.3)
+    ref = run_headless(team, ["centralised"], seed=3, duration=2.0)
     assert says in (res.failed("broken") or "")
     assert res.failed("centralised") is None
     np.testing.assert_array_equal(np.array(res.tracks["centralised"].means),
@@ -80,7 +80,7 @@ def test_a_team_filter_failing_to_build_is_reported(team, monkeypatch):
     def boom(ctx):
         raise RuntimeError("cannot build")
     monkeypatch.setitem(team_filters.TEAM_FILTERS, "broken", boom)
-    res = run_team_headless(team, ["broken", "independent"], seed=1, duration=0.5)
+    res = run_headless(team, ["broken", "independent"], seed=1, duration=0.5)
     assert "could not be built: RuntimeError: cannot build" in res.failed("broken")
     assert len(res.tracks["independent"].means) == round(0.5 / team.dt)
 

@@ -125,10 +125,10 @@ def test_headless_replay_gives_the_same_truth_and_estimates_bit_for_bit(recorded
     rec = load_recording(path)
     assert isinstance(rec, Recording) and rec.is_team and rec.complete
     out = replay_recording(rec)
-    assert out.replay["checksum_status"] == "verified"
-    assert np.array_equal(out.result.truth, truth)  # every robot, every tick, bit for bit
+    assert out.extra["replay"]["checksum_status"] == "verified"
+    assert np.array_equal(out.true_poses, truth)  # every robot, every tick, bit for bit
     for name in FILTERS:
-        tr = out.result.tracks[name]
+        tr = out.tracks[name]
         assert not tr.failed
         assert np.array_equal(np.array(tr.means), np.array([m for m, _ in est[name]]))
         assert np.array_equal(np.array(tr.covs), np.array([c for _, c in est[name]]))
@@ -137,9 +137,9 @@ def test_headless_replay_gives_the_same_truth_and_estimates_bit_for_bit(recorded
 def test_other_filters_run_on_the_same_truth(recorded):
     path, truth, _ = recorded
     out = replay_recording(load_recording(path), ["ci", "independent:ukf"])
-    assert np.array_equal(out.result.truth, truth)
-    assert set(out.result.tracks) == {"ci", "independent:ukf"}
-    assert all(not t.failed for t in out.result.tracks.values())
+    assert np.array_equal(out.true_poses, truth)
+    assert set(out.tracks) == {"ci", "independent:ukf"}
+    assert all(not t.failed for t in out.tracks.values())
 
 
 def test_cli_replay_headless_prints_the_team_figures(recorded, capsys):
@@ -190,7 +190,7 @@ def test_a_stripped_checksum_is_not_verified(recorded, tmp_path, capsys):
     del ticks[10]["h"], ticks[10]["r"]
     objs = [o for o in objs if o["type"] != "end"]  # and the end line that covers them all
     bad = write(tmp_path / "stripped.jsonl", objs)
-    status = replay_recording(load_recording(bad)).replay["checksum_status"]
+    status = replay_recording(load_recording(bad)).extra["replay"]["checksum_status"]
     assert status == f"partly verified: {len(ticks) - 1} of {len(ticks)} ticks carry checksums"
     assert main(["replay", str(bad), "--headless"]) == 0
     assert " verified\n" not in capsys.readouterr().out
@@ -224,8 +224,8 @@ def test_a_recorded_filter_that_names_a_file_is_not_run(recorded, tmp_path, caps
     bad = write(tmp_path / "names_code.jsonl", objs)
     monkeypatch.chdir(tmp_path)
     out = replay_recording(load_recording(bad))
-    assert set(out.result.tracks) == {"centralised", "independent:ukf"}
-    assert len(out.replay["skipped_filters"]) == 3
+    assert set(out.tracks) == {"centralised", "independent:ukf"}
+    assert len(out.extra["replay"]["skipped_filters"]) == 3
     assert main(["replay", str(bad), "--headless"]) == 0
     err = capsys.readouterr().err
     assert err.count("not run (a recording never makes beacon-sim import code)") == 3
@@ -252,8 +252,8 @@ def test_a_truncated_recording_replays_up_to_the_last_full_tick(recorded, tmp_pa
     assert not rec.complete and len(rec.ticks) == 100
     assert any("incomplete last line" in w for w in rec.warnings)
     out = replay_recording(rec)
-    assert out.replay["checksum_status"] == "verified up to the last complete tick"
-    assert np.array_equal(out.result.truth, truth[:100])
+    assert out.extra["replay"]["checksum_status"] == "verified up to the last complete tick"
+    assert np.array_equal(out.true_poses, truth[:100])
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -343,7 +343,7 @@ def test_a_killed_team_session_replays_up_to_about_the_kill(tmp_path):
     assert not rec.complete
     assert rec.ticks[-1].tick * rec.team.dt >= killed_after - 2.0
     out = replay_recording(rec)  # raises if the truth differs from what was recorded
-    assert out.replay["checksum_status"] == "verified up to the last complete tick"
+    assert out.extra["replay"]["checksum_status"] == "verified up to the last complete tick"
 
 
 def test_autopilot_ticks_replay_the_drivers_state(tmp_path):
@@ -364,7 +364,7 @@ def test_autopilot_ticks_replay_the_drivers_state(tmp_path):
     live = s.sim.truth_checksum
     s.close()
     out = replay_recording(load_recording(path))
-    assert out.replay["checksum_status"] == "verified" and out.result.truth_checksum == live
+    assert out.extra["replay"]["checksum_status"] == "verified" and out.truth_checksum == live
     objs = lines(path)
     for o in objs:
         o.pop("a", None)  # the same commands, given by hand: the scout's driver falls behind

@@ -12,7 +12,7 @@ import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.team_scenario import load_team_scenario
-from beacon_sim.runs.team import run_team_headless
+from beacon_sim.runs.headless import run_headless
 
 STUDENT = textwrap.dedent('''
     from beacon_sim.filters.ekf import ExtendedKalmanFilter
@@ -55,7 +55,7 @@ def student(tmp_path):
 
 def test_a_students_team_filter_runs_and_equals_what_it_computes(student):
     team = load_team_scenario("team_sparse")
-    r = run_team_headless(team, [f"{student}:MyTeam", "independent"], seed=4, duration=10.0)
+    r = run_headless(team, [f"{student}:MyTeam", "independent"], seed=4, duration=10.0)
     assert r.failed("MyTeam") is None
     # it is the independent EKFs written by hand: the same bits, so it really ran
     np.testing.assert_array_equal(np.array(r.tracks["MyTeam"].means),
@@ -81,7 +81,7 @@ def test_a_single_robot_class_is_told_to_use_independent(student, capsys):
 
 def test_a_students_failing_team_filter_is_switched_off(student):
     team = load_team_scenario("team_sparse")
-    r = run_team_headless(team, [f"{student}:Broken", "centralised"], seed=4, duration=2.0)
+    r = run_headless(team, [f"{student}:Broken", "centralised"], seed=4, duration=2.0)
     assert "ValueError: my update is wrong" in r.failed("Broken")
     assert r.failed("centralised") is None
     assert r.as_json()["filters"]["Broken"].keys() == {"failed"}
@@ -113,7 +113,7 @@ def test_the_team_template_runs_as_the_independent_baseline(tmp_path, capsys):
     assert "team filter class Coop" in capsys.readouterr().out
     assert main(["new-filter", str(path), "--team"]) == 2  # never over an existing file
     team = load_team_scenario("team_sparse")
-    r = run_team_headless(team, [f"{path}:Coop", "independent"], seed=6, duration=10.0)
+    r = run_headless(team, [f"{path}:Coop", "independent"], seed=6, duration=10.0)
     assert r.failed("Coop") is None
     # the robot readings reach its TODO but change nothing yet: the baseline, bit for bit
     assert sum(r.readings()[i]["robot"] for i in range(3)) > 0

@@ -260,76 +260,109 @@ class App:
             self._layout(self.screen.get_size())
 
     def act(self, action: str) -> None:
-        """Do one action of the binding table."""
-        s = self.session
+        """Do one action of the binding table (``controls.TABLES``): the method
+        ``act_<action>`` (``toggle3`` -> ``act_toggle(3)``); a driving key drives."""
         if action in DRIVE_KEYS:
-            s.drive(DRIVE_KEYS[action])
-        elif action == "next_robot":
-            self.flash(f"driving {s.next_robot()}")
-        elif action == "autopilot":
-            s.toggle_autopilot()
-            if not s.has_autopilot:
-                self.flash("this scenario has no autopilot")
-        elif action == "pause":
-            self.clock.toggle_pause()
-        elif action == "step":
-            self.clock.single_step()
-        elif action == "speed_up":
-            self.clock.faster()
-        elif action == "speed_down":
-            self.clock.slower()
-        elif action == "kidnap_random":
-            s.command({"kind": "kidnap"})
-        elif action in ("reset", "global_reset"):
-            s.command({"kind": action})
-            self.clear_trails()
-            self.flash("filters reset" if action == "reset" else self.global_reset_text())
-        elif action.startswith("toggle"):
-            i = int(action[len("toggle"):]) - 1
-            if i < len(s.names):
-                s.command({"kind": "toggle", "filter": s.names[i]})
-        elif action == "particles":
-            self.show.particles = not self.show.particles
-        elif action == "trails":
-            self.show.trails = not self.show.trails
-        elif action == "ellipses":
-            self.show.ellipses = not self.show.ellipses
-        elif action == "chart":
-            self.show.chart = not self.show.chart
-            self._layout(self.screen.get_size())
-        elif action == "step_view":
-            self.show.step = not self.show.step
-            if self.show.step and not self.clock.paused:
-                self.flash("step view: pause (Space), then . steps one tick")
-        elif action == "bound":
-            self.show.bound = not self.show.bound
-            if self.show.bound and (self.bound is None or self.bound.tick < 0):
-                self.flash("no bound here: it is built from the start of a run")
-        elif action == "fit":
-            self.view.fit()
-        elif action == "screenshot":
-            path = Path(time.strftime("beacon-sim-%Y%m%d-%H%M%S.png"))
-            self.save_screenshot(path)
-            self.flash(f"saved {path}")
-        elif action == "help":
-            self.help = not self.help
-        elif action == "quit":  # Q sits beside W and A: one press only asks
-            if self.now < self.quit_armed_until:
-                self.running = False
-            else:
-                self.quit_armed_until = self.now + QUIT_CONFIRM_S
-                self.flash("Quit? Press Q or Esc again")
-        elif action == "clear_trails":
-            self.clear_trails()
-        elif action == "fullscreen":
-            try:
-                pygame.display.toggle_fullscreen()
-            except pygame.error as exc:
-                self.flash(f"fullscreen: {exc}")
-            self.screen = display_surface()
-            self._layout(self.screen.get_size())
-        else:
+            self.session.drive(DRIVE_KEYS[action])
+            return
+        name, number = action.rstrip("0123456789"), action[len(action.rstrip("0123456789")):]
+        handler = getattr(self, f"act_{name}", None)
+        if handler is None:
             raise ValueError(f"no handler for the action {action!r}")
+        handler(int(number)) if number else handler()
+
+    # --- the actions (one per binding of controls.py; tests/test_app_keys_doc.py) ----------
+    def act_next_robot(self) -> None:
+        self.flash(f"driving {self.session.next_robot()}")
+
+    def act_autopilot(self) -> None:
+        self.session.toggle_autopilot()
+        if not self.session.has_autopilot:
+            self.flash("this scenario has no autopilot")
+
+    def act_pause(self) -> None:
+        self.clock.toggle_pause()
+
+    def act_step(self) -> None:
+        self.clock.single_step()
+
+    def act_speed_up(self) -> None:
+        self.clock.faster()
+
+    def act_speed_down(self) -> None:
+        self.clock.slower()
+
+    def act_kidnap_random(self) -> None:
+        self.session.command({"kind": "kidnap"})
+
+    def act_reset(self) -> None:
+        self.session.command({"kind": "reset"})
+        self.clear_trails()
+        self.flash("filters reset")
+
+    def act_global_reset(self) -> None:
+        self.session.command({"kind": "global_reset"})
+        self.clear_trails()
+        self.flash(self.global_reset_text())
+
+    def act_toggle(self, number: int) -> None:
+        """Show / hide filter ``number`` (1-9, in the panel's order)."""
+        names = self.session.names
+        if number - 1 < len(names):
+            self.session.command({"kind": "toggle", "filter": names[number - 1]})
+
+    def act_particles(self) -> None:
+        self.show.particles = not self.show.particles
+
+    def act_trails(self) -> None:
+        self.show.trails = not self.show.trails
+
+    def act_ellipses(self) -> None:
+        self.show.ellipses = not self.show.ellipses
+
+    def act_chart(self) -> None:
+        self.show.chart = not self.show.chart
+        self._layout(self.screen.get_size())
+
+    def act_step_view(self) -> None:
+        self.show.step = not self.show.step
+        if self.show.step and not self.clock.paused:
+            self.flash("step view: pause (Space), then . steps one tick")
+
+    def act_bound(self) -> None:
+        self.show.bound = not self.show.bound
+        if self.show.bound and (self.bound is None or self.bound.tick < 0):
+            self.flash("no bound here: it is built from the start of a run")
+
+    def act_fit(self) -> None:
+        self.view.fit()
+
+    def act_screenshot(self) -> None:
+        path = Path(time.strftime("beacon-sim-%Y%m%d-%H%M%S.png"))
+        self.save_screenshot(path)
+        self.flash(f"saved {path}")
+
+    def act_help(self) -> None:
+        self.help = not self.help
+
+    def act_quit(self) -> None:
+        """Q sits beside W and A: one press only asks."""
+        if self.now < self.quit_armed_until:
+            self.running = False
+        else:
+            self.quit_armed_until = self.now + QUIT_CONFIRM_S
+            self.flash("Quit? Press Q or Esc again")
+
+    def act_clear_trails(self) -> None:
+        self.clear_trails()
+
+    def act_fullscreen(self) -> None:
+        try:
+            pygame.display.toggle_fullscreen()
+        except pygame.error as exc:
+            self.flash(f"fullscreen: {exc}")
+        self.screen = display_surface()
+        self._layout(self.screen.get_size())
 
     def global_reset_text(self) -> str:
         """What G did, filter by filter: a uniform belief where the filter supports one; a

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pygame
 
-from beacon_sim.app import palette, shapes
+from beacon_sim.app import association_layer, palette, shapes
+from beacon_sim.app.map_layer import MapLayer
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.core.schedule import period_ticks
 from beacon_sim.core.sensors import visible_beacons
@@ -245,6 +246,7 @@ class WorldRenderer:
         self._static: tuple[tuple, pygame.Surface] | None = None
         self.last_world: World | None = None  # the world of the scene being drawn (step view)
         self.lw = 4  # line width [px]; each frame's begin() sets it for the window's height
+        self.map_layer = MapLayer()  # SLAM filters' estimated maps (app/map_layer.py)
         self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
         self.axis_rects: list[pygame.Rect] = []  # the axis labels of the static layer [px]
         self.beacon_rects: list[pygame.Rect] = []  # beacons and their labels, last drawn [px]
@@ -307,7 +309,7 @@ class WorldRenderer:
                     if session.visible[name]:
                         self.trail(surf, view, session.trail(name), colours[name], 2)
             self.rays(surf, view, sc.world, pose, session.readings())
-            seen = session.seen_ids()
+            seen = session.seen_ids() | association_layer.seen_by_truth(session)  # issue 29
             self.beacons(surf, view, sc.world, seen,
                          missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
             self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
@@ -319,6 +321,9 @@ class WorldRenderer:
             yield
             if extra is not None:
                 extra(surf, view, self.lw)
+            if show.ellipses:
+                self.map_layer.draw(surf, view, session, list(beliefs), colours, dashes, self.lw, polyline)
+            association_layer.draw(surf, view, session, colours, self.lw, polyline)  # issue 29
             estimates = []
             for name in session.names:
                 if name not in beliefs:

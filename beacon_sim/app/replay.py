@@ -122,23 +122,29 @@ class ReplayApp(App):
             return
         super().handle(event)
 
-    def act(self, action: str) -> None:
+    # --- the timeline's actions (controls.REPLAY_BINDINGS; App.act dispatches) -------------
+    def _seek_step(self) -> int:
+        return round(SEEK_STEP_S / self.session.scenario.dt)
+
+    def _seek_from(self) -> int:
+        return self.seek_to if self.seek_to is not None else self.session.tick_count
+
+    def act_seek_back(self) -> None:
+        self.seek_to = max(self._seek_from() - self._seek_step(), 0)
+
+    def act_seek_forward(self) -> None:
+        self.seek_to = self._seek_from() + self._seek_step()
+
+    def act_seek_start(self) -> None:
+        self.seek_to = 0
+
+    def act_toggle(self, number: int) -> None:
+        """Show / hide filter ``number`` at once (display only; kept over seeks)."""
         s = self.session
-        step = round(SEEK_STEP_S / s.scenario.dt)
-        if action == "seek_back":
-            self.seek_to = max((self.seek_to if self.seek_to is not None else s.tick_count) - step, 0)
-        elif action == "seek_forward":
-            self.seek_to = (self.seek_to if self.seek_to is not None else s.tick_count) + step
-        elif action == "seek_start":
-            self.seek_to = 0
-        elif action.startswith("toggle"):
-            i = int(action[len("toggle"):]) - 1
-            if i < len(s.names):
-                name = s.names[i]
-                s.visible[name] = not s.visible[name]
-                self.user_flips ^= {name}
-        else:
-            super().act(action)
+        if number - 1 < len(s.names):
+            name = s.names[number - 1]
+            s.visible[name] = not s.visible[name]
+            self.user_flips ^= {name}
 
     # --- drawing --------------------------------------------------------------------------
     def marks(self) -> list[tuple[int, tuple[int, int, int]]]:

@@ -2,21 +2,34 @@
 filter. A filter file, a module filter (``pkg.mod:Class``) or an entry-point filter runs in a
 process of its own (docs/grading.md): its code never runs in
 ``check``'s process, so a file that exits, loops or raises ``KeyboardInterrupt`` fails a
-check instead of ending the program."""
+check instead of ending the program.
+
+A team filter (a class with ``estimates()``, docs/multi-robot.md "Your own team filter") is
+checked on a team scenario by :func:`run_team_checks`: it loads, has the four methods,
+builds with a TeamContext, runs under the guard of the one headless run with a usable
+estimate of every robot on every tick, and gives the same bits twice for the same seed."""
 
 from __future__ import annotations
 
 import argparse
 import ast
+from functools import partial
 from pathlib import Path
 
+import numpy as np
+
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
-from beacon_sim.filters.conformance import print_report, run_checks
+from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
+from beacon_sim.filters.conformance import CheckResult, print_report, run_checks
 from beacon_sim.filters.containment import SandboxError
 from beacon_sim.filters.hosting import hosted_source
 from beacon_sim.filters.loading import FilterLoadError, load_filter_class
-from beacon_sim.runs.team_conformance import run_team_checks
+from beacon_sim.runs.headless import run_headless
+
+#: The methods a team filter implements (filters/team.TeamFilter).
+TEAM_METHODS = ("reset", "predict", "update", "estimates")
+#: Simulated time each run of the team check lasts [s].
+CHECK_DURATION_S = 10.0
 
 
 def _is_team_file(path: Path, class_name: str | None) -> bool:
@@ -44,6 +57,35 @@ def _is_team_file(path: Path, class_name: str | None) -> bool:
             if "estimates" in m and "estimate" not in m:
                 return True
     return False
+
+
+def run_team_checks(spec: str, cls: type, team: TeamScenario) -> list[CheckResult]:
+    """The checks of team filter class ``cls`` (named ``spec``) on ``team``."""
+    results = [CheckResult("loads", True, f"{cls.__module__}.{cls.__qualname__} (a team filter)")]
+    missing = [m for m in TEAM_METHODS if not callable(getattr(cls, m, None))]
+    if missing:
+        results.append(CheckResult("interface", False, f"missing: {', '.join(missing)}",
+                                   "implement reset(initial), predict(controls, dt), "
+                                   "update(measurements) and estimates() (docs/multi-robot.md)"))
+        return results
+    results.append(CheckResult("interface", True, ", ".join(TEAM_METHODS)))
+    run = partial(run_headless, team, [spec], seed=0, duration=CHECK_DURATION_S)
+    first = run()
+    name = first.names[0]
+    why = first.failed(name)
+    if why:
+        results.append(CheckResult("runs", False, why,
+                                   "fix the error above (beacon-sim run "
+                                   f"{team.name} --filter {spec} shows the traceback's last line)"))
+        return results
+    results.append(CheckResult("runs", True, f"{len(first.team_steps)} ticks of {team.name}, "
+                               f"{team.n_robots} robots, a usable estimate of every robot on every tick"))
+    a, b = first.filters.series(name), run().filters.series(name)
+    same = all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    results.append(CheckResult(
+        "deterministic", same, "same seed, same bits" if same else "two runs with seed 0 differ",
+        "draw random numbers only from ctx.members[i].ctx.rng (seeded), never np.random or time"))
+    return results
 
 
 def check_command(args: argparse.Namespace) -> int:

@@ -25,12 +25,13 @@ from beacon_sim.evaluation.montecarlo import (
     dask_client,
     run_monte_carlo,
     run_monte_carlo_isolated,
+    run_team_monte_carlo,
 )
 from beacon_sim.evaluation.report import table_lines, write_outputs
-from beacon_sim.evaluation.summary import Thresholds, evaluate
-from beacon_sim.evaluation.team import (
+from beacon_sim.evaluation.summary import (
+    Thresholds,
+    evaluate,
     evaluate_team,
-    run_team_monte_carlo,
     team_table_lines,
     write_team_outputs,
 )
@@ -77,7 +78,9 @@ def _isolated(args: argparse.Namespace) -> bool:
 
 
 def eval_command(args: argparse.Namespace) -> int:
-    """Run the evaluation the parsed ``args`` ask for; returns the exit status."""
+    """Run the evaluation the parsed ``args`` ask for; returns the exit status. Team
+    scenarios (``[[robots]]``) are evaluated by :func:`team_metas`, single robots here; the
+    document, the files and the failures are the same code for both."""
     _validate(args)
     team = [is_team_scenario(s) for s in args.scenarios]
     if any(team):
@@ -86,7 +89,13 @@ def eval_command(args: argparse.Namespace) -> int:
         if not all(team):
             raise UsageError("eval: team scenarios and single-robot scenarios in one evaluation; "
                              "evaluate them in two commands")
-        return team_eval_command(args)
+        metas = team_metas(args)
+        document = metas[0] if len(metas) == 1 else {"scenarios": metas}
+        if args.json:
+            print(json.dumps(document, default=float))
+        if args.out is not None:
+            write_team_outputs(Path(args.out), metas, document)
+        return _failures(args, metas)
     params = parse_set_options(getattr(args, "set_params", []) or [])
     scenarios = [load_scenario(s) for s in args.scenarios]
     for sc in scenarios:  # bad filter names and parameters: a one-line error, before any run
@@ -119,6 +128,12 @@ def eval_command(args: argparse.Namespace) -> int:
         print(json.dumps(document, default=float))
     if out is not None:
         write_outputs(out, results, document)
+    return _failures(args, metas)
+
+
+def _failures(args: argparse.Namespace, metas: list[dict[str, Any]]) -> int:
+    """Say on stderr which filter failed in how many runs of which scenario (no score); the
+    exit status: 1 for a failure under ``--strict``, else 0."""
     failed = {(m["scenario"], name): r["failed_runs"] for m in metas
               for name, r in m["filters"].items() if r.get("failed_runs")}
     for (scenario, name), n in failed.items():
@@ -187,11 +202,11 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
     return results
 
 
-def team_eval_command(args: argparse.Namespace) -> int:
-    """``eval`` on team scenarios: team filters (``--filter``, default the scenario's), a
-    row per robot and the team's, the joint PCRB (evaluation/team.py). ``--time-limit S``:
-    a team filter's time limit per run, as for a single robot; ``--no-batch`` changes
-    nothing (team runs are not batched)."""
+def team_metas(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """``eval`` on team scenarios: team filters (``--filter``, default the scenario's), a row
+    per robot and the team's, the joint PCRB (``summary.evaluate_team``); each scenario's
+    table printed unless ``--json``. ``--time-limit S``: a filter's time limit per run, as
+    for a single robot; ``--no-batch`` changes nothing (team runs are not batched)."""
     params = parse_set_options(getattr(args, "set_params", []) or [])
     teams = [load_team_scenario(s) for s in args.scenarios]
     for team in teams:  # bad names and parameters: one line, exit 2, before any run
@@ -208,13 +223,4 @@ def team_eval_command(args: argparse.Namespace) -> int:
         if not args.json:
             print("\n".join(team_table_lines(meta)))
             print()
-    document = metas[0] if len(metas) == 1 else {"scenarios": metas}
-    if args.json:
-        print(json.dumps(document, default=float))
-    if args.out is not None:
-        write_team_outputs(Path(args.out), metas, document)
-    failed = {(m["scenario"], name): r["failed_runs"] for m in metas
-              for name, r in m["filters"].items() if r["failed_runs"]}
-    for (scenario, name), n in failed.items():
-        print(f"beacon-sim eval: {name} failed in {n} run(s) of {scenario} (no score)", file=sys.stderr)
-    return 1 if failed and getattr(args, "strict", False) else 0
+    return metas

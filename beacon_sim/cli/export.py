@@ -12,7 +12,7 @@ from beacon_sim.cli.replay import load
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.io.export import filter_arrays, step_arrays, trace_arrays, write_export
-from beacon_sim.runs.headless import RunResult, run_headless
+from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording, skipped_note
 
 SUFFIXES = (".npz", ".csv", ".mcap")
@@ -41,11 +41,9 @@ def export_command(args: argparse.Namespace) -> int:
                              "recording or a scenario")
         check_set_names(args, recorded_filter_specs(recording, args.filters)[0])
         try:
-            replayed = replay_recording(recording, args.filters, filter_params(args))
+            result = replay_recording(recording, args.filters, filter_params(args))
         except ReplayMismatch as exc:
             raise UsageError(str(exc)) from None
-        assert isinstance(replayed, RunResult)  # a single robot's file
-        result = replayed
         for spec in result.extra["replay"]["skipped_filters"]:
             print(skipped_note(spec), file=sys.stderr)
         arrays = trace_arrays(recording, result.steps, result.runner.tracks)

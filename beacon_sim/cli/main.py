@@ -57,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the run's seed, 0 to 2^63 - 1 (default: the scenario's)")
     p.add_argument("--duration", type=float, metavar="S", help="seconds to simulate")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--associations", action="store_true",
+                   help="readings without IDs: also score each filter's associations and their "
+                        "RMSE cost against a run with known IDs (docs/association.md)")
 
     p = sub.add_parser("check", help="conformance report for a filter")
     p.add_argument("filter", help="a built-in name, pkg.mod:Class, file.py:Class or a file of functions")
@@ -160,6 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("path", help="the .py file to write (refused if it exists)")
     p.add_argument("--team", action="store_true",
                    help="a team filter for scenarios with several robots (docs/multi-robot.md)")
+    p.add_argument("--slam", action="store_true",
+                   help="a SLAM filter that maps the beacons itself (docs/slam.md)")
     return parser
 
 

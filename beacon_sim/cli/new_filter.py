@@ -1,5 +1,5 @@
-"""``beacon-sim new-filter PATH [--team]``: write a working, commented filter template (a
-team filter's with ``--team``)."""
+"""``beacon-sim new-filter PATH [--team | --slam]``: write a working, commented filter template
+(a team filter's with ``--team``, a SLAM filter's with ``--slam``)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from beacon_sim.errors import UsageError
+from beacon_sim.filters.slam_template import render_slam_template
 from beacon_sim.filters.team_template import render_team_template
 from beacon_sim.filters.template import class_name_for, render_template
 
@@ -22,6 +23,16 @@ def new_filter_command(args: argparse.Namespace) -> int:
         raise UsageError(f"new-filter {path}: no folder {path.parent}")
     cls = class_name_for(path)
     shown = path.as_posix() if path.is_absolute() or "/" in path.as_posix() else f"./{path.name}"
+    if getattr(args, "team", False) and getattr(args, "slam", False):
+        raise UsageError("new-filter: --team and --slam cannot be combined; choose one")
+    if getattr(args, "slam", False):
+        path.write_text(render_slam_template(cls, path.name), encoding="utf-8")
+        print(f"wrote {path} with the SLAM filter class {cls} (it maps each beacon from its first "
+              "reading, with a TODO for the EKF-SLAM correction)")
+        print("next:")
+        print(f"  beacon-sim check {shown}:{cls}")
+        print(f"  beacon-sim play slam_loop --filter {shown}:{cls} --filter ekf_slam")
+        return 0
     if getattr(args, "team", False):
         path.write_text(render_team_template(cls, path.name), encoding="utf-8")
         print(f"wrote {path} with the team filter class {cls} (each robot's own EKF, with a TODO "

@@ -18,7 +18,6 @@ from beacon_sim.errors import UsageError
 from beacon_sim.io.recording import Recording, RecordingError, load_recording
 from beacon_sim.runs.replay import (
     ReplayMismatch,
-    TeamReplayResult,
     recorded_filter_specs,
     recorded_params,
     replay_recording,
@@ -89,18 +88,13 @@ def replay_command(args: argparse.Namespace) -> int:
         out = replay_recording(recording, args.filters or None, params)
     except ReplayMismatch as exc:
         raise UsageError(str(exc)) from None
-    if isinstance(out, TeamReplayResult):
-        info, data, tracks = out.replay, out.as_json(), out.result.tracks
-        truth, summary = out.result.truth_checksum, print_team_run
-    else:
-        info, data, tracks = out.extra["replay"], out.as_json(), out.runner.tracks
-        data["replay"] = info
-        truth, summary = out.truth_checksum, print_run
+    info, data = out.extra["replay"], out.as_json()
+    data["replay"] = info
     if args.json:
         print(json.dumps(data, default=float))
     else:
         print(f"replay {info['file']}: {info['ticks']} ticks, truth checksum "
-              f"{truth} {info['checksum_status']}")
-        summary(data)
-    print_failures(tracks.values())
+              f"{out.truth_checksum} {info['checksum_status']}")
+        (print_team_run if recording.is_team else print_run)(data)
+    print_failures(out.tracks.values())
     return 0

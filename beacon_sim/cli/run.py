@@ -18,50 +18,48 @@ from beacon_sim.cli.common import (
     print_sensor_notes,
 )
 from beacon_sim.cli.tables import failed_text, fmt, print_run
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
+from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.evaluation.association_metrics import association_report
 from beacon_sim.filters.team_specs import check_team_specs
 from beacon_sim.runs.headless import run_headless
-from beacon_sim.runs.team import run_team_headless
 
 
 def run_command(args: argparse.Namespace) -> int:
-    if is_team_scenario(args.scenario):
-        return team_run_command(args)
-    scenario = load_scenario(args.scenario)
-    check_duration(args.duration, scenario)
-    check_set_names(args, list(args.filters or scenario.default_filters))
-    result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
-                          params=filter_params(args), progress=sys.stderr.isatty())
-    print_sensor_notes(list(args.filters or scenario.default_filters), scenario)
-    data = result.as_json()
-    if args.json:
-        print(json.dumps(data, indent=None, default=float))
-    else:
-        print_run(data)
-    print_failures(result.runner.tracks.values())
-    return 0
-
-
-def team_run_command(args: argparse.Namespace) -> int:
-    """``run`` on a team scenario: team filters, per-robot and team figures."""
-    team = load_team_scenario(args.scenario)
+    """One run over the scenario's robots (a single-robot file: a team of one); the filter
+    specs are checked first (a bad name or ``--set``: one line, exit status 2)."""
+    team = load_any_scenario(args.scenario)
     check_duration(args.duration, team.robots[0].scenario)
     specs = list(args.filters or team.default_filters)
-    params = filter_params(args)
-    check_team_specs(specs, team, params)  # a bad name or --set: one line, exit 2
-    result = run_team_headless(team, specs, seed=args.seed, duration=args.duration, params=params)
+    if team.solo:  # single-robot filter specs
+        check_set_names(args, specs)
+        params = filter_params(args)
+    else:  # team filter specs (filters/team_specs.py)
+        params = filter_params(args)
+        check_team_specs(specs, team, params)
+    result = run_headless(team, specs, seed=args.seed, duration=args.duration, params=params,
+                          progress=sys.stderr.isatty())
+    if team.solo:
+        print_sensor_notes(specs, team.robots[0].scenario)
     data = result.as_json()
+    scored = None
+    if getattr(args, "associations", False) and team.solo:  # issue 29: a second run, IDs told
+        scored = association_report(team.robots[0].scenario, args.filters, args.seed,
+                                    args.duration, params)
+        data["associations"] = scored.json
     if args.json:
         print(json.dumps(data, indent=None, default=float))
+    elif team.solo:
+        print_run(data)
     else:
         print_team_run(data)
     print_failures(result.tracks.values())
+    if scored is not None and not args.json:
+        print(scored.text)
     return 0
 
 
 def print_team_run(d: dict[str, Any]) -> None:
-    """The summary of one headless team run (``TeamRunResult.as_json()``)."""
+    """The summary of one headless team run (``RunResult.as_json()`` of a team)."""
     print(f"team scenario {d['scenario']}  seed {d['seed']}  steps {d['steps']} "
           f"({d['sim_time_s']:g} s simulated)  robots {', '.join(d['robots'])}")
     reads = ", ".join(f"{rn}: {v['beacon']} beacon / {v['robot']} robot" for rn, v in d["readings"].items())

@@ -142,6 +142,10 @@ class BatchSimulation:
     ``Simulation(scenario, seed).step()`` returns for each seed at that tick; ``advance()``
     the same tick as arrays. ``readings_checksums``: False skips the readings checksums
     (then :meth:`readings_checksums` raises).
+
+    The readings always carry their beacon IDs: a sensor with ``correspondence = "unknown"``
+    is simulated as if its IDs were told (the same truth and readings, no clutter). Such runs
+    are never batched (``BatchableFilter.batch_blocker``).
     """
 
     def __init__(self, scenario: Scenario, seeds: list[int], readings_checksums: bool = True):

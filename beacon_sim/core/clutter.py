@@ -2,7 +2,10 @@
 
 A pure step after :func:`beacon_sim.core.sensors.sense`: ``(measurement, spec, rng) ->
 measurement``. It adds false detections (clutter) and hides which beacon each row came from,
-keeping the truth aside for metrics. Not wired into the simulation yet (a library step).
+keeping the truth aside for metrics. The simulation calls :func:`unlabel` for every sensor
+whose scenario table says ``correspondence = "unknown"`` (its ``clutter_rate`` the Poisson
+mean), on a stream of its own (``stream(seed, "clutter", sensor)``), and puts the true IDs in
+``Step.true_ids``, never in what the filters receive.
 
 - Clutter: a Poisson number of false readings per reading tick (mean ``rate``), range
   uniform in [0, max_range] [m] and bearing uniform over the field of view [rad], relative to
@@ -127,6 +130,15 @@ def hide_ids(measurement: Measurement | None, sensor: SensorSpec, clutter: Clutt
     order = rng.permutation(z.shape[0])
     hidden = Measurement(sensor.name, sensor.kind, z[order], np.full(z.shape[0], UNKNOWN_ID, dtype=int))
     return Unlabeled(hidden, truth[order])
+
+
+def unlabel(measurement: Measurement | None, sensor: SensorSpec, rng: np.random.Generator
+            ) -> tuple[Measurement | None, np.ndarray | None]:
+    """The simulation's step for a sensor with unknown correspondence: :func:`hide_ids` with
+    the sensor's own ``clutter_rate``. Returns (what the filters see, the true IDs of its
+    rows), or (None, None) when there is nothing to report."""
+    u = hide_ids(measurement, sensor, ClutterSpec(sensor.clutter_rate), rng)
+    return (None, None) if u is None else (u.measurement, u.true_ids)
 
 
 def hide_ids_all(measurements: Iterable[Measurement], sensors: Iterable[SensorSpec],

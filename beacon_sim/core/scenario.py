@@ -74,6 +74,20 @@ class Scenario:
     model_sensors: tuple[SensorSpec, ...]
     default_filters: tuple[str, ...] = ("ekf", "dead_reckoning")
     filter_params: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: False when ``[model] map = "unknown"``: the filters are not told where the beacons
+    #: are (SLAM), except the anchors (``anchor = true`` on a beacon).
+    map_known: bool = True
+    anchor_ids: tuple[int, ...] = ()
+
+    @property
+    def filter_world(self) -> World:
+        """The world as the filters are told it: every beacon on a known map; on an unknown
+        one (SLAM, docs/slam.md) only the anchors, the bounds unchanged."""
+        if self.map_known:
+            return self.world
+        keep = set(self.anchor_ids)
+        return World(bounds=self.world.bounds,
+                      beacons=tuple(b for b in self.world.beacons if b.id in keep))
 
     def sensor(self, name: str) -> SensorSpec:
         for s in self.sensors:
@@ -409,18 +423,19 @@ _KNOWN: dict[str, set[str]] = {
          "driver", "keyboard", "events", "initial_belief", "model", "default_filters",
          "filters"},
     "world": {"bounds", "beacons"},
-    "world.beacons[]": {"id", "x", "y"},
+    "world.beacons[]": {"id", "x", "y", "anchor"},
     "robot": {"initial_pose", "radius", "motion_noise"},
     "robot.motion_noise": _NOISE_KEYS,
     "sensors[]": {"name", "kind", "period", "max_range", "fov", "detection_prob",
-                  "outlier_rate", "min_beacons", "beacon_height"} | _SENSOR_NOISE_KEYS,
+                  "outlier_rate", "min_beacons", "beacon_height", "correspondence",
+                  "clutter_rate"} | _SENSOR_NOISE_KEYS,
     "driver": {"kind", "v", "omega", "radius", "speed", "gain", "max_omega", "tolerance",
                "margin", "points", "loop"},
     "keyboard": {"v_step", "v_max", "v_min", "omega_step", "omega_max"},
     "events[]": {"kind", "time", "duration", "pose", "offset", "random", "sensors", "v_std",
                  "omega_std"},
     "initial_belief": {"mean", "std", "global"},
-    "model": {"motion_noise", "sensors"},
+    "model": {"motion_noise", "sensors", "map"},
     "model.motion_noise": _NOISE_KEYS,
 }
 
@@ -465,11 +480,33 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
         min_beacons=t.integer("min_beacons", 2 if kind == "position" else 1, lo=1, hi=MAX_BEACONS),
         beacon_height=t.number("beacon_height", 0.0, lo=0, hi=MAX_COORD),
         noise=_sensor_noise(t, SensorNoise()),
+        **_correspondence(t, kind),
     )
     if kind == "position" and spec.min_beacons < 2:
         t.fail(t.key("min_beacons"), spec.min_beacons, "at least 2 for a position fix")
+    if spec.clutter_rate > 0 and kind == "range_bearing" and not math.isfinite(spec.max_range):
+        t.fail(t.key("max_range"), spec.max_range, "a finite range when clutter_rate > 0 (clutter "
+                                                   "ranges are uniform in [0, max_range])")
     t.finish()
     return spec
+
+
+#: Most false detections per reading a sensor may declare (issue 29).
+MAX_CLUTTER_RATE: Final = 100.0
+
+
+def _correspondence(t: _Table, kind: str) -> dict[str, Any]:
+    """The keys ``correspondence`` ("known" | "unknown", beacon sensors only) and
+    ``clutter_rate`` (false detections per reading, unknown correspondence only)."""
+    corr = t.string("correspondence", "known", choices=("known", "unknown"))
+    if corr == "unknown" and kind not in ("bearing", "range_bearing"):
+        t.fail(t.key("correspondence"), corr, f"'known' for a {kind} fix (only bearing and "
+                                              "range_bearing readings can hide their beacon)")
+    rate = t.number("clutter_rate", 0.0, lo=0, hi=MAX_CLUTTER_RATE)
+    if rate > 0 and corr != "unknown":
+        t.fail(t.key("clutter_rate"), rate, "0 unless correspondence = 'unknown' (a false "
+                                            "detection has no beacon ID to carry)")
+    return {"correspondence": corr, "clutter_rate": rate}
 
 
 def _driver(t: _Table, world: World) -> DriverSpec:
@@ -577,6 +614,7 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     if isinstance(raw_beacons, list) and len(raw_beacons) > MAX_BEACONS:
         w.fail(w.key("beacons"), f"[... {len(raw_beacons):,} beacons]", f"at most {MAX_BEACONS:,} beacons")
     ids: set[int] = set()
+    anchors: list[tuple[int, str]] = []  # (beacon ID, key path) of each anchor = true
     for bt in w.tables("beacons"):
         b = Beacon(id=bt.integer("id", lo=0, hi=2**31 - 1),
                    x=bt.number("x", lo=-MAX_COORD, hi=MAX_COORD),
@@ -584,6 +622,8 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
         if b.id in ids:
             bt.fail(bt.key("id"), b.id, "an ID no other beacon has")
         ids.add(b.id)
+        if bt.boolean("anchor", False):
+            anchors.append((b.id, bt.key("anchor")))
         bt.finish()
         beacons.append(b)
     w.finish()
@@ -638,6 +678,11 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
     ib.finish()
 
     m = top.sub("model", {})
+    map_known = m.string("map", "known", choices=("known", "unknown")) == "known"
+    if map_known and anchors:
+        raise ScenarioError(f"{file}: {anchors[0][1]} = true: an anchor only means something when "
+                            f"the filters are not given the map; add model.map = \"unknown\" (SLAM) "
+                            f"or remove the key")
     model_motion = _motion_noise(m.sub("motion_noise", {}), base=motion_noise)
     ms = m.sub("sensors", {})
     model_sensors = []
@@ -679,6 +724,7 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "") -> Scenario:
         initial_belief=initial_belief, model_motion_noise=model_motion,
         model_sensors=tuple(model_sensors), default_filters=tuple(default_filters),
         filter_params={k: dict(v) for k, v in fp.items()},
+        map_known=map_known, anchor_ids=tuple(i for i, _ in anchors),
     )
 
 

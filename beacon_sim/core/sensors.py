@@ -64,6 +64,11 @@ class SensorSpec:
         Height [m] of the beacons above the receiver, for the HDOP of a position fix.
     noise : SensorNoise
         The true noise of the readings.
+    correspondence : str
+        ``"known"`` (each reading carries its beacon's ID) or ``"unknown"`` (beacon
+        sensors only: every ID is -1, ``core/clutter.UNKNOWN_ID``; the filter associates).
+    clutter_rate : float
+        Mean number of false detections per reading (Poisson), unknown correspondence only.
     """
 
     name: str
@@ -76,6 +81,8 @@ class SensorSpec:
     min_beacons: int = 1
     beacon_height: float = 0.0
     noise: SensorNoise = field(default_factory=SensorNoise)
+    correspondence: str = "known"
+    clutter_rate: float = 0.0
 
     def fix_std(self, n_beacons: int, hdop_value: float = 1.0) -> np.ndarray:
         """Standard deviations of one fix row: pose ``[sx, sy, sth]`` or position ``[sx, sy]``."""

@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.clutter import unlabel
 from beacon_sim.core.drivers import Driver
 from beacon_sim.core.events import Blackout, Kidnap, active_ticks, first_tick_at
 from beacon_sim.core.motion import SLIP_MODELS, move, with_slip
@@ -44,6 +45,9 @@ class Simulation:
         self._motion_rng = stream(self.seed, "motion")
         self._events_rng = stream(self.seed, "events")
         self._sensor_rngs = {s.name: stream(self.seed, "sensor", s.name) for s in scenario.sensors}
+        # Unknown correspondence (issue 29): clutter and the shuffle on streams of their own.
+        self._clutter_rngs = {s.name: stream(self.seed, "clutter", s.name) for s in scenario.sensors
+                              if s.correspondence == "unknown"}
         self.driver = Driver(scenario.driver, scenario.world, stream(self.seed, "driver"))
         self.schedule = tick_schedule(scenario)  # sensor periods, blackouts, bursts
         self._kidnaps: dict[int, list[Kidnap]] = {}
@@ -139,20 +143,26 @@ class Simulation:
         self._hash.update(pose.tobytes())
 
         measurements: list[Measurement] = []
+        true_ids: dict[str, np.ndarray] = {}
         for spec in self.scenario.sensors:
             if not self.schedule.due(spec.name, k):
                 continue
             rng = self._sensor_rngs[spec.name]
             m = sense(spec, pose, self.world, rng)  # draw even when blacked out: stable streams
+            ids = None
+            if spec.name in self._clutter_rngs:  # IDs hidden, clutter added, truth kept aside
+                m, ids = unlabel(m, spec, self._clutter_rngs[spec.name])
             if m is not None and not self.schedule.blacked_out(spec.name, k):
                 measurements.append(m)
+                if ids is not None:
+                    true_ids[spec.name] = ids
                 h = self._readings_hash
                 h.update(f"{k} {m.sensor} {m.kind} {m.z.shape}".encode())
                 h.update(np.ascontiguousarray(m.z, dtype="<f8").tobytes())
                 h.update(np.ascontiguousarray(m.beacon_ids, dtype="<i8").tobytes())
                 h.update(np.float64(m.hdop).tobytes())
         return Step(k, k * self.dt, self.dt, pose.copy(), control, tuple(measurements),
-                    tuple(events))
+                    tuple(events), true_ids)
 
     def run(self, duration: float, controls=None) -> list[Step]:
         """Step for ``duration`` seconds; ``controls`` is an optional sequence of Control."""

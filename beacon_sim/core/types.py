@@ -124,6 +124,9 @@ class Step:
         Readings of this tick, at the true pose after the step.
     events : tuple of EventRecord
         Events that fired on this tick.
+    true_ids : dict of str to ndarray of int
+        Per sensor with unknown correspondence, the beacon each row of its reading really
+        came from (-1: clutter). Like ``true_pose``, filters must never read it.
     """
 
     tick: int
@@ -133,6 +136,7 @@ class Step:
     control: Control
     measurements: tuple[Measurement, ...] = ()
     events: tuple[EventRecord, ...] = field(default_factory=tuple)
+    true_ids: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def kidnapped(self) -> bool:

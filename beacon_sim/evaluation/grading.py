@@ -39,15 +39,16 @@ from beacon_sim.errors import BeaconSimError
 from beacon_sim.evaluation.montecarlo import (
     RunOutput,
     SimulatedRun,
+    TeamRunOutput,
     default_jobs,
     init_worker,
     isolated_run,
     on_dask,
     one_run,
     simulate_run,
+    team_one_run,
 )
-from beacon_sim.evaluation.summary import Thresholds, evaluate, overall_verdict
-from beacon_sim.evaluation.team import TeamRunOutput, evaluate_team, team_one_run
+from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
 from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
 from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
 from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS, isolated_spec

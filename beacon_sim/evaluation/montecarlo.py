@@ -12,6 +12,9 @@ run instead of ~1 us of numpy overhead per 3x3 call per run (design.md section 9
 filter modules hold both forms of their maths; here are only the simulations, the packing
 of their readings (``SlotPacker``: slots fixed by the scenario, so a run's numbers never
 depend on its batch) and the records.
+
+A team scenario's runs (:func:`run_team_monte_carlo`) are each the one guarded headless run
+over N robots (``runs.headless.run_headless``), reduced per robot to the single-robot records.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from beacon_sim.core.batch_simulation import BatchSimulation
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import Batchable, FilterError
@@ -43,7 +47,9 @@ from beacon_sim.filters.loading import (
     filter_names,
     load_filter_class,
 )
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
 from beacon_sim.filters.watchdog import failure_line, is_filter_failure
+from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.progress import Progress
 
 
@@ -323,7 +329,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     failed: str | None = None
     report: dict[str, Any] = {}
     ns = done = 0
-    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+    ctx = FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known, dt=scenario.dt,
                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
                         params=dict(scenario.filter_params.get(name, {})) if params is None else params,
                         rng=stream(sr.seed, "filter", name))
@@ -840,3 +846,76 @@ __all__ = ["ClusterError", "FilterRun", "RunOutput", "SimulatedRun", "batch_reas
            "dask_client", "dask_workers", "filter_names", "finish_filter", "hosted_runs",
            "isolated_run", "on_dask", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
            "simulate_run", "stack"]
+
+
+@dataclass
+class TeamRunOutput:
+    """One run over N robots: the truth (T + 1, N, 3) with row 0 the start, the commands
+    (T, N, 2), kidnaps (T, N), and per filter one :class:`FilterRun` per robot (team order)."""
+
+    index: int
+    seed: int
+    truth: np.ndarray
+    controls: np.ndarray
+    kidnapped: np.ndarray
+    truth_checksum: str
+    filters: dict[str, list[FilterRun]] = field(default_factory=dict)
+
+    def robot(self, i: int) -> RunOutput:
+        """Robot i's view as a single-robot run (what ``summary.evaluate`` reads)."""
+        out = RunOutput(self.index, self.seed, self.truth[:, i], self.controls[:, i],
+                        self.kidnapped[:, i], self.truth_checksum)
+        out.filters = {name: runs[i] for name, runs in self.filters.items()}
+        return out
+
+
+def team_one_run(team: TeamScenario, specs: list[str], params: dict[str, dict[str, Any]] | None,
+                 seed: int, duration: float, index: int = 0,
+                 step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
+                 run_limit_s: float | None = None) -> TeamRunOutput:
+    """One guarded headless run over N robots reduced to arrays; the limits as
+    :func:`~beacon_sim.runs.headless.run_headless`'s. A filter's time is its time per tick
+    over every robot."""
+    res = run_headless(team, specs, seed=seed, duration=duration, params=params,
+                       step_limit_s=step_limit_s, run_limit_s=run_limit_s)
+    T, N = len(res.team_steps), team.n_robots
+    truth = np.empty((T + 1, N, 3))
+    truth[0] = res.initial_poses
+    truth[1:] = res.true_poses
+    kidnapped = np.array([[st.kidnapped for st in s.steps] for s in res.team_steps],
+                         dtype=bool).reshape(T, N)
+    out = TeamRunOutput(index, seed, truth, res.controls, kidnapped, res.truth_checksum)
+    for name in res.names:
+        _, got_means, got_covs = res.filters.series(name)
+        done = len(got_means)
+        means = np.full((T, N, 3), np.nan)
+        covs = np.full((T, N, 3, 3), np.nan)
+        means[:done], covs[:done] = got_means, got_covs
+        step_ns = (sum(m.tracks[name].step_ns for m in res.filters.members) if res.filters.is_member(name)
+                   else res.filters.joint.tracks[name].step_ns)
+        failed = res.track(name).failed
+        out.filters[name] = [finish_filter(means[:, i].copy(), covs[:, i].copy(), truth[:, i], done,
+                                           failed, 0.0, 0, step_ns, keep_means=index == 0)
+                             for i in range(N)]
+    return out
+
+
+def _team_task(args) -> TeamRunOutput:
+    return team_one_run(*args)
+
+
+def run_team_monte_carlo(team: TeamScenario, specs: list[str], runs: int, seed: int = 0,
+                         duration: float | None = None, jobs: int | None = None,
+                         params: dict[str, dict[str, Any]] | None = None,
+                         step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
+                         run_limit_s: float | None = None) -> list[TeamRunOutput]:
+    """``runs`` runs of ``team`` with seeds ``seed, seed + 1, ...`` on ``jobs`` processes
+    (default: all cores; 1 runs here); returned in seed order. Limits: see :func:`team_one_run`."""
+    duration = team.duration if duration is None else duration
+    jobs = min(default_jobs() if jobs is None else max(1, int(jobs)), runs)
+    tasks = [(team, list(specs), params or {}, seed + i, duration, i, step_limit_s, run_limit_s)
+             for i in range(runs)]
+    if jobs == 1:
+        return [_team_task(t) for t in tasks]
+    with ProcessPoolExecutor(max_workers=jobs, initializer=init_worker) as pool:
+        return list(pool.map(_team_task, tasks))

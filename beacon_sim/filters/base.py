@@ -8,6 +8,10 @@ A filter is any object with::
     update(measurements)      measurement update; the sequence may be empty
     estimate() -> (mean, cov) mean shape (3,) [m, m, rad], cov shape (3, 3)
     belief()                  GaussianBelief, ParticleBelief or GridBelief, for drawing
+
+and optionally ``associations() -> {sensor: (beacon ID or None, ...)}``: for each reading
+without IDs (unknown correspondence) of the last update, the beacon it was given to
+(issue 29; ``FilterBase`` provides it for the built-in filters, docs/association.md).
 """
 
 from __future__ import annotations
@@ -72,7 +76,8 @@ class FilterContext:
     name : str
         The filter's name in this run.
     world : World
-        Bounds and the beacon map.
+        Bounds and the beacon map the filter is given: every beacon, or on an unknown map
+        (SLAM, docs/slam.md) only the anchors.
     dt : float
         The simulation tick [s] (``predict`` also receives dt).
     motion_noise : MotionNoise
@@ -83,6 +88,9 @@ class FilterContext:
         The filter's parameters (scenario ``[filters.NAME]`` and ``--set`` overrides).
     rng : numpy.random.Generator
         The only random generator the filter may use.
+    map_known : bool
+        False when the scenario withholds the beacon map (``[model] map = "unknown"``):
+        ``world.beacons`` holds only the anchors and a filter must map the rest itself.
     """
 
     name: str
@@ -92,6 +100,7 @@ class FilterContext:
     sensors: tuple[SensorSpec, ...]
     params: Mapping[str, Any] = field(default_factory=dict)
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+    map_known: bool = True
 
     def sensor(self, name: str) -> SensorSpec:
         """The spec (with the filter's noise) of the sensor that produced a measurement."""
@@ -114,6 +123,32 @@ class Filter(Protocol):
     def estimate(self) -> tuple[np.ndarray, np.ndarray]: ...
 
     def belief(self) -> Belief: ...
+
+
+@dataclass(frozen=True, eq=False)
+class LandmarkMap:
+    """A SLAM filter's map estimate (docs/slam.md), world frame.
+
+    Attributes
+    ----------
+    ids : ndarray of int, shape (M,), or None
+        The beacon ID each landmark stands for (known correspondence), or None when the
+        filter made its landmarks up from unlabelled readings (unknown correspondence).
+    means : ndarray, shape (M, 2) [m]
+    covs : ndarray, shape (M, 2, 2) [m^2]
+    """
+
+    ids: np.ndarray | None
+    means: np.ndarray
+    covs: np.ndarray
+
+
+@runtime_checkable
+class MappingFilter(Filter, Protocol):
+    """A SLAM filter: a :class:`Filter` whose estimate carries the map as well.
+    ``estimate()`` stays the pose's (3,), (3, 3); ``landmarks()`` is the map."""
+
+    def landmarks(self) -> LandmarkMap: ...
 
 
 @runtime_checkable
@@ -203,6 +238,12 @@ class FilterBase:
     def belief(self: _Estimating) -> Belief:
         mean, cov = self.estimate()
         return GaussianBelief(mean, cov)
+
+    def associations(self) -> dict[str, tuple[int | None, ...]]:
+        """Per sensor with unknown correspondence, the beacon ID (or None: clutter) each row
+        of its reading in the last update was given to; {} when there was none."""
+        wiring = self.__dict__.get("_association")
+        return {} if wiring is None else wiring.report(self)
 
 
 def broad_gaussian(world: World) -> GaussianBelief:

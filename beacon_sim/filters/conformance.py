@@ -88,7 +88,7 @@ def _context(scenario: Scenario, spec: str) -> FilterContext:
     from beacon_sim.core.streams import stream
 
     name = filter_display_name(spec)
-    return FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+    return FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known, dt=scenario.dt,
                          motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
                          params=merged_params(spec, scenario),
                          rng=stream(SEED, "filter", name))

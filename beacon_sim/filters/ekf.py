@@ -17,11 +17,15 @@ Update, all readings of a tick in one stacked update linearised once at x_pred
     P = (I - K H) P (I - K H)^T + K R K^T          (Joseph form, parameter ``joseph``;
                                                     expanded per scalar row, see update)
 
-The readings are independent (R diagonal), so the stacked update is computed as a
-sequence of scalar updates that keep the one linearisation point: row i uses the
-innovation ``y_i - H_i (x - x_pred)``. That is algebraically the same update as the
-stacked matrices, without any matrix inverse, and lets the whole filter run on Python
-floats: a numpy call costs about 1 us even on a 3x3 array (design.md section 9).
+The readings are independent (R diagonal), so up to :data:`STACKED_ROWS` rows the stacked
+update is computed as a sequence of scalar updates that keep the one linearisation point:
+row i uses the innovation ``y_i - H_i (x - x_pred)``. That is algebraically the same update
+as the stacked matrices, without any matrix inverse, and lets the whole filter run on Python
+floats: a numpy call costs about 1 us even on a 3x3 array (design.md section 9). Above it
+(many beacons in view) the float loop costs about 1.7 us a reading, so the tick's rows are
+linearised on arrays and the same update is taken in information form, linear in the rows
+(``gaussian_measurements.kalman_update_low_rank``: ``G = H^T R^-1 H``, a 3x3 solve);
+the two agree to rounding (tests/test_ekf_stacked.py).
 
 Optional gating (seed 001's closing advice): a beacon's reading (1 row, 2 rows for
 range-bearing, the whole fix for pose/position) is dropped when its squared Mahalanobis
@@ -44,6 +48,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterContext, GaussianBelief, broad_gaussian
 from beacon_sim.filters.gaussian_measurements import (
     BatchableFilter,
@@ -55,12 +60,26 @@ from beacon_sim.filters.gaussian_measurements import (
     effective_gate,
     gated_rows,
     kalman_update,
+    kalman_update_low_rank,
     nis,
     process_cov_terms,
 )
 
 #: One row of the stacked model: (H0, H1, H2, innovation, variance, h).
 Row = tuple[float, float, float, float, float, float]
+
+#: Scalar readings (rows) in a tick above which the per-run EKF updates on arrays
+#: (:meth:`ExtendedKalmanFilter.update_stacked`) instead of row by row on floats; at or
+#: below it every shipped scenario (at most 14 rows a tick) keeps its results bit for bit.
+#: The two forms cost the same at about 40-48 rows on the development machine (gate on or off).
+STACKED_ROWS = 40
+
+#: A beacon's chi-square distance within this relative distance of the gate is decided
+#: again by the row-by-row form's own test (``_passes_gate``), so that rounding in the
+#: array form can never drop a different reading.
+GATE_RECHECK = 1e-9
+
+_BEACON_KINDS = ("bearing", "range_bearing")
 
 
 def predict_moments(x: Any, y: Any, th: Any, p: Sequence[Any], v: Any, w: Any, dt: float, c: Any,
@@ -169,8 +188,9 @@ class ExtendedKalmanFilter(VelocityGaussian):
         Joseph-form covariance update; False uses ``P - K S K^T``.
     """
 
-    defaults: ClassVar[dict] = {"gate_chi2": 0.0, "joseph": True}
-    batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": None}
+    defaults: ClassVar[dict] = {"gate_chi2": 0.0, "joseph": True, **association.GAUSSIAN_PARAMS}
+    batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": None,
+                                              **dict.fromkeys(association.GAUSSIAN_PARAMS)}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
@@ -179,6 +199,7 @@ class ExtendedKalmanFilter(VelocityGaussian):
         self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.joseph = bool(self.params["joseph"])
         self.rejected = 0  # readings dropped by the gate so far
+        association.attach(self)  # unknown correspondence (issue 29)
 
     def batched(self, runs: int) -> BatchedEKF:
         mean, cov = self.estimate()
@@ -234,7 +255,35 @@ class ExtendedKalmanFilter(VelocityGaussian):
         return groups
 
     def _passes_gate(self, rows: Sequence[Row]) -> bool:
-        """Squared Mahalanobis distance of one beacon's rows against the predicted belief."""
+        """Squared Mahalanobis distance of one beacon's rows against the predicted belief
+        within the gate. A bearing (1 row) or range-bearing (2 rows) is computed on floats
+        in closed form; only a distance within :data:`GATE_RECHECK` of the gate is decided
+        by the matrix form (:meth:`_passes_gate_matrix`), so the decisions are its own."""
+        if len(rows) > 2:
+            return self._passes_gate_matrix(rows)
+        gate = self.gate
+        p00, p01, p02, p11, p12, p22 = self.p
+        a0, a1, a2, na, ra, _ = rows[0]
+        u0 = p00 * a0 + p01 * a1 + p02 * a2
+        u1 = p01 * a0 + p11 * a1 + p12 * a2
+        u2 = p02 * a0 + p12 * a1 + p22 * a2
+        saa = a0 * u0 + a1 * u1 + a2 * u2 + ra
+        if len(rows) == 1:
+            d = na * na / saa
+        else:
+            b0, b1, b2, nb, rb, _ = rows[1]
+            sab = b0 * u0 + b1 * u1 + b2 * u2
+            w0 = p00 * b0 + p01 * b1 + p02 * b2
+            w1 = p01 * b0 + p11 * b1 + p12 * b2
+            w2 = p02 * b0 + p12 * b1 + p22 * b2
+            sbb = b0 * w0 + b1 * w1 + b2 * w2 + rb
+            d = (sbb * na * na - 2.0 * sab * na * nb + saa * nb * nb) / (saa * sbb - sab * sab)
+        if abs(d - gate) <= GATE_RECHECK * gate:
+            return self._passes_gate_matrix(rows)
+        return d <= gate  # NaN fails
+
+    def _passes_gate_matrix(self, rows: Sequence[Row]) -> bool:
+        """:meth:`_passes_gate` by a linear solve of the block's S (the reference form)."""
         H = np.array([r[:3] for r in rows])
         nu = np.array([r[3] for r in rows])
         S = H @ self.cov @ H.T + np.diag([r[4] for r in rows])
@@ -243,6 +292,16 @@ class ExtendedKalmanFilter(VelocityGaussian):
     def update(self, measurements: Sequence[Measurement]) -> None:
         if not measurements:
             return
+        measurements = association.associate_gaussian(self, measurements)  # unknown IDs: issue 29
+        rows = 0
+        for m in measurements:
+            rows += m.z.size
+        if rows > STACKED_ROWS and self.update_stacked(measurements):
+            return
+        self.update_rows(measurements)
+
+    def update_rows(self, measurements: Sequence[Measurement]) -> None:
+        """The update row by row on floats (one linearisation point; see the module)."""
         groups = self.linearise(measurements)
         if not groups:
             return
@@ -288,6 +347,113 @@ class ExtendedKalmanFilter(VelocityGaussian):
         self.x += d0
         self.y += d1
         self.th = wrap(self.th + d2)
+
+
+    def update_stacked(self, measurements: Sequence[Measurement]) -> bool:
+        """The tick's update as one stacked update on arrays: H, the innovations and the
+        variances of every reading at the predicted mean, the gate per beacon (or fix) on
+        arrays with the same decisions as :meth:`update_rows`, then the information form
+        (``kalman_update_low_rank``), linear in the rows. The same update as
+        :meth:`update_rows` to rounding. Returns False (nothing done) when a reading comes
+        from a beacon at the robot's position, where the row form raises."""
+        stacked = self._stack(measurements)
+        if stacked is None:
+            return False
+        H, nu, r, rejected = stacked
+        self.rejected += rejected
+        if not nu.shape[0]:
+            return True
+        mean, P, _ = kalman_update_low_rank(self.mean, self.cov, H, nu, r, self.joseph)
+        self.x, self.y, self.th = mean.tolist()
+        (p00, p01, p02), (_, p11, p12), (_, _, p22) = P.tolist()
+        self.p = (p00, p01, p02, p11, p12, p22)
+        return True
+
+    def _stack(self, measurements: Sequence[Measurement]
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
+        """The gated rows of the tick as arrays ``(H (m, 3), nu (m,), r (m,), rejected)``,
+        the model of :meth:`linearise` (the same formulas, element by element); None when
+        a beacon sits at the robot's position (q = 0)."""
+        x, y, th = self.x, self.y, self.th
+        models = self.models
+        gate = self.gate
+        P = self.cov if gate > 0.0 else None
+        Hs: list[np.ndarray] = []
+        nus: list[np.ndarray] = []
+        rs: list[np.ndarray] = []
+        rejected = 0
+        for m in measurements:
+            kind = m.kind
+            if kind in _BEACON_KINDS:
+                var = models.reading_variance(m.sensor)
+                bxy = models.beacons(m.beacon_ids)
+                z = m.z
+                k = z.shape[0]
+                dx = bxy[:, 0] - x
+                dy = bxy[:, 1] - y
+                q = dx * dx + dy * dy
+                if not (q > 0.0).all():
+                    return None
+                Hb = np.empty((k, 3))
+                Hb[:, 0] = dy / q
+                Hb[:, 1] = -dx / q
+                Hb[:, 2] = -1.0
+                nub = wrap(z[:, -1] - wrap(np.arctan2(dy, dx) - th))
+                vb = var[-1]
+                if kind == "bearing":
+                    H, nu, r = Hb, nub, np.full(k, vb)
+                    if P is not None:
+                        d = nub * nub / (_quad(Hb, P, Hb) + vb)
+                else:
+                    rr = np.sqrt(q)
+                    Hr = np.zeros((k, 3))
+                    Hr[:, 0] = -dx / rr
+                    Hr[:, 1] = -dy / rr
+                    nur = z[:, 0] - rr
+                    H = np.concatenate([Hr, Hb])
+                    nu = np.concatenate([nur, nub])
+                    r = np.concatenate([np.full(k, var[0]), np.full(k, vb)])
+                    if P is not None:
+                        s00 = _quad(Hr, P, Hr) + var[0]
+                        s01 = _quad(Hr, P, Hb)
+                        s11 = _quad(Hb, P, Hb) + vb
+                        d = (s11 * nur * nur - 2.0 * s01 * nur * nub + s00 * nub * nub) \
+                            / (s00 * s11 - s01 * s01)
+                if P is not None:
+                    keep = d <= gate                      # NaN fails, as in _passes_gate
+                    near = np.abs(d - gate) <= GATE_RECHECK * gate if math.isfinite(gate) else ()
+                    for j in np.flatnonzero(near).tolist():
+                        one = Measurement(m.sensor, kind, z[j:j + 1], m.beacon_ids[j:j + 1])
+                        keep[j] = self._passes_gate_matrix(self.linearise([one])[0])
+                    kept = int(np.count_nonzero(keep))
+                    rejected += k - kept
+                    if kept < k:
+                        w = 1 if kind == "bearing" else 2
+                        rows = np.tile(keep, w)
+                        H, nu, r = H[rows], nu[rows], r[rows]
+            elif kind == "pose" or kind == "position":
+                g = self.linearise([m])[0]
+                if gate > 0.0 and not self._passes_gate(g):
+                    rejected += 1
+                    continue
+                H = np.array([row[:3] for row in g])
+                nu = np.array([row[3] for row in g])
+                r = np.array([row[4] for row in g])
+            else:
+                continue  # other kinds: nothing this filter can use
+            Hs.append(H)
+            nus.append(nu)
+            rs.append(r)
+        if not Hs:
+            return np.zeros((0, 3)), np.zeros(0), np.zeros(0), rejected
+        if len(Hs) == 1:
+            return Hs[0], nus[0], rs[0], rejected
+        return np.concatenate(Hs), np.concatenate(nus), np.concatenate(rs), rejected
+
+
+def _quad(A: np.ndarray, P: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``a_i P b_i^T`` for the rows of A and B (k, 3): the entries of a block of H P H^T."""
+    return np.einsum("ki,ij,kj->k", A, P, B)
 
 
 class BatchedEKF(BatchedVelocityGaussian):

@@ -823,6 +823,8 @@ class BatchableFilter(FilterBase):
         for s in self.ctx.sensors:
             if s.kind not in KINDS:
                 return f"sensor kind {s.kind!r} is not batched"
+            if s.correspondence != "known":  # issue 29: the batched runs carry beacon IDs
+                return f"sensor {s.name!r} has unknown correspondence (not batched)"
         return None
 
     def batched(self, runs: int) -> BatchedGaussian:

@@ -55,7 +55,8 @@ def _not_psd(a: float, b: float, d: float, e: float, f: float, g: float) -> bool
     return a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0
 
 
-def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
+def validate_estimate(est: object, *, _f8: np.dtype = _F8, _mm: float = MAX_MEAN,
+                      _mc: float = MAX_COV) -> tuple[np.ndarray, np.ndarray] | str:
     """The one guard of what ``estimate()`` returned: ``(mean (3,), cov (3, 3))`` as fresh
     float arrays [m, m, rad], or one line saying why it is unusable (not a pair, not
     numbers, wrong shapes, NaN or infinity, covariance not symmetric, not positive
@@ -68,17 +69,20 @@ def validate_estimate(est: object) -> tuple[np.ndarray, np.ndarray] | str:
     within [-s, s], s its largest diagonal entry with 1e-12 <= s <= MAX_COV, has every entry
     finite (a NaN fails every comparison) and s as its largest |entry|, so only the PSD test
     is left; otherwise a finite sum of the entries proves them finite (a NaN or an infinity
-    would make it NaN or infinite), and one that overflows goes the long way too."""
-    if isinstance(est, tuple | list) and len(est) == 2:
+    would make it NaN or infinite), and one that overflows goes the long way too.
+
+    The keyword arguments are not for callers: the constants of the fast path, bound once
+    (locals cost less than globals on a path that runs every step)."""
+    if (type(est) is tuple or isinstance(est, tuple | list)) and len(est) == 2:
         m0, c0 = est[0], est[1]
-        if (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _F8
-                and c0.dtype is _F8 and m0.shape == (3,) and c0.shape == (3, 3)):
+        if (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _f8
+                and c0.dtype is _f8 and m0.shape == (3,) and c0.shape == (3, 3)):
             (a, b, d), (b2, e, f), (d2, f2, g) = c0.tolist()
             x, y, t = m0.tolist()
             # NaN, infinity or a diverged mean fail here: the full check says which
-            if -MAX_MEAN <= x <= MAX_MEAN and -MAX_MEAN <= y <= MAX_MEAN and -MAX_MEAN <= t <= MAX_MEAN:
+            if -_mm <= x <= _mm and -_mm <= y <= _mm and -_mm <= t <= _mm:
                 s = max(a, e, g)
-                if (b == b2 and d == d2 and f == f2 and 1e-12 <= s <= MAX_COV and a >= -s
+                if (b == b2 and d == d2 and f == f2 and 1e-12 <= s <= _mc and a >= -s
                         and e >= -s and g >= -s and -s <= b <= s and -s <= d <= s and -s <= f <= s):
                     # _not_psd inline: its tolerance is 1e-9 * s here (0.5 * (b + b) == b exactly)
                     tol = 1e-9 * s

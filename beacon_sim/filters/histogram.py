@@ -32,6 +32,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, GridBelief
 
 TWO_PI = 2.0 * math.pi
@@ -252,6 +253,8 @@ class HistogramFilter(FilterBase):
         cell_var = self.cell**2 / 6.0         # within-cell position + slab offset
         _, sin_th1, cos_th1 = self._trig()
         cos_th, sin_th = cos_th1[:, None, None], sin_th1[:, None, None]
+        # Readings without IDs (issue 29): a mixture over the beacons, added as ``mixed``.
+        measurements, mixed = association.grid_mixture(self, measurements, cos_th, sin_th)
         # Beacon readings without outliers: every reading's C, S and lxy are combinations of
         # five fixed x-y arrays of its beacon (kappa cos a, kappa sin a, kappa, r, r^2, see
         # _beacon_basis), so all of them together are one (3, 5 k) x (5 k, nx ny) product.
@@ -284,7 +287,7 @@ class HistogramFilter(FilterBase):
             np.matmul(np.array(coef), np.concatenate(blocks), out=A)
         else:
             A.fill(0.0)
-        mixed: np.ndarray | None = None      # sum of per-reading outlier-mixture terms
+        # ``mixed``: sum of per-reading outlier-mixture (and unlabeled-reading) terms
         for m in rest:
             spec = self.ctx.sensor(m.sensor)
             z = np.asarray(m.z, dtype=float)

@@ -328,7 +328,8 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     name = name or filter_display_name(spec)
     ctx = FilterContext(
         name=name,
-        world=scenario.world,
+        world=scenario.filter_world,
+        map_known=scenario.map_known,
         dt=scenario.dt,
         motion_noise=scenario.model_motion_noise,
         sensors=scenario.model_sensors,
@@ -371,9 +372,10 @@ def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
                         Limits(cpu_s=None if limit_s is None else 1.5 * limit_s + 60),
                         reply_timeout_s=max(60.0, 5 * (limit_s or 12.0)))
     name = name or filter_display_name(inner)
-    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+    ctx = FilterContext(name=name, world=scenario.filter_world, dt=scenario.dt,
                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                        params=merged_params(inner, scenario, params), rng=stream(seed, "filter", name))
+                        params=merged_params(inner, scenario, params), rng=stream(seed, "filter", name),
+                        map_known=scenario.map_known)
     try:
         flt = IsolatedFilter(child, ctx, initial_belief(scenario), seed, limit_s, inner)
     except BaseException:
@@ -444,7 +446,18 @@ def one_line_text(text: str) -> str:
 def sensor_note(spec: str, scenario: Scenario) -> str | None:
     """A one-line note when a filter declares the measurement kinds it uses
     (``sensor_kinds``) and the scenario has no sensor of those kinds: it can only predict."""
-    kinds = getattr(load_filter_class(spec), "sensor_kinds", None)
+    from beacon_sim.filters.dead_reckoning import DeadReckoning
+
+    cls = load_filter_class(spec)
+    kinds = getattr(cls, "sensor_kinds", None)
+    beacon_kinds = {"bearing", "range_bearing"}
+    if not scenario.map_known and not hasattr(cls, "landmarks") \
+            and not (isinstance(cls, type) and issubclass(cls, DeadReckoning)) \
+            and (kinds is None or beacon_kinds & set(kinds)) \
+            and any(s.kind in beacon_kinds for s in scenario.sensors):
+        return (f"note: {filter_display_name(spec)} has no landmarks() and {scenario.name} does not "
+                f"give the filters the beacon map: a localization filter is switched off at its "
+                f"first reading of a beacon it was not given (docs/slam.md; try ekf_slam, fastslam)")
     if kinds is None or any(s.kind in kinds for s in scenario.sensors):
         return None
     have = ", ".join(sorted({s.kind for s in scenario.sensors})) or "no sensors"

@@ -42,10 +42,26 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.resampling import RESAMPLERS, resample
 
 TWO_PI = 2.0 * math.pi
+
+
+def _find_clip():
+    """The ufunc ``np.clip`` ends in (its Python layers cost ~3 us a call on small arrays);
+    absent: ``np.clip`` itself. The same values either way."""
+    core = getattr(np, "_core", None) or getattr(np, "core", None)
+    return getattr(getattr(core, "umath", None), "clip", None) or np.clip
+
+
+_clip = _find_clip()
+# The reductions behind ndarray.max / sum and np.max / np.sum, called directly: the same
+# results without their Python layers (1-1.5 us a call, a few per step).
+_max = np.maximum.reduce
+_sum = np.add.reduce
+_any = np.logical_or.reduce
 
 
 class ParticleFilter(FilterBase):
@@ -121,6 +137,10 @@ class ParticleFilter(FilterBase):
         self._c = np.empty(cap, dtype=self.dtype)
         self._s = np.empty(cap, dtype=self.dtype)
         self._w32 = np.empty(cap, dtype=self.dtype)
+        self._hit = np.empty(cap, dtype=bool)
+        self._trig_n = 0   # > 0: _c[:n], _s[:n] are cos, sin of the n particles' headings now
+        self._sensor_of: dict[str, Any] = {}   # sensor name -> (spec, constants of _loglik)
+        self._beacons_of: dict[bytes, tuple[np.ndarray, np.ndarray, np.dtype]] = {}  # IDs -> x, y
         self.n = 0
         self.w_slow = 0.0
         self.w_fast = 0.0
@@ -137,6 +157,7 @@ class ParticleFilter(FilterBase):
         self._last_v = 0.0
         self._dims = 1
         self._work: np.ndarray | None = None
+        self._views: dict[tuple[int, int], list[np.ndarray]] = {}  # (k, n) -> _scratch's views
         self._extra: np.ndarray | None = None
         self.reset(None)
 
@@ -171,6 +192,7 @@ class ParticleFilter(FilterBase):
         self.ess = float(n)
         self._pending_resample = False
         self._cache = None
+        self._trig_n = 0
         self._last_v = 0.0
         self._theta_pred = float(self.estimate()[0][2])
 
@@ -190,11 +212,13 @@ class ParticleFilter(FilterBase):
         self._wn[:n] = w
         self._pending_resample = False
         self._cache = None
+        self._trig_n = 0
 
     # ----------------------------------------------------------------- motion
     def predict(self, control: Control, dt: float) -> None:
         """Move every particle with its own noisy copy of the command (walls stop it)."""
         n = self.n
+        self._trig_n = 0
         rng = self.ctx.rng
         noise = self.ctx.motion_noise
         x, y, th = self._P[0, :n], self._P[1, :n], self._P[2, :n]
@@ -215,7 +239,9 @@ class ParticleFilter(FilterBase):
         x += c
         y += s
         th += w
-        ps = noise.pose_std_at(control.v, control.omega)  # slip scales with the command
+        # slip scales the additive pose noise with the command; none declared: nothing to add
+        pose_std = getattr(noise, "pose_std", None)
+        ps = noise.pose_std_at(control.v, control.omega) if pose_std is None or any(pose_std) else ()
         if any(ps):
             for row, std in zip((x, y, th), ps, strict=True):
                 if std > 0:
@@ -224,8 +250,8 @@ class ParticleFilter(FilterBase):
                     row += v
         self._wrap_inplace(th)
         xmin, ymin, xmax, ymax = self.ctx.world.bounds
-        np.clip(x, xmin, xmax, out=x)
-        np.clip(y, ymin, ymax, out=y)
+        _clip(x, xmin, xmax, out=x)
+        _clip(y, ymin, ymax, out=y)
         self._theta_pred += control.omega * dt
         self._last_v = abs(control.v)
         self._cache = None
@@ -238,8 +264,11 @@ class ParticleFilter(FilterBase):
         np.floor(t, out=t)
         t *= TWO_PI
         a -= t
-        # float32 rounding can leave exactly pi
-        a[a >= math.pi] = -math.pi
+        # float32 rounding can leave exactly pi (rarely: test first, assign only then)
+        hit = self._hit[: a.shape[0]]
+        np.greater_equal(a, math.pi, out=hit)
+        if _any(hit):
+            a[hit] = -math.pi
 
     # ----------------------------------------------------------------- measurements
     def update(self, measurements: Sequence[Measurement]) -> None:
@@ -247,16 +276,19 @@ class ParticleFilter(FilterBase):
         measurements = [m for m in measurements if len(m)]
         if not measurements:
             return
+        association.particle_start(self)  # issue 29: forget the last per-particle choices
         if self._pending_resample:
             self._resample()
         n = self.n
         extra = self._extra = self._tick_loglik(measurements)
         ll = self._fit[:n]
         logw = self._logw[:n]
-        tmp = self._wn[:n]                   # float64 scratch, ends as the normalised weights
-        # The predicted weights (for the collapse floor), then the tick's fit for augmented MCL.
-        self._prior_w[:n] = self._wn[:n]
-        best = float(np.max(ll))
+        # The predicted weights stay as they are for the collapse floor (the two buffers
+        # swap: no copy); the other is scratch and ends as the normalised weights.
+        self._prior_w, self._wn = self._wn, self._prior_w
+        tmp = self._wn[:n]
+        # The tick's fit for augmented MCL.
+        best = float(_max(ll))
         self._update_lost()
         if self.params["recovery_fit"] == "best":
             # The best particle's fit: near 1 per reading whenever some particle is where
@@ -276,11 +308,10 @@ class ParticleFilter(FilterBase):
             logw += ll
             if extra is not None:
                 logw += extra
-        tmp[:] = logw
-        logw -= _logsumexp_inplace(tmp)
+        logw -= _logsumexp_into(logw, tmp)
         np.maximum(logw, -700.0, out=logw)          # no denormals (they are slow)
         np.exp(logw, out=tmp)
-        tmp *= 1.0 / tmp.sum()
+        tmp *= 1.0 / _sum(tmp)
         self.ess = 1.0 / float(np.dot(tmp, tmp))
         self._spread_floor = None
         if self.ess < COLLAPSE_ESS and not staged:
@@ -353,6 +384,7 @@ class ParticleFilter(FilterBase):
             for row in range(3):
                 np.take(self._P[row, :n], idx, out=P[row, :n])
             self._P, self._P2 = P, self._P
+            self._trig_n = 0
             self._logw[:n] = -math.log(n)
             self._roughen(n, 1.0)
             dims = self._dims
@@ -403,10 +435,15 @@ class ParticleFilter(FilterBase):
         cut = self._chi2_cut.get(dof)
         if cut is None:
             cut = self._chi2_cut[dof] = chi2_quantile(self.params["lost_chi2"], dof)
-        best = fits.max(axis=-1)
-        k = int(np.size(best))
+        best = _max(fits, axis=-1)   # an array (k,), or a numpy scalar for one row
+        k = int(best.size)
         self._tally[0] += k
-        self._tally[1] += int(np.count_nonzero(-2.0 * np.asarray(best, dtype=np.float64) > cut))
+        if k <= 16:   # a few readings: on floats (float32 -> float exactly, the same test)
+            vals = best.tolist()
+            self._tally[1] += sum(1 for b in vals if -2.0 * b > cut) if type(vals) is list \
+                else int(-2.0 * vals > cut)
+        else:
+            self._tally[1] += int(np.count_nonzero(-2.0 * np.asarray(best, dtype=np.float64) > cut))
         self._tally[2] += eps * k
 
     def _update_recovery(self, w_avg: float) -> None:
@@ -444,24 +481,34 @@ class ParticleFilter(FilterBase):
         """Add the log-likelihood of ``m`` at every particle to ``ll`` (noise constants that
         are the same for all particles left out, so every term is <= 0). Returns the number
         of scalar readings."""
+        if association.is_unlabeled(m):  # unknown correspondence: ML per particle (issue 29)
+            return association.particle_loglik(self, m, ll)
         n = self.n
-        spec = self.ctx.sensor(m.sensor)
+        known = self._sensor_of.get(m.sensor)
+        if known is None:
+            spec = self.ctx.sensor(m.sensor)
+            std = spec.reading_std() if spec.kind in ("bearing", "range_bearing") else None
+            known = self._sensor_of[m.sensor] = (spec, std, None if std is None else 1.0 / std[-1] ** 2)
+        spec, std, kappa = known
         x, y, th = self._P[0, :n], self._P[1, :n], self._P[2, :n]
         z = np.asarray(m.z, dtype=float)
         eps = spec.outlier_rate
         if m.kind in ("bearing", "range_bearing"):
-            bxy = self.ctx.world.beacon_positions(m.beacon_ids)
-            std = spec.reading_std()
-            kappa = 1.0 / std[-1] ** 2
+            if std is None:  # a reading of a kind its sensor does not make
+                std = spec.reading_std()
+                kappa = 1.0 / std[-1] ** 2
+            bx, by = self._beacon_columns(m.beacon_ids)
             k = z.shape[0]
             T1, T2, T3, DX, DY = self._scratch(k, n)
             c, s = self._c[:n], self._s[:n]
-            np.cos(th, out=c)
-            np.sin(th, out=s)
+            if self._trig_n != n:
+                np.cos(th, out=c)
+                np.sin(th, out=s)
+                self._trig_n = n
             cz = np.cos(z[:, -1]).astype(self.dtype)[:, None]
             sz = np.sin(z[:, -1]).astype(self.dtype)[:, None]
-            np.subtract(bxy[:, 0:1].astype(self.dtype), x, out=DX)
-            np.subtract(bxy[:, 1:2].astype(self.dtype), y, out=DY)
+            np.subtract(bx, x, out=DX)
+            np.subtract(by, y, out=DY)
             # cos(innovation) = [cos(theta + z) dx + sin(theta + z) dy] / r,
             # cos(theta + z) = c cz - s sz, sin(theta + z) = s cz + c sz.
             np.multiply(c, cz, out=T1)
@@ -496,7 +543,7 @@ class ParticleFilter(FilterBase):
                         self.ctx.world.width, self.ctx.world.height)
                     log_u += -math.log(rmax) + 0.5 * math.log(TWO_PI * std[0] ** 2)
                 T1[:] = np.logaddexp(T1 + math.log1p(-eps), math.log(eps) + log_u)
-            ll += T1.sum(axis=0, dtype=np.float64) if k > 1 else T1[0]
+            ll += _sum(T1, axis=0, dtype=np.float64) if k > 1 else T1[0]
             return int(z.size)
         if m.kind == "pose":
             std = spec.fix_std(len(m.beacon_ids))
@@ -542,6 +589,7 @@ class ParticleFilter(FilterBase):
         p = self.params
         rng = self.ctx.rng
         n_old = self.n
+        self._trig_n = 0
         w = self._wn[:n_old]
         if not self.adaptive:
             n_new = n_old
@@ -619,17 +667,19 @@ class ParticleFilter(FilterBase):
         vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
         L = vecs * np.sqrt(np.maximum(vals, 0.0))
         P = self._P[:, :n]
+        self._trig_n = 0
         P += (L @ self.ctx.rng.standard_normal((3, n))).astype(self.dtype)
         self._wrap_inplace(P[2])
         xmin, ymin, xmax, ymax = self.ctx.world.bounds
-        np.clip(P[0], xmin, xmax, out=P[0])
-        np.clip(P[1], ymin, ymax, out=P[1])
+        _clip(P[0], xmin, xmax, out=P[0])
+        _clip(P[1], ymin, ymax, out=P[1])
 
     def _roughen(self, n: int, factor: float | None = None) -> None:
         """Gaussian jitter with ``factor`` (default: the ``roughen`` parameter) times the
         kernel bandwidth (Silverman's rule, 3-D: ``h = n^(-1/7)`` of each dimension's spread)."""
         rng = self.ctx.rng
         P = self._P[:, :n]
+        self._trig_n = 0
         h = (self.params["roughen"] if factor is None else factor) * n ** (-1.0 / 7.0)
         sd = np.std(P[:2].astype(np.float64), axis=1)
         th_sd = math.sqrt(max(0.0, -2.0 * math.log(max(
@@ -647,15 +697,18 @@ class ParticleFilter(FilterBase):
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """Weighted mean and covariance ([m, m, rad]; heading circular, residuals wrapped)."""
         if self._cache is None:
-            w = self._wn[: self.n]
-            P = self._P[:, : self.n]
+            n = self.n
+            w = self._wn[:n]
+            P = self._P[:, :n]
+            trig = (self._s[:n], self._c[:n]) if self._trig_n == n else None
             if self.params["estimate"] == "cluster":
                 sel = self._dominant_cluster(P, w)
-                P, w = P[:, sel], w[sel] / w[sel].sum()
+                P, w, trig = P[:, sel], w[sel] / w[sel].sum(), None
             if self._work is None or self._work.shape[1] < 4:
                 self._work = np.empty((5, max(4, len(self.ctx.world.beacons)), self.capacity),
                                       dtype=self.dtype)
-            mean, cov = weighted_pose_stats(P, w, self._work[:, 0, :])
+                self._views.clear()
+            mean, cov = weighted_pose_stats(P, w, self._work[:, 0, :], trig)
             if self._spread_floor is not None:
                 cov = cov + self._spread_floor
             if self.params["lost_cov"] and self.lost >= self.lost_at:
@@ -716,16 +769,36 @@ class ParticleFilter(FilterBase):
         poses.flags.writeable = False
         return ParticleBelief(poses, self.weights())
 
+    def _beacon_columns(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The x and y [m] of these beacons as columns (k, 1) of the particles' dtype,
+        remembered per set of IDs (an unknown ID raises as ``World.beacon_positions``)."""
+        key = ids.tobytes()
+        cols = self._beacons_of.get(key)
+        if cols is None or cols[2] != ids.dtype:
+            bxy = self.ctx.world.beacon_positions(ids)
+            cols = (bxy[:, 0:1].astype(self.dtype), bxy[:, 1:2].astype(self.dtype), ids.dtype)
+            if len(self._beacons_of) >= 4096:
+                self._beacons_of.clear()
+            self._beacons_of[key] = cols
+        return cols[0], cols[1]
+
     def _scratch(self, k: int, n: int) -> list[np.ndarray]:
-        """Five (k, n) work arrays, reused between calls."""
+        """Five (k, n) work arrays, reused between calls (the views too, per (k, n))."""
         if self._work is None or self._work.shape[1] < k:
             self._work = np.empty((5, max(k, len(self.ctx.world.beacons)), self.capacity),
                                   dtype=self.dtype)
-        return [self._work[i, :k, :n] for i in range(5)]
+            self._views.clear()
+        views = self._views.get((k, n))
+        if views is None:
+            if len(self._views) >= 64:
+                self._views.clear()
+            views = self._views[(k, n)] = [self._work[i, :k, :n] for i in range(5)]
+        return views
 
 
-def weighted_pose_stats(P: np.ndarray, w: np.ndarray,
-                        work: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = None,
+                        trig: tuple[np.ndarray, np.ndarray] | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
     """Mean and covariance of weighted poses.
 
     Parameters
@@ -736,6 +809,8 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray,
         Normalised weights.
     work : ndarray, shape (>= 4, >= n), optional
         Scratch space of P's dtype, to avoid allocating.
+    trig : (ndarray, ndarray), optional
+        ``sin`` and ``cos`` of the headings ``P[2]`` (P's dtype), when already at hand.
 
     Returns
     -------
@@ -752,15 +827,17 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray,
     wt[:] = w
     mx = float(np.dot(wt, P[0]))
     my = float(np.dot(wt, P[1]))
-    np.sin(P[2], out=E[0])
-    np.cos(P[2], out=E[1])
-    mth = wrap(math.atan2(float(np.dot(wt, E[0])), float(np.dot(wt, E[1]))))
+    if trig is None:
+        trig = np.sin(P[2], out=E[0]), np.cos(P[2], out=E[1])
+    mth = wrap(math.atan2(float(np.dot(wt, trig[0])), float(np.dot(wt, trig[1]))))
     np.subtract(P[0], mx, out=E[0])
     np.subtract(P[1], my, out=E[1])
     e = E[2]
     np.subtract(P[2], mth, out=e)            # in (-2 pi, 2 pi): wrap by at most one turn
-    e[e >= math.pi] -= TWO_PI
-    e[e < -math.pi] += TWO_PI
+    if _any(np.greater_equal(e, math.pi)):  # rarely: test first, wrap only then
+        np.subtract(e, TWO_PI, out=e, where=e >= math.pi)
+    if _any(np.less(e, -math.pi)):
+        np.add(e, TWO_PI, out=e, where=e < -math.pi)
     WE = np.multiply(E, wt)
     cov = (WE @ E.T).astype(np.float64)
     cov = 0.5 * (cov + cov.T)
@@ -804,9 +881,9 @@ _MAX_STAGES = 8   # progressive correction: the last stage takes what is left of
 def _ess(logw: np.ndarray, out: np.ndarray | None = None) -> float:
     """Effective sample size ``(sum w)^2 / sum w^2`` of unnormalised log-weights (n,);
     ``out`` (n,) float64 scratch (may be ``logw`` itself) saves the allocations."""
-    w = np.subtract(logw, float(np.max(logw)), out=out)
+    w = np.subtract(logw, float(_max(logw)), out=out)
     np.exp(w, out=w)
-    return float(w.sum() ** 2 / np.dot(w, w))
+    return float(_sum(w) ** 2 / np.dot(w, w))
 
 
 def _scaled_sum(logw: np.ndarray, lam: float, total: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -824,12 +901,24 @@ def _plus(logw: np.ndarray, ll: np.ndarray, extra: np.ndarray | None, out: np.nd
     return out
 
 
+def _logsumexp_into(a: np.ndarray, out: np.ndarray) -> float:
+    """log(sum(exp(a))), with ``out`` (like ``a``) as scratch: :func:`_logsumexp_inplace` of a
+    copy of ``a``, without the copy (the same operations on the same values)."""
+    m = float(_max(a))
+    if not math.isfinite(m):
+        return m
+    np.subtract(a, m, out=out)
+    np.maximum(out, -700.0, out=out)
+    np.exp(out, out=out)
+    return m + math.log(float(_sum(out)))
+
+
 def _logsumexp_inplace(a: np.ndarray) -> float:
     """log(sum(exp(a))), using ``a`` as scratch (it is overwritten)."""
-    m = float(np.max(a))
+    m = float(_max(a))
     if not math.isfinite(m):
         return m
     a -= m
     np.maximum(a, -700.0, out=a)   # exp of values below -745 underflows on a 10x slower path
     np.exp(a, out=a)
-    return m + math.log(float(np.sum(a)))
+    return m + math.log(float(_sum(a)))

@@ -145,6 +145,26 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
     FilterRecord("dead_reckoning", "beacon_sim.filters.dead_reckoning:DeadReckoning",
                  ("grey", "short dash"),
                  batched="beacon_sim.filters.dead_reckoning:BatchedDeadReckoning"),
+    # Landmark SLAM (docs/slam.md): the map is part of the estimate.
+    FilterRecord("ekf_slam", "beacon_sim.filters.ekf_slam:EKFSLAM", ("sky blue", "solid"),
+                 ranges={"gate_prob": Range(0.5, 1.0 - 1e-9, "chi-square share a true pairing passes"),
+                         "new_landmark_prob": Range(0.5, 1.0 - 1e-12, "farther than this quantile "
+                                                                     "from all: a new landmark"),
+                         "max_landmarks": Range(0, 10_000, "most landmarks in the state"),
+                         "confirm_hits": Range(1, 1000, "readings before a new unlabelled landmark "
+                                                        "is kept"),
+                         "max_nodes": Range(1, 10_000_000, "most JCBB search nodes per tick"),
+                         "min_parallax": Range(1e-3, 3.0, "angle between two bearings before a "
+                                                          "landmark is triangulated [rad]")}),
+    FilterRecord("fastslam", "beacon_sim.filters.fastslam:FastSLAM2", ("yellow", "dash-dot"),
+                 ranges={"n_particles": Range(1, 100_000, "particles, each with its own map"),
+                         "ess_threshold": Range(*_FRACTION, "resample when ESS < this share of N"),
+                         "gate_prob": Range(0.5, 1.0 - 1e-9, "chi-square share a true pairing passes"),
+                         "new_landmark_prob": Range(0.5, 1.0 - 1e-12, "farther than this quantile "
+                                                                     "from all: a new landmark"),
+                         "max_landmarks": Range(0, 10_000, "most landmarks per particle"),
+                         "confirm_hits": Range(1, 1000, "readings before a new unlabelled landmark "
+                                                        "is kept")}),
     # Team filters (filters/team.py): the baseline that ignores the teammates is grey like
     # dead reckoning; naive fusion, the overconfident counter-example, vermillion and dotted.
     FilterRecord("independent", "beacon_sim.filters.team:IndependentTeam", ("grey", "short dash"),

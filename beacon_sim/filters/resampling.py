@@ -14,7 +14,7 @@ RESAMPLERS = ("systematic", "stratified", "residual", "multinomial")
 
 def _scaled_cumsum(weights: np.ndarray, n_out: int) -> np.ndarray:
     """``n_out * cumsum(w)`` with the last entry forced to exactly ``n_out`` (rounding)."""
-    c = np.cumsum(weights, dtype=np.float64)
+    c = np.add.accumulate(weights, dtype=np.float64)  # np.cumsum without its Python layers
     c *= n_out / c[-1]
     c[-1] = n_out
     return c
@@ -27,10 +27,27 @@ def systematic(weights: np.ndarray, n_out: int, rng: np.random.Generator) -> np.
     c = _scaled_cumsum(weights, n_out)
     u = rng.random()
     # Number of points u + k (k = 0..n_out-1) below each boundary c_i: ceil(c_i - u).
-    below = np.ceil(c - u).astype(np.int64)
-    np.clip(below, 0, n_out, out=below)
-    counts = np.diff(below, prepend=0)
-    return np.repeat(np.arange(weights.shape[0]), counts)
+    c -= u
+    np.ceil(c, out=c)
+    below = c.astype(np.int64)
+    np.maximum(below, 0, out=below)
+    np.minimum(below, n_out, out=below)
+    counts = np.empty_like(below)              # np.diff(below, prepend=0), without its copies
+    counts[0] = below[0]
+    np.subtract(below[1:], below[:-1], out=counts[1:])
+    return np.repeat(_arange(weights.shape[0]), counts)
+
+
+_ARANGE = np.arange(0)
+
+
+def _arange(n: int) -> np.ndarray:
+    """``np.arange(n)`` (int64), a read-only view of one kept array (grown as needed)."""
+    global _ARANGE
+    if _ARANGE.shape[0] < n:
+        _ARANGE = np.arange(max(n, 2 * _ARANGE.shape[0]), dtype=np.int64)
+        _ARANGE.flags.writeable = False
+    return _ARANGE[:n]
 
 
 def stratified(weights: np.ndarray, n_out: int, rng: np.random.Generator) -> np.ndarray:

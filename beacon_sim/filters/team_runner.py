@@ -230,6 +230,21 @@ class TeamRunner:
         for name, reason in joint_why.items():
             self.joint.tracks[name].failed = f"could not be built: {reason}"
 
+    @classmethod
+    def around(cls, team: TeamScenario, members: Sequence[FilterRunner],
+               joint: JointRunner | None = None) -> TeamRunner:
+        """A TeamRunner over runners already built and fed elsewhere (a replay's): ``members[i]``
+        robot i's FilterRunner of the single-robot filters (one per robot), ``joint`` the
+        team filters' JointRunner (None: none)."""
+        if len(members) != team.n_robots:
+            raise ValueError(f"{len(members)} member runners for a team of {team.n_robots}")
+        runner = cls.__new__(cls)
+        runner.team, runner.n_robots, runner.members = team, team.n_robots, list(members)
+        runner.joint = joint if joint is not None else JointRunner({}, team.n_robots)
+        runner.member_names = list(members[0].tracks)
+        runner.names = runner.member_names + [n for n in runner.joint.tracks if n not in members[0].tracks]
+        return runner
+
     def is_member(self, name: str) -> bool:
         """Whether ``name`` is a single-robot filter run on each robot (else a team filter)."""
         return name in self.members[0].tracks

@@ -100,7 +100,11 @@ class {class_name}(FilterBase):
         for m in measurements:
             if m.kind == "range_bearing":
                 for z, beacon_id in zip(m.z, m.beacon_ids, strict=True):
-                    beacon_xy = self.beacons[int(beacon_id)]
+                    if beacon_id < 0:  # no ID (correspondence = "unknown"): writing-a-filter.md 8c
+                        continue
+                    beacon_xy = self.beacons.get(int(beacon_id))
+                    if beacon_xy is None:  # not on the map it was given (SLAM: new-filter --slam)
+                        continue
                     h = mm.range_bearing(self.mean, beacon_xy)[0]             # expected z, (2,)
                     H = mm.range_bearing_jacobian(self.mean, beacon_xy)[0]    # (2, 3)
                     y = z - h                                                 # innovation

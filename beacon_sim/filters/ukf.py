@@ -39,6 +39,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, broad_gaussian
 from beacon_sim.filters.gaussian_measurements import (
     ALL_ROWS,
@@ -361,9 +362,10 @@ class UnscentedKalmanFilter(BatchableFilter):
     """
 
     defaults: ClassVar[dict] = {"alpha": 1.0, "beta": 2.0, "kappa": 0.0, "scaled": True,
-                                "gate_chi2": 0.0}
+                                "gate_chi2": 0.0, **association.GAUSSIAN_PARAMS}
     batch_params: ClassVar[dict[str, Any]] = {"alpha": None, "beta": None, "kappa": None,
-                                              "scaled": None, "gate_chi2": None}
+                                              "scaled": None, "gate_chi2": None,
+                                              **dict.fromkeys(association.GAUSSIAN_PARAMS)}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
 
     def __init__(self, ctx: FilterContext):
@@ -375,6 +377,7 @@ class UnscentedKalmanFilter(BatchableFilter):
         self.models = ReadingModels(ctx)
         self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.rejected = 0  # readings dropped by the gate so far
+        association.attach(self)  # unknown correspondence (issue 29)
         self._Wm_now, self._Wc_now = self.Wm, self.Wc  # the weights of the last sigma points
         self._x = self._y = self._th = 0.0             # the mean [m, m, rad]
         self._p = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)       # P's distinct entries p00 p01 p02 p11 p12 p22
@@ -538,6 +541,7 @@ class UnscentedKalmanFilter(BatchableFilter):
     def update(self, measurements: Sequence[Measurement]) -> None:
         if not measurements:
             return
+        measurements = association.associate_gaussian(self, measurements)  # unknown IDs: issue 29
         rows = 0
         for m in measurements:
             width = _ROWS_PER_READING.get(m.kind)

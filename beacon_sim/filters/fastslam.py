@@ -1,0 +1,399 @@
+"""FastSLAM 2.0 (Montemerlo, Thrun, Koller and Wegbreit 2003): particles over the path, each
+with its own map of independent 2-D landmark EKFs (docs/slam.md).
+
+FastSLAM 1.0 samples the new pose from the motion model alone and lets the readings only
+weight it; with a sensor much better than the odometry almost every sample is then wasted.
+FastSLAM 2.0 samples from a proposal that already uses the tick's readings. Per particle k,
+starting from the motion prediction ``mu = f(x_k, u)``, ``Sigma = Q`` and for each reading
+paired with landmark j (mean m_j, covariance C_j), linearised at the current ``mu``::
+
+    nu = wrap(z - h(mu, m_j))               Hx = dh/dx, Hm = dh/dm
+    Z = Hm C_j Hm^T + R                     the reading's noise plus the landmark's
+    L = Hx Sigma Hx^T + Z                   predictive covariance of the reading
+    K = Sigma Hx^T L^-1
+    mu = mu + K nu,  Sigma = Sigma - K Hx Sigma   (the information form of the paper's
+                                                   Sigma = (Hx^T Z^-1 Hx + Sigma^-1)^-1)
+    w_k = w_k N(nu; 0, L)                   the importance weight: the reading's likelihood
+                                            with the pose still unknown
+
+then ``x_k ~ N(mu, Sigma)``, and each paired landmark gets an EKF update from the sampled
+pose (``S = Hm C Hm^T + R``, ``K = C Hm^T S^-1``, ``m += K nu``, ``C -= K S K^T``).
+A reading of a landmark not yet in a particle's map puts one there (``slam_base.place``,
+``C = Gz R Gz^T``) and multiplies the weight by the density ``p0`` of a reading at the
+``new_landmark_prob`` distance.
+
+Association per particle (readings without IDs): each particle pairs each reading with its
+own most likely landmark (lowest ``d2 + log det L``, against the motion-only proposal, all
+the tick's readings at once); within the ``gate_prob`` gate it is
+used; beyond the ``new_landmark_prob`` quantile it starts a landmark; in between it only
+weighs the particle by ``p0``. Particles with different maps can hold different pairings.
+Anchors (beacons whose position the filter is given) are landmarks with C = 0 that are
+never updated. Resampling (systematic) when the effective sample size falls below
+``ess_threshold`` N.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import ClassVar
+
+import numpy as np
+
+from beacon_sim.core.angles import wrap
+from beacon_sim.core.clutter import UNKNOWN_ID
+from beacon_sim.core.motion import MotionNoise, move
+from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.association import gate as chi2_gate
+from beacon_sim.filters.base import (
+    FilterContext,
+    GaussianBelief,
+    LandmarkMap,
+    ParticleBelief,
+    broad_gaussian,
+)
+from beacon_sim.filters.resampling import effective_sample_size, systematic
+from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
+
+#: Target of a reading for one particle: a slot index (>= 0), or one of these.
+NEW = -1      # start a landmark
+IGNORED = -2  # between the gate and the new-landmark distance: weight only
+#: ``lid`` of an empty landmark slot.
+EMPTY = UNKNOWN_ID - 1
+
+
+def inv_det(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse and determinant of a stack of 1 x 1 or 2 x 2 matrices S (..., d, d), written
+    out (numpy's batched solve costs ~1 us per tiny matrix; this, a few numpy calls in all)."""
+    if S.shape[-1] == 1:
+        det = S[..., 0, 0]
+        return 1.0 / S, det
+    a, b, c, d = S[..., 0, 0], S[..., 0, 1], S[..., 1, 0], S[..., 1, 1]
+    det = a * d - b * c
+    inv = np.empty_like(S)
+    inv[..., 0, 0] = d / det
+    inv[..., 0, 1] = -b / det
+    inv[..., 1, 0] = -c / det
+    inv[..., 1, 1] = a / det
+    return inv, det
+
+
+def proposal_step(kind: str, z: np.ndarray, R: np.ndarray, mu: np.ndarray, Sig: np.ndarray,
+                  lm: np.ndarray, lc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One reading folded into K particles' pose proposals (the module docstring's equations).
+
+    Parameters
+    ----------
+    kind, z, R : the reading (d,) and its noise covariance (d, d)
+    mu, Sig : ndarray, shapes (K, 3), (K, 3, 3): each particle's proposal so far
+    lm, lc : ndarray, shapes (K, 2), (K, 2, 2): the landmark each particle pairs it with
+
+    Returns
+    -------
+    mu, Sig : the proposals with the reading in
+    loglik : ndarray, shape (K,): ``log N(nu; 0, L)``, the factor of the importance weight
+    """
+    zhat, Hx, Hm = observe(kind, mu, lm)
+    nu = innovation(z[None, :], zhat)
+    HxT = Hx.transpose(0, 2, 1)
+    Z = Hm @ lc @ Hm.transpose(0, 2, 1) + R      # reading noise plus landmark uncertainty
+    SHt = Sig @ HxT                               # Sigma Hx^T (K, 3, d)
+    L = Hx @ SHt + Z
+    Linv, det = inv_det(L)
+    K = SHt @ Linv
+    mu = mu + np.einsum("kij,kj->ki", K, nu)
+    mu[:, 2] = wrap(mu[:, 2])
+    Sig = Sig - K @ SHt.transpose(0, 2, 1)
+    Sig = 0.5 * (Sig + Sig.transpose(0, 2, 1))
+    d = nu.shape[1]
+    loglik = -0.5 * (np.einsum("ki,kij,kj->k", nu, Linv, nu) + np.log(det) + d * math.log(2.0 * math.pi))
+    return mu, Sig, loglik
+
+
+class FastSLAM2(SlamFilterBase):
+    """FastSLAM 2.0 with per-particle landmark EKFs, known or unknown correspondence.
+
+    Parameters (``ctx.params``)
+    ---------------------------
+    n_particles : int, default 100
+    ess_threshold : float, default 0.5
+        Resample when the effective sample size drops below this share of N.
+    gate_prob, new_landmark_prob : float, defaults 0.99, 0.9999
+        Unknown correspondence, per particle (see the module docstring).
+    max_landmarks : int, default 500
+        Most landmarks per particle.
+    confirm_hits : int, default 2
+        Unknown correspondence: an unlabelled landmark is tentative until given this many
+        readings; a tentative one in view that gets none is dropped (clutter).
+    """
+
+    defaults: ClassVar[dict] = {"n_particles": 100, "ess_threshold": 0.5, "gate_prob": 0.99,
+                                "new_landmark_prob": 0.9999, "max_landmarks": 500, "confirm_hits": 2}
+
+    def __init__(self, ctx: FilterContext):
+        super().__init__(ctx)
+        self.n = int(self.params["n_particles"])
+        self.rng = ctx.rng
+        self.n_anchor = len(self.anchors)
+        self.reset(None)
+
+    # -- state -----------------------------------------------------------------------------
+    def reset(self, initial: GaussianBelief | None) -> None:
+        initial = initial or broad_gaussian(self.ctx.world)
+        n = self.n
+        mean = np.asarray(initial.mean, dtype=float).reshape(3)
+        cov = np.asarray(initial.cov, dtype=float).reshape(3, 3)
+        self.poses = mean + self._draw(np.broadcast_to(0.5 * (cov + cov.T), (n, 3, 3)))
+        self.poses[:, 2] = wrap(self.poses[:, 2])
+        self.logw = np.zeros(n)
+        A = self.n_anchor
+        cap = max(8, A + 8)
+        self.lm = np.zeros((n, cap, 2))
+        self.lc = np.zeros((n, cap, 2, 2))
+        self.lid = np.full((n, cap), EMPTY, dtype=np.int64)  # beacon ID, -1 unlabelled
+        self.hits = np.zeros((n, cap), dtype=np.int64)        # readings each landmark was given
+        for a, (bid, xy) in enumerate(self.anchors.items()):
+            self.lm[:, a] = xy
+            self.lid[:, a] = bid
+        self.count = np.full(n, A, dtype=np.int64)  # slots in use or freed: the high-water mark
+        self.prop_mu: np.ndarray | None = None   # the proposal between predict and update
+        self.prop_cov: np.ndarray | None = None
+
+    def _draw(self, cov: np.ndarray) -> np.ndarray:
+        """One zero-mean Gaussian sample per covariance (N, 3, 3) (semi-definite allowed)."""
+        w, V = np.linalg.eigh(cov)
+        root = V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]
+        return np.einsum("nij,nj->ni", root, self.rng.standard_normal((cov.shape[0], 3)))
+
+    def _grow(self, need: int) -> None:
+        cap = self.lm.shape[1]
+        if need <= cap:
+            return
+        new = max(need, 2 * cap)
+        n = self.n
+        self.lm = np.concatenate([self.lm, np.zeros((n, new - cap, 2))], axis=1)
+        self.lc = np.concatenate([self.lc, np.zeros((n, new - cap, 2, 2))], axis=1)
+        self.lid = np.concatenate([self.lid, np.full((n, new - cap), EMPTY)], axis=1)
+        self.hits = np.concatenate([self.hits, np.zeros((n, new - cap), dtype=np.int64)], axis=1)
+
+    @property
+    def weights(self) -> np.ndarray:
+        w = np.exp(self.logw - np.max(self.logw))
+        return w / np.sum(w)
+
+    def _poses_now(self) -> np.ndarray:
+        return self.poses if self.prop_mu is None else self.prop_mu
+
+    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        w = self.weights
+        p = self._poses_now()
+        th = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
+        mean = np.array([float(w @ p[:, 0]), float(w @ p[:, 1]), th])
+        d = p - mean
+        d[:, 2] = wrap(d[:, 2])
+        cov = (d * w[:, None]).T @ d
+        if self.prop_cov is not None:
+            cov += np.einsum("n,nij->ij", w, self.prop_cov)
+        return mean, 0.5 * (cov + cov.T)
+
+    def belief(self) -> ParticleBelief:
+        return ParticleBelief(self._poses_now().copy(), self.weights)
+
+    def landmarks(self) -> LandmarkMap:
+        """Known correspondence: each beacon's landmark as the weighted mixture over the
+        particles that have it. Unknown: the map of the particle with the largest weight."""
+        A = self.n_anchor
+        w = self.weights
+        ids_all = self.lid[:, A:]
+        labelled = ids_all[ids_all > UNKNOWN_ID]
+        if np.any(ids_all == UNKNOWN_ID):
+            k = int(np.argmax(w))
+            lid, hits = self.lid[k, A:], self.hits[k, A:]
+            keep = (lid >= 0) | ((lid == UNKNOWN_ID) & (hits >= int(self.params["confirm_hits"])))
+            return LandmarkMap(None, self.lm[k, A:][keep].copy(), self.lc[k, A:][keep].copy())
+        ids = np.unique(labelled)
+        means = np.zeros((ids.size, 2))
+        covs = np.zeros((ids.size, 2, 2))
+        for i, bid in enumerate(ids.tolist()):
+            has = self.lid == bid
+            rows = np.flatnonzero(has.any(axis=1))
+            cols = has[rows].argmax(axis=1)
+            wk = w[rows] / np.sum(w[rows])
+            m = self.lm[rows, cols]
+            means[i] = wk @ m
+            d = m - means[i]
+            covs[i] = np.einsum("n,nij->ij", wk, self.lc[rows, cols]) + (d * wk[:, None]).T @ d
+        return LandmarkMap(ids, means, covs)
+
+    # -- prediction ------------------------------------------------------------------------
+    def predict(self, control: Control, dt: float) -> None:
+        self._sample()  # a tick without update: the motion model alone is the proposal
+        v, w = float(control.v), float(control.omega)
+        noise = self.ctx.motion_noise
+        self.prop_cov = self._process_covs(v, w, dt) if type(noise) is MotionNoise \
+            else np.stack([noise.process_cov(p, v, w, dt) for p in self.poses])
+        self.prop_mu = move(self.poses, v, w, dt)
+
+    def _process_covs(self, v: float, w: float, dt: float) -> np.ndarray:
+        """Q at every particle's heading: B M B^T + diag(pose_std^2) (motion.process_cov)."""
+        noise = self.ctx.motion_noise
+        M = noise.control_cov(v, w)
+        th = self.poses[:, 2]
+        B = np.zeros((self.n, 3, 2))
+        B[:, 0, 0] = dt * np.cos(th)
+        B[:, 1, 0] = dt * np.sin(th)
+        B[:, 2, 1] = dt
+        return B @ M @ B.transpose(0, 2, 1) + np.diag(np.square(noise.pose_std_at(v, w)))
+
+    def _sample(self) -> None:
+        if self.prop_mu is None or self.prop_cov is None:
+            return
+        self.poses = self.prop_mu + self._draw(self.prop_cov)
+        self.poses[:, 2] = wrap(self.poses[:, 2])
+        self.prop_mu = self.prop_cov = None
+
+    # -- update ----------------------------------------------------------------------------
+    def _log_p0(self, rd: Reading) -> float:
+        """Log density of a reading at the new-landmark distance (the weight of a new one)."""
+        d = rd.z.size
+        t = chi2_gate(float(self.params["new_landmark_prob"]), d)
+        return -0.5 * t - 0.5 * math.log((2.0 * math.pi) ** d * float(np.linalg.det(rd.R)))
+
+    def _known_targets(self, rd: Reading) -> np.ndarray:
+        """The slot of the reading's beacon in each particle's map (or NEW)."""
+        match = self.lid == rd.beacon_id
+        return np.where(match.any(axis=1), match.argmax(axis=1), NEW)
+
+    def _unknown_targets(self, rows: list[Reading], mu: np.ndarray, Sig: np.ndarray
+                         ) -> list[np.ndarray]:
+        """Per-particle maximum-likelihood association of unlabelled readings of one sensor
+        (one kind and R): the slot each particle gives each reading (or NEW / IGNORED).
+
+        All the tick's readings are associated against the proposal before any of them is
+        folded in: the expected reading, the Jacobians and L of every (particle, landmark)
+        pair do not depend on the reading, so they are computed once (N x C) and each reading
+        costs only its innovations."""
+        n, m = self.n, len(rows)
+        cmax = int(self.count.max())
+        if cmax == 0:
+            return [np.full(n, NEW) for _ in rows]
+        kind, R = rows[0].kind, rows[0].R
+        lm = self.lm[:, :cmax]
+        zhat, Hx, Hm = observe(kind, np.repeat(mu, cmax, axis=0), lm.reshape(-1, 2))
+        d = zhat.shape[1]
+        Hx = Hx.reshape(n, cmax, d, 3)
+        Hm = Hm.reshape(n, cmax, d, 2)
+        L = Hx @ Sig[:, None] @ Hx.swapaxes(-1, -2) + Hm @ self.lc[:, :cmax] @ Hm.swapaxes(-1, -2) + R
+        z = np.stack([rd.z for rd in rows])                        # (m, d)
+        nu = innovation(z[None, :, None, :], zhat.reshape(n, 1, cmax, d))  # (n, m, C, d)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            Linv, det = inv_det(L)
+            d2 = np.einsum("nmci,ncij,nmcj->nmc", nu, Linv, nu)
+            score = d2 + np.log(det)[:, None, :]
+        valid = (self.lid[:, :cmax] > EMPTY)[:, None, :]
+        score = np.where(valid & np.isfinite(score), score, np.inf)
+        best = np.argmin(score, axis=2)                            # (n, m)
+        d2b = np.take_along_axis(d2, best[..., None], axis=2)[..., 0]
+        okb = np.isfinite(np.take_along_axis(score, best[..., None], axis=2)[..., 0])
+        d2b = np.where(okb, d2b, np.inf)
+        gate = chi2_gate(float(self.params["gate_prob"]), d)
+        new = chi2_gate(float(self.params["new_landmark_prob"]), d)
+        tgt = np.where(d2b <= gate, best, np.where(d2b > new, NEW, IGNORED))
+        return [tgt[:, i] for i in range(m)]
+
+    def update(self, measurements: Sequence[Measurement]) -> None:
+        rows = list(self.readings(measurements))
+        if not rows:
+            self._sample()
+            return
+        if self.prop_mu is None or self.prop_cov is None:  # no predict since the last update
+            self.prop_mu, self.prop_cov = self.poses.copy(), np.zeros((self.n, 3, 3))
+        mu, Sig = self.prop_mu.copy(), self.prop_cov.copy()
+        targets: dict[int, np.ndarray] = {}
+        for sensor in dict.fromkeys(rd.sensor for rd in rows if unknown(rd)):
+            pick = [i for i, rd in enumerate(rows) if unknown(rd) and rd.sensor == sensor]
+            targets.update(zip(pick, self._unknown_targets([rows[i] for i in pick], mu, Sig), strict=True))
+        done: list[tuple[Reading, np.ndarray]] = []
+        for i, rd in enumerate(rows):
+            tgt = targets[i] if i in targets else self._known_targets(rd)
+            k = np.flatnonzero(tgt >= 0)
+            if k.size:
+                mu[k], Sig[k], loglik = proposal_step(rd.kind, rd.z, rd.R, mu[k], Sig[k],
+                                                      self.lm[k, tgt[k]], self.lc[k, tgt[k]])
+                self.logw[k] += loglik
+            other = tgt < 0
+            if np.any(other):
+                self.logw[other] += self._log_p0(rd)
+            done.append((rd, tgt))
+        self.prop_mu, self.prop_cov = mu, Sig
+        self._sample()
+        self._landmark_updates(done)
+        self.logw -= np.max(self.logw)
+        w = self.weights
+        if effective_sample_size(w) < float(self.params["ess_threshold"]) * self.n:
+            idx = systematic(w, self.n, self.rng)
+            self.poses, self.lm, self.lc = self.poses[idx], self.lm[idx], self.lc[idx]
+            self.lid, self.count, self.hits = self.lid[idx], self.count[idx], self.hits[idx]
+            self.logw = np.zeros(self.n)
+
+    def _landmark_updates(self, done: list[tuple[Reading, np.ndarray]]) -> None:
+        """Each paired landmark's EKF update from the sampled pose; new landmarks placed;
+        tentative unlabelled landmarks that were in view and not seen dropped."""
+        A = self.n_anchor
+        cap = A + int(self.params["max_landmarks"])
+        touched = np.zeros(self.lid.shape, dtype=bool)
+        any_unknown = False
+        for rd, tgt in done:
+            if not unknown(rd):  # known IDs: look the slot up again (it may be new)
+                match = self.lid == rd.beacon_id
+                tgt = np.where(match.any(axis=1), match.argmax(axis=1), NEW)
+            else:
+                any_unknown = True
+            k = np.flatnonzero(tgt >= A)
+            if k.size:
+                c = tgt[k]
+                zhat, _, Hm = observe(rd.kind, self.poses[k], self.lm[k, c])
+                nu = innovation(rd.z[None, :], zhat)
+                C = self.lc[k, c]
+                CHt = C @ Hm.transpose(0, 2, 1)
+                S = Hm @ CHt + rd.R
+                K = CHt @ inv_det(S)[0]
+                self.lm[k, c] += np.einsum("kij,kj->ki", K, nu)
+                C = C - K @ CHt.transpose(0, 2, 1)
+                self.lc[k, c] = 0.5 * (C + C.transpose(0, 2, 1))
+                self.hits[k, c] += 1
+                touched[k, c] = True
+            used = (self.lid[:, A:] > EMPTY).sum(axis=1)
+            k = np.flatnonzero((tgt == NEW) & (used < cap - A))
+            if k.size and rd.kind == "range_bearing":
+                if not np.all((self.lid[k] == EMPTY).any(axis=1)):
+                    self._grow(self.lid.shape[1] + 1)
+                    touched = np.pad(touched, ((0, 0), (0, self.lid.shape[1] - touched.shape[1])))
+                c = np.argmax(self.lid[k] == EMPTY, axis=1)  # the first free slot
+                m, _, Gz = place(self.poses[k], rd.z)
+                self.lm[k, c] = m
+                self.lc[k, c] = Gz @ rd.R @ Gz.transpose(0, 2, 1)
+                self.lid[k, c] = rd.beacon_id
+                self.hits[k, c] = 1
+                self.count[k] = np.maximum(self.count[k], c + 1)
+                touched[k, c] = True
+        if any_unknown:
+            self._drop_tentative(touched, {rd.sensor for rd, _ in done if unknown(rd)})
+
+    def _drop_tentative(self, touched: np.ndarray, sensors: set[str]) -> None:
+        """Free the slots of unlabelled landmarks given fewer than ``confirm_hits`` readings
+        that were in view of a sensor that fired and got none this tick (clutter)."""
+        cmax = int(self.count.max())
+        lid, hits = self.lid[:, :cmax], self.hits[:, :cmax]
+        cand = (lid == UNKNOWN_ID) & (hits < int(self.params["confirm_hits"])) & ~touched[:, :cmax]
+        if not cand.any():
+            return
+        k, c = np.nonzero(cand)
+        zhat = observe("range_bearing", self.poses[k], self.lm[k, c])[0]
+        view = np.zeros(k.size, dtype=bool)
+        for name in sensors:
+            spec = self.ctx.sensor(name)
+            view |= (zhat[:, 0] <= spec.max_range) & (
+                (spec.fov >= 2 * math.pi) | (np.abs(zhat[:, 1]) <= spec.fov / 2))
+        self.lid[k[view], c[view]] = EMPTY
+        self.hits[k[view], c[view]] = 0
