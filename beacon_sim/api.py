@@ -166,14 +166,17 @@ def _plain_params(params: Mapping[str, Mapping[str, Any]] | None) -> dict[str, d
 
 
 def replay(recording: str | Path | Recording, filters: Sequence[str | type] | None = None, *,
-           params: Mapping[str, Mapping[str, Any]] | None = None) -> Run:
+           params: Mapping[str, Mapping[str, Any]] | None = None) -> Run | TeamRun:
     """A recording (``beacon-sim play`` writes them) replayed bit for bit, like
-    ``beacon-sim replay FILE --headless``; ``filters`` None runs the recorded built-in ones."""
+    ``beacon-sim replay FILE --headless``; ``filters`` None runs the recorded built-in ones.
+    A team's recording gives a :class:`TeamRun`."""
     rec = recording if isinstance(recording, Recording) else load_recording(recording)
     specs = _specs(filters)
     plain = _plain_params(params)
-    check_param_names(plain, recorded_filter_specs(rec, specs)[0])  # as replay --set
-    return Run(replay_recording(rec, specs, plain), rec)
+    if not rec.is_team:
+        check_param_names(plain, recorded_filter_specs(rec, specs)[0])  # as replay --set
+    out = replay_recording(rec, specs, plain)
+    return TeamRun(out) if rec.is_team else Run(out, rec)
 
 
 def load_tables(path: str | Path) -> dict[str, Any]:

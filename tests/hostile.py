@@ -263,16 +263,16 @@ def recording_text(tmp: Path) -> str:
 
 
 def team_recording_text(tmp: Path) -> str:
-    """A short real team recording of ``team_sparse`` (written by the TeamRecorder): the
+    """A short real team recording of ``team_sparse`` (written by the Recorder): the
     keys drive the scout, Tab, a kidnap and a reset."""
     from beacon_sim.core.team_scenario import load_team_scenario
     from beacon_sim.runs.live import Session
-    from beacon_sim.runs.recorder import TeamRecorder
+    from beacon_sim.runs.recorder import Recorder
 
     team = load_team_scenario("team_sparse")
     path = tmp / "team_base.jsonl"
     s = Session(team, ["independent", "centralised"], 2, {},
-                    TeamRecorder(path, team, 2, ["independent", "centralised"]))
+                Recorder(path, team, 2, ["independent", "centralised"]))
     for k in range(1, 41):
         if k == 3:
             s.drive("w")

@@ -20,6 +20,8 @@ from beacon_sim.core import motion
 from beacon_sim.core.batch_simulation import BatchSimulation
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation, scenario_with_slip
+from beacon_sim.core.team import TeamSimulation
+from beacon_sim.core.team_scenario import team_of_one
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import RecordingError, load_recording
 from beacon_sim.runs.live import Session
@@ -145,7 +147,7 @@ def test_an_old_recording_replays_with_the_legacy_model(tmp_path):
     sc = scenario_with_slip(load_scenario("assignment_kf"), "legacy")
     path = tmp_path / "old.jsonl"
     rec = Recorder(path, load_scenario("assignment_kf"), sc.seed, ["kf"], {})
-    rec.shadow = Simulation(sc, sc.seed)   # a recorder from before issue 25
+    rec.shadow = TeamSimulation(team_of_one(sc), sc.seed)   # a recorder from before issue 25
     for k in range(1, 201):
         rec.record_tick(k, Control(0.0, 0.0) if k > 50 else Control(0.3, 0.2), [])
     rec.close()
@@ -214,14 +216,11 @@ def test_the_batched_simulation_bumps_as_the_single_one(omega):
 
 def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
     from beacon_sim.core.team_scenario import load_team_scenario
-    from beacon_sim.io.recording import load_team_recording
     from beacon_sim.runs.live import Session
-    from beacon_sim.runs.recorder import TeamRecorder
-    from beacon_sim.runs.team_replay import replay_team_recording
 
     team = load_team_scenario("team_sparse")
     path = tmp_path / "team_wall.jsonl"
-    rec = TeamRecorder(path, team, team.seed, ["independent"], {})
+    rec = Recorder(path, team, team.seed, ["independent"], {})
     s = Session(team, ["independent"], recorder=rec)
     for _ in range(10):
         s.drive("w")
@@ -234,22 +233,19 @@ def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
             s.drive("w")
     s.close()
     assert bumps >= 2
-    out = replay_team_recording(load_team_recording(path))
-    assert out.replay["checksum_status"].startswith("verified")
-    assert out.result.truth_checksum == s.sim.truth_checksum
+    out = replay_recording(load_recording(path))
+    assert out.extra["replay"]["checksum_status"].startswith("verified")
+    assert out.truth_checksum == s.sim.truth_checksum
 
 
 def test_an_old_team_recording_replays_with_the_legacy_model(tmp_path):
     """A team file without "slip_model": every robot replays with the legacy slip."""
     from beacon_sim.core.team import TeamSimulation, team_with_slip
     from beacon_sim.core.team_scenario import load_team_scenario
-    from beacon_sim.io.recording import load_team_recording
-    from beacon_sim.runs.recorder import TeamRecorder
-    from beacon_sim.runs.team_replay import replay_team_recording
 
     team = load_team_scenario("team_sparse")
     path = tmp_path / "old_team.jsonl"
-    rec = TeamRecorder(path, team, team.seed, ["independent"], {})
+    rec = Recorder(path, team, team.seed, ["independent"], {})
     rec.shadow = TeamSimulation(team_with_slip(team, "legacy"), team.seed)  # before issue 25
     for k in range(1, 121):
         rec.record_tick(k, 0, Control(0.0, 0.0) if k > 40 else Control(0.3, 0.2))
@@ -258,10 +254,10 @@ def test_an_old_team_recording_replays_with_the_legacy_model(tmp_path):
     header = json.loads(lines[0])
     del header["slip_model"]
     path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
-    out = replay_team_recording(load_team_recording(path))
-    assert out.replay["checksum_status"].startswith("verified")
-    assert out.result.truth_checksum == rec.truth_checksum
+    out = replay_recording(load_recording(path))
+    assert out.extra["replay"]["checksum_status"].startswith("verified")
+    assert out.truth_checksum == rec.truth_checksum
     header["slip_model"] = "scaled"  # the same file read under the new model differs
     path.write_text("\n".join([json.dumps(header), *lines[1:]]) + "\n")
     with pytest.raises(RecordingError):
-        replay_team_recording(load_team_recording(path))
+        replay_recording(load_recording(path))

@@ -31,12 +31,10 @@ from beacon_sim.io.recording import (
     KEY_VARIABLE,
     RecordingError,
     default_recording_path,
-    load_any_recording,
     load_recording,
-    load_team_recording,
 )
 from beacon_sim.runs.live import Session
-from beacon_sim.runs.recorder import Recorder, TeamRecorder
+from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.replay import (
     ReplayMismatch,
     ReplaySession,
@@ -44,7 +42,6 @@ from beacon_sim.runs.replay import (
     recorded_params,
     replay_recording,
 )
-from beacon_sim.runs.team_replay import replay_team_recording
 
 OLD = Path(__file__).parent / "data" / "old_recordings"
 FILTERS = ["ekf", "dead_reckoning"]
@@ -221,18 +218,15 @@ def test_every_old_recording_loads_and_replays_to_the_same_truth(capsys):
                                        "v2_team_sparse.jsonl"}
     truths = {}
     for f in files:
-        rec = load_any_recording(f)
-        assert rec.complete and rec.version in (1, 2)
-        if rec.header.get("kind") == "team":
-            out = replay_team_recording(load_team_recording(f))
-            truth, status = out.result.truth_checksum, out.replay["checksum_status"]
-        else:
-            res = replay_recording(rec)
-            truth, status = res.truth_checksum, res.extra["replay"]["checksum_status"]
+        rec = load_recording(f)
+        assert rec.complete and rec.version in (1, 2, 3)
+        out = replay_recording(rec)
+        truth, status = out.truth_checksum, out.extra["replay"]["checksum_status"]
         assert truth == rec.end["checksum"], f.name
         truths[f.name] = truth
         covers = {1: "verified: truth only; readings and filter settings not recorded (a version 1 file)",
-                  2: "verified: truth and readings; filter settings not recorded (a version 2 file)"}
+                  2: "verified: truth and readings; filter settings not recorded (a version 2 file)",
+                  3: "verified"}
         assert status == covers[rec.version], f.name
         assert main(["replay", str(f), "--headless"]) == 0
         assert covers[rec.version] in capsys.readouterr().out
@@ -301,16 +295,16 @@ def test_a_team_recording_stores_settings_and_an_edit_is_named(tmp_path):
     team = load_team_scenario("team_sparse")
     path = tmp_path / "team.jsonl"
     specs = ["independent", "centralised"]
-    s = Session(team, specs, 2, {}, TeamRecorder(path, team, 2, specs))
+    s = Session(team, specs, 2, {}, Recorder(path, team, 2, specs))
     for _ in range(45):
         s.tick()
     s.close()
     objs = objects(path)
     assert objs[1]["type"] == "filters" and set(objs[1]["filters"]) == set(specs)
-    assert replay_team_recording(load_team_recording(path)).replay["checksum_status"] == "verified"
+    assert replay_recording(load_recording(path)).extra["replay"]["checksum_status"] == "verified"
     objs[0]["params"] = {"centralised": {"gate_chi2": 1.0}}
     with pytest.raises(ReplayMismatch, match=r"centralised\.gate_chi2"):
-        replay_team_recording(load_team_recording(write(tmp_path / "e.jsonl", objs)))
+        replay_recording(load_recording(write(tmp_path / "e.jsonl", objs)))
 
 
 # ------------------------------------------------------------------------------ the window

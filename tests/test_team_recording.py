@@ -24,21 +24,10 @@ import pytest
 from beacon_sim.app.main import App
 from beacon_sim.cli.main import main
 from beacon_sim.core.team_scenario import load_team_scenario
-from beacon_sim.io.recording import (
-    RecordingError,
-    TeamRecording,
-    load_any_recording,
-    load_recording,
-    load_team_recording,
-)
+from beacon_sim.io.recording import Recording, RecordingError, load_recording
 from beacon_sim.runs.live import Session
-from beacon_sim.runs.recorder import TeamRecorder
-from beacon_sim.runs.replay import ReplayMismatch
-from beacon_sim.runs.team_replay import (
-    TeamReplaySession,
-    is_builtin_team_spec,
-    replay_team_recording,
-)
+from beacon_sim.runs.recorder import Recorder
+from beacon_sim.runs.replay import ReplayMismatch, ReplaySession, is_builtin_spec, replay_recording
 
 FILTERS = ["independent", "centralised"]
 
@@ -52,7 +41,7 @@ def scripted_session(path: Path, seed: int = 4):
     """A team session in the window, driven with keys, recorded to ``path``. Returns the live
     truth (T, N, 3) and every team filter's estimates per tick."""
     team = load_team_scenario("team_sparse")
-    session = Session(team, list(FILTERS), seed, {}, TeamRecorder(path, team, seed, FILTERS))
+    session = Session(team, list(FILTERS), seed, {}, Recorder(path, team, seed, FILTERS))
     app = App(session, (1100, 700), scripted=True)
     truth: list[np.ndarray] = []
     est: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {n: [] for n in FILTERS}
@@ -133,13 +122,13 @@ def test_the_recording_holds_what_the_session_did(recorded):
 
 def test_headless_replay_gives_the_same_truth_and_estimates_bit_for_bit(recorded):
     path, truth, est = recorded
-    rec = load_any_recording(path)
-    assert isinstance(rec, TeamRecording) and rec.complete
-    out = replay_team_recording(rec)
-    assert out.replay["checksum_status"] == "verified"
-    assert np.array_equal(out.result.true_poses, truth)  # every robot, every tick, bit for bit
+    rec = load_recording(path)
+    assert isinstance(rec, Recording) and rec.is_team and rec.complete
+    out = replay_recording(rec)
+    assert out.extra["replay"]["checksum_status"] == "verified"
+    assert np.array_equal(out.true_poses, truth)  # every robot, every tick, bit for bit
     for name in FILTERS:
-        tr = out.result.tracks[name]
+        tr = out.tracks[name]
         assert not tr.failed
         assert np.array_equal(np.array(tr.means), np.array([m for m, _ in est[name]]))
         assert np.array_equal(np.array(tr.covs), np.array([c for _, c in est[name]]))
@@ -147,10 +136,10 @@ def test_headless_replay_gives_the_same_truth_and_estimates_bit_for_bit(recorded
 
 def test_other_filters_run_on_the_same_truth(recorded):
     path, truth, _ = recorded
-    out = replay_team_recording(load_team_recording(path), ["ci", "independent:ukf"])
-    assert np.array_equal(out.result.true_poses, truth)
-    assert set(out.result.tracks) == {"ci", "independent:ukf"}
-    assert all(not t.failed for t in out.result.tracks.values())
+    out = replay_recording(load_recording(path), ["ci", "independent:ukf"])
+    assert np.array_equal(out.true_poses, truth)
+    assert set(out.tracks) == {"ci", "independent:ukf"}
+    assert all(not t.failed for t in out.tracks.values())
 
 
 def test_cli_replay_headless_prints_the_team_figures(recorded, capsys):
@@ -174,7 +163,7 @@ def test_a_changed_command_is_a_mismatch(recorded, tmp_path, capsys):
     tick["u"][0] += 0.05  # a command edited, its checksums left as they were
     bad = write(tmp_path / "edited.jsonl", objs)
     with pytest.raises(ReplayMismatch, match="at tick 50 "):
-        replay_team_recording(load_team_recording(bad))
+        replay_recording(load_recording(bad))
     assert main(["replay", str(bad), "--headless"]) == 2
     captured = capsys.readouterr()
     assert "verified" not in captured.out and "replay differs from the recording at tick 50" in captured.err
@@ -186,12 +175,12 @@ def test_a_changed_driven_robot_or_kidnap_is_a_mismatch(recorded, tmp_path):
     tick = next(o for o in objs if o["type"] == "tick" and o["d"] == 1 and not o.get("a"))
     tick["d"] = 2  # another robot driven by hand (on autopilot every robot is on its driver)
     with pytest.raises(ReplayMismatch, match=f"at tick {tick['k']} "):
-        replay_team_recording(load_team_recording(write(tmp_path / "d.jsonl", objs)))
+        replay_recording(load_recording(write(tmp_path / "d.jsonl", objs)))
     objs = lines(path)
     tick = next(o for o in objs if o["type"] == "tick" and any(c["kind"] == "kidnap" for c in o.get("c", [])))
     tick["c"][0]["robot"] = 0  # the kidnap moved to another robot
     with pytest.raises(ReplayMismatch, match=f"at tick {tick['k']} "):
-        replay_team_recording(load_team_recording(write(tmp_path / "k.jsonl", objs)))
+        replay_recording(load_recording(write(tmp_path / "k.jsonl", objs)))
 
 
 def test_a_stripped_checksum_is_not_verified(recorded, tmp_path, capsys):
@@ -201,7 +190,7 @@ def test_a_stripped_checksum_is_not_verified(recorded, tmp_path, capsys):
     del ticks[10]["h"], ticks[10]["r"]
     objs = [o for o in objs if o["type"] != "end"]  # and the end line that covers them all
     bad = write(tmp_path / "stripped.jsonl", objs)
-    status = replay_team_recording(load_team_recording(bad)).replay["checksum_status"]
+    status = replay_recording(load_recording(bad)).extra["replay"]["checksum_status"]
     assert status == f"partly verified: {len(ticks) - 1} of {len(ticks)} ticks carry checksums"
     assert main(["replay", str(bad), "--headless"]) == 0
     assert " verified\n" not in capsys.readouterr().out
@@ -209,7 +198,7 @@ def test_a_stripped_checksum_is_not_verified(recorded, tmp_path, capsys):
     objs = lines(path)
     objs[-1]["checksum"] = "0" * 16
     with pytest.raises(ReplayMismatch, match="final checksum"):
-        replay_team_recording(load_team_recording(write(tmp_path / "end.jsonl", objs)))
+        replay_recording(load_recording(write(tmp_path / "end.jsonl", objs)))
 
 
 def test_an_edited_scenario_is_refused(recorded, tmp_path):
@@ -217,7 +206,7 @@ def test_an_edited_scenario_is_refused(recorded, tmp_path):
     objs = lines(path)
     objs[0]["scenario_toml"] = objs[0]["scenario_toml"].replace("max_range = 5.0", "max_range = 9.0")
     with pytest.raises(RecordingError, match="scenario was edited"):
-        load_team_recording(write(tmp_path / "scenario.jsonl", objs))
+        load_recording(write(tmp_path / "scenario.jsonl", objs))
 
 
 def test_a_recorded_filter_that_names_a_file_is_not_run(recorded, tmp_path, capsys, monkeypatch):
@@ -234,9 +223,9 @@ def test_a_recorded_filter_that_names_a_file_is_not_run(recorded, tmp_path, caps
                           "alice=independent:evil.py:Evil", "independent:ukf"]
     bad = write(tmp_path / "names_code.jsonl", objs)
     monkeypatch.chdir(tmp_path)
-    out = replay_team_recording(load_team_recording(bad))
-    assert set(out.result.tracks) == {"centralised", "independent:ukf"}
-    assert len(out.replay["skipped_filters"]) == 3
+    out = replay_recording(load_recording(bad))
+    assert set(out.tracks) == {"centralised", "independent:ukf"}
+    assert len(out.extra["replay"]["skipped_filters"]) == 3
     assert main(["replay", str(bad), "--headless"]) == 0
     err = capsys.readouterr().err
     assert err.count("not run (a recording never makes beacon-sim import code)") == 3
@@ -246,11 +235,11 @@ def test_a_recorded_filter_that_names_a_file_is_not_run(recorded, tmp_path, caps
 def test_builtin_team_specs():
     for spec in ("independent", "ci", "centralised", "independent:ukf", "a=independent:pf",
                  "my_entry_point"):
-        assert is_builtin_team_spec(spec), spec
+        assert is_builtin_spec(spec), spec
     for spec in ("my_team.py:MyTeam", "pkg.mod:Team", "independent:alice.py:MyEkf",
                  "alice=independent:./a.py:X", "independent:pkg.mod:Ekf", "independent:",
                  "x=dir/evil.py"):
-        assert not is_builtin_team_spec(spec), spec
+        assert not is_builtin_spec(spec), spec
 
 
 def test_a_truncated_recording_replays_up_to_the_last_full_tick(recorded, tmp_path):
@@ -259,12 +248,12 @@ def test_a_truncated_recording_replays_up_to_the_last_full_tick(recorded, tmp_pa
     cut_at = text.index('{"type":"tick","k":101,')
     bad = tmp_path / "killed.jsonl"
     bad.write_text(text[:cut_at + 30])  # killed while writing tick 101
-    rec = load_team_recording(bad)
+    rec = load_recording(bad)
     assert not rec.complete and len(rec.ticks) == 100
     assert any("incomplete last line" in w for w in rec.warnings)
-    out = replay_team_recording(rec)
-    assert out.replay["checksum_status"] == "verified up to the last complete tick"
-    assert np.array_equal(out.result.true_poses, truth[:100])
+    out = replay_recording(rec)
+    assert out.extra["replay"]["checksum_status"] == "verified up to the last complete tick"
+    assert np.array_equal(out.true_poses, truth[:100])
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -282,24 +271,24 @@ def test_hostile_team_ticks_are_one_line_errors(recorded, tmp_path, edit, messag
     edit(objs[5])
     bad = write(tmp_path / "hostile.jsonl", objs)
     with pytest.raises(RecordingError, match=message) as err:
-        load_team_recording(bad)
+        load_recording(bad)
     assert f"{bad}:6:" in str(err.value) and "\n" not in str(err.value)
 
 
 def test_the_kinds_do_not_mix(recorded, tmp_path):
     path, _, _ = recorded
-    with pytest.raises(RecordingError, match="team session's recording"):
-        load_recording(path)  # export and the single-robot replay refuse it in one line
+    assert load_recording(path).is_team  # one reader: a team's file reads as its team
+    assert main(["export", str(path), "--out", str(tmp_path / "t.npz")]) == 2  # export refuses it
     objs = lines(path)
     objs[0]["kind"] = "swarm"
     with pytest.raises(RecordingError, match="kind 'swarm' is not supported"):
-        load_any_recording(write(tmp_path / "swarm.jsonl", objs))
+        load_recording(write(tmp_path / "swarm.jsonl", objs))
 
 
 def test_the_replay_window_seeks_to_the_same_picture(recorded):
     path, truth, _ = recorded
-    rec = load_team_recording(path)
-    s = TeamReplaySession(rec, FILTERS)
+    rec = load_recording(path)
+    s = ReplaySession(rec, FILTERS)
     s.seek(80)
     assert np.array_equal(s.poses, truth[79])
     state = (s.sim.truth_checksum, s.driven, s.estimates("centralised")[0].copy())
@@ -350,11 +339,11 @@ def test_a_killed_team_session_replays_up_to_about_the_kill(tmp_path):
         proc.kill()
         proc.wait(timeout=30)
     assert alive, "the window quit by itself"
-    rec = load_team_recording(files[0])
+    rec = load_recording(files[0])
     assert not rec.complete
     assert rec.ticks[-1].tick * rec.team.dt >= killed_after - 2.0
-    out = replay_team_recording(rec)  # raises if the truth differs from what was recorded
-    assert out.replay["checksum_status"] == "verified up to the last complete tick"
+    out = replay_recording(rec)  # raises if the truth differs from what was recorded
+    assert out.extra["replay"]["checksum_status"] == "verified up to the last complete tick"
 
 
 def test_autopilot_ticks_replay_the_drivers_state(tmp_path):
@@ -363,7 +352,7 @@ def test_autopilot_ticks_replay_the_drivers_state(tmp_path):
     autopilot ticks (``"a": true``) keeps the driver's waypoint index as it was live."""
     team = load_team_scenario("team_sparse")
     path = tmp_path / "autopilot.jsonl"
-    s = Session(team, ["independent"], 1, {}, TeamRecorder(path, team, 1, ["independent"]))
+    s = Session(team, ["independent"], 1, {}, Recorder(path, team, 1, ["independent"]))
     s.toggle_autopilot()
     index = s.sim.sims[0].driver._index
     for _ in range(200):
@@ -374,10 +363,10 @@ def test_autopilot_ticks_replay_the_drivers_state(tmp_path):
         s.tick()
     live = s.sim.truth_checksum
     s.close()
-    out = replay_team_recording(load_team_recording(path))
-    assert out.replay["checksum_status"] == "verified" and out.result.truth_checksum == live
+    out = replay_recording(load_recording(path))
+    assert out.extra["replay"]["checksum_status"] == "verified" and out.truth_checksum == live
     objs = lines(path)
     for o in objs:
         o.pop("a", None)  # the same commands, given by hand: the scout's driver falls behind
     with pytest.raises(ReplayMismatch):
-        replay_team_recording(load_team_recording(write(tmp_path / "no_a.jsonl", objs)))
+        replay_recording(load_recording(write(tmp_path / "no_a.jsonl", objs)))

@@ -9,9 +9,8 @@ filters and re-simulates from tick 0 (2,400 ticks take a fraction of a second), 
 picture at time t is exactly the one a straight run shows at t. Seeking forward just runs
 the ticks in between.
 
-A team session's recording opens the same window in its team view (``App.team_view``),
-with this timeline, driven by a
-:class:`~beacon_sim.runs.team_replay.TeamReplaySession`.
+A team's recording opens the same window in its team view (``App.team_view``), with this
+timeline, driven by the same :class:`~beacon_sim.runs.replay.ReplaySession` over its robots.
 """
 
 from __future__ import annotations
@@ -25,12 +24,11 @@ import pygame
 from beacon_sim.app import palette
 from beacon_sim.app.hud import wrap_text
 from beacon_sim.app.main import App
-from beacon_sim.io.recording import Recording, TeamRecording
+from beacon_sim.io.recording import Recording
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.mrclam import MrclamPlayback
 from beacon_sim.runs.replay import ReplaySession
 from beacon_sim.runs.scene import Timeline
-from beacon_sim.runs.team_replay import TeamReplaySession
 
 #: Left / Right arrows seek by this much simulated time [s].
 SEEK_STEP_S = 5.0
@@ -46,7 +44,7 @@ class ReplayApp(App):
 
     MODE = "replay"
 
-    def __init__(self, session: ReplaySession | MrclamPlayback | TeamReplaySession, size=(1280, 800),
+    def __init__(self, session: ReplaySession | MrclamPlayback, size=(1280, 800),
                  scripted: bool = False):
         self.reported = False
         self.end_tick: int | None = None  # stop the window here (--end, --gif)
@@ -100,7 +98,7 @@ class ReplayApp(App):
         if (self.end_tick is not None and s.tick_count >= self.end_tick) or (
                 self.stop_at_end and self.timeline.at_end):
             self.running = False
-        if not self.reported and isinstance(s, ReplaySession | TeamReplaySession) \
+        if not self.reported and isinstance(s, ReplaySession) \
                 and (self.timeline.at_end or s.mismatch):
             self.reported = True
             status = s.checksum_status()
@@ -214,7 +212,7 @@ class ReplayApp(App):
                 surf.blit(tag, tag.get_rect(center=box.center))
 
 
-def show_replay(recording: Recording | TeamRecording, specs: list[str], params: dict[str, dict[str, Any]],
+def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[str, Any]],
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
                 end: float | None = None, size: tuple[int, int] = (1280, 800),
@@ -230,13 +228,8 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
 
     check_display()  # no window to show it in: one line, exit 2 (not an invisible replay)
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-    session: ReplaySession | TeamReplaySession
-    if isinstance(recording, TeamRecording):
-        session = TeamReplaySession(recording, specs, params)
-        app: ReplayApp = ReplayApp(session, size, scripted=frames is not None or gif is not None)
-    else:
-        session = ReplaySession(recording, specs, params)
-        app = ReplayApp(session, size, scripted=frames is not None or gif is not None)
+    session = ReplaySession(recording, specs, params)
+    app = ReplayApp(session, size, scripted=frames is not None or gif is not None)
     dt = session.scenario.dt
     if start:
         app.seek(min(round(start / dt), session.total_ticks))
@@ -253,7 +246,7 @@ def show_replay(recording: Recording | TeamRecording, specs: list[str], params: 
             app.save_screenshot(screenshot)
         finish_gif(app)
         s = app.session
-        assert isinstance(s, ReplaySession | TeamReplaySession)
+        assert isinstance(s, ReplaySession)
         if not app.reported:
             print(f"replay {recording.path}: stopped at tick {s.tick_count} of {s.total_ticks}, "
                   f"truth checksum {s.checksum_status()}", file=sys.stderr)

@@ -12,7 +12,6 @@ from beacon_sim.cli.replay import load
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.io.export import filter_arrays, step_arrays, trace_arrays, write_export
-from beacon_sim.io.recording import Recording
 from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording, skipped_note
 
@@ -37,7 +36,7 @@ def export_command(args: argparse.Namespace) -> int:
         if args.seed is not None or args.duration is not None:
             raise UsageError("--seed and --duration are for a scenario; a recording has its own")
         recording = load(args.file)
-        if not isinstance(recording, Recording):
+        if recording.is_team:
             raise UsageError(f"{args.file}: a team recording: export takes a single-robot "
                              "recording or a scenario")
         check_set_names(args, recorded_filter_specs(recording, args.filters)[0])

@@ -1,6 +1,6 @@
-"""``beacon-sim replay FILE [--filter F ...] [--headless] [--json]``: a recording replayed bit
-for bit, on screen (with a timeline) or headless. A team session's recording replays its
-team (``--filter`` names team filters, as ``run`` on a team scenario)."""
+"""``beacon-sim replay FILE [--filter F ...] [--headless] [--json]``: a recording of any
+number of robots replayed bit for bit, on screen (with a timeline) or headless. A team's
+recording replays its team (``--filter`` names team filters, as ``run`` on a team scenario)."""
 
 from __future__ import annotations
 
@@ -8,13 +8,14 @@ import argparse
 import json
 import os
 import sys
+from typing import Any
 
 from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_failures
 from beacon_sim.cli.play import check_foxglove, check_gif, parse_gif_width, parse_size
 from beacon_sim.cli.run import print_team_run
 from beacon_sim.cli.tables import print_run
 from beacon_sim.errors import UsageError
-from beacon_sim.io.recording import Recording, RecordingError, TeamRecording, load_any_recording
+from beacon_sim.io.recording import Recording, RecordingError, load_recording
 from beacon_sim.runs.replay import (
     ReplayMismatch,
     recorded_filter_specs,
@@ -24,16 +25,31 @@ from beacon_sim.runs.replay import (
 )
 
 
-def load(path: str) -> Recording | TeamRecording:
-    """The recording (single-robot or team), its warnings printed; a bad file is a usage
+def load(path: str) -> Recording:
+    """The recording (of one robot or a team), its warnings printed; a bad file is a usage
     error (one line)."""
     try:
-        recording = load_any_recording(path)
+        recording = load_recording(path)
     except RecordingError as exc:
         raise UsageError(str(exc)) from None
     for note in recording.warnings:
         print(f"warning: {note}", file=sys.stderr)
     return recording
+
+
+def check_filters(args: argparse.Namespace, recording: Recording, specs: list[str],
+                  merged: dict[str, dict[str, Any]]) -> None:
+    """A bad ``--set`` name (or, on a team, a bad team filter name or parameter, recorded
+    ones included): one line, exit status 2, before anything runs (as ``run``)."""
+    if not recording.is_team:
+        check_set_names(args, specs)
+        return
+    from beacon_sim.filters.team_specs import check_team_specs, team_filter_name
+
+    params = filter_params(args)
+    running = {team_filter_name(s) for s in specs}
+    check_team_specs(specs, recording.team,
+                     {n: p for n, p in merged.items() if n in running or n in params})
 
 
 def check_span(start: float | None, end: float | None, duration: float) -> None:
@@ -46,86 +62,39 @@ def check_span(start: float | None, end: float | None, duration: float) -> None:
 
 def replay_command(args: argparse.Namespace) -> int:
     recording = load(args.file)
-    if isinstance(recording, TeamRecording):
-        return replay_team_command(args, recording)
     params = filter_params(args)
-    check_set_names(args, recorded_filter_specs(recording, args.filters or None)[0])
-    if not args.headless:
-        check_frames(args.frames)
-        specs, skipped = recorded_filter_specs(recording, args.filters or None)
-        for spec in skipped:
-            print(skipped_note(spec), file=sys.stderr)
-        check_gif(args.gif)
-        check_span(args.start, args.end, len(recording.ticks) * recording.scenario.dt)
-        if args.gif:  # a GIF is made off screen, as fast as it draws
-            os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-        from beacon_sim.app.replay import show_replay  # pygame only when a window opens
-
-        return show_replay(recording, specs, recorded_params(recording, params),
-                           args.frames, args.screenshot, paused=args.paused, gif=args.gif,
-                           start=args.start, end=args.end, size=parse_size(args.size),
-                           gif_width=parse_gif_width(args.gif_width), foxglove=check_foxglove(args))
-    if getattr(args, "foxglove", None) is not None:
-        raise UsageError("--foxglove streams the replay window: drop --headless")
-    try:
-        result = replay_recording(recording, args.filters, params)
-    except ReplayMismatch as exc:
-        raise UsageError(str(exc)) from None
-    info = result.extra["replay"]
-    for spec in info["skipped_filters"]:
-        print(skipped_note(spec), file=sys.stderr)
-    data = result.as_json()
-    data["replay"] = info
-    if args.json:
-        print(json.dumps(data, default=float))
-    else:
-        print(f"replay {info['file']}: {info['ticks']} ticks, truth checksum "
-              f"{result.truth_checksum} {info['checksum_status']}")
-        print_run(data)
-    print_failures(result.runner.tracks.values())
-    return 0
-
-
-def replay_team_command(args: argparse.Namespace, recording: TeamRecording) -> int:
-    """``replay`` of a team session's recording: the recorded built-in team filters (or the
-    ``--filter`` ones) on the re-simulated team, checked against the file's checksums; the
-    figures of ``run`` on a team scenario."""
-    from beacon_sim.filters.team_specs import check_team_specs, team_filter_name
-    from beacon_sim.runs.team_replay import recorded_team_specs, replay_team_recording
-
-    if getattr(args, "foxglove", None) is not None:
-        raise UsageError("--foxglove: not for team recordings yet (one robot only)")
-    params = filter_params(args)
-    specs, skipped = recorded_team_specs(recording, args.filters or None)
+    specs, skipped = recorded_filter_specs(recording, args.filters or None)
     merged = recorded_params(recording, params)
-    running = {team_filter_name(s) for s in specs}
-    # a bad name, --set or recorded parameter: one line, exit 2, before anything runs (as run)
-    check_team_specs(specs, recording.team,
-                     {n: p for n, p in merged.items() if n in running or n in params})
+    check_filters(args, recording, specs, merged)
+    if recording.is_team and getattr(args, "foxglove", None) is not None:
+        raise UsageError("--foxglove: not for team recordings yet (one robot only)")
     for spec in skipped:
         print(skipped_note(spec), file=sys.stderr)
     if not args.headless:
         check_frames(args.frames)
         check_gif(args.gif)
         check_span(args.start, args.end, len(recording.ticks) * recording.team.dt)
-        if args.gif:
+        if args.gif:  # a GIF is made off screen, as fast as it draws
             os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
         from beacon_sim.app.replay import show_replay  # pygame only when a window opens
 
         return show_replay(recording, specs, merged, args.frames, args.screenshot,
                            paused=args.paused, gif=args.gif, start=args.start, end=args.end,
-                           size=parse_size(args.size), gif_width=parse_gif_width(args.gif_width))
+                           size=parse_size(args.size), gif_width=parse_gif_width(args.gif_width),
+                           foxglove=check_foxglove(args))
+    if getattr(args, "foxglove", None) is not None:
+        raise UsageError("--foxglove streams the replay window: drop --headless")
     try:
-        out = replay_team_recording(recording, specs, merged)
+        out = replay_recording(recording, args.filters or None, params)
     except ReplayMismatch as exc:
         raise UsageError(str(exc)) from None
-    info = out.replay
-    data = out.as_json()
+    info, data = out.extra["replay"], out.as_json()
+    data["replay"] = info
     if args.json:
         print(json.dumps(data, default=float))
     else:
         print(f"replay {info['file']}: {info['ticks']} ticks, truth checksum "
-              f"{out.result.truth_checksum} {info['checksum_status']}")
-        print_team_run(data)
-    print_failures(out.result.tracks.values())
+              f"{out.truth_checksum} {info['checksum_status']}")
+        (print_team_run if recording.is_team else print_run)(data)
+    print_failures(out.tracks.values())
     return 0

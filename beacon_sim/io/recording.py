@@ -37,18 +37,22 @@ the motion noise the run was made with; a file without it was made before and re
 ``"legacy"`` (noise at standstill). The tick's ``u`` is the command as given, also on a
 tick the bumper stopped (the filters were told v = 0).
 
-A team session (several robots, docs/multi-robot.md) is the same format with
-``"kind": "team"`` in the header (and ``"robots"``: their names); the scenario is the team
-file, ``filters`` team filter specs. Its tick lines add ``"d"`` (the index of the driven
-robot) and ``"a": true`` when the driven robot's own driver chose ``u`` (autopilot), and its
-commands name the robot they act on (:data:`TEAM_COMMAND_KINDS`); checkpoint and end lines
-hold ``"poses"`` (one ``[x, y, theta]`` per robot) instead of ``"pose"``. The checksums are
-the team's (:class:`beacon_sim.core.team.TeamSimulation` ``truth_checksum``, and
-``beacon_sim.runs.recorder.TeamReadingsHash`` over every robot's readings). Headers without
-``kind`` are single-robot recordings, unchanged.
+One format over N robots (issue 22: a single robot is a team of one). A single robot's
+file is the format above, unchanged since version 1; a team's (several robots,
+docs/multi-robot.md) is the same format with ``"kind": "team"`` in the header (and
+``"robots"``: their names); the scenario is the team file, ``filters`` team filter specs.
+Its tick lines add ``"d"`` (the index of the driven robot) and ``"a": true`` when the driven
+robot's own driver chose ``u`` (autopilot), and its commands name the robot they act on
+(:data:`TEAM_COMMAND_KINDS`); checkpoint and end lines hold ``"poses"`` (one ``[x, y,
+theta]`` per robot) instead of ``"pose"``. The checksums are the team's
+(:class:`beacon_sim.core.team.TeamSimulation` ``truth_checksum``, and
+``beacon_sim.runs.recorder.TeamReadingsHash`` over every robot's readings); a single-robot
+filter run on every robot (``independent:F``) is stored as one team filter
+(``filters/team_runner.StackedTrack``). :func:`load_recording` reads both kinds into one
+:class:`Recording` (a single robot's file as a team of one).
 
 This module is the format: reading a file (:func:`load_recording`) and the pieces the writer
-shares (:class:`beacon_sim.runs.recorder.Recorder` writes a file as a run goes). Reading
+shares (:class:`beacon_sim.runs.recorder.Recorder` writes a file of either kind as a run goes). Reading
 never executes code: ``json`` only.
 """
 
@@ -81,9 +85,15 @@ from beacon_sim.core.scenario import (
 )
 from beacon_sim.core.simulation import RECORDED_BEFORE_SLIP_MODEL, scenario_with_slip
 from beacon_sim.core.team import team_with_slip
-from beacon_sim.core.team_scenario import TeamScenario, is_team_document, parse_team_scenario
+from beacon_sim.core.team_scenario import (
+    TeamScenario,
+    is_team_document,
+    parse_team_scenario,
+    team_of_one,
+)
 from beacon_sim.core.types import Control
 from beacon_sim.errors import BeaconSimError
+from beacon_sim.filters.team_runner import TeamRunner
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
@@ -157,41 +167,37 @@ def check_toggle(cmd: Mapping) -> None:
                          f"most {MAX_NAME_CHARS} characters)")
 
 
-def validate_command(cmd: Mapping) -> None:
-    """Raise ValueError for a command this version does not know, or one whose values are
-    not what it takes (a kidnap pose of three finite numbers, a toggle's filter name)."""
-    kind = cmd.get("kind")
-    if kind not in COMMAND_KINDS:
-        raise ValueError(f"unknown user command {_short(kind)}; expected one of {COMMAND_KINDS}")
-    if kind == "kidnap" and "pose" in cmd:
-        check_pose(cmd["pose"])
-    if kind == "toggle":
-        check_toggle(cmd)
-
-
-#: The header's ``kind`` of a team session's recording (absent: one robot).
+#: The header's ``kind`` of a team's recording (absent: one robot, a team of one).
 TEAM_KIND = "team"
-#: The user commands a team recording may hold (applied by runs/live.py and
-#: runs/team_replay.py): ``{"kind": "kidnap", "robot": i}`` (K: a random pose) or with
-#: ``"pose": [x, y, theta]`` (click), robot i in team order; ``{"kind": "reset"}`` (R: every
-#: team filter back to the initial beliefs); ``{"kind": "toggle", "filter": NAME}`` (display).
+#: The user commands a team's recording may hold (applied by runs/user_commands.py):
+#: ``{"kind": "kidnap", "robot": i}`` (K: a random pose) or with ``"pose": [x, y, theta]``
+#: (click), robot i in team order; ``{"kind": "reset"}`` (R: every filter back to the
+#: initial beliefs); ``{"kind": "toggle", "filter": NAME}`` (display). A single robot's
+#: file holds :data:`COMMAND_KINDS` (no robot index: its one robot).
 TEAM_COMMAND_KINDS = ("kidnap", "reset", "toggle")
 
 
-def validate_team_command(cmd: Mapping, n_robots: int | None = None) -> None:
-    """Raise ValueError for a team command this version does not know (or a robot index
-    outside ``0 .. n_robots - 1``)."""
+def validate_command(cmd: Mapping, n_robots: int | None = None) -> None:
+    """Raise ValueError for a command this version does not know, or one whose values are
+    not what it takes (a kidnap pose of three finite numbers, a toggle's filter name).
+
+    ``n_robots`` None: a single robot's command (:data:`COMMAND_KINDS`); a number: a team's
+    (:data:`TEAM_COMMAND_KINDS`), whose kidnap names a robot index below ``n_robots`` (0: a
+    team whose size is not known yet, any index)."""
     kind = cmd.get("kind")
-    if kind not in TEAM_COMMAND_KINDS:
-        raise ValueError(f"unknown team command {_short(kind)}; expected one of {TEAM_COMMAND_KINDS}")
-    if kind == "kidnap":
+    team = n_robots is not None
+    kinds = TEAM_COMMAND_KINDS if team else COMMAND_KINDS
+    if kind not in kinds:
+        raise ValueError(f"unknown {'team' if team else 'user'} command {_short(kind)}; "
+                         f"expected one of {kinds}")
+    if kind == "kidnap" and team:
         robot = cmd.get("robot")
         if not isinstance(robot, int) or isinstance(robot, bool) or robot < 0 \
-                or (n_robots is not None and robot >= n_robots):
+                or (n_robots is not None and n_robots > 0 and robot >= n_robots):
             raise ValueError(f"kidnap of robot {_short(robot)}: expected a robot index"
                              + (f" from 0 to {n_robots - 1}" if n_robots else ""))
-        if "pose" in cmd:
-            check_pose(cmd["pose"])
+    if kind == "kidnap" and "pose" in cmd:
+        check_pose(cmd["pose"])
     if kind == "toggle":
         check_toggle(cmd)
 
@@ -306,6 +312,20 @@ class EstimateDigests:
         return (self._hash.get(name) or hashlib.sha256()).hexdigest()
 
 
+def recorded_tracks(runner: Any) -> dict[str, Any]:
+    """The tracks a recording stores, by filter name, in the run's order: a
+    :class:`~beacon_sim.filters.team_runner.TeamRunner` on a team of one, its one robot's
+    tracks (a single robot's file); on a team, ``team_tracks()``: each team filter's joint
+    track, each single-robot filter's copies as one ``StackedTrack`` (every robot's estimate,
+    robot by robot: the former joint ``IndependentTeam``'s). Anything else with ``tracks``
+    (a FilterRunner or a JointRunner): those."""
+    if not isinstance(runner, TeamRunner):
+        return dict(runner.tracks)
+    if runner.team.solo:
+        return dict(runner.members[0].tracks)
+    return runner.team_tracks()
+
+
 def effective_params(flt: Any) -> dict[str, Any] | None:
     """A built filter's effective parameters (its merged ``params``, defaults included; an
     independent team's member filters' too) as JSON values, or None when it has none."""
@@ -342,7 +362,11 @@ def dumps(obj: Mapping[str, Any]) -> str:
 
 @dataclass
 class TickRecord:
-    """One recorded tick: its number, control, user commands and short truth checksum."""
+    """One recorded tick: its number, control, user commands and short truth checksum; on a
+    team's file also the driven robot (index in team order) and whether its own driver chose
+    ``control`` (autopilot: a replay lets the driver choose again, so the driver's state,
+    e.g. its next waypoint, follows as it did live). A single robot's: robot 0, never
+    autopilot (its file holds the command the driver chose)."""
 
     tick: int
     control: Control
@@ -350,23 +374,36 @@ class TickRecord:
     short_checksum: str | None = None
     line: int = 0
     readings_checksum: str | None = None  # version 2: first 8 hex digits of the readings'
-
-
-@dataclass
-class TeamTickRecord(TickRecord):
-    """One recorded team tick: also the driven robot (index in team order) and whether its
-    own driver chose ``control`` (autopilot: a replay lets the driver choose again, so the
-    driver's state, e.g. its next waypoint, follows as it did live)."""
-
     driven: int = 0
     autopilot: bool = False
 
 
-class _HeaderFields:
-    """What single-robot and team recordings read from their header the same way."""
+@dataclass
+class FileParts:
+    """What a recording file holds besides its ticks (version 3: the filters line, the
+    estimates lines; a signed file: how far its signature was checked)."""
 
+    settings: dict[str, dict[str, Any]] | None = None  # the filters line's "filters"
+    settings_line: int = 0
+    estimates: dict[int, dict[str, Any]] = field(default_factory=dict)  # tick -> line
+    signature: str = "not signed"
+    signature_error: str | None = None  # a signature line that does not match (names it)
+
+
+@dataclass
+class Recording:
+    """A recording read back, of any number of robots: ``team`` is the scenario rebuilt from
+    the stored text with the recorded seed, as a team (a single robot's file: a team of one,
+    ``team.solo``). ``complete`` is False when the end line is missing (killed)."""
+
+    path: Path
     header: dict[str, Any]
-    end: dict[str, Any] | None
+    team: TeamScenario
+    ticks: list[TickRecord]
+    checkpoints: dict[int, dict[str, Any]] = field(default_factory=dict)
+    end: dict[str, Any] | None = None
+    warnings: list[str] = field(default_factory=list)
+    parts: FileParts = field(default_factory=FileParts)
 
     @property
     def seed(self) -> int:
@@ -390,51 +427,21 @@ class _HeaderFields:
         and the scenario text)."""
         return int(self.header["version"])
 
-
-@dataclass
-class FileParts:
-    """What a recording file holds besides its ticks (version 3: the filters line, the
-    estimates lines; a signed file: how far its signature was checked)."""
-
-    settings: dict[str, dict[str, Any]] | None = None  # the filters line's "filters"
-    settings_line: int = 0
-    estimates: dict[int, dict[str, Any]] = field(default_factory=dict)  # tick -> line
-    signature: str = "not signed"
-    signature_error: str | None = None  # a signature line that does not match (names it)
-
-
-@dataclass
-class Recording(_HeaderFields):
-    """A recording read back. ``complete`` is False when the end line is missing (killed)."""
-
-    path: Path
-    header: dict[str, Any]
-    scenario: Scenario
-    ticks: list[TickRecord]
-    checkpoints: dict[int, dict[str, Any]] = field(default_factory=dict)
-    end: dict[str, Any] | None = None
-    warnings: list[str] = field(default_factory=list)
-    parts: FileParts = field(default_factory=FileParts)
-
-
-@dataclass
-class TeamRecording(_HeaderFields):
-    """A team session's recording read back (``team``: the team scenario rebuilt from the
-    stored text, with the recorded seed)."""
-
-    path: Path
-    header: dict[str, Any]
-    team: TeamScenario
-    ticks: list[TeamTickRecord]
-    checkpoints: dict[int, dict[str, Any]] = field(default_factory=dict)
-    end: dict[str, Any] | None = None
-    warnings: list[str] = field(default_factory=list)
-    parts: FileParts = field(default_factory=FileParts)
+    @property
+    def scenario(self) -> Scenario:
+        """The first robot's scenario: a single robot's file, its scenario itself (the
+        world, ``dt`` and the seed are every robot's)."""
+        return self.team.robots[0].scenario
 
     @property
-    def scenario(self) -> TeamScenario:
-        """The team scenario (named as a :class:`Recording`'s, for code that reads ``dt``)."""
-        return self.team
+    def is_team(self) -> bool:
+        """Whether the file is in a team's format (``"kind": "team"``) rather than a single
+        robot's (today's format of a team of one)."""
+        return is_team_header(self.header)
+
+    @property
+    def n_robots(self) -> int:
+        return self.team.n_robots
 
 
 def rebuild_scenario(text: str, file: str, name: str, source: str | None = None) -> Scenario:
@@ -588,7 +595,7 @@ def _tick_line(path: Path, n: int, text: str, obj: dict, expected: int,
         try:
             if not isinstance(cmd, dict):
                 raise ValueError(f"user command {_short(cmd)} is not an object")
-            (validate_team_command if team else validate_command)(cmd)
+            validate_command(cmd, 0 if team else None)
         except ValueError as exc:
             raise _fail(path, n, str(exc)) from None
     h, r = obj.get("h"), obj.get("r")
@@ -601,7 +608,7 @@ def _tick_line(path: Path, n: int, text: str, obj: dict, expected: int,
     if type(d) is not int or d < 0 or not isinstance(a, bool):
         raise _fail(path, n, f"malformed team tick line (d: the driven robot, a: autopilot): "
                              f"{text.strip()[:80]}")
-    return TeamTickRecord(k, control, c, h, n, r, driven=d, autopilot=a)
+    return TickRecord(k, control, c, h, n, r, driven=d, autopilot=a)
 
 
 def _state_line_ok(obj: dict, team: bool) -> bool:
@@ -784,44 +791,34 @@ def _slip_model(path: Path, header: Mapping[str, Any]) -> str:
 
 
 def load_recording(path) -> Recording:
-    """Read a single-robot recording (json only; nothing is executed).
+    """Read a recording of any number of robots (json only; nothing is executed): a single
+    robot's file as a team of one, a team's file as its team.
 
     A truncated or unreadable *last* line (a killed program) is skipped with a warning in
     ``Recording.warnings``; anything else malformed raises :class:`RecordingError` naming
-    the file and line. A team session's recording is a RecordingError here (read it with
-    :func:`load_team_recording` or :func:`load_any_recording`).
+    the file and line (a robot index out of range included).
     """
     path = Path(path)
     header, ticks, checkpoints, end, notes, parts = _read_file(path)
-    if is_team_header(header):
-        raise _fail(path, 1, "a team session's recording: beacon-sim replay reads it "
-                             "(this command takes single-robot recordings)")
     file = f"{path} (scenario {header.get('scenario_source', header['scenario_name'])})"
-    scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"],
-                                header.get("scenario_source"))
-    _check_dt(path, header, scenario.dt)
-    scenario = replace(scenario_with_slip(scenario, _slip_model(path, header)), seed=int(header["seed"]))
-    return Recording(path, header, scenario, ticks, checkpoints, end, notes, parts)
-
-
-def load_team_recording(path) -> TeamRecording:
-    """Read a team session's recording (json only; nothing is executed; the same rules as
-    :func:`load_recording`, and every robot index in range)."""
-    path = Path(path)
-    header, ticks, checkpoints, end, notes, parts = _read_file(path)
+    slip = _slip_model(path, header)
+    team: TeamScenario
     if not is_team_header(header):
-        raise _fail(path, 1, "a single-robot recording, not a team session's")
-    file = f"{path} (scenario {header.get('scenario_source', header['scenario_name'])})"
+        scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"],
+                                    header.get("scenario_source"))
+        _check_dt(path, header, scenario.dt)
+        team = team_of_one(replace(scenario_with_slip(scenario, slip), seed=int(header["seed"])))
+        return Recording(path, header, team, ticks, checkpoints, end, notes, parts)
     team = rebuild_team_scenario(header["scenario_toml"], file, header["scenario_name"])
     _check_dt(path, header, team.dt)
-    team = team_with_slip(team, _slip_model(path, header))
+    team = team_with_slip(team, slip)
     n = len(team.robots)
     for rec in ticks:
         try:
             if rec.driven >= n:
                 raise ValueError(f"driven robot {rec.driven}: expected an index from 0 to {n - 1}")
             for cmd in rec.commands:
-                validate_team_command(cmd, n)
+                validate_command(cmd, n)
         except ValueError as exc:
             raise _fail(path, rec.line, str(exc)) from None
     for k, obj in [*checkpoints.items(), (-1, end or {"poses": [None] * n})]:
@@ -829,15 +826,4 @@ def load_team_recording(path) -> TeamRecording:
             raise _fail(path, 1, f"corrupted {'end' if k < 0 else f'checkpoint {k}'}: "
                                  f"{len(obj['poses'])} poses for {n} robots")
     team = replace(team, seed=int(header["seed"]))
-    return TeamRecording(path, header, team, ticks, checkpoints, end, notes, parts)
-
-
-def load_any_recording(path) -> Recording | TeamRecording:
-    """A recording of either kind (single-robot or team), by its header."""
-    path = Path(path)
-    for n, text, _ in _iter_lines(path):
-        first = _decode(path, n, text)
-        if isinstance(first, dict) and is_team_header(first):
-            return load_team_recording(path)
-        break
-    return load_recording(path)
+    return Recording(path, header, team, ticks, checkpoints, end, notes, parts)

@@ -45,12 +45,11 @@ from beacon_sim.filters.runner import (
     validate_belief,
     validate_estimate,
 )
-from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.filters.team_runner import JointRunner, TeamRunner, team_filter_of, validate_team_estimates
 from beacon_sim.io.recording import TEAM_COMMAND_KINDS, default_recording_path, validate_command
-from beacon_sim.runs.recorder import Recorder, TeamRecorder
+from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
-from beacon_sim.runs.user_commands import apply_to_filters
+from beacon_sim.runs.user_commands import apply_to_filters, apply_to_run
 
 #: A reloaded filter catches up over the session's history when that takes at most this
 #: long [s] (estimated from its first steps); otherwise it restarts from the initial belief.
@@ -100,7 +99,7 @@ class Session:
         self.restart()
         if self.recorder is not None and hasattr(self.recorder, "attach"):
             # the recording stores the filters' settings and digests their estimates
-            self.recorder.attach(self.runner if self.team.solo else TeamTracks(self.filters_run))
+            self.recorder.attach(self.filters_run)
 
     def restart(self) -> None:
         """A fresh start: a new simulation from tick 0, the filters built and reset again,
@@ -456,11 +455,7 @@ class Session:
         control = self.next_control()
         cmds, self.pending = self.pending, []
         tick = self.sim.tick + 1
-        if self.recorder is None:
-            pass
-        elif self.team.solo:  # (the single-robot Recorder's signature, until one writer)
-            self.recorder.record_tick(tick, control, cmds)
-        else:
+        if self.recorder is not None:
             self.recorder.record_tick(tick, self.driven, control, self.autopilot, self._shown + cmds)
         self._shown = []
         self._apply(cmds)
@@ -480,17 +475,10 @@ class Session:
         (under the guard: one that fails is switched off) and of the team filters."""
         if not cmds:
             return
-        for cmd in cmds:
-            validate_command(cmd)
-            if cmd["kind"] == "kidnap":
-                self.sim.sims[int(cmd.get("robot", 0))].request_kidnap(cmd.get("pose"))
-        for i, runner in enumerate(self.filters_run.members):
-            working = {n: t.filter for n, t in runner.tracks.items() if t.filter and not t.failed}
-            for name, (why, tb) in apply_to_filters(cmds, working, self.team.robots[i].scenario,
-                                                    WINDOW_STEP_LIMIT_S).items():
-                self._switch_off(name, why, tb)
+        for name in apply_to_run(cmds, self.sim, self.filters_run, WINDOW_STEP_LIMIT_S,
+                                 self.sim.time):
+            self._sync_status(name)
         if any(c["kind"] in ("reset", "global_reset") for c in cmds):
-            reset_team_filters(self.joint, self.team, WINDOW_STEP_LIMIT_S, self.sim.time)
             for trails in self.trails.values():
                 for trail in trails:
                     trail.brk()
@@ -572,35 +560,6 @@ class Session:
             self.recorder = None
 
 
-class TeamTracks:
-    """A team's filters as a recorder and a replay's verifier read them: ``tracks``, one per
-    filter over the team (``TeamRunner.team_tracks``)."""
-
-    def __init__(self, run: TeamRunner):
-        self._run = run
-
-    @property
-    def tracks(self) -> dict[str, Any]:
-        return self._run.team_tracks()
-
-
-def reset_team_filters(runner: JointRunner, team: TeamScenario, limit_s: float | None,
-                       time_s: float) -> None:
-    """The ``reset`` user command on the team filters: every working one back to the
-    scenario's initial beliefs, under the guard (one that fails is switched off), the same
-    live and on replay."""
-    if not runner.tracks:
-        return
-    beliefs = initial_beliefs(team)
-    for name, tr in runner.tracks.items():
-        f = team_filter_of(tr)
-        if tr.failed or f is None:
-            continue
-        _, why, tb = guarded_call(partial(f.reset, beliefs), limit_s)
-        if why is not None:
-            runner.fail(name, f"reset: {why}", tb, time_s)
-
-
 def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
     """``(v, omega)`` the keyboard starts from when it takes over command ``c``: each rounded
     to the nearest multiple of its step (``v_step``, ``omega_step``), clamped to the limits."""
@@ -612,13 +571,8 @@ def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
 
 
 def make_recorder(scenario: Scenario | TeamScenario, seed: int, specs: list[str],
-                  params: dict[str, dict[str, Any]]) -> tuple[Recorder | TeamRecorder, Path]:
+                  params: dict[str, dict[str, Any]]) -> tuple[Recorder, Path]:
     """A recorder writing to ``recordings/<scenario>_<time>.jsonl``, and that path."""
-    path = Path(default_recording_path(scenario.name))
-    team = as_team(scenario)
-    recorder: Recorder | TeamRecorder
-    if team.solo:
-        recorder = Recorder(path, team.robots[0].scenario, seed, list(specs), params)
-    else:
-        recorder = TeamRecorder(path, team, seed, list(specs), params)
+    recorder = Recorder(Path(default_recording_path(scenario.name)), scenario, seed, list(specs),
+                        params)
     return recorder, recorder.path  # (another name when that one was just taken)

@@ -1,14 +1,13 @@
-"""Writing a recording while a run goes (the format is beacon_sim/io/recording.py).
+"""Writing a recording while a run goes, of any number of robots (the format is
+beacon_sim/io/recording.py).
 
-The recorder re-simulates alongside the caller (a shadow :class:`Simulation` from the same
-scenario and seed, given the same controls and commands), so the file carries its own
-checksums whatever the caller passes. Lines are flushed at least every half second of
-simulated or wall time: a killed program leaves a file that replays to within a second of
-the kill.
-
-:class:`Recorder` writes a single-robot session, :class:`TeamRecorder` a team session
-(several robots; the driven robot's index and command per tick); both share the file
-handling, the header, the flush policy and the end line (``_LineWriter``).
+The one writer, :class:`Recorder`, re-simulates alongside the caller (a shadow
+:class:`~beacon_sim.core.team.TeamSimulation` from the same scenario and seed, given the
+same commands), so the file carries its own checksums whatever the caller passes. A team
+of one (a single robot) is written in a single robot's format, byte for byte as before
+issue 22; a team in a team's (the driven robot's index and command per tick). Lines are
+flushed at least every half second of simulated or wall time: a killed program leaves a
+file that replays to within a second of the kill.
 """
 
 from __future__ import annotations
@@ -24,9 +23,9 @@ from typing import Any, TextIO
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.simulation import CURRENT_SLIP_MODEL, Simulation
+from beacon_sim.core.simulation import CURRENT_SLIP_MODEL
 from beacon_sim.core.team import TeamSimulation, TeamStep
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.team_scenario import TeamScenario, as_team, team_of_one
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import (
     FLUSH_EVERY_S,
@@ -41,40 +40,80 @@ from beacon_sim.io.recording import (
     open_exclusive,
     rebuild_scenario,
     rebuild_team_scenario,
+    recorded_tracks,
     recording_key,
     scenario_text,
     text_checksum,
     validate_command,
-    validate_team_command,
 )
 from beacon_sim.runs.user_commands import apply_commands
 from beacon_sim.version import __version__
 
 
-class _LineWriter:
-    """What every recorder shares: the file, the header, the tick count, the flush policy
-    (at least every :data:`FLUSH_EVERY_S` of simulated or wall time, so a killed program's
-    file replays to within a second of the kill), checkpoints and the end line. A subclass
-    sets ``self.shadow`` (with ``tick``, ``time``, ``truth_checksum``) and writes the
-    state lines (:meth:`_state_line`).
+class Recorder:
+    """Writes one run of any number of robots to ``path`` as it goes.
 
-    The file is created exclusively (two sessions never write one file: the second gets
-    ``-2`` appended). With :data:`~beacon_sim.io.recording.KEY_VARIABLE` set, a running
-    HMAC signs it (a signature line after every checkpoint and after the end line).
+    Parameters
+    ----------
+    path : str or Path
+        The ``.jsonl`` file to create (its folder is created too).
+    scenario : Scenario or TeamScenario
+        Loaded from a TOML file; its text is stored so replay rebuilds it exactly. A single
+        robot's scenario, or a team of one made from one (``TeamScenario.solo``), is written
+        in a single robot's format, byte for byte as before issue 22; a team in a team's.
+    seed : int
+    filters : list of str
+        The filter specs of the run.
+    params : dict
+        ``{NAME: {KEY: VALUE}}`` parameter overrides (``--set``) of the run.
 
-    :meth:`attach` hands the recorder the session's filter runner: the filters line (every
-    filter's effective parameters) is written at once, and the digests of the filters'
-    estimates after each checkpoint's tick and at the end (version 3)."""
+    Call :meth:`record_tick` once per tick *before* the caller's step of that tick, with the
+    driven robot, its command, whether its own driver chose it and the user commands applied
+    on that tick; then :meth:`close`.
 
-    path: Path
-    _file: TextIO | None
-    shadow: Any
-    _runner: Any = None
+    A shadow :class:`~beacon_sim.core.team.TeamSimulation` gives the checksums. The file is
+    created exclusively (two sessions never write one file: the second gets ``-2``
+    appended) and flushed at least every :data:`FLUSH_EVERY_S` of simulated or wall time (a
+    killed program's file replays to within a second of the kill). With
+    :data:`~beacon_sim.io.recording.KEY_VARIABLE` set, a running HMAC signs it (a signature
+    line after every checkpoint and after the end line). :meth:`attach` hands the recorder
+    the session's filters: the filters line (every filter's effective parameters) is written
+    at once, and the digests of the filters' estimates after each checkpoint's tick and at
+    the end (version 3).
+    """
+
+    def __init__(self, path, scenario: Scenario | TeamScenario, seed: int, filters: list[str],
+                 params: dict | None = None, *, checkpoint_every: int | None = None):
+        team = as_team(scenario)
+        self.team = team
+        self.solo = team.solo
+        text = scenario_text(team)
+        if self.solo:
+            first = team.robots[0].scenario
+            rebuilt_one = rebuild_scenario(text, first.source, first.name)
+            changed = replace(rebuilt_one, seed=first.seed, duration=first.duration) != first
+            rebuilt = team_of_one(rebuilt_one)
+        else:
+            rebuilt = rebuild_team_scenario(text, team.source, team.name)
+            changed = replace(rebuilt, seed=team.seed, duration=team.duration) != team
+        if changed:
+            warnings.warn(f"{team.source}: the scenario was changed after loading; the "
+                          "recording stores the file as it is on disk", stacklevel=2)
+        self.shadow = TeamSimulation(rebuilt, int(seed))
+        self.readings = TeamReadingsHash()
+        extra = {} if self.solo else {"kind": TEAM_KIND, "robots": [r.name for r in team.robots]}
+        self._open(path, team, text, seed, filters, params, checkpoint_every, extra)
+
+    @property
+    def scenario(self) -> Scenario | TeamScenario:
+        """The recorded scenario: a single robot's :class:`Scenario`, or the team."""
+        return self.team.robots[0].scenario if self.solo else self.team
 
     def _open(self, path, scenario: Any, text: str, seed: int, filters: list[str],
               params: dict | None, checkpoint_every: int | None,
               extra: dict[str, Any] | None = None) -> None:
         """Create the file and write the header (``extra``: fields after the common ones)."""
+        self._runner: Any = None
         self.path = Path(path)
         self.seed = int(seed)
         self.dt = scenario.dt
@@ -82,13 +121,14 @@ class _LineWriter:
         self.ticks = 0
         self._expected_tick: int | None = None
         self._warned_gap = False
+        self._file: TextIO | None
         self._file, self.path = open_exclusive(self.path)
         key = recording_key()
         self._signer = Signer(key) if key is not None else None
         self.digests = EstimateDigests()
         self._notes: dict[str, str] = {}
         self._frozen: dict[str, str] = {}  # reloaded live: the digest when it was reloaded
-        self._track_ids: dict[str, int] = {}
+        self._track_ids: dict[str, Any] = {}
         self._digested = 0  # the last tick whose estimates are in the digests
         header = {
             "type": "header", "format": FORMAT_NAME, "version": FORMAT_VERSION,
@@ -120,15 +160,15 @@ class _LineWriter:
             self._write({"type": "signature", "hmac": self._signer.hexdigest()})
 
     def attach(self, runner: Any) -> None:
-        """The session's filter runner (anything with ``tracks``: name -> track with
-        ``filter``, ``failed``, ``ticks``, ``means``, ``covs``), before the first tick: writes
-        the filters line (each filter's effective parameters, from the built filter) and
-        digests its estimates from then on."""
+        """The session's filters (a :class:`~beacon_sim.filters.team_runner.TeamRunner`, or
+        anything with ``tracks``: see :func:`~beacon_sim.io.recording.recorded_tracks`),
+        before the first tick: writes the filters line (each filter's effective parameters,
+        from the built filter) and digests its estimates from then on."""
         if self._file is None or self.ticks:
             return
         self._runner = runner
         settings: dict[str, dict[str, Any]] = {}
-        for name, track in runner.tracks.items():
+        for name, track in recorded_tracks(runner).items():
             self._track_ids[name] = id(track)
             entry: dict[str, Any] = {"params": effective_params(track.filter)
                                      if track.filter is not None else None}
@@ -144,7 +184,7 @@ class _LineWriter:
             return
         self._digested = tick
         tracks = {}
-        for name, track in self._runner.tracks.items():
+        for name, track in recorded_tracks(self._runner).items():
             if name not in self._track_ids:
                 continue
             if id(track) != self._track_ids[name] and name not in self._frozen:
@@ -166,8 +206,15 @@ class _LineWriter:
     @property
     def truth_checksum(self) -> str:
         """Checksum of the true trajectory recorded so far (equals the caller's
-        ``sim.truth_checksum`` after the same ticks: a cheap consistency check)."""
-        return self.shadow.truth_checksum
+        ``sim.truth_checksum`` after the same ticks, a single robot's ``Simulation``'s on a
+        team of one: a cheap consistency check)."""
+        return self.shadow.sims[0].truth_checksum if self.solo else self.shadow.truth_checksum
+
+    @property
+    def readings_checksum(self) -> str:
+        """Checksum of the readings recorded so far (a single robot's ``Simulation``'s on a
+        team of one, :class:`TeamReadingsHash` on a team)."""
+        return self.shadow.sims[0].readings_checksum if self.solo else self.readings.checksum
 
     def _check_tick(self, tick: int) -> None:
         """Refuse a closed recorder; warn once when ticks are not recorded one by one."""
@@ -195,8 +242,6 @@ class _LineWriter:
             self._last_flush_wall = now
             self._last_flush_tick = tick
 
-    def _state_line(self, kind: str) -> dict[str, Any]:
-        raise NotImplementedError
 
     def close(self) -> None:
         """Write the end line (final truth checksum) and close the file. Idempotent."""
@@ -220,62 +265,76 @@ class _LineWriter:
         self.close()
 
 
-class Recorder(_LineWriter):
-    """Writes one run to ``path`` as it goes.
+    def record_tick(self, tick: int, driven: Any = 0, control: Any = None, autopilot: bool = False,
+                    commands: list[dict] | None = None) -> None:
+        """Record one tick: robot ``driven`` (index in team order) gets ``control`` [m/s,
+        rad/s], the others follow their drivers; ``autopilot``: its own driver chose the
+        command; ``commands``: the user commands applied before the step (a single robot's
+        :data:`~beacon_sim.io.recording.COMMAND_KINDS`, a team's
+        :data:`~beacon_sim.io.recording.TEAM_COMMAND_KINDS`). ``tick`` should count up by one
+        per call (a gap is warned about once).
 
-    Parameters
-    ----------
-    path : str or Path
-        The ``.jsonl`` file to create (its folder is created too).
-    scenario : Scenario
-        Loaded from a TOML file; its text is stored so replay rebuilds it exactly.
-    seed : int
-    filters : list of str
-        The filter specs of the run.
-    params : dict
-        ``{NAME: {KEY: VALUE}}`` parameter overrides (``--set``) of the run.
-
-    Call :meth:`record_tick` once per tick *before* the caller's ``sim.step`` of that tick,
-    with the control and the user commands applied on that tick; then :meth:`close`.
-    """
-
-    def __init__(self, path, scenario: Scenario, seed: int, filters: list[str],
-                 params: dict | None = None, *, checkpoint_every: int | None = None):
-        self.scenario = scenario
-        text = scenario_text(scenario)
-        rebuilt = rebuild_scenario(text, scenario.source, scenario.name)
-        if replace(rebuilt, seed=scenario.seed, duration=scenario.duration) != scenario:
-            warnings.warn(f"{scenario.source}: the scenario was changed after loading; the "
-                          "recording stores the file as it is on disk", stacklevel=2)
-        self.shadow = Simulation(rebuilt, int(seed))
-        self._open(path, scenario, text, seed, filters, params, checkpoint_every)
-
-    def record_tick(self, tick: int, control: Control | None, commands: list[dict] | None = None) -> None:
-        """Record the control [m/s, rad/s] and the user commands of one tick.
-
-        ``control`` None means "the scenario's driver decides"; the driver's command is
-        recorded. ``tick`` should count up by one per call (a gap is warned about once).
+        A team of one writes a single robot's tick line: its command as given (``control``
+        None: its driver's, the same draws ``step(None)`` would make). A team lets the
+        driven robot's driver choose again on ``autopilot`` (the shadow's driver state
+        follows) and writes what it chose. The call ``record_tick(tick, control, commands)``
+        of a single robot (before issue 22) is still taken.
         """
+        if driven is None or isinstance(driven, Control):  # (tick, control, commands)
+            driven, control, commands, autopilot = 0, driven, control, False
+        if self.solo:
+            self._record_solo(tick, control, commands)
+        else:
+            self._record_team(tick, int(driven), control, autopilot, commands)
+
+    def _record_solo(self, tick: int, control: Control | None, commands: list[dict] | None) -> None:
+        sim = self.shadow.sims[0]
         commands = [dict(c) for c in (commands or [])]
         for c in commands:
             validate_command(c)
         self._check_tick(tick)
-        self._digest_tick(self.shadow.tick)
-        apply_commands(commands, self.shadow, {}, self.shadow.scenario)
+        self._digest_tick(sim.tick)
+        apply_commands(commands, sim, {}, sim.scenario)
         if control is None:  # the driver's command (the same draws step(None) would make)
-            control = self.shadow.driver.control(self.shadow.time, self.shadow.pose)
-        step = self.shadow.step(control)
+            control = sim.driver.control(sim.time, sim.pose)
+        step = self.shadow.step({0: control})
         # "u" is the command the truth executed, not step.control (v = 0 after a bump, what
         # the filters are told): replaying step.control would re-run a different tick.
         line: dict[str, Any] = {"type": "tick", "k": step.tick,
                                 "u": [control.v, control.omega],
-                                "h": self.shadow.truth_checksum[:8],
-                                "r": self.shadow.readings_checksum[:8]}
+                                "h": sim.truth_checksum[:8], "r": sim.readings_checksum[:8]}
+        if commands:
+            line["c"] = commands
+        self._write_tick(line, step.tick)
+
+    def _record_team(self, tick: int, driven: int, control: Control | None, autopilot: bool,
+                     commands: list[dict] | None) -> None:
+        n = self.team.n_robots
+        commands = [_plain(c) for c in (commands or [])]
+        for c in commands:
+            validate_command(c, n)
+        if not 0 <= driven < n:
+            raise ValueError(f"driven robot {driven}: expected an index from 0 to {n - 1}")
+        if control is None:
+            autopilot = True
+        self._check_tick(tick)
+        self._digest_tick(self.shadow.tick)
+        team_commands_to_sim(commands, self.shadow)
+        step = self.shadow.step({} if autopilot or control is None else {driven: control})
+        self.readings.update(step)
+        # the command as given (a bump sets step.control's v to 0; replay needs what ran)
+        u = step.steps[driven].control if autopilot or control is None else control
+        line: dict[str, Any] = {"type": "tick", "k": step.tick, "d": driven, "u": [u.v, u.omega]}
+        if autopilot:
+            line["a"] = True
+        line["h"] = self.shadow.truth_checksum[:8]
+        line["r"] = self.readings.checksum[:8]
         if commands:
             line["c"] = commands
         self._write_tick(line, step.tick)
 
     def _state_line(self, kind: str) -> dict[str, Any]:
+        """A checkpoint or the end line: the tick, the true pose(s) and the checksums."""
         sim = self.shadow
         out: dict[str, Any] = {"type": kind}
         if kind == "end":
@@ -283,11 +342,13 @@ class Recorder(_LineWriter):
         else:
             out["k"] = sim.tick
             out["time"] = sim.time
-        out["pose"] = [float(v) for v in sim.pose]
-        out["checksum"] = sim.truth_checksum
-        out["readings_checksum"] = sim.readings_checksum
+        if self.solo:
+            out["pose"] = [float(v) for v in sim.sims[0].pose]
+        else:
+            out["poses"] = [[float(v) for v in p] for p in sim.poses]
+        out["checksum"] = self.truth_checksum
+        out["readings_checksum"] = self.readings_checksum
         return out
-
 
 
 class TeamReadingsHash:
@@ -321,75 +382,6 @@ def team_commands_to_sim(commands: list[dict], sim: TeamSimulation) -> None:
     for cmd in commands:
         if cmd["kind"] == "kidnap":
             sim.sims[cmd["robot"]].request_kidnap(cmd.get("pose"))
-
-
-class TeamRecorder(_LineWriter):
-    """Writes one team session to ``path`` as it goes (format: beacon_sim/io/recording.py,
-    ``kind: "team"``), with a shadow :class:`TeamSimulation` for the checksums.
-
-    Call :meth:`record_tick` once per tick before the caller's step of that tick, with the
-    driven robot's index, its command, whether its own driver chose it (autopilot) and the
-    user commands of the tick (:data:`~beacon_sim.io.recording.TEAM_COMMAND_KINDS`); then
-    :meth:`close`.
-    """
-
-    def __init__(self, path, team: TeamScenario, seed: int, filters: list[str],
-                 params: dict | None = None, *, checkpoint_every: int | None = None):
-        self.team = team
-        text = scenario_text(team)
-        rebuilt = rebuild_team_scenario(text, team.source, team.name)
-        if replace(rebuilt, seed=team.seed, duration=team.duration) != team:
-            warnings.warn(f"{team.source}: the team scenario was changed after loading; the "
-                          "recording stores the file as it is on disk", stacklevel=2)
-        self.shadow = TeamSimulation(rebuilt, int(seed))
-        self.readings = TeamReadingsHash()
-        self._open(path, team, text, seed, filters, params, checkpoint_every,
-                   {"kind": TEAM_KIND, "robots": [r.name for r in team.robots]})
-
-    @property
-    def readings_checksum(self) -> str:
-        return self.readings.checksum
-
-    def record_tick(self, tick: int, driven: int, control: Control, autopilot: bool = False,
-                    commands: list[dict] | None = None) -> None:
-        """Record one team tick: robot ``driven`` (index) gets ``control`` [m/s, rad/s]
-        (``autopilot``: its own driver chose it, and the shadow lets the driver choose), the
-        others follow their drivers; ``commands`` are applied before the step."""
-        n = len(self.team.robots)
-        commands = [_plain(c) for c in (commands or [])]
-        for c in commands:
-            validate_team_command(c, n)
-        if not 0 <= int(driven) < n:
-            raise ValueError(f"driven robot {driven}: expected an index from 0 to {n - 1}")
-        self._check_tick(tick)
-        self._digest_tick(self.shadow.tick)
-        team_commands_to_sim(commands, self.shadow)
-        step = self.shadow.step({} if autopilot else {int(driven): control})
-        self.readings.update(step)
-        # the command as given (a bump sets step.control's v to 0; replay needs what ran)
-        u = control if not autopilot else step.steps[int(driven)].control
-        line: dict[str, Any] = {"type": "tick", "k": step.tick, "d": int(driven),
-                                "u": [u.v, u.omega]}
-        if autopilot:
-            line["a"] = True
-        line["h"] = self.shadow.truth_checksum[:8]
-        line["r"] = self.readings.checksum[:8]
-        if commands:
-            line["c"] = commands
-        self._write_tick(line, step.tick)
-
-    def _state_line(self, kind: str) -> dict[str, Any]:
-        sim = self.shadow
-        out: dict[str, Any] = {"type": kind}
-        if kind == "end":
-            out["ticks"] = sim.tick
-        else:
-            out["k"] = sim.tick
-            out["time"] = sim.time
-        out["poses"] = [[float(v) for v in p] for p in sim.poses]
-        out["checksum"] = sim.truth_checksum
-        out["readings_checksum"] = self.readings.checksum
-        return out
 
 
 def _plain(cmd: dict) -> dict:

@@ -1,8 +1,18 @@
-"""Replaying a recording bit for bit, with the recorded filters or any others.
+"""Replaying a recording bit for bit, with the recorded filters or any others, over any
+number of robots (a single robot's file is a team of one).
 
 The one home of "how a recording is replayed": :func:`replay_recording` re-simulates a
 file headless and checks its checksums; :class:`ReplaySession` is the same, one tick at a
 time, for the window. The file format is beacon_sim/io/recording.py (and docs/replay.md).
+
+Each tick goes as it went live: the recorded user commands (a kidnap of the robot it names,
+a reset of the filters), then every robot steps, the recorded driven robot on its recorded
+command (or, on a team's file where its own driver chose it live, that driver again, so the
+driver's state follows), the others on their drivers; then the filters are fed
+(:class:`~beacon_sim.filters.team_runner.TeamRunner`: each single-robot filter on each
+robot, each team filter once). A recording never makes beacon-sim import code: only
+built-in filters and installed entry points are run from a file
+(:func:`is_builtin_spec`).
 """
 
 from __future__ import annotations
@@ -10,27 +20,28 @@ from __future__ import annotations
 import time
 from collections.abc import Set
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
-from beacon_sim.core.simulation import Simulation
-from beacon_sim.core.team import TeamStep
-from beacon_sim.core.types import Control, Step
-from beacon_sim.filters.base import Filter
-from beacon_sim.filters.loading import build_filters as build_all
-from beacon_sim.filters.loading import filter_names
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
+from beacon_sim.core.team import TeamSimulation, TeamStep
+from beacon_sim.core.types import Control
+from beacon_sim.filters.loading import filter_names, split_label
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
+from beacon_sim.filters.team_runner import TeamRunner
+from beacon_sim.filters.team_specs import MEMBER_PREFIX, team_filter_name
 from beacon_sim.io.recording import (
     EstimateDigests,
     Recording,
     RecordingError,
-    TeamRecording,
     TickRecord,
     effective_params,
+    recorded_tracks,
     recording_key,
 )
 from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.live import Session
-from beacon_sim.runs.user_commands import apply_commands
+from beacon_sim.runs.recorder import TeamReadingsHash
+from beacon_sim.runs.user_commands import apply_to_run
 
 
 class ReplayMismatch(RecordingError):
@@ -57,18 +68,24 @@ class FilterVerifier:
 
     Compared only when the replay runs the recorded filters with the recorded parameters
     (``compare``); a filter the replay skipped (named by file) or that was switched off or
-    reloaded live is listed in :meth:`exceptions` instead. Works on single-robot and team
-    runners alike (their ``tracks``)."""
+    reloaded live is listed in :meth:`coverage` instead. ``runner``: the replay's filters
+    (a TeamRunner, or anything :func:`~beacon_sim.io.recording.recorded_tracks` reads),
+    seen as the recording stores them."""
 
-    def __init__(self, recording: Recording | TeamRecording, tracks: dict[str, Any],
-                 compare: bool, skipped: list[str]):
+    def __init__(self, recording: Recording, runner: Any, compare: bool, skipped: list[str]):
         self.recording = recording
-        self.tracks = tracks
+        self.runner = runner
         self.compare = compare and recording.parts.settings is not None
         self.skipped = list(skipped)
         self.digests = EstimateDigests()
         self.unchecked: dict[str, str] = {}  # name -> why its estimates were not compared
         self.compared_lines = 0
+
+    @property
+    def tracks(self) -> dict[str, Any]:
+        """The replay's tracks by filter name, as the recording stores them (now: a filter
+        reloaded in the window has a new track)."""
+        return {} if self.runner is None else recorded_tracks(self.runner)
 
     def check_settings(self) -> str | None:
         """Why the built filters are not the recorded ones (naming the field), or None."""
@@ -76,19 +93,22 @@ class FilterVerifier:
             return None
         settings = self.recording.parts.settings or {}
         line = self.recording.parts.settings_line
-        names = set(self.tracks)
+        tracks = self.tracks
+        names = set(tracks)
         recorded = set(settings) - set(self.skipped)
         if names != recorded:
             extra = sorted(names - recorded) or sorted(recorded - names)
             return (f"the header's filters list differs from the filters line (line {line}: "
                     f"filter {extra[0]!r} is in one of them only)")
         for name in sorted(names):
-            track = self.tracks[name]
+            track = tracks[name]
             if "failed" in settings[name]:  # (e.g. over the window's time limit to build)
                 self.unchecked[name] = f"not built live ({str(settings[name]['failed'])[:80]})"
                 continue
             replayed = effective_params(track.filter) if track.filter is not None else None
             rec = settings[name].get("params")
+            if rec != replayed and track.filter is not None:
+                replayed = without_added_defaults(rec, replayed, default_params(track.filter))
             if rec != replayed:
                 return (f"the filter settings (line {line}) differ from the header's params and "
                         f"the stored scenario: {_first_difference(rec, replayed, name)}")
@@ -103,20 +123,21 @@ class FilterVerifier:
         (naming the filter), or None."""
         if line is None or not self.compare:
             return None
+        tracks = self.tracks
         notes = line.get("notes", {})
         recorded = line.get("digests", line.get("estimates", {}))
         for name, digest in sorted(recorded.items()):
             if name in self.skipped:
                 continue
-            if name not in self.tracks:
+            if name not in tracks:
                 return f"filter {name!r} of the estimates line is not among the recorded filters"
             if digest is None or name in self.unchecked:
                 self.unchecked.setdefault(name, notes.get(name, "not compared"))
                 continue
             if digest != self.digests.digest(name):
-                if name in notes or self.tracks[name].failed:
+                if name in notes or tracks[name].failed:
                     self.unchecked[name] = notes.get(name) or f"switched off in this replay: " \
-                                                              f"{self.tracks[name].failed}"
+                                                              f"{tracks[name].failed}"
                     continue
                 return f"the estimates of filter {name} (their digest after tick {tick})"
         self.compared_lines += 1
@@ -142,12 +163,41 @@ class FilterVerifier:
         return (" except: " + "; ".join(out)) if out else ""
 
 
-def settings_error(recording: Recording | TeamRecording, why: str) -> ReplayMismatch:
+def default_params(flt: Any) -> dict[str, Any] | None:
+    """A built filter's class defaults in the shape :func:`effective_params` gives its
+    parameters (an ``independent:F``'s copies' under ``members``), as JSON values."""
+    defaults = getattr(type(flt), "defaults", None)
+    out: dict[str, Any] = dict(defaults) if isinstance(defaults, dict) else {}
+    members = getattr(flt, "filters", None)
+    if isinstance(members, list) and members:
+        out["members"] = [default_params(m) for m in members]
+    return effective_params(SimpleNamespace(params=out)) if out else None
+
+
+def without_added_defaults(recorded: Any, replayed: Any, defaults: Any) -> Any:
+    """``replayed`` without the parameters ``recorded`` lacks and that are at their class
+    default: parameters a newer beacon-sim added to a filter (issue 29's ``association``),
+    which a file written before cannot hold. Any other difference stays, and the estimate
+    digests still check that the filter gave the recorded estimates bit for bit."""
+    if isinstance(recorded, dict) and isinstance(replayed, dict) and isinstance(defaults, dict):
+        out = {}
+        for k, v in replayed.items():
+            if k not in recorded and k in defaults and v == defaults[k]:
+                continue
+            out[k] = without_added_defaults(recorded.get(k), v, defaults.get(k))
+        return out
+    if isinstance(recorded, list) and isinstance(replayed, list) and isinstance(defaults, list) \
+            and len(recorded) == len(replayed) == len(defaults):
+        return [without_added_defaults(r, p, d) for r, p, d in zip(recorded, replayed, defaults, strict=True)]
+    return replayed
+
+
+def settings_error(recording: Recording, why: str) -> ReplayMismatch:
     """The error of a replay whose filters are not the recorded ones (``why`` names the field)."""
     return ReplayMismatch(f"{recording.path}:{recording.parts.settings_line}: {why}: was it edited?")
 
 
-def settings_compared(recording: Recording | TeamRecording, specs: list[str],
+def settings_compared(recording: Recording, specs: list[str],
                       recorded_specs: list[str], used: dict[str, dict[str, Any]]) -> bool:
     """Whether a replay runs exactly the recorded filters with the recorded parameters
     (``used``: the parameters it builds them with), so that their settings and estimates
@@ -157,7 +207,7 @@ def settings_compared(recording: Recording | TeamRecording, specs: list[str],
         and clean == {k: v for k, v in recording.params.items() if v}
 
 
-def with_signature(status: str, recording: Recording | TeamRecording) -> str:
+def with_signature(status: str, recording: Recording) -> str:
     """The status with what the signature proved ("signed and verified" in place of
     "verified" when the HMAC matched; "not signed" when a key was given). A signature that
     does not match raises ReplayMismatch (after the replay's own checks, which name a field)."""
@@ -171,10 +221,16 @@ def with_signature(status: str, recording: Recording | TeamRecording) -> str:
     return f"{status}; {sig}"
 
 
-def _is_safe_spec(spec: str) -> bool:
-    """Built-in filters (and installed entry points) only: a recording never makes us
-    import a module or a file it names."""
-    return ":" not in spec
+def is_builtin_spec(spec: str) -> bool:
+    """A filter spec a recording may run: a built-in filter or team filter by name, an
+    installed entry point, or ``independent:F`` with F one of those (each optionally
+    labelled). Anything naming a module or a file (``alice.py:MyEkf``, ``pkg.mod:Class``,
+    ``independent:alice.py:MyEkf``) is not: a recording never makes beacon-sim import code."""
+    _, body = split_label(spec)
+    if body.startswith(MEMBER_PREFIX):
+        body = body[len(MEMBER_PREFIX):]
+    return bool(body) and ":" not in body and "/" not in body and "\\" not in body \
+        and not body.endswith(".py")
 
 
 def recorded_filter_specs(recording: Recording, requested: list[str] | None) -> tuple[list[str], list[str]]:
@@ -182,12 +238,18 @@ def recorded_filter_specs(recording: Recording, requested: list[str] | None) -> 
     otherwise the recorded built-in ones (named by module or file path: skipped)."""
     if requested is not None:
         return list(requested), []
-    return ([s for s in recording.filters if _is_safe_spec(s)],
-            [s for s in recording.filters if not _is_safe_spec(s)])
+    return ([s for s in recording.filters if is_builtin_spec(s)],
+            [s for s in recording.filters if not is_builtin_spec(s)])
 
 
-def recorded_params(recording: Recording | TeamRecording,
-                  params: dict[str, dict[str, Any]] | None) -> dict[str, dict[str, Any]]:
+def recorded_names(recording: Recording, specs: list[str]) -> list[str]:
+    """The names a run of ``recording``'s robots gives filter specs (a single robot's as
+    ``run`` names them, a team's as a team run does)."""
+    return [team_filter_name(s) for s in specs] if recording.is_team else filter_names(specs)
+
+
+def recorded_params(recording: Recording,
+                    params: dict[str, dict[str, Any]] | None) -> dict[str, dict[str, Any]]:
     """The recorded filter parameters with ``params`` (from ``--set``) on top."""
     merged = recording.params
     for name, p in (params or {}).items():
@@ -201,65 +263,119 @@ def skipped_note(spec: str) -> str:
             f"code); pass --filter {spec} to run it")
 
 
-def build_filters(specs: list[str], recording: Recording,
-                  params: dict[str, dict[str, Any]] | None = None
-                  ) -> tuple[dict[str, Filter | None], dict[str, tuple[str, str]]]:
-    """Construct the filters for a replay, named as a headless run names them: (name ->
-    filter or None, name -> (why construction failed, traceback))."""
-    return build_all(specs, recording.scenario, recording.seed, params)
+def replay_verifier(recording: Recording, runner: Any, specs: list[str],
+                    used: dict[str, dict[str, Any]]) -> FilterVerifier:
+    """The filter settings and estimates check of a replay running ``specs`` with the
+    parameters ``used`` (compared only when they are the recorded ones)."""
+    recorded, skipped = recorded_filter_specs(recording, None)
+    return FilterVerifier(recording, runner, settings_compared(recording, specs, recorded, used),
+                          recorded_names(recording, skipped) if skipped else [])
+
+
+class ReplayedTruth:
+    """The checksums of a replayed run as its recording holds them: a single robot's file,
+    its robot's ``Simulation`` checksums and pose; a team's, the team's
+    (``TeamSimulation.truth_checksum``, :class:`~beacon_sim.runs.recorder.TeamReadingsHash`,
+    every robot's pose)."""
+
+    def __init__(self, recording: Recording, sim: TeamSimulation):
+        self.recording = recording
+        self.sim = sim
+        self.team = recording.is_team
+        self._readings = TeamReadingsHash()
+
+    def observe(self, step: TeamStep) -> None:
+        """A tick just run (a team's readings go into their checksum)."""
+        if self.team:
+            self._readings.update(step)
+
+    @property
+    def truth(self) -> str:
+        return self.sim.truth_checksum if self.team else self.sim.sims[0].truth_checksum
+
+    @property
+    def readings(self) -> str:
+        return self._readings.checksum if self.team else self.sim.sims[0].readings_checksum
+
+    def poses_match(self, line: dict[str, Any]) -> bool:
+        """Whether a checkpoint or end line's true pose(s) are the simulation's now."""
+        if self.team:
+            return line.get("poses") == self.sim.poses.tolist()
+        return line.get("pose") == [float(v) for v in self.sim.sims[0].pose]
+
+    def state_differs(self, line: dict[str, Any]) -> bool:
+        """Whether a checkpoint or end line differs from the replay now (truth, readings,
+        poses)."""
+        return (line["checksum"] != self.truth
+                or line.get("readings_checksum", self.readings) != self.readings
+                or not self.poses_match(line))
+
+    def tick_mismatch(self, rec: TickRecord) -> str | None:
+        """What the tick's recorded checksums disagree with after the tick ran, or None."""
+        return checksums_mismatch(rec, self.truth, self.readings)
+
+
+def checksums_mismatch(rec: TickRecord, truth: str, readings: str) -> str | None:
+    """What a tick's recorded checksums disagree with (the replay's ``truth`` and
+    ``readings`` checksums after the tick), or None."""
+    if rec.short_checksum is not None and truth[:8] != rec.short_checksum:
+        return "its truth checksum"
+    if rec.readings_checksum is not None and readings[:8] != rec.readings_checksum:
+        return "its readings checksum"
+    return None
+
+
+def recorded_controls(rec: TickRecord) -> dict[int, Control]:
+    """The commands a recorded tick gives: the driven robot's (none on a team's autopilot
+    tick: its driver chooses again), the others' drivers choose theirs."""
+    return {} if rec.autopilot else {rec.driven: rec.control}
 
 
 def replay_recording(recording: Recording, filters: list[str] | None = None,
                      params: dict[str, dict[str, Any]] | None = None,
                      verify: bool = True) -> RunResult:
-    """Re-simulate a recording, feeding the filters; check the truth, the readings and (a
-    version 3 file, the recorded filters) the filter settings and estimates against the file.
+    """Re-simulate a recording of any number of robots, feeding the filters; check the
+    truth, the readings and (a version 3 file, the recorded filters) the filter settings
+    and estimates against the file.
 
     ``filters`` None runs the recorded built-in filters with the recorded parameters
     (filters named by module or file path are skipped: pass them explicitly). Raises
     :class:`ReplayMismatch` naming the first tick (or line) and the field that differs.
+    Returns what ``run`` gives on the recording's scenario, a
+    :class:`~beacon_sim.runs.headless.RunResult` over its robots, with ``extra["replay"]``:
+    what was checked (file, ticks, checksum status, skipped filters, warnings).
     """
     specs, skipped = recorded_filter_specs(recording, filters)
     used = recorded_params(recording, params)
-    built, broken = build_filters(specs, recording, used)
-    runner = FilterRunner(built, step_limit_s=HEADLESS_STEP_LIMIT_S)
-    for name, (broke, tb) in broken.items():
-        runner.tracks[name].failed, runner.tracks[name].traceback = broke, tb
-    verifier = FilterVerifier(
-        recording, runner.tracks,
-        settings_compared(recording, specs, recorded_filter_specs(recording, None)[0], used),
-        filter_names(skipped) if skipped else [])
+    runner = TeamRunner(recording.team, specs, recording.seed, used,
+                        step_limit_s=HEADLESS_STEP_LIMIT_S)
+    verifier = replay_verifier(recording, runner, specs, used)
     if verify:
         why = verifier.check_settings()
         if why is not None:
             raise settings_error(recording, why)
-    scenario = recording.scenario
-    sim = Simulation(scenario, recording.seed)
-    steps: list[Step] = []
+    sim = TeamSimulation(recording.team, recording.seed)
+    truth = ReplayedTruth(recording, sim)
+    steps: list[TeamStep] = []
     checked = 0
     t0 = time.perf_counter()
     sim_ns = 0
     estimates = recording.parts.estimates
     for rec in recording.ticks:
         a = time.perf_counter_ns()
-        if rec.commands:
-            working = {n: t.filter for n, t in runner.tracks.items() if t.filter and not t.failed}
-            for name, (why, tb) in apply_commands(rec.commands, sim, working, scenario).items():
-                runner.fail(name, why, tb, sim.time)
-        step = sim.step(rec.control)
+        apply_to_run(rec.commands, sim, runner, HEADLESS_STEP_LIMIT_S, sim.time)
+        step = sim.step(recorded_controls(rec))
+        truth.observe(step)
         sim_ns += time.perf_counter_ns() - a
         if verify:
-            why = tick_mismatch(recording, rec, sim)
+            why = truth.tick_mismatch(rec)
             if why is not None:
                 raise mismatch_error(recording, rec.tick, rec.line, why)
             checked += tick_checked(recording, rec)
             cp = recording.checkpoints.get(rec.tick)
-            if cp is not None and (cp["checksum"] != sim.truth_checksum
-                                   or cp.get("pose") != [float(v) for v in sim.pose]
-                                   or cp.get("readings_checksum", sim.readings_checksum)
-                                   != sim.readings_checksum):
+            if cp is not None and truth.state_differs(cp):
                 raise mismatch_error(recording, _first_bad_tick(recording, rec.tick), rec.line,
-                                "the checkpoint")
+                                     "the checkpoint")
         steps.append(step)
         runner.feed(step)
         if verify:
@@ -270,9 +386,7 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
                 raise mismatch_error(recording, rec.tick, line["line"] if line else rec.line, why)
     wall = time.perf_counter() - t0
     end = recording.end
-    if verify and end is not None and (
-            end.get("ticks") != sim.tick or end["checksum"] != sim.truth_checksum
-            or end.get("readings_checksum", sim.readings_checksum) != sim.readings_checksum):
+    if verify and end is not None and (end.get("ticks") != sim.tick or truth.state_differs(end)):
         raise mismatch_error(recording, sim.tick, len(recording.ticks), "the final checksum")
     if verify and end is not None and "estimates" in end:
         why = verifier.compare_line(sim.tick, {"digests": end["estimates"],
@@ -281,41 +395,32 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
             raise mismatch_error(recording, sim.tick, len(recording.ticks), why + " at the end")
     status = verification_status(recording, checked, len(recording.ticks), at_end=True,
                                  coverage=verifier.coverage())
-    result = RunResult.of_single(scenario, recording.seed, steps, runner, wall, sim_ns / 1e9,
-                                 sim.truth_checksum)
-    result.extra["replay"] = {
+    replay = {
         "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
         "checksum_status": with_signature(status, recording) if verify else "not checked",
         "recorded_checksum": end["checksum"] if end else None,
         "skipped_filters": skipped, "warnings": list(recording.warnings),
     }
-    return result
+    out = RunResult(recording.team, recording.seed, steps, runner, wall, sim_ns / 1e9, truth.truth)
+    out.extra["replay"] = replay
+    return out
 
 
-def tick_mismatch(recording: Recording, rec: TickRecord, sim: Simulation) -> str | None:
-    """What the tick's recorded checksums disagree with after ``sim`` ran it, or None."""
-    if rec.short_checksum is not None and sim.truth_checksum[:8] != rec.short_checksum:
-        return "its truth checksum"
-    if rec.readings_checksum is not None and sim.readings_checksum[:8] != rec.readings_checksum:
-        return "its readings checksum"
-    return None
-
-
-def tick_checked(recording: Recording | TeamRecording, rec: TickRecord) -> int:
+def tick_checked(recording: Recording, rec: TickRecord) -> int:
     """1 when the tick carries every checksum its format version has (truth; version 2 also
     readings), else 0."""
     return int(rec.short_checksum is not None
                and (recording.version < 2 or rec.readings_checksum is not None))
 
 
-def verification_status(recording: Recording | TeamRecording, checked: int, ticks: int,
+def verification_status(recording: Recording, checked: int, ticks: int,
                         at_end: bool, coverage: str | None = None) -> str:
     """What a replay may claim, in words (docs/replay.md, "What replay verifies"). The end
     line's checksums cover every tick; without it only the ticks that carry checksums count.
     ``coverage`` (:meth:`FilterVerifier.coverage`) says what was not compared: "verified"
     alone means truth, readings, filter settings and estimates all matched."""
     if coverage is None:
-        coverage = FilterVerifier(recording, {}, False, []).coverage()
+        coverage = FilterVerifier(recording, None, False, []).coverage()
     if not ticks and not at_end:
         return "nothing checked yet (no tick replayed)"
     end = recording.end
@@ -333,7 +438,7 @@ def _first_bad_tick(recording: Recording, tick: int) -> int:
     return (max(prev) + 1) if prev else 1
 
 
-def mismatch_error(recording: Recording | TeamRecording, tick: int, line: int,
+def mismatch_error(recording: Recording, tick: int, line: int,
                    what: str) -> ReplayMismatch:
     """The error of a replay that differs from its recording at ``tick`` (file line ``line``),
     checked against ``what``."""
@@ -352,65 +457,78 @@ def replay_label(path: Path) -> str:
 
 
 class ReplaySession(Session):
-    """A :class:`~beacon_sim.runs.live.Session` whose controls and user commands come from a
-    recording, one tick at a time (the replay window's scene)."""
+    """A :class:`~beacon_sim.runs.live.Session` whose driven robot, commands and user
+    commands come from a recording of any number of robots, one tick at a time (the replay
+    window's scene, with the timeline's ``total_ticks``, ``at_end``, ``marks`` and
+    ``seek``). Each tick is checked as :func:`replay_recording` checks it; ``mismatch`` holds
+    the first difference (naming the field), ``checksum_status()`` what was verified."""
+
+    #: The panel shows who was driven, without the Tab hint (keys do not drive a replay).
+    replaying = True
 
     def __init__(self, recording: Recording, specs: list[str],
                  params: dict[str, dict[str, Any]] | None = None):
         self.recording = recording
+        super().__init__(recording.team, list(specs), recording.seed, dict(params or {}))
+        self._fresh()
+
+    def _fresh(self) -> None:
+        """The checks from tick 0, for the simulation and the filters just built."""
         self.mismatch: str | None = None  # the first difference from the file (names the field)
         self._checked = 0  # ticks so far that carried their checksums
-        super().__init__(recording.scenario, list(specs), recording.seed, dict(params or {}))
-        self._new_verifier()
-
-    def _new_verifier(self) -> None:
-        """The filter settings and estimates check, for the filters just built."""
-        recorded, skipped = recorded_filter_specs(self.recording, None)
-        self.verifier = FilterVerifier(
-            self.recording, self.runner.tracks,
-            settings_compared(self.recording, self.specs, recorded, self.params),
-            filter_names(skipped) if skipped else [])
+        self.truth = ReplayedTruth(self.recording, self.sim)
+        self._apply_recorded_driving()
+        self.verifier = replay_verifier(self.recording, self.filters_run, self.specs, self.params)
         why = self.verifier.check_settings()
-        if why is not None and self.mismatch is None:
+        if why is not None:
             self.mismatch = f"{self.recording.path}:{self.recording.parts.settings_line}: {why}"
-        if self.mismatch is None and self.recording.parts.signature_error:
+        elif self.recording.parts.signature_error:
             self.mismatch = self.recording.parts.signature_error
+
+    def _apply_recorded_driving(self) -> None:
+        """Who the next recorded tick drives (the panel shows it)."""
+        ticks = self.recording.ticks
+        if ticks:
+            rec = ticks[min(self.sim.tick, len(ticks) - 1)]
+            self.driven, self.autopilot = rec.driven, rec.autopilot
 
     @property
     def total_ticks(self) -> int:
         return len(self.recording.ticks)
+
+    @property
+    def at_end(self) -> bool:
+        return self.sim.tick >= self.total_ticks
 
     def marks(self) -> list[tuple[int, str]]:
         """(tick, kind of the first user command) of the recorded user commands."""
         return [(rec.tick, rec.commands[0]["kind"]) for rec in self.recording.ticks if rec.commands]
 
     @property
-    def at_end(self) -> bool:
-        return self.sim.tick >= self.total_ticks
-
-    @property
     def drive_mode(self) -> str:
         return replay_label(self.recording.path)
 
     def next_control(self) -> Control:
-        """The recorded control of the next tick (the last one once the recording ends)."""
+        """The driven robot's recorded command of the next tick (its driver's where it chose
+        on a team's file; the last one once the recording ends)."""
         ticks = self.recording.ticks
         if not ticks:
             return Control()
-        return ticks[min(self.sim.tick, len(ticks) - 1)].control
+        rec = ticks[min(self.sim.tick, len(ticks) - 1)]
+        if rec.autopilot and not self.at_end:
+            return super().next_control()
+        return rec.control
 
     def seek(self, tick: int, keep_flips: Set[str] = frozenset()) -> None:
         """Show the run at ``tick``: forward by running the ticks in between, backward by
-        rebuilding the simulation and the filters and re-simulating from the start (the
-        recording holds no generator state). ``keep_flips``: filters the user showed / hid,
-        flipped again after a rebuild."""
+        restarting (a fresh simulation, fresh filters, empty trails) and re-simulating from
+        the start (the recording holds no generator state). ``keep_flips``: filters the user
+        showed / hid, flipped again after a restart."""
         tick = min(max(int(tick), 0), self.total_ticks)
         if tick < self.sim.tick:
             self.close()
-            self.mismatch = None
-            self._checked = 0
-            self.restart()  # a fresh simulation, fresh filters, empty trails
-            self._new_verifier()
+            self.restart()
+            self._fresh()
             for name in keep_flips:
                 if name in self.visible:
                     self.visible[name] = not self.visible[name]
@@ -418,33 +536,36 @@ class ReplaySession(Session):
             self.tick()
 
     def tick(self) -> TeamStep:
-        """The next recorded tick: its commands, its control, then the checksum check."""
+        """The next recorded tick: its commands, the driven robot's command, then the
+        checksum check."""
         rec = self.recording.ticks[self.sim.tick]
-        self.pending = [dict(c) for c in rec.commands]
-        for c in self.pending:  # recorded show / hide of a filter (display only)
+        self.driven, self.autopilot = rec.driven, rec.autopilot
+        self.pending = [dict(c) for c in rec.commands if c["kind"] != "toggle"]
+        for c in rec.commands:  # recorded show / hide of a filter (display only)
             if c["kind"] == "toggle" and c.get("filter") in self.visible:
                 self.visible[c["filter"]] = not self.visible[c["filter"]]
         step = super().tick()
+        self.truth.observe(step)
         self.verifier.fold(rec.tick)
         if self.mismatch is None:
             line = self.recording.parts.estimates.get(rec.tick)
-            why = tick_mismatch(self.recording, rec, self.sim.sims[0]) \
-                or self.verifier.compare_line(rec.tick, line)
+            why = self.truth.tick_mismatch(rec) or self.verifier.compare_line(rec.tick, line)
             if why is not None:
-                self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: replay "
-                                 f"differs from the recording at tick {rec.tick} "
+                self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: "
+                                 f"replay differs from the recording at tick {rec.tick} "
                                  f"(t = {self.sim.time:g} s; {why})")
             self._checked += tick_checked(self.recording, rec)
+        self._apply_recorded_driving()
         return step
 
     def checksum_status(self) -> str:
         """"verified", "MISMATCH ...", or how far the check went."""
-        return session_status(self, self.sim.truth_checksum, self.sim.readings_checksum)
+        return session_status(self, self.truth.truth, self.truth.readings)
 
 
-def session_status(session: Any, truth: str, readings: str) -> str:
-    """A replay window's status (single robot or team): "MISMATCH: ..." naming the field,
-    or what was verified so far (the end line's checksums and estimates once at the end)."""
+def session_status(session: ReplaySession, truth: str, readings: str) -> str:
+    """A replay window's status: "MISMATCH: ..." naming the field, or what was verified so
+    far (the end line's checksums and estimates once at the end)."""
     if session.mismatch:
         return f"MISMATCH: {session.mismatch}"
     rec = session.recording

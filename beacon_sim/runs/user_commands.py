@@ -9,6 +9,10 @@ The commands themselves (small JSON-ready dicts) are defined with the recording 
 - ``global_reset``: filters that support it get a uniform belief;
 - ``toggle``: show / hide a filter (display only: nothing here).
 Commands are applied before the simulation step of the tick they are recorded with.
+
+On a run of N robots (:func:`apply_to_run`, live and on replay alike) a team's kidnap names
+its robot (``"robot": i``, :data:`beacon_sim.io.recording.TEAM_COMMAND_KINDS`) and a reset
+acts on every robot's filters and on the team filters.
 """
 
 from __future__ import annotations
@@ -18,9 +22,13 @@ from functools import partial
 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
+from beacon_sim.core.team import TeamSimulation
+from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.loading import reset_filter
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, guarded_call
+from beacon_sim.filters.team import initial_beliefs
+from beacon_sim.filters.team_runner import JointRunner, TeamRunner, team_filter_of
 from beacon_sim.io.recording import validate_command
 
 
@@ -61,3 +69,45 @@ def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
             if why is not None:
                 failed[name] = (f"reset: {why}", tb)
     return failed
+
+
+def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation, run: TeamRunner,
+                 limit_s: float | None, time_s: float) -> dict[str, tuple[str, str]]:
+    """User commands on a run of N robots (a single robot is a team of one), before the
+    tick's step: a kidnap of the robot it names (robot 0 when it names none); resets of every
+    robot's working filters (:func:`apply_to_filters`) and of the team filters
+    (:func:`reset_team_filters`). A filter whose reset fails is switched off (on every
+    robot, at ``time_s`` [s]); returns those ``{name: (why, traceback)}``."""
+    commands = list(commands)
+    if not commands:
+        return {}
+    for cmd in commands:
+        validate_command(cmd)
+        if cmd["kind"] == "kidnap":
+            sim.sims[int(cmd.get("robot", 0))].request_kidnap(cmd.get("pose"))
+    failed: dict[str, tuple[str, str]] = {}
+    for robot, runner in zip(run.team.robots, run.members, strict=True):
+        working = {n: t.filter for n, t in runner.tracks.items() if t.filter and not t.failed}
+        for name, (why, tb) in apply_to_filters(commands, working, robot.scenario, limit_s).items():
+            run.fail(name, why, tb, time_s)
+            failed[name] = (why, tb)
+    if any(c["kind"] in ("reset", "global_reset") for c in commands):
+        reset_team_filters(run.joint, run.team, limit_s, time_s)
+    return failed
+
+
+def reset_team_filters(runner: JointRunner, team: TeamScenario, limit_s: float | None,
+                       time_s: float) -> None:
+    """The ``reset`` user command on the team filters: every working one back to the
+    scenario's initial beliefs, under the guard (one that fails is switched off), the same
+    live and on replay."""
+    if not runner.tracks:
+        return
+    beliefs = initial_beliefs(team)
+    for name, tr in runner.tracks.items():
+        f = team_filter_of(tr)
+        if tr.failed or f is None:
+            continue
+        _, why, tb = guarded_call(partial(f.reset, beliefs), limit_s)
+        if why is not None:
+            runner.fail(name, f"reset: {why}", tb, time_s)
