@@ -22,6 +22,7 @@ import hashlib
 import json
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +57,14 @@ class Thresholds:
     divergence_m: float = 1.0
     kidnap_window_s: float = math.inf
     global_start_s: float = 15.0
+
+
+def runs_meta(scenario: str, dt: float, runs: Sequence[Any], steps: int) -> dict[str, Any]:
+    """What every evaluation's JSON says of its runs: the scenario, first seed, number of runs
+    and steps, dt [s], and the truth checksums (each run's, and one over all of them)."""
+    checksum = hashlib.sha256("".join(r.truth_checksum for r in runs).encode()).hexdigest()[:16]
+    return {"scenario": scenario, "seed": runs[0].seed, "runs": len(runs), "steps": steps, "dt": dt,
+            "truth_checksum": checksum, "run_checksums": [r.truth_checksum for r in runs]}
 
 
 def model_mask(scenario: Scenario, kidnapped: np.ndarray, kidnap_window_s: float = math.inf,
@@ -327,15 +336,8 @@ def _evaluate(scenario: Scenario, runs: list[RunOutput], thresholds: Thresholds)
                 "sigma0": np.sqrt(np.clip(var[0], 0.0, None)),
                 "means0": runs[0].filters[name].means,
             }
-    checksum = hashlib.sha256("".join(r.truth_checksum for r in runs).encode()).hexdigest()[:16]
     meta = {
-        "scenario": scenario.name,
-        "seed": runs[0].seed,
-        "runs": R,
-        "steps": T,
-        "dt": scenario.dt,
-        "truth_checksum": checksum,
-        "run_checksums": [r.truth_checksum for r in runs],
+        **runs_meta(scenario.name, scenario.dt, runs, T),
         "pcrb": {"pos_rmse_m": b_pos, "heading_rmse_rad": b_head,
                  "steps_used": float(keep.mean()),
                  "left_out": left_out_text(scenario, thresholds) if not keep.all() else "nothing"},
@@ -433,17 +435,10 @@ def evaluate_team(team: TeamScenario, runs: list[TeamRunOutput],
             "failed": first["failed"],
             "per_run": per_run,
         }
-    checksum = hashlib.sha256("".join(r.truth_checksum for r in runs).encode()).hexdigest()[:16]
     return {
-        "scenario": team.name,
+        **runs_meta(team.name, team.dt, runs, T),
         "team": True,
         "robots": robot_names,
-        "seed": runs[0].seed,
-        "runs": R,
-        "steps": T,
-        "dt": team.dt,
-        "truth_checksum": checksum,
-        "run_checksums": [r.truth_checksum for r in runs],
         "pcrb": {"robots": bounds, "team_pos_rmse_m": _f(b_team), "team_alone_pos_rmse_m": _f(b_alone)},
         "filters": rows,
     }
