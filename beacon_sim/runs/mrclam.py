@@ -1,10 +1,15 @@
-"""Real robot data: one robot of a UTIAS MRCLAM data set run through any filter.
+"""Real robot data: robots of a UTIAS MRCLAM data set run through any filter, one robot or
+several at once (a single robot is a team of one).
 
 - The noise the filters are told comes from the data (:func:`calibrate`): odometry against
-  ground truth and measurement residuals against ground truth, with robust statistics.
-- Odometry and measurements are interleaved by time stamp (seed 001 section III.C): the
-  filters predict with the latest command up to each reading's time, update, and go on
-  (:func:`run_mrclam`).
+  ground truth and measurement residuals against ground truth, with robust statistics; by
+  default from the data set's other robots, never the scored one (:func:`calibration_for`).
+- Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` over the
+  robots of :func:`mrclam_team` (:func:`run_mrclam`). One robot: odometry and measurements
+  interleaved by time stamp (seed 001 section III.C), the filters predicting with the latest
+  command up to each reading's time. Several (issue 18): one common clock, each robot's own
+  filter (``independent``) against the team filters that also use the robots' sightings of
+  each other.
 - :class:`MrclamPlayback` shows a finished run one display tick at a time, for the window.
 
 Reading the files: beacon_sim/io/mrclam.py. Frames and units: metres, radians, world frame
@@ -13,11 +18,9 @@ of the data set (Vicon), bearings relative to the heading and wrapped to [-pi, p
 
 from __future__ import annotations
 
-import functools
 import math
 import time
-import traceback
-from collections.abc import Mapping, Set
+from collections.abc import Mapping, Sequence, Set
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -31,12 +34,17 @@ from beacon_sim.core.metrics import chi2_quantile, nees, pose_errors, summary
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.scenario import InitialBelief, Scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
-from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement
+from beacon_sim.core.team import TeamStep
+from beacon_sim.core.team_scenario import RobotSensorSpec, TeamRobot, TeamScenario, team_of_one
+from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement, Step
 from beacon_sim.core.world import World
-from beacon_sim.filters.base import Belief, Filter, GaussianBelief
+from beacon_sim.filters.base import Belief, GaussianBelief
 from beacon_sim.filters.registry import MRCLAM_DEFAULTS
 from beacon_sim.filters.registry import MRCLAM_GATE_CHI2 as MRCLAM_GATE_CHI2  # re-exported
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, guarded_call, one_line, validate_estimate
+from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, failure_text, guarded_call, validate_estimate
+from beacon_sim.filters.team import TEAM_FILTERS
+from beacon_sim.filters.team_runner import TeamRunner, validate_team_estimates
+from beacon_sim.filters.team_specs import check_team_specs
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
 from beacon_sim.runs.headless import ACCURACY_KEYS
 from beacon_sim.runs.scene import FilterStatus, Trail
@@ -346,8 +354,60 @@ def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: f
         driver=KeyboardSpec(), keyboard=KeyboardLimits(), events=(),
         initial_belief=InitialBelief(mean=init, std=INITIAL_STD),
         model_motion_noise=cal.motion, model_sensors=(sensor,),
-        default_filters=("ekf", "ukf", "dead_reckoning"), filter_params={},
+        default_filters=("ekf", "ukf", "dead_reckoning"),
+        filter_params={k: dict(v) for k, v in MRCLAM_PARAMS.items()},
     )
+
+
+# --------------------------------------------------------------------------------------------
+# The robots of a run: a team (a single robot is a team of one)
+
+#: The robot-sighting "sensor" of a team run: a robot's camera reading another robot's
+#: barcode, told the same noise as that robot's landmark readings (the same camera).
+SIGHTING_SENSOR = "camera_robots"
+#: The filters of a team run unless others are named: every robot's own EKF (landmarks
+#: only, the baseline) against the team filters that also use the sightings.
+TEAM_MRCLAM_FILTERS = ("independent", "centralised", "decentralised", "ci")
+#: The common clock of a team run [s]: every robot moves by the exact integral of its
+#: piecewise-constant commands over a tick, and the readings stamped inside a tick update at
+#: its end (a time error below the tick: 4 mm at MRCLAM's 0.08 m/s for 0.05 s).
+TEAM_DT = 0.05
+#: The true pose a step of a data set run carries: not known to the run (filters never
+#: read it; the ground truth is looked up when scoring).
+_UNKNOWN_POSE = np.full(3, np.nan)
+_NO_READINGS: tuple[Measurement, ...] = ()
+
+
+def _union_world(worlds: Sequence[World]) -> World:
+    """One world holding every robot's: the landmarks, and bounds around all their paths."""
+    lo = np.min([w.bounds[:2] for w in worlds], axis=0)
+    hi = np.max([w.bounds[2:] for w in worlds], axis=0)
+    return replace(worlds[0], bounds=(float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])))
+
+
+def mrclam_team(data: Sequence[MrclamData], cals: Sequence[Calibration], t_start: float,
+                t_end: float, dt: float = TEAM_DT) -> TeamScenario:
+    """The robots of a run as a :class:`TeamScenario`: each robot's own scenario
+    (:func:`mrclam_scenario`, its calibrated noise and ground-truth start). One robot is a
+    team of one (``solo``: exactly the single-robot scenario). Several robots (IDs = their
+    subject numbers, what the sightings report) share a world around all their paths and a
+    clock of ``dt`` [s]; each has the sighting sensor, and the team filters the EKF's gate."""
+    scenarios = [mrclam_scenario(d, c, t_start, t_end) for d, c in zip(data, cals, strict=True)]
+    if len(scenarios) == 1:
+        return team_of_one(scenarios[0])
+    robots = []
+    for d, cal, sc in zip(data, cals, scenarios, strict=True):
+        seen = RobotSensorSpec(SIGHTING_SENSOR, "robot_range_bearing", period=dt, noise=cal.sensor)
+        robots.append(TeamRobot(f"robot{d.robot}", d.robot, sc, (seen,), (seen,)))
+    first = scenarios[0]
+    gates = {n: {"gate_chi2": MRCLAM_GATE_CHI2} for n in TEAM_FILTERS if n != "independent"}
+    return TeamScenario(
+        name=f"mrclam_{data[0].folder.name}_team", source=str(data[0].folder),
+        description=f"UTIAS MRCLAM {data[0].folder.name}, robots "
+                    f"{', '.join(str(d.robot) for d in data)}",
+        dt=dt, duration=t_end - t_start, seed=0, world=_union_world([s.world for s in scenarios]),
+        keyboard=first.keyboard, robots=tuple(robots), default_filters=TEAM_MRCLAM_FILTERS,
+        filter_params=gates)
 
 
 # --------------------------------------------------------------------------------------------
@@ -356,15 +416,16 @@ def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: f
 
 @dataclass
 class MrclamTrack:
-    """One filter's estimates at the event times (every odometry row and every update)."""
+    """One filter's estimates of one robot at the recorded times: every odometry row and
+    every update of a single-robot run, every tick of a team run."""
 
     name: str
-    filter: Filter
-    times: list[float] = field(default_factory=list)
-    means: list[np.ndarray] = field(default_factory=list)
-    covs: list[np.ndarray] = field(default_factory=list)
-    ns: int = 0
-    calls: int = 0
+    filter: Any  # the filter object (a team filter's for its robots), None: never built
+    times: np.ndarray  # (T,) [s], data set clock
+    means: np.ndarray  # (T, 3) [m, m, rad], world frame
+    covs: np.ndarray  # (T, 3, 3)
+    us_per_step: float = 0.0  # [us] per step fed (predict, update, estimate)
+    joint: bool = False  # a team filter's (one filter over every robot), not the robot's own
     failed: str | None = None
     failed_time_s: float | None = None  # [s] from the start of the run
     traceback: str = ""
@@ -372,38 +433,59 @@ class MrclamTrack:
 
 @dataclass
 class MrclamRun:
-    """The result of :func:`run_mrclam`."""
+    """The result of :func:`run_mrclam` over ``robots`` (in team order). A single-robot
+    run is a team of one: ``data``, ``calibration``, ``scenario`` and ``tracks`` are its
+    robot's (robot 0 of a team)."""
 
-    data: MrclamData
-    scenario: Scenario
-    calibration: Calibration
-    tracks: dict[str, MrclamTrack]
+    robots: list[MrclamData]
+    team: TeamScenario
+    calibrations: list[Calibration]
+    robot_tracks: list[dict[str, MrclamTrack]]  # per robot: filter name -> track
     t_start: float
     t_end: float
     updates: int
     readings: int
     wall_s: float
+    failed: dict[str, str] = field(default_factory=dict)  # name -> why and when (no score)
 
-    def evaluate(self) -> dict[str, dict[str, Any]]:
-        """Per-axis MSE, RMSE and ANEES of each filter where ground truth exists."""
+    @property
+    def data(self) -> MrclamData:
+        return self.robots[0]
+
+    @property
+    def calibration(self) -> Calibration:
+        return self.calibrations[0]
+
+    @property
+    def scenario(self) -> Scenario:
+        return self.team.robots[0].scenario
+
+    @property
+    def tracks(self) -> dict[str, MrclamTrack]:
+        return self.robot_tracks[0]
+
+    def evaluate(self, robot: int = 0) -> dict[str, dict[str, Any]]:
+        """Per filter, robot ``robot``'s (index in team order) per-axis MSE, RMSE and ANEES
+        where its ground truth exists, the share of steps whose NEES is above the chi-square
+        99 % point, the largest jump of the estimate [m]; no score for a failed filter."""
+        data = self.robots[robot]
         out: dict[str, dict[str, Any]] = {}
-        for name, tr in self.tracks.items():
+        for name, tr in self.robot_tracks[robot].items():
             row: dict[str, Any] = {}
             if tr.failed:  # no score for a filter that failed
                 row.update(dict.fromkeys(ACCURACY_KEYS))
-            elif tr.means:
-                times = np.array(tr.times)
-                truth, ok = self.data.truth_at(times)
+            elif len(tr.means):
+                times = tr.times
+                truth, ok = data.truth_at(times)
                 if ok.any():
-                    means, covs = np.array(tr.means)[ok], np.array(tr.covs)[ok]
+                    means, covs = tr.means[ok], tr.covs[ok]
                     row.update(summary(means, covs, truth[ok]))
-                    e = pose_errors(means, truth[ok])
-                    v = nees(e, covs)
+                    v = nees(pose_errors(means, truth[ok]), covs)
                     row["nees_above_99"] = float(np.mean(v > chi2_quantile(0.99, 3)))
-                    steps = np.hypot(*np.diff(np.array(tr.means)[:, :2], axis=0).T)
+                    steps = np.hypot(*np.diff(tr.means[:, :2], axis=0).T)
                     row["largest_jump_m"] = float(steps.max()) if steps.size else 0.0
                 row["evaluated_s"] = float(np.sum(np.diff(times)[ok[1:]])) if len(times) > 1 else 0.0
-            row["us_per_step"] = tr.ns / 1e3 / max(tr.calls, 1)
+            row["us_per_step"] = tr.us_per_step
             for attr in ("rejected", "n_rejected", "gated"):
                 value = getattr(tr.filter, attr, None)
                 if isinstance(value, int | np.integer):
@@ -415,6 +497,26 @@ class MrclamRun:
         return out
 
     def as_json(self) -> dict[str, Any]:
+        """A single robot's run: its noise, calibration and one row per filter. A team's:
+        per working filter one row per robot (subject number as a string), the failed ones
+        apart."""
+        if not self.team.solo:
+            rows = [self.evaluate(i) for i in range(len(self.robots))]
+            first = self.robot_tracks[0]
+            return {
+                "dataset": str(self.data.folder), "robots": [d.robot for d in self.robots],
+                "duration_s": self.t_end - self.t_start,
+                "landmark_readings": {d.robot: len(d.measurements) for d in self.robots},
+                "robot_sightings": {d.robot: len(d.sightings) for d in self.robots},
+                "calibration_source": {d.robot: c.source for d, c in zip(self.robots, self.calibrations,
+                                                                         strict=True)},
+                "filters": {n: {str(d.robot): r[n] for d, r in zip(self.robots, rows, strict=True)}
+                            for n in first if n not in self.failed},
+                "us_per_step": {n: (first[n].us_per_step if first[n].joint else
+                                    sum(t[n].us_per_step for t in self.robot_tracks))
+                                for n in first if n not in self.failed},
+                "wall_s": self.wall_s, "failed": self.failed,
+            }
         cal = self.calibration
         return {
             "dataset": str(self.data.folder), "robot": self.data.robot,
@@ -431,70 +533,24 @@ class MrclamRun:
             "wall_s": self.wall_s,
         }
 
-
-def _predict_all(tracks, control: Control, dt: float, max_step: float) -> None:
-    if dt <= 0:
-        return
-    n = max(1, math.ceil(dt / max_step - 1e-9))
-    h = dt / n
-    for tr in tracks:
-        if tr.failed:
-            continue
-        a = time.perf_counter_ns()
-
-        def run(tr=tr) -> None:
-            for _ in range(n):
-                tr.filter.predict(control, h)
-        # a filter that fails (raises, exits, hangs) is switched off; the others go on
-        _, why, tb = guarded_call(run, HEADLESS_STEP_LIMIT_S)
-        if why is not None:
-            tr.failed, tr.traceback = f"predict: {why}", tb
-        tr.ns += time.perf_counter_ns() - a
-        tr.calls += n
+def _feed(runner: TeamRunner, tick: int, time_s: float, dt: float, controls: Sequence[Control],
+          readings: Sequence[tuple[Measurement, ...]],
+          sightings: Sequence[tuple[Measurement, ...]] | None = None) -> None:
+    """One step of ``dt`` [s] ending at ``time_s`` (from the start) for every robot."""
+    steps = tuple(Step(tick, time_s, dt, _UNKNOWN_POSE, u, r)
+                  for u, r in zip(controls, readings, strict=True))
+    runner.feed(TeamStep(tick, time_s, dt, steps, tuple(sightings or (_NO_READINGS,) * len(steps))))
 
 
-def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: float | None = None,
-               params: dict[str, dict[str, Any]] | None = None,
-               calibration: Calibration | str | None = "others") -> MrclamRun:
-    """Run filters over one robot's data, interleaving odometry and readings by time stamp.
+def _feed_by_time_stamps(runner: TeamRunner, data: MrclamData, t_start: float, t_end: float,
+                         max_step: float) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """One robot's odometry and readings interleaved by time stamp (seed 001 section III.C):
+    predict with the latest command up to each reading's time stamp, in steps of at most
+    ``max_step`` [s] (long gaps are split), update with all readings of that stamp, go on.
 
-    Each filter starts at the ground truth of the first odometry time (``INITIAL_STD``),
-    predicts with the latest command up to each reading's time stamp (in steps of at most
-    the median odometry interval: long gaps are split), updates with all readings of that
-    stamp, and goes on. Built-in filters get ``MRCLAM_PARAMS`` (the EKF's and UKF's
-    chi-square gate, the particle filter's settings) unless ``params`` set them; the particle
-    and grid filters weigh readings with the calibrated outlier mixture (docs/replay.md).
-    """
-    from beacon_sim.filters.loading import (
-        FilterError,
-        build_filter,
-        check_param_names,
-        filter_display_name,
-        filter_names,
-    )
-
+    Returns the time of every record (the start, every odometry row and every update), the
+    runner tick whose estimate it shows (0: the initial belief), the updates and readings."""
     od = data.odometry
-    t_start = data.t0
-    t_end = float(od[-1, 0]) if duration is None else min(float(od[-1, 0]), t_start + duration)
-    if calibration is None:
-        calibration = "self"
-    cal = calibration_for(data, calibration, t_end) if isinstance(calibration, str) else calibration
-    scenario = mrclam_scenario(data, cal, t_start, t_end)
-    specs = list(scenario.default_filters if filters is None else filters)
-    check_param_names(params, specs)
-    tracks: dict[str, MrclamTrack] = {}
-    for name, spec in zip(filter_names(specs), specs, strict=True):
-        p = dict((params or {}).get(filter_display_name(spec), {}))
-        for key, value in MRCLAM_PARAMS.get(spec, {}).items():
-            p.setdefault(key, value)
-        try:
-            tracks[name] = MrclamTrack(name, build_filter(spec, scenario, seed=0, name=name, params=p))
-        except FilterError:
-            raise  # the user named something that cannot work: one line, exit 2
-        except Exception as exc:  # the filter's own __init__ or reset failed: switched off
-            tracks[name] = MrclamTrack(name, None, failed=f"construction failed: {one_line(exc)}",  # type: ignore[arg-type]
-                                       failed_time_s=0.0, traceback=traceback.format_exc())
-
     ms = data.measurements
     ms = ms[(ms[:, 0] > t_start) & (ms[:, 0] <= t_end)]
     group_t, group_start = np.unique(ms[:, 0], return_index=True)
@@ -502,56 +558,180 @@ def run_mrclam(data: MrclamData, filters: list[str] | None = None, duration: flo
     od_sel = od[(od[:, 0] > t_start) & (od[:, 0] <= t_end)]
     first = int(np.searchsorted(od[:, 0], t_start, side="right")) - 1
     u = Control(float(od[first, 1]), float(od[first, 2]))
-    max_step = cal.step_dt * 1.5
-    active = list(tracks.values())
-
-    def record(t: float) -> None:
-        for tr in active:
-            if not tr.failed:
-                raw, why, tb = guarded_call(tr.filter.estimate, HEADLESS_STEP_LIMIT_S)
-                est = validate_estimate(raw) if why is None else f"estimate(): {why}"
-                if isinstance(est, str):
-                    tr.failed, tr.traceback = est, tb
-                else:
-                    tr.times.append(t)
-                    tr.means.append(est[0])
-                    tr.covs.append(est[1])
-            if tr.failed and tr.failed_time_s is None:
-                tr.failed_time_s = t - t_start
-
-    t0 = time.perf_counter()
-    record(t_start)
-    t = t_start
+    times, ticks = [t_start], [0]
+    t, tick = t_start, 0
     i_od = i_me = 0
     n_od, n_me = len(od_sel), len(group_t)
-    updates = 0
     while i_od < n_od or i_me < n_me:
         t_od = od_sel[i_od, 0] if i_od < n_od else math.inf
         t_me = group_t[i_me] if i_me < n_me else math.inf
         t_next = min(t_od, t_me)
-        _predict_all(active, u, t_next - t, max_step)
-        t = t_next
+        reading: tuple[Measurement, ...] = _NO_READINGS
         if t_me <= t_od:
             a, b = group_start[i_me], group_end[i_me]
-            m = Measurement(SENSOR_NAME, "range_bearing", ms[a:b, 2:4].copy(),
-                            ms[a:b, 1].astype(int))
-            for tr in active:
-                if tr.failed:
-                    continue
-                c = time.perf_counter_ns()
-                _, why, tb = guarded_call(functools.partial(tr.filter.update, [m]),
-                                          HEADLESS_STEP_LIMIT_S)
-                if why is not None:
-                    tr.failed, tr.traceback = f"update: {why}", tb
-                tr.ns += time.perf_counter_ns() - c
-            updates += 1
+            reading = (Measurement(SENSOR_NAME, "range_bearing", ms[a:b, 2:4].copy(),
+                                   ms[a:b, 1].astype(int)),)
+        dt = t_next - t
+        if dt > 0 or reading:  # a repeated odometry stamp only changes the command
+            n = max(1, math.ceil(dt / max_step - 1e-9))
+            h = dt / n
+            for j in range(n):
+                tick += 1
+                _feed(runner, tick, t + (j + 1) * h - t_start, h, (u,),
+                      (reading if j == n - 1 else _NO_READINGS,))
+        t = t_next
+        if reading:
             i_me += 1
         else:
             u = Control(float(od_sel[i_od, 1]), float(od_sel[i_od, 2]))
             i_od += 1
-        record(t)
+        times.append(t)
+        ticks.append(tick)
+    return np.array(times), np.array(ticks, dtype=np.int64), n_me, len(ms)
+
+
+def _per_tick(rows: np.ndarray, sensor: str, kind: str, t_start: float, t_last: float, dt: float,
+              n_ticks: int) -> dict[int, tuple[Measurement, ...]]:
+    """Readings stamped in (t_k, t_k+1] as tick k's, one per subject and tick (the first)."""
+    rows = rows[(rows[:, 0] > t_start) & (rows[:, 0] <= t_last)]
+    k = np.clip(np.ceil((rows[:, 0] - t_start) / dt).astype(int) - 1, 0, n_ticks - 1)
+    out: dict[int, tuple[Measurement, ...]] = {}
+    for kk in np.unique(k):
+        sel = rows[k == kk]
+        _, first = np.unique(sel[:, 1], return_index=True)
+        sel = sel[np.sort(first)]
+        out[int(kk)] = (Measurement(sensor, kind, sel[:, 2:4].copy(), sel[:, 1].astype(np.int64)),)
+    return out
+
+
+def _feed_on_a_clock(runner: TeamRunner, data: Sequence[MrclamData], t_start: float, t_end: float,
+                     dt: float) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Every robot on one clock of ``dt`` [s] from ``t_start``: each tick a robot moves by
+    the exact integral of its piecewise-constant odometry commands over the tick
+    (v = ds/dt, omega = da/dt); the landmark readings and sightings stamped inside the tick
+    update at its end. Returns the tick times, the ticks, the ticks with a landmark reading,
+    and the landmark readings used."""
+    n_ticks = int((t_end - t_start) // dt)
+    times = t_start + dt * np.arange(n_ticks + 1)
+    controls = []
+    for d in data:
+        s, a = _command_integrals(d.odometry, times)
+        controls.append([Control(float(v), float(w)) for v, w in zip(np.diff(s) / dt, np.diff(a) / dt,
+                                                                     strict=True)])
+    landmarks = [_per_tick(d.measurements, SENSOR_NAME, "range_bearing", t_start, times[-1], dt, n_ticks)
+                 for d in data]
+    seen = [_per_tick(d.sightings, SIGHTING_SENSOR, "robot_range_bearing", t_start, times[-1], dt,
+                      n_ticks) for d in data]
+    for k in range(n_ticks):
+        _feed(runner, k + 1, float(times[k + 1] - t_start), dt, [c[k] for c in controls],
+              [lm.get(k, _NO_READINGS) for lm in landmarks], [s.get(k, _NO_READINGS) for s in seen])
+    updates = len(set().union(*landmarks))
+    used = sum(len(m) for lm in landmarks for ms in lm.values() for m in ms)
+    return times, np.arange(n_ticks + 1), updates, used
+
+
+def _start_estimates(runner: TeamRunner) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every working filter's estimate of every robot before the first step (the initial
+    belief): name -> (means (N, 3), covs (N, 3, 3)); a filter whose estimate is unusable is
+    switched off."""
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for name in runner.names:
+        if runner.failed(name):
+            continue
+        member = runner.is_member(name)
+        objs = ([runner.members[i].tracks[name].filter for i in range(runner.n_robots)] if member
+                else [runner.joint.tracks[name].filter])
+        calls = [getattr(obj, "estimate" if member else "estimates") for obj in objs]
+        got = []
+        for call in calls:
+            raw, why, tb = guarded_call(call, HEADLESS_STEP_LIMIT_S)
+            est = (f"estimate(): {why}" if why is not None else validate_estimate(raw) if member
+                   else validate_team_estimates(raw, runner.n_robots))
+            if isinstance(est, str):
+                runner.fail(name, est, tb, 0.0)
+                break
+            got.append(est)
+        else:
+            out[name] = ((np.array([g[0] for g in got]), np.array([g[1] for g in got]))
+                         if member else got[0])
+    return out
+
+
+def _robot_tracks(runner: TeamRunner, start: dict[str, tuple[np.ndarray, np.ndarray]],
+                  times: np.ndarray, ticks: np.ndarray) -> list[dict[str, MrclamTrack]]:
+    """Each robot's track of each filter at the recorded ``times`` (the estimate after runner
+    tick ``ticks``; a filter that failed keeps the records before it failed)."""
+    out: list[dict[str, MrclamTrack]] = [{} for _ in range(runner.n_robots)]
+    for name in runner.names:
+        _, means, covs = runner.series(name)
+        if name in start:
+            means = np.concatenate([start[name][0][None], means])
+            covs = np.concatenate([start[name][1][None], covs])
+        keep = ticks < len(means)
+        for i in range(runner.n_robots):
+            tr = runner.track(name, i)
+            failed = runner.failed(name)
+            out[i][name] = MrclamTrack(
+                name, tr.filter, times[keep], means[ticks[keep], i], covs[ticks[keep], i],
+                us_per_step=tr.us_per_step, joint=not runner.is_member(name), failed=failed,
+                failed_time_s=(tr.failed_time_s if tr.failed_time_s is not None else 0.0) if failed else None,
+                traceback=tr.traceback)
+    return out
+
+
+def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | None = None,
+               duration: float | None = None, params: dict[str, dict[str, Any]] | None = None,
+               calibration: Calibration | str | None = "others", dt: float | None = None) -> MrclamRun:
+    """Run filters over one robot's data, or over several robots of a data set at once.
+
+    Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` (one
+    robot is a team of one, :func:`mrclam_team`), starting at the ground truth of the
+    first common odometry time (``INITIAL_STD``). One robot (``dt`` None): its odometry and
+    readings interleaved by time stamp (:func:`_feed_by_time_stamps`); single-robot filter
+    specs. Several robots (or ``dt`` given): one clock of ``dt`` (default ``TEAM_DT``) [s]
+    (:func:`_feed_on_a_clock`); team filter specs (``independent:F``, ``centralised``, ...;
+    their sightings need the data loaded with ``robot_sightings=True``).
+
+    ``calibration``: ``"others"`` (each robot's noise from the other robots of its folder,
+    the default), ``"self"`` (fitted on its own ground truth, labelled), or a
+    :class:`Calibration` for every robot. Built-in filters get ``MRCLAM_PARAMS`` (the EKF's
+    and UKF's chi-square gate, the particle filter's settings: the robots' scenario
+    ``[filters.*]``) unless ``params`` set them; the particle and grid filters weigh
+    readings with the calibrated outlier mixture (docs/replay.md).
+    """
+    from beacon_sim.filters.loading import check_param_names
+
+    robots = [data] if isinstance(data, MrclamData) else list(data)
+    if not robots:
+        raise MrclamError("run_mrclam: no robot to run")
+    t_start = max(d.t0 for d in robots)
+    t_end = min(float(d.odometry[-1, 0]) for d in robots)
+    if duration is not None:
+        t_end = min(t_end, t_start + duration)
+    how = "self" if calibration is None else calibration
+    cals = [how if isinstance(how, Calibration) else calibration_for(d, how, t_end) for d in robots]
+    team = mrclam_team(robots, cals, t_start, t_end, TEAM_DT if dt is None else dt)
+    specs = list(team.default_filters if filters is None else filters)
+    if team.solo:
+        check_param_names(params, specs)
+    else:
+        check_team_specs(specs, team, params)
+    runner = TeamRunner(team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)
+    start = _start_estimates(runner)
+    t0 = time.perf_counter()
+    if team.solo and dt is None:
+        times, ticks, updates, readings = _feed_by_time_stamps(runner, robots[0], t_start, t_end,
+                                                               cals[0].step_dt * 1.5)
+    else:
+        times, ticks, updates, readings = _feed_on_a_clock(runner, robots, t_start, t_end, team.dt)
     wall = time.perf_counter() - t0
-    return MrclamRun(data, scenario, cal, tracks, t_start, t_end, updates, len(ms), wall)
+    failed = {}
+    for name in runner.names:
+        if runner.failed(name):
+            tr = runner.track(name)
+            failed[name] = failure_text(tr) or str(runner.failed(name))
+    return MrclamRun(robots, team, cals, _robot_tracks(runner, start, times, ticks), t_start, t_end,
+                     updates, readings, wall, failed)
 
 
 #: Readings stay drawn this long after their time stamp [s] (they arrive a few per second).
