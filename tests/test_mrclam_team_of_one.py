@@ -27,24 +27,26 @@ def _with_odometry_gap(folder: Path, start: int, stop: int) -> None:
     path.write_bytes("\r\n".join(lines[:head + start] + lines[head + stop:]).encode())
 
 
-def straightforward_run(data, specs, duration, cal):
+def straightforward_run(data, specs, duration, cal, params):
     """The single-robot MRCLAM run written as plainly as possible: every filter built with
     the MRCLAM defaults, then for each time stamp in order (a reading group before an odometry
     row of the same stamp) predict with the command in force up to it, in equal steps of at
     most 1.5 odometry intervals, update if it is a reading group, take the odometry row's
-    command if it is one, and record every filter's estimate."""
+    command (times the calibrated command scales) if it is one, and record every filter's
+    estimate."""
     od, ms = data.odometry, data.measurements
     t0 = data.t0
     t_end = min(float(od[-1, 0]), t0 + duration)
     sc = mrclam_scenario(data, cal, t0, t_end)
-    flts = {n: build_filter(s, sc, 0, name=n, params=dict(MRCLAM_PARAMS.get(s, {})))
+    flts = {n: build_filter(s, sc, 0, name=n, params={**MRCLAM_PARAMS.get(s, {}), **params.get(n, {})})
             for n, s in zip(filter_names(specs), specs, strict=True)}
     out = {n: ([t0], [f.estimate()[0]], [f.estimate()[1]]) for n, f in flts.items()}
     events = [(t, 0, None) for t in np.unique(ms[(ms[:, 0] > t0) & (ms[:, 0] <= t_end), 0])]
     events += [(row[0], 1, row) for row in od[(od[:, 0] > t0) & (od[:, 0] <= t_end)]]
     events.sort(key=lambda e: (e[0], e[1]))  # stable: odometry rows keep their file order
     row0 = od[np.searchsorted(od[:, 0], t0, side="right") - 1]
-    u, t = Control(row0[1], row0[2]), t0
+    kv, kw = cal.v_scale, cal.omega_scale
+    u, t = Control(row0[1] * kv, row0[2] * kw), t0
     for stamp, is_odometry, row in events:
         dt = stamp - t
         if dt > 0:
@@ -54,7 +56,7 @@ def straightforward_run(data, specs, duration, cal):
                     f.predict(u, dt / n)
         t = stamp
         if is_odometry:
-            u = Control(float(row[1]), float(row[2]))
+            u = Control(float(row[1]) * kv, float(row[2]) * kw)
         else:
             rows = ms[ms[:, 0] == stamp]
             m = Measurement(SENSOR_NAME, "range_bearing", rows[:, 2:4].copy(), rows[:, 1].astype(int))
@@ -71,17 +73,19 @@ def straightforward_run(data, specs, duration, cal):
 @pytest.fixture(scope="module")
 def gapped(tmp_path_factory):
     f = tmp_path_factory.mktemp("gap") / "Set"
-    make_folder(f, seconds=40.0, seed=5)
-    _with_odometry_gap(f, 1500, 1620)  # 1.2 s without odometry, readings every 0.25 s
+    make_folder(f, seconds=35.0, seed=5, drives=0.95)
+    _with_odometry_gap(f, 500, 620)  # 1.2 s without odometry, readings every 0.25 s
     return load_mrclam(f, 1)
 
 
 def test_a_single_robot_run_is_the_straightforward_loop(gapped):
     specs = ["ekf", "ukf", "pf", "dead_reckoning"]
     cal = calibration_for(gapped, "self")
-    run = run_mrclam(gapped, specs, duration=30.0, calibration=cal)
+    assert cal.v_scale != 1.0 and cal.inflation == 1.0  # the scales are used, nothing inflated
+    run = run_mrclam(gapped, specs, duration=12.0, calibration=cal,
+                     params={"pf": {"n_particles": 500}})
     assert run.team.solo and run.team.n_robots == 1 and run.scenario is run.team.robots[0].scenario
-    want = straightforward_run(gapped, specs, 30.0, cal)
+    want = straightforward_run(gapped, specs, 12.0, cal, {"pf": {"n_particles": 500}})
     assert np.diff(want["ekf"][0]).max() > 10 * cal.step_dt  # the gap is there: split in steps
     for n in filter_names(specs):
         tr = run.tracks[n]

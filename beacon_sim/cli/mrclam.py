@@ -58,7 +58,9 @@ def _print_run(d: dict[str, Any]) -> None:
     n = d["noise"]
     print(f"noise {d.get('calibration_source', 'from the data')}: v_std {n['v_std']:.4f} m/s, "
           f"omega_std {n['omega_std']:.4f} rad/s per {n['step_dt']:g} s, range_std "
-          f"{n['range_std']:.4f} m, bearing_std {n['bearing_std']:.4f} rad")
+          f"{n['range_std']:.4f} m, bearing_std {n['bearing_std']:.4f} rad"
+          + (f"; EKF/UKF variances x {n['gaussian_inflation']:.2f}"
+             if n.get("gaussian_inflation", 1.0) != 1.0 else ""))
     print(f"{'filter':<16}{'MSE x m2':>10}{'MSE y m2':>10}{'MSE th rad2':>12}{'pos RMSE m':>11}"
           f"{'head RMSE':>10}{'ANEES':>9}{'us/step':>9}")
     for name, r in d["filters"].items():

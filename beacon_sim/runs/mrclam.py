@@ -39,12 +39,13 @@ from beacon_sim.core.team_scenario import RobotSensorSpec, TeamRobot, TeamScenar
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement, Step
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, GaussianBelief
-from beacon_sim.filters.registry import MRCLAM_DEFAULTS
+from beacon_sim.filters.loading import split_label
+from beacon_sim.filters.registry import MRCLAM_DEFAULTS, MRCLAM_ROBUST
 from beacon_sim.filters.registry import MRCLAM_GATE_CHI2 as MRCLAM_GATE_CHI2  # re-exported
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, failure_text, guarded_call, validate_estimate
 from beacon_sim.filters.team import TEAM_FILTERS
 from beacon_sim.filters.team_runner import TeamRunner, validate_team_estimates
-from beacon_sim.filters.team_specs import check_team_specs
+from beacon_sim.filters.team_specs import check_team_specs, member_spec, team_filter_name
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
 from beacon_sim.runs.headless import ACCURACY_KEYS
 from beacon_sim.runs.scene import FilterStatus, Trail
@@ -121,6 +122,21 @@ def _command_integrals(od: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, n
     return np.interp(times, t, cum_s), np.interp(times, t, cum_a)
 
 
+#: The command scales :func:`command_scale` may find; beyond them the data is not odometry.
+COMMAND_SCALE_RANGE = (0.5, 1.5)
+
+
+def command_scale(true: np.ndarray, commanded: np.ndarray) -> float:
+    """Least-squares factor ``k`` in ``true = k * commanded`` (displacements or turns over
+    the calibration windows), within ``COMMAND_SCALE_RANGE``; 1 without motion. MRCLAM's
+    commanded speeds overshoot what the robots drive by 2-8 %, the same on every robot, an
+    error a white-noise model cannot remove and that sets the drift of a blind stretch."""
+    den = float(np.sum(commanded * commanded))
+    if den <= 0:
+        return 1.0
+    return float(np.clip(np.sum(true * commanded) / den, *COMMAND_SCALE_RANGE))
+
+
 @dataclass(frozen=True)
 class Calibration:
     """Noise settings estimated from one robot's data, and the statistics behind them.
@@ -140,6 +156,14 @@ class Calibration:
     outlier_rate: float = MIN_OUTLIER_RATE
     #: Where the noise came from, in words (printed beside every MRCLAM result).
     source: str = "fitted on the scored run's own ground truth"
+    #: The factor on every variance the Gaussian filters are told (:func:`held_out_inflation`;
+    #: :func:`inflated` applies it); the filters that weigh readings with the outlier mixture
+    #: are told ``motion`` and ``sensor`` as they are.
+    inflation: float = 1.0
+    #: What the robot drives per unit commanded, forward and turning (:func:`command_scale`):
+    #: the filters predict with the odometry commands times these.
+    v_scale: float = 1.0
+    omega_scale: float = 1.0
 
 
 def calibrate(data: MrclamData, t_end: float | None = None,
@@ -186,17 +210,22 @@ def calibrate(data: MrclamData, t_end: float | None = None,
         th = pose[:-1, 2]
         fwd = (np.cos(th) * d[:, 0] + np.sin(th) * d[:, 1]).reshape(n_win, sub).sum(axis=1)
         turn = np.diff(np.unwrap(pose[:, 2])).reshape(n_win, sub).sum(axis=1)
-        e_d = fwd - (s[sub::sub] - s[:-1:sub])
-        e_a = wrap(turn - (a[sub::sub] - a[:-1:sub]))
         good = ok[:-1].reshape(n_win, sub).all(axis=1) & ok[1:].reshape(n_win, sub).all(axis=1)
-        e_d, e_a = e_d[good], e_a[good]
+        fwd, turn = fwd[good], turn[good]
+        c_d, c_a = (s[sub::sub] - s[:-1:sub])[good], (a[sub::sub] - a[:-1:sub])[good]
+        v_scale, omega_scale = command_scale(fwd, c_d), command_scale(turn, c_a)
+        e_d = fwd - v_scale * c_d
+        e_a = wrap(turn - omega_scale * c_a)
         s_d, s_a = rms(e_d), rms(e_a)
+        stats.update(v_scale=v_scale, omega_scale=omega_scale, v_scale_weight=float(np.sum(c_d * c_d)),
+                     omega_scale_weight=float(np.sum(c_a * c_a)))
         stats.update(windows=int(good.sum()), fwd_err_median_m=float(np.median(e_d)),
                      fwd_err_std_m=s_d, fwd_err_robust_std_m=robust_std(e_d),
                      turn_err_median_rad=float(np.median(e_a)), turn_err_std_rad=s_a,
                      turn_err_robust_std_rad=robust_std(e_a))
     else:
         s_d, s_a = 0.01 * math.sqrt(window_s), 0.02 * math.sqrt(window_s)
+        v_scale = omega_scale = 1.0
         stats["windows"] = 0
     scale = math.sqrt(window_s * step_dt)
     motion = MotionNoise(v_std=s_d / scale, omega_std=s_a / scale)
@@ -237,7 +266,8 @@ def calibrate(data: MrclamData, t_end: float | None = None,
         s_r, s_b = 0.1, 0.05
         stats["readings"] = len(ms)
     sensor = SensorNoise(bearing_std=max(s_b, 1e-4), range_std=max(s_r, 1e-4))
-    return Calibration(motion, sensor, step_dt, window_s, stats, outlier_rate)
+    return Calibration(motion, sensor, step_dt, window_s, stats, outlier_rate,
+                       v_scale=v_scale, omega_scale=omega_scale)
 
 
 #: The robots of an MRCLAM data set (leave-one-robot-out calibrates from the others).
@@ -282,12 +312,21 @@ def pooled_calibration(data: MrclamData, others: list[MrclamData],
     motion = MotionNoise(v_std=s_d / scale, omega_std=s_a / scale)
     sensor = SensorNoise(bearing_std=max(s_b, 1e-4), range_std=max(s_r, 1e-4))
     names = ", ".join(f"{o.folder.name} robot {o.robot}" for o in others)
+
+    def pooled_scale(key: str) -> float:
+        w = np.array([float(c.stats.get(f"{key}_weight", 0.0)) for c in cals])
+        k = np.array([float(getattr(c, key)) for c in cals])
+        return float(np.sum(w * k) / np.sum(w)) if np.sum(w) > 0 else 1.0
+
     stats = {"fwd_err_std_m": s_d, "turn_err_std_rad": s_a, "range_err_std_m": s_r,
              "bearing_err_std_rad": s_b, "outlier_rate": outlier_rate,
              "windows": float(sum(c.stats.get("windows", 0) for c in cals)),
              "readings": float(reads.sum())}
+    v_scale, omega_scale = pooled_scale("v_scale"), pooled_scale("omega_scale")
+    stats.update(v_scale=v_scale, omega_scale=omega_scale)
     return Calibration(motion, sensor, step_dt, window_s, stats, outlier_rate,
-                       source=f"calibrated on other runs ({names}), not on the scored run")
+                       source=f"calibrated on other runs ({names}), not on the scored run",
+                       v_scale=v_scale, omega_scale=omega_scale)
 
 
 def other_runs(data: MrclamData, robots: tuple[int, ...] = DATASET_ROBOTS) -> list[MrclamData]:
@@ -301,26 +340,95 @@ def other_runs(data: MrclamData, robots: tuple[int, ...] = DATASET_ROBOTS) -> li
     return others
 
 
-def leave_one_robot_out(data: MrclamData, t_end: float | None = None) -> Calibration:
-    """:func:`pooled_calibration` from the other robots of ``data``'s data set folder; when
-    the folder holds no other robot, the scored run's own calibration, labelled so."""
+#: The quantile of the held-out robots' NEES that :func:`held_out_inflation` puts at the
+#: chi-square point of the same probability (3 degrees of freedom).
+INFLATION_QUANTILE = 0.99
+
+
+def inflated(cal: Calibration) -> Calibration:
+    """``cal`` with every noise variance (velocity, turn rate, range, bearing) multiplied by
+    its ``inflation``: what the Gaussian filters are told."""
+    if cal.inflation == 1.0:
+        return cal
+    k = math.sqrt(cal.inflation)
+    motion = MotionNoise(v_std=cal.motion.v_std * k, omega_std=cal.motion.omega_std * k)
+    sensor = SensorNoise(bearing_std=cal.sensor.bearing_std * k, range_std=cal.sensor.range_std * k)
+    return replace(cal, motion=motion, sensor=sensor, inflation=1.0)
+
+
+def told_inflated(spec: str) -> bool:
+    """Whether filter ``spec`` (also as ``independent:F``) is told the inflated noise: every
+    filter but those whose record weighs readings with the calibrated outlier mixture
+    (``MRCLAM_ROBUST``: the particle and grid filters), which answer the heavy tails that way."""
+    inner = member_spec(spec)
+    return split_label(spec if inner is None else inner)[1] not in MRCLAM_ROBUST
+
+
+def held_out_inflation(others: list[MrclamData], window_s: float = CALIBRATION_WINDOW_S
+                       ) -> tuple[float, str]:
+    """The variance inflation ``kappa >= 1`` the held-out robots ask for, and where it came
+    from in words; 1 when fewer than two are held out.
+
+    The errors of this data are not white: odometry drifts and a reading's error (a range
+    scaled wrong by the camera, a misplaced landmark) persists while the robot stays near the
+    same landmarks, longer than any window the calibration can average over, so noise told
+    from the residuals leaves an EKF overconfident in those stretches (heavy tails of its
+    NEES). Each held-out robot ``o`` is run through the EKF with the noise pooled from the
+    *other* held-out robots (never the scored run, never ``o`` itself); ``kappa`` is the
+    ``INFLATION_QUANTILE`` quantile of their NEES, pooled over every step, over the
+    chi-square point of that probability (3 dof). Scaling every noise variance (and the
+    initial covariance) of a Kalman filter by ``kappa`` leaves its estimates unchanged and
+    scales its covariance by ``kappa``, so ``NEES / kappa`` is what the held-out robots would
+    have given with the inflated noise: one run per robot, no search."""
+    if len(others) < 2:
+        return 1.0, "no inflation (fewer than two other robots to check the noise on)"
+    values = []
+    for o in others:
+        rest = [x for x in others if x is not o]
+        run = run_mrclam(o, ["ekf"], calibration=pooled_calibration(o, rest, window_s))
+        tr = run.tracks["ekf"]
+        if tr.failed or not len(tr.times):
+            continue
+        truth, ok = o.truth_at(tr.times)
+        values.append(nees(pose_errors(tr.means[ok], truth[ok]), tr.covs[ok]))
+    if not values:
+        return 1.0, "no inflation (no held-out robot could be scored)"
+    v = np.concatenate(values)
+    kappa = max(1.0, float(np.quantile(v, INFLATION_QUANTILE)) / chi2_quantile(INFLATION_QUANTILE, 3))
+    names = ", ".join(f"robot {o.robot}" for o in others)
+    return kappa, (f"Gaussian filters' variances x {kappa:.2f}: the {100 * INFLATION_QUANTILE:g} % "
+                   f"point of the EKF's NEES on the held-out robots ({names}, each calibrated on "
+                   "the others)")
+
+
+def leave_one_robot_out(data: MrclamData, t_end: float | None = None, inflate: bool = True
+                        ) -> Calibration:
+    """:func:`pooled_calibration` from the other robots of ``data``'s data set folder, its
+    variances inflated by :func:`held_out_inflation` (``inflate``); when the folder holds no
+    other robot, the scored run's own calibration, labelled so."""
     others = other_runs(data)
     if not others:
         return replace(calibrate(data, t_end),
                        source="fitted on the scored run's own ground truth: the folder holds no "
                               "other robot to calibrate from")
-    return pooled_calibration(data, others)
+    cal = pooled_calibration(data, others)
+    if not inflate:
+        return cal
+    kappa, why = held_out_inflation(others)
+    return replace(cal, inflation=kappa, stats={**cal.stats, "inflation": kappa},
+                   source=f"{cal.source}; {why}")
 
 
-#: How a MRCLAM run's noise is calibrated: from the data set's other robots (the default),
-#: or from the scored run's own ground truth (fitted on the answer; labelled as such).
-CALIBRATIONS = ("others", "self")
+#: How a MRCLAM run's noise is calibrated: from the data set's other robots, inflated to
+#: the held-out robots' consistency (the default); from the other robots, not inflated
+#: ("pooled"); or from the scored run's own ground truth (fitted on the answer; labelled).
+CALIBRATIONS = ("others", "pooled", "self")
 
 
 def calibration_for(data: MrclamData, how: str, t_end: float | None = None) -> Calibration:
     """The calibration ``how`` (one of ``CALIBRATIONS``) for ``data``'s run."""
-    if how == "others":
-        return leave_one_robot_out(data, t_end)
+    if how in ("others", "pooled"):
+        return leave_one_robot_out(data, t_end, inflate=how == "others")
     if how == "self":
         return replace(calibrate(data, t_end),
                        source="fitted on the scored run's own ground truth (optimistic: not for scoring)")
@@ -526,27 +634,31 @@ class MrclamRun:
             "updates": self.updates, "readings": self.readings, "dropped": self.data.dropped,
             "noise": {"v_std": cal.motion.v_std, "omega_std": cal.motion.omega_std,
                       "range_std": cal.sensor.range_std, "bearing_std": cal.sensor.bearing_std,
-                      "step_dt": cal.step_dt},
+                      "step_dt": cal.step_dt, "gaussian_inflation": cal.inflation,
+                      "v_scale": cal.v_scale, "omega_scale": cal.omega_scale},
             "calibration": cal.stats,
             "calibration_source": cal.source,
             "filters": self.evaluate(),
             "wall_s": self.wall_s,
         }
 
-def _feed(runner: TeamRunner, tick: int, time_s: float, dt: float, controls: Sequence[Control],
-          readings: Sequence[tuple[Measurement, ...]],
+def _feed(runners: Sequence[TeamRunner], tick: int, time_s: float, dt: float,
+          controls: Sequence[Control], readings: Sequence[tuple[Measurement, ...]],
           sightings: Sequence[tuple[Measurement, ...]] | None = None) -> None:
     """One step of ``dt`` [s] ending at ``time_s`` (from the start) for every robot."""
     steps = tuple(Step(tick, time_s, dt, _UNKNOWN_POSE, u, r)
                   for u, r in zip(controls, readings, strict=True))
-    runner.feed(TeamStep(tick, time_s, dt, steps, tuple(sightings or (_NO_READINGS,) * len(steps))))
+    step = TeamStep(tick, time_s, dt, steps, tuple(sightings or (_NO_READINGS,) * len(steps)))
+    for runner in runners:
+        runner.feed(step)
 
 
-def _feed_by_time_stamps(runner: TeamRunner, data: MrclamData, t_start: float, t_end: float,
-                         max_step: float) -> tuple[np.ndarray, np.ndarray, int, int]:
+def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: Calibration,
+                         t_start: float, t_end: float) -> tuple[np.ndarray, np.ndarray, int, int]:
     """One robot's odometry and readings interleaved by time stamp (seed 001 section III.C):
-    predict with the latest command up to each reading's time stamp, in steps of at most
-    ``max_step`` [s] (long gaps are split), update with all readings of that stamp, go on.
+    predict with the latest command (times ``cal``'s command scales) up to each reading's time
+    stamp, in steps of at most 1.5 median odometry intervals (long gaps are split), update
+    with all readings of that stamp, go on.
 
     Returns the time of every record (the start, every odometry row and every update), the
     runner tick whose estimate it shows (0: the initial belief), the updates and readings."""
@@ -557,7 +669,9 @@ def _feed_by_time_stamps(runner: TeamRunner, data: MrclamData, t_start: float, t
     group_end = np.append(group_start[1:], len(ms))
     od_sel = od[(od[:, 0] > t_start) & (od[:, 0] <= t_end)]
     first = int(np.searchsorted(od[:, 0], t_start, side="right")) - 1
-    u = Control(float(od[first, 1]), float(od[first, 2]))
+    kv, kw = cal.v_scale, cal.omega_scale
+    u = Control(float(od[first, 1]) * kv, float(od[first, 2]) * kw)
+    max_step = 1.5 * cal.step_dt
     times, ticks = [t_start], [0]
     t, tick = t_start, 0
     i_od = i_me = 0
@@ -577,13 +691,13 @@ def _feed_by_time_stamps(runner: TeamRunner, data: MrclamData, t_start: float, t
             h = dt / n
             for j in range(n):
                 tick += 1
-                _feed(runner, tick, t + (j + 1) * h - t_start, h, (u,),
+                _feed(runners, tick, t + (j + 1) * h - t_start, h, (u,),
                       (reading if j == n - 1 else _NO_READINGS,))
         t = t_next
         if reading:
             i_me += 1
         else:
-            u = Control(float(od_sel[i_od, 1]), float(od_sel[i_od, 2]))
+            u = Control(float(od_sel[i_od, 1]) * kv, float(od_sel[i_od, 2]) * kw)
             i_od += 1
         times.append(t)
         ticks.append(tick)
@@ -604,26 +718,27 @@ def _per_tick(rows: np.ndarray, sensor: str, kind: str, t_start: float, t_last: 
     return out
 
 
-def _feed_on_a_clock(runner: TeamRunner, data: Sequence[MrclamData], t_start: float, t_end: float,
+def _feed_on_a_clock(runners: Sequence[TeamRunner], data: Sequence[MrclamData],
+                     cals: Sequence[Calibration], t_start: float, t_end: float,
                      dt: float) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Every robot on one clock of ``dt`` [s] from ``t_start``: each tick a robot moves by
     the exact integral of its piecewise-constant odometry commands over the tick
-    (v = ds/dt, omega = da/dt); the landmark readings and sightings stamped inside the tick
-    update at its end. Returns the tick times, the ticks, the ticks with a landmark reading,
-    and the landmark readings used."""
+    (v = ds/dt, omega = da/dt, times its calibration's command scales); the landmark readings
+    and sightings stamped inside the tick update at its end. Returns the tick times, the
+    ticks, the ticks with a landmark reading, and the landmark readings used."""
     n_ticks = int((t_end - t_start) // dt)
     times = t_start + dt * np.arange(n_ticks + 1)
     controls = []
-    for d in data:
+    for d, cal in zip(data, cals, strict=True):
         s, a = _command_integrals(d.odometry, times)
-        controls.append([Control(float(v), float(w)) for v, w in zip(np.diff(s) / dt, np.diff(a) / dt,
-                                                                     strict=True)])
+        controls.append([Control(float(v), float(w)) for v, w in
+                         zip(np.diff(s) / dt * cal.v_scale, np.diff(a) / dt * cal.omega_scale, strict=True)])
     landmarks = [_per_tick(d.measurements, SENSOR_NAME, "range_bearing", t_start, times[-1], dt, n_ticks)
                  for d in data]
     seen = [_per_tick(d.sightings, SIGHTING_SENSOR, "robot_range_bearing", t_start, times[-1], dt,
                       n_ticks) for d in data]
     for k in range(n_ticks):
-        _feed(runner, k + 1, float(times[k + 1] - t_start), dt, [c[k] for c in controls],
+        _feed(runners, k + 1, float(times[k + 1] - t_start), dt, [c[k] for c in controls],
               [lm.get(k, _NO_READINGS) for lm in landmarks], [s.get(k, _NO_READINGS) for s in seen])
     updates = len(set().union(*landmarks))
     used = sum(len(m) for lm in landmarks for ms in lm.values() for m in ms)
@@ -699,7 +814,7 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     ``[filters.*]``) unless ``params`` set them; the particle and grid filters weigh
     readings with the calibrated outlier mixture (docs/replay.md).
     """
-    from beacon_sim.filters.loading import check_param_names
+    from beacon_sim.filters.loading import check_param_names, filter_names
 
     robots = [data] if isinstance(data, MrclamData) else list(data)
     if not robots:
@@ -710,28 +825,41 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
         t_end = min(t_end, t_start + duration)
     how = "self" if calibration is None else calibration
     cals = [how if isinstance(how, Calibration) else calibration_for(d, how, t_end) for d in robots]
-    team = mrclam_team(robots, cals, t_start, t_end, TEAM_DT if dt is None else dt)
+    dt_team = TEAM_DT if dt is None else dt
+    team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team)
     specs = list(team.default_filters if filters is None else filters)
     if team.solo:
         check_param_names(params, specs)
     else:
         check_team_specs(specs, team, params)
-    runner = TeamRunner(team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)
-    start = _start_estimates(runner)
+    # the Gaussian filters told the inflated noise, the robust ones the pooled noise
+    groups = [[s for s in specs if told_inflated(s)], [s for s in specs if not told_inflated(s)]]
+    teams = [team, mrclam_team(robots, cals, t_start, t_end, dt_team)]
+    runners = [TeamRunner(tm, group, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)
+               for tm, group in zip(teams, groups, strict=True) if group]
+    names = filter_names(specs) if team.solo else [team_filter_name(s) for s in specs]
+    if sorted(n for r in runners for n in r.names) != sorted(names):  # a name primed across groups
+        runners = [TeamRunner(team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)]
+    starts = [_start_estimates(r) for r in runners]
     t0 = time.perf_counter()
     if team.solo and dt is None:
-        times, ticks, updates, readings = _feed_by_time_stamps(runner, robots[0], t_start, t_end,
-                                                               cals[0].step_dt * 1.5)
+        times, ticks, updates, readings = _feed_by_time_stamps(runners, robots[0], cals[0], t_start,
+                                                               t_end)
     else:
-        times, ticks, updates, readings = _feed_on_a_clock(runner, robots, t_start, t_end, team.dt)
+        times, ticks, updates, readings = _feed_on_a_clock(runners, robots, cals, t_start, t_end,
+                                                           dt_team)
     wall = time.perf_counter() - t0
     failed = {}
-    for name in runner.names:
-        if runner.failed(name):
-            tr = runner.track(name)
-            failed[name] = failure_text(tr) or str(runner.failed(name))
-    return MrclamRun(robots, team, cals, _robot_tracks(runner, start, times, ticks), t_start, t_end,
-                     updates, readings, wall, failed)
+    tracks: list[dict[str, MrclamTrack]] = [{} for _ in robots]
+    for runner, start in zip(runners, starts, strict=True):
+        for name in runner.names:
+            if runner.failed(name):
+                failed[name] = failure_text(runner.track(name)) or str(runner.failed(name))
+        for mine, theirs in zip(tracks, _robot_tracks(runner, start, times, ticks), strict=True):
+            mine.update(theirs)
+    tracks = [{n: t[n] for n in names} for t in tracks]  # in the order the filters were named
+    return MrclamRun(robots, team, cals, tracks, t_start, t_end, updates, readings, wall,
+                     {n: failed[n] for n in names if n in failed})
 
 
 #: Readings stay drawn this long after their time stamp [s] (they arrive a few per second).
