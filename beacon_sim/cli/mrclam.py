@@ -24,14 +24,16 @@ from beacon_sim.runs.mrclam import (
 
 def _print_calibration(data: MrclamData, cal: Calibration) -> None:
     s = cal.stats
-    print(f"MRCLAM {data.folder} robot {data.robot}: noise from the data")
+    print(f"MRCLAM {data.folder} robot {data.robot}: noise from the data ({cal.source})")
     print(f"  dropped readings: {data.dropped}")
     if s.get("windows"):
         print(f"  odometry vs ground truth over {s['windows']} windows of {cal.window_s:g} s: "
               f"forward error median {s['fwd_err_median_m']:+.4f} m, RMS "
               f"{s['fwd_err_std_m']:.4f} m (robust std {s['fwd_err_robust_std_m']:.4f}); turn error "
               f"median {s['turn_err_median_rad']:+.4f} rad, RMS {s['turn_err_std_rad']:.4f} rad "
-              f"(robust std {s['turn_err_robust_std_rad']:.4f})")
+              f"(robust std {s['turn_err_robust_std_rad']:.4f}), around the commands times "
+              f"{cal.v_scale:.3f} forward and {cal.omega_scale:.3f} turning (what the robot drove "
+              "per unit commanded)")
     if s.get("readings", 0) >= 5:
         print(f"  {s['readings']} readings vs ground truth: range error median "
               f"{s['range_err_median_m']:+.4f} m, RMS {s['range_err_rms_m']:.4f} m x sqrt(shared "
