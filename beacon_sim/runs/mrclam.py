@@ -808,8 +808,10 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     their sightings need the data loaded with ``robot_sightings=True``).
 
     ``calibration``: ``"others"`` (each robot's noise from the other robots of its folder,
-    the default), ``"self"`` (fitted on its own ground truth, labelled), or a
-    :class:`Calibration` for every robot. Built-in filters get ``MRCLAM_PARAMS`` (the EKF's
+    the default; the Gaussian filters' inflation, measured on the single-robot EKF, only
+    for one robot: a team run is told the ``"pooled"`` noise), ``"pooled"``, ``"self"``
+    (fitted on its own ground truth, labelled), or a :class:`Calibration` for every robot.
+    Built-in filters get ``MRCLAM_PARAMS`` (the EKF's
     and UKF's chi-square gate, the particle filter's settings: the robots' scenario
     ``[filters.*]``) unless ``params`` set them; the particle and grid filters weigh
     readings with the calibrated outlier mixture (docs/replay.md).
@@ -824,6 +826,8 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     if duration is not None:
         t_end = min(t_end, t_start + duration)
     how = "self" if calibration is None else calibration
+    if how == "others" and len(robots) > 1:
+        how = "pooled"  # the inflation is the single-robot EKF's (interleaved by time stamp)
     cals = [how if isinstance(how, Calibration) else calibration_for(d, how, t_end) for d in robots]
     dt_team = TEAM_DT if dt is None else dt
     team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team)
