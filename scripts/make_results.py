@@ -225,8 +225,8 @@ def mrclam_section(folder: Path, have: set[str]) -> list[str]:
         "data set's four other robots measured, never the ground truth of the run they are scored on "
         "(`beacon-sim mrclam DIR --robot N`, `--calibration others`, the default; `pooled` without "
         "the inflation; `self` fits it on the scored run, labelled as such). From the other robots: "
-        "the noise (10 s window residuals, [replay.md](replay.md#mrclam-real-robot-data)), the command scales "
-        "(the robots drive 2-8 % less than their odometry commands say) and, for the EKF and UKF, a "
+        "the noise (10 s window residuals, [replay.md](replay.md#mrclam-real-robot-data)), the command "
+        "scales (the robots drive 2-8 % less than their odometry commands say) and, for the EKF and UKF, a "
         "variance inflation: the 99 % point of the EKF's NEES on the held-out robots (each "
         "calibrated on the other held-out ones) over the chi-square 99 % point. The particle filter "
         "is told the uninflated noise and weighs readings with the outlier mixture.", "",
