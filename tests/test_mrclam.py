@@ -33,8 +33,9 @@ def write_dat(path: Path, what: str, cols: str, rows, fmt: str) -> None:
     path.write_bytes(text.encode("ascii"))
 
 
-def make_folder(folder: Path, seconds: float = 120.0, seed: int = 1) -> dict:
-    """A robot driving around a 4 m square of landmarks; returns what was written."""
+def make_folder(folder: Path, seconds: float = 120.0, seed: int = 1, drives: float = 1.0) -> dict:
+    """A robot driving around a 4 m square of landmarks, ``drives`` times what its odometry
+    commands say; returns what was written."""
     rng = np.random.default_rng(seed)
     folder.mkdir(parents=True, exist_ok=True)
     n = round(seconds / DT)
@@ -44,8 +45,8 @@ def make_folder(folder: Path, seconds: float = 120.0, seed: int = 1) -> dict:
     pose = np.zeros((n + 1, 3))
     pose[0] = (2.0, 2.0, 0.3)
     for k in range(n):
-        v = v_cmd[k] + V_STD * rng.standard_normal()
-        w = w_cmd[k] + W_STD * rng.standard_normal()
+        v = drives * v_cmd[k] + V_STD * rng.standard_normal()
+        w = drives * w_cmd[k] + W_STD * rng.standard_normal()
         x, y, th = pose[k]
         pose[k + 1] = (x + v * DT * math.cos(th), y + v * DT * math.sin(th), wrap(th + w * DT))
     # ground truth from 3 s before the odometry; odometry with a repeated time stamp
@@ -125,6 +126,19 @@ def test_calibration_recovers_the_noise_the_data_was_made_with(folder):
     assert 0.9 * B_STD < cal.sensor.bearing_std < 1.5 * B_STD
     n_landmark_rows = info["n_meas"] - info["n_robot"] - info["n_unknown"]
     assert cal.stats["bearing_flipped"] == pytest.approx(info["n_flip"] / n_landmark_rows, abs=1e-9)
+    # the robot drives what it is commanded
+    assert cal.v_scale == pytest.approx(1.0, abs=0.03) and cal.omega_scale == pytest.approx(1.0, abs=0.05)
+
+
+def test_calibration_finds_the_command_scale_and_removes_it_from_the_noise(tmp_path):
+    """A robot that drives 0.9 x its commands: the scale is found, and the noise told is the
+    white noise around the scaled commands, not the drift the scale error would add."""
+    make_folder(tmp_path / "Slow", seed=3, drives=0.9)
+    cal = calibrate(load_mrclam(tmp_path / "Slow", 1))
+    assert cal.v_scale == pytest.approx(0.9, abs=0.03)
+    assert cal.omega_scale == pytest.approx(0.9, abs=0.05)
+    assert cal.motion.v_std == pytest.approx(V_STD, rel=0.25)
+    assert cal.motion.omega_std == pytest.approx(W_STD, rel=0.25)
 
 
 UNGATED_EKF = "beacon_sim.filters.ekf:ExtendedKalmanFilter"  # same filter, no MRCLAM defaults

@@ -132,10 +132,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, metavar="S", help="only the first S seconds")
     p.add_argument("--calibrate", action="store_true",
                    help="print the noise settings estimated from the data and stop")
-    p.add_argument("--calibration", choices=("others", "self"), default="others",
+    p.add_argument("--calibration", choices=("others", "pooled", "self"), default="others",
                    help="where the filters' noise comes from: the data set's other robots "
-                        "(default, leave-one-robot-out) or the scored run's own ground truth "
-                        "(fitted on the answer)")
+                        "(default, leave-one-robot-out, the EKF/UKF variances inflated to the "
+                        "other robots' consistency), the same without the inflation (pooled), "
+                        "or the scored run's own ground truth (fitted on the answer)")
     p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
 

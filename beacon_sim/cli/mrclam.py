@@ -1,5 +1,6 @@
-"""``beacon-sim mrclam DIR --robot N [--filter F ...] [--duration S] [--calibrate] [--json]``:
-filters on one robot of a UTIAS MRCLAM data set, and seed 001's table."""
+"""``beacon-sim mrclam DIR (--robot N | --team) [--filter F ...] [--duration S] [--calibrate]
+[--calibration others|self] [--json]``: filters on one robot of a UTIAS MRCLAM data set and seed
+001's table, or on all five robots at once (``--team``: the team filters, one row per robot)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from typing import Any
 from beacon_sim.cli.common import check_duration, check_frames, filter_params, print_failures
 from beacon_sim.cli.tables import failed_text, fmt
 from beacon_sim.errors import UsageError
-from beacon_sim.io.mrclam import MrclamData, MrclamError, load_mrclam
+from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError, load_mrclam
 from beacon_sim.runs.mrclam import (
     MRCLAM_GATE_CHI2,
     SEED_001_EKF_MSE,
@@ -23,14 +24,16 @@ from beacon_sim.runs.mrclam import (
 
 def _print_calibration(data: MrclamData, cal: Calibration) -> None:
     s = cal.stats
-    print(f"MRCLAM {data.folder} robot {data.robot}: noise from the data")
+    print(f"MRCLAM {data.folder} robot {data.robot}: noise from the data ({cal.source})")
     print(f"  dropped readings: {data.dropped}")
     if s.get("windows"):
         print(f"  odometry vs ground truth over {s['windows']} windows of {cal.window_s:g} s: "
               f"forward error median {s['fwd_err_median_m']:+.4f} m, RMS "
               f"{s['fwd_err_std_m']:.4f} m (robust std {s['fwd_err_robust_std_m']:.4f}); turn error "
               f"median {s['turn_err_median_rad']:+.4f} rad, RMS {s['turn_err_std_rad']:.4f} rad "
-              f"(robust std {s['turn_err_robust_std_rad']:.4f})")
+              f"(robust std {s['turn_err_robust_std_rad']:.4f}), around the commands times "
+              f"{cal.v_scale:.3f} forward and {cal.omega_scale:.3f} turning (what the robot drove "
+              "per unit commanded)")
     if s.get("readings", 0) >= 5:
         print(f"  {s['readings']} readings vs ground truth: range error median "
               f"{s['range_err_median_m']:+.4f} m, RMS {s['range_err_rms_m']:.4f} m x sqrt(shared "
@@ -57,7 +60,9 @@ def _print_run(d: dict[str, Any]) -> None:
     n = d["noise"]
     print(f"noise {d.get('calibration_source', 'from the data')}: v_std {n['v_std']:.4f} m/s, "
           f"omega_std {n['omega_std']:.4f} rad/s per {n['step_dt']:g} s, range_std "
-          f"{n['range_std']:.4f} m, bearing_std {n['bearing_std']:.4f} rad")
+          f"{n['range_std']:.4f} m, bearing_std {n['bearing_std']:.4f} rad"
+          + (f"; EKF/UKF variances x {n['gaussian_inflation']:.2f}"
+             if n.get("gaussian_inflation", 1.0) != 1.0 else ""))
     print(f"{'filter':<16}{'MSE x m2':>10}{'MSE y m2':>10}{'MSE th rad2':>12}{'pos RMSE m':>11}"
           f"{'head RMSE':>10}{'ANEES':>9}{'us/step':>9}")
     for name, r in d["filters"].items():
@@ -79,54 +84,47 @@ def _print_team(d: dict[str, Any]) -> None:
     """The table of a team run: per robot, each filter's position RMSE and ANEES."""
     print(f"MRCLAM {d['dataset']}, robots {', '.join(map(str, d['robots']))} together: "
           f"{d['duration_s']:.1f} s")
+    for r, source in d["calibration_source"].items():
+        print(f"robot {r} noise {source}")
     names = list(d["filters"])
     width = {n: max(len(n) + 9, 12) for n in names}
     head = "".join(f"{n + ' RMSE m':>{width[n]}}{'ANEES':>7}" for n in names)
     print(f"{'robot':<6}{'landmarks':>10}{'sightings':>10}{head}")
     for r in d["robots"]:
-        row = "".join(f"{d['filters'][n][str(r)]['pos_rmse_m']:>{width[n]}.3f}"
-                      f"{fmt(d['filters'][n][str(r)]['anees'], '.2f'):>7}" for n in names)
+        row = "".join(f"{fmt(d['filters'][n][str(r)].get('pos_rmse_m'), '.3f'):>{width[n]}}"
+                      f"{fmt(d['filters'][n][str(r)].get('anees'), '.2f'):>7}" for n in names)
         print(f"{r:<6}{d['landmark_readings'][r]:>10}{d['robot_sightings'][r]:>10}{row}")
     print("us per tick: " + ", ".join(f"{n} {v:.0f}" for n, v in d["us_per_step"].items()))
     for n, why in d.get("failed", {}).items():
         print(f"{n} switched off, no score: {why}")
 
 
-def _team_command(args: argparse.Namespace) -> int:
-    from beacon_sim.filters.team import TEAM_FILTERS
-    from beacon_sim.runs.team_mrclam import run_team_mrclam
-
-    names = getattr(args, "filters", None) or None
-    for n in names or ():
-        if n not in TEAM_FILTERS:
-            raise UsageError(f"--team: no team filter named {n!r}; choose from {', '.join(TEAM_FILTERS)}")
-    try:
-        run = run_team_mrclam(args.dir, names, args.duration)
-    except MrclamError as exc:
-        raise UsageError(str(exc)) from None
-    d = run.as_json()
-    if args.json:
-        print(json.dumps(d, default=float))
-    else:
-        _print_team(d)
-    return 0
+def _load(args: argparse.Namespace) -> list[MrclamData]:
+    """The robots a command runs: ``--robot N`` alone, or (``--team``) all five with their
+    sightings of each other."""
+    if getattr(args, "team", False):
+        if args.robot is not None:
+            raise UsageError("--team runs all five robots: leave out --robot")
+        return [load_mrclam(args.dir, r, robot_sightings=True) for r in ROBOT_SUBJECTS]
+    if args.robot is None:
+        raise UsageError("mrclam: --robot N (1 to 5) is required, or --team for all five")
+    return [load_mrclam(args.dir, args.robot)]
 
 
 def mrclam_command(args: argparse.Namespace) -> int:
     duration = args.duration
     check_duration(duration)
-    if getattr(args, "team", False):
-        if args.robot is not None:
-            raise UsageError("--team runs all five robots: leave out --robot")
-        return _team_command(args)
-    if args.robot is None:
-        raise UsageError("mrclam: --robot N (1 to 5) is required, or --team for all five")
-    check_frames(args.frames)
+    team = getattr(args, "team", False)
+    if not team:
+        check_frames(args.frames)
     try:
-        data = load_mrclam(args.dir, args.robot)
+        robots = _load(args)
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
     if args.calibrate:
+        if team:
+            raise UsageError("--calibrate prints one robot's noise: use --robot N, not --team")
+        data = robots[0]
         t_end = None if duration is None else data.t0 + duration
         cal = calibrate(data, t_end)
         if args.json:
@@ -141,7 +139,8 @@ def mrclam_command(args: argparse.Namespace) -> int:
             _print_calibration(data, cal)
         return 0
     try:
-        run = run_mrclam(data, args.filters, duration, filter_params(args),
+        run = run_mrclam(robots if team else robots[0], getattr(args, "filters", None) or None,
+                         duration, filter_params(args),
                          calibration=getattr(args, "calibration", None) or "others")
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
@@ -149,9 +148,9 @@ def mrclam_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(d, default=float))
     else:
-        _print_run(d)
-    print_failures(run.tracks.values())
-    if args.headless:
+        (_print_team if team else _print_run)(d)
+    print_failures(t for tracks in run.robot_tracks[:1] for t in tracks.values())
+    if args.headless or team:  # a team run prints its table only
         return 0
     from beacon_sim.app.mrclam import show_mrclam  # pygame only when a window opens
 

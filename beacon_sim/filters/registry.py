@@ -53,6 +53,10 @@ class FilterRecord:
         None when the filter has none.
     mrclam : mapping
         Parameters a MRCLAM run gives it unless the caller sets them.
+    mrclam_robust : bool
+        True when it weighs readings with the calibrated outlier mixture: a MRCLAM run tells
+        it the noise pooled from the other robots, not the inflation that makes the Gaussian
+        filters consistent on them (runs/mrclam.py ``held_out_inflation``).
     memory : callable or None
         The bound on what its parameters may allocate (``filters/params.py``).
     team : bool
@@ -65,6 +69,7 @@ class FilterRecord:
     ranges: Mapping[str, Range] = field(default_factory=dict)
     batched: str | None = None
     mrclam: Mapping[str, Any] = field(default_factory=dict)
+    mrclam_robust: bool = False
     memory: MemoryCheck | None = None
     team: bool = False
 
@@ -130,7 +135,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "temper_ess": Range(*_FRACTION, "progressive correction below this ESS share"),
                          "lost_chi2": Range(1e-6, 1.0 - 1e-12, "a reading is unexplained when even the best "
                                                                 "particle is beyond this chi-square point")},
-                 mrclam={"n_particles": 4000, "augmented": False, "roughen": 1.25},
+                 mrclam={"n_particles": 4000, "augmented": False, "roughen": 1.25}, mrclam_robust=True,
                  memory=particle_memory),
     FilterRecord("histogram", "beacon_sim.filters.histogram:HistogramFilter", ("orange", "dash-dot"),
                  ranges={"cell": Range(1e-3, 1e3, "x-y cell size [m]"),
@@ -140,7 +145,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "grid_noise": Range(0.0, 1e6, "a cell^2/12 of noise per this driving [s]")},
                  # No uniform floor on real data with a known start: it turns an unlucky run
                  # of outliers into a jump across the room (robot 5: 4.5 m).
-                 mrclam={"floor": 0.0},
+                 mrclam={"floor": 0.0}, mrclam_robust=True,
                  memory=grid_memory),
     # Issue 30: scan-based MCL on an occupancy grid, with ROS amcl's parameter names.
     FilterRecord("mcl", "beacon_sim.filters.mcl:MonteCarloLocalization", ("sky blue", "dotted"),
@@ -259,7 +264,10 @@ TARGETS: Mapping[str, str] = RecordTable(lambda r: r.target)
 #: name -> the parameters a MRCLAM run gives it (only filters that have some).
 MRCLAM_DEFAULTS: Mapping[str, Mapping[str, Any]] = RecordTable(lambda r: dict(r.mrclam),
                                                             keep=lambda r: bool(r.mrclam))
+#: The filters a MRCLAM run tells the pooled noise, not the Gaussian filters' inflated one.
+MRCLAM_ROBUST: Mapping[str, bool] = RecordTable(lambda r: True, keep=lambda r: r.mrclam_robust)
 
 
-__all__ = ["COLOUR_NAMES", "DASH_NAMES", "MRCLAM_DEFAULTS", "MRCLAM_GATE_CHI2", "RECORDS", "TARGETS",
-           "FilterRecord", "RecordTable", "class_key", "record_for_class", "single_records", "team_records"]
+__all__ = ["COLOUR_NAMES", "DASH_NAMES", "MRCLAM_DEFAULTS", "MRCLAM_GATE_CHI2", "MRCLAM_ROBUST", "RECORDS",
+           "TARGETS", "FilterRecord", "RecordTable", "class_key", "record_for_class", "single_records",
+           "team_records"]
