@@ -29,9 +29,11 @@ from beacon_sim.errors import UsageError
 from beacon_sim.runs.live import Session
 
 #: Numbers per observation slot: a beacon sensor's slot is one beacon, a fix sensor's slot
-#: is its fix.
+#: is its fix, a range finder's block is :data:`SCAN_FRESH` then one range per beam.
 BEACON_SLOT = ("seen", "range_m", "cos_bearing", "sin_bearing")
 FIX_SLOT = ("fresh", "x_m", "y_m", "cos_theta", "sin_theta")
+SCAN_FRESH = "fresh"
+SCAN_RANGE = "scan_range_m"
 ENV_ID = "beacon_sim/Localize-v0"
 #: What ``gymnasium.make`` takes in a fresh process: Gymnasium 1.x loads no plug-ins, so the
 #: module that registers the ID is named before the colon and imported by ``make``.
@@ -162,9 +164,12 @@ class BeaconEnv(gymnasium.Env):
         # within twice the world's diagonal, fixes within the world grown by that much.
         xmin, ymin, xmax, ymax = sc.world.bounds
         far = 2.0 * math.hypot(xmax - xmin, ymax - ymin)
+        # A scan's ranges lie in [0, the sensor's max_range].
         lim = {"seen": (0.0, 1.0), "fresh": (0.0, 1.0), "range_m": (0.0, far),
                "x_m": (xmin - far, xmax + far), "y_m": (ymin - far, ymax + far)}
-        bounds = [lim.get(f, (-1.0, 1.0)) for _, _, fields in self._layout for f in fields]
+        max_range = {s.name: s.max_range if math.isfinite(s.max_range) else far for s in sc.sensors}
+        bounds = [(0.0, max_range[name]) if f == SCAN_RANGE else lim.get(f, (-1.0, 1.0))
+                  for name, _, fields in self._layout for f in fields]
         self.observation_space = spaces.Box(np.array([b[0] for b in bounds], dtype=np.float32),
                                             np.array([b[1] for b in bounds], dtype=np.float32),
                                             dtype=np.float32)
@@ -281,6 +286,10 @@ class BeaconEnv(gymnasium.Env):
                         rng = float(row[0]) if m.kind == "range_bearing" else 0.0
                         b = float(row[-1])
                         obs[j:j + 4] = (1.0, rng, math.cos(b), math.sin(b))
+            elif kind == "scan":
+                if m is not None:   # fresh, then the ranges [m] in the sensor's beam order
+                    obs[i] = 1.0
+                    obs[i + 1:i + len(fields)] = m.z[:, 0]
             elif m is not None:
                 z = m.z[0]
                 th = float(z[2]) if m.kind == "pose" else None
@@ -302,25 +311,31 @@ class BeaconEnv(gymnasium.Env):
 
 
 def observation_layout(scenario: Scenario) -> list[tuple[str, str, tuple[str, ...]]]:
-    """(sensor, "beacon" or "fix", field names) per block of the observation, in order: a
-    beacon sensor's block is one :data:`BEACON_SLOT` per beacon of the map (in map order), a
+    """(sensor, "beacon", "scan" or "fix", field names) per block of the observation, in
+    order: a beacon sensor's block is one :data:`BEACON_SLOT` per beacon of the map (in map
+    order), a range finder's is :data:`SCAN_FRESH` then ``n_beams`` :data:`SCAN_RANGE`, a
     fix sensor's block is one :data:`FIX_SLOT`."""
     out = []
     for s in scenario.sensors:
         if s.kind in ("bearing", "range_bearing"):
             fields = tuple(f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in BEACON_SLOT)
             out.append((s.name, "beacon", tuple(f.rpartition(".")[2] for f in fields)))
+        elif s.kind == "range_finder":
+            out.append((s.name, "scan", (SCAN_FRESH,) + (SCAN_RANGE,) * s.n_beams))
         else:
             out.append((s.name, "fix", FIX_SLOT))
     return out
 
 
 def observation_names(scenario: Scenario) -> list[str]:
-    """One name per number of the observation, e.g. ``beacons.B3.range_m``."""
+    """One name per number of the observation, e.g. ``beacons.B3.range_m`` or
+    ``laser.beam7.range_m``."""
     names = []
     for s in scenario.sensors:
         if s.kind in ("bearing", "range_bearing"):
             names += [f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in BEACON_SLOT]
+        elif s.kind == "range_finder":
+            names += [f"{s.name}.{SCAN_FRESH}"] + [f"{s.name}.beam{k}.range_m" for k in range(s.n_beams)]
         else:
             names += [f"{s.name}.{f}" for f in FIX_SLOT]
     return names

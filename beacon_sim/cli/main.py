@@ -166,6 +166,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a team filter for scenarios with several robots (docs/multi-robot.md)")
     p.add_argument("--slam", action="store_true",
                    help="a SLAM filter that maps the beacons itself (docs/slam.md)")
+    p.add_argument("--scan", action="store_true",
+                   help="a particle filter on laser scans and an occupancy grid (docs/maps.md)")
     return parser
 
 

@@ -1,5 +1,6 @@
-"""``beacon-sim new-filter PATH [--team | --slam]``: write a working, commented filter template
-(a team filter's with ``--team``, a SLAM filter's with ``--slam``)."""
+"""``beacon-sim new-filter PATH [--team | --slam | --scan]``: write a working, commented filter
+template (a team filter's with ``--team``, a SLAM filter's with ``--slam``, a scan-based
+particle filter's with ``--scan``)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import argparse
 from pathlib import Path
 
 from beacon_sim.errors import UsageError
+from beacon_sim.filters.scan_template import render_scan_template
 from beacon_sim.filters.slam_template import render_slam_template
 from beacon_sim.filters.team_template import render_team_template
 from beacon_sim.filters.template import class_name_for, render_template
@@ -20,7 +22,15 @@ TEMPLATES = {
              "TODO for the robot-to-robot readings)", "team_sparse ", "centralised"),
     "slam": (render_slam_template, "the SLAM filter class {cls} (it maps each beacon from its "
              "first reading, with a TODO for the EKF-SLAM correction)", "slam_loop ", "ekf_slam"),
+    "scan": (render_scan_template, "the scan-based particle filter class {cls} (a small MCL "
+             "on the map's likelihood field, with TODOs for recovery and KLD-sampling)", "office ",
+             "mcl"),
 }
+
+#: The options that choose a kind other than the plain filter's (at most one of them).
+KIND_OPTIONS = ("team", "slam", "scan")
+#: The scenario ``check`` needs for a kind whose filter does nothing on the default one.
+CHECK_ON = {"scan": "corridor"}
 
 
 def new_filter_command(args: argparse.Namespace) -> int:
@@ -32,15 +42,18 @@ def new_filter_command(args: argparse.Namespace) -> int:
         raise UsageError(f"new-filter {path}: the file exists; choose another name")
     if not path.parent.is_dir():
         raise UsageError(f"new-filter {path}: no folder {path.parent}")
-    if getattr(args, "team", False) and getattr(args, "slam", False):
-        raise UsageError("new-filter: --team and --slam cannot be combined; choose one")
-    kind = "slam" if getattr(args, "slam", False) else "team" if getattr(args, "team", False) else "filter"
+    chosen = [k for k in KIND_OPTIONS if getattr(args, k, False)]
+    if len(chosen) > 1:
+        raise UsageError(f"new-filter: {' and '.join('--' + k for k in chosen)} cannot be combined; "
+                         "choose one")
+    kind = chosen[0] if chosen else "filter"
     render, what, scenario, beside = TEMPLATES[kind]
     cls = class_name_for(path)
     shown = path.as_posix() if path.is_absolute() or "/" in path.as_posix() else f"./{path.name}"
     path.write_text(render(cls, path.name), encoding="utf-8")
     print(f"wrote {path} with {what.format(cls=cls)}")
     print("next:")
-    print(f"  beacon-sim check {shown}:{cls}")
+    check_on = f" --scenario {CHECK_ON[kind]}" if kind in CHECK_ON else ""
+    print(f"  beacon-sim check {shown}:{cls}{check_on}")
     print(f"  beacon-sim play {scenario}--filter {shown}:{cls} --filter {beside}")
     return 0
