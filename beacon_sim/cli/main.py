@@ -137,6 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default, leave-one-robot-out, the EKF/UKF variances inflated to the "
                         "other robots' consistency), the same without the inflation (pooled), "
                         "or the scored run's own ground truth (fitted on the answer)")
+    p.add_argument("--unknown-ids", action="store_true",
+                   help="give the filters the readings without their barcodes: they associate "
+                        "them with the landmarks; the barcodes only score that (docs/association.md)")
     p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
 

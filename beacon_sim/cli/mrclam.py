@@ -1,6 +1,8 @@
 """``beacon-sim mrclam DIR (--robot N | --team) [--filter F ...] [--duration S] [--calibrate]
-[--calibration others|self] [--json]``: filters on one robot of a UTIAS MRCLAM data set and seed
-001's table, or on all five robots at once (``--team``: the team filters, one row per robot)."""
+[--calibration others|self] [--unknown-ids] [--json]``: filters on one robot of a UTIAS MRCLAM data
+set and seed 001's table, or on all five robots at once (``--team``: the team filters, one row per
+robot). ``--unknown-ids``: the readings reach the filters without barcodes (they associate), and
+the table adds how well they did."""
 
 from __future__ import annotations
 
@@ -75,9 +77,25 @@ def _print_run(d: dict[str, Any]) -> None:
         print(f"{name:<16}{r['mse_x']:>10.4f}{r['mse_y']:>10.4f}{r['mse_theta']:>12.4f}"
               f"{r['pos_rmse_m']:>11.4f}{r['heading_rmse_rad']:>10.4f}{fmt(r['anees'], '.1f'):>9}"
               f"{r['us_per_step']:>9.1f}")
+    if d.get("unknown_ids"):
+        _print_associations(d)
     u, e = SEED_001_UKF_MSE, SEED_001_EKF_MSE
     print(f"{'seed 001 UKF':<16}{u[0]:>10.4f}{u[1]:>10.4f}{u[2]:>12.4f}   (paper, Table II)")
     print(f"{'seed 001 EKF':<16}{e[0]:>10.4f}{e[1]:>10.4f}{e[2]:>12.4f}   (paper, Table I)")
+
+
+def _print_associations(d: dict[str, Any]) -> None:
+    """With ``--unknown-ids``: that the filters saw no IDs, and per filter reporting
+    associations, the share of readings given the landmark whose barcode was read."""
+    print("unknown IDs: the filters were given every reading without its barcode and associated "
+          "it themselves; the barcodes only score the associations")
+    print(f"{'filter':<16}{'readings':>9}{'correct':>9}{'false':>7}{'missed':>7}{'% right':>9}")
+    for name, a in d["associations"].items():
+        print(f"{name:<16}{a['readings']:>9}{a['correct']:>9}{a['false']:>7}{a['missed']:>7}"
+              f"{fmt(100 * a['fraction_correct'], '.1f'):>9}")
+    silent = [n for n, r in d["filters"].items() if n not in d["associations"] and "failed" not in r]
+    if silent:
+        print(f"not scored (no associations reported): {', '.join(silent)}")
 
 
 def _print_team(d: dict[str, Any]) -> None:
@@ -141,7 +159,8 @@ def mrclam_command(args: argparse.Namespace) -> int:
     try:
         run = run_mrclam(robots if team else robots[0], getattr(args, "filters", None) or None,
                          duration, filter_params(args),
-                         calibration=getattr(args, "calibration", None) or "others")
+                         calibration=getattr(args, "calibration", None) or "others",
+                         unknown_ids=getattr(args, "unknown_ids", False))
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
     d = run.as_json()

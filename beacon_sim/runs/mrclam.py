@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardLimits
 from beacon_sim.core.measurement_models import relative_bearing
@@ -439,9 +440,12 @@ def calibration_for(data: MrclamData, how: str, t_end: float | None = None) -> C
 # A scenario-like context for the filters
 
 
-def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: float) -> Scenario:
+def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: float,
+                    correspondence: str = "known") -> Scenario:
     """A :class:`Scenario` holding what the filters may know: the landmark map, the
-    calibrated motion and sensor noise, and the initial belief (ground truth at the start)."""
+    calibrated motion and sensor noise, and the initial belief (ground truth at the start).
+    ``correspondence="unknown"`` (``--unknown-ids``, issue 29): the camera's readings carry no
+    landmark IDs and the filters associate them with the map themselves."""
     beacons = tuple(Beacon(int(s), x, y) for s, (x, y) in sorted(data.landmarks.items())
                     if s not in ROBOT_SUBJECTS)
     pts = np.vstack([np.array([[b.x, b.y] for b in beacons]).reshape(-1, 2), data.groundtruth[:, 1:3]])
@@ -453,7 +457,7 @@ def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: f
                           f"odometry (t = {t_start:.3f}); cannot set the initial belief")
     init = (float(pose[0, 0]), float(pose[0, 1]), float(pose[0, 2]))
     sensor = SensorSpec(name=SENSOR_NAME, kind="range_bearing", period=cal.step_dt, noise=cal.sensor,
-                        outlier_rate=cal.outlier_rate)
+                        outlier_rate=cal.outlier_rate, correspondence=correspondence)
     return Scenario(
         name=f"mrclam_{data.folder.name}_robot{data.robot}",
         description=f"UTIAS MRCLAM {data.folder.name}, robot {data.robot}",
@@ -494,13 +498,15 @@ def _union_world(worlds: Sequence[World]) -> World:
 
 
 def mrclam_team(data: Sequence[MrclamData], cals: Sequence[Calibration], t_start: float,
-                t_end: float, dt: float = TEAM_DT) -> TeamScenario:
+                t_end: float, dt: float = TEAM_DT, correspondence: str = "known") -> TeamScenario:
     """The robots of a run as a :class:`TeamScenario`: each robot's own scenario
     (:func:`mrclam_scenario`, its calibrated noise and ground-truth start). One robot is a
     team of one (``solo``: exactly the single-robot scenario). Several robots (IDs = their
     subject numbers, what the sightings report) share a world around all their paths and a
-    clock of ``dt`` [s]; each has the sighting sensor, and the team filters the EKF's gate."""
-    scenarios = [mrclam_scenario(d, c, t_start, t_end) for d, c in zip(data, cals, strict=True)]
+    clock of ``dt`` [s]; each has the sighting sensor, and the team filters the EKF's gate.
+    ``correspondence``: the landmark camera's (:func:`mrclam_scenario`)."""
+    scenarios = [mrclam_scenario(d, c, t_start, t_end, correspondence)
+                 for d, c in zip(data, cals, strict=True)]
     if len(scenarios) == 1:
         return team_of_one(scenarios[0])
     robots = []
@@ -555,6 +561,10 @@ class MrclamRun:
     readings: int
     wall_s: float
     failed: dict[str, str] = field(default_factory=dict)  # name -> why and when (no score)
+    #: ``--unknown-ids``: the readings reached the filters without IDs; per filter reporting
+    #: ``associations()``, how they were associated (the barcodes only score them).
+    unknown_ids: bool = False
+    associations: dict[str, AssociationCount] = field(default_factory=dict)
 
     @property
     def data(self) -> MrclamData:
@@ -640,6 +650,9 @@ class MrclamRun:
             "calibration_source": cal.source,
             "filters": self.evaluate(),
             "wall_s": self.wall_s,
+            "unknown_ids": self.unknown_ids,
+            "associations": {n: a.as_json() for n, a in self.associations.items()
+                             if n not in self.failed},
         }
 
 def _feed(runners: Sequence[TeamRunner], tick: int, time_s: float, dt: float,
@@ -653,16 +666,83 @@ def _feed(runners: Sequence[TeamRunner], tick: int, time_s: float, dt: float,
         runner.feed(step)
 
 
+@dataclass
+class AssociationCount:
+    """One filter's associations of the readings it was given without IDs (``--unknown-ids``),
+    scored against the barcodes the data set recorded (which the filter never saw).
+
+    ``correct``: given the landmark whose barcode the camera read; ``false``: given another
+    landmark; ``missed``: given none (dropped as clutter). ``readings`` = their sum: the rows
+    of the updates after which the filter reported ``associations()`` for the camera."""
+
+    readings: int = 0
+    correct: int = 0
+    false: int = 0
+    missed: int = 0
+
+    @property
+    def fraction_correct(self) -> float:
+        """Share of the scored readings given the right landmark (nan with none)."""
+        return self.correct / self.readings if self.readings else math.nan
+
+    def add(self, given: Sequence[int | None], truth: np.ndarray) -> None:
+        """Count one reading's rows: ``given`` per row (landmark ID or None), ``truth`` the barcodes."""
+        for g, t in zip(given, truth.tolist(), strict=True):
+            self.readings += 1
+            if g is None:
+                self.missed += 1
+            elif int(g) == int(t):
+                self.correct += 1
+            else:
+                self.false += 1
+
+    def as_json(self) -> dict[str, float]:
+        return {"readings": self.readings, "correct": self.correct, "false": self.false,
+                "missed": self.missed, "fraction_correct": self.fraction_correct}
+
+
+#: Seed of the shuffle of each time stamp's rows when their IDs are hidden (the file's order
+#: must not hint at the landmark); fixed, so a run is the same bit for bit.
+UNKNOWN_IDS_SHUFFLE_SEED = 29
+
+
+def _score_associations(runners: Sequence[TeamRunner], truth: np.ndarray, time_s: float,
+                        scores: dict[str, AssociationCount]) -> None:
+    """After an update with hidden IDs: each working filter's ``associations()`` for the camera
+    against the barcodes ``truth`` of the rows it was given (in the order given). A filter
+    without the method is not scored; one whose method raises is switched off."""
+    for runner in runners:
+        for name, track in runner.members[0].tracks.items():
+            report = getattr(track.filter, "associations", None)
+            if track.failed or report is None:
+                continue
+            try:
+                given = report()
+            except Exception as exc:  # the filter's own method: switched off, never scored
+                runner.fail(name, f"associations() raised {type(exc).__name__}: {exc}"[:200], "", time_s)
+                continue
+            rows = given.get(SENSOR_NAME) if isinstance(given, dict) else None
+            if rows is not None and len(rows) == len(truth):
+                scores.setdefault(name, AssociationCount()).add(tuple(rows), truth)
+
+
 def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: Calibration,
-                         t_start: float, t_end: float) -> tuple[np.ndarray, np.ndarray, int, int]:
+                         t_start: float, t_end: float,
+                         scores: dict[str, AssociationCount] | None = None
+                         ) -> tuple[np.ndarray, np.ndarray, int, int]:
     """One robot's odometry and readings interleaved by time stamp (seed 001 section III.C):
     predict with the latest command (times ``cal``'s command scales) up to each reading's time
     stamp, in steps of at most 1.5 median odometry intervals (long gaps are split), update
     with all readings of that stamp, go on.
 
     Returns the time of every record (the start, every odometry row and every update), the
-    runner tick whose estimate it shows (0: the initial belief), the updates and readings."""
+    runner tick whose estimate it shows (0: the initial belief), the updates and readings.
+
+    ``scores`` given (``--unknown-ids``): every reading reaches the filters with its IDs
+    ``UNKNOWN_ID`` and its rows shuffled, and after each update the filters' associations are
+    counted into ``scores`` against the barcodes (:func:`_score_associations`)."""
     od = data.odometry
+    shuffle = np.random.default_rng(UNKNOWN_IDS_SHUFFLE_SEED)
     ms = data.measurements
     ms = ms[(ms[:, 0] > t_start) & (ms[:, 0] <= t_end)]
     group_t, group_start = np.unique(ms[:, 0], return_index=True)
@@ -683,8 +763,13 @@ def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: C
         reading: tuple[Measurement, ...] = _NO_READINGS
         if t_me <= t_od:
             a, b = group_start[i_me], group_end[i_me]
-            reading = (Measurement(SENSOR_NAME, "range_bearing", ms[a:b, 2:4].copy(),
-                                   ms[a:b, 1].astype(int)),)
+            rows = ms[a:b]
+            if scores is not None:
+                rows = rows[shuffle.permutation(len(rows))]
+                ids = np.full(len(rows), UNKNOWN_ID, dtype=int)
+            else:
+                ids = rows[:, 1].astype(int)
+            reading = (Measurement(SENSOR_NAME, "range_bearing", rows[:, 2:4].copy(), ids),)
         dt = t_next - t
         if dt > 0 or reading:  # a repeated odometry stamp only changes the command
             n = max(1, math.ceil(dt / max_step - 1e-9))
@@ -693,6 +778,8 @@ def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: C
                 tick += 1
                 _feed(runners, tick, t + (j + 1) * h - t_start, h, (u,),
                       (reading if j == n - 1 else _NO_READINGS,))
+            if reading and scores is not None:
+                _score_associations(runners, rows[:, 1].astype(int), t_next - t_start, scores)
         t = t_next
         if reading:
             i_me += 1
@@ -796,7 +883,8 @@ def _robot_tracks(runner: TeamRunner, start: dict[str, tuple[np.ndarray, np.ndar
 
 def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | None = None,
                duration: float | None = None, params: dict[str, dict[str, Any]] | None = None,
-               calibration: Calibration | str | None = "others", dt: float | None = None) -> MrclamRun:
+               calibration: Calibration | str | None = "others", dt: float | None = None,
+               unknown_ids: bool = False) -> MrclamRun:
     """Run filters over one robot's data, or over several robots of a data set at once.
 
     Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` (one
@@ -815,6 +903,12 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     and UKF's chi-square gate, the particle filter's settings: the robots' scenario
     ``[filters.*]``) unless ``params`` set them; the particle and grid filters weigh
     readings with the calibrated outlier mixture (docs/replay.md).
+
+    ``unknown_ids`` (one robot, interleaved by time stamp; issue 29): the camera declares
+    ``correspondence = "unknown"`` and every reading reaches the filters without its barcode
+    (``UNKNOWN_ID``, rows shuffled), so they associate; the barcodes only score that
+    (``MrclamRun.associations``). The noise is calibrated as without it (from ground truth and
+    the barcodes of the other robots, or the run's own for ``"self"``).
     """
     from beacon_sim.filters.loading import check_param_names, filter_names
 
@@ -825,12 +919,15 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     t_end = min(float(d.odometry[-1, 0]) for d in robots)
     if duration is not None:
         t_end = min(t_end, t_start + duration)
+    if unknown_ids and (len(robots) > 1 or dt is not None):
+        raise MrclamError("--unknown-ids runs one robot by its time stamps: use --robot N, not --team")
+    correspondence = "unknown" if unknown_ids else "known"
     how = "self" if calibration is None else calibration
     if how == "others" and len(robots) > 1:
         how = "pooled"  # the inflation is the single-robot EKF's (interleaved by time stamp)
     cals = [how if isinstance(how, Calibration) else calibration_for(d, how, t_end) for d in robots]
     dt_team = TEAM_DT if dt is None else dt
-    team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team)
+    team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team, correspondence)
     specs = list(team.default_filters if filters is None else filters)
     if team.solo:
         check_param_names(params, specs)
@@ -838,7 +935,7 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
         check_team_specs(specs, team, params)
     # the Gaussian filters told the inflated noise, the robust ones the pooled noise
     groups = [[s for s in specs if told_inflated(s)], [s for s in specs if not told_inflated(s)]]
-    teams = [team, mrclam_team(robots, cals, t_start, t_end, dt_team)]
+    teams = [team, mrclam_team(robots, cals, t_start, t_end, dt_team, correspondence)]
     runners = [TeamRunner(tm, group, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)
                for tm, group in zip(teams, groups, strict=True) if group]
     names = filter_names(specs) if team.solo else [team_filter_name(s) for s in specs]
@@ -846,9 +943,10 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
         runners = [TeamRunner(team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)]
     starts = [_start_estimates(r) for r in runners]
     t0 = time.perf_counter()
+    scores: dict[str, AssociationCount] | None = {} if unknown_ids else None
     if team.solo and dt is None:
         times, ticks, updates, readings = _feed_by_time_stamps(runners, robots[0], cals[0], t_start,
-                                                               t_end)
+                                                               t_end, scores)
     else:
         times, ticks, updates, readings = _feed_on_a_clock(runners, robots, cals, t_start, t_end,
                                                            dt_team)
@@ -863,7 +961,8 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
             mine.update(theirs)
     tracks = [{n: t[n] for n in names} for t in tracks]  # in the order the filters were named
     return MrclamRun(robots, team, cals, tracks, t_start, t_end, updates, readings, wall,
-                     {n: failed[n] for n in names if n in failed})
+                     {n: failed[n] for n in names if n in failed}, unknown_ids,
+                     {n: scores[n] for n in names if scores and n in scores})
 
 
 #: Readings stay drawn this long after their time stamp [s] (they arrive a few per second).
