@@ -308,8 +308,6 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     (default the run's seed); ``ticks``: only the first ``ticks`` ticks (a probe); ``name``:
     the filter's name in the run (default its class's: its random generator's stream);
     ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
-    from beacon_sim.core.streams import stream
-    from beacon_sim.filters.base import FilterContext
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
     from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
@@ -323,10 +321,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     failed: str | None = None
     report: dict[str, Any] = {}
     ns = done = 0
-    ctx = FilterContext(name=name, world=scenario.world, dt=scenario.dt,
-                        motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                        params=dict(scenario.filter_params.get(name, {})) if params is None else params,
-                        rng=stream(sr.seed, "filter", name))
+    ctx = _hosted_context(sr, name, params)
     frames = sr.frames_blind if blind and sr.frames_blind is not None else sr.frames
     try:
         child.build(ctx, initial_belief(scenario), sr.seed if global_seed is None else global_seed,
@@ -356,7 +351,31 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
         report["means"] = means
         return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
                          sr.truth_checksum), report
+    return _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means), report
+
+
+def _hosted_context(sr: SimulatedRun, name: str, params: dict[str, Any] | None) -> Any:
+    """The :class:`~beacon_sim.filters.base.FilterContext` a hosted filter gets for the run
+    ``sr``: what it may see, its parameters (default the scenario's ``[filters.NAME]``) and
+    its own random generator (its name's stream of the run's seed)."""
+    from beacon_sim.core.streams import stream
+    from beacon_sim.filters.base import FilterContext
+
+    scenario = sr.scenario
+    return FilterContext(name=name, world=scenario.world, dt=scenario.dt,
+                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
+                         params=dict(scenario.filter_params.get(name, {})) if params is None else params,
+                         rng=stream(sr.seed, "filter", name))
+
+
+def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndarray, pm: np.ndarray,
+                   pc: np.ndarray, done: int, failed: str | None, ns: int, keep_means: bool) -> RunOutput:
+    """A hosted filter's run scored against the truth of ``sr`` as :func:`one_run` scores it:
+    its estimates ``means`` (T, 3) and ``covs`` (T, 3, 3), its estimates after predict on the
+    ticks with readings ``pm``, ``pc`` (for the NIS), ``done`` steps, ``ns`` [ns] of cost."""
+    scenario = sr.scenario
     out = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
+    n_rec = len(sr.records)
     good = np.all(np.isfinite(pm), axis=1) & np.all(np.isfinite(pc), axis=(1, 2))
     n_good = int(np.argmin(good)) if not good.all() else n_rec
     sensors = {s.name: s for s in scenario.model_sensors}
@@ -365,7 +384,94 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                                      scenario.world)
     out.filters[name] = finish_filter(means, covs, sr.truth, done, failed, nis_sum, nis_dof, ns,
                                       keep_means)
-    return out, report
+    return out
+
+
+def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | None,
+                  name: str | None = None, params: dict[str, Any] | None = None
+                  ) -> tuple[list[RunOutput], dict[str, Any]]:
+    """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
+    child, one exchange per tick carrying every run's control, dt and readings and bringing
+    back every estimate (the pipe's round trip paid once per tick, not once per run). Each
+    filter is built and fed exactly as alone, with its own CPU-time budget, failure and
+    cost, so a filter that does not draw from the global generators gives the numbers of
+    :func:`isolated_run` bit for bit; a filter that fails fails its own run only, a child
+    that dies fails every run still going with the reason. The runs must have the same
+    number of ticks. Returns the runs (each keeps its means when ``sr.index == 0``) and
+    what the child reported (``np_global`` / ``py_global``: drew from the global generators,
+    whose stream is then shared by the batch: rerun alone; ``failed_child``: do not reuse)."""
+    from beacon_sim.filters.isolated import ChildFailure
+    from beacon_sim.filters.loading import initial_belief
+    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
+
+    name = name or child.class_name
+    R = len(sims)
+    T = len(sims[0].frames)
+    if any(len(sr.frames) != T for sr in sims):
+        raise ValueError("isolated_runs: the runs of a batch must have the same number of ticks")
+    means, covs = np.full((R, T, 3), np.nan), np.full((R, T, 3, 3), np.nan)
+    pms = [np.full((len(sr.records), 3), np.nan) for sr in sims]
+    pcs = [np.full((len(sr.records), 3, 3), np.nan) for sr in sims]
+    failed: list[str | None] = [None] * R
+    ns, done = [0] * R, [0] * R
+    report: dict[str, Any] = {}
+    try:
+        builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name) for sr in sims]
+        why = child.batch_build(builds, sims[0].seed, run_limit_s)
+        for k, w in enumerate(why):
+            failed[k] = w
+        live = [k for k in range(R) if failed[k] is None]
+        frames = [sr.frames for sr in sims]
+        recs = [sr.record_index for sr in sims]
+        for i in range(T):
+            if not live:
+                break
+            got = child.batch_step([frames[k][i][4:] for k in live])
+            if isinstance(got, np.ndarray):  # every run answered with an estimate
+                v = got["v"]
+                idx = np.asarray(live)
+                means[idx, i] = v[:, 12:15]
+                covs[idx, i] = v[:, 15:24].reshape(-1, 3, 3)
+                walls = got["wall"].tolist()
+                for j, k in enumerate(live):
+                    if got["prior"][j]:
+                        r = recs[k][i]
+                        pms[k][r] = v[j, 0:3]
+                        pcs[k][r] = v[j, 3:12].reshape(3, 3)
+                    ns[k] += walls[j]
+                    done[k] += 1
+                continue
+            going = []
+            for k, (tag, payload) in zip(live, got, strict=True):
+                if tag != ESTIMATE:
+                    failed[k] = child.failure_text(payload)
+                    continue
+                wall, prior, (mean, cov) = parse_estimate(payload)
+                means[k, i], covs[k, i] = mean, cov
+                if prior is not None:
+                    r = recs[k][i]
+                    pms[k][r], pcs[k][r] = prior
+                ns[k] += wall
+                done[k] += 1
+                going.append(k)
+            live = going
+        report = child.batch_end()
+    except ChildFailure as exc:  # the whole child: every run still going fails with its reason
+        for k in range(R):
+            if failed[k] is None:
+                failed[k] = str(exc) or "the filter failed"
+        report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
+    except WireError as exc:  # a malformed answer: the child is not to be trusted further
+        child.kill()
+        for k in range(R):
+            if failed[k] is None:
+                failed[k] = f"the filter's process {exc} and was stopped"
+        report = {"failed_child": True, "died": True, "traceback": ""}
+    theta = np.concatenate([means[k, :done[k], 2] for k in range(R)])
+    report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
+    outs = [_hosted_output(sr, name, means[k], covs[k], pms[k], pcs[k], done[k], failed[k], ns[k],
+                           sr.index == 0) for k, sr in enumerate(sims)]
+    return outs, report
 
 
 def _store(est: object, means: np.ndarray, covs: np.ndarray, i: int) -> str | None:
@@ -838,5 +944,5 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
 
 __all__ = ["ClusterError", "FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs",
            "dask_client", "dask_workers", "filter_names", "finish_filter", "hosted_runs",
-           "isolated_run", "on_dask", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
-           "simulate_run", "stack"]
+           "isolated_run", "isolated_runs", "on_dask", "one_run", "run_monte_carlo",
+           "run_monte_carlo_isolated", "simulate_run", "stack"]

@@ -39,13 +39,16 @@ from beacon_sim.filters.wire import (
     BELIEF,
     ESTIMATE,
     FAIL,
+    MULTI,
     OK,
     REPORT,
     WireError,
     decode_belief,
+    encode_batch,
     encode_request,
     parse_estimate,
     parse_json,
+    parse_multi,
     read_reply,
     send_frame,
 )
@@ -95,6 +98,9 @@ class FilterChild:
         self.source_name = source.name
         self.reply_timeout_s = reply_timeout_s
         self.dead: str | None = None
+        #: The CPU time [s] the child said it had used at its last report (the end of a run):
+        #: its own word, for the cost figures only (benchmarks/bench_grade.py), never a grade's.
+        self.reported_cpu_s = 0.0
         log.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(os.devnull if log.exists() and log.stat().st_size > MAX_LOG_BYTES else log, "ab")
         self._proc: Launched | None = launch(source, self._log, sandbox, limits)
@@ -210,7 +216,58 @@ class FilterChild:
 
     def end(self) -> dict[str, Any]:
         """End the run: whether the filter drew from the global ``np.random`` / ``random``."""
-        return self.call_json("end")
+        return self._report(self.call_json("end"))
+
+    def _report(self, doc: dict[str, Any]) -> dict[str, Any]:
+        cpu = doc.pop("cpu_s", None)
+        if isinstance(cpu, int | float) and not isinstance(cpu, bool) and 0.0 <= cpu < 1e9:
+            self.reported_cpu_s = float(cpu)
+        return doc
+
+    # -- a batch of runs: one filter per seed, one exchange per tick ------------------
+    def call_multi(self, frame: bytes, count: int) -> list[tuple[bytes, bytes]] | np.ndarray:
+        """Send a batch request of ``count`` runs and read its MULTI answer
+        (:func:`~beacon_sim.filters.wire.parse_multi`); anything else from the child, or a
+        malformed answer, stops it (:class:`ChildFailure`, ``died``)."""
+        tag, payload = self.request(frame)
+        try:
+            if tag != MULTI:
+                raise WireError(f"broke the protocol (answered a batch with {tag!r})")
+            return parse_multi(payload, count)
+        except WireError as exc:
+            raise ChildFailure(self._death(exc), died=True) from None
+
+    def failure_text(self, payload: bytes) -> str:
+        """The one line of a FAIL entry of a MULTI answer, the child's copy named as the file."""
+        try:
+            doc = parse_json(payload)
+        except WireError as exc:
+            raise ChildFailure(self._death(exc), died=True) from None
+        why = str(doc.get("why", "the filter failed"))
+        if self._proc is not None:
+            why = why.replace(self._proc.source_in_child, self.source_name)
+        return why[:400]
+
+    def batch_build(self, builds: list[tuple[FilterContext, GaussianBelief | None, str]],
+                    global_seed: int, run_limit_s: float | None) -> list[str | None]:
+        """Build one fresh filter per run of a batch (``(ctx, initial, spec)`` each), each with
+        its own CPU-time budget ``run_limit_s`` [s], the global RNGs seeded once from
+        ``global_seed``: None per built filter, else why its construction failed."""
+        builds = [(dataclasses.replace(ctx, world=dataclasses.replace(ctx.world)), initial, spec)
+                  for ctx, initial, spec in builds]
+        got = self.call_multi(encode_request("bbuild", builds, int(global_seed), run_limit_s), len(builds))
+        assert isinstance(got, list)  # OK and FAIL entries, never all ESTIMATE
+        return [None if tag == OK else self.failure_text(payload) for tag, payload in got]
+
+    def batch_step(self, bodies: list[bytes]) -> list[tuple[bytes, bytes]] | np.ndarray:
+        """One tick of the runs of the batch still going (their "step" requests' pickles, in
+        order): a record array of their estimates (every one answered), else one (tag,
+        payload) per run, ESTIMATE or FAIL (that run is switched off)."""
+        return self.call_multi(encode_batch("bstep", bodies), len(bodies))
+
+    def batch_end(self) -> dict[str, Any]:
+        """End the batch: whether its filters drew from the global ``np.random`` / ``random``."""
+        return self._report(self.call_json("bend"))
 
 
 class IsolatedFilter:

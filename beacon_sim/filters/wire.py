@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-#: Reply tags (child -> grader).
-OK, FAIL, ESTIMATE, BELIEF, REPORT = b"K", b"F", b"E", b"B", b"R"
+#: Reply tags (child -> grader). MULTI: one answer per filter of a seed batch.
+OK, FAIL, ESTIMATE, BELIEF, REPORT, MULTI = b"K", b"F", b"E", b"B", b"R", b"M"
 #: The largest reply frame the grader reads [bytes] (a belief of a million particles fits).
 MAX_REPLY_BYTES = 64 << 20
 #: The longest text (a failure's reason or traceback) a reply carries [characters].
@@ -111,7 +111,7 @@ def read_reply(fd: int, timeout_s: float | None) -> tuple[bytes, bytes]:
     tag, or said nothing for ``timeout_s`` [s] of wall time."""
     deadline = None if timeout_s is None else time.monotonic() + timeout_s
     tag, n = _RHEAD.unpack(_read_exact(fd, _RHEAD.size, deadline))
-    if tag not in (OK, FAIL, ESTIMATE, BELIEF, REPORT) or n > MAX_REPLY_BYTES:
+    if tag not in (OK, FAIL, ESTIMATE, BELIEF, REPORT, MULTI) or n > MAX_REPLY_BYTES:
         raise WireError(f"broke the protocol (a {n}-byte frame tagged {tag!r})")
     return tag, _read_exact(fd, n, deadline)
 
@@ -136,6 +136,58 @@ def parse_estimate(payload: bytes) -> tuple[int, tuple[np.ndarray, np.ndarray] |
     v = np.array(values)
     prior = (v[0:3].copy(), v[3:12].reshape(3, 3)) if has_prior else None
     return int(wall_ns), prior, (v[12:15].copy(), v[15:24].reshape(3, 3))
+
+
+# -- a batch of seeds: one exchange per tick for all of a student's runs ------------------
+
+#: The largest batch (filters in one child answered in one MULTI reply).
+MAX_BATCH = 4096
+#: The longest FAIL entry of a MULTI reply [bytes] (its JSON: a reason and a traceback).
+MAX_FAIL_BYTES = 2 * 12 * MAX_TEXT + 64  # two texts, each char escaped to at most 12 bytes
+#: One ESTIMATE entry of a MULTI reply as a numpy record: the reply head (tag, length) then
+#: the ESTIMATE payload (:data:`_EST`), packed (213 bytes).
+EST_ENTRY = np.dtype([("tag", "S1"), ("n", "<u4"), ("prior", "<i8"), ("wall", "<i8"), ("v", "<f8", (24,))])
+
+
+def encode_batch(op: str, bodies: list[bytes], *args: Any) -> bytes:
+    """A batch request ``(op, bodies, *args)``: ``bodies`` are the per-filter requests'
+    pickles (:func:`encode_request` frames without their 4-byte head), made once and sent
+    to every student as they are."""
+    return encode_request(op, bodies, *args)
+
+
+def reply_multi(entries: list[bytes]) -> bytes:
+    """A MULTI reply: one reply frame (OK, ESTIMATE or FAIL) per filter of the batch, in the
+    order of the request."""
+    return reply(MULTI, b"".join(entries))
+
+
+def parse_multi(payload: bytes, count: int) -> list[tuple[bytes, bytes]] | np.ndarray:
+    """The ``count`` entries of a MULTI reply: a record array of :data:`EST_ENTRY` when every
+    entry is an ESTIMATE (the common tick, read in one call), else a list of (tag, payload).
+    Raises :class:`WireError` for anything but exactly ``count`` well-formed OK, ESTIMATE or
+    FAIL entries (an ESTIMATE of the wrong size, a FAIL over ``MAX_FAIL_BYTES``)."""
+    size = EST_ENTRY.itemsize
+    if len(payload) == count * size:
+        rec = np.frombuffer(payload, dtype=EST_ENTRY, count=count)
+        if np.all(rec["tag"] == ESTIMATE) and np.all(rec["n"] == _EST.size):
+            return rec
+    out: list[tuple[bytes, bytes]] = []
+    at, view = 0, memoryview(payload)
+    for _ in range(count):
+        if at + _RHEAD.size > len(payload):
+            raise WireError("broke the protocol (a short batch answer)")
+        tag, n = _RHEAD.unpack_from(payload, at)
+        at += _RHEAD.size
+        sizes = {OK: 0, ESTIMATE: _EST.size}
+        if tag not in (OK, ESTIMATE, FAIL) or n != sizes.get(tag, n) or n > MAX_FAIL_BYTES \
+                or at + n > len(payload):
+            raise WireError(f"broke the protocol (a batch entry of {n} bytes tagged {tag!r})")
+        out.append((tag, bytes(view[at:at + n])))
+        at += n
+    if at != len(payload):
+        raise WireError("broke the protocol (a batch answer with more entries than asked)")
+    return out
 
 
 def encode_belief(kind: str, arrays: list[np.ndarray], extra: dict[str, Any]) -> bytes:
@@ -163,6 +215,7 @@ def decode_belief(payload: bytes) -> tuple[str, list[np.ndarray], dict[str, Any]
         raise WireError("broke the protocol (a malformed belief)") from exc
 
 
-__all__ = ["BELIEF", "ESTIMATE", "FAIL", "OK", "REPORT", "WireError", "decode_belief",
-           "encode_belief", "encode_request", "parse_estimate", "parse_json", "read_reply",
-           "read_request", "reply", "reply_estimate", "reply_json", "send_frame"]
+__all__ = ["BELIEF", "ESTIMATE", "EST_ENTRY", "FAIL", "MAX_BATCH", "MULTI", "OK", "REPORT", "WireError",
+           "decode_belief", "encode_batch", "encode_belief", "encode_request", "parse_estimate",
+           "parse_json", "parse_multi", "read_reply", "read_request", "reply", "reply_estimate",
+           "reply_json", "reply_multi", "send_frame"]
