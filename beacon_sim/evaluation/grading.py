@@ -444,7 +444,9 @@ def run_student(job: StudentJob) -> StudentResult:
                         results[k] = TaskResult(task(job.sims[k]), None, load_problem, 0.0)
                     continue
                 assert child is not None
-                runs, rep = isolated_runs(child, [job.sims[k] for k in batch], job.time_limit)
+                probing = batch[0] == 0  # the probes ride along in the first batch
+                runs, rep = isolated_runs(child, [job.sims[k] for k in batch], job.time_limit,
+                                          probe_ticks=PROBE_TICKS if probing else None)
                 if rep.get("failed_child"):
                     stop()
                 if rep.get("np_global") or rep.get("py_global"):
@@ -461,14 +463,16 @@ def run_student(job: StudentJob) -> StudentResult:
                         if rep1.get("failed_child"):
                             stop()
                         record(k, run, rep1, time.perf_counter() - t1)
+                    first = results[0]
+                    if probing and first is not None and first.run is not None and child is not None \
+                            and not _probe(child, job.sims[0], job, findings, first):
+                        stop()
                 else:
                     wall = (time.perf_counter() - t0) / len(batch)
                     for k, run in zip(batch, runs, strict=True):
                         record(k, run, rep, wall)
-                first = results[0]
-                if batch[0] == 0 and first is not None and first.run is not None and child is not None \
-                        and not _probe(child, job.sims[0], job, findings, first):
-                    stop()
+                    if probing:
+                        _probe_findings(job.sims[0], runs[0], rep.get("probes") or {}, findings)
         finally:
             stop()
         raw = log.read_bytes() if log.exists() else b""
@@ -477,6 +481,24 @@ def run_student(job: StudentJob) -> StudentResult:
             text += f"\n[log cut at {LOG_BYTES} bytes]\n"
     findings["wall_s"] = time.perf_counter() - t_start
     return StudentResult(job.student, [r for r in results if r is not None], findings, text, job.sandbox)
+
+
+def _probe_findings(sr: SimulatedRun, graded: RunOutput, probes: dict[str, Any],
+                    findings: dict[str, Any]) -> None:
+    """``deterministic`` and ``readings_used`` from the probes that rode along in the first
+    batch (:func:`~beacon_sim.evaluation.montecarlo.isolated_runs`): the first run fed again
+    and fed no readings, on its first :data:`PROBE_TICKS` ticks, against the graded run."""
+    fr = next(iter(graded.filters.values()))
+    if fr.failed or fr.means is None:
+        return
+    n = min(PROBE_TICKS, len(sr.frames))
+    first = fr.means[:n]
+    again, blind = probes.get("again"), probes.get("blind")
+    if again is not None:
+        findings["deterministic"] = bool(np.array_equal(again, first, equal_nan=True))
+    if blind is not None:
+        readings = any(len(r) for r in sr.records[:int(sr.record_index[n - 1]) + 1])
+        findings["readings_used"] = (not readings) or not bool(np.array_equal(blind, first, equal_nan=True))
 
 
 def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict[str, Any],
@@ -636,6 +658,8 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
             "students": len(students), "runs_per_student": n_runs, "reference": reference,
             "sandbox": sandbox, "isolated": True, "team_in_process": [],
             "cached_students": cached,
+            # what the students' children said they used [s] (their own word: cost figures only)
+            "child_cpu_s": sum(float(sr.findings.get("child_cpu_s", 0.0)) for sr in done_students),
             "logs": {sr.student: sr.log for sr in done_students}}
 
 

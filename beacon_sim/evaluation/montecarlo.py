@@ -388,8 +388,8 @@ def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndar
 
 
 def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | None,
-                  name: str | None = None, params: dict[str, Any] | None = None
-                  ) -> tuple[list[RunOutput], dict[str, Any]]:
+                  name: str | None = None, params: dict[str, Any] | None = None,
+                  probe_ticks: int | None = None) -> tuple[list[RunOutput], dict[str, Any]]:
     """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
     child, one exchange per tick carrying every run's control, dt and readings and bringing
     back every estimate (the pipe's round trip paid once per tick, not once per run). Each
@@ -399,7 +399,12 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     that dies fails every run still going with the reason. The runs must have the same
     number of ticks. Returns the runs (each keeps its means when ``sr.index == 0``) and
     what the child reported (``np_global`` / ``py_global``: drew from the global generators,
-    whose stream is then shared by the batch: rerun alone; ``failed_child``: do not reuse)."""
+    whose stream is then shared by the batch: rerun alone; ``failed_child``: do not reuse).
+
+    ``probe_ticks``: two more filters in the batch on the first ``probe_ticks`` ticks of
+    ``sims[0]``, one fed the same readings again (is it deterministic?) and one fed none
+    (``frames_blind``: does it use them?); ``report["probes"]`` holds their means (or None
+    when that probe failed)."""
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
     from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
@@ -409,32 +414,45 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     T = len(sims[0].frames)
     if any(len(sr.frames) != T for sr in sims):
         raise ValueError("isolated_runs: the runs of a batch must have the same number of ticks")
-    means, covs = np.full((R, T, 3), np.nan), np.full((R, T, 3, 3), np.nan)
-    pms = [np.full((len(sr.records), 3), np.nan) for sr in sims]
-    pcs = [np.full((len(sr.records), 3, 3), np.nan) for sr in sims]
-    failed: list[str | None] = [None] * R
-    ns, done = [0] * R, [0] * R
+    slot_sims, slot_frames, slot_ticks = list(sims), [sr.frames for sr in sims], [T] * R
+    probes: list[str] = []
+    if probe_ticks is not None:
+        n = min(probe_ticks, T)
+        for what, frames in (("again", sims[0].frames), ("blind", sims[0].frames_blind)):
+            if frames is not None:
+                probes.append(what)
+                slot_sims.append(sims[0])
+                slot_frames.append(frames)
+                slot_ticks.append(n)
+    S = len(slot_sims)
+    means, covs = np.full((S, T, 3), np.nan), np.full((S, T, 3, 3), np.nan)
+    pms = [np.full((len(sr.records), 3), np.nan) for sr in slot_sims]
+    pcs = [np.full((len(sr.records), 3, 3), np.nan) for sr in slot_sims]
+    failed: list[str | None] = [None] * S
+    ns, done = [0] * S, [0] * S
     report: dict[str, Any] = {}
     try:
-        builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name) for sr in sims]
+        builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
+                  for sr in slot_sims]
         why = child.batch_build(builds, sims[0].seed, run_limit_s)
         for k, w in enumerate(why):
             failed[k] = w
-        live = [k for k in range(R) if failed[k] is None]
-        frames = [sr.frames for sr in sims]
-        recs = [sr.record_index for sr in sims]
+        live = [k for k in range(S) if failed[k] is None]
+        recs = [sr.record_index for sr in slot_sims]
         for i in range(T):
+            live = [k for k in live if i < slot_ticks[k]]
             if not live:
                 break
-            got = child.batch_step([frames[k][i][4:] for k in live])
+            got = child.batch_step(live, [slot_frames[k][i][4:] for k in live])
             if isinstance(got, np.ndarray):  # every run answered with an estimate
                 v = got["v"]
                 idx = np.asarray(live)
                 means[idx, i] = v[:, 12:15]
                 covs[idx, i] = v[:, 15:24].reshape(-1, 3, 3)
                 walls = got["wall"].tolist()
+                priors = got["prior"].tolist()
                 for j, k in enumerate(live):
-                    if got["prior"][j]:
+                    if priors[j]:
                         r = recs[k][i]
                         pms[k][r] = v[j, 0:3]
                         pcs[k][r] = v[j, 3:12].reshape(3, 3)
@@ -457,18 +475,21 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
             live = going
         report = child.batch_end()
     except ChildFailure as exc:  # the whole child: every run still going fails with its reason
-        for k in range(R):
-            if failed[k] is None:
+        for k in range(S):
+            if failed[k] is None and done[k] < slot_ticks[k]:
                 failed[k] = str(exc) or "the filter failed"
         report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
     except WireError as exc:  # a malformed answer: the child is not to be trusted further
         child.kill()
-        for k in range(R):
-            if failed[k] is None:
+        for k in range(S):
+            if failed[k] is None and done[k] < slot_ticks[k]:
                 failed[k] = f"the filter's process {exc} and was stopped"
         report = {"failed_child": True, "died": True, "traceback": ""}
     theta = np.concatenate([means[k, :done[k], 2] for k in range(R)])
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
+    if probes:
+        report["probes"] = {what: (None if failed[R + j] else means[R + j, :slot_ticks[R + j]].copy())
+                            for j, what in enumerate(probes)}
     outs = [_hosted_output(sr, name, means[k], covs[k], pms[k], pcs[k], done[k], failed[k], ns[k],
                            sr.index == 0) for k, sr in enumerate(sims)]
     return outs, report

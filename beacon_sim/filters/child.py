@@ -320,12 +320,12 @@ class _Server:
         path, class_name = self.file
         return choose_filter(import_file(Path(path), "student"), class_name, Path(path).name)
 
-    def op_bstep(self, bodies: list[bytes]) -> None:
-        """One tick of every run of the batch still going (``bodies``: their "step" requests
-        pickled, in the batch's order of the runs still going). Answers MULTI: ESTIMATE or
-        FAIL per run; a failed run is left out of the next ticks."""
+    def op_bstep(self, bodies: list[bytes], slots: list[int]) -> None:
+        """One tick of the runs ``slots`` of the batch (``bodies``: their "step" requests
+        pickled); a run not named is not stepped (it ended or failed). Answers MULTI:
+        ESTIMATE or FAIL per run named, in order; a failed run may not be named again."""
         assert self.batch is not None
-        self.send(self.batch.step(bodies))
+        self.send(self.batch.step(slots, bodies))
 
     def op_bend(self) -> None:
         """End the batch: whether its filters drew from the global generators."""
@@ -391,7 +391,6 @@ class _Batch:
                 self.used[k] = time.thread_time_ns() - t0
             self.filters.append(flt)
             entries.append(reply(OK))
-        self.live = [k for k, f in enumerate(self.filters) if f is not None]
         self.built = reply_multi(entries)
 
     def _fail(self, exc: BaseException, prefix: str = "") -> bytes:
@@ -408,19 +407,19 @@ class _Batch:
 
         return reply_json(FAIL, {"why": why, "tb": ""})
 
-    def step(self, bodies: list[bytes]) -> bytes:
+    def step(self, slots: list[int], bodies: list[bytes]) -> bytes:
         import pickle
 
         from beacon_sim.filters.guard import estimate_arrays
         from beacon_sim.filters.wire import reply_estimate, reply_multi
 
-        if len(bodies) != len(self.live):
-            raise ValueError(f"a batch tick of {len(bodies)} runs for {len(self.live)} going")
         clock, cpu, watch, limit = time.perf_counter_ns, time.thread_time_ns, self.watch, self.limit_s
-        entries, live = [], []
-        for k, body in zip(self.live, bodies, strict=True):
+        entries = []
+        for k, body in zip(slots, bodies, strict=True):
+            f = self.filters[k] if 0 <= k < len(self.filters) else None
+            if f is None:
+                raise ValueError(f"a batch tick for run {k}, which is not going")
             _op, control, dt, measurements, want_prior = pickle.loads(body)
-            f = self.filters[k]
             c0 = cpu()
             try:
                 watch.seconds = None if limit is None else limit - self.used[k] / 1e9
@@ -454,8 +453,6 @@ class _Batch:
                 entries.append(self._fail_text(self.over or "time limit"))
                 continue
             entries.append(reply_estimate(wall, pri, post))
-            live.append(k)
-        self.live = live
         return reply_multi(entries)
 
 

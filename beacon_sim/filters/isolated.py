@@ -259,11 +259,11 @@ class FilterChild:
         assert isinstance(got, list)  # OK and FAIL entries, never all ESTIMATE
         return [None if tag == OK else self.failure_text(payload) for tag, payload in got]
 
-    def batch_step(self, bodies: list[bytes]) -> list[tuple[bytes, bytes]] | np.ndarray:
-        """One tick of the runs of the batch still going (their "step" requests' pickles, in
-        order): a record array of their estimates (every one answered), else one (tag,
-        payload) per run, ESTIMATE or FAIL (that run is switched off)."""
-        return self.call_multi(encode_batch("bstep", bodies), len(bodies))
+    def batch_step(self, slots: list[int], bodies: list[bytes]) -> list[tuple[bytes, bytes]] | np.ndarray:
+        """One tick of the runs ``slots`` of the batch (their "step" requests' pickles, in
+        order; a run not named is not stepped): a record array of their estimates (every one
+        answered), else one (tag, payload) per run, ESTIMATE or FAIL (that run is switched off)."""
+        return self.call_multi(encode_batch("bstep", bodies, slots), len(bodies))
 
     def batch_end(self) -> dict[str, Any]:
         """End the batch: whether its filters drew from the global ``np.random`` / ``random``."""
