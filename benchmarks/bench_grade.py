@@ -104,6 +104,53 @@ def median(xs: list[float]) -> float:
     return xs[n // 2] if n % 2 else 0.5 * (xs[n // 2 - 1] + xs[n // 2])
 
 
+def _proc_cpu(pids: list[int]) -> float:
+    """CPU time [s] of the processes ``pids`` and the children they reaped (/proc, Linux)."""
+    total = 0
+    for pid in pids:
+        with open(f"/proc/{pid}/stat") as fh:
+            fields = fh.read().rpartition(")")[2].split()
+        total += sum(int(f) for f in fields[11:15])  # utime, stime, cutime, cstime
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -> None:
+    """CPU of the same honest class graded on local processes and on a Dask LocalCluster
+    (its workers, their nannies and this process, which holds the scheduler and the client),
+    interleaved rounds, medians."""
+    import resource
+
+    from dask.distributed import Client, LocalCluster
+
+    def self_cpu() -> float:
+        u = resource.getrusage(resource.RUSAGE_SELF)
+        return u.ru_utime + u.ru_stime
+
+    local_cfg = {"scenarios": list(cfg.scenarios), "seeds": list(cfg.seeds), "duration": cfg.duration,
+                 "time_limit": cfg.time_limit, "sandbox": args.sandbox}
+    workers = args.jobs or 2
+    got: dict[str, list[float]] = {"local": [], "dask": []}
+    load0 = os.getloadavg()[0]
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        pids = list(client.run(os.getpid).values()) + list(client.run(os.getppid).values())
+        for _ in range(args.rounds):
+            got["local"].append(measured_grade(ROOT, hon, local_cfg, workers)["cpu"])
+            c0, s0 = _proc_cpu(pids), self_cpu()
+            board = grade(hon, GradeConfig(**{**local_cfg, "scenarios": cfg.scenarios, "seeds": cfg.seeds}),
+                          scheduler=client)
+            extra = board["child_cpu_s"] if board["sandbox"] == "bwrap" else 0.0
+            got["dask"].append(_proc_cpu(pids) - c0 + self_cpu() - s0 + extra)
+    local, remote = median(got["local"]), median(got["dask"])
+    print(f"FIGURE dask_cpu_load_1min {load0:.2f} -> {os.getloadavg()[0]:.2f}")
+    print(f"FIGURE grade_cpu_local {local:.1f} s CPU ({runs} runs, {workers} students at once; median of "
+          f"{args.rounds} rounds)")
+    print(f"FIGURE grade_cpu_dask {remote:.1f} s CPU (LocalCluster {workers} workers x 1 thread: "
+          "workers, nannies, scheduler and client)")
+    print(f"FIGURE dask_over_local_cpu {remote / local:.2f} x (target <= 1.10)")
+    print("DASK_ROUNDS " + json.dumps(got))
+
+
 def cost(args: argparse.Namespace, hon: Path, runs: int) -> None:
     """The cost of a graded run: the honest class graded isolated (this checkout) and in
     process (the base commit, each run simulating its own truth), interleaved rounds,
@@ -147,6 +194,8 @@ def main() -> None:
                     help="skip the 36-file class (only the cost, with --base)")
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the cost")
     ap.add_argument("--sandbox", default="auto", help="the isolated grade's level (auto, bwrap, process)")
+    ap.add_argument("--dask-cpu", action="store_true",
+                    help="CPU of the honest class on local processes against a Dask LocalCluster")
     args = ap.parse_args()
     cfg = GradeConfig(scenarios=("default",), seeds=tuple(range(args.seeds)), duration=args.duration,
                       time_limit=args.time_limit)
@@ -154,9 +203,11 @@ def main() -> None:
     klass = tmp / "class"
     honest = write_class(klass, 21, hostile=True)
     if args.no_class:
+        write_class(tmp / "alone", 21, hostile=False)
         if args.base is not None:
-            write_class(tmp / "alone", 21, hostile=False)
             cost(args, tmp / "alone", len(honest) * args.seeds)
+        if args.dask_cpu:
+            dask_cpu(args, tmp / "alone", cfg, len(honest) * args.seeds)
         shutil.rmtree(tmp, ignore_errors=True)
         return
     n = len(list(klass.glob("*.py")))

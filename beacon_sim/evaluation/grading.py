@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ast
 import csv
+import dataclasses
 import html
 import json
 import math
@@ -483,6 +484,12 @@ def run_student(job: StudentJob) -> StudentResult:
     return StudentResult(job.student, [r for r in results if r is not None], findings, text, job.sandbox)
 
 
+def run_student_shared(job: StudentJob, shared: list[SimulatedRun]) -> StudentResult:
+    """:func:`run_student` of a job sent without its runs, on the runs every worker got once
+    (a Dask task of :func:`run_students`)."""
+    return run_student(dataclasses.replace(job, sims=shared))
+
+
 def _probe_findings(sr: SimulatedRun, graded: RunOutput, probes: dict[str, Any],
                     findings: dict[str, Any]) -> None:
     """``deterministic`` and ``readings_used`` from the probes that rode along in the first
@@ -552,7 +559,12 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
                            f"worker lost: {type(exc).__name__}") for sr in job.sims],
                 {}, "", job.sandbox))
 
-        on_dask(scheduler, run_student, list(jobs_list), finish, lost=lost)
+        sims = jobs_list[0].sims if jobs_list else []
+        if all(j.sims is sims for j in jobs_list):  # the class's runs: sent to each worker once
+            light = [dataclasses.replace(j, sims=[]) for j in jobs_list]
+            on_dask(scheduler, run_student_shared, light, finish, lost=lost, shared=sims)
+        else:
+            on_dask(scheduler, run_student, list(jobs_list), finish, lost=lost)
     else:
         from concurrent.futures import ThreadPoolExecutor
 

@@ -895,11 +895,13 @@ def dask_workers(scheduler: Any) -> int:
             client.close()
 
 
-def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
+def on_dask(scheduler: Any, fn: Callable[..., Any], tasks: list[Any],
             done: Callable[[int, Any], None],
-            lost: Callable[[int, Exception], None] | None = None) -> None:
+            lost: Callable[[int, Exception], None] | None = None, shared: Any = None) -> None:
     """``fn(task)`` for every task on Dask, ``done(index, result)`` as each finishes; each
     result is released once gathered (the scheduler forgets it: never computed again).
+    ``shared``: data every task needs (grading's simulated runs), sent to every worker once
+    (scattered) instead of once per task, and given as ``fn(task, shared)``.
 
     A task that raised or whose worker died: ``lost(index, exc)`` when given (grading:
     that task's student fails, the others go on), else a one-line :class:`ClusterError`
@@ -907,8 +909,13 @@ def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
     from dask.distributed import as_completed
 
     client, own = dask_client(scheduler)
+    data = None
     try:
-        futures = client.map(fn, list(tasks), pure=False)
+        if shared is not None:
+            (data,) = client.scatter([shared], broadcast=True, hash=False)
+            futures = client.map(fn, list(tasks), shared=data, pure=False)
+        else:
+            futures = client.map(fn, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for fut in as_completed(futures, loop=client.loop):  # not the default client's loop
             i = index[fut.key]
@@ -926,6 +933,8 @@ def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
             fut.release()
             done(i, result)
     finally:
+        if data is not None:
+            data.release()
         if own:
             client.close()
 
