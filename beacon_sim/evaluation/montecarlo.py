@@ -425,11 +425,12 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                 slot_frames.append(frames)
                 slot_ticks.append(n)
     S = len(slot_sims)
-    means, covs = np.full((S, T, 3), np.nan), np.full((S, T, 3, 3), np.nan)
-    pms = [np.full((len(sr.records), 3), np.nan) for sr in slot_sims]
-    pcs = [np.full((len(sr.records), 3, 3), np.nan) for sr in slot_sims]
+    # every answer as it came: (tick, run) -> prior mean (3), prior cov (9), mean (3), cov (9)
+    store = np.full((T, S, 24), np.nan)
+    walls = np.zeros((T, S), dtype=np.int64)
+    has_prior = np.zeros((T, S), dtype=bool)
+    answered = np.zeros((T, S), dtype=bool)
     failed: list[str | None] = [None] * S
-    ns, done = [0] * S, [0] * S
     report: dict[str, Any] = {}
     try:
         builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
@@ -438,26 +439,21 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
         for k, w in enumerate(why):
             failed[k] = w
         live = [k for k in range(S) if failed[k] is None]
-        recs = [sr.record_index for sr in slot_sims]
+        idx = np.asarray(live, dtype=int)
+        ends = sorted(set(slot_ticks))
         for i in range(T):
-            live = [k for k in live if i < slot_ticks[k]]
+            if i == ends[0]:  # a probe's last tick has passed
+                ends.pop(0)
+                live = [k for k in live if i < slot_ticks[k]]
+                idx = np.asarray(live, dtype=int)
             if not live:
                 break
             got = child.batch_step(live, [slot_frames[k][i][4:] for k in live])
             if isinstance(got, np.ndarray):  # every run answered with an estimate
-                v = got["v"]
-                idx = np.asarray(live)
-                means[idx, i] = v[:, 12:15]
-                covs[idx, i] = v[:, 15:24].reshape(-1, 3, 3)
-                walls = got["wall"].tolist()
-                priors = got["prior"].tolist()
-                for j, k in enumerate(live):
-                    if priors[j]:
-                        r = recs[k][i]
-                        pms[k][r] = v[j, 0:3]
-                        pcs[k][r] = v[j, 3:12].reshape(3, 3)
-                    ns[k] += walls[j]
-                    done[k] += 1
+                store[i, idx] = got["v"]
+                walls[i, idx] = got["wall"]
+                has_prior[i, idx] = got["prior"] != 0
+                answered[i, idx] = True
                 continue
             going = []
             for k, (tag, payload) in zip(live, got, strict=True):
@@ -465,26 +461,39 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                     failed[k] = child.failure_text(payload)
                     continue
                 wall, prior, (mean, cov) = parse_estimate(payload)
-                means[k, i], covs[k, i] = mean, cov
+                store[i, k, 12:15], store[i, k, 15:24] = mean, cov.ravel()
                 if prior is not None:
-                    r = recs[k][i]
-                    pms[k][r], pcs[k][r] = prior
-                ns[k] += wall
-                done[k] += 1
+                    store[i, k, 0:3], store[i, k, 3:12] = prior[0], prior[1].ravel()
+                    has_prior[i, k] = True
+                walls[i, k], answered[i, k] = wall, True
                 going.append(k)
             live = going
+            idx = np.asarray(live, dtype=int)
         report = child.batch_end()
     except ChildFailure as exc:  # the whole child: every run still going fails with its reason
         for k in range(S):
-            if failed[k] is None and done[k] < slot_ticks[k]:
+            if failed[k] is None and answered[:, k].sum() < slot_ticks[k]:
                 failed[k] = str(exc) or "the filter failed"
         report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
     except WireError as exc:  # a malformed answer: the child is not to be trusted further
         child.kill()
         for k in range(S):
-            if failed[k] is None and done[k] < slot_ticks[k]:
+            if failed[k] is None and answered[:, k].sum() < slot_ticks[k]:
                 failed[k] = f"the filter's process {exc} and was stopped"
         report = {"failed_child": True, "died": True, "traceback": ""}
+    means = np.ascontiguousarray(store[:, :, 12:15].transpose(1, 0, 2))  # (S, T, 3)
+    covs = np.ascontiguousarray(store[:, :, 15:24].transpose(1, 0, 2)).reshape(S, T, 3, 3)
+    done = answered.sum(axis=0).tolist()
+    ns = walls.sum(axis=0).tolist()
+    pms, pcs = [], []
+    for k, sr in enumerate(slot_sims):
+        pm, pc = np.full((len(sr.records), 3), np.nan), np.full((len(sr.records), 3, 3), np.nan)
+        ticks = np.flatnonzero(has_prior[:, k])
+        rows = sr.record_index[ticks]
+        pm[rows] = store[ticks, k, 0:3]
+        pc[rows] = store[ticks, k, 3:12].reshape(-1, 3, 3)
+        pms.append(pm)
+        pcs.append(pc)
     theta = np.concatenate([means[k, :done[k], 2] for k in range(R)])
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
     if probes:

@@ -37,6 +37,7 @@ from beacon_sim.filters.containment import (
 from beacon_sim.filters.watchdog import FilterFailed
 from beacon_sim.filters.wire import (
     BELIEF,
+    EST_ENTRY,
     ESTIMATE,
     FAIL,
     MULTI,
@@ -114,14 +115,15 @@ class FilterChild:
         self.info = doc  # missing methods, sensor kinds, module: what ``check`` reports
 
     # -- the pipe -------------------------------------------------------------------
-    def request(self, frame: bytes) -> tuple[bytes, bytes]:
+    def request(self, frame: bytes, expect: int | None = None) -> tuple[bytes, bytes]:
         """Send a frame made by :func:`~beacon_sim.filters.wire.encode_request` and read the
-        answer; a FAIL answer or a dead child raises :class:`ChildFailure`."""
+        answer (``expect``: its likely size [bytes], read at once); a FAIL answer or a dead
+        child raises :class:`ChildFailure`."""
         if self.dead is not None or self._proc is None:
             raise ChildFailure(self.dead or "the filter's process is closed", died=True)
         try:
             send_frame(self._proc.to_child, frame)
-            tag, payload = read_reply(self._proc.from_child, self.reply_timeout_s)
+            tag, payload = read_reply(self._proc.from_child, self.reply_timeout_s, expect)
         except (WireError, OSError) as exc:
             raise ChildFailure(self._death(exc), died=True) from None
         if tag == FAIL:
@@ -229,7 +231,7 @@ class FilterChild:
         """Send a batch request of ``count`` runs and read its MULTI answer
         (:func:`~beacon_sim.filters.wire.parse_multi`); anything else from the child, or a
         malformed answer, stops it (:class:`ChildFailure`, ``died``)."""
-        tag, payload = self.request(frame)
+        tag, payload = self.request(frame, 5 + count * EST_ENTRY.itemsize)
         try:
             if tag != MULTI:
                 raise WireError(f"broke the protocol (answered a batch with {tag!r})")

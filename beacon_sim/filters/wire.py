@@ -32,6 +32,9 @@ _RHEAD = struct.Struct("<cI")
 #: An ESTIMATE payload: has_prior flag, wall ns of predict + update + estimate, prior mean (3)
 #: and cov (9), posterior mean (3) and cov (9) [m, m, rad], float64 little-endian.
 _EST = struct.Struct("<qq24d")
+_FLAGS = struct.Struct("<qq")
+_EST_HEAD_BYTES = _RHEAD.pack(b"E", _EST.size)
+_NO_PRIOR = (np.full(3, np.nan), np.full((3, 3), np.nan))
 
 
 class WireError(RuntimeError):
@@ -76,10 +79,19 @@ def send_frame(fd: int, frame: bytes) -> None:
 
 
 def read_request(fd: int) -> tuple[Any, ...] | None:
-    """The next request (child side), or None when the grader closed the pipe."""
+    """The next request (child side), or None when the grader closed the pipe. The grader
+    sends one request at a time, so one read usually brings the whole frame."""
     try:
-        (n,) = _HEAD.unpack(_read_exact(fd, _HEAD.size, None))
-        return pickle.loads(_read_exact(fd, n, None))
+        chunk = os.read(fd, 1 << 16)
+        if not chunk:
+            return None
+        if len(chunk) < _HEAD.size:
+            chunk += _read_exact(fd, _HEAD.size - len(chunk), None)
+        (n,) = _HEAD.unpack_from(chunk)
+        body = chunk[_HEAD.size:]
+        if len(body) < n:
+            body += _read_exact(fd, n - len(body), None)
+        return pickle.loads(body)
     except WireError:
         return None
 
@@ -100,20 +112,46 @@ def reply_json(tag: bytes, doc: dict[str, Any]) -> bytes:
 def reply_estimate(wall_ns: int, prior: tuple[np.ndarray, np.ndarray] | None,
                    post: tuple[np.ndarray, np.ndarray]) -> bytes:
     """An ESTIMATE reply: the estimate after predict (or none) and after update."""
-    pm, pc = prior if prior is not None else (np.full(3, np.nan), np.full((3, 3), np.nan))
+    pm, pc = prior if prior is not None else _NO_PRIOR
     values = np.concatenate([np.ravel(pm), np.ravel(pc), np.ravel(post[0]), np.ravel(post[1])])
-    return reply(ESTIMATE, _EST.pack(prior is not None, int(wall_ns), *values.tolist()))
+    if values.shape != (24,):
+        raise ValueError("an estimate is a mean (3,) and a covariance (3, 3)")
+    flags = _FLAGS.pack(prior is not None, int(wall_ns))
+    return _EST_HEAD_BYTES + flags + values.astype("<f8", copy=False).tobytes()
 
 
-def read_reply(fd: int, timeout_s: float | None) -> tuple[bytes, bytes]:
+def read_reply(fd: int, timeout_s: float | None, expect: int | None = None) -> tuple[bytes, bytes]:
     """The next reply (grader side): (tag, payload). Raises :class:`WireError` when the
     child closed the pipe (it died), sent a frame over ``MAX_REPLY_BYTES`` or an unknown
-    tag, or said nothing for ``timeout_s`` [s] of wall time."""
+    tag, or said nothing for ``timeout_s`` [s] of wall time. ``expect``: the reply's likely
+    size [bytes], read in one go (then bytes beyond the frame break the protocol too: the
+    child answers one request with one frame)."""
     deadline = None if timeout_s is None else time.monotonic() + timeout_s
-    tag, n = _RHEAD.unpack(_read_exact(fd, _RHEAD.size, deadline))
+    head = _read_exact(fd, _RHEAD.size, deadline) if expect is None else _read_some(fd, expect, deadline)
+    tag, n = _RHEAD.unpack_from(head)
     if tag not in (OK, FAIL, ESTIMATE, BELIEF, REPORT, MULTI) or n > MAX_REPLY_BYTES:
         raise WireError(f"broke the protocol (a {n}-byte frame tagged {tag!r})")
-    return tag, _read_exact(fd, n, deadline)
+    body = head[_RHEAD.size:]
+    if len(body) > n:
+        raise WireError(f"broke the protocol (more bytes than its {n}-byte frame)")
+    return tag, body + _read_exact(fd, n - len(body), deadline) if len(body) < n else body
+
+
+def _read_some(fd: int, most: int, deadline: float | None) -> bytes:
+    """At least a reply's head and at most ``most`` bytes, in as few reads as the pipe allows
+    (one, for a reply of the expected size)."""
+    out = b""
+    while len(out) < _RHEAD.size:
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            ready = select.select([fd], [], [], left)[0] if left > 0 else []
+            if not ready:
+                raise WireError("no answer in time")
+        chunk = os.read(fd, max(most, _RHEAD.size) - len(out))
+        if not chunk:
+            raise WireError("closed")
+        out += chunk
+    return out
 
 
 def parse_json(payload: bytes) -> dict[str, Any]:
@@ -147,6 +185,7 @@ MAX_FAIL_BYTES = 2 * 12 * MAX_TEXT + 64  # two texts, each char escaped to at mo
 #: One ESTIMATE entry of a MULTI reply as a numpy record: the reply head (tag, length) then
 #: the ESTIMATE payload (:data:`_EST`), packed (213 bytes).
 EST_ENTRY = np.dtype([("tag", "S1"), ("n", "<u4"), ("prior", "<i8"), ("wall", "<i8"), ("v", "<f8", (24,))])
+_EST_HEAD = [bytes([c]) for c in _RHEAD.pack(ESTIMATE, _EST.size)]
 
 
 def encode_batch(op: str, bodies: list[bytes], *args: Any) -> bytes:
@@ -168,10 +207,9 @@ def parse_multi(payload: bytes, count: int) -> list[tuple[bytes, bytes]] | np.nd
     Raises :class:`WireError` for anything but exactly ``count`` well-formed OK, ESTIMATE or
     FAIL entries (an ESTIMATE of the wrong size, a FAIL over ``MAX_FAIL_BYTES``)."""
     size = EST_ENTRY.itemsize
-    if len(payload) == count * size:
-        rec = np.frombuffer(payload, dtype=EST_ENTRY, count=count)
-        if np.all(rec["tag"] == ESTIMATE) and np.all(rec["n"] == _EST.size):
-            return rec
+    if len(payload) == count * size and all(
+            payload[j::size] == b * count for j, b in enumerate(_EST_HEAD)):  # every head E, 208
+        return np.frombuffer(payload, dtype=EST_ENTRY, count=count)
     out: list[tuple[bytes, bytes]] = []
     at, view = 0, memoryview(payload)
     for _ in range(count):
