@@ -34,7 +34,8 @@ _RHEAD = struct.Struct("<cI")
 _EST = struct.Struct("<qq24d")
 _FLAGS = struct.Struct("<qq")
 _EST_HEAD_BYTES = _RHEAD.pack(b"E", _EST.size)
-_NO_PRIOR = (np.full(3, np.nan), np.full((3, 3), np.nan))
+_F8 = np.dtype("<f8")
+_NO_PRIOR = (np.full(3, np.nan, dtype=_F8), np.full((3, 3), np.nan, dtype=_F8))
 
 
 class WireError(RuntimeError):
@@ -113,11 +114,12 @@ def reply_estimate(wall_ns: int, prior: tuple[np.ndarray, np.ndarray] | None,
                    post: tuple[np.ndarray, np.ndarray]) -> bytes:
     """An ESTIMATE reply: the estimate after predict (or none) and after update."""
     pm, pc = prior if prior is not None else _NO_PRIOR
-    values = np.concatenate([np.ravel(pm), np.ravel(pc), np.ravel(post[0]), np.ravel(post[1])])
-    if values.shape != (24,):
-        raise ValueError("an estimate is a mean (3,) and a covariance (3, 3)")
-    flags = _FLAGS.pack(prior is not None, int(wall_ns))
-    return _EST_HEAD_BYTES + flags + values.astype("<f8", copy=False).tobytes()
+    parts = (pm, pc, post[0], post[1])
+    if any(type(a) is not np.ndarray or a.dtype != _F8 for a in parts) or pm.shape != (3,) \
+            or pc.shape != (3, 3) or post[0].shape != (3,) or post[1].shape != (3, 3):
+        parts = tuple(np.asarray(a, dtype=_F8).reshape(n) for a, n in zip(parts, (3, 9, 3, 9), strict=True))
+    return b"".join((_EST_HEAD_BYTES, _FLAGS.pack(prior is not None, int(wall_ns)),
+                     *(a.tobytes() for a in parts)))  # C order, little-endian float64
 
 
 def read_reply(fd: int, timeout_s: float | None, expect: int | None = None) -> tuple[bytes, bytes]:
