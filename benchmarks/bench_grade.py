@@ -116,8 +116,9 @@ def _proc_cpu(pids: list[int]) -> float:
 
 def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -> None:
     """CPU of the same honest class graded on local processes and on a Dask LocalCluster
-    (its workers, their nannies and this process, which holds the scheduler and the client),
-    interleaved rounds, medians."""
+    (its workers with the children they reaped, and this process, which holds the scheduler,
+    the nannies and the client), interleaved rounds, medians. ``--dask-no-profile`` turns
+    off Dask's sampling profiler on the workers (``distributed.worker.profile.enabled``)."""
     import resource
 
     from dask.distributed import Client, LocalCluster
@@ -130,10 +131,16 @@ def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -
                  "time_limit": cfg.time_limit, "sandbox": args.sandbox}
     workers = args.jobs or 2
     got: dict[str, list[float]] = {"local": [], "dask": []}
+    if args.dask_no_profile:
+        import dask
+
+        dask.config.set({"distributed.worker.profile.enabled": False})
     load0 = os.getloadavg()[0]
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster, Client(cluster) as client:
-        pids = list(client.run(os.getpid).values()) + list(client.run(os.getppid).values())
+        # the workers and, where they are processes of their own, their nannies (a LocalCluster's
+        # nannies live in this process, counted by its own resource usage)
+        pids = sorted({*client.run(os.getpid).values(), *client.run(os.getppid).values()} - {os.getpid()})
         for _ in range(args.rounds):
             got["local"].append(measured_grade(ROOT, hon, local_cfg, workers)["cpu"])
             c0, s0 = _proc_cpu(pids), self_cpu()
@@ -147,7 +154,8 @@ def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -
           f"{args.rounds} rounds)")
     print(f"FIGURE grade_cpu_dask {remote:.1f} s CPU (LocalCluster {workers} workers x 1 thread: "
           "workers, nannies, scheduler and client)")
-    print(f"FIGURE dask_over_local_cpu {remote / local:.2f} x (target <= 1.10)")
+    print(f"FIGURE dask_over_local_cpu {remote / local:.2f} x (target <= 1.10; worker profiler "
+          f"{'off' if args.dask_no_profile else 'on'})")
     print("DASK_ROUNDS " + json.dumps(got))
 
 
@@ -196,6 +204,8 @@ def main() -> None:
     ap.add_argument("--sandbox", default="auto", help="the isolated grade's level (auto, bwrap, process)")
     ap.add_argument("--dask-cpu", action="store_true",
                     help="CPU of the honest class on local processes against a Dask LocalCluster")
+    ap.add_argument("--dask-no-profile", action="store_true",
+                    help="with --dask-cpu: Dask's sampling profiler off on the workers")
     args = ap.parse_args()
     cfg = GradeConfig(scenarios=("default",), seeds=tuple(range(args.seeds)), duration=args.duration,
                       time_limit=args.time_limit)
