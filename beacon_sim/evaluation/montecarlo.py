@@ -847,11 +847,25 @@ def hosted_runs(source: Any, cls: str | None, name: str, fp: dict[str, Any],
         records: list[FilterRun] = []
         child: FilterChild | None = None
         why: str | None = None
+        timeout = max(60.0, 5 * (run_limit_s or 60.0))
+        if isinstance(source, Path) and len({len(sr.frames) for sr in sims}) == 1:
+            # a file: its runs fed together (each from a fresh copy of the file), unless it
+            # draws from the global generators (their stream would be shared: one at a time)
+            try:
+                child = FilterChild(source, cls, log_path, level, limits, timeout)
+            except ChildFailure as exc:
+                why = str(exc)
+            if child is not None:
+                outs, rep = isolated_runs(child, sims, run_limit_s, name=name, params=fp)
+                if not (rep.get("np_global") or rep.get("py_global")):
+                    child.close()
+                    return [out.filters[name] for out in outs]
+                child.close()
+                child = None
         for sr in sims:
             if why is None and child is None:
                 try:
-                    child = FilterChild(source, cls, log_path, level, limits,
-                                        max(60.0, 5 * (run_limit_s or 60.0)))
+                    child = FilterChild(source, cls, log_path, level, limits, timeout)
                 except ChildFailure as exc:
                     why = str(exc)
             if child is None:
