@@ -435,7 +435,7 @@ def run_student(job: StudentJob) -> StudentResult:
             if rep.get("heading_unwrapped"):
                 findings["heading_wrapped"] = False
             results[k] = TaskResult(task(job.sims[k]), run, None, wall_s,
-                                    {k2: v for k2, v in rep.items() if k2 != "means"})
+                                    {k2: v for k2, v in rep.items() if k2 not in ("means", "probes")})
 
         try:
             for batch in _batches(job.sims):
