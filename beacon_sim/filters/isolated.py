@@ -40,6 +40,7 @@ from beacon_sim.filters.wire import (
     EST_ENTRY,
     ESTIMATE,
     FAIL,
+    MAX_BATCH,
     MULTI,
     OK,
     REPORT,
@@ -255,6 +256,8 @@ class FilterChild:
         """Build one fresh filter per run of a batch (``(ctx, initial, spec)`` each), each with
         its own CPU-time budget ``run_limit_s`` [s], the global RNGs seeded once from
         ``global_seed``: None per built filter, else why its construction failed."""
+        if not 1 <= len(builds) <= MAX_BATCH:
+            raise ValueError(f"a batch of {len(builds)} runs: expected 1 to {MAX_BATCH}")
         builds = [(dataclasses.replace(ctx, world=dataclasses.replace(ctx.world)), initial, spec)
                   for ctx, initial, spec in builds]
         got = self.call_multi(encode_request("bbuild", builds, int(global_seed), run_limit_s), len(builds))

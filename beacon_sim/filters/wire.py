@@ -114,7 +114,7 @@ def reply_estimate(wall_ns: int, prior: tuple[np.ndarray, np.ndarray] | None,
                    post: tuple[np.ndarray, np.ndarray]) -> bytes:
     """An ESTIMATE reply: the estimate after predict (or none) and after update."""
     pm, pc = prior if prior is not None else _NO_PRIOR
-    parts = (pm, pc, post[0], post[1])
+    parts: tuple[np.ndarray, ...] = (pm, pc, post[0], post[1])
     if any(type(a) is not np.ndarray or a.dtype != _F8 for a in parts) or pm.shape != (3,) \
             or pc.shape != (3, 3) or post[0].shape != (3,) or post[1].shape != (3, 3):
         parts = tuple(np.asarray(a, dtype=_F8).reshape(n) for a, n in zip(parts, (3, 9, 3, 9), strict=True))
@@ -180,7 +180,7 @@ def parse_estimate(payload: bytes) -> tuple[int, tuple[np.ndarray, np.ndarray] |
 
 # -- a batch of seeds: one exchange per tick for all of a student's runs ------------------
 
-#: The largest batch (filters in one child answered in one MULTI reply).
+#: The largest batch (filters in one child answered in one MULTI reply: under 1 MB).
 MAX_BATCH = 4096
 #: The longest FAIL entry of a MULTI reply [bytes] (its JSON: a reason and a traceback).
 MAX_FAIL_BYTES = 2 * 12 * MAX_TEXT + 64  # two texts, each char escaped to at most 12 bytes
