@@ -186,3 +186,26 @@ def test_the_batch_answer_is_read_in_one_call_when_every_run_answered():
 def test_a_malformed_batch_answer_is_refused(payload, count):
     with pytest.raises(WireError, match="broke the protocol"):
         parse_multi(payload, count)
+
+
+def test_a_batch_exchange_waits_the_reply_time_out_once_per_run(sims, tmp_path, monkeypatch):
+    """Each run of a batch may use its whole CPU budget in one tick (an endless loop in every
+    seed is stopped seed after seed), so the wall-time wait for a batch's answer is the
+    reply time-out once per run it carries, not once in all."""
+    import beacon_sim.filters.isolated as isolated
+
+    waits: list[float | None] = []
+    real = isolated.read_reply
+
+    def spy(fd, timeout_s, expect=None):
+        waits.append(timeout_s)
+        return real(fd, timeout_s, expect)
+
+    monkeypatch.setattr(isolated, "read_reply", spy)
+    src = tmp_path / "e.py"
+    src.write_text(WRAPPED["ekf"])
+    with FilterChild(src, None, tmp_path / "e.log", "process", Limits(), reply_timeout_s=7.0) as child:
+        isolated_runs(child, sims, 30.0, probe_ticks=2)
+    assert waits[0] == 7.0  # loading: one request
+    assert 7.0 * (len(sims) + 1) in waits  # the probes' ticks: the runs and the probe fed again
+    assert max(waits) == 7.0 * (len(sims) + 1)

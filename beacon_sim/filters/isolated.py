@@ -99,6 +99,7 @@ class FilterChild:
         self.limits, self.sandbox = limits, sandbox
         self.source_name = source.name
         self.reply_timeout_s = reply_timeout_s
+        self._waited_s = reply_timeout_s  # the last request's time-out [s]
         self.dead: str | None = None
         #: The CPU time [s] the child said it had used at its last report (the end of a run):
         #: its own word, for the cost figures only (benchmarks/bench_grade.py), never a grade's.
@@ -116,15 +117,17 @@ class FilterChild:
         self.info = doc  # missing methods, sensor kinds, module: what ``check`` reports
 
     # -- the pipe -------------------------------------------------------------------
-    def request(self, frame: bytes, expect: int | None = None) -> tuple[bytes, bytes]:
+    def request(self, frame: bytes, expect: int | None = None, runs: int = 1) -> tuple[bytes, bytes]:
         """Send a frame made by :func:`~beacon_sim.filters.wire.encode_request` and read the
-        answer (``expect``: its likely size [bytes], read at once); a FAIL answer or a dead
-        child raises :class:`ChildFailure`."""
+        answer (``expect``: its likely size [bytes], read at once; ``runs``: how many runs'
+        steps it carries, each given the reply time-out); a FAIL answer or a dead child
+        raises :class:`ChildFailure`."""
         if self.dead is not None or self._proc is None:
             raise ChildFailure(self.dead or "the filter's process is closed", died=True)
         try:
+            self._waited_s = self.reply_timeout_s * runs
             send_frame(self._proc.to_child, frame)
-            tag, payload = read_reply(self._proc.from_child, self.reply_timeout_s, expect)
+            tag, payload = read_reply(self._proc.from_child, self._waited_s, expect)
         except (WireError, OSError) as exc:
             raise ChildFailure(self._death(exc), died=True) from None
         if tag == FAIL:
@@ -157,7 +160,7 @@ class FilterChild:
             return self.dead
         if "no answer in time" in text:
             self.kill()
-            self.dead = (f"the filter's process did not answer for {self.reply_timeout_s:g} s "
+            self.dead = (f"the filter's process did not answer for {self._waited_s:g} s "
                          "(wall time) and was stopped")
         elif "broke the protocol" in text:
             self.kill()
@@ -232,7 +235,7 @@ class FilterChild:
         """Send a batch request of ``count`` runs and read its MULTI answer
         (:func:`~beacon_sim.filters.wire.parse_multi`); anything else from the child, or a
         malformed answer, stops it (:class:`ChildFailure`, ``died``)."""
-        tag, payload = self.request(frame, 5 + count * EST_ENTRY.itemsize)
+        tag, payload = self.request(frame, 5 + count * EST_ENTRY.itemsize, max(1, count))
         try:
             if tag != MULTI:
                 raise WireError(f"broke the protocol (answered a batch with {tag!r})")
