@@ -209,3 +209,16 @@ def test_a_batch_exchange_waits_the_reply_time_out_once_per_run(sims, tmp_path, 
     assert waits[0] == 7.0  # loading: one request
     assert 7.0 * (len(sims) + 1) in waits  # the probes' ticks: the runs and the probe fed again
     assert max(waits) == 7.0 * (len(sims) + 1)
+
+
+def test_the_probes_end_with_the_run_they_probe(sims, tmp_path):
+    """A first run that fails takes its probes with it (they would cost its whole budget
+    again for nothing): they answer 'the run it probes failed', the other runs go on."""
+    text = DOOMED.replace("self.doomed = ctx.rng.random() < 0.5", "self.doomed = ctx.name == 'first'")
+    with _child(tmp_path, "lead", text) as child:
+        runs, rep = isolated_runs(child, sims, 30.0, name="first", probe_ticks=50)
+        (fr,) = runs[0].filters.values()
+        assert fr.failed == "RuntimeError: doomed in this seed" and fr.steps == 9
+        assert rep["probes"] == {"again": None}
+        others, _ = isolated_runs(child, sims, 30.0, name="other", probe_ticks=50)
+    assert all(next(iter(r.filters.values())).failed is None for r in others)

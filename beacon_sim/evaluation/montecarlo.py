@@ -435,7 +435,8 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     try:
         builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
                   for sr in slot_sims]
-        why = child.batch_build(builds, sims[0].seed, run_limit_s)
+        follows: list[int | None] = [None] * R + [0] * len(probes)  # a probe ends with the run it probes
+        why = child.batch_build(builds, sims[0].seed, run_limit_s, follows)
         for k, w in enumerate(why):
             failed[k] = w
         live = [k for k in range(S) if failed[k] is None]

@@ -294,16 +294,17 @@ class _Server:
 
     # -- a batch: one filter per seed, one exchange per tick for all of them -------------
     def op_bbuild(self, builds: list[tuple[Any, Any, str]], global_seed: int,
-                  run_limit_s: float | None) -> None:
+                  run_limit_s: float | None, follows: list[int | None] | None = None) -> None:
         """Build one filter per run of the batch (``(ctx, initial, spec)`` each, as
         :meth:`op_build`), the global RNGs seeded once from ``global_seed``; each run has
-        its own CPU-time budget ``run_limit_s``. Answers MULTI: OK or FAIL per run."""
+        its own CPU-time budget ``run_limit_s``; ``follows[k]``: the run whose failure ends
+        run k too (a probe of it), or None. Answers MULTI: OK or FAIL per run."""
         self.end_limit()
         self.flt = None
         np_random_seed(global_seed)
         self.rng_states = (_np_state(), random.getstate())
         assert self.cls is not None
-        self.batch = _Batch(self.fresh_class, builds, run_limit_s)
+        self.batch = _Batch(self.fresh_class, builds, run_limit_s, follows)
         self.send(self.batch.built)
 
     def fresh_class(self) -> type:
@@ -365,7 +366,8 @@ class _Batch:
     student's file (``fresh_class()``), with its own CPU-time budget, failure and cost; a
     failed one is switched off and the others go on."""
 
-    def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None):
+    def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None,
+                 follows: list[int | None] | None = None):
         from beacon_sim.filters.loading import build_from_context
         from beacon_sim.filters.watchdog import StepWatch
         from beacon_sim.filters.wire import OK, reply, reply_multi
@@ -376,9 +378,16 @@ class _Batch:
         self.watch = StepWatch(cpu=True)
         self.filters: list[Any] = []
         self.used = [0] * len(builds)  # CPU time of each run's filter code [ns]
+        self.follows = list(follows) if follows is not None else [None] * len(builds)
+        self.ended: set[int] = set()  # runs ended by the failure of the run they follow
         entries = []
-        for ctx, initial, spec in builds:  # the import's and the build's own limits, as alone;
-            try:  # the run's budget counts the steps (as one_run's)
+        for k, (ctx, initial, spec) in enumerate(builds):  # the import's and the build's own
+            leader = self.follows[k]  # limits, as alone; the run's budget counts the steps
+            if leader is not None and (leader >= k or self.filters[leader] is None):
+                self.filters.append(None)
+                entries.append(self._fail_text("the run it probes failed"))
+                continue
+            try:
                 flt = build_from_context(fresh_class(), ctx, initial, spec)
             except BaseException as exc:
                 self.filters.append(None)
@@ -387,6 +396,15 @@ class _Batch:
             self.filters.append(flt)
             entries.append(reply(OK))
         self.built = reply_multi(entries)
+
+    def switch_off(self, k: int) -> None:
+        """Run k failed: its filter is dropped, and so are the runs that follow it (its
+        probes), which answer FAIL the next time they are named, unstepped."""
+        self.filters[k] = None
+        for j, leader in enumerate(self.follows):
+            if leader == k and self.filters[j] is not None:
+                self.filters[j] = None
+                self.ended.add(j)
 
     def _fail(self, exc: BaseException, prefix: str = "") -> bytes:
         import traceback
@@ -412,6 +430,10 @@ class _Batch:
         entries = []
         for k, body in zip(slots, bodies, strict=True):
             f = self.filters[k] if 0 <= k < len(self.filters) else None
+            if k in self.ended:
+                self.ended.discard(k)
+                entries.append(self._fail_text("the run it probes failed"))
+                continue
             if f is None:
                 raise ValueError(f"a batch tick for run {k}, which is not going")
             _op, control, dt, measurements, want_prior = pickle.loads(body)
@@ -428,7 +450,7 @@ class _Batch:
                     est = f.estimate()
                     wall = (t1 - t0) + (clock() - t2)
             except BaseException as exc:
-                self.filters[k] = None
+                self.switch_off(k)
                 entries.append(self._fail(exc))
                 continue
             finally:
@@ -440,11 +462,11 @@ class _Batch:
                 if isinstance(pri, str):
                     post = "after predict: " + pri
             if isinstance(post, str):
-                self.filters[k] = None
+                self.switch_off(k)
                 entries.append(self._fail_text(post))
                 continue
             if limit is not None and self.used[k] > limit * 1e9:
-                self.filters[k] = None
+                self.switch_off(k)
                 entries.append(self._fail_text(self.over or "time limit"))
                 continue
             entries.append(reply_estimate(wall, pri, post))

@@ -255,15 +255,18 @@ class FilterChild:
         return why[:400]
 
     def batch_build(self, builds: list[tuple[FilterContext, GaussianBelief | None, str]],
-                    global_seed: int, run_limit_s: float | None) -> list[str | None]:
+                    global_seed: int, run_limit_s: float | None,
+                    follows: list[int | None] | None = None) -> list[str | None]:
         """Build one fresh filter per run of a batch (``(ctx, initial, spec)`` each), each with
         its own CPU-time budget ``run_limit_s`` [s], the global RNGs seeded once from
-        ``global_seed``: None per built filter, else why its construction failed."""
+        ``global_seed``: None per built filter, else why its construction failed.
+        ``follows[k]``: the run whose failure ends run k too (a probe), or None."""
         if not 1 <= len(builds) <= MAX_BATCH:
             raise ValueError(f"a batch of {len(builds)} runs: expected 1 to {MAX_BATCH}")
         builds = [(dataclasses.replace(ctx, world=dataclasses.replace(ctx.world)), initial, spec)
                   for ctx, initial, spec in builds]
-        got = self.call_multi(encode_request("bbuild", builds, int(global_seed), run_limit_s), len(builds))
+        got = self.call_multi(encode_request("bbuild", builds, int(global_seed), run_limit_s, follows),
+                              len(builds))
         assert isinstance(got, list)  # OK and FAIL entries, never all ESTIMATE
         return [None if tag == OK else self.failure_text(payload) for tag, payload in got]
 
