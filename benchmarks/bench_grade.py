@@ -7,8 +7,11 @@ a folder holding that commit's ``beacon_sim`` and ``scenarios``, e.g. made with
 ``git archive 62f69b5 beacon_sim scenarios assets | tar -x -C /tmp/base``).
 
     python benchmarks/bench_grade.py [--seeds 3] [--duration 60] [--base /tmp/base] [--no-dask]
+        [--no-class] [--rounds 3] [--sandbox auto]
 
-Prints FIGURE lines (name, value, unit) and the ratios.
+Prints FIGURE lines (name, value, unit) and the ratios. The cost (``--base``) is CPU time of
+every process (the grader, its workers, the students' children), in interleaved rounds of
+the two paths, medians, with the load before and after.
 """
 
 from __future__ import annotations
@@ -66,16 +69,124 @@ def figures(board: dict, names: list[str]) -> dict[str, tuple]:
     return {r["student"]: tuple(r[k] for k in FIGURES) for r in board["rows"] if r["student"] in names}
 
 
-def base_grade(base: Path, folder: Path, cfg: GradeConfig, jobs: int | None) -> float:
-    """Wall time [s] of the in-process grade of the commit in ``base`` (a subprocess)."""
-    code = (f"import time; from beacon_sim.evaluation.grading import GradeConfig, grade; "
-            f"t = time.perf_counter(); grade({str(folder)!r}, GradeConfig(scenarios={cfg.scenarios!r}, "
-            f"seeds={cfg.seeds!r}, duration={cfg.duration!r}, time_limit={cfg.time_limit!r}), jobs={jobs}); "
-            f"print(time.perf_counter() - t)")
-    env = {**os.environ, "PYTHONPATH": str(base), "PYTHONDONTWRITEBYTECODE": "1"}
-    out = subprocess.run([sys.executable, "-B", "-c", code], env=env, capture_output=True, text=True,
-                         check=True, cwd=tempfile.gettempdir())
-    return float(out.stdout.strip().splitlines()[-1])
+_MEASURE = """
+import json, resource, sys, time
+from beacon_sim.evaluation.grading import GradeConfig, grade
+def cpu(who):
+    u = resource.getrusage(who)
+    return u.ru_utime + u.ru_stime
+cfg = GradeConfig(**json.loads(sys.argv[2]))
+s0, c0, t0 = cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN), time.perf_counter()
+board = grade(sys.argv[1], cfg, jobs=json.loads(sys.argv[3]))
+wall = time.perf_counter() - t0
+s1, c1 = cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN)
+print(json.dumps({"wall": wall, "self": s1 - s0, "children": c1 - c0,
+                  "reported": board.get("child_cpu_s", 0.0), "sandbox": board.get("sandbox", "none")}))
+"""
+
+
+def measured_grade(path: Path, folder: Path, cfg: dict, jobs: int | None) -> dict:
+    """One grade of ``folder`` by the ``beacon_sim`` in ``path`` (a subprocess): wall [s] and
+    CPU [s] of the grader and every process it started. A bubblewrap child is not reaped into
+    the grader's resource usage, so there the children's own reports are added."""
+    env = {**os.environ, "PYTHONPATH": str(path), "PYTHONDONTWRITEBYTECODE": "1"}
+    out = subprocess.run([sys.executable, "-B", "-c", _MEASURE, str(folder), json.dumps(cfg),
+                          json.dumps(jobs)], env=env, capture_output=True, text=True, check=True,
+                         cwd=tempfile.gettempdir())
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    doc["cpu"] = doc["self"] + doc["children"] + (doc["reported"] if doc["sandbox"] == "bwrap" else 0.0)
+    return doc
+
+
+def median(xs: list[float]) -> float:
+    xs = sorted(xs)
+    n = len(xs)
+    return xs[n // 2] if n % 2 else 0.5 * (xs[n // 2 - 1] + xs[n // 2])
+
+
+def _proc_cpu(pids: list[int]) -> float:
+    """CPU time [s] of the processes ``pids`` and the children they reaped (/proc, Linux)."""
+    total = 0
+    for pid in pids:
+        with open(f"/proc/{pid}/stat") as fh:
+            fields = fh.read().rpartition(")")[2].split()
+        total += sum(int(f) for f in fields[11:15])  # utime, stime, cutime, cstime
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -> None:
+    """CPU of the same honest class graded on local processes and on a Dask LocalCluster
+    (its workers with the children they reaped, and this process, which holds the scheduler,
+    the nannies and the client), interleaved rounds, medians. ``--dask-no-profile`` turns
+    off Dask's sampling profiler on the workers (``distributed.worker.profile.enabled``)."""
+    import resource
+
+    from dask.distributed import Client, LocalCluster
+
+    def self_cpu() -> float:
+        u = resource.getrusage(resource.RUSAGE_SELF)
+        return u.ru_utime + u.ru_stime
+
+    local_cfg = {"scenarios": list(cfg.scenarios), "seeds": list(cfg.seeds), "duration": cfg.duration,
+                 "time_limit": cfg.time_limit, "sandbox": args.sandbox}
+    workers = args.jobs or 2
+    got: dict[str, list[float]] = {"local": [], "dask": []}
+    if args.dask_no_profile:
+        import dask
+
+        dask.config.set({"distributed.worker.profile.enabled": False})
+    load0 = os.getloadavg()[0]
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        # the workers and, where they are processes of their own, their nannies (a LocalCluster's
+        # nannies live in this process, counted by its own resource usage)
+        pids = sorted({*client.run(os.getpid).values(), *client.run(os.getppid).values()} - {os.getpid()})
+        for _ in range(args.rounds):
+            got["local"].append(measured_grade(ROOT, hon, local_cfg, workers)["cpu"])
+            c0, s0 = _proc_cpu(pids), self_cpu()
+            board = grade(hon, GradeConfig(**{**local_cfg, "scenarios": cfg.scenarios, "seeds": cfg.seeds}),
+                          scheduler=client)
+            extra = board["child_cpu_s"] if board["sandbox"] == "bwrap" else 0.0
+            got["dask"].append(_proc_cpu(pids) - c0 + self_cpu() - s0 + extra)
+    local, remote = median(got["local"]), median(got["dask"])
+    print(f"FIGURE dask_cpu_load_1min {load0:.2f} -> {os.getloadavg()[0]:.2f}")
+    print(f"FIGURE grade_cpu_local {local:.1f} s CPU ({runs} runs, {workers} students at once; median of "
+          f"{args.rounds} rounds)")
+    print(f"FIGURE grade_cpu_dask {remote:.1f} s CPU (LocalCluster {workers} workers x 1 thread: "
+          "workers, nannies, scheduler and client)")
+    print(f"FIGURE dask_over_local_cpu {remote / local:.2f} x (target <= 1.10; worker profiler "
+          f"{'off' if args.dask_no_profile else 'on'})")
+    print("DASK_ROUNDS " + json.dumps(got))
+
+
+def cost(args: argparse.Namespace, hon: Path, runs: int) -> None:
+    """The cost of a graded run: the honest class graded isolated (this checkout) and in
+    process (the base commit, each run simulating its own truth), interleaved rounds,
+    medians; CPU of every process, wall time beside it."""
+    base_cfg = {"scenarios": ["default"], "seeds": list(range(args.seeds)), "duration": args.duration,
+                "time_limit": args.time_limit}
+    iso_cfg = {**base_cfg, "sandbox": args.sandbox}
+    load0 = os.getloadavg()[0]
+    got: dict[str, list[dict]] = {"iso": [], "base": []}
+    for _ in range(args.rounds):
+        got["iso"].append(measured_grade(ROOT, hon, iso_cfg, args.jobs))
+        got["base"].append(measured_grade(args.base, hon, base_cfg, args.jobs))
+    load1 = os.getloadavg()[0]
+    iso_cpu, base_cpu = median([g["cpu"] for g in got["iso"]]), median([g["cpu"] for g in got["base"]])
+    iso_wall, base_wall = median([g["wall"] for g in got["iso"]]), median([g["wall"] for g in got["base"]])
+    sandbox = got["iso"][0]["sandbox"]
+    print(f"FIGURE load_1min {load0:.2f} -> {load1:.2f} (before and after the {args.rounds} rounds)")
+    print(f"FIGURE graded_run_cpu_isolated {iso_cpu / runs * 1e3:.1f} ms CPU per run ({runs} runs, sandbox "
+          f"{sandbox}; simulation once per seed, child start, probes and scoring included; median of "
+          f"{args.rounds} rounds)")
+    print(f"FIGURE graded_run_cpu_in_process_base {base_cpu / runs * 1e3:.1f} ms CPU per run (the base "
+          "commit's grade, each run simulating its own truth)")
+    print(f"FIGURE class_runs_per_cpu_s {runs / iso_cpu:.1f} isolated, {runs / base_cpu:.1f} in process")
+    print(f"FIGURE isolated_over_in_process_cpu {iso_cpu / base_cpu:.2f} x (target <= 1.10, issue 27: "
+          "<= 1.3)")
+    print(f"FIGURE isolated_over_in_process_wall {iso_wall / base_wall:.2f} x (jobs: "
+          f"{args.jobs or 'each default'}; {iso_wall:.1f} s against {base_wall:.1f} s)")
+    print("ROUNDS " + json.dumps(got))
 
 
 def main() -> None:
@@ -87,12 +198,28 @@ def main() -> None:
                     help="students at once (default: each grade's own default)")
     ap.add_argument("--base", type=Path)
     ap.add_argument("--no-dask", action="store_true")
+    ap.add_argument("--no-class", action="store_true",
+                    help="skip the 36-file class (only the cost, with --base)")
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the cost")
+    ap.add_argument("--sandbox", default="auto", help="the isolated grade's level (auto, bwrap, process)")
+    ap.add_argument("--dask-cpu", action="store_true",
+                    help="CPU of the honest class on local processes against a Dask LocalCluster")
+    ap.add_argument("--dask-no-profile", action="store_true",
+                    help="with --dask-cpu: Dask's sampling profiler off on the workers")
     args = ap.parse_args()
     cfg = GradeConfig(scenarios=("default",), seeds=tuple(range(args.seeds)), duration=args.duration,
                       time_limit=args.time_limit)
     tmp = Path(tempfile.mkdtemp(prefix="bench-grade-"))
     klass = tmp / "class"
     honest = write_class(klass, 21, hostile=True)
+    if args.no_class:
+        write_class(tmp / "alone", 21, hostile=False)
+        if args.base is not None:
+            cost(args, tmp / "alone", len(honest) * args.seeds)
+        if args.dask_cpu:
+            dask_cpu(args, tmp / "alone", cfg, len(honest) * args.seeds)
+        shutil.rmtree(tmp, ignore_errors=True)
+        return
     n = len(list(klass.glob("*.py")))
     print(f"FIGURE class_files {n} files ({len(honest)} honest)")
 
@@ -123,21 +250,9 @@ def main() -> None:
         print(f"FIGURE dask_identical_to_local {figures(remote, everyone) == figures(board, everyone)}")
 
     if args.base is not None:  # the cost of a graded run: the honest class, isolated vs in process
-        hon = tmp / "alone"
-        runs = len(honest) * args.seeds
-        wall: dict[str, list[float]] = {"iso": [], "base": []}
-        for _ in range(2):  # interleaved, best of 2: the machine's load drifts
-            t0 = time.perf_counter()
-            grade(hon, cfg, jobs=args.jobs)
-            wall["iso"].append(time.perf_counter() - t0)
-            wall["base"].append(base_grade(args.base, hon, cfg, args.jobs))
-        iso, inproc = min(wall["iso"]), min(wall["base"])
-        print(f"FIGURE graded_run_isolated {iso / runs * 1e3:.0f} ms per run ({runs} runs, simulation "
-              "once per seed, child start, probes and scoring included; best of 2)")
-        print(f"FIGURE graded_run_in_process_base {inproc / runs * 1e3:.0f} ms per run (the base "
-              "commit's grade, each run simulating its own truth; best of 2)")
-        print(f"FIGURE isolated_over_in_process {iso / inproc:.2f} x (wall time, jobs: "
-              f"{args.jobs or 'each default'})")
+        if not (tmp / "alone").exists():
+            write_class(tmp / "alone", 21, hostile=False)
+        cost(args, tmp / "alone", len(honest) * args.seeds)
     shutil.rmtree(tmp, ignore_errors=True)
 
 

@@ -237,3 +237,19 @@ def test_team_scenarios_host_each_robots_filter_in_a_child_too(tmp_path):
     assert _row(b, "honest")["pos_rmse_m"] == ref == _row(b, "frame_walk")["pos_rmse_m"]
     assert "exited with status 3" in _row(b, "os_exit")["failures"][0]["reason"]
     assert b["team_in_process"] == []
+
+
+def test_the_probes_find_determinism_and_the_use_of_readings(board, tmp_path):
+    """The probes (the first run fed again, and fed no readings) ride in the first batch:
+    the honest EKF is deterministic and uses its readings; dead reckoning uses none; the
+    global-RNG filter (graded seed by seed) is not deterministic."""
+    honest = _row(board, "honest")
+    assert honest["deterministic"] is True and honest["readings_used"] is True
+    assert _row(board, "global_rng")["deterministic"] is False
+    folder = tmp_path / "blind"
+    folder.mkdir()
+    (folder / "blind.py").write_text("from beacon_sim.filters.dead_reckoning import DeadReckoning\n\n\n"
+                                     "class Blind(DeadReckoning):\n    pass\n")
+    row = _row(grade(folder, CONFIG, jobs=1), "blind")
+    assert row["failed_runs"] == 0 and row["readings_used"] is False and row["deterministic"] is True
+    assert any("uses none of the readings" in f for f in row["flags"])

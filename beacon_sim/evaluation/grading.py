@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ast
 import csv
+import dataclasses
 import html
 import json
 import math
@@ -43,6 +44,7 @@ from beacon_sim.evaluation.montecarlo import (
     default_jobs,
     init_worker,
     isolated_run,
+    isolated_runs,
     on_dask,
     one_run,
     simulate_run,
@@ -374,16 +376,33 @@ def _limits(job: StudentJob) -> Limits:
                   log_bytes=LOG_BYTES)
 
 
+def _batches(sims: list[SimulatedRun]) -> list[list[int]]:
+    """The runs of a student fed together (one exchange per tick): consecutive runs of the
+    same scenario and length (a scenario's seeds), as indices into ``sims``."""
+    out: list[list[int]] = []
+    for k, sr in enumerate(sims):
+        if out and sims[out[-1][0]].label == sr.label and len(sims[out[-1][0]].frames) == len(sr.frames):
+            out[-1].append(k)
+        else:
+            out.append([k])
+    return out
+
+
 def run_student(job: StudentJob) -> StudentResult:
-    """Every run of one student's filter in a child process of its own (started afresh after
-    a run that killed or broke it), on the simulations the grader made; the scoring stays
-    here. Then the two probes (see :data:`PROBE_TICKS`). Never raises for the filter's sake."""
+    """Every run of one student's filter in a child process of its own, on the simulations
+    the grader made; the scoring stays here. A scenario's seeds are fed together
+    (:func:`~beacon_sim.evaluation.montecarlo.isolated_runs`: one filter per seed in the
+    child, one exchange per tick for all of them); a filter that draws from the global
+    generators is run again one seed at a time in a fresh child (its figures then depend
+    on its own seed alone, as the global generators are seeded per run). A fresh child
+    follows a batch that killed or broke one. Then the two probes (see :data:`PROBE_TICKS`).
+    Never raises for the filter's sake."""
     import tempfile
 
     t_start = time.perf_counter()
     findings: dict[str, Any] = {"global_rng": False, "heading_wrapped": True, "deterministic": None,
-                                "readings_used": None, "form": None}
-    results: list[TaskResult] = []
+                                "readings_used": None, "form": None, "child_cpu_s": 0.0}
+    results: list[TaskResult | None] = [None] * len(job.sims)
     with tempfile.TemporaryDirectory(prefix="beacon-sim-grade-") as tmp:
         src = Path(tmp) / job.filename
         src.write_bytes(job.source)
@@ -392,68 +411,128 @@ def run_student(job: StudentJob) -> StudentResult:
         timeout = max(MIN_REPLY_TIMEOUT_S, 5.0 * job.time_limit)
         child: FilterChild | None = None
         load_problem: str | None = None
+
+        def task(sr: SimulatedRun) -> Task:
+            return Task(job.student, job.filename, sr.label, sr.seed, None, job.time_limit, sr.index)
+
+        def started() -> FilterChild | None:
+            nonlocal child, load_problem
+            if load_problem is None and child is None:
+                try:
+                    child = FilterChild(src, job.class_name, log, job.sandbox, limits, timeout)
+                    findings["form"] = child.form
+                except ChildFailure as exc:
+                    load_problem = str(exc)
+            return child
+
+        def stop() -> None:
+            nonlocal child
+            if child is not None:
+                findings["child_cpu_s"] += child.reported_cpu_s
+                child.close()
+                child = None
+
+        def record(k: int, run: RunOutput, rep: dict[str, Any], wall_s: float) -> None:
+            if rep.get("heading_unwrapped"):
+                findings["heading_wrapped"] = False
+            results[k] = TaskResult(task(job.sims[k]), run, None, wall_s,
+                                    {k2: v for k2, v in rep.items() if k2 not in ("means", "probes")})
+
         try:
-            for k, sr in enumerate(job.sims):
-                task = Task(job.student, job.filename, sr.label, sr.seed, None, job.time_limit, sr.index)
+            for batch in _batches(job.sims):
                 t0 = time.perf_counter()
-                if load_problem is None and child is None:
-                    try:
-                        child = FilterChild(src, job.class_name, log, job.sandbox, limits, timeout)
-                        findings["form"] = child.form
-                    except ChildFailure as exc:
-                        load_problem = str(exc)
-                if load_problem is not None or child is None:
-                    results.append(TaskResult(task, None, load_problem, time.perf_counter() - t0))
+                if started() is None:
+                    for k in batch:
+                        results[k] = TaskResult(task(job.sims[k]), None, load_problem, 0.0)
                     continue
-                run, rep = isolated_run(child, sr, job.time_limit, keep_means=sr.index == 0)
+                assert child is not None
+                probing = batch[0] == 0  # the probes ride along in the first batch
+                runs, rep = isolated_runs(child, [job.sims[k] for k in batch], job.time_limit,
+                                          probe_ticks=PROBE_TICKS if probing else None)
+                if rep.get("failed_child"):
+                    stop()
                 if rep.get("np_global") or rep.get("py_global"):
                     findings["global_rng"] = True
-                if rep.get("heading_unwrapped"):
-                    findings["heading_wrapped"] = False
-                if rep.get("failed_child"):  # a fresh child for the next run
-                    child.close()
-                    child = None
-                results.append(TaskResult(task, run, None, time.perf_counter() - t0,
-                                          {k2: v for k2, v in rep.items() if k2 != "means"}))
-                if k == 0 and child is not None and not rep.get("failed_child"):
-                    child = _probe(child, sr, job, findings, results[-1])
+                    stop()  # its seeds shared the global stream: each run alone, afresh
+                    for k in batch:
+                        t1 = time.perf_counter()
+                        one = started()
+                        if one is None:
+                            results[k] = TaskResult(task(job.sims[k]), None, load_problem, 0.0)
+                            continue
+                        run, rep1 = isolated_run(one, job.sims[k], job.time_limit,
+                                                 keep_means=job.sims[k].index == 0)
+                        if rep1.get("failed_child"):
+                            stop()
+                        record(k, run, rep1, time.perf_counter() - t1)
+                    first = results[0]
+                    if probing and first is not None and first.run is not None and child is not None \
+                            and not _probe(child, job.sims[0], job, findings, first):
+                        stop()
+                else:
+                    wall = (time.perf_counter() - t0) / len(batch)
+                    for k, run in zip(batch, runs, strict=True):
+                        record(k, run, rep, wall)
+                    if probing:
+                        _probe_findings(job.sims[0], runs[0], rep.get("probes") or {}, findings)
         finally:
-            if child is not None:
-                child.close()
+            stop()
         raw = log.read_bytes() if log.exists() else b""
         text = raw[:LOG_BYTES + 100].decode("utf-8", "replace")
         if len(raw) > LOG_BYTES + 100:
             text += f"\n[log cut at {LOG_BYTES} bytes]\n"
     findings["wall_s"] = time.perf_counter() - t_start
-    return StudentResult(job.student, results, findings, text, job.sandbox)
+    return StudentResult(job.student, [r for r in results if r is not None], findings, text, job.sandbox)
+
+
+def run_student_shared(job: StudentJob, shared: list[SimulatedRun]) -> StudentResult:
+    """:func:`run_student` of a job sent without its runs, on the runs every worker got once
+    (a Dask task of :func:`run_students`)."""
+    return run_student(dataclasses.replace(job, sims=shared))
+
+
+def _probe_findings(sr: SimulatedRun, graded: RunOutput, probes: dict[str, Any],
+                    findings: dict[str, Any]) -> None:
+    """``deterministic`` and ``readings_used`` from the probes that rode along in the first
+    batch (:func:`~beacon_sim.evaluation.montecarlo.isolated_runs`): the first run fed again
+    and fed no readings, on its first :data:`PROBE_TICKS` ticks, against the graded run."""
+    fr = next(iter(graded.filters.values()))
+    if fr.failed or fr.means is None:
+        return
+    n = min(PROBE_TICKS, len(sr.frames))
+    first = fr.means[:n]
+    again, blind = probes.get("again"), probes.get("blind")
+    if again is not None:
+        findings["deterministic"] = bool(np.array_equal(again, first, equal_nan=True))
+    if blind is not None:
+        readings = any(len(r) for r in sr.records[:int(sr.record_index[n - 1]) + 1])
+        findings["readings_used"] = (not readings) or not bool(np.array_equal(blind, first, equal_nan=True))
 
 
 def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict[str, Any],
-           graded: TaskResult) -> FilterChild | None:
+           graded: TaskResult) -> bool:
     """The probes on the first run's first :data:`PROBE_TICKS` ticks: with the global RNGs
-    seeded differently, and with the readings withheld. Returns the child (None when a
-    probe broke it)."""
+    seeded differently, and with the readings withheld. Returns whether the child may be
+    used again (False when a probe broke it)."""
     if not isinstance(graded.run, RunOutput):
-        return child
+        return True
     fr = next(iter(graded.run.filters.values()))
     if fr.failed or fr.means is None:
-        return child
+        return True
     n = min(PROBE_TICKS, len(sr.frames))
     first = fr.means[:n]
     _, rep = isolated_run(child, sr, job.time_limit, global_seed=sr.seed + 1_000_003, ticks=n)
     if rep.get("failed_child"):
-        child.close()
-        return None
+        return False
     findings["deterministic"] = bool(np.array_equal(rep["means"], first, equal_nan=True))
     if sr.frames_blind is not None:
         _, rep = isolated_run(child, sr, job.time_limit, blind=True, ticks=n)
         if rep.get("failed_child"):
-            child.close()
-            return None
+            return False
         readings = any(len(r) for r in sr.records[:int(sr.record_index[n - 1]) + 1])
         findings["readings_used"] = (not readings) or not bool(
             np.array_equal(rep["means"], first, equal_nan=True))
-    return child
+    return True
 
 
 def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, scheduler: Any = None,
@@ -481,7 +560,12 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
                            f"worker lost: {type(exc).__name__}") for sr in job.sims],
                 {}, "", job.sandbox))
 
-        on_dask(scheduler, run_student, list(jobs_list), finish, lost=lost)
+        sims = jobs_list[0].sims if jobs_list else []
+        if all(j.sims is sims for j in jobs_list):  # the class's runs: sent to each worker once
+            light = [dataclasses.replace(j, sims=[]) for j in jobs_list]
+            on_dask(scheduler, run_student_shared, light, finish, lost=lost, shared=sims)
+        else:
+            on_dask(scheduler, run_student, list(jobs_list), finish, lost=lost)
     else:
         from concurrent.futures import ThreadPoolExecutor
 
@@ -587,6 +671,8 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
             "students": len(students), "runs_per_student": n_runs, "reference": reference,
             "sandbox": sandbox, "isolated": True, "team_in_process": [],
             "cached_students": cached,
+            # what the students' children said they used [s] (their own word: cost figures only)
+            "child_cpu_s": sum(float(sr.findings.get("child_cpu_s", 0.0)) for sr in done_students),
             "logs": {sr.student: sr.log for sr in done_students}}
 
 

@@ -314,8 +314,6 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     (default the run's seed); ``ticks``: only the first ``ticks`` ticks (a probe); ``name``:
     the filter's name in the run (default its class's: its random generator's stream);
     ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
-    from beacon_sim.core.streams import stream
-    from beacon_sim.filters.base import FilterContext
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
     from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
@@ -329,10 +327,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     failed: str | None = None
     report: dict[str, Any] = {}
     ns = done = 0
-    ctx = FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known, dt=scenario.dt,
-                        motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                        params=dict(scenario.filter_params.get(name, {})) if params is None else params,
-                        rng=stream(sr.seed, "filter", name))
+    ctx = _hosted_context(sr, name, params)
     frames = sr.frames_blind if blind and sr.frames_blind is not None else sr.frames
     try:
         child.build(ctx, initial_belief(scenario), sr.seed if global_seed is None else global_seed,
@@ -362,7 +357,32 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
         report["means"] = means
         return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
                          sr.truth_checksum), report
+    return _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means), report
+
+
+def _hosted_context(sr: SimulatedRun, name: str, params: dict[str, Any] | None) -> Any:
+    """The :class:`~beacon_sim.filters.base.FilterContext` a hosted filter gets for the run
+    ``sr``: what it may see, its parameters (default the scenario's ``[filters.NAME]``) and
+    its own random generator (its name's stream of the run's seed)."""
+    from beacon_sim.core.streams import stream
+    from beacon_sim.filters.base import FilterContext
+
+    scenario = sr.scenario
+    return FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known,
+                         dt=scenario.dt,
+                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
+                         params=dict(scenario.filter_params.get(name, {})) if params is None else params,
+                         rng=stream(sr.seed, "filter", name))
+
+
+def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndarray, pm: np.ndarray,
+                   pc: np.ndarray, done: int, failed: str | None, ns: int, keep_means: bool) -> RunOutput:
+    """A hosted filter's run scored against the truth of ``sr`` as :func:`one_run` scores it:
+    its estimates ``means`` (T, 3) and ``covs`` (T, 3, 3), its estimates after predict on the
+    ticks with readings ``pm``, ``pc`` (for the NIS), ``done`` steps, ``ns`` [ns] of cost."""
+    scenario = sr.scenario
     out = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
+    n_rec = len(sr.records)
     good = np.all(np.isfinite(pm), axis=1) & np.all(np.isfinite(pc), axis=(1, 2))
     n_good = int(np.argmin(good)) if not good.all() else n_rec
     sensors = {s.name: s for s in scenario.model_sensors}
@@ -371,7 +391,125 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                                      scenario.world)
     out.filters[name] = finish_filter(means, covs, sr.truth, done, failed, nis_sum, nis_dof, ns,
                                       keep_means)
-    return out, report
+    return out
+
+
+def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | None,
+                  name: str | None = None, params: dict[str, Any] | None = None,
+                  probe_ticks: int | None = None) -> tuple[list[RunOutput], dict[str, Any]]:
+    """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
+    child, one exchange per tick carrying every run's control, dt and readings and bringing
+    back every estimate (the pipe's round trip paid once per tick, not once per run). Each
+    filter is built and fed exactly as alone, with its own CPU-time budget, failure and
+    cost, so a filter that does not draw from the global generators gives the numbers of
+    :func:`isolated_run` bit for bit; a filter that fails fails its own run only, a child
+    that dies fails every run still going with the reason. The runs must have the same
+    number of ticks. Returns the runs (each keeps its means when ``sr.index == 0``) and
+    what the child reported (``np_global`` / ``py_global``: drew from the global generators,
+    whose stream is then shared by the batch: rerun alone; ``failed_child``: do not reuse).
+
+    ``probe_ticks``: two more filters in the batch on the first ``probe_ticks`` ticks of
+    ``sims[0]``, one fed the same readings again (is it deterministic?) and one fed none
+    (``frames_blind``: does it use them?); ``report["probes"]`` holds their means (or None
+    when that probe failed)."""
+    from beacon_sim.filters.isolated import ChildFailure
+    from beacon_sim.filters.loading import initial_belief
+    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
+
+    name = name or child.class_name
+    R = len(sims)
+    T = len(sims[0].frames)
+    if any(len(sr.frames) != T for sr in sims):
+        raise ValueError("isolated_runs: the runs of a batch must have the same number of ticks")
+    slot_sims, slot_frames, slot_ticks = list(sims), [sr.frames for sr in sims], [T] * R
+    probes: list[str] = []
+    if probe_ticks is not None:
+        n = min(probe_ticks, T)
+        for what, frames in (("again", sims[0].frames), ("blind", sims[0].frames_blind)):
+            if frames is not None:
+                probes.append(what)
+                slot_sims.append(sims[0])
+                slot_frames.append(frames)
+                slot_ticks.append(n)
+    S = len(slot_sims)
+    # every answer as it came: (tick, run) -> prior mean (3), prior cov (9), mean (3), cov (9)
+    store = np.full((T, S, 24), np.nan)
+    walls = np.zeros((T, S), dtype=np.int64)
+    has_prior = np.zeros((T, S), dtype=bool)
+    answered = np.zeros((T, S), dtype=bool)
+    failed: list[str | None] = [None] * S
+    report: dict[str, Any] = {}
+    try:
+        builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
+                  for sr in slot_sims]
+        follows: list[int | None] = [None] * R + [0] * len(probes)  # a probe ends with the run it probes
+        why = child.batch_build(builds, sims[0].seed, run_limit_s, follows)
+        for k, w in enumerate(why):
+            failed[k] = w
+        live = [k for k in range(S) if failed[k] is None]
+        idx = np.asarray(live, dtype=int)
+        ends = sorted(set(slot_ticks))
+        for i in range(T):
+            if i == ends[0]:  # a probe's last tick has passed
+                ends.pop(0)
+                live = [k for k in live if i < slot_ticks[k]]
+                idx = np.asarray(live, dtype=int)
+            if not live:
+                break
+            got = child.batch_step(live, [slot_frames[k][i][4:] for k in live])
+            if isinstance(got, np.ndarray):  # every run answered with an estimate
+                store[i, idx] = got["v"]
+                walls[i, idx] = got["wall"]
+                has_prior[i, idx] = got["prior"] != 0
+                answered[i, idx] = True
+                continue
+            going = []
+            for k, (tag, payload) in zip(live, got, strict=True):
+                if tag != ESTIMATE:
+                    failed[k] = child.failure_text(payload)
+                    continue
+                wall, prior, (mean, cov) = parse_estimate(payload)
+                store[i, k, 12:15], store[i, k, 15:24] = mean, cov.ravel()
+                if prior is not None:
+                    store[i, k, 0:3], store[i, k, 3:12] = prior[0], prior[1].ravel()
+                    has_prior[i, k] = True
+                walls[i, k], answered[i, k] = wall, True
+                going.append(k)
+            live = going
+            idx = np.asarray(live, dtype=int)
+        report = child.batch_end()
+    except ChildFailure as exc:  # the whole child: every run still going fails with its reason
+        for k in range(S):
+            if failed[k] is None and answered[:, k].sum() < slot_ticks[k]:
+                failed[k] = str(exc) or "the filter failed"
+        report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
+    except WireError as exc:  # a malformed answer: the child is not to be trusted further
+        child.kill()
+        for k in range(S):
+            if failed[k] is None and answered[:, k].sum() < slot_ticks[k]:
+                failed[k] = f"the filter's process {exc} and was stopped"
+        report = {"failed_child": True, "died": True, "traceback": ""}
+    means = np.ascontiguousarray(store[:, :, 12:15].transpose(1, 0, 2))  # (S, T, 3)
+    covs = np.ascontiguousarray(store[:, :, 15:24].transpose(1, 0, 2)).reshape(S, T, 3, 3)
+    done = answered.sum(axis=0).tolist()
+    ns = walls.sum(axis=0).tolist()
+    pms, pcs = [], []
+    for k, sr in enumerate(slot_sims):
+        pm, pc = np.full((len(sr.records), 3), np.nan), np.full((len(sr.records), 3, 3), np.nan)
+        ticks = np.flatnonzero(has_prior[:, k])
+        rows = sr.record_index[ticks]
+        pm[rows] = store[ticks, k, 0:3]
+        pc[rows] = store[ticks, k, 3:12].reshape(-1, 3, 3)
+        pms.append(pm)
+        pcs.append(pc)
+    theta = np.concatenate([means[k, :done[k], 2] for k in range(R)])
+    report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
+    if probes:
+        report["probes"] = {what: (None if failed[R + j] else means[R + j, :slot_ticks[R + j]].copy())
+                            for j, what in enumerate(probes)}
+    outs = [_hosted_output(sr, name, means[k], covs[k], pms[k], pcs[k], done[k], failed[k], ns[k],
+                           sr.index == 0) for k, sr in enumerate(sims)]
+    return outs, report
 
 
 def _store(est: object, means: np.ndarray, covs: np.ndarray, i: int) -> str | None:
@@ -717,11 +855,25 @@ def hosted_runs(source: Any, cls: str | None, name: str, fp: dict[str, Any],
         records: list[FilterRun] = []
         child: FilterChild | None = None
         why: str | None = None
+        timeout = max(60.0, 5 * (run_limit_s or 60.0))
+        if isinstance(source, Path) and len({len(sr.frames) for sr in sims}) == 1:
+            # a file: its runs fed together (each from a fresh copy of the file), unless it
+            # draws from the global generators (their stream would be shared: one at a time)
+            try:
+                child = FilterChild(source, cls, log_path, level, limits, timeout)
+            except ChildFailure as exc:
+                why = str(exc)
+            if child is not None:
+                outs, rep = isolated_runs(child, sims, run_limit_s, name=name, params=fp)
+                if not (rep.get("np_global") or rep.get("py_global")):
+                    child.close()
+                    return [out.filters[name] for out in outs]
+                child.close()
+                child = None
         for sr in sims:
             if why is None and child is None:
                 try:
-                    child = FilterChild(source, cls, log_path, level, limits,
-                                        max(60.0, 5 * (run_limit_s or 60.0)))
+                    child = FilterChild(source, cls, log_path, level, limits, timeout)
                 except ChildFailure as exc:
                     why = str(exc)
             if child is None:
@@ -774,11 +926,13 @@ def dask_workers(scheduler: Any) -> int:
             client.close()
 
 
-def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
+def on_dask(scheduler: Any, fn: Callable[..., Any], tasks: list[Any],
             done: Callable[[int, Any], None],
-            lost: Callable[[int, Exception], None] | None = None) -> None:
+            lost: Callable[[int, Exception], None] | None = None, shared: Any = None) -> None:
     """``fn(task)`` for every task on Dask, ``done(index, result)`` as each finishes; each
     result is released once gathered (the scheduler forgets it: never computed again).
+    ``shared``: data every task needs (grading's simulated runs), sent to every worker once
+    (scattered) instead of once per task, and given as ``fn(task, shared)``.
 
     A task that raised or whose worker died: ``lost(index, exc)`` when given (grading:
     that task's student fails, the others go on), else a one-line :class:`ClusterError`
@@ -786,8 +940,13 @@ def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
     from dask.distributed import as_completed
 
     client, own = dask_client(scheduler)
+    data = None
     try:
-        futures = client.map(fn, list(tasks), pure=False)
+        if shared is not None:
+            (data,) = client.scatter([shared], broadcast=True, hash=False)
+            futures = client.map(fn, list(tasks), shared=data, pure=False)
+        else:
+            futures = client.map(fn, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for fut in as_completed(futures, loop=client.loop):  # not the default client's loop
             i = index[fut.key]
@@ -805,6 +964,8 @@ def on_dask(scheduler: Any, fn: Callable[[Any], Any], tasks: list[Any],
             fut.release()
             done(i, result)
     finally:
+        if data is not None:
+            data.release()
         if own:
             client.close()
 
@@ -844,8 +1005,8 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
 
 __all__ = ["ClusterError", "FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs",
            "dask_client", "dask_workers", "filter_names", "finish_filter", "hosted_runs",
-           "isolated_run", "on_dask", "one_run", "run_monte_carlo", "run_monte_carlo_isolated",
-           "simulate_run", "stack"]
+           "isolated_run", "isolated_runs", "on_dask", "one_run", "run_monte_carlo",
+           "run_monte_carlo_isolated", "simulate_run", "stack"]
 
 
 @dataclass

@@ -131,6 +131,8 @@ class _Server:
         self.limit_s: float | None = None
         self.rng_states: tuple[Any, Any] | None = None
         self.step_limit_s: float | None = None  # each request's CPU-time limit (check)
+        self.batch: _Batch | None = None
+        self.file: tuple[str, str | None] | None = None  # the student's file and class name
 
     def step_limited(self, fn: Any) -> Any:
         """``fn()`` under the step limit, if one is set: over it, the step's one line."""
@@ -180,6 +182,7 @@ class _Server:
         else:
             module = import_file(Path(path), "student")
             self.cls = choose_filter(module, class_name, Path(path).name)
+            self.file = (path, class_name)
         form = "functions" if self.cls.__qualname__ == "functions" else "class"
         missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
                    if not callable(getattr(self.cls, m, None))]
@@ -191,15 +194,12 @@ class _Server:
 
     def op_build(self, ctx: Any, initial: Any, global_seed: int, run_limit_s: float | None,
                  spec: str, step_limit_s: float | None = None) -> None:
-        import numpy as np
-
         from beacon_sim.filters.loading import build_from_context
         from beacon_sim.filters.watchdog import time_limit
         from beacon_sim.filters.wire import OK, reply_json
 
         self.end_limit()
-        np.random.seed(global_seed % 2**32)  # noqa: NPY002 - a global-RNG filter is reproducible
-        random.seed(global_seed)
+        np_random_seed(global_seed)
         self.rng_states = (_np_state(), random.getstate())
         assert self.cls is not None
         self.flt = build_from_context(self.cls, ctx, initial, spec)
@@ -292,6 +292,47 @@ class _Server:
             self.fail(f"belief() returned {type(b).__name__}, expected a GaussianBelief, "
                       "ParticleBelief or GridBelief")
 
+    # -- a batch: one filter per seed, one exchange per tick for all of them -------------
+    def op_bbuild(self, builds: list[tuple[Any, Any, str]], global_seed: int,
+                  run_limit_s: float | None, follows: list[int | None] | None = None) -> None:
+        """Build one filter per run of the batch (``(ctx, initial, spec)`` each, as
+        :meth:`op_build`), the global RNGs seeded once from ``global_seed``; each run has
+        its own CPU-time budget ``run_limit_s``; ``follows[k]``: the run whose failure ends
+        run k too (a probe of it), or None. Answers MULTI: OK or FAIL per run."""
+        self.end_limit()
+        self.flt = None
+        np_random_seed(global_seed)
+        self.rng_states = (_np_state(), random.getstate())
+        assert self.cls is not None
+        self.batch = _Batch(self.fresh_class, builds, run_limit_s, follows)
+        self.send(self.batch.built)
+
+    def fresh_class(self) -> type:
+        """The filter class of a fresh copy of the student's file (imported again: its own
+        module-level state, as a file of functions keeps), so that no state crosses the runs
+        of a batch; a module filter's class as loaded."""
+        if self.file is None:
+            assert self.cls is not None
+            return self.cls
+        from pathlib import Path
+
+        from beacon_sim.filters.loading import choose_filter, import_file
+
+        path, class_name = self.file
+        return choose_filter(import_file(Path(path), "student"), class_name, Path(path).name)
+
+    def op_bstep(self, bodies: list[bytes], slots: list[int]) -> None:
+        """One tick of the runs ``slots`` of the batch (``bodies``: their "step" requests
+        pickled); a run not named is not stepped (it ended or failed). Answers MULTI:
+        ESTIMATE or FAIL per run named, in order; a failed run may not be named again."""
+        assert self.batch is not None
+        self.send(self.batch.step(slots, bodies))
+
+    def op_bend(self) -> None:
+        """End the batch: whether its filters drew from the global generators."""
+        self.batch = None
+        self.op_end()
+
     def end_limit(self) -> None:
         if self.limit is not None:
             self.limit.__exit__(None, None, None)
@@ -305,7 +346,131 @@ class _Server:
         if self.rng_states is not None:
             np_used = not _same_np(_np_state(), self.rng_states[0])
             py_used = random.getstate() != self.rng_states[1]
-        self.send(reply_json(REPORT, {"np_global": np_used, "py_global": py_used}))
+        import resource
+
+        use = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+        self.send(reply_json(REPORT, {"np_global": np_used, "py_global": py_used,
+                                      "cpu_s": sum(u.ru_utime + u.ru_stime for u in use)}))
+
+
+def np_random_seed(seed: int) -> None:
+    """Seed the global generators (a global-RNG filter is reproducible)."""
+    import numpy as np
+
+    np.random.seed(seed % 2**32)  # noqa: NPY002 - a global-RNG filter is reproducible
+    random.seed(seed)
+
+
+class _Batch:
+    """The filters of one batch of runs (one per seed), each from its own fresh copy of the
+    student's file (``fresh_class()``), with its own CPU-time budget, failure and cost; a
+    failed one is switched off and the others go on."""
+
+    def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None,
+                 follows: list[int | None] | None = None):
+        from beacon_sim.filters.loading import build_from_context
+        from beacon_sim.filters.watchdog import StepWatch
+        from beacon_sim.filters.wire import OK, reply, reply_multi
+
+        self.limit_s = run_limit_s
+        self.over = (None if run_limit_s is None
+                     else f"time limit: over {run_limit_s:g} s of filter time in the run")
+        self.watch = StepWatch(cpu=True)
+        self.filters: list[Any] = []
+        self.used = [0] * len(builds)  # CPU time of each run's filter code [ns]
+        self.follows = list(follows) if follows is not None else [None] * len(builds)
+        self.ended: set[int] = set()  # runs ended by the failure of the run they follow
+        entries = []
+        for k, (ctx, initial, spec) in enumerate(builds):  # the import's and the build's own
+            leader = self.follows[k]  # limits, as alone; the run's budget counts the steps
+            if leader is not None and (leader >= k or self.filters[leader] is None):
+                self.filters.append(None)
+                entries.append(self._fail_text("the run it probes failed"))
+                continue
+            try:
+                flt = build_from_context(fresh_class(), ctx, initial, spec)
+            except BaseException as exc:
+                self.filters.append(None)
+                entries.append(self._fail(exc, "construction failed: "))
+                continue
+            self.filters.append(flt)
+            entries.append(reply(OK))
+        self.built = reply_multi(entries)
+
+    def switch_off(self, k: int) -> None:
+        """Run k failed: its filter is dropped, and so are the runs that follow it (its
+        probes), which answer FAIL the next time they are named, unstepped."""
+        self.filters[k] = None
+        for j, leader in enumerate(self.follows):
+            if leader == k and self.filters[j] is not None:
+                self.filters[j] = None
+                self.ended.add(j)
+
+    def _fail(self, exc: BaseException, prefix: str = "") -> bytes:
+        import traceback
+
+        from beacon_sim.filters.host import failure_of
+        from beacon_sim.filters.wire import FAIL, reply_json
+
+        why = failure_of(exc, self.limit_s, self.over) or f"{type(exc).__name__} raised by the filter"
+        return reply_json(FAIL, {"why": prefix + why, "tb": traceback.format_exc()})
+
+    def _fail_text(self, why: str) -> bytes:
+        from beacon_sim.filters.wire import FAIL, reply_json
+
+        return reply_json(FAIL, {"why": why, "tb": ""})
+
+    def step(self, slots: list[int], bodies: list[bytes]) -> bytes:
+        import pickle
+
+        from beacon_sim.filters.guard import estimate_arrays
+        from beacon_sim.filters.wire import reply_estimate, reply_multi
+
+        clock, cpu, watch, limit = time.perf_counter_ns, time.thread_time_ns, self.watch, self.limit_s
+        entries = []
+        for k, body in zip(slots, bodies, strict=True):
+            f = self.filters[k] if 0 <= k < len(self.filters) else None
+            if k in self.ended:
+                self.ended.discard(k)
+                entries.append(self._fail_text("the run it probes failed"))
+                continue
+            if f is None:
+                raise ValueError(f"a batch tick for run {k}, which is not going")
+            _op, control, dt, measurements, want_prior = pickle.loads(body)
+            c0 = cpu()
+            try:
+                watch.seconds = None if limit is None else limit - self.used[k] / 1e9
+                with watch:
+                    t0 = clock()
+                    f.predict(control, dt)
+                    t1 = clock()
+                    prior = f.estimate() if want_prior else None
+                    t2 = clock()
+                    f.update(measurements)
+                    est = f.estimate()
+                    wall = (t1 - t0) + (clock() - t2)
+            except BaseException as exc:
+                self.switch_off(k)
+                entries.append(self._fail(exc))
+                continue
+            finally:
+                self.used[k] += cpu() - c0
+            post = estimate_arrays(est)
+            pri: Any = None
+            if not isinstance(post, str) and want_prior:
+                pri = estimate_arrays(prior)
+                if isinstance(pri, str):
+                    post = "after predict: " + pri
+            if isinstance(post, str):
+                self.switch_off(k)
+                entries.append(self._fail_text(post))
+                continue
+            if limit is not None and self.used[k] > limit * 1e9:
+                self.switch_off(k)
+                entries.append(self._fail_text(self.over or "time limit"))
+                continue
+            entries.append(reply_estimate(wall, pri, post))
+        return reply_multi(entries)
 
 
 def main(argv: list[str]) -> int:

@@ -37,15 +37,20 @@ from beacon_sim.filters.containment import (
 from beacon_sim.filters.watchdog import FilterFailed
 from beacon_sim.filters.wire import (
     BELIEF,
+    EST_ENTRY,
     ESTIMATE,
     FAIL,
+    MAX_BATCH,
+    MULTI,
     OK,
     REPORT,
     WireError,
     decode_belief,
+    encode_batch,
     encode_request,
     parse_estimate,
     parse_json,
+    parse_multi,
     read_reply,
     send_frame,
 )
@@ -94,7 +99,11 @@ class FilterChild:
         self.limits, self.sandbox = limits, sandbox
         self.source_name = source.name
         self.reply_timeout_s = reply_timeout_s
+        self._waited_s = reply_timeout_s  # the last request's time-out [s]
         self.dead: str | None = None
+        #: The CPU time [s] the child said it had used at its last report (the end of a run):
+        #: its own word, for the cost figures only (benchmarks/bench_grade.py), never a grade's.
+        self.reported_cpu_s = 0.0
         log.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(os.devnull if log.exists() and log.stat().st_size > MAX_LOG_BYTES else log, "ab")
         self._proc: Launched | None = launch(source, self._log, sandbox, limits)
@@ -108,14 +117,17 @@ class FilterChild:
         self.info = doc  # missing methods, sensor kinds, module: what ``check`` reports
 
     # -- the pipe -------------------------------------------------------------------
-    def request(self, frame: bytes) -> tuple[bytes, bytes]:
+    def request(self, frame: bytes, expect: int | None = None, runs: int = 1) -> tuple[bytes, bytes]:
         """Send a frame made by :func:`~beacon_sim.filters.wire.encode_request` and read the
-        answer; a FAIL answer or a dead child raises :class:`ChildFailure`."""
+        answer (``expect``: its likely size [bytes], read at once; ``runs``: how many runs'
+        steps it carries, each given the reply time-out); a FAIL answer or a dead child
+        raises :class:`ChildFailure`."""
         if self.dead is not None or self._proc is None:
             raise ChildFailure(self.dead or "the filter's process is closed", died=True)
         try:
+            self._waited_s = self.reply_timeout_s * runs
             send_frame(self._proc.to_child, frame)
-            tag, payload = read_reply(self._proc.from_child, self.reply_timeout_s)
+            tag, payload = read_reply(self._proc.from_child, self._waited_s, expect)
         except (WireError, OSError) as exc:
             raise ChildFailure(self._death(exc), died=True) from None
         if tag == FAIL:
@@ -148,7 +160,7 @@ class FilterChild:
             return self.dead
         if "no answer in time" in text:
             self.kill()
-            self.dead = (f"the filter's process did not answer for {self.reply_timeout_s:g} s "
+            self.dead = (f"the filter's process did not answer for {self._waited_s:g} s "
                          "(wall time) and was stopped")
         elif "broke the protocol" in text:
             self.kill()
@@ -210,7 +222,63 @@ class FilterChild:
 
     def end(self) -> dict[str, Any]:
         """End the run: whether the filter drew from the global ``np.random`` / ``random``."""
-        return self.call_json("end")
+        return self._report(self.call_json("end"))
+
+    def _report(self, doc: dict[str, Any]) -> dict[str, Any]:
+        cpu = doc.pop("cpu_s", None)
+        if isinstance(cpu, int | float) and not isinstance(cpu, bool) and 0.0 <= cpu < 1e9:
+            self.reported_cpu_s = float(cpu)
+        return doc
+
+    # -- a batch of runs: one filter per seed, one exchange per tick ------------------
+    def call_multi(self, frame: bytes, count: int) -> list[tuple[bytes, bytes]] | np.ndarray:
+        """Send a batch request of ``count`` runs and read its MULTI answer
+        (:func:`~beacon_sim.filters.wire.parse_multi`); anything else from the child, or a
+        malformed answer, stops it (:class:`ChildFailure`, ``died``)."""
+        tag, payload = self.request(frame, 5 + count * EST_ENTRY.itemsize, max(1, count))
+        try:
+            if tag != MULTI:
+                raise WireError(f"broke the protocol (answered a batch with {tag!r})")
+            return parse_multi(payload, count)
+        except WireError as exc:
+            raise ChildFailure(self._death(exc), died=True) from None
+
+    def failure_text(self, payload: bytes) -> str:
+        """The one line of a FAIL entry of a MULTI answer, the child's copy named as the file."""
+        try:
+            doc = parse_json(payload)
+        except WireError as exc:
+            raise ChildFailure(self._death(exc), died=True) from None
+        why = str(doc.get("why", "the filter failed"))
+        if self._proc is not None:
+            why = why.replace(self._proc.source_in_child, self.source_name)
+        return why[:400]
+
+    def batch_build(self, builds: list[tuple[FilterContext, GaussianBelief | None, str]],
+                    global_seed: int, run_limit_s: float | None,
+                    follows: list[int | None] | None = None) -> list[str | None]:
+        """Build one fresh filter per run of a batch (``(ctx, initial, spec)`` each), each with
+        its own CPU-time budget ``run_limit_s`` [s], the global RNGs seeded once from
+        ``global_seed``: None per built filter, else why its construction failed.
+        ``follows[k]``: the run whose failure ends run k too (a probe), or None."""
+        if not 1 <= len(builds) <= MAX_BATCH:
+            raise ValueError(f"a batch of {len(builds)} runs: expected 1 to {MAX_BATCH}")
+        builds = [(dataclasses.replace(ctx, world=dataclasses.replace(ctx.world)), initial, spec)
+                  for ctx, initial, spec in builds]
+        got = self.call_multi(encode_request("bbuild", builds, int(global_seed), run_limit_s, follows),
+                              len(builds))
+        assert isinstance(got, list)  # OK and FAIL entries, never all ESTIMATE
+        return [None if tag == OK else self.failure_text(payload) for tag, payload in got]
+
+    def batch_step(self, slots: list[int], bodies: list[bytes]) -> list[tuple[bytes, bytes]] | np.ndarray:
+        """One tick of the runs ``slots`` of the batch (their "step" requests' pickles, in
+        order; a run not named is not stepped): a record array of their estimates (every one
+        answered), else one (tag, payload) per run, ESTIMATE or FAIL (that run is switched off)."""
+        return self.call_multi(encode_batch("bstep", bodies, slots), len(bodies))
+
+    def batch_end(self) -> dict[str, Any]:
+        """End the batch: whether its filters drew from the global ``np.random`` / ``random``."""
+        return self._report(self.call_json("bend"))
 
 
 class IsolatedFilter:

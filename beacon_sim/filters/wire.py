@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-#: Reply tags (child -> grader).
-OK, FAIL, ESTIMATE, BELIEF, REPORT = b"K", b"F", b"E", b"B", b"R"
+#: Reply tags (child -> grader). MULTI: one answer per filter of a seed batch.
+OK, FAIL, ESTIMATE, BELIEF, REPORT, MULTI = b"K", b"F", b"E", b"B", b"R", b"M"
 #: The largest reply frame the grader reads [bytes] (a belief of a million particles fits).
 MAX_REPLY_BYTES = 64 << 20
 #: The longest text (a failure's reason or traceback) a reply carries [characters].
@@ -32,6 +32,10 @@ _RHEAD = struct.Struct("<cI")
 #: An ESTIMATE payload: has_prior flag, wall ns of predict + update + estimate, prior mean (3)
 #: and cov (9), posterior mean (3) and cov (9) [m, m, rad], float64 little-endian.
 _EST = struct.Struct("<qq24d")
+_FLAGS = struct.Struct("<qq")
+_EST_HEAD_BYTES = _RHEAD.pack(b"E", _EST.size)
+_F8 = np.dtype("<f8")
+_NO_PRIOR = (np.full(3, np.nan, dtype=_F8), np.full((3, 3), np.nan, dtype=_F8))
 
 
 class WireError(RuntimeError):
@@ -76,10 +80,19 @@ def send_frame(fd: int, frame: bytes) -> None:
 
 
 def read_request(fd: int) -> tuple[Any, ...] | None:
-    """The next request (child side), or None when the grader closed the pipe."""
+    """The next request (child side), or None when the grader closed the pipe. The grader
+    sends one request at a time, so one read usually brings the whole frame."""
     try:
-        (n,) = _HEAD.unpack(_read_exact(fd, _HEAD.size, None))
-        return pickle.loads(_read_exact(fd, n, None))
+        chunk = os.read(fd, 1 << 16)
+        if not chunk:
+            return None
+        if len(chunk) < _HEAD.size:
+            chunk += _read_exact(fd, _HEAD.size - len(chunk), None)
+        (n,) = _HEAD.unpack_from(chunk)
+        body = chunk[_HEAD.size:]
+        if len(body) < n:
+            body += _read_exact(fd, n - len(body), None)
+        return pickle.loads(body)
     except WireError:
         return None
 
@@ -100,20 +113,47 @@ def reply_json(tag: bytes, doc: dict[str, Any]) -> bytes:
 def reply_estimate(wall_ns: int, prior: tuple[np.ndarray, np.ndarray] | None,
                    post: tuple[np.ndarray, np.ndarray]) -> bytes:
     """An ESTIMATE reply: the estimate after predict (or none) and after update."""
-    pm, pc = prior if prior is not None else (np.full(3, np.nan), np.full((3, 3), np.nan))
-    values = np.concatenate([np.ravel(pm), np.ravel(pc), np.ravel(post[0]), np.ravel(post[1])])
-    return reply(ESTIMATE, _EST.pack(prior is not None, int(wall_ns), *values.tolist()))
+    pm, pc = prior if prior is not None else _NO_PRIOR
+    parts: tuple[np.ndarray, ...] = (pm, pc, post[0], post[1])
+    if any(type(a) is not np.ndarray or a.dtype != _F8 for a in parts) or pm.shape != (3,) \
+            or pc.shape != (3, 3) or post[0].shape != (3,) or post[1].shape != (3, 3):
+        parts = tuple(np.asarray(a, dtype=_F8).reshape(n) for a, n in zip(parts, (3, 9, 3, 9), strict=True))
+    return b"".join((_EST_HEAD_BYTES, _FLAGS.pack(prior is not None, int(wall_ns)),
+                     *(a.tobytes() for a in parts)))  # C order, little-endian float64
 
 
-def read_reply(fd: int, timeout_s: float | None) -> tuple[bytes, bytes]:
+def read_reply(fd: int, timeout_s: float | None, expect: int | None = None) -> tuple[bytes, bytes]:
     """The next reply (grader side): (tag, payload). Raises :class:`WireError` when the
     child closed the pipe (it died), sent a frame over ``MAX_REPLY_BYTES`` or an unknown
-    tag, or said nothing for ``timeout_s`` [s] of wall time."""
+    tag, or said nothing for ``timeout_s`` [s] of wall time. ``expect``: the reply's likely
+    size [bytes], read in one go (then bytes beyond the frame break the protocol too: the
+    child answers one request with one frame)."""
     deadline = None if timeout_s is None else time.monotonic() + timeout_s
-    tag, n = _RHEAD.unpack(_read_exact(fd, _RHEAD.size, deadline))
-    if tag not in (OK, FAIL, ESTIMATE, BELIEF, REPORT) or n > MAX_REPLY_BYTES:
+    head = _read_exact(fd, _RHEAD.size, deadline) if expect is None else _read_some(fd, expect, deadline)
+    tag, n = _RHEAD.unpack_from(head)
+    if tag not in (OK, FAIL, ESTIMATE, BELIEF, REPORT, MULTI) or n > MAX_REPLY_BYTES:
         raise WireError(f"broke the protocol (a {n}-byte frame tagged {tag!r})")
-    return tag, _read_exact(fd, n, deadline)
+    body = head[_RHEAD.size:]
+    if len(body) > n:
+        raise WireError(f"broke the protocol (more bytes than its {n}-byte frame)")
+    return tag, body + _read_exact(fd, n - len(body), deadline) if len(body) < n else body
+
+
+def _read_some(fd: int, most: int, deadline: float | None) -> bytes:
+    """At least a reply's head and at most ``most`` bytes, in as few reads as the pipe allows
+    (one, for a reply of the expected size)."""
+    out = b""
+    while len(out) < _RHEAD.size:
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            ready = select.select([fd], [], [], left)[0] if left > 0 else []
+            if not ready:
+                raise WireError("no answer in time")
+        chunk = os.read(fd, max(most, _RHEAD.size) - len(out))
+        if not chunk:
+            raise WireError("closed")
+        out += chunk
+    return out
 
 
 def parse_json(payload: bytes) -> dict[str, Any]:
@@ -136,6 +176,58 @@ def parse_estimate(payload: bytes) -> tuple[int, tuple[np.ndarray, np.ndarray] |
     v = np.array(values)
     prior = (v[0:3].copy(), v[3:12].reshape(3, 3)) if has_prior else None
     return int(wall_ns), prior, (v[12:15].copy(), v[15:24].reshape(3, 3))
+
+
+# -- a batch of seeds: one exchange per tick for all of a student's runs ------------------
+
+#: The largest batch (filters in one child answered in one MULTI reply: under 1 MB).
+MAX_BATCH = 4096
+#: The longest FAIL entry of a MULTI reply [bytes] (its JSON: a reason and a traceback).
+MAX_FAIL_BYTES = 2 * 12 * MAX_TEXT + 64  # two texts, each char escaped to at most 12 bytes
+#: One ESTIMATE entry of a MULTI reply as a numpy record: the reply head (tag, length) then
+#: the ESTIMATE payload (:data:`_EST`), packed (213 bytes).
+EST_ENTRY = np.dtype([("tag", "S1"), ("n", "<u4"), ("prior", "<i8"), ("wall", "<i8"), ("v", "<f8", (24,))])
+_EST_HEAD = [bytes([c]) for c in _RHEAD.pack(ESTIMATE, _EST.size)]
+
+
+def encode_batch(op: str, bodies: list[bytes], *args: Any) -> bytes:
+    """A batch request ``(op, bodies, *args)``: ``bodies`` are the per-filter requests'
+    pickles (:func:`encode_request` frames without their 4-byte head), made once and sent
+    to every student as they are."""
+    return encode_request(op, bodies, *args)
+
+
+def reply_multi(entries: list[bytes]) -> bytes:
+    """A MULTI reply: one reply frame (OK, ESTIMATE or FAIL) per filter of the batch, in the
+    order of the request."""
+    return reply(MULTI, b"".join(entries))
+
+
+def parse_multi(payload: bytes, count: int) -> list[tuple[bytes, bytes]] | np.ndarray:
+    """The ``count`` entries of a MULTI reply: a record array of :data:`EST_ENTRY` when every
+    entry is an ESTIMATE (the common tick, read in one call), else a list of (tag, payload).
+    Raises :class:`WireError` for anything but exactly ``count`` well-formed OK, ESTIMATE or
+    FAIL entries (an ESTIMATE of the wrong size, a FAIL over ``MAX_FAIL_BYTES``)."""
+    size = EST_ENTRY.itemsize
+    if len(payload) == count * size and all(
+            payload[j::size] == b * count for j, b in enumerate(_EST_HEAD)):  # every head E, 208
+        return np.frombuffer(payload, dtype=EST_ENTRY, count=count)
+    out: list[tuple[bytes, bytes]] = []
+    at, view = 0, memoryview(payload)
+    for _ in range(count):
+        if at + _RHEAD.size > len(payload):
+            raise WireError("broke the protocol (a short batch answer)")
+        tag, n = _RHEAD.unpack_from(payload, at)
+        at += _RHEAD.size
+        sizes = {OK: 0, ESTIMATE: _EST.size}
+        if tag not in (OK, ESTIMATE, FAIL) or n != sizes.get(tag, n) or n > MAX_FAIL_BYTES \
+                or at + n > len(payload):
+            raise WireError(f"broke the protocol (a batch entry of {n} bytes tagged {tag!r})")
+        out.append((tag, bytes(view[at:at + n])))
+        at += n
+    if at != len(payload):
+        raise WireError("broke the protocol (a batch answer with more entries than asked)")
+    return out
 
 
 def encode_belief(kind: str, arrays: list[np.ndarray], extra: dict[str, Any]) -> bytes:
@@ -163,6 +255,7 @@ def decode_belief(payload: bytes) -> tuple[str, list[np.ndarray], dict[str, Any]
         raise WireError("broke the protocol (a malformed belief)") from exc
 
 
-__all__ = ["BELIEF", "ESTIMATE", "FAIL", "OK", "REPORT", "WireError", "decode_belief",
-           "encode_belief", "encode_request", "parse_estimate", "parse_json", "read_reply",
-           "read_request", "reply", "reply_estimate", "reply_json", "send_frame"]
+__all__ = ["BELIEF", "ESTIMATE", "EST_ENTRY", "FAIL", "MAX_BATCH", "MULTI", "OK", "REPORT", "WireError",
+           "decode_belief", "encode_batch", "encode_belief", "encode_request", "parse_estimate",
+           "parse_json", "parse_multi", "read_reply", "read_request", "reply", "reply_estimate",
+           "reply_json", "reply_multi", "send_frame"]
