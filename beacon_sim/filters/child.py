@@ -36,6 +36,21 @@ PRELOAD = ("numpy", "numpy.linalg", "numpy.random", "math", "cmath", "random", "
 NOBODY = 65534
 
 
+
+def timed_step(f: Any, control: Any, dt: float, measurements: Any, want_prior: bool,
+               clock: Any = time.perf_counter_ns) -> tuple[int, Any, Any]:
+    """One step of a hosted filter: predict, the estimate after predict when ``want_prior``
+    (the step view), update, estimate. Returns (the step's time [ns] without the prior's
+    read, the prior or None, the estimate), unchecked."""
+    t0 = clock()
+    f.predict(control, dt)
+    t1 = clock()
+    prior = f.estimate() if want_prior else None
+    t2 = clock()
+    f.update(measurements)
+    est = f.estimate()
+    return (t1 - t0) + (clock() - t2), prior, est
+
 class _BoundedOutput(io.TextIOBase):
     """``sys.stdout`` / ``sys.stderr`` of the child: written straight to the log's file
     descriptor up to ``limit`` bytes, then one line saying the rest was cut."""
@@ -213,17 +228,10 @@ class _Server:
         from beacon_sim.filters.guard import estimate_arrays
         from beacon_sim.filters.wire import reply_estimate
 
-        f, clock = self.flt, time.perf_counter_ns
+        f = self.flt
 
         def step() -> tuple[int, Any, Any]:
-            t0 = clock()
-            f.predict(control, dt)
-            t1 = clock()
-            prior = f.estimate() if want_prior else None
-            t2 = clock()
-            f.update(measurements)
-            est = f.estimate()
-            return (t1 - t0) + (clock() - t2), prior, est
+            return timed_step(f, control, dt, measurements, want_prior)
 
         wall, prior, est = self.step_limited(step)
         post = estimate_arrays(est)
@@ -441,14 +449,7 @@ class _Batch:
             try:
                 watch.seconds = None if limit is None else limit - self.used[k] / 1e9
                 with watch:
-                    t0 = clock()
-                    f.predict(control, dt)
-                    t1 = clock()
-                    prior = f.estimate() if want_prior else None
-                    t2 = clock()
-                    f.update(measurements)
-                    est = f.estimate()
-                    wall = (t1 - t0) + (clock() - t2)
+                    wall, prior, est = timed_step(f, control, dt, measurements, want_prior, clock)
             except BaseException as exc:
                 self.switch_off(k)
                 entries.append(self._fail(exc))
