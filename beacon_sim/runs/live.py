@@ -500,19 +500,26 @@ class Session:
         del self.recent_events[:-20]
         if not self.autopilot and any(e.kind == "bump" for e in step.steps[self.driven].events):
             self.keyboard.v = 0.0  # the bumper stopped the robot: the command says so too
-        truth = step.true_poses
+        run = self.filters_run
         for name in self.names:
             self._sync_status(name)
-            tr = self.filters_run.track(name, 0)
-            if self.status[name].failed or not tr.ticks or tr.ticks[-1] != step.tick:
+            if self.status[name].failed:
                 continue
-            latest = self.filters_run.latest(name)
-            if latest is None:
+            if run.is_member(name):  # each robot's own copy: its latest estimate, no stacking
+                tracks = [r.tracks[name] for r in run.members]
+                if any(not t.ticks or t.ticks[-1] != step.tick for t in tracks):
+                    continue
+                for i, t in enumerate(tracks):
+                    self.trails[name][i].add(t.means[-1])
+                    self.robot_status[name][i].measure(t.means[-1], t.covs[-1], step.steps[i].true_pose)
                 continue
-            means, covs = latest
-            for i in range(self.n_robots):
+            tr = run.joint.tracks[name]
+            if not tr.ticks or tr.ticks[-1] != step.tick:
+                continue
+            means, covs = tr.means[-1], tr.covs[-1]
+            for i, s in enumerate(step.steps):
                 self.trails[name][i].add(means[i])
-                self.robot_status[name][i].measure(means[i], covs[i], truth[i])
+                self.robot_status[name][i].measure(means[i], covs[i], s.true_pose)
         if self.on_step:
             for listener in self.on_step:
                 listener(step.steps[0])
