@@ -1,7 +1,8 @@
 """MCAP export of a map session (issue 30): each scan as a foxglove.LaserScan (the step's
 ranges, the beam angles, the true pose as its origin) and the occupancy grid once as a
 foxglove.Grid (size, resolution, origin and cells of the map), through the SDK the beacon
-world uses; read back with the ``mcap`` reader and decoded with the schemas in the file."""
+world uses; read back with the ``mcap`` reader and decoded with the schemas in the file,
+and received live by a WebSocket client."""
 
 from __future__ import annotations
 
@@ -100,3 +101,36 @@ def test_an_npz_export_keeps_each_beam_range_and_angle(tmp_path):
         rows = a["readings_kind"] == "range_finder"
         np.testing.assert_array_equal(a["readings_range_m"][rows], z[:, 0])
         np.testing.assert_array_equal(a["readings_bearing_rad"][rows], z[:, 1])
+
+
+def test_the_live_server_streams_the_scans_and_the_map():
+    from foxglove_client import FoxgloveClient
+
+    from beacon_sim.io.foxglove_live import LiveFoxglove
+    from beacon_sim.runs.live import Session
+
+    sc = load_scenario("corridor")
+    session = Session(sc, ["dead_reckoning"], 4)
+    live = LiveFoxglove(sc, session.names, port=0).attach(session)
+    try:
+        client = FoxgloveClient(live.port)
+        wanted = {"/map", "/scan/laser"}
+        client.pump(10, until=lambda c: wanted <= {ch["topic"] for ch in c.channels.values()})
+        scans = {}
+        for _ in range(40):
+            step = session.tick().steps[0]
+            for m in step.measurements:
+                if m.sensor == "laser":
+                    scans[step.tick] = m.z[:, 0].copy()
+            client.pump(0.02)
+        dt_ns = round(sc.dt * 1e9)
+        client.pump(30, until=lambda c: any(t == 40 * dt_ns for t, _ in c.messages.get("/scan/laser", [])))
+    finally:
+        live.close()
+    got = client.messages
+    assert got["/map"], "the map is sent with /world"
+    grid_matches(got["/map"][-1][1], sc.world.grid)
+    assert set(range(22, 41, 2)) <= {t // dt_ns for t, _ in got["/scan/laser"]}
+    for t, msg in got["/scan/laser"]:
+        np.testing.assert_array_equal(msg["ranges"], scans[t // dt_ns])
+    client.close()
