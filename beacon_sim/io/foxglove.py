@@ -22,6 +22,14 @@ topic                            schema                      one message
                                                              each filter in its colour
 ``/readings``                    foxglove.SceneUpdate        per tick with readings: rays from the
                                                              true pose, living one sensor period
+                                                             (a range finder's scans excluded)
+``/map``                         foxglove.Grid               at the start, in a map world: the
+                                                             occupancy grid (one INT8 field
+                                                             ``occupancy``: 0 free, 100 occupied,
+                                                             -1 unknown), its origin as the pose
+``/scan/SENSOR``                 foxglove.LaserScan          per scan of range finder SENSOR: the
+                                                             ranges [m], first / last beam angle
+                                                             [rad], the true pose as the origin
 ``/events``                      foxglove.Log                per event and per filter switched off
 ===============================  ==========================  ======================================
 
@@ -39,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.angles import wrap
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario
 
@@ -122,6 +131,7 @@ class Publisher:
         self.dt_ns = round(scenario.dt * 1e9)
         self.periods_ns = {s.name: round(s.period * 1e9) for s in scenario.sensors}
         self.beacons = {b.id: (b.x, b.y) for b in scenario.world.beacons}
+        self.scanners = [s.name for s in scenario.sensors if s.kind == "range_finder"]
         self._channels: dict[str, Any] = {}
         self._trails: dict[str, list[tuple[float, float]]] = {}
         self._trail_start: dict[str, int] = {}
@@ -147,6 +157,10 @@ class Publisher:
                             ("/tf", "FrameTransform"), ("/truth/scene", "SceneUpdate"),
                             ("/trails", "SceneUpdate"), ("/readings", "SceneUpdate"), ("/events", "Log")):
             self.channel(topic, kind)
+        if self.scenario.world.grid is not None:
+            self.channel("/map", "Grid")
+        for sensor in self.scanners:
+            self.channel(f"/scan/{sensor}", "LaserScan")
         for name in self.names:
             self.channel(f"/filters/{name}/pose", "PoseInFrame")
             self.channel(f"/filters/{name}/scene", "SceneUpdate")
@@ -208,6 +222,38 @@ class Publisher:
         self.channel("/world", "SceneUpdate").log(m.SceneUpdate(entities=[
             self._entity(ns, "beacons", cylinders=cyl, texts=texts),
             self._entity(ns, "bounds", lines=[loop])]), log_time=ns)
+        if self.scenario.world.grid is not None:
+            self.channel("/map", "Grid").log(self._grid(ns, self.scenario.world.grid), log_time=ns)
+
+    def _grid(self, ns: int, grid: Any):
+        """The occupancy grid as a foxglove.Grid: row 0 (the bottom row, smallest y) first,
+        one INT8 cell each (``FREE`` 0, ``OCCUPIED`` 100, ``UNKNOWN`` -1, as nav_msgs), the pose
+        the world pose of cell (0, 0)'s lower-left corner (the map's origin, yaw included)."""
+        m = self.msg
+        cols = grid.cells.shape[1]
+        ox, oy, yaw = grid.origin
+        return m.Grid(timestamp=self._time(ns), frame_id=FRAME, pose=self._pose(ox, oy, yaw),
+                      column_count=int(cols),
+                      cell_size=m.Vector2(x=float(grid.resolution), y=float(grid.resolution)),
+                      row_stride=int(cols), cell_stride=1,
+                      fields=[m.PackedElementField(name="occupancy", offset=0,
+                                                   type=m.PackedElementFieldNumericType.Int8)],
+                      data=np.ascontiguousarray(grid.cells, dtype=np.int8).tobytes())
+
+    def _laser_scan(self, ns: int, truth: np.ndarray, beams: Sequence[np.ndarray]):
+        """One scan (rows ``[range, beam angle]`` [m, rad], beams evenly spaced) as a
+        foxglove.LaserScan in frame ``world`` whose origin is the true pose: the bearings are
+        relative to the robot's heading, counter-clockwise, first to last beam (the last one
+        unwrapped past pi for a full circle)."""
+        m = self.msg
+        z = np.asarray(beams, dtype=float)
+        ranges, angles = z[:, 0], z[:, 1]
+        start = float(angles[0])
+        end = start + float(np.sum(wrap(np.diff(angles)))) if len(angles) > 1 else start
+        return m.LaserScan(timestamp=self._time(ns), frame_id=FRAME,
+                           pose=self._pose(float(truth[0]), float(truth[1]), float(truth[2])),
+                           start_angle=start, end_angle=end, ranges=[float(r) for r in ranges],
+                           intensities=[])
 
     def tick(self, tick: int, truth: np.ndarray,
              estimates: Mapping[str, tuple[np.ndarray, np.ndarray] | None],
@@ -250,8 +296,17 @@ class Publisher:
                  **filter_stats(mean, cov, truth)}, log_time=ns)
             trail_entities.append(self._trail(name, ns, mean[0], mean[1], rgb))
         self.channel("/trails", "SceneUpdate").log(m.SceneUpdate(entities=trail_entities), log_time=ns)
-        if readings:
-            self.channel("/readings", "SceneUpdate").log(self._readings(ns, truth, readings), log_time=ns)
+        scans: dict[str, list] = {}
+        others = []
+        for row in readings:
+            if row[1] == "range_finder":
+                scans.setdefault(row[0], []).append(row[2])
+            else:
+                others.append(row)
+        for sensor, beams in scans.items():
+            self.channel(f"/scan/{sensor}", "LaserScan").log(self._laser_scan(ns, truth, beams), log_time=ns)
+        if others:
+            self.channel("/readings", "SceneUpdate").log(self._readings(ns, truth, others), log_time=ns)
         for kind, detail in events:
             self.log_event(ns, "events", f"{kind}: {detail}" if detail else kind,
                            m.LogLevel.Warning if kind == "kidnap" else m.LogLevel.Info)

@@ -35,9 +35,11 @@ COV_COLUMNS = ("cov_xx", "cov_xy", "cov_xt", "cov_yy", "cov_yt", "cov_tt")
 UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 ESTIMATE_COLUMNS = ("tick", "time_s", "filter", "x_m", "y_m", "theta_rad", *COV_COLUMNS,
                     "err_x_m", "err_y_m", "err_theta_rad", "err_pos_m", "nees")
-#: A reading's numbers by kind, in the order of the sensor's ``z`` row.
+#: A reading's numbers by kind, in the order of the sensor's ``z`` row (a range finder's row
+#: is one beam: its range and its angle from the heading).
 Z_COLUMNS = {"bearing": ("bearing_rad",), "range_bearing": ("range_m", "bearing_rad"),
-             "pose": ("x_m", "y_m", "theta_rad"), "position": ("x_m", "y_m")}
+             "pose": ("x_m", "y_m", "theta_rad"), "position": ("x_m", "y_m"),
+             "range_finder": ("range_m", "bearing_rad")}
 VALUE_COLUMNS = ("range_m", "bearing_rad", "x_m", "y_m", "theta_rad")
 READING_COLUMNS = ("tick", "time_s", "sensor", "kind", "beacon_id", *VALUE_COLUMNS, "hdop")
 POSE_BEFORE = ("x_before_m", "y_before_m", "theta_before_rad")
