@@ -58,9 +58,10 @@ def grid_image(grid: OccupancyGrid) -> pygame.Surface:
 
 def field_alpha(distance: np.ndarray, cap: float = FIELD_CAP) -> np.ndarray:
     """Opacity 0-255 of the field at cell distances ``distance`` [m] from the nearest wall:
-    FIELD_ALPHA at a wall, falling as a Gaussian of sigma cap / 2.5 to nothing at ``cap``."""
+    FIELD_ALPHA at a wall, falling exponentially (length cap / 4) and nothing from ``cap`` on,
+    so that a 1 m corridor still shows its middle."""
     d = np.minimum(np.asarray(distance, dtype=float), cap)
-    a = FIELD_ALPHA * np.exp(-0.5 * (d / (cap / 2.5)) ** 2) * (d < cap)
+    a = FIELD_ALPHA * np.exp(-d / (cap / 4)) * (d < cap)
     return np.round(a).astype(np.uint8)
 
 
