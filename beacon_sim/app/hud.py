@@ -101,18 +101,27 @@ class Hud:
         sl = f["small"].get_linesize()
         y = self.title_and_clock(surf, x, w, y, session.scenario.name, session.time, info)
         y = self.command(surf, x, y, session.next_control(), session.drive_mode)
-        labelled, unlabelled, seen = beacons_in_view(session)
-        self._blit(surf, f"beacons in view: {len(seen)}", "hud",
-                   palette.WARN if not seen else palette.TEXT, (x, y))
-        y += lh
-        missed = sorted(missed_ids(sensors_read(session.scenario, session.tick_count),
-                                   session.scenario.world, session.true_pose, seen))
-        self._blit(surf, ids_text(labelled, unlabelled), "small", palette.TEXT_DIM, (x, y))
-        y += sl
-        if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
-            self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
-                       palette.WARN, (x, y))
+        world = session.scenario.world
+        scanning = any(s.kind == "range_finder" for s in session.scenario.sensors)
+        if scanning:  # a map world: what the range finder senses (issue 30)
+            beams, hits = scan_in_view(session)
+            text = f"scan: {hits} of {beams} beams hit" if beams else "scan: none yet"
+            self._blit(surf, text, "hud", palette.WARN if beams and not hits else palette.TEXT,
+                       (x, y))
+            y += lh
+        if world.beacons or not scanning:
+            labelled, unlabelled, seen = beacons_in_view(session)
+            self._blit(surf, f"beacons in view: {len(seen)}", "hud",
+                       palette.WARN if not seen else palette.TEXT, (x, y))
+            y += lh
+            missed = sorted(missed_ids(sensors_read(session.scenario, session.tick_count),
+                                       world, session.true_pose, seen))
+            self._blit(surf, ids_text(labelled, unlabelled), "small", palette.TEXT_DIM, (x, y))
             y += sl
+            if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
+                self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
+                           palette.WARN, (x, y))
+                y += sl
         y += 6
         y = self.rule(surf, rect, x, y)
 
@@ -539,6 +548,21 @@ def beacons_in_view(session) -> tuple[list[int], int, set[int]]:
         labelled |= {int(i) for i in ids[ids != UNKNOWN_ID]}
         unlabelled += int(np.count_nonzero(ids == UNKNOWN_ID))
     return sorted(labelled), unlabelled, labelled | association_layer.seen_by_truth(session)
+
+
+def scan_in_view(session) -> tuple[int, int]:
+    """What the panel says the range finder senses: the beams of this tick's scans and how
+    many of them hit something (read less than the sensor's max range)."""
+    spec = {s.name: s for s in session.scenario.sensors}
+    beams = hits = 0
+    for m in session.readings():
+        if m.kind != "range_finder":
+            continue
+        r = np.asarray(m.z, dtype=float)[:, 0]
+        beams += len(r)
+        s = spec.get(m.sensor)
+        hits += int(np.count_nonzero(r < s.max_range)) if s is not None else len(r)
+    return beams, hits
 
 
 def ids_text(labelled: list[int], unlabelled: int) -> str:

@@ -334,6 +334,9 @@ class App:
         if self.show.bound and (self.bound is None or self.bound.tick < 0):
             self.flash("no bound here: it is built from the start of a run")
 
+    def act_field(self) -> None:
+        self.show.field = not self.show.field
+
     def act_fit(self) -> None:
         self.view.fit()
 

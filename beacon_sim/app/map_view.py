@@ -1,6 +1,9 @@
 """Drawing a world's walls and a laser scan (issue 30): the occupancy grid as dark cells under
 everything, and each beam of a range_finder reading from the robot to its end point, beams
 that hit something in blue with a dot at the hit, no-return (max-range) beams in light grey.
+On a key (L) the likelihood field goes under the walls: each free cell's distance to the
+nearest wall (the transform the likelihood-field model precomputes) as a heat layer, hot at
+the walls and fading out at the cap (AMCL's ``laser_likelihood_max_dist``, 2 m).
 
 Geometry stays in metres until the last step (``view.to_px``), as everywhere in app/.
 """
@@ -8,11 +11,13 @@ Geometry stays in metres until the last step (``view.to_px``), as everywhere in 
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 import pygame
 
-from beacon_sim.core.occupancy import OCCUPIED, UNKNOWN, OccupancyGrid
+from beacon_sim.core.beam_model import distance_transform
+from beacon_sim.core.occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from beacon_sim.core.types import Measurement
 
 #: Occupied cells: near-black, so that walls read as solid on a projector.
@@ -24,6 +29,12 @@ BEAM_HIT = (0, 114, 178)
 BEAM_NONE = (200, 200, 196)
 #: Largest scaled map image [px] (beyond it the visible part only is scaled).
 MAX_MAP_PIXELS = 6_000_000
+#: The likelihood field's heat colour (Okabe-Ito vermillion) and its opacity at a wall.
+FIELD = (213, 94, 0)
+FIELD_ALPHA = 200
+#: Distance [m] at which the drawn field has faded out (AMCL's default
+#: ``laser_likelihood_max_dist``, the MCL filter's too).
+FIELD_CAP = 2.0
 
 
 def grid_image(grid: OccupancyGrid) -> pygame.Surface:
@@ -45,13 +56,50 @@ def grid_image(grid: OccupancyGrid) -> pygame.Surface:
     return img
 
 
+def field_alpha(distance: np.ndarray, cap: float = FIELD_CAP) -> np.ndarray:
+    """Opacity 0-255 of the field at cell distances ``distance`` [m] from the nearest wall:
+    FIELD_ALPHA at a wall, falling exponentially (length cap / 4) and nothing from ``cap`` on,
+    so that a 1 m corridor still shows its middle."""
+    d = np.minimum(np.asarray(distance, dtype=float), cap)
+    a = FIELD_ALPHA * np.exp(-d / (cap / 4)) * (d < cap)
+    return np.round(a).astype(np.uint8)
+
+
+@lru_cache(maxsize=4)
+def field_image(grid: OccupancyGrid, cap: float = FIELD_CAP) -> pygame.Surface:
+    """The likelihood field of ``grid`` as a (cols x rows) surface: FIELD with the opacity
+    of :func:`field_alpha` on free cells, transparent on walls and unknown cells (the walls
+    are drawn over it). Cached per map (grids hash by content)."""
+    rows, cols = grid.shape
+    d = distance_transform(grid.occupied, cap / grid.resolution) * grid.resolution
+    alpha = field_alpha(d, cap)
+    alpha[grid.cells != FREE] = 0                 # only free space carries the field
+    img = pygame.Surface((cols, rows), pygame.SRCALPHA)
+    img.fill((*FIELD, 0))
+    a = pygame.surfarray.pixels_alpha(img)
+    a[:] = alpha.T[:, ::-1]                    # (cols, rows), y down
+    del a
+    return img
+
+
+def draw_field(surf: pygame.Surface, view, grid: OccupancyGrid | None) -> None:
+    """The likelihood field of ``grid`` (None: nothing) scaled into ``view``; drawn before
+    :func:`draw_map` so that the walls lie on top."""
+    if grid is not None:
+        blit_grid_image(surf, view, grid, field_image(grid))
+
+
 def draw_map(surf: pygame.Surface, view, grid: OccupancyGrid | None) -> None:
     """The walls of ``grid`` (None: nothing) scaled into ``view`` on ``surf`` (window
-    coordinates). A rotated grid (origin yaw) is rotated as a whole; an axis-aligned one
-    too large to scale whole is cropped to the visible cells first."""
-    if grid is None:
-        return
-    img = grid_image(grid)
+    coordinates)."""
+    if grid is not None:
+        blit_grid_image(surf, view, grid, grid_image(grid))
+
+
+def blit_grid_image(surf: pygame.Surface, view, grid: OccupancyGrid, img: pygame.Surface) -> None:
+    """A (cols x rows) image of ``grid``'s cells scaled into ``view`` on ``surf``. A rotated
+    grid (origin yaw) is rotated as a whole; an axis-aligned one too large to scale whole is
+    cropped to the visible cells first."""
     rows, cols = grid.shape
     res, (ox, oy, yaw) = grid.resolution, grid.origin
     scale = view.scale * res                                   # px per cell

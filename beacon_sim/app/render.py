@@ -108,6 +108,7 @@ class ShowOptions:
     chart: bool = False  # the strip chart of error and 2-sigma (C)
     step: bool = True  # while paused: the last tick's prior and posterior (V)
     bound: bool = False  # the best achievable covariance, the PCRB (B)
+    field: bool = False  # a map world's likelihood field under the walls (L)
 
 
 def line_width(height_px: int) -> int:
@@ -247,6 +248,7 @@ class WorldRenderer:
         self.last_world: World | None = None  # the world of the scene being drawn (step view)
         self.last_world_sensors: tuple = ()   # its sensors (a scan's max range)
         self.lw = 4  # line width [px]; each frame's begin() sets it for the window's height
+        self.show_field = False  # the likelihood field under the walls (ShowOptions.field)
         self.map_layer = MapLayer()  # SLAM filters' estimated maps (app/map_layer.py)
         self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
         self.axis_rects: list[pygame.Rect] = []  # the axis labels of the static layer [px]
@@ -288,6 +290,7 @@ class WorldRenderer:
         sc = session.scenario
         self.last_world = sc.world
         self.last_world_sensors = sc.sensors
+        self.show_field = show.field
         pose = session.true_pose
         dashes = dashes or {}
         old_clip = self.begin(surf, view)
@@ -355,6 +358,7 @@ class WorldRenderer:
         ellipse, no heading wedges); beacon and robot-to-robot readings."""
         team = session.team
         self.last_world = team.world
+        self.show_field = show.field
         dashes = dashes or {}
         poses = session.poses
         radii = [r.scenario.robot_radius for r in team.robots]
@@ -497,7 +501,8 @@ class WorldRenderer:
     def _static_layer(self, view: View, world_rect: pygame.Rect) -> pygame.Surface:
         """Background, metric grid, bounds and axis labels: drawn once per view, then blitted."""
         grid = getattr(self.last_world, "grid", None)
-        if self._static is not None and self._static[0] == (view.key, id(grid)):
+        key = (view.key, id(grid), self.show_field)
+        if self._static is not None and self._static[0] == key:
             return self._static[1]
         area = pygame.Rect(view.area)
         layer = pygame.Surface(area.size)
@@ -506,11 +511,13 @@ class WorldRenderer:
         full.fill(palette.OUTSIDE)
         full.fill(palette.BACKGROUND, world_rect)
         self._grid(full, view, world_rect)
+        if self.show_field:
+            map_view.draw_field(full, view, grid)  # the likelihood field, under the walls
         map_view.draw_map(full, view, grid)      # walls (issue 30)
         pygame.draw.rect(full, palette.BOUNDS, world_rect.inflate(4, 4), 3)
         self._axis_labels(full, view, world_rect)
         layer.blit(full, (0, 0), area)
-        self._static = ((view.key, id(grid)), layer)
+        self._static = (key, layer)
         return layer
 
     # --- pieces ---------------------------------------------------------------------------
