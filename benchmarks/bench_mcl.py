@@ -25,25 +25,13 @@ import statistics
 import time
 
 import numpy as np
-from figures import Clock, figure
+from figures import figure, median_ms
 
 from beacon_sim.core.raycast import scan
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.loading import build_filter
-
-
-def rounds(fn, n: int) -> tuple[float, float]:
-    """Median wall and CPU time [ms] of ``n`` calls (after one warm-up)."""
-    fn()
-    wall, cpu = [], []
-    for _ in range(n):
-        with Clock() as c:
-            fn()
-        wall.append(c.wall * 1e3)
-        cpu.append(c.cpu * 1e3)
-    return statistics.median(wall), statistics.median(cpu)
 
 
 def scoring(n_rounds: int) -> None:
@@ -59,7 +47,7 @@ def scoring(n_rounds: int) -> None:
                                                 "min_particles": 10_000, "laser_max_beams": 60})
         f.poses, f.n = cloud.copy(), len(cloud)
         assert len(np.flatnonzero(r[np.round(np.linspace(0, 180, 60)).astype(int)] < 8.0)) > 40
-        wall, cpu = rounds(lambda f=f: f.scan_log_likelihood(m), n_rounds)
+        wall, cpu = median_ms(lambda f=f: f.scan_log_likelihood(m), n_rounds)
         rows.append((f"likelihood field ({combo}), 10k particles x 60 beams", wall, cpu, "5"))
         figure(f"mcl likelihood field ({combo}), 10k particles x 60 beams", wall, "ms",
                target=5.0, cpu=cpu)
@@ -69,7 +57,7 @@ def scoring(n_rounds: int) -> None:
         f.poses, f.n = cloud.copy(), len(cloud)
         f.logw = np.full(f.n, -math.log(f.n))
         f.update([m])
-    wall, cpu = rounds(update, max(5, n_rounds // 2))
+    wall, cpu = median_ms(update, max(5, n_rounds // 2))
     rows.append(("whole mcl update (score + KLD resample), 10k particles", wall, cpu, "-"))
     figure("mcl whole update (score, normalise, KLD resample), 10k particles x 60 beams", wall, "ms",
            cpu=cpu)

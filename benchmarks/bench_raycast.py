@@ -18,10 +18,9 @@ The map and particles are seeded, so every run measures the same work.
 from __future__ import annotations
 
 import argparse
-import statistics
 
 import numpy as np
-from figures import Clock, figure
+from figures import figure, median_ms
 
 from beacon_sim.core.beam_model import LikelihoodField, RangeModelParams
 from beacon_sim.core.occupancy import FREE, OCCUPIED, OccupancyGrid
@@ -45,17 +44,6 @@ def floor_map(seed: int = 0) -> OccupancyGrid:
     return OccupancyGrid(cells, 0.05, (0.0, 0.0, 0.0))
 
 
-def rounds(fn, n: int) -> tuple[float, float]:
-    """Median wall and CPU time [ms] of ``n`` calls."""
-    fn()  # warm up (caches, first-touch of the tables)
-    wall, cpu = [], []
-    for _ in range(n):
-        with Clock() as c:
-            fn()
-        wall.append(c.wall * 1e3)
-        cpu.append(c.cpu * 1e3)
-    return statistics.median(wall), statistics.median(cpu)
-
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -65,7 +53,7 @@ def main() -> None:
     grid = floor_map()
     pose = (10.0, 10.0, 0.3)
 
-    scan_ms, scan_cpu = rounds(lambda: scan(grid, pose, 180, 2 * np.pi, MAX_RANGE), n)
+    scan_ms, scan_cpu = median_ms(lambda: scan(grid, pose, 180, 2 * np.pi, MAX_RANGE), n)
     # The field's scan uses a 30 m sensor so that all 60 beams end on a wall (a reading at max
     # range is skipped, and would make the figure cheaper than its name says).
     rel, ranges = scan(grid, pose, 60, 2 * np.pi, 30.0)
@@ -76,10 +64,10 @@ def main() -> None:
                                  rng.uniform(-np.pi, np.pi, 10_000)])
     n_lf = max(10, n // 4)
     beams60 = beam_angles(60, 2 * np.pi)
-    beam_ms, beam_cpu = rounds(lambda: expected_ranges(grid, particles[:1000], beams60, MAX_RANGE),
+    beam_ms, beam_cpu = median_ms(lambda: expected_ranges(grid, particles[:1000], beams60, MAX_RANGE),
                                max(3, n // 40))
-    lf32, lf32_cpu = rounds(lambda: field.log_likelihood(particles, ranges, rel, dtype=np.float32), n_lf)
-    lf64, lf64_cpu = rounds(lambda: field.log_likelihood(particles, ranges, rel, dtype=np.float64), n_lf)
+    lf32, lf32_cpu = median_ms(lambda: field.log_likelihood(particles, ranges, rel, dtype=np.float32), n_lf)
+    lf64, lf64_cpu = median_ms(lambda: field.log_likelihood(particles, ranges, rel, dtype=np.float64), n_lf)
 
     table = [("ray cast, one 180-beam scan, 400x400 grid, 10 m", scan_ms, scan_cpu, "1"),
              ("beam model: ray cast 1k particles x 60 beams, 10 m", beam_ms, beam_cpu, "-"),

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import statistics
 import time
 
 from beacon_sim.core.threads import limit_blas_threads
@@ -65,3 +66,16 @@ class Clock:
     def __exit__(self, *exc: object) -> None:
         self.wall = time.perf_counter() - self._w
         self.cpu = time.process_time() - self._c
+
+
+def median_ms(fn, n: int) -> tuple[float, float]:
+    """Median wall and CPU time [ms] of ``n`` calls of ``fn``, after one warm-up call
+    (caches, first touch of tables)."""
+    fn()
+    wall, cpu = [], []
+    for _ in range(n):
+        with Clock() as c:
+            fn()
+        wall.append(c.wall * 1e3)
+        cpu.append(c.cpu * 1e3)
+    return statistics.median(wall), statistics.median(cpu)

@@ -168,6 +168,17 @@ def finish_filter(m: np.ndarray, c: np.ndarray, truth: np.ndarray, done: int, fa
                      m.copy() if keep_means else None)
 
 
+def start_run(scenario: Scenario, seed: int, duration: float
+              ) -> tuple[Simulation, int, np.ndarray, np.ndarray, np.ndarray]:
+    """A run's simulation at tick 0 and its arrays to fill: the ticks T, the truth (T + 1, 3)
+    with row 0 the start, the commands (T, 2) [m/s, rad/s] and the kidnap flags (T,)."""
+    sim = Simulation(scenario, seed)
+    T = round(duration / scenario.dt)
+    truth = np.empty((T + 1, 3))
+    truth[0] = sim.pose
+    return sim, T, truth, np.empty((T, 2)), np.zeros(T, dtype=bool)
+
+
 def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, Any]],
             seed: int, duration: float, index: int = 0, keep_means: bool = False,
             run_limit_s: float | None = None) -> RunOutput:
@@ -193,12 +204,7 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
             failed[name] = f"construction failed: {_failure_text(exc)}"
     sensors = {s.name: s for s in scenario.model_sensors}
     world = scenario.world
-    sim = Simulation(scenario, seed)
-    T = round(duration / scenario.dt)
-    truth = np.empty((T + 1, 3))
-    truth[0] = sim.pose
-    controls = np.empty((T, 2))
-    kidnapped = np.zeros(T, dtype=bool)
+    sim, T, truth, controls, kidnapped = start_run(scenario, seed, duration)
     means = {n: np.full((T, 3), np.nan) for n in names}
     covs = {n: np.full((T, 3, 3), np.nan) for n in names}
     records: list = []  # measurements of the ticks that had any
@@ -276,12 +282,7 @@ def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
     requests with every reading withheld (does the filter use the readings?)."""
     from beacon_sim.filters.wire import encode_request
 
-    sim = Simulation(scenario, seed)
-    T = round(duration / scenario.dt)
-    truth = np.empty((T + 1, 3))
-    truth[0] = sim.pose
-    controls = np.empty((T, 2))
-    kidnapped = np.zeros(T, dtype=bool)
+    sim, T, truth, controls, kidnapped = start_run(scenario, seed, duration)
     records: list = []
     rec = np.zeros(T, dtype=int)
     frames, blind_frames = [], []
