@@ -49,6 +49,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import jacobian_state, move
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.association import gate as chi2_gate
+from beacon_sim.filters.association import jcbb_search
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, LandmarkMap, broad_gaussian
 from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
 
@@ -371,46 +372,18 @@ class EKFSLAM(SlamFilterBase):
         except np.linalg.LinAlgError:
             return float("inf")
 
-    def _jcbb(self, pending: list[Reading], d2: np.ndarray, gate: np.ndarray) -> dict[int, int] | None:
-        """Joint compatibility branch and bound over the full SLAM state (as
-        ``association.jcbb``, which works on a pose-only covariance): the most readings
-        paired, among those the lowest joint NIS, each pairing jointly inside the
-        ``gate_prob`` quantile for its degrees of freedom. None when the search passes
-        ``max_nodes`` (the caller falls back to nearest neighbour)."""
-        prob = float(self.params["gate_prob"])
-        cand = [[int(j) for j in np.argsort(d2[i], kind="stable") if d2[i, j] <= gate[i]]
-                for i in range(len(pending))]
-        order = sorted((i for i, c in enumerate(cand) if c), key=lambda i: (len(cand[i]), i))
-        best: list = [(), float("inf")]
-        nodes = 0
-        cap = int(self.params["max_nodes"])
-
-        def visit(k: int, pairs: tuple, used: frozenset, dof: int, value: float) -> bool:
-            nonlocal nodes
-            nodes += 1
-            if nodes > cap:
-                return False
-            if len(pairs) + (len(order) - k) < len(best[0]):
-                return True
-            if k == len(order):
-                if len(pairs) > len(best[0]) or (len(pairs) == len(best[0]) and value < best[1]):
-                    best[0], best[1] = pairs, value
-                return True
-            i = order[k]
-            d = pending[i].z.size
-            for j in cand[i]:
-                if j in used:
-                    continue
-                grown = (*pairs, (i, j))
-                v = self.joint_nis(pending, grown)
-                if v <= chi2_gate(prob, dof + d) and not visit(k + 1, grown, used | {j}, dof + d, v):
-                    return False
-            return visit(k + 1, pairs, used, dof, value)  # reading i left unpaired
-
-        if not visit(0, (), frozenset(), 0, 0.0):
+    def _jcbb(self, pending: list[Reading], d2: np.ndarray) -> dict[int, int] | None:
+        """Joint compatibility branch and bound over the full SLAM state
+        (``association.jcbb_search``, the package's one JCBB, with :class:`FullStateJoint`):
+        the most readings paired, among those the lowest joint NIS, each pairing jointly
+        inside the ``gate_prob`` quantile for its degrees of freedom. None when the search
+        passes ``max_nodes`` (the caller falls back to nearest neighbour)."""
+        pairing, _, nodes = jcbb_search(d2, [rd.z.size for rd in pending], FullStateJoint(self, pending),
+                                        float(self.params["gate_prob"]), int(self.params["max_nodes"]))
+        if pairing is None:
             return None
         self.last_nodes = nodes
-        return dict(best[0])
+        return dict(pairing)
 
     def _associate(self, pending: list[Reading]) -> set[int]:
         """Pair the tick's unlabelled readings with landmarks and anchors (JCBB or nearest
@@ -425,7 +398,7 @@ class EKFSLAM(SlamFilterBase):
         chosen = nn_pairs(d2, gate)
         self.last_method = "nn"
         if self.params["association"] == "jcbb" and d2.size:
-            found = self._jcbb(pending, d2, gate)
+            found = self._jcbb(pending, d2)
             if found is not None:
                 chosen = found
                 self.last_method = "jcbb"
@@ -447,6 +420,23 @@ class EKFSLAM(SlamFilterBase):
                 if j_new is not None:
                     seen.add(j_new)
         return seen
+
+
+class FullStateJoint:
+    """EKF-SLAM's joint test for ``association.jcbb_search``: a state is the pairing so far,
+    and growing it evaluates :meth:`EKFSLAM.joint_nis` of each grown pairing (the stacked
+    innovations against ``H P H^T + R`` over the whole state: pose and landmark cross terms)."""
+
+    def __init__(self, flt: EKFSLAM, pending: list[Reading]):
+        self.flt, self.pending = flt, pending
+
+    def start(self) -> tuple[tuple[int, int], ...]:
+        return ()
+
+    def grow(self, state: tuple[tuple[int, int], ...], i: int, cols: list[int]
+             ) -> tuple[list[tuple[tuple[int, int], ...]], np.ndarray]:
+        grown = [(*state, (i, j)) for j in cols]
+        return grown, np.array([self.flt.joint_nis(self.pending, g) for g in grown])
 
 
 def nn_pairs(d2: np.ndarray, gate: np.ndarray) -> dict[int, int]:

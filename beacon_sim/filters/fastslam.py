@@ -24,7 +24,9 @@ A reading of a landmark not yet in a particle's map puts one there (``slam_base.
 
 Association per particle (readings without IDs): each particle pairs each reading with its
 own most likely landmark (lowest ``d2 + log det L``, against the motion-only proposal, all
-the tick's readings at once); within the ``gate_prob`` gate it is
+the tick's readings at once), or with ``association = "jcbb"`` takes the jointly compatible
+pairing of all of them (JCBB against the proposal, whose pose error the readings share);
+within the ``gate_prob`` gate it is
 used; beyond the ``new_landmark_prob`` quantile it starts a landmark; in between it only
 weighs the particle by ``p0``. Particles with different maps can hold different pairings.
 Anchors (beacons whose position the filter is given) are landmarks with C = 0 that are
@@ -44,9 +46,11 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.motion import MotionNoise, move
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.association import JointInformation, information_sums, jcbb_search
 from beacon_sim.filters.association import gate as chi2_gate
 from beacon_sim.filters.base import (
     FilterContext,
+    FilterError,
     GaussianBelief,
     LandmarkMap,
     ParticleBelief,
@@ -125,16 +129,32 @@ class FastSLAM2(SlamFilterBase):
     confirm_hits : int, default 2
         Unknown correspondence: an unlabelled landmark is tentative until given this many
         readings; a tentative one in view that gets none is dropped (clutter).
+    association : str, default "ml"
+        Unknown correspondence, per particle: ``"ml"`` (each reading its most likely
+        landmark, independently) or ``"jcbb"`` (joint compatibility over the tick's readings
+        against the particle's proposal, each landmark at most once; ``association.jcbb_search``).
+    max_nodes : int, default 200
+        ``"jcbb"``: most search nodes per particle and tick; past them that particle keeps
+        its maximum-likelihood pairing.
     """
 
     defaults: ClassVar[dict] = {"n_particles": 100, "ess_threshold": 0.5, "gate_prob": 0.99,
-                                "new_landmark_prob": 0.9999, "max_landmarks": 500, "confirm_hits": 2}
+                                "new_landmark_prob": 0.9999, "max_landmarks": 500, "confirm_hits": 2,
+                                "association": "ml", "max_nodes": 200}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
         self.n = int(self.params["n_particles"])
         self.rng = ctx.rng
         self.n_anchor = len(self.anchors)
+        if self.params["association"] not in ("ml", "jcbb"):
+            raise FilterError(f"{type(self).__name__}: parameter association = "
+                              f"{self.params['association']!r}: expected 'ml' or 'jcbb'")
+        #: ``association = "jcbb"``: the last tick's particles searched, fallbacks, nodes.
+        self.last_jcbb: dict[str, int] = {}
+        #: The last update's target of each reading row (in order) for each particle (N,):
+        #: a landmark slot, NEW or IGNORED (after resampling: of the resampled particles).
+        self.last_targets: list[np.ndarray] = []
         self.reset(None)
 
     # -- state -----------------------------------------------------------------------------
@@ -283,7 +303,8 @@ class FastSLAM2(SlamFilterBase):
         d = zhat.shape[1]
         Hx = Hx.reshape(n, cmax, d, 3)
         Hm = Hm.reshape(n, cmax, d, 2)
-        L = Hx @ Sig[:, None] @ Hx.swapaxes(-1, -2) + Hm @ self.lc[:, :cmax] @ Hm.swapaxes(-1, -2) + R
+        Z = Hm @ self.lc[:, :cmax] @ Hm.swapaxes(-1, -2) + R       # (n, C, d, d)
+        L = Hx @ Sig[:, None] @ Hx.swapaxes(-1, -2) + Z
         z = np.stack([rd.z for rd in rows])                        # (m, d)
         nu = innovation(z[None, :, None, :], zhat.reshape(n, 1, cmax, d))  # (n, m, C, d)
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -299,7 +320,42 @@ class FastSLAM2(SlamFilterBase):
         gate = chi2_gate(float(self.params["gate_prob"]), d)
         new = chi2_gate(float(self.params["new_landmark_prob"]), d)
         tgt = np.where(d2b <= gate, best, np.where(d2b > new, NEW, IGNORED))
+        if self.params["association"] == "jcbb":
+            d2v = np.where(valid & np.isfinite(d2), d2, np.inf)
+            self._jcbb_targets(tgt, nu, Hx, Sig, Z, d2v, d, new)
         return [tgt[:, i] for i in range(m)]
+
+    def _jcbb_targets(self, tgt: np.ndarray, nu: np.ndarray, Hx: np.ndarray, Sig: np.ndarray,
+                      Z: np.ndarray, d2: np.ndarray, d: int, new: float) -> None:
+        """Per-particle JCBB (``association = "jcbb"``): each particle's pairing of the tick's
+        readings with its landmarks by ``association.jcbb_search``, the joint test against the
+        particle's proposal ``Sigma`` (shared by the readings) and each landmark's own
+        ``Z = Hm C Hm^T + R`` (independent landmarks). Only the gated candidates are searched
+        (a particle with none skips the search); each landmark gets at most one reading; a
+        reading left out is NEW beyond the new-landmark distance, else IGNORED. A particle
+        whose search passes ``max_nodes`` keeps its maximum-likelihood targets. Writes
+        ``tgt`` (n, m) in place and counts into ``last_jcbb``."""
+        prob = float(self.params["gate_prob"])
+        cap = int(self.params["max_nodes"])
+        gated = d2 <= chi2_gate(prob, d)                                   # (n, m, C)
+        searched = np.flatnonzero(gated.any(axis=(1, 2)))
+        stats = {"searched": int(searched.size), "fallback": 0, "nodes": 0}
+        if searched.size:
+            a, b, M = information_sums(nu[searched], Hx[searched], Z[searched])
+            left = np.where(np.min(d2, axis=2, initial=np.inf) > new, NEW, IGNORED)  # (n, m)
+            dims = [d] * tgt.shape[1]
+            for s, k in enumerate(searched.tolist()):
+                joint = JointInformation(Sig[k], a[s], b[s], M[s])
+                pairing, _, nodes = jcbb_search(d2[k], dims, joint, prob, cap)
+                stats["nodes"] += nodes
+                if pairing is None:
+                    stats["fallback"] += 1
+                    continue
+                row = left[k].copy()
+                for i, j in pairing:
+                    row[i] = j
+                tgt[k] = row
+        self.last_jcbb = stats
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         rows = list(self.readings(measurements))
@@ -326,6 +382,7 @@ class FastSLAM2(SlamFilterBase):
                 self.logw[other] += self._log_p0(rd)
             done.append((rd, tgt))
         self.prop_mu, self.prop_cov = mu, Sig
+        self.last_targets = [tgt for _, tgt in done]
         self._sample()
         self._landmark_updates(done)
         self.logw -= np.max(self.logw)
@@ -335,6 +392,7 @@ class FastSLAM2(SlamFilterBase):
             self.poses, self.lm, self.lc = self.poses[idx], self.lm[idx], self.lc[idx]
             self.lid, self.count, self.hits = self.lid[idx], self.count[idx], self.hits[idx]
             self.logw = np.zeros(self.n)
+            self.last_targets = [t[idx] for t in self.last_targets]
 
     def _landmark_updates(self, done: list[tuple[Reading, np.ndarray]]) -> None:
         """Each paired landmark's EKF update from the sampled pose; new landmarks placed;
