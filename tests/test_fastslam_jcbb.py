@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from slam_helpers import ring_scenario
 
 from beacon_sim.core.clutter import UNKNOWN_ID, ClutterSpec, hide_ids_all
 from beacon_sim.core.scenario import parse_scenario
@@ -185,3 +186,36 @@ def test_jcbb_runs_are_deterministic():
     a = correct_fraction(sc, "jcbb", 4, n_particles=10)
     b = correct_fraction(sc, "jcbb", 4, n_particles=10)
     assert a == b
+
+
+def test_the_unambiguous_shortcut_gives_what_the_search_gives(monkeypatch):
+    """Particles whose readings each have at most one gated landmark (none shared) skip the
+    search; a run with the shortcut switched off (every particle searched) pairs the same.
+    On the benign ring with heavy clutter (4 false readings a tick: most particles
+    unambiguous, some not)."""
+    sc = ring_scenario(6, duration=3.0)
+
+    def targets():
+        got = []
+        flt = build_filter("fastslam", sc, 2, params={"n_particles": 15, "association": "jcbb"})
+        sim = Simulation(sc, 2)
+        rng = np.random.default_rng(5)
+        easy = hard = 0
+        for _ in range(round(sc.duration / sc.dt)):
+            st = sim.step()
+            fired = [s for s in sc.sensors if s.name in {m.sensor for m in st.measurements}]
+            ms, _ = hide_ids_all(st.measurements, fired, {s.name: ClutterSpec(4.0) for s in fired}, rng)
+            flt.predict(st.control, st.dt)
+            flt.update(ms)
+            got.append([t.copy() for t in flt.last_targets])
+            easy += flt.last_jcbb.get("unambiguous", 0)
+            hard += flt.last_jcbb.get("searched", 0) - flt.last_jcbb.get("unambiguous", 0)
+        return got, easy, hard
+
+    fast, n_easy, n_hard = targets()
+    monkeypatch.setattr(FastSLAM2, "_unambiguous", staticmethod(lambda tgt, rows, gated, *a: np.zeros(len(rows), bool)))
+    slow, n_none, _ = targets()
+    assert n_easy > 100 and n_hard > 10 and n_none == 0, (n_easy, n_hard, n_none)
+    assert len(fast) == len(slow)
+    for f, s in zip(fast, slow, strict=True):
+        assert len(f) == len(s) and all(np.array_equal(x, y) for x, y in zip(f, s, strict=True))

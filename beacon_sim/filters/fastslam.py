@@ -339,12 +339,16 @@ class FastSLAM2(SlamFilterBase):
         cap = int(self.params["max_nodes"])
         gated = d2 <= chi2_gate(prob, d)                                   # (n, m, C)
         searched = np.flatnonzero(gated.any(axis=(1, 2)))
-        stats = {"searched": int(searched.size), "fallback": 0, "nodes": 0}
+        stats = {"searched": int(searched.size), "unambiguous": 0, "fallback": 0, "nodes": 0}
         if searched.size:
             a, b, M = information_sums(nu[searched], Hx[searched], Z[searched])
             left = np.where(np.min(d2, axis=2, initial=np.inf) > new, NEW, IGNORED)  # (n, m)
             dims = [d] * tgt.shape[1]
+            easy = self._unambiguous(tgt, searched, gated[searched], Sig[searched], a, b, M, d, prob, left)
+            stats["unambiguous"] = int(easy.sum())
             for s, k in enumerate(searched.tolist()):
+                if easy[s]:
+                    continue
                 joint = JointInformation(Sig[k], a[s], b[s], M[s])
                 pairing, _, nodes = jcbb_search(d2[k], dims, joint, prob, cap)
                 stats["nodes"] += nodes
@@ -356,6 +360,42 @@ class FastSLAM2(SlamFilterBase):
                     row[i] = j
                 tgt[k] = row
         self.last_jcbb = stats
+
+    @staticmethod
+    def _unambiguous(tgt: np.ndarray, rows: np.ndarray, gated: np.ndarray, Sig: np.ndarray,
+                     a: np.ndarray, b: np.ndarray, M: np.ndarray, d: int, prob: float,
+                     left: np.ndarray) -> np.ndarray:
+        """JCBB's answer for the particles where it needs no search, all at once: every
+        reading has at most one gated landmark and no two share one. The search would then
+        pair the readings in index order, each prefix tested jointly; when every prefix
+        passes, pairing them all is its answer (the most pairs; any other leaf has fewer).
+        Those particles' targets are written into ``tgt``; returns which of ``rows`` they
+        are (the others go to the search)."""
+        ncand = gated.sum(axis=2)                                          # (s, m)
+        easy = np.all(ncand <= 1, axis=1) & np.all(gated.sum(axis=1) <= 1, axis=1)
+        if not easy.any():
+            return easy
+        e = np.flatnonzero(easy)
+        has = ncand[e] == 1                                                 # (e, m)
+        j = np.argmax(gated[e], axis=2)                                     # (e, m)
+        ii = np.arange(j.shape[1])[None, :]
+        a_s = np.where(has, a[e[:, None], ii, j], 0.0)                      # (e, m)
+        b_s = np.where(has[..., None], b[e[:, None], ii, j], 0.0)           # (e, m, 3)
+        M_s = np.where(has[..., None, None], M[e[:, None], j], 0.0)         # (e, m, 3, 3)
+        ca, cb, cM = np.cumsum(a_s, axis=1), np.cumsum(b_s, axis=1), np.cumsum(M_s, axis=1)
+        P = Sig[e][:, None]                                                 # (e, 1, 3, 3)
+        with np.errstate(invalid="ignore", over="ignore"):
+            x = np.linalg.solve(np.eye(3) + P @ cM, (P @ cb[..., None]))[..., 0]
+            value = ca - np.einsum("emk,emk->em", cb, x)
+        dof = d * np.cumsum(has, axis=1)
+        limit = np.array([chi2_gate(prob, int(k)) if k else np.inf for k in range(d * j.shape[1] + 1)])
+        ok = np.all(~has | (np.isfinite(value) & (value <= limit[dof])), axis=1)
+        easy[e[~ok]] = False
+        for q in np.flatnonzero(ok).tolist():
+            row = left[rows[e[q]]].copy()
+            row[has[q]] = j[q][has[q]]
+            tgt[rows[e[q]]] = row
+        return easy
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         rows = list(self.readings(measurements))
