@@ -213,7 +213,8 @@ def test_the_unambiguous_shortcut_gives_what_the_search_gives(monkeypatch):
         return got, easy, hard
 
     fast, n_easy, n_hard = targets()
-    monkeypatch.setattr(FastSLAM2, "_unambiguous", staticmethod(lambda tgt, rows, gated, *a: np.zeros(len(rows), bool)))
+    monkeypatch.setattr(FastSLAM2, "_unambiguous",
+                        staticmethod(lambda tgt, rows, *rest: np.zeros(len(rows), bool)))
     slow, n_none, _ = targets()
     assert n_easy > 100 and n_hard > 10 and n_none == 0, (n_easy, n_hard, n_none)
     assert len(fast) == len(slow)
