@@ -202,7 +202,8 @@ def linearised_landmarks(kind: str, nu: np.ndarray, H: np.ndarray, P: np.ndarray
     ``nu`` (m, n, d), pose Jacobians ``H`` (n, d, 3), pose covariance ``P`` (3, 3) and each
     landmark's ``Z_j = Hm C_j Hm^T + R`` (n, d, d) (R (d, d) the reading noise), so
     ``S_j = H_j P H_j^T + Z_j``. Landmarks are independent of each other given the pose, so
-    only the pose error is shared between readings. ``d2`` (m, n) when the caller has it (``inf`` for a landmark to leave out)."""
+    only the pose error is shared between readings. ``d2`` (m, n) when the caller has it
+    (``inf`` for a landmark to leave out)."""
     S = H @ P @ H.transpose(0, 2, 1) + Z
     if d2 is None:
         with np.errstate(divide="ignore", invalid="ignore"):
