@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
@@ -57,7 +58,15 @@ from beacon_sim.filters.base import (
     broad_gaussian,
 )
 from beacon_sim.filters.resampling import effective_sample_size, systematic
-from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
+from beacon_sim.filters.slam_base import (
+    SLAM_KINDS,
+    Reading,
+    SlamFilterBase,
+    innovation,
+    observe,
+    place,
+    unknown,
+)
 
 #: Target of a reading for one particle: a slot index (>= 0), or one of these.
 NEW = -1      # start a landmark
@@ -136,11 +145,18 @@ class FastSLAM2(SlamFilterBase):
     max_nodes : int, default 200
         ``"jcbb"``: most search nodes per particle and tick; past them that particle keeps
         its maximum-likelihood pairing.
+    covariance : str, default "linearised"
+        What ``estimate()``, ``landmarks()`` and ``joint()`` report as the uncertainty (the
+        means are the particles' either way). ``"particles"``: the particle set's own
+        moments, which resampling makes overconfident in the long run (Bailey, Nieto and
+        Nebot 2006). ``"linearised"``: the EKF-SLAM covariance recursion run alongside,
+        linearised at the particles' mean each tick (:class:`LinearisedCovariance`), with
+        known IDs; without IDs the particle set's.
     """
 
     defaults: ClassVar[dict] = {"n_particles": 100, "ess_threshold": 0.5, "gate_prob": 0.99,
                                 "new_landmark_prob": 0.9999, "max_landmarks": 500, "confirm_hits": 2,
-                                "association": "ml", "max_nodes": 200}
+                                "association": "ml", "max_nodes": 200, "covariance": "linearised"}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
@@ -152,6 +168,9 @@ class FastSLAM2(SlamFilterBase):
                               f"{self.params['association']!r}: expected 'ml' or 'jcbb'")
         #: ``association = "jcbb"``: the last tick's particles searched, fallbacks, nodes.
         self.last_jcbb: dict[str, int] = {}
+        if self.params["covariance"] not in ("linearised", "particles"):
+            raise FilterError(f"{type(self).__name__}: parameter covariance = "
+                              f"{self.params['covariance']!r}: expected 'linearised' or 'particles'")
         #: The last update's target of each reading row (in order) for each particle (N,):
         #: a landmark slot, NEW or IGNORED (after resampling: of the resampled particles).
         self.last_targets: list[np.ndarray] = []
@@ -178,6 +197,8 @@ class FastSLAM2(SlamFilterBase):
         self.count = np.full(n, A, dtype=np.int64)  # slots in use or freed: the high-water mark
         self.prop_mu: np.ndarray | None = None   # the proposal between predict and update
         self.prop_cov: np.ndarray | None = None
+        self.companion = LinearisedCovariance(self.ctx, initial) \
+            if self.params["covariance"] == "linearised" else None
 
     def _draw(self, cov: np.ndarray) -> np.ndarray:
         """One zero-mean Gaussian sample per covariance (N, 3, 3) (semi-definite allowed)."""
@@ -205,6 +226,19 @@ class FastSLAM2(SlamFilterBase):
         return self.poses if self.prop_mu is None else self.prop_mu
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        mean, cov = self._particle_estimate()
+        if self._linearised():
+            assert self.companion is not None
+            cov = self.companion.ekf.P[:3, :3].copy()
+        return mean, cov
+
+    def _linearised(self) -> bool:
+        """Whether the linearised covariance is what is reported (known IDs so far)."""
+        return self.companion is not None and self.companion.ok and not np.any(self.lid == UNKNOWN_ID)
+
+    def _particle_estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        """The particle set's weighted mean pose and covariance (plus, between predict and
+        update, the proposals' own covariance)."""
         w = self.weights
         p = self._poses_now()
         th = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
@@ -243,11 +277,81 @@ class FastSLAM2(SlamFilterBase):
             means[i] = wk @ m
             d = m - means[i]
             covs[i] = np.einsum("n,nij->ij", wk, self.lc[rows, cols]) + (d * wk[:, None]).T @ d
+        if self._linearised():
+            assert self.companion is not None
+            idx = self.companion.ekf.index
+            for i, bid in enumerate(ids.tolist()):
+                if bid in idx:
+                    c = 3 + 2 * idx[bid]
+                    covs[i] = self.companion.ekf.P[c:c + 2, c:c + 2]
         return LandmarkMap(ids, means, covs)
+
+    def joint(self) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
+        """The pose and the map as one Gaussian, for the joint NEES: mean (3 + 2M,), covariance
+        and each landmark's beacon ID (-1 without IDs). The means are the particles' (pose:
+        ``estimate()``; landmarks: ``landmarks()``); the covariance is the linearised one
+        (``covariance = "linearised"``, known IDs) or the particle set's moments over the
+        joint state: ``sum_k w_k (s_k - s)(s_k - s)^T`` plus each particle's landmark
+        covariances on the diagonal blocks. Without IDs: the heaviest particle's map, its
+        landmarks' covariances, no cross terms (particles' maps cannot be averaged)."""
+        mean, cov = self.estimate()
+        lm = self.landmarks()
+        M = len(lm.means)
+        mu = np.concatenate([mean, lm.means.reshape(-1)])
+        if lm.ids is None:
+            P = np.zeros((3 + 2 * M, 3 + 2 * M))
+            P[:3, :3] = cov
+            for j in range(M):
+                P[3 + 2 * j:5 + 2 * j, 3 + 2 * j:5 + 2 * j] = lm.covs[j]
+            return mu, P, (-1,) * M
+        ids = [int(b) for b in lm.ids]
+        if self._linearised():
+            assert self.companion is not None
+            ekf = self.companion.ekf
+            rows = np.r_[0:3, np.array([[3 + 2 * ekf.index[b], 4 + 2 * ekf.index[b]] for b in ids],
+                                       dtype=int).reshape(-1)]
+            return mu, ekf.P[np.ix_(rows, rows)].copy(), tuple(ids)
+        w = self.weights
+        p = self._poses_now()
+        S = np.zeros((self.n, 3 + 2 * M))
+        S[:, :3] = p - mean
+        S[:, 2] = wrap(S[:, 2])
+        P = np.zeros((3 + 2 * M, 3 + 2 * M))
+        if self.prop_cov is not None:
+            P[:3, :3] = np.einsum("n,nij->ij", w, self.prop_cov)
+        for j, bid in enumerate(ids):
+            has = self.lid == bid
+            rows_k = np.flatnonzero(has.any(axis=1))
+            cols = has[rows_k].argmax(axis=1)
+            S[rows_k, 3 + 2 * j:5 + 2 * j] = self.lm[rows_k, cols] - lm.means[j]
+            P[3 + 2 * j:5 + 2 * j, 3 + 2 * j:5 + 2 * j] = np.einsum("n,nij->ij", w[rows_k] / w[rows_k].sum(),
+                                                                  self.lc[rows_k, cols])
+        P += (S * w[:, None]).T @ S
+        return mu, 0.5 * (P + P.T), tuple(ids)
+
+    def _mixture_means(self) -> dict[int, np.ndarray]:
+        """Each labelled landmark's weighted mean over the particles that have it (beacon
+        ID -> (2,)); with known IDs every particle has the same slots, one matrix product."""
+        A = self.n_anchor
+        w = self.weights
+        lid = self.lid[:, A:int(self.count.max())]
+        if lid.size and np.all(lid == lid[0]):
+            cols = np.flatnonzero(lid[0] >= 0)
+            means = np.einsum("n,nci->ci", w, self.lm[:, A + cols])
+            return {int(lid[0, c]): means[q] for q, c in enumerate(cols.tolist())}
+        out: dict[int, np.ndarray] = {}
+        for bid in np.unique(lid[lid >= 0]).tolist():
+            has = self.lid == bid
+            rows = np.flatnonzero(has.any(axis=1))
+            cols_k = has[rows].argmax(axis=1)
+            out[int(bid)] = (w[rows] / w[rows].sum()) @ self.lm[rows, cols_k]
+        return out
 
     # -- prediction ------------------------------------------------------------------------
     def predict(self, control: Control, dt: float) -> None:
         self._sample()  # a tick without update: the motion model alone is the proposal
+        if self.companion is not None:
+            self.companion.predict(self._particle_estimate()[0], control, dt)
         v, w = float(control.v), float(control.omega)
         noise = self.ctx.motion_noise
         self.prop_cov = self._process_covs(v, w, dt) if type(noise) is MotionNoise \
@@ -402,6 +506,8 @@ class FastSLAM2(SlamFilterBase):
         if not rows:
             self._sample()
             return
+        if self.companion is not None:
+            self.companion.update(self._particle_estimate()[0], self._mixture_means(), measurements)
         if self.prop_mu is None or self.prop_cov is None:  # no predict since the last update
             self.prop_mu, self.prop_cov = self.poses.copy(), np.zeros((self.n, 3, 3))
         mu, Sig = self.prop_mu.copy(), self.prop_cov.copy()
@@ -495,3 +601,44 @@ class FastSLAM2(SlamFilterBase):
                 (spec.fov >= 2 * math.pi) | (np.abs(zhat[:, 1]) <= spec.fov / 2))
         self.lid[k[view], c[view]] = EMPTY
         self.hits[k[view], c[view]] = 0
+
+
+class LinearisedCovariance:
+    """FastSLAM's reported uncertainty with ``covariance = "linearised"``: EKF-SLAM's
+    covariance recursion (``ekf_slam.EKFSLAM``, the same readings, the same models) whose
+    mean is reset to the particles' mean before each prediction and update, so only its
+    covariance P is kept: the Jacobians F, H and the new-landmark G are those at FastSLAM's
+    estimate. It is the covariance a Gaussian filter at that estimate would carry, cross terms
+    between the pose and every landmark included, which the particles lose to resampling
+    (Bailey, Nieto and Nebot 2006). Known IDs: a reading of an unlabelled landmark switches
+    it off (``ok`` False) and the particle set's moments are reported."""
+
+    def __init__(self, ctx: FilterContext, initial: GaussianBelief | None):
+        from beacon_sim.filters.ekf_slam import EKFSLAM  # the recursion itself, not copied
+
+        self.ekf = EKFSLAM(replace(ctx, params={}))
+        self.ekf.reset(initial)
+        self.ok = True
+
+    def _sync(self, pose: np.ndarray, means: dict[int, np.ndarray]) -> None:
+        ekf = self.ekf
+        ekf.mu[:3] = pose
+        for bid, j in ekf.index.items():
+            m = means.get(bid)
+            if m is not None:
+                ekf.mu[3 + 2 * j:5 + 2 * j] = m
+
+    def predict(self, pose: np.ndarray, control: Control, dt: float) -> None:
+        if self.ok:
+            self.ekf.mu[:3] = pose
+            self.ekf.predict(control, dt)
+
+    def update(self, pose: np.ndarray, means: dict[int, np.ndarray], measurements: Sequence[Measurement]
+               ) -> None:
+        if not self.ok:
+            return
+        if any(np.any(np.asarray(m.beacon_ids) == UNKNOWN_ID) for m in measurements if m.kind in SLAM_KINDS):
+            self.ok = False
+            return
+        self._sync(pose, means)
+        self.ekf.update(measurements)
