@@ -12,7 +12,7 @@ import pytest
 from slam_helpers import ring_scenario, run, true_beacons
 
 from beacon_sim.core import motion
-from beacon_sim.core.types import Control
+from beacon_sim.core.types import Control, Measurement
 from beacon_sim.evaluation.slam_metrics import joint_anees_band, joint_nees
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.fastslam import FastSLAM2
@@ -96,3 +96,22 @@ def test_on_a_known_map_the_linearised_covariance_localises_with_the_anchors():
     assert f.companion is not None and f.companion.ekf.P.shape == (3, 3)
     d = pose - m
     assert float(d[:2] @ np.linalg.solve(P[:2, :2], d[:2])) < 20.0
+
+
+def test_a_failing_linearised_covariance_switches_itself_off_not_the_filter():
+    sc = ring_scenario(4, duration=1.0)
+    f, *_ = run(sc, "fastslam", 8, params={"n_particles": 10})
+    assert isinstance(f, FastSLAM2) and f.companion is not None and f.companion.ok
+
+    def broken(measurements):
+        raise FilterError("singular")
+
+    f.companion.ekf.update = broken
+    f.predict(Control(0.5, 0.1), 0.1)
+    pose = f._particle_estimate()[0]
+    z = np.array([[2.0, 0.1]])
+
+    f.update([Measurement("beacons", "range_bearing", z, np.array([1]))])
+    assert not f.companion.ok
+    assert np.all(np.isfinite(f.estimate()[1])) and np.array_equal(f.estimate()[1], f._particle_estimate()[1])
+    assert np.all(np.isfinite(pose))

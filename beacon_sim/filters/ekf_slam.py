@@ -36,6 +36,12 @@ lost); a later bearing whose ray crosses the first at more than ``min_parallax``
 landmark at the crossing, with its covariance and cross terms from the Jacobians of the
 crossing in both poses and both bearings, and the copy is marginalised out. Each reading is
 used once. Unlabelled bearings update landmarks already on the map but start none.
+
+Bearing-only, known IDs, ``bearing_init = "inverse_depth"`` (Civera, Davison and Montiel
+2008; ``inverse_depth.py``): the first bearing puts the landmark into the state at once as
+``(x0, y0, theta, rho)`` (after the Euclidean landmarks), every later bearing updates it, and
+it is converted to a Euclidean ``(x, y)`` when its linearity index is below
+``linearity_threshold``.
 """
 
 from __future__ import annotations

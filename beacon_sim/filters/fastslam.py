@@ -37,7 +37,7 @@ never updated. Resampling (systematic) when the effective sample size falls belo
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import ClassVar
 
@@ -233,8 +233,13 @@ class FastSLAM2(SlamFilterBase):
         return mean, cov
 
     def _linearised(self) -> bool:
-        """Whether the linearised covariance is what is reported (known IDs so far)."""
-        return self.companion is not None and self.companion.ok and not np.any(self.lid == UNKNOWN_ID)
+        """Whether the linearised covariance is what is reported: known IDs so far, and every
+        landmark of the particles in it."""
+        c = self.companion
+        if c is None or not c.ok or np.any(self.lid == UNKNOWN_ID):
+            return False
+        mapped = self.lid[:, self.n_anchor:]
+        return all(int(b) in c.ekf.index for b in np.unique(mapped[mapped >= 0]).tolist())
 
     def _particle_estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """The particle set's weighted mean pose and covariance (plus, between predict and
@@ -631,7 +636,7 @@ class LinearisedCovariance:
     def predict(self, pose: np.ndarray, control: Control, dt: float) -> None:
         if self.ok:
             self.ekf.mu[:3] = pose
-            self.ekf.predict(control, dt)
+            self._guarded(lambda: self.ekf.predict(control, dt))
 
     def update(self, pose: np.ndarray, means: dict[int, np.ndarray], measurements: Sequence[Measurement]
                ) -> None:
@@ -641,4 +646,16 @@ class LinearisedCovariance:
             self.ok = False
             return
         self._sync(pose, means)
-        self.ekf.update(measurements)
+        self._guarded(lambda: self.ekf.update(measurements))
+
+    def _guarded(self, step: Callable[[], None]) -> None:
+        """Run one step; if it fails or leaves P not finite, switch the linearised covariance
+        off (the particle set's is reported from then on) rather than the filter."""
+        try:
+            with np.errstate(all="ignore"):
+                step()
+        except (FilterError, np.linalg.LinAlgError, ValueError):
+            self.ok = False
+            return
+        if not np.all(np.isfinite(self.ekf.P)):
+            self.ok = False
