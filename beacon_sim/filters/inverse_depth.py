@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.measurement_models import relative_bearing_scalar
 
 
 def initialise(pose: np.ndarray, b: float, rho0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -56,7 +57,7 @@ def observe(pose: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray, np.ndar
     hx, hy = rho * ex + c, rho * ey + s
     q = hx * hx + hy * hy
     ga = np.array([-hy / q, hx / q])                  # d bearing / d h
-    zhat = wrap(math.atan2(hy, hx) - pose[2])
+    zhat = wrap(relative_bearing_scalar(hx, hy, float(pose[2])))  # h is the direction to it
     Hx = np.array([-rho * ga[0], -rho * ga[1], -1.0])
     Hy = np.array([rho * ga[0], rho * ga[1], ga @ np.array([-s, c]), ga @ np.array([ex, ey])])
     return float(zhat), Hx, Hy
