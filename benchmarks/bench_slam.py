@@ -3,6 +3,7 @@
 
 Run:  /work/venv/bin/python benchmarks/bench_slam.py [--quick]
       /work/venv/bin/python benchmarks/bench_slam.py --accuracy 10   (the accuracy table instead)
+      /work/venv/bin/python benchmarks/bench_slam.py --association 10   (FastSLAM ML against JCBB)
 
 The world: 50 beacons in a 30 m x 30 m room, a range-bearing sensor of 8 m at 10 Hz (about
 6-10 beacons in view), a robot on a 9 m circle. Each filter first maps all 50 beacons (six
@@ -11,7 +12,8 @@ per tick WITH readings (predict + update + estimate + landmarks(), what the wind
 tick); the window at speed 1 runs one tick (dt = 0.05 s) every third frame, so a tick that
 fits in a frame keeps 60 FPS. Known correspondence, and unknown (IDs hidden, no clutter).
 Targets: EKF-SLAM (50 landmarks) and FastSLAM 2.0 (100 particles x 50 landmarks) each under
-16.7 ms per tick, known correspondence.
+16.7 ms per tick, known correspondence. FastSLAM's per-particle JCBB (``association = "jcbb"``,
+unknown correspondence only) is measured beside its default per-particle ML, no target.
 """
 
 from __future__ import annotations
@@ -117,18 +119,20 @@ def accuracy(runs: int) -> None:
 
     from beacon_sim.core.scenario import load_scenario
     from beacon_sim.evaluation.pcrb import pcrb
-    from beacon_sim.evaluation.slam_metrics import ate, gospa
+    from beacon_sim.evaluation.slam_metrics import ate, gospa, joint_nees
 
     sc = load_scenario("slam_loop")
-    cases = [("ekf_slam", False), ("ekf_slam", True), ("fastslam", False), ("fastslam", True)]
+    cases = [("ekf_slam", False, None), ("ekf_slam", True, None), ("fastslam", False, None),
+             ("fastslam", False, {"covariance": "particles"}), ("fastslam", True, None)]
     res: dict[str, dict[str, list[float]]] = {}
     truths, controls = [], []
+    truth_xy = {b.id: (b.x, b.y) for b in sc.world.beacons}
     for r in range(runs):
         seed = 1000 + r
         sim_truth = None
-        for spec, hide in [("ekf", False), *cases]:
+        for spec, hide, params in [("ekf", False, None), *cases]:
             scen = replace(sc, map_known=True) if spec == "ekf" else sc
-            flt = build_filter(spec, scen, seed)
+            flt = build_filter(spec, scen, seed, params=params)
             sim = Simulation(scen, seed)
             rng = np.random.default_rng(seed + 7)
             est, tru, ctl = [], [np.array(scen.initial_pose)], []
@@ -147,8 +151,8 @@ def accuracy(runs: int) -> None:
                 sim_truth = np.array(tru)
                 truths.append(sim_truth)
                 controls.append(np.array(ctl))
-            label = spec + (" (no IDs)" if hide else "")
-            row = res.setdefault(label, {"ate": [], "gospa": [], "nees": []})
+            label = spec + (" (no IDs)" if hide else "") + (" (particle cov)" if params else "")
+            row = res.setdefault(label, {"ate": [], "gospa": [], "nees": [], "jnees": []})
             e = np.array(est)
             row["ate"].append(ate(e, sim_truth[1:]))
             m, P = flt.estimate()
@@ -157,6 +161,9 @@ def accuracy(runs: int) -> None:
             row["nees"].append(float(d @ np.linalg.solve(P, d)))
             if spec != "ekf":
                 row["gospa"].append(gospa(flt.landmarks().means, sc.world.beacon_xy, c=1.0).value)
+            if spec != "ekf" and not hide:  # the joint NEES over 3 + 2 M, per degree of freedom
+                jm, jP, jids = flt.joint()
+                row["jnees"].append(joint_nees(jm, jP, jids, sim_truth[-1], truth_xy) / jm.size)
     B = pcrb(sc, np.stack(truths), np.stack(controls))
     floor = np.sqrt(np.mean(B[..., 0, 0] + B[..., 1, 1], axis=1))
 
@@ -166,11 +173,92 @@ def accuracy(runs: int) -> None:
         return f"{v.mean():{fmt}} +- {half:{fmt}}"
 
     print(f"slam_loop, {runs} seeded runs (seeds 1000..{999 + runs}), 95 % intervals")
-    print(f"{'filter':<22} {'ATE [m]':>16} {'GOSPA map [m]':>16} {'final NEES (3 dof)':>20}")
+    print(f"{'filter':<32} {'ATE [m]':>16} {'GOSPA map [m]':>16} {'final NEES (3 dof)':>20} "
+          f"{'joint NEES / dof':>18}")
     for label, row in res.items():
-        print(f"{label:<22} {ci(row['ate']):>16} {ci(row['gospa']) if row['gospa'] else '(map given)':>16} "
-              f"{ci(row['nees'], '.3g'):>20}")
-    print(f"{'known-map PCRB':<22} {ci(floor):>16}   (RMS of sqrt(Pxx + Pyy) over the path)")
+        print(f"{label:<32} {ci(row['ate']):>16} {ci(row['gospa']) if row['gospa'] else '(map given)':>16} "
+              f"{ci(row['nees'], '.3g'):>20} {ci(row['jnees'], '.3g') if row['jnees'] else '':>18}")
+        if row["jnees"]:
+            figure(f"slam_loop {label}: final joint NEES per degree of freedom (1 if honest)",
+                   float(np.mean(row["jnees"])), "")
+    print("joint NEES / dof: the final joint NEES over the pose and the map divided by 3 + 2 M, "
+          "averaged over the runs (1 for an honest filter; the band for 10 runs of 27 dof is about 0.82-1.2)")
+    print(f"{'known-map PCRB':<32} {ci(floor):>16}   (RMS of sqrt(Pxx + Pyy) over the path)")
+
+
+def lookalike_pairs(duration: float):
+    """Five pairs of look-alike beacons 0.4 m apart on a 4 m ring, range-bearing readings, a
+    robot with a poor gyro (omega_std 0.15 rad/s) on a 3 m circle, no map given (the
+    scenario of tests/test_fastslam_jcbb.py)."""
+    bs = []
+    for i in range(5):
+        a = 2 * math.pi * i / 5 + 0.3
+        cx, cy = 6 + 4.0 * math.cos(a), 6 + 4.0 * math.sin(a)
+        for s, bid in ((-1, 2 * i + 1), (1, 2 * i + 2)):
+            bs.append({"id": bid, "x": cx + s * 0.2 * math.sin(a), "y": cy - s * 0.2 * math.cos(a)})
+    return parse_scenario({
+        "name": "lookalike_pairs", "dt": 0.1, "duration": duration, "seed": 1,
+        "world": {"bounds": [0, 0, 12, 12], "beacons": bs},
+        "robot": {"initial_pose": [9.0, 6.0, math.pi / 2],
+                  "motion_noise": {"v_std": 0.05, "v_frac": 0.1, "omega_std": 0.15, "omega_frac": 0.0,
+                                   "pose_std": [0.0, 0.0, 0.0]}},
+        "sensors": [{"name": "beacons", "kind": "range_bearing", "period": 0.1, "max_range": 8.0,
+                     "detection_prob": 0.9, "bearing_std": 0.02, "range_std": 0.1}],
+        "driver": {"kind": "circle", "radius": 3.0, "speed": 0.5},
+        "initial_belief": {"std": [0.01, 0.01, 0.005]},
+        "model": {"map": "unknown"}}, "lookalike_pairs.toml")
+
+
+def association(runs: int) -> None:
+    """``--association``: FastSLAM's per-particle ML against per-particle JCBB on five
+    look-alike pairs with clutter (0.5 a tick), 20 s, 30 particles: the weighted share of
+    right (reading, particle) associations (a beacon's reading given to the particle's
+    landmark nearest that beacon; clutter given to none), the map's GOSPA and the CPU per
+    tick, over seeded runs."""
+    from beacon_sim.core.clutter import UNKNOWN_ID
+    from beacon_sim.evaluation.slam_metrics import gospa
+
+    sc = lookalike_pairs(20.0)
+    xy, ids = sc.world.beacon_xy, np.asarray(sc.world.beacon_ids)
+    print(f"lookalike pairs with clutter, {runs} seeded runs (seeds 0..{runs - 1}), 30 particles, "
+          "95 % intervals")
+    for method in ("ml", "jcbb"):
+        fr, gs, cpu_ms = [], [], []
+        for seed in range(runs):
+            flt = build_filter("fastslam", sc, seed, params={"n_particles": 30, "association": method})
+            sim = Simulation(sc, seed)
+            rng = np.random.default_rng(seed + 1000)
+            good = total = 0.0
+            ticks = 0
+            with Clock() as c:
+                for _ in range(round(sc.duration / sc.dt)):
+                    st = sim.step()
+                    fired = [x for x in sc.sensors if x.name in {m.sensor for m in st.measurements}]
+                    spec = {x.name: ClutterSpec(0.5) for x in fired}
+                    ms, truth = hide_ids_all(st.measurements, fired, spec, rng)
+                    flt.predict(st.control, st.dt)
+                    flt.update(ms)
+                    ticks += 1
+                    if "beacons" not in truth:
+                        continue
+                    w = flt.weights
+                    for true_id, tgt in zip(truth["beacons"], flt.last_targets, strict=True):
+                        lm = flt.lm[np.arange(flt.n), np.maximum(tgt, 0)]
+                        near = ids[np.argmin(np.sum((lm[:, None, :] - xy[None]) ** 2, axis=2), axis=1)]
+                        ok = np.where(tgt >= 0, near == true_id, true_id == UNKNOWN_ID)
+                        good += float(w @ ok)
+                        total += 1.0
+            fr.append(good / total)
+            gs.append(gospa(flt.landmarks().means, xy, c=1.0).value)
+            cpu_ms.append(1e3 * c.cpu / ticks)
+
+        def ci(v):
+            v = np.asarray(v)
+            return f"{v.mean():.3f} +- {1.96 * v.std(ddof=1) / math.sqrt(len(v)):.3f}"
+
+        print(f"{method:<5} right associations {ci(fr)}   map GOSPA [m] {ci(gs)}   "
+              f"CPU ms/tick {np.mean(cpu_ms):.2f}")
+        figure(f"FastSLAM {method} on look-alike pairs: share of right associations", float(np.mean(fr)), "")
 
 
 def main() -> None:
@@ -178,15 +266,23 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--accuracy", type=int, default=0, metavar="RUNS",
                     help="also the accuracy table on slam_loop over RUNS seeded runs")
+    ap.add_argument("--association", type=int, default=0, metavar="RUNS",
+                    help="FastSLAM's ML against JCBB on look-alike pairs over RUNS seeded runs")
     args = ap.parse_args()
+    if args.association:
+        association(args.association)
+        return
     if args.accuracy:
         accuracy(args.accuracy)
         return
     ticks = 20 if args.quick else 100
     print(f"{'filter':<42} {'ms/tick':>8} {'cpu ms':>8} {'landmarks':>9} {'readings':>9}")
-    for spec, label, params in (("ekf_slam", "EKF-SLAM", None),
-                                ("fastslam", "FastSLAM 2.0, 100 particles", {"n_particles": 100})):
-        for hide in (False, True):
+    for spec, label, params, hides in (
+            ("ekf_slam", "EKF-SLAM", None, (False, True)),
+            ("fastslam", "FastSLAM 2.0, 100 particles", {"n_particles": 100}, (False, True)),
+            ("fastslam", "FastSLAM 2.0 + JCBB, 100 particles", {"n_particles": 100, "association": "jcbb"},
+             (True,))):
+        for hide in hides:
             corr = "unknown" if hide else "known"
             wall, cpu, M, per = time_filter(spec, ticks, hide, params)
             what = f"{label}, {M} landmarks, {corr} correspondence"

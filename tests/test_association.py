@@ -209,12 +209,12 @@ def test_jcbbs_incremental_joint_nis_equals_the_stacked_one(singular):
     z = np.column_stack([rng.uniform(0, 8, 4), rng.uniform(-math.pi, math.pi, 4)])
     A = rng.normal(size=(3, 2 if singular else 3)) * 0.3
     lin = assoc.linearise("range_bearing", z, np.array([0.2, -0.1, 1.0]), A @ A.T, xy, [0.2, 0.05])
-    joint = assoc._JointInformation(lin)
+    joint = assoc.JointInformation.of(lin)
     for cols in itertools.permutations(range(5), 4):
-        state = (0.0, np.zeros(3), np.zeros((3, 3)))
+        state = joint.start()
         for i, j in enumerate(cols):
-            a, b, M, values = joint.grow(state, i, [j])
-            state = (float(a[0]), b[0], M[0])
+            states, values = joint.grow(state, i, [j])
+            state = states[0]
             direct = assoc.joint_nis(lin, tuple(zip(range(i + 1), cols[: i + 1], strict=True)))
             assert values[0] == pytest.approx(direct, rel=1e-8)
 

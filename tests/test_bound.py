@@ -29,6 +29,7 @@ FILTERS = {
     "ulps_circle": ["ekf", "ukf", "pf"],
     "global_kidnap": ["pf", "histogram"],
     "slam_loop": ["ekf_slam", "fastslam"],  # the known-map bound is a floor for SLAM too
+    "slam_bearing_only": ["ekf_slam"],  # bearing-only SLAM (issue 29): a floor too
     "lookalike_beacons": ["ekf", "pf"],  # readings without IDs: the bound knows them (a floor)
 }
 RUNS = 8

@@ -155,7 +155,9 @@ def test_run_json_gives_each_slam_filter_its_map_and_path_figures(slam_json):
     ekf_slam = rows["ekf_slam"]["slam"]
     assert ekf_slam["joint_dof"] == 3 + 2 * ekf_slam["map_landmarks"]  # no tentative ones with IDs
     assert np.isfinite(ekf_slam["joint_nees"]) and ekf_slam["joint_nees"] > 0
-    assert rows["fastslam"]["slam"]["joint_nees"] is None  # no joint Gaussian to test
+    fastslam = rows["fastslam"]["slam"]  # joint(): the particles' means, the linearised covariance
+    assert fastslam["joint_dof"] == 3 + 2 * fastslam["map_landmarks"]
+    assert np.isfinite(fastslam["joint_nees"]) and fastslam["joint_nees"] > 0
     assert rows["Dies"]["failed"] and rows["Dies"]["slam"] is None  # a failed filter: no score
     assert "slam" not in rows["ekf"]  # a localization filter has no map to score
 
@@ -177,7 +179,8 @@ def test_run_text_prints_the_slam_table(slam_json):
     assert "GOSPA m" in lines[head] and "joint NEES" in lines[head]
     body = {ln.split()[0]: ln for ln in lines[head + 1:head + 4]}
     assert set(body) == {"ekf_slam", "fastslam", "Dies"}
-    assert "FAILED: no score" in body["Dies"] and "n/a" in body["fastslam"]
+    assert "FAILED: no score" in body["Dies"] and "n/a" not in body["fastslam"]
+    assert len(body["fastslam"].split()) == 8
     assert len(body["ekf_slam"].split()) == 8  # every figure, the joint NEES and its dof
 
 

@@ -14,7 +14,9 @@ their ``beacon_ids`` (n,).
   pairings pass, with d degrees of freedom).
 - :func:`nearest_neighbour`: greedy nearest neighbour inside the gate.
 - :func:`jcbb`: joint compatibility branch and bound (Neira and Tardos 2001), with a node cap
-  and a fallback to nearest neighbour.
+  and a fallback to nearest neighbour; its search, :func:`jcbb_search`, is the one JCBB of
+  the package (EKF-SLAM's full state and FastSLAM's particles call it with their own
+  joint test; :func:`linearised_landmarks` is a particle's linearisation).
 - :func:`joint_nis`: the joint NIS of a pairing, with the cross terms the shared pose error
   induces between readings.
 - :func:`particle_ml_association`: per particle and reading, the most likely beacon and its
@@ -36,7 +38,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -114,6 +116,9 @@ class Linearised:
         Innovation covariance of one reading paired with beacon j.
     d2 : ndarray, shape (m, n)
         Squared Mahalanobis distances; ``inf`` where undefined (beacon on the robot).
+    Z : ndarray, shape (n, d, d), optional
+        Each candidate's own noise when it is not just ``diag(r)``: a mapped landmark's
+        ``Hm C Hm^T + R`` (FastSLAM, :func:`linearised_landmarks`). None: ``diag(r)``.
     """
 
     kind: str
@@ -123,6 +128,7 @@ class Linearised:
     r: np.ndarray
     S: np.ndarray
     d2: np.ndarray
+    Z: np.ndarray | None = None
 
     @property
     def dim(self) -> int:
@@ -190,6 +196,25 @@ def linearise(kind: str, z: np.ndarray, mean: np.ndarray, cov: np.ndarray,
     return Linearised(kind, nu, H, P, r, S, d2)
 
 
+def linearised_landmarks(kind: str, nu: np.ndarray, H: np.ndarray, P: np.ndarray, Z: np.ndarray,
+                         R: np.ndarray, d2: np.ndarray | None = None) -> Linearised:
+    """A linearisation against uncertain landmarks (one FastSLAM particle's map): innovations
+    ``nu`` (m, n, d), pose Jacobians ``H`` (n, d, 3), pose covariance ``P`` (3, 3) and each
+    landmark's ``Z_j = Hm C_j Hm^T + R`` (n, d, d) (R (d, d) the reading noise), so
+    ``S_j = H_j P H_j^T + Z_j``. Landmarks are independent of each other given the pose, so
+    only the pose error is shared between readings. ``d2`` (m, n) when the caller has it
+    (``inf`` for a landmark to leave out)."""
+    S = H @ P @ H.transpose(0, 2, 1) + Z
+    if d2 is None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ok = np.all(np.isfinite(S), axis=(1, 2))
+            S_safe = np.where(ok[:, None, None], S, np.eye(S.shape[-1]))
+            w = np.linalg.solve(S_safe[None, :, :, :], nu[..., None])[..., 0]
+            d2 = np.where(ok[None, :], np.einsum("mnd,mnd->mn", nu, w), np.inf)
+        d2 = np.where(np.isfinite(d2), d2, np.inf)
+    return Linearised(kind, nu, H, P, np.diag(np.asarray(R, dtype=float)).copy(), S, d2, Z)
+
+
 @lru_cache(maxsize=256)
 def gate(prob: float, dof: int) -> float:
     """The chi-square ``prob`` quantile with ``dof`` degrees of freedom (a squared
@@ -211,7 +236,14 @@ def joint_nis(lin: Linearised, pairing: Pairing) -> float:
     cols = np.array([j for _, j in pairing])
     nu = lin.nu[rows, cols].reshape(-1)
     H = lin.H[cols].reshape(-1, 3)
-    S = H @ lin.P @ H.T + np.diag(np.tile(lin.r, len(pairing)))
+    if lin.Z is None:
+        D = np.diag(np.tile(lin.r, len(pairing)))
+    else:  # block diagonal: each landmark's own noise, independent of the others'
+        d = lin.dim
+        D = np.zeros((d * len(pairing), d * len(pairing)))
+        for k, j in enumerate(cols):
+            D[k * d:(k + 1) * d, k * d:(k + 1) * d] = lin.Z[j]
+    S = H @ lin.P @ H.T + D
     if not np.all(np.isfinite(S)):
         return math.inf
     try:
@@ -268,29 +300,47 @@ class _NodeCap(Exception):
     """JCBB visited more nodes than allowed."""
 
 
-class _JointInformation:
+class JointInformation:
     """The joint NIS of growing pairings in O(1) per added pair, for the JCBB search.
 
-    With R diagonal, Woodbury's identity turns the stacked ``nu^T (H P H^T + R)^-1 nu`` into
-    ``a - b^T (I + P M)^-1 P b`` with the sums over the pairs ``a = nu^T R^-1 nu`` (scalar),
-    ``b = H^T R^-1 nu`` (3,) and ``M = H^T R^-1 H`` (3, 3): adding a pair adds its terms and
-    costs one 3 x 3 solve, whatever the number of pairs. Valid for a singular P too
-    (``I + P M`` is invertible for P, M positive semi-definite). :func:`joint_nis` is the
-    direct form, used for the reported figure; the tests hold the two together.
+    Woodbury's identity turns the stacked ``nu^T (H P H^T + D)^-1 nu`` (``D`` block diagonal:
+    each pair's own noise) into ``a - b^T (I + P M)^-1 P b`` with the sums over the pairs
+    ``a = nu^T D^-1 nu`` (scalar), ``b = H^T D^-1 nu`` (3,) and ``M = H^T D^-1 H`` (3, 3):
+    adding a pair adds its terms and costs one 3 x 3 solve, whatever the number of pairs.
+    Valid for a singular P too (``I + P M`` is invertible for P, M positive semi-definite).
+    :func:`joint_nis` is the direct form, used for the reported figure; the tests hold the two
+    together.
+
+    ``a`` (m, n), ``b`` (m, n, 3), ``M`` (n, 3, 3): every reading i against every candidate j;
+    ``P`` (3, 3) the covariance of the shared pose. Build it from a :class:`Linearised`
+    (:meth:`of`) or directly from these sums (FastSLAM computes them for all its particles
+    at once and hands each particle its slice).
     """
 
-    def __init__(self, lin: Linearised):
-        w = 1.0 / lin.r  # (d,)
-        self.P = lin.P
-        self.a = np.einsum("mnd,d,mnd->mn", lin.nu, w, lin.nu)  # (m, n)
-        self.b = np.einsum("ndk,d,mnd->mnk", lin.H, w, lin.nu)  # (m, n, 3)
-        self.M = np.einsum("ndk,d,ndl->nkl", lin.H, w, lin.H)  # (n, 3, 3)
+    def __init__(self, P: np.ndarray, a: np.ndarray, b: np.ndarray, M: np.ndarray):
+        self.P, self.a, self.b, self.M = P, a, b, M
         self.eye = np.eye(3)
 
+    @classmethod
+    def of(cls, lin: Linearised) -> JointInformation:
+        """The sums of a linearisation: ``D = R`` (diagonal) or, when ``lin.Z`` is given, each
+        candidate's own ``Z_j`` (reading noise plus the landmark's uncertainty)."""
+        if lin.Z is None:
+            w = 1.0 / lin.r  # (d,)
+            a = np.einsum("mnd,d,mnd->mn", lin.nu, w, lin.nu)  # (m, n)
+            b = np.einsum("ndk,d,mnd->mnk", lin.H, w, lin.nu)  # (m, n, 3)
+            M = np.einsum("ndk,d,ndl->nkl", lin.H, w, lin.H)  # (n, 3, 3)
+            return cls(lin.P, a, b, M)
+        return cls(lin.P, *information_sums(lin.nu, lin.H, lin.Z))
+
+    def start(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """The sums of the empty pairing."""
+        return (0.0, np.zeros(3), np.zeros((3, 3)))
+
     def grow(self, state: tuple[float, np.ndarray, np.ndarray], i: int, cols: list[int]
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The sums with pair (i, j) added, for every j of ``cols`` at once (c,), (c, 3),
-        (c, 3, 3), and the joint NIS of each grown pairing (c,) (``inf`` where undefined)."""
+             ) -> tuple[list[tuple[float, np.ndarray, np.ndarray]], np.ndarray]:
+        """The sums with pair (i, j) added, for every j of ``cols`` at once, and the joint NIS
+        of each grown pairing (c,) (``inf`` where undefined)."""
         a = state[0] + self.a[i, cols]
         b = state[1] + self.b[i, cols]
         M = state[2] + self.M[cols]
@@ -301,39 +351,76 @@ class _JointInformation:
                 value = a - np.einsum("ck,ck->c", b, x)
             except np.linalg.LinAlgError:
                 value = np.full(len(cols), np.inf)
-        return a, b, M, np.where(np.isfinite(value), value, np.inf)
+        states = [(float(a[c]), b[c], M[c]) for c in range(len(cols))]
+        return states, np.where(np.isfinite(value), value, np.inf)
 
 
-def jcbb(lin: Linearised, beacon_ids: np.ndarray, prob: float = GATE_PROB,
-         max_nodes: int = MAX_NODES) -> Association:
-    """Joint compatibility branch and bound (Neira and Tardos 2001).
+def information_sums(nu: np.ndarray, H: np.ndarray, Z: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:class:`JointInformation`'s per-pair terms with a full noise ``Z_j`` per candidate,
+    for any leading batch axes (FastSLAM: one per particle).
 
-    Depth-first over the readings, those with the fewest individually compatible beacons
-    first (readings with none are clutter and skipped). At reading i, each beacon that is individually
-    compatible with it (``d2 <= gate(prob, d)``, nearest first) and not yet used is tried; the
-    branch is kept only if the whole pairing so far stays jointly compatible
-    (``joint_nis <= gate(prob, d k)`` for k pairs, with the cross terms). Then the branch that
-    leaves reading i unpaired (clutter) is tried. A branch is cut when even pairing every
-    reading left could not reach the best number of pairs found. The answer: the most
-    pairs; among pairings with as many, the lowest joint NIS.
-
-    Bounded: after ``max_nodes`` nodes the search stops and the result is
-    :func:`nearest_neighbour`'s, with ``method = "nn-fallback"`` (so a tick never stalls).
+    nu (..., m, n, d), H (..., n, d, 3), Z (..., n, d, d) -> a (..., m, n), b (..., m, n, 3),
+    M (..., n, 3, 3). A candidate whose Z is not finite or not invertible gets ``a = inf``.
     """
-    _check_ids(lin, beacon_ids)
-    g = gate(prob, lin.dim)
-    candidates = [[int(j) for j in np.argsort(lin.d2[i], kind="stable") if lin.d2[i, j] <= g]
-                  for i in range(lin.nu.shape[0])]
+    ok = np.all(np.isfinite(Z), axis=(-2, -1))
+    Zs = np.where(ok[..., None, None], Z, np.eye(Z.shape[-1]))
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        W = np.linalg.inv(Zs)
+        a = np.einsum("...mnd,...nde,...mne->...mn", nu, W, nu)
+        WH = W @ H
+        b = np.einsum("...nek,...mne->...mnk", WH, nu)
+        M = np.einsum("...ndk,...ndl->...nkl", H, WH)
+    a = np.where(ok[..., None, :] & np.isfinite(a), a, np.inf)
+    return a, np.nan_to_num(b), np.nan_to_num(M)
+
+
+class JointTest(Protocol):
+    """What the JCBB search asks of a state: the empty pairing's ``start()`` state, and
+    ``grow(state, i, cols) -> (states, values)``, the state and the joint NIS of the pairing
+    with (i, j) added, for each j of cols. :class:`JointInformation` is one (a pose-only
+    Gaussian, or a particle's pose proposal with its landmarks); EKF-SLAM's full-state test
+    (``ekf_slam.FullStateJoint``) another."""
+
+    def start(self) -> Any: ...
+
+    def grow(self, state: Any, i: int, cols: list[int]) -> tuple[Sequence[Any], np.ndarray]: ...
+
+
+def jcbb_search(d2: np.ndarray, dims: Sequence[int], joint: JointTest, prob: float = GATE_PROB,
+                max_nodes: int = MAX_NODES) -> tuple[Pairing | None, float, int]:
+    """The branch and bound of joint compatibility (Neira and Tardos 2001), the one home of
+    JCBB (the known-map :func:`jcbb`, EKF-SLAM and FastSLAM's per-particle option call it).
+
+    Parameters
+    ----------
+    d2 : ndarray, shape (m, n)
+        Each reading's squared Mahalanobis distance to each candidate (``inf``: impossible).
+    dims : the width of each reading (its degrees of freedom)
+    joint : a :class:`JointTest` (``start``, ``grow``)
+    prob : a candidate is tried only inside ``gate(prob, dims[i])``; a pairing of k readings
+        is kept only if its joint NIS is inside ``gate(prob, sum of their dims)``.
+    max_nodes : past this many search nodes the search stops.
+
+    Returns
+    -------
+    pairing : the most pairs; among as many, the lowest joint NIS (sorted by reading); None
+        when the search passed ``max_nodes``.
+    nis : its joint NIS
+    nodes : search nodes visited
+    """
+    m_all = d2.shape[0]
+    candidates = [[int(j) for j in np.argsort(d2[i], kind="stable") if d2[i, j] <= gate(prob, int(dims[i]))]
+                  for i in range(m_all)]
     # Most constrained first: readings with the fewest candidates branch least near the root.
     # Readings with none are clutter whatever happens and are left out of the search.
     order = sorted((i for i, c in enumerate(candidates) if c), key=lambda i: (len(candidates[i]), i))
     m = len(order)
-    joint = _JointInformation(lin)
     best: list = [(), 0.0]  # pairing, its joint NIS
     nodes = 0
 
-    def visit(k: int, pairing: Pairing, used: frozenset[int],
-              state: tuple[float, np.ndarray, np.ndarray], nis_value: float) -> None:
+    def visit(k: int, pairing: Pairing, used: frozenset[int], state: Any, dof: int,
+              nis_value: float) -> None:
         nonlocal nodes
         nodes += 1
         if nodes > max_nodes:
@@ -347,18 +434,43 @@ def jcbb(lin: Linearised, beacon_ids: np.ndarray, prob: float = GATE_PROB,
         i = order[k]
         free = [j for j in candidates[i] if j not in used]
         if free:
-            a, b, M, values = joint.grow(state, i, free)
-            limit = gate(prob, lin.dim * (len(pairing) + 1))
+            states, values = joint.grow(state, i, free)
+            d = int(dims[i])
+            limit = gate(prob, dof + d)
             for c, j in enumerate(free):
                 if values[c] <= limit:
-                    visit(k + 1, (*pairing, (i, j)), used | {j}, (float(a[c]), b[c], M[c]), float(values[c]))
-        visit(k + 1, pairing, used, state, nis_value)  # reading i is clutter
+                    visit(k + 1, (*pairing, (i, j)), used | {j}, states[c], dof + d, float(values[c]))
+        visit(k + 1, pairing, used, state, dof, nis_value)  # reading i is clutter
 
     try:
-        visit(0, (), frozenset(), (0.0, np.zeros(3), np.zeros((3, 3))), 0.0)
+        visit(0, (), frozenset(), joint.start(), 0, 0.0)
     except _NodeCap:
+        return None, math.inf, nodes - 1
+    return tuple(sorted(best[0])), float(best[1]), nodes
+
+
+def jcbb(lin: Linearised, beacon_ids: np.ndarray, prob: float = GATE_PROB,
+         max_nodes: int = MAX_NODES) -> Association:
+    """Joint compatibility branch and bound (Neira and Tardos 2001) on a known map.
+
+    Depth-first over the readings, those with the fewest individually compatible beacons
+    first (readings with none are clutter and skipped). At reading i, each beacon that is individually
+    compatible with it (``d2 <= gate(prob, d)``, nearest first) and not yet used is tried; the
+    branch is kept only if the whole pairing so far stays jointly compatible
+    (``joint_nis <= gate(prob, d k)`` for k pairs, with the cross terms). Then the branch that
+    leaves reading i unpaired (clutter) is tried. A branch is cut when even pairing every
+    reading left could not reach the best number of pairs found. The answer: the most
+    pairs; among pairings with as many, the lowest joint NIS (:func:`jcbb_search`).
+
+    Bounded: after ``max_nodes`` nodes the search stops and the result is
+    :func:`nearest_neighbour`'s, with ``method = "nn-fallback"`` (so a tick never stalls).
+    """
+    _check_ids(lin, beacon_ids)
+    pairing, _, nodes = jcbb_search(lin.d2, [lin.dim] * lin.nu.shape[0], JointInformation.of(lin),
+                                    prob, max_nodes)
+    if pairing is None:
         return _association(lin, _nn_pairing(lin, prob), beacon_ids, "nn-fallback", max_nodes)
-    return _association(lin, tuple(sorted(best[0])), beacon_ids, "jcbb", nodes)
+    return _association(lin, pairing, beacon_ids, "jcbb", nodes)
 
 
 def particle_ml_association(kind: str, z: np.ndarray, poses: np.ndarray, beacon_xy: np.ndarray,

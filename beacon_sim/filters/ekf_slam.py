@@ -36,6 +36,12 @@ lost); a later bearing whose ray crosses the first at more than ``min_parallax``
 landmark at the crossing, with its covariance and cross terms from the Jacobians of the
 crossing in both poses and both bearings, and the copy is marginalised out. Each reading is
 used once. Unlabelled bearings update landmarks already on the map but start none.
+
+Bearing-only, known IDs, ``bearing_init = "inverse_depth"`` (Civera, Davison and Montiel
+2008; ``inverse_depth.py``): the first bearing puts the landmark into the state at once as
+``(x0, y0, theta, rho)`` (after the Euclidean landmarks), every later bearing updates it, and
+it is converted to a Euclidean ``(x, y)`` when its linearity index is below
+``linearity_threshold``.
 """
 
 from __future__ import annotations
@@ -48,7 +54,9 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import jacobian_state, move
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters import inverse_depth
 from beacon_sim.filters.association import gate as chi2_gate
+from beacon_sim.filters.association import jcbb_search
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, LandmarkMap, broad_gaussian
 from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
 
@@ -80,11 +88,23 @@ class EKFSLAM(SlamFilterBase):
         Unknown correspondence: a new landmark is tentative until it has been given this
         many readings; a tentative landmark the sensor should have seen and did not is
         dropped (clutter). ``landmarks()`` reports only the confirmed ones.
+    bearing_init : str, default "delayed"
+        Bearing-only, known IDs: ``"delayed"`` (a pose copy, then triangulation past
+        ``min_parallax``) or ``"inverse_depth"`` (Civera, Davison and Montiel 2008: the
+        landmark enters the state at its first bearing as ``(x0, y0, theta, rho)``, every
+        later bearing updates it, and it becomes a Euclidean ``(x, y)`` once its linearity
+        index falls below ``linearity_threshold``; ``inverse_depth.py``).
+    inverse_depth_rho, inverse_depth_std : float, defaults 0.25, 0.25 [1/m]
+        The inverse depth's prior mean and standard deviation: the 95 % region
+        [-0.25, 0.75] 1/m holds infinity (rho = 0) and every depth beyond 1.33 m.
+    linearity_threshold : float, default 0.1
+        Convert an inverse-depth landmark to Euclidean when its linearity index is below this.
     """
 
     defaults: ClassVar[dict] = {"gate_prob": 0.99, "new_landmark_prob": 0.9999, "max_landmarks": 500,
                                 "confirm_hits": 2, "association": "jcbb", "max_nodes": 1000,
-                                "min_parallax": 0.3}
+                                "min_parallax": 0.3, "bearing_init": "delayed", "inverse_depth_rho": 0.25,
+                                "inverse_depth_std": 0.25, "linearity_threshold": 0.1}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
@@ -100,6 +120,12 @@ class EKFSLAM(SlamFilterBase):
         if self.params["association"] not in ("jcbb", "nn"):
             raise FilterError(f"{type(self).__name__}: parameter association = "
                               f"{self.params['association']!r}: expected 'jcbb' or 'nn'")
+        if self.params["bearing_init"] not in ("delayed", "inverse_depth"):
+            raise FilterError(f"{type(self).__name__}: parameter bearing_init = "
+                              f"{self.params['bearing_init']!r}: expected 'delayed' or 'inverse_depth'")
+        if not float(self.params["inverse_depth_std"]) > 0.0:
+            raise FilterError(f"{type(self).__name__}: parameter inverse_depth_std = "
+                              f"{self.params['inverse_depth_std']!r}: expected a number > 0")
         self.reset(None)
 
     # -- belief ----------------------------------------------------------------------------
@@ -112,14 +138,15 @@ class EKFSLAM(SlamFilterBase):
         self.ids, self.index, self.last_pairs = [], {}, []
         self.hits = []
         self.copies: list[tuple[int, float]] = []  # (beacon ID, first bearing) per pose copy
+        self.idp: list[int] = []  # beacon ID of each inverse-depth landmark (4 wide, after _end)
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         return self.mu[:3].copy(), self.P[:3, :3].copy()
 
     @property
     def _end(self) -> int:
-        """One past the last landmark's state index (the pose copies of bearing-only
-        initialisation follow)."""
+        """One past the last landmark's state index (bearing-only initialisation's pose
+        copies, 3 wide, or inverse-depth landmarks, 4 wide, follow)."""
         return 3 + 2 * len(self.ids)
 
     def joint(self) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
@@ -284,6 +311,62 @@ class EKFSLAM(SlamFilterBase):
         self._insert(m, Pmx, Pmm, rd.beacon_id)
         self._drop_copy(k)
 
+    # -- bearing-only: inverse-depth initialisation ----------------------------------------
+    def _inverse_depth(self, rd: Reading) -> None:
+        """A bearing of a beacon not on the Euclidean map (known IDs, ``bearing_init =
+        "inverse_depth"``): the first one puts the landmark into the state as ``(x0, y0,
+        theta, rho)`` (``inverse_depth.initialise``, the prior ``rho ~ N(inverse_depth_rho,
+        inverse_depth_std^2)``; its cross terms from the pose); later ones update it with the
+        inverse-depth model (``inverse_depth.observe``), and once its linearity index is below
+        ``linearity_threshold`` it is converted to a Euclidean landmark."""
+        if rd.beacon_id not in self.idp:
+            if len(self.ids) + len(self.idp) >= int(self.params["max_landmarks"]):
+                return
+            y, Gx, Gz = inverse_depth.initialise(self.mu[:3], float(rd.z[0]),
+                                                 float(self.params["inverse_depth_rho"]))
+            P = self.P
+            n = P.shape[0]
+            big = np.zeros((n + 4, n + 4))
+            big[:n, :n] = P
+            big[n:, :n] = Gx @ P[:3, :]
+            big[:n, n:] = big[n:, :n].T
+            Pyy = Gx @ P[:3, :3] @ Gx.T + rd.R[0, 0] * np.outer(Gz, Gz)
+            Pyy[3, 3] += float(self.params["inverse_depth_std"]) ** 2
+            big[n:, n:] = 0.5 * (Pyy + Pyy.T)
+            self.P = big
+            self.mu = np.concatenate([self.mu, y])
+            self.idp.append(rd.beacon_id)
+            return
+        k = self.idp.index(rd.beacon_id)
+        c = self._end + 3 * len(self.copies) + 4 * k
+        zhat, Hx, Hy = inverse_depth.observe(self.mu[:3], self.mu[c:c + 4])
+        nu = np.array([wrap(float(rd.z[0]) - zhat)])
+        PHt = self.P[:, :3] @ Hx[:, None] + self.P[:, c:c + 4] @ Hy[:, None]   # (n, 1)
+        S = float(Hx @ PHt[:3, 0] + Hy @ PHt[c:c + 4, 0]) + rd.R[0, 0]
+        K = PHt / S
+        self.mu += (K @ nu)
+        self.mu[2] = wrap(self.mu[2])
+        self.mu[c + 2] = wrap(self.mu[c + 2])
+        self.P -= K @ PHt.T
+        self.P = 0.5 * (self.P + self.P.T)
+        L = inverse_depth.linearity_index(self.mu[c:c + 4], float(self.P[c + 3, c + 3]), self.mu[:2])
+        if L < float(self.params["linearity_threshold"]):
+            self._to_euclidean(k)
+
+    def _to_euclidean(self, k: int) -> None:
+        """Convert inverse-depth landmark k to a Euclidean one: ``m = (x0, y0) + (cos theta,
+        sin theta) / rho`` with ``P' = J P J^T`` over its block (``inverse_depth.to_xy``)."""
+        c = self._end + 3 * len(self.copies) + 4 * k
+        m, J = inverse_depth.to_xy(self.mu[c:c + 4])
+        bid = self.idp[k]
+        keep = np.r_[0:c, c + 4:self.mu.size]
+        Pmx = J @ self.P[c:c + 4, :][:, keep]
+        Pmm = J @ self.P[c:c + 4, c:c + 4] @ J.T
+        self.mu = self.mu[keep]
+        self.P = self.P[np.ix_(keep, keep)]
+        del self.idp[k]
+        self._insert(m, Pmx, Pmm, bid)
+
     def _remove(self, j: int) -> None:
         """Marginalise landmark j out of the state (drop its rows and columns)."""
         keep = np.r_[0:3 + 2 * j, 5 + 2 * j:self.mu.size]
@@ -313,8 +396,18 @@ class EKFSLAM(SlamFilterBase):
                 pairs.append((row, None))
                 continue
             j = self.index.get(rd.beacon_id)
+            if j is None and rd.beacon_id in self.idp:
+                if rd.kind == "bearing":
+                    self._inverse_depth(rd)
+                    pairs.append((row, self.index.get(rd.beacon_id)))
+                    continue
+                self._to_euclidean(self.idp.index(rd.beacon_id))  # a range: make it Euclidean
+                j = self.index[rd.beacon_id]
             if j is None and rd.kind == "bearing":
-                self._bearing_only(rd)
+                if self.params["bearing_init"] == "inverse_depth":
+                    self._inverse_depth(rd)
+                else:
+                    self._bearing_only(rd)
                 pairs.append((row, self.index.get(rd.beacon_id)))
             elif j is None:
                 k = next((i for i, (bid, _) in enumerate(self.copies) if bid == rd.beacon_id), None)
@@ -371,46 +464,18 @@ class EKFSLAM(SlamFilterBase):
         except np.linalg.LinAlgError:
             return float("inf")
 
-    def _jcbb(self, pending: list[Reading], d2: np.ndarray, gate: np.ndarray) -> dict[int, int] | None:
-        """Joint compatibility branch and bound over the full SLAM state (as
-        ``association.jcbb``, which works on a pose-only covariance): the most readings
-        paired, among those the lowest joint NIS, each pairing jointly inside the
-        ``gate_prob`` quantile for its degrees of freedom. None when the search passes
-        ``max_nodes`` (the caller falls back to nearest neighbour)."""
-        prob = float(self.params["gate_prob"])
-        cand = [[int(j) for j in np.argsort(d2[i], kind="stable") if d2[i, j] <= gate[i]]
-                for i in range(len(pending))]
-        order = sorted((i for i, c in enumerate(cand) if c), key=lambda i: (len(cand[i]), i))
-        best: list = [(), float("inf")]
-        nodes = 0
-        cap = int(self.params["max_nodes"])
-
-        def visit(k: int, pairs: tuple, used: frozenset, dof: int, value: float) -> bool:
-            nonlocal nodes
-            nodes += 1
-            if nodes > cap:
-                return False
-            if len(pairs) + (len(order) - k) < len(best[0]):
-                return True
-            if k == len(order):
-                if len(pairs) > len(best[0]) or (len(pairs) == len(best[0]) and value < best[1]):
-                    best[0], best[1] = pairs, value
-                return True
-            i = order[k]
-            d = pending[i].z.size
-            for j in cand[i]:
-                if j in used:
-                    continue
-                grown = (*pairs, (i, j))
-                v = self.joint_nis(pending, grown)
-                if v <= chi2_gate(prob, dof + d) and not visit(k + 1, grown, used | {j}, dof + d, v):
-                    return False
-            return visit(k + 1, pairs, used, dof, value)  # reading i left unpaired
-
-        if not visit(0, (), frozenset(), 0, 0.0):
+    def _jcbb(self, pending: list[Reading], d2: np.ndarray) -> dict[int, int] | None:
+        """Joint compatibility branch and bound over the full SLAM state
+        (``association.jcbb_search``, the package's one JCBB, with :class:`FullStateJoint`):
+        the most readings paired, among those the lowest joint NIS, each pairing jointly
+        inside the ``gate_prob`` quantile for its degrees of freedom. None when the search
+        passes ``max_nodes`` (the caller falls back to nearest neighbour)."""
+        pairing, _, nodes = jcbb_search(d2, [rd.z.size for rd in pending], FullStateJoint(self, pending),
+                                        float(self.params["gate_prob"]), int(self.params["max_nodes"]))
+        if pairing is None:
             return None
         self.last_nodes = nodes
-        return dict(best[0])
+        return dict(pairing)
 
     def _associate(self, pending: list[Reading]) -> set[int]:
         """Pair the tick's unlabelled readings with landmarks and anchors (JCBB or nearest
@@ -425,7 +490,7 @@ class EKFSLAM(SlamFilterBase):
         chosen = nn_pairs(d2, gate)
         self.last_method = "nn"
         if self.params["association"] == "jcbb" and d2.size:
-            found = self._jcbb(pending, d2, gate)
+            found = self._jcbb(pending, d2)
             if found is not None:
                 chosen = found
                 self.last_method = "jcbb"
@@ -447,6 +512,23 @@ class EKFSLAM(SlamFilterBase):
                 if j_new is not None:
                     seen.add(j_new)
         return seen
+
+
+class FullStateJoint:
+    """EKF-SLAM's joint test for ``association.jcbb_search``: a state is the pairing so far,
+    and growing it evaluates :meth:`EKFSLAM.joint_nis` of each grown pairing (the stacked
+    innovations against ``H P H^T + R`` over the whole state: pose and landmark cross terms)."""
+
+    def __init__(self, flt: EKFSLAM, pending: list[Reading]):
+        self.flt, self.pending = flt, pending
+
+    def start(self) -> tuple[tuple[int, int], ...]:
+        return ()
+
+    def grow(self, state: tuple[tuple[int, int], ...], i: int, cols: list[int]
+             ) -> tuple[list[tuple[tuple[int, int], ...]], np.ndarray]:
+        grown = [(*state, (i, j)) for j in cols]
+        return grown, np.array([self.flt.joint_nis(self.pending, g) for g in grown])
 
 
 def nn_pairs(d2: np.ndarray, gate: np.ndarray) -> dict[int, int]:

@@ -24,7 +24,9 @@ A reading of a landmark not yet in a particle's map puts one there (``slam_base.
 
 Association per particle (readings without IDs): each particle pairs each reading with its
 own most likely landmark (lowest ``d2 + log det L``, against the motion-only proposal, all
-the tick's readings at once); within the ``gate_prob`` gate it is
+the tick's readings at once), or with ``association = "jcbb"`` takes the jointly compatible
+pairing of all of them (JCBB against the proposal, whose pose error the readings share);
+within the ``gate_prob`` gate it is
 used; beyond the ``new_landmark_prob`` quantile it starts a landmark; in between it only
 weighs the particle by ``p0``. Particles with different maps can hold different pairings.
 Anchors (beacons whose position the filter is given) are landmarks with C = 0 that are
@@ -35,7 +37,8 @@ never updated. Resampling (systematic) when the effective sample size falls belo
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
@@ -44,16 +47,26 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.motion import MotionNoise, move
 from beacon_sim.core.types import Control, Measurement
+from beacon_sim.filters.association import JointInformation, information_sums, jcbb_search
 from beacon_sim.filters.association import gate as chi2_gate
 from beacon_sim.filters.base import (
     FilterContext,
+    FilterError,
     GaussianBelief,
     LandmarkMap,
     ParticleBelief,
     broad_gaussian,
 )
 from beacon_sim.filters.resampling import effective_sample_size, systematic
-from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
+from beacon_sim.filters.slam_base import (
+    SLAM_KINDS,
+    Reading,
+    SlamFilterBase,
+    innovation,
+    observe,
+    place,
+    unknown,
+)
 
 #: Target of a reading for one particle: a slot index (>= 0), or one of these.
 NEW = -1      # start a landmark
@@ -125,16 +138,42 @@ class FastSLAM2(SlamFilterBase):
     confirm_hits : int, default 2
         Unknown correspondence: an unlabelled landmark is tentative until given this many
         readings; a tentative one in view that gets none is dropped (clutter).
+    association : str, default "ml"
+        Unknown correspondence, per particle: ``"ml"`` (each reading its most likely
+        landmark, independently) or ``"jcbb"`` (joint compatibility over the tick's readings
+        against the particle's proposal, each landmark at most once; ``association.jcbb_search``).
+    max_nodes : int, default 200
+        ``"jcbb"``: most search nodes per particle and tick; past them that particle keeps
+        its maximum-likelihood pairing.
+    covariance : str, default "linearised"
+        What ``estimate()``, ``landmarks()`` and ``joint()`` report as the uncertainty (the
+        means are the particles' either way). ``"particles"``: the particle set's own
+        moments, which resampling makes overconfident in the long run (Bailey, Nieto and
+        Nebot 2006). ``"linearised"``: the EKF-SLAM covariance recursion run alongside,
+        linearised at the particles' mean each tick (:class:`LinearisedCovariance`), with
+        known IDs; without IDs the particle set's.
     """
 
     defaults: ClassVar[dict] = {"n_particles": 100, "ess_threshold": 0.5, "gate_prob": 0.99,
-                                "new_landmark_prob": 0.9999, "max_landmarks": 500, "confirm_hits": 2}
+                                "new_landmark_prob": 0.9999, "max_landmarks": 500, "confirm_hits": 2,
+                                "association": "ml", "max_nodes": 200, "covariance": "linearised"}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
         self.n = int(self.params["n_particles"])
         self.rng = ctx.rng
         self.n_anchor = len(self.anchors)
+        if self.params["association"] not in ("ml", "jcbb"):
+            raise FilterError(f"{type(self).__name__}: parameter association = "
+                              f"{self.params['association']!r}: expected 'ml' or 'jcbb'")
+        #: ``association = "jcbb"``: the last tick's particles searched, fallbacks, nodes.
+        self.last_jcbb: dict[str, int] = {}
+        if self.params["covariance"] not in ("linearised", "particles"):
+            raise FilterError(f"{type(self).__name__}: parameter covariance = "
+                              f"{self.params['covariance']!r}: expected 'linearised' or 'particles'")
+        #: The last update's target of each reading row (in order) for each particle (N,):
+        #: a landmark slot, NEW or IGNORED (after resampling: of the resampled particles).
+        self.last_targets: list[np.ndarray] = []
         self.reset(None)
 
     # -- state -----------------------------------------------------------------------------
@@ -158,6 +197,8 @@ class FastSLAM2(SlamFilterBase):
         self.count = np.full(n, A, dtype=np.int64)  # slots in use or freed: the high-water mark
         self.prop_mu: np.ndarray | None = None   # the proposal between predict and update
         self.prop_cov: np.ndarray | None = None
+        self.companion = LinearisedCovariance(self.ctx, initial) \
+            if self.params["covariance"] == "linearised" else None
 
     def _draw(self, cov: np.ndarray) -> np.ndarray:
         """One zero-mean Gaussian sample per covariance (N, 3, 3) (semi-definite allowed)."""
@@ -185,6 +226,24 @@ class FastSLAM2(SlamFilterBase):
         return self.poses if self.prop_mu is None else self.prop_mu
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        mean, cov = self._particle_estimate()
+        if self._linearised():
+            assert self.companion is not None
+            cov = self.companion.ekf.P[:3, :3].copy()
+        return mean, cov
+
+    def _linearised(self) -> bool:
+        """Whether the linearised covariance is what is reported: known IDs so far, and every
+        landmark of the particles in it."""
+        c = self.companion
+        if c is None or not c.ok or np.any(self.lid == UNKNOWN_ID):
+            return False
+        mapped = self.lid[:, self.n_anchor:]
+        return all(int(b) in c.ekf.index for b in np.unique(mapped[mapped >= 0]).tolist())
+
+    def _particle_estimate(self) -> tuple[np.ndarray, np.ndarray]:
+        """The particle set's weighted mean pose and covariance (plus, between predict and
+        update, the proposals' own covariance)."""
         w = self.weights
         p = self._poses_now()
         th = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
@@ -223,11 +282,81 @@ class FastSLAM2(SlamFilterBase):
             means[i] = wk @ m
             d = m - means[i]
             covs[i] = np.einsum("n,nij->ij", wk, self.lc[rows, cols]) + (d * wk[:, None]).T @ d
+        if self._linearised():
+            assert self.companion is not None
+            idx = self.companion.ekf.index
+            for i, bid in enumerate(ids.tolist()):
+                if bid in idx:
+                    c = 3 + 2 * idx[bid]
+                    covs[i] = self.companion.ekf.P[c:c + 2, c:c + 2]
         return LandmarkMap(ids, means, covs)
+
+    def joint(self) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
+        """The pose and the map as one Gaussian, for the joint NEES: mean (3 + 2M,), covariance
+        and each landmark's beacon ID (-1 without IDs). The means are the particles' (pose:
+        ``estimate()``; landmarks: ``landmarks()``); the covariance is the linearised one
+        (``covariance = "linearised"``, known IDs) or the particle set's moments over the
+        joint state: ``sum_k w_k (s_k - s)(s_k - s)^T`` plus each particle's landmark
+        covariances on the diagonal blocks. Without IDs: the heaviest particle's map, its
+        landmarks' covariances, no cross terms (particles' maps cannot be averaged)."""
+        mean, cov = self.estimate()
+        lm = self.landmarks()
+        M = len(lm.means)
+        mu = np.concatenate([mean, lm.means.reshape(-1)])
+        if lm.ids is None:
+            P = np.zeros((3 + 2 * M, 3 + 2 * M))
+            P[:3, :3] = cov
+            for j in range(M):
+                P[3 + 2 * j:5 + 2 * j, 3 + 2 * j:5 + 2 * j] = lm.covs[j]
+            return mu, P, (-1,) * M
+        ids = [int(b) for b in lm.ids]
+        if self._linearised():
+            assert self.companion is not None
+            ekf = self.companion.ekf
+            rows = np.r_[0:3, np.array([[3 + 2 * ekf.index[b], 4 + 2 * ekf.index[b]] for b in ids],
+                                       dtype=int).reshape(-1)]
+            return mu, ekf.P[np.ix_(rows, rows)].copy(), tuple(ids)
+        w = self.weights
+        p = self._poses_now()
+        S = np.zeros((self.n, 3 + 2 * M))
+        S[:, :3] = p - mean
+        S[:, 2] = wrap(S[:, 2])
+        P = np.zeros((3 + 2 * M, 3 + 2 * M))
+        if self.prop_cov is not None:
+            P[:3, :3] = np.einsum("n,nij->ij", w, self.prop_cov)
+        for j, bid in enumerate(ids):
+            has = self.lid == bid
+            rows_k = np.flatnonzero(has.any(axis=1))
+            cols = has[rows_k].argmax(axis=1)
+            S[rows_k, 3 + 2 * j:5 + 2 * j] = self.lm[rows_k, cols] - lm.means[j]
+            P[3 + 2 * j:5 + 2 * j, 3 + 2 * j:5 + 2 * j] = np.einsum("n,nij->ij", w[rows_k] / w[rows_k].sum(),
+                                                                  self.lc[rows_k, cols])
+        P += (S * w[:, None]).T @ S
+        return mu, 0.5 * (P + P.T), tuple(ids)
+
+    def _mixture_means(self) -> dict[int, np.ndarray]:
+        """Each labelled landmark's weighted mean over the particles that have it (beacon
+        ID -> (2,)); with known IDs every particle has the same slots, one matrix product."""
+        A = self.n_anchor
+        w = self.weights
+        lid = self.lid[:, A:int(self.count.max())]
+        if lid.size and np.all(lid == lid[0]):
+            cols = np.flatnonzero(lid[0] >= 0)
+            means = np.einsum("n,nci->ci", w, self.lm[:, A + cols])
+            return {int(lid[0, c]): means[q] for q, c in enumerate(cols.tolist())}
+        out: dict[int, np.ndarray] = {}
+        for bid in np.unique(lid[lid >= 0]).tolist():
+            has = self.lid == bid
+            rows = np.flatnonzero(has.any(axis=1))
+            cols_k = has[rows].argmax(axis=1)
+            out[int(bid)] = (w[rows] / w[rows].sum()) @ self.lm[rows, cols_k]
+        return out
 
     # -- prediction ------------------------------------------------------------------------
     def predict(self, control: Control, dt: float) -> None:
         self._sample()  # a tick without update: the motion model alone is the proposal
+        if self.companion is not None:
+            self.companion.predict(self._particle_estimate()[0], control, dt)
         v, w = float(control.v), float(control.omega)
         noise = self.ctx.motion_noise
         self.prop_cov = self._process_covs(v, w, dt) if type(noise) is MotionNoise \
@@ -283,7 +412,8 @@ class FastSLAM2(SlamFilterBase):
         d = zhat.shape[1]
         Hx = Hx.reshape(n, cmax, d, 3)
         Hm = Hm.reshape(n, cmax, d, 2)
-        L = Hx @ Sig[:, None] @ Hx.swapaxes(-1, -2) + Hm @ self.lc[:, :cmax] @ Hm.swapaxes(-1, -2) + R
+        Z = Hm @ self.lc[:, :cmax] @ Hm.swapaxes(-1, -2) + R       # (n, C, d, d)
+        L = Hx @ Sig[:, None] @ Hx.swapaxes(-1, -2) + Z
         z = np.stack([rd.z for rd in rows])                        # (m, d)
         nu = innovation(z[None, :, None, :], zhat.reshape(n, 1, cmax, d))  # (n, m, C, d)
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -299,13 +429,90 @@ class FastSLAM2(SlamFilterBase):
         gate = chi2_gate(float(self.params["gate_prob"]), d)
         new = chi2_gate(float(self.params["new_landmark_prob"]), d)
         tgt = np.where(d2b <= gate, best, np.where(d2b > new, NEW, IGNORED))
+        if self.params["association"] == "jcbb":
+            d2v = np.where(valid & np.isfinite(d2), d2, np.inf)
+            self._jcbb_targets(tgt, nu, Hx, Sig, Z, d2v, d, new)
         return [tgt[:, i] for i in range(m)]
+
+    def _jcbb_targets(self, tgt: np.ndarray, nu: np.ndarray, Hx: np.ndarray, Sig: np.ndarray,
+                      Z: np.ndarray, d2: np.ndarray, d: int, new: float) -> None:
+        """Per-particle JCBB (``association = "jcbb"``): each particle's pairing of the tick's
+        readings with its landmarks by ``association.jcbb_search``, the joint test against the
+        particle's proposal ``Sigma`` (shared by the readings) and each landmark's own
+        ``Z = Hm C Hm^T + R`` (independent landmarks). Only the gated candidates are searched
+        (a particle with none skips the search); each landmark gets at most one reading; a
+        reading left out is NEW beyond the new-landmark distance, else IGNORED. A particle
+        whose search passes ``max_nodes`` keeps its maximum-likelihood targets. Writes
+        ``tgt`` (n, m) in place and counts into ``last_jcbb``."""
+        prob = float(self.params["gate_prob"])
+        cap = int(self.params["max_nodes"])
+        gated = d2 <= chi2_gate(prob, d)                                   # (n, m, C)
+        searched = np.flatnonzero(gated.any(axis=(1, 2)))
+        stats = {"searched": int(searched.size), "unambiguous": 0, "fallback": 0, "nodes": 0}
+        if searched.size:
+            a, b, M = information_sums(nu[searched], Hx[searched], Z[searched])
+            left = np.where(np.min(d2, axis=2, initial=np.inf) > new, NEW, IGNORED)  # (n, m)
+            dims = [d] * tgt.shape[1]
+            easy = self._unambiguous(tgt, searched, gated[searched], Sig[searched], a, b, M, d, prob, left)
+            stats["unambiguous"] = int(easy.sum())
+            for s, k in enumerate(searched.tolist()):
+                if easy[s]:
+                    continue
+                joint = JointInformation(Sig[k], a[s], b[s], M[s])
+                pairing, _, nodes = jcbb_search(d2[k], dims, joint, prob, cap)
+                stats["nodes"] += nodes
+                if pairing is None:
+                    stats["fallback"] += 1
+                    continue
+                row = left[k].copy()
+                for i, j in pairing:
+                    row[i] = j
+                tgt[k] = row
+        self.last_jcbb = stats
+
+    @staticmethod
+    def _unambiguous(tgt: np.ndarray, rows: np.ndarray, gated: np.ndarray, Sig: np.ndarray,
+                     a: np.ndarray, b: np.ndarray, M: np.ndarray, d: int, prob: float,
+                     left: np.ndarray) -> np.ndarray:
+        """JCBB's answer for the particles where it needs no search, all at once: every
+        reading has at most one gated landmark and no two share one. The search would then
+        pair the readings in index order, each prefix tested jointly; when every prefix
+        passes, pairing them all is its answer (the most pairs; any other leaf has fewer).
+        Those particles' targets are written into ``tgt``; returns which of ``rows`` they
+        are (the others go to the search)."""
+        ncand = gated.sum(axis=2)                                          # (s, m)
+        easy = np.all(ncand <= 1, axis=1) & np.all(gated.sum(axis=1) <= 1, axis=1)
+        if not easy.any():
+            return easy
+        e = np.flatnonzero(easy)
+        has = ncand[e] == 1                                                 # (e, m)
+        j = np.argmax(gated[e], axis=2)                                     # (e, m)
+        ii = np.arange(j.shape[1])[None, :]
+        a_s = np.where(has, a[e[:, None], ii, j], 0.0)                      # (e, m)
+        b_s = np.where(has[..., None], b[e[:, None], ii, j], 0.0)           # (e, m, 3)
+        M_s = np.where(has[..., None, None], M[e[:, None], j], 0.0)         # (e, m, 3, 3)
+        ca, cb, cM = np.cumsum(a_s, axis=1), np.cumsum(b_s, axis=1), np.cumsum(M_s, axis=1)
+        P = Sig[e][:, None]                                                 # (e, 1, 3, 3)
+        with np.errstate(invalid="ignore", over="ignore"):
+            x = np.linalg.solve(np.eye(3) + P @ cM, (P @ cb[..., None]))[..., 0]
+            value = ca - np.einsum("emk,emk->em", cb, x)
+        dof = d * np.cumsum(has, axis=1)
+        limit = np.array([chi2_gate(prob, int(k)) if k else np.inf for k in range(d * j.shape[1] + 1)])
+        ok = np.all(~has | (np.isfinite(value) & (value <= limit[dof])), axis=1)
+        easy[e[~ok]] = False
+        for q in np.flatnonzero(ok).tolist():
+            row = left[rows[e[q]]].copy()
+            row[has[q]] = j[q][has[q]]
+            tgt[rows[e[q]]] = row
+        return easy
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         rows = list(self.readings(measurements))
         if not rows:
             self._sample()
             return
+        if self.companion is not None:
+            self.companion.update(self._particle_estimate()[0], self._mixture_means(), measurements)
         if self.prop_mu is None or self.prop_cov is None:  # no predict since the last update
             self.prop_mu, self.prop_cov = self.poses.copy(), np.zeros((self.n, 3, 3))
         mu, Sig = self.prop_mu.copy(), self.prop_cov.copy()
@@ -326,6 +533,7 @@ class FastSLAM2(SlamFilterBase):
                 self.logw[other] += self._log_p0(rd)
             done.append((rd, tgt))
         self.prop_mu, self.prop_cov = mu, Sig
+        self.last_targets = [tgt for _, tgt in done]
         self._sample()
         self._landmark_updates(done)
         self.logw -= np.max(self.logw)
@@ -335,6 +543,7 @@ class FastSLAM2(SlamFilterBase):
             self.poses, self.lm, self.lc = self.poses[idx], self.lm[idx], self.lc[idx]
             self.lid, self.count, self.hits = self.lid[idx], self.count[idx], self.hits[idx]
             self.logw = np.zeros(self.n)
+            self.last_targets = [t[idx] for t in self.last_targets]
 
     def _landmark_updates(self, done: list[tuple[Reading, np.ndarray]]) -> None:
         """Each paired landmark's EKF update from the sampled pose; new landmarks placed;
@@ -397,3 +606,56 @@ class FastSLAM2(SlamFilterBase):
                 (spec.fov >= 2 * math.pi) | (np.abs(zhat[:, 1]) <= spec.fov / 2))
         self.lid[k[view], c[view]] = EMPTY
         self.hits[k[view], c[view]] = 0
+
+
+class LinearisedCovariance:
+    """FastSLAM's reported uncertainty with ``covariance = "linearised"``: EKF-SLAM's
+    covariance recursion (``ekf_slam.EKFSLAM``, the same readings, the same models) whose
+    mean is reset to the particles' mean before each prediction and update, so only its
+    covariance P is kept: the Jacobians F, H and the new-landmark G are those at FastSLAM's
+    estimate. It is the covariance a Gaussian filter at that estimate would carry, cross terms
+    between the pose and every landmark included, which the particles lose to resampling
+    (Bailey, Nieto and Nebot 2006). Known IDs: a reading of an unlabelled landmark switches
+    it off (``ok`` False) and the particle set's moments are reported."""
+
+    def __init__(self, ctx: FilterContext, initial: GaussianBelief | None):
+        from beacon_sim.filters.ekf_slam import EKFSLAM  # the recursion itself, not copied
+
+        self.ekf = EKFSLAM(replace(ctx, params={}))
+        self.ekf.reset(initial)
+        self.ok = True
+
+    def _sync(self, pose: np.ndarray, means: dict[int, np.ndarray]) -> None:
+        ekf = self.ekf
+        ekf.mu[:3] = pose
+        for bid, j in ekf.index.items():
+            m = means.get(bid)
+            if m is not None:
+                ekf.mu[3 + 2 * j:5 + 2 * j] = m
+
+    def predict(self, pose: np.ndarray, control: Control, dt: float) -> None:
+        if self.ok:
+            self.ekf.mu[:3] = pose
+            self._guarded(lambda: self.ekf.predict(control, dt))
+
+    def update(self, pose: np.ndarray, means: dict[int, np.ndarray], measurements: Sequence[Measurement]
+               ) -> None:
+        if not self.ok:
+            return
+        if any(np.any(np.asarray(m.beacon_ids) == UNKNOWN_ID) for m in measurements if m.kind in SLAM_KINDS):
+            self.ok = False
+            return
+        self._sync(pose, means)
+        self._guarded(lambda: self.ekf.update(measurements))
+
+    def _guarded(self, step: Callable[[], None]) -> None:
+        """Run one step; if it fails or leaves P not finite, switch the linearised covariance
+        off (the particle set's is reported from then on) rather than the filter."""
+        try:
+            with np.errstate(all="ignore"):
+                step()
+        except (FilterError, np.linalg.LinAlgError, ValueError):
+            self.ok = False
+            return
+        if not np.all(np.isfinite(self.ekf.P)):
+            self.ok = False
