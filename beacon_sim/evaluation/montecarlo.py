@@ -71,6 +71,9 @@ class FilterRun:
     steps: int
     failed: str | None = None
     means: np.ndarray | None = None  # (T, 3), kept for the first run only (trajectory plot)
+    #: A hosted SLAM filter's map after its last step: (ids (M,) or None, means (M, 2) [m],
+    #: covs (M, 2, 2) [m^2]), judged as it came back (filters/wire.py); None without a map.
+    landmarks: tuple[np.ndarray | None, np.ndarray, np.ndarray] | None = None
 
 
 @dataclass
@@ -317,10 +320,11 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
-    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
+    from beacon_sim.filters.wire import ESTIMATE, MAPPED, WireError, map_problem, parse_estimate, split_mapped
 
     scenario = sr.scenario
     name = name or child.class_name
+    landmarks = None
     T = len(sr.frames) if ticks is None else min(ticks, len(sr.frames))
     means, covs = np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)
     n_rec = len(sr.records)
@@ -335,7 +339,13 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                     run_limit_s, name)
         for i in range(T):
             tag, payload = child.request(frames[i])
-            if tag != ESTIMATE:
+            if tag == MAPPED:  # a SLAM filter: its map judged on every tick, the last kept
+                payload, block = split_mapped(payload)
+                landmarks, why = map_problem(block)
+                if why is not None:
+                    child.kill()  # its filter is switched off mid-run: the child is not reused
+                    raise ChildFailure(why, died=False)
+            elif tag != ESTIMATE:
                 raise ChildFailure("the filter's process broke the protocol", died=True)
             wall, prior, (mean, cov) = parse_estimate(payload)
             means[i], covs[i] = mean, cov
@@ -358,7 +368,9 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
         report["means"] = means
         return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
                          sr.truth_checksum), report
-    return _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means), report
+    out = _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means)
+    out.filters[name].landmarks = landmarks if failed is None else None
+    return out, report
 
 
 def _hosted_context(sr: SimulatedRun, name: str, params: dict[str, Any] | None) -> Any:
@@ -415,7 +427,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     when that probe failed)."""
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
-    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
+    from beacon_sim.filters.wire import ESTIMATE, MAPPED, WireError, map_problem, parse_estimate, split_mapped
 
     name = name or child.class_name
     R = len(sims)
@@ -439,6 +451,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     has_prior = np.zeros((T, S), dtype=bool)
     answered = np.zeros((T, S), dtype=bool)
     failed: list[str | None] = [None] * S
+    maps: list[Any] = [None] * S  # a SLAM filter's map after its last step (judged every tick)
     report: dict[str, Any] = {}
     try:
         builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
@@ -466,7 +479,13 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                 continue
             going = []
             for k, (tag, payload) in zip(live, got, strict=True):
-                if tag != ESTIMATE:
+                if tag == MAPPED:
+                    payload, block = split_mapped(payload)
+                    maps[k], why = map_problem(block)
+                    if why is not None:  # a bad map switches the filter off, as a bad estimate
+                        failed[k] = why
+                        continue
+                elif tag != ESTIMATE:
                     failed[k] = child.failure_text(payload)
                     continue
                 wall, prior, (mean, cov) = parse_estimate(payload)
@@ -510,6 +529,8 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                             for j, what in enumerate(probes)}
     outs = [_hosted_output(sr, name, means[k], covs[k], pms[k], pcs[k], done[k], failed[k], ns[k],
                            sr.index == 0) for k, sr in enumerate(sims)]
+    for k, out in enumerate(outs):
+        out.filters[name].landmarks = maps[k] if failed[k] is None else None
     return outs, report
 
 

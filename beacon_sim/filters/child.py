@@ -51,6 +51,24 @@ def timed_step(f: Any, control: Any, dt: float, measurements: Any, want_prior: b
     est = f.estimate()
     return (t1 - t0) + (clock() - t2), prior, est
 
+
+def map_of(f: Any) -> bytes | str | None:
+    """The map block of a SLAM filter (one with ``landmarks()``) after its step, or the
+    one-line fault of what ``landmarks()`` returned; None for a filter without a map (no
+    cost). Called under the step's time limit: a ``landmarks()`` that loops is stopped as a
+    step that loops; one that raises raises (the step fails with its one line)."""
+    lm = getattr(f, "landmarks", None)
+    if not callable(lm):
+        return None
+    from beacon_sim.filters.watchdog import one_line
+    from beacon_sim.filters.wire import encode_landmarks
+
+    try:
+        got = lm()
+    except Exception as exc:  # a time-out (not an Exception) ends the step as it would
+        return f"landmarks() raised {one_line(exc)}"
+    return encode_landmarks(got)
+
 class _BoundedOutput(io.TextIOBase):
     """``sys.stdout`` / ``sys.stderr`` of the child: written straight to the log's file
     descriptor up to ``limit`` bytes, then one line saying the rest was cut."""
@@ -205,7 +223,8 @@ class _Server:
         kinds = [str(k) for k in kinds] if isinstance(kinds, list | tuple) else None
         self.send(reply_json(OK, {"name": self.cls.__qualname__, "form": form, "missing": missing,
                                   "module": str(self.cls.__module__), "sensor_kinds": kinds,
-                                  "supports_global": bool(getattr(self.cls, "supports_global", False))}))
+                                  "supports_global": bool(getattr(self.cls, "supports_global", False)),
+                                  "landmarks": callable(getattr(self.cls, "landmarks", None))}))
 
     def op_build(self, ctx: Any, initial: Any, global_seed: int, run_limit_s: float | None,
                  spec: str, step_limit_s: float | None = None) -> None:
@@ -230,10 +249,11 @@ class _Server:
 
         f = self.flt
 
-        def step() -> tuple[int, Any, Any]:
-            return timed_step(f, control, dt, measurements, want_prior)
+        def step() -> tuple[int, Any, Any, bytes | str | None]:
+            wall, prior, est = timed_step(f, control, dt, measurements, want_prior)
+            return wall, prior, est, map_of(f)
 
-        wall, prior, est = self.step_limited(step)
+        wall, prior, est, block = self.step_limited(step)
         post = estimate_arrays(est)
         if isinstance(post, str):
             return self.loose(est) if self.step_limit_s is not None else self.fail(post)
@@ -242,7 +262,9 @@ class _Server:
             pri = estimate_arrays(prior)
             if isinstance(pri, str):
                 return self.fail("after predict: " + pri)
-        self.send(reply_estimate(wall, pri, post))
+        if isinstance(block, str):
+            return self.fail(block)
+        self.send(reply_estimate(wall, pri, post, block))
         return None
 
     def loose(self, est: Any) -> None:
@@ -281,6 +303,20 @@ class _Server:
         if isinstance(post, str):
             return self.loose(est) if self.step_limit_s is not None else self.fail(post)
         self.send(reply_estimate(0, None, post))
+        return None
+
+    def op_landmarks(self) -> None:
+        """The filter's map now (a MAPPED reply whose estimate part is NaN), for a proxy asked
+        for ``landmarks()`` outside a step (after reset)."""
+        import numpy as np
+
+        from beacon_sim.filters.wire import reply_estimate
+
+        block = self.step_limited(lambda: map_of(self.flt))
+        if not isinstance(block, bytes):
+            return self.fail(block or "the filter has no landmarks()")
+        nan = (np.full(3, np.nan), np.full((3, 3), np.nan))
+        self.send(reply_estimate(0, None, nan, block))
         return None
 
     def op_belief(self) -> None:
@@ -450,6 +486,7 @@ class _Batch:
                 watch.seconds = None if limit is None else limit - self.used[k] / 1e9
                 with watch:
                     wall, prior, est = timed_step(f, control, dt, measurements, want_prior, clock)
+                    block = map_of(f)
             except BaseException as exc:
                 self.switch_off(k)
                 entries.append(self._fail(exc))
@@ -470,7 +507,11 @@ class _Batch:
                 self.switch_off(k)
                 entries.append(self._fail_text(self.over or "time limit"))
                 continue
-            entries.append(reply_estimate(wall, pri, post))
+            if isinstance(block, str):
+                self.switch_off(k)
+                entries.append(self._fail_text(block))
+                continue
+            entries.append(reply_estimate(wall, pri, post, block))
         return reply_multi(entries)
 
 

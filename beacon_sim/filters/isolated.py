@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import Belief, FilterContext, GaussianBelief, GridBelief, ParticleBelief
+from beacon_sim.filters.base import (
+    Belief,
+    FilterContext,
+    GaussianBelief,
+    GridBelief,
+    LandmarkMap,
+    ParticleBelief,
+)
 from beacon_sim.filters.containment import (
     Launched,
     Limits,
@@ -40,6 +47,7 @@ from beacon_sim.filters.wire import (
     EST_ENTRY,
     ESTIMATE,
     FAIL,
+    MAPPED,
     MAX_BATCH,
     MULTI,
     OK,
@@ -48,11 +56,13 @@ from beacon_sim.filters.wire import (
     decode_belief,
     encode_batch,
     encode_request,
+    map_problem,
     parse_estimate,
     parse_json,
     parse_multi,
     read_reply,
     send_frame,
+    split_mapped,
 )
 
 #: The longest the grader waits for one answer of a child [s] of wall time, at least: a
@@ -288,7 +298,13 @@ class IsolatedFilter:
     ``predict`` is held until ``update`` so that a step is one exchange with the child
     (predict, update and estimate there); a failure raises :class:`ChildFailure` (a
     :class:`~beacon_sim.filters.watchdog.FilterFailed`: the runner's one line is the
-    child's reason)."""
+    child's reason). A hosted SLAM filter (its class has ``landmarks()``) gets an
+    :class:`IsolatedMappingFilter`: its map comes back with each step's estimate."""
+
+    def __new__(cls, child: FilterChild, *args: Any, **kwargs: Any) -> IsolatedFilter:
+        if cls is IsolatedFilter and child.info.get("landmarks") is True:
+            cls = IsolatedMappingFilter
+        return super().__new__(cls)
 
     def __init__(self, child: FilterChild, ctx: FilterContext, initial: GaussianBelief | None,
                  global_seed: int, run_limit_s: float | None, spec: str,
@@ -297,13 +313,14 @@ class IsolatedFilter:
         self.supports_global = True  # the child resets with the scenario's own belief
         self._pending: tuple[Control, float] | None = None
         self._est: Any = None
+        self._map: LandmarkMap | None = None  # the map the last step brought back (SLAM)
         #: The wall time of the last predict + update + estimate in the child [ns] (its own
         #: cost, without the exchange), or None.
         self.last_step_ns: int | None = None
         child.build(ctx, initial, global_seed, run_limit_s, spec, step_limit_s)
 
     def reset(self, initial: GaussianBelief | None) -> None:
-        self._pending, self._est = None, None
+        self._pending, self._est, self._map = None, None, None
         self.child.call("reset", initial)
 
     def predict(self, control: Control, dt: float) -> None:
@@ -313,7 +330,7 @@ class IsolatedFilter:
     def _flush(self) -> None:
         if self._pending is not None:
             control, dt = self._pending
-            self._pending = None
+            self._pending, self._map = None, None
             self.child.call("predict", control, dt)
 
     def update(self, measurements: Any) -> None:
@@ -322,10 +339,14 @@ class IsolatedFilter:
             control, dt = self._pending
             self._pending = None
             tag, payload = self.child.call("step", control, dt, meas, False)
+            self._map = None
+            if tag == MAPPED:
+                payload, block = split_mapped(payload)
+                tag, self._map = ESTIMATE, _judged_map(block)
             self._est = _estimate_of(tag, payload)
             self.last_step_ns = parse_estimate(payload)[0] if tag == ESTIMATE else None
             return
-        self._est = None
+        self._est, self._map = None, None
         self.child.call("update", meas)
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
@@ -353,6 +374,36 @@ class IsolatedFilter:
         raise ChildFailure("the filter's process sent a malformed belief")
 
 
+class IsolatedMappingFilter(IsolatedFilter):
+    """The proxy of a hosted SLAM filter: ``landmarks()`` is the map that came back with the
+    last step (judged in this process, as every map: finite, shapes, symmetric PSD
+    covariances, at most :data:`~beacon_sim.filters.landmark_check.MAX_LANDMARKS`), else
+    the child is asked for it. A bad map raises :class:`ChildFailure` with its one line."""
+
+    def landmarks(self) -> LandmarkMap:
+        self._flush()
+        if self._map is None:
+            tag, payload = self.child.call("landmarks")
+            if tag != MAPPED:
+                raise ChildFailure("the filter's process broke the protocol")
+            self._map = _judged_map(split_mapped(payload)[1])
+        lm = self._map
+        return LandmarkMap(None if lm.ids is None else lm.ids.copy(), lm.means.copy(), lm.covs.copy())
+
+
+def _judged_map(block: bytes) -> LandmarkMap:
+    """The map of a MAPPED reply, judged (:func:`~beacon_sim.filters.wire.map_problem`); a
+    bad one raises :class:`ChildFailure` (the filter is switched off with the fault), a
+    malformed block one that says the child broke the protocol."""
+    try:
+        got, why = map_problem(block)
+    except WireError as exc:
+        raise ChildFailure(f"the filter's process {exc}", died=False) from None
+    if why is not None or got is None:
+        raise ChildFailure(why or "landmarks(): a bad map")
+    return LandmarkMap(*got)
+
+
 def _estimate_of(tag: bytes, payload: bytes) -> Any:
     """What the child's answer says the filter's ``estimate()`` returned: the pair of arrays;
     with a step limit (``check``) also an unusable one as it was (arrays of another shape,
@@ -371,4 +422,4 @@ def _estimate_of(tag: bytes, payload: bytes) -> Any:
     raise ChildFailure("the filter's process broke the protocol")
 
 
-__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter"]
+__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter", "IsolatedMappingFilter"]
