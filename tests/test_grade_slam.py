@@ -125,3 +125,109 @@ def test_a_map_fault_in_process_reads_as_in_the_child(tmp_path):
     assert child.message == here.message
     assert json.dumps(child.message)  # one line
     assert "\n" not in child.message
+
+
+# -- grade: a SLAM assignment ------------------------------------------------------------
+
+#: A CPU-time limit far above a 15 s run of the template (about 20 ms) or EKF-SLAM (40 ms),
+#: so that the looping landmarks() costs little.
+SLAM_CONFIG = dict(scenarios=("slam_loop",), seeds=(0, 1), duration=15.0, time_limit=2.0)
+
+
+def slam_class(tmp_path):
+    """A class: the shipped template (alice), a file whose map turns NaN once it holds three
+    landmarks (carol), and the built-in EKF-SLAM handed in as a file (erin)."""
+    from beacon_sim.cli.main import main
+
+    folder = tmp_path / "class"
+    folder.mkdir()
+    assert main(["new-filter", str(folder / "alice.py"), "--slam"]) == 0
+    good = render_slam_template("Carol", "carol.py")
+    ret = "        return LandmarkMap(np.array(self.ids, dtype=int), self.s[3:].reshape(M, 2).copy(),"
+    assert ret in good
+    nan = "        if M >= 3:\n            self.s[3] = np.nan\n"
+    (folder / "carol.py").write_text(good.replace(ret, nan + ret), encoding="utf-8")
+    (folder / "erin.py").write_text("from beacon_sim.filters.ekf_slam import EKFSLAM\n\n\n"
+                                    "class Erin(EKFSLAM):\n    pass\n", encoding="utf-8")
+    return folder
+
+
+def test_grade_scores_a_slam_class_beside_the_built_in_ekf_slam(tmp_path, capsys):
+    from beacon_sim.evaluation.grading import GradeConfig, grade, write_outputs
+
+    folder = slam_class(tmp_path)
+    capsys.readouterr()
+    board = grade(folder, GradeConfig(**SLAM_CONFIG), jobs=2)
+    rows = {r["student"]: r for r in board["rows"]}
+    ref = board["slam_reference"]["slam_loop"]
+    assert ref["filter"] == "ekf_slam" and ref["ate_m"] > 0 and ref["joint_nees"] > 0
+    alice = rows["alice"]
+    assert not alice["failures"], alice["failures"]
+    slam = alice["slam"]["slam_loop"]
+    assert slam["mapped"] and slam["map_landmarks"] >= 1
+    assert alice["ate_m"] == slam["ate_m"] > 0 and alice["map_gospa_m"] == slam["map_gospa_m"] > 0
+    assert alice["joint_nees"] is None  # the template has no joint()
+    assert slam["reference_map_gospa_m"] == ref["map_gospa_m"]
+    # the template never corrects: its path is worse than EKF-SLAM's
+    assert slam["ate_m"] > ref["ate_m"]
+    # the built-in EKF-SLAM handed in as a file: the reference's figures, its joint NEES too
+    erin = rows["erin"]["slam"]["slam_loop"]
+    assert not rows["erin"]["failures"]
+    assert erin["ate_m"] == ref["ate_m"] and erin["map_gospa_m"] == ref["map_gospa_m"]
+    assert erin["joint_nees"] == pytest.approx(ref["joint_nees"], rel=1e-9)
+    # a bad map: switched off with the reason, no score
+    r = rows["carol"]
+    assert r["failed_runs"] == 2 and r["pos_rmse_m"] is None
+    assert r["ate_m"] is None and r["map_gospa_m"] is None
+    assert all("landmarks(): NaN or infinity" in f["reason"] for f in r["failures"]), r["failures"]
+    assert r["rank"] > rows["alice"]["rank"]
+    out = tmp_path / "out"
+    write_outputs(board, out)
+    page = (out / "grade.html").read_text(encoding="utf-8")
+    assert "map GOSPA [m]" in page and "joint NEES" in page and "ekf_slam on the same seeds" in page
+    assert "The map (SLAM scenarios" in (out / "students" / "alice.html").read_text(encoding="utf-8")
+    import csv
+
+    with open(out / "grade.csv", newline="", encoding="utf-8") as fh:
+        csv_rows = {r["student"]: r for r in csv.DictReader(fh)}
+    assert float(csv_rows["alice"]["map_gospa_m"]) == alice["map_gospa_m"]
+    assert csv_rows["carol"]["map_gospa_m"] == ""
+
+
+def test_a_looping_landmarks_fails_its_run_on_its_time_limit(tmp_path):
+    from beacon_sim.evaluation.grading import GradeConfig, grade
+
+    folder = tmp_path / "class"
+    folder.mkdir()
+    doc = '        """The map: each landmark'
+    loop = "        while len(self.ids) >= 2:\n            pass\n"
+    (folder / "dave.py").write_text(render_slam_template("Dave", "dave.py").replace(doc, loop + doc),
+                                    encoding="utf-8")
+    board = grade(folder, GradeConfig(**{**SLAM_CONFIG, "seeds": (0,), "time_limit": 1.0}), jobs=1)
+    row = board["rows"][0]
+    assert row["failed_runs"] == 1 and row["map_gospa_m"] is None
+    assert "time limit: over 1 s of filter time" in row["failures"][0]["reason"], row["failures"]
+
+
+def test_the_templates_gospa_in_grade_is_what_run_reports(tmp_path, capsys):
+    """The same figure by two paths: `grade` (the file in a child, its map over the pipe)
+    and `beacon-sim run slam_loop --filter FILE` (in process), same seed and length."""
+    from beacon_sim.cli.main import main
+    from beacon_sim.evaluation.grading import GradeConfig, grade
+
+    folder = tmp_path / "class"
+    folder.mkdir()
+    assert main(["new-filter", str(folder / "alice.py"), "--slam"]) == 0
+    board = grade(folder, GradeConfig(scenarios=("slam_loop",), seeds=(3,), duration=12.0), jobs=1)
+    got = board["rows"][0]["slam"]["slam_loop"]
+    capsys.readouterr()
+    assert main(["run", "slam_loop", "--filter", str(folder / "alice.py"), "--filter", "ekf_slam",
+                 "--seed", "3", "--duration", "12", "--json"]) == 0
+    run = json.loads(capsys.readouterr().out)["filters"]
+    assert got["map_gospa_m"] == run["alice"]["slam"]["map_gospa_m"]
+    assert got["ate_m"] == run["alice"]["slam"]["ate_m"]
+    assert got["map_missed"] == run["alice"]["slam"]["map_missed"]
+    ref = board["slam_reference"]["slam_loop"]
+    assert ref["map_gospa_m"] == run["ekf_slam"]["slam"]["map_gospa_m"]
+    assert ref["ate_m"] == run["ekf_slam"]["slam"]["ate_m"]
+    assert ref["joint_nees"] == run["ekf_slam"]["slam"]["joint_nees"]

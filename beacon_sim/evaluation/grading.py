@@ -50,6 +50,8 @@ from beacon_sim.evaluation.montecarlo import (
     simulate_run,
     team_one_run,
 )
+from beacon_sim.evaluation.slam_metrics import ate, gospa
+from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, joint_nees_at, mapped_beacons
 from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
 from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
 from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
@@ -61,6 +63,13 @@ from beacon_sim.filters.team_specs import MEMBER_PREFIX
 REFERENCE = "__reference__"
 #: Its spec: every robot's own built-in EKF (the ``independent`` team filter).
 REFERENCE_SPEC = "ekf"
+#: The built-in filter graded beside the students on a SLAM scenario (``[model] map =
+#: "unknown"``), in the grader's process on the same simulated runs: the map's reference.
+SLAM_REFERENCE_SPEC = "ekf_slam"
+#: A SLAM row's figures (docs/grading.md, "A SLAM assignment"): the path's ATE [m], the
+#: final map's GOSPA [m] (cut-off ``GOSPA_CUTOFF_M``, as ``run``), its landmarks, missed
+#: and false ones, and the final joint NEES (where the filter has ``joint()``), seed means.
+SLAM_FIGURES = ("ate_m", "map_gospa_m", "map_landmarks", "map_missed", "map_false", "joint_nees")
 
 
 class GradeError(BeaconSimError):
@@ -660,8 +669,10 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
             reference[name] = {k: v for k, v in ref.items() if k != "curve"}
     found = {sr.student: sr for sr in done_students}
     scored = _score_together(scenarios, single, by, students, len(config.seeds))
+    slam_names = [n for n in single if is_slam_scenario(scenarios[n])]
+    slam_reference = _slam_reference(sims, slam_names)
     for st in students:
-        row = _student_row(st, config, scenarios, by, n_runs, reference, scored)
+        row = _student_row(st, config, scenarios, by, n_runs, reference, scored, slam_reference)
         _add_findings(row, found.get(st.name))
         rows.append(row)
     rows.sort(key=rank_key)
@@ -669,6 +680,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         row["rank"] = k
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
             "students": len(students), "runs_per_student": n_runs, "reference": reference,
+            "slam_reference": slam_reference,
             "sandbox": sandbox, "isolated": True, "team_in_process": [],
             "cached_students": cached,
             # what the students' children said they used [s] (their own word: cost figures only)
@@ -774,9 +786,81 @@ def _add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
         flags.append("heading not wrapped to [-pi, pi)")
     if row["readings_used"] is False:
         flags.append("uses none of the readings: the estimates do not change when they are withheld")
+    unmapped = [n for n, v in (row.get("slam") or {}).items() if not v.get("mapped")]
+    if unmapped:
+        flags.append(f"no landmarks(): the filter reports no map, so its map is not scored on "
+                     f"{', '.join(unmapped)} (docs/slam.md)")
     if row.get("us_per_step") is not None and row["us_per_step"] > SLOW_STEP_MS * 1e3:
         flags.append(f"slow: {row['us_per_step'] / 1e3:.0f} ms per step (over {SLOW_STEP_MS:g} ms)")
     row["flags"] = flags
+
+
+def is_slam_scenario(sc: Scenario | TeamScenario) -> bool:
+    """A single-robot scenario whose beacon map is withheld from the filters (docs/slam.md)."""
+    return isinstance(sc, Scenario) and not sc.map_known
+
+
+def run_slam_figures(sc: Scenario, err: np.ndarray, landmarks: tuple[Any, Any, Any] | None,
+                     joint: tuple[Any, Any, Any] | None, final_pose: np.ndarray) -> dict[str, Any]:
+    """One run's SLAM figures (:data:`SLAM_FIGURES`) from the filter's pose errors ``err``
+    (T, 3), its final map ``(ids, means, covs)`` (None: no ``landmarks()``, no map figures)
+    and its final ``joint()`` (None: no joint NEES), against the truth of ``sc``."""
+    out: dict[str, Any] = dict.fromkeys(SLAM_FIGURES)
+    out["ate_m"] = ate(err[:, :2], np.zeros((len(err), 2)))
+    if landmarks is not None:
+        means = np.asarray(landmarks[1], dtype=float).reshape(-1, 2)
+        g = gospa(means, mapped_beacons(sc)[1], c=GOSPA_CUTOFF_M)
+        out.update(map_gospa_m=g.value, map_landmarks=len(means), map_missed=g.missed, map_false=g.false)
+    if joint is not None:
+        try:
+            out["joint_nees"] = joint_nees_at(joint, sc, final_pose)[0]
+        except (np.linalg.LinAlgError, ValueError, IndexError, KeyError):
+            out["joint_nees"] = None  # a singular or malformed joint: not reported
+    return out
+
+
+def _mean_figures(per_run: list[dict[str, Any]]) -> dict[str, Any]:
+    """The seed mean of each SLAM figure, None unless every run has it."""
+    out: dict[str, Any] = {}
+    for k in SLAM_FIGURES:
+        vals = [r[k] for r in per_run]
+        out[k] = (float(np.mean(vals)) if vals and all(v is not None and math.isfinite(v) for v in vals)
+                  else None)
+    return out
+
+
+def reference_slam_run(sr: SimulatedRun, spec: str = SLAM_REFERENCE_SPEC) -> dict[str, Any] | None:
+    """The built-in ``spec`` (EKF-SLAM) fed the simulated run ``sr`` in this process (a
+    built-in filter: trusted code; the grader's own pickled ticks), its SLAM figures; None
+    when it failed (a built-in that raises or diverges there says nothing of the students)."""
+    import pickle
+
+    from beacon_sim.filters.loading import build_filter
+
+    try:
+        flt: Any = build_filter(spec, sr.scenario, sr.seed, name=spec)
+        means = np.empty((len(sr.frames), 3))
+        for i, frame in enumerate(sr.frames):
+            _op, control, dt, meas, _want_prior = pickle.loads(frame[4:])
+            flt.predict(control, dt)
+            flt.update(meas)
+            means[i] = flt.estimate()[0]
+        lm = flt.landmarks()
+        joint = flt.joint() if callable(getattr(flt, "joint", None)) else None
+    except Exception:
+        return None
+    err = means - sr.truth[1:]
+    return run_slam_figures(sr.scenario, err, (lm.ids, lm.means, lm.covs), joint, sr.truth[-1])
+
+
+def _slam_reference(sims: list[SimulatedRun], names: list[str]) -> dict[str, dict[str, Any]]:
+    """The built-in EKF-SLAM's seed-mean SLAM figures on each SLAM scenario ``names``."""
+    out = {}
+    for name in names:
+        per = [reference_slam_run(sr) for sr in sims if sr.label == name]
+        out[name] = ({"filter": SLAM_REFERENCE_SPEC, **_mean_figures(per)} if per and all(per)  # type: ignore[arg-type]
+                     else {"filter": SLAM_REFERENCE_SPEC, **dict.fromkeys(SLAM_FIGURES)})
+    return out
 
 
 def _team_figures(team: TeamScenario, runs: list[TeamRunOutput]) -> dict[str, Any]:
@@ -830,13 +914,15 @@ def _score_together(scenarios: dict[str, Scenario | TeamScenario], names: list[s
 def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario | TeamScenario],
                  by: dict[tuple[str, str], list[TaskResult]], n_runs: int,
                  reference: dict[str, dict[str, Any]] | None = None,
-                 scored: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] | None = None
-                 ) -> dict[str, Any]:
+                 scored: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] | None = None,
+                 slam_reference: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
                            "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
                            "anees_verdict": "FAILED", "verdict": "FAILED", "rmse_over_pcrb": None,
                            "us_per_step": None,
                            "failed_runs": n_runs, "failures": [], "plot": ""}
+    if slam_reference:  # a SLAM assignment: the map columns (docs/grading.md)
+        row.update(dict.fromkeys(("ate_m", "map_gospa_m", "joint_nees")))
     if st.spec is None:
         row["failures"] = [{"scenario": "-", "seed": None, "time_s": None, "reason": st.problem}]
         return row
@@ -844,6 +930,7 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                                                         "rmse_over_pcrb", "us_per_step")}
     verdicts, failures, curves = [], [], []
     team_rows: dict[str, Any] = {}
+    slam_rows: dict[str, Any] = {}
     for name in config.scenarios:
         res = sorted(by.get((st.name, name), []), key=lambda r: r.task.index)
         for r in res:
@@ -883,11 +970,15 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                 figures[key].append(float(fr[key]))
         verdicts.append(fr["anees_verdict"])
         curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
+        if slam_reference and name in slam_reference and len(runs) == len(res):
+            slam_rows[name] = _slam_row(sc, runs, slam_reference[name])  # type: ignore[arg-type]
     row["failures"] = failures
     row["failed_runs"] = len(failures)
     row["run_detail"] = _run_detail(st, config, by)
     if team_rows:
         row["team"] = team_rows
+    if slam_rows:
+        row["slam"] = slam_rows
     row["us_per_step"] = float(np.mean(figures["us_per_step"])) if figures["us_per_step"] else None
     row["plot"] = _svg_plot(curves) if curves else ""
     if not failures:
@@ -897,7 +988,29 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         # what the page shows: the ANEES word with the distance from the bound (issue 26), so
         # no row says a bare "consistent" beside an error over twice the bound
         row["verdict"] = overall_verdict(row["anees_verdict"], row["rmse_over_pcrb"])
+        for key in ("ate_m", "map_gospa_m", "joint_nees"):  # over the SLAM scenarios
+            vals = [v[key] for v in slam_rows.values()]
+            if slam_rows:
+                row[key] = float(np.mean(vals)) if all(v is not None for v in vals) else None
     return row
+
+
+def _slam_row(sc: Scenario, runs: list[RunOutput], ref: dict[str, Any]) -> dict[str, Any]:
+    """A student's SLAM figures on one SLAM scenario (seed means, :data:`SLAM_FIGURES`),
+    the reference's beside them, and whether the filter reported a map at all."""
+    per = []
+    mapped = True
+    for run in runs:
+        fr = next(iter(run.filters.values()))
+        mapped &= fr.landmarks is not None
+        per.append(run_slam_figures(sc, fr.err, fr.landmarks, fr.joint, run.truth[-1]))
+    out = _mean_figures(per)
+    out["mapped"] = mapped
+    for key in ("ate_m", "map_gospa_m", "joint_nees"):
+        out["reference_" + key] = ref.get(key)
+    g, rg = out["map_gospa_m"], ref.get("map_gospa_m")
+    out["gospa_over_reference"] = g / rg if g is not None and rg else None
+    return out
 
 
 def _run_detail(st: Student, config: GradeConfig, by: dict[tuple[str, str], list[TaskResult]]
@@ -933,6 +1046,9 @@ CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_
                "anees_verdict", "verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs",
                "failures", "suspicious", "global_rng", "deterministic", "heading_wrapped", "readings_used",
                "flags")
+#: The map columns a SLAM assignment adds (after :data:`CSV_COLUMNS`; seed means over the
+#: SLAM scenarios; empty for a failed filter, and the map's for a filter without one).
+SLAM_CSV_COLUMNS = ("ate_m", "map_gospa_m", "joint_nees")
 
 
 def status(row: dict[str, Any]) -> str:
@@ -954,10 +1070,12 @@ def _failure_text(f: dict[str, Any]) -> str:
 
 def write_csv(board: dict[str, Any], path: Path) -> Path:
     """One row per student, in rank order; a failed student's figures are empty cells."""
+    slam = bool(board.get("slam_reference"))
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(CSV_COLUMNS)
+        w.writerow(CSV_COLUMNS + (SLAM_CSV_COLUMNS if slam else ()))
         for r in board["rows"]:
+            extra = ["" if r.get(k) is None else r[k] for k in SLAM_CSV_COLUMNS] if slam else []
             w.writerow([r["rank"], r["student"], r["file"], status(r),
                         *("" if r[k] is None else r[k] for k in ("pos_rmse_m", "heading_rmse_rad",
                                                                  "anees")),
@@ -968,7 +1086,7 @@ def write_csv(board: dict[str, Any], path: Path) -> Path:
                         " | ".join(_failure_text(f) for f in r["failures"][:5]),
                         r.get("suspicious") or "", *(_yes_no(r.get(k)) for k in (
                             "global_rng", "deterministic", "heading_wrapped", "readings_used")),
-                        " | ".join(r.get("flags", []))])
+                        " | ".join(r.get("flags", [])), *extra])
     return path
 
 
@@ -1018,6 +1136,26 @@ def _reference_note(board: dict[str, Any]) -> str:
             + "; ".join(parts) + ".")
 
 
+def _slam_note(board: dict[str, Any]) -> str:
+    """The HTML note's sentence on SLAM scenarios: what the map columns mean, and the
+    built-in EKF-SLAM's figures on the same seeds."""
+    ref = board.get("slam_reference") or {}
+    if not ref:
+        return ""
+
+    def num(v: object, fmt: str) -> str:
+        return "&ndash;" if v is None else format(v, fmt)
+
+    parts = [f"{html.escape(n)}: ATE {num(r['ate_m'], '.4f')} m, map GOSPA {num(r['map_gospa_m'], '.4f')} m, "
+             f"joint NEES {num(r['joint_nees'], '.2f')}" for n, r in ref.items()]
+    return (f" On a SLAM scenario (the filters are not given the beacon map) ATE is the path's RMS "
+            f"position error, map GOSPA the error of the final map against the beacons it had to map "
+            f"(cut-off {GOSPA_CUTOFF_M:g} m: a missed or a false landmark costs as much as one "
+            f"{GOSPA_CUTOFF_M / math.sqrt(2):.2f} m off), joint NEES the final pose-and-map NEES "
+            f"(for a filter with joint(); chi-square with 3 + 2M degrees of freedom), seed means. "
+            f"The built-in {SLAM_REFERENCE_SPEC} on the same seeds: " + "; ".join(parts) + ".")
+
+
 def _sandbox_text(board: dict[str, Any]) -> str:
     level = board.get("sandbox", "process")
     text = ("bubblewrap sandbox: no network, read-only system, its own file alone" if level == "bwrap"
@@ -1051,13 +1189,16 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
             ("heading_rmse_rad", "heading RMSE [rad]"), ("anees", "ANEES"),
             ("verdict", "consistency"), ("rmse_over_pcrb", "RMSE/PCRB"),
             ("us_per_step", "cost [us/step]"), ("failed_runs", "failed runs")]
+    if board.get("slam_reference"):  # a SLAM assignment: the map columns
+        cols[3:3] = [("ate_m", "ATE [m]"), ("map_gospa_m", "map GOSPA [m]"), ("joint_nees", "joint NEES")]
 
     def cell(r: dict[str, Any], key: str) -> str:
-        v = r.get(key, r["anees_verdict"]) if key == "verdict" else r[key]
+        v = r.get(key, r["anees_verdict"]) if key == "verdict" else r.get(key)
         if v is None:
             return '<td class="num">&ndash;</td>'
         if isinstance(v, float):
-            fmt = ".1f" if key == "us_per_step" else (".2f" if key in ("anees", "rmse_over_pcrb") else ".4f")
+            two = ("anees", "rmse_over_pcrb", "joint_nees")
+            fmt = ".1f" if key == "us_per_step" else (".2f" if key in two else ".4f")
             return f'<td class="num">{v:{fmt}}</td>'
         if isinstance(v, int):
             return f'<td class="num">{v}</td>'
@@ -1067,7 +1208,7 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
     shown = _shown(board)
     for r0 in board["rows"]:
         r = {**r0, "student": shown[r0["student"]]}
-        data = " ".join(f'data-{k}="{html.escape("" if r[k] is None else str(r[k]))}"' for k, _ in cols)
+        data = " ".join(f'data-{k}="{html.escape("" if r.get(k) is None else str(r[k]))}"' for k, _ in cols)
         why = "<br>".join(html.escape(_failure_text(f)) for f in r["failures"][:4])
         more = len(r["failures"]) - 4
         if more > 0:
@@ -1096,7 +1237,7 @@ ranks below every working filter, whatever the column sorted; a suspicious resul
 the Cramer-Rao bound) is kept out of the ranking, below the working filters, with its reason.
 Each student's filter ran in a process of its own ({html.escape(_sandbox_text(board))}).
 Click a column to sort.
-Plot: position error [m] against time [s] of the first seed.{_reference_note(board)}</p>
+Plot: position error [m] against time [s] of the first seed.{_reference_note(board)}{_slam_note(board)}</p>
 <table id="board"><thead><tr>{head}<th>status and failures</th><th>error, first seed</th></tr></thead>
 <tbody>
 {chr(10).join(body)}
@@ -1130,6 +1271,7 @@ status {status(row)}; position RMSE {num(row['pos_rmse_m'], '.4f')} m; heading R
 {num(row['heading_rmse_rad'], '.4f')} rad; ANEES {num(row['anees'], '.2f')}
 ({html.escape(str(row['anees_verdict']))});
 RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} us per step.</p>
+{_slam_table(row)}
 <h2>Runs</h2>
 <table><thead><tr><th>scenario</th><th>seed</th><th>pos RMSE [m]</th><th>steps</th><th>cost [us/step]</th>
 <th>failure</th></tr></thead><tbody>{runs}</tbody></table>
@@ -1142,6 +1284,27 @@ RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} 
 """
     path.write_text(page, encoding="utf-8")
     return path
+
+
+def _slam_table(row: dict[str, Any]) -> str:
+    """A student page's map figures, per SLAM scenario, beside the reference's."""
+    slam = row.get("slam") or {}
+    if not slam:
+        return ""
+
+    def num(v: object, fmt: str) -> str:
+        return "&ndash;" if v is None else format(v, fmt)
+
+    keys = (("ate_m", ".4f"), ("reference_ate_m", ".4f"), ("map_gospa_m", ".4f"),
+            ("reference_map_gospa_m", ".4f"), ("map_landmarks", ".1f"), ("map_missed", ".1f"),
+            ("map_false", ".1f"), ("joint_nees", ".2f"), ("reference_joint_nees", ".2f"))
+    lines = "".join(f"<tr><td>{html.escape(n)}</td>"
+                    + "".join(f"<td class=num>{num(v[k], fmt)}</td>" for k, fmt in keys) + "</tr>"
+                    for n, v in slam.items())
+    return ("<h2>The map (SLAM scenarios, seed means)</h2><table><thead><tr><th>scenario</th><th>ATE [m]</th>"
+            f"<th>{SLAM_REFERENCE_SPEC} ATE</th><th>map GOSPA [m]</th><th>{SLAM_REFERENCE_SPEC} GOSPA</th>"
+            "<th>landmarks</th><th>missed</th><th>false</th><th>joint NEES</th>"
+            f"<th>{SLAM_REFERENCE_SPEC} joint NEES</th></tr></thead><tbody>{lines}</tbody></table>")
 
 
 def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:

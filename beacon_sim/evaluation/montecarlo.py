@@ -74,6 +74,8 @@ class FilterRun:
     #: A hosted SLAM filter's map after its last step: (ids (M,) or None, means (M, 2) [m],
     #: covs (M, 2, 2) [m^2]), judged as it came back (filters/wire.py); None without a map.
     landmarks: tuple[np.ndarray | None, np.ndarray, np.ndarray] | None = None
+    #: Its final ``joint()`` (mean (3 + 2M,), cov, landmark IDs (M,)), when it has one.
+    joint: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 @dataclass
@@ -324,7 +326,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
 
     scenario = sr.scenario
     name = name or child.class_name
-    landmarks = None
+    landmarks = joint = None
     T = len(sr.frames) if ticks is None else min(ticks, len(sr.frames))
     means, covs = np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)
     n_rec = len(sr.records)
@@ -354,6 +356,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                 pm[j], pc[j] = prior
             ns += wall
             done += 1
+        joint = child.final_joint() if ticks is None and landmarks is not None else None
         report = child.end()
     except ChildFailure as exc:
         failed = str(exc) or "the filter failed"
@@ -370,6 +373,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                          sr.truth_checksum), report
     out = _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means)
     out.filters[name].landmarks = landmarks if failed is None else None
+    out.filters[name].joint = joint if failed is None else None
     return out, report
 
 
@@ -452,6 +456,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     answered = np.zeros((T, S), dtype=bool)
     failed: list[str | None] = [None] * S
     maps: list[Any] = [None] * S  # a SLAM filter's map after its last step (judged every tick)
+    joints: list[Any] = [None] * R  # and its final joint() (mean, cov, IDs), when it has one
     report: dict[str, Any] = {}
     try:
         builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
@@ -497,6 +502,8 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                 going.append(k)
             live = going
             idx = np.asarray(live, dtype=int)
+        joints = [child.final_joint(k) if failed[k] is None and maps[k] is not None else None
+                  for k in range(R)]
         report = child.batch_end()
     except ChildFailure as exc:  # the whole child: every run still going fails with its reason
         for k in range(S):
@@ -531,6 +538,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                            sr.index == 0) for k, sr in enumerate(sims)]
     for k, out in enumerate(outs):
         out.filters[name].landmarks = maps[k] if failed[k] is None else None
+        out.filters[name].joint = joints[k] if failed[k] is None else None
     return outs, report
 
 

@@ -224,7 +224,8 @@ class _Server:
         self.send(reply_json(OK, {"name": self.cls.__qualname__, "form": form, "missing": missing,
                                   "module": str(self.cls.__module__), "sensor_kinds": kinds,
                                   "supports_global": bool(getattr(self.cls, "supports_global", False)),
-                                  "landmarks": callable(getattr(self.cls, "landmarks", None))}))
+                                  "landmarks": callable(getattr(self.cls, "landmarks", None)),
+                                  "joint": callable(getattr(self.cls, "joint", None))}))
 
     def op_build(self, ctx: Any, initial: Any, global_seed: int, run_limit_s: float | None,
                  spec: str, step_limit_s: float | None = None) -> None:
@@ -372,6 +373,21 @@ class _Server:
         assert self.batch is not None
         self.send(self.batch.step(slots, bodies))
 
+    def op_bjoint(self, slots: list[int]) -> None:
+        """The final ``joint()`` (mean, cov, landmark IDs) of the runs ``slots`` of the batch,
+        for the joint NEES: MULTI, per run a JOINT entry (the three as float arrays) or OK
+        (no ``joint()``, it raised or ran out of its run's time, or a map over
+        :data:`~beacon_sim.filters.wire.MAX_JOINT_LANDMARKS`: not reported)."""
+        assert self.batch is not None
+        self.send(self.batch.joints(slots))
+
+    def op_joint(self) -> None:
+        """The final ``joint()`` of the one filter (as :meth:`op_bjoint`, one MULTI entry)."""
+        from beacon_sim.filters.watchdog import StepWatch
+        from beacon_sim.filters.wire import reply_multi
+
+        self.send(reply_multi([joint_entry(self.flt, StepWatch(cpu=True), self.step_limit_s)]))
+
     def op_bend(self) -> None:
         """End the batch: whether its filters drew from the global generators."""
         self.batch = None
@@ -403,6 +419,31 @@ def np_random_seed(seed: int) -> None:
 
     np.random.seed(seed % 2**32)  # noqa: NPY002 - a global-RNG filter is reproducible
     random.seed(seed)
+
+
+def joint_entry(f: Any, watch: Any, seconds: float | None) -> bytes:
+    """The reply entry of a filter's final ``joint()`` (mean, cov, IDs): a JOINT entry of
+    three float arrays, or OK when there is none to report (no ``joint()``, it raised or
+    ran over ``seconds`` [s] of CPU time under ``watch``, or more than
+    :data:`~beacon_sim.filters.wire.MAX_JOINT_LANDMARKS` landmarks)."""
+    import numpy as np
+
+    from beacon_sim.filters.wire import MAX_JOINT_LANDMARKS, OK, encode_joint, reply
+
+    joint = getattr(f, "joint", None)
+    if not callable(joint):
+        return reply(OK)
+    try:
+        watch.seconds = seconds
+        with watch:
+            mean, cov, ids = joint()
+            arrays = [np.asarray(mean, dtype=float), np.asarray(cov, dtype=float),
+                      np.asarray(ids, dtype=float)]
+    except BaseException:  # a joint() that fails is not reported (the run is scored already)
+        return reply(OK)
+    if arrays[2].size > MAX_JOINT_LANDMARKS or arrays[1].size > (3 + 2 * MAX_JOINT_LANDMARKS) ** 2:
+        return reply(OK)
+    return encode_joint(*arrays)
 
 
 class _Batch:
@@ -463,6 +504,16 @@ class _Batch:
         from beacon_sim.filters.wire import FAIL, reply_json
 
         return reply_json(FAIL, {"why": why, "tb": ""})
+
+    def joints(self, slots: list[int]) -> bytes:
+        from beacon_sim.filters.wire import reply_multi
+
+        entries = []
+        for k in slots:
+            f = self.filters[k] if 0 <= k < len(self.filters) else None
+            left = None if self.limit_s is None else self.limit_s - self.used[k] / 1e9
+            entries.append(joint_entry(f, self.watch, left))
+        return reply_multi(entries)
 
     def step(self, slots: list[int], bodies: list[bytes]) -> bytes:
         import pickle

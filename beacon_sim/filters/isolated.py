@@ -47,6 +47,7 @@ from beacon_sim.filters.wire import (
     EST_ENTRY,
     ESTIMATE,
     FAIL,
+    JOINT,
     MAPPED,
     MAX_BATCH,
     MULTI,
@@ -54,6 +55,7 @@ from beacon_sim.filters.wire import (
     REPORT,
     WireError,
     decode_belief,
+    decode_joint,
     encode_batch,
     encode_request,
     map_problem,
@@ -285,6 +287,20 @@ class FilterChild:
         order; a run not named is not stepped): a record array of their estimates (every one
         answered), else one (tag, payload) per run, ESTIMATE or FAIL (that run is switched off)."""
         return self.call_multi(encode_batch("bstep", bodies, slots), len(bodies))
+
+    def final_joint(self, slot: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The final ``joint()`` (mean (3 + 2M,), cov, landmark IDs (M,)) of run ``slot`` of
+        the batch (None: of the one filter), checked
+        (:func:`~beacon_sim.filters.wire.decode_joint`), or None when the filter reports none.
+        Asked one run at a time (a joint of 500 landmarks is 8 MB)."""
+        if self.info.get("joint") is not True:
+            return None
+        frame = encode_request("joint") if slot is None else encode_request("bjoint", [slot])
+        got = self.call_multi(frame, 1)
+        if isinstance(got, np.ndarray):
+            return None
+        tag, payload = got[0]
+        return decode_joint(payload) if tag == JOINT else None
 
     def batch_end(self) -> dict[str, Any]:
         """End the batch: whether its filters drew from the global ``np.random`` / ``random``."""

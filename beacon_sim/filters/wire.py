@@ -26,6 +26,8 @@ from beacon_sim.filters.landmark_check import MAX_LANDMARKS, landmark_count_prob
 #: ESTIMATE followed by the filter's map (``landmarks()``: a SLAM filter's step).
 OK, FAIL, ESTIMATE, BELIEF, REPORT, MULTI, MAPPED = b"K", b"F", b"E", b"B", b"R", b"M", b"L"
 _TAGS = (OK, FAIL, ESTIMATE, BELIEF, REPORT, MULTI, MAPPED)
+#: A MULTI entry carrying a filter's final ``joint()`` (:func:`encode_joint`).
+JOINT = b"J"
 #: The largest reply frame the grader reads [bytes] (a belief of a million particles fits).
 MAX_REPLY_BYTES = 64 << 20
 #: The longest text (a failure's reason or traceback) a reply carries [characters].
@@ -268,6 +270,11 @@ def map_problem(block: bytes) -> tuple[tuple[np.ndarray | None, np.ndarray, np.n
 
 # -- a batch of seeds: one exchange per tick for all of a student's runs ------------------
 
+#: The most landmarks of a ``joint()`` a child sends (its covariance: (3 + 2M)^2 numbers).
+MAX_JOINT_LANDMARKS = 500
+#: The longest joint entry of a MULTI reply [bytes] (a BELIEF: its JSON head, three arrays).
+MAX_JOINT_BYTES = 8 * (3 + 2 * MAX_JOINT_LANDMARKS) * (4 + 2 * MAX_JOINT_LANDMARKS) + 1024
+
 #: The largest batch (filters in one child answered in one MULTI reply: under 1 MB).
 MAX_BATCH = 4096
 #: The longest FAIL entry of a MULTI reply [bytes] (its JSON: a reason and a traceback).
@@ -309,8 +316,8 @@ def parse_multi(payload: bytes, count: int) -> list[tuple[bytes, bytes]] | np.nd
         tag, n = _RHEAD.unpack_from(payload, at)
         at += _RHEAD.size
         sizes = {OK: 0, ESTIMATE: _EST.size}
-        most = _EST.size + MAX_MAP_BYTES if tag == MAPPED else MAX_FAIL_BYTES
-        if tag not in (OK, ESTIMATE, FAIL, MAPPED) or n != sizes.get(tag, n) or n > most \
+        most = {MAPPED: _EST.size + MAX_MAP_BYTES, JOINT: MAX_JOINT_BYTES}.get(tag, MAX_FAIL_BYTES)
+        if tag not in (OK, ESTIMATE, FAIL, MAPPED, JOINT) or n != sizes.get(tag, n) or n > most \
                 or at + n > len(payload):
             raise WireError(f"broke the protocol (a batch entry of {n} bytes tagged {tag!r})")
         out.append((tag, bytes(view[at:at + n])))
@@ -318,6 +325,33 @@ def parse_multi(payload: bytes, count: int) -> list[tuple[bytes, bytes]] | np.nd
     if at != len(payload):
         raise WireError("broke the protocol (a batch answer with more entries than asked)")
     return out
+
+
+def encode_joint(mean: np.ndarray, cov: np.ndarray, ids: np.ndarray) -> bytes:
+    """A JOINT entry of a MULTI reply: a filter's final ``joint()`` as a belief-style
+    payload (kind "joint", three float64 arrays)."""
+    return reply(JOINT, encode_belief("joint", [mean, cov, ids], {})[_RHEAD.size:])
+
+
+def decode_joint(payload: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(mean (n,), cov (n, n), landmark IDs (M,) int) of a JOINT entry's payload (grader
+    side), with n = 3 + 2M, every number finite and the IDs whole; None for anything else
+    (then no joint NEES is reported: the filter is not failed for it)."""
+    try:
+        kind, arrays, _ = decode_belief(payload)
+    except WireError:
+        return None
+    if kind != "joint" or len(arrays) != 3:
+        return None
+    mean, cov, ids = arrays
+    m = ids.size
+    n = 3 + 2 * m
+    if ids.shape != (m,) or mean.shape != (n,) or cov.shape != (n, n) or m > MAX_JOINT_LANDMARKS:
+        return None
+    if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov)) and np.all(np.isfinite(ids))) \
+            or np.any(ids != np.round(ids)) or np.any(np.abs(ids) > 2**53):
+        return None
+    return mean, cov, ids.astype(np.int64)
 
 
 def encode_belief(kind: str, arrays: list[np.ndarray], extra: dict[str, Any]) -> bytes:
@@ -346,7 +380,8 @@ def decode_belief(payload: bytes) -> tuple[str, list[np.ndarray], dict[str, Any]
 
 
 __all__ = ["BELIEF", "ESTIMATE", "EST_ENTRY", "FAIL", "MAPPED", "MAX_BATCH", "MAX_MAP_BYTES",
-           "MULTI", "OK", "REPORT", "WireError", "decode_belief", "decode_landmarks",
-           "encode_batch", "encode_belief", "encode_landmarks", "encode_request", "map_problem",
-           "parse_estimate", "parse_json", "parse_multi", "read_reply", "read_request", "reply",
-           "reply_estimate", "reply_json", "reply_multi", "send_frame", "split_mapped"]
+           "MULTI", "OK", "REPORT", "WireError", "decode_belief", "decode_joint",
+           "decode_landmarks", "encode_batch", "encode_belief", "encode_joint", "encode_landmarks",
+           "encode_request", "map_problem", "parse_estimate", "parse_json", "parse_multi",
+           "read_reply", "read_request", "reply", "reply_estimate", "reply_json", "reply_multi",
+           "send_frame", "split_mapped"]
