@@ -69,6 +69,9 @@ SLAM_REFERENCE_SPEC = "ekf_slam"
 #: A SLAM row's figures (docs/grading.md, "A SLAM assignment"): the path's ATE [m], the
 #: final map's GOSPA [m] (cut-off ``GOSPA_CUTOFF_M``, as ``run``), its landmarks, missed
 #: and false ones, and the final joint NEES (where the filter has ``joint()``), seed means.
+#: The built-in filter graded beside the students on a map world with a range finder (a
+#: scan-based assignment, docs/maps.md): in the grader's process, on the same seeds.
+SCAN_REFERENCE_SPEC = "mcl"
 SLAM_FIGURES = ("ate_m", "map_gospa_m", "map_landmarks", "map_missed", "map_false", "joint_nees")
 
 
@@ -671,8 +674,17 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     scored = _score_together(scenarios, single, by, students, len(config.seeds))
     slam_names = [n for n in single if is_slam_scenario(scenarios[n])]
     slam_reference = _slam_reference(sims, slam_names)
+    scan_reference = _scan_reference(scenarios, [n for n in single if is_scan_scenario(scenarios[n])],
+                                     config)
     for st in students:
         row = _student_row(st, config, scenarios, by, n_runs, reference, scored, slam_reference)
+        for name, ref in scan_reference.items():  # a scan assignment: the row beside mcl's
+            got = scored.get((st.name, name))
+            mine = got[0].get("pos_rmse_m") if got is not None and not row["failed_runs"] else None
+            theirs = ref["pos_rmse_m"]
+            row.setdefault("scan", {})[name] = {
+                "pos_rmse_m": mine, "reference_pos_rmse_m": theirs,
+                "over_reference": mine / theirs if mine is not None and theirs else None}
         _add_findings(row, found.get(st.name))
         rows.append(row)
     rows.sort(key=rank_key)
@@ -680,7 +692,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         row["rank"] = k
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
             "students": len(students), "runs_per_student": n_runs, "reference": reference,
-            "slam_reference": slam_reference,
+            "slam_reference": slam_reference, "scan_reference": scan_reference,
             "sandbox": sandbox, "isolated": True, "team_in_process": [],
             "cached_students": cached,
             # what the students' children said they used [s] (their own word: cost figures only)
@@ -860,6 +872,33 @@ def _slam_reference(sims: list[SimulatedRun], names: list[str]) -> dict[str, dic
         per = [reference_slam_run(sr) for sr in sims if sr.label == name]
         out[name] = ({"filter": SLAM_REFERENCE_SPEC, **_mean_figures(per)} if per and all(per)  # type: ignore[arg-type]
                      else {"filter": SLAM_REFERENCE_SPEC, **dict.fromkeys(SLAM_FIGURES)})
+    return out
+
+
+def is_scan_scenario(sc: Scenario | TeamScenario) -> bool:
+    """A single-robot map world (walls) with a range finder: a scan-based assignment."""
+    return (isinstance(sc, Scenario) and sc.world.grid is not None
+            and any(s.kind == "range_finder" for s in sc.model_sensors))
+
+
+def _scan_reference(scenarios: dict[str, Scenario | TeamScenario], names: list[str],
+                    config: GradeConfig) -> dict[str, dict[str, Any]]:
+    """The built-in ``mcl``'s figures (position and heading RMSE, ANEES) on each scan
+    scenario ``names``, run in process (a built-in filter: trusted) on the config's seeds:
+    :func:`~beacon_sim.evaluation.montecarlo.one_run`, the path ``eval`` takes."""
+    out: dict[str, dict[str, Any]] = {}
+    for name in names:
+        sc = scenarios[name]
+        assert isinstance(sc, Scenario)
+        duration = sc.duration if config.duration is None else config.duration
+        try:
+            runs = [one_run(sc, [SCAN_REFERENCE_SPEC], {}, seed, duration, index=i)
+                    for i, seed in enumerate(config.seeds)]
+            fr = evaluate(sc, runs, Thresholds())[0]["filters"][SCAN_REFERENCE_SPEC]
+        except Exception:  # a built-in that fails there says nothing of the students
+            fr = {}
+        out[name] = {"filter": SCAN_REFERENCE_SPEC,
+                     **{k: fr.get(k) for k in ("pos_rmse_m", "heading_rmse_rad", "anees")}}
     return out
 
 
@@ -1156,6 +1195,23 @@ def _slam_note(board: dict[str, Any]) -> str:
             f"The built-in {SLAM_REFERENCE_SPEC} on the same seeds: " + "; ".join(parts) + ".")
 
 
+def _scan_note(board: dict[str, Any]) -> str:
+    """The HTML note's sentence on scan scenarios: the built-in mcl's figures there."""
+    ref = board.get("scan_reference") or {}
+    if not ref:
+        return ""
+    parts = [f"{html.escape(n)}: {r['pos_rmse_m']:.4f} m" if r.get("pos_rmse_m") is not None
+             else f"{html.escape(n)}: failed" for n, r in ref.items()]
+    return (f" On a map world with a range finder each filter gets the occupancy grid (ctx.world.grid) "
+            f"and the scans, never the pose; the built-in {SCAN_REFERENCE_SPEC} on the same seeds, "
+            "position RMSE: " + "; ".join(parts) + ".")
+
+
+def _notes(board: dict[str, Any]) -> str:
+    """The page note's sentences on the team, SLAM and scan scenarios and their references."""
+    return _reference_note(board) + _slam_note(board) + _scan_note(board)
+
+
 def _sandbox_text(board: dict[str, Any]) -> str:
     level = board.get("sandbox", "process")
     text = ("bubblewrap sandbox: no network, read-only system, its own file alone" if level == "bwrap"
@@ -1237,7 +1293,7 @@ ranks below every working filter, whatever the column sorted; a suspicious resul
 the Cramer-Rao bound) is kept out of the ranking, below the working filters, with its reason.
 Each student's filter ran in a process of its own ({html.escape(_sandbox_text(board))}).
 Click a column to sort.
-Plot: position error [m] against time [s] of the first seed.{_reference_note(board)}{_slam_note(board)}</p>
+Plot: position error [m] against time [s] of the first seed.{_notes(board)}</p>
 <table id="board"><thead><tr>{head}<th>status and failures</th><th>error, first seed</th></tr></thead>
 <tbody>
 {chr(10).join(body)}
