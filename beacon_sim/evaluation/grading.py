@@ -356,6 +356,90 @@ LOG_BYTES = 256 << 10
 
 
 @dataclass
+class TeamSimulated:
+    """One team (scenario, seed) simulated once by the grader (issue 27): each robot's run
+    as a :class:`~beacon_sim.evaluation.montecarlo.SimulatedRun` (its command, dt and beacon
+    readings per tick, what that robot's copy of a student's filter is fed; its truth stays
+    here) and the team's arrays for the scoring."""
+
+    label: str
+    index: int
+    seed: int
+    robots: list[SimulatedRun]
+    robot_ids: list[str]
+    robot_names: list[str]
+    truth: np.ndarray  # (T + 1, N, 3), row 0 the start
+    controls: np.ndarray  # (T, N, 2)
+    kidnapped: np.ndarray  # (T, N)
+    truth_checksum: str
+
+
+def simulate_team_run(team: TeamScenario, seed: int, duration: float, index: int = 0,
+                      label: str | None = None) -> TeamSimulated:
+    """Simulate one team run as ``run_headless`` does (the same truth), without filters:
+    per robot the "step" requests its copy of a single-robot filter gets (the team
+    baseline: that robot's beacon readings), pickled once for every student."""
+    from beacon_sim.core.team import TeamSimulation
+    from beacon_sim.filters.wire import encode_request
+
+    sim = TeamSimulation(team, seed)
+    T, N = round(duration / team.dt), team.n_robots
+    truth = np.empty((T + 1, N, 3))
+    truth[0] = [r.scenario.initial_pose for r in team.robots]
+    controls = np.empty((T, N, 2))
+    kidnapped = np.zeros((T, N), dtype=bool)
+    frames: list[list[bytes]] = [[] for _ in range(N)]
+    for k in range(T):
+        step = sim.step()
+        for i, st in enumerate(step.steps):
+            truth[k + 1, i] = st.true_pose
+            controls[k, i] = (st.control.v, st.control.omega)
+            kidnapped[k, i] = st.kidnapped
+            frames[i].append(encode_request("step", st.control, st.dt, tuple(st.measurements), False))
+    label = team.name if label is None else label
+    checksum = sim.truth_checksum
+    robots = [SimulatedRun(r.scenario, index, seed, truth[:, i].copy(), controls[:, i].copy(),
+                           kidnapped[:, i].copy(), checksum, [], np.zeros(T, dtype=int), frames[i], None,
+                           label) for i, r in enumerate(team.robots)]
+    return TeamSimulated(label, index, seed, robots, [str(r.id) for r in team.robots],
+                         [str(r.name) for r in team.robots], truth, controls, kidnapped, checksum)
+
+
+def team_output(ts: TeamSimulated, runs: list[RunOutput], name: str) -> TeamRunOutput:
+    """The team run of a student's filter from its robots' runs (one per robot, fed
+    together): as the grader's in-worker team run scores it. A copy that failed on one
+    robot fails the filter on every robot from that tick ("robot NAME: why"), the rows
+    after it NaN; the cost is the sum over the robots."""
+    T = len(ts.robots[0].frames)
+    frs = [next(iter(r.filters.values())) for r in runs]
+
+    def first_bad(fr: Any) -> int:
+        bad = ~np.isfinite(fr.err[:, 0])
+        return int(np.argmax(bad)) if bad.any() else T
+
+    ends = [first_bad(fr) if fr.failed else min(first_bad(fr), fr.steps) for fr in frs]
+    n_ok = min(ends)
+    failing = [i for i, fr in enumerate(frs) if fr.failed]
+    why = None
+    if failing:
+        i = min(failing, key=lambda j: (ends[j], j))
+        why = f"robot {ts.robot_names[i]}: {frs[i].failed}"
+    step_ns = int(sum(fr.step_ns for fr in frs))
+    out = TeamRunOutput(ts.index, ts.seed, ts.truth, ts.controls, ts.kidnapped, ts.truth_checksum)
+    copies = []
+    for fr in frs:
+        err, var, nees = fr.err.copy(), fr.var.copy(), fr.nees.copy()
+        means = None if fr.means is None else fr.means.copy()
+        for a in (err, var, nees) + ((means,) if means is not None else ()):
+            a[n_ok:] = np.nan
+        copies.append(dataclasses.replace(fr, err=err, var=var, nees=nees, means=means, nis_sum=0.0,
+                                          nis_dof=0, step_ns=step_ns, steps=n_ok if why else fr.steps,
+                                          failed=why, landmarks=None, joint=None))
+    out.filters[name] = copies
+    return out
+
+
+@dataclass
 class StudentJob:
     """Everything one student's runs need, picklable (a Dask task): the file's bytes (not
     its path: a worker needs no shared file system), the simulated runs (scenario, seed)
@@ -369,6 +453,7 @@ class StudentJob:
     time_limit: float
     memory_limit_gb: float
     sandbox: str
+    team_sims: list[TeamSimulated] = dataclasses.field(default_factory=list)  # team scenarios
 
 
 @dataclass
@@ -383,7 +468,7 @@ class StudentResult:
 
 
 def _limits(job: StudentJob) -> Limits:
-    runs = len(job.sims) + 2
+    runs = len(job.sims) + 2 + sum(len(ts.robots) for ts in job.team_sims)
     return Limits(memory_gb=job.memory_limit_gb, cpu_s=job.time_limit * runs * 1.5 + 60.0,
                   log_bytes=LOG_BYTES)
 
@@ -434,7 +519,7 @@ def run_student(job: StudentJob) -> StudentResult:
                     child = FilterChild(src, job.class_name, log, job.sandbox, limits, timeout)
                     findings["form"] = child.form
                 except ChildFailure as exc:
-                    load_problem = str(exc)
+                    load_problem = findings["load_problem"] = str(exc)
             return child
 
         def stop() -> None:
@@ -450,6 +535,7 @@ def run_student(job: StudentJob) -> StudentResult:
             results[k] = TaskResult(task(job.sims[k]), run, None, wall_s,
                                     {k2: v for k2, v in rep.items() if k2 not in ("means", "probes")})
 
+        team_results: list[TaskResult] = []
         try:
             for batch in _batches(job.sims):
                 t0 = time.perf_counter()
@@ -487,6 +573,7 @@ def run_student(job: StudentJob) -> StudentResult:
                         record(k, run, rep, wall)
                     if probing:
                         _probe_findings(job.sims[0], runs[0], rep.get("probes") or {}, findings)
+            team_results += _run_team_batches(job, started, stop, record_team=findings)
         finally:
             stop()
         raw = log.read_bytes() if log.exists() else b""
@@ -494,13 +581,72 @@ def run_student(job: StudentJob) -> StudentResult:
         if len(raw) > LOG_BYTES + 100:
             text += f"\n[log cut at {LOG_BYTES} bytes]\n"
     findings["wall_s"] = time.perf_counter() - t_start
-    return StudentResult(job.student, [r for r in results if r is not None], findings, text, job.sandbox)
+    return StudentResult(job.student, [r for r in results if r is not None] + team_results, findings, text,
+                         job.sandbox)
 
 
-def run_student_shared(job: StudentJob, shared: list[SimulatedRun]) -> StudentResult:
+def _run_team_batches(job: StudentJob, started: Callable[[], FilterChild | None],
+                      stop: Callable[[], None], record_team: dict[str, Any]) -> list[TaskResult]:
+    """The student's team runs (issue 27): per team scenario, every robot of every seed fed
+    together in the student's child (one filter per robot and seed, one exchange per tick),
+    on the runs the grader simulated once; each robot's copy named ``CLASS/ROBOT_ID`` (its
+    own random stream), with the scenario's ``[filters.CLASS]``. A filter that draws from
+    the global generators is run again robot by robot, afresh, as on single-robot runs."""
+    out: list[TaskResult] = []
+    groups: dict[str, list[TeamSimulated]] = {}
+    for ts in job.team_sims:
+        groups.setdefault(ts.label, []).append(ts)
+    for group in groups.values():
+        t0 = time.perf_counter()
+
+        def task(ts: TeamSimulated) -> Task:
+            return Task(job.student, job.filename, ts.label, ts.seed, None, job.time_limit, ts.index)
+
+        child = started()
+        if child is None:
+            why = record_team.get("load_problem") or "the filter's file could not be loaded"
+            out += [TaskResult(task(ts), None, why, 0.0) for ts in group]
+            continue
+        cls = child.class_name
+        sims = [r for ts in group for r in ts.robots]
+        names = [f"{cls}/{rid}" for ts in group for rid in ts.robot_ids]
+        params = [dict(r.scenario.filter_params.get(cls, {})) for r in sims]
+        runs, rep = isolated_runs(child, sims, job.time_limit, name=names, params=params)
+        if rep.get("failed_child"):
+            stop()
+        if rep.get("heading_unwrapped"):
+            record_team["heading_wrapped"] = False
+        if rep.get("np_global") or rep.get("py_global"):
+            record_team["global_rng"] = True
+            stop()
+            runs = []
+            for sr, nm, pr in zip(sims, names, params, strict=True):
+                one = started()
+                if one is None:  # it loaded once: a file that no longer loads fails these runs
+                    break
+                run, rep1 = isolated_run(one, sr, job.time_limit, keep_means=sr.index == 0, name=nm,
+                                         params=pr)
+                if rep1.get("failed_child"):
+                    stop()
+                runs.append(run)
+            if len(runs) < len(sims):
+                why = record_team.get("load_problem") or "the filter's file could not be loaded again"
+                out += [TaskResult(task(ts), None, why, 0.0) for ts in group]
+                continue
+        wall = (time.perf_counter() - t0) / len(group)
+        at = 0
+        for ts in group:
+            n = len(ts.robots)
+            out.append(TaskResult(task(ts), team_output(ts, runs[at:at + n], cls), None, wall))
+            at += n
+    return out
+
+
+def run_student_shared(job: StudentJob, shared: tuple[list[SimulatedRun], list[TeamSimulated]]
+                       ) -> StudentResult:
     """:func:`run_student` of a job sent without its runs, on the runs every worker got once
-    (a Dask task of :func:`run_students`)."""
-    return run_student(dataclasses.replace(job, sims=shared))
+    (a Dask task of :func:`run_students`): the single-robot runs and the team runs."""
+    return run_student(dataclasses.replace(job, sims=shared[0], team_sims=shared[1]))
 
 
 def _probe_findings(sr: SimulatedRun, graded: RunOutput, probes: dict[str, Any],
@@ -553,7 +699,7 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
     student's child process, where the work is), or as Dask tasks (``scheduler``) whose
     results are released once gathered (nothing finished is computed again)."""
     out: list[StudentResult | None] = [None] * len(jobs_list)
-    total = sum(len(j.sims) for j in jobs_list)
+    total = sum(len(j.sims) + len(j.team_sims) for j in jobs_list)
     done = 0
 
     def finish(i: int, res: StudentResult) -> None:
@@ -569,13 +715,14 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
             finish(i, StudentResult(job.student, [
                 TaskResult(Task(job.student, job.filename, sr.label, sr.seed, None,
                                 job.time_limit, sr.index), None,
-                           f"worker lost: {type(exc).__name__}") for sr in job.sims],
+                           f"worker lost: {type(exc).__name__}") for sr in [*job.sims, *job.team_sims]],
                 {}, "", job.sandbox))
 
         sims = jobs_list[0].sims if jobs_list else []
-        if all(j.sims is sims for j in jobs_list):  # the class's runs: sent to each worker once
-            light = [dataclasses.replace(j, sims=[]) for j in jobs_list]
-            on_dask(scheduler, run_student_shared, light, finish, lost=lost, shared=sims)
+        team_sims = jobs_list[0].team_sims if jobs_list else []
+        if all(j.sims is sims and j.team_sims is team_sims for j in jobs_list):  # sent to each worker once
+            light = [dataclasses.replace(j, sims=[], team_sims=[]) for j in jobs_list]
+            on_dask(scheduler, run_student_shared, light, finish, lost=lost, shared=(sims, team_sims))
         else:
             on_dask(scheduler, run_student, list(jobs_list), finish, lost=lost)
     else:
@@ -612,14 +759,18 @@ def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320
 
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
           scheduler: Any = None, progress: Callable[[int, int], None] | None = None,
-          cache: str | Path | None = None) -> dict[str, Any]:
+          cache: str | Path | None = None, team_in_workers: bool = False) -> dict[str, Any]:
     """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
     order, ``config``, ``wall_s``, ``sandbox``, ``logs``) that :func:`write_outputs` writes.
 
     Each single-robot (scenario, seed) is simulated once, here; each student's filter runs
     in a child process of its own (:func:`run_student`) that receives only what a filter
-    may see; the scoring stays here. On a team scenario each robot's copy of the student's
-    filter is a child process of its own (the team simulation runs in a worker of the grader).
+    may see; the scoring stays here. A team scenario's (scenario, seed) is simulated once too
+    (:func:`simulate_team_run`) and each robot's ticks streamed to the student's child, one
+    copy of the filter per robot (issue 27). ``team_in_workers``: the former path instead,
+    each student's team runs simulated in a worker with each robot's copy a child of its
+    own (benchmarks/bench_grade.py compares the two; tests/test_grade_team_once.py holds
+    them equal).
 
     ``cache``: a folder of earlier results, by the file's hash and the configuration
     (:func:`cache_key`): a student whose file and settings are unchanged is not run again
@@ -641,10 +792,18 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         duration = sc.duration if config.duration is None else config.duration
         for i, seed in enumerate(config.seeds):
             sims.append(simulate_run(sc, seed, duration, i, blind=not sims, label=n))
+    team_sims: list[TeamSimulated] = []
+    if not team_in_workers:
+        for n in team_names:
+            team = scenarios[n]
+            assert isinstance(team, TeamScenario)
+            duration = team.duration if config.duration is None else config.duration
+            team_sims += [simulate_team_run(team, seed, duration, i, n)
+                          for i, seed in enumerate(config.seeds)]
     student_jobs = [StudentJob(st.name, st.path.name, st.path.read_bytes(),
                                config.class_name or st.class_name, sims, config.time_limit,
-                               config.memory_limit_gb, sandbox)
-                    for st in students if st.spec and sims]
+                               config.memory_limit_gb, sandbox, team_sims)
+                    for st in students if st.spec and (sims or team_sims)]
     if cache is not None and not _students_cannot_write_here(sandbox):
         cache = None  # a child running as this user could plant a pickle: no cache
     done_students, cached = _run_cached(student_jobs, jobs, scheduler, progress,
@@ -653,7 +812,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     # Team scenarios: each robot's copy of the student's filter in a child process of its own.
     tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), sc, seed,
                   config.duration, config.time_limit, i)
-             for st in students if st.spec for sc in team_names
+             for st in students if st.spec and team_in_workers for sc in team_names
              for i, seed in enumerate(config.seeds)]
     tasks += [Task(REFERENCE, REFERENCE_SPEC, sc, seed, config.duration, config.time_limit, i)
               for sc in team_names for i, seed in enumerate(config.seeds)]
@@ -719,7 +878,9 @@ def cache_key(job: StudentJob) -> str:
     h = hashlib.sha256(job.source)
     meta = [job.filename, job.class_name, job.time_limit, job.memory_limit_gb, job.sandbox, __version__,
             PROBE_TICKS, [(sr.label, sr.seed, len(sr.frames), sr.truth_checksum, repr(sr.scenario))
-                          for sr in job.sims]]
+                          for sr in job.sims],
+            [(ts.label, ts.seed, len(ts.robots[0].frames), ts.truth_checksum,
+              [repr(r.scenario) for r in ts.robots]) for ts in job.team_sims]]
     h.update(json.dumps(meta, default=str).encode())
     return h.hexdigest()
 

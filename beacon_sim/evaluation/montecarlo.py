@@ -412,7 +412,8 @@ def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndar
 
 
 def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | None,
-                  name: str | None = None, params: dict[str, Any] | None = None,
+                  name: str | list[str] | None = None,
+                  params: dict[str, Any] | list[dict[str, Any]] | None = None,
                   probe_ticks: int | None = None) -> tuple[list[RunOutput], dict[str, Any]]:
     """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
     child, one exchange per tick carrying every run's control, dt and readings and bringing
@@ -428,13 +429,19 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     ``probe_ticks``: two more filters in the batch on the first ``probe_ticks`` ticks of
     ``sims[0]``, one fed the same readings again (is it deterministic?) and one fed none
     (``frames_blind``: does it use them?); ``report["probes"]`` holds their means (or None
-    when that probe failed)."""
+    when that probe failed).
+
+    ``name`` and ``params`` may be lists, one per run (the robots of a team scenario: each
+    robot's copy its own name, so its own random stream); the runs' records are keyed by
+    the first name."""
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
     from beacon_sim.filters.wire import ESTIMATE, MAPPED, WireError, map_problem, parse_estimate, split_mapped
 
-    name = name or child.class_name
     R = len(sims)
+    names = list(name) if isinstance(name, list) else [name or child.class_name] * R
+    run_params = list(params) if isinstance(params, list) else [params] * R
+    name = names[0]
     T = len(sims[0].frames)
     if any(len(sr.frames) != T for sr in sims):
         raise ValueError("isolated_runs: the runs of a batch must have the same number of ticks")
@@ -445,6 +452,8 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
         for what, frames in (("again", sims[0].frames), ("blind", sims[0].frames_blind)):
             if frames is not None:
                 probes.append(what)
+                names.append(names[0])
+                run_params.append(run_params[0])
                 slot_sims.append(sims[0])
                 slot_frames.append(frames)
                 slot_ticks.append(n)
@@ -459,8 +468,8 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     joints: list[Any] = [None] * R  # and its final joint() (mean, cov, IDs), when it has one
     report: dict[str, Any] = {}
     try:
-        builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
-                  for sr in slot_sims]
+        builds = [(_hosted_context(sr, names[k], run_params[k]), initial_belief(sr.scenario), names[k])
+                  for k, sr in enumerate(slot_sims)]
         follows: list[int | None] = [None] * R + [0] * len(probes)  # a probe ends with the run it probes
         why = child.batch_build(builds, sims[0].seed, run_limit_s, follows)
         for k, w in enumerate(why):
