@@ -712,10 +712,11 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
     if scheduler is not None:
         def lost(i: int, exc: Exception) -> None:  # the worker itself was lost (not the child)
             job = jobs_list[i]
+            runs: list[SimulatedRun | TeamSimulated] = [*job.sims, *job.team_sims]
             finish(i, StudentResult(job.student, [
                 TaskResult(Task(job.student, job.filename, sr.label, sr.seed, None,
                                 job.time_limit, sr.index), None,
-                           f"worker lost: {type(exc).__name__}") for sr in [*job.sims, *job.team_sims]],
+                           f"worker lost: {type(exc).__name__}") for sr in runs],
                 {}, "", job.sandbox))
 
         sims = jobs_list[0].sims if jobs_list else []

@@ -440,7 +440,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
 
     R = len(sims)
     names = list(name) if isinstance(name, list) else [name or child.class_name] * R
-    run_params = list(params) if isinstance(params, list) else [params] * R
+    run_params: list[dict[str, Any] | None] = list(params) if isinstance(params, list) else [params] * R
     name = names[0]
     T = len(sims[0].frames)
     if any(len(sr.frames) != T for sr in sims):
