@@ -136,7 +136,8 @@ SLAM_CONFIG = dict(scenarios=("slam_loop",), seeds=(0, 1), duration=15.0, time_l
 
 def slam_class(tmp_path):
     """A class: the shipped template (alice), a file whose map turns NaN once it holds three
-    landmarks (carol), and the built-in EKF-SLAM handed in as a file (erin)."""
+    landmarks (carol), the built-in EKF-SLAM handed in as a file (erin), and dead reckoning,
+    which maps nothing (frank)."""
     from beacon_sim.cli.main import main
 
     folder = tmp_path / "class"
@@ -149,6 +150,8 @@ def slam_class(tmp_path):
     (folder / "carol.py").write_text(good.replace(ret, nan + ret), encoding="utf-8")
     (folder / "erin.py").write_text("from beacon_sim.filters.ekf_slam import EKFSLAM\n\n\n"
                                     "class Erin(EKFSLAM):\n    pass\n", encoding="utf-8")
+    (folder / "frank.py").write_text("from beacon_sim.filters.dead_reckoning import DeadReckoning\n\n\n"
+                                     "class Frank(DeadReckoning):\n    pass\n", encoding="utf-8")
     return folder
 
 
@@ -175,6 +178,11 @@ def test_grade_scores_a_slam_class_beside_the_built_in_ekf_slam(tmp_path, capsys
     assert not rows["erin"]["failures"]
     assert erin["ate_m"] == ref["ate_m"] and erin["map_gospa_m"] == ref["map_gospa_m"]
     assert erin["joint_nees"] == pytest.approx(ref["joint_nees"], rel=1e-9)
+    # no landmarks(): graded on its path, its map not scored, and flagged
+    frank = rows["frank"]
+    assert not frank["failures"] and frank["ate_m"] > 0 and frank["map_gospa_m"] is None
+    assert not frank["slam"]["slam_loop"]["mapped"]
+    assert any("reports no map" in f for f in frank["flags"]), frank["flags"]
     # a bad map: switched off with the reason, no score
     r = rows["carol"]
     assert r["failed_runs"] == 2 and r["pos_rmse_m"] is None
