@@ -188,6 +188,7 @@ def test_grade_scores_a_slam_class_beside_the_built_in_ekf_slam(tmp_path, capsys
     assert r["failed_runs"] == 2 and r["pos_rmse_m"] is None
     assert r["ate_m"] is None and r["map_gospa_m"] is None
     assert all("landmarks(): NaN or infinity" in f["reason"] for f in r["failures"]), r["failures"]
+    assert not any("reports no map" in f for f in r["flags"])  # it did, until it broke
     assert r["rank"] > rows["alice"]["rank"]
     out = tmp_path / "out"
     write_outputs(board, out)

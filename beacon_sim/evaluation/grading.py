@@ -960,7 +960,8 @@ def _add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
         flags.append("heading not wrapped to [-pi, pi)")
     if row["readings_used"] is False:
         flags.append("uses none of the readings: the estimates do not change when they are withheld")
-    unmapped = [n for n, v in (row.get("slam") or {}).items() if not v.get("mapped")]
+    unmapped = [] if row["failed_runs"] else [n for n, v in (row.get("slam") or {}).items()
+                                              if not v.get("mapped")]
     if unmapped:
         flags.append(f"no landmarks(): the filter reports no map, so its map is not scored on "
                      f"{', '.join(unmapped)} (docs/slam.md)")
