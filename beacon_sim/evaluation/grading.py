@@ -15,6 +15,11 @@ student's single-robot filter as every robot's own filter (``independent:FILTER`
 team baseline: beacon readings only), beside the built-in independent EKF on the same
 seeds (the ``reference``): the row's figures for it are the team's (RMSE over all robots,
 mean ANEES, RMSE over each robot's bound alone), and ``team`` holds each robot's.
+
+A SLAM scenario (the beacon map withheld) adds the map columns (the path's ATE, the final
+map's GOSPA, the joint NEES) beside the built-in EKF-SLAM; a map world with a range finder
+puts each row beside the built-in mcl (docs/grading.md, "A SLAM assignment", "A scan-based
+assignment").
 """
 
 from __future__ import annotations
