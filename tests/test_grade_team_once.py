@@ -71,3 +71,20 @@ def test_team_runs_streamed_once_equal_the_per_student_path_bit_for_bit(tmp_path
         r = rows["breaks"]
         assert r["failed_runs"] == 2 and r["pos_rmse_m"] is None
         assert all("ValueError: my update broke" in f["reason"] for f in r["failures"]), r["failures"]
+
+
+@pytest.mark.slow
+def test_team_runs_streamed_once_on_dask_equal_local_processes(tmp_path):
+    """The team runs go to every Dask worker once (scattered with the single-robot runs)."""
+    distributed = pytest.importorskip("dask.distributed", reason="the grade extra (Dask) is not installed")
+    klass = tmp_path / "class"
+    klass.mkdir()
+    shutil.copy(ATTACKS / "honest.py", klass / "honest.py")
+    cfg = GradeConfig(scenarios=("default", "team_sparse"), seeds=(0,), duration=4.0)
+    local = grade(klass, cfg, jobs=1)["rows"][0]
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        remote = grade(klass, cfg, scheduler=client)["rows"][0]
+    assert not local["failures"] and not remote["failures"]
+    for key in FIGURES:
+        assert local.get(key) == remote.get(key), key
