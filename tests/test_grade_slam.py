@@ -20,6 +20,7 @@ from beacon_sim.filters.wire import (
     WireError,
     decode_landmarks,
     encode_landmarks,
+    map_fault_block,
     map_problem,
 )
 
@@ -91,6 +92,11 @@ def test_the_grader_judges_a_map_it_reads_whatever_the_child_sent():
     neg = encode_landmarks(LandmarkMap(None, np.zeros((1, 2)), -np.eye(2)[None]))
     assert "not positive semi-definite" in (map_problem(neg)[1] or "")  # type: ignore[arg-type]
     assert 16 + MAX_LANDMARKS * 56 == MAX_MAP_BYTES
+    # a fault sent as data (check's mode): the one line, on one line
+    assert map_problem(map_fault_block("landmarks() raised KeyError: 3\nmore"))[1] == \
+        "landmarks() raised KeyError: 3 more"
+    with pytest.raises(WireError):
+        decode_landmarks(map_fault_block("x")[:-1])
 
 
 # -- check: a hosted file's map ----------------------------------------------------------
@@ -115,6 +121,7 @@ def test_check_fails_a_hostile_slam_files_map_with_its_message(tmp_path, kind):
     assert HOSTILE[kind][1] in lm.message, lm.message
     assert lm.message.startswith("step ")
     assert res["loads"].passed and res["shapes"].passed  # the pose checks judged on their own
+    assert res["runs"].passed, res["runs"].message  # as in process: the map is the map check's
 
 
 def test_a_map_fault_in_process_reads_as_in_the_child(tmp_path):

@@ -263,8 +263,10 @@ class _Server:
             pri = estimate_arrays(prior)
             if isinstance(pri, str):
                 return self.fail("after predict: " + pri)
-        if isinstance(block, str):
-            return self.fail(block)
+        if isinstance(block, str):  # the map's fault as data: the grader decides (wire.py)
+            from beacon_sim.filters.wire import map_fault_block
+
+            block = map_fault_block(block)
         self.send(reply_estimate(wall, pri, post, block))
         return None
 

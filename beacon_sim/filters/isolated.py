@@ -324,8 +324,12 @@ class IsolatedFilter:
 
     def __init__(self, child: FilterChild, ctx: FilterContext, initial: GaussianBelief | None,
                  global_seed: int, run_limit_s: float | None, spec: str,
-                 step_limit_s: float | None = None):
+                 step_limit_s: float | None = None, strict_map: bool = True):
         self.child = child
+        #: A SLAM filter's bad map raises at the step that brought it (switched off, as a bad
+        #: estimate); False (``check``): at ``landmarks()``, so the pose checks go on.
+        self.strict_map = strict_map
+        self._map_fault: str | None = None
         self.supports_global = True  # the child resets with the scenario's own belief
         self._pending: tuple[Control, float] | None = None
         self._est: Any = None
@@ -355,10 +359,13 @@ class IsolatedFilter:
             control, dt = self._pending
             self._pending = None
             tag, payload = self.child.call("step", control, dt, meas, False)
-            self._map = None
+            self._map = self._map_fault = None
             if tag == MAPPED:
                 payload, block = split_mapped(payload)
-                tag, self._map = ESTIMATE, _judged_map(block)
+                tag = ESTIMATE
+                self._map, self._map_fault = _judged_map(block)
+                if self._map_fault is not None and self.strict_map:
+                    raise ChildFailure(self._map_fault)
             self._est = _estimate_of(tag, payload)
             self.last_step_ns = parse_estimate(payload)[0] if tag == ESTIMATE else None
             return
@@ -398,26 +405,31 @@ class IsolatedMappingFilter(IsolatedFilter):
 
     def landmarks(self) -> LandmarkMap:
         self._flush()
+        if self._map_fault is not None:
+            raise ChildFailure(self._map_fault)
         if self._map is None:
             tag, payload = self.child.call("landmarks")
             if tag != MAPPED:
                 raise ChildFailure("the filter's process broke the protocol")
-            self._map = _judged_map(split_mapped(payload)[1])
+            got, why = _judged_map(split_mapped(payload)[1])
+            if why is not None or got is None:
+                raise ChildFailure(why or "landmarks(): a bad map")
+            self._map = got
         lm = self._map
         return LandmarkMap(None if lm.ids is None else lm.ids.copy(), lm.means.copy(), lm.covs.copy())
 
 
-def _judged_map(block: bytes) -> LandmarkMap:
-    """The map of a MAPPED reply, judged (:func:`~beacon_sim.filters.wire.map_problem`); a
-    bad one raises :class:`ChildFailure` (the filter is switched off with the fault), a
-    malformed block one that says the child broke the protocol."""
+def _judged_map(block: bytes) -> tuple[LandmarkMap | None, str | None]:
+    """The map of a MAPPED reply, judged (:func:`~beacon_sim.filters.wire.map_problem`):
+    (the map, None) or (None, its fault in one line); a malformed block raises
+    :class:`ChildFailure` (the child broke the protocol)."""
     try:
         got, why = map_problem(block)
     except WireError as exc:
         raise ChildFailure(f"the filter's process {exc}", died=False) from None
     if why is not None or got is None:
-        raise ChildFailure(why or "landmarks(): a bad map")
-    return LandmarkMap(*got)
+        return None, why or "landmarks(): a bad map"
+    return LandmarkMap(*got), None
 
 
 def _estimate_of(tag: bytes, payload: bytes) -> Any:

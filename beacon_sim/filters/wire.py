@@ -48,6 +48,15 @@ class WireError(RuntimeError):
     """The other end closed the pipe, broke the protocol, or did not answer in time."""
 
 
+class MapFault(ValueError):
+    """A map block that says what was wrong with the filter's ``landmarks()``: its one line."""
+
+
+def fault_text(raw: bytes) -> str:
+    """A child's one line of text, as text (undecodable bytes replaced), on one line."""
+    return " ".join(raw.decode("utf-8", "replace").split())[:MAX_TEXT] or "landmarks(): a bad map"
+
+
 def _read_exact(fd: int, n: int, deadline: float | None) -> bytes:
     out = bytearray()
     while len(out) < n:
@@ -227,6 +236,15 @@ def encode_landmarks(lm: Any) -> bytes | str:
     return head + id_bytes + means.tobytes() + covs.tobytes()
 
 
+def map_fault_block(why: str) -> bytes:
+    """A map block that carries the fault of what ``landmarks()`` returned (or raised)
+    instead of a map: M = -1, then the one line in UTF-8 (at most ``MAX_TEXT`` characters).
+    The grader switches the filter off with it, or (``check``) reports it as the map check's
+    finding while the pose checks go on."""
+    text = why[:MAX_TEXT].encode("utf-8")
+    return _MAP_HEAD.pack(-1, len(text)) + text
+
+
 def split_mapped(payload: bytes) -> tuple[bytes, bytes]:
     """(the ESTIMATE payload, the map block) of a MAPPED reply's payload."""
     if not _EST.size + _MAP_HEAD.size <= len(payload) <= _EST.size + MAX_MAP_BYTES:
@@ -238,10 +256,13 @@ def decode_landmarks(block: bytes) -> tuple[np.ndarray | None, np.ndarray, np.nd
     """(ids (M,) or None, means (M, 2) [m], covs (M, 2, 2) [m^2]) of a map block (grader
     side), fresh arrays; their values are not judged here
     (:func:`~beacon_sim.filters.landmark_check.landmark_map_problems` does). Raises
-    :class:`WireError` for a block whose size does not match its head or over the limit."""
+    :class:`WireError` for a block whose size does not match its head or over the limit,
+    :class:`MapFault` for a block that carries a fault (:func:`map_fault_block`)."""
     if len(block) < _MAP_HEAD.size:
         raise WireError("broke the protocol (a short map)")
     m, has_ids = _MAP_HEAD.unpack_from(block)
+    if m == -1 and 0 <= has_ids <= 12 * MAX_TEXT and len(block) == _MAP_HEAD.size + has_ids:
+        raise MapFault(fault_text(block[_MAP_HEAD.size:]))
     if not 0 <= m <= MAX_LANDMARKS or has_ids not in (0, 1) \
             or len(block) != _MAP_HEAD.size + m * (8 * has_ids + 16 + 32):
         raise WireError("broke the protocol (a malformed map)")
@@ -261,7 +282,10 @@ def map_problem(block: bytes) -> tuple[tuple[np.ndarray | None, np.ndarray, np.n
     A malformed block raises :class:`WireError` (the child broke the protocol)."""
     from beacon_sim.filters.base import LandmarkMap
 
-    ids, means, covs = decode_landmarks(block)
+    try:
+        ids, means, covs = decode_landmarks(block)
+    except MapFault as exc:
+        return None, str(exc)
     faults = landmark_map_problems(LandmarkMap(ids, means, covs))
     if faults:
         return None, "; ".join(faults)
@@ -380,8 +404,8 @@ def decode_belief(payload: bytes) -> tuple[str, list[np.ndarray], dict[str, Any]
 
 
 __all__ = ["BELIEF", "ESTIMATE", "EST_ENTRY", "FAIL", "MAPPED", "MAX_BATCH", "MAX_MAP_BYTES",
-           "MULTI", "OK", "REPORT", "WireError", "decode_belief", "decode_joint",
+           "MULTI", "OK", "REPORT", "MapFault", "WireError", "decode_belief", "decode_joint",
            "decode_landmarks", "encode_batch", "encode_belief", "encode_joint", "encode_landmarks",
-           "encode_request", "map_problem", "parse_estimate", "parse_json", "parse_multi",
-           "read_reply", "read_request", "reply", "reply_estimate", "reply_json", "reply_multi",
-           "send_frame", "split_mapped"]
+           "encode_request", "fault_text", "map_fault_block", "map_problem", "parse_estimate",
+           "parse_json", "parse_multi", "read_reply", "read_request", "reply", "reply_estimate",
+           "reply_json", "reply_multi", "send_frame", "split_mapped"]
