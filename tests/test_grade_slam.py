@@ -247,3 +247,18 @@ def test_the_templates_gospa_in_grade_is_what_run_reports(tmp_path, capsys):
     assert ref["map_gospa_m"] == run["ekf_slam"]["slam"]["map_gospa_m"]
     assert ref["ate_m"] == run["ekf_slam"]["slam"]["ate_m"]
     assert ref["joint_nees"] == run["ekf_slam"]["slam"]["joint_nees"]
+
+
+def test_the_grade_command_prints_the_map_figures_and_the_reference(tmp_path, capsys):
+    from beacon_sim.cli.main import main
+
+    folder = tmp_path / "class"
+    folder.mkdir()
+    assert main(["new-filter", str(folder / "alice.py"), "--slam"]) == 0
+    cfg = tmp_path / "grade.toml"
+    cfg.write_text('scenarios = ["slam_loop"]\nseeds = [0]\nduration = 6.0\n', encoding="utf-8")
+    capsys.readouterr()
+    assert main(["grade", str(folder), "--config", str(cfg), "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    assert "slam_loop: ATE " in out and "map GOSPA" in out
+    assert "reference on slam_loop (built-in ekf_slam): ATE " in out
