@@ -8,6 +8,8 @@ a folder holding that commit's ``beacon_sim`` and ``scenarios``, e.g. made with
 
     python benchmarks/bench_grade.py [--seeds 3] [--duration 60] [--base /tmp/base] [--no-dask]
         [--no-class] [--rounds 3] [--sandbox auto]
+    python benchmarks/bench_grade.py --team team_sparse [--team-students 8] [--seeds 2]
+        [--duration 30] [--rounds 3]     # issue 27: a team scenario simulated once vs in workers
 
 Prints FIGURE lines (name, value, unit) and the ratios. The cost (``--base``) is CPU time of
 every process (the grader, its workers, the students' children), in interleaved rounds of
@@ -77,22 +79,27 @@ def cpu(who):
     return u.ru_utime + u.ru_stime
 cfg = GradeConfig(**json.loads(sys.argv[2]))
 s0, c0, t0 = cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN), time.perf_counter()
-board = grade(sys.argv[1], cfg, jobs=json.loads(sys.argv[3]))
+extra = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
+board = grade(sys.argv[1], cfg, jobs=json.loads(sys.argv[3]), **extra)
 wall = time.perf_counter() - t0
 s1, c1 = cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN)
 print(json.dumps({"wall": wall, "self": s1 - s0, "children": c1 - c0,
-                  "reported": board.get("child_cpu_s", 0.0), "sandbox": board.get("sandbox", "none")}))
+                  "reported": board.get("child_cpu_s", 0.0), "sandbox": board.get("sandbox", "none"),
+                  "figures": [[r["student"], r["pos_rmse_m"], r["anees"], r["failed_runs"]]
+                              for r in board["rows"]]}))
 """
 
 
-def measured_grade(path: Path, folder: Path, cfg: dict, jobs: int | None) -> dict:
+def measured_grade(path: Path, folder: Path, cfg: dict, jobs: int | None,
+                   extra: dict | None = None) -> dict:
     """One grade of ``folder`` by the ``beacon_sim`` in ``path`` (a subprocess): wall [s] and
     CPU [s] of the grader and every process it started. A bubblewrap child is not reaped into
-    the grader's resource usage, so there the children's own reports are added."""
+    the grader's resource usage, so there the children's own reports are added. ``extra``:
+    more keyword arguments of ``grade`` (``team_in_workers``)."""
     env = {**os.environ, "PYTHONPATH": str(path), "PYTHONDONTWRITEBYTECODE": "1"}
     out = subprocess.run([sys.executable, "-B", "-c", _MEASURE, str(folder), json.dumps(cfg),
-                          json.dumps(jobs)], env=env, capture_output=True, text=True, check=True,
-                         cwd=tempfile.gettempdir())
+                          json.dumps(jobs), json.dumps(extra or {})], env=env, capture_output=True,
+                         text=True, check=True, cwd=tempfile.gettempdir())
     doc = json.loads(out.stdout.strip().splitlines()[-1])
     doc["cpu"] = doc["self"] + doc["children"] + (doc["reported"] if doc["sandbox"] == "bwrap" else 0.0)
     return doc
@@ -189,6 +196,34 @@ def cost(args: argparse.Namespace, hon: Path, runs: int) -> None:
     print("ROUNDS " + json.dumps(got))
 
 
+def team_cost(args: argparse.Namespace, hon: Path, students: int) -> None:
+    """Issue 27: a team scenario graded with each (scenario, seed) simulated once and each
+    robot's ticks streamed to the students' children, against the former path (each
+    student's team runs simulated in a worker, each robot's copy a child of its own), the
+    same class and checkout, interleaved rounds, medians of the CPU of every process."""
+    cfg = {"scenarios": [args.team], "seeds": list(range(args.seeds)), "duration": args.duration,
+           "time_limit": args.time_limit, "sandbox": args.sandbox}
+    runs = students * args.seeds
+    load0 = os.getloadavg()[0]
+    got: dict[str, list[dict]] = {"once": [], "workers": []}
+    for _ in range(args.rounds):
+        got["workers"].append(measured_grade(ROOT, hon, cfg, args.jobs, {"team_in_workers": True}))
+        got["once"].append(measured_grade(ROOT, hon, cfg, args.jobs))
+    load1 = os.getloadavg()[0]
+    once, before = median([g["cpu"] for g in got["once"]]), median([g["cpu"] for g in got["workers"]])
+    w_once, w_before = median([g["wall"] for g in got["once"]]), median([g["wall"] for g in got["workers"]])
+    same = all(g["figures"] == got["workers"][0]["figures"] for g in got["once"] + got["workers"])
+    print(f"FIGURE team_load_1min {load0:.2f} -> {load1:.2f} (before and after the {args.rounds} rounds)")
+    print(f"FIGURE team_runs_per_cpu_s {runs / before:.2f} before (in workers), {runs / once:.2f} after "
+          f"(simulated once, streamed) ({students} students x {args.seeds} seeds of {args.team}, "
+          f"{args.duration:g} s; sandbox {got['once'][0]['sandbox']}; medians of {args.rounds} rounds)")
+    print(f"FIGURE team_once_over_workers_cpu {once / before:.2f} x ({once:.1f} s against "
+          f"{before:.1f} s CPU)")
+    print(f"FIGURE team_once_over_workers_wall {w_once / w_before:.2f} x ({w_once:.1f} s against "
+          f"{w_before:.1f} s)")
+    print(f"FIGURE team_figures_identical {same}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=3)
@@ -206,7 +241,17 @@ def main() -> None:
                     help="CPU of the honest class on local processes against a Dask LocalCluster")
     ap.add_argument("--dask-no-profile", action="store_true",
                     help="with --dask-cpu: Dask's sampling profiler off on the workers")
+    ap.add_argument("--team", default=None, metavar="SCENARIO",
+                    help="only the team cost (issue 27): this team scenario, simulated once against "
+                         "in workers, on --team-students honest files")
+    ap.add_argument("--team-students", type=int, default=8)
     args = ap.parse_args()
+    if args.team:
+        tmp = Path(tempfile.mkdtemp(prefix="bench-grade-team-"))
+        names = write_class(tmp / "alone", max(1, args.team_students - 3), hostile=False)
+        team_cost(args, tmp / "alone", len(names))
+        shutil.rmtree(tmp, ignore_errors=True)
+        return
     cfg = GradeConfig(scenarios=("default",), seeds=tuple(range(args.seeds)), duration=args.duration,
                       time_limit=args.time_limit)
     tmp = Path(tempfile.mkdtemp(prefix="bench-grade-"))

@@ -3,8 +3,8 @@ filter. A filter file, a module filter (``pkg.mod:Class``) or an entry-point fil
 process of its own (docs/grading.md): its code never runs in
 ``check``'s process, so a file that exits, loops or raises ``KeyboardInterrupt`` fails a
 check instead of ending the program. A SLAM filter (one with ``landmarks()``) is also
-asked for a well-formed map after every step (the ``landmarks`` line, docs/slam.md; judged
-in this process only, so a file's map needs ``--sandbox none``).
+asked for a well-formed map after every step (the ``landmarks`` line, docs/slam.md); a
+hosted file's map comes back over the pipe with each estimate and is judged here.
 
 A team filter (a class with ``estimates()``, docs/multi-robot.md "Your own team filter") is
 checked on a team scenario by :func:`run_team_checks`: it loads, has the four methods,

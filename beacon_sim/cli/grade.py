@@ -69,6 +69,15 @@ def grade_command(args: argparse.Namespace) -> int:
                                if v["pos_rmse_m"] is not None)
             if robots:
                 print(f"{'':>5}{sc}: {robots}; team {t['pos_rmse_m']:.4f} m ANEES {t['anees']:.2f}")
+        for sc, m in r.get("slam", {}).items():  # a SLAM scenario: the path and the map
+            if not r["failed_runs"]:
+                print(f"{'':>5}{sc}: ATE {_num(m['ate_m'], '.4f')} m, map GOSPA "
+                      f"{_num(m['map_gospa_m'], '.4f')} m, joint NEES {_num(m['joint_nees'], '.2f')}")
+    for sc, ref in board.get("slam_reference", {}).items():
+        print(f"reference on {sc} (built-in {ref['filter']}): ATE {_num(ref['ate_m'], '.4f')} m, map GOSPA "
+              f"{_num(ref['map_gospa_m'], '.4f')} m, joint NEES {_num(ref['joint_nees'], '.2f')}")
+    for sc, ref in board.get("scan_reference", {}).items():
+        print(f"reference on {sc} (built-in {ref['filter']}): {_num(ref['pos_rmse_m'], '.4f')} m")
     for sc, ref in board.get("reference", {}).items():
         if ref["pos_rmse_m"] is not None:
             print(f"reference on {sc} (built-in independent EKF): team {ref['pos_rmse_m']:.4f} m  "
@@ -82,3 +91,8 @@ def grade_command(args: argparse.Namespace) -> int:
           f"in its own process, sandbox: {board.get('sandbox', 'process')})")
     failed = any(r["failed_runs"] for r in board["rows"])
     return 1 if failed and args.strict else 0
+
+
+def _num(v: float | None, fmt: str) -> str:
+    """A figure, or a dash where there is none."""
+    return "-" if v is None else format(v, fmt)

@@ -15,6 +15,11 @@ student's single-robot filter as every robot's own filter (``independent:FILTER`
 team baseline: beacon readings only), beside the built-in independent EKF on the same
 seeds (the ``reference``): the row's figures for it are the team's (RMSE over all robots,
 mean ANEES, RMSE over each robot's bound alone), and ``team`` holds each robot's.
+
+A SLAM scenario (the beacon map withheld) adds the map columns (the path's ATE, the final
+map's GOSPA, the joint NEES) beside the built-in EKF-SLAM; a map world with a range finder
+puts each row beside the built-in mcl (docs/grading.md, "A SLAM assignment", "A scan-based
+assignment").
 """
 
 from __future__ import annotations
@@ -50,6 +55,8 @@ from beacon_sim.evaluation.montecarlo import (
     simulate_run,
     team_one_run,
 )
+from beacon_sim.evaluation.slam_metrics import ate, gospa
+from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, joint_nees_at, mapped_beacons
 from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
 from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
 from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
@@ -61,6 +68,16 @@ from beacon_sim.filters.team_specs import MEMBER_PREFIX
 REFERENCE = "__reference__"
 #: Its spec: every robot's own built-in EKF (the ``independent`` team filter).
 REFERENCE_SPEC = "ekf"
+#: The built-in filter graded beside the students on a SLAM scenario (``[model] map =
+#: "unknown"``), in the grader's process on the same simulated runs: the map's reference.
+SLAM_REFERENCE_SPEC = "ekf_slam"
+#: A SLAM row's figures (docs/grading.md, "A SLAM assignment"): the path's ATE [m], the
+#: final map's GOSPA [m] (cut-off ``GOSPA_CUTOFF_M``, as ``run``), its landmarks, missed
+#: and false ones, and the final joint NEES (where the filter has ``joint()``), seed means.
+#: The built-in filter graded beside the students on a map world with a range finder (a
+#: scan-based assignment, docs/maps.md): in the grader's process, on the same seeds.
+SCAN_REFERENCE_SPEC = "mcl"
+SLAM_FIGURES = ("ate_m", "map_gospa_m", "map_landmarks", "map_missed", "map_false", "joint_nees")
 
 
 class GradeError(BeaconSimError):
@@ -344,6 +361,90 @@ LOG_BYTES = 256 << 10
 
 
 @dataclass
+class TeamSimulated:
+    """One team (scenario, seed) simulated once by the grader (issue 27): each robot's run
+    as a :class:`~beacon_sim.evaluation.montecarlo.SimulatedRun` (its command, dt and beacon
+    readings per tick, what that robot's copy of a student's filter is fed; its truth stays
+    here) and the team's arrays for the scoring."""
+
+    label: str
+    index: int
+    seed: int
+    robots: list[SimulatedRun]
+    robot_ids: list[str]
+    robot_names: list[str]
+    truth: np.ndarray  # (T + 1, N, 3), row 0 the start
+    controls: np.ndarray  # (T, N, 2)
+    kidnapped: np.ndarray  # (T, N)
+    truth_checksum: str
+
+
+def simulate_team_run(team: TeamScenario, seed: int, duration: float, index: int = 0,
+                      label: str | None = None) -> TeamSimulated:
+    """Simulate one team run as ``run_headless`` does (the same truth), without filters:
+    per robot the "step" requests its copy of a single-robot filter gets (the team
+    baseline: that robot's beacon readings), pickled once for every student."""
+    from beacon_sim.core.team import TeamSimulation
+    from beacon_sim.filters.wire import encode_request
+
+    sim = TeamSimulation(team, seed)
+    T, N = round(duration / team.dt), team.n_robots
+    truth = np.empty((T + 1, N, 3))
+    truth[0] = [r.scenario.initial_pose for r in team.robots]
+    controls = np.empty((T, N, 2))
+    kidnapped = np.zeros((T, N), dtype=bool)
+    frames: list[list[bytes]] = [[] for _ in range(N)]
+    for k in range(T):
+        step = sim.step()
+        for i, st in enumerate(step.steps):
+            truth[k + 1, i] = st.true_pose
+            controls[k, i] = (st.control.v, st.control.omega)
+            kidnapped[k, i] = st.kidnapped
+            frames[i].append(encode_request("step", st.control, st.dt, tuple(st.measurements), False))
+    label = team.name if label is None else label
+    checksum = sim.truth_checksum
+    robots = [SimulatedRun(r.scenario, index, seed, truth[:, i].copy(), controls[:, i].copy(),
+                           kidnapped[:, i].copy(), checksum, [], np.zeros(T, dtype=int), frames[i], None,
+                           label) for i, r in enumerate(team.robots)]
+    return TeamSimulated(label, index, seed, robots, [str(r.id) for r in team.robots],
+                         [str(r.name) for r in team.robots], truth, controls, kidnapped, checksum)
+
+
+def team_output(ts: TeamSimulated, runs: list[RunOutput], name: str) -> TeamRunOutput:
+    """The team run of a student's filter from its robots' runs (one per robot, fed
+    together): as the grader's in-worker team run scores it. A copy that failed on one
+    robot fails the filter on every robot from that tick ("robot NAME: why"), the rows
+    after it NaN; the cost is the sum over the robots."""
+    T = len(ts.robots[0].frames)
+    frs = [next(iter(r.filters.values())) for r in runs]
+
+    def first_bad(fr: Any) -> int:
+        bad = ~np.isfinite(fr.err[:, 0])
+        return int(np.argmax(bad)) if bad.any() else T
+
+    ends = [first_bad(fr) if fr.failed else min(first_bad(fr), fr.steps) for fr in frs]
+    n_ok = min(ends)
+    failing = [i for i, fr in enumerate(frs) if fr.failed]
+    why = None
+    if failing:
+        i = min(failing, key=lambda j: (ends[j], j))
+        why = f"robot {ts.robot_names[i]}: {frs[i].failed}"
+    step_ns = int(sum(fr.step_ns for fr in frs))
+    out = TeamRunOutput(ts.index, ts.seed, ts.truth, ts.controls, ts.kidnapped, ts.truth_checksum)
+    copies = []
+    for fr in frs:
+        err, var, nees = fr.err.copy(), fr.var.copy(), fr.nees.copy()
+        means = None if fr.means is None else fr.means.copy()
+        for a in (err, var, nees) + ((means,) if means is not None else ()):
+            a[n_ok:] = np.nan
+        copies.append(dataclasses.replace(fr, err=err, var=var, nees=nees, means=means, nis_sum=0.0,
+                                          nis_dof=0, step_ns=step_ns, steps=n_ok if why else fr.steps,
+                                          failed=why, landmarks=None, joint=None))
+    out.filters[name] = copies
+    return out
+
+
+@dataclass
 class StudentJob:
     """Everything one student's runs need, picklable (a Dask task): the file's bytes (not
     its path: a worker needs no shared file system), the simulated runs (scenario, seed)
@@ -357,6 +458,7 @@ class StudentJob:
     time_limit: float
     memory_limit_gb: float
     sandbox: str
+    team_sims: list[TeamSimulated] = dataclasses.field(default_factory=list)  # team scenarios
 
 
 @dataclass
@@ -371,7 +473,7 @@ class StudentResult:
 
 
 def _limits(job: StudentJob) -> Limits:
-    runs = len(job.sims) + 2
+    runs = len(job.sims) + 2 + sum(len(ts.robots) for ts in job.team_sims)
     return Limits(memory_gb=job.memory_limit_gb, cpu_s=job.time_limit * runs * 1.5 + 60.0,
                   log_bytes=LOG_BYTES)
 
@@ -422,7 +524,7 @@ def run_student(job: StudentJob) -> StudentResult:
                     child = FilterChild(src, job.class_name, log, job.sandbox, limits, timeout)
                     findings["form"] = child.form
                 except ChildFailure as exc:
-                    load_problem = str(exc)
+                    load_problem = findings["load_problem"] = str(exc)
             return child
 
         def stop() -> None:
@@ -438,6 +540,7 @@ def run_student(job: StudentJob) -> StudentResult:
             results[k] = TaskResult(task(job.sims[k]), run, None, wall_s,
                                     {k2: v for k2, v in rep.items() if k2 not in ("means", "probes")})
 
+        team_results: list[TaskResult] = []
         try:
             for batch in _batches(job.sims):
                 t0 = time.perf_counter()
@@ -475,6 +578,7 @@ def run_student(job: StudentJob) -> StudentResult:
                         record(k, run, rep, wall)
                     if probing:
                         _probe_findings(job.sims[0], runs[0], rep.get("probes") or {}, findings)
+            team_results += _run_team_batches(job, started, stop, record_team=findings)
         finally:
             stop()
         raw = log.read_bytes() if log.exists() else b""
@@ -482,13 +586,72 @@ def run_student(job: StudentJob) -> StudentResult:
         if len(raw) > LOG_BYTES + 100:
             text += f"\n[log cut at {LOG_BYTES} bytes]\n"
     findings["wall_s"] = time.perf_counter() - t_start
-    return StudentResult(job.student, [r for r in results if r is not None], findings, text, job.sandbox)
+    return StudentResult(job.student, [r for r in results if r is not None] + team_results, findings, text,
+                         job.sandbox)
 
 
-def run_student_shared(job: StudentJob, shared: list[SimulatedRun]) -> StudentResult:
+def _run_team_batches(job: StudentJob, started: Callable[[], FilterChild | None],
+                      stop: Callable[[], None], record_team: dict[str, Any]) -> list[TaskResult]:
+    """The student's team runs (issue 27): per team scenario, every robot of every seed fed
+    together in the student's child (one filter per robot and seed, one exchange per tick),
+    on the runs the grader simulated once; each robot's copy named ``CLASS/ROBOT_ID`` (its
+    own random stream), with the scenario's ``[filters.CLASS]``. A filter that draws from
+    the global generators is run again robot by robot, afresh, as on single-robot runs."""
+    out: list[TaskResult] = []
+    groups: dict[str, list[TeamSimulated]] = {}
+    for ts in job.team_sims:
+        groups.setdefault(ts.label, []).append(ts)
+    for group in groups.values():
+        t0 = time.perf_counter()
+
+        def task(ts: TeamSimulated) -> Task:
+            return Task(job.student, job.filename, ts.label, ts.seed, None, job.time_limit, ts.index)
+
+        child = started()
+        if child is None:
+            why = record_team.get("load_problem") or "the filter's file could not be loaded"
+            out += [TaskResult(task(ts), None, why, 0.0) for ts in group]
+            continue
+        cls = child.class_name
+        sims = [r for ts in group for r in ts.robots]
+        names = [f"{cls}/{rid}" for ts in group for rid in ts.robot_ids]
+        params = [dict(r.scenario.filter_params.get(cls, {})) for r in sims]
+        runs, rep = isolated_runs(child, sims, job.time_limit, name=names, params=params)
+        if rep.get("failed_child"):
+            stop()
+        if rep.get("heading_unwrapped"):
+            record_team["heading_wrapped"] = False
+        if rep.get("np_global") or rep.get("py_global"):
+            record_team["global_rng"] = True
+            stop()
+            runs = []
+            for sr, nm, pr in zip(sims, names, params, strict=True):
+                one = started()
+                if one is None:  # it loaded once: a file that no longer loads fails these runs
+                    break
+                run, rep1 = isolated_run(one, sr, job.time_limit, keep_means=sr.index == 0, name=nm,
+                                         params=pr)
+                if rep1.get("failed_child"):
+                    stop()
+                runs.append(run)
+            if len(runs) < len(sims):
+                why = record_team.get("load_problem") or "the filter's file could not be loaded again"
+                out += [TaskResult(task(ts), None, why, 0.0) for ts in group]
+                continue
+        wall = (time.perf_counter() - t0) / len(group)
+        at = 0
+        for ts in group:
+            n = len(ts.robots)
+            out.append(TaskResult(task(ts), team_output(ts, runs[at:at + n], cls), None, wall))
+            at += n
+    return out
+
+
+def run_student_shared(job: StudentJob, shared: tuple[list[SimulatedRun], list[TeamSimulated]]
+                       ) -> StudentResult:
     """:func:`run_student` of a job sent without its runs, on the runs every worker got once
-    (a Dask task of :func:`run_students`)."""
-    return run_student(dataclasses.replace(job, sims=shared))
+    (a Dask task of :func:`run_students`): the single-robot runs and the team runs."""
+    return run_student(dataclasses.replace(job, sims=shared[0], team_sims=shared[1]))
 
 
 def _probe_findings(sr: SimulatedRun, graded: RunOutput, probes: dict[str, Any],
@@ -541,7 +704,7 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
     student's child process, where the work is), or as Dask tasks (``scheduler``) whose
     results are released once gathered (nothing finished is computed again)."""
     out: list[StudentResult | None] = [None] * len(jobs_list)
-    total = sum(len(j.sims) for j in jobs_list)
+    total = sum(len(j.sims) + len(j.team_sims) for j in jobs_list)
     done = 0
 
     def finish(i: int, res: StudentResult) -> None:
@@ -554,16 +717,18 @@ def run_students(jobs_list: Sequence[StudentJob], jobs: int | None = None, sched
     if scheduler is not None:
         def lost(i: int, exc: Exception) -> None:  # the worker itself was lost (not the child)
             job = jobs_list[i]
+            runs: list[SimulatedRun | TeamSimulated] = [*job.sims, *job.team_sims]
             finish(i, StudentResult(job.student, [
                 TaskResult(Task(job.student, job.filename, sr.label, sr.seed, None,
                                 job.time_limit, sr.index), None,
-                           f"worker lost: {type(exc).__name__}") for sr in job.sims],
+                           f"worker lost: {type(exc).__name__}") for sr in runs],
                 {}, "", job.sandbox))
 
         sims = jobs_list[0].sims if jobs_list else []
-        if all(j.sims is sims for j in jobs_list):  # the class's runs: sent to each worker once
-            light = [dataclasses.replace(j, sims=[]) for j in jobs_list]
-            on_dask(scheduler, run_student_shared, light, finish, lost=lost, shared=sims)
+        team_sims = jobs_list[0].team_sims if jobs_list else []
+        if all(j.sims is sims and j.team_sims is team_sims for j in jobs_list):  # sent to each worker once
+            light = [dataclasses.replace(j, sims=[], team_sims=[]) for j in jobs_list]
+            on_dask(scheduler, run_student_shared, light, finish, lost=lost, shared=(sims, team_sims))
         else:
             on_dask(scheduler, run_student, list(jobs_list), finish, lost=lost)
     else:
@@ -600,14 +765,18 @@ def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320
 
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
           scheduler: Any = None, progress: Callable[[int, int], None] | None = None,
-          cache: str | Path | None = None) -> dict[str, Any]:
+          cache: str | Path | None = None, team_in_workers: bool = False) -> dict[str, Any]:
     """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
     order, ``config``, ``wall_s``, ``sandbox``, ``logs``) that :func:`write_outputs` writes.
 
     Each single-robot (scenario, seed) is simulated once, here; each student's filter runs
     in a child process of its own (:func:`run_student`) that receives only what a filter
-    may see; the scoring stays here. On a team scenario each robot's copy of the student's
-    filter is a child process of its own (the team simulation runs in a worker of the grader).
+    may see; the scoring stays here. A team scenario's (scenario, seed) is simulated once too
+    (:func:`simulate_team_run`) and each robot's ticks streamed to the student's child, one
+    copy of the filter per robot (issue 27). ``team_in_workers``: the former path instead,
+    each student's team runs simulated in a worker with each robot's copy a child of its
+    own (benchmarks/bench_grade.py compares the two; tests/test_grade_team_once.py holds
+    them equal).
 
     ``cache``: a folder of earlier results, by the file's hash and the configuration
     (:func:`cache_key`): a student whose file and settings are unchanged is not run again
@@ -629,10 +798,18 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         duration = sc.duration if config.duration is None else config.duration
         for i, seed in enumerate(config.seeds):
             sims.append(simulate_run(sc, seed, duration, i, blind=not sims, label=n))
+    team_sims: list[TeamSimulated] = []
+    if not team_in_workers:
+        for n in team_names:
+            team = scenarios[n]
+            assert isinstance(team, TeamScenario)
+            duration = team.duration if config.duration is None else config.duration
+            team_sims += [simulate_team_run(team, seed, duration, i, n)
+                          for i, seed in enumerate(config.seeds)]
     student_jobs = [StudentJob(st.name, st.path.name, st.path.read_bytes(),
                                config.class_name or st.class_name, sims, config.time_limit,
-                               config.memory_limit_gb, sandbox)
-                    for st in students if st.spec and sims]
+                               config.memory_limit_gb, sandbox, team_sims)
+                    for st in students if st.spec and (sims or team_sims)]
     if cache is not None and not _students_cannot_write_here(sandbox):
         cache = None  # a child running as this user could plant a pickle: no cache
     done_students, cached = _run_cached(student_jobs, jobs, scheduler, progress,
@@ -641,7 +818,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     # Team scenarios: each robot's copy of the student's filter in a child process of its own.
     tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), sc, seed,
                   config.duration, config.time_limit, i)
-             for st in students if st.spec for sc in team_names
+             for st in students if st.spec and team_in_workers for sc in team_names
              for i, seed in enumerate(config.seeds)]
     tasks += [Task(REFERENCE, REFERENCE_SPEC, sc, seed, config.duration, config.time_limit, i)
               for sc in team_names for i, seed in enumerate(config.seeds)]
@@ -660,8 +837,19 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
             reference[name] = {k: v for k, v in ref.items() if k != "curve"}
     found = {sr.student: sr for sr in done_students}
     scored = _score_together(scenarios, single, by, students, len(config.seeds))
+    slam_names = [n for n in single if is_slam_scenario(scenarios[n])]
+    slam_reference = _slam_reference(sims, slam_names)
+    scan_reference = _scan_reference(scenarios, [n for n in single if is_scan_scenario(scenarios[n])],
+                                     config)
     for st in students:
-        row = _student_row(st, config, scenarios, by, n_runs, reference, scored)
+        row = _student_row(st, config, scenarios, by, n_runs, reference, scored, slam_reference)
+        for name, ref in scan_reference.items():  # a scan assignment: the row beside mcl's
+            got = scored.get((st.name, name))
+            mine = got[0].get("pos_rmse_m") if got is not None and not row["failed_runs"] else None
+            theirs = ref["pos_rmse_m"]
+            row.setdefault("scan", {})[name] = {
+                "pos_rmse_m": mine, "reference_pos_rmse_m": theirs,
+                "over_reference": mine / theirs if mine is not None and theirs else None}
         _add_findings(row, found.get(st.name))
         rows.append(row)
     rows.sort(key=rank_key)
@@ -669,6 +857,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         row["rank"] = k
     return {"rows": rows, "config": asdict(config), "wall_s": time.perf_counter() - t0,
             "students": len(students), "runs_per_student": n_runs, "reference": reference,
+            "slam_reference": slam_reference, "scan_reference": scan_reference,
             "sandbox": sandbox, "isolated": True, "team_in_process": [],
             "cached_students": cached,
             # what the students' children said they used [s] (their own word: cost figures only)
@@ -695,7 +884,9 @@ def cache_key(job: StudentJob) -> str:
     h = hashlib.sha256(job.source)
     meta = [job.filename, job.class_name, job.time_limit, job.memory_limit_gb, job.sandbox, __version__,
             PROBE_TICKS, [(sr.label, sr.seed, len(sr.frames), sr.truth_checksum, repr(sr.scenario))
-                          for sr in job.sims]]
+                          for sr in job.sims],
+            [(ts.label, ts.seed, len(ts.robots[0].frames), ts.truth_checksum,
+              [repr(r.scenario) for r in ts.robots]) for ts in job.team_sims]]
     h.update(json.dumps(meta, default=str).encode())
     return h.hexdigest()
 
@@ -774,9 +965,109 @@ def _add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
         flags.append("heading not wrapped to [-pi, pi)")
     if row["readings_used"] is False:
         flags.append("uses none of the readings: the estimates do not change when they are withheld")
+    unmapped = [] if row["failed_runs"] else [n for n, v in (row.get("slam") or {}).items()
+                                              if not v.get("mapped")]
+    if unmapped:
+        flags.append(f"no landmarks(): the filter reports no map, so its map is not scored on "
+                     f"{', '.join(unmapped)} (docs/slam.md)")
     if row.get("us_per_step") is not None and row["us_per_step"] > SLOW_STEP_MS * 1e3:
         flags.append(f"slow: {row['us_per_step'] / 1e3:.0f} ms per step (over {SLOW_STEP_MS:g} ms)")
     row["flags"] = flags
+
+
+def is_slam_scenario(sc: Scenario | TeamScenario) -> bool:
+    """A single-robot scenario whose beacon map is withheld from the filters (docs/slam.md)."""
+    return isinstance(sc, Scenario) and not sc.map_known
+
+
+def run_slam_figures(sc: Scenario, err: np.ndarray, landmarks: tuple[Any, Any, Any] | None,
+                     joint: tuple[Any, Any, Any] | None, final_pose: np.ndarray) -> dict[str, Any]:
+    """One run's SLAM figures (:data:`SLAM_FIGURES`) from the filter's pose errors ``err``
+    (T, 3), its final map ``(ids, means, covs)`` (None: no ``landmarks()``, no map figures)
+    and its final ``joint()`` (None: no joint NEES), against the truth of ``sc``."""
+    out: dict[str, Any] = dict.fromkeys(SLAM_FIGURES)
+    out["ate_m"] = ate(err[:, :2], np.zeros((len(err), 2)))
+    if landmarks is not None:
+        means = np.asarray(landmarks[1], dtype=float).reshape(-1, 2)
+        g = gospa(means, mapped_beacons(sc)[1], c=GOSPA_CUTOFF_M)
+        out.update(map_gospa_m=g.value, map_landmarks=len(means), map_missed=g.missed, map_false=g.false)
+    if joint is not None:
+        try:
+            out["joint_nees"] = joint_nees_at(joint, sc, final_pose)[0]
+        except (np.linalg.LinAlgError, ValueError, IndexError, KeyError):
+            out["joint_nees"] = None  # a singular or malformed joint: not reported
+    return out
+
+
+def _mean_figures(per_run: list[dict[str, Any]]) -> dict[str, Any]:
+    """The seed mean of each SLAM figure, None unless every run has it."""
+    out: dict[str, Any] = {}
+    for k in SLAM_FIGURES:
+        vals = [r[k] for r in per_run]
+        out[k] = (float(np.mean(vals)) if vals and all(v is not None and math.isfinite(v) for v in vals)
+                  else None)
+    return out
+
+
+def reference_slam_run(sr: SimulatedRun, spec: str = SLAM_REFERENCE_SPEC) -> dict[str, Any] | None:
+    """The built-in ``spec`` (EKF-SLAM) fed the simulated run ``sr`` in this process (a
+    built-in filter: trusted code; the grader's own pickled ticks), its SLAM figures; None
+    when it failed (a built-in that raises or diverges there says nothing of the students)."""
+    import pickle
+
+    from beacon_sim.filters.loading import build_filter
+
+    try:
+        flt: Any = build_filter(spec, sr.scenario, sr.seed, name=spec)
+        means = np.empty((len(sr.frames), 3))
+        for i, frame in enumerate(sr.frames):
+            _op, control, dt, meas, _want_prior = pickle.loads(frame[4:])
+            flt.predict(control, dt)
+            flt.update(meas)
+            means[i] = flt.estimate()[0]
+        lm = flt.landmarks()
+        joint = flt.joint() if callable(getattr(flt, "joint", None)) else None
+    except Exception:
+        return None
+    err = means - sr.truth[1:]
+    return run_slam_figures(sr.scenario, err, (lm.ids, lm.means, lm.covs), joint, sr.truth[-1])
+
+
+def _slam_reference(sims: list[SimulatedRun], names: list[str]) -> dict[str, dict[str, Any]]:
+    """The built-in EKF-SLAM's seed-mean SLAM figures on each SLAM scenario ``names``."""
+    out = {}
+    for name in names:
+        per = [reference_slam_run(sr) for sr in sims if sr.label == name]
+        out[name] = ({"filter": SLAM_REFERENCE_SPEC, **_mean_figures(per)} if per and all(per)  # type: ignore[arg-type]
+                     else {"filter": SLAM_REFERENCE_SPEC, **dict.fromkeys(SLAM_FIGURES)})
+    return out
+
+
+def is_scan_scenario(sc: Scenario | TeamScenario) -> bool:
+    """A single-robot map world (walls) with a range finder: a scan-based assignment."""
+    return (isinstance(sc, Scenario) and sc.world.grid is not None
+            and any(s.kind == "range_finder" for s in sc.model_sensors))
+
+
+def _scan_reference(scenarios: dict[str, Scenario | TeamScenario], names: list[str],
+                    config: GradeConfig) -> dict[str, dict[str, Any]]:
+    """The built-in ``mcl``'s figures (position and heading RMSE, ANEES) on each scan
+    scenario ``names``, run in process (a built-in filter: trusted) on the config's seeds:
+    :func:`~beacon_sim.evaluation.montecarlo.one_run`, the path ``eval`` takes."""
+    out: dict[str, dict[str, Any]] = {}
+    for name in names:
+        sc = scenarios[name]
+        assert isinstance(sc, Scenario)
+        duration = sc.duration if config.duration is None else config.duration
+        try:
+            runs = [one_run(sc, [SCAN_REFERENCE_SPEC], {}, seed, duration, index=i)
+                    for i, seed in enumerate(config.seeds)]
+            fr = evaluate(sc, runs, Thresholds())[0]["filters"][SCAN_REFERENCE_SPEC]
+        except Exception:  # a built-in that fails there says nothing of the students
+            fr = {}
+        out[name] = {"filter": SCAN_REFERENCE_SPEC,
+                     **{k: fr.get(k) for k in ("pos_rmse_m", "heading_rmse_rad", "anees")}}
+    return out
 
 
 def _team_figures(team: TeamScenario, runs: list[TeamRunOutput]) -> dict[str, Any]:
@@ -830,13 +1121,15 @@ def _score_together(scenarios: dict[str, Scenario | TeamScenario], names: list[s
 def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario | TeamScenario],
                  by: dict[tuple[str, str], list[TaskResult]], n_runs: int,
                  reference: dict[str, dict[str, Any]] | None = None,
-                 scored: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] | None = None
-                 ) -> dict[str, Any]:
+                 scored: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] | None = None,
+                 slam_reference: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
                            "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
                            "anees_verdict": "FAILED", "verdict": "FAILED", "rmse_over_pcrb": None,
                            "us_per_step": None,
                            "failed_runs": n_runs, "failures": [], "plot": ""}
+    if slam_reference:  # a SLAM assignment: the map columns (docs/grading.md)
+        row.update(dict.fromkeys(("ate_m", "map_gospa_m", "joint_nees")))
     if st.spec is None:
         row["failures"] = [{"scenario": "-", "seed": None, "time_s": None, "reason": st.problem}]
         return row
@@ -844,6 +1137,7 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                                                         "rmse_over_pcrb", "us_per_step")}
     verdicts, failures, curves = [], [], []
     team_rows: dict[str, Any] = {}
+    slam_rows: dict[str, Any] = {}
     for name in config.scenarios:
         res = sorted(by.get((st.name, name), []), key=lambda r: r.task.index)
         for r in res:
@@ -883,11 +1177,15 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                 figures[key].append(float(fr[key]))
         verdicts.append(fr["anees_verdict"])
         curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
+        if slam_reference and name in slam_reference and len(runs) == len(res):
+            slam_rows[name] = _slam_row(sc, runs, slam_reference[name])  # type: ignore[arg-type]
     row["failures"] = failures
     row["failed_runs"] = len(failures)
     row["run_detail"] = _run_detail(st, config, by)
     if team_rows:
         row["team"] = team_rows
+    if slam_rows:
+        row["slam"] = slam_rows
     row["us_per_step"] = float(np.mean(figures["us_per_step"])) if figures["us_per_step"] else None
     row["plot"] = _svg_plot(curves) if curves else ""
     if not failures:
@@ -897,7 +1195,29 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         # what the page shows: the ANEES word with the distance from the bound (issue 26), so
         # no row says a bare "consistent" beside an error over twice the bound
         row["verdict"] = overall_verdict(row["anees_verdict"], row["rmse_over_pcrb"])
+        for key in ("ate_m", "map_gospa_m", "joint_nees"):  # over the SLAM scenarios
+            vals = [v[key] for v in slam_rows.values()]
+            if slam_rows:
+                row[key] = float(np.mean(vals)) if all(v is not None for v in vals) else None
     return row
+
+
+def _slam_row(sc: Scenario, runs: list[RunOutput], ref: dict[str, Any]) -> dict[str, Any]:
+    """A student's SLAM figures on one SLAM scenario (seed means, :data:`SLAM_FIGURES`),
+    the reference's beside them, and whether the filter reported a map at all."""
+    per = []
+    mapped = True
+    for run in runs:
+        fr = next(iter(run.filters.values()))
+        mapped &= fr.landmarks is not None
+        per.append(run_slam_figures(sc, fr.err, fr.landmarks, fr.joint, run.truth[-1]))
+    out = _mean_figures(per)
+    out["mapped"] = mapped
+    for key in ("ate_m", "map_gospa_m", "joint_nees"):
+        out["reference_" + key] = ref.get(key)
+    g, rg = out["map_gospa_m"], ref.get("map_gospa_m")
+    out["gospa_over_reference"] = g / rg if g is not None and rg else None
+    return out
 
 
 def _run_detail(st: Student, config: GradeConfig, by: dict[tuple[str, str], list[TaskResult]]
@@ -933,6 +1253,9 @@ CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_
                "anees_verdict", "verdict", "rmse_over_pcrb", "us_per_step", "failed_runs", "runs",
                "failures", "suspicious", "global_rng", "deterministic", "heading_wrapped", "readings_used",
                "flags")
+#: The map columns a SLAM assignment adds (after :data:`CSV_COLUMNS`; seed means over the
+#: SLAM scenarios; empty for a failed filter, and the map's for a filter without one).
+SLAM_CSV_COLUMNS = ("ate_m", "map_gospa_m", "joint_nees")
 
 
 def status(row: dict[str, Any]) -> str:
@@ -954,10 +1277,12 @@ def _failure_text(f: dict[str, Any]) -> str:
 
 def write_csv(board: dict[str, Any], path: Path) -> Path:
     """One row per student, in rank order; a failed student's figures are empty cells."""
+    slam = bool(board.get("slam_reference"))
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(CSV_COLUMNS)
+        w.writerow(CSV_COLUMNS + (SLAM_CSV_COLUMNS if slam else ()))
         for r in board["rows"]:
+            extra = ["" if r.get(k) is None else r[k] for k in SLAM_CSV_COLUMNS] if slam else []
             w.writerow([r["rank"], r["student"], r["file"], status(r),
                         *("" if r[k] is None else r[k] for k in ("pos_rmse_m", "heading_rmse_rad",
                                                                  "anees")),
@@ -968,7 +1293,7 @@ def write_csv(board: dict[str, Any], path: Path) -> Path:
                         " | ".join(_failure_text(f) for f in r["failures"][:5]),
                         r.get("suspicious") or "", *(_yes_no(r.get(k)) for k in (
                             "global_rng", "deterministic", "heading_wrapped", "readings_used")),
-                        " | ".join(r.get("flags", []))])
+                        " | ".join(r.get("flags", [])), *extra])
     return path
 
 
@@ -1018,6 +1343,43 @@ def _reference_note(board: dict[str, Any]) -> str:
             + "; ".join(parts) + ".")
 
 
+def _slam_note(board: dict[str, Any]) -> str:
+    """The HTML note's sentence on SLAM scenarios: what the map columns mean, and the
+    built-in EKF-SLAM's figures on the same seeds."""
+    ref = board.get("slam_reference") or {}
+    if not ref:
+        return ""
+
+    def num(v: object, fmt: str) -> str:
+        return "&ndash;" if v is None else format(v, fmt)
+
+    parts = [f"{html.escape(n)}: ATE {num(r['ate_m'], '.4f')} m, map GOSPA {num(r['map_gospa_m'], '.4f')} m, "
+             f"joint NEES {num(r['joint_nees'], '.2f')}" for n, r in ref.items()]
+    return (f" On a SLAM scenario (the filters are not given the beacon map) ATE is the path's RMS "
+            f"position error, map GOSPA the error of the final map against the beacons it had to map "
+            f"(cut-off {GOSPA_CUTOFF_M:g} m: a missed or a false landmark costs as much as one "
+            f"{GOSPA_CUTOFF_M / math.sqrt(2):.2f} m off), joint NEES the final pose-and-map NEES "
+            f"(for a filter with joint(); chi-square with 3 + 2M degrees of freedom), seed means. "
+            f"The built-in {SLAM_REFERENCE_SPEC} on the same seeds: " + "; ".join(parts) + ".")
+
+
+def _scan_note(board: dict[str, Any]) -> str:
+    """The HTML note's sentence on scan scenarios: the built-in mcl's figures there."""
+    ref = board.get("scan_reference") or {}
+    if not ref:
+        return ""
+    parts = [f"{html.escape(n)}: {r['pos_rmse_m']:.4f} m" if r.get("pos_rmse_m") is not None
+             else f"{html.escape(n)}: failed" for n, r in ref.items()]
+    return (f" On a map world with a range finder each filter gets the occupancy grid (ctx.world.grid) "
+            f"and the scans, never the pose; the built-in {SCAN_REFERENCE_SPEC} on the same seeds, "
+            "position RMSE: " + "; ".join(parts) + ".")
+
+
+def _notes(board: dict[str, Any]) -> str:
+    """The page note's sentences on the team, SLAM and scan scenarios and their references."""
+    return _reference_note(board) + _slam_note(board) + _scan_note(board)
+
+
 def _sandbox_text(board: dict[str, Any]) -> str:
     level = board.get("sandbox", "process")
     text = ("bubblewrap sandbox: no network, read-only system, its own file alone" if level == "bwrap"
@@ -1051,13 +1413,16 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
             ("heading_rmse_rad", "heading RMSE [rad]"), ("anees", "ANEES"),
             ("verdict", "consistency"), ("rmse_over_pcrb", "RMSE/PCRB"),
             ("us_per_step", "cost [us/step]"), ("failed_runs", "failed runs")]
+    if board.get("slam_reference"):  # a SLAM assignment: the map columns
+        cols[3:3] = [("ate_m", "ATE [m]"), ("map_gospa_m", "map GOSPA [m]"), ("joint_nees", "joint NEES")]
 
     def cell(r: dict[str, Any], key: str) -> str:
-        v = r.get(key, r["anees_verdict"]) if key == "verdict" else r[key]
+        v = r.get(key, r["anees_verdict"]) if key == "verdict" else r.get(key)
         if v is None:
             return '<td class="num">&ndash;</td>'
         if isinstance(v, float):
-            fmt = ".1f" if key == "us_per_step" else (".2f" if key in ("anees", "rmse_over_pcrb") else ".4f")
+            two = ("anees", "rmse_over_pcrb", "joint_nees")
+            fmt = ".1f" if key == "us_per_step" else (".2f" if key in two else ".4f")
             return f'<td class="num">{v:{fmt}}</td>'
         if isinstance(v, int):
             return f'<td class="num">{v}</td>'
@@ -1067,7 +1432,7 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
     shown = _shown(board)
     for r0 in board["rows"]:
         r = {**r0, "student": shown[r0["student"]]}
-        data = " ".join(f'data-{k}="{html.escape("" if r[k] is None else str(r[k]))}"' for k, _ in cols)
+        data = " ".join(f'data-{k}="{html.escape("" if r.get(k) is None else str(r[k]))}"' for k, _ in cols)
         why = "<br>".join(html.escape(_failure_text(f)) for f in r["failures"][:4])
         more = len(r["failures"]) - 4
         if more > 0:
@@ -1096,7 +1461,7 @@ ranks below every working filter, whatever the column sorted; a suspicious resul
 the Cramer-Rao bound) is kept out of the ranking, below the working filters, with its reason.
 Each student's filter ran in a process of its own ({html.escape(_sandbox_text(board))}).
 Click a column to sort.
-Plot: position error [m] against time [s] of the first seed.{_reference_note(board)}</p>
+Plot: position error [m] against time [s] of the first seed.{_notes(board)}</p>
 <table id="board"><thead><tr>{head}<th>status and failures</th><th>error, first seed</th></tr></thead>
 <tbody>
 {chr(10).join(body)}
@@ -1130,6 +1495,7 @@ status {status(row)}; position RMSE {num(row['pos_rmse_m'], '.4f')} m; heading R
 {num(row['heading_rmse_rad'], '.4f')} rad; ANEES {num(row['anees'], '.2f')}
 ({html.escape(str(row['anees_verdict']))});
 RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} us per step.</p>
+{_slam_table(row)}
 <h2>Runs</h2>
 <table><thead><tr><th>scenario</th><th>seed</th><th>pos RMSE [m]</th><th>steps</th><th>cost [us/step]</th>
 <th>failure</th></tr></thead><tbody>{runs}</tbody></table>
@@ -1142,6 +1508,27 @@ RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} 
 """
     path.write_text(page, encoding="utf-8")
     return path
+
+
+def _slam_table(row: dict[str, Any]) -> str:
+    """A student page's map figures, per SLAM scenario, beside the reference's."""
+    slam = row.get("slam") or {}
+    if not slam:
+        return ""
+
+    def num(v: object, fmt: str) -> str:
+        return "&ndash;" if v is None else format(v, fmt)
+
+    keys = (("ate_m", ".4f"), ("reference_ate_m", ".4f"), ("map_gospa_m", ".4f"),
+            ("reference_map_gospa_m", ".4f"), ("map_landmarks", ".1f"), ("map_missed", ".1f"),
+            ("map_false", ".1f"), ("joint_nees", ".2f"), ("reference_joint_nees", ".2f"))
+    lines = "".join(f"<tr><td>{html.escape(n)}</td>"
+                    + "".join(f"<td class=num>{num(v[k], fmt)}</td>" for k, fmt in keys) + "</tr>"
+                    for n, v in slam.items())
+    return ("<h2>The map (SLAM scenarios, seed means)</h2><table><thead><tr><th>scenario</th><th>ATE [m]</th>"
+            f"<th>{SLAM_REFERENCE_SPEC} ATE</th><th>map GOSPA [m]</th><th>{SLAM_REFERENCE_SPEC} GOSPA</th>"
+            "<th>landmarks</th><th>missed</th><th>false</th><th>joint NEES</th>"
+            f"<th>{SLAM_REFERENCE_SPEC} joint NEES</th></tr></thead><tbody>{lines}</tbody></table>")
 
 
 def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:

@@ -71,6 +71,11 @@ class FilterRun:
     steps: int
     failed: str | None = None
     means: np.ndarray | None = None  # (T, 3), kept for the first run only (trajectory plot)
+    #: A hosted SLAM filter's map after its last step: (ids (M,) or None, means (M, 2) [m],
+    #: covs (M, 2, 2) [m^2]), judged as it came back (filters/wire.py); None without a map.
+    landmarks: tuple[np.ndarray | None, np.ndarray, np.ndarray] | None = None
+    #: Its final ``joint()`` (mean (3 + 2M,), cov, landmark IDs (M,)), when it has one.
+    joint: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 @dataclass
@@ -317,10 +322,11 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
-    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
+    from beacon_sim.filters.wire import ESTIMATE, MAPPED, WireError, map_problem, parse_estimate, split_mapped
 
     scenario = sr.scenario
     name = name or child.class_name
+    landmarks = joint = None
     T = len(sr.frames) if ticks is None else min(ticks, len(sr.frames))
     means, covs = np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)
     n_rec = len(sr.records)
@@ -335,7 +341,13 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                     run_limit_s, name)
         for i in range(T):
             tag, payload = child.request(frames[i])
-            if tag != ESTIMATE:
+            if tag == MAPPED:  # a SLAM filter: its map judged on every tick, the last kept
+                payload, block = split_mapped(payload)
+                landmarks, why = map_problem(block)
+                if why is not None:
+                    child.kill()  # its filter is switched off mid-run: the child is not reused
+                    raise ChildFailure(why, died=False)
+            elif tag != ESTIMATE:
                 raise ChildFailure("the filter's process broke the protocol", died=True)
             wall, prior, (mean, cov) = parse_estimate(payload)
             means[i], covs[i] = mean, cov
@@ -344,6 +356,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                 pm[j], pc[j] = prior
             ns += wall
             done += 1
+        joint = child.final_joint() if ticks is None and landmarks is not None else None
         report = child.end()
     except ChildFailure as exc:
         failed = str(exc) or "the filter failed"
@@ -358,7 +371,10 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
         report["means"] = means
         return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
                          sr.truth_checksum), report
-    return _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means), report
+    out = _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means)
+    out.filters[name].landmarks = landmarks if failed is None else None
+    out.filters[name].joint = joint if failed is None else None
+    return out, report
 
 
 def _hosted_context(sr: SimulatedRun, name: str, params: dict[str, Any] | None) -> Any:
@@ -396,7 +412,8 @@ def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndar
 
 
 def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | None,
-                  name: str | None = None, params: dict[str, Any] | None = None,
+                  name: str | list[str] | None = None,
+                  params: dict[str, Any] | list[dict[str, Any]] | None = None,
                   probe_ticks: int | None = None) -> tuple[list[RunOutput], dict[str, Any]]:
     """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
     child, one exchange per tick carrying every run's control, dt and readings and bringing
@@ -412,13 +429,19 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     ``probe_ticks``: two more filters in the batch on the first ``probe_ticks`` ticks of
     ``sims[0]``, one fed the same readings again (is it deterministic?) and one fed none
     (``frames_blind``: does it use them?); ``report["probes"]`` holds their means (or None
-    when that probe failed)."""
+    when that probe failed).
+
+    ``name`` and ``params`` may be lists, one per run (the robots of a team scenario: each
+    robot's copy its own name, so its own random stream); the runs' records are keyed by
+    the first name."""
     from beacon_sim.filters.isolated import ChildFailure
     from beacon_sim.filters.loading import initial_belief
-    from beacon_sim.filters.wire import ESTIMATE, WireError, parse_estimate
+    from beacon_sim.filters.wire import ESTIMATE, MAPPED, WireError, map_problem, parse_estimate, split_mapped
 
-    name = name or child.class_name
     R = len(sims)
+    names = list(name) if isinstance(name, list) else [name or child.class_name] * R
+    run_params: list[dict[str, Any] | None] = list(params) if isinstance(params, list) else [params] * R
+    name = names[0]
     T = len(sims[0].frames)
     if any(len(sr.frames) != T for sr in sims):
         raise ValueError("isolated_runs: the runs of a batch must have the same number of ticks")
@@ -429,6 +452,8 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
         for what, frames in (("again", sims[0].frames), ("blind", sims[0].frames_blind)):
             if frames is not None:
                 probes.append(what)
+                names.append(names[0])
+                run_params.append(run_params[0])
                 slot_sims.append(sims[0])
                 slot_frames.append(frames)
                 slot_ticks.append(n)
@@ -439,10 +464,12 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     has_prior = np.zeros((T, S), dtype=bool)
     answered = np.zeros((T, S), dtype=bool)
     failed: list[str | None] = [None] * S
+    maps: list[Any] = [None] * S  # a SLAM filter's map after its last step (judged every tick)
+    joints: list[Any] = [None] * R  # and its final joint() (mean, cov, IDs), when it has one
     report: dict[str, Any] = {}
     try:
-        builds = [(_hosted_context(sr, name, params), initial_belief(sr.scenario), name)
-                  for sr in slot_sims]
+        builds = [(_hosted_context(sr, names[k], run_params[k]), initial_belief(sr.scenario), names[k])
+                  for k, sr in enumerate(slot_sims)]
         follows: list[int | None] = [None] * R + [0] * len(probes)  # a probe ends with the run it probes
         why = child.batch_build(builds, sims[0].seed, run_limit_s, follows)
         for k, w in enumerate(why):
@@ -466,7 +493,13 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                 continue
             going = []
             for k, (tag, payload) in zip(live, got, strict=True):
-                if tag != ESTIMATE:
+                if tag == MAPPED:
+                    payload, block = split_mapped(payload)
+                    maps[k], why = map_problem(block)
+                    if why is not None:  # a bad map switches the filter off, as a bad estimate
+                        failed[k] = why
+                        continue
+                elif tag != ESTIMATE:
                     failed[k] = child.failure_text(payload)
                     continue
                 wall, prior, (mean, cov) = parse_estimate(payload)
@@ -478,6 +511,8 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                 going.append(k)
             live = going
             idx = np.asarray(live, dtype=int)
+        joints = [child.final_joint(k) if failed[k] is None and maps[k] is not None else None
+                  for k in range(R)]
         report = child.batch_end()
     except ChildFailure as exc:  # the whole child: every run still going fails with its reason
         for k in range(S):
@@ -510,6 +545,9 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                             for j, what in enumerate(probes)}
     outs = [_hosted_output(sr, name, means[k], covs[k], pms[k], pcs[k], done[k], failed[k], ns[k],
                            sr.index == 0) for k, sr in enumerate(sims)]
+    for k, out in enumerate(outs):
+        out.filters[name].landmarks = maps[k] if failed[k] is None else None
+        out.filters[name].joint = joints[k] if failed[k] is None else None
     return outs, report
 
 

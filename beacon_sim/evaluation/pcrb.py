@@ -167,7 +167,15 @@ def _process(scenario: Scenario, poses: np.ndarray, v, w, dt: float, burst_v: fl
 
 def information_update(P: np.ndarray, info: np.ndarray) -> np.ndarray:
     """The bound after readings of information ``info``: ``(P^-1 + I_z)^-1`` for batches
-    (R, n, n) of covariances ``P``, valid for singular P (Woodbury)."""
+    (R, n, n) of covariances ``P``, valid for singular P (Woodbury). A run whose
+    information is not finite (a scan's: not computed) gets a NaN bound (LAPACK's ``eigh``
+    raises on NaN rather than returning it)."""
+    bad = ~np.all(np.isfinite(info), axis=(1, 2))
+    if bad.any():
+        out = np.full(np.broadcast_shapes(P.shape, info.shape), np.nan)
+        if not bad.all():
+            out[~bad] = information_update(P[~bad], info[~bad])
+        return out
     w, V = np.linalg.eigh(0.5 * (info + np.swapaxes(info, 1, 2)))
     L = V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]  # I_z = L L^T
     Lt = np.swapaxes(L, 1, 2)

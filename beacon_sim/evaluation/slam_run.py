@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.scenario import Scenario
 from beacon_sim.evaluation.slam_metrics import ate, gospa, joint_nees
 from beacon_sim.runs.headless import RunResult
 
@@ -27,7 +28,12 @@ SLAM_KEYS = ("ate_m", "map_gospa_m", "map_landmarks", "map_missed", "map_false",
 
 def true_map(result: RunResult) -> tuple[np.ndarray, np.ndarray]:
     """The beacons a SLAM filter had to map (all but the anchors): IDs (B,), positions (B, 2) [m]."""
-    sc = result.scenario
+    return mapped_beacons(result.scenario)
+
+
+def mapped_beacons(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The beacons of ``sc`` a SLAM filter had to map (all but the anchors): IDs (B,),
+    positions (B, 2) [m] (``grade`` scores a map against them too)."""
     anchors = set(sc.anchor_ids) if not sc.map_known else {b.id for b in sc.world.beacons}
     mapped = [b for b in sc.world.beacons if b.id not in anchors]
     return (np.array([b.id for b in mapped], dtype=int),
@@ -46,15 +52,23 @@ def _joint_nees(flt: Any, result: RunResult) -> tuple[float | None, int | None]:
     joint = getattr(flt, "joint", None)
     if not callable(joint):
         return None, None
-    mean, cov, ids = joint()
+    return joint_nees_at(joint(), result.scenario, result.truth[-1])
+
+
+def joint_nees_at(joint: tuple[Any, Any, Any], sc: Scenario, true_pose: np.ndarray
+                  ) -> tuple[float | None, int | None]:
+    """The joint NEES and its degrees of freedom of a filter's ``joint()`` (mean, cov,
+    landmark IDs) against the truth of ``sc`` with the robot at ``true_pose`` (the run's
+    last): what :func:`slam_figures` reports, for ``grade`` too."""
+    mean, cov, ids = joint
     mean, cov = np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
-    truth = {b.id: (b.x, b.y) for b in result.scenario.world.beacons}
+    truth = {b.id: (b.x, b.y) for b in sc.world.beacons}
     ids = [int(i) for i in ids]
     if any(i >= 0 and i not in truth for i in ids):
         return None, None
     blind = [j for j, i in enumerate(ids) if i < 0]
     if blind:
-        b_ids, b_xy = true_map(result)
+        b_ids, b_xy = mapped_beacons(sc)
         taken = {i for i in ids if i >= 0}
         free = [k for k, b in enumerate(b_ids.tolist()) if b not in taken]
         xy = mean[3:3 + 2 * len(ids)].reshape(-1, 2)[blind]
@@ -64,7 +78,7 @@ def _joint_nees(flt: Any, result: RunResult) -> tuple[float | None, int | None]:
     keep = [j for j, i in enumerate(ids) if i >= 0]
     rows = np.r_[0:3, np.array([[3 + 2 * j, 4 + 2 * j] for j in keep], dtype=int).reshape(-1)]
     value = joint_nees(mean[rows], cov[np.ix_(rows, rows)], [ids[j] for j in keep],
-                       result.truth[-1], truth)
+                       true_pose, truth)
     return (value if math.isfinite(value) else None), 3 + 2 * len(keep)
 
 

@@ -51,6 +51,24 @@ def timed_step(f: Any, control: Any, dt: float, measurements: Any, want_prior: b
     est = f.estimate()
     return (t1 - t0) + (clock() - t2), prior, est
 
+
+def map_of(f: Any) -> bytes | str | None:
+    """The map block of a SLAM filter (one with ``landmarks()``) after its step, or the
+    one-line fault of what ``landmarks()`` returned; None for a filter without a map (no
+    cost). Called under the step's time limit: a ``landmarks()`` that loops is stopped as a
+    step that loops; one that raises raises (the step fails with its one line)."""
+    lm = getattr(f, "landmarks", None)
+    if not callable(lm):
+        return None
+    from beacon_sim.filters.watchdog import one_line
+    from beacon_sim.filters.wire import encode_landmarks
+
+    try:
+        got = lm()
+    except Exception as exc:  # a time-out (not an Exception) ends the step as it would
+        return f"landmarks() raised {one_line(exc)}"
+    return encode_landmarks(got)
+
 class _BoundedOutput(io.TextIOBase):
     """``sys.stdout`` / ``sys.stderr`` of the child: written straight to the log's file
     descriptor up to ``limit`` bytes, then one line saying the rest was cut."""
@@ -205,7 +223,9 @@ class _Server:
         kinds = [str(k) for k in kinds] if isinstance(kinds, list | tuple) else None
         self.send(reply_json(OK, {"name": self.cls.__qualname__, "form": form, "missing": missing,
                                   "module": str(self.cls.__module__), "sensor_kinds": kinds,
-                                  "supports_global": bool(getattr(self.cls, "supports_global", False))}))
+                                  "supports_global": bool(getattr(self.cls, "supports_global", False)),
+                                  "landmarks": callable(getattr(self.cls, "landmarks", None)),
+                                  "joint": callable(getattr(self.cls, "joint", None))}))
 
     def op_build(self, ctx: Any, initial: Any, global_seed: int, run_limit_s: float | None,
                  spec: str, step_limit_s: float | None = None) -> None:
@@ -230,10 +250,11 @@ class _Server:
 
         f = self.flt
 
-        def step() -> tuple[int, Any, Any]:
-            return timed_step(f, control, dt, measurements, want_prior)
+        def step() -> tuple[int, Any, Any, bytes | str | None]:
+            wall, prior, est = timed_step(f, control, dt, measurements, want_prior)
+            return wall, prior, est, map_of(f)
 
-        wall, prior, est = self.step_limited(step)
+        wall, prior, est, block = self.step_limited(step)
         post = estimate_arrays(est)
         if isinstance(post, str):
             return self.loose(est) if self.step_limit_s is not None else self.fail(post)
@@ -242,7 +263,11 @@ class _Server:
             pri = estimate_arrays(prior)
             if isinstance(pri, str):
                 return self.fail("after predict: " + pri)
-        self.send(reply_estimate(wall, pri, post))
+        if isinstance(block, str):  # the map's fault as data: the grader decides (wire.py)
+            from beacon_sim.filters.wire import map_fault_block
+
+            block = map_fault_block(block)
+        self.send(reply_estimate(wall, pri, post, block))
         return None
 
     def loose(self, est: Any) -> None:
@@ -281,6 +306,20 @@ class _Server:
         if isinstance(post, str):
             return self.loose(est) if self.step_limit_s is not None else self.fail(post)
         self.send(reply_estimate(0, None, post))
+        return None
+
+    def op_landmarks(self) -> None:
+        """The filter's map now (a MAPPED reply whose estimate part is NaN), for a proxy asked
+        for ``landmarks()`` outside a step (after reset)."""
+        import numpy as np
+
+        from beacon_sim.filters.wire import reply_estimate
+
+        block = self.step_limited(lambda: map_of(self.flt))
+        if not isinstance(block, bytes):
+            return self.fail(block or "the filter has no landmarks()")
+        nan = (np.full(3, np.nan), np.full((3, 3), np.nan))
+        self.send(reply_estimate(0, None, nan, block))
         return None
 
     def op_belief(self) -> None:
@@ -336,6 +375,21 @@ class _Server:
         assert self.batch is not None
         self.send(self.batch.step(slots, bodies))
 
+    def op_bjoint(self, slots: list[int]) -> None:
+        """The final ``joint()`` (mean, cov, landmark IDs) of the runs ``slots`` of the batch,
+        for the joint NEES: MULTI, per run a JOINT entry (the three as float arrays) or OK
+        (no ``joint()``, it raised or ran out of its run's time, or a map over
+        :data:`~beacon_sim.filters.wire.MAX_JOINT_LANDMARKS`: not reported)."""
+        assert self.batch is not None
+        self.send(self.batch.joints(slots))
+
+    def op_joint(self) -> None:
+        """The final ``joint()`` of the one filter (as :meth:`op_bjoint`, one MULTI entry)."""
+        from beacon_sim.filters.watchdog import StepWatch
+        from beacon_sim.filters.wire import reply_multi
+
+        self.send(reply_multi([joint_entry(self.flt, StepWatch(cpu=True), self.step_limit_s)]))
+
     def op_bend(self) -> None:
         """End the batch: whether its filters drew from the global generators."""
         self.batch = None
@@ -367,6 +421,31 @@ def np_random_seed(seed: int) -> None:
 
     np.random.seed(seed % 2**32)  # noqa: NPY002 - a global-RNG filter is reproducible
     random.seed(seed)
+
+
+def joint_entry(f: Any, watch: Any, seconds: float | None) -> bytes:
+    """The reply entry of a filter's final ``joint()`` (mean, cov, IDs): a JOINT entry of
+    three float arrays, or OK when there is none to report (no ``joint()``, it raised or
+    ran over ``seconds`` [s] of CPU time under ``watch``, or more than
+    :data:`~beacon_sim.filters.wire.MAX_JOINT_LANDMARKS` landmarks)."""
+    import numpy as np
+
+    from beacon_sim.filters.wire import MAX_JOINT_LANDMARKS, OK, encode_joint, reply
+
+    joint = getattr(f, "joint", None)
+    if not callable(joint):
+        return reply(OK)
+    try:
+        watch.seconds = seconds
+        with watch:
+            mean, cov, ids = joint()
+            arrays = [np.asarray(mean, dtype=float), np.asarray(cov, dtype=float),
+                      np.asarray(ids, dtype=float)]
+    except BaseException:  # a joint() that fails is not reported (the run is scored already)
+        return reply(OK)
+    if arrays[2].size > MAX_JOINT_LANDMARKS or arrays[1].size > (3 + 2 * MAX_JOINT_LANDMARKS) ** 2:
+        return reply(OK)
+    return encode_joint(*arrays)
 
 
 class _Batch:
@@ -428,6 +507,16 @@ class _Batch:
 
         return reply_json(FAIL, {"why": why, "tb": ""})
 
+    def joints(self, slots: list[int]) -> bytes:
+        from beacon_sim.filters.wire import reply_multi
+
+        entries = []
+        for k in slots:
+            f = self.filters[k] if 0 <= k < len(self.filters) else None
+            left = None if self.limit_s is None else self.limit_s - self.used[k] / 1e9
+            entries.append(joint_entry(f, self.watch, left))
+        return reply_multi(entries)
+
     def step(self, slots: list[int], bodies: list[bytes]) -> bytes:
         import pickle
 
@@ -450,6 +539,7 @@ class _Batch:
                 watch.seconds = None if limit is None else limit - self.used[k] / 1e9
                 with watch:
                     wall, prior, est = timed_step(f, control, dt, measurements, want_prior, clock)
+                    block = map_of(f)
             except BaseException as exc:
                 self.switch_off(k)
                 entries.append(self._fail(exc))
@@ -470,7 +560,11 @@ class _Batch:
                 self.switch_off(k)
                 entries.append(self._fail_text(self.over or "time limit"))
                 continue
-            entries.append(reply_estimate(wall, pri, post))
+            if isinstance(block, str):
+                self.switch_off(k)
+                entries.append(self._fail_text(block))
+                continue
+            entries.append(reply_estimate(wall, pri, post, block))
         return reply_multi(entries)
 
 

@@ -43,6 +43,7 @@ from beacon_sim.filters.guard import MAX_COV, MAX_MEAN
 from beacon_sim.filters.host import call_guarded, guarded_call
 from beacon_sim.filters.hosting import hosted_source
 from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
+from beacon_sim.filters.landmark_check import landmark_map_problems
 from beacon_sim.filters.loading import (
     FilterLoadError,
     build_filter,
@@ -181,7 +182,7 @@ class _ChildHost:
     def make(self, scenario: Scenario, spec: str, global_seed: int | None = None) -> Filter:
         return IsolatedFilter(self.child, _context(scenario, spec), initial_belief(scenario),
                               0 if global_seed is None else global_seed, None, spec,
-                              step_limit_s=STEP_LIMIT_S)
+                              step_limit_s=STEP_LIMIT_S, strict_map=False)  # the map check's
 
     def drew_global(self) -> tuple[bool, bool] | None:
         rep = self.child.end()
@@ -386,51 +387,6 @@ def check_belief(flt: Filter) -> CheckResult:
                    "belief() must return a GaussianBelief, ParticleBelief or GridBelief")
 
 
-def landmark_map_problems(lm: object) -> list[str]:
-    """What is wrong with a ``landmarks()`` result (docs/slam.md): a LandmarkMap-like object
-    whose ``ids`` are None or M integers, ``means`` (M, 2) and ``covs`` (M, 2, 2) finite, each
-    cov symmetric and positive semi-definite. One message per fault; empty when it is right."""
-    if lm is None or not all(hasattr(lm, a) for a in ("ids", "means", "covs")):
-        return [f"landmarks() returned {type(lm).__name__}, expected a LandmarkMap (ids, means, covs)"]
-    out: list[str] = []
-    got: Any = lm
-    try:
-        means = np.asarray(got.means, dtype=np.float64)
-        covs = np.asarray(got.covs, dtype=np.float64)
-    except (TypeError, ValueError):
-        return ["landmarks(): means or covs are not arrays of numbers"]
-    if means.ndim != 2 or means.shape[1:] != (2,):
-        out.append(f"landmarks(): means of shape {means.shape}, expected (M, 2)")
-    if covs.ndim != 3 or covs.shape[1:] != (2, 2):
-        out.append(f"landmarks(): covs of shape {covs.shape}, expected (M, 2, 2)")
-    m = means.shape[0] if means.ndim == 2 else None
-    if m is not None and covs.ndim == 3 and covs.shape[0] != m:
-        out.append(f"landmarks(): {m} means but {covs.shape[0]} covs")
-    ids = got.ids
-    if ids is not None:
-        arr = np.asarray(ids)
-        if arr.ndim != 1 or not np.issubdtype(arr.dtype, np.integer):
-            out.append(f"landmarks(): ids of shape {arr.shape} and type {arr.dtype}, expected (M,) "
-                       "integers or None")
-        elif m is not None and arr.shape[0] != m:
-            out.append(f"landmarks(): {arr.shape[0]} ids but {m} means")
-    if not (np.all(np.isfinite(means)) and np.all(np.isfinite(covs))):
-        out.append("landmarks(): NaN or infinity in the means or covs")
-    elif covs.ndim == 3 and covs.shape[1:] == (2, 2) and len(covs):
-        scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
-        asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2))
-        bad = np.flatnonzero(asym > 1e-9 * scale)
-        if bad.size:
-            out.append(f"landmarks(): cov of landmark {int(bad[0])} not symmetric "
-                       f"(cov - cov^T up to {float(asym[bad[0]]):.3g})")
-        low = np.linalg.eigvalsh(0.5 * (covs + np.swapaxes(covs, 1, 2)))[:, 0]
-        neg = np.flatnonzero(low < -1e-9 * scale)
-        if neg.size:
-            out.append(f"landmarks(): cov of landmark {int(neg[0])} not positive semi-definite "
-                       f"(smallest eigenvalue {float(low[neg[0]]):.3g})")
-    return out
-
-
 def _slam_scenario(scenario: Scenario) -> tuple[Scenario, str]:
     """The scenario the map check runs on: ``scenario`` when its map is withheld, else
     ``slam_loop`` (on a known map a SLAM filter has no landmarks to report)."""
@@ -439,31 +395,16 @@ def _slam_scenario(scenario: Scenario) -> tuple[Scenario, str]:
     return load_scenario("slam_loop"), " (on slam_loop: the given scenario's map is known)"
 
 
-def _defines_landmarks(path: Path, class_name: str | None) -> bool:
-    """Whether the file defines a class (``class_name``, or any) with a ``landmarks`` method
-    of its own, read without running it."""
-    import ast
-
-    try:
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-    except (SyntaxError, UnicodeDecodeError, OSError, ValueError):
-        return False
-    return any(isinstance(n, ast.ClassDef) and (class_name is None or n.name == class_name)
-               and any(isinstance(f, ast.FunctionDef) and f.name == "landmarks" for f in n.body)
-               for n in tree.body)
-
-
 def check_landmarks(host: _Host, scenario: Scenario, spec: str) -> list[CheckResult]:
     """For a SLAM filter (one with ``landmarks()``): after every one of the steps the map is
     well formed (see :func:`landmark_map_problems`); the first step with a fault, one FAIL
-    naming every fault of that step. No result for a filter without ``landmarks()``; a filter
-    in a process of its own is not judged (its map stays in that process)."""
+    naming every fault of that step. No result for a filter without ``landmarks()``. A filter
+    in a process of its own sends its map back with each step's estimate
+    (:class:`~beacon_sim.filters.isolated.IsolatedMappingFilter`), judged here the same way."""
     if isinstance(host, _ChildHost):
-        if host.source is None or not _defines_landmarks(host.source, host.child.class_name):
+        if host.child.info.get("landmarks") is not True:
             return []
-        return [_result("landmarks", True, "not judged: the filter runs in a process of its own "
-                        "and its map stays there (`beacon-sim check FILE --sandbox none` judges it)")]
-    if not callable(getattr(host.cls, "landmarks", None)):
+    elif not callable(getattr(host.cls, "landmarks", None)):
         return []
     used, note = _slam_scenario(scenario)
     advice = ("landmarks() must return LandmarkMap(ids, means, covs): ids None or (M,) ints, "

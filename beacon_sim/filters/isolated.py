@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import Belief, FilterContext, GaussianBelief, GridBelief, ParticleBelief
+from beacon_sim.filters.base import (
+    Belief,
+    FilterContext,
+    GaussianBelief,
+    GridBelief,
+    LandmarkMap,
+    ParticleBelief,
+)
 from beacon_sim.filters.containment import (
     Launched,
     Limits,
@@ -40,19 +47,24 @@ from beacon_sim.filters.wire import (
     EST_ENTRY,
     ESTIMATE,
     FAIL,
+    JOINT,
+    MAPPED,
     MAX_BATCH,
     MULTI,
     OK,
     REPORT,
     WireError,
     decode_belief,
+    decode_joint,
     encode_batch,
     encode_request,
+    map_problem,
     parse_estimate,
     parse_json,
     parse_multi,
     read_reply,
     send_frame,
+    split_mapped,
 )
 
 #: The longest the grader waits for one answer of a child [s] of wall time, at least: a
@@ -276,6 +288,20 @@ class FilterChild:
         answered), else one (tag, payload) per run, ESTIMATE or FAIL (that run is switched off)."""
         return self.call_multi(encode_batch("bstep", bodies, slots), len(bodies))
 
+    def final_joint(self, slot: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The final ``joint()`` (mean (3 + 2M,), cov, landmark IDs (M,)) of run ``slot`` of
+        the batch (None: of the one filter), checked
+        (:func:`~beacon_sim.filters.wire.decode_joint`), or None when the filter reports none.
+        Asked one run at a time (a joint of 500 landmarks is 8 MB)."""
+        if self.info.get("joint") is not True:
+            return None
+        frame = encode_request("joint") if slot is None else encode_request("bjoint", [slot])
+        got = self.call_multi(frame, 1)
+        if isinstance(got, np.ndarray):
+            return None
+        tag, payload = got[0]
+        return decode_joint(payload) if tag == JOINT else None
+
     def batch_end(self) -> dict[str, Any]:
         """End the batch: whether its filters drew from the global ``np.random`` / ``random``."""
         return self._report(self.call_json("bend"))
@@ -288,22 +314,33 @@ class IsolatedFilter:
     ``predict`` is held until ``update`` so that a step is one exchange with the child
     (predict, update and estimate there); a failure raises :class:`ChildFailure` (a
     :class:`~beacon_sim.filters.watchdog.FilterFailed`: the runner's one line is the
-    child's reason)."""
+    child's reason). A hosted SLAM filter (its class has ``landmarks()``) gets an
+    :class:`IsolatedMappingFilter`: its map comes back with each step's estimate."""
+
+    def __new__(cls, child: FilterChild, *args: Any, **kwargs: Any) -> IsolatedFilter:
+        if cls is IsolatedFilter and child.info.get("landmarks") is True:
+            cls = IsolatedMappingFilter
+        return super().__new__(cls)
 
     def __init__(self, child: FilterChild, ctx: FilterContext, initial: GaussianBelief | None,
                  global_seed: int, run_limit_s: float | None, spec: str,
-                 step_limit_s: float | None = None):
+                 step_limit_s: float | None = None, strict_map: bool = True):
         self.child = child
+        #: A SLAM filter's bad map raises at the step that brought it (switched off, as a bad
+        #: estimate); False (``check``): at ``landmarks()``, so the pose checks go on.
+        self.strict_map = strict_map
+        self._map_fault: str | None = None
         self.supports_global = True  # the child resets with the scenario's own belief
         self._pending: tuple[Control, float] | None = None
         self._est: Any = None
+        self._map: LandmarkMap | None = None  # the map the last step brought back (SLAM)
         #: The wall time of the last predict + update + estimate in the child [ns] (its own
         #: cost, without the exchange), or None.
         self.last_step_ns: int | None = None
         child.build(ctx, initial, global_seed, run_limit_s, spec, step_limit_s)
 
     def reset(self, initial: GaussianBelief | None) -> None:
-        self._pending, self._est = None, None
+        self._pending, self._est, self._map = None, None, None
         self.child.call("reset", initial)
 
     def predict(self, control: Control, dt: float) -> None:
@@ -313,7 +350,7 @@ class IsolatedFilter:
     def _flush(self) -> None:
         if self._pending is not None:
             control, dt = self._pending
-            self._pending = None
+            self._pending, self._map = None, None
             self.child.call("predict", control, dt)
 
     def update(self, measurements: Any) -> None:
@@ -322,10 +359,17 @@ class IsolatedFilter:
             control, dt = self._pending
             self._pending = None
             tag, payload = self.child.call("step", control, dt, meas, False)
+            self._map = self._map_fault = None
+            if tag == MAPPED:
+                payload, block = split_mapped(payload)
+                tag = ESTIMATE
+                self._map, self._map_fault = _judged_map(block)
+                if self._map_fault is not None and self.strict_map:
+                    raise ChildFailure(self._map_fault)
             self._est = _estimate_of(tag, payload)
             self.last_step_ns = parse_estimate(payload)[0] if tag == ESTIMATE else None
             return
-        self._est = None
+        self._est, self._map = None, None
         self.child.call("update", meas)
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
@@ -353,6 +397,41 @@ class IsolatedFilter:
         raise ChildFailure("the filter's process sent a malformed belief")
 
 
+class IsolatedMappingFilter(IsolatedFilter):
+    """The proxy of a hosted SLAM filter: ``landmarks()`` is the map that came back with the
+    last step (judged in this process, as every map: finite, shapes, symmetric PSD
+    covariances, at most :data:`~beacon_sim.filters.landmark_check.MAX_LANDMARKS`), else
+    the child is asked for it. A bad map raises :class:`ChildFailure` with its one line."""
+
+    def landmarks(self) -> LandmarkMap:
+        self._flush()
+        if self._map_fault is not None:
+            raise ChildFailure(self._map_fault)
+        if self._map is None:
+            tag, payload = self.child.call("landmarks")
+            if tag != MAPPED:
+                raise ChildFailure("the filter's process broke the protocol")
+            got, why = _judged_map(split_mapped(payload)[1])
+            if why is not None or got is None:
+                raise ChildFailure(why or "landmarks(): a bad map")
+            self._map = got
+        lm = self._map
+        return LandmarkMap(None if lm.ids is None else lm.ids.copy(), lm.means.copy(), lm.covs.copy())
+
+
+def _judged_map(block: bytes) -> tuple[LandmarkMap | None, str | None]:
+    """The map of a MAPPED reply, judged (:func:`~beacon_sim.filters.wire.map_problem`):
+    (the map, None) or (None, its fault in one line); a malformed block raises
+    :class:`ChildFailure` (the child broke the protocol)."""
+    try:
+        got, why = map_problem(block)
+    except WireError as exc:
+        raise ChildFailure(f"the filter's process {exc}", died=False) from None
+    if why is not None or got is None:
+        return None, why or "landmarks(): a bad map"
+    return LandmarkMap(*got), None
+
+
 def _estimate_of(tag: bytes, payload: bytes) -> Any:
     """What the child's answer says the filter's ``estimate()`` returned: the pair of arrays;
     with a step limit (``check``) also an unusable one as it was (arrays of another shape,
@@ -371,4 +450,4 @@ def _estimate_of(tag: bytes, payload: bytes) -> Any:
     raise ChildFailure("the filter's process broke the protocol")
 
 
-__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter"]
+__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter", "IsolatedMappingFilter"]
