@@ -105,15 +105,34 @@ def test_grazing_missing_and_inside_the_wall_beams_are_dropped():
     assert r[0, 0] == 3.0 and r[1, 0] == 0.0 and not ok.any() and np.all(J == 0.0)
 
 
-def test_a_beam_along_a_grid_line_grazing_the_wall_is_dropped():
+def test_a_beam_along_a_grid_line_stays_finite():
     """A beam running exactly along the floor wall's face (the half-open convention puts it
-    in the free cells above it) grazes it all the way to the end walls, where it hits the
-    corner of two walls: no line to take a normal from, so it is dropped, and nothing is
-    infinite."""
+    in the free cells above it) grazes it all the way to the end wall, where it hits the
+    corner of two walls: the corner's face normal (the end wall's, -x), so dr/dx = -1 and
+    nothing is infinite (the derivative is one-sided there: below, the floor)."""
     grid = from_walls((0, 0, 10, 10), 0.01, segments=[ROOM])
     r, J, ok = scan_jacobian(grid, np.array([[5.0, 0.01, 0.0]]), [0.0, math.pi], 20.0)
     assert np.all(np.isfinite(J)) and np.all(np.isfinite(r))
-    assert not ok.any()
+    np.testing.assert_allclose(r[0], [4.99, 4.99], atol=1e-9)  # the walls are the edge cells
+    assert ok[0].all()
+    np.testing.assert_allclose(J[0], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], atol=1e-12)
+
+
+def test_small_pillars_and_corners_take_the_face_they_are_hit_on():
+    """A 0.4 m pillar (8 cells, smaller than the normal's fit window): no line to fit, so
+    each beam takes the face it enters through, the ray cast's own derivative."""
+    grid = from_walls((0, 0, 10, 10), 0.05, segments=[ROOM],
+                      polygons=[[(5.0, 5.0), (5.4, 5.0), (5.4, 5.4), (5.0, 5.4)]])
+    pose = np.array([3.03, 4.11, 0.1])
+    # Beams at the pillar's west face and its south face (from below and to the left).
+    rel = np.array([math.atan2(5.2 - 4.11, 5.0 - 3.03), math.atan2(5.35 - 4.11, 5.0 - 3.03)]) - 0.1
+    low = np.array([4.1, 3.0, 0.0])
+    rel_low = np.array([math.atan2(5.0 - 3.0, 5.23 - 4.1)])   # not at a cell corner
+    for p, a in ((pose, rel), (low, rel_low)):
+        r, J, ok = scan_jacobian(grid, p[None], a, 20.0)
+        assert ok.all() and np.all(r < 3.0)
+        fd = _slopes(grid, p, a, (0.002, 0.002, 0.0005), n=21)
+        np.testing.assert_allclose(J[0], fd, rtol=1e-4, atol=1e-6)
 
 
 def test_scan_information_is_z_hit_times_the_sum_of_beam_informations():

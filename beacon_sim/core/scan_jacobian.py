@@ -19,15 +19,17 @@ cells with a free 4-neighbour) within 6 cells of the cell the beam enters
 grid's axes and at 45 degrees (by symmetry) and within a degree or two at other angles.
 The tests hold it to least-squares slopes of the ray cast itself over offsets of a few
 cells (tests/test_scan_pcrb.py): exact for axis-aligned walls, 2 % at 45 degrees, 4 % at
-30 degrees.
+30 degrees. Where the surface cells around the hit are no line (a corner, a pillar or a
+door jamb smaller than the window: the fit's smaller spread over a tenth of the larger,
+``MAX_CORNERNESS``) the normal is that of the cell face the beam enters through, a grid
+axis: the ray cast's own derivative there (exact for axis-aligned pillars and corners).
 
 Beams that carry no position information under the hit model are *dropped* (``usable`` is
 False, their rows zero): no wall within ``max_range`` (or the ray left the grid), a ray that
 starts inside a wall (r = 0), grazing hits, whose incidence (the angle between -u and n) is
 over ``max_incidence`` (default 75 degrees: there r jumps as the beam slides along the wall
-and the linearisation means nothing), and hits where the surface is no line (a corner or a
-pillar: the fit's smaller spread over a tenth of the larger, ``MAX_CORNERNESS``). At an
-edge (a door jamb) r is discontinuous and the derivative is the wall's beside it.
+and the linearisation means nothing). At an edge r is discontinuous (a beam just past a
+door jamb reads the wall behind it): the derivative is the one of the face that was hit.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ MAX_INCIDENCE = math.radians(75.0)
 _NORMAL_RADIUS = 6
 _NORMAL_SIGMA = 3.0
 #: A fit whose smaller spread is more than this share of the larger is no line (a corner,
-#: a pillar's end): its beams are dropped.
+#: a pillar's end): its beams take the normal of the cell face they enter through.
 MAX_CORNERNESS = 0.1
 
 
@@ -142,13 +144,20 @@ def scan_jacobian(grid: OccupancyGrid, poses, rel_angles, max_range: float, *,
     # The occupied cell the beam enters: a quarter of a cell beyond the hit point.
     rc = grid.world_to_cell(poses[:, None, :2] + (ranges + 0.25 * grid.resolution)[..., None] * u)
     inside = grid.in_grid(rc)
-    n_grid, line = wall_normals(grid, rc)
+    n_fit, line = wall_normals(grid, rc)
+    # No line there (a corner, a pillar smaller than the fit's window): the normal of the
+    # cell face the beam enters through, the grid line its hit point lies on.
+    hit = grid.world_to_grid(poses[:, None, :2] + ranges[..., None] * u)
+    off = np.abs(hit - np.round(hit))                     # (R, B, 2): distance to a line
+    on_vertical = (off[..., 0] <= off[..., 1])[..., None]
+    face = np.where(on_vertical, np.array([1.0, 0.0]), np.array([0.0, 1.0]))
+    n_grid = np.where(line[..., None], n_fit, face)
     c, s = math.cos(grid.origin[2]), math.sin(grid.origin[2])  # grid axes -> world
     n = np.stack([c * n_grid[..., 0] - s * n_grid[..., 1],
                   s * n_grid[..., 0] + c * n_grid[..., 1]], axis=-1)
     n *= np.where(np.sum(n * u, axis=-1) > 0, -1.0, 1.0)[..., None]  # facing the sensor
     nu = np.sum(n * u, axis=-1)
-    usable = inside & line & (ranges > 0.0) & (ranges < max_range) & (nu <= -math.cos(max_incidence))
+    usable = inside & (ranges > 0.0) & (ranges < max_range) & (nu <= -math.cos(max_incidence))
     jac = np.zeros((*ranges.shape, 3))
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = np.where(usable, -1.0 / nu, 0.0)
