@@ -34,6 +34,7 @@ FILTERS = {
     "corridor": ["mcl"],
     "office": ["mcl"],
     "symmetric_room": ["mcl"],
+    "two_rooms": ["ekf", "pf"],  # beacons behind walls: the bound sees what they see
 }
 RUNS = 8
 DURATION = 30.0  # [s]; sparse_kidnap: the 10 s between the global start window and its first kidnap
