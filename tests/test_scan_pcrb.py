@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.beam_model import RangeModelParams
-from beacon_sim.core.occupancy import from_walls
+from beacon_sim.core.occupancy import FREE, OCCUPIED, OccupancyGrid, from_walls
 from beacon_sim.core.raycast import beam_angles, expected_ranges
 from beacon_sim.core.scan_jacobian import MAX_INCIDENCE, scan_information, scan_jacobian
 from beacon_sim.core.scenario import load_scenario, parse_scenario
@@ -133,6 +133,22 @@ def test_small_pillars_and_corners_take_the_face_they_are_hit_on():
         assert ok.all() and np.all(r < 3.0)
         fd = _slopes(grid, p, a, (0.002, 0.002, 0.0005), n=21)
         np.testing.assert_allclose(J[0], fd, rtol=1e-4, atol=1e-6)
+
+
+def test_a_rotated_map_s_walls_are_rotated_normals():
+    """A map whose origin has a yaw (map_server's third origin value): walls along the grid's
+    axes are at 0.4 rad in the world; the normals turn with them."""
+    cells = np.full((200, 300), FREE, dtype=np.int8)
+    cells[:3] = cells[-3:] = OCCUPIED
+    cells[:, :3] = cells[:, -3:] = OCCUPIED
+    cells[80:100, 150:160] = OCCUPIED                       # a pillar
+    grid = OccupancyGrid(cells, 0.02, (1.0, -0.5, 0.4))
+    pose = np.array([2.5, 1.5, 0.3])
+    rel = np.radians(np.arange(-170.0, 180.0, 20.0))
+    r, J, ok = scan_jacobian(grid, pose[None], rel, 20.0)
+    assert ok.all() and np.all(r < 4.0)                     # every beam hits inside the map
+    fd = _slopes(grid, pose, rel, (0.003, 0.003, 0.0005), n=21)
+    np.testing.assert_allclose(J[0], fd, rtol=1e-4, atol=1e-6)
 
 
 def test_scan_information_is_z_hit_times_the_sum_of_beam_informations():
