@@ -20,7 +20,7 @@ So, per step::
 of view and (walls) line of sight, ``p_detect * (1 - outlier_rate) * H^T R^-1 H``; for a
 range finder's scan, ``z_hit * sum over beams of J^T J / sigma_hit^2`` with J each beam's
 range derivative from the wall's normal at its hit (core/scan_jacobian.py; beams that miss,
-start in a wall, graze a wall or hit a corner are left out); for pose and position fixes
+start in a wall or graze it are left out); for pose and position fixes
 the expectation over which beacons are detected (a fix from n beacons is n times as
 informative; a position fix's noise is ``position_std * HDOP`` of the detected subset).
 Blackouts give no information; noise bursts add to Q.
