@@ -245,7 +245,8 @@ def test_parse_scenario_without_a_file_reads_walls():
 
 def test_beacons_and_walls_in_one_world(tmp_path):
     """A world may hold walls and beacons: the scan sees the walls, the beacon sensor the
-    beacons (through walls: occlusion is not modelled), and an EKF ignores the scans."""
+    beacons (this one in line of sight; walls hide beacons: tests/test_occlusion.py), and
+    an EKF ignores the scans."""
     world = WALLS.replace("bounds = [0.0, 0.0, 4.0, 2.0]",
                           "bounds = [0.0, 0.0, 4.0, 2.0]\nbeacons = [{ id = 1, x = 3.0, y = 1.5 }]")
     text = write_room(tmp_path, world=world).read_text() + (

@@ -153,7 +153,8 @@ class Hud:
             bpos, bhead = info["bound"]
             self._blit(surf, "best possible (PCRB, B)", "small", palette.TEXT, (x, y))
             y += f["small"].get_linesize()
-            self._blit(surf, f"sigma {bpos:5.2f} m {math.degrees(bhead):6.1f} deg", "small",
+            size = f"{bpos:5.2f} m" if bpos >= 0.01 else f"{bpos * 1000:4.1f} mm"  # map worlds: mm
+            self._blit(surf, f"sigma {size} {math.degrees(bhead):6.1f} deg", "small",
                        palette.TEXT_DIM, (x + 10, y))
             y += f["small"].get_linesize() + 4
 

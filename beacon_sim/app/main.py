@@ -458,6 +458,7 @@ class App:
             dashes[name] = None
         bound = self.bound if (self.show.bound and self.bound is not None
                                and self.bound.valid) else None
+        self.renderer.bound_cov = bound.P if bound is not None else None  # the magnifier's
 
         def extra(surf, view, lw):
             if bound is not None:

@@ -30,6 +30,9 @@ ELLIPSE_SCALE2 = CHI2_2DOF[ELLIPSE_LEVEL]
 PRIOR_DASH = (14, 10)
 #: The magnifier's words above the sizes of the ellipses it shows.
 MAGNIFIER_HEADING = "95 % ellipse, across:"
+MAGNIFIER_BOUND = "best possible (PCRB)"
+#: Below this size [px] in the magnifier the bound gets its own closer look (a box inside).
+MIN_BOUND_PX = 30.0
 #: A beacon in a sensor's range that was not detected: a dashed ring [px on, off].
 MISSED_DASH = (6, 5)
 
@@ -251,6 +254,8 @@ class WorldRenderer:
         self.show_field = False  # the likelihood field under the walls (ShowOptions.field)
         self.map_layer = MapLayer()  # SLAM filters' estimated maps (app/map_layer.py)
         self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
+        # the live PCRB (3, 3) the window shows (B), or None: the magnifier draws it too
+        self.bound_cov: np.ndarray | None = None
         self.axis_rects: list[pygame.Rect] = []  # the axis labels of the static layer [px]
         self.beacon_rects: list[pygame.Rect] = []  # beacons and their labels, last drawn [px]
 
@@ -786,14 +791,18 @@ class WorldRenderer:
         the true position (black cross), those estimates (dot) and their ellipses at a
         zoom where the largest is about half the inset, a scale bar, and each ellipse's size
         in words. A frame marks the magnified part around the robot. ``last_magnifier``
-        holds what was drawn (for tests): rect, px per metre, {name: ellipse across [px]}."""
+        holds what was drawn (for tests): rect, px per metre, {name: ellipse across [px]},
+        and the bound's across [px] (``bound_px``) when ``bound_cov`` is shown and small (a
+        map world's bound is millimetres)."""
         r_px = max(radius, 14.0 / view.scale) * view.scale
         small = []
         for key, mean, cov in estimates:
             axis = ellipse_diameter(cov)  # the 95 % ellipse's major axis [m]
             if math.isfinite(axis) and axis * view.scale < 2.0 * r_px:
                 small.append((key, mean, cov, axis))
-        if not small:
+        b_axis = ellipse_diameter(self.bound_cov) if self.bound_cov is not None else math.nan
+        with_bound = math.isfinite(b_axis) and b_axis * view.scale < 2.0 * r_px
+        if not small and not with_bound:
             return
         area = pygame.Rect(view.area)
         font = self.fonts["small"]
@@ -801,8 +810,9 @@ class WorldRenderer:
         # wide enough for its words (the bar is at most half the width, its length beside it)
         side = max(min(int(0.3 * min(area.width, area.height)), 360), 150,
                    font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
-                   max(font.size(f"{key}  99 mm")[0] for key, *_ in small) + 50)
-        strip_h = lh * (len(small) + 3) + 10
+                   max((font.size(f"{key}  99 mm")[0] for key, *_ in small), default=0) + 50,
+                   font.size(f"{MAGNIFIER_BOUND}  99 mm")[0] + 50 if with_bound else 0)
+        strip_h = lh * (len(small) + with_bound + 3) + 10
         # a corner of the world's area that does not cover the robot (top right first)
         robot_px = view.to_px(np.asarray(pose[:2], dtype=float))
         robot_box = pygame.Rect(ipx(robot_px[0] - r_px) - 8, ipx(robot_px[1] - r_px) - 8,
@@ -817,8 +827,9 @@ class WorldRenderer:
         rect = pygame.Rect(block.left, block.top, side, side)
         # the zoom: the largest small ellipse (or the spread of the means) half the inset
         centre = np.asarray(pose[:2], dtype=float)
-        reach = max(max(a for *_, a in small) / 2.0,
-                    max(float(np.hypot(*(m[:2] - centre))) for _, m, _, _ in small), 1e-4)
+        reach = max(max((a for *_, a in small), default=0.0) / 2.0,
+                    max((float(np.hypot(*(m[:2] - centre))) for _, m, _, _ in small), default=0.0),
+                    b_axis / 2.0 if with_bound else 0.0, 1e-4)
         scale = min(0.25 * side / reach, 1e6)
         if scale < 4.0 * view.scale:  # not worth a magnifier
             return
@@ -842,6 +853,8 @@ class WorldRenderer:
             pygame.draw.line(surf, palette.GRID_MINOR, (rect.left, ipx(y)), (rect.right, ipx(y)), 1)
         c = sub.to_px(centre)
         self._cross(surf, c, 8, palette.ROBOT, 3)
+        if with_bound:
+            self.bound(surf, sub, pose, self.bound_cov)
         lw = max(self.lw - 1, 2)
         drawn = {}
         for key, mean, cov, axis in sorted(small, key=lambda e: dashes.get(e[0]) is not None):
@@ -850,6 +863,10 @@ class WorldRenderer:
             self.uncertainty(surf, sub, mean, cov, colours[key], dashes.get(key), radius,
                              width=lw, wedge=False)
             drawn[key] = axis * scale
+        bound_zoom = None
+        if with_bound and b_axis * scale < MIN_BOUND_PX:  # too small at this zoom: a closer look
+            bound_zoom = self._bound_inset(surf, sub, rect, pose, b_axis,
+                                           [(key, mean) for key, mean, *_ in small], colours)
         surf.set_clip(old_clip)
         pygame.draw.rect(surf, palette.TEXT, rect, 2)
         # the scale bar and the sizes, on a strip along the inset's bottom
@@ -872,7 +889,42 @@ class WorldRenderer:
             t = self.text(f"{key}  {format_length(axis)}", font_key, palette.TEXT)
             pygame.draw.line(surf, colours[key], (x0, y + lh // 2), (x0 + 18, y + lh // 2), 5)
             surf.blit(t, (x0 + 26, y))
-        self.last_magnifier = {"rect": rect, "scale": scale, "across_px": drawn}
+        if with_bound:
+            y += lh
+            colour, dash = BOUND_STYLE
+            polyline(surf, colour, np.array([[x0, y + lh // 2], [x0 + 18, y + lh // 2]], dtype=float),
+                     3, dash)
+            surf.blit(self.text(f"{MAGNIFIER_BOUND}  {format_length(b_axis)}", font_key, palette.TEXT),
+                      (x0 + 26, y))
+        self.last_magnifier = {"rect": rect, "scale": scale, "across_px": drawn,
+                               "bound_px": b_axis * scale if with_bound else None,
+                               "bound_zoom": bound_zoom}
+
+    def _bound_inset(self, surf, sub: View, rect: pygame.Rect, pose, b_axis: float, means,
+                     colours) -> float:
+        """A second look inside the magnifier (its bottom-left corner) at the bound alone,
+        when it is too small at the magnifier's zoom (a map world's millimetres beside a
+        filter's centimetres): the true position, the bound's ellipse across 60 % of the box,
+        the estimates' means that fall inside. Returns its zoom over the magnifier's."""
+        side = max(rect.width * 2 // 5, 100)
+        box = pygame.Rect(rect.left + 6, rect.bottom - side - 6, side, side)
+        scale = 0.6 * side / max(b_axis, 1e-6)
+        view = View(sub.bounds, (box.left, box.top, box.width, box.height))
+        view.scale, view.centre = scale, np.asarray(pose[:2], dtype=float)
+        clip = surf.get_clip()
+        surf.fill(palette.BACKGROUND, box)
+        surf.set_clip(box.clip(clip))
+        self._cross(surf, view.to_px(view.centre), 4, palette.ROBOT, 2)
+        self.bound(surf, view, pose, self.bound_cov)
+        for key, mean in means:
+            m = view.to_px(np.asarray(mean[:2], dtype=float))
+            if box.collidepoint(ipx(m[0]), ipx(m[1])):
+                pygame.draw.circle(surf, colours[key], (ipx(m[0]), ipx(m[1])), 4)
+        zoom = scale / sub.scale
+        surf.blit(self.text(f"x{zoom:.0f} more", "small", palette.TEXT_DIM), (box.left + 4, box.top + 2))
+        surf.set_clip(clip)
+        pygame.draw.rect(surf, palette.TEXT, box, 1)
+        return zoom
 
     def priors(self, surf, view: View, steps: dict, colours, used_ids: set[int]) -> None:
         """The step view: for each filter the 95 % ellipse after predict (the prior, dashed,

@@ -35,7 +35,7 @@ from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, Rand
 from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.motion import move
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.sensors import SensorSpec, sense
+from beacon_sim.core.sensors import SensorSpec, sense, visible_mask
 from beacon_sim.core.simulation import Simulation, _kidnap_text, bumped_heading, into_wall
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 
@@ -422,10 +422,7 @@ class BatchSimulation:
             rng.random(out=u_value[i])
         diff = world.beacon_xy[None, :, :] - pose[:, None, :2]   # (R, n, 2)
         dx, dy = diff[..., 0], diff[..., 1]
-        seen = np.hypot(dx, dy) <= spec.max_range
-        if spec.fov < 2.0 * math.pi:
-            rel = wrap(relative_bearing(dx, dy, pose[:, 2, None]))
-            seen &= np.abs(rel) <= 0.5 * spec.fov
+        seen = visible_mask(spec, pose, world)  # range, field of view, walls (sensors.py)
         seen &= u_detect < spec.detection_prob
         if not seen.any():
             return None

@@ -72,6 +72,30 @@ def cast_rays(grid: OccupancyGrid, origins, angles, max_range: float, *,
     return np.minimum(t * grid.resolution, max_range)
 
 
+def line_of_sight(grid: OccupancyGrid, origins, targets) -> np.ndarray:
+    """Whether the segment from each origin (n, 2) [m] to its target (n, 2) [m] is clear:
+    the first occupied cell it enters is none, or the target's own cell (a beacon on or in
+    a wall is seen from the wall's free side). One ray cast per pair, vectorised; a target
+    at its origin is seen. Returns bool (n,)."""
+    origins = np.asarray(origins, dtype=float).reshape(-1, 2)
+    targets = np.asarray(targets, dtype=float).reshape(-1, 2)
+    d = targets - origins
+    dist = np.hypot(d[:, 0], d[:, 1])
+    if dist.size == 0:
+        return np.zeros(0, dtype=bool)
+    reach = float(dist.max()) + grid.resolution
+    r = cast_rays(grid, origins, np.arctan2(d[:, 1], d[:, 0]), reach)
+    clear = r >= dist
+    # Where the ray stopped short of the target: is the cell it entered the target's?
+    short = np.flatnonzero(~clear)
+    if short.size:
+        u = d[short] / np.maximum(dist[short], 1e-300)[:, None]
+        entered = grid.world_to_cell(origins[short] + (r[short] + 0.25 * grid.resolution)[:, None] * u)
+        own = grid.world_to_cell(targets[short])
+        clear[short] = np.all(entered == own, axis=1)
+    return clear
+
+
 def unknown_blocks(grid: OccupancyGrid) -> np.ndarray:
     """The blocking mask AMCL uses: occupied and unknown cells stop a ray."""
     return grid.occupied | (grid.cells == UNKNOWN)

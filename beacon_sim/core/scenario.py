@@ -438,7 +438,7 @@ _KNOWN: dict[str, set[str]] = {
     "robot.motion_noise": _NOISE_KEYS,
     "sensors[]": {"name", "kind", "period", "max_range", "fov", "detection_prob",
                   "outlier_rate", "min_beacons", "beacon_height", "correspondence",
-                  "clutter_rate"} | _SENSOR_NOISE_KEYS | _RANGE_FINDER_KEYS,
+                  "clutter_rate", "occluded_by_walls"} | _SENSOR_NOISE_KEYS | _RANGE_FINDER_KEYS,
     "driver": {"kind", "v", "omega", "radius", "speed", "gain", "max_omega", "tolerance",
                "margin", "points", "loop"},
     "keyboard": {"v_step", "v_max", "v_min", "omega_step", "omega_max"},
@@ -490,6 +490,7 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
         min_beacons=t.integer("min_beacons", 2 if kind == "position" else 1, lo=1, hi=MAX_BEACONS),
         beacon_height=t.number("beacon_height", 0.0, lo=0, hi=MAX_COORD),
         noise=_sensor_noise(t, SensorNoise()),
+        occluded_by_walls=t.boolean("occluded_by_walls", True),  # issue 30: walls hide beacons
         **_correspondence(t, kind),
     )
     if kind == "position" and spec.min_beacons < 2:

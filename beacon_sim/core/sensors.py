@@ -8,6 +8,12 @@ numbers, so the sensor stream's state depends only on how many times it was call
 A ``range_finder`` (issue 30, docs/maps.md) is a laser scan of ``n_beams`` beams over ``fov``,
 ray cast on the world's walls from the true pose, each reading drawn from the beam model
 (its four parts, ``range_model``) with the sensor's stream.
+
+In a world with walls a beacon behind a wall is not seen (``occluded_by_walls``, on by
+default): the segment from the sensor to the beacon must not enter an occupied cell before
+the beacon's own (``raycast.line_of_sight``). Without walls nothing is cast and nothing
+changes. :func:`visible_mask` is the one home of this visibility: the simulation and the
+PCRB (evaluation/pcrb.py) use it.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.beam_model import RangeModelParams, sample_beam
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.measurement_models import relative_bearing
-from beacon_sim.core.raycast import beam_angles, scan
+from beacon_sim.core.raycast import beam_angles, line_of_sight, scan
 from beacon_sim.core.types import MEASUREMENT_DIMS, Measurement
 from beacon_sim.core.world import World
 
@@ -80,6 +86,9 @@ class SensorSpec:
     range_model : RangeModelParams or None
         range_finder: the beam model the readings are drawn from (its ``laser_max_range``
         is ``max_range``); None for the other kinds.
+    occluded_by_walls : bool
+        Beacon sensors in a world with walls: a beacon behind a wall is not seen (default).
+        No effect in a world without walls.
     """
 
     name: str
@@ -96,6 +105,7 @@ class SensorSpec:
     clutter_rate: float = 0.0
     n_beams: int = 0
     range_model: RangeModelParams | None = None
+    occluded_by_walls: bool = True
 
     def fix_std(self, n_beacons: int, hdop_value: float = 1.0) -> np.ndarray:
         """Standard deviations of one fix row: pose ``[sx, sy, sth]`` or position ``[sx, sy]``."""
@@ -116,14 +126,34 @@ class SensorSpec:
         raise ValueError(f"reading_std is for beacon sensors, not {self.kind!r}")
 
 
-def visible_beacons(spec: SensorSpec, pose: np.ndarray, world: World) -> np.ndarray:
-    """Boolean mask, shape (n,), of the beacons in range and field of view (no detection draw)."""
-    d = world.beacon_xy - pose[:2]
-    in_range = np.hypot(d[:, 0], d[:, 1]) <= spec.max_range
+def in_view(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray) -> np.ndarray:
+    """Boolean mask (R, n) of the beacons at ``bxy`` (n, 2) [m] within range and field of
+    view of each pose (R, 3) [m, m, rad]; walls are not looked at."""
+    d = bxy[None, :, :] - poses[:, None, :2]
+    in_range = np.hypot(d[..., 0], d[..., 1]) <= spec.max_range
     if spec.fov >= 2.0 * math.pi:
         return in_range
-    rel = wrap(relative_bearing(d[:, 0], d[:, 1], pose[2]))
+    rel = wrap(relative_bearing(d[..., 0], d[..., 1], poses[:, 2:3]))
     return in_range & (np.abs(rel) <= 0.5 * spec.fov)
+
+
+def visible_mask(spec: SensorSpec, poses: np.ndarray, world: World) -> np.ndarray:
+    """Boolean mask (R, n) of the world's beacons each pose (R, 3) could see (no detection
+    draw): in range and field of view and, in a world with walls when
+    ``spec.occluded_by_walls``, in line of sight."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    vis = in_view(spec, poses, world.beacon_xy)
+    if world.grid is None or not spec.occluded_by_walls or not vis.any():
+        return vis
+    r, b = np.nonzero(vis)
+    vis[r, b] = line_of_sight(world.grid, poses[r, :2], world.beacon_xy[b])
+    return vis
+
+
+def visible_beacons(spec: SensorSpec, pose: np.ndarray, world: World) -> np.ndarray:
+    """Boolean mask, shape (n,), of the beacons in range, field of view and (walls) line of
+    sight of ``pose`` (no detection draw)."""
+    return visible_mask(spec, np.asarray(pose, dtype=float)[None, :3], world)[0]
 
 
 def sense(

@@ -10,7 +10,9 @@ measurement information of the readings the tick schedule says are due;
 :class:`~beacon_sim.core.types.Step` of the session. So at any moment the window can draw
 the 95 % ellipse no unbiased filter can beat, centred on the true robot, and the panel can
 say how far each filter is from it. Kidnaps do not restart it (as the offline bound): it is
-the bound of an estimator told where it was moved.
+the bound of an estimator told where it was moved. In a map world it takes the range
+finder's scans (their information from the walls' normals, core/scan_jacobian.py) and the
+walls hiding beacons, as the offline bound does.
 """
 
 from __future__ import annotations
@@ -55,8 +57,7 @@ class LiveBound:
         """One tick: predict along the command from the previous true pose, then add the
         expected information of the readings due at the new true pose. A step that does not
         follow the last one (a replay seeking back rebuilds from tick 1) restarts."""
-        if self.tick < 0 or any(s.kind == "range_finder" for s in self.scenario.sensors):
-            self.tick = -1      # no bound with a range finder (pcrb.measurement_information)
+        if self.tick < 0:
             return
         if step.tick != self.tick + 1:
             self.reset()

@@ -151,6 +151,8 @@ def nis_batch(records, prior_means: np.ndarray, prior_covs: np.ndarray,
     groups: dict[str, list] = {"bearing": [], "range_bearing": [], "pose": [], "position": []}
     for j, meas in enumerate(records):
         for m in meas:
+            if m.kind not in groups:
+                continue  # a range finder's scan (issue 30): no Gaussian model to test
             if m.kind in ("bearing", "range_bearing") and len(m) and m.beacon_ids[0] < 0:
                 continue  # no beacon ID (unknown correspondence, issue 29): no model to test
             if m.kind not in groups:

@@ -16,8 +16,11 @@ So, per step::
     J      = P_pred^-1 + I_z        I_z: expected measurement information at the true pose
     P      = J^-1                   the bound
 
-``I_z`` is the expected information of a tick's readings: for each beacon in range and
-field of view, ``p_detect * (1 - outlier_rate) * H^T R^-1 H``; for pose and position fixes
+``I_z`` is the expected information of a tick's readings: for each beacon in range, field
+of view and (walls) line of sight, ``p_detect * (1 - outlier_rate) * H^T R^-1 H``; for a
+range finder's scan, ``z_hit * sum over beams of J^T J / sigma_hit^2`` with J each beam's
+range derivative from the wall's normal at its hit (core/scan_jacobian.py; beams that miss,
+start in a wall or graze it are left out); for pose and position fixes
 the expectation over which beacons are detected (a fix from n beacons is n times as
 informative; a position fix's noise is ``position_std * HDOP`` of the detected subset).
 Blackouts give no information; noise bursts add to Q.
@@ -46,13 +49,16 @@ import math
 
 import numpy as np
 
+from beacon_sim.core.beam_model import RangeModelParams
 from beacon_sim.core.geometry import hdop
-from beacon_sim.core.measurement_models import bearing_many
+from beacon_sim.core.raycast import beam_angles
+from beacon_sim.core.scan_jacobian import scan_information
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.schedule import TickSchedule, tick_schedule
-from beacon_sim.core.sensors import SensorSpec
+from beacon_sim.core.sensors import SensorSpec, in_view, visible_mask
 from beacon_sim.core.team_models import relative_range_bearing, relative_rows
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
+from beacon_sim.core.world import World
 from beacon_sim.filters.base import broad_gaussian
 from beacon_sim.filters.loading import initial_belief
 
@@ -60,31 +66,30 @@ from beacon_sim.filters.loading import initial_belief
 MAX_SUBSET_BEACONS = 10
 
 
-def _visible(spec: SensorSpec, pos: np.ndarray, theta: np.ndarray, bxy: np.ndarray):
-    """In range and field of view, shape (R, nb), for poses (R,) of a batch of runs."""
-    d = bxy[None, :, :] - pos[:, None, :]
-    vis = np.hypot(d[..., 0], d[..., 1]) <= spec.max_range
-    if spec.fov < 2.0 * math.pi:
-        rel = bearing_many(np.column_stack([pos, theta]), bxy)
-        vis &= np.abs(rel) <= 0.5 * spec.fov
-    return vis
-
-
 def _binom_pmf(n: np.ndarray, k: int, p: float) -> np.ndarray:
     comb = np.array([math.comb(int(m), k) if k <= m else 0 for m in n.ravel()], dtype=float)
     return comb.reshape(n.shape) * p**k * (1.0 - p) ** np.maximum(n - k, 0)
 
 
-def measurement_information(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray) -> np.ndarray:
+def measurement_information(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray,
+                            world: World | None = None) -> np.ndarray:
     """Expected Fisher information of one reading of ``spec``, shape (R, 3, 3), at true
-    ``poses`` (R, 3) [m, m, rad] with beacons at ``bxy`` (nb, 2) [m]."""
+    ``poses`` (R, 3) [m, m, rad] with beacons at ``bxy`` (nb, 2) [m].
+
+    ``world`` (whose beacons are ``bxy``) brings the walls: a range finder's scan
+    (:func:`beacon_sim.core.scan_jacobian.scan_information`) and the beacons they hide
+    (``sensors.visible_mask``, the simulation's visibility). Without it beacons are seen
+    through everything and a range finder is refused."""
     R = poses.shape[0]
     if spec.kind == "range_finder":
-        # A scan's information needs its ray casts' derivatives along the path: not computed
-        # (issue 30). NaN, so that no bound is shown rather than one that leaves it out.
-        return np.full((R, 3, 3), np.nan)
-    pos, theta = poses[:, :2], poses[:, 2]
-    vis = _visible(spec, pos, theta, bxy)
+        if world is None:
+            raise ValueError("a range finder's information needs the world (its walls)")
+        model = spec.range_model if spec.range_model is not None else \
+            RangeModelParams(laser_max_range=spec.max_range)
+        return scan_information(world.grid, poses, beam_angles(spec.n_beams, spec.fov),
+                                model.laser_max_range, model.sigma_hit, float(model.weights[0]))
+    pos = poses[:, :2]
+    vis = in_view(spec, poses, bxy) if world is None else visible_mask(spec, poses, world)
     p = spec.detection_prob * (1.0 - spec.outlier_rate)
     info = np.zeros((R, 3, 3))
     d = bxy[None, :, :] - pos[:, None, :]  # (R, nb, 2) beacon - robot
@@ -205,7 +210,7 @@ def step_terms(scenario: Scenario, sched: TickSchedule, k: int, prev: np.ndarray
     for spec in scenario.sensors:
         if not sched.reads(spec.name, k):
             continue
-        i_z = measurement_information(spec, now, scenario.world.beacon_xy)
+        i_z = measurement_information(spec, now, scenario.world.beacon_xy, scenario.world)
         info = i_z if info is None else info + i_z
     return F, Q, info
 
