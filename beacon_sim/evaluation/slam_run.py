@@ -5,7 +5,8 @@ without IDs paired with beacons by GOSPA's assignment).
 
 It lives here, not in ``runs/headless.py``, because the metrics are the evaluation layer's
 (``evaluation/slam_metrics.py``) and the layers forbid ``runs`` to import them; ``run``
-merges the figures into each filter's row of ``RunResult.as_json()``.
+merges the figures into each filter's row of ``RunResult.as_json()``. ``beacon-sim mrclam --slam``
+scores a real-data run the same way against the surveyed landmarks (:func:`mrclam_slam_figures`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 
 from beacon_sim.evaluation.slam_metrics import ate, gospa, joint_nees
 from beacon_sim.runs.headless import RunResult
+from beacon_sim.runs.mrclam import MrclamRun
 
 #: GOSPA's cut-off [m]: a landmark farther than this from every beacon is a false one.
 GOSPA_CUTOFF_M = 1.0
@@ -35,8 +37,18 @@ def true_map(result: RunResult) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _joint_nees(flt: Any, result: RunResult) -> tuple[float | None, int | None]:
+    """The final joint NEES of a simulated run (:func:`joint_nees_of` at its last true pose)."""
+    truth = {b.id: (b.x, b.y) for b in result.scenario.world.beacons}
+    b_ids, b_xy = true_map(result)
+    return joint_nees_of(flt, result.truth[-1], truth, b_ids, b_xy)
+
+
+def joint_nees_of(flt: Any, true_pose: np.ndarray, truth: dict[int, tuple[float, float]],
+                  b_ids: np.ndarray, b_xy: np.ndarray) -> tuple[float | None, int | None]:
     """The final joint NEES and its degrees of freedom (3 + 2M), from the filter's
-    ``joint()`` (mean, cov, landmark IDs); None when it has no ``joint()``.
+    ``joint()`` (mean, cov, landmark IDs) against ``true_pose`` and the beacons ``truth``
+    (ID -> (x, y) [m]); None when it has no ``joint()``. ``b_ids``, ``b_xy``: the beacons
+    the filter had to map (landmarks without IDs are paired among these).
 
     Landmarks with beacon IDs are compared with those beacons. Landmarks without (unknown
     correspondence, ID < 0) are paired with the beacons by GOSPA's assignment (within its
@@ -48,13 +60,11 @@ def _joint_nees(flt: Any, result: RunResult) -> tuple[float | None, int | None]:
         return None, None
     mean, cov, ids = joint()
     mean, cov = np.asarray(mean, dtype=float), np.asarray(cov, dtype=float)
-    truth = {b.id: (b.x, b.y) for b in result.scenario.world.beacons}
     ids = [int(i) for i in ids]
     if any(i >= 0 and i not in truth for i in ids):
         return None, None
     blind = [j for j, i in enumerate(ids) if i < 0]
     if blind:
-        b_ids, b_xy = true_map(result)
         taken = {i for i in ids if i >= 0}
         free = [k for k, b in enumerate(b_ids.tolist()) if b not in taken]
         xy = mean[3:3 + 2 * len(ids)].reshape(-1, 2)[blind]
@@ -64,7 +74,7 @@ def _joint_nees(flt: Any, result: RunResult) -> tuple[float | None, int | None]:
     keep = [j for j, i in enumerate(ids) if i >= 0]
     rows = np.r_[0:3, np.array([[3 + 2 * j, 4 + 2 * j] for j in keep], dtype=int).reshape(-1)]
     value = joint_nees(mean[rows], cov[np.ix_(rows, rows)], [ids[j] for j in keep],
-                       result.truth[-1], truth)
+                       np.asarray(true_pose, dtype=float), truth)
     return (value if math.isfinite(value) else None), 3 + 2 * len(keep)
 
 
@@ -114,3 +124,73 @@ def print_slam_table(figures: dict[str, dict[str, Any] | None]) -> None:
               f"{r['map_missed']:>8}{r['map_false']:>7}{nees:>12}{dof:>5}")
     print(f"(GOSPA cut-off {GOSPA_CUTOFF_M:g} m; joint NEES of the final pose and map, chi-square "
           "with dof degrees of freedom; landmarks without IDs paired by GOSPA; n/a: no joint Gaussian)")
+
+
+def mrclam_slam_figures(run: MrclamRun) -> dict[str, dict[str, Any] | None]:
+    """Per filter of a ``beacon-sim mrclam --slam`` run (one robot): the path's ATE [m] where
+    ground truth exists and, for a filter that was not given the map, the final map's GOSPA
+    (``GOSPA_CUTOFF_M``) against the data set's surveyed landmarks with its counts, and the
+    final joint NEES at the ground truth of the last estimate (None: no ``joint()`` or no
+    ground truth then). A filter given the map has ``map_given`` True and no map figures; a
+    failed filter, or one whose ``landmarks()`` raises or returns garbage, gets None."""
+    data = run.data
+    beacons = list(run.scenario.world.beacons)
+    truth = {b.id: (b.x, b.y) for b in beacons}
+    b_ids = np.array([b.id for b in beacons], dtype=int)
+    b_xy = np.array([(b.x, b.y) for b in beacons], dtype=float).reshape(-1, 2)
+    out: dict[str, dict[str, Any] | None] = {}
+    for name, tr in run.tracks.items():
+        if tr.failed or not len(tr.times):
+            out[name] = None
+            continue
+        true_path, ok = data.truth_at(tr.times)
+        row: dict[str, Any] = dict.fromkeys(SLAM_KEYS)
+        row["ate_m"] = ate(tr.means[ok], true_path[ok]) if ok.any() else None
+        row["map_given"] = run.map_given.get(name, True)
+        flt = tr.filter
+        if row["map_given"] or not callable(getattr(flt, "landmarks", None)):
+            out[name] = row
+            continue
+        try:
+            xy = np.asarray(flt.landmarks().means, dtype=float).reshape(-1, 2)
+        except Exception:  # the filter's own method: no map score
+            out[name] = None
+            continue
+        if not np.all(np.isfinite(xy)):
+            out[name] = None
+            continue
+        g = gospa(xy, b_xy, c=GOSPA_CUTOFF_M)
+        row.update(map_gospa_m=g.value, map_landmarks=len(xy), map_missed=g.missed, map_false=g.false)
+        last, ok_last = data.truth_at(tr.times[-1:])
+        if ok_last[0]:
+            try:
+                row["joint_nees"], row["joint_dof"] = joint_nees_of(flt, last[0], truth, b_ids, b_xy)
+            except (np.linalg.LinAlgError, ValueError):
+                pass
+        out[name] = row
+    return out
+
+
+def print_mrclam_slam_table(figures: dict[str, dict[str, Any] | None]) -> None:
+    """``mrclam --slam``'s SLAM table: per filter, whether it had the map, the ATE and the
+    final map's figures."""
+    print(f"{'SLAM figures':<16}{'map':>7}{'ATE m':>8}{'GOSPA m':>9}{'landmarks':>10}{'missed':>8}"
+          f"{'false':>7}{'joint NEES':>12}{'dof':>5}")
+    for name, r in figures.items():
+        if r is None:
+            print(f"{name:<16}FAILED: no score")
+            continue
+        ate_text = "-" if r["ate_m"] is None else f"{r['ate_m']:.3f}"
+        if r["map_given"]:
+            print(f"{name:<16}{'given':>7}{ate_text:>8}   (the surveyed map: nothing to score)")
+            continue
+        if r["map_gospa_m"] is None:
+            print(f"{name:<16}{'none':>7}{ate_text:>8}   (no landmarks(): map not scored)")
+            continue
+        nees = "n/a" if r["joint_nees"] is None else f"{r['joint_nees']:.1f}"
+        dof = "" if r["joint_dof"] is None else str(r["joint_dof"])
+        print(f"{name:<16}{'none':>7}{ate_text:>8}{r['map_gospa_m']:>9.3f}{r['map_landmarks']:>10}"
+              f"{r['map_missed']:>8}{r['map_false']:>7}{nees:>12}{dof:>5}")
+    print(f"(map none: the filter was not given the landmarks; GOSPA against the data set's surveyed "
+          f"landmarks, cut-off {GOSPA_CUTOFF_M:g} m; joint NEES of the final pose and map, chi-square "
+          "with dof degrees of freedom; n/a: no joint Gaussian)")

@@ -441,11 +441,14 @@ def calibration_for(data: MrclamData, how: str, t_end: float | None = None) -> C
 
 
 def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: float,
-                    correspondence: str = "known") -> Scenario:
+                    correspondence: str = "known", map_known: bool = True) -> Scenario:
     """A :class:`Scenario` holding what the filters may know: the landmark map, the
     calibrated motion and sensor noise, and the initial belief (ground truth at the start).
     ``correspondence="unknown"`` (``--unknown-ids``, issue 29): the camera's readings carry no
-    landmark IDs and the filters associate them with the map themselves."""
+    landmark IDs and the filters associate them with the map themselves. ``map_known=False``
+    (``--slam``, issue 29): the surveyed landmarks stay in ``world`` (for scoring) but the
+    filters' context holds none of them (``Scenario.filter_world``), as on a simulated SLAM
+    scenario without anchors."""
     beacons = tuple(Beacon(int(s), x, y) for s, (x, y) in sorted(data.landmarks.items())
                     if s not in ROBOT_SUBJECTS)
     pts = np.vstack([np.array([[b.x, b.y] for b in beacons]).reshape(-1, 2), data.groundtruth[:, 1:3]])
@@ -468,6 +471,7 @@ def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: f
         model_motion_noise=cal.motion, model_sensors=(sensor,),
         default_filters=("ekf", "ukf", "dead_reckoning"),
         filter_params={k: dict(v) for k, v in MRCLAM_PARAMS.items()},
+        map_known=map_known,
     )
 
 
@@ -498,14 +502,15 @@ def _union_world(worlds: Sequence[World]) -> World:
 
 
 def mrclam_team(data: Sequence[MrclamData], cals: Sequence[Calibration], t_start: float,
-                t_end: float, dt: float = TEAM_DT, correspondence: str = "known") -> TeamScenario:
+                t_end: float, dt: float = TEAM_DT, correspondence: str = "known",
+                map_known: bool = True) -> TeamScenario:
     """The robots of a run as a :class:`TeamScenario`: each robot's own scenario
     (:func:`mrclam_scenario`, its calibrated noise and ground-truth start). One robot is a
     team of one (``solo``: exactly the single-robot scenario). Several robots (IDs = their
     subject numbers, what the sightings report) share a world around all their paths and a
     clock of ``dt`` [s]; each has the sighting sensor, and the team filters the EKF's gate.
-    ``correspondence``: the landmark camera's (:func:`mrclam_scenario`)."""
-    scenarios = [mrclam_scenario(d, c, t_start, t_end, correspondence)
+    ``correspondence``, ``map_known``: the landmark camera's and the map's (:func:`mrclam_scenario`)."""
+    scenarios = [mrclam_scenario(d, c, t_start, t_end, correspondence, map_known)
                  for d, c in zip(data, cals, strict=True)]
     if len(scenarios) == 1:
         return team_of_one(scenarios[0])
@@ -565,6 +570,10 @@ class MrclamRun:
     #: ``associations()``, how they were associated (the barcodes only score them).
     unknown_ids: bool = False
     associations: dict[str, AssociationCount] = field(default_factory=dict)
+    #: ``--slam``: the SLAM filters were not given the landmark map; per filter name, whether
+    #: it was given the surveyed map (True for every filter without ``--slam``).
+    slam: bool = False
+    map_given: dict[str, bool] = field(default_factory=dict)
 
     @property
     def data(self) -> MrclamData:
@@ -651,6 +660,8 @@ class MrclamRun:
             "filters": self.evaluate(),
             "wall_s": self.wall_s,
             "unknown_ids": self.unknown_ids,
+            "slam": self.slam,
+            "map_given": {n: self.map_given.get(n, True) for n in self.tracks},
             "associations": {n: a.as_json() for n, a in self.associations.items()
                              if n not in self.failed},
         }
@@ -881,10 +892,24 @@ def _robot_tracks(runner: TeamRunner, start: dict[str, tuple[np.ndarray, np.ndar
     return out
 
 
+#: The filters of ``--slam`` unless others are named: EKF-SLAM and FastSLAM 2.0 (no map),
+#: and the EKF given the surveyed map, for comparison.
+SLAM_MRCLAM_FILTERS = ("ekf_slam", "fastslam", "ekf")
+
+
+def map_withheld(spec: str) -> bool:
+    """Whether ``--slam`` withholds the map from filter ``spec``: a SLAM filter (its class has
+    ``landmarks()``, docs/slam.md) maps the landmarks itself; any other filter keeps the
+    surveyed map (it could not run without it) and is the known-map reference."""
+    from beacon_sim.filters.loading import load_filter_class
+
+    return callable(getattr(load_filter_class(spec), "landmarks", None))
+
+
 def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | None = None,
                duration: float | None = None, params: dict[str, dict[str, Any]] | None = None,
                calibration: Calibration | str | None = "others", dt: float | None = None,
-               unknown_ids: bool = False) -> MrclamRun:
+               unknown_ids: bool = False, slam: bool = False) -> MrclamRun:
     """Run filters over one robot's data, or over several robots of a data set at once.
 
     Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` (one
@@ -909,6 +934,12 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     (``UNKNOWN_ID``, rows shuffled), so they associate; the barcodes only score that
     (``MrclamRun.associations``). The noise is calibrated as without it (from ground truth and
     the barcodes of the other robots, or the run's own for ``"self"``).
+
+    ``slam`` (one robot, interleaved by time stamp; issue 29): every SLAM filter (a filter
+    with ``landmarks()``) is built on a scenario whose map is withheld (``map_known`` False, no
+    anchors: it maps the 15 landmarks itself from the known start); every other filter keeps
+    the surveyed map, as the reference (:func:`map_withheld`). Default filters
+    ``SLAM_MRCLAM_FILTERS``. With ``unknown_ids`` too, the readings also come without barcodes.
     """
     from beacon_sim.filters.loading import check_param_names, filter_names
 
@@ -921,6 +952,9 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
         t_end = min(t_end, t_start + duration)
     if unknown_ids and (len(robots) > 1 or dt is not None):
         raise MrclamError("--unknown-ids runs one robot by its time stamps: use --robot N, not --team")
+    if slam and (len(robots) > 1 or dt is not None):
+        raise MrclamError("--slam runs one robot by its time stamps: use --robot N, not --team "
+                          "(the team filters are localization filters; none maps landmarks)")
     correspondence = "unknown" if unknown_ids else "known"
     how = "self" if calibration is None else calibration
     if how == "others" and len(robots) > 1:
@@ -928,19 +962,29 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     cals = [how if isinstance(how, Calibration) else calibration_for(d, how, t_end) for d in robots]
     dt_team = TEAM_DT if dt is None else dt
     team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team, correspondence)
-    specs = list(team.default_filters if filters is None else filters)
+    specs = list((SLAM_MRCLAM_FILTERS if slam else team.default_filters) if filters is None else filters)
     if team.solo:
         check_param_names(params, specs)
     else:
         check_team_specs(specs, team, params)
-    # the Gaussian filters told the inflated noise, the robust ones the pooled noise
-    groups = [[s for s in specs if told_inflated(s)], [s for s in specs if not told_inflated(s)]]
-    teams = [team, mrclam_team(robots, cals, t_start, t_end, dt_team, correspondence)]
+    # the Gaussian filters told the inflated noise, the robust ones the pooled noise; with
+    # --slam the SLAM filters get no map, the others keep it
+    withheld = {s: slam and map_withheld(s) for s in specs}
+    keys = [(inf, blind) for inf in (True, False) for blind in (False, True)]
+    groups = [[s for s in specs if told_inflated(s) == inf and withheld[s] == blind] for inf, blind in keys]
+    teams = [mrclam_team(robots, [inflated(c) for c in cals] if inf else cals, t_start, t_end, dt_team,
+                         correspondence, map_known=not blind) if group else team
+             for (inf, blind), group in zip(keys, groups, strict=True)]
     runners = [TeamRunner(tm, group, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)
                for tm, group in zip(teams, groups, strict=True) if group]
     names = filter_names(specs) if team.solo else [team_filter_name(s) for s in specs]
     if sorted(n for r in runners for n in r.names) != sorted(names):  # a name primed across groups
-        runners = [TeamRunner(team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)]
+        if slam and len(set(withheld.values())) > 1:
+            raise MrclamError("--slam: give SLAM filters and map-given filters different names "
+                              f"(got {', '.join(specs)})")
+        blind_team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team,
+                                 correspondence, map_known=False) if any(withheld.values()) else team
+        runners = [TeamRunner(blind_team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)]
     starts = [_start_estimates(r) for r in runners]
     t0 = time.perf_counter()
     scores: dict[str, AssociationCount] | None = {} if unknown_ids else None
@@ -960,9 +1004,10 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
         for mine, theirs in zip(tracks, _robot_tracks(runner, start, times, ticks), strict=True):
             mine.update(theirs)
     tracks = [{n: t[n] for n in names} for t in tracks]  # in the order the filters were named
+    given = {n: not withheld[s] for n, s in zip(names, specs, strict=True)}
     return MrclamRun(robots, team, cals, tracks, t_start, t_end, updates, readings, wall,
                      {n: failed[n] for n in names if n in failed}, unknown_ids,
-                     {n: scores[n] for n in names if scores and n in scores})
+                     {n: scores[n] for n in names if scores and n in scores}, slam, given)
 
 
 #: Readings stay drawn this long after their time stamp [s] (they arrive a few per second).
