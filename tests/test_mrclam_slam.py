@@ -19,7 +19,7 @@ from beacon_sim.evaluation.slam_metrics import gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, mrclam_slam_figures
 from beacon_sim.filters.ekf_slam import EKFSLAM
 from beacon_sim.io.mrclam import MrclamError, load_mrclam, read_table
-from beacon_sim.runs.mrclam import SLAM_MRCLAM_FILTERS, map_withheld, run_mrclam
+from beacon_sim.runs.mrclam import SLAM_MRCLAM_FILTERS, map_withheld, nees_or_inf, run_mrclam
 from tests.test_mrclam import make_folder
 
 #: The window of the real-data tests [s]: robot 1 sees 6 of the 15 landmarks in it.
@@ -208,3 +208,13 @@ def test_synthetic_slam_maps_the_square(synthetic, monkeypatch):
         per_landmark = math.sqrt(g.localisation / len(g.pairs))
         assert per_landmark < 0.1, (name, per_landmark)
         assert r["ate_m"] < figs["dead_reckoning"]["ate_m"], figs
+
+
+def test_a_singular_covariance_scores_an_infinite_nees_not_a_crash():
+    """A SLAM filter may report a singular pose covariance (FastSLAM with every particle on one
+    pose): that step's NEES is infinite, the others are e^T P^-1 e, and nothing raises."""
+    errors = np.array([[0.1, 0.0, 0.0], [0.1, 0.2, 0.05], [0.0, 0.0, 0.1]])
+    covs = np.stack([np.diag([0.01, 0.01, 0.01]), np.zeros((3, 3)), np.diag([0.04, 0.04, 0.01])])
+    v = nees_or_inf(errors, covs)
+    assert v[0] == pytest.approx(1.0) and math.isinf(v[1]) and v[2] == pytest.approx(1.0)
+    assert np.allclose(nees_or_inf(errors[[0, 2]], covs[[0, 2]]), [1.0, 1.0])

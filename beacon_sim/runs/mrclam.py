@@ -533,6 +533,20 @@ def mrclam_team(data: Sequence[MrclamData], cals: Sequence[Calibration], t_start
 # Running filters on the data
 
 
+def nees_or_inf(errors: np.ndarray, covs: np.ndarray) -> np.ndarray:
+    """Per step NEES ``e^T P^-1 e`` (T,), infinite at a step whose covariance is singular (a
+    filter that claims no uncertainty in some direction: e.g. every particle on one pose),
+    as ``summary`` scores the ANEES of such a track."""
+    try:
+        return nees(errors, covs)
+    except np.linalg.LinAlgError:
+        out = np.full(len(errors), math.inf)
+        good = np.linalg.det(covs) != 0
+        if good.any():
+            out[good] = nees(errors[good], covs[good])
+        return out
+
+
 @dataclass
 class MrclamTrack:
     """One filter's estimates of one robot at the recorded times: every odometry row and
@@ -607,7 +621,7 @@ class MrclamRun:
                 if ok.any():
                     means, covs = tr.means[ok], tr.covs[ok]
                     row.update(summary(means, covs, truth[ok]))
-                    v = nees(pose_errors(means, truth[ok]), covs)
+                    v = nees_or_inf(pose_errors(means, truth[ok]), covs)
                     row["nees_above_99"] = float(np.mean(v > chi2_quantile(0.99, 3)))
                     steps = np.hypot(*np.diff(tr.means[:, :2], axis=0).T)
                     row["largest_jump_m"] = float(steps.max()) if steps.size else 0.0
