@@ -218,3 +218,35 @@ def test_a_singular_covariance_scores_an_infinite_nees_not_a_crash():
     v = nees_or_inf(errors, covs)
     assert v[0] == pytest.approx(1.0) and math.isinf(v[1]) and v[2] == pytest.approx(1.0)
     assert np.allclose(nees_or_inf(errors[[0, 2]], covs[[0, 2]]), [1.0, 1.0])
+
+
+def test_the_playback_shows_each_slam_filters_map_as_it_was(synthetic):
+    """record_maps (``--slam`` in the window) keeps every SLAM filter's map after each update;
+    the playback's ``filters[name].landmarks()`` is the map at the displayed time: empty before
+    the first reading, the final map at the end, never a later map than the time shown."""
+    from beacon_sim.runs.mrclam import MrclamPlayback
+
+    d = load_mrclam(synthetic, 1)
+    run = run_mrclam(d, ["ekf_slam", "ekf"], duration=20.0, calibration="self", slam=True,
+                     record_maps=True)
+    hist = run.map_history["ekf_slam"]
+    assert "ekf" not in run.map_history  # given the map: nothing to record
+    assert len(hist.times) == run.updates and np.all(np.diff(hist.times) >= 0)
+    final = run.tracks["ekf_slam"].filter.landmarks()
+    assert np.array_equal(hist.maps[-1].means, final.means)
+    pb = MrclamPlayback(run)
+    shown = pb.filters["ekf_slam"]
+    assert len(shown.landmarks().means) == 0  # at the start: nothing mapped yet
+    counts = []
+    for tick in range(0, pb.total_ticks + 1, max(1, pb.total_ticks // 20)):
+        pb.seek(tick)
+        t = float(pb.times[tick])
+        lm = shown.landmarks()
+        i = int(np.searchsorted(hist.times, t, side="right")) - 1
+        assert len(lm.means) == (0 if i < 0 else len(hist.maps[i].means))
+        counts.append(len(lm.means))
+    assert counts == sorted(counts) and counts[-1] >= 3  # the map grows as landmarks are met
+    pb.seek(pb.total_ticks)  # the last display tick (up to one tick before the last reading)
+    last = int(np.searchsorted(hist.times, float(pb.times[-1]), side="right")) - 1
+    assert last >= len(hist.times) - 2
+    assert np.array_equal(shown.landmarks().means, hist.maps[last].means)

@@ -178,7 +178,8 @@ def mrclam_command(args: argparse.Namespace) -> int:
         run = run_mrclam(robots if team else robots[0], getattr(args, "filters", None) or None,
                          duration, filter_params(args),
                          calibration=getattr(args, "calibration", None) or "others",
-                         unknown_ids=getattr(args, "unknown_ids", False), slam=slam)
+                         unknown_ids=getattr(args, "unknown_ids", False), slam=slam,
+                         record_maps=slam and not args.headless)
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
     d = run.as_json()

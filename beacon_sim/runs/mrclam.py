@@ -18,6 +18,7 @@ of the data set (Vicon), bearings relative to the heading and wrapped to [-pi, p
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections.abc import Mapping, Sequence, Set
@@ -39,7 +40,7 @@ from beacon_sim.core.team import TeamStep
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamRobot, TeamScenario, team_of_one
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement, Step
 from beacon_sim.core.world import World
-from beacon_sim.filters.base import Belief, GaussianBelief
+from beacon_sim.filters.base import Belief, GaussianBelief, LandmarkMap
 from beacon_sim.filters.loading import split_label
 from beacon_sim.filters.registry import MRCLAM_DEFAULTS, MRCLAM_ROBUST
 from beacon_sim.filters.registry import MRCLAM_GATE_CHI2 as MRCLAM_GATE_CHI2  # re-exported
@@ -588,6 +589,8 @@ class MrclamRun:
     #: it was given the surveyed map (True for every filter without ``--slam``).
     slam: bool = False
     map_given: dict[str, bool] = field(default_factory=dict)
+    #: ``record_maps``: each SLAM filter's map after each update (the window draws it).
+    map_history: dict[str, MapHistory] = field(default_factory=dict)
 
     @property
     def data(self) -> MrclamData:
@@ -751,9 +754,45 @@ def _score_associations(runners: Sequence[TeamRunner], truth: np.ndarray, time_s
                 scores.setdefault(name, AssociationCount()).add(tuple(rows), truth)
 
 
+@dataclass
+class MapHistory:
+    """One SLAM filter's map after each update of a run (``--slam`` shown in the window):
+    the data set times [s] and the :class:`~beacon_sim.filters.base.LandmarkMap` then."""
+
+    times: list[float] = field(default_factory=list)
+    maps: list[LandmarkMap] = field(default_factory=list)
+
+    def at(self, t: float) -> LandmarkMap | None:
+        """The latest map at or before time ``t`` [s]; None before the first."""
+        i = bisect.bisect_right(self.times, t) - 1
+        return self.maps[i] if i >= 0 else None
+
+
+def _record_maps(runners: Sequence[TeamRunner], t: float, maps: dict[str, MapHistory]) -> None:
+    """Every working single-robot filter's ``landmarks()`` at time ``t`` [s] into ``maps``; a
+    filter whose method raises is switched off (it would not be drawn either)."""
+    for runner in runners:
+        for name, track in runner.members[0].tracks.items():
+            report = getattr(track.filter, "landmarks", None)
+            if track.failed or not callable(report):
+                continue
+            try:
+                lm = report()
+                snap = LandmarkMap(None if lm.ids is None else np.array(lm.ids).copy(),
+                                   np.array(lm.means, dtype=float).reshape(-1, 2),
+                                   np.array(lm.covs, dtype=float).reshape(-1, 2, 2))
+            except Exception as exc:  # the filter's own method: switched off
+                runner.fail(name, f"landmarks() raised {type(exc).__name__}: {exc}"[:200], "", t)
+                continue
+            hist = maps.setdefault(name, MapHistory())
+            hist.times.append(float(t))
+            hist.maps.append(snap)
+
+
 def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: Calibration,
                          t_start: float, t_end: float,
-                         scores: dict[str, AssociationCount] | None = None
+                         scores: dict[str, AssociationCount] | None = None,
+                         maps: dict[str, MapHistory] | None = None
                          ) -> tuple[np.ndarray, np.ndarray, int, int]:
     """One robot's odometry and readings interleaved by time stamp (seed 001 section III.C):
     predict with the latest command (times ``cal``'s command scales) up to each reading's time
@@ -765,7 +804,10 @@ def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: C
 
     ``scores`` given (``--unknown-ids``): every reading reaches the filters with its IDs
     ``UNKNOWN_ID`` and its rows shuffled, and after each update the filters' associations are
-    counted into ``scores`` against the barcodes (:func:`_score_associations`)."""
+    counted into ``scores`` against the barcodes (:func:`_score_associations`).
+
+    ``maps`` given (``--slam`` in the window): after each update every working SLAM filter's
+    ``landmarks()`` is kept in ``maps`` (:func:`_record_maps`), for the playback to draw."""
     od = data.odometry
     shuffle = np.random.default_rng(UNKNOWN_IDS_SHUFFLE_SEED)
     ms = data.measurements
@@ -805,6 +847,8 @@ def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: C
                       (reading if j == n - 1 else _NO_READINGS,))
             if reading and scores is not None:
                 _score_associations(runners, rows[:, 1].astype(int), t_next - t_start, scores)
+            if reading and maps is not None:
+                _record_maps(runners, t_next, maps)
         t = t_next
         if reading:
             i_me += 1
@@ -923,7 +967,7 @@ def map_withheld(spec: str) -> bool:
 def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | None = None,
                duration: float | None = None, params: dict[str, dict[str, Any]] | None = None,
                calibration: Calibration | str | None = "others", dt: float | None = None,
-               unknown_ids: bool = False, slam: bool = False) -> MrclamRun:
+               unknown_ids: bool = False, slam: bool = False, record_maps: bool = False) -> MrclamRun:
     """Run filters over one robot's data, or over several robots of a data set at once.
 
     Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` (one
@@ -954,6 +998,8 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     anchors: it maps the 15 landmarks itself from the known start); every other filter keeps
     the surveyed map, as the reference (:func:`map_withheld`). Default filters
     ``SLAM_MRCLAM_FILTERS``. With ``unknown_ids`` too, the readings also come without barcodes.
+    ``record_maps`` (one robot): keep every SLAM filter's map after each update
+    (``MrclamRun.map_history``), for the window.
     """
     from beacon_sim.filters.loading import check_param_names, filter_names
 
@@ -1002,9 +1048,10 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     starts = [_start_estimates(r) for r in runners]
     t0 = time.perf_counter()
     scores: dict[str, AssociationCount] | None = {} if unknown_ids else None
+    maps: dict[str, MapHistory] | None = {} if record_maps else None
     if team.solo and dt is None:
         times, ticks, updates, readings = _feed_by_time_stamps(runners, robots[0], cals[0], t_start,
-                                                               t_end, scores)
+                                                               t_end, scores, maps)
     else:
         times, ticks, updates, readings = _feed_on_a_clock(runners, robots, cals, t_start, t_end,
                                                            dt_team)
@@ -1021,7 +1068,20 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     given = {n: not withheld[s] for n, s in zip(names, specs, strict=True)}
     return MrclamRun(robots, team, cals, tracks, t_start, t_end, updates, readings, wall,
                      {n: failed[n] for n in names if n in failed}, unknown_ids,
-                     {n: scores[n] for n in names if scores and n in scores}, slam, given)
+                     {n: scores[n] for n in names if scores and n in scores}, slam, given,
+                     {n: maps[n] for n in names if maps and n in maps})
+
+
+class _RecordedMap:
+    """A SLAM filter's recorded map, seen as the filter (``landmarks()``) at the time the
+    playback shows: the latest map at or before it, an empty one before the first update."""
+
+    def __init__(self, playback: MrclamPlayback, history: MapHistory):
+        self.playback, self.history = playback, history
+
+    def landmarks(self) -> LandmarkMap:
+        lm = self.history.at(float(self.playback.times[self.playback.k]))
+        return lm if lm is not None else LandmarkMap(None, np.zeros((0, 2)), np.zeros((0, 2, 2)))
 
 
 #: Readings stay drawn this long after their time stamp [s] (they arrive a few per second).
@@ -1057,6 +1117,9 @@ class MrclamPlayback:
         self.meas = ms[(ms[:, 0] > run.t_start) & (ms[:, 0] <= run.t_end)]
         self.od = run.data.odometry
         self.shown: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
+        #: The SLAM filters' maps as the window's map layer reads them (``landmarks()`` at
+        #: the displayed time); only a ``--slam`` run shown in the window has them.
+        self.filters = {n: _RecordedMap(self, h) for n, h in run.map_history.items()}
         self.seek(0)
 
     # --- time -------------------------------------------------------------------------------
