@@ -126,10 +126,52 @@ def print_slam_table(figures: dict[str, dict[str, Any] | None]) -> None:
           "with dof degrees of freedom; landmarks without IDs paired by GOSPA; n/a: no joint Gaussian)")
 
 
+def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rotation R (2, 2) and translation t (2,) [m] minimising ``sum |R src_i + t - dst_i|^2``
+    over paired points (K, 2), K >= 2 (Kabsch / Umeyama without scale; no reflection)."""
+    a, b = np.asarray(src, dtype=float), np.asarray(dst, dtype=float)
+    ca, cb = a.mean(axis=0), b.mean(axis=0)
+    u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    rot = vt.T @ np.diag([1.0, d]) @ u.T
+    return rot, cb - rot @ ca
+
+
+def aligned_gospa(est: np.ndarray, truth: np.ndarray, ids: np.ndarray | None,
+                  truth_ids: np.ndarray, c: float = GOSPA_CUTOFF_M) -> tuple[float, float]:
+    """GOSPA of the map after the rigid motion that best fits it onto the truth, and the
+    rotation of that motion [rad]: the map's *shape* error, with the frame error (a map
+    rotated and shifted as a whole, which no reading can reveal without anchors) taken out.
+    The fit pairs landmarks with beacons by ID when the map has IDs, else by GOSPA's
+    assignment, refitted while that lowers the GOSPA. Three fitted parameters: slightly
+    optimistic. ``nan`` with fewer than two pairs."""
+    est = np.asarray(est, dtype=float).reshape(-1, 2)
+    truth = np.asarray(truth, dtype=float).reshape(-1, 2)
+    if ids is not None:
+        where = {int(b): k for k, b in enumerate(np.asarray(truth_ids).tolist())}
+        pairs = [(i, where[int(b)]) for i, b in enumerate(np.asarray(ids).tolist()) if int(b) in where]
+    else:
+        pairs = list(gospa(est, truth, c=c).pairs)
+    best, angle = math.inf, math.nan
+    for _ in range(5):
+        if len(pairs) < 2:
+            break
+        rows, cols = (list(x) for x in zip(*pairs, strict=True))
+        rot, t = rigid_fit(est[rows], truth[cols])
+        g = gospa(est @ rot.T + t, truth, c=c)
+        if g.value >= best - 1e-12:
+            break
+        best, angle = g.value, math.atan2(rot[1, 0], rot[0, 0])
+        pairs = list(g.pairs)
+    return (best if math.isfinite(best) else math.nan), angle
+
+
 def mrclam_slam_figures(run: MrclamRun) -> dict[str, dict[str, Any] | None]:
     """Per filter of a ``beacon-sim mrclam --slam`` run (one robot): the path's ATE [m] where
     ground truth exists and, for a filter that was not given the map, the final map's GOSPA
-    (``GOSPA_CUTOFF_M``) against the data set's surveyed landmarks with its counts, and the
+    (``GOSPA_CUTOFF_M``) against the data set's surveyed landmarks with its counts, the GOSPA
+    after the best rigid fit of the map onto the survey (``map_gospa_aligned_m``, its rotation
+    ``map_rotation_deg``; :func:`aligned_gospa`), and the
     final joint NEES at the ground truth of the last estimate (None: no ``joint()`` or no
     ground truth then). A filter given the map has ``map_given`` True and no map figures; a
     failed filter, or one whose ``landmarks()`` raises or returns garbage, gets None."""
@@ -144,7 +186,7 @@ def mrclam_slam_figures(run: MrclamRun) -> dict[str, dict[str, Any] | None]:
             out[name] = None
             continue
         true_path, ok = data.truth_at(tr.times)
-        row: dict[str, Any] = dict.fromkeys(SLAM_KEYS)
+        row: dict[str, Any] = dict.fromkeys((*SLAM_KEYS, "map_gospa_aligned_m", "map_rotation_deg"))
         row["ate_m"] = ate(tr.means[ok], true_path[ok]) if ok.any() else None
         row["map_given"] = run.map_given.get(name, True)
         flt = tr.filter
@@ -152,15 +194,20 @@ def mrclam_slam_figures(run: MrclamRun) -> dict[str, dict[str, Any] | None]:
             out[name] = row
             continue
         try:
-            xy = np.asarray(flt.landmarks().means, dtype=float).reshape(-1, 2)
+            lm = flt.landmarks()
+            xy = np.asarray(lm.means, dtype=float).reshape(-1, 2)
+            lm_ids = None if lm.ids is None else np.asarray(lm.ids, dtype=int).reshape(-1)
         except Exception:  # the filter's own method: no map score
             out[name] = None
             continue
-        if not np.all(np.isfinite(xy)):
+        if not np.all(np.isfinite(xy)) or (lm_ids is not None and len(lm_ids) != len(xy)):
             out[name] = None
             continue
         g = gospa(xy, b_xy, c=GOSPA_CUTOFF_M)
-        row.update(map_gospa_m=g.value, map_landmarks=len(xy), map_missed=g.missed, map_false=g.false)
+        shape, turn = aligned_gospa(xy, b_xy, lm_ids, b_ids)
+        row.update(map_gospa_m=g.value, map_landmarks=len(xy), map_missed=g.missed, map_false=g.false,
+                   map_gospa_aligned_m=None if math.isnan(shape) else shape,
+                   map_rotation_deg=None if math.isnan(turn) else math.degrees(turn))
         last, ok_last = data.truth_at(tr.times[-1:])
         if ok_last[0]:
             try:
@@ -175,7 +222,7 @@ def print_mrclam_slam_table(figures: dict[str, dict[str, Any] | None]) -> None:
     """``mrclam --slam``'s SLAM table: per filter, whether it had the map, the ATE and the
     final map's figures."""
     print(f"{'SLAM figures':<16}{'map':>7}{'ATE m':>8}{'GOSPA m':>9}{'landmarks':>10}{'missed':>8}"
-          f"{'false':>7}{'joint NEES':>12}{'dof':>5}")
+          f"{'false':>7}{'fitted m':>9}{'turn deg':>9}{'joint NEES':>12}{'dof':>5}")
     for name, r in figures.items():
         if r is None:
             print(f"{name:<16}FAILED: no score")
@@ -189,8 +236,11 @@ def print_mrclam_slam_table(figures: dict[str, dict[str, Any] | None]) -> None:
             continue
         nees = "n/a" if r["joint_nees"] is None else f"{r['joint_nees']:.1f}"
         dof = "" if r["joint_dof"] is None else str(r["joint_dof"])
+        fitted = "-" if r.get("map_gospa_aligned_m") is None else f"{r['map_gospa_aligned_m']:.3f}"
+        turn = "-" if r.get("map_rotation_deg") is None else f"{r['map_rotation_deg']:+.1f}"
         print(f"{name:<16}{'none':>7}{ate_text:>8}{r['map_gospa_m']:>9.3f}{r['map_landmarks']:>10}"
-              f"{r['map_missed']:>8}{r['map_false']:>7}{nees:>12}{dof:>5}")
+              f"{r['map_missed']:>8}{r['map_false']:>7}{fitted:>9}{turn:>9}{nees:>12}{dof:>5}")
     print(f"(map none: the filter was not given the landmarks; GOSPA against the data set's surveyed "
-          f"landmarks, cut-off {GOSPA_CUTOFF_M:g} m; joint NEES of the final pose and map, chi-square "
-          "with dof degrees of freedom; n/a: no joint Gaussian)")
+          f"landmarks, cut-off {GOSPA_CUTOFF_M:g} m; fitted: the GOSPA after the rigid motion that best "
+          "fits the map onto the survey, turning it by 'turn'; joint NEES of the final pose and map, "
+          "chi-square with dof degrees of freedom; n/a: no joint Gaussian)")
