@@ -295,7 +295,7 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
     shapes: dict[tuple[str, str], list[float]] = {}
     rmses: dict[tuple[str, str], list[float]] = {}
     failures: list[str] = []
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for robot in (1, 2, 3, 4, 5):
         data = load_mrclam(folder, robot)
         cal = calibration_for(data, "others")
@@ -339,14 +339,14 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
 
     def mean_cells(g: list[float] | None) -> str:
         if not g:
-            return "(map given) | |"
+            return "- | |"
         iv = ratio_of_sums(np.array(g), np.ones(len(g)))
         return f"{with_iv(float(np.mean(g)), iv, '.3f')} | {min(g):.3f}-{max(g):.3f} |"
 
     for (f, ids), vals in rmses.items():
         over.append(f"| {f} | {ids} | {min(vals):.3f}-{max(vals):.3f} | {mean_cells(gospas.get((f, ids)))} "
                     f"{mean_cells(shapes.get((f, ids)))}")
-    took = time.perf_counter() - t0
+    took, cpu = time.perf_counter() - t0, time.process_time() - c0
     return [
         *md,
         f"{folder.name}, all five robots, whole runs. `beacon-sim mrclam DIR --robot N --slam "
@@ -358,7 +358,8 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
         f"leave-one-robot-out calibration as there (from the four other robots, the variance "
         f"inflation included; never fitted on the scored robot); no SLAM parameter was tuned on this"
         f" data. Regenerate this section alone with `python scripts/make_results.py --only slam` "
-        f"({took:.0f} s here, one core).", "",
+        f"({cpu:.0f} s of CPU on one core here, {took:.0f} s by the clock on the shared machine).",
+        "",
         "Columns: IDs: `barcodes` (each reading names its landmark) or `none` (`--unknown-ids`: "
         "the filters associate). Pos RMSE and pose ANEES: brackets are 95 % block-bootstrap "
         f"intervals over the run's {MRCLAM_BLOCK_S:g} s blocks, as in the MRCLAM table. Map "
@@ -366,12 +367,14 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
         "a landmark farther than that from every surveyed one is false, each missed or false "
         "one costs c/sqrt(2); a root of a sum over the map: 15 landmarks each 10 cm off give "
         "0.39 m), one number per run. Final joint NEES: over the final pose and every mapped "
-        "landmark (EKF-SLAM only: FastSLAM has no joint Gaussian), chi-square with the dof shown "
+        "landmark (EKF-SLAM only: FastSLAM has no joint Gaussian; `-` also when the ground truth "
+        "ends before the run's last estimate), chi-square with the dof shown "
         "for a consistent filter. GOSPA after a rigid fit: the same after the rotation and shift "
         "that best fit the map onto the survey (landmarks paired by ID, or by GOSPA without IDs): "
         "the map's shape error, without the error of its frame (a map turned as a whole, which "
         "nothing in the readings reveals when no landmark is known; three fitted parameters, so "
-        "slightly optimistic), with the rotation that fit applied.", "",
+        "slightly optimistic), with the rotation that fit applied; `-` with fewer than two "
+        "landmarks paired.", "",
         *lines, "",
         "Over the robots: the range of the position RMSE, and the map GOSPA's mean with a 95 % "
         "bootstrap interval **over the five robots** (five numbers: a coarse interval; the "
