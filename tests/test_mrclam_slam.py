@@ -276,3 +276,25 @@ def test_aligned_gospa_takes_out_a_rigid_motion_and_only_that():
     residual = gospa(noisy @ rigid_fit(noisy, truth)[0].T + rigid_fit(noisy, truth)[1], truth).value
     assert value == pytest.approx(residual) and 0.05 < value < 0.4
     assert math.isnan(aligned_gospa(moved[:1], truth, ids[:1], ids)[0])  # one pair: no fit
+
+
+def test_the_window_map_layer_reads_the_recorded_maps(synthetic, tmp_path):
+    """The window's map layer gets each SLAM filter's map from the playback (none for the EKF,
+    which has no map of its own), and ``--slam`` in the window runs and saves its frame."""
+    from beacon_sim.app.map_layer import MapLayer
+    from beacon_sim.runs.mrclam import MrclamPlayback
+
+    d = load_mrclam(synthetic, 1)
+    run = run_mrclam(d, ["ekf_slam", "ekf"], duration=20.0, calibration="self", slam=True,
+                     record_maps=True)
+    pb = MrclamPlayback(run)
+    pb.seek(pb.total_ticks)
+    maps = MapLayer().maps(pb, ["ekf_slam", "ekf"])
+    assert list(maps) == ["ekf_slam"]
+    assert np.array_equal(maps["ekf_slam"].means, pb.filters["ekf_slam"].landmarks().means)
+    assert len(maps["ekf_slam"].means) >= 3
+    shot = tmp_path / "slam.png"
+    assert main(["mrclam", str(synthetic), "--robot", "1", "--slam", "--duration", "10",
+                 "--calibration", "self", "--filter", "ekf_slam", "--frames", "3",
+                 "--screenshot", str(shot)]) == 0
+    assert shot.is_file() and shot.stat().st_size > 1000
