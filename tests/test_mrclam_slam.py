@@ -298,3 +298,26 @@ def test_the_window_map_layer_reads_the_recorded_maps(synthetic, tmp_path):
                  "--calibration", "self", "--filter", "ekf_slam", "--frames", "3",
                  "--screenshot", str(shot)]) == 0
     assert shot.is_file() and shot.stat().st_size > 1000
+
+
+def test_a_landmarks_that_raises_switches_the_filter_off_without_a_score(synthetic, monkeypatch):
+    """A SLAM filter whose ``landmarks()`` raises while the window's maps are recorded is
+    switched off with the reason, and gets no SLAM score; the other filters go on."""
+    calls = {"n": 0}
+    real = EKFSLAM.landmarks
+
+    def flaky(self):
+        calls["n"] += 1
+        if calls["n"] > 5:
+            raise RuntimeError("map lost")
+        return real(self)
+
+    monkeypatch.setattr(EKFSLAM, "landmarks", flaky)
+    d = load_mrclam(synthetic, 1)
+    run = run_mrclam(d, ["ekf_slam", "fastslam"], duration=10.0, calibration="self", slam=True,
+                     record_maps=True)
+    assert "landmarks() raised RuntimeError: map lost" in run.failed["ekf_slam"]
+    assert "fastslam" not in run.failed
+    figs = mrclam_slam_figures(run)
+    assert figs["ekf_slam"] is None and figs["fastslam"] is not None
+    assert len(run.map_history["ekf_slam"].times) == 5

@@ -768,9 +768,10 @@ class MapHistory:
         return self.maps[i] if i >= 0 else None
 
 
-def _record_maps(runners: Sequence[TeamRunner], t: float, maps: dict[str, MapHistory]) -> None:
-    """Every working single-robot filter's ``landmarks()`` at time ``t`` [s] into ``maps``; a
-    filter whose method raises is switched off (it would not be drawn either)."""
+def _record_maps(runners: Sequence[TeamRunner], t: float, t_start: float,
+                 maps: dict[str, MapHistory]) -> None:
+    """Every working single-robot filter's ``landmarks()`` at data set time ``t`` [s] into
+    ``maps``; a filter whose method raises is switched off (it would not be drawn either)."""
     for runner in runners:
         for name, track in runner.members[0].tracks.items():
             report = getattr(track.filter, "landmarks", None)
@@ -782,7 +783,7 @@ def _record_maps(runners: Sequence[TeamRunner], t: float, maps: dict[str, MapHis
                                    np.array(lm.means, dtype=float).reshape(-1, 2),
                                    np.array(lm.covs, dtype=float).reshape(-1, 2, 2))
             except Exception as exc:  # the filter's own method: switched off
-                runner.fail(name, f"landmarks() raised {type(exc).__name__}: {exc}"[:200], "", t)
+                runner.fail(name, f"landmarks() raised {type(exc).__name__}: {exc}"[:200], "", t - t_start)
                 continue
             hist = maps.setdefault(name, MapHistory())
             hist.times.append(float(t))
@@ -848,7 +849,7 @@ def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: C
             if reading and scores is not None:
                 _score_associations(runners, rows[:, 1].astype(int), t_next - t_start, scores)
             if reading and maps is not None:
-                _record_maps(runners, t_next, maps)
+                _record_maps(runners, t_next, t_start, maps)
         t = t_next
         if reading:
             i_me += 1
