@@ -140,6 +140,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--unknown-ids", action="store_true",
                    help="give the filters the readings without their barcodes: they associate "
                         "them with the landmarks; the barcodes only score that (docs/association.md)")
+    p.add_argument("--slam", action="store_true",
+                   help="withhold the landmark map from the SLAM filters (default ekf_slam, "
+                        "fastslam, and the EKF given the map); score their maps against the "
+                        "surveyed landmarks (docs/slam.md)")
     p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
 

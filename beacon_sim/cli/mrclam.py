@@ -1,8 +1,9 @@
 """``beacon-sim mrclam DIR (--robot N | --team) [--filter F ...] [--duration S] [--calibrate]
-[--calibration others|self] [--unknown-ids] [--json]``: filters on one robot of a UTIAS MRCLAM data
-set and seed 001's table, or on all five robots at once (``--team``: the team filters, one row per
-robot). ``--unknown-ids``: the readings reach the filters without barcodes (they associate), and
-the table adds how well they did."""
+[--calibration others|self] [--unknown-ids] [--slam] [--json]``: filters on one robot of a UTIAS
+MRCLAM data set and seed 001's table, or on all five robots at once (``--team``: the team filters,
+one row per robot). ``--unknown-ids``: the readings reach the filters without barcodes (they
+associate), and the table adds how well they did. ``--slam``: the SLAM filters are not given the
+landmark map, and their final maps are scored against the surveyed landmarks."""
 
 from __future__ import annotations
 
@@ -117,6 +118,17 @@ def _print_team(d: dict[str, Any]) -> None:
         print(f"{n} switched off, no score: {why}")
 
 
+def _print_slam(d: dict[str, Any]) -> None:
+    """With ``--slam``: which filters were given the map, and the SLAM table."""
+    from beacon_sim.evaluation.slam_run import print_mrclam_slam_table
+
+    blind = [n for n, given in d["map_given"].items() if not given]
+    kept = [n for n, given in d["map_given"].items() if given]
+    print(f"SLAM: not given the landmark map: {', '.join(blind) or 'none'}"
+          + (f"; given the surveyed map (the reference): {', '.join(kept)}" if kept else ""))
+    print_mrclam_slam_table({n: r["slam"] for n, r in d["filters"].items()})
+
+
 def _load(args: argparse.Namespace) -> list[MrclamData]:
     """The robots a command runs: ``--robot N`` alone, or (``--team``) all five with their
     sightings of each other."""
@@ -135,6 +147,12 @@ def mrclam_command(args: argparse.Namespace) -> int:
     team = getattr(args, "team", False)
     if not team:
         check_frames(args.frames)
+    slam = getattr(args, "slam", False)
+    if slam and team:
+        raise UsageError("--slam runs one robot: use --robot N, not --team (the team filters "
+                         "are localization filters; none maps landmarks)")
+    if slam and args.calibrate:
+        raise UsageError("--slam runs filters; --calibrate only prints the noise: use one of them")
     try:
         robots = _load(args)
     except MrclamError as exc:
@@ -160,14 +178,22 @@ def mrclam_command(args: argparse.Namespace) -> int:
         run = run_mrclam(robots if team else robots[0], getattr(args, "filters", None) or None,
                          duration, filter_params(args),
                          calibration=getattr(args, "calibration", None) or "others",
-                         unknown_ids=getattr(args, "unknown_ids", False))
+                         unknown_ids=getattr(args, "unknown_ids", False), slam=slam,
+                         record_maps=slam and not args.headless)
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
     d = run.as_json()
+    if slam:
+        from beacon_sim.evaluation.slam_run import mrclam_slam_figures
+
+        for name, row in mrclam_slam_figures(run).items():
+            d["filters"][name]["slam"] = row
     if args.json:
         print(json.dumps(d, default=float))
     else:
         (_print_team if team else _print_run)(d)
+        if slam:
+            _print_slam(d)
     print_failures(t for tracks in run.robot_tracks[:1] for t in tracks.values())
     if args.headless or team:  # a team run prints its table only
         return 0

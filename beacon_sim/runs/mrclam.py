@@ -18,6 +18,7 @@ of the data set (Vicon), bearings relative to the heading and wrapped to [-pi, p
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections.abc import Mapping, Sequence, Set
@@ -39,7 +40,7 @@ from beacon_sim.core.team import TeamStep
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamRobot, TeamScenario, team_of_one
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement, Step
 from beacon_sim.core.world import World
-from beacon_sim.filters.base import Belief, GaussianBelief
+from beacon_sim.filters.base import Belief, GaussianBelief, LandmarkMap
 from beacon_sim.filters.loading import split_label
 from beacon_sim.filters.registry import MRCLAM_DEFAULTS, MRCLAM_ROBUST
 from beacon_sim.filters.registry import MRCLAM_GATE_CHI2 as MRCLAM_GATE_CHI2  # re-exported
@@ -441,11 +442,14 @@ def calibration_for(data: MrclamData, how: str, t_end: float | None = None) -> C
 
 
 def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: float,
-                    correspondence: str = "known") -> Scenario:
+                    correspondence: str = "known", map_known: bool = True) -> Scenario:
     """A :class:`Scenario` holding what the filters may know: the landmark map, the
     calibrated motion and sensor noise, and the initial belief (ground truth at the start).
     ``correspondence="unknown"`` (``--unknown-ids``, issue 29): the camera's readings carry no
-    landmark IDs and the filters associate them with the map themselves."""
+    landmark IDs and the filters associate them with the map themselves. ``map_known=False``
+    (``--slam``, issue 29): the surveyed landmarks stay in ``world`` (for scoring) but the
+    filters' context holds none of them (``Scenario.filter_world``), as on a simulated SLAM
+    scenario without anchors."""
     beacons = tuple(Beacon(int(s), x, y) for s, (x, y) in sorted(data.landmarks.items())
                     if s not in ROBOT_SUBJECTS)
     pts = np.vstack([np.array([[b.x, b.y] for b in beacons]).reshape(-1, 2), data.groundtruth[:, 1:3]])
@@ -468,6 +472,7 @@ def mrclam_scenario(data: MrclamData, cal: Calibration, t_start: float, t_end: f
         model_motion_noise=cal.motion, model_sensors=(sensor,),
         default_filters=("ekf", "ukf", "dead_reckoning"),
         filter_params={k: dict(v) for k, v in MRCLAM_PARAMS.items()},
+        map_known=map_known,
     )
 
 
@@ -498,14 +503,15 @@ def _union_world(worlds: Sequence[World]) -> World:
 
 
 def mrclam_team(data: Sequence[MrclamData], cals: Sequence[Calibration], t_start: float,
-                t_end: float, dt: float = TEAM_DT, correspondence: str = "known") -> TeamScenario:
+                t_end: float, dt: float = TEAM_DT, correspondence: str = "known",
+                map_known: bool = True) -> TeamScenario:
     """The robots of a run as a :class:`TeamScenario`: each robot's own scenario
     (:func:`mrclam_scenario`, its calibrated noise and ground-truth start). One robot is a
     team of one (``solo``: exactly the single-robot scenario). Several robots (IDs = their
     subject numbers, what the sightings report) share a world around all their paths and a
     clock of ``dt`` [s]; each has the sighting sensor, and the team filters the EKF's gate.
-    ``correspondence``: the landmark camera's (:func:`mrclam_scenario`)."""
-    scenarios = [mrclam_scenario(d, c, t_start, t_end, correspondence)
+    ``correspondence``, ``map_known``: the landmark camera's and the map's (:func:`mrclam_scenario`)."""
+    scenarios = [mrclam_scenario(d, c, t_start, t_end, correspondence, map_known)
                  for d, c in zip(data, cals, strict=True)]
     if len(scenarios) == 1:
         return team_of_one(scenarios[0])
@@ -526,6 +532,20 @@ def mrclam_team(data: Sequence[MrclamData], cals: Sequence[Calibration], t_start
 
 # --------------------------------------------------------------------------------------------
 # Running filters on the data
+
+
+def nees_or_inf(errors: np.ndarray, covs: np.ndarray) -> np.ndarray:
+    """Per step NEES ``e^T P^-1 e`` (T,), infinite at a step whose covariance is singular (a
+    filter that claims no uncertainty in some direction: e.g. every particle on one pose),
+    as ``summary`` scores the ANEES of such a track."""
+    try:
+        return nees(errors, covs)
+    except np.linalg.LinAlgError:
+        out = np.full(len(errors), math.inf)
+        good = np.linalg.det(covs) != 0
+        if good.any():
+            out[good] = nees(errors[good], covs[good])
+        return out
 
 
 @dataclass
@@ -565,6 +585,12 @@ class MrclamRun:
     #: ``associations()``, how they were associated (the barcodes only score them).
     unknown_ids: bool = False
     associations: dict[str, AssociationCount] = field(default_factory=dict)
+    #: ``--slam``: the SLAM filters were not given the landmark map; per filter name, whether
+    #: it was given the surveyed map (True for every filter without ``--slam``).
+    slam: bool = False
+    map_given: dict[str, bool] = field(default_factory=dict)
+    #: ``record_maps``: each SLAM filter's map after each update (the window draws it).
+    map_history: dict[str, MapHistory] = field(default_factory=dict)
 
     @property
     def data(self) -> MrclamData:
@@ -598,7 +624,7 @@ class MrclamRun:
                 if ok.any():
                     means, covs = tr.means[ok], tr.covs[ok]
                     row.update(summary(means, covs, truth[ok]))
-                    v = nees(pose_errors(means, truth[ok]), covs)
+                    v = nees_or_inf(pose_errors(means, truth[ok]), covs)
                     row["nees_above_99"] = float(np.mean(v > chi2_quantile(0.99, 3)))
                     steps = np.hypot(*np.diff(tr.means[:, :2], axis=0).T)
                     row["largest_jump_m"] = float(steps.max()) if steps.size else 0.0
@@ -651,6 +677,8 @@ class MrclamRun:
             "filters": self.evaluate(),
             "wall_s": self.wall_s,
             "unknown_ids": self.unknown_ids,
+            "slam": self.slam,
+            "map_given": {n: self.map_given.get(n, True) for n in self.tracks},
             "associations": {n: a.as_json() for n, a in self.associations.items()
                              if n not in self.failed},
         }
@@ -726,9 +754,46 @@ def _score_associations(runners: Sequence[TeamRunner], truth: np.ndarray, time_s
                 scores.setdefault(name, AssociationCount()).add(tuple(rows), truth)
 
 
+@dataclass
+class MapHistory:
+    """One SLAM filter's map after each update of a run (``--slam`` shown in the window):
+    the data set times [s] and the :class:`~beacon_sim.filters.base.LandmarkMap` then."""
+
+    times: list[float] = field(default_factory=list)
+    maps: list[LandmarkMap] = field(default_factory=list)
+
+    def at(self, t: float) -> LandmarkMap | None:
+        """The latest map at or before time ``t`` [s]; None before the first."""
+        i = bisect.bisect_right(self.times, t) - 1
+        return self.maps[i] if i >= 0 else None
+
+
+def _record_maps(runners: Sequence[TeamRunner], t: float, t_start: float,
+                 maps: dict[str, MapHistory]) -> None:
+    """Every working single-robot filter's ``landmarks()`` at data set time ``t`` [s] into
+    ``maps``; a filter whose method raises is switched off (it would not be drawn either)."""
+    for runner in runners:
+        for name, track in runner.members[0].tracks.items():
+            report = getattr(track.filter, "landmarks", None)
+            if track.failed or not callable(report):
+                continue
+            try:
+                lm = report()
+                snap = LandmarkMap(None if lm.ids is None else np.array(lm.ids).copy(),
+                                   np.array(lm.means, dtype=float).reshape(-1, 2),
+                                   np.array(lm.covs, dtype=float).reshape(-1, 2, 2))
+            except Exception as exc:  # the filter's own method: switched off
+                runner.fail(name, f"landmarks() raised {type(exc).__name__}: {exc}"[:200], "", t - t_start)
+                continue
+            hist = maps.setdefault(name, MapHistory())
+            hist.times.append(float(t))
+            hist.maps.append(snap)
+
+
 def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: Calibration,
                          t_start: float, t_end: float,
-                         scores: dict[str, AssociationCount] | None = None
+                         scores: dict[str, AssociationCount] | None = None,
+                         maps: dict[str, MapHistory] | None = None
                          ) -> tuple[np.ndarray, np.ndarray, int, int]:
     """One robot's odometry and readings interleaved by time stamp (seed 001 section III.C):
     predict with the latest command (times ``cal``'s command scales) up to each reading's time
@@ -740,7 +805,10 @@ def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: C
 
     ``scores`` given (``--unknown-ids``): every reading reaches the filters with its IDs
     ``UNKNOWN_ID`` and its rows shuffled, and after each update the filters' associations are
-    counted into ``scores`` against the barcodes (:func:`_score_associations`)."""
+    counted into ``scores`` against the barcodes (:func:`_score_associations`).
+
+    ``maps`` given (``--slam`` in the window): after each update every working SLAM filter's
+    ``landmarks()`` is kept in ``maps`` (:func:`_record_maps`), for the playback to draw."""
     od = data.odometry
     shuffle = np.random.default_rng(UNKNOWN_IDS_SHUFFLE_SEED)
     ms = data.measurements
@@ -780,6 +848,8 @@ def _feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: C
                       (reading if j == n - 1 else _NO_READINGS,))
             if reading and scores is not None:
                 _score_associations(runners, rows[:, 1].astype(int), t_next - t_start, scores)
+            if reading and maps is not None:
+                _record_maps(runners, t_next, t_start, maps)
         t = t_next
         if reading:
             i_me += 1
@@ -881,10 +951,24 @@ def _robot_tracks(runner: TeamRunner, start: dict[str, tuple[np.ndarray, np.ndar
     return out
 
 
+#: The filters of ``--slam`` unless others are named: EKF-SLAM and FastSLAM 2.0 (no map),
+#: and the EKF given the surveyed map, for comparison.
+SLAM_MRCLAM_FILTERS = ("ekf_slam", "fastslam", "ekf")
+
+
+def map_withheld(spec: str) -> bool:
+    """Whether ``--slam`` withholds the map from filter ``spec``: a SLAM filter (its class has
+    ``landmarks()``, docs/slam.md) maps the landmarks itself; any other filter keeps the
+    surveyed map (it could not run without it) and is the known-map reference."""
+    from beacon_sim.filters.loading import load_filter_class
+
+    return callable(getattr(load_filter_class(spec), "landmarks", None))
+
+
 def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | None = None,
                duration: float | None = None, params: dict[str, dict[str, Any]] | None = None,
                calibration: Calibration | str | None = "others", dt: float | None = None,
-               unknown_ids: bool = False) -> MrclamRun:
+               unknown_ids: bool = False, slam: bool = False, record_maps: bool = False) -> MrclamRun:
     """Run filters over one robot's data, or over several robots of a data set at once.
 
     Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` (one
@@ -909,6 +993,14 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     (``UNKNOWN_ID``, rows shuffled), so they associate; the barcodes only score that
     (``MrclamRun.associations``). The noise is calibrated as without it (from ground truth and
     the barcodes of the other robots, or the run's own for ``"self"``).
+
+    ``slam`` (one robot, interleaved by time stamp; issue 29): every SLAM filter (a filter
+    with ``landmarks()``) is built on a scenario whose map is withheld (``map_known`` False, no
+    anchors: it maps the 15 landmarks itself from the known start); every other filter keeps
+    the surveyed map, as the reference (:func:`map_withheld`). Default filters
+    ``SLAM_MRCLAM_FILTERS``. With ``unknown_ids`` too, the readings also come without barcodes.
+    ``record_maps`` (one robot): keep every SLAM filter's map after each update
+    (``MrclamRun.map_history``), for the window.
     """
     from beacon_sim.filters.loading import check_param_names, filter_names
 
@@ -921,6 +1013,9 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
         t_end = min(t_end, t_start + duration)
     if unknown_ids and (len(robots) > 1 or dt is not None):
         raise MrclamError("--unknown-ids runs one robot by its time stamps: use --robot N, not --team")
+    if slam and (len(robots) > 1 or dt is not None):
+        raise MrclamError("--slam runs one robot by its time stamps: use --robot N, not --team "
+                          "(the team filters are localization filters; none maps landmarks)")
     correspondence = "unknown" if unknown_ids else "known"
     how = "self" if calibration is None else calibration
     if how == "others" and len(robots) > 1:
@@ -928,25 +1023,36 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     cals = [how if isinstance(how, Calibration) else calibration_for(d, how, t_end) for d in robots]
     dt_team = TEAM_DT if dt is None else dt
     team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team, correspondence)
-    specs = list(team.default_filters if filters is None else filters)
+    specs = list((SLAM_MRCLAM_FILTERS if slam else team.default_filters) if filters is None else filters)
     if team.solo:
         check_param_names(params, specs)
     else:
         check_team_specs(specs, team, params)
-    # the Gaussian filters told the inflated noise, the robust ones the pooled noise
-    groups = [[s for s in specs if told_inflated(s)], [s for s in specs if not told_inflated(s)]]
-    teams = [team, mrclam_team(robots, cals, t_start, t_end, dt_team, correspondence)]
+    # the Gaussian filters told the inflated noise, the robust ones the pooled noise; with
+    # --slam the SLAM filters get no map, the others keep it
+    withheld = {s: slam and map_withheld(s) for s in specs}
+    keys = [(inf, blind) for inf in (True, False) for blind in (False, True)]
+    groups = [[s for s in specs if told_inflated(s) == inf and withheld[s] == blind] for inf, blind in keys]
+    teams = [mrclam_team(robots, [inflated(c) for c in cals] if inf else cals, t_start, t_end, dt_team,
+                         correspondence, map_known=not blind) if group else team
+             for (inf, blind), group in zip(keys, groups, strict=True)]
     runners = [TeamRunner(tm, group, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)
                for tm, group in zip(teams, groups, strict=True) if group]
     names = filter_names(specs) if team.solo else [team_filter_name(s) for s in specs]
     if sorted(n for r in runners for n in r.names) != sorted(names):  # a name primed across groups
-        runners = [TeamRunner(team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)]
+        if slam and len(set(withheld.values())) > 1:
+            raise MrclamError("--slam: give SLAM filters and map-given filters different names "
+                              f"(got {', '.join(specs)})")
+        blind_team = mrclam_team(robots, [inflated(c) for c in cals], t_start, t_end, dt_team,
+                                 correspondence, map_known=False) if any(withheld.values()) else team
+        runners = [TeamRunner(blind_team, specs, 0, params, step_limit_s=HEADLESS_STEP_LIMIT_S)]
     starts = [_start_estimates(r) for r in runners]
     t0 = time.perf_counter()
     scores: dict[str, AssociationCount] | None = {} if unknown_ids else None
+    maps: dict[str, MapHistory] | None = {} if record_maps else None
     if team.solo and dt is None:
         times, ticks, updates, readings = _feed_by_time_stamps(runners, robots[0], cals[0], t_start,
-                                                               t_end, scores)
+                                                               t_end, scores, maps)
     else:
         times, ticks, updates, readings = _feed_on_a_clock(runners, robots, cals, t_start, t_end,
                                                            dt_team)
@@ -960,9 +1066,23 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
         for mine, theirs in zip(tracks, _robot_tracks(runner, start, times, ticks), strict=True):
             mine.update(theirs)
     tracks = [{n: t[n] for n in names} for t in tracks]  # in the order the filters were named
+    given = {n: not withheld[s] for n, s in zip(names, specs, strict=True)}
     return MrclamRun(robots, team, cals, tracks, t_start, t_end, updates, readings, wall,
                      {n: failed[n] for n in names if n in failed}, unknown_ids,
-                     {n: scores[n] for n in names if scores and n in scores})
+                     {n: scores[n] for n in names if scores and n in scores}, slam, given,
+                     {n: maps[n] for n in names if maps and n in maps})
+
+
+class _RecordedMap:
+    """A SLAM filter's recorded map, seen as the filter (``landmarks()``) at the time the
+    playback shows: the latest map at or before it, an empty one before the first update."""
+
+    def __init__(self, playback: MrclamPlayback, history: MapHistory):
+        self.playback, self.history = playback, history
+
+    def landmarks(self) -> LandmarkMap:
+        lm = self.history.at(float(self.playback.times[self.playback.k]))
+        return lm if lm is not None else LandmarkMap(None, np.zeros((0, 2)), np.zeros((0, 2, 2)))
 
 
 #: Readings stay drawn this long after their time stamp [s] (they arrive a few per second).
@@ -998,6 +1118,9 @@ class MrclamPlayback:
         self.meas = ms[(ms[:, 0] > run.t_start) & (ms[:, 0] <= run.t_end)]
         self.od = run.data.odometry
         self.shown: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
+        #: The SLAM filters' maps as the window's map layer reads them (``landmarks()`` at
+        #: the displayed time); only a ``--slam`` run shown in the window has them.
+        self.filters = {n: _RecordedMap(self, h) for n, h in run.map_history.items()}
         self.seek(0)
 
     # --- time -------------------------------------------------------------------------------
