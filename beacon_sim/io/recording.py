@@ -511,7 +511,7 @@ def recorded_map(path: Path, header: Mapping[str, Any]) -> OccupancyGrid | None:
     if len(raw) != n or unpack.unconsumed_tail:
         raise bad(f"cells hold {len(raw):,}+ bytes, the shape {shape[0]}x{shape[1]} needs {n:,}")
     try:
-        grid = OccupancyGrid(np.frombuffer(raw, dtype=np.int8).reshape(shape), float(res),
+        grid = OccupancyGrid(np.frombuffer(raw, dtype=np.int8).reshape(shape), float(res or 0.0),
                              (float(origin[0]), float(origin[1]), float(origin[2])))
     except MapError as exc:
         raise bad(str(exc)) from None
