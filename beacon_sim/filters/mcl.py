@@ -54,7 +54,7 @@ from beacon_sim.core.raycast import expected_ranges
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.particle import weighted_pose_stats
-from beacon_sim.filters.resampling import effective_sample_size
+from beacon_sim.filters.resampling import RESAMPLERS, effective_sample_size, resample
 
 LASER_MODELS = ("likelihood_field", "beam")
 
@@ -107,6 +107,9 @@ class MonteCarloLocalization(FilterBase):
         "recovery_alpha_slow": 0.001,      # AMCL's suggested values (its defaults, 0, turn
         "recovery_alpha_fast": 0.1,        #   recovery off)
         "resample_interval": 1,            # resample after every n-th update
+        "selective_resampling": False,     # AMCL's: ... and only when ESS < n / 2
+        "resampler": "multinomial",        # which particles: systematic | stratified |
+                                           #   residual | multinomial (filters/resampling.py)
         "update_min_d": 0.0,               # [m] update only after moving this far ...
         "update_min_a": 0.0,               # [rad] ... or turning this much
         "laser_model_type": "likelihood_field",  # likelihood_field | beam
@@ -135,6 +138,11 @@ class MonteCarloLocalization(FilterBase):
             raise FilterError(f"mcl: dtype {p['dtype']!r}: use float32 or float64")
         if not 1 <= int(p["min_particles"]) <= int(p["max_particles"]):
             raise FilterError("mcl: need 1 <= min_particles <= max_particles")
+        if p["resampler"] not in RESAMPLERS:
+            raise FilterError(f"mcl: resampler {p['resampler']!r}: use {' | '.join(RESAMPLERS)}")
+        if not isinstance(p["selective_resampling"], bool):
+            raise FilterError(f"mcl: selective_resampling = {p['selective_resampling']!r}: "
+                              "expected true or false")
         if int(p["laser_max_beams"]) < 1 or int(p["resample_interval"]) < 1:
             raise FilterError("mcl: laser_max_beams and resample_interval must be >= 1")
         for key in ("recovery_alpha_slow", "recovery_alpha_fast"):
@@ -343,7 +351,8 @@ class MonteCarloLocalization(FilterBase):
         self.ess = effective_sample_size(self.weights())
         self._cache = None
         self._updates += 1
-        if self._updates % int(p["resample_interval"]) == 0:
+        if self._updates % int(p["resample_interval"]) == 0 \
+                and not (p["selective_resampling"] and self.ess >= 0.5 * self.n):
             self._resample()
 
     def _resample(self) -> None:
@@ -353,6 +362,7 @@ class MonteCarloLocalization(FilterBase):
         n_max, n_min = int(p["max_particles"]), int(p["min_particles"])
         w = self.weights()
         cand = self.poses[rng.choice(self.n, size=n_max, p=w)]
+        mask = np.zeros(n_max, dtype=bool)
         if self.inject_prob > 0:
             mask = rng.random(n_max) < self.inject_prob
             k = int(mask.sum())
@@ -371,4 +381,15 @@ class MonteCarloLocalization(FilterBase):
         j = np.arange(1, n_max + 1)
         ok = np.flatnonzero((j >= kld_bound(bins, p["kld_err"], p["kld_z"])) & (j >= n_min))
         count = int(ok[0]) + 1 if ok.size else n_max
-        self._set(cand[:count].copy())
+        if p["resampler"] == "multinomial":
+            self._set(cand[:count].copy())
+            return
+        # The KLD count came from draws in random order (what its bound assumes); which
+        # particles make up the new set is then drawn with the lower-variance scheme: the
+        # random share as drawn, the rest copies of the old set (a look-alike place's cloud
+        # keeps its expected share up to one particle with systematic resampling, where
+        # multinomial draws let it drift and die by chance).
+        k = int(mask[:count].sum()) if self.inject_prob > 0 else 0
+        keep = self.poses[resample(p["resampler"], w, count - k, rng)] if count > k \
+            else self.poses[:0]
+        self._set(np.concatenate([keep, cand[:count][mask[:count]]]) if k else keep.copy())
