@@ -75,7 +75,10 @@ def mirror(pose: np.ndarray) -> np.ndarray:
     return np.array([2 * CENTRE[0] - pose[0], 2 * CENTRE[1] - pose[1], pose[2] + math.pi])
 
 
-def one_run(args: tuple[int, dict]) -> dict:
+def one_run(args: tuple[int, dict], until_break: bool = False) -> dict:
+    """One seed's run: when the symmetry broke [s] (None: never), whether both modes lived
+    until then, the least shares each had, the share near the truth at the end (the end of
+    the run, or with ``until_break`` the breaking observation) and whether that is RIGHT."""
     seed, params = args
     sc = load_scenario("symmetric_room")
     sim = Simulation(sc, seed=seed)
@@ -93,6 +96,8 @@ def one_run(args: tuple[int, dict]) -> dict:
             for m in st.measurements:
                 if m.kind == "range_finder" and sees_partition(st.true_pose, m.z, max_range):
                     broke = st.time
+            if broke is not None and until_break:
+                break
         if broke is None and k % stride == 0 and st.time >= FORMED:
             truth = np.asarray(st.true_pose, dtype=float)
             if True:
