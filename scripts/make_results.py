@@ -302,6 +302,7 @@ def corridor_section() -> list[str]:
         top = np.argsort(bel)[::-1][:3]
         rows.append(f"| {step} | x{state} ({c.layout(state)}) | " + ", ".join(
             f"x{s} {bel[s]:.3f}" for s in top) + " |")
+    bel9 = float(bel[9])
     md += ["**The seed's figure 1** (four moves forward, a sensing after each, no noise; the seed "
            "does not say where its robot starts: from x5 it ends in x9, the state its text names). "
            "The posterior after each step, its three most likely states:", "",
@@ -337,7 +338,12 @@ def corridor_section() -> list[str]:
     # -- on the corridor scenario's laser, seeded runs -----------------------------------
     sc = load_scenario("corridor")
     seeds = list(range(20))
-    conv, n_sense, n_cell, n_state, n_near = [], [], [], [], []
+    def settled(marks: list, k: int) -> float:
+        """The time of the first sensing from which field ``k`` holds at every later one."""
+        last_wrong = max((i for i, m in enumerate(marks) if not m[k]), default=-1)
+        return marks[last_wrong + 1][0] if last_wrong + 1 < len(marks) else math.inf
+
+    conv, conv_near, n_sense, n_cell, n_state, n_near = [], [], [], [], [], []
     for seed in seeds:
         sim = Simulation(sc, seed=seed)
         f = build_filter("corridor", sc, seed)
@@ -355,20 +361,30 @@ def corridor_section() -> list[str]:
             marks.append((st.time, cell_b == cell_t, best == truth,
                           dir_b == dir_t and abs(cell_b - cell_t) <= 1))
         ok = [m[1] for m in marks]
-        last_wrong = max((i for i, v in enumerate(ok) if not v), default=-1)
-        conv.append(marks[last_wrong + 1][0] if last_wrong + 1 < len(marks) else math.inf)
+        conv.append(settled(marks, 1))
+        conv_near.append(settled(marks, 3))
         n_sense.append(len(marks))
         n_cell.append(sum(ok))
         n_state.append(sum(m[2] for m in marks))
         n_near.append(sum(m[3] for m in marks))
     from beacon_sim.evaluation.intervals import median_and_count, ratio_of_sums
 
-    t = np.array(conv)
-    med_iv, count_iv = median_and_count(t)
-    med = float(np.median(t))
     den = np.array(n_sense, dtype=float)
-    rate = lambda k: f"{sum(k) / den.sum():.2f} {interval_text(ratio_of_sums(np.array(k, float), den), '.2f')}"  # noqa: E731
-    converged = int(np.isfinite(t).sum())
+
+    def rate(k: list) -> str:
+        return f"{sum(k) / den.sum():.2f} {interval_text(ratio_of_sums(np.array(k, float), den), '.2f')}"
+
+    def settle_rows(times: list, what: str) -> list[str]:
+        t = np.array(times)
+        med_iv, count_iv = median_and_count(t)
+        med = float(np.median(t))
+        return [f"| runs converged {what} (to the end of the run) | {int(np.isfinite(t).sum())}/"
+                f"{len(t)} {interval_text(count_iv, '.0f')} |",
+                f"| ... convergence time, median [s] | "
+                f"{'never' if not math.isfinite(med) else f'{med:.1f}'} {interval_text(med_iv, '.1f')} |",
+                "| ... each run [s] | " + ", ".join(
+                    "never" if not math.isfinite(x) else f"{x:.0f}" for x in t) + " |"]
+
     md += [f"**On the `corridor` scenario's laser** (the robot drives east to the end wall, turns, "
            f"drives back; the filter's \"forward\" is every metre driven, its \"turn\" every half turn, "
            f"each followed by a sensing of the next scan: L, R, F where the median of the beams within "
@@ -378,23 +394,22 @@ def corridor_section() -> list[str]:
            f"sensing from which every later one is correct. Brackets: 95 % bootstrap intervals over "
            f"the runs.", "",
            "| figure | value |", "|---|---|",
-           f"| runs converged (to the end of the run) | {converged}/{len(seeds)} "
-           f"{interval_text(count_iv, '.0f')} |",
-           f"| convergence time, median [s] | "
-           f"{'never' if not math.isfinite(med) else f'{med:.1f}'} {interval_text(med_iv, '.1f')} |",
-           f"| convergence times, each run [s] | " + ", ".join(
-               "never" if not math.isfinite(x) else f"{x:.0f}" for x in t) + " |",
+           *settle_rows(conv, "to the true cell"),
+           *settle_rows(conv_near, "to within one cell, right direction"),
            f"| sensings per run | {int(den.mean())} |",
            f"| correct cell, share of all sensings | {rate(n_cell)} |",
            f"| correct cell and direction | {rate(n_state)} |",
            f"| within one cell, right direction | {rate(n_near)} |", "",
-           "Compared with the seed: as its text says, the belief tracks two hypotheses while only "
-           "look-alike cells (LR) have been seen and focuses on one after two distinctive places "
-           "(a door, then another, or the end wall); a misread reading or a move the filter counts "
-           "differently from the robot's (a metre driven is one \"forward\", but the robot's metres "
-           "do not start at a cell's edge) puts the most likely state a cell off for a sensing or "
-           "two, from which it recovers at the next door, which is what the within-one-cell row "
-           "counts.", ""]
+           "Compared with the seed: its figure 1 is reproduced to within the door layout (x9 "
+           f"most likely, {bel9:.3f} against its \"around 0.38\"). Its figure 2 is one noisy run; "
+           "ours is a rate over seeded trials under a stated noise. On the scenario the filter is "
+           "rarely more than a cell off (the within-one-cell row: it settles there after the first "
+           "doors) but exactly one cell off at about three sensings in ten, so exact convergence, "
+           "which a single late slip undoes, comes only near the end of most runs. The seed reports "
+           "the same kind of behaviour in words (\"if it fails to move forward ... still 80 % of the "
+           "probability ... are convolved to the next state\"); why the argmax here slips by one "
+           "so often (the 0.1 / 0.1 motion spread against look-alike LR cells, or the metre count "
+           "against the robot's true cell) is not analysed here.", ""]
     return md
 
 

@@ -106,7 +106,8 @@ def one_run(args: tuple[int, dict], until_break: bool = False) -> dict:
                 both &= min(pair) >= ALIVE
     final = share_near(f, np.asarray(st.true_pose, dtype=float))
     return {"seed": seed, "broke": broke, "both": both and broke is not None, "lowest": lowest,
-            "final": final, "right": final >= RIGHT}
+            "final": final, "right": final >= RIGHT,
+            "final_mirror": share_near(f, mirror(np.asarray(st.true_pose, dtype=float)))}
 
 
 def parse_value(text: str):
