@@ -5,8 +5,9 @@
 
 Left: a corridor with doors (after seed 004) and a room, the robot, its 90 beams (hits
 blue, max-range readings grey) with beam-model noise drawn from a seeded generator. Right:
-the likelihood field's per-beam probability over the map, 2000 particles (20 of them drawn
-around the true pose) and the 20 the field scores highest for that scan.
+the likelihood field's per-beam probability over the map, 2000 particles (uniform over the
+free cells, as mcl's global start; 20 of them drawn around the true pose) and the 20 the
+field scores highest for that scan.
 """
 
 from __future__ import annotations
@@ -103,8 +104,12 @@ def main() -> None:
 
     prob = field.beam_probability(field.distance)
     ax2.imshow(prob, origin="lower", extent=extent, cmap="viridis")
-    particles = np.column_stack([rng.uniform(0.1, 11.9, 2000), rng.uniform(0.1, 5.9, 2000),
-                                 rng.uniform(-np.pi, np.pi, 2000)])
+    # As mcl's global start: uniform over the map's free cells only (none in a wall or pillar).
+    free = np.flatnonzero(grid.cells.ravel() == 0)
+    cells = free[rng.integers(0, free.size, 2000)]
+    cols = grid.shape[1]
+    uv = np.column_stack([cells % cols + rng.random(2000), cells // cols + rng.random(2000)])
+    particles = np.column_stack([grid.grid_to_world(uv), rng.uniform(-np.pi, np.pi, 2000)])
     particles[:20] = pose + rng.normal(0, [0.1, 0.1, 0.05], (20, 3))
     logw = field.log_likelihood(particles, z, rel)
     best = np.argsort(logw)[-20:]
