@@ -1,9 +1,10 @@
 """Regenerate docs/results.md and docs/results/*.png in one run (a few minutes on 2 cores).
 
-Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only mrclam|slam]
+Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only mrclam|slam|corridor]
 
 Every number in docs/results.md comes from this script: the seeds' findings (000 Krejsa
-EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF), the
+EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF, 004 the
+corridor's discrete Bayes filter), the
 evaluation's targets on `default` and global localization with kidnaps (`global_kidnap`).
 Monte Carlo runs use seeds 0, 1, 2, ...; the same command gives the same tables (except the
 cost columns, which are measured).
@@ -385,6 +386,165 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
         "What it shows is discussed in [slam.md](slam.md#slam-on-real-data-mrclam).", ""]
 
 
+# ---- seed 004: the corridor's discrete Bayes filter (issue 30; `--only corridor`) ----------
+
+CORRIDOR_HEADER = "## [Seed 004](references.md#seed-004): the corridor's discrete Bayes filter"
+
+
+def corridor_section() -> list[str]:
+    """Seed 004's experiment reproduced with ``filters/corridor.py``: its wall layouts, its
+    two figures (four moves and sensings from cell 5 facing east, without and with noise),
+    then the filter on the ``corridor`` scenario's laser over seeded runs. Self-contained:
+    ``python scripts/make_results.py --only corridor`` regenerates this section alone."""
+    from beacon_sim.core.simulation import Simulation
+    from beacon_sim.filters.corridor import Corridor
+    from beacon_sim.filters.loading import build_filter
+
+    def wilson(k: int, n: int, z: float = 1.96) -> str:
+        p = k / n
+        d = 1 + z * z / n
+        c = (p + z * z / (2 * n)) / d
+        h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+        return f"{k}/{n} = {p:.2f} [{max(0.0, c - h):.2f}, {min(1.0, c + h):.2f}]"
+
+    c = Corridor()
+    n_states = c.n_states
+    md = [CORRIDOR_HEADER, "",
+          "`filters/corridor.py` (`--filter corridor`) is the seed's filter: 20 states (10 cells x "
+          "2 directions: state i < 10 is cell i facing east, 19 - i cell i facing west), a "
+          "uniform start, \"forward\" 0.8 one cell / 0.1 two / 0.1 stay (mass leaving the corridor "
+          "lost, then normalised), \"turn\" 0.9 to state N - 1 - i, and a sensing of walls left, "
+          "right and front weighted 0.6 where it matches the state's layout and 0.2 where not. "
+          "Regenerate this section alone with `python scripts/make_results.py --only corridor` "
+          "(about a minute).", "",
+          "**Wall layouts.** The seed names four (L, LR, LRF, R) but not where its doors are; "
+          "ours (the `corridor` scenario) has doors north at cells 2 and 6 and south at cell 4, "
+          "which gives exactly those four, with x9 = LRF as in the seed:", "",
+          "| state | " + " | ".join(f"x{s}" for s in range(n_states)) + " |",
+          "|---|" + "---|" * n_states,
+          "| layout | " + " | ".join(c.layout(s) for s in range(n_states)) + " |", ""]
+
+    # -- the seed's figure 1: four forward + sense steps from x5, no noise ---------------
+    bel, state = c.uniform(), 5
+    rows = []
+    for step in range(1, 5):
+        bel = c.forward(bel)
+        state += 1
+        bel = c.sense(bel, c.layout(state))
+        top = np.argsort(bel)[::-1][:3]
+        rows.append(f"| {step} | x{state} ({c.layout(state)}) | " + ", ".join(
+            f"x{s} {bel[s]:.3f}" for s in top) + " |")
+    bel9 = float(bel[9])
+    md += ["**The seed's figure 1** (four moves forward, a sensing after each, no noise; the seed "
+           "does not say where its robot starts: from x5 it ends in x9, the state its text names). "
+           "The posterior after each step, its three most likely states:", "",
+           "| step | true state (reading) | most likely states |", "|---|---|---|", *rows, "",
+           f"The seed reports x9 most likely at \"around 0.38\"; here x9 is most likely at "
+           f"**{bel[9]:.3f}** (deterministic, as the seed says). The difference is the door layout "
+           "(the seed's is not given): each sensing multiplies by 0.6 or 0.2, so the layouts of the "
+           "states a step could confuse set the figure.", ""]
+
+    # -- the seed's figure 2: the same four steps with motion and sensing noise ----------
+    rng = np.random.default_rng(4)
+    trials, correct, x9_best = 2000, 0, 0
+    flip = 0.1
+    for _ in range(trials):
+        bel, state = c.uniform(), 5
+        for _ in range(4):
+            bel = c.forward(bel)
+            u = rng.random()                    # the true move: 0.8 one, 0.1 two, 0.1 stay
+            state = min(state + (1 if u < 0.8 else 2 if u < 0.9 else 0), n_states // 2 - 1)
+            walls = {ch: ch in c.layout(state) for ch in "LRF"}
+            reading = "".join(ch for ch, wall in walls.items() if wall != (rng.random() < flip))
+            bel = c.sense(bel, reading)
+        correct += int(np.argmax(bel)) == state
+        x9_best += state == 9 and int(np.argmax(bel)) == 9
+    md += [f"**The seed's figure 2** (the same four steps with noise). The seed gives no noise "
+           f"figures; here the true robot moves as the filter's model says (0.8 / 0.1 / 0.1, "
+           f"stopping at the end wall) and each of the three wall readings is wrong with "
+           f"probability {flip}. Over {trials:,} seeded trials (generator seed 4) the most likely "
+           f"state is the true one in **{wilson(correct, trials)}** (95 % Wilson interval); the "
+           f"seed's one noisy run had the true state x9 most likely, \"not as certain\" "
+           f"(x5, x9, x14 close).", ""]
+
+    # -- on the corridor scenario's laser, seeded runs -----------------------------------
+    sc = load_scenario("corridor")
+    seeds = list(range(20))
+    def settled(marks: list, k: int) -> float:
+        """The time of the first sensing from which field ``k`` holds at every later one."""
+        last_wrong = max((i for i, m in enumerate(marks) if not m[k]), default=-1)
+        return marks[last_wrong + 1][0] if last_wrong + 1 < len(marks) else math.inf
+
+    conv, conv_near, n_sense, n_cell, n_state, n_near = [], [], [], [], [], []
+    for seed in seeds:
+        sim = Simulation(sc, seed=seed)
+        f = build_filter("corridor", sc, seed)
+        marks = []   # (time, best cell == true cell, best state == true state, within a cell)
+        for _ in range(round(sc.duration / sc.dt)):
+            st = sim.step()
+            f.predict(st.control, st.dt)
+            pending = f._pending_sense
+            f.update(st.measurements)
+            if not pending or f._pending_sense:
+                continue
+            truth, best = f.state_of(st.true_pose), int(np.argmax(f.bel))
+            cell_t, dir_t = f.corridor.cell_and_heading(truth)
+            cell_b, dir_b = f.corridor.cell_and_heading(best)
+            marks.append((st.time, cell_b == cell_t, best == truth,
+                          dir_b == dir_t and abs(cell_b - cell_t) <= 1))
+        ok = [m[1] for m in marks]
+        conv.append(settled(marks, 1))
+        conv_near.append(settled(marks, 3))
+        n_sense.append(len(marks))
+        n_cell.append(sum(ok))
+        n_state.append(sum(m[2] for m in marks))
+        n_near.append(sum(m[3] for m in marks))
+    from beacon_sim.evaluation.intervals import median_and_count, ratio_of_sums
+
+    den = np.array(n_sense, dtype=float)
+
+    def rate(k: list) -> str:
+        return f"{sum(k) / den.sum():.2f} {interval_text(ratio_of_sums(np.array(k, float), den), '.2f')}"
+
+    def settle_rows(times: list, what: str) -> list[str]:
+        t = np.array(times)
+        med_iv, count_iv = median_and_count(t)
+        med = float(np.median(t))
+        return [f"| runs converged {what} (to the end of the run) | {int(np.isfinite(t).sum())}/"
+                f"{len(t)} {interval_text(count_iv, '.0f')} |",
+                f"| ... convergence time, median [s] | "
+                f"{'never' if not math.isfinite(med) else f'{med:.1f}'} {interval_text(med_iv, '.1f')} |",
+                "| ... each run [s] | " + ", ".join(
+                    "never" if not math.isfinite(x) else f"{x:.0f}" for x in t) + " |"]
+
+    md += [f"**On the `corridor` scenario's laser** (the robot drives east to the end wall, turns, "
+           f"drives back; the filter's \"forward\" is every metre driven, its \"turn\" every half turn, "
+           f"each followed by a sensing of the next scan: L, R, F where the median of the beams within "
+           f"15 degrees of that side is under 0.8 m). Started lost, {len(seeds)} runs x "
+           f"{round(sc.duration / sc.dt)} steps, seeds {seeds[0]}..{seeds[-1]}; a sensing is "
+           f"*correct* when the most likely state's cell is the robot's; *converged* at the first "
+           f"sensing from which every later one is correct. Brackets: 95 % bootstrap intervals over "
+           f"the runs.", "",
+           "| figure | value |", "|---|---|",
+           *settle_rows(conv, "to the true cell"),
+           *settle_rows(conv_near, "to within one cell, right direction"),
+           f"| sensings per run | {int(den.mean())} |",
+           f"| correct cell, share of all sensings | {rate(n_cell)} |",
+           f"| correct cell and direction | {rate(n_state)} |",
+           f"| within one cell, right direction | {rate(n_near)} |", "",
+           "Compared with the seed: its figure 1 is reproduced to within the door layout (x9 "
+           f"most likely, {bel9:.3f} against its \"around 0.38\"). Its figure 2 is one noisy run; "
+           "ours is a rate over seeded trials under a stated noise. On the scenario the filter is "
+           "rarely more than a cell off (the within-one-cell row: it settles there after the first "
+           "doors) but exactly one cell off at about three sensings in ten, so exact convergence, "
+           "which a single late slip undoes, comes only near the end of most runs. The seed reports "
+           "the same kind of behaviour in words (\"if it fails to move forward ... still 80 % of the "
+           "probability ... are convolved to the next state\"); why the argmax here slips by one "
+           "so often (the 0.1 / 0.1 motion spread against look-alike LR cells, or the metre count "
+           "against the robot's true cell) is not analysed here.", ""]
+    return md
+
+
 def splice_section(text: str, header: str, section: list[str]) -> str:
     """``text`` (results.md) with the section that starts at ``header`` replaced by
     ``section`` (up to the next ``## `` heading or the closing ``_Generated`` line)."""
@@ -403,7 +563,8 @@ def main() -> int:
     ap.add_argument("--mrclam", type=Path, default=Path(os.environ.get("BEACON_SIM_MRCLAM",
                                                                        MRCLAM_DEFAULT)))
     ap.add_argument("--jobs", type=int, default=default_jobs())
-    ap.add_argument("--only", choices=("mrclam", "slam"), help="regenerate only this section of results.md")
+    ap.add_argument("--only", choices=("mrclam", "slam", "corridor"),
+                    help="regenerate only this section of results.md")
     args = ap.parse_args()
     have = set(available_filters())
     if args.only == "slam":
@@ -417,6 +578,14 @@ def main() -> int:
             text = splice_section(text, SLAM_HEADER, section)
         path.write_text(text, encoding="utf-8")
         print(f"wrote the SLAM section of {path}", file=sys.stderr)
+        return 0
+    if args.only == "corridor":
+        path = DOCS / "results.md"
+        text = path.read_text(encoding="utf-8")
+        if CORRIDOR_HEADER not in text.split("\n"):   # the first time: before MRCLAM's section
+            text = text.replace(MRCLAM_HEADER, CORRIDOR_HEADER + "\n\n" + MRCLAM_HEADER, 1)
+        path.write_text(splice_section(text, CORRIDOR_HEADER, corridor_section()), encoding="utf-8")
+        print(f"wrote the corridor section of {path}", file=sys.stderr)
         return 0
     if args.only == "mrclam":
         path = DOCS / "results.md"
@@ -634,6 +803,7 @@ def main() -> int:
     md += figures(sc, curves, meta, "global_kidnap")
 
     # ---- seed 001 ---------------------------------------------------------------------
+    md += corridor_section()
     md += mrclam_section(args.mrclam, have)
     md += slam_section(args.mrclam, have)
     md += [f"_Generated in {time.perf_counter() - t_all:.0f} s._", ""]

@@ -1,11 +1,13 @@
 """The figure of docs/maps.md (issue 30): a map drawn from walls, one scan, the likelihood field.
 
     python scripts/maps_figure.py [--seed 0] [--out docs/figures]
+    SDL_VIDEODRIVER=dummy python scripts/maps_figure.py --window   # maps_field.png
 
 Left: a corridor with doors (after seed 004) and a room, the robot, its 90 beams (hits
 blue, max-range readings grey) with beam-model noise drawn from a seeded generator. Right:
-the likelihood field's per-beam probability over the map, 2000 particles (20 of them drawn
-around the true pose) and the 20 the field scores highest for that scan.
+the likelihood field's per-beam probability over the map, 2000 particles (uniform over the
+free cells, as mcl's global start; 20 of them drawn around the true pose) and the 20 the
+field scores highest for that scan.
 """
 
 from __future__ import annotations
@@ -36,11 +38,43 @@ def corridor_map():
     return from_walls((0, 0, 12, 6), 0.05, segments=[outline, *wall_with_doors], polygons=pillars)
 
 
+def window_field_figure(out: Path, frames: int = 150) -> Path:
+    """docs/figures/maps_field.png: the window on the symmetric room (autopilot, 1100 x 640,
+    the scenario's filters and seed), L pressed at the start, the frame after ``frames``
+    frames (2.5 s). Needs pygame (SDL_VIDEODRIVER=dummy for no screen)."""
+    import pygame
+
+    from beacon_sim.app.main import App
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.runs.live import Session
+
+    sc = load_scenario("symmetric_room")
+    session = Session(sc, list(sc.default_filters), sc.seed)
+    session.toggle_autopilot()
+    app = App(session, (1100, 640), scripted=True)
+    try:
+        for t in (pygame.KEYDOWN, pygame.KEYUP):
+            pygame.event.post(pygame.event.Event(t, key=pygame.K_l, mod=0, unicode="", scancode=0))
+        app.run(frames)
+        path = out / "maps_field.png"
+        app.save_screenshot(path)
+    finally:
+        app.close()
+    return path
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="docs/figures")
+    ap.add_argument("--window", action="store_true",
+                    help="instead: the window's likelihood-field figure (maps_field.png)")
     args = ap.parse_args()
+    if args.window:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        print(window_field_figure(out))
+        return
     grid = corridor_map()
     params = RangeModelParams(laser_max_range=MAX_RANGE, sigma_hit=0.05, z_hit=0.9, z_rand=0.05,
                               z_short=0.03, z_max=0.02, laser_likelihood_max_dist=1.0)
@@ -70,8 +104,12 @@ def main() -> None:
 
     prob = field.beam_probability(field.distance)
     ax2.imshow(prob, origin="lower", extent=extent, cmap="viridis")
-    particles = np.column_stack([rng.uniform(0.1, 11.9, 2000), rng.uniform(0.1, 5.9, 2000),
-                                 rng.uniform(-np.pi, np.pi, 2000)])
+    # As mcl's global start: uniform over the map's free cells only (none in a wall or pillar).
+    free = np.flatnonzero(grid.cells.ravel() == 0)
+    cells = free[rng.integers(0, free.size, 2000)]
+    cols = grid.shape[1]
+    uv = np.column_stack([cells % cols + rng.random(2000), cells // cols + rng.random(2000)])
+    particles = np.column_stack([grid.grid_to_world(uv), rng.uniform(-np.pi, np.pi, 2000)])
     particles[:20] = pose + rng.normal(0, [0.1, 0.1, 0.05], (20, 3))
     logw = field.log_likelihood(particles, z, rel)
     best = np.argsort(logw)[-20:]

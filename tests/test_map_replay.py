@@ -3,10 +3,18 @@ map file the scenario names, the scans replay bit for bit, and mcl's figures are
 
 from __future__ import annotations
 
+import base64
 import json
+import shutil
+import zlib
+from pathlib import Path
+
+import pytest
 
 from beacon_sim.cli.main import main
+from beacon_sim.core.occupancy import OCCUPIED, OccupancyGrid, save_map
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.io.recording import RecordingError, load_recording
 from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.recorder import Recorder
 
@@ -28,3 +36,89 @@ def test_a_recorded_map_session_replays_bit_for_bit(tmp_path, capsys):
     assert got["measurements"]["laser"] == 25 * 181          # readings counted per beam
     for key in ("pos_rmse_m", "heading_rmse_rad", "anees"):
         assert got["filters"]["mcl"][key] == ref["filters"]["mcl"][key]
+
+
+def record_office_copy(tmp_path, ticks: int = 40):
+    """The office scenario and its map copied under tmp_path (the scenario in scen/, the map
+    in assets/maps/ as the TOML's relative path wants), recorded for ``ticks`` ticks."""
+    (tmp_path / "scen").mkdir()
+    (tmp_path / "assets" / "maps").mkdir(parents=True)
+    root = Path(__file__).resolve().parents[1]
+    for name in ("office.yaml", "office.pgm"):
+        shutil.copy(root / "assets" / "maps" / name, tmp_path / "assets" / "maps" / name)
+    toml = tmp_path / "scen" / "office.toml"
+    shutil.copy(root / "scenarios" / "office.toml", toml)
+    sc = load_scenario(toml)
+    out = tmp_path / "office.jsonl"
+    with Recorder(out, sc, 5, ["mcl"], {"mcl": {"max_particles": 600, "min_particles": 200}}) as rec:
+        for k in range(1, ticks + 1):
+            rec.record_tick(k, None, [])
+    return sc, out, tmp_path / "assets" / "maps"
+
+
+def figures(result: dict) -> dict:
+    """A filter's figures without its timings (machine speed)."""
+    return {k: v for k, v in result["filters"]["mcl"].items() if "per_step" not in k}
+
+
+def replay_json(out, capsys) -> tuple[dict, str]:
+    assert main(["replay", str(out), "--headless", "--json"]) == 0
+    captured = capsys.readouterr()
+    return json.loads(captured.out), captured.err
+
+
+def test_the_recording_holds_the_map_and_replays_without_the_file(tmp_path, capsys):
+    """The header stores the occupancy grid the run used (with its digest): with the map
+    files deleted, and again with them altered, the replay rebuilds the same world from the
+    recording alone, verified bit for bit with the same figures, and says which map it used."""
+    sc, out, maps = record_office_copy(tmp_path)
+    header = json.loads(out.read_text().splitlines()[0])
+    assert header["map"]["file"] == "../assets/maps/office.yaml"
+    assert header["map"]["sha256"] == sc.world.grid.sha256()
+    assert len(out.read_bytes()) < 50_000       # 96,000 cells, compressed
+    ref, err = replay_json(out, capsys)
+    assert ref["replay"]["checksum_status"].startswith("verified: truth and readings")
+    assert "map" not in err                      # the file on disk is the recorded map
+
+    for name in ("office.yaml", "office.pgm"):
+        (maps / name).unlink()
+    gone, err = replay_json(out, capsys)
+    assert "cannot be read" in err and "replaying with the recorded map" in err
+    # altered: a wall block painted over the corridor where the robot drives
+    grid = sc.world.grid
+    cells = grid.cells.copy()
+    cells[110:130, 100:140] = OCCUPIED
+    save_map(OccupancyGrid(cells, grid.resolution, grid.origin), maps / "office.yaml")
+    altered, err = replay_json(out, capsys)
+    assert "differs from the recorded map" in err and "replaying with the recorded map" in err
+    for got in (gone, altered):
+        assert got["replay"]["checksum_status"] == ref["replay"]["checksum_status"]
+        assert got["truth_checksum"] == ref["truth_checksum"]
+        assert figures(got) == figures(ref)
+
+
+def test_an_edited_stored_map_is_refused(tmp_path):
+    _, out, _ = record_office_copy(tmp_path, ticks=5)
+    lines = out.read_text().splitlines(keepends=True)
+    header = json.loads(lines[0])
+    cells = bytearray(zlib.decompress(base64.b64decode(header["map"]["cells"])))
+    cells[0] = 100 if cells[0] != 100 else 0
+    header["map"]["cells"] = base64.b64encode(zlib.compress(bytes(cells))).decode()
+    out.write_text(json.dumps(header) + "\n" + "".join(lines[1:]))
+    with pytest.raises(RecordingError, match="stored map was edited"):
+        load_recording(out)
+
+
+def test_a_recording_made_before_the_map_was_stored_still_replays(tmp_path, capsys):
+    """A header without "map" (recorded before issue 30 stored it) reads the map file the
+    scenario names, as it did."""
+    _, out, _ = record_office_copy(tmp_path, ticks=20)
+    ref, _ = replay_json(out, capsys)
+    lines = out.read_text().splitlines(keepends=True)
+    header = json.loads(lines[0])
+    del header["map"]
+    old = tmp_path / "old.jsonl"
+    old.write_text(json.dumps(header) + "\n" + "".join(lines[1:]))
+    got, _ = replay_json(old, capsys)
+    assert got["replay"]["checksum_status"] == ref["replay"]["checksum_status"]
+    assert figures(got) == figures(ref)

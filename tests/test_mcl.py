@@ -63,6 +63,42 @@ def test_global_start_is_uniform_over_free_cells():
     assert abs(west.mean() - west_free) < 0.03 and free_share < 1.0
 
 
+def inside_the_symmetric_room(poses: np.ndarray, grid) -> np.ndarray:
+    """Whether each pose lies strictly inside the room's outline (8 m x 4 m, its wall cells
+    excluded) and in no pillar or partition cell."""
+    x, y = poses[:, 0], poses[:, 1]
+    res = grid.resolution
+    inside = (x >= res) & (x < 8.0 - res) & (y >= res) & (y < 4.0 - res)
+    rc = grid.world_to_cell(poses[:, :2])
+    rows, cols = grid.shape
+    cell = grid.cells[np.clip(rc[:, 0], 0, rows - 1), np.clip(rc[:, 1], 0, cols - 1)]
+    return inside & (cell == 0)
+
+
+def test_global_start_and_random_particles_lie_inside_the_outline():
+    """A global start and augmented MCL's random particles are drawn from the map's free
+    cells only: none outside the symmetric room's walls or inside a pillar."""
+    sc = load_scenario("symmetric_room")
+    f = build_filter("mcl", sc, 3)
+    f.reset(None)
+    assert f.n == f.params["max_particles"] and inside_the_symmetric_room(f.poses, sc.world.grid).all()
+    assert inside_the_symmetric_room(f.random_free_poses(20000), sc.world.grid).all()
+    # and the random share of a resampling (inject_prob 1: every particle is random)
+    f.inject_prob = 1.0
+    f._resample()
+    assert inside_the_symmetric_room(f.poses, sc.world.grid).all()
+
+
+def test_no_particle_moves_out_of_free_space():
+    """The map prior of the motion model: started lost in the symmetric room, driven for
+    4 s (the clouds not yet formed, 20,000 particles spread up to the walls), no particle
+    ever stands outside the outline or in a pillar after a prediction. Without the prior
+    (walls do not stop particles) 1,500 of them stood outside at 2.5 s."""
+    for st, f in run("symmetric_room", 7, 4.0, every=0.5):
+        assert f.n >= 3000
+        assert inside_the_symmetric_room(f.poses, f.grid).all(), st.time
+
+
 def test_a_particle_in_a_wall_scores_least():
     grid = from_walls((0, 0, 4, 4), 0.05, segments=[[(0, 0), (4, 0), (4, 4), (0, 4), (0, 0)]],
                       polygons=[[(1.0, 1.0), (2.0, 1.0), (2.0, 2.0), (1.0, 2.0)]])
@@ -95,9 +131,60 @@ def test_the_likelihood_field_option_and_the_beam_model_agree_on_the_best_pose()
         assert np.argmax(ll) == 0 and (ll[1:] < ll[0]).all(), (model, combo)
 
 
+def two_mode_filter(resampler: str, seed: int = 1):
+    """mcl on the symmetric room with 10,000 particles on two poses, weights 0.3 and 0.7
+    (a fixed count: min = max), recovery off."""
+    sc = load_scenario("symmetric_room")
+    f = build_filter("mcl", sc, seed, params={"max_particles": 10000, "min_particles": 10000,
+                                               "resampler": resampler})
+    P = np.zeros((10000, 3))
+    P[:5000] = (2.0, 2.0, 0.0)
+    P[5000:] = (6.0, 2.0, math.pi)
+    f._set(P)
+    f.logw = np.log(np.where(np.arange(10000) < 5000, 0.3, 0.7) / 5000)
+    return f
+
+
+def test_systematic_resampling_keeps_each_modes_share_to_one_particle():
+    """Systematic resampling gives a mode of weight w floor or ceil of n w copies; multinomial
+    draws scatter it binomially (sd sqrt(n w (1 - w)) = 46 particles here): over 20 seeds
+    its counts spread by tens of particles, the systematic ones by at most one."""
+    sys_counts, multi_counts = [], []
+    for seed in range(20):
+        for name, out in (("systematic", sys_counts), ("multinomial", multi_counts)):
+            f = two_mode_filter(name, seed)
+            f._resample()
+            assert f.n == 10000
+            out.append(int((f.poses[:, 0] < 4.0).sum()))
+    assert all(abs(c - 3000) <= 1 for c in sys_counts), sys_counts
+    assert 25 < np.std(multi_counts) < 75, multi_counts
+
+
+def test_selective_resampling_waits_for_a_low_ess():
+    """AMCL's selective_resampling: no resampling while ESS >= n / 2 (the set and its
+    weights are kept as they are), a resampling once the weights are lopsided."""
+    sc = load_scenario("corridor")
+    rel, r = scan(sc.world.grid, (0.5, 0.5, 0.0), 120, 2 * math.pi, 4.0)
+    m = Measurement("laser", "range_finder", np.column_stack([r, rel]), np.zeros(0, dtype=int))
+    for selective, lopsided, resampled in ((True, False, False), (True, True, True),
+                                           (False, False, True)):
+        f = build_filter("mcl", sc, 2, params={"selective_resampling": selective})
+        f.scan_log_likelihood = lambda m, f=f: (np.zeros(f.n), 30)  # a scan that tells nothing
+        logw = np.zeros(f.n)
+        logw[: f.n // 4 if lopsided else f.n] = 5.0     # ESS about n / 4, or n
+        f.logw = logw - np.log(np.exp(logw).sum())
+        before = f.poses.copy()
+        f.update([m])
+        assert (not np.array_equal(f.poses, before)) == resampled, (selective, lopsided)
+        if not resampled:
+            assert np.ptp(f.logw) == 0.0
+
+
 def test_bad_parameters_are_named():
     sc = load_scenario("corridor")
     for params, words in (({"laser_model_type": "sonar"}, "laser_model_type 'sonar'"),
+                          ({"resampler": "lucky"}, "resampler 'lucky'"),
+                          ({"selective_resampling": 1}, "selective_resampling = 1"),
                           ({"min_particles": 10, "max_particles": 5}, "min_particles <= max_particles"),
                           ({"recovery_alpha_fast": 2.0}, "recovery_alpha_fast"),
                           ({"laser_z_hitt": 0.5}, "did you mean 'laser_z_hit'")):
@@ -142,30 +229,17 @@ def test_corridor_global_localization_converges_to_the_true_cell():
     assert checked == 4
 
 
-def mass_near(f, xy, radius=0.3) -> float:
-    w = f.weights()
-    return float(w[np.hypot(*(f.poses[:, :2] - xy).T) < radius].sum())
-
-
 @pytest.mark.slow
 def test_the_symmetric_room_keeps_two_clouds_until_the_partition_is_seen():
-    """Started lost in a room that looks the same turned half a turn about its centre (4, 2):
-    while the robot stays in the middle (the partition beyond the laser's 2.5 m) a cloud
-    stays on the truth and one on its mirror image; once the partition has been seen the
-    mirror's cloud is gone (masses within 0.3 m, every 2.5 s, the first 5 s skipped while the
-    clouds form)."""
-    centre = np.array([8.0, 4.0])
-    before, after = [], []
-    for st, f in run("symmetric_room", 7, 100.0, every=2.5):
-        truth = st.true_pose[:2]
-        if np.hypot(*(truth - (4.0, 2.0))) < 0.35:
-            continue          # truth and mirror too close to tell apart
-        pair = (mass_near(f, truth), mass_near(f, centre - truth))
-        (before if st.time <= 40.0 else after).append(pair)
-    assert len(before) >= 4
-    assert all(t > 0.1 and m > 0.1 for t, m in before[2:]), before   # from t = 7.5 s
-    assert all(m > 0.1 for _, m in after[:2]), after      # on the way: not yet seen
-    assert after[-1][0] > 0.95 and after[-1][1] < 0.02, after
+    """Started lost in a room that looks the same turned half a turn about its centre (4, 2),
+    on the scenario's seed (7): from 7.5 s (the clouds formed) until the partition is seen
+    (near 40 s) a cloud holds at least 5 % of the weight within 0.5 m and 0.5 rad of the
+    truth and one of its mirror image at every 0.5 s check (scripts/symmetric_room_modes.py);
+    at the end (100 s) the truth's holds 95 % and the mirror's under 2 %."""
+    r = symmetric_room_modes().one_run((7, {}))
+    assert r["broke"] is not None and 35.0 < r["broke"] < 45.0
+    assert r["both"] and min(r["lowest"]) > 0.05, r
+    assert r["final"] > 0.95 and r["final_mirror"] < 0.02, r
 
 
 @pytest.mark.slow
@@ -176,3 +250,30 @@ def test_check_takes_a_scan_based_filter_on_a_map_scenario(capsys):
     assert main(["check", "mcl", "--scenario", "corridor"]) == 0
     out = capsys.readouterr().out
     assert "14 of 14 checks passed" in out and "readings" in out
+
+
+def symmetric_room_modes():
+    """scripts/symmetric_room_modes.py, the measurement docs/maps.md quotes."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "symmetric_room_modes.py"
+    spec = importlib.util.spec_from_file_location("symmetric_room_modes", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.slow
+def test_the_symmetric_room_keeps_both_clouds_over_seeds():
+    """Over 30 seeds used neither to tune the scenario (100-119) nor to measure it (200-239,
+    400-439), each run up to the breaking observation (the partition seen, near 40 s): both
+    clouds live until then in at least 26. With the rate measured for the shipped settings
+    (37 of 40, 0.93) this passes with probability 0.93; with the settings before (30 of 40,
+    0.75) with probability 0.10. (About 40 s of CPU: the first seconds carry 50,000
+    particles.)"""
+    modes = symmetric_room_modes()
+    runs = [modes.one_run((seed, {}), until_break=True) for seed in range(300, 330)]
+    assert all(r["broke"] is not None and 35.0 < r["broke"] < 45.0 for r in runs)
+    assert sum(r["both"] for r in runs) >= 26, [(r["seed"], r["lowest"]) for r in runs if not r["both"]]

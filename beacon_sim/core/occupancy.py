@@ -107,6 +107,16 @@ class OccupancyGrid:
 
         return hashlib.sha256(self.cells.tobytes()).digest()
 
+    def sha256(self) -> str:
+        """SHA-256 (64 hex digits) of the grid as a value: its shape, resolution, origin
+        (their reprs, exact for floats) and cells (int8, row 0 first). Equal grids, equal
+        digests: what a recording stores to name its map (docs/replay.md)."""
+        import hashlib
+
+        rows, cols = self.shape
+        head = f"{rows} {cols} {self.resolution!r} {self.origin[0]!r} {self.origin[1]!r} {self.origin[2]!r}\n"
+        return hashlib.sha256(head.encode("ascii") + self.cells.tobytes()).hexdigest()
+
     @property
     def shape(self) -> tuple[int, int]:
         """(rows, cols)."""

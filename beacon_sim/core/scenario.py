@@ -614,14 +614,18 @@ def _event(t: _Table, sensor_names: set[str], dt: float) -> Event:
     return ev
 
 
-def _walls(w: _Table, file: str, base_dir: Path) -> OccupancyGrid | None:
+def _walls(w: _Table, file: str, base_dir: Path,
+           map_grid: OccupancyGrid | None = None) -> OccupancyGrid | None:
     """The map a ``world.map`` key names (a ROS map_server YAML, relative to the scenario
-    file), or None; ``world.walls`` is read later, once the bounds are known."""
+    file; ``map_grid`` instead when given: a recording's stored map), or None;
+    ``world.walls`` is read later, once the bounds are known."""
     if w.has("map") and w.has("walls"):
         raise ScenarioError(f"{file}: world.map and world.walls: expected one of them, not both")
     if not w.has("map"):
         return None
     name = w.string("map")
+    if map_grid is not None:
+        return map_grid
     path = Path(name) if Path(name).is_absolute() else base_dir / name
     try:
         return load_map(path)
@@ -667,9 +671,11 @@ def _walls_grid(w: _Table, bounds: Vec4) -> OccupancyGrid:
 
 
 def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
-                   base_dir: str | Path | None = None) -> Scenario:
+                   base_dir: str | Path | None = None,
+                   map_grid: OccupancyGrid | None = None) -> Scenario:
     """Validate a decoded TOML document and build the :class:`Scenario`. A ``world.map`` path
-    is relative to ``base_dir`` (default: the folder of ``file``)."""
+    is relative to ``base_dir`` (default: the folder of ``file``); ``map_grid``, when given,
+    is that map instead of the file (a recording's stored map, issue 30)."""
     top = _Table(data, "", file)
     name = top.string("name", name or Path(file).stem)
     description = top.string("description", "")
@@ -681,7 +687,7 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
     seed = top.integer("seed", 0, lo=0, hi=2**63 - 1)
 
     w = top.sub("world")
-    grid = _walls(w, file, Path(file).parent if base_dir is None else Path(base_dir))
+    grid = _walls(w, file, Path(file).parent if base_dir is None else Path(base_dir), map_grid)
     if grid is not None and not w.has("bounds"):
         bounds = _grid_bounds(grid)
     else:

@@ -58,12 +58,14 @@ never executes code: ``json`` only.
 
 from __future__ import annotations
 
+import base64
 import datetime as _dt
 import hashlib
 import hmac
 import json
 import math
 import os
+import zlib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -72,6 +74,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from beacon_sim.core.motion import SLIP_MODELS
+from beacon_sim.core.occupancy import MAX_CELLS, MapError, OccupancyGrid, load_map
 from beacon_sim.core.scenario import (
     MAX_COORD,
     MAX_SENSORS,
@@ -113,7 +116,8 @@ HEADER_KEYS = frozenset({
 #: model's version): the one place a new such key is declared. A version 3 header holding a
 #: key in neither HEADER_KEYS nor MODEL_KEYS is refused (an edit, or a newer writer); the
 #: replay checks the truth these keys shape through the truth and readings checksums.
-MODEL_KEYS: tuple[str, ...] = ("slip_model",)  # issue 25: the motion noise model
+MODEL_KEYS: tuple[str, ...] = ("slip_model",  # issue 25: the motion noise model
+                                "map")  # issue 30: the occupancy grid a world.map names
 #: The environment variable holding the key of the optional HMAC signature.
 KEY_VARIABLE = "BEACON_SIM_RECORDING_KEY"
 
@@ -444,11 +448,93 @@ class Recording:
         return self.team.n_robots
 
 
-def rebuild_scenario(text: str, file: str, name: str, source: str | None = None) -> Scenario:
+def rebuild_scenario(text: str, file: str, name: str, source: str | None = None,
+                     map_grid: OccupancyGrid | None = None) -> Scenario:
     """A scenario from its stored text (the same checks and caps as loading the file); a
-    map file it names is found beside ``source``, the scenario file recorded (issue 30)."""
+    map file it names is ``map_grid`` when given (the recorded map), else read from beside
+    ``source``, the scenario file recorded (issue 30)."""
     base = Path(source).parent if source else None
-    return parse_scenario(parse_toml_text(text, file), file, name=name, base_dir=base)
+    return parse_scenario(parse_toml_text(text, file), file, name=name, base_dir=base,
+                          map_grid=map_grid)
+
+
+# --------------------------------------------------------------------------------------------
+# The map in the header (issue 30)
+
+
+def map_file_name(text: str, file: str) -> str | None:
+    """The ``world.map`` a scenario text names (a map_server YAML), or None."""
+    world = parse_toml_text(text, file).get("world")
+    name = world.get("map") if isinstance(world, dict) else None
+    return name if isinstance(name, str) else None
+
+
+def map_header(grid: OccupancyGrid, name: str) -> dict[str, Any]:
+    """The header's ``"map"``: the occupancy grid the run used (``name``: the scenario's
+    ``world.map``), so that a replay needs no map file. ``cells`` is the grid's int8 cells
+    (row 0, the bottom row, first), zlib-compressed, in base64; ``sha256`` is
+    :meth:`OccupancyGrid.sha256`."""
+    rows, cols = grid.shape
+    packed = base64.b64encode(zlib.compress(grid.cells.tobytes(), 9)).decode("ascii")
+    return {"file": name, "shape": [rows, cols], "resolution": grid.resolution,
+            "origin": list(grid.origin), "cells": packed, "sha256": grid.sha256()}
+
+
+def recorded_map(path: Path, header: Mapping[str, Any]) -> OccupancyGrid | None:
+    """The grid a header's ``"map"`` holds (None: the file has none, e.g. made before issue
+    30), checked against its digest (RecordingError naming what is wrong)."""
+    m = header.get("map")
+    if m is None:
+        return None
+
+    def bad(what: str) -> RecordingError:
+        return _fail(path, 1, f"corrupted header: map: {what}")
+
+    if not isinstance(m, dict) or not isinstance(m.get("file"), str):
+        raise bad("expected {file, shape, resolution, origin, cells, sha256}")
+    shape, res, origin = m.get("shape"), m.get("resolution"), m.get("origin")
+    if not (isinstance(shape, list) and len(shape) == 2
+            and all(type(v) is int and v > 0 for v in shape) and shape[0] * shape[1] <= MAX_CELLS):
+        raise bad(f"shape = {_short(shape)} (expected [rows, cols], at most {MAX_CELLS:,} cells)")
+    if not (isinstance(origin, list) and len(origin) == 3 and all(_number(v) for v in origin)
+            and _number(res)):
+        raise bad("resolution and origin [x, y, yaw] must be numbers")
+    if not (isinstance(m.get("cells"), str) and isinstance(m.get("sha256"), str)):
+        raise bad("cells (base64) and sha256 must be strings")
+    n = shape[0] * shape[1]
+    try:
+        packed = base64.b64decode(m["cells"], validate=True)
+        unpack = zlib.decompressobj()
+        raw = unpack.decompress(packed, n + 1)
+    except (ValueError, zlib.error):
+        raise bad("cells are not zlib data in base64") from None
+    if len(raw) != n or unpack.unconsumed_tail:
+        raise bad(f"cells hold {len(raw):,}+ bytes, the shape {shape[0]}x{shape[1]} needs {n:,}")
+    try:
+        grid = OccupancyGrid(np.frombuffer(raw, dtype=np.int8).reshape(shape), float(res or 0.0),
+                             (float(origin[0]), float(origin[1]), float(origin[2])))
+    except MapError as exc:
+        raise bad(str(exc)) from None
+    if grid.sha256() != m["sha256"]:
+        raise _fail(path, 1, "the stored map was edited (its checksum map.sha256 differs): not "
+                             "the map this run was recorded with")
+    return grid
+
+
+def disk_map_note(grid: OccupancyGrid, name: str, source: str | None) -> str | None:
+    """A warning when the map file a recording's scenario names (beside ``source``) is
+    missing, unreadable or holds another grid than the recorded one (None: the same)."""
+    path = Path(name)
+    if not path.is_absolute() and source:
+        path = Path(source).parent / path
+    try:
+        on_disk = load_map(path)
+    except MapError as exc:
+        return f"map file {path} cannot be read ({str(exc)[:120]}): replaying with the recorded map"
+    if on_disk == grid:
+        return None
+    return (f"map file {path} differs from the recorded map (sha256 {on_disk.sha256()[:12]} on "
+            f"disk, {grid.sha256()[:12]} recorded): replaying with the recorded map")
 
 
 def rebuild_team_scenario(text: str, file: str, name: str) -> TeamScenario:
@@ -804,8 +890,15 @@ def load_recording(path) -> Recording:
     slip = _slip_model(path, header)
     team: TeamScenario
     if not is_team_header(header):
+        source = header.get("scenario_source")
+        grid = recorded_map(path, header)
+        if grid is not None:
+            note = disk_map_note(grid, str(header["map"]["file"]),
+                                 source if isinstance(source, str) else None)
+            if note is not None:
+                notes.append(f"{path}: {note}")
         scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"],
-                                    header.get("scenario_source"))
+                                    source, map_grid=grid)
         _check_dt(path, header, scenario.dt)
         team = team_of_one(replace(scenario_with_slip(scenario, slip), seed=int(header["seed"])))
         return Recording(path, header, team, ticks, checkpoints, end, notes, parts)

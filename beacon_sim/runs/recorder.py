@@ -37,6 +37,8 @@ from beacon_sim.io.recording import (
     Signer,
     dumps,
     effective_params,
+    map_file_name,
+    map_header,
     open_exclusive,
     rebuild_scenario,
     rebuild_team_scenario,
@@ -88,9 +90,16 @@ class Recorder:
         self.team = team
         self.solo = team.solo
         text = scenario_text(team)
+        stored_map: dict[str, Any] = {}
         if self.solo:
             first = team.robots[0].scenario
-            rebuilt_one = rebuild_scenario(text, first.source, first.name)
+            # A map file the scenario names goes into the header (issue 30): the grid this
+            # run uses, so a replay needs neither the file nor that it be unchanged.
+            map_name = map_file_name(text, first.source)
+            grid = first.world.grid if map_name is not None else None
+            if grid is not None and map_name is not None:
+                stored_map = {"map": map_header(grid, map_name)}
+            rebuilt_one = rebuild_scenario(text, first.source, first.name, map_grid=grid)
             changed = replace(rebuilt_one, seed=first.seed, duration=first.duration) != first
             rebuilt = team_of_one(rebuilt_one)
         else:
@@ -101,7 +110,8 @@ class Recorder:
                           "recording stores the file as it is on disk", stacklevel=2)
         self.shadow = TeamSimulation(rebuilt, int(seed))
         self.readings = TeamReadingsHash()
-        extra = {} if self.solo else {"kind": TEAM_KIND, "robots": [r.name for r in team.robots]}
+        extra = stored_map if self.solo else {"kind": TEAM_KIND,
+                                              "robots": [r.name for r in team.robots]}
         self._open(path, team, text, seed, filters, params, checkpoint_every, extra)
 
     @property
