@@ -69,6 +69,10 @@ class EKFSLAM(SlamFilterBase):
     gate_prob : float, default 0.99
         Unknown correspondence: a reading may update a landmark when its squared
         Mahalanobis distance is below this chi-square quantile.
+    gate_chi2 : float, default 0.0
+        Known IDs: a reading of a mapped landmark (or an anchor) whose squared Mahalanobis
+        distance ``nu^T S^-1 nu`` exceeds this is dropped as an outlier (``rejected`` counts
+        them); 0 turns the gate off. ``beacon-sim mrclam`` sets the EKF's 99.9 % gate.
     new_landmark_prob : float, default 0.9999
         Unknown correspondence: a reading farther than this quantile from every landmark
         and anchor starts a new landmark.
@@ -104,7 +108,7 @@ class EKFSLAM(SlamFilterBase):
     defaults: ClassVar[dict] = {"gate_prob": 0.99, "new_landmark_prob": 0.9999, "max_landmarks": 500,
                                 "confirm_hits": 2, "association": "jcbb", "max_nodes": 1000,
                                 "min_parallax": 0.3, "bearing_init": "delayed", "inverse_depth_rho": 0.25,
-                                "inverse_depth_std": 0.25, "linearity_threshold": 0.1}
+                                "inverse_depth_std": 0.25, "linearity_threshold": 0.1, "gate_chi2": 0.0}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
@@ -117,6 +121,7 @@ class EKFSLAM(SlamFilterBase):
         self.last_method = ""  # unknown correspondence: "jcbb", "nn" or "nn-fallback" last tick
         self.last_nodes = 0
         self.last_chosen: dict[int, int] = {}  # unlabelled reading -> landmark (or M + anchor)
+        self.rejected = 0  # readings with IDs dropped by the gate (gate_chi2) so far
         if self.params["association"] not in ("jcbb", "nn"):
             raise FilterError(f"{type(self).__name__}: parameter association = "
                               f"{self.params['association']!r}: expected 'jcbb' or 'nn'")
@@ -196,14 +201,21 @@ class EKFSLAM(SlamFilterBase):
         S = Hx @ PHt[:3] + (Hm @ PHt[s:s + 2] if s else 0.0) + R
         return PHt, S
 
-    def _correct(self, rd: Reading, j: int | None) -> None:
+    def _correct(self, rd: Reading, j: int | None) -> bool:
+        """The EKF update with one reading of landmark ``j`` (None: an anchor); False when the
+        known-ID gate (``gate_chi2``) drops it as an outlier."""
         nu, Hx, Hm, s = self._model(rd, j)
         PHt, S = self._gain(Hx, Hm, s, rd.R)
+        gate = float(self.params["gate_chi2"])
+        if gate > 0.0 and float(nu @ np.linalg.solve(S, nu)) > gate:
+            self.rejected += 1
+            return False
         K = np.linalg.solve(S, PHt.T).T          # K = P H^T S^-1 (S symmetric)
         self.mu += K @ nu
         self.mu[2] = wrap(self.mu[2])
         self.P -= K @ PHt.T                      # P - K S K^T
         self.P = 0.5 * (self.P + self.P.T)
+        return True
 
     def _add(self, rd: Reading, beacon_id: int) -> int | None:
         if rd.kind != "range_bearing" or len(self.ids) >= int(self.params["max_landmarks"]):
@@ -415,8 +427,7 @@ class EKFSLAM(SlamFilterBase):
                     self._drop_copy(k)  # a range-bearing reading places it at once
                 pairs.append((row, self._add(rd, rd.beacon_id)))
             else:
-                self._correct(rd, j)
-                pairs.append((row, j))
+                pairs.append((row, j if self._correct(rd, j) else None))
         if pending:
             seen = self._associate(pending)
             # A landmark made from one unlabelled reading is tentative until it is seen again

@@ -189,7 +189,10 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                                                         "is kept"),
                          "max_nodes": Range(1, 10_000_000, "most JCBB search nodes per tick"),
                          "min_parallax": Range(1e-3, 3.0, "angle between two bearings before a "
-                                                          "landmark is triangulated [rad]")}),
+                                                          "landmark is triangulated [rad]"),
+                         "gate_chi2": Range(0.0, 1e9, "drop a reading with an ID farther than this "
+                                                      "squared Mahalanobis distance (0: off)")},
+                 mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
     FilterRecord("fastslam", "beacon_sim.filters.fastslam:FastSLAM2", ("yellow", "dash-dot"),
                  ranges={"n_particles": Range(1, 100_000, "particles, each with its own map"),
                          "ess_threshold": Range(*_FRACTION, "resample when ESS < this share of N"),
