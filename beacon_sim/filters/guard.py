@@ -10,6 +10,7 @@ arrays or one line saying why the value is unusable.
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 
@@ -55,12 +56,45 @@ def _not_psd(a: float, b: float, d: float, e: float, f: float, g: float) -> bool
     return a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0
 
 
-def validate_estimate(est: object, *, _f8: np.dtype = _F8, _mm: float = MAX_MEAN,
-                      _mc: float = MAX_COV) -> tuple[np.ndarray, np.ndarray] | str:
+def _getrefcount(x: object) -> int:
+    return 1 << 30  # no reference counts here (not CPython): always copy
+
+
+if hasattr(sys, "getrefcount"):
+    _getrefcount = sys.getrefcount  # type: ignore[assignment]
+
+
+def _sole_probe(est: tuple[np.ndarray, np.ndarray]) -> int:
+    m0, c0 = est[0], est[1]  # the locals validate_estimate holds when it counts
+    return _getrefcount(est) + _getrefcount(m0) + _getrefcount(c0)
+
+
+def _sole_refs() -> int:
+    est = (np.zeros(3), np.eye(3))  # held by one local of the caller, as the runner holds it
+    return _sole_probe(est)
+
+
+#: The sum of the reference counts of an estimate pair and its arrays that nothing but the
+#: caller's one variable holds (measured here, once): with ``sole=True`` arrays whose counts
+#: add up to no more than this are returned as they are, without a copy. Every holder of a
+#: Python object counts (a filter's attribute, a list, the tuple kept, a view's ``base``),
+#: so no one but the caller can reach, or change, such arrays afterwards.
+_SOLE_REFS = _sole_refs()
+
+
+def validate_estimate(est: object, *, sole: bool = False, _f8: np.dtype = _F8, _mm: float = MAX_MEAN,
+                      _mc: float = MAX_COV, _rc: object = _getrefcount,
+                      _sole: int = _SOLE_REFS) -> tuple[np.ndarray, np.ndarray] | str:
     """The one guard of what ``estimate()`` returned: ``(mean (3,), cov (3, 3))`` as fresh
     float arrays [m, m, rad], or one line saying why it is unusable (not a pair, not
     numbers, wrong shapes, NaN or infinity, covariance not symmetric, not positive
     semi-definite). Cheap (a microsecond or two): it runs on every step of every filter.
+
+    ``sole=True`` (the runner, which holds ``est`` in one variable and drops it after): two
+    float64 arrays that own their data and that nothing else refers to (reference counts,
+    CPython) are returned as they are rather than copied: a filter that builds its estimate
+    afresh each step (the EKF, the UKF, the PF) is not copied again; one that returns arrays
+    it keeps is. Same values either way.
 
     The usual case, float64 arrays of the right shapes, is judged here with float
     comparisons; anything else, and anything the fast path cannot settle, takes the full
@@ -90,6 +124,9 @@ def validate_estimate(est: object, *, _f8: np.dtype = _F8, _mm: float = MAX_MEAN
                     if a <= 0.0 or a * e - b * b <= 0.0 \
                             or a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0:
                         return _NOT_PSD
+                    if sole and m0.base is None and c0.base is None \
+                            and _rc(est) + _rc(m0) + _rc(c0) <= _sole:  # type: ignore[operator]
+                        return m0, c0
                     return m0.copy(), c0.copy()
                 if math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g):
                     scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2),
@@ -100,6 +137,9 @@ def validate_estimate(est: object, *, _f8: np.dtype = _F8, _mm: float = MAX_MEAN
                         return "covariance is not symmetric"
                     if _not_psd(a, 0.5 * (b + b2), 0.5 * (d + d2), e, 0.5 * (f + f2), g):
                         return _NOT_PSD
+                    if sole and m0.base is None and c0.base is None \
+                            and _rc(est) + _rc(m0) + _rc(c0) <= _sole:  # type: ignore[operator]
+                        return m0, c0
                     return m0.copy(), c0.copy()
     return _validate_any(est)
 
