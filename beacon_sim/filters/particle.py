@@ -183,6 +183,8 @@ class ParticleFilter(FilterBase):
         self.lost = 0.0
         self.lost_at = LOST_AT
         self._tally: list[float] = [0, 0, 0.0]
+        self._ll_fresh = False  # _fit[:n] not yet written this tick (see _tick_loglik)
+        self._lost_at_of: tuple[float, float, float] = (math.nan, math.nan, LOST_AT)  # alpha, eps, lost_at
         self._spread_floor: np.ndarray | None = None
         self._chi2_cut: dict[int, float] = {}
         self.ess = 0.0
@@ -365,12 +367,18 @@ class ParticleFilter(FilterBase):
         (and ``_dims``); returns the position fixes' per-particle normalisation (or None)."""
         n = self.n
         ll = self._fit[:n]
-        ll[:] = 0.0
         extra = np.zeros(n) if any(m.kind == "position" for m in measurements) else None
         dims = 0
         self._tally = [0, 0, 0.0]     # readings, readings no particle explains, expected outliers
+        # ll starts at zero: a tick's first bearing reading writes its sum there instead of
+        # adding it to zeros (the same bits: 0.0 + x is x, and no log-likelihood is -0.0);
+        # any other first reading gets the zeros first
+        self._ll_fresh = True
         for m in measurements:
             dims += self._loglik(m, ll, extra)
+        if self._ll_fresh:
+            ll[:] = 0.0
+            self._ll_fresh = False
         if self.params["heading_weight"]:
             # Seed 002 eqs. 12-14: theta_pred from the last estimate and the commanded turn.
             sa = self.params["heading_k_a"] / max(self._last_v, 0.015)
@@ -464,7 +472,12 @@ class ParticleFilter(FilterBase):
         share = max(0.0, (bad / k - eps) / (1.0 - eps))
         a = self.params["alpha_fast"]
         self.lost += a * (share - self.lost)
-        self.lost_at = LOST_AT + 3.0 * math.sqrt(a / max(2.0 - a, 1e-9) * eps / (1.0 - eps))
+        last = self._lost_at_of  # the same (alpha, eps) as last time: the same lost_at
+        if last[0] == a and last[1] == eps:
+            self.lost_at = last[2]
+        else:
+            self.lost_at = LOST_AT + 3.0 * math.sqrt(a / max(2.0 - a, 1e-9) * eps / (1.0 - eps))
+            self._lost_at_of = (a, eps, self.lost_at)
 
     def _count_unexplained(self, fits: np.ndarray, dof: int, eps: float) -> None:
         """Tally readings for :meth:`_update_lost`: ``fits`` (k, n) or (n,), the Gaussian
@@ -518,7 +531,13 @@ class ParticleFilter(FilterBase):
         """Add the log-likelihood of ``m`` at every particle to ``ll`` (noise constants that
         are the same for all particles left out, so every term is <= 0). Returns the number
         of scalar readings."""
+        if self._ll_fresh and m.kind not in ("bearing", "range_bearing"):
+            ll[:] = 0.0  # the zeros it adds to (see _tick_loglik)
+            self._ll_fresh = False
         if _unlabeled(m):  # unknown correspondence: ML per particle (issue 29)
+            if self._ll_fresh:
+                ll[:] = 0.0
+                self._ll_fresh = False
             return association.particle_loglik(self, m, ll)
         n = self.n
         known = self._sensor_of.get(m.sensor)
@@ -580,7 +599,14 @@ class ParticleFilter(FilterBase):
                         self.ctx.world.width, self.ctx.world.height)
                     log_u += -math.log(rmax) + 0.5 * math.log(TWO_PI * std[0] ** 2)
                 T1[:] = np.logaddexp(T1 + math.log1p(-eps), math.log(eps) + log_u)
-            ll += _sum(T1, axis=0, dtype=np.float64) if k > 1 else T1[0]
+            if self._ll_fresh:  # the tick's first reading (see _tick_loglik)
+                self._ll_fresh = False
+                if k > 1:
+                    _sum(T1, axis=0, dtype=np.float64, out=ll)
+                else:
+                    ll[:] = T1[0]
+            else:
+                ll += _sum(T1, axis=0, dtype=np.float64) if k > 1 else T1[0]
             return int(z.size)
         if m.kind == "pose":
             std = spec.fix_std(len(m.beacon_ids))
@@ -767,10 +793,14 @@ class ParticleFilter(FilterBase):
         explained again. While tracking a reading goes unexplained with probability
         ``1 - lost_chi2``; ``lost`` rarely reaches ``lost_at`` then, and only for a few ticks."""
         xmin, ymin, xmax, ymax = self.ctx.world.bounds
-        d = np.array([0.5 * (xmin + xmax) - mean[0], 0.5 * (ymin + ymax) - mean[1]])
-        U = np.zeros((3, 3))
-        U[:2, :2] = np.diag([(xmax - xmin) ** 2 / 12.0, (ymax - ymin) ** 2 / 12.0]) + np.outer(d, d)
-        U[2, 2] = math.pi ** 2 / 3.0                # uniform heading about any mean
+        mx, my = mean[0], mean[1]  # float64 scalars, as numpy's entries were
+        d0, d1 = 0.5 * (xmin + xmax) - mx, 0.5 * (ymin + ymax) - my
+        d0, d1 = float(d0), float(d1)
+        c01 = d0 * d1
+        # diag + outer(d, d) entry by entry (the same float operations, no small arrays)
+        U = np.array([[(xmax - xmin) ** 2 / 12.0 + d0 * d0, 0.0 + c01, 0.0],
+                      [0.0 + c01, (ymax - ymin) ** 2 / 12.0 + d1 * d1, 0.0],
+                      [0.0, 0.0, math.pi ** 2 / 3.0]])  # uniform heading about any mean
         out = (1.0 - p_lost) * cov + p_lost * U
         return 0.5 * (out + out.T)
 
@@ -866,7 +896,10 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = 
     my = float(np.dot(wt, P[1]))
     if trig is None:
         trig = np.sin(P[2], out=E[0]), np.cos(P[2], out=E[1])
-    mth = wrap(math.atan2(float(np.dot(wt, trig[0])), float(np.dot(wt, trig[1]))))
+    mth = math.atan2(float(np.dot(wt, trig[0])), float(np.dot(wt, trig[1])))
+    mth = (mth + math.pi) % TWO_PI - math.pi  # core.angles.wrap of a float, inline
+    if mth >= math.pi:
+        mth -= TWO_PI
     np.subtract(P[0], mx, out=E[0])
     np.subtract(P[1], my, out=E[1])
     e = E[2]
@@ -878,9 +911,14 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = 
     if not _min(e) >= -math.pi and _any(np.less(e, -math.pi)):
         np.add(e, TWO_PI, out=e, where=e < -math.pi)
     WE = np.multiply(E, wt)
-    cov = (WE @ E.T).astype(np.float64)
-    cov = 0.5 * (cov + cov.T)
-    if _above(cov, 1e-12):   # every eigenvalue above the clip: it would change nothing
+    # 0.5 (C + C^T) in float64 on the entries (exactly numpy's operations: the float32
+    # entries are floats exactly, a + b == b + a, and 0.5 (a + a) == a), without three small
+    # arrays' calls
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = (WE @ E.T).tolist()
+    s01, s02, s12 = 0.5 * (a01 + a10), 0.5 * (a02 + a20), 0.5 * (a12 + a21)
+    a00, a11, a22 = 0.5 * (a00 + a00), 0.5 * (a11 + a11), 0.5 * (a22 + a22)
+    cov = np.array([[a00, s01, s02], [s01, a11, s12], [s02, s12, a22]])
+    if _above_entries(a00, s01, s02, a11, s12, a22, 1e-12):  # every eigenvalue above the clip
         return np.array([mx, my, mth]), cov
     # float32 sums can leave a tiny negative eigenvalue when the set has collapsed: clip.
     vals, vecs = _eigh(cov)
@@ -895,6 +933,12 @@ def _above(cov: np.ndarray, floor: float) -> bool:
     eigenvalue clip of :func:`weighted_pose_stats` is the identity, and an eigen-decomposition
     (~50 us) is not needed."""
     (a00, a01, a02), (_, a11, a12), (_, _, a22) = cov.tolist()
+    return _above_entries(a00, a01, a02, a11, a12, a22, floor)
+
+
+def _above_entries(a00: float, a01: float, a02: float, a11: float, a12: float, a22: float,
+                   floor: float) -> bool:
+    """:func:`_above` of the symmetric 3x3 with these upper-triangle entries."""
     a00 -= floor
     if not a00 > 0.0:
         return False
