@@ -367,7 +367,11 @@ class ParticleFilter(FilterBase):
         (and ``_dims``); returns the position fixes' per-particle normalisation (or None)."""
         n = self.n
         ll = self._fit[:n]
-        extra = np.zeros(n) if any(m.kind == "position" for m in measurements) else None
+        extra = None
+        for m in measurements:  # any position fix: its per-particle normalisation
+            if m.kind == "position":
+                extra = np.zeros(n)
+                break
         dims = 0
         self._tally = [0, 0, 0.0]     # readings, readings no particle explains, expected outliers
         # ll starts at zero: a tick's first bearing reading writes its sum there instead of
@@ -490,8 +494,14 @@ class ParticleFilter(FilterBase):
         self._tally[0] += k
         if k <= 16:   # a few readings: on floats (float32 -> float exactly, the same test)
             vals = best.tolist()
-            self._tally[1] += sum(1 for b in vals if -2.0 * b > cut) if type(vals) is list \
-                else int(-2.0 * vals > cut)
+            if type(vals) is list:
+                bad = 0
+                for b in vals:
+                    if -2.0 * b > cut:
+                        bad += 1
+                self._tally[1] += bad
+            else:
+                self._tally[1] += int(-2.0 * vals > cut)
         else:
             self._tally[1] += int(np.count_nonzero(-2.0 * np.asarray(best, dtype=np.float64) > cut))
         self._tally[2] += eps * k
