@@ -76,24 +76,28 @@ def overhead(make, stp, rounds, cpu_limits):
 
     Each round times the bare steps and the same steps through a fresh runner back to back,
     in alternating order (bare first, then runner first), so a drift of the machine's speed
-    (another job starting, the CPU's clock) lands on both sides equally; the figure is the
-    median of the rounds' own differences, which one disturbed round cannot move."""
+    (another job starting, the CPU's clock) lands on both sides equally; each side starts
+    from a freshly built filter (the same seed), so both do the very same work (the PF's
+    resampling and its random draws included); the figure is the median of the rounds' own
+    differences, which one disturbed round cannot move."""
     f = make()
     f.reset(None)
     bare(f, stp[:5])
     through_runner(f, stp[:5], cpu_limits)  # warm-up: first calls, the watchdog thread
     b, d = [], []
+
+    def fresh():
+        g = make()
+        g.reset(None)
+        return g
+
     for k in range(rounds):
         if k % 2 == 0:
-            f.reset(None)
-            tb = bare(f, stp)
-            f.reset(None)
-            tr = through_runner(f, stp, cpu_limits)
+            tb = bare(fresh(), stp)
+            tr = through_runner(fresh(), stp, cpu_limits)
         else:
-            f.reset(None)
-            tr = through_runner(f, stp, cpu_limits)
-            f.reset(None)
-            tb = bare(f, stp)
+            tr = through_runner(fresh(), stp, cpu_limits)
+            tb = bare(fresh(), stp)
         b.append(tb / len(stp) * 1e6)
         d.append((tr - tb) / len(stp) * 1e6)
     q1, _, q3 = statistics.quantiles(d, n=4)
