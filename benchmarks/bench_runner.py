@@ -115,7 +115,7 @@ def main() -> None:
     rows = [("trivial", Trivial, stp, 21 if q else 61),
             ("ekf", lambda: build_filter("ekf", sc, 0), stp, 21 if q else 61),
             ("pf 100k", lambda: build_filter("pf", sc, 0, params={"n_particles": 100_000}), pf_steps,
-             6 if q else 12)]
+             9 if q else 15)]
     for cpu_limits in (False, True):
         mode = "CPU-time limit" if cpu_limits else "wall-time limit"
         for name, make, s, rounds in rows:
