@@ -96,41 +96,46 @@ def main() -> None:
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             Client(cluster) as client:
         pids = sorted({*client.run(os.getpid).values()} - {os.getpid()})
-        # idle: what the cluster costs a second with nothing to do
+        # idle: what the cluster costs a second with nothing to do, its workers and this process
         c0, s0, w0 = proc_cpu(pids), self_cpu(), time.perf_counter()
         time.sleep(3.0 if q else 6.0)
-        idle_rate = (proc_cpu(pids) - c0 + self_cpu() - s0) / (time.perf_counter() - w0)
-        print(f"the idle cluster: {idle_rate * 1e3:.1f} ms CPU a second (workers, nannies, scheduler, "
-              "client)")
+        w = time.perf_counter() - w0
+        idle_workers, idle_main = (proc_cpu(pids) - c0) / w, (self_cpu() - s0) / w
+        idle_rate = idle_workers + idle_main
+        print(f"the idle cluster: {idle_rate * 1e3:.1f} ms CPU a second (workers {idle_workers * 1e3:.1f}, "
+              f"this process's scheduler, nannies and client {idle_main * 1e3:.1f})")
         figure("Dask LocalCluster (2 workers) idle CPU", idle_rate * 1e3, "ms/s")
         for batch, label in ((False, "per-run path"), (None, "batched path")):
-            local_cpu, dask_cpu, dask_wall = [], [], []
+            got_rounds: dict[str, list[float]] = {k: [] for k in ("lw", "lm", "dw", "dm", "wall", "ratio")}
             ok = True
             for k in range(rounds + 1):  # the first round warms up (imports on the workers)
                 s0, k0 = self_cpu(), children_cpu()
                 ref = run_monte_carlo(sc, specs, runs, seed=3, duration=duration, jobs=2, progress=False,
                                       batch=batch)
-                lc = self_cpu() - s0 + children_cpu() - k0
+                lm, lw = self_cpu() - s0, children_cpu() - k0
                 c0, s0, w0 = proc_cpu(pids), self_cpu(), time.perf_counter()
                 got = run_monte_carlo(sc, specs, runs, seed=3, duration=duration, progress=False,
                                       batch=batch, scheduler=client)
-                dc, dw = proc_cpu(pids) - c0 + self_cpu() - s0, time.perf_counter() - w0
+                dw, dm, wall = proc_cpu(pids) - c0, self_cpu() - s0, time.perf_counter() - w0
                 ok = ok and same(ref, got)
                 if k:
-                    local_cpu.append(lc)
-                    dask_cpu.append(dc)
-                    dask_wall.append(dw)
-            lm, dm, wm = (statistics.median(x) for x in (local_cpu, dask_cpu, dask_wall))
-            idle = idle_rate * wm
-            each = ", ".join(f"{d / c:.3f}" for d, c in zip(dask_cpu, local_cpu, strict=True))
-            print(f"{label}: local {lm:.2f} s CPU, Dask {dm:.2f} s CPU ({dm / lm:.3f}x; median of {rounds} "
-                  f"rounds; ratios {each}); "
-                  f"results {'the same bit for bit' if ok else 'DIFFER'}")
-            print(f"  the extra {dm - lm:+.2f} s: the idle cluster {idle_rate * 1e3:.1f} ms CPU a second x "
-                  f"{wm:.1f} s = {idle:.2f} s; scheduling, serialisation and the rest "
-                  f"{dm - lm - idle:+.2f} s")
-            figure(f"eval on Dask / local processes, CPU, {label} ({runs} runs)", dm, "s",
-                   peer="local processes (2 jobs)", peer_value=lm, target=1.10, target_of="ratio")
+                    for key, v in (("lw", lw), ("lm", lm), ("dw", dw), ("dm", dm), ("wall", wall),
+                                   ("ratio", (dw + dm) / (lw + lm))):
+                        got_rounds[key].append(v)
+            med = {key: statistics.median(v) for key, v in got_rounds.items()}
+            local, dask = med["lw"] + med["lm"], med["dw"] + med["dm"]
+            each = ", ".join(f"{r:.3f}" for r in got_rounds["ratio"])
+            print(f"{label}: local {local:.2f} s CPU, Dask {dask:.2f} s CPU: {med['ratio']:.3f}x (the median "
+                  f"of {rounds} interleaved rounds' ratios: {each}); results "
+                  f"{'the same bit for bit' if ok else 'DIFFER'}")
+            extra_w = med["dw"] - med["lw"]
+            print(f"  workers: local {med['lw']:.2f} s, Dask {med['dw']:.2f} s ({extra_w:+.2f}; "
+                  f"idle they cost {idle_workers * med['wall']:.2f} s in the {med['wall']:.1f} s); "
+                  f"the main process: local {med['lm']:.2f} s, Dask (scheduler, nannies, client, "
+                  f"serialisation) {med['dm']:.2f} s ({med['dm'] - med['lm']:+.2f}; idle "
+                  f"{idle_main * med['wall']:.2f} s)")
+            figure(f"eval on Dask / local processes, CPU, {label} ({runs} runs)", med["ratio"], "x",
+                   target=1.10)
             assert ok, "Dask's results differ from the local ones"
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
 

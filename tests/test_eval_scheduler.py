@@ -215,3 +215,18 @@ def test_a_missing_module_is_one_line_exit_2(capsys):
     assert main(["eval", "default", "--runs", "1", "--duration", "1", "--filter",
                  "no_such_pkg_xyz.m:F"]) == 2
     assert "no_such_pkg_xyz" in capsys.readouterr().err
+
+
+def test_the_lean_dask_settings_are_dasks_own_keys():
+    # a key Dask does not know would be set silently and do nothing: each must be one of its
+    # defaults (issue 27, docs/performance.md)
+    pytest.importorskip("dask.distributed")
+    import dask
+
+    from beacon_sim.evaluation.montecarlo import DASK_LEAN_CONFIG
+
+    for key, value in DASK_LEAN_CONFIG.items():
+        default = dask.config.get(key)  # KeyError if unknown
+        assert type(default) is type(value) or isinstance(default, str), (key, default, value)
+        with dask.config.set({key: value}):
+            assert dask.config.get(key) == value
