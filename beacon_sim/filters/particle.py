@@ -42,6 +42,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.metrics import chi2_quantile
+from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
@@ -184,6 +185,8 @@ class ParticleFilter(FilterBase):
         self.lost_at = LOST_AT
         self._tally: list[float] = [0, 0, 0.0]
         self._ll_fresh = False  # _fit[:n] not yet written this tick (see _tick_loglik)
+        self._still_noise: Any = None  # the motion noise known to declare no pose noise
+        self._row0: np.ndarray | None = None  # _work[:, 0, :]
         self._lost_at_of: tuple[float, float, float] = (math.nan, math.nan, LOST_AT)  # alpha, eps, lost_at
         self._spread_floor: np.ndarray | None = None
         self._chi2_cut: dict[int, float] = {}
@@ -277,8 +280,11 @@ class ParticleFilter(FilterBase):
         y += s
         th += w
         # slip scales the additive pose noise with the command; none declared: nothing to add
-        pose_std = getattr(noise, "pose_std", None)
-        ps = noise.pose_std_at(control.v, control.omega) if pose_std is None or any(pose_std) else ()
+        if noise is not self._still_noise:  # (a frozen MotionNoise declaring no pose noise: none)
+            pose_std = getattr(noise, "pose_std", None)
+            if pose_std is not None and not any(pose_std) and type(noise) is MotionNoise:
+                self._still_noise = noise
+        ps = () if noise is self._still_noise else noise.pose_std_at(control.v, control.omega)
         if any(ps):
             for row, std in zip((x, y, th), ps, strict=True):
                 if std > 0:
@@ -312,10 +318,12 @@ class ParticleFilter(FilterBase):
     # ----------------------------------------------------------------- measurements
     def update(self, measurements: Sequence[Measurement]) -> None:
         """Weight the particles by the likelihood of this tick's readings (log domain)."""
-        measurements = [m for m in measurements if len(m)]
+        if type(measurements) is not list or not all(map(len, measurements)):
+            measurements = [m for m in measurements if len(m)]  # (a list of non-empty ones: as it is)
         if not measurements:
             return
-        association.particle_start(self)  # issue 29: forget the last per-particle choices
+        if "_association" in self.__dict__:  # issue 29: forget the last per-particle choices
+            association.particle_start(self)
         if self._pending_resample:
             self._resample()
         n = self.n
@@ -565,7 +573,8 @@ class ParticleFilter(FilterBase):
                 kappa = 1.0 / std[-1] ** 2
             bx, by = self._beacon_columns(m.beacon_ids)
             k = z.shape[0]
-            T1, T2, T3, DX, DY = self._scratch(k, n)
+            views = self._views.get((k, n))  # kept per (k, n) (cleared when the work grows)
+            T1, T2, T3, DX, DY = views if views is not None else self._scratch(k, n)
             c, s = self._c[:n], self._s[:n]
             if self._trig_n != n:
                 np.cos(th, out=c)
@@ -781,7 +790,10 @@ class ParticleFilter(FilterBase):
                 self._work = np.empty((5, max(4, len(self.ctx.world.beacons)), self.capacity),
                                       dtype=self.dtype)
                 self._views.clear()
-            mean, cov = weighted_pose_stats(P, w, self._work[:, 0, :], trig)
+            row0 = self._row0  # the estimate's scratch view, kept while the work is the same
+            if row0 is None or row0.base is not self._work:
+                row0 = self._row0 = self._work[:, 0, :]
+            mean, cov = weighted_pose_stats(P, w, row0, trig)
             if self._spread_floor is not None:
                 cov = cov + self._spread_floor
             if self.params["lost_cov"] and self.lost >= self.lost_at:
