@@ -318,8 +318,13 @@ class ParticleFilter(FilterBase):
     # ----------------------------------------------------------------- measurements
     def update(self, measurements: Sequence[Measurement]) -> None:
         """Weight the particles by the likelihood of this tick's readings (log domain)."""
-        if type(measurements) is not list or not all(map(len, measurements)):
-            measurements = [m for m in measurements if len(m)]  # (a list of non-empty ones: as it is)
+        if type(measurements) is list:  # a list of non-empty Measurements: as it is
+            for m in measurements:
+                if type(m) is not Measurement or not m.z.shape[0]:  # (len(m) is z's rows)
+                    measurements = [m for m in measurements if len(m)]
+                    break
+        else:
+            measurements = [m for m in measurements if len(m)]
         if not measurements:
             return
         if "_association" in self.__dict__:  # issue 29: forget the last per-particle choices
@@ -599,8 +604,12 @@ class ParticleFilter(FilterBase):
             np.multiply(DY, DY, out=T3)
             T2 += T3
             np.sqrt(T2, out=T2)                   # range r
-            np.maximum(T2, 1e-6, out=T3)
-            T1 /= T3
+            if m.kind == "bearing":               # r is not needed after: in place
+                np.maximum(T2, 1e-6, out=T2)
+                T1 /= T2
+            else:
+                np.maximum(T2, 1e-6, out=T3)
+                T1 /= T3
             T1 -= 1.0
             T1 *= kappa                           # von Mises: kappa (cos(nu) - 1) <= 0
             if m.kind == "range_bearing":
