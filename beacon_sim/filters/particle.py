@@ -927,10 +927,7 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = 
     my = float(np.dot(wt, P[1]))
     if trig is None:
         trig = np.sin(P[2], out=E[0]), np.cos(P[2], out=E[1])
-    mth = math.atan2(float(np.dot(wt, trig[0])), float(np.dot(wt, trig[1])))
-    mth = (mth + math.pi) % TWO_PI - math.pi  # core.angles.wrap of a float, inline
-    if mth >= math.pi:
-        mth -= TWO_PI
+    mth = wrap(math.atan2(float(np.dot(wt, trig[0])), float(np.dot(wt, trig[1]))))
     np.subtract(P[0], mx, out=E[0])
     np.subtract(P[1], my, out=E[1])
     e = E[2]
