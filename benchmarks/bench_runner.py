@@ -1,6 +1,8 @@
 """What the runner adds around a filter (issue 27): the cost of one step through
 ``FilterRunner.feed`` minus the same filter's bare ``predict`` + ``update`` + ``estimate``,
-CPU time, interleaved rounds (bare, runner, bare, runner...), the median of the rounds.
+CPU time (the process's: the watchdog thread's included), interleaved rounds (bare then
+runner, runner then bare, ...), the median of the rounds' own differences, with their
+quartiles (how decisive the median is).
 
 Run:  python benchmarks/bench_runner.py [--quick]
 
@@ -69,20 +71,37 @@ def through_runner(f, stp, cpu_limits) -> float:
 
 
 def overhead(make, stp, rounds, cpu_limits):
-    """(median bare step [us], median runner-minus-bare per step [us]) over interleaved rounds."""
+    """(median bare step [us], median of the rounds' runner-minus-bare per step [us], the
+    quartiles of those differences [us]) over interleaved rounds.
+
+    Each round times the bare steps and the same steps through a fresh runner back to back,
+    in alternating order (bare first, then runner first), so a drift of the machine's speed
+    (another job starting, the CPU's clock) lands on both sides equally; each side starts
+    from a freshly built filter (the same seed), so both do the very same work (the PF's
+    resampling and its random draws included); the figure is the median of the rounds' own
+    differences, which one disturbed round cannot move."""
     f = make()
     f.reset(None)
     bare(f, stp[:5])
     through_runner(f, stp[:5], cpu_limits)  # warm-up: first calls, the watchdog thread
     b, d = [], []
-    for _ in range(rounds):
-        f.reset(None)
-        tb = bare(f, stp)
-        f.reset(None)
-        tr = through_runner(f, stp, cpu_limits)
+
+    def fresh():
+        g = make()
+        g.reset(None)
+        return g
+
+    for k in range(rounds):
+        if k % 2 == 0:
+            tb = bare(fresh(), stp)
+            tr = through_runner(fresh(), stp, cpu_limits)
+        else:
+            tr = through_runner(fresh(), stp, cpu_limits)
+            tb = bare(fresh(), stp)
         b.append(tb / len(stp) * 1e6)
         d.append((tr - tb) / len(stp) * 1e6)
-    return statistics.median(b), statistics.median(d)
+    q1, _, q3 = statistics.quantiles(d, n=4)
+    return statistics.median(b), statistics.median(d), (q1, q3)
 
 
 def main() -> None:
@@ -93,16 +112,16 @@ def main() -> None:
     print(f"load average at start: {os.getloadavg()[0]:.2f}; CPU time, medians of interleaved rounds")
     sc, stp = krejsa("bearing", 1000)
     pf_steps = stp[:10 if q else 20]
-    rows = [("trivial", Trivial, stp, 7 if q else 15),
-            ("ekf", lambda: build_filter("ekf", sc, 0), stp, 7 if q else 15),
+    rows = [("trivial", Trivial, stp, 21 if q else 61),
+            ("ekf", lambda: build_filter("ekf", sc, 0), stp, 21 if q else 61),
             ("pf 100k", lambda: build_filter("pf", sc, 0, params={"n_particles": 100_000}), pf_steps,
-             5 if q else 9)]
+             9 if q else 15)]
     for cpu_limits in (False, True):
         mode = "CPU-time limit" if cpu_limits else "wall-time limit"
         for name, make, s, rounds in rows:
-            step_us, extra_us = overhead(make, s, rounds, cpu_limits)
+            step_us, extra_us, (q1, q3) = overhead(make, s, rounds, cpu_limits)
             print(f"{name:8s} ({mode}): bare step {step_us:9.1f} us, the runner adds {extra_us:6.2f} us "
-                  f"({extra_us / step_us * 100:5.1f} %)")
+                  f"({extra_us / step_us * 100:5.1f} %; quartiles of {rounds} rounds {q1:.2f}, {q3:.2f})")
             if name == "pf 100k":  # the target is the share (the step's own noise is larger than 3 us)
                 figure(f"runner's own cost / pf 100k step, {mode} (CPU)", extra_us, "us",
                        peer="pf 100k bare step", peer_value=step_us, target=0.05, target_of="ratio")

@@ -3,7 +3,8 @@
 Besides its own table for people, each script calls :func:`figure` for the numbers that
 matter. Under run.py (which sets ``BEACON_SIM_BENCH_FIGURES=1``) it prints one line
 ``FIGURE {json}``; run.py collects those lines from every script into one table with the
-peer, the ratio and the target.
+peer, the ratio and the target. Run by hand, it prints one plain ``FIGURE`` line: the
+value, the peer and the ratio, the target and whether it is met.
 
 Importing this module limits numpy's BLAS to the thread count the window, headless runs and
 eval workers use (``beacon_sim.core.threads``: one unless ``BEACON_SIM_BLAS_THREADS`` says
@@ -47,13 +48,28 @@ def figure(what: str, value: float, unit: str, *, peer: str | None = None,
     cpu : float, optional
         The CPU time behind ``value`` (same unit), shown beside it.
     """
-    if not os.environ.get(ENV):
-        return
     ratio = value / peer_value if peer_value else None
-    print("FIGURE " + json.dumps({"what": what, "value": value, "unit": unit, "peer": peer,
-                                  "peer_value": peer_value, "ratio": ratio, "target": target,
-                                  "target_of": target_of, "cpu": cpu,
-                                  "load": os.getloadavg()[0]}), flush=True)
+    met = None
+    if target is not None:
+        x = ratio if target_of == "ratio" else value
+        met = None if x is None else bool(x <= target)
+    load = os.getloadavg()[0]
+    if os.environ.get(ENV):
+        print("FIGURE " + json.dumps({"what": what, "value": value, "unit": unit, "peer": peer,
+                                      "peer_value": peer_value, "ratio": ratio, "target": target,
+                                      "target_of": target_of, "cpu": cpu, "met": met,
+                                      "load": load}), flush=True)
+        return
+    # by hand: one plain line, the target and whether it is met last
+    text = f"FIGURE {what}: {value:.4g} {unit}"
+    if peer is not None and peer_value is not None:
+        text += f"; {peer} {peer_value:.4g} {unit}"
+    if ratio is not None:
+        text += f"; ratio {ratio:.3f}x"
+    if target is not None:
+        shown = f"{target:g}x" if target_of == "ratio" else f"{target:g} {unit}"
+        text += f"; target <= {shown}: {'met' if met else 'NOT met' if met is not None else '-'}"
+    print(f"{text}; load {load:.2f}", flush=True)
 
 
 class Clock:

@@ -15,7 +15,7 @@ import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.evaluation.montecarlo import run_monte_carlo, run_monte_carlo_isolated
+from beacon_sim.evaluation.montecarlo import on_dask, run_monte_carlo, run_monte_carlo_isolated
 
 ATTACKS = Path(__file__).parent / "attacks"
 
@@ -75,6 +75,23 @@ def test_dask_runs_equal_local_runs_bit_for_bit(cluster):
     address = cluster.scheduler.address
     _same(run_monte_carlo(sc, ["ekf"], 2, seed=5, duration=3.0, jobs=1),
           run_monte_carlo(sc, ["ekf"], 2, seed=5, duration=3.0, scheduler=address))
+
+
+def test_runs_grouped_into_dask_tasks_come_back_in_seed_order(cluster, monkeypatch):
+    # issue 27: several runs a task on the per-run path; 5 runs on 2 workers at one task a
+    # worker are groups of 3 and 2, and every run is the local one, in its place
+    import beacon_sim.evaluation.montecarlo as mc
+
+    monkeypatch.setattr(mc, "TASKS_PER_DASK_WORKER", 1)
+    seen = []
+    monkeypatch.setattr(mc, "on_dask", lambda s, fn, tasks, done, **kw: (
+        seen.append([len(t) for t in tasks]), on_dask(s, fn, tasks, done, **kw)))
+    sc = load_scenario("default")
+    local = run_monte_carlo(sc, ["ekf"], 5, seed=2, duration=2.0, jobs=1, batch=False)
+    dask = run_monte_carlo(sc, ["ekf"], 5, seed=2, duration=2.0, batch=False, scheduler=cluster)
+    assert seen == [[3, 2]]
+    assert [r.seed for r in dask] == [2, 3, 4, 5, 6] and [r.index for r in dask] == list(range(5))
+    _same(local, dask)
 
 
 def test_eval_cli_on_dask_prints_the_local_table(cluster, capsys):
@@ -198,3 +215,18 @@ def test_a_missing_module_is_one_line_exit_2(capsys):
     assert main(["eval", "default", "--runs", "1", "--duration", "1", "--filter",
                  "no_such_pkg_xyz.m:F"]) == 2
     assert "no_such_pkg_xyz" in capsys.readouterr().err
+
+
+def test_the_lean_dask_settings_are_dasks_own_keys():
+    # a key Dask does not know would be set silently and do nothing: each must be one of its
+    # defaults (issue 27, docs/performance.md)
+    pytest.importorskip("dask.distributed")
+    import dask
+
+    from beacon_sim.evaluation.montecarlo import DASK_LEAN_CONFIG
+
+    for key, value in DASK_LEAN_CONFIG.items():
+        default = dask.config.get(key)  # KeyError if unknown
+        assert type(default) is type(value) or isinstance(default, str), (key, default, value)
+        with dask.config.set({key: value}):
+            assert dask.config.get(key) == value

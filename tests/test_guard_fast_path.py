@@ -89,3 +89,15 @@ def test_unusual_inputs_take_the_full_check():
     out = validate_estimate(good)
     assert out[0] is not good[0] and out[1] is not good[1]  # fresh copies
     assert math.isfinite(float(out[1][0, 0]))
+
+
+def test_other_shapes_of_three_and_nine_entries_get_the_full_checks_message():
+    # the fast path checks sizes and lets the unpacking settle the shape (issue 27)
+    means = [np.zeros(3), np.zeros((3, 1)), np.zeros((1, 3)), np.zeros((1, 1, 3))]
+    covs = [np.eye(3), np.eye(3).reshape(9), np.eye(3).reshape(1, 9), np.eye(3).reshape(3, 3, 1),
+            np.eye(3).reshape(1, 3, 3), np.eye(3).reshape(9, 1)]
+    for m in means:
+        for c in covs:
+            got, full = validate_estimate((m, c)), _validate_any((m, c))
+            assert _same(got, full), (m.shape, c.shape, got, full)
+            assert isinstance(got, tuple) == (m.shape == (3,) and c.shape == (3, 3))

@@ -151,3 +151,82 @@ def test_cpu_limits_set_after_construction_still_count():
     runner.cpu_limits = True  # a CPU-time limit from now on: sleeping is not over it
     _feed(runner, 1)
     assert runner.tracks["sleeps"].failed is None
+
+
+class Kept:
+    """Returns the arrays it keeps (and a kept tuple, or a view) and changes them in place
+    on the next step: the runner must have copied what it recorded."""
+
+    def __init__(self, how: str):
+        self.how, self.m, self.c = how, np.zeros(3), np.eye(3)
+        self.pair = (self.m, self.c)
+
+    def predict(self, u, dt):
+        self.m += 1.0  # in place
+        self.c *= 2.0
+
+    def update(self, z):
+        pass
+
+    def estimate(self):
+        if self.how == "tuple":
+            return self.pair
+        if self.how == "view":
+            return self.m[:], self.c[:]
+        return self.m, self.c
+
+
+@pytest.mark.parametrize("how", ["arrays", "tuple", "view"])
+def test_estimates_the_filter_keeps_are_recorded_as_they_were(how):
+    runner = FilterRunner({"f": Kept(how)}, step_limit_s=10.0)
+    _feed(runner, 4)
+    tr = runner.tracks["f"]
+    assert [m[0] for m in tr.means] == [1.0, 2.0, 3.0, 4.0]
+    assert [c[0, 0] for c in tr.covs] == [2.0, 4.0, 8.0, 16.0]
+
+
+def test_fresh_estimates_are_kept_without_a_copy_and_others_are_copied():
+    from beacon_sim.filters.guard import validate_estimate
+    fresh = (np.zeros(3), np.eye(3))
+    got = validate_estimate(fresh, sole=True)
+    assert got[0] is fresh[0] and got[1] is fresh[1]  # nothing but `fresh` holds them
+    held = fresh[0]
+    got = validate_estimate(fresh, sole=True)
+    assert got[0] is not held and got[1] is not fresh[1]  # one more holder: copied
+    assert np.array_equal(got[0], held)
+    del held
+    got = validate_estimate(fresh)  # the default: always fresh copies
+    assert got[0] is not fresh[0]
+
+
+@pytest.mark.parametrize("cpu", [False, True])
+def test_steps_ending_at_their_deadline_raise_nothing_afterwards(cpu):
+    # steps that end just as their time is up, many times: a raise is either this step's
+    # (the filter is stopped) or withdrawn, never delivered after the step
+    class AtTheLine:
+        def __init__(self, k):
+            self.n, self.k = 0, k
+
+        def predict(self, u, dt):
+            self.n += 1
+            end = time.thread_time() + 0.012 + 0.007 * ((self.n + self.k) % 7)
+            while time.thread_time() < end:  # busy (CPU), 12 to 54 ms, around the 22 ms limit
+                pass
+
+        def update(self, z):
+            pass
+
+        def estimate(self):
+            return np.zeros(3), np.eye(3)
+
+    stopped = 0
+    for k in range(8):
+        runner = FilterRunner({"a": AtTheLine(k), "ok": Plain()}, step_limit_s=0.022, cpu_limits=cpu)
+        _feed(runner, 3)
+        stopped += runner.tracks["a"].failed is not None
+        assert runner.tracks["ok"].steps == 3 and runner.tracks["ok"].failed is None
+    time.sleep(0.3)  # a raise fired as a step ended, or re-fired, would arrive here
+    entry = watchdog._WD_SLOTS[threading.get_ident()]
+    assert entry[0] == float("inf") and entry[1] == 0.0 and entry[2] == -1.0
+    assert watchdog._WD_ARMED[threading.get_ident()] is entry
+    assert stopped >= 1  # some steps were over (the CPU count starts when the watchdog first looks)

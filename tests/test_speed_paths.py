@@ -107,3 +107,89 @@ def test_control_std_of_one_command_on_floats_equals_the_array_form(noise):
         for a, b in zip(fast, ref, strict=True):
             assert type(a) is np.float64
             assert same(float(a), float(b)), (v, w)
+
+
+def test_the_pfs_unlabeled_test_equals_associations():
+    from beacon_sim.core.clutter import UNKNOWN_ID
+    from beacon_sim.core.types import Measurement
+    from beacon_sim.filters import association
+    from beacon_sim.filters.particle import _unlabeled
+
+    cases = []
+    for kind, dim in (("bearing", 1), ("range_bearing", 2), ("pose", 3), ("position", 2)):
+        for ids in ([1, 2, 3], [UNKNOWN_ID] * 3, [UNKNOWN_ID, 4], [UNKNOWN_ID], [], [7]):
+            for dtype in (np.int64, np.int32, np.uint16):
+                if dtype is np.uint16 and UNKNOWN_ID in ids:
+                    continue
+                z = np.zeros((len(ids), dim))
+                cases.append(Measurement("s", kind, z, np.asarray(ids, dtype=dtype)))
+    cases.append(Measurement("s", "bearing", np.zeros((2, 1)), np.full((2, 1), UNKNOWN_ID)))  # 2-D IDs
+    cases.append(Measurement("s", "bearing", np.zeros((2, 1)), np.array([-1.0, -1.0])))  # float IDs
+    kinds = set()
+    for m in cases:
+        assert _unlabeled(m) == association.is_unlabeled(m), m
+        kinds.add(_unlabeled(m))
+    assert kinds == {True, False}
+
+
+def _weighted_pose_stats_before(P, w):
+    """weighted_pose_stats as it was before issue 27's third round (numpy on the 3x3)."""
+    from beacon_sim.core.angles import wrap
+    E = np.empty((3, P.shape[1]), dtype=P.dtype)
+    wt = np.empty(P.shape[1], dtype=P.dtype)
+    wt[:] = w
+    mx, my = float(np.dot(wt, P[0])), float(np.dot(wt, P[1]))
+    s, c = np.sin(P[2]), np.cos(P[2])
+    mth = wrap(math.atan2(float(np.dot(wt, s)), float(np.dot(wt, c))))
+    np.subtract(P[0], mx, out=E[0])
+    np.subtract(P[1], my, out=E[1])
+    e = E[2]
+    np.subtract(P[2], mth, out=e)
+    if np.any(e >= math.pi):
+        np.subtract(e, 2 * math.pi, out=e, where=e >= math.pi)
+    if np.any(e < -math.pi):
+        np.add(e, 2 * math.pi, out=e, where=e < -math.pi)
+    cov = (np.multiply(E, wt) @ E.T).astype(np.float64)
+    cov = 0.5 * (cov + cov.T)
+    from beacon_sim.filters.particle import _above
+
+    clip = not _above(cov, 1e-12)  # the test the code has used since issue 16
+    if clip:
+        vals, vecs = np.linalg.eigh(cov)
+        cov = (vecs * np.maximum(vals, 1e-12)) @ vecs.T
+        cov = 0.5 * (cov + cov.T)
+    return np.array([mx, my, mth]), cov, clip
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_weighted_pose_stats_bit_for_bit_as_before(dtype):
+    from beacon_sim.filters.particle import weighted_pose_stats
+    rng = np.random.default_rng(7)
+    clipped = 0
+    for k in range(300):
+        n = int(rng.integers(1, 60))
+        spread = rng.choice([1e-7, 1e-3, 0.5, 3.0])
+        th = (rng.normal(rng.uniform(-3.2, 3.2), spread * 2, n) + math.pi) % (2 * math.pi) - math.pi
+        P = np.stack([rng.normal(2.0, spread, n), rng.normal(-1.0, spread, n), th])
+        if k % 10 == 0:
+            P[:, 1:] = P[:, :1]  # collapsed: the eigenvalue clip
+        P = P.astype(dtype)
+        w = rng.random(n) ** 3
+        w /= w.sum()
+        got, (*ref, clip) = weighted_pose_stats(P, w), _weighted_pose_stats_before(P, w)
+        clipped += clip
+        for a, b in zip(got, ref, strict=True):
+            assert a.dtype == b.dtype and np.array_equal(a, b), (k, a, b)
+    assert 5 <= clipped < 300  # both paths
+
+
+def test_the_pfs_eigh_is_numpys():
+    from beacon_sim.filters.particle import _eigh
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        A = rng.normal(size=(3, 3)) * rng.choice([1e-9, 1.0, 1e6])
+        S = 0.5 * (A + A.T)
+        for x, y in zip(_eigh(S), np.linalg.eigh(S), strict=True):
+            assert np.array_equal(x, y) and x.dtype == y.dtype
+    with pytest.raises(np.linalg.LinAlgError):  # non-finite: numpy's own error
+        _eigh(np.full((3, 3), np.nan))

@@ -587,6 +587,32 @@ def _task(args) -> RunOutput:
     return one_run(*args)
 
 
+def _task_group(group: list[Any]) -> list[RunOutput]:
+    """Several runs in one Dask task, in order (each as :func:`_task`: the same results)."""
+    return [one_run(*args) for args in group]
+
+
+#: How many tasks each Dask worker gets on the per-run path: runs are grouped into about
+#: this many tasks a worker (fewer tasks, less scheduling and serialisation; enough of them
+#: that one slow group does not leave the other workers idle long).
+TASKS_PER_DASK_WORKER = 3
+
+#: Dask settings for the workers (and the client) of ``eval --scheduler`` and grading
+#: (issue 27; docs/performance.md): with no task to run, a Dask cluster still spends CPU on
+#: its event loops' ticks, its memory and system monitors and the workers' sampling
+#: profiler, in proportion to the wall time: 115 ms of CPU a second for a LocalCluster of
+#: 2 workers with Dask's defaults, 16 ms with these, so eval on Dask costs within a few per
+#: cent of local processes. None of them changes a result. Apply with
+#: ``dask.config.set(DASK_LEAN_CONFIG)`` before a LocalCluster is made, or as a worker's
+#: YAML / ``DASK_...`` environment (docs/performance.md).
+DASK_LEAN_CONFIG: dict[str, Any] = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
+
+
 def default_jobs() -> int:
     """All the cores this process may use."""
     try:
@@ -769,13 +795,19 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
     tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0, run_limit_s)
              for i in range(runs)]
     if scheduler is not None:
-        def one(i: int, r: RunOutput) -> None:
-            out[i] = r
-            bar.advance()
-            if on_run:
-                on_run(r)
+        # a few runs a task (TASKS_PER_DASK_WORKER tasks a worker): the scenario is sent,
+        # and the task scheduled, once per group instead of once per run
+        size = -(-runs // (TASKS_PER_DASK_WORKER * max(1, dask_workers(scheduler))))
+        groups = [list(range(a, min(a + size, runs))) for a in range(0, runs, size)]
 
-        on_dask(scheduler, _task, tasks, one)
+        def group_done(k: int, rs: list[RunOutput]) -> None:
+            for i, r in zip(groups[k], rs, strict=True):
+                out[i] = r
+                bar.advance()
+                if on_run:
+                    on_run(r)
+
+        on_dask(scheduler, _task_group, [[tasks[i] for i in g] for g in groups], group_done)
     elif jobs == 1:
         for i, t in enumerate(tasks):
             run = _task(t)
@@ -1042,8 +1074,9 @@ def stack(runs: list[RunOutput], name: str, attr: str) -> np.ndarray:
     return np.stack([getattr(r.filters[name], attr) for r in runs])
 
 
-__all__ = ["ClusterError", "FilterRun", "RunOutput", "SimulatedRun", "batch_reason", "batch_runs",
-           "dask_client", "dask_workers", "filter_names", "finish_filter", "hosted_runs",
+__all__ = ["DASK_LEAN_CONFIG", "TASKS_PER_DASK_WORKER", "ClusterError", "FilterRun", "RunOutput",
+           "SimulatedRun", "batch_reason", "batch_runs", "dask_client", "dask_workers", "filter_names",
+           "finish_filter", "hosted_runs",
            "isolated_run", "isolated_runs", "on_dask", "one_run", "run_monte_carlo",
            "run_monte_carlo_isolated", "simulate_run", "stack"]
 

@@ -10,6 +10,8 @@ arrays or one line saying why the value is unusable.
 from __future__ import annotations
 
 import math
+import sys
+from collections.abc import Callable
 
 import numpy as np
 
@@ -55,52 +57,100 @@ def _not_psd(a: float, b: float, d: float, e: float, f: float, g: float) -> bool
     return a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0
 
 
-def validate_estimate(est: object, *, _f8: np.dtype = _F8, _mm: float = MAX_MEAN,
-                      _mc: float = MAX_COV) -> tuple[np.ndarray, np.ndarray] | str:
+def _getrefcount(x: object) -> int:
+    return 1 << 30  # no reference counts here (not CPython): always copy
+
+
+if hasattr(sys, "getrefcount"):
+    _getrefcount = sys.getrefcount  # type: ignore[assignment]
+
+
+def _sole_probe(est: tuple[np.ndarray, np.ndarray]) -> tuple[int, int]:
+    m0, _c0 = est  # the locals validate_estimate holds when it counts
+    return _getrefcount(est), _getrefcount(m0)
+
+
+def _sole_refs() -> tuple[int, int]:
+    est = (np.zeros(3), np.eye(3))  # held by one local of the caller, as the runner holds it
+    return _sole_probe(est)
+
+
+#: The reference counts of an estimate pair and of each of its arrays when nothing but the
+#: caller's one variable holds the pair and nothing but the pair holds the arrays (measured
+#: here, once): with ``sole=True``, arrays at these counts are returned as they are, without
+#: a copy. Every holder of a Python object counts (a filter's attribute, a list, the tuple
+#: kept, a view's ``base``), so no one but the caller can reach, or change, such arrays.
+_SOLE_PAIR, _SOLE_ARRAY = _sole_refs()
+
+
+def validate_estimate(est: object, *, sole: bool = False, _f8: np.dtype = _F8,
+                      _mm: float = MAX_MEAN, _nmm: float = -MAX_MEAN, _mc: float = MAX_COV,
+                      _rc: Callable[[object], int] = _getrefcount, _sp: int = _SOLE_PAIR,
+                      _sa: int = _SOLE_ARRAY) -> tuple[np.ndarray, np.ndarray] | str:
     """The one guard of what ``estimate()`` returned: ``(mean (3,), cov (3, 3))`` as fresh
     float arrays [m, m, rad], or one line saying why it is unusable (not a pair, not
     numbers, wrong shapes, NaN or infinity, covariance not symmetric, not positive
-    semi-definite). Cheap (a microsecond or two): it runs on every step of every filter.
+    semi-definite). Cheap (about a microsecond): it runs on every step of every filter.
 
-    The usual case, float64 arrays of the right shapes, is judged here with float
+    ``sole=True`` (the runner, which holds ``est`` in one variable and drops it after): two
+    float64 arrays that own their data and that nothing else refers to (reference counts,
+    CPython) are returned as they are rather than copied: a filter that builds its estimate
+    afresh each step (the EKF, the UKF, the PF) is not copied again; one that returns arrays
+    it keeps is. Same values either way.
+
+    The usual case, float64 arrays of 3 and 9 entries, is judged here with float
     comparisons; anything else, and anything the fast path cannot settle, takes the full
     check (:func:`_validate_any`), which names what is wrong. The verdicts are the same
-    (tests/test_guard_fast_path.py): an exactly symmetric covariance whose entries lie
-    within [-s, s], s its largest diagonal entry with 1e-12 <= s <= MAX_COV, has every entry
-    finite (a NaN fails every comparison) and s as its largest |entry|, so only the PSD test
-    is left; otherwise a finite sum of the entries proves them finite (a NaN or an infinity
-    would make it NaN or infinite), and one that overflows goes the long way too.
+    (tests/test_guard_fast_path.py): the shapes are those of the unpacking (any other shape
+    of 3 and 9 entries fails it, or leaves lists that no float comparison takes: TypeError);
+    an exactly symmetric covariance whose entries lie within [-s, s], s its largest diagonal
+    entry with 1e-12 <= s <= MAX_COV, has every entry finite (a NaN fails every comparison)
+    and s as its largest |entry|, so only the PSD test is left; otherwise a finite sum of
+    the entries proves them finite (a NaN or an infinity would make it NaN or infinite), and
+    one that overflows goes the long way too.
 
-    The keyword arguments are not for callers: the constants of the fast path, bound once
-    (locals cost less than globals on a path that runs every step)."""
+    The keyword arguments after ``sole`` are not for callers: the constants of the fast
+    path, bound once (locals cost less than globals on a path that runs every step)."""
     if (type(est) is tuple or isinstance(est, tuple | list)) and len(est) == 2:
-        m0, c0 = est[0], est[1]
-        if (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _f8
-                and c0.dtype is _f8 and m0.shape == (3,) and c0.shape == (3, 3)):
-            (a, b, d), (b2, e, f), (d2, f2, g) = c0.tolist()
-            x, y, t = m0.tolist()
-            # NaN, infinity or a diverged mean fail here: the full check says which
-            if -_mm <= x <= _mm and -_mm <= y <= _mm and -_mm <= t <= _mm:
-                s = max(a, e, g)
-                if (b == b2 and d == d2 and f == f2 and 1e-12 <= s <= _mc and a >= -s
-                        and e >= -s and g >= -s and -s <= b <= s and -s <= d <= s and -s <= f <= s):
-                    # _not_psd inline: its tolerance is 1e-9 * s here (0.5 * (b + b) == b exactly)
-                    tol = 1e-9 * s
-                    a, e, g = a + tol, e + tol, g + tol
-                    if a <= 0.0 or a * e - b * b <= 0.0 \
-                            or a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0:
-                        return _NOT_PSD
-                    return m0.copy(), c0.copy()
-                if math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g):
-                    scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2),
-                                abs(g), 1e-12)
-                    if scale > MAX_COV:
-                        return _DIVERGED
-                    if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
-                        return "covariance is not symmetric"
-                    if _not_psd(a, 0.5 * (b + b2), 0.5 * (d + d2), e, 0.5 * (f + f2), g):
-                        return _NOT_PSD
-                    return m0.copy(), c0.copy()
+        m0, c0 = est
+        if (type(m0) is np.ndarray and type(c0) is np.ndarray and m0.dtype is _f8 and c0.dtype is _f8
+                and m0.size == 3 and c0.size == 9):
+            try:
+                (a, b, d), (b2, e, f), (d2, f2, g) = c0.tolist()
+                x, y, t = m0.tolist()
+                # NaN, infinity or a diverged mean fail here: the full check says which
+                if _nmm <= x <= _mm and _nmm <= y <= _mm and _nmm <= t <= _mm:
+                    s = a if a >= e else e  # max(a, e, g) (a NaN fails below either way)
+                    if g > s:
+                        s = g
+                    ns = -s
+                    if (b == b2 and d == d2 and f == f2 and 1e-12 <= s <= _mc and a >= ns and e >= ns
+                            and g >= ns and ns <= b <= s and ns <= d <= s and ns <= f <= s):
+                        # _not_psd inline: its tolerance is 1e-9 * s here (0.5 * (b + b) == b exactly)
+                        tol = 1e-9 * s
+                        a, e, g = a + tol, e + tol, g + tol
+                        if a <= 0.0 or a * e - b * b <= 0.0 \
+                                or a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0:
+                            return _NOT_PSD
+                        if (sole and _rc(m0) <= _sa and _rc(c0) <= _sa and _rc(est) <= _sp
+                                and m0.base is None and c0.base is None):
+                            return m0, c0
+                        return m0.copy(), c0.copy()
+                    if math.isfinite(a + b + d + b2 + e + f + d2 + f2 + g):
+                        scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2),
+                                    abs(g), 1e-12)
+                        if scale > MAX_COV:
+                            return _DIVERGED
+                        if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
+                            return "covariance is not symmetric"
+                        if _not_psd(a, 0.5 * (b + b2), 0.5 * (d + d2), e, 0.5 * (f + f2), g):
+                            return _NOT_PSD
+                        if (sole and _rc(m0) <= _sa and _rc(c0) <= _sa and _rc(est) <= _sp
+                                and m0.base is None and c0.base is None):
+                            return m0, c0
+                        return m0.copy(), c0.copy()
+            except (TypeError, ValueError):  # not (3,) and (3, 3): the full check names the shapes
+                pass
     return _validate_any(est)
 
 

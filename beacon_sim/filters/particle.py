@@ -39,8 +39,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.metrics import chi2_quantile
+from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
@@ -60,8 +62,42 @@ _clip = _find_clip()
 # The reductions behind ndarray.max / sum and np.max / np.sum, called directly: the same
 # results without their Python layers (1-1.5 us a call, a few per step).
 _max = np.maximum.reduce
+_min = np.minimum.reduce
 _sum = np.add.reduce
 _any = np.logical_or.reduce
+
+
+def _find_eigh():
+    """The gufunc ``np.linalg.eigh`` calls for a real array (``UPLO="L"``); absent: None."""
+    ul = getattr(np.linalg, "_umath_linalg", None)
+    return getattr(ul, "eigh_lo", None)
+
+
+_EIGH_LO = _find_eigh()
+
+
+def _eigh(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.linalg.eigh(a)`` of a float64 3x3 ``a``: the same LAPACK call and results without
+    its Python layers (~7 us of a ~12 us call). Non-finite entries take ``np.linalg.eigh``
+    itself (its LinAlgError); a finite symmetric 3x3 always converges."""
+    r0, r1, r2 = a.tolist()
+    if _EIGH_LO is None or not math.isfinite(sum(r0) + sum(r1) + sum(r2)):
+        vals, vecs = np.linalg.eigh(a)
+        return vals, vecs
+    vals, vecs = _EIGH_LO(a, signature="d->dd")
+    return vals, vecs
+
+
+def _unlabeled(m: Measurement) -> bool:
+    """``association.is_unlabeled(m)`` for the usual reading (1-D integer IDs) on lists, a
+    microsecond instead of four; anything else asks it."""
+    ids = m.beacon_ids
+    if type(ids) is np.ndarray and ids.ndim == 1 and ids.dtype.kind in "iu":
+        if m.kind not in association.READING_DIMS or not len(m) > 0:
+            return False
+        lst = ids.tolist()
+        return lst.count(UNKNOWN_ID) == len(lst)
+    return association.is_unlabeled(m)
 
 
 class ParticleFilter(FilterBase):
@@ -148,6 +184,10 @@ class ParticleFilter(FilterBase):
         self.lost = 0.0
         self.lost_at = LOST_AT
         self._tally: list[float] = [0, 0, 0.0]
+        self._ll_fresh = False  # _fit[:n] not yet written this tick (see _tick_loglik)
+        self._still_noise: Any = None  # the motion noise known to declare no pose noise
+        self._row0: np.ndarray | None = None  # _work[:, 0, :]
+        self._lost_at_of: tuple[float, float, float] = (math.nan, math.nan, LOST_AT)  # alpha, eps, lost_at
         self._spread_floor: np.ndarray | None = None
         self._chi2_cut: dict[int, float] = {}
         self.ess = 0.0
@@ -240,8 +280,11 @@ class ParticleFilter(FilterBase):
         y += s
         th += w
         # slip scales the additive pose noise with the command; none declared: nothing to add
-        pose_std = getattr(noise, "pose_std", None)
-        ps = noise.pose_std_at(control.v, control.omega) if pose_std is None or any(pose_std) else ()
+        if noise is not self._still_noise:  # (a frozen MotionNoise declaring no pose noise: none)
+            pose_std = getattr(noise, "pose_std", None)
+            if pose_std is not None and not any(pose_std) and type(noise) is MotionNoise:
+                self._still_noise = noise
+        ps = () if noise is self._still_noise else noise.pose_std_at(control.v, control.omega)
         if any(ps):
             for row, std in zip((x, y, th), ps, strict=True):
                 if std > 0:
@@ -264,19 +307,28 @@ class ParticleFilter(FilterBase):
         np.floor(t, out=t)
         t *= TWO_PI
         a -= t
-        # float32 rounding can leave exactly pi (rarely: test first, assign only then)
-        hit = self._hit[: a.shape[0]]
-        np.greater_equal(a, math.pi, out=hit)
-        if _any(hit):
-            a[hit] = -math.pi
+        # float32 rounding can leave exactly pi (rarely: test the largest first, one call;
+        # a NaN, or any angle at pi, takes the full test)
+        if not _max(a) < math.pi:
+            hit = self._hit[: a.shape[0]]
+            np.greater_equal(a, math.pi, out=hit)
+            if _any(hit):
+                a[hit] = -math.pi
 
     # ----------------------------------------------------------------- measurements
     def update(self, measurements: Sequence[Measurement]) -> None:
         """Weight the particles by the likelihood of this tick's readings (log domain)."""
-        measurements = [m for m in measurements if len(m)]
+        if type(measurements) is list:  # a list of non-empty Measurements: as it is
+            for m in measurements:
+                if type(m) is not Measurement or not m.z.shape[0]:  # (len(m) is z's rows)
+                    measurements = [m for m in measurements if len(m)]
+                    break
+        else:
+            measurements = [m for m in measurements if len(m)]
         if not measurements:
             return
-        association.particle_start(self)  # issue 29: forget the last per-particle choices
+        if "_association" in self.__dict__:  # issue 29: forget the last per-particle choices
+            association.particle_start(self)
         if self._pending_resample:
             self._resample()
         n = self.n
@@ -328,12 +380,22 @@ class ParticleFilter(FilterBase):
         (and ``_dims``); returns the position fixes' per-particle normalisation (or None)."""
         n = self.n
         ll = self._fit[:n]
-        ll[:] = 0.0
-        extra = np.zeros(n) if any(m.kind == "position" for m in measurements) else None
+        extra = None
+        for m in measurements:  # any position fix: its per-particle normalisation
+            if m.kind == "position":
+                extra = np.zeros(n)
+                break
         dims = 0
         self._tally = [0, 0, 0.0]     # readings, readings no particle explains, expected outliers
+        # ll starts at zero: a tick's first bearing reading writes its sum there instead of
+        # adding it to zeros (the same bits: 0.0 + x is x, and no log-likelihood is -0.0);
+        # any other first reading gets the zeros first
+        self._ll_fresh = True
         for m in measurements:
             dims += self._loglik(m, ll, extra)
+        if self._ll_fresh:
+            ll[:] = 0.0
+            self._ll_fresh = False
         if self.params["heading_weight"]:
             # Seed 002 eqs. 12-14: theta_pred from the last estimate and the commanded turn.
             sa = self.params["heading_k_a"] / max(self._last_v, 0.015)
@@ -427,7 +489,12 @@ class ParticleFilter(FilterBase):
         share = max(0.0, (bad / k - eps) / (1.0 - eps))
         a = self.params["alpha_fast"]
         self.lost += a * (share - self.lost)
-        self.lost_at = LOST_AT + 3.0 * math.sqrt(a / max(2.0 - a, 1e-9) * eps / (1.0 - eps))
+        last = self._lost_at_of  # the same (alpha, eps) as last time: the same lost_at
+        if last[0] == a and last[1] == eps:
+            self.lost_at = last[2]
+        else:
+            self.lost_at = LOST_AT + 3.0 * math.sqrt(a / max(2.0 - a, 1e-9) * eps / (1.0 - eps))
+            self._lost_at_of = (a, eps, self.lost_at)
 
     def _count_unexplained(self, fits: np.ndarray, dof: int, eps: float) -> None:
         """Tally readings for :meth:`_update_lost`: ``fits`` (k, n) or (n,), the Gaussian
@@ -440,8 +507,14 @@ class ParticleFilter(FilterBase):
         self._tally[0] += k
         if k <= 16:   # a few readings: on floats (float32 -> float exactly, the same test)
             vals = best.tolist()
-            self._tally[1] += sum(1 for b in vals if -2.0 * b > cut) if type(vals) is list \
-                else int(-2.0 * vals > cut)
+            if type(vals) is list:
+                bad = 0
+                for b in vals:
+                    if -2.0 * b > cut:
+                        bad += 1
+                self._tally[1] += bad
+            else:
+                self._tally[1] += int(-2.0 * vals > cut)
         else:
             self._tally[1] += int(np.count_nonzero(-2.0 * np.asarray(best, dtype=np.float64) > cut))
         self._tally[2] += eps * k
@@ -481,7 +554,13 @@ class ParticleFilter(FilterBase):
         """Add the log-likelihood of ``m`` at every particle to ``ll`` (noise constants that
         are the same for all particles left out, so every term is <= 0). Returns the number
         of scalar readings."""
-        if association.is_unlabeled(m):  # unknown correspondence: ML per particle (issue 29)
+        if self._ll_fresh and m.kind not in ("bearing", "range_bearing"):
+            ll[:] = 0.0  # the zeros it adds to (see _tick_loglik)
+            self._ll_fresh = False
+        if _unlabeled(m):  # unknown correspondence: ML per particle (issue 29)
+            if self._ll_fresh:
+                ll[:] = 0.0
+                self._ll_fresh = False
             return association.particle_loglik(self, m, ll)
         n = self.n
         known = self._sensor_of.get(m.sensor)
@@ -499,7 +578,8 @@ class ParticleFilter(FilterBase):
                 kappa = 1.0 / std[-1] ** 2
             bx, by = self._beacon_columns(m.beacon_ids)
             k = z.shape[0]
-            T1, T2, T3, DX, DY = self._scratch(k, n)
+            views = self._views.get((k, n))  # kept per (k, n) (cleared when the work grows)
+            T1, T2, T3, DX, DY = views if views is not None else self._scratch(k, n)
             c, s = self._c[:n], self._s[:n]
             if self._trig_n != n:
                 np.cos(th, out=c)
@@ -524,8 +604,12 @@ class ParticleFilter(FilterBase):
             np.multiply(DY, DY, out=T3)
             T2 += T3
             np.sqrt(T2, out=T2)                   # range r
-            np.maximum(T2, 1e-6, out=T3)
-            T1 /= T3
+            if m.kind == "bearing":               # r is not needed after: in place
+                np.maximum(T2, 1e-6, out=T2)
+                T1 /= T2
+            else:
+                np.maximum(T2, 1e-6, out=T3)
+                T1 /= T3
             T1 -= 1.0
             T1 *= kappa                           # von Mises: kappa (cos(nu) - 1) <= 0
             if m.kind == "range_bearing":
@@ -543,7 +627,14 @@ class ParticleFilter(FilterBase):
                         self.ctx.world.width, self.ctx.world.height)
                     log_u += -math.log(rmax) + 0.5 * math.log(TWO_PI * std[0] ** 2)
                 T1[:] = np.logaddexp(T1 + math.log1p(-eps), math.log(eps) + log_u)
-            ll += _sum(T1, axis=0, dtype=np.float64) if k > 1 else T1[0]
+            if self._ll_fresh:  # the tick's first reading (see _tick_loglik)
+                self._ll_fresh = False
+                if k > 1:
+                    _sum(T1, axis=0, dtype=np.float64, out=ll)
+                else:
+                    ll[:] = T1[0]
+            else:
+                ll += _sum(T1, axis=0, dtype=np.float64) if k > 1 else T1[0]
             return int(z.size)
         if m.kind == "pose":
             std = spec.fix_std(len(m.beacon_ids))
@@ -600,9 +691,9 @@ class ParticleFilter(FilterBase):
             idx = idx[rng.permutation(n_cand)]  # a prefix must be a fair sample
         P = self._P2
         m = int(idx.shape[0])
-        np.take(self._P[0, :n_old], idx, out=P[0, :m])
-        np.take(self._P[1, :n_old], idx, out=P[1, :m])
-        np.take(self._P[2, :n_old], idx, out=P[2, :m])
+        self._P[0, :n_old].take(idx, out=P[0, :m])  # np.take without its Python layer
+        self._P[1, :n_old].take(idx, out=P[1, :m])
+        self._P[2, :n_old].take(idx, out=P[2, :m])
         fit = self._fit[:n_old][idx] if p["adaptive"] == "seed002" else None
         if self.inject_prob > 0:
             mask = rng.random(m) < self.inject_prob
@@ -664,7 +755,7 @@ class ParticleFilter(FilterBase):
     def _jitter(self, n: int, cov: np.ndarray) -> None:
         """Add Gaussian noise of covariance ``cov`` (3x3) to the first ``n`` particles
         (heading wrapped, positions kept inside the world)."""
-        vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+        vals, vecs = _eigh(0.5 * (cov + cov.T))
         L = vecs * np.sqrt(np.maximum(vals, 0.0))
         P = self._P[:, :n]
         self._trig_n = 0
@@ -708,7 +799,10 @@ class ParticleFilter(FilterBase):
                 self._work = np.empty((5, max(4, len(self.ctx.world.beacons)), self.capacity),
                                       dtype=self.dtype)
                 self._views.clear()
-            mean, cov = weighted_pose_stats(P, w, self._work[:, 0, :], trig)
+            row0 = self._row0  # the estimate's scratch view, kept while the work is the same
+            if row0 is None or row0.base is not self._work:
+                row0 = self._row0 = self._work[:, 0, :]
+            mean, cov = weighted_pose_stats(P, w, row0, trig)
             if self._spread_floor is not None:
                 cov = cov + self._spread_floor
             if self.params["lost_cov"] and self.lost >= self.lost_at:
@@ -730,10 +824,14 @@ class ParticleFilter(FilterBase):
         explained again. While tracking a reading goes unexplained with probability
         ``1 - lost_chi2``; ``lost`` rarely reaches ``lost_at`` then, and only for a few ticks."""
         xmin, ymin, xmax, ymax = self.ctx.world.bounds
-        d = np.array([0.5 * (xmin + xmax) - mean[0], 0.5 * (ymin + ymax) - mean[1]])
-        U = np.zeros((3, 3))
-        U[:2, :2] = np.diag([(xmax - xmin) ** 2 / 12.0, (ymax - ymin) ** 2 / 12.0]) + np.outer(d, d)
-        U[2, 2] = math.pi ** 2 / 3.0                # uniform heading about any mean
+        mx, my = mean[0], mean[1]  # float64 scalars, as numpy's entries were
+        d0, d1 = 0.5 * (xmin + xmax) - mx, 0.5 * (ymin + ymax) - my
+        d0, d1 = float(d0), float(d1)
+        c01 = d0 * d1
+        # diag + outer(d, d) entry by entry (the same float operations, no small arrays)
+        U = np.array([[(xmax - xmin) ** 2 / 12.0 + d0 * d0, 0.0 + c01, 0.0],
+                      [0.0 + c01, (ymax - ymin) ** 2 / 12.0 + d1 * d1, 0.0],
+                      [0.0, 0.0, math.pi ** 2 / 3.0]])  # uniform heading about any mean
         out = (1.0 - p_lost) * cov + p_lost * U
         return 0.5 * (out + out.T)
 
@@ -834,17 +932,24 @@ def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = 
     np.subtract(P[1], my, out=E[1])
     e = E[2]
     np.subtract(P[2], mth, out=e)            # in (-2 pi, 2 pi): wrap by at most one turn
-    if _any(np.greater_equal(e, math.pi)):  # rarely: test first, wrap only then
+    # rarely: test first (the largest and the smallest, one call each; a NaN takes the full
+    # test), wrap only then
+    if not _max(e) < math.pi and _any(np.greater_equal(e, math.pi)):
         np.subtract(e, TWO_PI, out=e, where=e >= math.pi)
-    if _any(np.less(e, -math.pi)):
+    if not _min(e) >= -math.pi and _any(np.less(e, -math.pi)):
         np.add(e, TWO_PI, out=e, where=e < -math.pi)
     WE = np.multiply(E, wt)
-    cov = (WE @ E.T).astype(np.float64)
-    cov = 0.5 * (cov + cov.T)
-    if _above(cov, 1e-12):   # every eigenvalue above the clip: it would change nothing
+    # 0.5 (C + C^T) in float64 on the entries (exactly numpy's operations: the float32
+    # entries are floats exactly, a + b == b + a, and 0.5 (a + a) == a), without three small
+    # arrays' calls
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = (WE @ E.T).tolist()
+    s01, s02, s12 = 0.5 * (a01 + a10), 0.5 * (a02 + a20), 0.5 * (a12 + a21)
+    a00, a11, a22 = 0.5 * (a00 + a00), 0.5 * (a11 + a11), 0.5 * (a22 + a22)
+    cov = np.array([[a00, s01, s02], [s01, a11, s12], [s02, s12, a22]])
+    if _above_entries(a00, s01, s02, a11, s12, a22, 1e-12):  # every eigenvalue above the clip
         return np.array([mx, my, mth]), cov
     # float32 sums can leave a tiny negative eigenvalue when the set has collapsed: clip.
-    vals, vecs = np.linalg.eigh(cov)
+    vals, vecs = _eigh(cov)
     cov = (vecs * np.maximum(vals, 1e-12)) @ vecs.T
     cov = 0.5 * (cov + cov.T)
     return np.array([mx, my, mth]), cov
@@ -856,6 +961,12 @@ def _above(cov: np.ndarray, floor: float) -> bool:
     eigenvalue clip of :func:`weighted_pose_stats` is the identity, and an eigen-decomposition
     (~50 us) is not needed."""
     (a00, a01, a02), (_, a11, a12), (_, _, a22) = cov.tolist()
+    return _above_entries(a00, a01, a02, a11, a12, a22, floor)
+
+
+def _above_entries(a00: float, a01: float, a02: float, a11: float, a12: float, a22: float,
+                   floor: float) -> bool:
+    """:func:`_above` of the symmetric 3x3 with these upper-triangle entries."""
     a00 -= floor
     if not a00 > 0.0:
         return False

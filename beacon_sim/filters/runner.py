@@ -17,6 +17,8 @@ here, where other modules have always imported them from.
 
 from __future__ import annotations
 
+import math
+import threading
 import time
 import traceback
 from collections import deque
@@ -38,6 +40,8 @@ from beacon_sim.filters.guard import (  # noqa: F401 - re-exported
 )
 from beacon_sim.filters.host import call_guarded, failure_of, guarded_call, run_filter_code  # noqa: F401
 from beacon_sim.filters.watchdog import (  # noqa: F401 - re-exported
+    CPU_BACKSTOP_FACTOR,
+    CPU_BACKSTOP_S,
     FilterExit,
     FilterTimeout,
     StepWatch,
@@ -46,6 +50,8 @@ from beacon_sim.filters.watchdog import (  # noqa: F401 - re-exported
     is_filter_failure,
     note_user_interrupt,
     one_line,
+    settle_slot,
+    step_slot,
     time_limit,
     user_interrupted,
 )
@@ -67,6 +73,9 @@ SLOW_STEP_MS = 50.0
 SLOW_WINDOW = 10
 SLOW_MIN_STEPS = 3
 _SLOW_NS = SLOW_STEP_MS * 1e6  # [ns]
+_INF = math.inf
+_get_ident = threading.get_ident
+_monotonic = time.monotonic  # the watchdog's clock
 
 
 def note_step_time(track: FilterTrack, step_ns: int) -> None:
@@ -230,17 +239,21 @@ class FilterRunner:
         """Predict with the step's command, update with its measurements, record.
 
         The per-step work around a filter is kept small (issue 27, ``benchmarks/bench_runner.py``):
-        one :class:`StepWatch` armed in place, the ladder of :func:`call_guarded` inlined, the
-        guard's fast path for the usual float64 estimate."""
-        watch = self._watch
+        the thread's :class:`StepWatch` entry armed and ended in place (the same protocol, no
+        object, no lock unless the watchdog fired), the ladder of :func:`call_guarded` inlined,
+        the guard's fast path for the usual float64 estimate, whose arrays are kept without a
+        copy when nothing else refers to them (``sole=True``). A step view (``keep_prior``),
+        or another limit armed around the loop, takes the general way (:meth:`_general`)."""
         if self._watch_cpu is not self.cpu_limits:  # cpu_limits changed since: a watch to match
-            watch = self._watch = StepWatch(self.cpu_limits)
+            self._watch = StepWatch(self.cpu_limits)
             self._watch_cpu = self.cpu_limits
+        cpu = self._watch.cpu
         clock = time.perf_counter_ns
-        plain = not self.keep_prior  # no step view: _step's three calls inline
+        plain = not self.keep_prior
         no_run_limit, step_limit = self.run_limit_s is None, self.step_limit_s
         control, dt, measurements = step.control, step.dt, step.measurements
         guard = validate_estimate
+        tid = _get_ident()  # every filter of a step runs in this thread
         for track in self.tracks.values():
             f = track.filter
             if track.failed or f is None:
@@ -249,51 +262,108 @@ class FilterRunner:
                 limit, of_run = step_limit, False
             else:
                 limit, of_run = self._limit(track)
-            watch.seconds = limit
-            cpu0 = 0 if no_run_limit else time.thread_time_ns()
-            t0 = clock()
-            try:
-                with watch:
-                    if plain:
+            entry, seconds = None, 0.0
+            if limit is not None and -_INF < limit < _INF:  # a limit: the thread's own entry
+                seconds = limit if limit > 0.0 else 0.0
+                entry = step_slot(tid)
+                if entry is None:  # another limit is armed around us: StepWatch nests
+                    plain = False
+            if not plain:
+                est = self._general(track, f, step, limit, of_run)
+                if est is _FAILED:
+                    continue
+            else:
+                cpu0 = 0 if no_run_limit else time.thread_time_ns()
+                t0 = clock()
+                try:
+                    if entry is not None:  # StepWatch.__enter__, inline
+                        if cpu:
+                            entry[3] = -1.0
+                            entry[4] = -1.0
+                            entry[2] = seconds
+                            entry[0] = _monotonic() + seconds * CPU_BACKSTOP_FACTOR + CPU_BACKSTOP_S
+                        else:
+                            entry[0] = _monotonic() + seconds
                         f.predict(control, dt)
                         f.update(measurements)
-                        est: object = f.estimate()
+                        est = f.estimate()
+                        entry[0] = _INF  # StepWatch.__exit__ inline (in the try: a late raise is this step's)
+                        entry[2] = -1.0
+                        if entry[1]:
+                            settle_slot(entry)
                     else:
-                        est = self._step(track, f, step)
-            except BaseException as exc:  # the ladder of host.call_guarded, inline
-                over = self._over(of_run)
-                why = failure_of(exc, limit, over)
-                if why is None:
-                    raise
-                tb = traceback.format_exc()
-                if why == over:
-                    track.step_ns += clock() - t0
-                    if not no_run_limit:
-                        track.charged_ns += time.thread_time_ns() - cpu0
-                self.fail(track.name, why, tb, step.time)
-                continue
-            elapsed = clock() - t0
-            track.step_ns += elapsed
-            if not no_run_limit:
-                track.charged_ns += time.thread_time_ns() - cpu0
-            track.steps += 1
-            # note_step_time's usual case inline: the recent steps' sum is under the line
-            recent = track.recent_step_ns
-            n = len(recent)
-            if n == recent.maxlen:
-                total = track.recent_sum_ns - recent[0] + elapsed
-            else:
-                total = track.recent_sum_ns + elapsed
-                n += 1
-            if n < SLOW_MIN_STEPS or total <= _SLOW_NS * (n - 1):
-                recent.append(elapsed)
-                track.recent_sum_ns = total
-            else:
-                note_step_time(track, elapsed)
-            checked = guard(est)
+                        f.predict(control, dt)
+                        f.update(measurements)
+                        est = f.estimate()
+                except BaseException as exc:  # the ladder of host.call_guarded, inline
+                    if entry is not None:
+                        settle_slot(entry)  # nothing re-fired after the step
+                    self._stopped(track, exc, limit, of_run, t0, cpu0, step.time)
+                    continue
+                elapsed = clock() - t0
+                track.step_ns += elapsed
+                if not no_run_limit:
+                    track.charged_ns += time.thread_time_ns() - cpu0
+                track.steps += 1
+                # note_step_time's usual case inline: the recent steps' sum is under the line
+                recent = track.recent_step_ns
+                n = len(recent)
+                if n == SLOW_WINDOW:
+                    total = track.recent_sum_ns - recent[0] + elapsed
+                else:
+                    total = track.recent_sum_ns + elapsed
+                    n += 1
+                if n < SLOW_MIN_STEPS or total <= _SLOW_NS * (n - 1):
+                    recent.append(elapsed)
+                    track.recent_sum_ns = total
+                else:
+                    note_step_time(track, elapsed)
+            checked = guard(est, sole=True)
             if isinstance(checked, str):
                 self.fail(track.name, checked, "", step.time)
                 continue
             track.means.append(checked[0])
             track.covs.append(checked[1])
             track.ticks.append(step.tick)
+
+    def _stopped(self, track: FilterTrack, exc: BaseException, limit: float | None, of_run: bool,
+                 t0: int, cpu0: int, time_s: float) -> None:
+        """A step that raised (``exc``): the filter switched off with its one line (a step
+        stopped by its time limit is charged its time), or the user's Ctrl-C re-raised."""
+        over = self._over(of_run)
+        why = failure_of(exc, limit, over)
+        if why is None:
+            raise exc
+        tb = traceback.format_exc()
+        if why == over:
+            track.step_ns += time.perf_counter_ns() - t0
+            if self.run_limit_s is not None:
+                track.charged_ns += time.thread_time_ns() - cpu0
+        self.fail(track.name, why, tb, time_s)
+
+    def _general(self, track: FilterTrack, f: Filter, step: Step, limit: float | None,
+                 of_run: bool) -> object:
+        """One step the general way (a step view, or a limit armed around the loop): under
+        the :class:`StepWatch`, timed and recorded; the estimate, or ``_FAILED``."""
+        watch = self._watch
+        watch.seconds = limit
+        clock = time.perf_counter_ns
+        cpu0 = 0 if self.run_limit_s is None else time.thread_time_ns()
+        t0 = clock()
+        try:
+            with watch:
+                est = self._step(track, f, step)
+        except BaseException as exc:
+            self._stopped(track, exc, limit, of_run, t0, cpu0, step.time)
+            return _FAILED
+        elapsed = clock() - t0
+        track.step_ns += elapsed
+        if self.run_limit_s is not None:
+            track.charged_ns += time.thread_time_ns() - cpu0
+        track.steps += 1
+        note_step_time(track, elapsed)
+        return est
+
+
+#: :meth:`FilterRunner._general`'s answer for a step that failed.
+_FAILED = object()

@@ -116,11 +116,18 @@ def _watchdog_loop() -> None:
         now = time.monotonic()
         with _WD_LOCK:
             for tid, entry in _WD_ARMED.items():
-                if now >= entry[0] or _cpu_over(tid, entry):
+                deadline = entry[0]
+                if now >= deadline or _cpu_over(tid, entry):
+                    # "fired" first, then a second look: a StepWatch step ends without the lock
+                    # (deadline to infinity, then it reads "fired"); one that ended before this
+                    # look is not stopped, one that ends after it sees "fired" and waits here
+                    entry[1] = 1.0
+                    if entry[0] is not deadline:  # the step ended (or the next began) meanwhile
+                        entry[1] = 0.0
+                        continue
                     _raise_in(tid, FilterTimeout)
                     entry[0] = now + _WD_REFIRE_S
                     entry[2] = -1.0  # from now on re-fired by wall time, every 0.1 s
-                    entry[1] = 1.0
 
 
 class time_limit:  # used as ``with time_limit(s):``, like the function it was
@@ -178,8 +185,11 @@ class StepWatch:
     same limits and verdicts at a fraction of the cost: one object reused for every step
     (set ``seconds``, then ``with watch:``), and the thread's entry in the watchdog's table
     kept between steps with its deadline at infinity, so arming a step is a clock read and
-    a few writes (no allocation, no lock); only the end of a step takes the lock (a raise
-    the watchdog fired as the step ended must be withdrawn before the step is over).
+    a few writes (no allocation, no lock). Ending one takes no lock either unless the
+    watchdog fired: the step sets the deadline to infinity, then reads the "fired" mark; the
+    watchdog sets that mark before it raises and then looks at the deadline again, so either
+    it sees the step over and does not raise, or the step sees the mark and settles under
+    the lock (:func:`settle_slot`: a raise not yet delivered is withdrawn).
 
     Where another limit is already armed in the thread (a :class:`time_limit` around the
     loop, or a StepWatch inside a step), it falls back to :class:`time_limit`, which nests.
@@ -226,13 +236,35 @@ class StepWatch:
                 fallback.__exit__(*exc)
             return False
         self._armed = None
-        with _WD_LOCK:
-            entry[0] = math.inf
-            entry[2] = -1.0
-            if entry[1]:
-                entry[1] = 0.0
-                _raise_in(_get_ident(), None)  # a raise not yet delivered: withdraw it
+        entry[0] = _INF  # idle, without the lock: the watchdog looks again after "fired"
+        entry[2] = -1.0
+        if entry[1]:  # it fired (or is firing): settle under the lock
+            settle_slot(entry)
         return False
+
+
+def settle_slot(entry: list[float]) -> None:
+    """End a :class:`StepWatch` step whose watchdog entry ``entry`` fired (or may have):
+    under the lock, the entry idle again and a raise not yet delivered withdrawn. Also what
+    a step that was stopped (or failed) calls, so that nothing is re-fired after it."""
+    with _WD_LOCK:
+        entry[0] = _INF
+        entry[2] = -1.0
+        if entry[1]:
+            entry[1] = 0.0
+            _raise_in(_get_ident(), None)  # a raise not yet delivered: withdraw it
+
+
+def step_slot(tid: int) -> list[float] | None:
+    """Thread ``tid``'s idle :class:`StepWatch` entry, to arm in place (``entry[0]``: the
+    wall deadline; under a CPU limit also ``entry[2..4]``, see ``StepWatch.__enter__``) and
+    end as ``StepWatch.__exit__`` does (deadline to infinity, CPU limit off, then
+    :func:`settle_slot` if ``entry[1]``, "fired", is set); None when another limit is armed in the thread
+    (then use a StepWatch, which nests)."""
+    entry = _WD_SLOTS.get(tid)
+    if entry is None or _WD_ARMED.get(tid) is not entry or entry[0] != _INF:
+        entry = _own_slot(tid)
+    return entry
 
 
 def _own_slot(tid: int) -> list[float] | None:
@@ -306,5 +338,5 @@ def failure_line(exc: BaseException) -> str:
 
 
 __all__ = ["FilterExit", "FilterFailed", "FilterTimeout", "StepWatch", "cpu_clock_available", "exit_text",
-           "failure_line", "is_filter_failure", "note_user_interrupt", "one_line", "time_limit",
-           "user_interrupted"]
+           "failure_line", "is_filter_failure", "note_user_interrupt", "one_line", "settle_slot", "step_slot",
+           "time_limit", "user_interrupted"]
