@@ -41,6 +41,24 @@ def test_gate_default_follows_the_declared_outliers(name):
     assert build_filter(name, bearing, 0).gate == pytest.approx(chi2_quantile(0.99, 1))
 
 
+@pytest.mark.parametrize("name, cls", [("ekf", "ekf:ExtendedKalmanFilter"),
+                                       ("ukf", "ukf:UnscentedKalmanFilter")])
+def test_a_subclass_that_declares_its_own_gate_keeps_it(name, cls, tmp_path):
+    """A student's subclass with ``defaults = {'gate_chi2': 12.0}`` keeps that gate, with and
+    without declared outliers: the automatic gate fills in only when nobody chose one (it
+    used to overwrite the class's choice, so every such student was graded gate-less)."""
+    module, klass = cls.split(":")
+    f = tmp_path / "tuned.py"
+    f.write_text(f"from beacon_sim.filters.{module} import {klass}\n\n\n"
+                 f"class Tuned({klass}):\n"
+                 f"    defaults = {{**{klass}.defaults, 'gate_chi2': 12.0}}\n")
+    for sc, auto_gate in ((load_scenario("default"), 0.0),
+                          (with_outliers("default", 0.2), chi2_quantile(0.99, 2))):
+        assert build_filter(name, sc, 0).gate == pytest.approx(auto_gate)
+        flt = build_filter(f"{f}:Tuned", sc, 0)
+        assert flt.gate == 12.0 and flt.params["gate_chi2"] == 12.0
+
+
 def test_filters_near_the_bound_with_declared_outliers():
     # 20 % of the readings replaced by random ones and the filters told so: without the
     # gate the EKF reached 8.75x the bound (ANEES 906) and the PF 12.7x; now all near 1.

@@ -792,9 +792,10 @@ def gated_rows(st: StackedReadings, cov: np.ndarray, H: np.ndarray, nu: np.ndarr
 
 
 def effective_gate(flt: FilterBase) -> float:
-    """Set ``flt.params["gate_chi2"]`` to :func:`outlier_gate` when the filter's context did
-    not give it, and return the gate."""
-    if "gate_chi2" not in flt.ctx.params:
+    """Set ``flt.params["gate_chi2"]`` to :func:`outlier_gate` when nobody chose a gate
+    (the filter's context did not give one, and its class's ``defaults`` keep the built-in
+    0: a student's subclass that declares its own gate keeps it), and return the gate."""
+    if "gate_chi2" not in flt.ctx.params and float(flt.params.get("gate_chi2", 0.0)) == 0.0:
         flt.params["gate_chi2"] = outlier_gate(flt.ctx)
     return float(flt.params["gate_chi2"])
 
