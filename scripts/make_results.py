@@ -358,7 +358,9 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
         f"(what a filter that learnt nothing from its readings would do). The noise is the same "
         f"leave-one-robot-out calibration as there (from the four other robots, the variance "
         f"inflation included; never fitted on the scored robot); no SLAM parameter was tuned on this"
-        f" data. Regenerate this section alone with `python scripts/make_results.py --only slam` "
+        f" data (EKF-SLAM gates readings with IDs at the known-map EKF's 99.9 % point, "
+        f"`gate_chi2` in `MRCLAM_PARAMS`; FastSLAM has no such gate). Regenerate this section "
+        f"alone with `python scripts/make_results.py --only slam` "
         f"({cpu:.0f} s of CPU on one core here, {took:.0f} s by the clock on the shared machine).",
         "",
         "Columns: IDs: `barcodes` (each reading names its landmark) or `none` (`--unknown-ids`: "
@@ -368,7 +370,8 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
         "a landmark farther than that from every surveyed one is false, each missed or false "
         "one costs c/sqrt(2); a root of a sum over the map: 15 landmarks each 10 cm off give "
         "0.39 m), one number per run. Final joint NEES: over the final pose and every mapped "
-        "landmark (EKF-SLAM only: FastSLAM has no joint Gaussian; `-` also when the ground truth "
+        "landmark (FastSLAM's is EKF-SLAM's covariance linearised at its particles' mean; `-` "
+        "when the ground truth "
         "ends before the run's last estimate), chi-square with the dof shown "
         "for a consistent filter. GOSPA after a rigid fit: the same after the rotation and shift "
         "that best fit the map onto the survey (landmarks paired by ID, or by GOSPA without IDs): "
