@@ -25,7 +25,7 @@ import statistics
 import time
 
 import numpy as np
-from figures import figure
+from figures import figure, proc_cpu
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.evaluation.montecarlo import DASK_LEAN_CONFIG, run_monte_carlo
@@ -44,16 +44,6 @@ def children_cpu() -> float:
     """CPU time [s] of the reaped child processes (a finished local pool)."""
     u = resource.getrusage(resource.RUSAGE_CHILDREN)
     return u.ru_utime + u.ru_stime
-
-
-def proc_cpu(pids: list[int]) -> float:
-    """CPU time [s] of the processes ``pids`` and the children they reaped (/proc, Linux)."""
-    total = 0
-    for pid in pids:
-        with open(f"/proc/{pid}/stat") as fh:
-            fields = fh.read().rpartition(")")[2].split()
-        total += sum(int(f) for f in fields[11:15])  # utime, stime, cutime, cstime
-    return total / os.sysconf("SC_CLK_TCK")
 
 
 def same(a, b) -> bool:

@@ -31,6 +31,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from figures import proc_cpu  # noqa: E402
+
 from beacon_sim.evaluation.grading import GradeConfig, grade  # noqa: E402
 from tests.student_filters import source as student_source  # noqa: E402
 
@@ -111,16 +113,6 @@ def median(xs: list[float]) -> float:
     return xs[n // 2] if n % 2 else 0.5 * (xs[n // 2 - 1] + xs[n // 2])
 
 
-def _proc_cpu(pids: list[int]) -> float:
-    """CPU time [s] of the processes ``pids`` and the children they reaped (/proc, Linux)."""
-    total = 0
-    for pid in pids:
-        with open(f"/proc/{pid}/stat") as fh:
-            fields = fh.read().rpartition(")")[2].split()
-        total += sum(int(f) for f in fields[11:15])  # utime, stime, cutime, cstime
-    return total / os.sysconf("SC_CLK_TCK")
-
-
 def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -> None:
     """CPU of the same honest class graded on local processes and on a Dask LocalCluster
     (its workers with the children they reaped, and this process, which holds the scheduler,
@@ -150,11 +142,11 @@ def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -
         pids = sorted({*client.run(os.getpid).values(), *client.run(os.getppid).values()} - {os.getpid()})
         for _ in range(args.rounds):
             got["local"].append(measured_grade(ROOT, hon, local_cfg, workers)["cpu"])
-            c0, s0 = _proc_cpu(pids), self_cpu()
+            c0, s0 = proc_cpu(pids), self_cpu()
             board = grade(hon, GradeConfig(**{**local_cfg, "scenarios": cfg.scenarios, "seeds": cfg.seeds}),
                           scheduler=client)
             extra = board["child_cpu_s"] if board["sandbox"] == "bwrap" else 0.0
-            got["dask"].append(_proc_cpu(pids) - c0 + self_cpu() - s0 + extra)
+            got["dask"].append(proc_cpu(pids) - c0 + self_cpu() - s0 + extra)
     local, remote = median(got["local"]), median(got["dask"])
     print(f"FIGURE dask_cpu_load_1min {load0:.2f} -> {os.getloadavg()[0]:.2f}")
     print(f"FIGURE grade_cpu_local {local:.1f} s CPU ({runs} runs, {workers} students at once; median of "

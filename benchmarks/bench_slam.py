@@ -21,6 +21,8 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
+from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -28,10 +30,12 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 import numpy as np
 from figures import Clock, figure
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from beacon_sim.core.clutter import ClutterSpec, hide_ids_all
 from beacon_sim.core.scenario import parse_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.loading import build_filter
+from tests.slam_helpers import lookalike_pairs
 
 FRAME_MS = 1000.0 / 60.0
 
@@ -184,29 +188,6 @@ def accuracy(runs: int) -> None:
     print("joint NEES / dof: the final joint NEES over the pose and the map divided by 3 + 2 M, "
           "averaged over the runs (1 for an honest filter; the band for 10 runs of 27 dof is about 0.82-1.2)")
     print(f"{'known-map PCRB':<32} {ci(floor):>16}   (RMS of sqrt(Pxx + Pyy) over the path)")
-
-
-def lookalike_pairs(duration: float):
-    """Five pairs of look-alike beacons 0.4 m apart on a 4 m ring, range-bearing readings, a
-    robot with a poor gyro (omega_std 0.15 rad/s) on a 3 m circle, no map given (the
-    scenario of tests/test_fastslam_jcbb.py)."""
-    bs = []
-    for i in range(5):
-        a = 2 * math.pi * i / 5 + 0.3
-        cx, cy = 6 + 4.0 * math.cos(a), 6 + 4.0 * math.sin(a)
-        for s, bid in ((-1, 2 * i + 1), (1, 2 * i + 2)):
-            bs.append({"id": bid, "x": cx + s * 0.2 * math.sin(a), "y": cy - s * 0.2 * math.cos(a)})
-    return parse_scenario({
-        "name": "lookalike_pairs", "dt": 0.1, "duration": duration, "seed": 1,
-        "world": {"bounds": [0, 0, 12, 12], "beacons": bs},
-        "robot": {"initial_pose": [9.0, 6.0, math.pi / 2],
-                  "motion_noise": {"v_std": 0.05, "v_frac": 0.1, "omega_std": 0.15, "omega_frac": 0.0,
-                                   "pose_std": [0.0, 0.0, 0.0]}},
-        "sensors": [{"name": "beacons", "kind": "range_bearing", "period": 0.1, "max_range": 8.0,
-                     "detection_prob": 0.9, "bearing_std": 0.02, "range_std": 0.1}],
-        "driver": {"kind": "circle", "radius": 3.0, "speed": 0.5},
-        "initial_belief": {"std": [0.01, 0.01, 0.005]},
-        "model": {"map": "unknown"}}, "lookalike_pairs.toml")
 
 
 def association(runs: int) -> None:

@@ -95,3 +95,13 @@ def median_ms(fn, n: int) -> tuple[float, float]:
         wall.append(c.wall * 1e3)
         cpu.append(c.cpu * 1e3)
     return statistics.median(wall), statistics.median(cpu)
+
+
+def proc_cpu(pids: list[int]) -> float:
+    """CPU time [s] of the processes ``pids`` and the children they reaped (/proc, Linux)."""
+    total = 0
+    for pid in pids:
+        with open(f"/proc/{pid}/stat") as fh:
+            fields = fh.read().rpartition(")")[2].split()
+        total += sum(int(f) for f in fields[11:15])  # utime, stime, cutime, cstime
+    return total / os.sysconf("SC_CLK_TCK")

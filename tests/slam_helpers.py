@@ -67,3 +67,26 @@ def run(sc: Scenario, spec: str, seed: int, *, hide: bool = False, clutter: floa
 
 def true_beacons(sc: Scenario) -> dict[int, tuple[float, float]]:
     return {b.id: (b.x, b.y) for b in sc.world.beacons}
+
+
+def lookalike_pairs(duration: float) -> Scenario:
+    """Five pairs of look-alike beacons 0.4 m apart on a 4 m ring, range-bearing readings, a
+    robot with a poor gyro (omega_std 0.15 rad/s) on a 3 m circle, no map given (the
+    scenario of tests/test_fastslam_jcbb.py and benchmarks/bench_slam.py --association)."""
+    bs = []
+    for i in range(5):
+        a = 2 * math.pi * i / 5 + 0.3
+        cx, cy = 6 + 4.0 * math.cos(a), 6 + 4.0 * math.sin(a)
+        for s, bid in ((-1, 2 * i + 1), (1, 2 * i + 2)):
+            bs.append({"id": bid, "x": cx + s * 0.2 * math.sin(a), "y": cy - s * 0.2 * math.cos(a)})
+    return parse_scenario({
+        "name": "lookalike_pairs", "dt": 0.1, "duration": duration, "seed": 1,
+        "world": {"bounds": [0, 0, 12, 12], "beacons": bs},
+        "robot": {"initial_pose": [9.0, 6.0, math.pi / 2],
+                  "motion_noise": {"v_std": 0.05, "v_frac": 0.1, "omega_std": 0.15, "omega_frac": 0.0,
+                                   "pose_std": [0.0, 0.0, 0.0]}},
+        "sensors": [{"name": "beacons", "kind": "range_bearing", "period": 0.1, "max_range": 8.0,
+                     "detection_prob": 0.9, "bearing_std": 0.02, "range_std": 0.1}],
+        "driver": {"kind": "circle", "radius": 3.0, "speed": 0.5},
+        "initial_belief": {"std": [0.01, 0.01, 0.005]},
+        "model": {"map": "unknown"}}, "lookalike_pairs.toml")

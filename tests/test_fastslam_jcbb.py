@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from slam_helpers import ring_scenario
+from slam_helpers import lookalike_pairs, ring_scenario
 
 from beacon_sim.core.clutter import UNKNOWN_ID, ClutterSpec, hide_ids_all
 from beacon_sim.core.scenario import parse_scenario
@@ -113,28 +113,6 @@ def test_a_particle_past_its_node_cap_keeps_its_maximum_likelihood_pairing():
     assert all(np.all(t == 0) for t in f.last_targets)
 
 
-def _lookalike_pairs(duration: float) -> object:
-    """Five pairs of look-alike beacons 0.4 m apart on a 4 m ring, range-bearing readings
-    without IDs, a robot with a poor gyro (omega_std 0.15 rad/s) on a 3 m circle."""
-    bs = []
-    for i in range(5):
-        a = 2 * math.pi * i / 5 + 0.3
-        cx, cy = 6 + 4.0 * math.cos(a), 6 + 4.0 * math.sin(a)
-        for s, bid in ((-1, 2 * i + 1), (1, 2 * i + 2)):
-            bs.append({"id": bid, "x": cx + s * 0.2 * math.sin(a), "y": cy - s * 0.2 * math.cos(a)})
-    return parse_scenario({
-        "name": "lookalike_pairs", "dt": 0.1, "duration": duration, "seed": 1,
-        "world": {"bounds": [0, 0, 12, 12], "beacons": bs},
-        "robot": {"initial_pose": [9.0, 6.0, math.pi / 2],
-                  "motion_noise": {"v_std": 0.05, "v_frac": 0.1, "omega_std": 0.15, "omega_frac": 0.0,
-                                   "pose_std": [0.0, 0.0, 0.0]}},
-        "sensors": [{"name": "beacons", "kind": "range_bearing", "period": 0.1, "max_range": 8.0,
-                     "detection_prob": 0.9, "bearing_std": 0.02, "range_std": 0.1}],
-        "driver": {"kind": "circle", "radius": 3.0, "speed": 0.5},
-        "initial_belief": {"std": [0.01, 0.01, 0.005]},
-        "model": {"map": "unknown"}}, "lookalike_pairs.toml")
-
-
 def correct_fraction(sc, association: str, seed: int, clutter: float = 0.5,
                      n_particles: int = 30) -> float:
     """The weighted share of (reading, particle) associations that are right: a beacon's
@@ -168,7 +146,7 @@ def test_jcbb_associates_look_alike_beacons_with_clutter_at_least_as_well_as_ml(
     """Two seeded 6 s runs on five look-alike pairs with clutter (0.5 false readings a tick):
     per-particle JCBB's share of right associations is at least ML's, run by run. (Over 10 s
     and 3 seeds: ML 0.75-0.93, JCBB 0.91-0.97; docs/slam.md.)"""
-    sc = _lookalike_pairs(6.0)
+    sc = lookalike_pairs(6.0)
     for seed in (0, 1):
         ml = correct_fraction(sc, "ml", seed)
         jc = correct_fraction(sc, "jcbb", seed)
@@ -177,13 +155,13 @@ def test_jcbb_associates_look_alike_beacons_with_clutter_at_least_as_well_as_ml(
 
 
 def test_a_bad_association_name_is_a_one_line_error():
-    sc = _lookalike_pairs(1.0)
+    sc = lookalike_pairs(1.0)
     with pytest.raises(FilterError, match="association = 'nn': expected 'ml' or 'jcbb'"):
         build_filter("fastslam", sc, 0, params={"association": "nn"})
 
 
 def test_jcbb_runs_are_deterministic():
-    sc = _lookalike_pairs(2.0)
+    sc = lookalike_pairs(2.0)
     a = correct_fraction(sc, "jcbb", 4, n_particles=10)
     b = correct_fraction(sc, "jcbb", 4, n_particles=10)
     assert a == b
