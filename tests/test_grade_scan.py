@@ -83,6 +83,10 @@ def test_grade_scores_the_scan_template_as_its_in_process_run_beside_mcl(scan_cl
         assert detail["pos_rmse_m"] == float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))
     alone = evaluate(sc, runs, Thresholds())[0]["filters"]["Sam"]
     assert row["pos_rmse_m"] == alone["pos_rmse_m"] and row["anees"] == alone["anees"]
+    # the scan's PCRB (core/scan_jacobian.py) gives the row a bound: RMSE/PCRB is a number
+    assert row["rmse_over_pcrb"] == alone["rmse_over_pcrb"]
+    assert row["rmse_over_pcrb"] is not None and np.isfinite(row["rmse_over_pcrb"])
+    assert row["rmse_over_pcrb"] > 1.0
     assert row["scan"]["office"]["pos_rmse_m"] == alone["pos_rmse_m"]
     assert row["scan"]["office"]["reference_pos_rmse_m"] == ref["pos_rmse_m"]
     # mcl's reference is eval's figure for mcl on the same seeds
