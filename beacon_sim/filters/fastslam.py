@@ -169,19 +169,21 @@ class FastSLAM2(SlamFilterBase):
         known IDs; without IDs the particle set's.
     gate_chi2 : float, default 0.0
         Known IDs: the outlier gate (0: off; ``beacon-sim mrclam`` sets the EKF's 99.9 %
-        gate, as for EKF-SLAM). A reading of a landmark (or anchor) a particle has is an
-        outlier for that particle when its squared Mahalanobis distance against the
-        particle's proposal, ``nu^T L^-1 nu`` with ``L = Hx Sigma Hx^T + Hm C Hm^T + R``,
-        exceeds the gate. Such a particle neither moves its proposal nor updates that
-        landmark with the reading, and its weight takes the reading's density at the gate
-        boundary, ``exp(-gate/2) / sqrt(det(2 pi L))``: the largest likelihood an outlier
-        could have had, so a particle that cannot explain the reading is not rewarded for
-        skipping it (it gets less than any particle that explains it) and not wiped out by
-        it either (one wild reading, e.g. a bearing flipped by pi, would otherwise set every
-        weight but the luckiest particle's to zero). When every particle that has the
-        landmark rejects the reading, it is dropped for all (no weight, no new landmark;
-        ``rejected`` counts these), and the linearised covariance's EKF-SLAM recursion
-        drops the same readings; a reading only some particles reject is kept by it.
+        gate, as for EKF-SLAM). A particle rejects a reading of a landmark (or anchor) it has
+        when the squared Mahalanobis distance against its proposal, ``nu^T L^-1 nu`` with
+        ``L = Hx Sigma Hx^T + Hm C Hm^T + R``, exceeds the gate. Whether a reading is an
+        outlier is a property of the reading, not of a particle, so it is decided by the
+        set: a reading every particle that has the landmark rejects (no pose and map in the
+        set can explain it, e.g. a bearing flipped by pi) is dropped for all (no proposal
+        step, no weight, no landmark update or new landmark; ``rejected`` counts them), and
+        the linearised covariance's EKF-SLAM recursion drops the same readings. A reading
+        some particle explains is used by all as without the gate: it is the evidence that
+        tells the particles apart. (Tried and measured worse: letting each rejecting particle
+        skip the reading and take the density at the gate boundary,
+        ``exp(-gate/2) / sqrt(det(2 pi L))``. It caps what a true reading can say against a
+        wrong particle, and on MRCLAM robot 1, where no reading is rejected by all, the
+        path RMSE was 0.79 / 0.59 / 0.45 m against 0.73 / 0.39 / 0.33 m ungated over three
+        random streams; docs/slam.md.)
     """
 
     defaults: ClassVar[dict] = {"n_particles": 100, "ess_threshold": 0.5, "gate_prob": 0.99,
@@ -590,21 +592,15 @@ class FastSLAM2(SlamFilterBase):
 
     def _gate(self, rd: Reading, tgt: np.ndarray, k: np.ndarray, mu: np.ndarray, Sig: np.ndarray,
               gate: float) -> np.ndarray:
-        """The known-ID outlier gate (``gate_chi2``, the class docstring) on one reading: the
-        particles ``k`` that have its landmark and reject it get the boundary density on
-        their weights and target GATED; when all of them reject it, every particle's target
-        is GATED and no weight changes (the reading is dropped). Returns the targets."""
-        d2, logdet = predictive_distance(rd.kind, rd.z, rd.R, mu[k], Sig[k], self.lm[k, tgt[k]],
-                                         self.lc[k, tgt[k]])
-        out = ~(d2 <= gate)  # a distance that is not finite is an outlier too
-        if not out.any():
+        """The known-ID outlier gate (``gate_chi2``, the class docstring) on one reading: when
+        every particle ``k`` that has its landmark rejects it, every particle's target is
+        GATED (the reading is dropped, no weight changes); else the targets are returned as
+        they are."""
+        d2, _ = predictive_distance(rd.kind, rd.z, rd.R, mu[k], Sig[k], self.lm[k, tgt[k]],
+                                    self.lc[k, tgt[k]])
+        if np.any(d2 <= gate):  # a distance that is not finite is an outlier too
             return tgt
-        if out.all():
-            return np.full_like(tgt, GATED)
-        tgt = tgt.copy()
-        tgt[k[out]] = GATED
-        self.logw[k[out]] += -0.5 * gate - 0.5 * logdet[out]
-        return tgt
+        return np.full_like(tgt, GATED)
 
     def _landmark_updates(self, done: list[tuple[Reading, np.ndarray]]) -> None:
         """Each paired landmark's EKF update from the sampled pose; new landmarks placed;
