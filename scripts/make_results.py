@@ -358,8 +358,8 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
         f"(what a filter that learnt nothing from its readings would do). The noise is the same "
         f"leave-one-robot-out calibration as there (from the four other robots, the variance "
         f"inflation included; never fitted on the scored robot); no SLAM parameter was tuned on this"
-        f" data (EKF-SLAM gates readings with IDs at the known-map EKF's 99.9 % point, "
-        f"`gate_chi2` in `MRCLAM_PARAMS`; FastSLAM has no such gate). Regenerate this section "
+        f" data (EKF-SLAM and FastSLAM gate readings with IDs at the known-map EKF's 99.9 % "
+        f"point, `gate_chi2` in `MRCLAM_PARAMS`). Regenerate this section "
         f"alone with `python scripts/make_results.py --only slam` "
         f"({cpu:.0f} s of CPU on one core here, {took:.0f} s by the clock on the shared machine).",
         "",

@@ -201,7 +201,10 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                                                                      "from all: a new landmark"),
                          "max_landmarks": Range(0, 10_000, "most landmarks per particle"),
                          "confirm_hits": Range(1, 1000, "readings before a new unlabelled landmark "
-                                                        "is kept")}),
+                                                        "is kept"),
+                         "gate_chi2": Range(0.0, 1e9, "a particle rejects a reading with an ID farther "
+                                                      "than this squared Mahalanobis distance (0: off)")},
+                 mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
     # Team filters (filters/team.py): the baseline that ignores the teammates is grey like
     # dead reckoning; naive fusion, the overconfident counter-example, vermillion and dotted.
     FilterRecord("independent", "beacon_sim.filters.team:IndependentTeam", ("grey", "short dash"),
