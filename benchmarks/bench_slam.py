@@ -35,7 +35,7 @@ from beacon_sim.core.clutter import ClutterSpec, hide_ids_all
 from beacon_sim.core.scenario import parse_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.loading import build_filter
-from tests.slam_helpers import lookalike_pairs
+from tests.slam_helpers import lookalike_pairs, weighted_correct
 
 FRAME_MS = 1000.0 / 60.0
 
@@ -196,7 +196,6 @@ def association(runs: int) -> None:
     right (reading, particle) associations (a beacon's reading given to the particle's
     landmark nearest that beacon; clutter given to none), the map's GOSPA and the CPU per
     tick, over seeded runs."""
-    from beacon_sim.core.clutter import UNKNOWN_ID
     from beacon_sim.evaluation.slam_metrics import gospa
 
     sc = lookalike_pairs(20.0)
@@ -222,13 +221,8 @@ def association(runs: int) -> None:
                     ticks += 1
                     if "beacons" not in truth:
                         continue
-                    w = flt.weights
-                    for true_id, tgt in zip(truth["beacons"], flt.last_targets, strict=True):
-                        lm = flt.lm[np.arange(flt.n), np.maximum(tgt, 0)]
-                        near = ids[np.argmin(np.sum((lm[:, None, :] - xy[None]) ** 2, axis=2), axis=1)]
-                        ok = np.where(tgt >= 0, near == true_id, true_id == UNKNOWN_ID)
-                        good += float(w @ ok)
-                        total += 1.0
+                    g, k = weighted_correct(flt, truth["beacons"], xy, ids)
+                    good, total = good + g, total + k
             fr.append(good / total)
             gs.append(gospa(flt.landmarks().means, xy, c=1.0).value)
             cpu_ms.append(1e3 * c.cpu / ticks)

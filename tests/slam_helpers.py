@@ -90,3 +90,20 @@ def lookalike_pairs(duration: float) -> Scenario:
         "driver": {"kind": "circle", "radius": 3.0, "speed": 0.5},
         "initial_belief": {"std": [0.01, 0.01, 0.005]},
         "model": {"map": "unknown"}}, "lookalike_pairs.toml")
+
+
+def weighted_correct(flt, true_ids, xy: np.ndarray, ids: np.ndarray) -> tuple[float, int]:
+    """FastSLAM's associations of one tick's readings scored against the truth: the sum over
+    readings of the particle weight whose association is right (a beacon's reading given to
+    the particle's landmark nearest that beacon, a clutter reading, ``UNKNOWN_ID``, given to
+    none), and the number of readings. ``true_ids`` are the readings' true IDs, ``xy``/``ids``
+    the beacons' positions [m] and IDs."""
+    from beacon_sim.core.clutter import UNKNOWN_ID
+
+    good, w = 0.0, flt.weights
+    for true_id, tgt in zip(true_ids, flt.last_targets, strict=True):
+        lm = flt.lm[np.arange(flt.n), np.maximum(tgt, 0)]
+        nearest = ids[np.argmin(np.sum((lm[:, None, :] - xy[None]) ** 2, axis=2), axis=1)]
+        ok = np.where(tgt >= 0, nearest == true_id, true_id == UNKNOWN_ID)
+        good += float(w @ ok)
+    return good, len(true_ids)

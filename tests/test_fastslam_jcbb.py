@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from slam_helpers import lookalike_pairs, ring_scenario
+from slam_helpers import lookalike_pairs, ring_scenario, weighted_correct
 
 from beacon_sim.core.clutter import UNKNOWN_ID, ClutterSpec, hide_ids_all
 from beacon_sim.core.scenario import parse_scenario
@@ -131,13 +131,8 @@ def correct_fraction(sc, association: str, seed: int, clutter: float = 0.5,
         flt.update(ms)
         if "beacons" not in truth:
             continue
-        w = flt.weights
-        for true_id, tgt in zip(truth["beacons"], flt.last_targets, strict=True):
-            lm = flt.lm[np.arange(flt.n), np.maximum(tgt, 0)]
-            nearest = ids[np.argmin(np.sum((lm[:, None, :] - xy[None]) ** 2, axis=2), axis=1)]
-            ok = np.where(tgt >= 0, nearest == true_id, true_id == UNKNOWN_ID)
-            good += float(w @ ok)
-            total += 1.0
+        g, k = weighted_correct(flt, truth["beacons"], xy, ids)
+        good, total = good + g, total + k
     return good / total
 
 
