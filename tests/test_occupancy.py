@@ -90,9 +90,13 @@ def test_walls_segments_and_polygons():
     # right edges lie on grid lines, so they occupy the cells above and right of them.
     assert g.occupied[3:6, 5:8].all()
     assert g.occupied.sum() == 8 + 5 + 9       # nothing else
-    # A slanted segment marks exactly the cells it passes through.
+    # A slanted segment marks exactly the cells it passes through, and where it passes a grid
+    # corner (here (2, 1)) the two cells beside the corner: a wall with no diagonal gap.
     s = from_walls((0, 0, 4, 4), 1.0, segments=[[(0.5, 0.5), (3.5, 1.5)]])
-    assert set(zip(*np.nonzero(s.occupied), strict=True)) == {(0, 0), (0, 1), (1, 2), (1, 3)}
+    assert set(zip(*np.nonzero(s.occupied), strict=True)) == {(0, 0), (0, 1), (1, 2), (1, 3),
+                                                               (1, 1), (0, 2)}
+    t = from_walls((0, 0, 4, 4), 1.0, segments=[[(0.5, 0.5), (3.5, 1.2)]])   # no corner met
+    assert set(zip(*np.nonzero(t.occupied), strict=True)) == {(0, 0), (0, 1), (0, 2), (1, 2), (1, 3)}
 
 
 def test_a_room_outline_on_the_bounds_has_four_walls():

@@ -34,11 +34,17 @@ def test_a_diagonal_ray_meets_the_nearer_face():
 
 
 def test_a_diagonal_wall_from_walls():
-    # The wall y = x drawn as a segment through cell corners occupies the diagonal cells only.
+    # The wall y = x drawn as a segment through cell corners occupies the diagonal cells and,
+    # at each corner, the two cells beside it: no gap for a ray through a corner.
     g = from_walls((0, 0, 10, 10), 0.1, segments=[[(0, 0), (10, 10)]])
-    assert g.occupied[50, 50] and not g.occupied[50, 51] and not g.occupied[50, 49]
-    r = cast_rays(g, (9.0, 5.05), [math.pi], 50.0)  # leftwards in row 50: meets x = 5.1
-    assert r[0] == pytest.approx(3.9, abs=1e-12)
+    assert g.occupied[50, 49:52].all() and not g.occupied[50, 52] and not g.occupied[50, 48]
+    r = cast_rays(g, (9.0, 5.05), [math.pi], 50.0)  # leftwards in row 50: meets x = 5.2
+    assert r[0] == pytest.approx(3.8, abs=1e-12)
+    # A ray at exactly 45 degrees through the corners of a wall at right angles to it is
+    # stopped (with diagonal cells only it would pass every corner between two of them).
+    g2 = from_walls((0, 0, 10, 10), 0.1, segments=[[(0, 10), (10, 0)]])
+    r = cast_rays(g2, (2.0, 2.0), [math.pi / 4], 50.0)[0]
+    assert 3 * math.sqrt(2) - 0.2 * math.sqrt(2) <= r <= 3 * math.sqrt(2) + 1e-12
 
 
 def test_a_slanted_wall_converges_to_the_true_distance():

@@ -30,10 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, RandomGoalSpec, WaypointsSpec
-from beacon_sim.core.measurement_models import relative_bearing
-from beacon_sim.core.motion import move
+from beacon_sim.core.motion import move_portable
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense, visible_mask
 from beacon_sim.core.simulation import Simulation, _kidnap_text, bumped_heading, into_wall
@@ -120,18 +120,17 @@ def steer(pose: np.ndarray, goal: np.ndarray, speed: float, gain: float, max_ome
           ) -> tuple[np.ndarray, np.ndarray]:
     """``drivers.steer_towards`` for R poses (R, 3) and goals (R, 2): (v, omega) (R,), bit for
     bit its floats. Every step is the same IEEE operation: the differences and products on
-    arrays; atan2 and cos are ``math``'s, element by element (numpy's array forms may round
-    differently); ``wrap`` on arrays is the float form's ``%`` (numpy's remainder is fmod
+    arrays; atan2 and cos are the portable kernels' (core/portable_math.py, the same bits on
+    arrays and floats); ``wrap`` on arrays is the float form's ``%`` (numpy's remainder is fmod
     plus the divisor when the signs differ, as Python's float ``%``); ``max``/``min`` are
     selections written as Python evaluates them (NaN and signed zeros included)."""
     dx = goal[:, 0] - pose[:, 0]
     dy = goal[:, 1] - pose[:, 1]
-    n = len(dx)
-    err = wrap(np.fromiter(map(math.atan2, dy.tolist(), dx.tolist()), float, n) - pose[:, 2])
+    err = wrap(pm.atan2(dy, dx) - pose[:, 2])
     om = gain * err
     om = np.where(-max_omega > om, -max_omega, om)      # max(gain err, -max_omega)
     om = np.where(max_omega < om, max_omega, om)        # min(., max_omega)
-    c = np.fromiter(map(math.cos, err.tolist()), float, n)
+    c = pm.cos(err)
     return speed * np.where(c > 0.0, c, 0.0), om        # speed * max(0.0, cos(err))
 
 
@@ -224,15 +223,15 @@ class BatchSimulation:
         noise = self.scenario.motion_noise
         sv, sw = noise.control_std(cv, cw)
         g = np.broadcast_to(noise.slip_gain(cv, cw), (R,)).tolist()  # slip scales with the command
-        for burst in self.schedule.bursts_at(k):   # math.hypot per run, as the single run does
-            sv = np.array([math.hypot(x, gi * burst.v_std) for x, gi in zip(sv.tolist(), g, strict=True)])
-            sw = np.array([math.hypot(x, gi * burst.omega_std) for x, gi in zip(sw.tolist(), g, strict=True)])
+        for burst in self.schedule.bursts_at(k):   # the portable hypot, as the single run does
+            sv = pm.hypot(sv, np.multiply(g, burst.v_std))
+            sw = pm.hypot(sw, np.multiply(g, burst.omega_std))
         E = np.empty((R, 5))
         for i, s in enumerate(sims):
             s._motion_rng.standard_normal(out=E[i])
         v = cv + sv * E[:, 0]
         w = cw + sw * E[:, 1]
-        pose = move(old, v, w, dt)
+        pose = move_portable(old, v, w, dt)
         pose += noise.pose_std_at(cv, cw) * E[:, 2:]
         pose[:, 2] = wrap(pose[:, 2])
         inside = world.contains(pose[:, :2])
@@ -310,15 +309,9 @@ class BatchSimulation:
 
     @staticmethod
     def _reached(goal: np.ndarray, pose: np.ndarray, tol: float) -> np.ndarray:
-        """``np.hypot(*(goal - pose[:2])) < tol`` (the drivers' arrival test) for every run
-        (R,): on arrays, and again with the driver's own scalar call for a distance within
-        1e-9 (relative) of the tolerance, so a hypot rounded differently on arrays (a few
-        ulp, 1e-16 relative, if at all) cannot change a decision."""
-        dist = np.hypot(goal[:, 0] - pose[:, 0], goal[:, 1] - pose[:, 1])
-        reached = dist < tol
-        for i in np.flatnonzero(~(np.abs(dist - tol) > 1e-9 * abs(tol))).tolist():   # NaN too
-            reached[i] = np.hypot(*(goal[i] - pose[i, :2])) < tol
-        return reached
+        """``drivers.arrived`` (the drivers' arrival test) for every run (R,): the portable
+        hypot gives the same bits on arrays as on floats."""
+        return pm.hypot(goal[:, 0] - pose[:, 0], goal[:, 1] - pose[:, 1]) < tol
 
     def _waypoints(self, spec: WaypointsSpec, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``Driver.control`` of a waypoints driver for every run; each run's waypoint index
@@ -426,12 +419,12 @@ class BatchSimulation:
         seen &= u_detect < spec.detection_prob
         if not seen.any():
             return None
-        bearing = wrap(relative_bearing(dx, dy, pose[:, 2, None]))  # (R, n)
+        bearing = wrap(pm.atan2(dy, dx) - pose[:, 2, None])  # (R, n), as sensors.sense
         if spec.kind == "bearing":
             z = bearing[..., None] + noise * spec.noise.bearing_std
         else:
             h = np.empty((*bearing.shape, 2))
-            h[..., 0] = np.hypot(dx, dy)
+            h[..., 0] = pm.hypot(dx, dy)
             h[..., 1] = bearing
             z = h + noise * spec.reading_std()
         if spec.outlier_rate > 0.0:

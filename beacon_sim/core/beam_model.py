@@ -28,6 +28,7 @@ from functools import cached_property
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.occupancy import OccupancyGrid
 from beacon_sim.errors import UsageError
 
@@ -141,7 +142,7 @@ def sample_beam(z_star, params: RangeModelParams, rng: np.random.Generator) -> n
     out[hit] = draw
     # short: inverse CDF of the exponential truncated to [0, z*].
     short = part == 1
-    out[short] = -np.log1p(u[short] * np.expm1(-lam * zs[short])) / lam
+    out[short] = -pm.log1p(u[short] * pm.expm1(-lam * zs[short])) / lam   # portable: readings
     out[part == 2] = z_max
     rand = part == 3
     out[rand] = u[rand] * z_max

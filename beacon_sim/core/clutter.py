@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Beacon, Measurement
@@ -185,5 +186,6 @@ def symmetric_ring(cx: float, cy: float, radius: float, n: int, first_id: int = 
     if n < 1 or not radius > 0.0:
         raise ValueError(f"symmetric_ring needs n >= 1 and radius > 0, got n={n}, radius={radius}")
     a = phase + 2.0 * math.pi * np.arange(n) / n
-    return tuple(Beacon(first_id + k, float(cx + radius * math.cos(t)), float(cy + radius * math.sin(t)))
-                 for k, t in enumerate(a))
+    s, c = pm.sincos(a)   # portable: the beacons' places are part of the world
+    return tuple(Beacon(first_id + k, float(cx + radius * ck), float(cy + radius * sk))
+                 for k, (sk, ck) in enumerate(zip(s.tolist(), c.tolist(), strict=True)))

@@ -6,13 +6,12 @@ part of the world, not of a filter) and draws only from its own random generator
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
-from beacon_sim.core.measurement_models import relative_bearing_scalar
 from beacon_sim.core.types import Control
 from beacon_sim.core.world import World
 
@@ -77,10 +76,15 @@ DriverSpec = ConstantSpec | CircleSpec | RandomGoalSpec | WaypointsSpec | Keyboa
 def steer_towards(pose, goal_xy, speed, gain, max_omega) -> Control:
     """Proportional steering to a point: slow down while the heading error is large."""
     dx, dy = goal_xy[0] - pose[0], goal_xy[1] - pose[1]
-    err = wrap(relative_bearing_scalar(dx, dy, pose[2]))
+    err = wrap(pm.atan2_1(float(dy), float(dx)) - pose[2])   # the truth's maths: portable
     omega = float(min(max(gain * err, -max_omega), max_omega))  # np.clip of a float, without numpy
-    v = speed * max(0.0, math.cos(err))
+    v = speed * max(0.0, pm.cos1(float(err)))
     return Control(v, omega)
+
+
+def arrived(goal, pose, tolerance: float) -> bool:
+    """Whether ``pose`` (3,) is within ``tolerance`` [m] of ``goal`` (2,) (portable maths)."""
+    return pm.hypot1(float(goal[0] - pose[0]), float(goal[1] - pose[1])) < tolerance
 
 
 @dataclass
@@ -101,7 +105,7 @@ class Driver:
         if isinstance(s, CircleSpec):
             return Control(s.speed, s.speed / s.radius)
         if isinstance(s, RandomGoalSpec):
-            if self._goal is None or np.hypot(*(self._goal - pose[:2])) < s.tolerance:
+            if self._goal is None or arrived(self._goal, pose, s.tolerance):
                 xmin, ymin, xmax, ymax = self.world.bounds
                 self._goal = np.array([
                     self.rng.uniform(xmin + s.margin, xmax - s.margin),
@@ -112,7 +116,7 @@ class Driver:
             if not s.points or self._index >= len(s.points):
                 return Control(0.0, 0.0)
             goal = np.array(s.points[self._index], dtype=float)
-            if np.hypot(*(goal - pose[:2])) < s.tolerance:
+            if arrived(goal, pose, s.tolerance):
                 self._index += 1
                 if s.loop:
                     self._index %= len(s.points)

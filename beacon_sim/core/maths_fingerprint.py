@@ -1,10 +1,11 @@
-"""Which floating-point maths this process runs: a fingerprint of numpy's float64 kernels.
+"""Which floating-point maths this process runs: a fingerprint of numpy's kernels and BLAS.
 
 The simulation's truth and readings use only the portable kernels of
 :mod:`beacon_sim.core.portable_math`, so they are the same bits on every machine. The filters
 use numpy's fast kernels (``sin``, ``exp``, ``arctan2``...) and BLAS, whose last bit depends on
 the processor (numpy dispatches float64 transcendental functions to AVX-512 code on some x86-64
-processors; numpy issue 23523) and on the numpy build. Two processes whose fingerprints are
+processors, numpy issue 23523; OpenBLAS picks its dot and matrix kernels by processor) and
+on the numpy build. Two processes whose fingerprints are
 equal computed every kernel below identically on the probe inputs; a recording stores the
 fingerprint of the machine that made it, so a replay knows whether the estimates can match bit
 for bit (same fingerprint) or only within a tolerance (docs/portability.md).
@@ -34,6 +35,18 @@ _PROBES = (
     ("sqrt", lambda x, y: np.sqrt(np.abs(x))),
     ("matmul", lambda x, y: (x.reshape(-1, 8) @ y.reshape(8, -1)).ravel()),
     ("sum", lambda x, y: np.cumsum(x.reshape(-1, 16).sum(axis=1))),
+    # BLAS (OpenBLAS picks its kernels by processor): long dot products and tall products,
+    # in float64 and float32, as the particle filter's weighted means and covariances.
+    ("dot", lambda x, y: np.array([np.dot(x, y), np.dot(x[::2], y[1::2])])),
+    ("dot32", lambda x, y: np.array([np.dot(x.astype(np.float32), y.astype(np.float32))], dtype=float)),
+    ("gemm_tall", lambda x, y: (x[:3000].reshape(3, -1) @ y[:3000].reshape(-1, 3)).ravel()),
+    ("gemm_tall32", lambda x, y: (x[:3000].reshape(3, -1).astype(np.float32)
+                                  @ y[:3000].reshape(-1, 3).astype(np.float32)).ravel().astype(float)),
+    # float32 kernels (the particle filter's default precision)
+    ("exp32", lambda x, y: np.exp(x.astype(np.float32)).astype(float)),
+    ("sincos32", lambda x, y: np.concatenate([np.sin(x.astype(np.float32)),
+                                              np.cos(x.astype(np.float32))]).astype(float)),
+    ("arctan2_32", lambda x, y: np.arctan2(y.astype(np.float32), x.astype(np.float32)).astype(float)),
 )
 
 
@@ -76,12 +89,14 @@ def maths_description() -> str:
 
 def _best_simd() -> str:
     """The highest SIMD extension numpy found and may dispatch to (``baseline`` when none)."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-    except ImportError:  # numpy < 2
+    import importlib
+
+    for module in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):  # numpy 2, 1
         try:
-            from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+            umath = importlib.import_module(module)
         except ImportError:
-            return "SIMD unknown"
-    found = [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
-    return found[-1] if found else "baseline"
+            continue
+        features = getattr(umath, "__cpu_features__", {})
+        found = [f for f in getattr(umath, "__cpu_dispatch__", ()) if features.get(f)]
+        return found[-1] if found else "baseline"
+    return "SIMD unknown"

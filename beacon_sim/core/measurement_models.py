@@ -1,7 +1,9 @@
 """Expected measurements h(pose) and their Jacobians H = dh/dpose, for every sensor kind.
 
 Known correspondence: each reading names its beacon. Bearings are relative to the robot's
-heading and wrapped to [-pi, pi). Functions take one pose of shape (3,) unless they say
+heading and wrapped to [-pi, pi). The simulation computes its readings with ``portable=True``
+(core/portable_math.py: the same bits on every machine); filters use numpy's fast kernels,
+which agree to a few ulp. Functions take one pose of shape (3,) unless they say
 otherwise; the ``*_many`` forms take poses of shape (N, 3) for particle and grid filters.
 """
 
@@ -11,16 +13,18 @@ import math
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 
 
-def relative_bearing(dx, dy, theta, out=None):
+def relative_bearing(dx, dy, theta, out=None, portable: bool = False):
     """The bearing model, the one place it is written: the direction [rad] of the offset
     ``(dx, dy)`` [m] (beacon minus robot, world frame) seen from heading ``theta`` [rad],
     ``atan2(dy, dx) - theta`` (seed 000 eq. 6), NOT wrapped: callers wrap it, or the
     innovation ``wrap(z - h)``, as their arithmetic needs. Arrays broadcast; ``out``, an
-    array of the result's shape, receives it without allocating."""
-    return np.subtract(np.arctan2(dy, dx), theta, out=out)
+    array of the result's shape, receives it without allocating. ``portable``: the
+    portable atan2 (the simulation's readings) instead of numpy's."""
+    return np.subtract(pm.atan2(dy, dx) if portable else np.arctan2(dy, dx), theta, out=out)
 
 
 def relative_bearing_scalar(dx: float, dy: float, theta: float) -> float:
@@ -29,10 +33,11 @@ def relative_bearing_scalar(dx: float, dy: float, theta: float) -> float:
     return math.atan2(dy, dx) - theta
 
 
-def bearing(pose, beacon_xy):
-    """Bearing to each beacon [rad], shape (m,): ``atan2(yb - y, xb - x) - theta`` (seed 000 eq. 6)."""
+def bearing(pose, beacon_xy, portable: bool = False):
+    """Bearing to each beacon [rad], shape (m,): ``atan2(yb - y, xb - x) - theta`` (seed 000
+    eq. 6). ``portable``: with the portable kernels (the simulation's readings)."""
     d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
-    return wrap(relative_bearing(d[:, 0], d[:, 1], pose[2]))
+    return wrap(relative_bearing(d[:, 0], d[:, 1], pose[2], portable=portable))
 
 
 def bearing_jacobian(pose, beacon_xy):
@@ -46,12 +51,13 @@ def bearing_jacobian(pose, beacon_xy):
     return H
 
 
-def range_bearing(pose, beacon_xy):
-    """Range [m] and bearing [rad] to each beacon, shape (m, 2) (seed 001)."""
+def range_bearing(pose, beacon_xy, portable: bool = False):
+    """Range [m] and bearing [rad] to each beacon, shape (m, 2) (seed 001). ``portable``:
+    with the portable kernels (the simulation's readings)."""
     d = np.asarray(beacon_xy, dtype=float).reshape(-1, 2) - np.asarray(pose[:2], dtype=float)
     out = np.empty((d.shape[0], 2))
-    out[:, 0] = np.hypot(d[:, 0], d[:, 1])
-    out[:, 1] = wrap(relative_bearing(d[:, 0], d[:, 1], pose[2]))
+    out[:, 0] = pm.hypot(d[:, 0], d[:, 1]) if portable else np.hypot(d[:, 0], d[:, 1])
+    out[:, 1] = wrap(relative_bearing(d[:, 0], d[:, 1], pose[2], portable=portable))
     return out
 
 

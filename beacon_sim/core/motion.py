@@ -11,6 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 
 
@@ -33,6 +34,28 @@ def move(pose, v, omega, dt):
     out[..., 0] = pose[..., 0] + v * dt * np.cos(theta)
     out[..., 1] = pose[..., 1] + v * dt * np.sin(theta)
     out[..., 2] = wrap(theta + omega * dt)
+    return out
+
+
+def move_portable(pose, v, omega, dt):
+    """:func:`move` with the portable kernels (core/portable_math.py): the truth's motion,
+    the same bits on every machine. Filters use :func:`move` (numpy's fast kernels, equal
+    to within a few ulp: tests/test_portable_math.py)."""
+    pose = np.asarray(pose, dtype=float)
+    if pose.ndim == 1 and np.ndim(v) == 0 and np.ndim(omega) == 0:
+        theta = pose[2]
+        s, c = pm.sincos1(float(theta))
+        out = np.empty(3)
+        out[0] = pose[0] + v * dt * c
+        out[1] = pose[1] + v * dt * s
+        out[2] = wrap(theta + omega * dt)
+        return out
+    thetas = pose[..., 2]
+    sa, ca = pm.sincos(thetas)
+    out = np.empty(np.broadcast_shapes(pose.shape, (*np.shape(v), 3)), dtype=float)
+    out[..., 0] = pose[..., 0] + v * dt * ca
+    out[..., 1] = pose[..., 1] + v * dt * sa
+    out[..., 2] = wrap(thetas + omega * dt)
     return out
 
 

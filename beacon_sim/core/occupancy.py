@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.types import read_only
 from beacon_sim.errors import BeaconSimError
 
@@ -135,7 +136,8 @@ class OccupancyGrid:
     @cached_property
     def _rotation(self) -> tuple[float, float]:
         yaw = self.origin[2]
-        return math.cos(yaw), math.sin(yaw)
+        s, c = pm.sincos1(float(yaw))   # portable: the walls' frame is part of the truth
+        return c, s
 
     def world_to_grid(self, xy) -> np.ndarray:
         """Continuous grid coordinates (u along columns, v along rows) [cells] of world points.
@@ -229,28 +231,45 @@ def from_walls(bounds: tuple[float, float, float, float], resolution: float, *,
 
 
 def _draw_polyline(occ: np.ndarray, uv: np.ndarray, *, closed: bool) -> None:
-    """Mark every cell each segment of the polyline ``uv`` [cells] passes through."""
+    """Mark every cell each segment of the polyline ``uv`` [cells] passes through, and where
+    a slanted segment passes exactly through a grid corner, the two cells beside it too: a
+    ray through a corner passes between diagonal neighbours (raycast.py), so a wall must not
+    have such a gap."""
     pts = np.vstack([uv, uv[:1]]) if closed else uv
     rows, cols = occ.shape
     for a, b in itertools.pairwise(pts):
         d = b - a
-        length = float(np.hypot(*d))
+        length = pm.hypot1(float(d[0]), float(d[1]))
+        corners = np.zeros((0, 2))
         if length == 0.0:
             ts = np.zeros(1)
         else:
             # Exact cells: the segment's ends and every grid-line crossing between them split it
             # into pieces that each lie in one cell; the midpoint of a piece names that cell.
             t = [0.0, 1.0]
+            crossings = []
             for axis in (0, 1):
                 if d[axis] != 0.0:
                     lo, hi = sorted((a[axis], b[axis]))
                     lines = np.arange(math.floor(lo) + 1, math.ceil(hi))
-                    t.extend(((lines - a[axis]) / d[axis]).tolist())
+                    crossings.append((lines - a[axis]) / d[axis])
+                    t.extend(crossings[-1].tolist())
             t_sorted = np.unique(np.clip(np.array(t), 0.0, 1.0))
             ts = np.concatenate([(t_sorted[:-1] + t_sorted[1:]) / 2, [0.0, 1.0]])
+            if len(crossings) == 2:   # slanted: the crossings of both kinds of line at once
+                tu, tv = np.sort(crossings[0]), np.sort(crossings[1])
+                j = np.clip(np.searchsorted(tv, tu), 0, max(tv.size - 1, 0))
+                at = tu[(tv.size > 0) & (np.abs(tv[j] - tu) <= 1e-9)] if tv.size else tu[:0]
+                corners = np.rint(a + at[:, None] * d)
         p = a + ts[:, None] * d
         c = np.floor(p[:, 0]).astype(int)
         r = np.floor(p[:, 1]).astype(int)
+        if corners.size:   # the side cells: (c - [d_u < 0], r - [d_v > 0]) and its mirror
+            cu, cv = corners[:, 0].astype(int), corners[:, 1].astype(int)
+            side_c = np.concatenate([cu - int(d[0] < 0), cu - int(d[0] > 0)])
+            side_r = np.concatenate([cv - int(d[1] > 0), cv - int(d[1] < 0)])
+            c, r = np.concatenate([c, side_c]), np.concatenate([r, side_r])
+            p = np.vstack([p, np.column_stack([side_c + 0.5, side_r + 0.5])])
         # A wall on the far edge of the bounds (x = xmax or y = ymax) belongs to the last
         # column / row, not to the cell beyond the grid.
         c[(c == cols) & (p[:, 0] <= cols * (1 + 1e-9))] = cols - 1

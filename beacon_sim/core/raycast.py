@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.occupancy import UNKNOWN, OccupancyGrid
 from beacon_sim.errors import UsageError
@@ -57,7 +58,7 @@ def cast_rays(grid: OccupancyGrid, origins, angles, max_range: float, *,
     cells = grid.occupied if blocking is None else np.asarray(blocking, dtype=bool)
     # Snap the rounding of cos/sin at multiples of pi/2 (sin(pi) = 1.2e-16) to zero, so that
     # a ray along a grid line at heading pi behaves as at -pi and at 0.
-    cu, cv = np.cos(heading), np.sin(heading)
+    cv, cu = pm.sincos(heading)   # portable: rays decide the truth's readings
     cu[np.abs(cu) < 1e-12] = 0.0
     cv[np.abs(cv) < 1e-12] = 0.0
     t_max = max_range / grid.resolution
@@ -80,11 +81,11 @@ def line_of_sight(grid: OccupancyGrid, origins, targets) -> np.ndarray:
     origins = np.asarray(origins, dtype=float).reshape(-1, 2)
     targets = np.asarray(targets, dtype=float).reshape(-1, 2)
     d = targets - origins
-    dist = np.hypot(d[:, 0], d[:, 1])
+    dist = pm.hypot(d[:, 0], d[:, 1])
     if dist.size == 0:
         return np.zeros(0, dtype=bool)
     reach = float(dist.max()) + grid.resolution
-    r = cast_rays(grid, origins, np.arctan2(d[:, 1], d[:, 0]), reach)
+    r = cast_rays(grid, origins, pm.atan2(d[:, 1], d[:, 0]), reach)
     clear = r >= dist
     # Where the ray stopped short of the target: is the cell it entered the target's?
     short = np.flatnonzero(~clear)

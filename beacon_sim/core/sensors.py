@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from beacon_sim.core import measurement_models as mm
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.beam_model import RangeModelParams, sample_beam
 from beacon_sim.core.geometry import hdop
@@ -128,12 +129,13 @@ class SensorSpec:
 
 def in_view(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray) -> np.ndarray:
     """Boolean mask (R, n) of the beacons at ``bxy`` (n, 2) [m] within range and field of
-    view of each pose (R, 3) [m, m, rad]; walls are not looked at."""
+    view of each pose (R, 3) [m, m, rad]; walls are not looked at. Portable maths (the
+    truth's decision: the same on every machine)."""
     d = bxy[None, :, :] - poses[:, None, :2]
-    in_range = np.hypot(d[..., 0], d[..., 1]) <= spec.max_range
+    in_range = pm.hypot(d[..., 0], d[..., 1]) <= spec.max_range
     if spec.fov >= 2.0 * math.pi:
         return in_range
-    rel = wrap(relative_bearing(d[..., 0], d[..., 1], poses[:, 2:3]))
+    rel = wrap(relative_bearing(d[..., 0], d[..., 1], poses[:, 2:3], portable=True))
     return in_range & (np.abs(rel) <= 0.5 * spec.fov)
 
 
@@ -181,7 +183,8 @@ def sense(
     if spec.kind == "bearing":
         if idx.size == 0:
             return None
-        z = mm.bearing(pose, world.beacon_xy[idx])[:, None] + noise[idx] * spec.noise.bearing_std
+        z = (mm.bearing(pose, world.beacon_xy[idx], portable=True)[:, None]
+             + noise[idx] * spec.noise.bearing_std)
         if spec.outlier_rate > 0.0:  # u < rate is never true otherwise: skip the empty indexing
             out = u_outlier[idx] < spec.outlier_rate
             z[out, 0] = -math.pi + 2.0 * math.pi * u_value[idx][out, 0]
@@ -190,7 +193,7 @@ def sense(
     if spec.kind == "range_bearing":
         if idx.size == 0:
             return None
-        z = mm.range_bearing(pose, world.beacon_xy[idx]) + noise[idx] * spec.reading_std()
+        z = mm.range_bearing(pose, world.beacon_xy[idx], portable=True) + noise[idx] * spec.reading_std()
         if spec.outlier_rate > 0.0:
             out = u_outlier[idx] < spec.outlier_rate
             max_r = spec.max_range if math.isfinite(spec.max_range) else max(world.width, world.height)

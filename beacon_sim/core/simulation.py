@@ -8,16 +8,16 @@ motion noise, each sensor, events and the driver each have their own stream.
 from __future__ import annotations
 
 import hashlib
-import math
 from dataclasses import replace
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.clutter import unlabel
 from beacon_sim.core.drivers import Driver
 from beacon_sim.core.events import Blackout, Kidnap, active_ticks, first_tick_at
-from beacon_sim.core.motion import SLIP_MODELS, move, with_slip
+from beacon_sim.core.motion import SLIP_MODELS, move_portable, with_slip
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.sensors import sense
@@ -106,12 +106,12 @@ class Simulation:
         sv, sw = noise.control_std(control.v, control.omega)
         g = noise.slip_gain(control.v, control.omega)
         for burst in self.schedule.bursts_at(k):
-            sv = math.hypot(sv, g * burst.v_std)
-            sw = math.hypot(sw, g * burst.omega_std)
+            sv = pm.hypot1(sv, g * burst.v_std)
+            sw = pm.hypot1(sw, g * burst.omega_std)
         e = self._motion_rng.standard_normal(5)
         v = control.v + sv * e[0]
         w = control.omega + sw * e[1]
-        pose = move(self.pose, v, w, self.dt)
+        pose = move_portable(self.pose, v, w, self.dt)   # portable maths: same bits anywhere
         pose += noise.pose_std_at(control.v, control.omega) * e[2:]
         pose[2] = wrap(pose[2])
         if not self.world.contains(pose[:2]) or self._into_wall(pose):
@@ -194,7 +194,7 @@ def bumped_heading(noise, bursts, theta0: float, omega: float, e_omega: float, e
     sw = float(noise.control_std(0.0, omega)[1])
     g = noise.slip_gain(0.0, omega)
     for burst in bursts:
-        sw = math.hypot(sw, g * burst.omega_std)
+        sw = pm.hypot1(sw, g * burst.omega_std)
     th = wrap(theta0 + (omega + sw * e_omega) * dt) + float(noise.pose_std_at(0.0, omega)[2]) * e_theta
     return wrap(th)
 

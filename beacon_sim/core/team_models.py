@@ -20,8 +20,8 @@ import math
 
 import numpy as np
 
+from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
-from beacon_sim.core.measurement_models import relative_bearing_scalar
 
 #: Robot-sensor measurement kinds and the width of one row of ``Measurement.z``. The IDs a
 #: reading names (``Measurement.beacon_ids``) are then the IDs of the robots seen.
@@ -29,10 +29,11 @@ ROBOT_MEASUREMENT_DIMS = {"robot_bearing": 1, "robot_range_bearing": 2}
 
 
 def relative_range_bearing(pose_i, pose_j) -> np.ndarray:
-    """``[range, bearing]`` of robot j seen from robot i, shape (2,) [m, rad]."""
+    """``[range, bearing]`` of robot j seen from robot i, shape (2,) [m, rad] (portable maths:
+    the team simulation's readings are these)."""
     dx = float(pose_j[0]) - float(pose_i[0])
     dy = float(pose_j[1]) - float(pose_i[1])
-    return np.array([math.hypot(dx, dy), wrap(relative_bearing_scalar(dx, dy, float(pose_i[2])))])
+    return np.array([pm.hypot1(dx, dy), wrap(pm.atan2_1(dy, dx) - float(pose_i[2]))])
 
 
 def relative_range_bearing_jacobians(pose_i, pose_j) -> tuple[np.ndarray, np.ndarray]:
