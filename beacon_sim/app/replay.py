@@ -162,13 +162,14 @@ class ReplayApp(App):
         heading = "NOT VERIFIED: the replay differs from the recording"
         if not why:
             why = getattr(self.session, "unverified", None)
-            heading = "NOT VERIFIED: recorded before beacon-sim's portable maths"
+            heading = "NOT VERIFIED: an older recording"
+            why = why and why.removeprefix("not verified: ")
         if not why:
             return
         x, y, w, h = self.view.area
         font = self.fonts["hud"]
         title = self.fonts["banner"].render(heading, True, palette.BANNER_TEXT)
-        lines = wrap_text(font, why, w - 60)[:3]
+        lines = wrap_text(font, why, w - 60)[:4]
         imgs = [font.render(line, True, palette.BANNER_TEXT) for line in lines]
         lh = font.get_linesize()
         box = pygame.Rect(0, 0, min(w - 20, max([title.get_width(), *(i.get_width() for i in imgs)]) + 36),
