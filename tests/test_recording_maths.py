@@ -311,6 +311,14 @@ def test_estimates_beyond_the_tolerance_on_other_maths_are_not_verified(made_the
     assert main(["replay", str(path), "--headless"]) == 0
 
 
+def test_other_filters_on_other_maths_verify_the_truth_and_readings(made_there):
+    status = replay_recording(load_recording(made_there), ["ukf"]).extra["replay"]["checksum_status"]
+    assert status == ("verified: truth and readings; other filters or parameters than the "
+                      "recorded ones, so the estimates are not compared; recorded on a machine "
+                      f"whose maths differs ({load_recording(made_there).maths_description}; "
+                      f"here {maths_description()})")
+
+
 def test_the_window_gives_the_same_verdict_on_other_maths(made_there):
     rec = load_recording(made_there)
     s = ReplaySession(rec, FILTERS, {})

@@ -7,7 +7,10 @@ same commands), so the file carries its own checksums whatever the caller passes
 of one (a single robot) is written in a single robot's format, byte for byte as before
 issue 22; a team in a team's (the driven robot's index and command per tick). Lines are
 flushed at least every half second of simulated or wall time: a killed program leaves a
-file that replays to within a second of the kill.
+file that replays to within a second of the kill. The header names the maths of the machine
+that records (issue 35) and the scenario without a folder; the estimates lines hold the
+filters' estimates beside their digests, so a replay on other maths compares them within a
+tolerance (beacon_sim/runs/replay_maths.py).
 """
 
 from __future__ import annotations

@@ -201,9 +201,9 @@ class FilterVerifier:
         m = self.maths
         if not m.known or m.same:
             return ""
-        note = f"; {m.differs_text()}: inputs verified bit for bit"
         if not self.compare or not self.compared_lines:
-            return note
+            return f"; {m.differs_text()}"  # (what was verified: the status before it)
+        note = f"; {m.differs_text()}: inputs verified bit for bit"
         exact = sorted(set(self.tracks) - set(self.skipped) - set(self.unchecked)
                        - set(self.differences))
         which = "the other estimates" if self.unchecked else "estimates"
