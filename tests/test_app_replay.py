@@ -191,3 +191,28 @@ def test_mrclam_on_screen_shows_the_truth_and_the_estimates_at_the_tick(tmp_path
         assert png.stat().st_size > 10_000
     finally:
         app.close()
+
+
+def test_an_old_recording_whose_readings_differ_shows_not_verified(tmp_path, capsys):
+    """A recording made before the portable maths (it does not name its maths) whose
+    readings differ here plays on, under a "NOT VERIFIED" banner that says why (not an edit),
+    and the window exits 0."""
+    from pathlib import Path
+
+    from beacon_sim.app import palette
+
+    old = Path(__file__).parent / "data" / "old_recordings" / "v3_sparse_kidnap.jsonl"
+    rec = load_recording(old)
+    app = ReplayApp(ReplaySession(rec, ["ekf", "dead_reckoning"]), size=(960, 600), scripted=True)
+    try:
+        run_until(app, 30)
+        assert app.session.mismatch is None and app.session.sim.tick >= 30
+        assert app.session.unverified.startswith("not verified: made before beacon-sim's portable")
+        x, y, w, h = app.view.area
+        strip = pygame.surfarray.pixels3d(app.screen)[x:x + w, y + h - 60:y + h - 12]
+        assert int(np.all(strip == palette.BANNER_BG, axis=-1).sum()) > 2000
+        del strip
+    finally:
+        app.close()
+    assert main(["replay", str(old), "--frames", "90"]) == 0
+    assert "checksum not verified: made before beacon-sim's portable maths" in capsys.readouterr().err

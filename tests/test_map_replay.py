@@ -1,5 +1,7 @@
 """Recording and bit-exact replay of a map session (issue 30): the walls come back from the
-map file the scenario names, the scans replay bit for bit, and mcl's figures are the run's."""
+map file the scenario names, the scans replay bit for bit, and mcl's figures are the run's.
+The recording names the scenario without a folder (issue 35): the map file is looked for
+beside a shipped scenario, or beside the path an older recording holds."""
 
 from __future__ import annotations
 
@@ -25,9 +27,12 @@ def test_a_recorded_map_session_replays_bit_for_bit(tmp_path, capsys):
     with Recorder(out, sc, 3, ["mcl", "dead_reckoning"], {}) as rec:
         for k in range(1, 51):
             rec.record_tick(k, None, [])
+    assert json.loads(out.read_text().splitlines()[0])["scenario_source"] == "office"
     assert main(["replay", str(out), "--headless", "--json", "--filter", "mcl",
                  "--set", "mcl.max_particles=800", "--set", "mcl.min_particles=200"]) == 0
-    got = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    assert "map" not in captured.err  # the shipped map, found by name, is the recorded one
+    got = json.loads(captured.out)
     ref = run_headless(sc, ["mcl"], seed=3, duration=5.0,
                        params={"mcl": {"max_particles": 800, "min_particles": 200}}).as_json()
     assert got["truth_checksum"] == ref["truth_checksum"]
@@ -67,34 +72,72 @@ def replay_json(out, capsys) -> tuple[dict, str]:
     return json.loads(captured.out), captured.err
 
 
+def alter_map(sc, maps: Path) -> None:
+    """A wall block painted over the corridor where the robot drives, saved over the map."""
+    grid = sc.world.grid
+    cells = grid.cells.copy()
+    cells[110:130, 100:140] = OCCUPIED
+    save_map(OccupancyGrid(cells, grid.resolution, grid.origin), maps / "office.yaml")
+
+
 def test_the_recording_holds_the_map_and_replays_without_the_file(tmp_path, capsys):
-    """The header stores the occupancy grid the run used (with its digest): with the map
-    files deleted, and again with them altered, the replay rebuilds the same world from the
-    recording alone, verified bit for bit with the same figures, and says which map it used."""
+    """The header stores the occupancy grid the run used (with its digest) and names the
+    user's scenario by its file name only: with the map files deleted, and again with them
+    altered, the replay rebuilds the same world from the recording alone, verified bit for
+    bit with the same figures (the user's folder is not recorded, so nothing is looked for
+    there)."""
     sc, out, maps = record_office_copy(tmp_path)
     header = json.loads(out.read_text().splitlines()[0])
+    assert header["scenario_source"] == "office.toml"
+    assert str(tmp_path) not in out.read_text()
     assert header["map"]["file"] == "../assets/maps/office.yaml"
     assert header["map"]["sha256"] == sc.world.grid.sha256()
     assert len(out.read_bytes()) < 50_000       # 96,000 cells, compressed
     ref, err = replay_json(out, capsys)
     assert ref["replay"]["checksum_status"].startswith("verified: truth and readings")
-    assert "map" not in err                      # the file on disk is the recorded map
+    assert "map" not in err
 
     for name in ("office.yaml", "office.pgm"):
         (maps / name).unlink()
     gone, err = replay_json(out, capsys)
-    assert "cannot be read" in err and "replaying with the recorded map" in err
-    # altered: a wall block painted over the corridor where the robot drives
-    grid = sc.world.grid
-    cells = grid.cells.copy()
-    cells[110:130, 100:140] = OCCUPIED
-    save_map(OccupancyGrid(cells, grid.resolution, grid.origin), maps / "office.yaml")
+    assert "map" not in err
+    alter_map(sc, maps)
     altered, err = replay_json(out, capsys)
-    assert "differs from the recorded map" in err and "replaying with the recorded map" in err
+    assert "map" not in err
     for got in (gone, altered):
         assert got["replay"]["checksum_status"] == ref["replay"]["checksum_status"]
         assert got["truth_checksum"] == ref["truth_checksum"]
         assert figures(got) == figures(ref)
+
+
+def with_header(out: Path, path: Path, edit) -> Path:
+    """``out`` rewritten to ``path`` with ``edit(header)`` applied to its header."""
+    lines = out.read_text().splitlines(keepends=True)
+    header = json.loads(lines[0])
+    edit(header)
+    path.write_text(json.dumps(header) + "\n" + "".join(lines[1:]))
+    return path
+
+
+def test_an_older_recording_names_a_changed_map_file(tmp_path, capsys):
+    """A recording made before issue 35 holds the scenario's path: the map file beside it
+    is still looked for, and a missing or altered one is said (the recorded map is used)."""
+    sc, out, maps = record_office_copy(tmp_path)
+
+    def as_before(header):
+        header["scenario_source"] = str(tmp_path / "scen" / "office.toml")
+    old = with_header(out, tmp_path / "old.jsonl", as_before)
+    ref, err = replay_json(old, capsys)
+    assert "map" not in err                      # the file on disk is the recorded map
+    for name in ("office.yaml", "office.pgm"):
+        (maps / name).unlink()
+    gone, err = replay_json(old, capsys)
+    assert "cannot be read" in err and "replaying with the recorded map" in err
+    alter_map(sc, maps)
+    altered, err = replay_json(old, capsys)
+    assert "differs from the recorded map" in err and "replaying with the recorded map" in err
+    for got in (gone, altered):
+        assert got["truth_checksum"] == ref["truth_checksum"] and figures(got) == figures(ref)
 
 
 def test_an_edited_stored_map_is_refused(tmp_path):
@@ -110,15 +153,14 @@ def test_an_edited_stored_map_is_refused(tmp_path):
 
 
 def test_a_recording_made_before_the_map_was_stored_still_replays(tmp_path, capsys):
-    """A header without "map" (recorded before issue 30 stored it) reads the map file the
-    scenario names, as it did."""
+    """A header without "map" (recorded before issue 30 stored it, with the scenario's
+    path) reads the map file the scenario names, as it did."""
     _, out, _ = record_office_copy(tmp_path, ticks=20)
     ref, _ = replay_json(out, capsys)
-    lines = out.read_text().splitlines(keepends=True)
-    header = json.loads(lines[0])
-    del header["map"]
-    old = tmp_path / "old.jsonl"
-    old.write_text(json.dumps(header) + "\n" + "".join(lines[1:]))
-    got, _ = replay_json(old, capsys)
+
+    def as_before(header):
+        del header["map"]
+        header["scenario_source"] = str(tmp_path / "scen" / "office.toml")
+    got, _ = replay_json(with_header(out, tmp_path / "old.jsonl", as_before), capsys)
     assert got["replay"]["checksum_status"] == ref["replay"]["checksum_status"]
     assert figures(got) == figures(ref)

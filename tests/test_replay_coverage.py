@@ -1,6 +1,7 @@
 """What replay claims (issues 15 and 24): the checksums of a recording cover the readings and
 the scenario text as well as the truth (version 3: also the filter settings and estimates,
-tests/test_replay_verification.py); version 1 files still replay, verified for the truth
+tests/test_replay_verification.py; version 4: the maths, tests/test_recording_maths.py);
+version 1 files still replay, verified for the truth
 only; a recording without checksums says 'not verified'."""
 
 from __future__ import annotations
@@ -44,8 +45,8 @@ def _rewrite(path, out, header=None, line=None):
     return out
 
 
-def test_version_3_is_verified(recorded):
-    assert json.loads(recorded.read_text().splitlines()[0])["version"] == FORMAT_VERSION == 3
+def test_version_4_is_verified(recorded):
+    assert json.loads(recorded.read_text().splitlines()[0])["version"] == FORMAT_VERSION == 4
     res = replay_recording(load_recording(recorded))
     assert res.extra["replay"]["checksum_status"] == "verified"
 

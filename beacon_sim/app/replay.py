@@ -156,15 +156,20 @@ class ReplayApp(App):
     def draw_mismatch(self, surf) -> None:
         """While a replay differs from its recording: a banner across the bottom of the world
         view, for as long as the window shows the replay (what differs, where, and that the
-        run is not verified)."""
+        run is not verified). A recording made before beacon-sim's portable maths whose truth
+        differs gets a banner saying so (not verified, not an edit)."""
         why = getattr(self.session, "mismatch", None)
+        heading = "NOT VERIFIED: the replay differs from the recording"
+        if not why:
+            why = getattr(self.session, "unverified", None)
+            heading = "NOT VERIFIED: an older recording"
+            why = why and why.removeprefix("not verified: ")
         if not why:
             return
         x, y, w, h = self.view.area
         font = self.fonts["hud"]
-        title = self.fonts["banner"].render("NOT VERIFIED: the replay differs from the recording",
-                                            True, palette.BANNER_TEXT)
-        lines = wrap_text(font, why, w - 60)[:3]
+        title = self.fonts["banner"].render(heading, True, palette.BANNER_TEXT)
+        lines = wrap_text(font, why, w - 60)[:4]
         imgs = [font.render(line, True, palette.BANNER_TEXT) for line in lines]
         lh = font.get_linesize()
         box = pygame.Rect(0, 0, min(w - 20, max([title.get_width(), *(i.get_width() for i in imgs)]) + 36),
@@ -218,7 +223,9 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
                 end: float | None = None, size: tuple[int, int] = (1280, 800),
                 gif_width: int | None = 640, foxglove: int | None = None) -> int:
     """The replay window until quit (or ``frames`` frames, each counting 1/60 s); saves the
-    last frame to ``screenshot``. Returns 2 when the truth differs from the recording.
+    last frame to ``screenshot``. Returns 2 when the replay differs from the recording (0
+    for a recording made before the portable maths whose truth differs: not verified, said
+    on the banner and stderr).
 
     ``start`` / ``end`` [s]: seek to ``start`` first, stop at ``end``. With ``gif`` the
     window is scripted (1/60 s per frame, as fast as it draws), captures every 6th frame

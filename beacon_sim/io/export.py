@@ -16,7 +16,7 @@ import numpy as np
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
 from beacon_sim.filters.runner import FilterTrack
-from beacon_sim.io.recording import Recording
+from beacon_sim.io.recording import Recording, header_without_paths
 from beacon_sim.io.tables import (
     POSE_AFTER,
     POSE_BEFORE,
@@ -115,7 +115,7 @@ def trace_arrays(recording: Recording, steps: Sequence[Step],
     cmds = [(r.tick, json.dumps(c)) for r in recording.ticks for c in r.commands]
     out["command_tick"] = np.array([t for t, _ in cmds], dtype=int)
     out["command_json"] = np.array([c for _, c in cmds], dtype=str)
-    out["header_json"] = np.array(json.dumps(recording.header))
+    out["header_json"] = np.array(json.dumps(header_without_paths(recording.header)))
     return out
 
 

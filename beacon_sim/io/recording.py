@@ -2,12 +2,15 @@
 
 One JSON object per line (format described in docs/replay.md):
 
-- line 1, the header: ``{"type": "header", "format": "beacon-sim-recording", "version": 3,
-  "program_version", "created", "scenario_name", "scenario_source", "scenario_toml" (the
-  full text of the scenario file), "scenario_sha256" (its SHA-256, 64 hex digits), "seed",
-  "dt", "filters" (specs), "params" ({NAME: {KEY: VALUE}}, the ``--set`` overrides),
-  "checkpoint_every" (ticks), "signed" (true when an HMAC signs the file)}``, plus the
-  keys of :data:`MODEL_KEYS`;
+- line 1, the header: ``{"type": "header", "format": "beacon-sim-recording", "version": 4,
+  "program_version", "created", "scenario_name", "scenario_source" (a shipped scenario's
+  name, or a user's file name without its folder: :func:`scenario_label`), "scenario_toml"
+  (the full text of the scenario file), "scenario_sha256" (its SHA-256, 64 hex digits),
+  "seed", "dt", "filters" (specs), "params" ({NAME: {KEY: VALUE}}, the ``--set``
+  overrides), "checkpoint_every" (ticks), "signed" (true when an HMAC signs the file),
+  "maths" (16 hex digits: the maths fingerprint of the machine that made it,
+  :func:`beacon_sim.core.maths_fingerprint.maths_fingerprint`), "maths_description" (the
+  same for people)}``, plus the keys of :data:`MODEL_KEYS`;
 - line 2 (version 3, when the recorder saw the filters): ``{"type": "filters", "filters":
   {NAME: {"params": {KEY: VALUE} | null, "failed": why (absent when built)}}}``, the
   effective parameters of every built filter (its merged ``params``, defaults included);
@@ -22,15 +25,20 @@ One JSON object per line (format described in docs/replay.md):
 - version 3, after the estimates of every checkpoint's tick: ``{"type": "estimates", "k",
   "digests": {NAME: 64 hex digits | null}}`` (:class:`EstimateDigests`; null: not compared,
   e.g. the filter was reloaded live), and ``"notes": {NAME: why}`` when a filter was
-  switched off or reloaded live;
+  switched off or reloaded live; version 4 adds ``"values": {NAME: [x, y, theta, Pxx, Pxy,
+  Pxtheta, Pyy, Pytheta, Pthetatheta, ...] | null}``, the estimate of that tick itself
+  (:func:`estimate_values`: nine floats per robot), so a replay on other maths can compare
+  it within a tolerance;
 - last: ``{"type": "end", "ticks", "pose", "checksum", "readings_checksum"}`` (version 3
-  adds ``"estimates"`` and ``"notes"`` as on an estimates line, for the last tick);
+  adds ``"estimates"`` and ``"notes"`` as on an estimates line, for the last tick; version
+  4 ``"values"`` too);
 - signed files (``BEACON_SIM_RECORDING_KEY`` set when recording): after each checkpoint's
   estimates and after the end line, ``{"type": "signature", "hmac": 64 hex digits}``, the
   HMAC-SHA256 of every byte of the file before that line (:class:`Signer`).
 
-Version 1 files (no readings checksums, no scenario checksum) and version 2 files (no
-filter settings, no estimates) are still read; a replay says what they cover.
+Version 1 files (no readings checksums, no scenario checksum), version 2 files (no
+filter settings, no estimates) and version 3 files (no maths fingerprint, no estimate
+values) are still read; a replay says what they cover.
 
 The header's ``"slip_model"`` (issue 25: ``"scaled"``, slip scaling with the command) names
 the motion noise the run was made with; a file without it was made before and replays with
@@ -75,6 +83,7 @@ import numpy as np
 
 from beacon_sim.core.motion import SLIP_MODELS
 from beacon_sim.core.occupancy import MAX_CELLS, MapError, OccupancyGrid, load_map
+from beacon_sim.core.resources import scenario_dir
 from beacon_sim.core.scenario import (
     MAX_COORD,
     MAX_SENSORS,
@@ -89,6 +98,7 @@ from beacon_sim.core.scenario import (
 from beacon_sim.core.simulation import RECORDED_BEFORE_SLIP_MODEL, scenario_with_slip
 from beacon_sim.core.team import team_with_slip
 from beacon_sim.core.team_scenario import (
+    MAX_ROBOTS,
     TeamScenario,
     is_team_document,
     parse_team_scenario,
@@ -100,18 +110,27 @@ from beacon_sim.filters.team_runner import TeamRunner
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 #: Versions this program reads. Version 1 files carry checksums of the truth only; version 2
 #: adds the readings (``r`` per tick, ``readings_checksum``) and the scenario text
 #: (``scenario_sha256`` in the header, 16 hex digits); version 3 the effective filter
 #: parameters (the filters line), digests of the estimates (estimates lines), the full
-#: SHA-256 of the scenario and the optional HMAC signature.
-READ_VERSIONS = (1, 2, 3)
-#: The header keys a version 3 writer puts in every header.
+#: SHA-256 of the scenario and the optional HMAC signature; version 4 (issue 35: truth and
+#: readings made with the portable maths, the same bits on every machine) the maths
+#: fingerprint of the machine that made it and the estimates' values at every estimates
+#: line, so that a replay on other maths compares them within a tolerance.
+READ_VERSIONS = (1, 2, 3, 4)
+#: The header keys a version 3 or 4 writer puts in a header ("maths" and
+#: "maths_description": version 4).
 HEADER_KEYS = frozenset({
     "type", "format", "version", "program_version", "created", "scenario_name",
     "scenario_source", "scenario_toml", "scenario_sha256", "seed", "dt", "filters", "params",
-    "checkpoint_every", "signed", "kind", "robots"})
+    "checkpoint_every", "signed", "kind", "robots", "maths", "maths_description"})
+#: Longest ``maths_description`` [characters].
+MAX_DESCRIPTION_CHARS = 200
+#: Numbers an estimate of one robot takes on an estimates line: the mean (3) and the
+#: covariance's upper triangle (6), :func:`estimate_values`.
+VALUES_PER_ROBOT = 9
 #: Header keys that shape the truth beyond the scenario text, the seed and dt (e.g. a motion
 #: model's version): the one place a new such key is declared. A version 3 header holding a
 #: key in neither HEADER_KEYS nor MODEL_KEYS is refused (an edit, or a newer writer); the
@@ -258,6 +277,51 @@ def scenario_text(scenario: Scenario | TeamScenario) -> str:
             from None
 
 
+def scenario_label(source: str) -> str:
+    """What a header's ``scenario_source`` says about the scenario file ``source`` (a path):
+    a shipped scenario's name (``office``, ``team_sparse``: what ``beacon-sim play`` takes),
+    or a user's file by its file name only (``my_room.toml``). Never a folder: a recording
+    holds no path of the machine that made it."""
+    path = Path(source)
+    if path.suffix == ".toml":
+        for shipped in (scenario_dir(), scenario_dir() / "team"):
+            try:
+                if path.resolve().parent == shipped.resolve() and path.is_file():
+                    return path.stem
+            except OSError:
+                break
+    return path.name
+
+
+def scenario_folder(source: str | None) -> Path | None:
+    """The folder of the scenario file a header's ``scenario_source`` names, for the files
+    it names beside it (a map): a shipped scenario's (by name), the recorded folder of a
+    file written before issue 35 (a path), None for a user's file name (its folder is not
+    recorded) or no source."""
+    if not source:
+        return None
+    path = Path(source)
+    if path.parent != Path("."):  # a path: a recording made before issue 35
+        return path.parent
+    if path.suffix == ".toml":  # a user's file, by name only
+        return None
+    for shipped in (scenario_dir() / f"{source}.toml", scenario_dir() / "team" / f"{source}.toml"):
+        if shipped.is_file():
+            return shipped.parent
+    return None
+
+
+def header_without_paths(header: Mapping[str, Any]) -> dict[str, Any]:
+    """A header to pass on (an export): a ``scenario_source`` written as a path (a recording
+    made before issue 35) cut to its file name, so no folder of the recording machine leaves
+    it."""
+    out = dict(header)
+    source = out.get("scenario_source")
+    if isinstance(source, str):
+        out["scenario_source"] = source.replace("\\", "/").rsplit("/", 1)[-1]  # a Windows path too
+    return out
+
+
 def text_checksum(text: str, version: int = FORMAT_VERSION) -> str:
     """SHA-256 of a scenario's text as a header of that version stores it: 64 hex digits
     (version 3), the first 16 (version 2)."""
@@ -294,14 +358,27 @@ def estimate_bytes(tick: int, mean: np.ndarray, cov: np.ndarray) -> bytes:
             + np.ascontiguousarray(cov, dtype="<f8").tobytes())
 
 
+def estimate_values(mean: np.ndarray, cov: np.ndarray) -> list[float]:
+    """An estimate as an estimates line stores it (version 4): per robot, the mean ``[x, y,
+    theta]`` [m, m, rad] then the covariance's upper triangle ``[Pxx, Pxy, Pxtheta, Pyy,
+    Pytheta, Pthetatheta]`` [m^2, m^2, m rad, m^2, m rad, rad^2], as Python floats (written
+    with repr: they read back bit for bit). ``mean`` (3,) or (N, 3), ``cov`` (3, 3) or (N, 3, 3)."""
+    m = np.asarray(mean, dtype=float).reshape(-1, 3)
+    c = np.asarray(cov, dtype=float).reshape(-1, 3, 3)
+    rows, cols = np.triu_indices(3)
+    return [float(v) for v in np.concatenate([m, c[:, rows, cols]], axis=1).ravel()]
+
+
 class EstimateDigests:
     """A running SHA-256 per filter over the estimates it gave (:func:`estimate_bytes`), tick
     by tick: what a version 3 recording stores at its checkpoints and at its end, and what a
-    replay recomputes. ``update`` reads a runner's tracks (``ticks``, ``means``, ``covs``)
-    once per tick, after the filters were fed."""
+    replay recomputes; and each filter's latest estimate, whose :func:`estimate_values` a
+    version 4 file stores beside the digests. ``update`` reads a runner's tracks (``ticks``,
+    ``means``, ``covs``) once per tick, after the filters were fed."""
 
     def __init__(self) -> None:
         self._hash: dict[str, Any] = {}
+        self._latest: dict[str, tuple[int, np.ndarray, np.ndarray]] = {}
 
     def update(self, tick: int, tracks: Mapping[str, Any]) -> None:
         for name, track in tracks.items():
@@ -309,11 +386,21 @@ class EstimateDigests:
             if h is None:
                 h = self._hash[name] = hashlib.sha256()
             if track.ticks and track.ticks[-1] == tick:
-                h.update(estimate_bytes(tick, track.means[-1], track.covs[-1]))
+                mean, cov = track.means[-1], track.covs[-1]
+                h.update(estimate_bytes(tick, mean, cov))
+                self._latest[name] = (tick, mean, cov)
 
     def digest(self, name: str) -> str:
         """The filter's digest so far (the digest of nothing before its first estimate)."""
         return (self._hash.get(name) or hashlib.sha256()).hexdigest()
+
+    def values(self, name: str, tick: int) -> list[float] | None:
+        """The filter's estimate of ``tick`` as :func:`estimate_values` (None: it gave none
+        on that tick, e.g. it was switched off)."""
+        latest = self._latest.get(name)
+        if latest is None or latest[0] != tick:
+            return None
+        return estimate_values(latest[1], latest[2])
 
 
 def recorded_tracks(runner: Any) -> dict[str, Any]:
@@ -428,8 +515,21 @@ class Recording:
     @property
     def version(self) -> int:
         """The file's format version (1: checksums of the truth only; 2: also the readings
-        and the scenario text)."""
+        and the scenario text; 3: the filter settings and estimate digests; 4: the maths
+        fingerprint and the estimates' values)."""
         return int(self.header["version"])
+
+    @property
+    def maths(self) -> str | None:
+        """The maths fingerprint of the machine that made the file (None: made before
+        beacon-sim stored it, version 3 and older)."""
+        fp = self.header.get("maths")
+        return fp if is_fingerprint(fp) else None
+
+    @property
+    def maths_description(self) -> str:
+        """The recording machine's maths in words (``numpy 2.4.6, x86_64, AVX512_SPR``)."""
+        return str(self.header.get("maths_description") or "not recorded")
 
     @property
     def scenario(self) -> Scenario:
@@ -452,8 +552,8 @@ def rebuild_scenario(text: str, file: str, name: str, source: str | None = None,
                      map_grid: OccupancyGrid | None = None) -> Scenario:
     """A scenario from its stored text (the same checks and caps as loading the file); a
     map file it names is ``map_grid`` when given (the recorded map), else read from beside
-    ``source``, the scenario file recorded (issue 30)."""
-    base = Path(source).parent if source else None
+    ``source``, the header's ``scenario_source`` (issue 30; :func:`scenario_folder`)."""
+    base = scenario_folder(source)
     return parse_scenario(parse_toml_text(text, file), file, name=name, base_dir=base,
                           map_grid=map_grid)
 
@@ -522,11 +622,16 @@ def recorded_map(path: Path, header: Mapping[str, Any]) -> OccupancyGrid | None:
 
 
 def disk_map_note(grid: OccupancyGrid, name: str, source: str | None) -> str | None:
-    """A warning when the map file a recording's scenario names (beside ``source``) is
-    missing, unreadable or holds another grid than the recorded one (None: the same)."""
+    """A warning when the map file a recording's scenario names (beside ``source``, the
+    header's ``scenario_source``: :func:`scenario_folder`) is missing, unreadable or holds
+    another grid than the recorded one (None: the same, or not looked for: a user's
+    scenario, whose folder a recording does not hold)."""
     path = Path(name)
-    if not path.is_absolute() and source:
-        path = Path(source).parent / path
+    if not path.is_absolute():
+        folder = scenario_folder(source)
+        if folder is None:
+            return None
+        path = folder / path
     try:
         on_disk = load_map(path)
     except MapError as exc:
@@ -643,9 +748,21 @@ def _check_header(path: Path, header: Any) -> None:
         raise _fail(path, 1, "corrupted header: filters or params")
     if "signed" in header and not isinstance(header["signed"], bool):
         raise _fail(path, 1, f"corrupted header: signed = {_short(header['signed'])}")
+    if version >= 4 and not is_fingerprint(header.get("maths")):
+        raise _fail(path, 1, f"corrupted header: maths = {_short(header.get('maths'))} (expected "
+                             "16 hex digits: the maths fingerprint of the machine that made it)")
+    description = header.get("maths_description", "")
+    if not isinstance(description, str) or len(description) > MAX_DESCRIPTION_CHARS:
+        raise _fail(path, 1, f"corrupted header: maths_description = {_short(description)} "
+                             f"(expected a string of at most {MAX_DESCRIPTION_CHARS} characters)")
     if version >= 2 and text_checksum(header["scenario_toml"], version) != header["scenario_sha256"]:
         raise _fail(path, 1, "the stored scenario was edited (its checksum scenario_sha256 "
                              "differs): not the scenario this run was recorded with")
+
+
+def is_fingerprint(x: Any) -> bool:
+    """Whether ``x`` is a maths fingerprint: 16 lower-case hex digits."""
+    return isinstance(x, str) and len(x) == 16 and all(ch in "0123456789abcdef" for ch in x)
 
 
 def _number(x) -> bool:
@@ -703,6 +820,8 @@ def _state_line_ok(obj: dict, team: bool) -> bool:
         return False
     if "estimates" in obj and not _digests_ok(obj["estimates"]):
         return False
+    if "values" in obj and not _values_ok(obj["values"]):
+        return False
     if "notes" in obj and not (isinstance(obj["notes"], dict)
                                and all(isinstance(v, str) for v in obj["notes"].values())):
         return False
@@ -714,6 +833,14 @@ def _state_line_ok(obj: dict, team: bool) -> bool:
 def _digests_ok(d: Any) -> bool:
     return isinstance(d, dict) and len(d) <= MAX_SENSORS \
         and all(v is None or isinstance(v, str) for v in d.values())
+
+
+def _values_ok(d: Any) -> bool:
+    """An estimates or end line's ``values``: {NAME: nine numbers per robot, or null}."""
+    return isinstance(d, dict) and len(d) <= MAX_SENSORS and all(
+        v is None or (isinstance(v, list) and 0 < len(v) <= VALUES_PER_ROBOT * MAX_ROBOTS
+                      and len(v) % VALUES_PER_ROBOT == 0 and all(_number(x) for x in v))
+        for v in d.values())
 
 
 def _settings_ok(obj: dict) -> bool:

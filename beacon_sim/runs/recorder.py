@@ -7,7 +7,10 @@ same commands), so the file carries its own checksums whatever the caller passes
 of one (a single robot) is written in a single robot's format, byte for byte as before
 issue 22; a team in a team's (the driven robot's index and command per tick). Lines are
 flushed at least every half second of simulated or wall time: a killed program leaves a
-file that replays to within a second of the kill.
+file that replays to within a second of the kill. The header names the maths of the machine
+that records (issue 35) and the scenario without a folder; the estimates lines hold the
+filters' estimates beside their digests, so a replay on other maths compares them within a
+tolerance (beacon_sim/runs/replay_maths.py).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from beacon_sim.core.maths_fingerprint import maths_description, maths_fingerprint
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import CURRENT_SLIP_MODEL
 from beacon_sim.core.team import TeamSimulation, TeamStep
@@ -44,6 +48,7 @@ from beacon_sim.io.recording import (
     rebuild_team_scenario,
     recorded_tracks,
     recording_key,
+    scenario_label,
     scenario_text,
     text_checksum,
     validate_command,
@@ -144,12 +149,15 @@ class Recorder:
             "type": "header", "format": FORMAT_NAME, "version": FORMAT_VERSION,
             "program_version": __version__,
             "created": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "scenario_name": scenario.name, "scenario_source": str(scenario.source),
+            "scenario_name": scenario.name, "scenario_source": scenario_label(str(scenario.source)),
             "scenario_toml": text, "scenario_sha256": text_checksum(text),
             "seed": self.seed, "dt": scenario.dt,
             "filters": list(filters), "params": {k: dict(v) for k, v in (params or {}).items()},
             "checkpoint_every": self.checkpoint_every, "signed": self._signer is not None,
             "slip_model": CURRENT_SLIP_MODEL,  # the shadow's (issue 25); absent: "legacy"
+            # which float64 kernels made the estimates (issue 35): a replay on other maths
+            # compares them within a tolerance, not bit for bit
+            "maths": maths_fingerprint(), "maths_description": maths_description(),
             **(extra or {}),
         }
         self._write(header)
@@ -207,11 +215,18 @@ class Recorder:
         self.digests.update(tick, tracks)
         if tick % self.checkpoint_every == 0:
             self._write({"type": "estimates", "k": tick, "digests": self._digest_map(),
+                         "values": self._values_map(tick),
                          **({"notes": dict(self._notes)} if self._notes else {})})
             self._sign()
 
     def _digest_map(self) -> dict[str, str | None]:
         return {n: None if n in self._frozen else self.digests.digest(n) for n in self._track_ids}
+
+    def _values_map(self, tick: int) -> dict[str, list[float] | None]:
+        """Each filter's estimate of ``tick`` (nine numbers per robot: ``estimate_values``),
+        None for one reloaded live or without an estimate of that tick."""
+        return {n: None if n in self._frozen else self.digests.values(n, tick)
+                for n in self._track_ids}
 
     @property
     def truth_checksum(self) -> str:
@@ -261,6 +276,7 @@ class Recorder:
         end = self._state_line("end")
         if self._runner is not None:
             end["estimates"] = self._digest_map()
+            end["values"] = self._values_map(self.shadow.tick)
             if self._notes:
                 end["notes"] = dict(self._notes)
         self._write(end)

@@ -18,10 +18,12 @@ built-in filters and installed entry points are run from a file
 from __future__ import annotations
 
 import time
-from collections.abc import Set
+from collections.abc import Sequence, Set
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
+
+import numpy as np
 
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.types import Control
@@ -41,6 +43,13 @@ from beacon_sim.io.recording import (
 from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import TeamReadingsHash
+from beacon_sim.runs.replay_maths import (
+    TOLERANCE_TEXT,
+    Difference,
+    Maths,
+    estimate_difference,
+    old_maths_text,
+)
 from beacon_sim.runs.user_commands import apply_to_run
 
 
@@ -66,6 +75,14 @@ class FilterVerifier:
     ``filters`` list or ``params``, or an edited ``[filters.NAME]`` in the stored scenario,
     is named), then each filter's estimate digests at every estimates line and at the end.
 
+    The digests match bit for bit only on the maths the file was made with (``maths``,
+    :class:`~beacon_sim.runs.replay_maths.Maths`). On other maths (version 4 files) a
+    filter whose digest differs is compared by its stored estimate values, within the
+    tolerance (``differences``: the largest difference of each); beyond it, or on a file
+    that does not say which maths made it (version 3), it is listed as not verified rather
+    than called an edit. Stored values must equal the replay's bit for bit wherever the
+    digests match (an edited value is named).
+
     Compared only when the replay runs the recorded filters with the recorded parameters
     (``compare``); a filter the replay skipped (named by file) or that was switched off or
     reloaded live is listed in :meth:`coverage` instead. ``runner``: the replay's filters
@@ -80,6 +97,8 @@ class FilterVerifier:
         self.digests = EstimateDigests()
         self.unchecked: dict[str, str] = {}  # name -> why its estimates were not compared
         self.compared_lines = 0
+        self.maths = Maths.of(recording.header)
+        self.differences: dict[str, Difference] = {}  # other maths: largest, within tolerance
 
     @property
     def tracks(self) -> dict[str, Any]:
@@ -125,6 +144,7 @@ class FilterVerifier:
             return None
         tracks = self.tracks
         notes = line.get("notes", {})
+        values = line.get("values", {})
         recorded = line.get("digests", line.get("estimates", {}))
         for name, digest in sorted(recorded.items()):
             if name in self.skipped:
@@ -134,18 +154,68 @@ class FilterVerifier:
             if digest is None or name in self.unchecked:
                 self.unchecked.setdefault(name, notes.get(name, "not compared"))
                 continue
-            if digest != self.digests.digest(name):
-                if name in notes or tracks[name].failed:
-                    self.unchecked[name] = notes.get(name) or f"switched off in this replay: " \
-                                                              f"{tracks[name].failed}"
-                    continue
+            mine = self.digests.values(name, tick)
+            if digest == self.digests.digest(name):
+                if values.get(name) is not None and not _same_bits(values[name], mine):
+                    return f"the estimate values of filter {name} (tick {tick})"
+                continue
+            if name in notes or tracks[name].failed:
+                self.unchecked[name] = notes.get(name) or f"switched off in this replay: " \
+                                                          f"{tracks[name].failed}"
+                continue
+            if self.maths.known and self.maths.same:
                 return f"the estimates of filter {name} (their digest after tick {tick})"
+            self._other_maths(name, tick, values.get(name), mine)
         self.compared_lines += 1
         return None
 
+    def _other_maths(self, name: str, tick: int, recorded: Sequence[float] | None,
+                     replayed: Sequence[float] | None) -> None:
+        """A filter whose digest differs on other maths (or maths the file does not name):
+        within the tolerance, its largest difference is kept; else it is not verified."""
+        if not self.maths.known:
+            self.unchecked[name] = ("its estimates differ from the recorded ones: not verified "
+                                    "(the file does not say which maths made it)")
+            return
+        if recorded is None or replayed is None:
+            self.unchecked[name] = (f"not verified (different maths): no estimate values "
+                                    f"to compare at tick {tick}")
+            return
+        diff = estimate_difference(recorded, replayed)
+        if diff.within:
+            self.differences[name] = diff.worst(self.differences.get(name, Difference()))
+            return
+        self.unchecked[name] = (f"not verified (different maths): its estimates differ from "
+                                f"the recorded ones by {diff.text()} at tick {tick}, beyond "
+                                f"the tolerance")
+
     def coverage(self) -> str:
         """What the check covered beyond truth and readings, as the status's suffix ("" when
-        everything was compared)."""
+        everything was compared bit for bit), and on other maths how the estimates
+        compared."""
+        return self._coverage() + self.maths_note()
+
+    def maths_note(self) -> str:
+        """"" on the maths the file was made with (or a file that does not say); else that
+        the maths differ, and how the estimates compared."""
+        m = self.maths
+        if not m.known or m.same:
+            return ""
+        if not self.compare or not self.compared_lines:
+            return f"; {m.differs_text()}"  # (what was verified: the status before it)
+        note = f"; {m.differs_text()}: inputs verified bit for bit"
+        exact = sorted(set(self.tracks) - set(self.skipped) - set(self.unchecked)
+                       - set(self.differences))
+        which = "the other estimates" if self.unchecked else "estimates"
+        if not self.differences:
+            return note + (f", {which} still bit for bit" if exact else "")
+        worst = Difference()
+        for d in self.differences.values():
+            worst = worst.worst(d)
+        return (note + f", {which} within the tolerance ({TOLERANCE_TEXT}; largest difference "
+                f"{worst.text()})")
+
+    def _coverage(self) -> str:
         rec = self.recording
         if rec.version == 1:
             return ": truth only; readings and filter settings not recorded (a version 1 file)"
@@ -161,6 +231,13 @@ class FilterVerifier:
         out = [f"{n} not run (named by a file or module)" for n in self.skipped]
         out += [f"{n}: {why}" for n, why in sorted(self.unchecked.items())]
         return (" except: " + "; ".join(out)) if out else ""
+
+
+def _same_bits(recorded: Sequence[float], replayed: Sequence[float] | None) -> bool:
+    """Whether stored estimate values are the replay's bit for bit."""
+    if replayed is None or len(recorded) != len(replayed):
+        return False
+    return np.asarray(recorded, dtype="<f8").tobytes() == np.asarray(replayed, dtype="<f8").tobytes()
 
 
 def default_params(flt: Any) -> dict[str, Any] | None:
@@ -361,24 +438,24 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     t0 = time.perf_counter()
     sim_ns = 0
     estimates = recording.parts.estimates
+    unverified: str | None = None  # a file of unknown maths whose truth differs: why
     for rec in recording.ticks:
         a = time.perf_counter_ns()
         apply_to_run(rec.commands, sim, runner, HEADLESS_STEP_LIMIT_S, sim.time)
         step = sim.step(recorded_controls(rec))
         truth.observe(step)
         sim_ns += time.perf_counter_ns() - a
-        if verify:
-            why = truth.tick_mismatch(rec)
-            if why is not None:
-                raise mismatch_error(recording, rec.tick, rec.line, why)
-            checked += tick_checked(recording, rec)
+        if verify and unverified is None:
+            why, bad = truth.tick_mismatch(rec), rec.tick
             cp = recording.checkpoints.get(rec.tick)
-            if cp is not None and truth.state_differs(cp):
-                raise mismatch_error(recording, _first_bad_tick(recording, rec.tick), rec.line,
-                                     "the checkpoint")
+            if why is None and cp is not None and truth.state_differs(cp):
+                why, bad = "the checkpoint", _first_bad_tick(recording, rec.tick)
+            if why is not None:
+                unverified = inputs_differ(recording, bad, rec.line, why)
+            checked += tick_checked(recording, rec)
         steps.append(step)
         runner.feed(step)
-        if verify:
+        if verify and unverified is None:
             line = estimates.get(rec.tick)
             verifier.fold(rec.tick)
             why = verifier.compare_line(rec.tick, line)
@@ -386,24 +463,43 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
                 raise mismatch_error(recording, rec.tick, line["line"] if line else rec.line, why)
     wall = time.perf_counter() - t0
     end = recording.end
-    if verify and end is not None and (end.get("ticks") != sim.tick or truth.state_differs(end)):
-        raise mismatch_error(recording, sim.tick, len(recording.ticks), "the final checksum")
-    if verify and end is not None and "estimates" in end:
-        why = verifier.compare_line(sim.tick, {"digests": end["estimates"],
-                                               "notes": end.get("notes", {})})
+    if verify and unverified is None and end is not None \
+            and (end.get("ticks") != sim.tick or truth.state_differs(end)):
+        unverified = inputs_differ(recording, sim.tick, len(recording.ticks), "the final checksum")
+    if verify and unverified is None and end is not None and "estimates" in end:
+        why = verifier.compare_line(sim.tick, end_estimates(end))
         if why is not None:
             raise mismatch_error(recording, sim.tick, len(recording.ticks), why + " at the end")
-    status = verification_status(recording, checked, len(recording.ticks), at_end=True,
-                                 coverage=verifier.coverage())
+    status = unverified or verification_status(recording, checked, len(recording.ticks),
+                                               at_end=True, coverage=verifier.coverage())
     replay = {
         "file": str(recording.path), "ticks": len(recording.ticks), "complete": recording.complete,
         "checksum_status": with_signature(status, recording) if verify else "not checked",
         "recorded_checksum": end["checksum"] if end else None,
         "skipped_filters": skipped, "warnings": list(recording.warnings),
+        "maths": verifier.maths.as_json(),
+        "estimate_differences": {n: d.as_json() for n, d in sorted(verifier.differences.items())},
     }
     out = RunResult(recording.team, recording.seed, steps, runner, wall, sim_ns / 1e9, truth.truth)
     out.extra["replay"] = replay
     return out
+
+
+def end_estimates(end: dict[str, Any]) -> dict[str, Any]:
+    """The end line's digests, notes and values, in an estimates line's keys."""
+    return {"digests": end["estimates"], "notes": end.get("notes", {}),
+            "values": end.get("values", {})}
+
+
+def inputs_differ(recording: Recording, tick: int, line: int, what: str) -> str:
+    """A replay whose truth or readings differ from the recording at ``tick`` (file line
+    ``line``, checked against ``what``): a file that names the maths that made it was edited
+    (the truth and readings are the same bits on every machine): ReplayMismatch; one made
+    before (format version 3 and older) cannot be told apart from the maths changed since:
+    the status that says so (the replay goes on, not verified)."""
+    if recording.maths is not None:
+        raise mismatch_error(recording, tick, line, what)
+    return old_maths_text(tick, recording.scenario.dt, what)
 
 
 def tick_checked(recording: Recording, rec: TickRecord) -> int:
@@ -475,6 +571,8 @@ class ReplaySession(Session):
     def _fresh(self) -> None:
         """The checks from tick 0, for the simulation and the filters just built."""
         self.mismatch: str | None = None  # the first difference from the file (names the field)
+        # a file that does not name its maths whose truth differs: why it is not verified
+        self.unverified: str | None = None
         self._checked = 0  # ticks so far that carried their checksums
         self.truth = ReplayedTruth(self.recording, self.sim)
         self._apply_recorded_driving()
@@ -547,16 +645,26 @@ class ReplaySession(Session):
         step = super().tick()
         self.truth.observe(step)
         self.verifier.fold(rec.tick)
-        if self.mismatch is None:
-            line = self.recording.parts.estimates.get(rec.tick)
-            why = self.truth.tick_mismatch(rec) or self.verifier.compare_line(rec.tick, line)
-            if why is not None:
-                self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: "
-                                 f"replay differs from the recording at tick {rec.tick} "
-                                 f"(t = {self.sim.time:g} s; {why})")
-            self._checked += tick_checked(self.recording, rec)
+        if self.mismatch is None and self.unverified is None:
+            self._check(rec)
         self._apply_recorded_driving()
         return step
+
+    def _check(self, rec: TickRecord) -> None:
+        """The tick's checksums and estimates against the file (as :func:`replay_recording`):
+        a difference is a mismatch, or on a file that does not name its maths whose truth
+        differs, the reason it is not verified."""
+        line = self.recording.parts.estimates.get(rec.tick)
+        why = self.truth.tick_mismatch(rec)
+        if why is not None and self.recording.maths is None:
+            self.unverified = old_maths_text(rec.tick, self.scenario.dt, why)
+            return
+        why = why or self.verifier.compare_line(rec.tick, line)
+        if why is not None:
+            self.mismatch = (f"{self.recording.path}:{line['line'] if line else rec.line}: "
+                             f"replay differs from the recording at tick {rec.tick} "
+                             f"(t = {self.sim.time:g} s; {why})")
+        self._checked += tick_checked(self.recording, rec)
 
     def checksum_status(self) -> str:
         """"verified", "MISMATCH ...", or how far the check went."""
@@ -570,19 +678,23 @@ def session_status(session: ReplaySession, truth: str, readings: str) -> str:
         return f"MISMATCH: {session.mismatch}"
     rec = session.recording
     end = rec.end
-    if session.at_end and end is not None:
+    if session.at_end and end is not None and session.unverified is None:
         if end["checksum"] != truth or end.get("readings_checksum", readings) != readings:
-            session.mismatch = (f"{rec.path}: replay differs from the recording at its end "
-                                f"(checked against the final checksum)")
-            return f"MISMATCH: {session.mismatch}"
-        if "estimates" in end:
-            why = session.verifier.compare_line(
-                session.sim.tick, {"digests": end["estimates"], "notes": end.get("notes", {})})
+            if rec.maths is None:
+                session.unverified = old_maths_text(session.sim.tick, rec.scenario.dt,
+                                                    "the final checksum")
+            else:
+                session.mismatch = (f"{rec.path}: replay differs from the recording at its end "
+                                    f"(checked against the final checksum)")
+                return f"MISMATCH: {session.mismatch}"
+        elif "estimates" in end:
+            why = session.verifier.compare_line(session.sim.tick, end_estimates(end))
             if why is not None:
                 session.mismatch = f"{rec.path}: the end line: {why}"
                 return f"MISMATCH: {session.mismatch}"
-    status = verification_status(rec, session._checked, session.sim.tick, session.at_end,
-                                 coverage=session.verifier.coverage())
+    status = session.unverified or verification_status(
+        rec, session._checked, session.sim.tick, session.at_end,
+        coverage=session.verifier.coverage())
     try:
         status = with_signature(status, rec)
     except ReplayMismatch as exc:
