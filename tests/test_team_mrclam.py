@@ -52,7 +52,7 @@ def test_dataset6_sightings_match_the_ground_truth_of_both_robots(mrclam_dataset
 def test_cli_mrclam_team_runs_all_five_robots(capsys, mrclam_dataset6):
     assert main(["mrclam", str(mrclam_dataset6), "--team", "--duration", "60", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["robots"] == [1, 2, 3, 4, 5]
+    assert d["robots"] == [1, 2, 3, 4, 5] and d["dataset"] == mrclam_dataset6.name  # not its path
     assert set(d["filters"]) == {"independent", "centralised", "decentralised", "ci"}
     assert d["failed"] == {}
     for name in d["filters"]:
