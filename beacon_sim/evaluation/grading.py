@@ -805,7 +805,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     students = find_students(folder, config.class_name)
     labels = scenario_labels(config.scenarios)
     specs = {label: spec for spec, label in labels.items()}
-    config, given = dataclasses.replace(config, scenarios=[labels[s] for s in config.scenarios]), config
+    config, given = dataclasses.replace(config, scenarios=tuple(labels[s] for s in config.scenarios)), config
     try:
         scenarios: dict[str, Scenario | TeamScenario] = {
             labels[s]: load_team_scenario(s) if is_team_scenario(s) else load_scenario(s)
