@@ -1,9 +1,9 @@
 """Step cost of the SLAM filters with 50 landmarks on their maps, against the 16.7 ms of a
 60 FPS frame, and the cost of drawing the maps in the window.
 
-Run:  /work/venv/bin/python benchmarks/bench_slam.py [--quick]
-      /work/venv/bin/python benchmarks/bench_slam.py --accuracy 10   (the accuracy table instead)
-      /work/venv/bin/python benchmarks/bench_slam.py --association 10   (FastSLAM ML against JCBB)
+Run:  .venv/bin/python benchmarks/bench_slam.py [--quick]
+      .venv/bin/python benchmarks/bench_slam.py --accuracy 10   (the accuracy table instead)
+      .venv/bin/python benchmarks/bench_slam.py --association 10   (FastSLAM ML against JCBB)
 
 The world: 50 beacons in a 30 m x 30 m room, a range-bearing sensor of 8 m at 10 Hz (about
 6-10 beacons in view), a robot on a 9 m circle. Each filter first maps all 50 beacons (six

@@ -34,7 +34,6 @@ from beacon_sim.filters.loading import available_filters
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 FIG = DOCS / "results"
-MRCLAM_DEFAULT = Path("/work/shared/data/mrclam/Dataset6")
 
 
 def fmt(x, spec=".3f"):
@@ -167,13 +166,25 @@ def mrclam_intervals(run, name: str) -> dict[str, list | None]:
             "above": ratio_of_sums(sums["above"], cnt[keep])}
 
 
-def mrclam_section(folder: Path, have: set[str]) -> list[str]:
+def mrclam_folder(given: str | None) -> Path | None:
+    """The MRCLAM data set's folder (``--mrclam DIR``, else ``$BEACON_SIM_MRCLAM``), or None
+    (said on stderr): its tables are then left out."""
+    from beacon_sim.io.mrclam import MrclamError, find_dataset
+
+    try:
+        return find_dataset(given)
+    except MrclamError as exc:
+        print(f"the MRCLAM tables are left out: {exc}", file=sys.stderr)
+        return None
+
+
+def mrclam_section(folder: Path | None, have: set[str]) -> list[str]:
     """The MRCLAM part of results.md: every robot of the data set, leave-one-robot-out."""
     md = [MRCLAM_HEADER, ""]
     from beacon_sim.io.mrclam import load_mrclam
     from beacon_sim.runs.mrclam import run_mrclam
 
-    if not folder.is_dir():
+    if folder is None:
         return [*md, "This table is produced by `beacon-sim mrclam DIR --robot 1 --filter ekf --filter ukf "
                      "--headless` on a copy of a UTIAS MRCLAM data set (not shipped with the project); "
                      "point `scripts/make_results.py --mrclam DIR` at one to include it here.", ""]
@@ -268,7 +279,7 @@ SLAM_HEADER = "## SLAM on MRCLAM (issue 29): EKF-SLAM and FastSLAM 2.0 without t
 SLAM_FILTERS = ("ekf_slam", "fastslam", "ekf", "dead_reckoning")
 
 
-def slam_section(folder: Path, have: set[str]) -> list[str]:
+def slam_section(folder: Path | None, have: set[str]) -> list[str]:
     """The SLAM-on-MRCLAM part of results.md: every robot of the data set, whole runs, the
     SLAM filters not given the landmark map, the known-map EKF on the same run; the noise
     leave-one-robot-out as in the MRCLAM table (never fitted on the scored robot)."""
@@ -278,7 +289,7 @@ def slam_section(folder: Path, have: set[str]) -> list[str]:
     from beacon_sim.runs.mrclam import calibration_for, run_mrclam
 
     md = [SLAM_HEADER, ""]
-    if not folder.is_dir():
+    if folder is None:
         return [*md, "This table is produced by `beacon-sim mrclam DIR --robot N --slam --headless` "
                      "on a copy of a UTIAS MRCLAM data set (not shipped with the project); point "
                      "`scripts/make_results.py --mrclam DIR` at one to include it here.", ""]
@@ -563,12 +574,15 @@ def splice_section(text: str, header: str, section: list[str]) -> str:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs-scale", type=float, default=1.0, help="multiply every run count")
-    ap.add_argument("--mrclam", type=Path, default=Path(os.environ.get("BEACON_SIM_MRCLAM",
-                                                                       MRCLAM_DEFAULT)))
+    ap.add_argument("--mrclam", metavar="DIR",
+                    help="the MRCLAM data set (default: where BEACON_SIM_MRCLAM says; docs/mrclam.md)")
     ap.add_argument("--jobs", type=int, default=default_jobs())
     ap.add_argument("--only", choices=("mrclam", "slam", "corridor"),
                     help="regenerate only this section of results.md")
     args = ap.parse_args()
+    args.mrclam = mrclam_folder(args.mrclam)
+    if args.mrclam is None and args.only in ("mrclam", "slam"):
+        return 2  # nothing to regenerate it from: the section stays as it is
     have = set(available_filters())
     if args.only == "slam":
         path = DOCS / "results.md"

@@ -1,9 +1,11 @@
-"""Test-wide settings: pygame renders off-screen and makes no sound."""
+"""Test-wide settings: pygame renders off-screen and makes no sound; the MRCLAM data set."""
 
 import os
 from pathlib import Path
 
 import pytest
+
+from beacon_sim.io.mrclam import MRCLAM_DOC, MRCLAM_VARIABLE, MrclamError, find_dataset
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -26,3 +28,33 @@ def _no_recordings_in_the_checkout():
     yield
     new = sorted(p.name for p in _recordings_in_the_checkout() - before)
     assert not new, f"the test wrote into the checkout's recordings/: {new[:3]}"
+
+
+def _find_dataset6() -> tuple[Path | None, str]:
+    """MRCLAM Dataset 6 for the tests, and why not when absent: where ``$BEACON_SIM_MRCLAM``
+    says (a data set's folder or the folder holding Dataset6), else ``shared/data/mrclam``
+    beside the checkout (or beside the folder of worktrees that holds it). Never committed."""
+    where = None  # find_dataset reads the variable
+    if not os.environ.get(MRCLAM_VARIABLE):
+        checkout = Path(__file__).resolve().parents[1]
+        beside = [up / "shared" / "data" / "mrclam" for up in (checkout.parent, checkout.parent.parent)]
+        where = next((p for p in beside if p.is_dir()), None)
+        if where is None:
+            return None, (f"MRCLAM Dataset 6 not found: set {MRCLAM_VARIABLE} to its folder or to "
+                          f"the folder holding it ({MRCLAM_DOC})")
+    try:
+        return find_dataset(where, 6), ""
+    except MrclamError as exc:
+        return None, f"MRCLAM Dataset 6 not found: {exc}"
+
+
+DATASET6, _NO_DATASET6 = _find_dataset6()
+
+
+@pytest.fixture(scope="session")
+def mrclam_dataset6() -> Path:
+    """The folder of MRCLAM Dataset 6 (the one home of the tests that need the real data);
+    the test is skipped, with the reason, when it is absent."""
+    if DATASET6 is None:
+        pytest.skip(_NO_DATASET6)
+    return DATASET6

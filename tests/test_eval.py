@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -128,3 +130,24 @@ def test_batched_nis_equals_the_sum_of_per_tick_nis(name):
     got = nis_batch(records, np.array(means), np.array(covs), sensors, sc.world)
     assert dof > 0 and got[1] == dof
     assert got[0] == pytest.approx(total, rel=1e-10)
+
+
+def test_eval_outputs_name_files_not_their_folders(tmp_path, capsys):
+    """Issue 35: a scenario file and a filter file given by path; the printed JSON and the CSV
+    and JSON files of --out name them (the scenario's name, the filter's class), never the
+    folder they are in, since they are shared."""
+    where = tmp_path / "where" / "they" / "are"
+    where.mkdir(parents=True)
+    root = Path(__file__).resolve().parents[1]
+    shutil.copy(root / "scenarios" / "default.toml", where / "mine.toml")
+    shutil.copy(root / "examples" / "student_ekf.py", where / "student_ekf.py")
+    out = tmp_path / "o"
+    assert main(["eval", str(where / "mine.toml"), "--filter", "ekf", "--filter",
+                 f"{where / 'student_ekf.py'}:StudentEKF", "--runs", "2", "--duration", "3",
+                 "--jobs", "1", "--out", str(out), "--json"]) == 0
+    printed = capsys.readouterr().out
+    assert "StudentEKF" in printed and str(where) not in printed
+    written = [f for f in out.iterdir() if f.suffix in (".csv", ".json")]
+    assert len(written) >= 3
+    for f in written:
+        assert str(where) not in f.read_text(encoding="utf-8"), f.name

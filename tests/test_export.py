@@ -126,3 +126,40 @@ def test_export_refuses_a_team_recording_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert "a team recording" in err and "\n" not in err
     assert not out.exists()
+
+
+def test_exports_name_files_not_the_folders_they_were_in(recorded, tmp_path, capsys):
+    """Issue 35: an export is shared, so it names the recorded scenario file and filter
+    files by their file names, never by where they were on the machine (the .npz header,
+    the .csv tables, the MCAP's messages and metadata)."""
+    import shutil
+
+    from mcap.reader import make_reader
+
+    from beacon_sim.io.export import shareable_header
+
+    rec_path, _, _ = recorded
+    student = tmp_path / "student_ekf.py"
+    shutil.copy(Path(__file__).parents[1] / "examples" / "student_ekf.py", student)
+    here = str(tmp_path)
+    assert here in load_recording(rec_path).header["scenario_source"]  # what the recording holds
+    for suffix in ("npz", "csv", "mcap"):
+        assert main(["export", str(rec_path), "--filter", "ekf", "--filter", f"{student}:StudentEKF",
+                     "--out", str(tmp_path / f"x.{suffix}")]) == 0
+    capsys.readouterr()
+    with np.load(tmp_path / "x.npz", allow_pickle=False) as z:
+        words = [w for k in z.files if z[k].dtype.kind == "U" for w in z[k].ravel().tolist()]
+        header = json.loads(str(z["header_json"]))
+    assert header["scenario_source"] == "rec_test.toml" and header["filters"] == ["ekf", "dead_reckoning"]
+    assert words and not [w for w in words if here in w]
+    for f in tmp_path.glob("x*.csv"):
+        assert here not in f.read_text(), f.name
+    with (tmp_path / "x.mcap").open("rb") as f:
+        reader = make_reader(f)
+        assert not [m.name for m in reader.iter_metadata() if here in json.dumps(m.metadata)]
+        assert not [c.topic for _, c, m in reader.iter_messages() if here.encode() in m.data]
+    # filter specs of files, as a recording made with them holds them
+    got = shareable_header({"scenario_source": "/srv/a/b.toml", "seed": 1,
+                            "filters": ["ekf", "/x/y/alice.py:Ekf", "bob=../s/bob.py:Ekf", "pkg.mod:Ekf"]})
+    assert got == {"scenario_source": "b.toml", "seed": 1,
+                   "filters": ["ekf", "alice.py:Ekf", "bob=bob.py:Ekf", "pkg.mod:Ekf"]}

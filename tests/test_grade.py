@@ -5,6 +5,7 @@ results on local processes and on a Dask LocalCluster; the page opens in chromiu
 from __future__ import annotations
 
 import csv
+import json
 import re
 import shutil
 import subprocess
@@ -191,3 +192,33 @@ def test_no_row_says_a_bare_consistent_beside_an_error_over_twice_the_bound(tmp_
     row = next(r for r in _rows(tmp_path / "out" / "grade.csv") if r["student"] == "blind")
     assert ", but " in row["verdict"]
     assert far[0]["verdict"] in (tmp_path / "out" / "grade.html").read_text()
+
+
+def test_outputs_name_a_scenario_file_not_its_folder(tmp_path, capsys):
+    """Issue 35: grade.json, grade.csv and the pages name a scenario given by path by its file
+    name (a shipped one by its name), never by the folder it is in, since they are shared;
+    the runs still load it from there, a team scenario's in the workers too."""
+    klass = write_class(tmp_path / "class", ["alice", "carol"])
+    where = tmp_path / "where" / "they" / "are"
+    where.mkdir(parents=True)
+    shipped = Path(__file__).resolve().parents[1] / "scenarios"
+    shutil.copy(shipped / "default.toml", where / "mine.toml")
+    shutil.copy(shipped / "team" / "team_sparse.toml", where / "team.toml")
+    cfg = tmp_path / "grade.toml"
+    cfg.write_text(f'scenarios = ["{where / "mine.toml"}", "{where / "team.toml"}", "default"]\n'
+                   'seeds = [3]\nduration = 3.0\ntime_limit = 2.0\n')
+    out = tmp_path / "o"
+    assert main(["grade", str(klass), "--config", str(cfg), "--out", str(out), "--jobs", "2"]) == 0
+    assert str(where) not in capsys.readouterr().out
+    board = json.loads((out / "grade.json").read_text(encoding="utf-8"))
+    names = ["mine.toml", "team.toml", "default"]
+    assert board["config"]["scenarios"] == names and list(board["reference"]) == ["team.toml"]
+    alice = next(r for r in board["rows"] if r["student"] == "alice")
+    assert not alice["failed_runs"] and [d["scenario"] for d in alice["run_detail"]] == names
+    assert list(alice["team"]) == ["team.toml"]
+    carol = next(r for r in board["rows"] if r["student"] == "carol")
+    assert {f["scenario"] for f in carol["failures"]} <= set(names)
+    shared = [f for f in out.rglob("*") if f.suffix in (".json", ".csv", ".html")]
+    assert len(shared) >= 5
+    for f in shared:
+        assert str(where) not in f.read_text(encoding="utf-8"), f.name

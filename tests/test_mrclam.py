@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +13,7 @@ import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.angles import wrap
-from beacon_sim.io.mrclam import MrclamError, load_mrclam, read_table
+from beacon_sim.io.mrclam import MRCLAM_VARIABLE, MrclamError, find_dataset, load_mrclam, read_table
 from beacon_sim.runs.mrclam import calibrate, run_mrclam
 
 COMMENT = ("# UTIAS Multi-Robot Cooperative Localization and Mapping Dataset\r\n"
@@ -282,20 +281,46 @@ def test_missing_files_and_folders(tmp_path, folder):
         read_table(empty, 3, "t, v, w")
 
 
-def dataset6() -> Path | None:
-    env = os.environ.get("BEACON_SIM_MRCLAM")
-    candidates = [Path(env)] if env else []
-    repo = Path(__file__).resolve().parents[1]
-    candidates.append(repo.parent / "shared" / "data" / "mrclam" / "Dataset6")
-    return next((c for c in candidates if (c / "Robot1_Odometry.dat").is_file()), None)
+def test_one_home_finds_the_data_set(tmp_path, folder, monkeypatch, capsys):
+    """find_dataset: a data set's folder as it is; a folder holding MRCLAM_Dataset6 (or
+    Dataset6) gives that one; nothing given: $BEACON_SIM_MRCLAM, and the command line without
+    DIR reads it; none: one line naming the variable and DIR. Outputs name the data set by
+    its folder's name, never where it is."""
+    f, _ = folder
+    root = tmp_path / "mrclam"
+    six = root / "MRCLAM_Dataset6"
+    six.mkdir(parents=True)
+    (root / "Dataset2").mkdir()
+    for p in f.iterdir():
+        (six / p.name).write_bytes(p.read_bytes())
+    assert find_dataset(f) == f and find_dataset(str(root)) == six
+    assert find_dataset(root, 2) == root / "Dataset2"
+    monkeypatch.setenv(MRCLAM_VARIABLE, str(root))
+    assert find_dataset() == six and load_mrclam(None, 1).folder == six
+    assert main(["mrclam", "--robot", "1", "--headless", "--filter", "dead_reckoning",
+                 "--duration", "5", "--json"]) == 0
+    out = capsys.readouterr().out
+    assert json.loads(out)["dataset"] == "MRCLAM_Dataset6" and str(tmp_path) not in out
+    assert main(["mrclam", "--robot", "1", "--calibrate", "--json"]) == 0
+    out = capsys.readouterr().out
+    assert json.loads(out)["dataset"] == "MRCLAM_Dataset6" and str(tmp_path) not in out
+    (tmp_path / "empty").mkdir()
+    for where, says in [("", "no MRCLAM data set given"),
+                        (str(tmp_path / "nowhere"), r"nowhere \(from BEACON_SIM_MRCLAM\): no such folder"),
+                        (str(tmp_path / "empty"), "neither an MRCLAM data set")]:
+        monkeypatch.setenv(MRCLAM_VARIABLE, where)
+        with pytest.raises(MrclamError, match=says):
+            find_dataset()
+        assert main(["mrclam", "--robot", "1", "--headless"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "BEACON_SIM_MRCLAM" in err and "beacon-sim mrclam DIR" in err, err
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(dataset6() is None, reason="MRCLAM Dataset6 not found (set BEACON_SIM_MRCLAM)")
-def test_dataset6_robot1_ekf_and_ukf_bounded():
+def test_dataset6_robot1_ekf_and_ukf_bounded(mrclam_dataset6):
     """First 300 s of robot 1 with the default MRCLAM settings: EKF and UKF beat odometry
     alone by more than 2x, stay within 0.3 m and agree (seed 001 found its EKF 100x worse)."""
-    d = load_mrclam(dataset6(), 1)
+    d = load_mrclam(mrclam_dataset6, 1)
     res = run_mrclam(d, ["ekf", "ukf", "dead_reckoning"], duration=300.0).evaluate()
     for name in ("ekf", "ukf"):
         assert res[name]["pos_rmse_m"] < 0.3, res[name]
@@ -305,11 +330,10 @@ def test_dataset6_robot1_ekf_and_ukf_bounded():
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(dataset6() is None, reason="MRCLAM Dataset6 not found (set BEACON_SIM_MRCLAM)")
-def test_dataset6_robot3_stays_under_0_3_m_and_honest():
+def test_dataset6_robot3_stays_under_0_3_m_and_honest(mrclam_dataset6):
     """Robot 3, the whole run: its few bearings off by pi dragged the ungated EKF to 0.71 m
     (ANEES 3251). Calibrated noise and the gate: measured EKF 0.159 m, ANEES 4.4."""
-    d = load_mrclam(dataset6(), 3)
+    d = load_mrclam(mrclam_dataset6, 3)
     run = run_mrclam(d, ["ekf"])
     res = run.evaluate()["ekf"]
     assert res["pos_rmse_m"] < 0.3, res
@@ -318,11 +342,10 @@ def test_dataset6_robot3_stays_under_0_3_m_and_honest():
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(dataset6() is None, reason="MRCLAM Dataset6 not found (set BEACON_SIM_MRCLAM)")
-def test_dataset6_robot3_particle_filter_does_not_jump():
+def test_dataset6_robot3_particle_filter_does_not_jump(mrclam_dataset6):
     """The particle filter on the first 200 s of robot 3: no jump of its estimate beyond 1 m
     (it jumped by metres with augmented-MCL injection and overconfident noise)."""
-    d = load_mrclam(dataset6(), 3)
+    d = load_mrclam(mrclam_dataset6, 3)
     run = run_mrclam(d, ["pf"], duration=200.0, params={"pf": {"n_particles": 1000}})
     m = np.array(run.tracks["pf"].means)
     assert np.max(np.hypot(*np.diff(m[:, :2], axis=0).T)) < 1.0

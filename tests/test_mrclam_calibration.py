@@ -14,8 +14,6 @@ from beacon_sim.io.mrclam import load_mrclam
 from beacon_sim.runs.mrclam import calibration_for, inflated, leave_one_robot_out, run_mrclam, told_inflated
 from tests.test_mrclam import make_folder
 
-DATASET6 = Path("/work/shared/data/mrclam/Dataset6")
-
 
 def _two_robots(base: Path, name: str, shift_robot1_truth: float = 0.0, seconds: float = 60.0) -> Path:
     """A folder with robot 1 (seed 1) and robot 2 (another drive, seed 2); robot 1's ground
@@ -69,12 +67,11 @@ def test_a_folder_with_one_robot_falls_back_and_says_so(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset 6 not present")
 @pytest.mark.parametrize("robot", [1, 2, 3, 4, 5])
-def test_dataset6_goals_with_calibration_from_the_other_robots(robot):
+def test_dataset6_goals_with_calibration_from_the_other_robots(robot, mrclam_dataset6):
     """Issue 26's goals on every robot of Dataset 6, the noise from the four others (the
     figures: docs/results.md, `python scripts/make_results.py --only mrclam`)."""
-    run = run_mrclam(load_mrclam(DATASET6, robot), ["ekf", "ukf", "pf"])
+    run = run_mrclam(load_mrclam(mrclam_dataset6, robot), ["ekf", "ukf", "pf"])
     assert "not on the scored run" in run.calibration.source and run.calibration.inflation > 1.0
     for name, row in run.evaluate().items():
         assert row["pos_rmse_m"] <= 0.26, (name, row)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -26,26 +25,12 @@ from tests.test_mrclam import make_folder
 WINDOW_S = 120.0
 
 
-def _dataset6() -> Path | None:
-    """Dataset 6: $BEACON_SIM_MRCLAM, or shared/data/mrclam/Dataset6 beside the checkout (or
-    beside the folder of worktrees that holds it)."""
-    env = os.environ.get("BEACON_SIM_MRCLAM")
-    repo = Path(__file__).resolve().parents[1]
-    candidates = [Path(env)] if env else []
-    candidates += [up / "shared" / "data" / "mrclam" / "Dataset6" for up in (repo.parent, repo.parent.parent)]
-    return next((c for c in candidates if (c / "Robot1_Odometry.dat").is_file()), None)
-
-
-DATASET6 = _dataset6()
-needs_data = pytest.mark.skipif(DATASET6 is None, reason="MRCLAM Dataset6 not found (set BEACON_SIM_MRCLAM)")
-
-
 @pytest.fixture(scope="module")
-def robot1_run():
+def robot1_run(mrclam_dataset6):
     """Robot 1's first two minutes, --slam, the default filters, noise pooled from the other
     four robots (not the scored one; the inflation's EKF runs would take a minute)."""
-    assert DATASET6 is not None
-    return run_mrclam(load_mrclam(DATASET6, 1), None, duration=WINDOW_S, calibration="pooled", slam=True)
+    return run_mrclam(load_mrclam(mrclam_dataset6, 1), None, duration=WINDOW_S, calibration="pooled",
+                      slam=True)
 
 
 @pytest.fixture(scope="module")
@@ -67,12 +52,11 @@ def test_default_slam_filters_and_which_are_blind():
     assert not map_withheld("ekf") and not map_withheld("pf") and not map_withheld("dead_reckoning")
 
 
-@needs_data
-def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run):
+def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run, mrclam_dataset6):
     run = robot1_run
     assert run.slam and list(run.tracks) == list(SLAM_MRCLAM_FILTERS)
     assert run.map_given == {"ekf_slam": False, "fastslam": False, "ekf": True}
-    n_landmarks = len(_surveyed(DATASET6))
+    n_landmarks = len(_surveyed(mrclam_dataset6))
     assert n_landmarks == 15
     for name in ("ekf_slam", "fastslam"):
         ctx = run.tracks[name].filter.ctx
@@ -85,11 +69,10 @@ def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run):
     assert set(ids) <= {b.id for b in run.scenario.world.beacons}
 
 
-@needs_data
-def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run):
+def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run, mrclam_dataset6):
     run = robot1_run
     figs = mrclam_slam_figures(run)
-    truth = _surveyed(DATASET6)
+    truth = _surveyed(mrclam_dataset6)
     for name in ("ekf_slam", "fastslam"):
         r = figs[name]
         assert r is not None and r["map_given"] is False
@@ -116,11 +99,10 @@ def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run):
     assert figs["ekf"]["ate_m"] < 0.4
 
 
-@needs_data
-def test_hiding_the_map_changes_the_estimate_and_the_run_repeats(robot1_run):
+def test_hiding_the_map_changes_the_estimate_and_the_run_repeats(robot1_run, mrclam_dataset6):
     """Without --slam EKF-SLAM is given every landmark as an anchor: a localization filter,
     with another path; the --slam run is the same bit for bit when repeated."""
-    d = load_mrclam(DATASET6, 1)
+    d = load_mrclam(mrclam_dataset6, 1)
     again = run_mrclam(d, ["ekf_slam", "fastslam"], duration=WINDOW_S, calibration="pooled", slam=True)
     for name in ("ekf_slam", "fastslam"):
         assert np.array_equal(again.tracks[name].means, robot1_run.tracks[name].means)
@@ -130,9 +112,8 @@ def test_hiding_the_map_changes_the_estimate_and_the_run_repeats(robot1_run):
     assert not np.allclose(known.tracks["ekf_slam"].means, robot1_run.tracks["ekf_slam"].means)
 
 
-@needs_data
-def test_slam_without_ids_runs_and_is_scored():
-    d = load_mrclam(DATASET6, 1)
+def test_slam_without_ids_runs_and_is_scored(mrclam_dataset6):
+    d = load_mrclam(mrclam_dataset6, 1)
     run = run_mrclam(d, ["ekf_slam", "fastslam"], duration=60.0, calibration="pooled", slam=True,
                      unknown_ids=True)
     figs = mrclam_slam_figures(run)
@@ -143,9 +124,8 @@ def test_slam_without_ids_runs_and_is_scored():
         assert r["map_missed"] + r["map_landmarks"] - r["map_false"] == 15
 
 
-@needs_data
-def test_cli_json_carries_the_slam_figures(capsys):
-    assert main(["mrclam", str(DATASET6), "--robot", "1", "--slam", "--headless", "--json",
+def test_cli_json_carries_the_slam_figures(capsys, mrclam_dataset6):
+    assert main(["mrclam", str(mrclam_dataset6), "--robot", "1", "--slam", "--headless", "--json",
                  "--duration", "30", "--calibration", "pooled", "--filter", "ekf_slam",
                  "--filter", "ekf"]) == 0
     d = json.loads(capsys.readouterr().out)
@@ -155,7 +135,7 @@ def test_cli_json_carries_the_slam_figures(capsys):
                       "joint_nees", "joint_dof", "map_given"}
     assert s["map_missed"] + s["map_landmarks"] - s["map_false"] == 15
     assert d["filters"]["ekf"]["slam"]["map_given"] is True
-    assert main(["mrclam", str(DATASET6), "--robot", "1", "--slam", "--headless",
+    assert main(["mrclam", str(mrclam_dataset6), "--robot", "1", "--slam", "--headless",
                  "--duration", "30", "--calibration", "pooled", "--filter", "ekf_slam"]) == 0
     out = capsys.readouterr().out
     assert "not given the landmark map: ekf_slam" in out and "GOSPA" in out

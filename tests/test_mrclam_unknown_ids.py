@@ -17,7 +17,7 @@ from beacon_sim.core.types import Measurement
 from beacon_sim.filters.ekf import ExtendedKalmanFilter
 from beacon_sim.io.mrclam import MrclamError, load_mrclam
 from beacon_sim.runs.mrclam import SENSOR_NAME, run_mrclam
-from tests.test_mrclam import dataset6, make_folder
+from tests.test_mrclam import make_folder
 
 
 @pytest.fixture(scope="module")
@@ -94,14 +94,13 @@ def test_unknown_ids_runs_one_robot_only(synthetic):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(dataset6() is None, reason="MRCLAM Dataset6 not found (set BEACON_SIM_MRCLAM)")
-def test_dataset6_robot1_without_ids_stays_bounded():
+def test_dataset6_robot1_without_ids_stays_bounded(mrclam_dataset6):
     """First 300 s of robot 1, IDs hidden: the EKF associates and stays within the bound it
     meets with the IDs (0.3 m; measured 0.175 m against 0.172 m with IDs); the PF stays
     finite and beats odometry alone (measured 0.40 m against 0.77 m; 0.17 m with IDs). Even
     at the true pose only 87 % of the readings are nearest their barcoded landmark, so neither
     can associate all of them (measured 82-84 %)."""
-    d = load_mrclam(dataset6(), 1)
+    d = load_mrclam(mrclam_dataset6, 1)
     run = run_mrclam(d, ["ekf", "pf", "dead_reckoning"], duration=300.0, unknown_ids=True)
     res = run.evaluate()
     for name in ("ekf", "pf"):

@@ -4,18 +4,13 @@ folder's own Barcodes.dat), and `beacon-sim mrclam DIR --team` on Dataset 6 when
 from __future__ import annotations
 
 import json
-import os
-from pathlib import Path
 
 import numpy as np
-import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.team_models import relative_range_bearing
 from beacon_sim.io.mrclam import load_mrclam
 from tests.test_mrclam import make_folder
-
-DATASET6 = Path(os.environ.get("MRCLAM_DATASET6", "/work/shared/data/mrclam/Dataset6"))
 
 
 def test_robot_sightings_are_kept_on_request_and_mapped_per_folder(tmp_path):
@@ -35,9 +30,8 @@ def test_robot_sightings_are_kept_on_request_and_mapped_per_folder(tmp_path):
     assert set(load_mrclam(f, 1, robot_sightings=True).sightings[:, 1].astype(int)) == {3}
 
 
-@pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset 6 not present")
-def test_dataset6_sightings_match_the_ground_truth_of_both_robots():
-    data = {r: load_mrclam(DATASET6, r, robot_sightings=True) for r in range(1, 6)}
+def test_dataset6_sightings_match_the_ground_truth_of_both_robots(mrclam_dataset6):
+    data = {r: load_mrclam(mrclam_dataset6, r, robot_sightings=True) for r in range(1, 6)}
     for r, d in data.items():
         s = d.sightings
         assert len(s) == d.dropped["robot_sightings"] > 300
@@ -55,15 +49,14 @@ def test_dataset6_sightings_match_the_ground_truth_of_both_robots():
         assert np.median(np.abs(errs)) < 0.1, (r, np.median(np.abs(errs)))  # right subjects
 
 
-@pytest.mark.skipif(not DATASET6.is_dir(), reason="MRCLAM Dataset 6 not present")
-def test_cli_mrclam_team_runs_all_five_robots(capsys):
-    assert main(["mrclam", str(DATASET6), "--team", "--duration", "60", "--json"]) == 0
+def test_cli_mrclam_team_runs_all_five_robots(capsys, mrclam_dataset6):
+    assert main(["mrclam", str(mrclam_dataset6), "--team", "--duration", "60", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["robots"] == [1, 2, 3, 4, 5]
+    assert d["robots"] == [1, 2, 3, 4, 5] and d["dataset"] == mrclam_dataset6.name  # not its path
     assert set(d["filters"]) == {"independent", "centralised", "decentralised", "ci"}
     assert d["failed"] == {}
     for name in d["filters"]:
         for r in "12345":
             assert d["filters"][name][r]["pos_rmse_m"] < 1.0
-    assert main(["mrclam", str(DATASET6), "--team", "--robot", "1"]) == 2
-    assert main(["mrclam", str(DATASET6)]) == 2
+    assert main(["mrclam", str(mrclam_dataset6), "--team", "--robot", "1"]) == 2
+    assert main(["mrclam", str(mrclam_dataset6)]) == 2

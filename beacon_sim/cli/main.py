@@ -120,8 +120,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, metavar="S", help="a scenario: seconds to simulate")
 
     p = sub.add_parser("mrclam", help="replay a UTIAS MRCLAM data set folder")
-    p.add_argument("dir", help="the data set's folder (Robot1_Odometry.dat, "
-                               "Landmark_Groundtruth.dat, ...)")
+    p.add_argument("dir", nargs="?", metavar="DIR",
+                   help="the data set's folder (Robot1_Odometry.dat, Landmark_Groundtruth.dat, "
+                        "...) or a folder holding Dataset6 (default: the environment variable "
+                        "BEACON_SIM_MRCLAM; docs/mrclam.md)")
     p.add_argument("--robot", type=int, help="the robot, 1 to 5 (required without --team)")
     p.add_argument("--team", action="store_true",
                    help="all five robots at once, alone against cooperatively with their "

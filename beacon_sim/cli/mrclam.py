@@ -1,9 +1,10 @@
-"""``beacon-sim mrclam DIR (--robot N | --team) [--filter F ...] [--duration S] [--calibrate]
+"""``beacon-sim mrclam [DIR] (--robot N | --team) [--filter F ...] [--duration S] [--calibrate]
 [--calibration others|self] [--unknown-ids] [--slam] [--json]``: filters on one robot of a UTIAS
 MRCLAM data set and seed 001's table, or on all five robots at once (``--team``: the team filters,
 one row per robot). ``--unknown-ids``: the readings reach the filters without barcodes (they
 associate), and the table adds how well they did. ``--slam``: the SLAM filters are not given the
-landmark map, and their final maps are scored against the surveyed landmarks."""
+landmark map, and their final maps are scored against the surveyed landmarks. Without DIR, the
+data set is where ``BEACON_SIM_MRCLAM`` says (:func:`beacon_sim.io.mrclam.find_dataset`)."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from beacon_sim.runs.mrclam import (
 
 def _print_calibration(data: MrclamData, cal: Calibration) -> None:
     s = cal.stats
-    print(f"MRCLAM {data.folder} robot {data.robot}: noise from the data ({cal.source})")
+    print(f"MRCLAM {data.folder.name} robot {data.robot}: noise from the data ({cal.source})")
     print(f"  dropped readings: {data.dropped}")
     if s.get("windows"):
         print(f"  odometry vs ground truth over {s['windows']} windows of {cal.window_s:g} s: "
@@ -164,7 +165,7 @@ def mrclam_command(args: argparse.Namespace) -> int:
         t_end = None if duration is None else data.t0 + duration
         cal = calibrate(data, t_end)
         if args.json:
-            print(json.dumps({"dataset": str(data.folder), "robot": data.robot,
+            print(json.dumps({"dataset": data.folder.name, "robot": data.robot,
                               "dropped": data.dropped, "step_dt": cal.step_dt,
                               "motion_noise": {"v_std": cal.motion.v_std,
                                                "omega_std": cal.motion.omega_std},

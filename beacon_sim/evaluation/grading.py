@@ -763,6 +763,23 @@ def _svg_plot(curves: list[tuple[str, np.ndarray, np.ndarray]], width: int = 320
     return "".join(parts)
 
 
+def scenario_labels(scenarios: Sequence[str]) -> dict[str, str]:
+    """Configured scenario -> how the leaderboard names it: a shipped scenario by its name, a
+    file by its file name, never the folders it is in (grade.json and the pages are shared);
+    a file name that two of them share gets `` (2)``, `` (3)``... after it."""
+    from beacon_sim.io.export import without_folders
+
+    out: dict[str, str] = {}
+    for spec in scenarios:
+        label = base = without_folders(spec)
+        k = 1
+        while label in out.values():
+            k += 1
+            label = f"{base} ({k})"
+        out[spec] = label
+    return out
+
+
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
           scheduler: Any = None, progress: Callable[[int, int], None] | None = None,
           cache: str | Path | None = None, team_in_workers: bool = False) -> dict[str, Any]:
@@ -780,12 +797,19 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
 
     ``cache``: a folder of earlier results, by the file's hash and the configuration
     (:func:`cache_key`): a student whose file and settings are unchanged is not run again
-    (re-grading one late or corrected file costs that file alone)."""
+    (re-grading one late or corrected file costs that file alone).
+
+    The leaderboard names each scenario by :func:`scenario_labels` (a file by its file name,
+    never its folder); the runs load them by the configured name or path."""
     t0 = time.perf_counter()
     students = find_students(folder, config.class_name)
+    labels = scenario_labels(config.scenarios)
+    specs = {label: spec for spec, label in labels.items()}
+    config, given = dataclasses.replace(config, scenarios=tuple(labels[s] for s in config.scenarios)), config
     try:
         scenarios: dict[str, Scenario | TeamScenario] = {
-            s: load_team_scenario(s) if is_team_scenario(s) else load_scenario(s) for s in config.scenarios}
+            labels[s]: load_team_scenario(s) if is_team_scenario(s) else load_scenario(s)
+            for s in given.scenarios}
         sandbox = resolve_sandbox(config.sandbox)
     except (ValueError, SandboxError) as exc:  # ScenarioError: one line
         raise GradeError(str(exc)) from None
@@ -816,14 +840,16 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
                                         Path(cache) if cache is not None else None)
     results = [r for sr in done_students for r in sr.results]
     # Team scenarios: each robot's copy of the student's filter in a child process of its own.
-    tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), sc, seed,
+    # (a worker loads the scenario by its configured name or path; the result takes its label)
+    tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), specs[sc], seed,
                   config.duration, config.time_limit, i)
              for st in students if st.spec and team_in_workers for sc in team_names
              for i, seed in enumerate(config.seeds)]
-    tasks += [Task(REFERENCE, REFERENCE_SPEC, sc, seed, config.duration, config.time_limit, i)
+    tasks += [Task(REFERENCE, REFERENCE_SPEC, specs[sc], seed, config.duration, config.time_limit, i)
               for sc in team_names for i, seed in enumerate(config.seeds)]
     if tasks:
-        results += run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, None)
+        results += [dataclasses.replace(r, task=dataclasses.replace(r.task, scenario=labels[r.task.scenario]))
+                    for r in run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, None)]
     by: dict[tuple[str, str], list[TaskResult]] = {}
     for r in results:
         by.setdefault((r.task.student, r.task.scenario), []).append(r)

@@ -8,15 +8,17 @@ Frames and units as everywhere: world frame, metres, radians, seconds.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
 from beacon_sim.filters.runner import FilterTrack
-from beacon_sim.io.recording import Recording, header_without_paths
+from beacon_sim.io.recording import Recording
 from beacon_sim.io.tables import (
     POSE_AFTER,
     POSE_BEFORE,
@@ -107,7 +109,7 @@ def trace_arrays(recording: Recording, steps: Sequence[Step],
 
     Keys: those of :func:`step_arrays`, of :func:`filter_arrays` (when ``tracks`` is given),
     and ``command_tick``, ``command_json`` (the user's commands), ``header_json`` (the
-    recording's header).
+    recording's header, files named without their folders: :func:`shareable_header`).
     """
     out = step_arrays(recording.scenario, steps)
     if tracks is not None:
@@ -115,7 +117,30 @@ def trace_arrays(recording: Recording, steps: Sequence[Step],
     cmds = [(r.tick, json.dumps(c)) for r in recording.ticks for c in r.commands]
     out["command_tick"] = np.array([t for t, _ in cmds], dtype=int)
     out["command_json"] = np.array([c for _, c in cmds], dtype=str)
-    out["header_json"] = np.array(json.dumps(header_without_paths(recording.header)))
+    out["header_json"] = np.array(json.dumps(shareable_header(recording.header)))
+    return out
+
+
+#: The folders of a path in a filter spec or a file name (``C:``, ``dir/``, ``dir\``).
+_FOLDERS = re.compile(r"(?:\b[A-Za-z]:)?[^\s=:]*[\\/]")
+
+
+def without_folders(text: str) -> str:
+    """``text`` with the folders of every path in it dropped: ``/a/b/f.py:Ekf`` ->
+    ``f.py:Ekf``, ``alice=../s/alice.py:Ekf`` -> ``alice=alice.py:Ekf``; ``pkg.mod:Ekf``
+    and built-in names unchanged."""
+    return _FOLDERS.sub("", text)
+
+
+def shareable_header(header: Mapping[str, Any]) -> dict[str, Any]:
+    """A recording's header as an export carries it: the scenario's source and the filter
+    specs name files by their file names, never by where they were on the machine that
+    recorded (an export is shared; the scenario's text is in ``scenario_toml``)."""
+    out = dict(header)
+    if isinstance(out.get("scenario_source"), str):
+        out["scenario_source"] = without_folders(out["scenario_source"])
+    if isinstance(out.get("filters"), list):
+        out["filters"] = [without_folders(f) if isinstance(f, str) else f for f in out["filters"]]
     return out
 
 

@@ -9,6 +9,8 @@
   for the team run: ``load_mrclam(..., robot_sightings=True)``); readings sharing a time stamp form one
   update.
 - Ground truth is interpolated to any times; only times inside ground truth count.
+- Where the data set is: :func:`find_dataset` (a folder given, else the environment variable
+  ``BEACON_SIM_MRCLAM``; docs/mrclam.md says where MRCLAM comes from).
 
 Frames and units: metres, radians, world frame of the data set (Vicon), bearings relative to
 the heading and wrapped to [-pi, pi). Running filters on the data: beacon_sim/runs/mrclam.py.
@@ -17,6 +19,7 @@ the heading and wrapped to [-pi, pi). Running filters on the data: beacon_sim/ru
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,6 +36,45 @@ MAX_TRUTH_GAP_S = 0.5
 
 class MrclamError(BeaconSimError):
     """A missing or malformed MRCLAM file; the message names the file and line."""
+
+
+#: The environment variable that says where MRCLAM is: one data set's folder, or a folder
+#: holding data set folders (``Dataset6``, ``MRCLAM_Dataset6``, ...).
+MRCLAM_VARIABLE = "BEACON_SIM_MRCLAM"
+#: The data set taken from a folder of data sets: the one this project's MRCLAM settings,
+#: tests and figures were measured on.
+DEFAULT_DATASET = 6
+#: Where a user reads how to get MRCLAM and point the program at it.
+MRCLAM_DOC = "docs/mrclam.md"
+
+
+def find_dataset(where: str | Path | None = None, number: int = DEFAULT_DATASET) -> Path:
+    """The folder of an MRCLAM data set (the one place that decides where MRCLAM is).
+
+    ``where``: a data set's folder (it holds ``Barcodes.dat``), or a folder holding data set
+    folders, of which ``Dataset<number>`` or ``MRCLAM_Dataset<number>`` is taken; None or
+    empty: the environment variable :data:`MRCLAM_VARIABLE`. Raises :class:`MrclamError`
+    naming the variable and the command-line argument when no data set is there.
+    """
+    origin = ""
+    if where is None or str(where) == "":
+        where = os.environ.get(MRCLAM_VARIABLE, "")
+        origin = f" (from {MRCLAM_VARIABLE})"
+    how = (f"give a data set's folder (beacon-sim mrclam DIR), or set {MRCLAM_VARIABLE} to it "
+           f"or to the folder holding Dataset{number}; {MRCLAM_DOC} says where MRCLAM comes from")
+    if not str(where):
+        raise MrclamError(f"no MRCLAM data set given: {how}")
+    folder = Path(where).expanduser()
+    if not folder.is_dir():
+        raise MrclamError(f"{folder}{origin}: no such folder (expected an MRCLAM data set "
+                          f"folder): {how}")
+    if (folder / "Barcodes.dat").is_file():
+        return folder
+    for name in (f"Dataset{number}", f"MRCLAM_Dataset{number}"):
+        if (folder / name).is_dir():
+            return folder / name
+    raise MrclamError(f"{folder}{origin}: neither an MRCLAM data set (no Barcodes.dat) nor a "
+                      f"folder holding Dataset{number} or MRCLAM_Dataset{number}: {how}")
 
 
 #: Bad data (refused, naming the file, line and column): a coordinate or range beyond this
@@ -167,15 +209,14 @@ def interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np
     return poses, ok
 
 
-def load_mrclam(folder, robot: int, robot_sightings: bool = False) -> MrclamData:
-    """Load and clean one robot of an MRCLAM data set folder. ``robot_sightings`` also keeps
-    the sightings of the other robots in ``sightings`` (the landmark readings, ``dropped``
-    and everything else are the same either way)."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise MrclamError(f"{folder}: no such folder (expected an MRCLAM data set folder)")
+def load_mrclam(folder: str | Path | None, robot: int, robot_sightings: bool = False) -> MrclamData:
+    """Load and clean one robot of an MRCLAM data set. ``folder``: as :func:`find_dataset`
+    takes it (None: ``$BEACON_SIM_MRCLAM``). ``robot_sightings`` also keeps the sightings of
+    the other robots in ``sightings`` (the landmark readings, ``dropped`` and everything
+    else are the same either way)."""
     if robot not in ROBOT_SUBJECTS:
         raise MrclamError(f"--robot {robot}: expected 1 to 5")
+    folder = find_dataset(folder)
     bc = read_table(folder / "Barcodes.dat", 2, "subject, barcode", COLUMNS["Barcodes.dat"])
     lm = read_table(folder / "Landmark_Groundtruth.dat", 5, "subject, x, y, sigma_x, sigma_y",
                     COLUMNS["Landmark_Groundtruth.dat"])

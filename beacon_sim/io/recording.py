@@ -311,17 +311,6 @@ def scenario_folder(source: str | None) -> Path | None:
     return None
 
 
-def header_without_paths(header: Mapping[str, Any]) -> dict[str, Any]:
-    """A header to pass on (an export): a ``scenario_source`` written as a path (a recording
-    made before issue 35) cut to its file name, so no folder of the recording machine leaves
-    it."""
-    out = dict(header)
-    source = out.get("scenario_source")
-    if isinstance(source, str):
-        out["scenario_source"] = source.replace("\\", "/").rsplit("/", 1)[-1]  # a Windows path too
-    return out
-
-
 def text_checksum(text: str, version: int = FORMAT_VERSION) -> str:
     """SHA-256 of a scenario's text as a header of that version stores it: 64 hex digits
     (version 3), the first 16 (version 2)."""

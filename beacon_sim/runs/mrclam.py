@@ -643,12 +643,12 @@ class MrclamRun:
     def as_json(self) -> dict[str, Any]:
         """A single robot's run: its noise, calibration and one row per filter. A team's:
         per working filter one row per robot (subject number as a string), the failed ones
-        apart."""
+        apart. ``dataset`` is the data set folder's name, never its path (a JSON file is shared)."""
         if not self.team.solo:
             rows = [self.evaluate(i) for i in range(len(self.robots))]
             first = self.robot_tracks[0]
             return {
-                "dataset": str(self.data.folder), "robots": [d.robot for d in self.robots],
+                "dataset": self.data.folder.name, "robots": [d.robot for d in self.robots],
                 "duration_s": self.t_end - self.t_start,
                 "landmark_readings": {d.robot: len(d.measurements) for d in self.robots},
                 "robot_sightings": {d.robot: len(d.sightings) for d in self.robots},
@@ -663,7 +663,7 @@ class MrclamRun:
             }
         cal = self.calibration
         return {
-            "dataset": str(self.data.folder), "robot": self.data.robot,
+            "dataset": self.data.folder.name, "robot": self.data.robot,
             "t_start": self.t_start, "duration_s": self.t_end - self.t_start,
             "odometry_rows": int(np.sum((self.data.odometry[:, 0] >= self.t_start)
                                         & (self.data.odometry[:, 0] <= self.t_end))),

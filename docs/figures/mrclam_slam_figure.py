@@ -3,6 +3,7 @@
 each SLAM filter's final landmarks with their 95 % ellipses beside the surveyed ones.
 
 Usage: python docs/figures/mrclam_slam_figure.py DATASET_DIR [ROBOT] [OUT.png]
+(DATASET_DIR "": where BEACON_SIM_MRCLAM says; docs/mrclam.md)
 (headless: SDL's dummy video driver; the noise from the four other robots, as in results.md).
 """
 
@@ -21,7 +22,7 @@ from beacon_sim.runs.mrclam import MrclamPlayback, run_mrclam
 
 
 def main() -> int:
-    folder = Path(sys.argv[1])
+    folder = sys.argv[1] if len(sys.argv) > 1 else None
     robot = int(sys.argv[2]) if len(sys.argv) > 2 else 1
     default = Path(__file__).with_name(f"mrclam_slam_robot{robot}.png")
     out = Path(sys.argv[3]) if len(sys.argv) > 3 else default

@@ -1,6 +1,8 @@
-"""Regenerate the figures of docs/replay.md (needs matplotlib and an MRCLAM folder).
+"""Regenerate the figures of docs/replay.md (needs matplotlib and MRCLAM Dataset 6).
 
-    python docs/figures/replay_figures.py ../shared/data/mrclam/Dataset6
+    python docs/figures/replay_figures.py [DIR]
+
+DIR: the data set's folder (default: where BEACON_SIM_MRCLAM says; docs/mrclam.md).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from beacon_sim.runs.mrclam import run_mrclam
 OUT = Path(__file__).parent
 
 
-def main(folder: str) -> None:
+def main(folder: str | None) -> None:
     data = load_mrclam(folder, 1)
     run = run_mrclam(data, ["ekf", "ukf", "dead_reckoning"])
     fig, ax = plt.subplots(figsize=(7, 7))
@@ -59,4 +61,4 @@ def main(folder: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "../shared/data/mrclam/Dataset6")
+    main(sys.argv[1] if len(sys.argv) > 1 else None)
