@@ -33,6 +33,7 @@ import numpy as np
 from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, RandomGoalSpec, WaypointsSpec
+from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.motion import move_portable
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.sensors import SensorSpec, sense, visible_mask
@@ -126,7 +127,7 @@ def steer(pose: np.ndarray, goal: np.ndarray, speed: float, gain: float, max_ome
     selections written as Python evaluates them (NaN and signed zeros included)."""
     dx = goal[:, 0] - pose[:, 0]
     dy = goal[:, 1] - pose[:, 1]
-    err = wrap(pm.atan2(dy, dx) - pose[:, 2])
+    err = wrap(relative_bearing(dx, dy, pose[:, 2], portable=True))
     om = gain * err
     om = np.where(-max_omega > om, -max_omega, om)      # max(gain err, -max_omega)
     om = np.where(max_omega < om, max_omega, om)        # min(., max_omega)
@@ -419,7 +420,7 @@ class BatchSimulation:
         seen &= u_detect < spec.detection_prob
         if not seen.any():
             return None
-        bearing = wrap(pm.atan2(dy, dx) - pose[:, 2, None])  # (R, n), as sensors.sense
+        bearing = wrap(relative_bearing(dx, dy, pose[:, 2, None], portable=True))  # (R, n), as sense
         if spec.kind == "bearing":
             z = bearing[..., None] + noise * spec.noise.bearing_std
         else:

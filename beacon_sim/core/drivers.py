@@ -12,6 +12,7 @@ import numpy as np
 
 from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.measurement_models import relative_bearing_scalar
 from beacon_sim.core.types import Control
 from beacon_sim.core.world import World
 
@@ -76,7 +77,7 @@ DriverSpec = ConstantSpec | CircleSpec | RandomGoalSpec | WaypointsSpec | Keyboa
 def steer_towards(pose, goal_xy, speed, gain, max_omega) -> Control:
     """Proportional steering to a point: slow down while the heading error is large."""
     dx, dy = goal_xy[0] - pose[0], goal_xy[1] - pose[1]
-    err = wrap(pm.atan2_1(float(dy), float(dx)) - pose[2])   # the truth's maths: portable
+    err = wrap(relative_bearing_scalar(float(dx), float(dy), pose[2], portable=True))
     omega = float(min(max(gain * err, -max_omega), max_omega))  # np.clip of a float, without numpy
     v = speed * max(0.0, pm.cos1(float(err)))
     return Control(v, omega)

@@ -27,10 +27,11 @@ def relative_bearing(dx, dy, theta, out=None, portable: bool = False):
     return np.subtract(pm.atan2(dy, dx) if portable else np.arctan2(dy, dx), theta, out=out)
 
 
-def relative_bearing_scalar(dx: float, dy: float, theta: float) -> float:
+def relative_bearing_scalar(dx: float, dy: float, theta: float, portable: bool = False) -> float:
     """:func:`relative_bearing` for Python floats with ``math.atan2`` (no array overhead:
-    the per-reading hot paths; numpy's array atan2 may round differently in the last bit)."""
-    return math.atan2(dy, dx) - theta
+    the per-reading hot paths; numpy's array atan2 may round differently in the last bit).
+    ``portable``: the portable atan2 (the simulation's steering and readings)."""
+    return (pm.atan2_1(dy, dx) if portable else math.atan2(dy, dx)) - theta
 
 
 def bearing(pose, beacon_xy, portable: bool = False):

@@ -22,6 +22,7 @@ import numpy as np
 
 from beacon_sim.core import portable_math as pm
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.measurement_models import relative_bearing_scalar
 
 #: Robot-sensor measurement kinds and the width of one row of ``Measurement.z``. The IDs a
 #: reading names (``Measurement.beacon_ids``) are then the IDs of the robots seen.
@@ -33,7 +34,8 @@ def relative_range_bearing(pose_i, pose_j) -> np.ndarray:
     the team simulation's readings are these)."""
     dx = float(pose_j[0]) - float(pose_i[0])
     dy = float(pose_j[1]) - float(pose_i[1])
-    return np.array([pm.hypot1(dx, dy), wrap(pm.atan2_1(dy, dx) - float(pose_i[2]))])
+    bearing = relative_bearing_scalar(dx, dy, float(pose_i[2]), portable=True)
+    return np.array([pm.hypot1(dx, dy), wrap(bearing)])
 
 
 def relative_range_bearing_jacobians(pose_i, pose_j) -> tuple[np.ndarray, np.ndarray]:
