@@ -23,7 +23,14 @@ import numpy as np
 from beacon_sim.core import angles, measurement_models, motion
 from beacon_sim.core.arguments import check_duration, check_seed
 from beacon_sim.core.metrics import pose_errors
-from beacon_sim.core.scenario import MAX_TICKS, Scenario, ScenarioError, parse_scenario, resolve_scenario_path
+from beacon_sim.core.scenario import (
+    MAX_TICKS,
+    Scenario,
+    ScenarioError,
+    parse_scenario,
+    read_toml,
+    resolve_scenario_path,
+)
 from beacon_sim.core.scenario import load_scenario as _load_scenario
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.team_scenario import load_team_scenario as _load_team_scenario
@@ -80,10 +87,10 @@ def load_scenario(name_or_path: str | Path, changes: Mapping[str, Any] | None = 
     """
     if not changes:
         return _load_scenario(name_or_path)
-    import tomllib
+    import copy
 
     path = resolve_scenario_path(name_or_path)
-    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    data = copy.deepcopy(read_toml(path))  # the one reader's checks; a copy, as it is changed
     for key, value in changes.items():
         _set_key(data, key, value)
     return parse_scenario(data, f"{path} (changed in code)", name=path.stem, base_dir=path.parent)

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from beacon_sim.core.files import MAX_SOURCE_BYTES, check_user_file
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
 from beacon_sim.filters.conformance import CheckResult, print_report, run_checks
@@ -100,8 +101,10 @@ def check_command(args: argparse.Namespace) -> int:
     if where is not None:
         source, cls_name = where
         path = source if isinstance(source, Path) else source.origin()
-        if isinstance(source, Path) and not source.is_file():
+        if isinstance(source, Path) and not source.exists():
             raise FilterLoadError(f"{source}: no such filter file")
+        if isinstance(source, Path):
+            check_user_file(source, what="filter file", cap=MAX_SOURCE_BYTES, error=FilterLoadError)
         if path is None or not _is_team_file(path, cls_name):
             try:
                 results = run_checks(args.filter, load_scenario(args.scenario), sandbox=sandbox)

@@ -16,6 +16,7 @@ Pillow (the ``gif`` extra) and says so in one line when it is absent.
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 import re
@@ -27,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core import portable_math as pm
+from beacon_sim.core.files import read_user_bytes, read_user_text
 from beacon_sim.core.types import read_only
 from beacon_sim.errors import BeaconSimError
 
@@ -39,6 +41,12 @@ MAX_CELLS = 4096 * 4096
 
 #: The largest PGM file read [bytes]: MAX_CELLS values of up to 5 digits and a space (P2).
 MAX_PGM_BYTES = 6 * MAX_CELLS + 4096
+
+#: The largest PNG file read [bytes]: MAX_CELLS pixels of 16-bit RGBA, uncompressed, and 1 MiB.
+MAX_PNG_BYTES = 8 * MAX_CELLS + 2**20
+
+#: The largest map YAML read [bytes].
+MAX_YAML_BYTES = 1_000_000
 
 #: The keys a map_server YAML must have (``negate`` defaults to 0, ``mode`` to trinary).
 REQUIRED_KEYS = ("image", "resolution", "origin", "occupied_thresh", "free_thresh")
@@ -299,10 +307,17 @@ def _fill_polygon(occ: np.ndarray, uv: np.ndarray) -> None:
 
 
 def _parse_value(text: str):
+    """A value of a map_server YAML line: a flat list (its items scalars: a nested list is
+    not read, so its text reaches the key's check) or a scalar."""
     text = text.strip()
     if text.startswith("[") and text.endswith("]"):
         inner = text[1:-1].strip()
-        return [_parse_value(p) for p in inner.split(",")] if inner else []
+        return [_parse_scalar(p) for p in inner.split(",")] if inner else []
+    return _parse_scalar(text)
+
+
+def _parse_scalar(text: str):
+    text = text.strip()
     if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
         return text[1:-1]
     try:
@@ -344,12 +359,8 @@ def load_map(yaml_path: str | Path) -> OccupancyGrid:
     occupied, ``p < free_thresh`` free, anything else unknown (map_server's trinary mode).
     """
     path = Path(yaml_path)
-    try:
-        if path.stat().st_size > 1_000_000:
-            raise MapError(f"{path}: {path.stat().st_size} bytes is too big for a map YAML (1 MB at most)")
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise MapError(f"{path}: cannot read the map file ({exc.__class__.__name__})") from None
+    text = read_user_text(path, what="map file", cap=MAX_YAML_BYTES, error=MapError,
+                          hint=" (a map_server YAML)")
     meta = parse_map_yaml(text, str(path))
     for key in REQUIRED_KEYS:
         if key not in meta:
@@ -438,15 +449,16 @@ def read_image(path: Path) -> np.ndarray:
     """Grey values 0..255 (float, shape (height, width), top line first) of a PGM or PNG."""
     if path.suffix.lower() == ".png":
         return _read_png(path)
-    try:
-        size = path.stat().st_size
-        if size > MAX_PGM_BYTES:
-            raise MapError(f"{path}: {size} bytes is over the cap for a map image ({MAX_PGM_BYTES} bytes, "
-                           f"{MAX_CELLS} pixels)")
-        data = path.read_bytes()
-    except OSError as exc:
-        raise MapError(f"{path}: cannot read the map image ({exc.__class__.__name__})") from None
+    data = read_user_bytes(path, what="map image", cap=MAX_PGM_BYTES, error=MapError,
+                           hint=f" (a PGM of {MAX_CELLS:,} pixels)")
     return read_pgm_bytes(data, str(path))
+
+
+def png_size(data: bytes, source: str) -> tuple[int, int]:
+    """(width, height) from a PNG file's IHDR chunk, read before anything is decoded."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n" or data[12:16] != b"IHDR" or len(data) < 24:
+        raise MapError(f"{source}: not a PNG image (no PNG signature and IHDR header)")
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
 
 
 def _read_png(path: Path) -> np.ndarray:
@@ -455,11 +467,13 @@ def _read_png(path: Path) -> np.ndarray:
     except ImportError:
         raise MapError(f"{path}: reading PNG maps needs Pillow (pip install 'beacon-sim[gif]'), "
                        "or convert the image to PGM") from None
+    data = read_user_bytes(path, what="map image", cap=MAX_PNG_BYTES, error=MapError)
+    w, h = png_size(data, str(path))
+    if w * h > MAX_CELLS:  # before Pillow sees it: no DecompressionBombWarning or Error
+        raise MapError(f"{path}: image of {w}x{h} pixels is over the cap of {MAX_CELLS} pixels "
+                       "(cells)")
     try:
-        with Image.open(path) as img:
-            w, h = img.size
-            if w * h > MAX_CELLS:
-                raise MapError(f"{path}: image of {w}x{h} pixels is over the cap of {MAX_CELLS} pixels")
+        with Image.open(io.BytesIO(data), formats=["PNG"]) as img:
             mode = img.mode
             if mode in ("L", "1", "LA"):          # grey (alpha ignored, as map_server's trinary mode)
                 arr = np.asarray(img.convert("L"), dtype=float)
@@ -467,7 +481,7 @@ def _read_png(path: Path) -> np.ndarray:
                 arr = np.asarray(img, dtype=float) * (255.0 / 65535.0)
             else:                                 # colour and palette: the channels' mean
                 arr = np.asarray(img.convert("RGB"), dtype=float).mean(axis=2)
-    except OSError as exc:
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
         raise MapError(f"{path}: cannot read the map image ({exc.__class__.__name__})") from None
     return arr
 
@@ -497,11 +511,12 @@ def read_pgm_bytes(data: bytes, source: str) -> np.ndarray:
         width, height, maxval = (int(f) for f in fields)
     except ValueError:
         raise MapError(f"{source}: PGM header must give integers width, height, maxval, got "
-                       f"{b' '.join(fields)!r}") from None
+                       f"{b' '.join(fields)[:60]!r}") from None
     if width <= 0 or height <= 0 or not 0 < maxval < 65536:
         raise MapError(f"{source}: PGM header out of range (width {width}, height {height}, maxval {maxval})")
     if width * height > MAX_CELLS:
-        raise MapError(f"{source}: image of {width}x{height} pixels is over the cap of {MAX_CELLS} pixels")
+        raise MapError(f"{source}: image of {width}x{height} pixels is over the cap of {MAX_CELLS} pixels "
+                       "(cells)")
     count = width * height
     if magic == b"P5":
         pos += 1  # exactly one whitespace byte before the raster

@@ -30,6 +30,7 @@ from beacon_sim.core.drivers import (
     WaypointsSpec,
 )
 from beacon_sim.core.events import Blackout, Event, Kidnap, NoiseBurst, active_ticks
+from beacon_sim.core.files import check_user_file, read_user_text
 from beacon_sim.core.keyboard_drive import KeyboardLimits
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.occupancy import MapError, OccupancyGrid, from_walls, load_map
@@ -221,6 +222,18 @@ def parse_toml_text(text: str, file: str) -> dict[str, Any]:
     return data
 
 
+def read_user_toml(path: str | Path, *, what: str, cap: int,
+                   error: type[BeaconSimError] = ScenarioError, hint: str = "") -> dict[str, Any]:
+    """A user's TOML file other than a scenario (a grade config): a regular file within
+    ``cap`` bytes (:func:`~beacon_sim.core.files.read_user_text`), decoded and checked
+    against the same caps on nesting and integers as a scenario; ``error``, one line."""
+    text = read_user_text(path, what=what, cap=cap, error=error, hint=hint)
+    try:
+        return parse_toml_text(text, str(path))
+    except ScenarioError as exc:
+        raise error(str(exc)) from None
+
+
 #: The last document read (key: path and the SHA-256 of its text), so that telling a team
 #: file from a single-robot one and then loading it parses the file once.
 _last_read: list[Any] = [None, None]
@@ -229,15 +242,8 @@ _last_read: list[Any] = [None, None]
 def read_toml(path: Path) -> dict[str, Any]:
     """A scenario file's TOML document: its size checked first (``MAX_SCENARIO_BYTES``),
     then decoded and checked (ScenarioError, one line). Callers do not modify it."""
-    cap = env_limit("SCENARIO_BYTES", MAX_SCENARIO_BYTES)
-    try:
-        st = path.stat()
-        if st.st_size > cap:
-            raise ScenarioError(f"{path}: {st.st_size:,} bytes: a scenario file holds at most "
-                                f"{cap:,} (BEACON_SIM_MAX_SCENARIO_BYTES raises the cap)")
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc}") from None
+    text = read_user_text(path, what="scenario file", cap=env_limit("SCENARIO_BYTES", MAX_SCENARIO_BYTES),
+                          error=ScenarioError, hint=" (BEACON_SIM_MAX_SCENARIO_BYTES raises the cap)")
     key = (str(path), hashlib.sha256(text.encode("utf-8")).digest())
     if _last_read[0] == key:
         return _last_read[1]
@@ -828,8 +834,10 @@ def resolve_scenario_path(name_or_path: str | Path) -> Path:
 
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists() or "/" in str(name_or_path):
-        if not p.is_file():
+        if not p.exists():
             raise ScenarioError(f"{p}: no such scenario file")
+        check_user_file(p, what="scenario file", cap=env_limit("SCENARIO_BYTES", MAX_SCENARIO_BYTES),
+                        error=ScenarioError, hint=" (BEACON_SIM_MAX_SCENARIO_BYTES raises the cap)")
         return p
     shipped = scenario_dir() / f"{name_or_path}.toml"
     if not shipped.is_file():

@@ -31,7 +31,6 @@ import html
 import json
 import math
 import time
-import tomllib
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -39,7 +38,14 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.core.files import (
+    MAX_SOURCE_BYTES,
+    atomic_write,
+    read_user_bytes,
+    read_user_text,
+    write_text_atomic,
+)
+from beacon_sim.core.scenario import Scenario, load_scenario, read_user_toml
 from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
 from beacon_sim.errors import BeaconSimError
 from beacon_sim.evaluation.montecarlo import (
@@ -113,6 +119,8 @@ class GradeConfig:
 
 #: The longest run a grading configuration may ask for [s] (one simulated day).
 MAX_GRADE_DURATION_S = 86400.0
+#: The largest grade config read [bytes].
+MAX_CONFIG_BYTES = 2**20
 
 
 def _config_list(path: str | Path, data: dict[str, Any], key: str, kind: type, what: str,
@@ -165,10 +173,7 @@ def load_config(path: str | Path | None) -> GradeConfig:
     """A :class:`GradeConfig` from a TOML file (keys as the attributes), or the defaults."""
     if path is None:
         return GradeConfig()
-    try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise GradeError(f"{path}: cannot read: {exc}") from None
+    data = read_user_toml(path, what="grade config", cap=MAX_CONFIG_BYTES, error=GradeError)
     known = set(GradeConfig.__dataclass_fields__)
     unknown = sorted(set(data) - known)
     if unknown:
@@ -220,8 +225,9 @@ def find_class(path: Path, class_name: str | None = None) -> str | None:
     inheritance, or the file's module-level functions: chosen in the student's own child
     process, :func:`~beacon_sim.filters.loading.choose_filter`). Raises GradeError (syntax
     error, no such class)."""
+    text = read_user_text(path, what="filter file", cap=MAX_SOURCE_BYTES, error=GradeError)
     try:
-        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        tree = ast.parse(text, str(path))
     except (SyntaxError, UnicodeDecodeError, OSError, ValueError) as exc:
         raise GradeError(f"does not import: {type(exc).__name__}: {exc}") from None
     classes = [n for n in tree.body if isinstance(n, ast.ClassDef)]
@@ -830,7 +836,9 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
             duration = team.duration if config.duration is None else config.duration
             team_sims += [simulate_team_run(team, seed, duration, i, n)
                           for i, seed in enumerate(config.seeds)]
-    student_jobs = [StudentJob(st.name, st.path.name, st.path.read_bytes(),
+    student_jobs = [StudentJob(st.name, st.path.name,
+                               read_user_bytes(st.path, what="filter file", cap=MAX_SOURCE_BYTES,
+                                               error=GradeError),
                                config.class_name or st.class_name, sims, config.time_limit,
                                config.memory_limit_gb, sandbox, team_sims)
                     for st in students if st.spec and (sims or team_sims)]
@@ -1304,7 +1312,7 @@ def _failure_text(f: dict[str, Any]) -> str:
 def write_csv(board: dict[str, Any], path: Path) -> Path:
     """One row per student, in rank order; a failed student's figures are empty cells."""
     slam = bool(board.get("slam_reference"))
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with atomic_write(path, "w", newline="", what="grade table", error=GradeError) as fh:
         w = csv.writer(fh)
         w.writerow(CSV_COLUMNS + (SLAM_CSV_COLUMNS if slam else ()))
         for r in board["rows"]:
@@ -1495,7 +1503,7 @@ Plot: position error [m] against time [s] of the first seed.{_notes(board)}</p>
 <script>{_JS}</script>
 </body></html>
 """
-    path.write_text(page, encoding="utf-8")
+    write_text_atomic(path, page, what="grade page", error=GradeError)
     return path
 
 
@@ -1532,7 +1540,7 @@ RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} 
 <pre>{html.escape(log) or '(nothing printed)'}</pre>
 </body></html>
 """
-    path.write_text(page, encoding="utf-8")
+    write_text_atomic(path, page, what="grade page", error=GradeError)
     return path
 
 
@@ -1567,20 +1575,20 @@ def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:
     if logs:
         (out / "logs").mkdir(exist_ok=True)
         for student, text in logs.items():
-            (out / "logs" / f"{shown.get(student, student)}.log").write_text(text, encoding="utf-8")
+            write_text_atomic(out / "logs" / f"{shown.get(student, student)}.log", text, error=GradeError)
     (out / "students").mkdir(exist_ok=True)
     for r in board["rows"]:
         write_student_page(board, r, out / "students" / f"{shown[r['student']]}.html", shown[r["student"]],
                            logs.get(r["student"], ""))
     if board["config"].get("pseudonyms"):
-        with open(out / "pseudonyms.csv", "w", newline="", encoding="utf-8") as fh:
+        with atomic_write(out / "pseudonyms.csv", "w", newline="", error=GradeError) as fh:
             w = csv.writer(fh)
             w.writerow(("pseudonym", "student", "file"))
             for r in board["rows"]:
                 w.writerow((shown[r["student"]], r["student"], r["file"]))
     doc = {k: v for k, v in board.items() if k not in ("rows", "logs")}
     doc["rows"] = [{k: v for k, v in r.items() if k != "plot"} for r in board["rows"]]
-    (out / "grade.json").write_text(json.dumps(doc, indent=1, default=float), encoding="utf-8")
+    write_text_atomic(out / "grade.json", json.dumps(doc, indent=1, default=float), error=GradeError)
     return [write_csv(board, out / "grade.csv"), write_html(board, out / "grade.html"),
             out / "grade.json"]
 

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.batch_simulation import BatchSimulation
+from beacon_sim.core.files import MAX_SOURCE_BYTES, read_user_bytes
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
@@ -42,6 +43,7 @@ from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker
 from beacon_sim.filters.guard import estimate_arrays
 from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (
+    FilterLoadError,
     build_filter,
     filter_display_name,
     filter_names,
@@ -871,7 +873,9 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
         source, cls = where
         shipped: Any = source
         if scheduler is not None:  # a file travels with its task; a module is found there
-            shipped = (source.name, source.read_bytes()) if isinstance(source, Path) else source.module
+            shipped = ((source.name, read_user_bytes(source, what="filter file", cap=MAX_SOURCE_BYTES,
+                                                      error=FilterLoadError))
+                       if isinstance(source, Path) else source.module)
         fp = merged_params(spec, scenario, params.get(filter_display_name(spec)))
         tasks.append((shipped, cls, name, fp, sims, run_limit_s, runs, level, memory_gb,
                       None if scheduler is not None else str(logs / f"{name}.log")))

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.files import atomic_output
 from beacon_sim.runs.styles import BOUND_STYLE, filter_styles, hex_colour, plot_linestyle
 
 INSTALL_HINT = "plots skipped: matplotlib is not installed (pip install 'beacon-sim[plot]')"
@@ -54,7 +55,8 @@ def _mark_kidnaps(ax, curves: dict[str, Any]) -> None:
 
 def _save(fig, path: Path) -> Path:
     """Write the PNG (matplotlib's Agg renderer, whatever the current backend)."""
-    fig.savefig(path, dpi=110)
+    with atomic_output(path, what="plot") as tmp:  # whole, or the previous file stays
+        fig.savefig(tmp, dpi=110, format=Path(path).suffix.lstrip(".") or "png")
     return path
 
 

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from beacon_sim.core.files import atomic_write
 from beacon_sim.evaluation.intervals import text as interval_text
 
 #: A failed filter's accuracy cells are empty (None), its row says ``failed_runs`` and the
@@ -139,7 +140,7 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
     """``eval.csv``, ``eval_runs.csv``, ``eval.json`` and the plots into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    with open(out / "eval.csv", "w", newline="", encoding="utf-8") as fh:
+    with atomic_write(out / "eval.csv", "w", newline="", what="eval table") as fh:
         w = None
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
@@ -149,7 +150,7 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
                     w.writeheader()
                 w.writerow(row)
     written.append(out / "eval.csv")
-    with open(out / "eval_runs.csv", "w", newline="", encoding="utf-8") as fh:
+    with atomic_write(out / "eval_runs.csv", "w", newline="", what="eval table") as fh:
         rows = csv.writer(fh)
         rows.writerow(["scenario", "filter", "seed", "pos_rmse_m", "heading_rmse_rad", "anees",
                     "diverged", "recovery_s", "us_per_step", "failed", "failed_time_s"])
@@ -161,7 +162,7 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
                                 p["heading_rmse_rad"], p["anees"], int(p["diverged"]), rec,
                                 p["us_per_step"], p["failed"] or "", p.get("failed_time_s")])
     written.append(out / "eval_runs.csv")
-    with open(out / "eval.json", "w", encoding="utf-8") as fh:
+    with atomic_write(out / "eval.json", "w", what="eval document") as fh:
         json.dump(document, fh, indent=1, default=float)
     written.append(out / "eval.json")
     from beacon_sim.evaluation import plots

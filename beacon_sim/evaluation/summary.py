@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.events import Kidnap
+from beacon_sim.core.files import atomic_write
 from beacon_sim.core.metrics import anees_band
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import TeamScenario
@@ -498,7 +499,7 @@ def write_team_outputs(out: Path, metas: list[dict[str, Any]], document: dict[st
     cols = ["scenario", "runs", "steps", "filter", "robot", "pos_rmse_m", "heading_rmse_rad", "anees",
             "anees_lo", "anees_hi", "anees_verdict", "pcrb_pos_rmse_m", "pcrb_alone_pos_rmse_m",
             "rmse_over_pcrb", "us_per_step", "failed_runs", "first_failure"]
-    with open(out / "eval.csv", "w", newline="", encoding="utf-8") as fh:
+    with atomic_write(out / "eval.csv", "w", newline="", what="eval table") as fh:
         w = csv.DictWriter(fh, fieldnames=cols)
         w.writeheader()
         for m in metas:
@@ -516,7 +517,7 @@ def write_team_outputs(out: Path, metas: list[dict[str, Any]], document: dict[st
                                 "pcrb_alone_pos_rmse_m": pb["alone_pos_rmse_m"] if pb
                                 else m["pcrb"]["team_alone_pos_rmse_m"],
                                 "rmse_over_pcrb": v["rmse_over_pcrb"]})
-    with open(out / "eval_runs.csv", "w", newline="", encoding="utf-8") as fh:
+    with atomic_write(out / "eval_runs.csv", "w", newline="", what="eval table") as fh:
         w2 = csv.writer(fh)
         robots = sorted({rn for m in metas for rn in m["robots"]})
         w2.writerow(["scenario", "filter", "seed", "team_pos_rmse_m", *[f"{rn}_pos_rmse_m" for rn in robots],
@@ -527,6 +528,6 @@ def write_team_outputs(out: Path, metas: list[dict[str, Any]], document: dict[st
                     w2.writerow([m["scenario"], name, p["seed"], p["team_pos_rmse_m"],
                                  *[p["robots"].get(rn) for rn in robots], p["us_per_step"],
                                  p["failed"] or "", p["failed_time_s"]])
-    with open(out / "eval.json", "w", encoding="utf-8") as fh:
+    with atomic_write(out / "eval.json", "w", what="eval document") as fh:
         json.dump(document, fh, indent=1, default=float)
     return [out / "eval.csv", out / "eval_runs.csv", out / "eval.json"]

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from beacon_sim.core.files import MAX_SOURCE_BYTES, check_user_file
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.streams import stream
 from beacon_sim.filters.base import Filter, FilterContext, FilterError, GaussianBelief, broad_gaussian
@@ -67,8 +68,9 @@ def available_filters() -> list[str]:
 def import_file(path: Path, module_name: str | None = None) -> ModuleType:
     """Import a filter file as a module of its own (under a time limit); FilterLoadError
     when it is missing, not Python, or fails to import (even by calling ``sys.exit``)."""
-    if not path.is_file():
+    if not path.exists():
         raise FilterLoadError(f"{path}: no such filter file")
+    check_user_file(path, what="filter file", cap=MAX_SOURCE_BYTES, error=FilterLoadError)
     module_name = module_name or f"beacon_sim_user_{abs(hash(path.resolve()))}"
     spec = importlib.util.spec_from_file_location(module_name, path)
     if spec is None or spec.loader is None:  # e.g. no .py suffix: Python cannot import it

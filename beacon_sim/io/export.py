@@ -7,6 +7,7 @@ Frames and units as everywhere: world frame, metres, radians, seconds.
 
 from __future__ import annotations
 
+import io
 import json
 import re
 from collections.abc import Mapping, Sequence
@@ -15,11 +16,13 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.files import atomic_write, read_user_bytes
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
 from beacon_sim.filters.runner import FilterTrack
 from beacon_sim.io.recording import Recording
 from beacon_sim.io.tables import (
+    MAX_EXPORT_BYTES,
     POSE_AFTER,
     POSE_BEFORE,
     read_table_csv,
@@ -170,7 +173,8 @@ def write_export(arrays: dict[str, np.ndarray], out: Path) -> list[Path]:
     table, see :func:`csv_paths`); returns the files written. ``.mcap`` is
     :func:`beacon_sim.io.mcap.write_mcap`."""
     if out.suffix == ".npz":
-        np.savez_compressed(out, allow_pickle=False, **arrays)
+        with atomic_write(out, "wb", what="export") as fh:  # the old file stays until this one is whole
+            np.savez_compressed(fh, allow_pickle=False, **arrays)
         return [out]
     if out.suffix == ".csv":
         return write_csv(arrays, out)
@@ -184,7 +188,8 @@ def load_export(path: str | Path) -> dict[str, dict[str, np.ndarray]]:
     absent. Raises ``ValueError`` naming the file for anything else."""
     path = Path(path)
     if path.suffix == ".npz":
-        with np.load(path, allow_pickle=False) as z:
+        data = read_user_bytes(path, what="export", cap=MAX_EXPORT_BYTES)
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
         if "truth" not in arrays:
             raise ValueError(f"{path}: not a beacon-sim export (no 'truth' array)")

@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from beacon_sim.core.files import atomic_output
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.errors import BeaconSimError
 from beacon_sim.io.foxglove import INSTALL_HINT, Publisher, foxglove_modules
 from beacon_sim.io.tables import prefixed, reading_matrix, upgrade_arrays
 
@@ -33,8 +35,25 @@ def write_mcap(path: Path | str, scenario: Scenario, arrays: Mapping[str, np.nda
     a = upgrade_arrays(arrays)
     path = Path(path)
     names = [str(n) for n in a.get("filter_names", [])]
+    with atomic_output(path, what="MCAP file") as tmp:  # the old file stays until this one is whole
+        try:
+            _write(fox, tmp, scenario, a, names, metadata, __version__)
+        except (OSError, BeaconSimError):
+            raise
+        except Exception as exc:
+            if not type(exc).__module__.startswith("foxglove"):
+                raise
+            # the SDK's own error (a full disk while it writes): one line naming the file
+            why = " ".join(str(exc).split())[:200] or type(exc).__name__
+            raise BeaconSimError(f"{path}: cannot write the MCAP file: {why} (the previous file, "
+                                 "if any, is unchanged)") from None
+    return path
+
+
+def _write(fox, tmp: Path, scenario: Scenario, a: Mapping[str, np.ndarray], names: list[str],
+           metadata: Mapping[str, str] | None, version: str) -> None:
     context = fox.Context()  # this file's channels only
-    writer = fox.open_mcap(path, allow_overwrite=True, context=context)
+    writer = fox.open_mcap(tmp, allow_overwrite=True, context=context)
     pub = Publisher(scenario, names, context)
     try:
         readings, events = prefixed(a, "readings"), prefixed(a, "events")
@@ -67,10 +86,9 @@ def write_mcap(path: Path | str, scenario: Scenario, arrays: Mapping[str, np.nda
             pub.tick(k, truth[k], est, by_tick_r.get(k, ()), by_tick_e.get(k, ()))
             for name, why in fail_at.get(k, ()):
                 pub.failed(k, name, why)
-        meta = {"scenario": scenario.name, "dt_s": repr(scenario.dt), "library": f"beacon-sim {__version__}"}
+        meta = {"scenario": scenario.name, "dt_s": repr(scenario.dt), "library": f"beacon-sim {version}"}
         meta.update(metadata or {})
         writer.write_metadata("beacon-sim", {k: str(v) for k, v in meta.items()})
     finally:
         pub.close()
         writer.close()
-    return path

@@ -70,6 +70,7 @@ import base64
 import datetime as _dt
 import hashlib
 import hmac
+import io
 import json
 import math
 import os
@@ -81,11 +82,13 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from beacon_sim.core.files import open_user_file, read_user_text
 from beacon_sim.core.motion import SLIP_MODELS
 from beacon_sim.core.occupancy import MAX_CELLS, MapError, OccupancyGrid, load_map
 from beacon_sim.core.resources import scenario_dir
 from beacon_sim.core.scenario import (
     MAX_COORD,
+    MAX_SCENARIO_BYTES,
     MAX_SENSORS,
     MAX_SPEED,
     Scenario,
@@ -271,10 +274,10 @@ def open_exclusive(path: Path) -> tuple[TextIO, Path]:
 
 def scenario_text(scenario: Scenario | TeamScenario) -> str:
     try:
-        return Path(scenario.source).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RecordingError(f"{scenario.source}: cannot read the scenario file to record it: {exc}") \
-            from None
+        cap = env_limit("SCENARIO_BYTES", MAX_SCENARIO_BYTES)
+    except ScenarioError as exc:
+        raise RecordingError(str(exc)) from None
+    return read_user_text(scenario.source, what="scenario file", cap=cap, error=RecordingError)
 
 
 def scenario_label(source: str) -> str:
@@ -656,12 +659,10 @@ def _iter_lines(path: Path) -> Iterator[tuple[int, str, bool]]:
         line_cap = env_limit("LINE_CHARS", MAX_LINE_CHARS)
     except ScenarioError as exc:
         raise RecordingError(str(exc)) from None
+    raw_file = open_user_file(path, what="recording", cap=size_cap, error=RecordingError,
+                              hint=" (BEACON_SIM_MAX_RECORDING_BYTES raises the cap)")
     try:
-        size = path.stat().st_size
-        if size > size_cap:
-            raise RecordingError(f"{path}: {size:,} bytes: a recording holds at most {size_cap:,} "
-                                 "(BEACON_SIM_MAX_RECORDING_BYTES raises the cap)")
-        with path.open("r", encoding="utf-8", newline="") as f:
+        with io.TextIOWrapper(raw_file, encoding="utf-8", newline="") as f:
             n = 0
             while raw := f.readline(line_cap + 1):
                 n += 1
@@ -669,10 +670,6 @@ def _iter_lines(path: Path) -> Iterator[tuple[int, str, bool]]:
                     raise RecordingError(f"{path}:{n}: a line longer than {line_cap:,} characters "
                                          "(BEACON_SIM_MAX_LINE_CHARS raises the cap)")
                 yield n, raw, raw.endswith("\n")
-    except FileNotFoundError:
-        raise RecordingError(f"{path}: no such recording") from None
-    except IsADirectoryError:
-        raise RecordingError(f"{path}: is a folder, not a recording") from None
     except UnicodeDecodeError as exc:
         raise RecordingError(f"{path}: not a text recording (byte {exc.start}: not UTF-8)") from None
     except OSError as exc:

@@ -22,11 +22,13 @@ same name everywhere; files written with the names before issue 28 (``meas_z``,
 from __future__ import annotations
 
 import csv
+import io
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
+from beacon_sim.core.files import atomic_write, read_user_text
 from beacon_sim.core.metrics import pose_errors
 
 TRUTH_COLUMNS = ("tick", "time_s", "x_m", "y_m", "theta_rad", "v_mps", "omega_radps")
@@ -177,13 +179,17 @@ def metrics_table(metrics: Mapping) -> dict[str, np.ndarray]:
     return out
 
 
+#: The largest export file read back [bytes].
+MAX_EXPORT_BYTES = 2**30
+
+
 # -- CSV --------------------------------------------------------------------------------------
 
 def write_table_csv(table: Mapping[str, np.ndarray], path: Path) -> Path:
     """One table as a CSV file, a header of its column names; floats as ``repr`` (exact)."""
     cols = list(table)
     n = len(next(iter(table.values()))) if table else 0
-    with path.open("w", newline="") as f:
+    with atomic_write(path, "w", newline="", what="export") as f:  # whole, or the old file stays
         w = csv.writer(f)
         w.writerow(cols)
         data = [table[c] for c in cols]
@@ -202,8 +208,8 @@ def _cell(v) -> str:
 
 def read_table_csv(path: Path, name: str) -> dict[str, np.ndarray]:
     """A table written by :func:`write_table_csv` (or before issue 28) back as columns."""
-    with path.open(newline="") as f:
-        rows = list(csv.reader(f))
+    text = read_user_text(path, what="export", cap=MAX_EXPORT_BYTES)
+    rows = list(csv.reader(io.StringIO(text, newline="")))
     if not rows:
         raise ValueError(f"{path}: empty file, expected a header line")
     header = [OLD_CSV_COLUMNS.get(name, {}).get(c, c) for c in rows[0]]
