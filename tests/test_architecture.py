@@ -51,7 +51,8 @@ HOMES = {
                        {"core/angles.py"}),
     "a sensor period in ticks": (r"round\([^)]*period[^)]*/", {"core/schedule.py"}),
     "the bearing model": (r"atan2\(\s*\w+\s*,\s*\w+\s*\)\s*-\s*\w",
-                          {"core/measurement_models.py", "filters/ekf.py", "filters/ukf.py"}),
+                          {"core/measurement_models.py", "filters/gaussian/ekf.py",
+                           "filters/gaussian/ukf.py"}),
 }
 #: Private names imported from another module today (the owners' files; none may be added).
 KNOWN_PRIVATE_IMPORTS = {("core/batch_simulation.py", "_kidnap_text"),

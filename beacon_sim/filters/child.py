@@ -30,9 +30,10 @@ PRELOAD = ("numpy", "numpy.linalg", "numpy.random", "math", "cmath", "random", "
            "array", "queue", "threading", "logging", "contextlib", "numbers", "pprint",
            "beacon_sim.core.scenario", "beacon_sim.core.simulation", "beacon_sim.filters.template",
            "beacon_sim.core.angles", "beacon_sim.core.measurement_models", "beacon_sim.core.motion",
-           "beacon_sim.filters.base", "beacon_sim.filters.kf", "beacon_sim.filters.ekf",
-           "beacon_sim.filters.ukf", "beacon_sim.filters.particle", "beacon_sim.filters.histogram",
-           "beacon_sim.filters.dead_reckoning", "beacon_sim.filters.resampling")
+           "beacon_sim.filters.base", "beacon_sim.filters.gaussian.kf", "beacon_sim.filters.gaussian.ekf",
+           "beacon_sim.filters.gaussian.ukf", "beacon_sim.filters.particle.pf",
+           "beacon_sim.filters.grid.histogram", "beacon_sim.filters.gaussian.dead_reckoning",
+           "beacon_sim.filters.resampling")
 NOBODY = 65534
 
 

@@ -15,7 +15,7 @@ TEMPLATE = '''\
 It runs as it is: N particles move with the noisy motion model, are weighted by each laser
 scan with the likelihood field of the map (Probabilistic Robotics table 6.3, precomputed by
 beacon-sim's core) and resampled after every scan. The TODOs lead towards the built-in
-``mcl`` (beacon_sim/filters/mcl.py, ROS AMCL's ideas); the maps and the sensor are in
+``mcl`` (beacon_sim/filters/particle/mcl.py, ROS AMCL's ideas); the maps and the sensor are in
 docs/maps.md, the filter interface in docs/writing-a-filter.md.
 
 Try it (from the folder this file is in):

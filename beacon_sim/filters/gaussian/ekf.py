@@ -24,7 +24,7 @@ as the stacked matrices, without any matrix inverse, and lets the whole filter r
 floats: a numpy call costs about 1 us even on a 3x3 array (design.md section 9). Above it
 (many beacons in view) the float loop costs about 1.7 us a reading, so the tick's rows are
 linearised on arrays and the same update is taken in information form, linear in the rows
-(``gaussian_measurements.kalman_update_low_rank``: ``G = H^T R^-1 H``, a 3x3 solve);
+(``measurements.kalman_update_low_rank``: ``G = H^T R^-1 H``, a 3x3 solve);
 the two agree to rounding (tests/test_ekf_stacked.py).
 
 Optional gating (seed 001's closing advice): a beacon's reading (1 row, 2 rows for
@@ -33,7 +33,7 @@ distance ``y_b^T S_b^-1 y_b`` against the predicted belief exceeds ``gate_chi2``
 
 R runs at once (:class:`BatchedEKF`, for ``evaluation.montecarlo``): the same prediction
 code on arrays (R,) instead of floats, and the stacked update in matrix form
-(``gaussian_measurements.kalman_update``) on the readings of all runs in fixed slots; no
+(``measurements.kalman_update``) on the readings of all runs in fixed slots; no
 gating. The KF's prediction is this one with F = I; dead reckoning's batched form is this one alone.
 """
 
@@ -50,7 +50,7 @@ from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterContext, GaussianBelief, broad_gaussian
-from beacon_sim.filters.gaussian_measurements import (
+from beacon_sim.filters.gaussian.measurements import (
     BatchableFilter,
     BatchedGaussian,
     ReadingModels,
@@ -458,7 +458,7 @@ def _quad(A: np.ndarray, P: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 class BatchedEKF(BatchedVelocityGaussian):
     """:class:`ExtendedKalmanFilter` for R runs: its prediction, its gate (``gate`` > 0:
-    :func:`~beacon_sim.filters.gaussian_measurements.gated_rows`, the per-run filter's test
+    :func:`~beacon_sim.filters.gaussian.measurements.gated_rows`, the per-run filter's test
     on arrays), and its update in stacked matrix form. ``last_nis`` is the NIS of all the
     tick's readings against the predicted belief, gated or not (as the per-run NIS)."""
 

@@ -19,7 +19,7 @@ Bearing and range-bearing readings are *ignored*: they are not linear in the sta
 ``ekf`` or ``ukf`` for them). ``beacon-sim check kf`` therefore runs on assignment_kf.
 
 The prediction is the EKF's code with A = I (``ekf.predict_moments``, on floats); the
-update is ``gaussian_measurements.kalman_update``, on one run here and on R runs at once in
+update is ``measurements.kalman_update``, on one run here and on R runs at once in
 :class:`BatchedKF`.
 """
 
@@ -30,8 +30,8 @@ from typing import Any, ClassVar
 
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import FilterContext
-from beacon_sim.filters.ekf import BatchedVelocityGaussian, VelocityGaussian
-from beacon_sim.filters.gaussian_measurements import (
+from beacon_sim.filters.gaussian.ekf import BatchedVelocityGaussian, VelocityGaussian
+from beacon_sim.filters.gaussian.measurements import (
     FIX_KINDS,
     ReadingModels,
     StackedReadings,

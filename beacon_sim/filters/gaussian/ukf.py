@@ -41,7 +41,7 @@ from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, broad_gaussian
-from beacon_sim.filters.gaussian_measurements import (
+from beacon_sim.filters.gaussian.measurements import (
     ALL_ROWS,
     FIX_KINDS,
     LOW_RANK_ROWS,
@@ -218,7 +218,7 @@ def innovation_parts(Z: np.ndarray, D: np.ndarray, z: np.ndarray, sel: AngleRows
 def correct(mean: np.ndarray, P: np.ndarray, S: np.ndarray, Pxz: np.ndarray, nu: np.ndarray,
             strict: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``K = Pxz S^-1``, ``mean + K nu`` (heading wrapped), ``P - K S K^T = P - Pxz K^T``
-    (symmetrised), for one run or R runs; ``strict``: see ``gaussian_measurements.solve``."""
+    (symmetrised), for one run or R runs; ``strict``: see ``measurements.solve``."""
     Kt = solve(S, Pxz.swapaxes(-1, -2), strict)        # K^T = S^-1 Pxz^T (S symmetric)
     return corrected_mean(mean, Kt, nu), symmetrise(P - Pxz @ Kt)
 

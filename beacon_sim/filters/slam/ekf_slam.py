@@ -17,7 +17,7 @@ is non-zero only in the pose and its landmark's columns, ``H = [Hx, 0 ... Hm ...
     S = H P H^T + R,   K = P H^T S^-1
     s = s + K nu,      P = P - K S K^T  (symmetrised)
 
-New landmark from ``z = [r, b]`` (``slam_base.place``: m = g(x, z))::
+New landmark from ``z = [r, b]`` (``slam.base.place``: m = g(x, z))::
 
     P_mm = Gx P_xx Gx^T + Gz R Gz^T,   P_m* = Gx P_x*         (Gx = dg/dx, Gz = dg/dz)
 
@@ -54,11 +54,11 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import jacobian_state, move
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters import inverse_depth
 from beacon_sim.filters.association import gate as chi2_gate
 from beacon_sim.filters.association import jcbb_search
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, LandmarkMap, broad_gaussian
-from beacon_sim.filters.slam_base import Reading, SlamFilterBase, innovation, observe, place, unknown
+from beacon_sim.filters.slam import inverse_depth
+from beacon_sim.filters.slam.base import Reading, SlamFilterBase, innovation, observe, place, unknown
 
 
 class EKFSLAM(SlamFilterBase):

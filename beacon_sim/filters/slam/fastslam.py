@@ -18,7 +18,7 @@ paired with landmark j (mean m_j, covariance C_j), linearised at the current ``m
 
 then ``x_k ~ N(mu, Sigma)``, and each paired landmark gets an EKF update from the sampled
 pose (``S = Hm C Hm^T + R``, ``K = C Hm^T S^-1``, ``m += K nu``, ``C -= K S K^T``).
-A reading of a landmark not yet in a particle's map puts one there (``slam_base.place``,
+A reading of a landmark not yet in a particle's map puts one there (``slam.base.place``,
 ``C = Gz R Gz^T``) and multiplies the weight by the density ``p0`` of a reading at the
 ``new_landmark_prob`` distance.
 
@@ -58,7 +58,7 @@ from beacon_sim.filters.base import (
     broad_gaussian,
 )
 from beacon_sim.filters.resampling import effective_sample_size, systematic
-from beacon_sim.filters.slam_base import (
+from beacon_sim.filters.slam.base import (
     SLAM_KINDS,
     Reading,
     SlamFilterBase,
@@ -695,7 +695,7 @@ class LinearisedCovariance:
     it off (``ok`` False) and the particle set's moments are reported."""
 
     def __init__(self, ctx: FilterContext, initial: GaussianBelief | None):
-        from beacon_sim.filters.ekf_slam import EKFSLAM  # the recursion itself, not copied
+        from beacon_sim.filters.slam.ekf_slam import EKFSLAM  # the recursion itself, not copied
 
         self.ekf = EKFSLAM(replace(ctx, params={}))
         self.ekf.reset(initial)

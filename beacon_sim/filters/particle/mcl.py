@@ -53,7 +53,7 @@ from beacon_sim.core.occupancy import OccupancyGrid
 from beacon_sim.core.raycast import expected_ranges
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
-from beacon_sim.filters.particle import weighted_pose_stats
+from beacon_sim.filters.particle.pf import weighted_pose_stats
 from beacon_sim.filters.resampling import RESAMPLERS, effective_sample_size, resample
 
 LASER_MODELS = ("likelihood_field", "beam")

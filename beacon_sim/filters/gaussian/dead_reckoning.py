@@ -19,8 +19,8 @@ from beacon_sim.core import motion
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterContext, GaussianBelief, broad_gaussian
-from beacon_sim.filters.ekf import BatchedVelocityGaussian
-from beacon_sim.filters.gaussian_measurements import BatchableFilter
+from beacon_sim.filters.gaussian.ekf import BatchedVelocityGaussian
+from beacon_sim.filters.gaussian.measurements import BatchableFilter
 
 
 class DeadReckoning(BatchableFilter):

@@ -1,0 +1,12 @@
+"""The particle family: filters whose belief is a weighted set of poses.
+
+- ``pf.py``: the particle filter for beacon readings and fixes (``--filter pf``): Monte Carlo
+  localization, adaptive size (KLD or seed 002's), recovery from kidnaps;
+- ``mcl.py``: Monte Carlo localization on an occupancy grid's laser scans (``--filter mcl``,
+  ROS amcl's ideas and parameter names).
+
+The resampling schemes they use are shared (``filters/resampling.py``: FastSLAM resamples
+too), as are the interface (``filters/base.py``) and data association
+(``filters/association.py``). The family never imports another family (an import-linter
+contract in pyproject.toml).
+"""
