@@ -9,4 +9,12 @@ The resampling schemes they use are shared (``filters/resampling.py``: FastSLAM 
 too), as are the interface (``filters/base.py``) and data association
 (``filters/association.py``). The family never imports another family (an import-linter
 contract in pyproject.toml).
+
+``beacon_sim.filters.particle`` was the particle filter's own module before the families:
+its public names are re-exported here, so ``from beacon_sim.filters.particle import
+ParticleFilter`` keeps working. New code imports from ``beacon_sim.filters.particle.pf``.
 """
+
+from beacon_sim.filters.particle.pf import COLLAPSE_ESS, LOST_AT, TWO_PI, ParticleFilter, weighted_pose_stats
+
+__all__ = ["COLLAPSE_ESS", "LOST_AT", "TWO_PI", "ParticleFilter", "weighted_pose_stats"]

@@ -1,0 +1,9 @@
+"""The old import path of dead reckoning, which now lives in
+:mod:`beacon_sim.filters.gaussian.dead_reckoning` (the Gaussian family, docs/architecture.md).
+
+Files written against ``beacon_sim.filters.dead_reckoning`` keep working: this module only re-exports
+the public names of its new home. New code imports from there."""
+
+from beacon_sim.filters.gaussian.dead_reckoning import BatchedDeadReckoning, DeadReckoning
+
+__all__ = ["BatchedDeadReckoning", "DeadReckoning"]

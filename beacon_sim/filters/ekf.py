@@ -1,0 +1,21 @@
+"""The old import path of the extended Kalman filter, which now lives in
+:mod:`beacon_sim.filters.gaussian.ekf` (the Gaussian family, docs/architecture.md).
+
+Files written against ``beacon_sim.filters.ekf`` keep working: this module only re-exports
+the public names of its new home. New code imports from there."""
+
+from beacon_sim.filters.gaussian.ekf import (
+    GATE_RECHECK,
+    STACKED_ROWS,
+    BatchedEKF,
+    BatchedVelocityGaussian,
+    ExtendedKalmanFilter,
+    Row,
+    VelocityGaussian,
+    predict_moments,
+)
+
+__all__ = [
+    "GATE_RECHECK", "STACKED_ROWS", "BatchedEKF", "BatchedVelocityGaussian", "ExtendedKalmanFilter",
+    "Row", "VelocityGaussian", "predict_moments",
+]

@@ -1,0 +1,15 @@
+"""The old import path of EKF-SLAM, which now lives in
+:mod:`beacon_sim.filters.slam.ekf_slam` (the SLAM family, docs/architecture.md).
+
+Files written against ``beacon_sim.filters.ekf_slam`` keep working: this module only re-exports
+the public names of its new home. New code imports from there."""
+
+from beacon_sim.filters.slam.ekf_slam import (
+    EKFSLAM,
+    FullStateJoint,
+    nn_pairs,
+    triangulate,
+    triangulation_jacobian,
+)
+
+__all__ = ["EKFSLAM", "FullStateJoint", "nn_pairs", "triangulate", "triangulation_jacobian"]

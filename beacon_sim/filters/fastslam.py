@@ -1,0 +1,23 @@
+"""The old import path of FastSLAM 2.0, which now lives in
+:mod:`beacon_sim.filters.slam.fastslam` (the SLAM family, docs/architecture.md).
+
+Files written against ``beacon_sim.filters.fastslam`` keep working: this module only re-exports
+the public names of its new home. New code imports from there."""
+
+from beacon_sim.filters.slam.fastslam import (
+    EMPTY,
+    GATED,
+    IGNORED,
+    NEW,
+    FastSLAM2,
+    LinearisedCovariance,
+    inv_det,
+    predictive_distance,
+    proposal_step,
+    without_rows,
+)
+
+__all__ = [
+    "EMPTY", "GATED", "IGNORED", "NEW", "FastSLAM2", "LinearisedCovariance", "inv_det",
+    "predictive_distance", "proposal_step", "without_rows",
+]
