@@ -85,3 +85,20 @@ def test_moved_lists_every_old_path_module():
     shims = {name for name in top
              if (importlib.import_module(name).__doc__ or "").startswith("The old import path")}
     assert shims | {"beacon_sim.filters.particle"} == set(MOVED)
+
+
+def test_the_child_preloads_every_builtin_filter_from_the_registry():
+    """``PRELOAD`` (what a child run as ``nobody`` imports before it may lose the right to read
+    the installation) is derived from the records: once a hand-kept list, it missed mcl,
+    corridor, ekf_slam and fastslam."""
+    from beacon_sim.filters.child import PRELOAD
+
+    for record in RECORDS.values():
+        assert record.module in PRELOAD, record.name
+        if record.batched:
+            assert record.batched.partition(":")[0] in PRELOAD, record.name
+    assert {"beacon_sim.filters.particle.mcl", "beacon_sim.filters.grid.corridor",
+            "beacon_sim.filters.slam.ekf_slam", "beacon_sim.filters.slam.fastslam"} <= set(PRELOAD)
+    assert set(MOVED) <= set(PRELOAD)
+    for name in PRELOAD:
+        importlib.import_module(name)  # each one exists

@@ -229,6 +229,14 @@ def team_records() -> Iterator[FilterRecord]:
     return (r for r in RECORDS.values() if r.team)
 
 
+def builtin_modules() -> tuple[str, ...]:
+    """The module of every built-in filter (its class's and its batched form's), each once, in
+    listing order: what a hosted filter's process imports before it may lose the right to read
+    the installation (``PRELOAD`` in filters/child.py), so a student may subclass any of them."""
+    modules = [t.partition(":")[0] for r in RECORDS.values() for t in (r.target, r.batched) if t]
+    return tuple(dict.fromkeys(modules))
+
+
 def class_key(cls: type) -> str:
     """``module:QualName`` of a class (how a record's target names it)."""
     return f"{cls.__module__}:{cls.__qualname__}"
@@ -275,5 +283,5 @@ MRCLAM_ROBUST: Mapping[str, bool] = RecordTable(lambda r: True, keep=lambda r: r
 
 
 __all__ = ["COLOUR_NAMES", "DASH_NAMES", "MRCLAM_DEFAULTS", "MRCLAM_GATE_CHI2", "MRCLAM_ROBUST", "RECORDS",
-           "TARGETS", "FilterRecord", "RecordTable", "class_key", "record_for_class", "single_records",
-           "team_records"]
+           "TARGETS", "FilterRecord", "RecordTable", "builtin_modules", "class_key", "record_for_class",
+           "single_records", "team_records"]
