@@ -7,16 +7,21 @@ import ast
 import importlib
 import inspect
 import pkgutil
+from pathlib import Path
 
 import pytest
 
 import beacon_sim.filters
+from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.filters import MOVED
 from beacon_sim.filters.containment import Limits
 from beacon_sim.filters.isolated import FilterChild
 from beacon_sim.filters.loading import build_filter, load_filter_class
 from beacon_sim.filters.registry import RECORDS
+from beacon_sim.filters.templates import TEMPLATES
+from beacon_sim.runs.headless import run_headless
 
 FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "dead_reckoning", "measurements"},
             "particle": {"pf", "mcl"},
@@ -102,3 +107,31 @@ def test_the_child_preloads_every_builtin_filter_from_the_registry():
     assert set(MOVED) <= set(PRELOAD)
     for name in PRELOAD:
         importlib.import_module(name)  # each one exists
+
+
+# -- the new-filter templates: real modules, copied --------------------------------------------
+
+#: The scenario each kind of template runs on.
+TEMPLATE_SCENARIOS = {"filter": "default", "team": "team_sparse", "slam": "slam_loop", "scan": "corridor"}
+
+
+@pytest.mark.parametrize("kind", sorted(TEMPLATES))
+def test_new_filter_copies_the_template_module_and_the_copy_runs(kind, tmp_path, capsys):
+    """``new-filter`` writes the template module's own text, with the user's class and file
+    names for the module's (so what ruff, mypy and the contracts check is what a student
+    gets), and the copy runs as it is."""
+    module, cls = TEMPLATES[kind]
+    text = Path(importlib.import_module(f"beacon_sim.filters.templates.{module}").__file__).read_text()
+    option = [] if kind == "filter" else [f"--{kind}"]
+    assert main(["new-filter", str(tmp_path / f"{module}.py"), *option]) == 0
+    assert (tmp_path / f"{module}.py").read_text() == text  # its own names: the module itself
+    copy = tmp_path / "ada_lovelace.py"
+    assert main(["new-filter", str(copy), *option]) == 0
+    assert "AdaLovelace" in capsys.readouterr().out
+    assert copy.read_text() == text.replace(cls, "AdaLovelace").replace(f"{module}.py", "ada_lovelace.py")
+    assert text.count(cls) and text.count(f"{module}.py")  # both names were there to replace
+
+    name = TEMPLATE_SCENARIOS[kind]
+    scenario = load_team_scenario(name) if kind == "team" else load_scenario(name)
+    run = run_headless(scenario, [f"{copy}:AdaLovelace"], seed=2, duration=2.0)
+    assert run.failed("AdaLovelace") is None

@@ -14,7 +14,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters import conformance
 from beacon_sim.filters.base import LandmarkMap
 from beacon_sim.filters.landmark_check import MAX_LANDMARKS
-from beacon_sim.filters.slam_template import render_slam_template
+from beacon_sim.filters.templates import render_slam_template
 from beacon_sim.filters.wire import (
     MAX_MAP_BYTES,
     WireError,
