@@ -36,7 +36,7 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.filters.base import FilterContext, GaussianBelief
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.particle import ParticleFilter
+from beacon_sim.filters.particle.pf import ParticleFilter
 from beacon_sim.filters.runner import validate_estimate
 from beacon_sim.runs.headless import run_headless
 

@@ -47,7 +47,8 @@ def honest_source(k: int) -> str:
     """The k-th honest variation: the EKF with its own gate (chi-square 0 = none, or 6..28)."""
     gate = 0.0 if k % 3 == 0 else 6.0 + k
     joseph = "True" if k % 2 == 0 else "False"
-    return ("from typing import ClassVar\n\nfrom beacon_sim.filters.ekf import ExtendedKalmanFilter\n\n\n"
+    return ("from typing import ClassVar\n\n"
+            "from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter\n\n\n"
             "class MyEkf(ExtendedKalmanFilter):\n"
             f"    defaults: ClassVar[dict] = {{'gate_chi2': {gate}, 'joseph': {joseph}}}\n")
 

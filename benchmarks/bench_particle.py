@@ -25,8 +25,8 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import FilterContext, GaussianBelief
-from beacon_sim.filters.histogram import HistogramFilter
-from beacon_sim.filters.particle import ParticleFilter
+from beacon_sim.filters.grid.histogram import HistogramFilter
+from beacon_sim.filters.particle.pf import ParticleFilter
 
 WORLD = World((0.0, 0.0, 10.0, 10.0),
               tuple(Beacon(i + 1, x, y) for i, (x, y) in enumerate([(1, 1), (9, 1), (9, 9), (1, 9)])))

@@ -406,12 +406,12 @@ CORRIDOR_HEADER = "## [Seed 004](references.md#seed-004): the corridor's discret
 
 
 def corridor_section() -> list[str]:
-    """Seed 004's experiment reproduced with ``filters/corridor.py``: its wall layouts, its
+    """Seed 004's experiment reproduced with ``filters/grid/corridor.py``: its wall layouts, its
     two figures (four moves and sensings from cell 5 facing east, without and with noise),
     then the filter on the ``corridor`` scenario's laser over seeded runs. Self-contained:
     ``python scripts/make_results.py --only corridor`` regenerates this section alone."""
     from beacon_sim.core.simulation import Simulation
-    from beacon_sim.filters.corridor import Corridor
+    from beacon_sim.filters.grid.corridor import Corridor
     from beacon_sim.filters.loading import build_filter
 
     def wilson(k: int, n: int, z: float = 1.96) -> str:
@@ -424,7 +424,7 @@ def corridor_section() -> list[str]:
     c = Corridor()
     n_states = c.n_states
     md = [CORRIDOR_HEADER, "",
-          "`filters/corridor.py` (`--filter corridor`) is the seed's filter: 20 states (10 cells x "
+          "`filters/grid/corridor.py` (`--filter corridor`) is the seed's filter: 20 states (10 cells x "
           "2 directions: state i < 10 is cell i facing east, 19 - i cell i facing west), a "
           "uniform start, \"forward\" 0.8 one cell / 0.1 two / 0.1 stay (mass leaving the corridor "
           "lost, then normalised), \"turn\" 0.9 to state N - 1 - i, and a sensing of walls left, "

@@ -492,7 +492,7 @@ def bad_command_lines(rng: random.Random, n: int) -> list[Case]:
 FAULTY_FILTERS = '''
 import sys
 import numpy as np
-from beacon_sim.filters.ekf import ExtendedKalmanFilter as E
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter as E
 
 class ExitUpdate(E):
     def update(self, m): sys.exit(0)

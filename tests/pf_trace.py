@@ -19,7 +19,7 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import FilterContext, GaussianBelief
-from beacon_sim.filters.particle import ParticleFilter
+from beacon_sim.filters.particle.pf import ParticleFilter
 
 WORLD = World((0.0, 0.0, 10.0, 10.0), tuple(Beacon(i + 1, x, y) for i, (x, y) in enumerate(
     [(1.0, 1.0), (9.0, 1.5), (8.5, 9.0), (1.5, 8.0), (5.0, 5.5)])))

@@ -12,7 +12,7 @@ _BASE = """
 import math
 import time
 import numpy as np
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class MyEkf(ExtendedKalmanFilter):

@@ -252,7 +252,7 @@ def test_window_run_equals_the_headless_simulation_fed_the_same_commands():
 def test_failing_filter_is_switched_off_and_its_message_kept(tmp_path):
     bad = tmp_path / "bad_filter.py"
     bad.write_text(
-        "from beacon_sim.filters.dead_reckoning import DeadReckoning\n"
+        "from beacon_sim.filters.gaussian.dead_reckoning import DeadReckoning\n"
         "class Bad(DeadReckoning):\n"
         "    def update(self, measurements):\n"
         "        if measurements:\n"

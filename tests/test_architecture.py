@@ -40,6 +40,23 @@ def test_the_contract_check_catches_an_upward_import(tmp_path):
     assert "beacon_sim.core.angles -> beacon_sim.cli.main" in r.stdout
 
 
+def test_the_family_contract_catches_one_family_importing_another(tmp_path):
+    """A copy of the package whose grid filter imports the particle filter (or whose shared
+    home imports a family): the families' contracts must fail."""
+    shutil.copytree(ROOT / "beacon_sim", tmp_path / "beacon_sim",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
+    corridor = tmp_path / "beacon_sim" / "filters" / "grid" / "corridor.py"
+    corridor.write_text(corridor.read_text() + "\nimport beacon_sim.filters.particle.pf  # another family\n")
+    resampling = tmp_path / "beacon_sim" / "filters" / "resampling.py"
+    resampling.write_text(resampling.read_text() + "\nimport beacon_sim.filters.slam.base  # a family\n")
+    r = lint_imports(tmp_path)
+    assert r.returncode != 0
+    assert "Filter families are independent: gaussian, particle, grid, slam BROKEN" in r.stdout
+    assert "beacon_sim.filters.grid.corridor -> beacon_sim.filters.particle.pf" in r.stdout
+    assert "The filters' shared home imports no family BROKEN" in r.stdout
+
+
 # -- one home per idea (issue 22) ------------------------------------------------------------
 
 PACKAGE = ROOT / "beacon_sim"
@@ -51,7 +68,8 @@ HOMES = {
                        {"core/angles.py"}),
     "a sensor period in ticks": (r"round\([^)]*period[^)]*/", {"core/schedule.py"}),
     "the bearing model": (r"atan2\(\s*\w+\s*,\s*\w+\s*\)\s*-\s*\w",
-                          {"core/measurement_models.py", "filters/ekf.py", "filters/ukf.py"}),
+                          {"core/measurement_models.py", "filters/gaussian/ekf.py",
+                           "filters/gaussian/ukf.py"}),
 }
 #: Private names imported from another module today (the owners' files; none may be added).
 KNOWN_PRIVATE_IMPORTS = {("core/batch_simulation.py", "_kidnap_text"),

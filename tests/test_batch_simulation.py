@@ -107,7 +107,7 @@ def test_the_tick_as_arrays_is_the_steps_and_packs_the_same_bits(name):
     """advance() (arrays) and step() (objects) on two batches of the same seeds: the same
     steps, poses, commands and kidnaps; pack_tick of the arrays is pack of the Measurements,
     bit for bit (z, r, valid); the checksums agree, also when the two ways are mixed."""
-    from beacon_sim.filters.gaussian_measurements import SlotPacker
+    from beacon_sim.filters.gaussian.measurements import SlotPacker
 
     sc = _everything() if name == "everything" else load_scenario(name)
     seeds = [0, 3, 12345]
@@ -154,7 +154,7 @@ def test_pack_tick_reports_a_sensor_or_beacon_without_slots():
     readings of the other beacons pack as pack packs them."""
     from beacon_sim.core.world import World
     from beacon_sim.filters.base import FilterError
-    from beacon_sim.filters.gaussian_measurements import SlotPacker
+    from beacon_sim.filters.gaussian.measurements import SlotPacker
 
     sc = load_scenario("default")
     fewer = SlotPacker(World(sc.world.bounds, sc.world.beacons[1:]), sc.model_sensors)  # no beacon 1

@@ -18,9 +18,9 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.metrics import nis
 from beacon_sim.evaluation.montecarlo import batch_reason, batch_runs, run_monte_carlo
 from beacon_sim.evaluation.report import table_lines
-from beacon_sim.filters import gaussian_measurements as gm
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
-from beacon_sim.filters.gaussian_measurements import SlotPacker, kalman_update
+from beacon_sim.filters.gaussian import measurements as gm
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.measurements import SlotPacker, kalman_update
 from beacon_sim.filters.loading import build_filter
 
 SEEDS = [2, 3, 11]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from beacon_sim.filters.corridor import Corridor
+from beacon_sim.filters.grid.corridor import Corridor
 
 
 def test_layout_of_the_corridor():

@@ -12,7 +12,7 @@ from beacon_sim.core.resources import shipped_scenarios
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.template import render_template
+from beacon_sim.filters.templates import render_template
 
 
 def _template_class():

@@ -20,7 +20,7 @@ from beacon_sim.core import measurement_models as mm
 from beacon_sim.core import motion
 from beacon_sim.core.angles import diff
 from beacon_sim.core.types import Control
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 POSES = [np.array([5.0, 4.0, 0.3]), np.array([1.0, -2.0, 3.1]), np.array([-3.0, 6.0, -3.1])]
 BXY = {1: (2.0, 2.0), 2: (8.0, 2.0), 3: (8.0, 8.0), 4: (2.0, 8.0), 5: (-5.0, 0.001)}

@@ -16,9 +16,9 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.evaluation.slam_metrics import gospa, joint_anees_band, joint_nees
 from beacon_sim.filters.base import GaussianBelief, LandmarkMap, MappingFilter
-from beacon_sim.filters.ekf_slam import EKFSLAM
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.slam_base import observe, place
+from beacon_sim.filters.slam.base import observe, place
+from beacon_sim.filters.slam.ekf_slam import EKFSLAM
 
 POSES = [np.array([1.0, 2.0, 0.3]), np.array([-1.0, 0.5, 3.1]), np.array([2.0, -3.0, -3.1])]
 LMS = [np.array([4.0, 3.0]), np.array([-2.5, -1.0]), np.array([2.2, -2.9])]
@@ -204,7 +204,7 @@ def test_bearing_only_landmarks_are_triangulated_after_enough_parallax():
 
 
 def test_triangulation_is_exact_and_its_jacobian_matches_finite_differences():
-    from beacon_sim.filters.ekf_slam import triangulate, triangulation_jacobian
+    from beacon_sim.filters.slam.ekf_slam import triangulate, triangulation_jacobian
 
     m = np.array([3.0, 4.0])
     p1, p2 = np.array([0.0, 0.0, 0.4]), np.array([2.0, -1.0, 1.9])

@@ -15,7 +15,7 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import FilterContext, GaussianBelief
-from beacon_sim.filters.ekf import STACKED_ROWS, ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import STACKED_ROWS, ExtendedKalmanFilter
 
 N_BEACONS = 400
 BRG2 = SensorSpec("brg2", "bearing", noise=SensorNoise(bearing_std=0.2))

@@ -25,7 +25,7 @@ from beacon_sim.filters.loading import (
 from beacon_sim.runs.headless import run_headless
 
 MODULE = textwrap.dedent("""
-    from beacon_sim.filters.dead_reckoning import DeadReckoning
+    from beacon_sim.filters.gaussian.dead_reckoning import DeadReckoning
 
     class PackagedFilter(DeadReckoning):
         '''Dead reckoning, shipped in a package of its own.'''

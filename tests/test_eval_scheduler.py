@@ -28,7 +28,7 @@ PROBE = textwrap.dedent("""
 
     import numpy as np
 
-    from beacon_sim.filters.ekf import ExtendedKalmanFilter
+    from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
     class Probe(ExtendedKalmanFilter):

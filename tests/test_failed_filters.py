@@ -85,7 +85,7 @@ def test_eval_stops_an_endless_loop_and_goes_on(tmp_path, capsys):
 
 
 BROKEN_LIFE = '''
-from beacon_sim.filters.dead_reckoning import DeadReckoning
+from beacon_sim.filters.gaussian.dead_reckoning import DeadReckoning
 
 
 class BadInit(DeadReckoning):

@@ -9,14 +9,14 @@ from helpers import make_scenario
 from beacon_sim.cli.main import main
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.base import Filter, FilterError
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ukf import UnscentedKalmanFilter
 from beacon_sim.filters.loading import FilterLoadError, build_filter, load_filter_class
 from beacon_sim.filters.runner import FilterRunner
-from beacon_sim.filters.ukf import UnscentedKalmanFilter
 
 FILE_FILTER = '''
 import numpy as np
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 class MyEKF(ExtendedKalmanFilter):
     """An EKF under another name, loaded from a file."""
@@ -25,7 +25,7 @@ class MyEKF(ExtendedKalmanFilter):
 
 def test_builtin_module_and_file_names_resolve(tmp_path):
     assert load_filter_class("ekf") is ExtendedKalmanFilter
-    assert load_filter_class("beacon_sim.filters.ukf:UnscentedKalmanFilter") is UnscentedKalmanFilter
+    assert load_filter_class("beacon_sim.filters.gaussian.ukf:UnscentedKalmanFilter") is UnscentedKalmanFilter
     path = tmp_path / "my_filter.py"
     path.write_text(FILE_FILTER)
     cls = load_filter_class(f"{path}:MyEKF")
@@ -35,7 +35,7 @@ def test_builtin_module_and_file_names_resolve(tmp_path):
 @pytest.mark.parametrize("spec, words", [
     ("ekff", "unknown filter"),
     ("beacon_sim.filters.nothing:X", "cannot import"),
-    ("beacon_sim.filters.ekf:Nope", "no class 'Nope'"),
+    ("beacon_sim.filters.gaussian.ekf:Nope", "no class 'Nope'"),
     ("missing_file.py:X", "no such filter file"),
 ])
 def test_bad_names_give_one_line_errors(spec, words):

@@ -248,7 +248,8 @@ def test_the_probes_find_determinism_and_the_use_of_readings(board, tmp_path):
     assert _row(board, "global_rng")["deterministic"] is False
     folder = tmp_path / "blind"
     folder.mkdir()
-    (folder / "blind.py").write_text("from beacon_sim.filters.dead_reckoning import DeadReckoning\n\n\n"
+    (folder / "blind.py").write_text("from beacon_sim.filters.gaussian.dead_reckoning "
+                                     "import DeadReckoning\n\n\n"
                                      "class Blind(DeadReckoning):\n    pass\n")
     row = _row(grade(folder, CONFIG, jobs=1), "blind")
     assert row["failed_runs"] == 0 and row["readings_used"] is False and row["deterministic"] is True

@@ -18,7 +18,7 @@ ATTACKS = Path(__file__).parent / "attacks"
 
 HUGE = """
 import numpy as np
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Huge(ExtendedKalmanFilter):
@@ -28,7 +28,7 @@ class Huge(ExtendedKalmanFilter):
 """
 
 INTERRUPT = """
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Ki(ExtendedKalmanFilter):

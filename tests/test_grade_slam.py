@@ -14,7 +14,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters import conformance
 from beacon_sim.filters.base import LandmarkMap
 from beacon_sim.filters.landmark_check import MAX_LANDMARKS
-from beacon_sim.filters.slam_template import render_slam_template
+from beacon_sim.filters.templates import render_slam_template
 from beacon_sim.filters.wire import (
     MAX_MAP_BYTES,
     WireError,
@@ -155,9 +155,10 @@ def slam_class(tmp_path):
     assert ret in good
     nan = "        if M >= 3:\n            self.s[3] = np.nan\n"
     (folder / "carol.py").write_text(good.replace(ret, nan + ret), encoding="utf-8")
-    (folder / "erin.py").write_text("from beacon_sim.filters.ekf_slam import EKFSLAM\n\n\n"
+    (folder / "erin.py").write_text("from beacon_sim.filters.slam.ekf_slam import EKFSLAM\n\n\n"
                                     "class Erin(EKFSLAM):\n    pass\n", encoding="utf-8")
-    (folder / "frank.py").write_text("from beacon_sim.filters.dead_reckoning import DeadReckoning\n\n\n"
+    (folder / "frank.py").write_text("from beacon_sim.filters.gaussian.dead_reckoning "
+                                     "import DeadReckoning\n\n\n"
                                      "class Frank(DeadReckoning):\n    pass\n", encoding="utf-8")
     return folder
 

@@ -18,7 +18,7 @@ from beacon_sim.runs.headless import run_headless
 ATTACKS = Path(__file__).parent / "attacks"
 
 BREAKS = '''
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Breaks(ExtendedKalmanFilter):

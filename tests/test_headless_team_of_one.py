@@ -21,7 +21,7 @@ from beacon_sim.runs.headless import ACCURACY_KEYS, RunResult, run_headless
 #: Wall-clock figures: they differ from run to run.
 TIMING_KEYS = ("steps_per_s", "us_per_step")
 
-FLAKY = ("from beacon_sim.filters.ekf import ExtendedKalmanFilter\n"
+FLAKY = ("from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter\n"
          "class Flaky(ExtendedKalmanFilter):\n"
          "    def update(self, ms):\n"
          "        self.n = getattr(self, 'n', 0) + 1\n"

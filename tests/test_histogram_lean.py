@@ -9,8 +9,8 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters import histogram
 from beacon_sim.filters.base import GaussianBelief
+from beacon_sim.filters.grid import histogram
 from beacon_sim.filters.loading import build_filter
 
 

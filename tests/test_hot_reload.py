@@ -167,7 +167,7 @@ def test_module_specs_are_watched_and_reloaded(tmp_path, monkeypatch, scenario):
 
 def test_builtin_names_point_at_their_module_file():
     path, module = source_of("dead_reckoning")
-    assert module == "beacon_sim.filters.dead_reckoning" and path.name == "dead_reckoning.py"
+    assert module == "beacon_sim.filters.gaussian.dead_reckoning" and path.name == "dead_reckoning.py"
     assert source_of("no_such_filter_name") == (None, None)
 
 

@@ -34,19 +34,19 @@ SEEDS = (0, 1, 2)
 DURATION = 3.0
 #: A built-in filter's name in a run -> the file that hosts it as a student would.
 WRAPPED = {
-    "ekf": ("from beacon_sim.filters.ekf import ExtendedKalmanFilter\n\n"
+    "ekf": ("from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter\n\n"
             "class E(ExtendedKalmanFilter):\n    pass\n"),
-    "ukf": ("from beacon_sim.filters.ukf import UnscentedKalmanFilter\n\n"
+    "ukf": ("from beacon_sim.filters.gaussian.ukf import UnscentedKalmanFilter\n\n"
             "class U(UnscentedKalmanFilter):\n    pass\n"),
-    "pf": ("from typing import ClassVar\nfrom beacon_sim.filters.particle import ParticleFilter\n\n"
+    "pf": ("from typing import ClassVar\nfrom beacon_sim.filters.particle.pf import ParticleFilter\n\n"
            "class P(ParticleFilter):\n"
            "    defaults: ClassVar[dict] = {**ParticleFilter.defaults, 'n_particles': 300}\n"),
-    "dead_reckoning": ("from beacon_sim.filters.dead_reckoning import DeadReckoning\n\n"
+    "dead_reckoning": ("from beacon_sim.filters.gaussian.dead_reckoning import DeadReckoning\n\n"
                        "class D(DeadReckoning):\n    pass\n"),
 }
 #: Fails in the seeds whose own generator's first draw is under 0.5, at its 10th update.
 DOOMED = """
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Doomed(ExtendedKalmanFilter):

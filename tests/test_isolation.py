@@ -24,7 +24,7 @@ FAIL_AT = 5   # faulty filters misbehave on their 5th step
 FAULTY = textwrap.dedent("""
     import time
     import numpy as np
-    from beacon_sim.filters.dead_reckoning import DeadReckoning
+    from beacon_sim.filters.gaussian.dead_reckoning import DeadReckoning
 
     FAIL_AT = {fail_at}
 

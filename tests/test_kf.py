@@ -8,8 +8,8 @@ from gaussian_helpers import bearing, belief, context, pose_fix, position_fix, t
 from beacon_sim.core.angles import diff
 from beacon_sim.core.types import Control
 from beacon_sim.filters.base import GaussianBelief
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
-from beacon_sim.filters.kf import KalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.kf import KalmanFilter
 
 
 def test_predict_is_mu_plus_B_u_and_sigma_plus_R():

@@ -7,8 +7,8 @@ CODE = """
 import sys, pkgutil, importlib
 import beacon_sim.core, beacon_sim.filters
 for pkg in (beacon_sim.core, beacon_sim.filters):
-    for m in pkgutil.iter_modules(pkg.__path__):
-        importlib.import_module(pkg.__name__ + "." + m.name)
+    for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."):
+        importlib.import_module(m.name)
 import beacon_sim.runs.headless, beacon_sim.runs.replay, beacon_sim.runs.mrclam, beacon_sim.io.export
 print("pygame" in sys.modules)
 """

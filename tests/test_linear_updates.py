@@ -12,9 +12,9 @@ import pytest
 from beacon_sim.core.resources import scenario_dir, shipped_scenarios
 from beacon_sim.core.scenario import load_scenario, parse_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters import gaussian_measurements as gm
-from beacon_sim.filters import ukf as ukf_mod
-from beacon_sim.filters.gaussian_measurements import SlotPacker, kalman_update, kalman_update_low_rank
+from beacon_sim.filters.gaussian import measurements as gm
+from beacon_sim.filters.gaussian import ukf as ukf_mod
+from beacon_sim.filters.gaussian.measurements import SlotPacker, kalman_update, kalman_update_low_rank
 from beacon_sim.filters.loading import build_filter
 
 

@@ -1,5 +1,5 @@
 """Seed 004's discrete Bayes filter on the corridor scenario's laser (issue 30):
-``filters/corridor.py``'s CorridorFilter."""
+``filters/grid/corridor.py``'s CorridorFilter."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
-from beacon_sim.filters.corridor import walls_seen
+from beacon_sim.filters.grid.corridor import walls_seen
 from beacon_sim.filters.loading import build_filter
 
 

@@ -1,4 +1,4 @@
-"""filters/mcl.py (issue 30): scan-based MCL with AMCL's names, on the shipped maps."""
+"""filters/particle/mcl.py (issue 30): scan-based MCL with AMCL's names, on the shipped maps."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.mcl import kld_bound, subsample_beams
+from beacon_sim.filters.particle.mcl import kld_bound, subsample_beams
 
 
 def run(name: str, seed: int, seconds: float, params=None, every: float | None = None):

@@ -16,7 +16,7 @@ import pytest
 from beacon_sim.cli.main import main
 from beacon_sim.evaluation.slam_metrics import gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, mrclam_slam_figures
-from beacon_sim.filters.ekf_slam import EKFSLAM
+from beacon_sim.filters.slam.ekf_slam import EKFSLAM
 from beacon_sim.io.mrclam import MrclamError, load_mrclam, read_table
 from beacon_sim.runs.mrclam import SLAM_MRCLAM_FILTERS, map_withheld, nees_or_inf, run_mrclam
 from tests.test_mrclam import make_folder

@@ -135,7 +135,7 @@ def test_a_failing_filter_is_switched_off_with_no_score_alone_or_in_a_team(tmp_p
     f = _two_robot_folder(tmp_path)
     code = tmp_path / "flaky.py"
     code.write_text(
-        "from beacon_sim.filters.ekf import ExtendedKalmanFilter\n"
+        "from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter\n"
         "class Flaky(ExtendedKalmanFilter):\n"
         "    calls = 0\n"
         "    def update(self, ms):\n"

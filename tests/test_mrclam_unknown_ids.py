@@ -14,7 +14,7 @@ import pytest
 from beacon_sim.cli.main import main
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.types import Measurement
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 from beacon_sim.io.mrclam import MrclamError, load_mrclam
 from beacon_sim.runs.mrclam import SENSOR_NAME, run_mrclam
 from tests.test_mrclam import make_folder

@@ -15,8 +15,8 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.summary import Thresholds, evaluate
-from beacon_sim.filters import ukf
-from beacon_sim.filters.gaussian_measurements import SlotPacker, nis
+from beacon_sim.filters.gaussian import ukf
+from beacon_sim.filters.gaussian.measurements import SlotPacker, nis
 from beacon_sim.filters.loading import build_filter
 
 
@@ -41,8 +41,8 @@ def test_gate_default_follows_the_declared_outliers(name):
     assert build_filter(name, bearing, 0).gate == pytest.approx(chi2_quantile(0.99, 1))
 
 
-@pytest.mark.parametrize("name, cls", [("ekf", "ekf:ExtendedKalmanFilter"),
-                                       ("ukf", "ukf:UnscentedKalmanFilter")])
+@pytest.mark.parametrize("name, cls", [("ekf", "gaussian.ekf:ExtendedKalmanFilter"),
+                                       ("ukf", "gaussian.ukf:UnscentedKalmanFilter")])
 def test_a_subclass_that_declares_its_own_gate_keeps_it(name, cls, tmp_path):
     """A student's subclass with ``defaults = {'gate_chi2': 12.0}`` keeps that gate, with and
     without declared outliers: the automatic gate fills in only when nobody chose one (it

@@ -17,7 +17,7 @@ from beacon_sim.core.world import World
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.filters import conformance
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, ParticleBelief
-from beacon_sim.filters.particle import ParticleFilter, weighted_pose_stats
+from beacon_sim.filters.particle.pf import ParticleFilter, weighted_pose_stats
 from beacon_sim.runs.headless import run_headless
 
 WORLD = World((0.0, 0.0, 10.0, 10.0), (Beacon(1, 2.0, 2.0), Beacon(2, 8.0, 3.0), Beacon(3, 4.0, 8.5)))
@@ -316,7 +316,7 @@ def test_pose_stats_skip_the_eigen_clip_only_when_it_changes_nothing():
     import math as _math
 
     from beacon_sim.core.angles import wrap as _wrap
-    from beacon_sim.filters import particle as pmod
+    from beacon_sim.filters.particle import pf as pmod
 
     rng = np.random.default_rng(5)
     for trial in range(200):

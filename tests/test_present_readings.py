@@ -14,7 +14,7 @@ import pytest
 from beacon_sim.core.batch_simulation import BatchSimulation
 from beacon_sim.core.resources import scenario_dir, shipped_scenarios
 from beacon_sim.core.scenario import load_scenario, parse_scenario
-from beacon_sim.filters.gaussian_measurements import FIX_KINDS, SlotPacker
+from beacon_sim.filters.gaussian.measurements import FIX_KINDS, SlotPacker
 
 
 def _mixed_map():

@@ -16,10 +16,10 @@ from beacon_sim.core.angles import circular_mean, wrap
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.base import GaussianBelief
-from beacon_sim.filters.gaussian_measurements import ALL_ROWS
-from beacon_sim.filters.histogram import HistogramFilter
-from beacon_sim.filters.particle import weighted_pose_stats
-from beacon_sim.filters.ukf import innovation_parts
+from beacon_sim.filters.gaussian.measurements import ALL_ROWS
+from beacon_sim.filters.gaussian.ukf import innovation_parts
+from beacon_sim.filters.grid.histogram import HistogramFilter
+from beacon_sim.filters.particle.pf import weighted_pose_stats
 
 RNG = np.random.default_rng(22)
 

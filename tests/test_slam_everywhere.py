@@ -65,7 +65,7 @@ def test_check_judges_the_built_in_slam_filters_map_on_slam_loop():
 BROKEN = '''
 import numpy as np
 from beacon_sim.filters.base import LandmarkMap
-from beacon_sim.filters.ekf_slam import EKFSLAM
+from beacon_sim.filters.slam.ekf_slam import EKFSLAM
 
 class SkewMap(EKFSLAM):
     """EKF-SLAM reporting non-symmetric landmark covariances once it has a landmark."""
@@ -107,7 +107,7 @@ def test_the_slam_template_passes_the_map_check(tmp_path, capsys):
 
 # -- 2. run --json: the SLAM figures -----------------------------------------------------
 DIES = '''
-from beacon_sim.filters.ekf_slam import EKFSLAM
+from beacon_sim.filters.slam.ekf_slam import EKFSLAM
 
 class Dies(EKFSLAM):
     """EKF-SLAM that raises on its 60th update (3 s)."""

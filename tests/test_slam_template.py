@@ -12,7 +12,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters import conformance
 from beacon_sim.filters.loading import load_filter_class
-from beacon_sim.filters.slam_template import render_slam_template
+from beacon_sim.filters.templates import render_slam_template
 from beacon_sim.runs.headless import run_headless
 
 

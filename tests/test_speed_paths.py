@@ -113,7 +113,7 @@ def test_the_pfs_unlabeled_test_equals_associations():
     from beacon_sim.core.clutter import UNKNOWN_ID
     from beacon_sim.core.types import Measurement
     from beacon_sim.filters import association
-    from beacon_sim.filters.particle import _unlabeled
+    from beacon_sim.filters.particle.pf import _unlabeled
 
     cases = []
     for kind, dim in (("bearing", 1), ("range_bearing", 2), ("pose", 3), ("position", 2)):
@@ -151,7 +151,7 @@ def _weighted_pose_stats_before(P, w):
         np.add(e, 2 * math.pi, out=e, where=e < -math.pi)
     cov = (np.multiply(E, wt) @ E.T).astype(np.float64)
     cov = 0.5 * (cov + cov.T)
-    from beacon_sim.filters.particle import _above
+    from beacon_sim.filters.particle.pf import _above
 
     clip = not _above(cov, 1e-12)  # the test the code has used since issue 16
     if clip:
@@ -163,7 +163,7 @@ def _weighted_pose_stats_before(P, w):
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_weighted_pose_stats_bit_for_bit_as_before(dtype):
-    from beacon_sim.filters.particle import weighted_pose_stats
+    from beacon_sim.filters.particle.pf import weighted_pose_stats
     rng = np.random.default_rng(7)
     clipped = 0
     for k in range(300):
@@ -184,7 +184,7 @@ def test_weighted_pose_stats_bit_for_bit_as_before(dtype):
 
 
 def test_the_pfs_eigh_is_numpys():
-    from beacon_sim.filters.particle import _eigh
+    from beacon_sim.filters.particle.pf import _eigh
     rng = np.random.default_rng(3)
     for _ in range(200):
         A = rng.normal(size=(3, 3)) * rng.choice([1e-9, 1.0, 1e6])

@@ -121,7 +121,7 @@ def test_a_team_scenario_never_runs_code_it_names(tmp_path, spec, capsys):
     marker = tmp_path / "ran"
     evil = tmp_path / "evil.py"
     evil.write_text(f"open({str(marker)!r}, 'w').write('x')\n"
-                    "from beacon_sim.filters.ekf import ExtendedKalmanFilter as Evil\n")
+                    "from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter as Evil\n")
     text = TEAM.read_text(encoding="utf-8")
     line = next(ln for ln in text.splitlines() if ln.startswith("default_filters"))
     spec = spec.format(evil=evil)

@@ -69,7 +69,7 @@ def test_a_copy_failing_on_one_robot_switches_the_filter_off_on_all(tmp_path):
     team = load_team_scenario("team_sparse")
     f = tmp_path / "flaky.py"
     f.write_text(
-        "from beacon_sim.filters.ekf import ExtendedKalmanFilter\n"
+        "from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter\n"
         "class Flaky(ExtendedKalmanFilter):\n"
         "    def update(self, ms):\n"
         "        if self.ctx.name.endswith('/2'):\n"

@@ -15,7 +15,7 @@ from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.runs.headless import run_headless
 
 STUDENT = textwrap.dedent('''
-    from beacon_sim.filters.ekf import ExtendedKalmanFilter
+    from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
     class MyTeam:
@@ -73,7 +73,7 @@ def test_run_and_eval_take_a_students_team_filter(student, capsys):
 
 
 def test_a_single_robot_class_is_told_to_use_independent(student, capsys):
-    spec = "beacon_sim.filters.ekf:ExtendedKalmanFilter"
+    spec = "beacon_sim.filters.gaussian.ekf:ExtendedKalmanFilter"
     assert main(["run", "team_sparse", "--duration", "1", "--filter", spec]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"use independent:{spec}" in err[0]

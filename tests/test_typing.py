@@ -9,7 +9,7 @@ import pytest
 from mypy import api
 
 from beacon_sim.filters.registry import single_records
-from beacon_sim.filters.template import render_template
+from beacon_sim.filters.templates import render_template
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -12,8 +12,8 @@ from beacon_sim.core.angles import diff
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.types import Control
 from beacon_sim.filters.base import FilterError, GaussianBelief
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
-from beacon_sim.filters.ukf import UnscentedKalmanFilter, robust_sqrt, sigma_weights
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ukf import UnscentedKalmanFilter, robust_sqrt, sigma_weights
 
 
 def test_weights_seed_000_form_and_scaled_form():

@@ -13,9 +13,9 @@ from gaussian_helpers import bearing, context, pose_fix, position_fix, range_bea
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.types import Control
-from beacon_sim.filters import ukf as ukf_mod
 from beacon_sim.filters.base import GaussianBelief
-from beacon_sim.filters.ukf import UnscentedKalmanFilter, heading_limited_weights, robust_sqrt
+from beacon_sim.filters.gaussian import ukf as ukf_mod
+from beacon_sim.filters.gaussian.ukf import UnscentedKalmanFilter, heading_limited_weights, robust_sqrt
 
 BEACONS = ((1, 2.0, 2.0), (2, 8.0, 2.0), (3, 8.0, 8.0), (4, 2.0, 8.0), (5, -5.0, 0.001), (6, 0.5, 9.0))
 PARAMS = [{}, {"scaled": False, "kappa": 1.0}, {"alpha": 0.5, "beta": 2.0}, {"gate_chi2": 6.0},

@@ -20,7 +20,7 @@ from beacon_sim.runs.live import Session  # noqa: E402
 GARBAGE = textwrap.dedent('''
     import numpy as np
     from beacon_sim.filters.base import GaussianBelief, GridBelief, ParticleBelief
-    from beacon_sim.filters.ekf import ExtendedKalmanFilter
+    from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
     class G(ExtendedKalmanFilter):
         """Good for FROM ticks (0: from the start), then returns garbage."""
@@ -172,7 +172,7 @@ def test_a_filter_hanging_in_init_delays_the_window_by_the_window_limit_only(tmp
 
     monkeypatch.setattr(loading, "WINDOW_BUILD_LIMIT_S", 0.5)  # read at call time
     path = tmp_path / "hang.py"
-    path.write_text("from beacon_sim.filters.ekf import ExtendedKalmanFilter\n"
+    path.write_text("from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter\n"
                     "class Hang(ExtendedKalmanFilter):\n"
                     "    def __init__(self, ctx):\n"
                     "        while True:\n"

@@ -8,10 +8,13 @@ import argparse
 from pathlib import Path
 
 from beacon_sim.errors import UsageError
-from beacon_sim.filters.scan_template import render_scan_template
-from beacon_sim.filters.slam_template import render_slam_template
-from beacon_sim.filters.team_template import render_team_template
-from beacon_sim.filters.template import class_name_for, render_template
+from beacon_sim.filters.templates import (
+    class_name_for,
+    render_scan_template,
+    render_slam_template,
+    render_team_template,
+    render_template,
+)
 
 #: The templates by kind: how to write it, what the class is, and the scenario and built-in
 #: filter the next steps suggest playing it beside.

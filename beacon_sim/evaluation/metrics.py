@@ -20,7 +20,7 @@ from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
-from beacon_sim.filters.gaussian_measurements import LOW_RANK_ROWS, nis_low_rank
+from beacon_sim.filters.gaussian.measurements import LOW_RANK_ROWS, nis_low_rank
 
 
 def innovation(meas: Measurement, spec: SensorSpec, mean: np.ndarray, world: World):

@@ -39,7 +39,7 @@ from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import Batchable, FilterError
-from beacon_sim.filters.gaussian_measurements import BatchableFilter, SlotPacker, nis
+from beacon_sim.filters.gaussian.measurements import BatchableFilter, SlotPacker, nis
 from beacon_sim.filters.guard import estimate_arrays
 from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (

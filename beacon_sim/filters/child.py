@@ -21,18 +21,23 @@ import sys
 import time
 from typing import Any
 
+from beacon_sim.filters import MOVED
+from beacon_sim.filters.registry import builtin_modules
+
 #: Modules loaded before privileges are dropped (a root grader without a sandbox runs the
-#: child as ``nobody``, who may not be able to read the Python installation afterwards).
+#: child as ``nobody``, who may not be able to read the Python installation afterwards): the
+#: standard library a filter may use, the core's models, the filters' shared home, every
+#: built-in filter's module (from the registry: a new filter is never missed) and the old
+#: paths of those that moved into a family.
 PRELOAD = ("numpy", "numpy.linalg", "numpy.random", "math", "cmath", "random", "collections",
            "dataclasses", "functools", "itertools", "typing", "copy", "inspect", "gc", "abc",
            "enum", "statistics", "bisect", "heapq", "operator", "warnings", "csv", "html",
            "tomllib", "re", "string", "textwrap", "pathlib", "datetime", "decimal", "fractions",
            "array", "queue", "threading", "logging", "contextlib", "numbers", "pprint",
-           "beacon_sim.core.scenario", "beacon_sim.core.simulation", "beacon_sim.filters.template",
+           "beacon_sim.core.scenario", "beacon_sim.core.simulation",
            "beacon_sim.core.angles", "beacon_sim.core.measurement_models", "beacon_sim.core.motion",
-           "beacon_sim.filters.base", "beacon_sim.filters.kf", "beacon_sim.filters.ekf",
-           "beacon_sim.filters.ukf", "beacon_sim.filters.particle", "beacon_sim.filters.histogram",
-           "beacon_sim.filters.dead_reckoning", "beacon_sim.filters.resampling")
+           "beacon_sim.filters.base", "beacon_sim.filters.association", "beacon_sim.filters.resampling",
+           *builtin_modules(), *MOVED)
 NOBODY = 65534
 
 

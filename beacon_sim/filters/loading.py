@@ -448,7 +448,7 @@ def one_line_text(text: str) -> str:
 def sensor_note(spec: str, scenario: Scenario) -> str | None:
     """A one-line note when a filter declares the measurement kinds it uses
     (``sensor_kinds``) and the scenario has no sensor of those kinds: it can only predict."""
-    from beacon_sim.filters.dead_reckoning import DeadReckoning
+    from beacon_sim.filters.gaussian.dead_reckoning import DeadReckoning
 
     cls = load_filter_class(spec)
     kinds = getattr(cls, "sensor_kinds", None)

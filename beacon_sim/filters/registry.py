@@ -102,20 +102,20 @@ _FRACTION = (0.0, 1.0)
 _N = (1, MAX_PARTICLES)
 
 RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
-    FilterRecord("kf", "beacon_sim.filters.kf:KalmanFilter", ("blue", "solid"),
-                 batched="beacon_sim.filters.kf:BatchedKF"),
-    FilterRecord("ekf", "beacon_sim.filters.ekf:ExtendedKalmanFilter", ("vermillion", "solid"),
+    FilterRecord("kf", "beacon_sim.filters.gaussian.kf:KalmanFilter", ("blue", "solid"),
+                 batched="beacon_sim.filters.gaussian.kf:BatchedKF"),
+    FilterRecord("ekf", "beacon_sim.filters.gaussian.ekf:ExtendedKalmanFilter", ("vermillion", "solid"),
                  ranges={"gate_chi2": _GATE},
-                 batched="beacon_sim.filters.ekf:BatchedEKF",
+                 batched="beacon_sim.filters.gaussian.ekf:BatchedEKF",
                  mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
-    FilterRecord("ukf", "beacon_sim.filters.ukf:UnscentedKalmanFilter", ("bluish green", "dashed"),
+    FilterRecord("ukf", "beacon_sim.filters.gaussian.ukf:UnscentedKalmanFilter", ("bluish green", "dashed"),
                  ranges={"alpha": Range(1e-4, 10.0, "sigma-point spread"),
                          "beta": Range(0.0, 100.0, "prior knowledge of the distribution (2: Gaussian)"),
                          "kappa": Range(-2.5, 100.0, "secondary scaling"),
                          "gate_chi2": _GATE},
-                 batched="beacon_sim.filters.ukf:BatchedUKF",
+                 batched="beacon_sim.filters.gaussian.ukf:BatchedUKF",
                  mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
-    FilterRecord("pf", "beacon_sim.filters.particle:ParticleFilter", ("reddish purple", "dotted"),
+    FilterRecord("pf", "beacon_sim.filters.particle.pf:ParticleFilter", ("reddish purple", "dotted"),
                  ranges={"n_particles": Range(*_N, "particles (fixed size)"),
                          "n_min": Range(*_N, "fewest particles (adaptive size)"),
                          "n_max": Range(*_N, "most particles (adaptive size)"),
@@ -137,7 +137,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                                                                 "particle is beyond this chi-square point")},
                  mrclam={"n_particles": 4000, "augmented": False, "roughen": 1.25}, mrclam_robust=True,
                  memory=particle_memory),
-    FilterRecord("histogram", "beacon_sim.filters.histogram:HistogramFilter", ("orange", "dash-dot"),
+    FilterRecord("histogram", "beacon_sim.filters.grid.histogram:HistogramFilter", ("orange", "dash-dot"),
                  ranges={"cell": Range(1e-3, 1e3, "x-y cell size [m]"),
                          "heading_bins": Range(4, 3600, "heading bins over 2 pi"),
                          "floor": Range(0.0, 0.999, "share spread uniformly after an update"),
@@ -148,7 +148,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                  mrclam={"floor": 0.0}, mrclam_robust=True,
                  memory=grid_memory),
     # Issue 30: scan-based MCL on an occupancy grid, with ROS amcl's parameter names.
-    FilterRecord("mcl", "beacon_sim.filters.mcl:MonteCarloLocalization", ("sky blue", "dotted"),
+    FilterRecord("mcl", "beacon_sim.filters.particle.mcl:MonteCarloLocalization", ("sky blue", "dotted"),
                  ranges={"min_particles": Range(*_N, "KLD-sampling's fewest particles"),
                          "max_particles": Range(*_N, "KLD-sampling's most particles"),
                          "kld_err": Range(1e-6, 1.0, "KLD bound between sample and true posterior"),
@@ -170,17 +170,17 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "laser_likelihood_max_dist": Range(1e-3, 1e3, "likelihood field's distance cap [m]"),
                          "laser_max_range": Range(-1.0, 1e6, "max range [m]; -1: the sensor's")}),
     # Seed 004's discrete Bayes filter on the corridor scenario's scans (issue 30).
-    FilterRecord("corridor", "beacon_sim.filters.corridor:CorridorFilter", ("yellow", "dash-dot"),
+    FilterRecord("corridor", "beacon_sim.filters.grid.corridor:CorridorFilter", ("yellow", "dash-dot"),
                  ranges={"x0": Range(-1e6, 1e6, "the corridor's start [m]"),
                          "y_centre": Range(-1e6, 1e6, "its centre line [m]"),
                          "width": Range(1e-3, 1e3, "its width [m]"),
                          "cell": Range(1e-3, 1e3, "a cell's length [m]"),
                          "wall_dist": Range(1e-3, 1e3, "a beam shorter than this is a wall [m]")}),
-    FilterRecord("dead_reckoning", "beacon_sim.filters.dead_reckoning:DeadReckoning",
+    FilterRecord("dead_reckoning", "beacon_sim.filters.gaussian.dead_reckoning:DeadReckoning",
                  ("grey", "short dash"),
-                 batched="beacon_sim.filters.dead_reckoning:BatchedDeadReckoning"),
+                 batched="beacon_sim.filters.gaussian.dead_reckoning:BatchedDeadReckoning"),
     # Landmark SLAM (docs/slam.md): the map is part of the estimate.
-    FilterRecord("ekf_slam", "beacon_sim.filters.ekf_slam:EKFSLAM", ("sky blue", "solid"),
+    FilterRecord("ekf_slam", "beacon_sim.filters.slam.ekf_slam:EKFSLAM", ("sky blue", "solid"),
                  ranges={"gate_prob": Range(0.5, 1.0 - 1e-9, "chi-square share a true pairing passes"),
                          "new_landmark_prob": Range(0.5, 1.0 - 1e-12, "farther than this quantile "
                                                                      "from all: a new landmark"),
@@ -193,7 +193,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "gate_chi2": Range(0.0, 1e9, "drop a reading with an ID farther than this "
                                                       "squared Mahalanobis distance (0: off)")},
                  mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
-    FilterRecord("fastslam", "beacon_sim.filters.fastslam:FastSLAM2", ("yellow", "dash-dot"),
+    FilterRecord("fastslam", "beacon_sim.filters.slam.fastslam:FastSLAM2", ("yellow", "dash-dot"),
                  ranges={"n_particles": Range(1, 100_000, "particles, each with its own map"),
                          "ess_threshold": Range(*_FRACTION, "resample when ESS < this share of N"),
                          "gate_prob": Range(0.5, 1.0 - 1e-9, "chi-square share a true pairing passes"),
@@ -227,6 +227,14 @@ def single_records() -> Iterator[FilterRecord]:
 def team_records() -> Iterator[FilterRecord]:
     """The team filters, in listing order."""
     return (r for r in RECORDS.values() if r.team)
+
+
+def builtin_modules() -> tuple[str, ...]:
+    """The module of every built-in filter (its class's and its batched form's), each once, in
+    listing order: what a hosted filter's process imports before it may lose the right to read
+    the installation (``PRELOAD`` in filters/child.py), so a student may subclass any of them."""
+    modules = [t.partition(":")[0] for r in RECORDS.values() for t in (r.target, r.batched) if t]
+    return tuple(dict.fromkeys(modules))
 
 
 def class_key(cls: type) -> str:
@@ -275,5 +283,5 @@ MRCLAM_ROBUST: Mapping[str, bool] = RecordTable(lambda r: True, keep=lambda r: r
 
 
 __all__ = ["COLOUR_NAMES", "DASH_NAMES", "MRCLAM_DEFAULTS", "MRCLAM_GATE_CHI2", "MRCLAM_ROBUST", "RECORDS",
-           "TARGETS", "FilterRecord", "RecordTable", "class_key", "record_for_class", "single_records",
-           "team_records"]
+           "TARGETS", "FilterRecord", "RecordTable", "builtin_modules", "class_key", "record_for_class",
+           "single_records", "team_records"]

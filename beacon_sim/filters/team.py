@@ -47,8 +47,8 @@ from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, Filter, FilterContext, FilterError, GaussianBelief
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
-from beacon_sim.filters.gaussian_measurements import process_cov_terms
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.measurements import process_cov_terms
 from beacon_sim.filters.param_ranges import check_value
 
 

@@ -4,7 +4,7 @@ and try to write next to the file itself (the class folder)."""
 import os
 from pathlib import Path
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 for target in (Path.cwd(), Path(__file__).resolve().parent):
     try:

@@ -6,7 +6,7 @@ import os
 import struct
 import sys
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Forger(ExtendedKalmanFilter):

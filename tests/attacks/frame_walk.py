@@ -5,7 +5,7 @@ import inspect
 
 import numpy as np
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Cheat(ExtendedKalmanFilter):

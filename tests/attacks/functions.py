@@ -2,7 +2,7 @@
 ``init(ctx)``, ``reset``, ``predict``, ``update``, ``estimate``. Here they drive the built-in
 EKF, so its grade must equal the class form's."""
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 ekf = None
 

@@ -3,7 +3,7 @@ different grade each time, unless the grader seeds the global generators."""
 
 import numpy as np
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Noisy(ExtendedKalmanFilter):

@@ -1,7 +1,7 @@
 """A file whose filter class is followed by a helper class with an unrelated ``update``:
 the helper must not be graded."""
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class MyEkf(ExtendedKalmanFilter):

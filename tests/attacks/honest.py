@@ -1,6 +1,6 @@
 """An honest student: the built-in EKF as it is."""
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class MyEkf(ExtendedKalmanFilter):

@@ -2,7 +2,7 @@
 
 from typing import ClassVar
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class MyEkf(ExtendedKalmanFilter):

@@ -3,7 +3,7 @@ made an innocent classmate fail with "worker died (memory?)"."""
 
 import os
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Quitter(ExtendedKalmanFilter):

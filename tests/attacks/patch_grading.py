@@ -6,7 +6,7 @@ import numpy as np
 
 import beacon_sim.evaluation.grading as grading
 import beacon_sim.evaluation.montecarlo as montecarlo
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 def _worse(run):

@@ -2,7 +2,7 @@
 
 import sys
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 LINE = "x" * 20_000
 

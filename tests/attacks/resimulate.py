@@ -5,7 +5,7 @@ its result is far below the Cramer-Rao bound, so it is flagged "suspicious"."""
 
 import numpy as np
 
-from beacon_sim.filters.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
 class Cheat(ExtendedKalmanFilter):

@@ -1,28 +1,16 @@
-"""``beacon-sim new-filter PATH --scan``: a commented scan-based particle filter template.
-
-It runs as it is: a small Monte Carlo localization on the world's occupancy grid, weighting
-its particles by a laser scan (a ``range_finder`` sensor, docs/maps.md) with the core's
-likelihood field, with TODOs that lead towards the built-in ``mcl`` (issue 30).
-"""
-
-from __future__ import annotations
-
-import keyword
-
-TEMPLATE = '''\
-"""__CLASS__: my own scan-based particle filter (Monte Carlo localization) for beacon-sim.
+"""MyScan: my own scan-based particle filter (Monte Carlo localization) for beacon-sim.
 
 It runs as it is: N particles move with the noisy motion model, are weighted by each laser
 scan with the likelihood field of the map (Probabilistic Robotics table 6.3, precomputed by
 beacon-sim's core) and resampled after every scan. The TODOs lead towards the built-in
-``mcl`` (beacon_sim/filters/mcl.py, ROS AMCL's ideas); the maps and the sensor are in
+``mcl`` (beacon_sim/filters/particle/mcl.py, ROS AMCL's ideas); the maps and the sensor are in
 docs/maps.md, the filter interface in docs/writing-a-filter.md.
 
 Try it (from the folder this file is in):
 
-    beacon-sim check __FILE__:__CLASS__ --scenario corridor
-    beacon-sim play office --filter ./__FILE__:__CLASS__ --filter mcl
-    beacon-sim eval office --filter ./__FILE__:__CLASS__ --filter mcl --runs 10
+    beacon-sim check my_scan.py:MyScan --scenario corridor
+    beacon-sim play office --filter ./my_scan.py:MyScan --filter mcl
+    beacon-sim eval office --filter ./my_scan.py:MyScan --filter mcl --runs 10
 
 Conventions: the pose is [x, y, theta] in metres, metres, radians, world frame (y up,
 theta counter-clockwise from +x). A scan's ``m.z`` has one row per beam: [range m, beam
@@ -45,7 +33,7 @@ from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, P
 from beacon_sim.filters.resampling import systematic
 
 
-class __CLASS__(FilterBase):
+class MyScan(FilterBase):
     """A particle filter over the pose, weighted by laser scans.
 
     ``self.ctx`` holds everything the filter may know: ``ctx.world.grid`` (the occupancy
@@ -54,7 +42,7 @@ class __CLASS__(FilterBase):
     ``ctx.rng``, the only random generator you may use. It never holds the true pose.
     """
 
-    # Set them from a scenario's [filters.__CLASS__] table or with --set __CLASS__.KEY=VALUE.
+    # Set them from a scenario's [filters.MyScan] table or with --set MyScan.KEY=VALUE.
     defaults: ClassVar[dict] = {
         "n_particles": 1000,
         "max_beams": 30,                 # beams used per scan, spread evenly (AMCL's laser_max_beams)
@@ -93,7 +81,7 @@ class __CLASS__(FilterBase):
             xmin, ymin, xmax, ymax = self.ctx.world.bounds
             xy = rng.uniform((xmin, ymin), (xmax, ymax), (n, 2))
         else:
-            rows, cols = self.grid.shape
+            cols = self.grid.shape[1]
             free = np.flatnonzero(~self.grid.occupied.ravel())
             cells = free[rng.integers(0, free.size, n)]
             uv = np.column_stack([cells % cols + rng.random(n), cells // cols + rng.random(n)])
@@ -138,6 +126,7 @@ class __CLASS__(FilterBase):
     # ------------------------------------------------------------------ measurement
     def field(self, max_range: float) -> LikelihoodField:
         """The map's likelihood field for a sensor of this max range [m] (built once)."""
+        assert self.grid is not None   # update() weighs scans only on a map
         if max_range not in self.fields:
             p = self.params
             model = RangeModelParams(z_hit=p["z_hit"], z_short=0.0, z_max=0.0, z_rand=p["z_rand"],
@@ -180,11 +169,3 @@ class __CLASS__(FilterBase):
         idx = systematic(self.weights(), n, self.ctx.rng)
         self.poses = self.poses[idx].copy()
         self.logw = np.full(n, -math.log(n))
-'''
-
-
-def render_scan_template(class_name: str, file_name: str) -> str:
-    """The scan template's source text for ``class_name`` in a file named ``file_name``."""
-    if not class_name.isidentifier() or keyword.iskeyword(class_name):
-        raise ValueError(f"{class_name!r} is not a valid Python class name")
-    return TEMPLATE.replace("__CLASS__", class_name).replace("__FILE__", file_name)

@@ -1,17 +1,4 @@
-"""``beacon-sim new-filter PATH``: write a commented filter template that runs as it is.
-
-The template is dead reckoning (predict with the motion model, ignore measurements) with
-TODOs that lead to an EKF update, and pointers to the core's models and Jacobians.
-"""
-
-from __future__ import annotations
-
-import keyword
-import re
-from pathlib import Path
-
-TEMPLATE = '''\
-"""{class_name}: my own localisation filter for beacon-sim.
+"""MyFilter: my own localisation filter for beacon-sim.
 
 It runs as it is: it is dead reckoning (it predicts with the motion model and ignores the
 measurements). Fill in the TODOs to turn it into an extended Kalman filter; the finished
@@ -20,10 +7,10 @@ docs/writing-a-filter.md.
 
 Try it (from the folder this file is in):
 
-    beacon-sim check {file_name}:{class_name}              # does it follow the interface?
-    beacon-sim play --filter ./{file_name}:{class_name} --filter ekf   # live, beside the EKF
-    beacon-sim run default --filter ./{file_name}:{class_name} --filter ekf
-    beacon-sim eval default --filter ./{file_name}:{class_name} --filter ekf --runs 20
+    beacon-sim check my_filter.py:MyFilter              # does it follow the interface?
+    beacon-sim play --filter ./my_filter.py:MyFilter --filter ekf   # live, beside the EKF
+    beacon-sim run default --filter ./my_filter.py:MyFilter --filter ekf
+    beacon-sim eval default --filter ./my_filter.py:MyFilter --filter ekf --runs 20
 
 In the window, saving this file reloads the filter (it restarts from the initial belief);
 if the file has an error, the message shows on screen and the previous version keeps running.
@@ -59,7 +46,7 @@ from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, broad_gaussian
 
 
-class {class_name}(FilterBase):
+class MyFilter(FilterBase):
     """A Gaussian filter over the pose.
 
     ``self.ctx`` holds everything the filter may know: ``ctx.world.beacons`` (id, x, y),
@@ -68,14 +55,14 @@ class {class_name}(FilterBase):
     the only random generator you may use. It never holds the true pose.
     """
 
-    # Parameters you can set from a scenario's [filters.{class_name}] table or with
-    # --set {class_name}.KEY=VALUE; unknown names are an error.
-    defaults: ClassVar[dict] = {{"use_measurements": True}}
+    # Parameters you can set from a scenario's [filters.MyFilter] table or with
+    # --set MyFilter.KEY=VALUE; unknown names are an error.
+    defaults: ClassVar[dict] = {"use_measurements": True}
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)   # stores self.ctx and self.params
         # beacon id -> (x, y) [m]: each reading names its beacon (known correspondence)
-        self.beacons = {{b.id: (b.x, b.y) for b in ctx.world.beacons}}
+        self.beacons = {b.id: (b.x, b.y) for b in ctx.world.beacons}
         self.mean = np.zeros(3)
         self.cov = np.eye(3)
 
@@ -131,20 +118,3 @@ class {class_name}(FilterBase):
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """The mean (3,) [m, m, rad] and covariance (3, 3); return copies."""
         return self.mean.copy(), self.cov.copy()
-'''
-
-
-def class_name_for(path: Path) -> str:
-    """``my_filter.py`` -> ``MyFilter``; a name that is not an identifier -> ``MyFilter``."""
-    words = [w for w in re.split(r"[^0-9A-Za-z]+", path.stem) if w]
-    name = "".join(w[:1].upper() + w[1:] for w in words)
-    if not name or not name.isidentifier() or name[0].isdigit() or keyword.iskeyword(name):
-        return "MyFilter"
-    return name
-
-
-def render_template(class_name: str, file_name: str) -> str:
-    """The template's source text for ``class_name`` in a file named ``file_name``."""
-    if not class_name.isidentifier() or keyword.iskeyword(class_name):
-        raise ValueError(f"{class_name!r} is not a valid Python class name")
-    return TEMPLATE.format(class_name=class_name, file_name=file_name)

@@ -1,18 +1,4 @@
-"""``beacon-sim new-filter PATH --slam``: write a commented SLAM filter template that runs
-as it is.
-
-The template keeps one Gaussian over the pose and the landmarks (EKF-SLAM's state): it
-predicts, puts each newly seen beacon on its map from the first range-bearing reading, and
-reports the map through ``landmarks()``; the TODO (the Kalman correction with a reading of a
-landmark already on the map) turns it into EKF-SLAM (docs/slam.md).
-"""
-
-from __future__ import annotations
-
-import keyword
-
-TEMPLATE = '''\
-"""__CLASS__: my own landmark SLAM filter for beacon-sim (docs/slam.md).
+"""MySlam: my own landmark SLAM filter for beacon-sim (docs/slam.md).
 
 It runs as it is: it predicts with the motion model and puts every beacon it sees for the
 first time on its map, but never corrects anything with a second reading, so the pose
@@ -21,8 +7,8 @@ TODO to turn it into EKF-SLAM.
 
 Try it (from the folder this file is in):
 
-    beacon-sim check ./__FILE__:__CLASS__
-    beacon-sim play slam_loop --filter ./__FILE__:__CLASS__ --filter ekf_slam
+    beacon-sim check ./my_slam.py:MySlam
+    beacon-sim play slam_loop --filter ./my_slam.py:MySlam --filter ekf_slam
 
 On slam_loop the filter is not given the beacon map (ctx.map_known is False, and
 ctx.world.beacons holds only the anchors, here none): it must map the beacons itself. The
@@ -46,7 +32,7 @@ from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, LandmarkMap, broad_gaussian
 
 
-class __CLASS__(FilterBase):
+class MySlam(FilterBase):
     """EKF-SLAM with known correspondence (each reading names its beacon), range-bearing."""
 
     defaults: ClassVar[dict] = {}
@@ -135,11 +121,3 @@ class __CLASS__(FilterBase):
         covs = np.array([self.P[3 + 2 * k:5 + 2 * k, 3 + 2 * k:5 + 2 * k] for k in range(M)])
         return LandmarkMap(np.array(self.ids, dtype=int), self.s[3:].reshape(M, 2).copy(),
                            covs.reshape(M, 2, 2))
-'''
-
-
-def render_slam_template(class_name: str, file_name: str) -> str:
-    """The SLAM template's source text for ``class_name`` in a file named ``file_name``."""
-    if not class_name.isidentifier() or keyword.iskeyword(class_name):
-        raise ValueError(f"{class_name!r} is not a valid Python class name")
-    return TEMPLATE.replace("__CLASS__", class_name).replace("__FILE__", file_name)

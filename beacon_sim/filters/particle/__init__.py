@@ -1,0 +1,20 @@
+"""The particle family: filters whose belief is a weighted set of poses.
+
+- ``pf.py``: the particle filter for beacon readings and fixes (``--filter pf``): Monte Carlo
+  localization, adaptive size (KLD or seed 002's), recovery from kidnaps;
+- ``mcl.py``: Monte Carlo localization on an occupancy grid's laser scans (``--filter mcl``,
+  ROS amcl's ideas and parameter names).
+
+The resampling schemes they use are shared (``filters/resampling.py``: FastSLAM resamples
+too), as are the interface (``filters/base.py``) and data association
+(``filters/association.py``). The family never imports another family (an import-linter
+contract in pyproject.toml).
+
+``beacon_sim.filters.particle`` was the particle filter's own module before the families:
+its public names are re-exported here, so ``from beacon_sim.filters.particle import
+ParticleFilter`` keeps working. New code imports from ``beacon_sim.filters.particle.pf``.
+"""
+
+from beacon_sim.filters.particle.pf import COLLAPSE_ESS, LOST_AT, TWO_PI, ParticleFilter, weighted_pose_stats
+
+__all__ = ["COLLAPSE_ESS", "LOST_AT", "TWO_PI", "ParticleFilter", "weighted_pose_stats"]

@@ -1,0 +1,15 @@
+"""The SLAM family: filters that are not given the beacon map and estimate it with the pose
+(docs/slam.md). A SLAM filter adds ``landmarks()`` (and ``joint()``) to the interface.
+
+- ``base.py``: what they share: the landmark observation model and its Jacobians, the
+  placing of a new landmark, and a base class that sorts a tick's readings;
+- ``ekf_slam.py``: EKF-SLAM, one Gaussian over the pose and every landmark
+  (``--filter ekf_slam``);
+- ``inverse_depth.py``: inverse-depth landmarks, EKF-SLAM's bearing-only initialisation;
+- ``fastslam.py``: FastSLAM 2.0, particles over the path, each with its own landmark EKFs
+  (``--filter fastslam``).
+
+They import the shared home (``filters/base.py``, ``filters/association.py``,
+``filters/resampling.py``) and the core, never another family (an import-linter contract in
+pyproject.toml).
+"""
