@@ -6,7 +6,7 @@ Run ``i`` uses seed ``seed + i``; each run is built from its seed alone (design.
 
 Two ways to drive the filters: :func:`one_run`, one run and every filter object on its
 steps; :func:`batch_runs`, R runs together, each filter that has a batched form
-(``filters.gaussian_measurements.BatchableFilter``: kf, ekf, ukf, dead reckoning) as one
+(``filters.gaussian.measurements.BatchableFilter``: kf, ekf, ukf, dead reckoning) as one
 object whose state is arrays (mean (R, 3), cov (R, 3, 3)), so one numpy call updates every
 run instead of ~1 us of numpy overhead per 3x3 call per run (design.md section 9). The
 filter modules hold both forms of their maths; here are only the simulations, the packing

@@ -175,7 +175,7 @@ class BatchedFilter(Protocol):
 
     def update(self, readings: Any) -> None:
         """Every run's measurement update with the tick's readings, packed as
-        ``filters.gaussian_measurements.StackedReadings`` (R runs x M slots)."""
+        ``filters.gaussian.measurements.StackedReadings`` (R runs x M slots)."""
 
 
 @runtime_checkable
