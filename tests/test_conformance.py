@@ -144,7 +144,7 @@ FAULTS = {  # one injected fault -> the one check that must fail
 def test_one_injected_fault_gives_exactly_one_fail(fault, tmp_path, default, monkeypatch):
     from beacon_sim.filters import conformance
 
-    monkeypatch.setattr(conformance, "STEP_LIMIT_S", 0.5)
+    monkeypatch.setattr(conformance, "RUN_LIMIT_S", 0.5)
     kwargs, check = FAULTS[fault]
     results = run_checks(write_filter(tmp_path, **kwargs), default)
     bad = failed(results)
