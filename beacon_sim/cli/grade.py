@@ -94,9 +94,9 @@ def grade_command(args: argparse.Namespace) -> int:
     if board.get("cached_students"):
         print(f"{len(board['cached_students'])} student(s) unchanged since the last grade: results "
               f"reused from {out / 'cache'} (--no-cache runs them again)")
-    print(f"the students' random streams are keyed by {whence} (fingerprint "
-          f"{board['secret_sha256']}), kept in {out / SECRET_FILE}: grade with --secret-file "
-          f"{out / SECRET_FILE} to reproduce these figures; do not hand it out")
+    print(f"the students' random streams are keyed by {whence} (fingerprint {board['secret_sha256']}), "
+          f"kept in {out / SECRET_FILE}: --secret-file it to regrade these figures bit for bit; "
+          "do not hand it out")
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
           f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
           f"in its own process, sandbox: {board.get('sandbox', 'process')})")
@@ -116,7 +116,8 @@ def _secret(args: argparse.Namespace, out: Path) -> tuple[bytes | None, str]:
         secret = read_secret(path)
     except GradeError as exc:
         raise UsageError(str(exc)) from None
-    return secret, f"the secret in {path}"
+    given = getattr(args, "secret_file", None) is not None
+    return secret, "the secret given (--secret-file)" if given else "the secret of the last grade"
 
 
 def _num(v: float | None, fmt: str) -> str:

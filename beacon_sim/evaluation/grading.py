@@ -674,17 +674,17 @@ def _probe_findings(sr: SimulatedRun, probes: ProbeFindings, findings: dict[str,
 
 
 #: How a probe is named where its failure is shown.
-PROBE_WORDS = {"again": "the first run fed again", "other": "the first run with its readings drawn again",
-               "other_again": "the first run with its readings drawn again, fed again"}
+PROBE_WORDS = {"again": "the first run fed again", "extra": "one more seed",
+               "extra_redrawn": "one more seed, its readings drawn again"}
 
 
 def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict[str, Any],
            graded: TaskResult) -> bool:
     """The probes of a filter that draws from the global generators (its runs fed one by
-    one, each in a fresh child) on the first run's first :data:`PROBE_TICKS` ticks, one by
-    one too: fed again with the global generators seeded differently (is it
-    deterministic?), and with its readings drawn again and the global generators seeded as
-    for the run (does it use them?). Returns whether the child may be used again (False
+    one, each in a fresh child), one by one too: the first run's first :data:`PROBE_TICKS`
+    ticks fed again with the global generators seeded differently (is it deterministic?),
+    and the extra run fed its readings and its readings drawn again, the global generators
+    seeded alike (does it use them?). Returns whether the child may be used again (False
     when a probe broke it)."""
     if not isinstance(graded.run, RunOutput):
         return True
@@ -703,15 +703,20 @@ def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict
         return False
     deterministic = bool(np.array_equal(rep["means"], first, equal_nan=True))
     used = None
-    if sr.frames_other is not None and sr.readings_within(n):
-        _, rep = isolated_run(child, sr, job.time_limit, other=True, ticks=n)
-        if rep.get("failed"):
-            failures["other"] = (str(rep["failed"]), int(np.argmax(np.isnan(rep["means"][:, 0]))))
-        else:
-            used = not bool(np.array_equal(rep["means"], first, equal_nan=True))
-        if rep.get("failed_child"):
-            _probe_findings(sr, ProbeFindings(deterministic, None, used, failures), findings)
-            return False
+    ex = sr.extra
+    if ex is not None and ex.frames_other is not None and ex.readings_within(len(ex.frames)):
+        means = []
+        for what, other in (("extra", False), ("extra_redrawn", True)):
+            _, rep = isolated_run(child, ex, job.time_limit, other=other, ticks=len(ex.frames), name=name,
+                                  global_seed=ex.global_seed(name))
+            if rep.get("failed") and not failures.get("extra"):
+                failures[what] = (str(rep["failed"]), int(np.argmax(np.isnan(rep["means"][:, 0]))))
+            means.append(None if rep.get("failed") else rep["means"])
+            if rep.get("failed_child"):
+                _probe_findings(sr, ProbeFindings(deterministic, None, None, failures), findings)
+                return False
+        if means[0] is not None and means[1] is not None:
+            used = not bool(np.array_equal(means[0], means[1], equal_nan=True))
     _probe_findings(sr, ProbeFindings(deterministic, None, used, failures), findings)
     return True
 

@@ -278,12 +278,15 @@ class SimulatedRun:
     record_index: np.ndarray  # (T,) int: the index in ``records`` of tick i's readings
     frames: list[bytes]  # (T,) "step" requests
     #: The same run (truth, controls, events) with its readings drawn again from another
-    #: stream: the "other" probe (does the filter use its readings?), drawn like any run's.
+    #: stream (the probes' extra run only: does the filter use its readings?).
     frames_other: list[bytes] | None = None
     label: str = ""  # the scenario as the user named it (a shipped name or a path)
     #: The key of the run's filter streams (core/streams.py ``run_key``: a hash of the
     #: grade's secret and the seed; None: the public key's). Stays in the grader.
     key: bytes | None = None
+    #: The probes' extra run (a scenario's first run only): one more seed drawn from the
+    #: key, its first ticks, with its readings drawn again (filters/feed.py ``probe_slots``).
+    extra: SimulatedRun | None = None
 
     @property
     def stream_key(self) -> bytes:
@@ -307,18 +310,19 @@ class SimulatedRun:
 
 def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
                  probe: bool = False, label: str | None = None,
-                 secret: bytes | None = None) -> SimulatedRun:
-    """Simulate one run as :func:`one_run` does, without filters; ``probe``: also the same
-    run with its readings drawn again (``frames_other``, from a seed derived from the run's
-    key: the "other" probe); ``secret``: the key of the filters' streams (None: the public
-    key)."""
+                 secret: bytes | None = None, redraw: bool = False) -> SimulatedRun:
+    """Simulate one run as :func:`one_run` does, without filters. ``probe``: also the
+    probes' extra run (``extra``: one more seed drawn from the run's key, for the probes'
+    ticks, its readings drawn again too); ``redraw``: this run with its readings drawn
+    again (``frames_other``, from a seed derived from the run's key); ``secret``: the key
+    of the filters' streams (None: the public key)."""
     from beacon_sim.core.streams import run_key
-    from beacon_sim.filters.feed import other_readings_seed
+    from beacon_sim.filters.feed import PROBE_TICKS, other_readings_seed, probe_seed
     from beacon_sim.filters.wire import encode_request
 
     key = run_key(seed, secret)
     sim, T, truth, controls, kidnapped = start_run(scenario, seed, duration)
-    other = Simulation(scenario, seed, readings_seed=other_readings_seed(key)) if probe else None
+    other = Simulation(scenario, seed, readings_seed=other_readings_seed(key)) if redraw else None
     records: list = []
     rec = np.zeros(T, dtype=int)
     frames, other_frames = [], []
@@ -338,9 +342,13 @@ def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
                                                bool(st.measurements)))
     if other is not None and other.truth_checksum != sim.truth_checksum:
         other_frames = []  # readings that moved the truth: no such probe here
+    extra = None
+    if probe:
+        extra = simulate_run(scenario, probe_seed(key), min(duration, PROBE_TICKS * scenario.dt), index,
+                             label=label, secret=secret, redraw=True)
     return SimulatedRun(scenario, index, seed, truth, controls, kidnapped, sim.truth_checksum,
                         records, rec, frames, other_frames or None,
-                        scenario.name if label is None else label, key)
+                        scenario.name if label is None else label, key, extra)
 
 
 def _slot(sr: SimulatedRun, name: str, params: dict[str, Any] | None, frames: list[bytes] | None = None,
@@ -459,10 +467,11 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     shared by the batch: rerun alone; ``failed_child``: do not reuse).
 
     ``probe_ticks``: the probes of ``sims[0]`` ride along, on its first ``probe_ticks``
-    ticks (:func:`~beacon_sim.filters.feed.probe_slots`: fed again; its readings drawn
-    again, ``frames_other``; and that fed again), every slot in an order drawn from the
-    run's key, so that the child cannot tell a probe from a scored run; their findings are
-    in ``report["probes"]`` (:class:`~beacon_sim.filters.feed.ProbeFindings`).
+    ticks (:func:`~beacon_sim.filters.feed.probe_slots`: fed again; and its extra run,
+    ``sims[0].extra``, fed its readings and its readings drawn again), every slot in an
+    order drawn from the run's key, so that the child cannot tell a probe from a scored
+    run; their findings are in ``report["probes"]``
+    (:class:`~beacon_sim.filters.feed.ProbeFindings`).
 
     ``name`` and ``params`` may be lists, one per run (the robots of a team scenario: each
     robot's copy its own name, so its own random stream); the runs' records are keyed by
@@ -480,7 +489,10 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     probes: dict[str, int] = {}
     order = None
     if probe_ticks is not None:
-        for what, slot in probe_slots(0, slots[0], sims[0].frames_other, probe_ticks):
+        ex = sims[0].extra
+        extra = ((_slot(ex, names[0], run_params[0]), ex.frames_other)
+                 if ex is not None and ex.frames_other is not None else None)
+        for what, slot in probe_slots(0, slots[0], extra, probe_ticks):
             probes[what] = len(slots)
             slots.append(slot)
         order = slot_order(sims[0].stream_key, len(slots))
@@ -489,8 +501,9 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     theta = np.concatenate([fed.store[:fed.done(k), k, 14] for k in range(R)])
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
     if probes:
-        n = min(probe_ticks or 0, T)
-        report["probes"] = judge_probes(fed, 0, probes, sims[0].readings_within(n))
+        ex = sims[0].extra
+        within = ex is not None and ex.readings_within(min(probe_ticks or 0, len(ex.frames)))
+        report["probes"] = judge_probes(fed, 0, probes, within)
     return [_run_of(fed, k, sr, name, sr.index == 0) for k, sr in enumerate(sims)], report
 
 

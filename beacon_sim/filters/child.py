@@ -1,5 +1,8 @@
 """The child process that hosts one student's filter: ``python -m beacon_sim.filters.child
-READ_FD WRITE_FD CONFIG_JSON`` (started by :mod:`beacon_sim.filters.isolated`, never by hand).
+CONFIG_JSON`` with the grader's requests on stdin, its replies to stdout and its log on
+stderr (started by :mod:`beacon_sim.filters.isolated`, never by hand). It moves the two
+pipes to fresh descriptors and points stdout at the log before any student code runs, so
+nothing of the grader's process (its descriptor numbers) reaches it.
 
 It starts from a clean interpreter (no fork of the grader: nothing of the grader's memory,
 no truth, no other student's results), contains itself before any student code runs
@@ -225,7 +228,11 @@ class Server:
         else:
             module = import_file(Path(path), "student")
             self.cls = choose_filter(module, class_name, Path(path).name)
-            self.file = (path, class_name)
+            # kept as chosen, not as asked: "file.py:Class" (check) and "file.py" (grade)
+            # leave the same trace in the child when they choose the same class
+            chosen = self.cls.__qualname__
+            named = chosen == "functions" or getattr(module, chosen, None) is self.cls
+            self.file = (path, chosen if named else class_name)
         form = "functions" if self.cls.__qualname__ == "functions" else "class"
         missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
                    if not callable(getattr(self.cls, m, None))]
@@ -631,7 +638,12 @@ class Batch:
 
 def main(argv: list[str]) -> int:
     """Serve the grader until it closes the pipe."""
-    rfd, wfd, cfg = int(argv[0]), int(argv[1]), json.loads(argv[2])
+    cfg = json.loads(argv[0])
+    rfd, wfd = os.dup(0), os.dup(1)  # the pipes, on descriptors of the child's own
+    os.dup2(2, 1)  # stdout to the log, as stderr; stdin from nothing
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.close(null)
     import traceback  # noqa: F401 - everything the child needs, before it may lose the right to read it
 
     import beacon_sim.filters.guard

@@ -56,6 +56,7 @@ from beacon_sim.filters.feed import (
     grade_limits,
     judge_probes,
     other_readings_seed,
+    probe_seed,
     probe_slots,
     reply_timeout,
     slot_order,
@@ -178,29 +179,35 @@ def _open_host(spec: str, isolated: bool, sandbox: str) -> _Host:
 
 @dataclass
 class _Run:
-    """The run check feeds: its key and seed, its steps' truth (T + 1, 3), the "step"
-    requests, whether each tick has readings, and the same run with its readings drawn
-    again (the "other" probe)."""
+    """A run check feeds: its key and seed, its steps' truth (T + 1, 3), the "step"
+    requests, whether each tick has readings; the probes' extra run (the first run only:
+    one more seed drawn from the key) and, for that extra run, its frames with the
+    readings drawn again."""
 
     seed: int
     key: bytes
     truth: np.ndarray
     frames: list[bytes]
     has_readings: list[bool]
-    other: list[bytes] | None
+    extra: _Run | None = None
+    redrawn: list[bytes] | None = None
 
 
-def _simulate(scenario: Scenario, seed: int, secret: bytes, ticks: int, probe: bool) -> _Run:
+def _simulate(scenario: Scenario, seed: int, secret: bytes, ticks: int, probe: bool,
+              redraw: bool = False) -> _Run:
     """Run ``seed`` of ``scenario`` for ``ticks`` ticks, its filter streams keyed by
-    ``secret``; ``probe``: also with its readings drawn again."""
+    ``secret`` (as ``grade``'s simulate_run); ``probe``: also the probes' extra run;
+    ``redraw``: also this run with its readings drawn again."""
     key = run_key(seed, secret)
     steps = Simulation(scenario, seed).run(ticks * scenario.dt)
     truth = np.array([scenario.initial_pose] + [st.true_pose for st in steps], dtype=float)
-    other = None
-    if probe:
+    run = _Run(seed, key, truth, step_frames(steps), [bool(st.measurements) for st in steps])
+    if redraw:
         again = Simulation(scenario, seed, readings_seed=other_readings_seed(key)).run(ticks * scenario.dt)
-        other = step_frames(again)
-    return _Run(seed, key, truth, step_frames(steps), [bool(st.measurements) for st in steps], other)
+        run.redrawn = step_frames(again)
+    if probe:
+        run.extra = _simulate(scenario, probe_seed(key), secret, min(ticks, PROBE_TICKS), False, True)
+    return run
 
 
 def _value_problems(estimates: Sequence[object], truths: np.ndarray | None = None) -> dict[str, str]:
@@ -603,7 +610,11 @@ def _checks(host: _Host, spec: str, scenario: Scenario, seeds: Sequence[int]) ->
     slots = [Slot(ctx, initial_belief(scenario), run.frames, ticks, name)
              for ctx, run in zip(ctxs, sims, strict=True)]
     probes: dict[str, int] = {}
-    for what, slot in probe_slots(0, slots[0], sims[0].other, PROBE_TICKS):
+    ex = sims[0].extra
+    assert ex is not None and ex.redrawn is not None
+    extra = Slot(host.context(scenario, spec, ex.key), initial_belief(scenario), ex.frames, len(ex.frames),
+                 name)
+    for what, slot in probe_slots(0, slots[0], (extra, ex.redrawn), PROBE_TICKS):
         probes[what] = len(slots)
         slots.append(slot)
     fed = feed_batch(host.child, slots, RUN_LIMIT_S, keyed_global_seed(sims[0].key, name),
@@ -632,23 +643,21 @@ def _checks(host: _Host, spec: str, scenario: Scenario, seeds: Sequence[int]) ->
         runs = _result("runs", False, _in_run(failing, sims[failing], f"step {err[0]}: {err[1]}"),
                        RUNS_ADVICE)
         runs, empty = _empty_update(host, fed, failing, sims[failing], runs, slots[failing])
-    pf = judge_probes(fed, 0, probes, any(sims[0].has_readings[:PROBE_TICKS]))
+    pf = judge_probes(fed, 0, probes, any(ex.has_readings))
     for what, (why, at) in pf.failures.items():  # the probes are runs too: failing one fails "runs"
         if runs.passed and empty.passed and what != "again":  # ("again": not deterministic)
-            runs = _result("runs", False, f"the first run with its readings drawn again, step {at + 1}: "
-                           f"{why}", RUNS_ADVICE)
+            runs = _result("runs", False, f"one more run (seed {ex.seed}), step {at + 1}: {why}", RUNS_ADVICE)
     values = [check_shapes(problems), check_finite(problems), check_covariance_symmetric(problems),
               check_covariance_psd(problems), check_heading_wrapped(problems)]
     belief_fault = next((r for r in range(R) if fed.beliefs[r] not in (None, "not asked")), None)
     belief = check_belief(fed.beliefs[0] if belief_fault is None
                           else _in_run(belief_fault, sims[belief_fault], fed.beliefs[belief_fault] or ""))
     landmarks = _landmarks(host, fed, scenario, spec, secret, seeds)
-    horizon = max(fed.done(k) + (fed.failed[k] is not None) for k in probes.values()) if probes else 0
+    k_again = probes["again"]
+    horizon = fed.done(k_again) + (fed.failed[k_again] is not None)
     again = _fed_feed(fed, probes["again"]) if "again" in probes else _Feed([], None, 0)
     rng = _RngTrial(_fed_feed(fed, 0, horizon), again, bool(fed.report.get("np_global")),
-                    bool(fed.report.get("py_global")),
-                    (_fed_feed(fed, probes["other"]), _fed_feed(fed, probes["other_again"]))
-                    if "other_again" in probes else None, pf)
+                    bool(fed.report.get("py_global")), None, pf)
     readings = [] if pf.readings_used is not False else [_result(
         "readings", True, "note: the estimates do not change when the readings are drawn again: the "
         "filter uses none of them (grade says so too)")]

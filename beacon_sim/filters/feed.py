@@ -14,12 +14,15 @@ generators?).
 The probes (:func:`probe_slots`) are what ``grade`` and ``check`` ask of a filter besides
 its scored runs, each drawn like a scored run (issue 37: "a probe is one more seed, not a
 recognisable special case"): the first run fed again ("again": is the filter
-deterministic?), the same run (truth and controls) with its readings drawn again from
-another stream ("other": does the filter use its readings?) and that run fed again
-("other_again"). Every slot of a batch is built and fed in an order drawn from the run's
-key (:func:`slot_order`), so neither the order nor anything the child holds says which
-slot is scored: a file that told them apart would have to treat one of two identical runs
-differently, which is what the determinism probe flags.
+deterministic?), and one more seed, drawn from the run's key, fed with its readings
+("extra") and with its readings drawn again from another stream ("extra_redrawn"): does
+the filter use its readings? (No probe shares a scored run's truth with other readings: a
+file that fused the readings of two copies would learn more of that truth than the run
+gives.) Every slot of a batch is built and fed in an order drawn from the run's key, so
+neither the order nor anything the child holds says which slot is scored: the run and
+its copy fed again are the same to the file, which would have to treat one of two
+identical runs differently to tell them apart, and that is what the determinism probe
+flags.
 
 :class:`LocalChild` serves the same protocol in this process (a built-in filter, or
 ``check --sandbox none``), with the child's own code (:class:`~beacon_sim.filters.child.Batch`).
@@ -54,7 +57,7 @@ from beacon_sim.filters.wire import (
 #: How many ticks the probes run (the first run's first ticks).
 PROBE_TICKS = 200
 #: The probes, in the order :func:`probe_slots` gives them.
-PROBES = ("again", "other", "other_again")
+PROBES = ("again", "extra", "extra_redrawn")
 #: A default grade (``GradeConfig()``): its seeds, run length [s], time limit per run [s] and
 #: memory limit [GB]. ``check`` hosts a file as such a grade does, so a file cannot tell one
 #: from the other by its limits.
@@ -92,9 +95,17 @@ def _digest_int(key: bytes, what: bytes, nbytes: int = 32) -> int:
 
 
 def other_readings_seed(key: bytes) -> int:
-    """The seed (63 bits) of the readings of the "other" probe of the run whose key is
-    ``key`` (:func:`~beacon_sim.core.streams.run_key`): as unknown to a filter as the key."""
+    """The seed (63 bits) of the readings drawn again of the run whose key is ``key``
+    (:func:`~beacon_sim.core.streams.run_key`; the "extra_redrawn" probe): as unknown to a
+    filter as the key."""
     return _digest_int(key, b"other readings", 8) >> 1
+
+
+def probe_seed(key: bytes) -> int:
+    """The seed (63 bits) of the probes' extra run of the run whose key is ``key`` (its
+    scenario's first run): drawn from the key like a grade's secret seeds, never one of the
+    scored seeds but by chance."""
+    return _digest_int(key, b"probe seed", 8) >> 1
 
 
 def slot_order(key: bytes, n: int) -> list[int]:
@@ -280,26 +291,29 @@ def feed_batch(child: Any, slots: Sequence[Slot], run_limit_s: float | None, glo
     return fed
 
 
-def probe_slots(lead: int, slot: Slot, other_frames: Sequence[bytes] | None,
+def probe_slots(lead: int, slot: Slot, extra: tuple[Slot, Sequence[bytes]] | None,
                 probe_ticks: int = PROBE_TICKS) -> list[tuple[str, Slot]]:
-    """The probes of the run ``slot`` (slot ``lead`` of its batch), on its first
-    ``probe_ticks`` ticks, each the same filter built the same way (the same context and
-    random generator): "again" (its frames), and with ``other_frames`` (the same truth and
-    controls, the readings drawn again) "other" and "other_again". Each ends when the run
-    it probes fails."""
+    """The probes of the run ``slot`` (slot ``lead`` of its batch), each on its first
+    ``probe_ticks`` ticks: "again" (the same filter built the same way, the same context and
+    random generator, fed the same frames); and, with ``extra`` (the slot of one more seed's
+    run and that run's frames with the readings drawn again), "extra" and "extra_redrawn"
+    (the same context, so the readings alone differ). Each ends when the run it probes
+    fails (decided by the grader)."""
     n = min(probe_ticks, slot.ticks)
     out = [("again", Slot(slot.ctx, slot.initial, slot.frames, n, slot.spec, lead))]
-    if other_frames is not None:
-        out += [(what, Slot(slot.ctx, slot.initial, other_frames, n, slot.spec, lead))
-                for what in ("other", "other_again")]
+    if extra is not None:
+        e, redrawn = extra
+        m = min(probe_ticks, e.ticks, len(redrawn))
+        out += [("extra", Slot(e.ctx, e.initial, e.frames, m, e.spec, lead)),
+                ("extra_redrawn", Slot(e.ctx, e.initial, redrawn, m, e.spec, lead))]
     return out
 
 
 @dataclass
 class ProbeFindings:
     """What the probes say of a filter: ``deterministic`` (None: not judged), whether the
-    run fed again gave the same estimates bit for bit (and the other run fed again the
-    other's); ``differs_at`` the first tick (from 1) where they did not; ``readings_used``
+    run fed again gave the same estimates bit for bit; ``differs_at`` the first tick (from
+    1) where it did not; ``readings_used``
     (None: not judged); ``failures``: the probes that failed on their own (not because the
     run they probe did), by name, with why and the tick."""
 
@@ -326,44 +340,36 @@ def _differs_at(fed: Fed, k: int, ref: int, horizon: int) -> int | None:
 
 
 def judge_probes(fed: Fed, lead: int, probes: dict[str, int], readings_within: bool) -> ProbeFindings:
-    """The findings of the probes (name -> slot) of the run ``lead`` in ``fed``. A probe fed
-    the ticks of a run it copies must answer them as that run did, bit for bit, and stop
-    (or not) at the same tick for the same reason: else the filter is not deterministic.
-    The "other" probe differs from the run only by its readings: estimates equal to the
-    run's say it uses none (judged only when ``readings_within``: the ticks probed hold
-    readings). A probe that failed on its own (not because the run it probes did) is in
-    ``failures``."""
+    """The findings of the probes (name -> slot) of the run ``lead`` in ``fed``. The copy
+    fed the run's ticks again must answer them as the run did, bit for bit, and stop (or
+    not) at the same tick for the same reason: else the filter is not deterministic. The
+    extra run fed its readings and fed them drawn again differ by the readings alone:
+    equal estimates say the filter uses none (judged only when ``readings_within``: the
+    ticks probed hold readings). A probe that failed on its own (not because the run it
+    probes did, nor as the copy it pairs with did) is in ``failures``."""
     out = ProbeFindings()
     if not fed.built[lead]:
         return out  # the run was not even built: nothing to compare
-    verdicts: list[bool] = []
-    ticks: list[int] = []
-    for name, ref in (("again", lead), ("other_again", probes.get("other"))):
-        k = probes.get(name)
-        if k is None or ref is None or not fed.built[k]:
-            continue
-        diff = _differs_at(fed, k, ref, _horizon(fed, k))
-        verdicts.append(diff is None)
-        if diff is not None:
-            ticks.append(diff)
-    if verdicts:
-        out.deterministic = all(verdicts)
-        out.differs_at = min(ticks) if ticks else None
+    k = probes.get("again")
+    if k is not None and fed.built[k]:
+        diff = _differs_at(fed, k, lead, _horizon(fed, k))
+        out.deterministic, out.differs_at = diff is None, diff
     for name, k in probes.items():
         why, at = fed.failed[k], int(fed.failed_at[k] or 0)
         if why is None or why == LEAD_FAILED:
             continue
         if fed.failed[lead] is not None and int(fed.failed_at[lead] or 0) <= at:
             continue  # the run failed by then: that failure is the one that counts
-        twin = probes.get("other") if name == "other_again" else None
-        if twin is not None and fed.failed[twin] == why and fed.failed_at[twin] == fed.failed_at[k]:
-            continue  # the same failure as the probe it copies: one failure
+        twin = probes.get("extra") if name == "extra_redrawn" else None
+        if twin is not None and fed.failed[twin] is not None:
+            continue  # the extra run failed already: one failure of that run
         out.failures[name] = (why, at)
-    k = probes.get("other")
-    if k is not None and readings_within and fed.failed[k] is None:
-        n = fed.done(k)
-        a, b = fed.store[:n, k, 12:24], fed.store[:n, lead, 12:24]
-        out.readings_used = not bool(np.all((a == b) | (np.isnan(a) & np.isnan(b))))
+    a, b = probes.get("extra"), probes.get("extra_redrawn")
+    if a is not None and b is not None and readings_within and fed.failed[a] is None \
+            and fed.failed[b] is None:
+        n = min(fed.done(a), fed.done(b))
+        x, y = fed.store[:n, a, 12:24], fed.store[:n, b, 12:24]
+        out.readings_used = not bool(np.all((x == y) | (np.isnan(x) & np.isnan(y))))
     return out
 
 
@@ -449,4 +455,4 @@ def step_frames(steps: Sequence[Any]) -> list[bytes]:
 __all__ = ["GRADE_MEMORY_GB", "GRADE_RUN_S", "GRADE_SEEDS", "GRADE_TIME_LIMIT_S", "LEAD_FAILED",
            "LOG_BYTES", "PROBES", "PROBE_TICKS", "Fed", "LocalChild", "ProbeFindings", "Slot",
            "child_limits", "feed_batch", "grade_limits", "judge_probes", "other_readings_seed",
-           "probe_slots", "reply_timeout", "slot_order", "step_frames"]
+           "probe_seed", "probe_slots", "reply_timeout", "slot_order", "step_frames"]
