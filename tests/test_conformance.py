@@ -80,8 +80,11 @@ def test_global_draw_without_effect_is_still_rejected(tmp_path, default):
 
 
 def test_ctx_rng_is_allowed(tmp_path, default):
+    # (the heading wrapped again after the draw: check's runs are a grade's, 60 s long, and
+    # pass by +-pi, where a draw would leave it just outside [-pi, pi))
     spec = write_filter(tmp_path, "Honest",
-                        extra_update="self.mean = self.mean + self.ctx.rng.normal(0, 1e-6, 3)")
+                        extra_update="self.mean = self.mean + self.ctx.rng.normal(0, 1e-6, 3)\n"
+                                     "        self.mean[2] = (self.mean[2] + np.pi) % (2 * np.pi) - np.pi")
     assert not failed(run_checks(spec, default))
 
 
@@ -144,7 +147,7 @@ FAULTS = {  # one injected fault -> the one check that must fail
 def test_one_injected_fault_gives_exactly_one_fail(fault, tmp_path, default, monkeypatch):
     from beacon_sim.filters import conformance
 
-    monkeypatch.setattr(conformance, "STEP_LIMIT_S", 0.5)
+    monkeypatch.setattr(conformance, "RUN_LIMIT_S", 0.5)
     kwargs, check = FAULTS[fault]
     results = run_checks(write_filter(tmp_path, **kwargs), default)
     bad = failed(results)
@@ -233,3 +236,24 @@ def test_run_checks_gives_the_checks_in_their_order(default):
                      "symmetric covariance", "positive semi-definite covariance",
                      "heading wrapped", "belief", "empty update", "deterministic",
                      "no global RNG", "cost"]
+
+
+def test_a_filter_that_never_ran_a_step_is_not_said_to_pass_its_value_checks(tmp_path, default):
+    """Issue 37: check used to print 13 of 14 PASS and "cost 0.0 us" for a filter whose every
+    step raised: the value checks had nothing to judge. Now they say so, and so does the cost."""
+    spec = write_filter(tmp_path, "Dead", extra_predict="raise KeyError('x')")
+    results = {r.name: r for r in run_checks(spec, default, seeds=[1])}
+    assert not results["runs"].passed and "KeyError" in results["runs"].message
+    for name in ("shapes", "finite", "symmetric covariance", "positive semi-definite covariance",
+                 "heading wrapped"):
+        assert results[name].message.startswith("not judged"), (name, results[name].message)
+    assert results["cost"].message == "no step ran: no cost to report"
+
+
+def test_a_slam_filters_cost_is_not_set_beside_the_ekf():
+    """A SLAM filter maps as it goes: its cost is not that of a localization EKF's task, so
+    check does not print a ratio to it (issue 37: "67.3x")."""
+    results = {r.name: r for r in run_checks("ekf_slam", load_scenario("slam_loop"), isolated=False,
+                                             seeds=[1])}
+    assert "us per step" in results["cost"].message and "ekf" not in results["cost"].message
+

@@ -7,23 +7,28 @@ from __future__ import annotations
 import numpy as np
 
 from beacon_sim.evaluation import montecarlo as mc
+from beacon_sim.filters.guard import DIVERGED, MAX_COV, MAX_MEAN
 
 
 def _check_by_eigvalsh(means, covs):
-    """_check as it was: eigvalsh of every matrix."""
+    """_check as it was (eigvalsh of every matrix), with the guard's one divergence rule
+    (issue 37: a mean beyond MAX_MEAN or a covariance entry over MAX_COV, as ``run``)."""
     n = means.shape[0]
     bad = ~(np.all(np.isfinite(means), axis=1) & np.all(np.isfinite(covs), axis=(1, 2)))
     first = int(np.argmax(bad)) if bad.any() else n
     if first < n:
         return first, "estimate() returned NaN or infinity"
     scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
+    huge = (scale > MAX_COV) | (np.max(np.abs(means), axis=1) > MAX_MEAN)
     asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2)) > 1e-6 * scale
     eig = np.linalg.eigvalsh(0.5 * (covs + np.swapaxes(covs, 1, 2)))[:, 0]
     notpsd = eig < -1e-9 * scale
-    for mask in (asym, notpsd):
+    for mask in (huge, asym, notpsd):
         if mask.any():
             first = min(first, int(np.argmax(mask)))
     if first < n:
+        if huge[first]:
+            return first, DIVERGED
         return first, ("covariance is not symmetric" if asym[first]
                        else "covariance is not positive semi-definite")
     return n, None

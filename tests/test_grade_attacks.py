@@ -131,7 +131,10 @@ def test_files_in_the_working_directory_and_the_class_folder_are_untouched(board
 def test_a_global_rng_filter_is_reproducible_and_flagged(board, tmp_path):
     row = _row(board, "global_rng")
     assert row["global_rng"] is True and any("global" in f for f in row["flags"])
-    again = grade(_klass(tmp_path / "again", ["global_rng"]), CONFIG, jobs=1)
+    # graded alone with the class's secret (the grader seeds the global generators from it,
+    # never from the run's seed): the same figures bit for bit
+    again = grade(_klass(tmp_path / "again", ["global_rng"]), CONFIG, jobs=1,
+                  secret=bytes.fromhex(board["secret"]))
     assert {k: _row(again, "global_rng")[k] for k in FIGURES} == {k: row[k] for k in FIGURES}
     assert _row(board, "honest")["global_rng"] is False
 
@@ -221,8 +224,9 @@ def test_regrading_reuses_unchanged_students_and_runs_a_changed_file(tmp_path, a
     first = grade(klass, CONFIG, jobs=2, cache=cache)
     assert first["cached_students"] == []
     shutil.copyfile(ATTACKS / "os_exit.py", klass / "honest_tuned.py")  # a corrected (here: broken) file
-    again = grade(klass, CONFIG, jobs=2, cache=cache)
-    assert again["cached_students"] == ["honest"]
+    assert grade(klass, CONFIG, jobs=1, cache=cache)["cached_students"] == []  # a new secret: all again
+    again = grade(klass, CONFIG, jobs=2, cache=cache, secret=bytes.fromhex(first["secret"]))
+    assert again["cached_students"] == ["honest"]  # the kept secret: the unchanged file reused
     assert {k: _row(again, "honest")[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
     assert "exited with status 3" in _row(again, "honest_tuned")["failures"][0]["reason"]
 

@@ -76,8 +76,9 @@ def test_grade_scores_the_scan_template_as_its_in_process_run_beside_mcl(scan_cl
     assert ref["filter"] == "mcl" and 0 < ref["pos_rmse_m"] < 0.5
     # the same seeds in process, the filter named as the grader names it (its class)
     sc = load_scenario("office")
-    runs = [one_run(sc, [f"{scan_class / 'sam.py'}:Sam"], {}, seed, CONFIG.duration, index=i)
-            for i, seed in enumerate(CONFIG.seeds)]
+    # (with the grade's secret: the template draws from ctx.rng, which grade keys with it)
+    runs = [one_run(sc, [f"{scan_class / 'sam.py'}:Sam"], {}, seed, CONFIG.duration, index=i,
+                    secret=bytes.fromhex(board["secret"])) for i, seed in enumerate(CONFIG.seeds)]
     for detail, run in zip(row["run_detail"], runs, strict=True):
         e = run.filters["Sam"].err
         assert detail["pos_rmse_m"] == float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))

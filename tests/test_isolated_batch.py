@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.streams import stream
+from beacon_sim.core.streams import filter_stream
 from beacon_sim.evaluation.montecarlo import isolated_run, isolated_runs, one_run, simulate_run
 from beacon_sim.filters.containment import Limits
 from beacon_sim.filters.isolated import FilterChild
@@ -138,7 +138,7 @@ def test_a_file_of_functions_gets_its_own_module_state_per_seed(sims, tmp_path):
 
 
 def test_a_failure_in_one_seed_fails_that_seed_only(sims, tmp_path):
-    doomed = [stream(sr.seed, "filter", "Doomed").random() < 0.5 for sr in sims]
+    doomed = [filter_stream(sr.seed, "Doomed").random() < 0.5 for sr in sims]
     assert any(doomed) and not all(doomed)  # the seeds give both cases
     with _child(tmp_path, "doomed", DOOMED) as child:
         runs, rep = isolated_runs(child, sims, 30.0)
@@ -213,12 +213,14 @@ def test_a_batch_exchange_waits_the_reply_time_out_once_per_run(sims, tmp_path, 
 
 def test_the_probes_end_with_the_run_they_probe(sims, tmp_path):
     """A first run that fails takes its probes with it (they would cost its whole budget
-    again for nothing): they answer 'the run it probes failed', the other runs go on."""
+    again for nothing): the grader stops feeding them (the child is never told which runs
+    are probes), a probe that failed as the run did is not a failure of its own, and the
+    other runs go on."""
     text = DOOMED.replace("self.doomed = ctx.rng.random() < 0.5", "self.doomed = ctx.name == 'first'")
     with _child(tmp_path, "lead", text) as child:
         runs, rep = isolated_runs(child, sims, 30.0, name="first", probe_ticks=50)
         (fr,) = runs[0].filters.values()
         assert fr.failed == "RuntimeError: doomed in this seed" and fr.steps == 9
-        assert rep["probes"] == {"again": None}
+        assert rep["probes"].failures == {} and rep["probes"].deterministic is True
         others, _ = isolated_runs(child, sims, 30.0, name="other", probe_ticks=50)
     assert all(next(iter(r.filters.values())).failed is None for r in others)

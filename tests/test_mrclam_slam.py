@@ -159,7 +159,8 @@ def test_run_refuses_slam_on_a_team(synthetic):
 
 def test_synthetic_slam_maps_the_square(synthetic, monkeypatch):
     """On the synthetic square (landmarks 4 m apart, 5 cm / 0.02 rad readings) EKF-SLAM and
-    FastSLAM, given no map, map all five landmarks within a few centimetres and follow the
+    FastSLAM, given no map, map all five landmarks within a few centimetres (FastSLAM within
+    ``FASTSLAM_PER_LANDMARK_M``, by its particles' draws) and follow the
     path as closely as odometry does. The folder's bearings flipped by pi are taken out first:
     the SLAM filters gate no reading that carries an ID, and those four readings alone spoil
     the map (GOSPA about 1 m; docs/slam.md, "SLAM on real data")."""
@@ -189,7 +190,8 @@ def test_synthetic_slam_maps_the_square(synthetic, monkeypatch):
         assert (r["map_landmarks"], r["map_missed"], r["map_false"]) == (5, 0, 0), r
         g = gospa(run.tracks[name].filter.landmarks().means, truth, c=GOSPA_CUTOFF_M)
         per_landmark = math.sqrt(g.localisation / len(g.pairs))
-        assert per_landmark < 0.1, (name, per_landmark)
+        assert per_landmark < FASTSLAM_PER_LANDMARK_M if name == "fastslam" else per_landmark < 0.1, \
+            (name, per_landmark)
         assert r["ate_m"] < figs["dead_reckoning"]["ate_m"], figs
 
 
@@ -325,10 +327,17 @@ def test_the_gate_keeps_the_flipped_bearings_out_of_ekf_slams_map(synthetic):
     assert g_on.value < 0.5 * g_off.value, (g_on.value, g_off.value)
 
 
+#: FastSLAM's per-landmark map error on the synthetic square [m]: its particles' draws set
+#: it, from 0.03 to 0.19 m over six filter streams (issue 37's keyed streams, the public key
+#: and five others); the stream before issue 37 gave just under 0.1 m.
+FASTSLAM_PER_LANDMARK_M = 0.2
+
+
 def test_the_gate_keeps_the_flipped_bearings_out_of_fastslams_map(synthetic):
     """The same flipped bearings and FastSLAM 2.0: with the mrclam gate (``gate_chi2``) every
     particle rejects them, they are dropped (``rejected``) and all five landmarks are mapped
-    within 10 cm; ungated they drag the map (GOSPA more than twice the gated one)."""
+    within 20 cm (``FASTSLAM_PER_LANDMARK_M``); ungated they drag the map (GOSPA more than
+    twice the gated one)."""
     gated = run_mrclam(load_mrclam(synthetic, 1), ["fastslam"], calibration="self", slam=True)
     flt = gated.tracks["fastslam"].filter
     assert flt.params["gate_chi2"] > 0 and flt.rejected > 0
@@ -339,5 +348,5 @@ def test_the_gate_keeps_the_flipped_bearings_out_of_fastslams_map(synthetic):
     g_on = gospa(flt.landmarks().means, truth, c=GOSPA_CUTOFF_M)
     g_off = gospa(off.tracks["fastslam"].filter.landmarks().means, truth, c=GOSPA_CUTOFF_M)
     assert len(g_on.pairs) == 5 and g_on.missed == 0 and g_on.false == 0
-    assert math.sqrt(g_on.localisation / 5) < 0.1
+    assert math.sqrt(g_on.localisation / 5) < FASTSLAM_PER_LANDMARK_M
     assert g_on.value < 0.5 * g_off.value, (g_on.value, g_off.value)

@@ -3,7 +3,7 @@ from helpers import make_scenario
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.core.streams import stream
+from beacon_sim.core.streams import filter_stream
 from beacon_sim.core.types import Control
 
 
@@ -39,7 +39,7 @@ def test_global_and_other_streams_leave_the_truth_unchanged():
     a = Simulation(sc, 3).run(5.0)
     np.random.seed(2)
     sim = Simulation(sc, 3)
-    other = stream(3, "filter", "pf")  # a filter drawing from its own stream
+    other = filter_stream(3, "pf")  # a filter drawing from its own stream
     b = []
     for _ in range(50):
         np.random.random(100)

@@ -14,7 +14,14 @@ import time
 from pathlib import Path
 
 from beacon_sim.errors import UsageError
-from beacon_sim.evaluation.grading import GradeError, grade, load_config, write_outputs
+from beacon_sim.evaluation.grading import (
+    SECRET_FILE,
+    GradeError,
+    grade,
+    load_config,
+    read_secret,
+    write_outputs,
+)
 
 
 def grade_command(args: argparse.Namespace) -> int:
@@ -40,6 +47,7 @@ def grade_command(args: argparse.Namespace) -> int:
         except ImportError:
             raise UsageError("--scheduler needs Dask: pip install 'beacon-sim[grade]'") from None
     out = Path(args.out) if args.out else Path(args.dir) / "grade_out"
+    secret, whence = _secret(args, out)
     tty = sys.stderr.isatty()
 
     def progress(done: int, total: int) -> None:
@@ -51,7 +59,7 @@ def grade_command(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     try:
         board = grade(args.dir, cfg, jobs=args.jobs, scheduler=scheduler, progress=progress,
-                      cache=None if getattr(args, "no_cache", False) else out / "cache")
+                      cache=None if getattr(args, "no_cache", False) else out / "cache", secret=secret)
     except GradeError as exc:
         raise UsageError(str(exc)) from None
     written = write_outputs(board, out)
@@ -86,11 +94,30 @@ def grade_command(args: argparse.Namespace) -> int:
     if board.get("cached_students"):
         print(f"{len(board['cached_students'])} student(s) unchanged since the last grade: results "
               f"reused from {out / 'cache'} (--no-cache runs them again)")
+    print(f"the students' random streams are keyed by {whence} (fingerprint {board['secret_sha256']}), "
+          f"kept in {out / SECRET_FILE}: --secret-file it to regrade these figures bit for bit; "
+          "do not hand it out")
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
           f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
           f"in its own process, sandbox: {board.get('sandbox', 'process')})")
     failed = any(r["failed_runs"] for r in board["rows"])
     return 1 if failed and args.strict else 0
+
+
+def _secret(args: argparse.Namespace, out: Path) -> tuple[bytes | None, str]:
+    """The grade's secret and how it was chosen: ``--secret-file``; else (without
+    ``--new-secret``) the one a grade kept in ``OUT/grade.secret``; else None (a new one)."""
+    path = getattr(args, "secret_file", None)
+    if path is None and not getattr(args, "new_secret", False) and (out / SECRET_FILE).is_file():
+        path = out / SECRET_FILE
+    if path is None:
+        return None, "a new secret"
+    try:
+        secret = read_secret(path)
+    except GradeError as exc:
+        raise UsageError(str(exc)) from None
+    given = getattr(args, "secret_file", None) is not None
+    return secret, "the secret given (--secret-file)" if given else "the secret of the last grade"
 
 
 def _num(v: float | None, fmt: str) -> str:

@@ -167,6 +167,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "unchanged reuses OUT/cache)")
     p.add_argument("--pseudonyms", action="store_true",
                    help="the class page names students by pseudonyms (pseudonyms.csv maps them)")
+    secret = p.add_mutually_exclusive_group()
+    secret.add_argument("--secret-file", metavar="FILE",
+                        help="key the students' random streams with this grade's secret (the "
+                             "grade.secret a grade wrote): a regrade, or one student graded alone, "
+                             "gives the same figures bit for bit (default: OUT/grade.secret when "
+                             "it exists, else a new secret)")
+    secret.add_argument("--new-secret", action="store_true",
+                        help="draw a new secret even when OUT/grade.secret exists")
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
 
     p = sub.add_parser("new-filter", help="write a working, commented filter template")

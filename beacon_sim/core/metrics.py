@@ -24,11 +24,24 @@ def pose_errors(estimates, truths) -> np.ndarray:
 
 
 def nees(errors, covs) -> np.ndarray:
-    """Normalised estimation error squared per step, shape (T,): ``e^T P^-1 e``."""
+    """Normalised estimation error squared per step, shape (T,): ``e^T P^-1 e``. A step
+    whose covariance is singular (no inverse: it rules some error out altogether) has an
+    infinite NEES, and only that step: the others keep theirs (one singular covariance
+    used to make every step's NEES infinite)."""
     errors = np.asarray(errors, dtype=float)
     covs = np.asarray(covs, dtype=float)
-    sol = np.linalg.solve(covs, errors[..., None])[..., 0]
-    return np.einsum("ti,ti->t", errors, sol)
+    try:
+        sol = np.linalg.solve(covs, errors[..., None])[..., 0]
+        return np.einsum("ti,ti->t", errors, sol)
+    except np.linalg.LinAlgError:  # one or more singular: each step on its own
+        out = np.empty(errors.shape[:-1])
+        for t in np.ndindex(out.shape):
+            try:
+                out[t] = errors[t] @ np.linalg.solve(covs[t], errors[t])
+            except np.linalg.LinAlgError:
+                out[t] = math.inf
+        return out
+
 
 
 def summary(estimates, covs, truths) -> dict[str, float]:
@@ -36,10 +49,7 @@ def summary(estimates, covs, truths) -> dict[str, float]:
     err = pose_errors(estimates, truths)
     mse = np.mean(err**2, axis=0)
     with np.errstate(all="ignore"):
-        try:
-            anees = float(np.mean(nees(err, covs)))
-        except np.linalg.LinAlgError:
-            anees = math.inf
+        anees = float(np.mean(nees(err, covs)))
     return {
         "pos_rmse_m": float(np.sqrt(mse[0] + mse[1])),
         "heading_rmse_rad": float(np.sqrt(mse[2])),

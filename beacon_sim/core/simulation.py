@@ -33,20 +33,25 @@ class Simulation:
     scenario : Scenario
     seed : int, optional
         Defaults to the scenario's seed.
+    readings_seed : int, optional
+        The seed of the sensors' and clutter's streams only (default ``seed``): the same
+        truth, controls and events with the readings drawn again (``grade``'s probe of
+        whether a filter uses its readings, drawn like any run's; issue 37).
     """
 
-    def __init__(self, scenario: Scenario, seed: int | None = None):
+    def __init__(self, scenario: Scenario, seed: int | None = None, readings_seed: int | None = None):
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else int(seed)
+        rs = self.seed if readings_seed is None else int(readings_seed)
         self.dt = scenario.dt
         self.world = scenario.world
         self.tick = 0
         self.pose = np.array(scenario.initial_pose, dtype=float)
         self._motion_rng = stream(self.seed, "motion")
         self._events_rng = stream(self.seed, "events")
-        self._sensor_rngs = {s.name: stream(self.seed, "sensor", s.name) for s in scenario.sensors}
+        self._sensor_rngs = {s.name: stream(rs, "sensor", s.name) for s in scenario.sensors}
         # Unknown correspondence (issue 29): clutter and the shuffle on streams of their own.
-        self._clutter_rngs = {s.name: stream(self.seed, "clutter", s.name) for s in scenario.sensors
+        self._clutter_rngs = {s.name: stream(rs, "clutter", s.name) for s in scenario.sensors
                               if s.correspondence == "unknown"}
         self.driver = Driver(scenario.driver, scenario.world, stream(self.seed, "driver"))
         self.schedule = tick_schedule(scenario)  # sensor periods, blackouts, bursts

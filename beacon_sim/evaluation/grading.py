@@ -65,7 +65,10 @@ from beacon_sim.evaluation.slam_metrics import ate, gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, joint_nees_at, mapped_beacons
 from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
 from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
-from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
+from beacon_sim.filters.feed import LOG_BYTES as FEED_LOG_BYTES
+from beacon_sim.filters.feed import PROBE_TICKS as FEED_PROBE_TICKS
+from beacon_sim.filters.feed import PROBES, ProbeFindings, child_limits, reply_timeout
+from beacon_sim.filters.isolated import ChildFailure, FilterChild
 from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS, isolated_spec
 from beacon_sim.filters.runner import SLOW_STEP_MS
 from beacon_sim.filters.team_specs import MEMBER_PREFIX
@@ -272,6 +275,8 @@ class Task:
     duration: float | None
     time_limit: float
     index: int
+    #: The key of the filter's random streams (the grade's secret; None: the public key).
+    secret: bytes | None = dataclasses.field(default=None, repr=False)
 
 
 @dataclass
@@ -294,12 +299,12 @@ def run_task(task: Task) -> TaskResult:
             duration = team.duration if task.duration is None else task.duration
             trun = team_one_run(team, [MEMBER_PREFIX + task.spec], {}, task.seed, duration,
                                 index=task.index, step_limit_s=task.time_limit,
-                                run_limit_s=task.time_limit)
+                                run_limit_s=task.time_limit, secret=task.secret)
             return TaskResult(task, trun, None, time.perf_counter() - t0)
         sc = load_scenario(task.scenario)
         duration = sc.duration if task.duration is None else task.duration
         run = one_run(sc, [task.spec], {}, task.seed, duration, index=task.index,
-                      keep_means=task.index == 0, run_limit_s=task.time_limit)
+                      keep_means=task.index == 0, run_limit_s=task.time_limit, secret=task.secret)
         return TaskResult(task, run, None, time.perf_counter() - t0)
     except MemoryError:
         return TaskResult(task, None, "out of memory", time.perf_counter() - t0)
@@ -358,12 +363,12 @@ def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = N
     return [r for r in out if r is not None]
 
 
-#: How many ticks the two probes of a student's filter run (the first scenario and seed):
-#: once with the global RNGs seeded differently (is it deterministic?) and once with every
-#: reading withheld (does it use the readings?).
-PROBE_TICKS = 200
-#: The most of a student's log the leaderboard keeps and links [bytes].
-LOG_BYTES = 256 << 10
+#: How many ticks the probes of a student's filter run (the first scenario and seed; see
+#: :mod:`beacon_sim.filters.feed`): the run fed again (is it deterministic?), the run with
+#: its readings drawn again (does it use them?) and that fed again. LOG_BYTES: the most of
+#: a student's log the leaderboard keeps and links [bytes].
+PROBE_TICKS = FEED_PROBE_TICKS
+LOG_BYTES = FEED_LOG_BYTES
 
 
 @dataclass
@@ -386,10 +391,12 @@ class TeamSimulated:
 
 
 def simulate_team_run(team: TeamScenario, seed: int, duration: float, index: int = 0,
-                      label: str | None = None) -> TeamSimulated:
+                      label: str | None = None, secret: bytes | None = None) -> TeamSimulated:
     """Simulate one team run as ``run_headless`` does (the same truth), without filters:
     per robot the "step" requests its copy of a single-robot filter gets (the team
-    baseline: that robot's beacon readings), pickled once for every student."""
+    baseline: that robot's beacon readings), pickled once for every student. ``secret``:
+    the key of the filters' streams (None: the public key)."""
+    from beacon_sim.core.streams import run_key
     from beacon_sim.core.team import TeamSimulation
     from beacon_sim.filters.wire import encode_request
 
@@ -411,7 +418,7 @@ def simulate_team_run(team: TeamScenario, seed: int, duration: float, index: int
     checksum = sim.truth_checksum
     robots = [SimulatedRun(r.scenario, index, seed, truth[:, i].copy(), controls[:, i].copy(),
                            kidnapped[:, i].copy(), checksum, [], np.zeros(T, dtype=int), frames[i], None,
-                           label) for i, r in enumerate(team.robots)]
+                           label, run_key(seed, secret)) for i, r in enumerate(team.robots)]
     return TeamSimulated(label, index, seed, robots, [str(r.id) for r in team.robots],
                          [str(r.name) for r in team.robots], truth, controls, kidnapped, checksum)
 
@@ -479,9 +486,8 @@ class StudentResult:
 
 
 def _limits(job: StudentJob) -> Limits:
-    runs = len(job.sims) + 2 + sum(len(ts.robots) for ts in job.team_sims)
-    return Limits(memory_gb=job.memory_limit_gb, cpu_s=job.time_limit * runs * 1.5 + 60.0,
-                  log_bytes=LOG_BYTES)
+    runs = len(job.sims) + len(PROBES) + sum(len(ts.robots) for ts in job.team_sims)
+    return child_limits(job.time_limit, runs, job.memory_limit_gb)
 
 
 def _batches(sims: list[SimulatedRun]) -> list[list[int]]:
@@ -509,14 +515,15 @@ def run_student(job: StudentJob) -> StudentResult:
 
     t_start = time.perf_counter()
     findings: dict[str, Any] = {"global_rng": False, "heading_wrapped": True, "deterministic": None,
-                                "readings_used": None, "form": None, "child_cpu_s": 0.0}
+                                "readings_used": None, "form": None, "child_cpu_s": 0.0,
+                                "probe_failures": []}
     results: list[TaskResult | None] = [None] * len(job.sims)
     with tempfile.TemporaryDirectory(prefix="beacon-sim-grade-") as tmp:
         src = Path(tmp) / job.filename
         src.write_bytes(job.source)
         log = Path(tmp) / "log.txt"
         limits = _limits(job)
-        timeout = max(MIN_REPLY_TIMEOUT_S, 5.0 * job.time_limit)
+        timeout = reply_timeout(job.time_limit)
         child: FilterChild | None = None
         load_problem: str | None = None
 
@@ -575,15 +582,16 @@ def run_student(job: StudentJob) -> StudentResult:
                             stop()
                         record(k, run, rep1, time.perf_counter() - t1)
                     first = results[0]
-                    if probing and first is not None and first.run is not None and child is not None \
-                            and not _probe(child, job.sims[0], job, findings, first):
-                        stop()
+                    if probing and first is not None and first.run is not None and started() is not None:
+                        assert child is not None
+                        if not _probe(child, job.sims[0], job, findings, first):
+                            stop()
                 else:
                     wall = (time.perf_counter() - t0) / len(batch)
                     for k, run in zip(batch, runs, strict=True):
                         record(k, run, rep, wall)
                     if probing:
-                        _probe_findings(job.sims[0], runs[0], rep.get("probes") or {}, findings)
+                        _probe_findings(job.sims[0], rep.get("probes") or ProbeFindings(), findings)
             team_results += _run_team_batches(job, started, stop, record_team=findings)
         finally:
             stop()
@@ -660,29 +668,30 @@ def run_student_shared(job: StudentJob, shared: tuple[list[SimulatedRun], list[T
     return run_student(dataclasses.replace(job, sims=shared[0], team_sims=shared[1]))
 
 
-def _probe_findings(sr: SimulatedRun, graded: RunOutput, probes: dict[str, Any],
-                    findings: dict[str, Any]) -> None:
-    """``deterministic`` and ``readings_used`` from the probes that rode along in the first
-    batch (:func:`~beacon_sim.evaluation.montecarlo.isolated_runs`): the first run fed again
-    and fed no readings, on its first :data:`PROBE_TICKS` ticks, against the graded run."""
-    fr = next(iter(graded.filters.values()))
-    if fr.failed or fr.means is None:
-        return
-    n = min(PROBE_TICKS, len(sr.frames))
-    first = fr.means[:n]
-    again, blind = probes.get("again"), probes.get("blind")
-    if again is not None:
-        findings["deterministic"] = bool(np.array_equal(again, first, equal_nan=True))
-    if blind is not None:
-        readings = any(len(r) for r in sr.records[:int(sr.record_index[n - 1]) + 1])
-        findings["readings_used"] = (not readings) or not bool(np.array_equal(blind, first, equal_nan=True))
+def _probe_findings(sr: SimulatedRun, probes: ProbeFindings, findings: dict[str, Any]) -> None:
+    """``deterministic``, ``readings_used`` and the probes a filter failed on its own
+    (``probe_failures``: a probe is one more run, and failing it is failing a run) from the
+    probes that rode in the first batch (:func:`~beacon_sim.filters.feed.judge_probes`)."""
+    findings["deterministic"] = probes.deterministic
+    findings["readings_used"] = probes.readings_used
+    findings["probe_failures"] = [
+        {"scenario": sr.label, "seed": sr.seed, "time_s": (at + 1) * sr.scenario.dt,
+         "reason": f"probe ({PROBE_WORDS[name]}): {why}"} for name, (why, at) in probes.failures.items()]
+
+
+#: How a probe is named where its failure is shown.
+PROBE_WORDS = {"again": "the first run fed again", "extra": "one more seed",
+               "extra_redrawn": "one more seed, its readings drawn again"}
 
 
 def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict[str, Any],
            graded: TaskResult) -> bool:
-    """The probes on the first run's first :data:`PROBE_TICKS` ticks: with the global RNGs
-    seeded differently, and with the readings withheld. Returns whether the child may be
-    used again (False when a probe broke it)."""
+    """The probes of a filter that draws from the global generators (its runs fed one by
+    one, each in a fresh child), one by one too: the first run's first :data:`PROBE_TICKS`
+    ticks fed again with the global generators seeded differently (is it deterministic?),
+    and the extra run fed its readings and its readings drawn again, the global generators
+    seeded alike (does it use them?). Returns whether the child may be used again (False
+    when a probe broke it)."""
     if not isinstance(graded.run, RunOutput):
         return True
     fr = next(iter(graded.run.filters.values()))
@@ -690,17 +699,31 @@ def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict
         return True
     n = min(PROBE_TICKS, len(sr.frames))
     first = fr.means[:n]
-    _, rep = isolated_run(child, sr, job.time_limit, global_seed=sr.seed + 1_000_003, ticks=n)
+    name = child.class_name
+    failures: dict[str, tuple[str, int]] = {}
+    _, rep = isolated_run(child, sr, job.time_limit, global_seed=sr.global_seed(name) ^ 1, ticks=n)
+    if rep.get("failed"):
+        failures["again"] = (str(rep["failed"]), int(np.argmax(np.isnan(rep["means"][:, 0]))))
     if rep.get("failed_child"):
+        _probe_findings(sr, ProbeFindings(False, None, None, failures), findings)
         return False
-    findings["deterministic"] = bool(np.array_equal(rep["means"], first, equal_nan=True))
-    if sr.frames_blind is not None:
-        _, rep = isolated_run(child, sr, job.time_limit, blind=True, ticks=n)
-        if rep.get("failed_child"):
-            return False
-        readings = any(len(r) for r in sr.records[:int(sr.record_index[n - 1]) + 1])
-        findings["readings_used"] = (not readings) or not bool(
-            np.array_equal(rep["means"], first, equal_nan=True))
+    deterministic = bool(np.array_equal(rep["means"], first, equal_nan=True))
+    used = None
+    ex = sr.extra
+    if ex is not None and ex.frames_other is not None and ex.readings_within(len(ex.frames)):
+        means = []
+        for what, other in (("extra", False), ("extra_redrawn", True)):
+            _, rep = isolated_run(child, ex, job.time_limit, other=other, ticks=len(ex.frames), name=name,
+                                  global_seed=ex.global_seed(name))
+            if rep.get("failed") and not failures.get("extra"):
+                failures[what] = (str(rep["failed"]), int(np.argmax(np.isnan(rep["means"][:, 0]))))
+            means.append(None if rep.get("failed") else rep["means"])
+            if rep.get("failed_child"):
+                _probe_findings(sr, ProbeFindings(deterministic, None, None, failures), findings)
+                return False
+        if means[0] is not None and means[1] is not None:
+            used = not bool(np.array_equal(means[0], means[1], equal_nan=True))
+    _probe_findings(sr, ProbeFindings(deterministic, None, used, failures), findings)
     return True
 
 
@@ -788,9 +811,17 @@ def scenario_labels(scenarios: Sequence[str]) -> dict[str, str]:
 
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
           scheduler: Any = None, progress: Callable[[int, int], None] | None = None,
-          cache: str | Path | None = None, team_in_workers: bool = False) -> dict[str, Any]:
+          cache: str | Path | None = None, team_in_workers: bool = False,
+          secret: bytes | None = None) -> dict[str, Any]:
     """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
-    order, ``config``, ``wall_s``, ``sandbox``, ``logs``) that :func:`write_outputs` writes.
+    order, ``config``, ``wall_s``, ``sandbox``, ``logs``, ``secret``) that
+    :func:`write_outputs` writes.
+
+    ``secret`` keys every student's random streams (``ctx.rng`` and the global generators'
+    seeds: core/streams.py), so nothing a filter is given reveals a run's seed; None draws
+    a new one (:data:`~beacon_sim.core.streams.SECRET_BYTES` random bytes). It never
+    reaches a child. The same secret (``board["secret"]``, kept by :func:`write_outputs` in
+    ``grade.secret``) grades every file again bit for bit, alone or in a class.
 
     Each single-robot (scenario, seed) is simulated once, here; each student's filter runs
     in a child process of its own (:func:`run_student`) that receives only what a filter
@@ -808,6 +839,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     The leaderboard names each scenario by :func:`scenario_labels` (a file by its file name,
     never its folder); the runs load them by the configured name or path."""
     t0 = time.perf_counter()
+    secret = new_secret() if secret is None else check_secret(secret)
     students = find_students(folder, config.class_name)
     labels = scenario_labels(config.scenarios)
     specs = {label: spec for spec, label in labels.items()}
@@ -827,14 +859,14 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         assert isinstance(sc, Scenario)
         duration = sc.duration if config.duration is None else config.duration
         for i, seed in enumerate(config.seeds):
-            sims.append(simulate_run(sc, seed, duration, i, blind=not sims, label=n))
+            sims.append(simulate_run(sc, seed, duration, i, probe=not sims, label=n, secret=secret))
     team_sims: list[TeamSimulated] = []
     if not team_in_workers:
         for n in team_names:
             team = scenarios[n]
             assert isinstance(team, TeamScenario)
             duration = team.duration if config.duration is None else config.duration
-            team_sims += [simulate_team_run(team, seed, duration, i, n)
+            team_sims += [simulate_team_run(team, seed, duration, i, n, secret)
                           for i, seed in enumerate(config.seeds)]
     student_jobs = [StudentJob(st.name, st.path.name,
                                read_user_bytes(st.path, what="filter file", cap=MAX_SOURCE_BYTES,
@@ -850,7 +882,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     # Team scenarios: each robot's copy of the student's filter in a child process of its own.
     # (a worker loads the scenario by its configured name or path; the result takes its label)
     tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), specs[sc], seed,
-                  config.duration, config.time_limit, i)
+                  config.duration, config.time_limit, i, secret)
              for st in students if st.spec and team_in_workers for sc in team_names
              for i, seed in enumerate(config.seeds)]
     tasks += [Task(REFERENCE, REFERENCE_SPEC, specs[sc], seed, config.duration, config.time_limit, i)
@@ -876,7 +908,9 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     scan_reference = _scan_reference(scenarios, [n for n in single if is_scan_scenario(scenarios[n])],
                                      config)
     for st in students:
-        row = _student_row(st, config, scenarios, by, n_runs, reference, scored, slam_reference)
+        done = found.get(st.name)
+        row = _student_row(st, config, scenarios, by, n_runs, reference, scored, slam_reference,
+                           done.findings.get("probe_failures") or () if done is not None else ())
         for name, ref in scan_reference.items():  # a scan assignment: the row beside mcl's
             got = scored.get((st.name, name))
             mine = got[0].get("pos_rmse_m") if got is not None and not row["failed_runs"] else None
@@ -894,9 +928,71 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
             "slam_reference": slam_reference, "scan_reference": scan_reference,
             "sandbox": sandbox, "isolated": True, "team_in_process": [],
             "cached_students": cached,
+            # the key of every student's random streams: kept in grade.secret, never in grade.json
+            "secret": secret.hex(), "secret_sha256": secret_fingerprint(secret),
             # what the students' children said they used [s] (their own word: cost figures only)
             "child_cpu_s": sum(float(sr.findings.get("child_cpu_s", 0.0)) for sr in done_students),
             "logs": {sr.student: sr.log for sr in done_students}}
+
+
+#: The file in a grade's output folder that keeps the grade's secret (hex), readable by its
+#: owner only: ``grade --secret-file`` takes it back (docs/grading.md, "The grade's secret").
+SECRET_FILE = "grade.secret"
+
+
+def new_secret() -> bytes:
+    """A fresh secret for a grade: :data:`~beacon_sim.core.streams.SECRET_BYTES` bytes from
+    the operating system's generator."""
+    import secrets
+
+    from beacon_sim.core.streams import SECRET_BYTES
+
+    return secrets.token_bytes(SECRET_BYTES)
+
+
+def check_secret(secret: bytes) -> bytes:
+    """``secret`` if it can key a grade (at least 16 bytes), else :class:`GradeError`."""
+    if not isinstance(secret, bytes | bytearray) or len(secret) < 16:
+        raise GradeError("a grade's secret must be at least 16 bytes (32 hex digits)")
+    return bytes(secret)
+
+
+def secret_fingerprint(secret: bytes) -> str:
+    """16 hex digits that name a secret without giving it away (``grade.json`` keeps them, so
+    a secret file can be matched to the grade it made)."""
+    import hashlib
+
+    return hashlib.sha256(b"beacon-sim grade secret " + secret).hexdigest()[:16]
+
+
+def read_secret(path: str | Path) -> bytes:
+    """The secret kept in ``path`` (hex digits, as :func:`write_outputs` writes it);
+    :class:`GradeError` naming what is wrong."""
+    try:
+        text = Path(path).read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise GradeError(f"{path}: cannot read the grade's secret: {exc}") from None
+    try:
+        secret = bytes.fromhex(text)
+    except ValueError:
+        raise GradeError(f"{path}: expected the grade's secret as hex digits (the {SECRET_FILE} "
+                         "a grade wrote)") from None
+    try:
+        return check_secret(secret)
+    except GradeError as exc:
+        raise GradeError(f"{path}: {exc}") from None
+
+
+def write_secret(secret_hex: str, path: Path) -> Path:
+    """Keep a grade's secret in ``path``, readable and writable by its owner only."""
+    import os
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w", encoding="ascii") as fh:
+        fh.write(secret_hex + "\n")
+    os.chmod(path, 0o600)
+    return path
 
 
 def _students_cannot_write_here(sandbox: str) -> bool:
@@ -917,10 +1013,12 @@ def cache_key(job: StudentJob) -> str:
 
     h = hashlib.sha256(job.source)
     meta = [job.filename, job.class_name, job.time_limit, job.memory_limit_gb, job.sandbox, __version__,
-            PROBE_TICKS, [(sr.label, sr.seed, len(sr.frames), sr.truth_checksum, repr(sr.scenario))
+            PROBE_TICKS, [(sr.label, sr.seed, len(sr.frames), sr.truth_checksum, repr(sr.scenario),
+                           hashlib.sha256(sr.stream_key).hexdigest())  # the secret's mark, not it
                           for sr in job.sims],
             [(ts.label, ts.seed, len(ts.robots[0].frames), ts.truth_checksum,
-              [repr(r.scenario) for r in ts.robots]) for ts in job.team_sims]]
+              [repr(r.scenario) for r in ts.robots], hashlib.sha256(ts.robots[0].stream_key).hexdigest())
+             for ts in job.team_sims]]
     h.update(json.dumps(meta, default=str).encode())
     return h.hexdigest()
 
@@ -992,13 +1090,15 @@ def _add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
         flags.append("suspicious: " + row["suspicious"])
     if row["global_rng"]:
         flags.append("draws from the global np.random / random generator (reproducible here "
-                     "only because the grader seeds them; use ctx.rng)")
+                     "only because the grader seeds them from the grade's secret; use ctx.rng)")
     if row["deterministic"] is False:
-        flags.append("not deterministic: the estimates change when only the global RNG's seed does")
+        flags.append("not deterministic: the same run fed again gives other estimates (or, for a "
+                     "filter that draws from the global generators, their seed alone changes them)")
     if row["heading_wrapped"] is False:
         flags.append("heading not wrapped to [-pi, pi)")
     if row["readings_used"] is False:
-        flags.append("uses none of the readings: the estimates do not change when they are withheld")
+        flags.append("uses none of the readings: the estimates do not change when the readings are "
+                     "drawn again")
     unmapped = [] if row["failed_runs"] else [n for n, v in (row.get("slam") or {}).items()
                                               if not v.get("mapped")]
     if unmapped:
@@ -1156,7 +1256,10 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
                  by: dict[tuple[str, str], list[TaskResult]], n_runs: int,
                  reference: dict[str, dict[str, Any]] | None = None,
                  scored: dict[tuple[str, str], tuple[dict[str, Any], dict[str, Any], Any]] | None = None,
-                 slam_reference: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+                 slam_reference: dict[str, dict[str, Any]] | None = None,
+                 probe_failures: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
+    """A student's row; ``probe_failures``: the probes its filter failed on its own (a probe
+    is one more run: failing it fails the student, shown as a failed run)."""
     row: dict[str, Any] = {"student": st.name, "file": st.path.name, "runs": n_runs,
                            "pos_rmse_m": None, "heading_rmse_rad": None, "anees": None,
                            "anees_verdict": "FAILED", "verdict": "FAILED", "rmse_over_pcrb": None,
@@ -1213,6 +1316,7 @@ def _student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario
         curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
         if slam_reference and name in slam_reference and len(runs) == len(res):
             slam_rows[name] = _slam_row(sc, runs, slam_reference[name])  # type: ignore[arg-type]
+    failures += list(probe_failures)
     row["failures"] = failures
     row["failed_runs"] = len(failures)
     row["run_detail"] = _run_detail(st, config, by)
@@ -1567,9 +1671,12 @@ def _slam_table(row: dict[str, Any]) -> str:
 
 def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:
     """``grade.csv``, ``grade.html``, ``grade.json`` (the rows without the plots), a page per
-    student (``students/``), the logs (``logs/``) and, with pseudonyms, ``pseudonyms.csv``
-    in ``out``."""
+    student (``students/``), the logs (``logs/``), with pseudonyms ``pseudonyms.csv``, and
+    the grade's secret in ``grade.secret`` (:data:`SECRET_FILE`, the owner's only; never in
+    ``grade.json``, which names it by its fingerprint) in ``out``."""
     out.mkdir(parents=True, exist_ok=True)
+    if board.get("secret"):
+        write_secret(str(board["secret"]), out / SECRET_FILE)
     logs = board.get("logs") or {}
     shown = _shown(board)
     if logs:
@@ -1586,7 +1693,7 @@ def write_outputs(board: dict[str, Any], out: Path) -> list[Path]:
             w.writerow(("pseudonym", "student", "file"))
             for r in board["rows"]:
                 w.writerow((shown[r["student"]], r["student"], r["file"]))
-    doc = {k: v for k, v in board.items() if k not in ("rows", "logs")}
+    doc = {k: v for k, v in board.items() if k not in ("rows", "logs", "secret")}
     doc["rows"] = [{k: v for k, v in r.items() if k != "plot"} for r in board["rows"]]
     write_text_atomic(out / "grade.json", json.dumps(doc, indent=1, default=float), error=GradeError)
     return [write_csv(board, out / "grade.csv"), write_html(board, out / "grade.html"),

@@ -32,6 +32,7 @@ import numpy as np
 
 from beacon_sim.core.batch_simulation import BatchSimulation
 from beacon_sim.core.files import MAX_SOURCE_BYTES, read_user_bytes
+from beacon_sim.core.metrics import nees as nees_of
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
@@ -40,7 +41,7 @@ from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import Batchable, FilterError
 from beacon_sim.filters.gaussian.measurements import BatchableFilter, SlotPacker, nis
-from beacon_sim.filters.guard import estimate_arrays
+from beacon_sim.filters.guard import DIVERGED, MAX_COV, MAX_MEAN, NEES_NOT_FINITE, estimate_arrays
 from beacon_sim.filters.host import call_guarded
 from beacon_sim.filters.loading import (
     FilterLoadError,
@@ -93,21 +94,18 @@ class RunOutput:
     filters: dict[str, FilterRun] = field(default_factory=dict)
 
 
-#: A mean or covariance entry beyond this is a diverged filter for the metrics: their products
-#: would overflow (the guard of a live run stops a filter far earlier, at 1e12).
-OVERFLOW_COV = 1e100
-
-
 def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
-    """Index of the first unusable estimate (non-finite, asymmetric or not PSD) and why."""
+    """Index of the first unusable estimate and why, in the guard's words and by its rules
+    (:func:`~beacon_sim.filters.guard.validate_estimate`: non-finite, diverged, asymmetric
+    or not PSD), so that ``eval`` and ``grade`` fail a filter where ``run`` does, and say
+    the same (issue 37: they let a covariance grow to 1e100)."""
     n = means.shape[0]
     bad = ~(np.all(np.isfinite(means), axis=1) & np.all(np.isfinite(covs), axis=(1, 2)))
     first = int(np.argmax(bad)) if bad.any() else n
     if first < n:
         return first, "estimate() returned NaN or infinity"
     scale = np.maximum(np.max(np.abs(covs), axis=(1, 2)), 1e-12)
-    # Beyond OVERFLOW_COV the metrics' products overflow (and eigvalsh may not converge).
-    huge = (scale > OVERFLOW_COV) | (np.max(np.abs(means), axis=1) > OVERFLOW_COV)
+    huge = (scale > MAX_COV) | (np.max(np.abs(means), axis=1) > MAX_MEAN)
     asym = np.max(np.abs(covs - np.swapaxes(covs, 1, 2)), axis=(1, 2)) > 1e-6 * scale
     sym = 0.5 * (covs + np.swapaxes(covs, 1, 2))
     notpsd = np.zeros(n, dtype=bool)
@@ -122,8 +120,7 @@ def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
             first = min(first, int(np.argmax(mask)))
     if first < n:
         if huge[first]:
-            return first, (f"estimate() returned a mean or a covariance entry over {OVERFLOW_COV:g} "
-                           "(diverged)")
+            return first, DIVERGED
         return first, ("covariance is not symmetric" if asym[first]
                        else "covariance is not positive semi-definite")
     return n, None
@@ -165,11 +162,12 @@ def finish_filter(m: np.ndarray, c: np.ndarray, truth: np.ndarray, done: int, fa
     nees = np.full(T, np.nan)
     if n_ok:
         with np.errstate(all="ignore"):
-            try:
-                sol = np.linalg.solve(c[:n_ok], err[:n_ok, :, None])[..., 0]
-                nees[:n_ok] = np.einsum("ti,ti->t", err[:n_ok], sol)
-            except np.linalg.LinAlgError:
-                nees[:n_ok] = np.inf
+            nees[:n_ok] = nees_of(err[:n_ok], c[:n_ok])
+        unbounded = ~np.isfinite(nees[:n_ok])
+        if unbounded.any():  # a covariance that rules out its own error: the run fails there,
+            n_ok = int(np.argmax(unbounded))  # before any other failure (which came later)
+            failed = NEES_NOT_FINITE
+            m[n_ok:], c[n_ok:], err[n_ok:], nees[n_ok:] = np.nan, np.nan, np.nan, np.nan
     var = np.einsum("tii->ti", c).copy()
     return FilterRun(err, var, nees, nis_sum, nis_dof, step_ns, done, failed,
                      m.copy() if keep_means else None)
@@ -188,13 +186,15 @@ def start_run(scenario: Scenario, seed: int, duration: float
 
 def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, Any]],
             seed: int, duration: float, index: int = 0, keep_means: bool = False,
-            run_limit_s: float | None = None) -> RunOutput:
+            run_limit_s: float | None = None, secret: bytes | None = None) -> RunOutput:
     """Simulate one run and feed every filter the same steps.
 
     Each filter's cost counts ``predict + update + estimate``; the prior estimate read for
     the NIS between predict and update is not counted. ``run_limit_s`` [s]: a filter whose
     steps take longer than this in all is stopped ("time limit"; an endless loop), see
-    ``filters.runner.time_limit``.
+    ``filters.runner.time_limit``. ``secret``: the key of the filters' random streams
+    (None: the public key; a grade's secret gives its figures,
+    :func:`~beacon_sim.core.streams.filter_stream`).
     """
     names = filter_names(specs)
     built: dict[str, Any] = {}
@@ -202,7 +202,7 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     for name, spec in zip(names, specs, strict=True):
         try:
             built[name] = build_filter(spec, scenario, seed, name=name,
-                                       params=params.get(filter_display_name(spec)))
+                                       params=params.get(filter_display_name(spec)), secret=secret)
         except FilterError:
             raise  # a name or parameter that cannot work: one line, exit 2
         except BaseException as exc:  # a student's __init__ or reset: that filter fails
@@ -279,20 +279,55 @@ class SimulatedRun:
     records: list  # the readings of the ticks that had any (for the NIS)
     record_index: np.ndarray  # (T,) int: the index in ``records`` of tick i's readings
     frames: list[bytes]  # (T,) "step" requests
-    frames_blind: list[bytes] | None = None  # the same without readings (the probe)
+    #: The same run (truth, controls, events) with its readings drawn again from another
+    #: stream (the probes' extra run only: does the filter use its readings?).
+    frames_other: list[bytes] | None = None
     label: str = ""  # the scenario as the user named it (a shipped name or a path)
+    #: The key of the run's filter streams (core/streams.py ``run_key``: a hash of the
+    #: grade's secret and the seed; None: the public key's). Stays in the grader.
+    key: bytes | None = None
+    #: The probes' extra run (a scenario's first run only): one more seed drawn from the
+    #: key, its first ticks, with its readings drawn again (filters/feed.py ``probe_slots``).
+    extra: SimulatedRun | None = None
+
+    @property
+    def stream_key(self) -> bytes:
+        """The run's key (:func:`~beacon_sim.core.streams.run_key`), the public one by default."""
+        from beacon_sim.core.streams import run_key
+
+        return self.key if self.key is not None else run_key(self.seed)
+
+    def global_seed(self, name: str) -> int:
+        """The seed of the global generators of the filter ``name`` in this run, as sent to
+        its child: derived from the run's key, never the seed."""
+        from beacon_sim.core.streams import keyed_global_seed
+
+        return keyed_global_seed(self.stream_key, name)
+
+    def readings_within(self, ticks: int) -> bool:
+        """Whether the first ``ticks`` ticks hold any reading."""
+        n = min(ticks, len(self.frames))
+        return n > 0 and any(len(r) for r in self.records[:int(self.record_index[n - 1]) + 1])
 
 
 def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
-                 blind: bool = False, label: str | None = None) -> SimulatedRun:
-    """Simulate one run as :func:`one_run` does, without filters; ``blind``: also the
-    requests with every reading withheld (does the filter use the readings?)."""
+                 probe: bool = False, label: str | None = None,
+                 secret: bytes | None = None, redraw: bool = False) -> SimulatedRun:
+    """Simulate one run as :func:`one_run` does, without filters. ``probe``: also the
+    probes' extra run (``extra``: one more seed drawn from the run's key, for the probes'
+    ticks, its readings drawn again too); ``redraw``: this run with its readings drawn
+    again (``frames_other``, from a seed derived from the run's key); ``secret``: the key
+    of the filters' streams (None: the public key)."""
+    from beacon_sim.core.streams import run_key
+    from beacon_sim.filters.feed import PROBE_TICKS, other_readings_seed, probe_seed
     from beacon_sim.filters.wire import encode_request
 
+    key = run_key(seed, secret)
     sim, T, truth, controls, kidnapped = start_run(scenario, seed, duration)
+    other = Simulation(scenario, seed, readings_seed=other_readings_seed(key)) if redraw else None
     records: list = []
     rec = np.zeros(T, dtype=int)
-    frames, blind_frames = [], []
+    frames, other_frames = [], []
     for i in range(T):
         step = sim.step()
         truth[i + 1] = step.true_pose
@@ -303,87 +338,91 @@ def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
             records.append(step.measurements)
         frames.append(encode_request("step", step.control, step.dt, tuple(step.measurements),
                                      bool(step.measurements)))
-        if blind:
-            blind_frames.append(encode_request("step", step.control, step.dt, (), False))
+        if other is not None:
+            st = other.step()
+            other_frames.append(encode_request("step", st.control, st.dt, tuple(st.measurements),
+                                               bool(st.measurements)))
+    if other is not None and other.truth_checksum != sim.truth_checksum:
+        other_frames = []  # readings that moved the truth: no such probe here
+    extra = None
+    if probe:
+        extra = simulate_run(scenario, probe_seed(key), min(duration, PROBE_TICKS * scenario.dt), index,
+                             label=label, secret=secret, redraw=True)
     return SimulatedRun(scenario, index, seed, truth, controls, kidnapped, sim.truth_checksum,
-                        records, rec, frames, blind_frames if blind else None,
-                        scenario.name if label is None else label)
+                        records, rec, frames, other_frames or None,
+                        scenario.name if label is None else label, key, extra)
+
+
+def _slot(sr: SimulatedRun, name: str, params: dict[str, Any] | None, frames: list[bytes] | None = None,
+          ticks: int | None = None) -> Any:
+    """The :class:`~beacon_sim.filters.feed.Slot` of a hosted filter ``name`` on ``sr``."""
+    from beacon_sim.filters.feed import Slot
+    from beacon_sim.filters.loading import initial_belief
+
+    frames = sr.frames if frames is None else frames
+    return Slot(_hosted_context(sr, name, params), initial_belief(sr.scenario), frames,
+                len(frames) if ticks is None else min(ticks, len(frames)), name)
+
+
+def _run_of(fed: Any, k: int, sr: SimulatedRun, name: str, keep_means: bool) -> RunOutput:
+    """Slot k of a fed batch scored as :func:`one_run` scores the filter on ``sr``."""
+    T = len(sr.frames)
+    store = fed.store[:T, k]
+    if store.shape[0] < T:
+        store = np.concatenate([store, np.full((T - store.shape[0], 24), np.nan)])
+    means = np.ascontiguousarray(store[:, 12:15])
+    covs = np.ascontiguousarray(store[:, 15:24]).reshape(T, 3, 3)
+    pm, pc = np.full((len(sr.records), 3), np.nan), np.full((len(sr.records), 3, 3), np.nan)
+    ticks = np.flatnonzero(fed.has_prior[:T, k])
+    rows = sr.record_index[ticks]
+    pm[rows] = store[ticks, 0:3]
+    pc[rows] = store[ticks, 3:12].reshape(-1, 3, 3)
+    out = _hosted_output(sr, name, means, covs, pm, pc, fed.done(k), fed.failed[k],
+                         int(fed.walls[:, k].sum()), keep_means)
+    fr = out.filters[name]
+    fr.landmarks = fed.maps[k] if fed.failed[k] is None else None
+    fr.joint = fed.joints[k] if fed.failed[k] is None else None
+    return out
 
 
 def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_means: bool = False,
-                 blind: bool = False, global_seed: int | None = None,
+                 other: bool = False, global_seed: int | None = None,
                  ticks: int | None = None, name: str | None = None,
                  params: dict[str, Any] | None = None) -> tuple[RunOutput, dict[str, Any]]:
     """:func:`one_run` of the filter in ``child`` (a :class:`~beacon_sim.filters.isolated.FilterChild`)
-    on the simulated run ``sr``: the same numbers bit for bit, the truth never sent. Returns
-    the run and what the child reported (``np_global`` / ``py_global``: the filter drew from
-    the global generators; ``failed_child``: the child must not be reused). ``blind``: the
-    readings withheld (a probe, not a graded run); ``global_seed``: the global RNGs' seed
-    (default the run's seed); ``ticks``: only the first ``ticks`` ticks (a probe); ``name``:
-    the filter's name in the run (default its class's: its random generator's stream);
+    on the simulated run ``sr``: the same numbers bit for bit, the truth never sent (a batch
+    of one, :func:`~beacon_sim.filters.feed.feed_batch`). Returns the run and what the child
+    reported (``np_global`` / ``py_global``: the filter drew from the global generators;
+    ``failed_child``: the child must not be reused). ``other``: the run with its readings
+    drawn again (a probe, not a graded run); ``global_seed``: the global RNGs' seed
+    (default derived from the run's key and the name, never the seed); ``ticks``: only the
+    first ``ticks`` ticks (a probe; ``report["means"]`` holds its estimates); ``name``: the
+    filter's name in the run (default its class's: its random generator's stream);
     ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
-    from beacon_sim.filters.isolated import ChildFailure
-    from beacon_sim.filters.loading import initial_belief
-    from beacon_sim.filters.wire import ESTIMATE, MAPPED, WireError, map_problem, parse_estimate, split_mapped
+    from beacon_sim.filters.feed import feed_batch
 
-    scenario = sr.scenario
     name = name or child.class_name
-    landmarks = joint = None
-    T = len(sr.frames) if ticks is None else min(ticks, len(sr.frames))
-    means, covs = np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan)
-    n_rec = len(sr.records)
-    pm, pc = np.full((n_rec, 3), np.nan), np.full((n_rec, 3, 3), np.nan)
-    failed: str | None = None
-    report: dict[str, Any] = {}
-    ns = done = 0
-    ctx = _hosted_context(sr, name, params)
-    frames = sr.frames_blind if blind and sr.frames_blind is not None else sr.frames
-    try:
-        child.build(ctx, initial_belief(scenario), sr.seed if global_seed is None else global_seed,
-                    run_limit_s, name)
-        for i in range(T):
-            tag, payload = child.request(frames[i])
-            if tag == MAPPED:  # a SLAM filter: its map judged on every tick, the last kept
-                payload, block = split_mapped(payload)
-                landmarks, why = map_problem(block)
-                if why is not None:
-                    child.kill()  # its filter is switched off mid-run: the child is not reused
-                    raise ChildFailure(why, died=False)
-            elif tag != ESTIMATE:
-                raise ChildFailure("the filter's process broke the protocol", died=True)
-            wall, prior, (mean, cov) = parse_estimate(payload)
-            means[i], covs[i] = mean, cov
-            if prior is not None:
-                j = sr.record_index[i]
-                pm[j], pc[j] = prior
-            ns += wall
-            done += 1
-        joint = child.final_joint() if ticks is None and landmarks is not None else None
-        report = child.end()
-    except ChildFailure as exc:
-        failed = str(exc) or "the filter failed"
-        report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
-    except WireError as exc:  # a malformed answer: the child is not to be trusted further
-        child.kill()
-        failed = f"the filter's process {exc} and was stopped"
-        report = {"failed_child": True, "died": True, "traceback": ""}
-    theta = means[:done, 2]
+    frames = sr.frames_other if other and sr.frames_other is not None else sr.frames
+    slot = _slot(sr, name, params, frames, ticks)
+    fed = feed_batch(child, [slot], run_limit_s, sr.global_seed(name) if global_seed is None else global_seed)
+    report = dict(fed.report)
+    done = fed.done(0)
+    theta = fed.store[:done, 0, 14]
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
     if ticks is not None:  # a probe: its estimates only
-        report["means"] = means
+        T = slot.ticks
+        report["means"] = np.ascontiguousarray(fed.store[:T, 0, 12:15])
+        report["failed"] = fed.failed[0]
         return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
                          sr.truth_checksum), report
-    out = _hosted_output(sr, name, means, covs, pm, pc, done, failed, ns, keep_means)
-    out.filters[name].landmarks = landmarks if failed is None else None
-    out.filters[name].joint = joint if failed is None else None
-    return out, report
+    return _run_of(fed, 0, sr, name, keep_means), report
 
 
 def _hosted_context(sr: SimulatedRun, name: str, params: dict[str, Any] | None) -> Any:
     """The :class:`~beacon_sim.filters.base.FilterContext` a hosted filter gets for the run
     ``sr``: what it may see, its parameters (default the scenario's ``[filters.NAME]``) and
-    its own random generator (its name's stream of the run's seed)."""
-    from beacon_sim.core.streams import stream
+    its own random generator (its name's stream of the run's key: never the seed)."""
+    from beacon_sim.core.streams import keyed_stream
     from beacon_sim.filters.base import FilterContext
 
     scenario = sr.scenario
@@ -391,7 +430,7 @@ def _hosted_context(sr: SimulatedRun, name: str, params: dict[str, Any] | None) 
                          dt=scenario.dt,
                          motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
                          params=dict(scenario.filter_params.get(name, {})) if params is None else params,
-                         rng=stream(sr.seed, "filter", name))
+                         rng=keyed_stream(sr.stream_key, name))
 
 
 def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndarray, pm: np.ndarray,
@@ -419,26 +458,27 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
                   probe_ticks: int | None = None) -> tuple[list[RunOutput], dict[str, Any]]:
     """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
     child, one exchange per tick carrying every run's control, dt and readings and bringing
-    back every estimate (the pipe's round trip paid once per tick, not once per run). Each
-    filter is built and fed exactly as alone, with its own CPU-time budget, failure and
-    cost, so a filter that does not draw from the global generators gives the numbers of
-    :func:`isolated_run` bit for bit; a filter that fails fails its own run only, a child
-    that dies fails every run still going with the reason. The runs must have the same
-    number of ticks. Returns the runs (each keeps its means when ``sr.index == 0``) and
-    what the child reported (``np_global`` / ``py_global``: drew from the global generators,
-    whose stream is then shared by the batch: rerun alone; ``failed_child``: do not reuse).
+    back every estimate (the pipe's round trip paid once per tick, not once per run;
+    :func:`~beacon_sim.filters.feed.feed_batch`). Each filter is built and fed exactly as
+    alone, with its own CPU-time budget, failure and cost, so a filter that does not draw
+    from the global generators gives the numbers of :func:`isolated_run` bit for bit; a
+    filter that fails fails its own run only, a child that dies fails every run still
+    going with the reason. The runs must have the same number of ticks. Returns the runs
+    (each keeps its means when ``sr.index == 0``) and what the child reported
+    (``np_global`` / ``py_global``: drew from the global generators, whose stream is then
+    shared by the batch: rerun alone; ``failed_child``: do not reuse).
 
-    ``probe_ticks``: two more filters in the batch on the first ``probe_ticks`` ticks of
-    ``sims[0]``, one fed the same readings again (is it deterministic?) and one fed none
-    (``frames_blind``: does it use them?); ``report["probes"]`` holds their means (or None
-    when that probe failed).
+    ``probe_ticks``: the probes of ``sims[0]`` ride along, on its first ``probe_ticks``
+    ticks (:func:`~beacon_sim.filters.feed.probe_slots`: fed again; and its extra run,
+    ``sims[0].extra``, fed its readings and its readings drawn again), every slot in an
+    order drawn from the run's key, so that the child cannot tell a probe from a scored
+    run; their findings are in ``report["probes"]``
+    (:class:`~beacon_sim.filters.feed.ProbeFindings`).
 
     ``name`` and ``params`` may be lists, one per run (the robots of a team scenario: each
     robot's copy its own name, so its own random stream); the runs' records are keyed by
     the first name."""
-    from beacon_sim.filters.isolated import ChildFailure
-    from beacon_sim.filters.loading import initial_belief
-    from beacon_sim.filters.wire import ESTIMATE, MAPPED, WireError, map_problem, parse_estimate, split_mapped
+    from beacon_sim.filters.feed import feed_batch, judge_probes, probe_slots, slot_order
 
     R = len(sims)
     names = list(name) if isinstance(name, list) else [name or child.class_name] * R
@@ -447,110 +487,26 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     T = len(sims[0].frames)
     if any(len(sr.frames) != T for sr in sims):
         raise ValueError("isolated_runs: the runs of a batch must have the same number of ticks")
-    slot_sims, slot_frames, slot_ticks = list(sims), [sr.frames for sr in sims], [T] * R
-    probes: list[str] = []
+    slots = [_slot(sr, names[k], run_params[k]) for k, sr in enumerate(sims)]
+    probes: dict[str, int] = {}
+    order = None
     if probe_ticks is not None:
-        n = min(probe_ticks, T)
-        for what, frames in (("again", sims[0].frames), ("blind", sims[0].frames_blind)):
-            if frames is not None:
-                probes.append(what)
-                names.append(names[0])
-                run_params.append(run_params[0])
-                slot_sims.append(sims[0])
-                slot_frames.append(frames)
-                slot_ticks.append(n)
-    S = len(slot_sims)
-    # every answer as it came: (tick, run) -> prior mean (3), prior cov (9), mean (3), cov (9)
-    store = np.full((T, S, 24), np.nan)
-    walls = np.zeros((T, S), dtype=np.int64)
-    has_prior = np.zeros((T, S), dtype=bool)
-    answered = np.zeros((T, S), dtype=bool)
-    failed: list[str | None] = [None] * S
-    maps: list[Any] = [None] * S  # a SLAM filter's map after its last step (judged every tick)
-    joints: list[Any] = [None] * R  # and its final joint() (mean, cov, IDs), when it has one
-    report: dict[str, Any] = {}
-    try:
-        builds = [(_hosted_context(sr, names[k], run_params[k]), initial_belief(sr.scenario), names[k])
-                  for k, sr in enumerate(slot_sims)]
-        follows: list[int | None] = [None] * R + [0] * len(probes)  # a probe ends with the run it probes
-        why = child.batch_build(builds, sims[0].seed, run_limit_s, follows)
-        for k, w in enumerate(why):
-            failed[k] = w
-        live = [k for k in range(S) if failed[k] is None]
-        idx = np.asarray(live, dtype=int)
-        ends = sorted(set(slot_ticks))
-        for i in range(T):
-            if i == ends[0]:  # a probe's last tick has passed
-                ends.pop(0)
-                live = [k for k in live if i < slot_ticks[k]]
-                idx = np.asarray(live, dtype=int)
-            if not live:
-                break
-            got = child.batch_step(live, [slot_frames[k][i][4:] for k in live])
-            if isinstance(got, np.ndarray):  # every run answered with an estimate
-                store[i, idx] = got["v"]
-                walls[i, idx] = got["wall"]
-                has_prior[i, idx] = got["prior"] != 0
-                answered[i, idx] = True
-                continue
-            going = []
-            for k, (tag, payload) in zip(live, got, strict=True):
-                if tag == MAPPED:
-                    payload, block = split_mapped(payload)
-                    maps[k], why = map_problem(block)
-                    if why is not None:  # a bad map switches the filter off, as a bad estimate
-                        failed[k] = why
-                        continue
-                elif tag != ESTIMATE:
-                    failed[k] = child.failure_text(payload)
-                    continue
-                wall, prior, (mean, cov) = parse_estimate(payload)
-                store[i, k, 12:15], store[i, k, 15:24] = mean, cov.ravel()
-                if prior is not None:
-                    store[i, k, 0:3], store[i, k, 3:12] = prior[0], prior[1].ravel()
-                    has_prior[i, k] = True
-                walls[i, k], answered[i, k] = wall, True
-                going.append(k)
-            live = going
-            idx = np.asarray(live, dtype=int)
-        joints = [child.final_joint(k) if failed[k] is None and maps[k] is not None else None
-                  for k in range(R)]
-        report = child.batch_end()
-    except ChildFailure as exc:  # the whole child: every run still going fails with its reason
-        for k in range(S):
-            if failed[k] is None and answered[:, k].sum() < slot_ticks[k]:
-                failed[k] = str(exc) or "the filter failed"
-        report = {"failed_child": True, "died": exc.died, "traceback": exc.tb}
-    except WireError as exc:  # a malformed answer: the child is not to be trusted further
-        child.kill()
-        for k in range(S):
-            if failed[k] is None and answered[:, k].sum() < slot_ticks[k]:
-                failed[k] = f"the filter's process {exc} and was stopped"
-        report = {"failed_child": True, "died": True, "traceback": ""}
-    means = np.ascontiguousarray(store[:, :, 12:15].transpose(1, 0, 2))  # (S, T, 3)
-    covs = np.ascontiguousarray(store[:, :, 15:24].transpose(1, 0, 2)).reshape(S, T, 3, 3)
-    done = answered.sum(axis=0).tolist()
-    ns = walls.sum(axis=0).tolist()
-    pms, pcs = [], []
-    for k, sr in enumerate(slot_sims):
-        pm, pc = np.full((len(sr.records), 3), np.nan), np.full((len(sr.records), 3, 3), np.nan)
-        ticks = np.flatnonzero(has_prior[:, k])
-        rows = sr.record_index[ticks]
-        pm[rows] = store[ticks, k, 0:3]
-        pc[rows] = store[ticks, k, 3:12].reshape(-1, 3, 3)
-        pms.append(pm)
-        pcs.append(pc)
-    theta = np.concatenate([means[k, :done[k], 2] for k in range(R)])
+        ex = sims[0].extra
+        extra = ((_slot(ex, names[0], run_params[0]), ex.frames_other)
+                 if ex is not None and ex.frames_other is not None else None)
+        for what, slot in probe_slots(0, slots[0], extra, probe_ticks):
+            probes[what] = len(slots)
+            slots.append(slot)
+        order = slot_order(sims[0].stream_key, len(slots))
+    fed = feed_batch(child, slots, run_limit_s, sims[0].global_seed(names[0]), order)
+    report = dict(fed.report)
+    theta = np.concatenate([fed.store[:fed.done(k), k, 14] for k in range(R)])
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
     if probes:
-        report["probes"] = {what: (None if failed[R + j] else means[R + j, :slot_ticks[R + j]].copy())
-                            for j, what in enumerate(probes)}
-    outs = [_hosted_output(sr, name, means[k], covs[k], pms[k], pcs[k], done[k], failed[k], ns[k],
-                           sr.index == 0) for k, sr in enumerate(sims)]
-    for k, out in enumerate(outs):
-        out.filters[name].landmarks = maps[k] if failed[k] is None else None
-        out.filters[name].joint = joints[k] if failed[k] is None else None
-    return outs, report
+        ex = sims[0].extra
+        within = ex is not None and ex.readings_within(min(probe_ticks or 0, len(ex.frames)))
+        report["probes"] = judge_probes(fed, 0, probes, within)
+    return [_run_of(fed, k, sr, name, sr.index == 0) for k, sr in enumerate(sims)], report
 
 
 def _store(est: object, means: np.ndarray, covs: np.ndarray, i: int) -> str | None:
@@ -1109,12 +1065,12 @@ class TeamRunOutput:
 def team_one_run(team: TeamScenario, specs: list[str], params: dict[str, dict[str, Any]] | None,
                  seed: int, duration: float, index: int = 0,
                  step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
-                 run_limit_s: float | None = None) -> TeamRunOutput:
-    """One guarded headless run over N robots reduced to arrays; the limits as
-    :func:`~beacon_sim.runs.headless.run_headless`'s. A filter's time is its time per tick
-    over every robot."""
+                 run_limit_s: float | None = None, secret: bytes | None = None) -> TeamRunOutput:
+    """One guarded headless run over N robots reduced to arrays; the limits and ``secret``
+    as :func:`~beacon_sim.runs.headless.run_headless`'s. A filter's time is its time per
+    tick over every robot."""
     res = run_headless(team, specs, seed=seed, duration=duration, params=params,
-                       step_limit_s=step_limit_s, run_limit_s=run_limit_s)
+                       step_limit_s=step_limit_s, run_limit_s=run_limit_s, secret=secret)
     T, N = len(res.team_steps), team.n_robots
     truth = np.empty((T + 1, N, 3))
     truth[0] = res.initial_poses

@@ -87,7 +87,9 @@ class FilterContext:
     params : Mapping
         The filter's parameters (scenario ``[filters.NAME]`` and ``--set`` overrides).
     rng : numpy.random.Generator
-        The only random generator the filter may use.
+        The only random generator the filter may use: its own stream of the run, derived
+        from a hash of a key and the run's seed (``core.streams.filter_stream``), so it never
+        holds the seed; ``grade`` keys it with a secret of the grade.
     map_known : bool
         False when the scenario withholds the beacon map (``[model] map = "unknown"``):
         ``world.beacons`` holds only the anchors and a filter must map the rest itself.

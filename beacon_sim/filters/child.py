@@ -1,5 +1,8 @@
 """The child process that hosts one student's filter: ``python -m beacon_sim.filters.child
-READ_FD WRITE_FD CONFIG_JSON`` (started by :mod:`beacon_sim.filters.isolated`, never by hand).
+CONFIG_JSON`` with the grader's requests on stdin, its replies to stdout and its log on
+stderr (started by :mod:`beacon_sim.filters.isolated`, never by hand). It moves the two
+pipes to fresh descriptors and points stdout at the log before any student code runs, so
+nothing of the grader's process (its descriptor numbers) reaches it.
 
 It starts from a clean interpreter (no fork of the grader: nothing of the grader's memory,
 no truth, no other student's results), contains itself before any student code runs
@@ -7,8 +10,11 @@ no truth, no other student's results), contains itself before any student code r
 as root outside a sandbox), then serves requests over the pipe in lockstep
 (:mod:`beacon_sim.filters.wire`): it receives only what a filter may see (its
 ``FilterContext``, its initial belief, then each tick's control, dt and readings) and
-answers with estimates. The global ``random`` and ``np.random`` generators are seeded from
-the run's seed, and the end of a run reports whether the filter drew from them.
+answers with estimates. The global ``random`` and ``np.random`` generators are seeded with
+a number the grader derives from the run's key and the filter's name
+(:func:`~beacon_sim.core.streams.keyed_global_seed`), never with the run's seed, and the end
+of a run reports whether the filter drew from them. Nothing the child is given holds the
+run's seed (docs/grading.md, "What a filter can learn").
 """
 
 from __future__ import annotations
@@ -158,18 +164,21 @@ def _same_np(a: Any, b: Any) -> bool:
             and a["gauss"] == b["gauss"])
 
 
-class _Server:
-    """The requests of :mod:`beacon_sim.filters.isolated`, one at a time."""
+class Server:
+    """The requests of :mod:`beacon_sim.filters.isolated`, one at a time. Its replies go to
+    the pipe ``wfd``, or to ``sink`` (the same server in the grader's own process:
+    :class:`~beacon_sim.filters.feed.LocalChild`)."""
 
-    def __init__(self, wfd: int):
+    def __init__(self, wfd: int | None, sink: Any = None):
         self.wfd = wfd
+        self.sink = sink
         self.cls: type | None = None
         self.flt: Any = None
         self.limit: Any = None   # the run's CPU-time limit, armed from build to end
         self.limit_s: float | None = None
         self.rng_states: tuple[Any, Any] | None = None
         self.step_limit_s: float | None = None  # each request's CPU-time limit (check)
-        self.batch: _Batch | None = None
+        self.batch: Batch | None = None
         self.file: tuple[str, str | None] | None = None  # the student's file and class name
 
     def step_limited(self, fn: Any) -> Any:
@@ -187,6 +196,10 @@ class _Server:
     def send(self, frame: bytes) -> None:
         from beacon_sim.filters.wire import send_frame
 
+        if self.sink is not None:
+            self.sink(frame)
+            return
+        assert self.wfd is not None
         send_frame(self.wfd, frame)
 
     def fail(self, why: str, tb: str = "") -> None:
@@ -220,7 +233,11 @@ class _Server:
         else:
             module = import_file(Path(path), "student")
             self.cls = choose_filter(module, class_name, Path(path).name)
-            self.file = (path, class_name)
+            # kept as chosen, not as asked: "file.py:Class" (check) and "file.py" (grade)
+            # leave the same trace in the child when they choose the same class
+            chosen = self.cls.__qualname__
+            named = chosen == "functions" or getattr(module, chosen, None) is self.cls
+            self.file = (path, chosen if named else class_name)
         form = "functions" if self.cls.__qualname__ == "functions" else "class"
         missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
                    if not callable(getattr(self.cls, m, None))]
@@ -346,18 +363,32 @@ class _Server:
 
     # -- a batch: one filter per seed, one exchange per tick for all of them -------------
     def op_bbuild(self, builds: list[tuple[Any, Any, str]], global_seed: int,
-                  run_limit_s: float | None, follows: list[int | None] | None = None) -> None:
+                  run_limit_s: float | None) -> None:
         """Build one filter per run of the batch (``(ctx, initial, spec)`` each, as
         :meth:`op_build`), the global RNGs seeded once from ``global_seed``; each run has
-        its own CPU-time budget ``run_limit_s``; ``follows[k]``: the run whose failure ends
-        run k too (a probe of it), or None. Answers MULTI: OK or FAIL per run."""
+        its own CPU-time budget ``run_limit_s``. Answers MULTI: OK or FAIL per run. Nothing
+        says which run is scored and which is a probe (:mod:`beacon_sim.filters.feed`)."""
         self.end_limit()
         self.flt = None
         np_random_seed(global_seed)
         self.rng_states = (_np_state(), random.getstate())
         assert self.cls is not None
-        self.batch = _Batch(self.fresh_class, builds, run_limit_s, follows)
+        self.batch = Batch(self.fresh_class, builds, run_limit_s)
         self.send(self.batch.built)
+
+    def op_bfirst(self, slots: list[int]) -> None:
+        """The estimate after reset of the runs ``slots`` (each under its run's budget):
+        MULTI, per run an ESTIMATE (any arrays of the right shapes) or a FAIL entry saying
+        why there is none; the run goes on either way (``check`` judges it)."""
+        assert self.batch is not None
+        self.send(self.batch.firsts(slots))
+
+    def op_bbelief(self, slots: list[int]) -> None:
+        """``belief()`` of the runs ``slots`` at the end of the batch: MULTI, per run OK or a
+        FAIL entry saying what is wrong with it (it raised, or is not a belief); the runs
+        are over, so nothing is switched off (``check`` and ``grade`` report it)."""
+        assert self.batch is not None
+        self.send(self.batch.beliefs(slots))
 
     def fresh_class(self) -> type:
         """The filter class of a fresh copy of the student's file (imported again: its own
@@ -421,10 +452,15 @@ class _Server:
 
 
 def np_random_seed(seed: int) -> None:
-    """Seed the global generators (a global-RNG filter is reproducible)."""
+    """Seed the global generators with ``seed`` (any non-negative int; all of its low 128
+    bits count), so that a global-RNG filter is reproducible. The grader sends a number
+    derived from the run's key (:func:`~beacon_sim.core.streams.keyed_global_seed`), never
+    the run's seed."""
     import numpy as np
 
-    np.random.seed(seed % 2**32)  # noqa: NPY002 - a global-RNG filter is reproducible
+    seed = int(seed) % 2**128
+    words = [(seed >> (32 * k)) & 0xFFFFFFFF for k in range(4)]
+    np.random.seed(np.array(words, dtype=np.uint32))  # noqa: NPY002 - a global-RNG filter is reproducible
     random.seed(seed)
 
 
@@ -453,13 +489,13 @@ def joint_entry(f: Any, watch: Any, seconds: float | None) -> bytes:
     return encode_joint(*arrays)
 
 
-class _Batch:
-    """The filters of one batch of runs (one per seed), each from its own fresh copy of the
-    student's file (``fresh_class()``), with its own CPU-time budget, failure and cost; a
-    failed one is switched off and the others go on."""
+class Batch:
+    """The filters of one batch of runs (one per seed, and the probes: nothing here tells
+    them apart), each from its own fresh copy of the student's file (``fresh_class()``),
+    with its own CPU-time budget, failure and cost; a failed one is switched off and the
+    others go on. Also what :class:`~beacon_sim.filters.feed.LocalChild` runs in process."""
 
-    def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None,
-                 follows: list[int | None] | None = None):
+    def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None):
         from beacon_sim.filters.loading import build_from_context
         from beacon_sim.filters.watchdog import StepWatch
         from beacon_sim.filters.wire import OK, reply, reply_multi
@@ -470,16 +506,9 @@ class _Batch:
         self.watch = StepWatch(cpu=True)
         self.filters: list[Any] = []
         self.used = [0] * len(builds)  # CPU time of each run's filter code [ns]
-        self.follows = list(follows) if follows is not None else [None] * len(builds)
-        self.ended: set[int] = set()  # runs ended by the failure of the run they follow
         entries = []
-        for k, (ctx, initial, spec) in enumerate(builds):  # the import's and the build's own
-            leader = self.follows[k]  # limits, as alone; the run's budget counts the steps
-            if leader is not None and (leader >= k or self.filters[leader] is None):
-                self.filters.append(None)
-                entries.append(self._fail_text("the run it probes failed"))
-                continue
-            try:
+        for ctx, initial, spec in builds:  # the import's and the build's own limits, as
+            try:                           # alone; the run's budget counts the steps
                 flt = build_from_context(fresh_class(), ctx, initial, spec)
             except BaseException as exc:
                 self.filters.append(None)
@@ -490,13 +519,56 @@ class _Batch:
         self.built = reply_multi(entries)
 
     def switch_off(self, k: int) -> None:
-        """Run k failed: its filter is dropped, and so are the runs that follow it (its
-        probes), which answer FAIL the next time they are named, unstepped."""
+        """Run k failed: its filter is dropped."""
         self.filters[k] = None
-        for j, leader in enumerate(self.follows):
-            if leader == k and self.filters[j] is not None:
-                self.filters[j] = None
-                self.ended.add(j)
+
+    def _timed(self, k: int, fn: Any) -> Any:
+        """``fn()`` of run k's filter under what is left of its run's CPU-time budget,
+        charged to it (the estimate after reset, the final belief)."""
+        limit = self.limit_s
+        c0 = time.thread_time_ns()
+        try:
+            self.watch.seconds = None if limit is None else limit - self.used[k] / 1e9
+            with self.watch:
+                return fn()
+        finally:
+            self.used[k] += time.thread_time_ns() - c0
+
+    def firsts(self, slots: list[int]) -> bytes:
+        from beacon_sim.filters.guard import estimate_arrays
+        from beacon_sim.filters.wire import reply_estimate, reply_multi
+
+        entries = []
+        for k in slots:
+            f = self.filters[k] if 0 <= k < len(self.filters) else None
+            if f is None:
+                raise ValueError(f"the estimate after reset of run {k}, which is not going")
+            try:
+                est = estimate_arrays(self._timed(k, f.estimate))
+            except BaseException as exc:  # reported; the run goes on (its steps decide)
+                entries.append(self._fail(exc))
+                continue
+            entries.append(self._fail_text(est) if isinstance(est, str) else reply_estimate(0, None, est))
+        return reply_multi(entries)
+
+    def beliefs(self, slots: list[int]) -> bytes:
+        from beacon_sim.filters.base import GaussianBelief, GridBelief, ParticleBelief
+        from beacon_sim.filters.wire import OK, reply, reply_multi
+
+        entries = []
+        for k in slots:
+            f = self.filters[k] if 0 <= k < len(self.filters) else None
+            if f is None:
+                raise ValueError(f"the belief of run {k}, which is not going")
+            try:
+                b = self._timed(k, f.belief)
+            except BaseException as exc:
+                entries.append(self._fail(exc))
+                continue
+            entries.append(reply(OK) if isinstance(b, GaussianBelief | ParticleBelief | GridBelief) else
+                           self._fail_text(f"belief() returned {type(b).__name__}, expected a "
+                                           "GaussianBelief, ParticleBelief or GridBelief"))
+        return reply_multi(entries)
 
     def _fail(self, exc: BaseException, prefix: str = "") -> bytes:
         import traceback
@@ -532,10 +604,6 @@ class _Batch:
         entries = []
         for k, body in zip(slots, bodies, strict=True):
             f = self.filters[k] if 0 <= k < len(self.filters) else None
-            if k in self.ended:
-                self.ended.discard(k)
-                entries.append(self._fail_text("the run it probes failed"))
-                continue
             if f is None:
                 raise ValueError(f"a batch tick for run {k}, which is not going")
             _op, control, dt, measurements, want_prior = pickle.loads(body)
@@ -575,41 +643,61 @@ class _Batch:
 
 def main(argv: list[str]) -> int:
     """Serve the grader until it closes the pipe."""
-    rfd, wfd, cfg = int(argv[0]), int(argv[1]), json.loads(argv[2])
-    import traceback  # everything the child needs, before it may lose the right to read it
+    cfg = json.loads(argv[0])
+    rfd, wfd = os.dup(0), os.dup(1)  # the pipes, on descriptors of the child's own
+    os.dup2(2, 1)  # stdout to the log, as stderr; stdin from nothing
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.close(null)
+    import traceback  # noqa: F401 - everything the child needs, before it may lose the right to read it
 
     import beacon_sim.filters.guard
+    import beacon_sim.filters.host
     import beacon_sim.filters.loading
     import beacon_sim.filters.watchdog  # noqa: F401
-    from beacon_sim.filters.host import failure_of
     from beacon_sim.filters.wire import read_request
 
     _contain(cfg)
 
-    server = _Server(wfd)
+    server = Server(wfd)
     while True:
         req = read_request(rfd)
         if req is None:
             return 0
+        if not serve_one(server, req, cfg):
+            return 1
+
+
+def serve_one(server: Server, req: tuple[Any, ...], cfg: dict[str, Any]) -> bool:
+    """Handle one request; a failure of the filter's code (or its time) goes back as one
+    line. False when the answer could not be sent (the grader is gone)."""
+    import traceback
+
+    from beacon_sim.filters.host import failure_of
+
+    try:
+        server.handle(req)
+        return True
+    except BaseException as exc:  # the filter's code (or its time): one line to the grader
+        over = (f"time limit: over {server.limit_s:g} s of filter time in the run"
+                if server.limit_s is not None else None)
+        why = failure_of(exc, server.limit_s, over)
+        if why is None:
+            if server.sink is not None:  # in the grader's own process: the user's Ctrl-C
+                raise
+            why = f"{type(exc).__name__} raised by the filter"
+        if req[0] == "build":
+            why = "construction failed: " + why
+        elif req[0] == "load":
+            why = str(exc) if isinstance(exc, ValueError) else why
+            if cfg.get("drop_user") and ("ModuleNotFoundError" in why or "PermissionError" in why):
+                why += (" (as the user nobody, who cannot read this Python installation, only "
+                        "preloaded modules import: use --sandbox bwrap)")
         try:
-            server.handle(req)
-        except BaseException as exc:  # the filter's code (or its time): one line to the grader
-            over = (f"time limit: over {server.limit_s:g} s of filter time in the run"
-                    if server.limit_s is not None else None)
-            why = failure_of(exc, server.limit_s, over)
-            if why is None:
-                why = f"{type(exc).__name__} raised by the filter"
-            if req[0] == "build":
-                why = "construction failed: " + why
-            elif req[0] == "load":
-                why = str(exc) if isinstance(exc, ValueError) else why
-                if cfg.get("drop_user") and ("ModuleNotFoundError" in why or "PermissionError" in why):
-                    why += (" (as the user nobody, who cannot read this Python installation, only "
-                            "preloaded modules import: use --sandbox bwrap)")
-            try:
-                server.fail(why, traceback.format_exc())
-            except OSError:
-                return 1
+            server.fail(why, traceback.format_exc())
+        except OSError:
+            return False
+        return True
 
 
 if __name__ == "__main__":

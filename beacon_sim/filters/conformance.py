@@ -1,12 +1,22 @@
 """Conformance checks for any filter (docs/architecture.md), used by ``beacon-sim check``.
 
-The checks build the filter from a ``FilterContext``, feed it 100 steps of a scenario, and
-check: the interface, shapes, finite values, a symmetric positive semi-definite covariance,
-a heading in [-pi, pi), that an empty update is accepted, that two runs of the same steps
-give bit-identical estimates even when the global ``np.random`` is seeded differently, and
-that the filter draws nothing from the global ``np.random`` / ``random`` generators. Each
-check is judged on its own (one fault, one FAIL); the report ends with the cost per step
-beside the built-in ekf's.
+``check`` feeds a filter as ``grade`` does (issue 37: watched and scored look the same):
+the same batch protocol (:mod:`beacon_sim.filters.feed`: one run of a default grade's length
+on a fresh random seed, and the grade's probes, in an order drawn from a fresh random key),
+the same limits (a default grade's: its run's CPU-time budget, its child's memory and CPU
+backstop), the same random streams (keyed by a fresh secret, never the seed) and the same
+verdicts (the guard's rules and words, :mod:`beacon_sim.filters.guard`). A file is hosted in
+a child process of its own, started as a grade starts it; a built-in filter (or
+``--sandbox none``) is served in this process by the same code
+(:class:`~beacon_sim.filters.feed.LocalChild`).
+
+From what the filter returned the checks judge, each on its own (one fault, one FAIL): the
+interface, the construction, that every step returned, shapes, finite values (not diverged,
+and a covariance that leaves room for the error it had: a finite NEES), a symmetric positive
+semi-definite covariance, a heading in [-pi, pi), ``belief()``, that an update without
+readings is accepted, that the run fed again gives bit-identical estimates, and that the
+filter draws nothing from the global ``np.random`` / ``random`` generators; the report ends
+with the cost per step beside the built-in ekf's.
 
 Scenario: when the given scenario has no sensor the filter can use (a filter may say which
 kinds it uses in a ``sensor_kinds`` class attribute, e.g. the KF uses pose and position
@@ -17,48 +27,59 @@ so.
 from __future__ import annotations
 
 import math
-import random
+import pickle
+import secrets
 import tempfile
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.core.types import Step
-from beacon_sim.filters.base import (
-    Filter,
-    FilterContext,
-    FilterError,
-    GaussianBelief,
-    GridBelief,
-    ParticleBelief,
+from beacon_sim.core.streams import keyed_global_seed, keyed_stream, run_key
+from beacon_sim.filters.base import FilterContext, FilterError
+from beacon_sim.filters.containment import resolve_sandbox
+from beacon_sim.filters.feed import (
+    GRADE_RUN_S,
+    GRADE_SEEDS,
+    GRADE_TIME_LIMIT_S,
+    PROBE_TICKS,
+    Fed,
+    LocalChild,
+    ProbeFindings,
+    Slot,
+    feed_batch,
+    grade_limits,
+    judge_probes,
+    other_readings_seed,
+    probe_seed,
+    probe_slots,
+    reply_timeout,
+    slot_order,
+    step_frames,
 )
-from beacon_sim.filters.containment import Limits, resolve_sandbox
-from beacon_sim.filters.guard import MAX_COV, MAX_MEAN
-from beacon_sim.filters.host import call_guarded, guarded_call
+from beacon_sim.filters.guard import DIVERGED, MAX_COV, MAX_MEAN, NEES_NOT_FINITE
 from beacon_sim.filters.hosting import hosted_source
-from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
+from beacon_sim.filters.isolated import FilterChild
 from beacon_sim.filters.landmark_check import landmark_map_problems
 from beacon_sim.filters.loading import (
     FilterLoadError,
-    build_filter,
-    build_from_context,
     filter_display_name,
     initial_belief,
     load_filter_class,
     merged_params,
 )
-from beacon_sim.filters.watchdog import FilterFailed, one_line
+from beacon_sim.filters.watchdog import FilterFailed
+from beacon_sim.filters.wire import encode_request
 
-N_STEPS = 100
-SEED = 12345
-#: A step longer than this [s] is a fault ("runs"): a loop that never ends.
-STEP_LIMIT_S = 5.0
+#: How long check's run is [s] (a default grade's run; at most the scenario's length) and its
+#: CPU-time budget [s] (a default grade's time limit): over it, "runs" fails ("time limit").
+RUN_S = GRADE_RUN_S
+RUN_LIMIT_S = GRADE_TIME_LIMIT_S
 
 
 @dataclass(frozen=True)
@@ -72,7 +93,7 @@ class CheckResult:
 
 
 def _scenario_for(host: Any, scenario: Scenario) -> tuple[Scenario, str]:
-    kinds = getattr(host, "sensor_kinds", None)
+    kinds = host.info.get("sensor_kinds")
     if not kinds or any(s.kind in kinds for s in scenario.sensors):
         return scenario, ""
     from beacon_sim.core.resources import shipped_scenarios
@@ -83,16 +104,6 @@ def _scenario_for(host: Any, scenario: Scenario) -> tuple[Scenario, str]:
             return other, (f"scenario {scenario.name} has no {'/'.join(kinds)} sensor; "
                            f"checked on {other.name} instead")
     return scenario, f"no shipped scenario has a {'/'.join(kinds)} sensor"
-
-
-def _context(scenario: Scenario, spec: str) -> FilterContext:
-    from beacon_sim.core.streams import stream
-
-    name = filter_display_name(spec)
-    return FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known, dt=scenario.dt,
-                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                         params=merged_params(spec, scenario),
-                         rng=stream(SEED, "filter", name))
 
 
 def _estimate_problem(est: object) -> str | None:
@@ -113,137 +124,104 @@ def _estimate_problem(est: object) -> str | None:
 @dataclass
 class _Feed:
     """One pass of a filter over the steps: the estimates of the steps that returned,
-    the exception that stopped it (step number from 1, ``Type: message``), cost [ns]."""
+    the failure that stopped it (step number from 1, its one line), cost [ns]."""
 
     estimates: list[object]
     error: tuple[int, str] | None
     step_ns: int
 
 
-def _feed(flt: Filter, steps: Sequence[Step], limit_s: float) -> _Feed:
-    """Feed ``steps`` to ``flt`` (predict, update, estimate each), stopping at the first
-    exception or after ``limit_s`` seconds of CPU time in one step (an endless loop)."""
-    out: list[object] = []
-    ns = 0
-    for k, st in enumerate(steps, 1):
-        def one(st: Step = st) -> object:
-            flt.predict(st.control, st.dt)
-            flt.update(st.measurements)
-            return flt.estimate()
+class _Host:
+    """Where the checked filter runs: ``child``, a :class:`FilterChild` (a file or a module
+    filter, hosted as ``grade`` hosts one) or a :class:`LocalChild` (in this process)."""
 
-        t0 = time.perf_counter_ns()
-        est, why, _ = call_guarded(one, limit_s, cpu=True,
-                                   over=f"time limit: a step took over {limit_s:g} s")
-        if why is not None:
-            return _Feed(out, (k, why), ns)
-        own = getattr(flt, "last_step_ns", None)  # a filter in a child: its own cost there
-        ns += own if isinstance(own, int) else time.perf_counter_ns() - t0
-        out.append(est)
-    return _Feed(out, None, ns)
-
-
-class _LocalHost:
-    """The filter's class in this process (a built-in filter, or ``isolated=False``)."""
-
-    def __init__(self, cls: type):
-        self.cls = cls
-        self.where = f"{cls.__module__}.{cls.__name__}"
-        self.sensor_kinds = getattr(cls, "sensor_kinds", None)
-        self.missing = [m for m in ("reset", "predict", "update", "estimate", "belief")
-                        if not callable(getattr(cls, m, None))]
-
-    def make(self, scenario: Scenario, spec: str, global_seed: int | None = None) -> Filter:
-        """A fresh filter, built and reset (the global RNGs seeded first, when given)."""
-        if global_seed is not None:
-            np.random.seed(global_seed)  # noqa: NPY002 - the point of the check
-            random.seed(global_seed)
-        return build_from_context(self.cls, _context(scenario, spec), initial_belief(scenario), spec,
-                                  limit_s=STEP_LIMIT_S)
-
-    def drew_global(self) -> tuple[bool, bool] | None:
-        return None  # judged from this process's own generators
-
-    def close(self) -> None:
-        pass
-
-
-class _ChildHost:
-    """The filter in a child process of its own (a file): its code never runs here."""
-
-    def __init__(self, child: FilterChild, log: Path | None = None, source: Path | None = None):
+    def __init__(self, child: FilterChild, hosted: bool, log: Path | None = None):
         self.child = child
+        self.hosted = hosted
         self.log = log  # the child's stdout and stderr
-        self.source = source  # the filter's file (read, never run, here), when known
-        info = child.info
-        self.where = f"{info.get('module', '?')}.{child.class_name} (in a process of its own)"
-        self.sensor_kinds = info.get("sensor_kinds")
-        self.missing = list(info.get("missing") or [])
+        self.info = child.info
+        self.where = (f"{self.info.get('module', '?')}.{child.class_name}"
+                      + (" (in a process of its own)" if hosted else ""))
+        self.missing = list(self.info.get("missing") or [])
 
-    def make(self, scenario: Scenario, spec: str, global_seed: int | None = None) -> Filter:
-        return IsolatedFilter(self.child, _context(scenario, spec), initial_belief(scenario),
-                              0 if global_seed is None else global_seed, None, spec,
-                              step_limit_s=STEP_LIMIT_S, strict_map=False)  # the map check's
-
-    def drew_global(self) -> tuple[bool, bool] | None:
-        rep = self.child.end()
-        return bool(rep.get("np_global")), bool(rep.get("py_global"))
+    def context(self, scenario: Scenario, spec: str, key: bytes) -> FilterContext:
+        """The filter's context: named and parametrised as ``grade`` names a hosted filter
+        (its class) or as ``run`` names a built-in one, its generator keyed by ``key``."""
+        if self.hosted:
+            name = self.child.class_name
+            params = dict(scenario.filter_params.get(name, {}))
+        else:
+            name = filter_display_name(spec)
+            params = merged_params(spec, scenario)
+        return FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known,
+                             dt=scenario.dt, motion_noise=scenario.model_motion_noise,
+                             sensors=scenario.model_sensors, params=params, rng=keyed_stream(key, name))
 
     def close(self) -> None:
         self.child.close()
 
 
-_Host = _LocalHost | _ChildHost
-
-
-def _run(host: _Host, scenario: Scenario, spec: str, steps: Sequence[Step],
-         global_seed: int) -> _Feed:
-    """Build, reset and feed the steps with the global RNGs seeded."""
-    try:
-        flt = host.make(scenario, spec, global_seed)
-    except Exception as exc:
-        return _Feed([], (0, one_line(exc)), 0)
-    return _feed(flt, steps, STEP_LIMIT_S)
-
-
 def _open_host(spec: str, isolated: bool, sandbox: str) -> _Host:
-    """Where the checked filter runs: a file in a child process (``isolated``), else here.
-    Raises FilterError (the name is no filter: one line, exit status 2) or FilterFailed
-    (the file does not import)."""
-    where = hosted_source(spec) if isolated else None  # a file or a module filter
+    """Where the checked filter runs: a file or module filter in a child process
+    (``isolated``) started with a default grade's limits, else here. Raises FilterError (the
+    name is no filter: one line, exit status 2) or FilterFailed (the file does not import)."""
+    where = hosted_source(spec) if isolated else None
     if where is not None:
         path, cls = where
         if isinstance(path, Path) and not path.is_file():
             raise FilterLoadError(f"{path}: no such filter file")
         log = Path(tempfile.mkdtemp(prefix="beacon-sim-check-")) / "log.txt"
-        child = FilterChild(path, cls, log, resolve_sandbox(sandbox), Limits(),
-                            reply_timeout_s=max(60.0, 4 * STEP_LIMIT_S))
-        return _ChildHost(child, log, path if isinstance(path, Path) else path.origin())
-    return _LocalHost(load_filter_class(spec))
+        child = FilterChild(path, cls, log, resolve_sandbox(sandbox), grade_limits(),
+                            reply_timeout_s=reply_timeout(RUN_LIMIT_S))
+        return _Host(child, True, log)
+    return _Host(LocalChild(load_filter_class(spec)), False)
 
 
-def _same(a: object, b: object) -> bool:
-    """Bit-identical estimates (NaN equal to NaN: a NaN is the finite check's business)."""
-    try:
-        return all(np.array_equal(np.asarray(x, dtype=float), np.asarray(y, dtype=float),
-                                  equal_nan=True) for x, y in zip(a, b, strict=True))  # type: ignore[call-overload]
-    except (TypeError, ValueError):
-        return repr(a) == repr(b)
+@dataclass
+class _Run:
+    """A run check feeds: its key and seed, its steps' truth (T + 1, 3), the "step"
+    requests, whether each tick has readings; the probes' extra run (the first run only:
+    one more seed drawn from the key) and, for that extra run, its frames with the
+    readings drawn again."""
+
+    seed: int
+    key: bytes
+    truth: np.ndarray
+    frames: list[bytes]
+    has_readings: list[bool]
+    extra: _Run | None = None
+    redrawn: list[bytes] | None = None
 
 
-def _same_np_state(a: dict[str, Any], b: dict[str, Any]) -> bool:
-    """Whether two ``np.random.get_state(legacy=False)`` dicts (MT19937) are the same state."""
-    return (a["bit_generator"] == b["bit_generator"]
-            and np.array_equal(a["state"]["key"], b["state"]["key"])
-            and a["state"]["pos"] == b["state"]["pos"]
-            and a["has_gauss"] == b["has_gauss"] and a["gauss"] == b["gauss"])
+def _simulate(scenario: Scenario, seed: int, secret: bytes, ticks: int, probe: bool,
+              redraw: bool = False) -> _Run:
+    """Run ``seed`` of ``scenario`` for ``ticks`` ticks, its filter streams keyed by
+    ``secret`` (as ``grade``'s simulate_run); ``probe``: also the probes' extra run;
+    ``redraw``: also this run with its readings drawn again."""
+    key = run_key(seed, secret)
+    steps = Simulation(scenario, seed).run(ticks * scenario.dt)
+    truth = np.array([scenario.initial_pose] + [st.true_pose for st in steps], dtype=float)
+    run = _Run(seed, key, truth, step_frames(steps), [bool(st.measurements) for st in steps])
+    if redraw:
+        again = Simulation(scenario, seed, readings_seed=other_readings_seed(key)).run(ticks * scenario.dt)
+        run.redrawn = step_frames(again)
+    if probe:
+        run.extra = _simulate(scenario, probe_seed(key), secret, min(ticks, PROBE_TICKS), False, True)
+    return run
 
 
-def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
+def _value_problems(estimates: Sequence[object], truths: np.ndarray | None = None) -> dict[str, str]:
     """The first step (from 1) failing each value check, judged each on its own: shapes;
-    finite (well-shaped estimates); symmetric, positive semi-definite (of the symmetric
-    part, so a non-symmetric matrix is still judged) and heading wrapped (finite ones)."""
+    finite (well-shaped estimates: no NaN or infinity, not diverged by the guard's rule,
+    and, with the ``truths`` (T, 3) of the steps, a finite NEES); symmetric, positive
+    semi-definite (of the symmetric part, so a non-symmetric matrix is still judged) and
+    heading wrapped (finite ones). Nothing after the first estimate that is not finite is
+    judged: ``grade`` and ``run`` stop the filter there, and what a diverged filter returns
+    next (a covariance with rounding errors of 1e9) is no fault of its own."""
     problems: dict[str, str] = {}
     for k, est in enumerate(estimates, 1):
+        if "finite" in problems:
+            break
         p = _estimate_problem(est)
         if p:
             problems.setdefault("shapes", f"step {k}: {p}")
@@ -256,8 +234,7 @@ def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
             continue
         scale = max(float(np.max(np.abs(cov))), 1e-12)
         if scale > MAX_COV or float(np.max(np.abs(mean))) > MAX_MEAN:  # the guard's "diverged"
-            problems.setdefault("finite", f"step {k}: a mean beyond {MAX_MEAN:g} or a covariance "
-                                f"entry over {MAX_COV:g} (diverged)")
+            problems.setdefault("finite", f"step {k}: {DIVERGED}")
             continue
         asym = float(np.max(np.abs(cov - cov.T)))
         if asym > 1e-9 * scale:
@@ -270,6 +247,15 @@ def _value_problems(estimates: Sequence[object]) -> dict[str, str]:
             problems.setdefault("psd", f"step {k}: smallest eigenvalue {low:.3g}")
         if not -math.pi <= mean[2] < math.pi:
             problems.setdefault("heading", f"step {k}: theta = {mean[2]!r}")
+        if truths is not None and k <= len(truths) and "finite" not in problems:
+            err = pose_errors(mean, truths[k - 1])[0]
+            with np.errstate(all="ignore"):
+                try:
+                    value = float(err @ np.linalg.solve(cov, err))
+                except np.linalg.LinAlgError:
+                    value = math.inf
+            if not math.isfinite(value):
+                problems["finite"] = f"step {k}: {NEES_NOT_FINITE}"
     return problems
 
 
@@ -306,34 +292,37 @@ def check_interface(host: _Host) -> CheckResult:
                    "FilterBase to get belief() for free)")
 
 
-def check_constructs(fresh: Callable[[], Filter]) -> tuple[Filter | None, CheckResult]:
-    """Is the filter built from a FilterContext and reset? Returns it (None when not)."""
-    try:
-        flt = fresh()
-    except Exception as exc:
-        return None, _result("constructs", False, one_line(exc),
-                             "the class must take one argument, a FilterContext (call "
-                             "super().__init__(ctx) when subclassing FilterBase), and "
-                             "reset(initial) must accept a GaussianBelief or None")
-    return flt, _result("constructs", True, "built from a FilterContext and reset")
+def check_constructs(why: str | None) -> CheckResult:
+    """Was the filter built from a FilterContext and reset (``why``: why not)?"""
+    if why is not None:
+        return _result("constructs", False, why.removeprefix("construction failed: "),
+                       "the class must take one argument, a FilterContext (call "
+                       "super().__init__(ctx) when subclassing FilterBase), and "
+                       "reset(initial) must accept a GaussianBelief or None")
+    return _result("constructs", True, "built from a FilterContext and reset")
 
 
-def check_runs(run: _Feed, n_meas: int) -> CheckResult:
-    """Did every step (predict, update, estimate) return, within the time limit?"""
+def check_runs(run: _Feed, n_meas: int, note: str = "") -> CheckResult:
+    """Did every step (predict, update, estimate) return, within the run's time limit?"""
     if run.error is None:
-        return _result("runs", True, f"{N_STEPS} steps, {n_meas} readings")
-    return _result("runs", False, f"step {run.error[0]}: {run.error[1]}",
-                   "run `beacon-sim run SCENARIO --filter YOURS` to see the traceback; predict "
-                   "and update must accept the Control and the list of Measurement of every "
-                   "step, and a step must not loop for ever")
+        return _result("runs", True, f"{len(run.estimates)} steps, {n_meas} readings{note}")
+    return _result("runs", False, f"step {run.error[0]}: {run.error[1]}", RUNS_ADVICE)
 
 
-def estimate_problems(after_reset: list[object], estimates: Sequence[object]) -> dict[str, str]:
-    """The value problems of the estimate after reset (if any) and of the steps' estimates,
-    a shapes fault of the first one said to be "after reset" (see :func:`_value_problems`)."""
-    problems = _value_problems(after_reset + list(estimates))
-    if after_reset and "shapes" in problems and problems["shapes"].startswith("step 1:"):
-        problems["shapes"] = "after reset:" + problems["shapes"][len("step 1:"):]
+RUNS_ADVICE = ("run `beacon-sim run SCENARIO --filter YOURS` to see the traceback; predict and update "
+               "must accept the Control and the list of Measurement of every step, and a run must stay "
+               "within its time limit")
+
+
+def estimate_problems(after_reset: list[object], estimates: Sequence[object],
+                      truths: np.ndarray | None = None) -> dict[str, str]:
+    """The value problems of the estimate after reset (if any, said to be "after reset") and
+    of the steps' estimates (see :func:`_value_problems`; ``truths``: the steps' true poses,
+    for the NEES); the earlier one of each kind wins."""
+    problems = {k: "after reset:" + v.removeprefix("step 1:")
+                for k, v in _value_problems(after_reset).items()}
+    for k, v in _value_problems(estimates, truths).items():
+        problems.setdefault(k, v)
     return problems
 
 
@@ -346,11 +335,13 @@ def check_shapes(problems: dict[str, str]) -> CheckResult:
 
 
 def check_finite(problems: dict[str, str]) -> CheckResult:
-    """Is every estimate free of NaN and infinity, and not diverged?"""
+    """Is every estimate free of NaN and infinity, not diverged, and its covariance one that
+    leaves room for its error (a finite NEES)?"""
     return _result("finite", "finite" not in problems,
-                   problems.get("finite", "no NaN or infinity"),
-                   "look for a division by a zero range or weight sum, or a covariance that "
-                   "was not kept positive definite")
+                   problems.get("finite", "no NaN or infinity, not diverged, a finite NEES"),
+                   "look for a division by a zero range or weight sum, a covariance that was not "
+                   "kept positive definite, one that grows without bound, or one that rules out "
+                   "the error it has (a zero variance)")
 
 
 def check_covariance_symmetric(problems: dict[str, str]) -> CheckResult:
@@ -377,14 +368,19 @@ def check_heading_wrapped(problems: dict[str, str]) -> CheckResult:
                    "and wrap every angle residual with angles.diff")
 
 
-def check_belief(flt: Filter) -> CheckResult:
-    """Does ``belief()`` return one of the three belief types?"""
-    b, why, _ = guarded_call(flt.belief, STEP_LIMIT_S)
-    if why is not None:
-        return _result("belief", False, why, "belief() must not raise")
-    return _result("belief", isinstance(b, GaussianBelief | ParticleBelief | GridBelief),
-                   type(b).__name__,
-                   "belief() must return a GaussianBelief, ParticleBelief or GridBelief")
+def check_belief(why: str | None) -> CheckResult:
+    """Did ``belief()`` (asked at the end of the run) return one of the three belief types
+    (``why``: what was wrong; "not asked": the run failed before)?"""
+    if why == "not asked":
+        return _result("belief", True, "not judged: the filter failed before (see above)")
+    return _result("belief", why is None, why or "a GaussianBelief, ParticleBelief or GridBelief",
+                   "belief() must return a GaussianBelief, ParticleBelief or GridBelief and must "
+                   "not raise")
+
+
+LANDMARKS_ADVICE = ("landmarks() must return LandmarkMap(ids, means, covs): ids None or (M,) ints, "
+                    "means (M, 2) [m], covs (M, 2, 2) [m^2] symmetric positive semi-definite "
+                    "(filters/base.py, docs/slam.md)")
 
 
 def _slam_scenario(scenario: Scenario) -> tuple[Scenario, str]:
@@ -395,70 +391,30 @@ def _slam_scenario(scenario: Scenario) -> tuple[Scenario, str]:
     return load_scenario("slam_loop"), " (on slam_loop: the given scenario's map is known)"
 
 
-def check_landmarks(host: _Host, scenario: Scenario, spec: str) -> list[CheckResult]:
-    """For a SLAM filter (one with ``landmarks()``): after every one of the steps the map is
-    well formed (see :func:`landmark_map_problems`); the first step with a fault, one FAIL
-    naming every fault of that step. No result for a filter without ``landmarks()``. A filter
-    in a process of its own sends its map back with each step's estimate
-    (:class:`~beacon_sim.filters.isolated.IsolatedMappingFilter`), judged here the same way."""
-    if isinstance(host, _ChildHost):
-        if host.child.info.get("landmarks") is not True:
-            return []
-    elif not callable(getattr(host.cls, "landmarks", None)):
-        return []
-    used, note = _slam_scenario(scenario)
-    advice = ("landmarks() must return LandmarkMap(ids, means, covs): ids None or (M,) ints, "
-              "means (M, 2) [m], covs (M, 2, 2) [m^2] symmetric positive semi-definite "
-              "(filters/base.py, docs/slam.md)")
-    try:
-        flt = host.make(used, spec)
-    except Exception as exc:
-        return [_result("landmarks", False, f"not built on {used.name}: {one_line(exc)}", advice)]
-    n_max = 0
-    for k, st in enumerate(Simulation(used, SEED).run(N_STEPS * used.dt), 1):
-        def one(st: Step = st) -> object:
-            flt.predict(st.control, st.dt)
-            flt.update(st.measurements)
-            return flt.landmarks()  # type: ignore[attr-defined]
-
-        lm, why, _ = call_guarded(one, STEP_LIMIT_S, cpu=True,
-                                  over=f"time limit: a step took over {STEP_LIMIT_S:g} s")
-        if why is not None:
-            return [_result("landmarks", False, f"step {k}{note}: {why}", advice)]
-        faults = landmark_map_problems(lm)
-        if faults:
-            return [_result("landmarks", False, f"step {k}{note}: " + "; ".join(faults), advice)]
-        n_max = max(n_max, len(np.asarray(lm.means).reshape(-1, 2)))  # type: ignore[attr-defined]
-    return [_result("landmarks", True, f"ids, means (M, 2), covs (M, 2, 2) finite, symmetric, PSD "
-                    f"on every step{note}; up to {n_max} landmarks")]
+def check_landmarks(fed: Fed, k: int, note: str) -> CheckResult:
+    """Was the SLAM filter's map (slot k of ``fed``, judged on every step as ``grade`` judges
+    it) well formed? The first step with a fault, one FAIL naming it."""
+    why = fed.failed[k]
+    if why is not None and why.startswith("landmarks()"):
+        return _result("landmarks", False, f"step {int(fed.failed_at[k] or 0) + 1}{note}: {why}",
+                       LANDMARKS_ADVICE)
+    if why is not None and fed.done(k) == 0:
+        return _result("landmarks", False, f"not run{note}: {why}", LANDMARKS_ADVICE)
+    n = 0 if fed.maps[k] is None else len(fed.maps[k][1])
+    return _result("landmarks", True, f"ids, means (M, 2), covs (M, 2, 2) finite, symmetric, PSD "
+                   f"on every step{note}; up to {n} landmarks")
 
 
 @dataclass
 class _EmptyTrial:
-    """Two empty updates on a fresh filter: the estimates before and after, why the updates
-    failed (``Type: message``) and why the estimate after them failed, or None."""
+    """An update without readings on a fresh filter: the estimates before it (after
+    predict) and after it, why the step failed (``Type: message``) and why the estimate
+    after it failed, or None."""
 
     before: object
     after: object
     why: str | None
     why_after: str | None
-
-
-def _empty_trial(fresh: Callable[[], Filter]) -> _EmptyTrial:
-    """``update([])`` and ``update(())`` on a fresh filter right after reset."""
-    try:
-        ef = fresh()
-        before, _, _ = guarded_call(ef.estimate, STEP_LIMIT_S)
-
-        def empty() -> None:
-            ef.update([])
-            ef.update(())
-
-        _, why, _ = guarded_call(empty, STEP_LIMIT_S)
-        after, why_after, _ = guarded_call(ef.estimate, STEP_LIMIT_S)
-    except Exception as exc:
-        return _EmptyTrial(None, None, one_line(exc), None)
-    return _EmptyTrial(before, after, why, why_after)
 
 
 def check_empty_update(trial: _EmptyTrial) -> CheckResult:
@@ -479,77 +435,52 @@ def check_empty_update(trial: _EmptyTrial) -> CheckResult:
                    "changing the belief")
 
 
-def blame_one_fault(runs: CheckResult, empty: CheckResult, run: _Feed, trial: _EmptyTrial,
-                    steps: Sequence[Step],
-                    fresh: Callable[[], Filter]) -> tuple[CheckResult, CheckResult]:
-    """One fault seen twice ("runs" and "empty update" failing with the same error): blame
-    the empty update only if an update with readings works, else "runs" only. Returns the
-    two results, changed or not."""
-    if run.error is None or empty.passed or trial.why != run.error[1]:
-        return runs, empty
-    with_readings = next((st for st in steps if st.measurements), None)
+def _same(a: object, b: object) -> bool:
+    """Bit-identical estimates (NaN equal to NaN: a NaN is the finite check's business)."""
     try:
-        probe = fresh()
-        ok = with_readings is not None and _feed(probe, [with_readings], STEP_LIMIT_S).error is None
-    except Exception:
-        ok = False
-    if ok:
-        return CheckResult("runs", True, f"stopped at step {run.error[0]}, a step without "
-                           "readings: the empty update fault below"), empty
-    return runs, CheckResult("empty update", True, "not judged: update fails with readings too "
-                             "(see runs)")
+        return all(np.array_equal(np.asarray(x, dtype=float), np.asarray(y, dtype=float),
+                                  equal_nan=True) for x, y in zip(a, b, strict=True))  # type: ignore[call-overload]
+    except (TypeError, ValueError):
+        return repr(a) == repr(b)
 
 
 @dataclass
 class _RngTrial:
-    """Two runs of the same steps with the global RNGs seeded 1 and 2, and whether the first
-    drew from the global ``np.random`` / ``random`` generators."""
+    """The run and its copy fed again in the same batch (``run1``, ``run2``; ``others``: the
+    run with its readings drawn again and its copy), and whether the batch drew from the
+    global ``np.random`` / ``random`` generators."""
 
     run1: _Feed
     run2: _Feed
     drew_np: bool
     drew_py: bool
+    others: tuple[_Feed, _Feed] | None = None
+    #: The probes' own verdict (:func:`~beacon_sim.filters.feed.judge_probes`: which tick
+    #: was answered, and why each stopped), when there is one: it decides.
+    judged: ProbeFindings | None = None
 
 
-def _rng_trial(host: _Host, scenario: Scenario, spec: str, steps: Sequence[Step]) -> _RngTrial:
-    """Run twice with the global RNGs seeded differently; their states are restored after."""
-    state_np = np.random.get_state(legacy=False)  # noqa: NPY002
-    state_py = random.getstate()
-    try:
-        np.random.seed(1)  # noqa: NPY002
-        random.seed(1)
-        ref_np = np.random.get_state(legacy=False)  # noqa: NPY002
-        ref_py = random.getstate()
-        run1 = _run(host, scenario, spec, steps, 1)
-        now_np = np.random.get_state(legacy=False)  # noqa: NPY002
-        drew_np = not _same_np_state(now_np, ref_np)
-        drew_py = random.getstate() != ref_py
-        try:
-            child_drew = host.drew_global()
-        except FilterFailed:
-            child_drew = None
-        if child_drew is not None:
-            drew_np, drew_py = child_drew
-        run2 = _run(host, scenario, spec, steps, 2)
-    finally:
-        np.random.set_state(state_np)  # noqa: NPY002
-        random.setstate(state_py)
-    return _RngTrial(run1, run2, drew_np, drew_py)
+def _first_difference(run1: _Feed, run2: _Feed) -> int | None:
+    at = next((k for k, (a, b) in enumerate(zip(run1.estimates, run2.estimates, strict=False), 1)
+               if not _same(a, b)), None)
+    if at is None and (run1.error is None) != (run2.error is None):
+        at = min(len(run1.estimates), len(run2.estimates)) + 1
+    return at
 
 
 def check_determinism(trial: _RngTrial) -> CheckResult:
-    """Are the estimates bit-identical when only the global np.random seed changes?"""
-    run1, run2 = trial.run1, trial.run2
-    diff_at = next((k for k, (a, b) in enumerate(zip(run1.estimates, run2.estimates, strict=False), 1)
-                    if not _same(a, b)), None)
-    if diff_at is None and (run1.error is None) != (run2.error is None):
-        diff_at = min(len(run1.estimates), len(run2.estimates)) + 1
+    """Are the estimates bit-identical when the same run is fed again?"""
+    if trial.judged is not None and trial.judged.deterministic is not None:
+        diff_at = trial.judged.differs_at if not trial.judged.deterministic else None
+    else:
+        pairs = [(trial.run1, trial.run2)] + ([trial.others] if trial.others is not None else [])
+        diffs = [d for d in (_first_difference(a, b) for a, b in pairs) if d is not None]
+        diff_at = min(diffs) if diffs else None
     return _result("deterministic", diff_at is None,
-                   "same estimates bit for bit with the global RNG seeded 1 and 2" if diff_at is None
-                   else f"estimates differ from step {diff_at} when only the global np.random "
-                   "seed changes",
+                   "the same run fed again gives the same estimates bit for bit" if diff_at is None
+                   else f"estimates differ from step {diff_at} when the same run is fed again",
                    "draw random numbers only from ctx.rng (a numpy Generator), never from "
-                   "np.random.* or random.*")
+                   "np.random.* or random.*, and nothing from the clock, object ids or set order")
 
 
 def check_global_rng(trial: _RngTrial) -> CheckResult:
@@ -565,11 +496,28 @@ def check_global_rng(trial: _RngTrial) -> CheckResult:
                    "__init__)")
 
 
-def report_cost(run: _Feed, scenario: Scenario, steps: Sequence[Step]) -> CheckResult:
-    """The cost per step [us] beside the built-in ekf's on the same steps (not a check)."""
-    mine = run.step_ns / 1e3 / max(len(run.estimates), 1)
-    ref = _feed(build_filter("ekf", scenario, SEED), steps, STEP_LIMIT_S)
-    ekf_us = ref.step_ns / 1e3 / max(len(ref.estimates), 1)
+def report_cost(run: _Feed, scenario: Scenario, frames: Sequence[bytes],
+                mapping: bool = False) -> CheckResult:
+    """The cost per step [us] over ``run``'s steps beside the built-in ekf's on ``frames``
+    (the first run's steps; not a check). Not beside the ekf for a SLAM filter
+    (``mapping``) or on a scenario the ekf cannot read (a scan, an unknown map): a ratio of
+    different tasks."""
+    if not run.estimates:
+        return _result("cost", True, "no step ran: no cost to report")
+    from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+
+    mine = run.step_ns / 1e3 / len(run.estimates)
+    if mapping or not scenario.map_known or any(s.kind == "range_finder" for s in scenario.sensors):
+        return _result("cost", True, f"{mine:.1f} us per step (predict + update + estimate)")
+    n = len(frames)
+    ekf = LocalChild(ExtendedKalmanFilter)
+    key = run_key(0)
+    ctx = FilterContext("ekf", scenario.filter_world, scenario.dt, scenario.model_motion_noise,
+                        scenario.model_sensors, merged_params("ekf", scenario), keyed_stream(key, "ekf"),
+                        scenario.map_known)
+    ref = feed_batch(ekf, [Slot(ctx, initial_belief(scenario), frames, n, "ekf")], None,
+                     keyed_global_seed(key, "ekf"))
+    ekf_us = float(ref.walls[:, 0].sum()) / 1e3 / max(ref.done(0), 1)
     return _result("cost", True, f"{mine:.1f} us per step (predict + update + estimate); the "
                    f"built-in ekf: {ekf_us:.1f} us on the same steps "
                    f"({mine / max(ekf_us, 1e-9):.1f}x)")
@@ -577,25 +525,28 @@ def report_cost(run: _Feed, scenario: Scenario, steps: Sequence[Step]) -> CheckR
 
 def report_output(host: _Host) -> list[CheckResult]:
     """Where the filter's printed output went, if it printed anything (not a check)."""
-    log = getattr(host, "log", None)
+    log = host.log
     if log is not None and log.exists() and log.stat().st_size:
         return [_result("output", True, f"the filter printed {log.stat().st_size} bytes: see {log}")]
     return []
 
 
-def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True,
-               sandbox: str = "auto") -> list[CheckResult]:
+def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True, sandbox: str = "auto",
+               seeds: Sequence[int] | None = None) -> list[CheckResult]:
     """Run every check on the filter named ``spec`` with ``scenario``'s map and sensors.
 
-    A filter file runs in a child process of its own (``isolated``, the default; ``sandbox``
-    as for ``grade``): its code never runs in this process, and a filter that exits, loops
-    or raises ``KeyboardInterrupt`` fails a check instead of ending the program.
+    The filter is run as a default grade runs it (:data:`~beacon_sim.filters.feed.GRADE_SEEDS`
+    runs of :data:`RUN_S` seconds, fed together with the probes of the first): a file in a
+    child process of its own (``isolated``, the default; ``sandbox`` as for ``grade``),
+    started with a grade's limits; its code never runs in this process, and a filter that
+    exits, loops or raises ``KeyboardInterrupt`` fails a check instead of ending the
+    program. ``seeds``: the runs' seeds (default fresh random ones, as unknown to the filter
+    as a grade's; the report names them).
 
     Each check stands on its own, so one fault gives one FAIL: a filter that raises at step
     k fails "runs" and is judged by the other checks on the steps before k; a NaN fails
-    "finite" only (the determinism check counts NaN equal to NaN, the empty update check
-    only asks that an empty update neither raises nor spoils a usable estimate). The last
-    line is the cost per step beside the built-in ekf's on the same steps (not a check).
+    "finite" only (the determinism check counts NaN equal to NaN). The last line is the
+    cost per step beside the built-in ekf's on the same steps (not a check).
     """
     try:
         host = _open_host(spec, isolated, sandbox)
@@ -603,14 +554,50 @@ def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True,
         return [_loads_failed(exc)]
     results: list[CheckResult] = []
     try:
-        results += _checks(host, spec, scenario)
+        chosen = [secrets.randbelow(2**63) for _ in range(GRADE_SEEDS)] if seeds is None else list(seeds)
+        results += _checks(host, spec, scenario, [int(s) for s in chosen])
     finally:
         host.close()
         results += report_output(host)
     return results
 
 
-def _checks(host: _Host, spec: str, scenario: Scenario) -> list[CheckResult]:
+def _fed_feed(fed: Fed, k: int, ticks: int | None = None) -> _Feed:
+    """Slot k of ``fed`` as a :class:`_Feed` (its first ``ticks`` ticks)."""
+    n = fed.done(k) if ticks is None else min(fed.done(k), ticks)
+    est: list[object] = [(fed.store[i, k, 12:15].copy(), fed.store[i, k, 15:24].reshape(3, 3).copy())
+                         for i in range(n)]
+    err = None
+    if fed.failed[k] is not None and (ticks is None or int(fed.failed_at[k] or 0) < ticks):
+        err = (int(fed.failed_at[k] or 0) + 1, fed.failed[k] or "")
+    return _Feed(est, err, int(fed.walls[:n, k].sum()))
+
+
+def _judge_run(fed: Fed, k: int, run: _Run) -> tuple[_Feed, dict[str, str], str]:
+    """Run k of ``fed`` (simulated as ``run``) judged: its steps (with the failure that
+    ended it, unless that was an estimate's form, a "shapes" problem, or its map, the
+    "landmarks" check's), its value problems, and what to add to "runs"' message."""
+    feed = _fed_feed(fed, k)
+    first = fed.first[k]
+    after_reset: list[object] = [first] if isinstance(first, tuple) else []
+    problems = estimate_problems(after_reset, feed.estimates, run.truth[1:])
+    failure, note = feed.error, ""
+    if failure is not None and failure[1].startswith("landmarks()"):
+        feed = _Feed(feed.estimates, None, feed.step_ns)
+        note = f"; stopped at step {failure[0]} by its map: see landmarks"
+    elif failure is not None and failure[1].startswith(("estimate() returned", "after predict: estimate()")):
+        problems.setdefault("shapes", f"step {failure[0]}: {failure[1].removeprefix('after predict: ')}")
+        feed = _Feed(feed.estimates, None, feed.step_ns)  # every step returned: its form is "shapes"
+        note = f"; stopped at step {failure[0]}: see shapes"
+    return feed, problems, note
+
+
+def _in_run(r: int, run: _Run, text: str) -> str:
+    """``text`` said of run r (the first run's words are plain; the others name their run)."""
+    return text if r == 0 else f"run {r + 1} (seed {run.seed}), {text}"
+
+
+def _checks(host: _Host, spec: str, scenario: Scenario, seeds: Sequence[int]) -> list[CheckResult]:
     """The checks after the filter loaded, in order (see :func:`run_checks`); the list stops
     after "interface" or "constructs" when that one fails."""
     results = [check_loads(host)]
@@ -619,29 +606,130 @@ def _checks(host: _Host, spec: str, scenario: Scenario) -> list[CheckResult]:
     results.append(check_interface(host))
     if not results[-1].passed:
         return results
-
-    def fresh() -> Filter:
-        return host.make(scenario, spec)
-
-    flt, constructs = check_constructs(fresh)
-    results.append(constructs)
-    if flt is None:
+    secret = secrets.token_bytes(32)  # as a grade's: the filter's streams keyed afresh
+    ticks = round(RUN_S / scenario.dt)
+    sims = [_simulate(scenario, seed, secret, ticks, probe=r == 0) for r, seed in enumerate(seeds)]
+    R = len(sims)
+    ctxs = [host.context(scenario, spec, run.key) for run in sims]
+    name = ctxs[0].name
+    slots = [Slot(ctx, initial_belief(scenario), run.frames, ticks, name)
+             for ctx, run in zip(ctxs, sims, strict=True)]
+    probes: dict[str, int] = {}
+    ex = sims[0].extra
+    assert ex is not None and ex.redrawn is not None
+    extra = Slot(host.context(scenario, spec, ex.key), initial_belief(scenario), ex.frames, len(ex.frames),
+                 name)
+    for what, slot in probe_slots(0, slots[0], (extra, ex.redrawn), PROBE_TICKS):
+        probes[what] = len(slots)
+        slots.append(slot)
+    fed = feed_batch(host.child, slots, RUN_LIMIT_S, keyed_global_seed(sims[0].key, name),
+                     slot_order(sims[0].key, len(slots)))
+    unbuilt = next((r for r in range(R) if not fed.built[r]), None)
+    results.append(check_constructs(None if unbuilt is None else fed.failed[unbuilt]))
+    if unbuilt is not None:
         return results
-
-    steps = Simulation(scenario, SEED).run(N_STEPS * scenario.dt)
-    n_meas = sum(len(m) for s in steps for m in s.measurements)
-    est0, why0, _ = guarded_call(flt.estimate, STEP_LIMIT_S)
-    run = _feed(flt, steps, STEP_LIMIT_S)
-    runs = check_runs(run, n_meas)
-    problems = estimate_problems([] if why0 else [est0], run.estimates)
+    judged = [_judge_run(fed, r, run) for r, run in enumerate(sims)]
+    problems: dict[str, str] = {}
+    for r, (_, found, _) in enumerate(judged):
+        for key, text in found.items():
+            problems.setdefault(key, _in_run(r, sims[r], text))
+    failing = next((r for r in range(R) if judged[r][0].error is not None), None)
+    n_meas = sum(len(m) for r, run in enumerate(sims)
+                 for f in run.frames[:len(judged[r][0].estimates)] for m in pickle.loads(f[4:])[3])
+    if failing is None:
+        seeds_text = ", ".join(str(run.seed) for run in sims)
+        runs = _result("runs", True, f"{R} run{'s' if R > 1 else ''} of {ticks} steps, {n_meas} readings "
+                       f"(seed{'s' if R > 1 else ''} {seeds_text}){''.join(j[2] for j in judged)}")
+        empty = _result("empty update", True, "accepted on the "
+                        f"{sum(1 for run in sims for h in run.has_readings if not h)} ticks without readings")
+    else:
+        err = judged[failing][0].error
+        assert err is not None
+        runs = _result("runs", False, _in_run(failing, sims[failing], f"step {err[0]}: {err[1]}"),
+                       RUNS_ADVICE)
+        runs, empty = _empty_update(host, fed, failing, sims[failing], runs, slots[failing])
+    pf = judge_probes(fed, 0, probes, any(ex.has_readings))
+    for what, (why, at) in pf.failures.items():  # the probes are runs too: failing one fails "runs"
+        if runs.passed and empty.passed and what != "again":  # ("again": not deterministic)
+            runs = _result("runs", False, f"one more run (seed {ex.seed}), step {at + 1}: {why}", RUNS_ADVICE)
     values = [check_shapes(problems), check_finite(problems), check_covariance_symmetric(problems),
               check_covariance_psd(problems), check_heading_wrapped(problems)]
-    belief = check_belief(flt)  # on a filter that ran the steps it could
-    trial = _empty_trial(fresh)  # a fresh filter right after reset: no other fault shown yet
-    runs, empty = blame_one_fault(runs, check_empty_update(trial), run, trial, steps, fresh)
-    rng = _rng_trial(host, scenario, spec, steps)
-    return [*results, runs, *values, belief, *check_landmarks(host, scenario, spec), empty,
-            check_determinism(rng), check_global_rng(rng), report_cost(run, scenario, steps)]
+    if not any(j[0].estimates for j in judged) and not problems:  # nothing to judge: say so
+        values = [_result(v.name, True, "not judged: no step returned an estimate (see runs)")
+                  for v in values]
+    belief_fault = next((r for r in range(R) if fed.beliefs[r] not in (None, "not asked")), None)
+    belief = check_belief(fed.beliefs[0] if belief_fault is None
+                          else _in_run(belief_fault, sims[belief_fault], fed.beliefs[belief_fault] or ""))
+    landmarks = _landmarks(host, fed, scenario, spec, secret, seeds)
+    k_again = probes["again"]
+    horizon = fed.done(k_again) + (fed.failed[k_again] is not None)
+    again = _fed_feed(fed, probes["again"]) if "again" in probes else _Feed([], None, 0)
+    rng = _RngTrial(_fed_feed(fed, 0, horizon), again, bool(fed.report.get("np_global")),
+                    bool(fed.report.get("py_global")), None, pf)
+    readings = [] if pf.readings_used is not False else [_result(
+        "readings", True, "note: the estimates do not change when the readings are drawn again: the "
+        "filter uses none of them (grade says so too)")]
+    steps = [j[0] for j in judged]
+    cost = _Feed([e for f in steps for e in f.estimates], None, sum(f.step_ns for f in steps))
+    return [*results, runs, *values, belief, *landmarks, empty, check_determinism(rng),
+            check_global_rng(rng), *readings,
+            report_cost(cost, scenario, sims[0].frames, host.info.get("landmarks") is True)]
+
+
+def _empty_update(host: _Host, fed: Fed, r: int, run: _Run, runs: CheckResult,
+                  main: Slot) -> tuple[CheckResult, CheckResult]:
+    """The "empty update" check, and "runs" as it stands after it, for run r that failed.
+    Updates without readings happen on most ticks: when the run failed at one, a fresh
+    filter is fed that tick alone (its estimate after predict asked, so that the update is
+    judged alone) and, apart, a tick with readings: the empty update is to blame only if the
+    tick with readings works (then "runs" passes: one fault, one FAIL)."""
+    k = int(fed.failed_at[r] or 0)
+    if k >= len(run.frames) or run.has_readings[k]:
+        n = sum(1 for h in run.has_readings[:fed.done(r)] if not h)
+        return runs, _result("empty update", True, f"accepted on the {n} ticks without readings before")
+    _, control, dt, meas, _want = pickle.loads(run.frames[k][4:])
+    empty = encode_request("step", control, dt, tuple(meas), True)
+    with_readings = next((f for f, h in zip(run.frames, run.has_readings, strict=True) if h), None)
+    slots = [Slot(main.ctx, main.initial, [empty], 1, main.spec)]
+    if with_readings is not None:
+        slots.append(Slot(main.ctx, main.initial, [with_readings], 1, main.spec))
+    trial = feed_batch(host.child, slots, RUN_LIMIT_S, keyed_global_seed(run.key, main.spec))
+    if not trial.built[0]:
+        return runs, _result("empty update", True, "not judged: the filter failed before (see above)")
+    ok_with_readings = len(slots) > 1 and trial.failed[1] is None
+    if trial.failed[0] is not None:
+        if ok_with_readings:
+            return (CheckResult("runs", True, _in_run(r, run, f"stopped at step {k + 1}, a step without "
+                                                      "readings: the empty update fault below")),
+                    check_empty_update(_EmptyTrial(None, None, trial.failed[0], None)))
+        return runs, CheckResult("empty update", True, "not judged: update fails with readings too "
+                                 "(see runs)")
+    store = trial.store[0, 0]
+    before = (store[0:3].copy(), store[3:12].reshape(3, 3).copy())
+    after = (store[12:15].copy(), store[15:24].reshape(3, 3).copy())
+    return runs, check_empty_update(_EmptyTrial(before, after, None, None))
+
+
+def _landmarks(host: _Host, fed: Fed, scenario: Scenario, spec: str, secret: bytes,
+               seeds: Sequence[int]) -> list[CheckResult]:
+    """For a SLAM filter (one with ``landmarks()``): its map, judged on every step as ``grade``
+    judges it, on the scenario checked when its map is withheld (the first run's maps), else
+    on ``slam_loop`` (runs of their own, as a grade's second scenario). No result for a
+    filter without ``landmarks()``."""
+    if host.info.get("landmarks") is not True:
+        return []
+    used, note = _slam_scenario(scenario)
+    if not note:
+        return [check_landmarks(fed, 0, "")]
+    ticks = round(RUN_S / used.dt)
+    sims = [_simulate(used, seed, secret, ticks, probe=False) for seed in seeds]
+    ctxs = [host.context(used, spec, run.key) for run in sims]
+    own = feed_batch(host.child, [Slot(ctx, initial_belief(used), run.frames, ticks, ctx.name)
+                                  for ctx, run in zip(ctxs, sims, strict=True)],
+                     RUN_LIMIT_S, keyed_global_seed(sims[0].key, ctxs[0].name))
+    if not own.built[0]:
+        return [_result("landmarks", False, f"not built on {used.name}: {own.failed[0]}", LANDMARKS_ADVICE)]
+    return [check_landmarks(own, 0, note)]
 
 
 def print_report(spec: str, results: list[CheckResult]) -> None:
@@ -657,3 +745,6 @@ def print_report(spec: str, results: list[CheckResult]) -> None:
         for r in failed:
             print(f"  - {r.name}: {r.advice}")
     print(f"{len(results) - len(failed)} of {len(results)} checks passed")
+
+
+__all__ = ["CheckResult", "check_landmarks", "landmark_map_problems", "print_report", "run_checks"]

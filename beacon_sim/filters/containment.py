@@ -4,7 +4,8 @@ protects against").
 Two levels:
 
 - ``process``: a fresh interpreter (``python -s -B -m beacon_sim.filters.child``), an empty
-  temporary working directory, stdin closed, stdout and stderr to the student's log (cut at
+  temporary working directory, the pipes on stdin and stdout (moved by the child to fresh
+  descriptors, stdin then closed and stdout and stderr to the student's log, cut at
   ``log_bytes``), a scrubbed environment, its own session (so the whole group can be
   stopped), resource limits (address space, CPU seconds, file size, no core files) set by
   the child before any student code runs, and the user ``nobody`` when the grader is root.
@@ -244,8 +245,10 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
         "memory_bytes": int(limits.memory_gb * 2**30) if limits.memory_gb > 0 else 0,
         "cpu_s": int(limits.cpu_s) + 1 if limits.cpu_s else 0,
         "fsize_bytes": limits.fsize_bytes, "log_bytes": limits.log_bytes, "drop_user": drop}
-    child = [sys.executable, "-s", "-B", "-m", "beacon_sim.filters.child",
-             str(r_child), str(w_child), json.dumps(cfg)]
+    # The pipes are the child's stdin (requests) and stdout (replies), which it moves to
+    # fresh descriptors before any student code runs: its command line holds no descriptor
+    # numbers of the grader's (they told one grading process from another: issue 37).
+    child = [sys.executable, "-s", "-B", "-m", "beacon_sim.filters.child", json.dumps(cfg)]
     if sandbox == "bwrap":
         env = child_env(BOX_WORK, BOX_SRC if module else None)
         argv = [shutil.which("bwrap") or "bwrap", "--unshare-all", "--die-with-parent",
@@ -267,9 +270,8 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
     if module:
         source_in_child = MODULE_PREFIX + source.name
     try:
-        proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                cwd=str(work), env=popen_env, pass_fds=(r_child, w_child),
-                                start_new_session=True, close_fds=True)
+        proc = subprocess.Popen(argv, stdin=r_child, stdout=w_child, stderr=log,
+                                cwd=str(work), env=popen_env, start_new_session=True, close_fds=True)
     finally:
         os.close(r_child)
         os.close(w_child)

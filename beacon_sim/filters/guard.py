@@ -154,8 +154,18 @@ def validate_estimate(est: object, *, sole: bool = False, _f8: np.dtype = _F8,
     return _validate_any(est)
 
 
-_DIVERGED = (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over {MAX_COV:g} "
-             "(diverged)")
+#: The one line of a diverged estimate, in every front end (``run``, ``eval``, ``check``,
+#: ``grade``, the window): a mean beyond :data:`MAX_MEAN` or a covariance entry over
+#: :data:`MAX_COV`. The one divergence rule (issue 37): ``eval`` and ``grade`` used 1e100.
+DIVERGED = (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over {MAX_COV:g} "
+            "(diverged)")
+#: The one line of an estimate whose covariance rules out the error it had (its NEES
+#: ``e^T P^-1 e`` against the truth is infinite or NaN: a singular covariance with the error
+#: outside its range). Judged where the truth is (``run``, ``eval``, ``grade`` and ``check``
+#: score it, never the filter's process); such a filter is never "ok" (issue 37).
+NEES_NOT_FINITE = ("estimate() returned a covariance that leaves no room for the estimate's error "
+                   "(NEES not finite)")
+_DIVERGED = DIVERGED
 _NOT_PSD = "covariance is not positive semi-definite"
 
 
@@ -176,8 +186,7 @@ def _validate_any(est: object) -> tuple[np.ndarray, np.ndarray] | str:
     (a, b, d), (b2, e, f), (d2, f2, g) = c
     scale = max(abs(a), abs(b), abs(d), abs(b2), abs(e), abs(f), abs(d2), abs(f2), abs(g), 1e-12)
     if scale > MAX_COV or max(abs(m[0]), abs(m[1]), abs(m[2])) > MAX_MEAN:
-        return (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over "
-                f"{MAX_COV:g} (diverged)")
+        return DIVERGED
     if max(abs(b - b2), abs(d - d2), abs(f - f2)) > 1e-6 * scale:
         return "covariance is not symmetric"
     b, d, f = 0.5 * (b + b2), 0.5 * (d + d2), 0.5 * (f + f2)
@@ -256,5 +265,5 @@ def shape_text(mean: object, cov: object) -> str:
     return f"estimate() returned shapes {shape(mean)} and {shape(cov)}, expected (3,) and (3, 3)"
 
 
-__all__ = ["MAX_COV", "MAX_MEAN", "check_estimate", "estimate_arrays", "shape_text", "validate_belief",
-           "validate_estimate"]
+__all__ = ["DIVERGED", "MAX_COV", "MAX_MEAN", "NEES_NOT_FINITE", "check_estimate", "estimate_arrays",
+           "shape_text", "validate_belief", "validate_estimate"]

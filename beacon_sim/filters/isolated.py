@@ -15,6 +15,7 @@ as a :class:`~beacon_sim.filters.watchdog.FilterFailed` whose message is that re
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import os
 import shutil
@@ -267,20 +268,37 @@ class FilterChild:
         return why[:400]
 
     def batch_build(self, builds: list[tuple[FilterContext, GaussianBelief | None, str]],
-                    global_seed: int, run_limit_s: float | None,
-                    follows: list[int | None] | None = None) -> list[str | None]:
+                    global_seed: int, run_limit_s: float | None) -> list[str | None]:
         """Build one fresh filter per run of a batch (``(ctx, initial, spec)`` each), each with
         its own CPU-time budget ``run_limit_s`` [s], the global RNGs seeded once from
-        ``global_seed``: None per built filter, else why its construction failed.
-        ``follows[k]``: the run whose failure ends run k too (a probe), or None."""
+        ``global_seed`` (derived from the run's key, never its seed): None per built filter,
+        else why its construction failed. (:func:`~beacon_sim.filters.feed.feed_batch`
+        drives a batch.)"""
         if not 1 <= len(builds) <= MAX_BATCH:
             raise ValueError(f"a batch of {len(builds)} runs: expected 1 to {MAX_BATCH}")
-        builds = [(dataclasses.replace(ctx, world=dataclasses.replace(ctx.world)), initial, spec)
-                  for ctx, initial, spec in builds]
-        got = self.call_multi(encode_request("bbuild", builds, int(global_seed), run_limit_s, follows),
-                              len(builds))
+        # Each its own copy of the world (no cached properties: a read-only mapping cannot be
+        # pickled) and of its generator (runs built from one context must not share one).
+        builds = [(dataclasses.replace(ctx, world=dataclasses.replace(ctx.world), rng=copy.deepcopy(ctx.rng)),
+                   initial, spec) for ctx, initial, spec in builds]
+        got = self.call_multi(encode_request("bbuild", builds, int(global_seed), run_limit_s), len(builds))
         assert isinstance(got, list)  # OK and FAIL entries, never all ESTIMATE
         return [None if tag == OK else self.failure_text(payload) for tag, payload in got]
+
+    def _entries(self, op: str, slots: list[int]) -> list[tuple[bytes, bytes]]:
+        got = self.call_multi(encode_request(op, slots), len(slots))
+        if isinstance(got, np.ndarray):  # every entry an ESTIMATE, read as records
+            return [(ESTIMATE, e.tobytes()[5:]) for e in got]
+        return got
+
+    def batch_first(self, slots: list[int]) -> list[tuple[bytes, bytes]]:
+        """The estimate after reset of the runs ``slots`` of the batch: per run (ESTIMATE,
+        payload) or (FAIL, why there is none): the run goes on either way."""
+        return self._entries("bfirst", slots)
+
+    def batch_belief(self, slots: list[int]) -> list[tuple[bytes, bytes]]:
+        """``belief()`` of the runs ``slots`` at the end of the batch: per run (OK, b"") or
+        (FAIL, what is wrong with it)."""
+        return self._entries("bbelief", slots)
 
     def batch_step(self, slots: list[int], bodies: list[bytes]) -> list[tuple[bytes, bytes]] | np.ndarray:
         """One tick of the runs ``slots`` of the batch (their "step" requests' pickles, in

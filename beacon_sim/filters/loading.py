@@ -23,7 +23,7 @@ import numpy as np
 
 from beacon_sim.core.files import MAX_SOURCE_BYTES, check_user_file
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.streams import stream
+from beacon_sim.core.streams import filter_stream, keyed_global_seed, run_key
 from beacon_sim.filters.base import Filter, FilterContext, FilterError, GaussianBelief, broad_gaussian
 from beacon_sim.filters.param_ranges import check_params
 from beacon_sim.filters.registry import TARGETS
@@ -313,11 +313,15 @@ def merged_params(spec: str, scenario: Scenario, params: dict[str, Any] | None =
 
 
 def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = None,
-                 params: dict[str, Any] | None = None, *, limit_s: float = BUILD_LIMIT_S) -> Filter:
+                 params: dict[str, Any] | None = None, *, limit_s: float = BUILD_LIMIT_S,
+                 secret: bytes | None = None) -> Filter:
     """Construct and reset one filter for ``scenario``.
 
-    Its random generator comes from ``seed`` and its name only, so adding a filter never
-    changes another. Parameters: the scenario's ``[filters.NAME]`` then ``params``.
+    Its random generator comes from ``seed``, its name and ``secret`` only
+    (:func:`~beacon_sim.core.streams.filter_stream`; None: the public key, as ``run``,
+    ``eval`` and the window), so adding a filter never changes another, and the generator
+    does not hand the filter the seed. Parameters: the scenario's ``[filters.NAME]`` then
+    ``params``.
 
     The object is not checked against :class:`~beacon_sim.filters.base.Filter` here (a
     student's class is duck-typed): one that lacks a method is switched off by the
@@ -325,7 +329,7 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
     ``beacon-sim check`` names what is missing.
     """
     if spec.startswith(ISOLATED_PREFIX):  # a file hosted in a child process (grade's team runs)
-        return _build_isolated(spec, scenario, seed, name, params)
+        return _build_isolated(spec, scenario, seed, name, params, secret)
     cls = load_filter_class(spec)
     name = name or filter_display_name(spec)
     ctx = FilterContext(
@@ -336,7 +340,7 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
         motion_noise=scenario.model_motion_noise,
         sensors=scenario.model_sensors,
         params=merged_params(spec, scenario, params),
-        rng=stream(seed, "filter", name),
+        rng=filter_stream(seed, name, secret),
     )
     return build_from_context(cls, ctx, initial_belief(scenario), spec, limit_s=limit_s)
 
@@ -354,8 +358,9 @@ def isolated_spec(spec: str, sandbox: str, limit_s: float | None) -> str:
 
 
 def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
-                    params: dict[str, Any] | None) -> Filter:
-    """A proxy of the file filter in ``spec`` in a fresh child process, closed with the proxy."""
+                    params: dict[str, Any] | None, secret: bytes | None = None) -> Filter:
+    """A proxy of the file filter in ``spec`` in a fresh child process, closed with the proxy
+    (its stream and its global generators' seed derived from the run's key, never the seed)."""
     import tempfile
     import weakref
 
@@ -376,10 +381,11 @@ def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
     name = name or filter_display_name(inner)
     ctx = FilterContext(name=name, world=scenario.filter_world, dt=scenario.dt,
                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                        params=merged_params(inner, scenario, params), rng=stream(seed, "filter", name),
+                        params=merged_params(inner, scenario, params), rng=filter_stream(seed, name, secret),
                         map_known=scenario.map_known)
     try:
-        flt = IsolatedFilter(child, ctx, initial_belief(scenario), seed, limit_s, inner)
+        flt = IsolatedFilter(child, ctx, initial_belief(scenario),
+                             keyed_global_seed(run_key(seed, secret), name), limit_s, inner)
     except BaseException:
         child.close()
         raise
@@ -413,7 +419,8 @@ def build_from_context(cls: type, ctx: FilterContext, initial: GaussianBelief | 
 
 
 def build_filters(specs: list[str], scenario: Scenario, seed: int,
-                  params: dict[str, dict[str, Any]] | None = None, *, limit_s: float = BUILD_LIMIT_S
+                  params: dict[str, dict[str, Any]] | None = None, *, limit_s: float = BUILD_LIMIT_S,
+                  secret: bytes | None = None
                   ) -> tuple[dict[str, Filter | None], dict[str, tuple[str, str]]]:
     """Build every filter of a run, named by :func:`filter_names`: ``(name -> filter or None,
     name -> (why construction failed, traceback))``.
@@ -428,7 +435,7 @@ def build_filters(specs: list[str], scenario: Scenario, seed: int,
         try:
             built[name] = build_filter(spec, scenario, seed, name=name,
                                        params=(params or {}).get(filter_display_name(spec)),
-                                       limit_s=limit_s)
+                                       limit_s=limit_s, secret=secret)
         except FilterError:
             raise
         except Exception as exc:  # a student's __init__ or reset

@@ -41,7 +41,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.measurement_models import relative_bearing_scalar
-from beacon_sim.core.streams import stream
+from beacon_sim.core.streams import filter_stream
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS, relative_rows, teammate_position
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.types import Control, Measurement
@@ -112,7 +112,7 @@ def team_context(team: TeamScenario, name: str, params: Mapping[str, Any] | None
         ctx = FilterContext(name=f"{name}/{r.name}", world=team.world, dt=team.dt,
                             motion_noise=sc.model_motion_noise, sensors=sc.model_sensors,
                             params=dict(sc.filter_params.get("ekf", {})),
-                            rng=stream(seed, "filter", f"{name}/{r.id}"))
+                            rng=filter_stream(seed, f"{name}/{r.id}"))
         members.append(TeamMember(r.id, ctx, r.model_robot_sensors))
     return TeamContext(name, team.world, team.dt, tuple(members), dict(params or {}))
 

@@ -169,14 +169,15 @@ class TeamRunner:
     filter names); ``joint`` the JointRunner of the team filters. A copy of a single-robot
     filter that fails on one robot switches the filter off on every robot (a filter is
     scored on the whole team or not at all). ``step_limit_s``, ``run_limit_s``, ``keep`` and
-    ``cpu_limits`` are FilterRunner's; ``build_limit_s`` bounds each construction [s].
+    ``cpu_limits`` are FilterRunner's; ``build_limit_s`` bounds each construction [s];
+    ``secret`` keys the filters' random streams (None: the public key; ``grade``'s secret).
     """
 
     def __init__(self, team: TeamScenario, specs: Sequence[str], seed: int,
                  params: Mapping[str, Mapping[str, Any]] | None = None, *,
                  step_limit_s: float | None = None, run_limit_s: float | None = None,
                  keep: int | None = None, cpu_limits: bool = False,
-                 build_limit_s: float = BUILD_LIMIT_S):
+                 build_limit_s: float = BUILD_LIMIT_S, secret: bytes | None = None):
         self.team = team
         self.n_robots = team.n_robots
         settings: dict[str, dict[str, Any]] = {k: dict(v) for k, v in (params or {}).items()}
@@ -187,7 +188,7 @@ class TeamRunner:
         if team.solo:
             self.names = filter_names(specs)
             built, broken = build_filters(specs, team.robots[0].scenario, seed, settings,
-                                          limit_s=build_limit_s)
+                                          limit_s=build_limit_s, secret=secret)
             member_built[0] = dict(built)
         else:
             self.names = [team_filter_name(s) for s in specs]
@@ -205,7 +206,7 @@ class TeamRunner:
                     try:
                         member_built[i][name] = build_filter(
                             inner, r.scenario, seed, name=f"{name}/{r.id}", params=settings.get(name),
-                            limit_s=build_limit_s)
+                            limit_s=build_limit_s, secret=secret)
                     except FilterError:
                         raise
                     except Exception as exc:  # a student's __init__ or reset

@@ -30,6 +30,7 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario, as_team, team_of_one
 from beacon_sim.core.types import Step
+from beacon_sim.filters.guard import NEES_NOT_FINITE
 from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, FilterTrack, failure_text
 from beacon_sim.filters.team_runner import TeamRunner
 from beacon_sim.runs.progress import Progress
@@ -147,6 +148,31 @@ class RunResult:
         """Robot i's NEES per tick (3 dof) under filter ``name``."""
         means, covs, truths = self._estimates(name, i)
         return nees(pose_errors(means, truths), covs)
+
+    def fail_unbounded_nees(self) -> None:
+        """Switch off, after the run, every filter whose NEES against the truth is not finite
+        at some tick (a covariance that leaves no room for the error it had), from that tick,
+        with the one line ``eval``, ``check`` and ``grade`` give
+        (:data:`~beacon_sim.filters.guard.NEES_NOT_FINITE`): such a filter is never scored as
+        working (issue 37). A failure it had later is replaced by this earlier one."""
+        row = {s.tick: k for k, s in enumerate(self.team_steps)}
+        for name in self.names:
+            ticks, means, covs = self.filters.series(name)
+            if not len(ticks):
+                continue
+            truths = self.true_poses[[row[int(t)] for t in ticks]]
+            with np.errstate(all="ignore"):
+                values = [nees(pose_errors(means[:, i], truths[:, i]), covs[:, i])
+                          for i in range(self.n_robots)]
+            bad = [int(np.argmax(~np.isfinite(v))) for v in values if not np.isfinite(v).all()]
+            if not bad:
+                continue
+            k = min(bad)
+            tracks = ([m.tracks[name] for m in self.filters.members] if self.filters.is_member(name)
+                      else [self.filters.joint.tracks[name]])
+            for tr in tracks:
+                tr.failed, tr.traceback = NEES_NOT_FINITE, ""
+                tr.failed_time_s = self.team_steps[row[int(ticks[k])]].time
 
     def readings(self) -> list[dict[str, int]]:
         """Per robot: beacon readings and robot readings over the run."""
@@ -275,7 +301,7 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
                  seed: int | None = None, duration: float | None = None,
                  params: dict[str, dict[str, Any]] | None = None, progress: bool = False, *,
                  step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
-                 run_limit_s: float | None = None) -> RunResult:
+                 run_limit_s: float | None = None, secret: bytes | None = None) -> RunResult:
     """Simulate ``duration`` seconds (default: the scenario's) and feed every filter.
 
     ``filters``: for a single robot, filter specs (built-in names, ``pkg.mod:Class``,
@@ -284,13 +310,15 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
     ``default_filters``. ``params``: ``{filter name: {key: value}}``. ``step_limit_s`` [s]: a
     tick of a filter that takes longer stops it; ``run_limit_s`` [s]: so does its filter time
     in the run passing this (``eval --time-limit``). ``progress``: a progress bar on stderr
-    once the run has taken a second.
+    once the run has taken a second. ``secret``: the key of the filters' random streams
+    (None: the public key, reproducible from the seed alone; ``grade``'s secret).
     """
     team = as_team(scenario)
     seed = team.seed if seed is None else seed
     duration = team.duration if duration is None else duration
     specs = list(team.default_filters if filters is None else filters)
-    runner = TeamRunner(team, specs, seed, params, step_limit_s=step_limit_s, run_limit_s=run_limit_s)
+    runner = TeamRunner(team, specs, seed, params, step_limit_s=step_limit_s, run_limit_s=run_limit_s,
+                        secret=secret)
     joint = runner.joint.tracks
     sim = TeamSimulation(team, seed)
     n = round(duration / team.dt)
@@ -312,4 +340,6 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
         bar.advance()
     wall = time.perf_counter() - t0
     checksum = sim.sims[0].truth_checksum if team.solo else sim.truth_checksum
-    return RunResult(team, seed, steps, runner, wall, sim_ns / 1e9, checksum)
+    result = RunResult(team, seed, steps, runner, wall, sim_ns / 1e9, checksum)
+    result.fail_unbounded_nees()
+    return result

@@ -1,10 +1,10 @@
-"""Attack: write a forged answer straight onto the pipe to the grader (its descriptor is on
-the child's command line), here a malformed estimate frame. The grader must stop this
-child and fail this student only, never raise."""
+"""Attack: write a forged answer straight onto the pipe to the grader, here a malformed
+estimate frame. Its descriptor is not on the child's command line (issue 37 moved the pipes
+to descriptors of the child's own), so it writes to every pipe it holds (/proc/self/fd). The
+grader must stop this child and fail this student only, never raise."""
 
 import os
 import struct
-import sys
 
 from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
@@ -13,4 +13,9 @@ class Forger(ExtendedKalmanFilter):
     def update(self, measurements):
         super().update(measurements)
         if measurements:
-            os.write(int(sys.argv[2]), struct.pack("<cI", b"E", 5) + b"xxxxx")
+            for fd in os.listdir("/proc/self/fd"):
+                try:
+                    if os.readlink(f"/proc/self/fd/{fd}").startswith("pipe:"):
+                        os.write(int(fd), struct.pack("<cI", b"E", 5) + b"xxxxx")
+                except OSError:  # the read end, or gone
+                    pass
