@@ -26,3 +26,22 @@ def _no_recordings_in_the_checkout():
     yield
     new = sorted(p.name for p in _recordings_in_the_checkout() - before)
     assert not new, f"the test wrote into the checkout's recordings/: {new[:3]}"
+
+
+@pytest.fixture(scope="session")
+def mrclam_calibration():
+    """``leave_one_robot_out(data)`` (what ``run_mrclam``'s default ``calibration="others"``
+    computes: the other robots' noise, inflated by EKF runs over each of them, about 7 s of CPU
+    on Dataset 6), once per folder and robot in a session. The tests that score one robot's
+    run on Dataset 6 pass it as ``calibration=``, which gives the default's run bit for bit."""
+    from beacon_sim.runs.mrclam import leave_one_robot_out
+
+    cache = {}
+
+    def calibration(data):
+        key = (Path(data.folder).resolve(), data.robot)
+        if key not in cache:
+            cache[key] = leave_one_robot_out(data)
+        return cache[key]
+
+    return calibration

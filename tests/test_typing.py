@@ -19,9 +19,18 @@ def _mypy(args: list[str]) -> tuple[str, int]:
     return stdout + stderr, status
 
 
-def test_mypy_is_clean(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def mypy_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One mypy cache for the module's checks (under the session's temporary folder, nothing
+    written in the checkout): the second check reads the package and numpy from what the
+    first wrote instead of analysing them again. mypy checks each cached module against its
+    source, so a shared cache cannot hide an error."""
+    return tmp_path_factory.mktemp("mypy_cache")
+
+
+def test_mypy_is_clean(monkeypatch: pytest.MonkeyPatch, mypy_cache: Path) -> None:
     monkeypatch.chdir(ROOT)  # pyproject.toml's [tool.mypy] names the files, relative to here
-    report, status = _mypy(["--cache-dir", str(tmp_path / ".mypy_cache")])  # nothing written here
+    report, status = _mypy(["--cache-dir", str(mypy_cache)])
     assert status == 0, f"mypy found errors:\n{report}"
 
 
@@ -30,7 +39,7 @@ def test_package_is_marked_typed() -> None:
 
 
 def test_builtin_filters_and_the_template_implement_the_protocol(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, mypy_cache: Path) -> None:
     """Structural check: every built-in filter (the registry's records) and a freshly
     rendered template are a ``Filter`` for mypy (the runner only finds out at run time),
     and every batched form a record names is a ``BatchedFilter``."""
@@ -50,6 +59,6 @@ def test_builtin_filters_and_the_template_implement_the_protocol(
         encoding="utf-8")
     monkeypatch.chdir(tmp_path)
     report, status = _mypy(["--config-file", str(ROOT / "pyproject.toml"),
-                            "--cache-dir", str(tmp_path / ".mypy_cache"),
+                            "--cache-dir", str(mypy_cache),
                             "my_filter.py", "uses.py"])
     assert status == 0, f"mypy found errors:\n{report}"
