@@ -1,4 +1,5 @@
-"""Test-wide settings: pygame renders off-screen and makes no sound."""
+"""Test-wide settings: pygame renders off-screen and makes no sound; the ``slow`` tier (the
+real MRCLAM data set's whole runs, the largest Monte Carlo sets) runs only when asked for."""
 
 import os
 from pathlib import Path
@@ -8,6 +9,23 @@ import pytest
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--run-slow", action="store_true", default=False,
+                     help="also run the tests marked slow (CI does; README.md, 'Set up')")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Without ``--run-slow`` (and without a ``-m`` of one's own) the tests marked ``slow``
+    are deselected, so README's test command stays within minutes; ``-m slow`` runs that
+    tier alone, ``--run-slow`` everything."""
+    if config.getoption("--run-slow") or config.getoption("markexpr"):
+        return
+    slow = [item for item in items if item.get_closest_marker("slow")]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if not item.get_closest_marker("slow")]
 
 
 #: Where ``play`` records when run from the checkout: tests write only under tmp_path.

@@ -38,6 +38,8 @@ def _dataset6() -> Path | None:
 
 DATASET6 = _dataset6()
 needs_data = pytest.mark.skipif(DATASET6 is None, reason="MRCLAM Dataset6 not found (set BEACON_SIM_MRCLAM)")
+#: The real-data tests are the slow tier (README.md, "Set up": seconds each); CI runs them.
+slow = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
@@ -67,6 +69,7 @@ def test_default_slam_filters_and_which_are_blind():
     assert not map_withheld("ekf") and not map_withheld("pf") and not map_withheld("dead_reckoning")
 
 
+@slow
 @needs_data
 def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run):
     run = robot1_run
@@ -85,6 +88,7 @@ def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run):
     assert set(ids) <= {b.id for b in run.scenario.world.beacons}
 
 
+@slow
 @needs_data
 def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run):
     run = robot1_run
@@ -116,6 +120,7 @@ def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run):
     assert figs["ekf"]["ate_m"] < 0.4
 
 
+@slow
 @needs_data
 def test_hiding_the_map_changes_the_estimate_and_the_run_repeats(robot1_run):
     """Without --slam EKF-SLAM is given every landmark as an anchor: a localization filter,
@@ -130,6 +135,7 @@ def test_hiding_the_map_changes_the_estimate_and_the_run_repeats(robot1_run):
     assert not np.allclose(known.tracks["ekf_slam"].means, robot1_run.tracks["ekf_slam"].means)
 
 
+@slow
 @needs_data
 def test_slam_without_ids_runs_and_is_scored():
     d = load_mrclam(DATASET6, 1)
@@ -143,6 +149,7 @@ def test_slam_without_ids_runs_and_is_scored():
         assert r["map_missed"] + r["map_landmarks"] - r["map_false"] == 15
 
 
+@slow
 @needs_data
 def test_cli_json_carries_the_slam_figures(capsys):
     assert main(["mrclam", str(DATASET6), "--robot", "1", "--slam", "--headless", "--json",
