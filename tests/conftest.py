@@ -1,4 +1,6 @@
-"""Test-wide settings: pygame renders off-screen and makes no sound; the MRCLAM data set."""
+"""Test-wide settings: pygame renders off-screen and makes no sound; the MRCLAM data set;
+the ``slow`` tier (the real MRCLAM data set's whole runs, the largest Monte Carlo sets) runs
+only when asked for."""
 
 import os
 from pathlib import Path
@@ -10,6 +12,23 @@ from beacon_sim.io.mrclam import MRCLAM_DOC, MRCLAM_VARIABLE, MrclamError, find_
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--run-slow", action="store_true", default=False,
+                     help="also run the tests marked slow (CI does; README.md, 'Set up')")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Without ``--run-slow`` (and without a ``-m`` of one's own) the tests marked ``slow``
+    are deselected, so README's test command stays within minutes; ``-m slow`` runs that
+    tier alone, ``--run-slow`` everything."""
+    if config.getoption("--run-slow") or config.getoption("markexpr"):
+        return
+    slow = [item for item in items if item.get_closest_marker("slow")]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if not item.get_closest_marker("slow")]
 
 
 #: Where ``play`` records when run from the checkout: tests write only under tmp_path.
@@ -58,3 +77,22 @@ def mrclam_dataset6() -> Path:
     if DATASET6 is None:
         pytest.skip(_NO_DATASET6)
     return DATASET6
+
+
+@pytest.fixture(scope="session")
+def mrclam_calibration():
+    """``leave_one_robot_out(data)`` (what ``run_mrclam``'s default ``calibration="others"``
+    computes: the other robots' noise, inflated by EKF runs over each of them, about 7 s of CPU
+    on Dataset 6), once per folder and robot in a session. The tests that score one robot's
+    run on Dataset 6 pass it as ``calibration=``, which gives the default's run bit for bit."""
+    from beacon_sim.runs.mrclam import leave_one_robot_out
+
+    cache = {}
+
+    def calibration(data):
+        key = (Path(data.folder).resolve(), data.robot)
+        if key not in cache:
+            cache[key] = leave_one_robot_out(data)
+        return cache[key]
+
+    return calibration

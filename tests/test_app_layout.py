@@ -4,10 +4,12 @@ projector) every line of the panel fits inside it, and at 1600x1000 the text is 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
+import pygame
 import pytest
 
 from beacon_sim.app.hud import Hud
@@ -39,31 +41,52 @@ def panel_lines(size, monkeypatch):
     return app, drawn
 
 
+@dataclass(frozen=True)
+class Panel:
+    """What a window of one size drew in its panel after 12 s, kept once the window closed."""
+
+    rect: pygame.Rect
+    linesize: int
+    texts: list  # (text, rect) of every text drawn inside the panel
+
+
+@pytest.fixture(scope="module")
+def panel():
+    """``panel(size)``: the Panel of a window of that size, each size drawn once a module
+    (720 frames of drawing: the parametrized fit check and the growth check share them)."""
+    panels: dict[tuple[int, int], Panel] = {}
+
+    def get(size):
+        if size not in panels:
+            with pytest.MonkeyPatch.context() as mp:
+                app, drawn = panel_lines(size, mp)
+            try:
+                rect = app.panel_rect.copy()
+                panels[size] = Panel(rect, app.fonts["hud"].get_linesize(),
+                                     [(t, r) for t, r in drawn if r.left >= rect.left])
+            finally:
+                app.close()
+        return panels[size]
+
+    return get
+
+
 @pytest.mark.parametrize("size", [(1024, 768), (1280, 800), (1600, 1000)])
-def test_every_panel_line_fits_inside_the_panel(size, monkeypatch):
-    app, drawn = panel_lines(size, monkeypatch)
-    try:
-        panel = app.panel_rect
-        texts = [(t, r) for t, r in drawn if r.left >= panel.left]
-        assert len(texts) > 15
-        for text, r in texts:
-            assert r.right <= panel.right - 4 and r.bottom <= panel.bottom, (size, text, r)
-        # no two lines of the panel overlap
-        rects = [r for _, r in texts]
-        for i, a in enumerate(rects):
-            for b in rects[i + 1:]:
-                assert not a.colliderect(b), (size, a, b)
-    finally:
-        app.close()
+def test_every_panel_line_fits_inside_the_panel(size, panel):
+    p = panel(size)
+    texts = p.texts
+    assert len(texts) > 15
+    for text, r in texts:
+        assert r.right <= p.rect.right - 4 and r.bottom <= p.rect.bottom, (size, text, r)
+    # no two lines of the panel overlap
+    rects = [r for _, r in texts]
+    for i, a in enumerate(rects):
+        for b in rects[i + 1:]:
+            assert not a.colliderect(b), (size, a, b)
 
 
-def test_text_and_panel_grow_with_the_window(monkeypatch):
-    small, _ = panel_lines((1024, 768), monkeypatch)
-    big, _ = panel_lines((1600, 1000), monkeypatch)
-    try:
-        assert small.fonts["hud"].get_linesize() < big.fonts["hud"].get_linesize()
-        assert small.panel_rect.width < big.panel_rect.width
-        assert small.panel_rect.width <= 0.3 * 1024
-    finally:
-        small.close()
-        big.close()
+def test_text_and_panel_grow_with_the_window(panel):
+    small, big = panel((1024, 768)), panel((1600, 1000))
+    assert small.linesize < big.linesize
+    assert small.rect.width < big.rect.width
+    assert small.rect.width <= 0.3 * 1024

@@ -3,7 +3,6 @@ shows as dark red pixels (drawn in a dummy-video window, never shown)."""
 
 import numpy as np
 import pygame
-import pytest
 
 from beacon_sim.app import association_layer as layer
 from beacon_sim.app.assets import load_fonts
@@ -37,7 +36,6 @@ def dark_red_pixels(session: Session) -> int:
     return int(np.sum(np.all(px == np.array(layer.WRONG), axis=1)))
 
 
-@pytest.mark.slow
 def test_the_ekf_one_door_off_draws_wrong_lines_the_pf_at_the_end_does_not():
     ekf = Session(load_scenario("lookalike_beacons"), ["ekf"])
     ekf.toggle_autopilot()

@@ -229,7 +229,6 @@ def _close(a, b, path=""):
         assert a == b, path
 
 
-@pytest.mark.slow
 def test_eval_gives_the_same_table_with_and_without_batching(capsys):
     batched = _eval(capsys, "--jobs", "2")
     per_run = _eval(capsys, "--jobs", "1", "--no-batch")

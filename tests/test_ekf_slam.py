@@ -132,7 +132,6 @@ def _joint_anees(sc, runs, seed0=100):
     return out
 
 
-@pytest.mark.slow
 def test_joint_anees_is_in_its_band_over_seeded_monte_carlo_runs():
     """20 runs of 20 s on the benign ring: the average joint NEES (pose and every landmark)
     at 5, 10 and 20 s, against the chi-square band of the total degrees of freedom (99 %
@@ -142,7 +141,6 @@ def test_joint_anees_is_in_its_band_over_seeded_monte_carlo_runs():
         assert lo <= anees <= hi, f"t = {tick / 10:g} s: joint ANEES {anees:.3f} outside [{lo:.3f}, {hi:.3f}]"
 
 
-@pytest.mark.slow
 def test_joint_anees_catches_a_filter_told_too_little_noise():
     """The same check fails for EKF-SLAM told a third of the sensor's noise."""
     sc = ring_scenario(6, duration=10.0)
@@ -218,7 +216,6 @@ def test_triangulation_is_exact_and_its_jacobian_matches_finite_differences():
     assert triangulate(behind) is None
 
 
-@pytest.mark.slow
 def test_bearing_only_joint_anees_is_in_its_band():
     """Bearing-only EKF-SLAM with two anchors, 20 seeded runs of 20 s on the ring: the joint
     ANEES at 10 and 20 s inside the 99 % band (delayed initialisation keeps it honest)."""

@@ -119,7 +119,6 @@ def _wheel(tmp_path):
     return path
 
 
-@pytest.mark.slow
 def test_pip_installed_distribution_is_found_by_a_fresh_process(tmp_path):
     """pip installs a wheel into a separate folder; a new ``beacon-sim`` process sees it."""
     target = tmp_path / "site"

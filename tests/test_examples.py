@@ -109,7 +109,6 @@ def _monte_carlo(spec, scenario, runs, duration):
     return out
 
 
-@pytest.mark.slow
 def test_student_ekf_anees_is_inside_the_chi_square_band(scenario):
     """ANEES over 10 seeded 60-second runs of the default scenario lies in the 95 % band.
 

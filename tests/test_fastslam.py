@@ -64,7 +64,6 @@ def _map_error(flt, truth):
     return float(np.sqrt(np.mean(np.sum((lm.means - t) ** 2, axis=1))))
 
 
-@pytest.mark.slow
 def test_map_error_matches_ekf_slam_within_the_interval():
     """10 seeded runs of 6 s on the benign ring with known IDs: the mean map error (RMS over
     the landmarks) of FastSLAM 2.0 (200 particles) and of EKF-SLAM differ by less than

@@ -62,7 +62,6 @@ def _joint_anees(covariance: str, runs: int = 10):
     return sum(e for e, _ in vals) / total, total
 
 
-@pytest.mark.slow
 def test_the_linearised_covariance_is_honest_where_the_particles_are_overconfident():
     """10 seeded runs of 10 s on the benign ring, 50 particles, known IDs: the final joint
     ANEES (pose and all six landmarks, 15 dof a run) is inside the 99 % band with the

@@ -136,7 +136,6 @@ def correct_fraction(sc, association: str, seed: int, clutter: float = 0.5,
     return good / total
 
 
-@pytest.mark.slow
 def test_jcbb_associates_look_alike_beacons_with_clutter_at_least_as_well_as_ml():
     """Two seeded 6 s runs on five look-alike pairs with clutter (0.5 false readings a tick):
     per-particle JCBB's share of right associations is at least ML's, run by run. (Over 10 s

@@ -64,7 +64,6 @@ def _anees(sc, specs):
     return {k: float(np.mean(v)) for k, v in values.items()}
 
 
-@pytest.mark.slow
 def test_anees_of_kf_ekf_ukf_inside_the_95_percent_band():
     """For an honest filter n * ANEES is chi-square with 3 n degrees of freedom (n = 200).
 
@@ -176,7 +175,6 @@ def _position_errors(result):
     return out
 
 
-@pytest.mark.slow
 def test_seed_000_kidnap_ekf_and_ukf_reconverge():
     """Kidnap (+1 m, +0.5 m, -pi/2) at 30 s, seed 0. Told the truth's noise, both filters
     recover the heading within 15 s and their position error shrinks, but slowly (the

@@ -51,7 +51,6 @@ def test_the_scenario_is_the_issues_harder_one():
     assert [e.random for e in sc.events] == [True, True]
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("filter_name", ["pf", "histogram"])
 def test_recovers_from_a_random_kidnap_within_15_s_in_90_percent_of_20_trials(filter_name):
     times = [recovery_after_a_random_kidnap(filter_name, 1000 + i) for i in range(TRIALS)]

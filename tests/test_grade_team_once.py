@@ -50,7 +50,6 @@ def test_the_team_simulated_once_is_the_headless_runs_truth():
     assert len(ts.robots) == team.n_robots and all(len(r.frames) == 120 for r in ts.robots)
 
 
-@pytest.mark.slow
 def test_team_runs_streamed_once_equal_the_per_student_path_bit_for_bit(tmp_path):
     klass = tmp_path / "class"
     klass.mkdir()
@@ -73,7 +72,6 @@ def test_team_runs_streamed_once_equal_the_per_student_path_bit_for_bit(tmp_path
         assert all("ValueError: my update broke" in f["reason"] for f in r["failures"]), r["failures"]
 
 
-@pytest.mark.slow
 def test_team_runs_streamed_once_on_dask_equal_local_processes(tmp_path):
     """The team runs go to every Dask worker once (scattered with the single-robot runs)."""
     distributed = pytest.importorskip("dask.distributed", reason="the grade extra (Dask) is not installed")

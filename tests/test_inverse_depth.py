@@ -156,7 +156,6 @@ def _monte_carlo(init: str, runs: int):
     return ticks, np.array(errs), mapped
 
 
-@pytest.mark.slow
 def test_inverse_depth_is_consistent_and_maps_as_well_as_delayed_initialisation():
     """10 seeded runs of slam_bearing_only (40 s, 5 beacons to map, 2 anchors): with inverse
     depth the joint ANEES (pose and the landmarks converted to Euclidean) at 10, 20 and 40 s

@@ -231,7 +231,6 @@ def test_corridor_global_localization_converges_to_the_true_cell():
     assert checked == 4
 
 
-@pytest.mark.slow
 def test_the_symmetric_room_keeps_two_clouds_until_the_partition_is_seen():
     """Started lost in a room that looks the same turned half a turn about its centre (4, 2),
     on the scenario's seed (7): from 7.5 s (the clouds formed) until the partition is seen
@@ -244,7 +243,6 @@ def test_the_symmetric_room_keeps_two_clouds_until_the_partition_is_seen():
     assert r["final"] > 0.95 and r["final_mirror"] < 0.02, r
 
 
-@pytest.mark.slow
 def test_check_takes_a_scan_based_filter_on_a_map_scenario(capsys):
     """``beacon-sim check mcl --scenario corridor``: every conformance check passes."""
     from beacon_sim.cli.main import main

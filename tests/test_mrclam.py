@@ -317,11 +317,13 @@ def test_one_home_finds_the_data_set(tmp_path, folder, monkeypatch, capsys):
 
 
 @pytest.mark.slow
-def test_dataset6_robot1_ekf_and_ukf_bounded(mrclam_dataset6):
+def test_dataset6_robot1_ekf_and_ukf_bounded(mrclam_dataset6, mrclam_calibration):
     """First 300 s of robot 1 with the default MRCLAM settings: EKF and UKF beat odometry
     alone by more than 2x, stay within 0.3 m and agree (seed 001 found its EKF 100x worse)."""
     d = load_mrclam(mrclam_dataset6, 1)
-    res = run_mrclam(d, ["ekf", "ukf", "dead_reckoning"], duration=300.0).evaluate()
+    cal = mrclam_calibration(d)  # the default's, computed once a session
+    assert "not on the scored run" in cal.source and cal.inflation > 1.0
+    res = run_mrclam(d, ["ekf", "ukf", "dead_reckoning"], duration=300.0, calibration=cal).evaluate()
     for name in ("ekf", "ukf"):
         assert res[name]["pos_rmse_m"] < 0.3, res[name]
         assert res[name]["heading_rmse_rad"] < 0.25, res[name]
@@ -330,11 +332,13 @@ def test_dataset6_robot1_ekf_and_ukf_bounded(mrclam_dataset6):
 
 
 @pytest.mark.slow
-def test_dataset6_robot3_stays_under_0_3_m_and_honest(mrclam_dataset6):
+def test_dataset6_robot3_stays_under_0_3_m_and_honest(mrclam_dataset6, mrclam_calibration):
     """Robot 3, the whole run: its few bearings off by pi dragged the ungated EKF to 0.71 m
     (ANEES 3251). Calibrated noise and the gate: measured EKF 0.159 m, ANEES 4.4."""
     d = load_mrclam(mrclam_dataset6, 3)
-    run = run_mrclam(d, ["ekf"])
+    cal = mrclam_calibration(d)  # the default's, computed once a session
+    assert "not on the scored run" in cal.source and cal.inflation > 1.0
+    run = run_mrclam(d, ["ekf"], calibration=cal)
     res = run.evaluate()["ekf"]
     assert res["pos_rmse_m"] < 0.3, res
     assert 1.5 < res["anees"] < 6.0, res
@@ -342,11 +346,12 @@ def test_dataset6_robot3_stays_under_0_3_m_and_honest(mrclam_dataset6):
 
 
 @pytest.mark.slow
-def test_dataset6_robot3_particle_filter_does_not_jump(mrclam_dataset6):
+def test_dataset6_robot3_particle_filter_does_not_jump(mrclam_dataset6, mrclam_calibration):
     """The particle filter on the first 200 s of robot 3: no jump of its estimate beyond 1 m
     (it jumped by metres with augmented-MCL injection and overconfident noise)."""
     d = load_mrclam(mrclam_dataset6, 3)
-    run = run_mrclam(d, ["pf"], duration=200.0, params={"pf": {"n_particles": 1000}})
+    run = run_mrclam(d, ["pf"], duration=200.0, params={"pf": {"n_particles": 1000}},
+                     calibration=mrclam_calibration(d))  # the default's, computed once a session
     m = np.array(run.tracks["pf"].means)
     assert np.max(np.hypot(*np.diff(m[:, :2], axis=0).T)) < 1.0
     assert run.evaluate()["pf"]["pos_rmse_m"] < 0.3

@@ -25,6 +25,10 @@ from tests.test_mrclam import make_folder
 WINDOW_S = 120.0
 
 
+#: The real-data tests are the slow tier (README.md, "Set up": seconds each); CI runs them.
+slow = pytest.mark.slow
+
+
 @pytest.fixture(scope="module")
 def robot1_run(mrclam_dataset6):
     """Robot 1's first two minutes, --slam, the default filters, noise pooled from the other
@@ -52,6 +56,7 @@ def test_default_slam_filters_and_which_are_blind():
     assert not map_withheld("ekf") and not map_withheld("pf") and not map_withheld("dead_reckoning")
 
 
+@slow
 def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run, mrclam_dataset6):
     run = robot1_run
     assert run.slam and list(run.tracks) == list(SLAM_MRCLAM_FILTERS)
@@ -69,6 +74,7 @@ def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run, mrcl
     assert set(ids) <= {b.id for b in run.scenario.world.beacons}
 
 
+@slow
 def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run, mrclam_dataset6):
     run = robot1_run
     figs = mrclam_slam_figures(run)
@@ -99,6 +105,7 @@ def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run, mrclam_dat
     assert figs["ekf"]["ate_m"] < 0.4
 
 
+@slow
 def test_hiding_the_map_changes_the_estimate_and_the_run_repeats(robot1_run, mrclam_dataset6):
     """Without --slam EKF-SLAM is given every landmark as an anchor: a localization filter,
     with another path; the --slam run is the same bit for bit when repeated."""
@@ -112,6 +119,7 @@ def test_hiding_the_map_changes_the_estimate_and_the_run_repeats(robot1_run, mrc
     assert not np.allclose(known.tracks["ekf_slam"].means, robot1_run.tracks["ekf_slam"].means)
 
 
+@slow
 def test_slam_without_ids_runs_and_is_scored(mrclam_dataset6):
     d = load_mrclam(mrclam_dataset6, 1)
     run = run_mrclam(d, ["ekf_slam", "fastslam"], duration=60.0, calibration="pooled", slam=True,
@@ -124,6 +132,7 @@ def test_slam_without_ids_runs_and_is_scored(mrclam_dataset6):
         assert r["map_missed"] + r["map_landmarks"] - r["map_false"] == 15
 
 
+@slow
 def test_cli_json_carries_the_slam_figures(capsys, mrclam_dataset6):
     assert main(["mrclam", str(mrclam_dataset6), "--robot", "1", "--slam", "--headless", "--json",
                  "--duration", "30", "--calibration", "pooled", "--filter", "ekf_slam",

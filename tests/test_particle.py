@@ -211,7 +211,6 @@ def _kidnap_trials(augmented, trials=20):
     return recovered
 
 
-@pytest.mark.slow
 def test_kidnap_recovery_needs_augmented_mcl():
     with_recovery = _kidnap_trials(True)
     without = _kidnap_trials(False)
@@ -219,7 +218,6 @@ def test_kidnap_recovery_needs_augmented_mcl():
     assert without <= 10, without
 
 
-@pytest.mark.slow
 def test_tracking_anees_in_the_chi_square_band():
     base = load_scenario("sparse_kidnap")
     sc = base.with_changes(events=(), initial_belief=InitialBelief(
@@ -296,7 +294,6 @@ def test_progressive_correction_keeps_a_sharp_update_represented(seed):
     assert np.all((ratio > 0.85) & (ratio < 1.25)), ratio   # and the right posterior spread
 
 
-@pytest.mark.slow
 def test_consistent_on_assignment_kf():
     """assignment_kf (noisy motion, a blind stretch, a 2 cm pose fix) with the scenario's
     [filters.pf] settings: ANEES over whole runs in the band for the number of runs, and no

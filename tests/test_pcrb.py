@@ -145,7 +145,6 @@ def test_beacon_information_matches_finite_difference_fisher_information(kind):
     np.testing.assert_allclose(got, expected, rtol=1e-6)
 
 
-@pytest.mark.slow
 def test_bound_lies_below_the_ekf_mse_on_bearing_only_tracking():
     """Seed 000's bearing-only problem before its kidnap: strongly nonlinear; the EKF's
     position and heading MSE over 24 runs stay above the bound."""

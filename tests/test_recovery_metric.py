@@ -75,7 +75,6 @@ def test_recovery_time_does_not_depend_on_the_length_of_the_run(seed):
     assert short == long
 
 
-@pytest.mark.slow
 def test_recovery_time_on_krejsa_is_the_same_for_60_s_and_120_s_runs():
     """Seed 000's kidnap at 30 s: each run's recovery (hold 5 s) is the same number whether
     the run lasts 60 s or 120 s whenever the 60 s run saw it, and so is the reported median

@@ -155,7 +155,6 @@ def test_gate_drops_an_outlier_and_equals_the_update_without_it():
     assert err(plain) > 10 * err(gated)
 
 
-@pytest.mark.slow
 def test_ukf_converges_from_a_room_wide_belief_like_the_ekf():
     """An off-centre global start on `default` (20 seeds, 30 s): with the default sigma
     points the heading points landed on mean +- pi and the UKF converged in 11/20 (EKF 20/20).
