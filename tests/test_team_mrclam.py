@@ -49,6 +49,7 @@ def test_dataset6_sightings_match_the_ground_truth_of_both_robots(mrclam_dataset
         assert np.median(np.abs(errs)) < 0.1, (r, np.median(np.abs(errs)))  # right subjects
 
 
+@pytest.mark.slow  # a Dataset 6 run of all five robots, about 11 s of CPU
 def test_cli_mrclam_team_runs_all_five_robots(capsys, mrclam_dataset6):
     assert main(["mrclam", str(mrclam_dataset6), "--team", "--duration", "60", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
