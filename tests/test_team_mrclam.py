@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.team_models import relative_range_bearing
