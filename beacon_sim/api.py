@@ -48,8 +48,8 @@ from beacon_sim.filters.base import (
     GridBelief,
     ParticleBelief,
 )
-from beacon_sim.filters.loading import FilterLoadError, check_param_names
-from beacon_sim.filters.team_specs import check_team_specs
+from beacon_sim.hosting.loading import FilterLoadError, check_param_names
+from beacon_sim.hosting.team_specs import check_team_specs
 from beacon_sim.io.export import filter_arrays, load_export, step_arrays, trace_arrays, write_export
 from beacon_sim.io.mrclam import MrclamError
 from beacon_sim.io.recording import Recording, RecordingError, load_recording

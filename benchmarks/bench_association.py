@@ -117,7 +117,7 @@ def filters_cost(repeat: int) -> None:
     from beacon_sim.core.scenario import load_scenario
     from beacon_sim.core.simulation import Simulation
     from beacon_sim.evaluation.association_metrics import with_known_correspondence
-    from beacon_sim.filters.loading import build_filter
+    from beacon_sim.hosting.loading import build_filter
 
     sc = load_scenario("lookalike_beacons")
     runs = {}

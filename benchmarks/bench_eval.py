@@ -29,7 +29,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.montecarlo import default_jobs, run_monte_carlo
 from beacon_sim.filters.gaussian.measurements import SlotPacker, nis
-from beacon_sim.filters.loading import available_filters, build_filter
+from beacon_sim.hosting.loading import available_filters, build_filter
 
 TARGET_S = 5.0
 

@@ -27,7 +27,7 @@ from figures import figure
 
 from beacon_sim.app.main import SCRIPTED_FRAME_S, App
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.filters.loading import available_filters
+from beacon_sim.hosting.loading import available_filters
 from beacon_sim.runs.live import Session
 
 WANTED = ("ekf", "ukf", "pf", "histogram")

@@ -29,7 +29,7 @@ from beacon_sim.core import motion
 from beacon_sim.core.resources import scenario_dir
 from beacon_sim.core.scenario import parse_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 try:
     from filterpy.kalman import ExtendedKalmanFilter as FpEKF

@@ -35,9 +35,9 @@ from beacon_sim.core.scenario import load_scenario, parse_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.filters.base import FilterContext, GaussianBelief
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.particle.pf import ParticleFilter
-from beacon_sim.filters.runner import validate_estimate
+from beacon_sim.hosting.loading import build_filter
+from beacon_sim.hosting.runner import validate_estimate
 from beacon_sim.runs.headless import run_headless
 
 TWO_PI = 2.0 * math.pi

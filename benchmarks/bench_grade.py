@@ -9,7 +9,7 @@ a folder holding that commit's ``beacon_sim`` and ``scenarios``, e.g. made with
     python benchmarks/bench_grade.py [--seeds 3] [--duration 60] [--base /tmp/base] [--no-dask]
         [--no-class] [--rounds 3] [--sandbox auto]
     python benchmarks/bench_grade.py --team team_sparse [--team-students 8] [--seeds 2]
-        [--duration 30] [--rounds 3]     # issue 27: a team scenario simulated once vs in workers
+        [--duration 30] [--rounds 3] [--base /tmp/base]   # a team scenario: this checkout vs --base
 
 Prints FIGURE lines (name, value, unit) and the ratios. The cost (``--base``) is CPU time of
 every process (the grader, its workers, the students' children), in interleaved rounds of
@@ -98,7 +98,7 @@ def measured_grade(path: Path, folder: Path, cfg: dict, jobs: int | None,
     """One grade of ``folder`` by the ``beacon_sim`` in ``path`` (a subprocess): wall [s] and
     CPU [s] of the grader and every process it started. A bubblewrap child is not reaped into
     the grader's resource usage, so there the children's own reports are added. ``extra``:
-    more keyword arguments of ``grade`` (``team_in_workers``)."""
+    more keyword arguments of ``grade``."""
     env = {**os.environ, "PYTHONPATH": str(path), "PYTHONDONTWRITEBYTECODE": "1"}
     out = subprocess.run([sys.executable, "-B", "-c", _MEASURE, str(folder), json.dumps(cfg),
                           json.dumps(jobs), json.dumps(extra or {})], env=env, capture_output=True,
@@ -190,29 +190,29 @@ def cost(args: argparse.Namespace, hon: Path, runs: int) -> None:
 
 
 def team_cost(args: argparse.Namespace, hon: Path, students: int) -> None:
-    """Issue 27: a team scenario graded with each (scenario, seed) simulated once and each
-    robot's ticks streamed to the students' children, against the former path (each
-    student's team runs simulated in a worker, each robot's copy a child of its own), the
-    same class and checkout, interleaved rounds, medians of the CPU of every process."""
+    """A team scenario graded (each (scenario, seed) simulated once, each robot's ticks
+    streamed to the students' children) by this checkout against the checkout in
+    ``--base`` (default: this one), the same class, interleaved rounds, medians of the CPU
+    of every process."""
     cfg = {"scenarios": [args.team], "seeds": list(range(args.seeds)), "duration": args.duration,
            "time_limit": args.time_limit, "sandbox": args.sandbox}
     runs = students * args.seeds
+    base = args.base or ROOT
     load0 = os.getloadavg()[0]
-    got: dict[str, list[dict]] = {"once": [], "workers": []}
+    got: dict[str, list[dict]] = {"this": [], "base": []}
     for _ in range(args.rounds):
-        got["workers"].append(measured_grade(ROOT, hon, cfg, args.jobs, {"team_in_workers": True}))
-        got["once"].append(measured_grade(ROOT, hon, cfg, args.jobs))
+        got["base"].append(measured_grade(base, hon, cfg, args.jobs))
+        got["this"].append(measured_grade(ROOT, hon, cfg, args.jobs))
     load1 = os.getloadavg()[0]
-    once, before = median([g["cpu"] for g in got["once"]]), median([g["cpu"] for g in got["workers"]])
-    w_once, w_before = median([g["wall"] for g in got["once"]]), median([g["wall"] for g in got["workers"]])
-    same = all(g["figures"] == got["workers"][0]["figures"] for g in got["once"] + got["workers"])
+    this, before = median([g["cpu"] for g in got["this"]]), median([g["cpu"] for g in got["base"]])
+    w_this, w_before = median([g["wall"] for g in got["this"]]), median([g["wall"] for g in got["base"]])
+    same = all(g["figures"] == got["base"][0]["figures"] for g in got["this"] + got["base"])
     print(f"FIGURE team_load_1min {load0:.2f} -> {load1:.2f} (before and after the {args.rounds} rounds)")
-    print(f"FIGURE team_runs_per_cpu_s {runs / before:.2f} before (in workers), {runs / once:.2f} after "
-          f"(simulated once, streamed) ({students} students x {args.seeds} seeds of {args.team}, "
-          f"{args.duration:g} s; sandbox {got['once'][0]['sandbox']}; medians of {args.rounds} rounds)")
-    print(f"FIGURE team_once_over_workers_cpu {once / before:.2f} x ({once:.1f} s against "
-          f"{before:.1f} s CPU)")
-    print(f"FIGURE team_once_over_workers_wall {w_once / w_before:.2f} x ({w_once:.1f} s against "
+    print(f"FIGURE team_runs_per_cpu_s {runs / before:.2f} base, {runs / this:.2f} this checkout "
+          f"({students} students x {args.seeds} seeds of {args.team}, {args.duration:g} s; sandbox "
+          f"{got['this'][0]['sandbox']}; medians of {args.rounds} rounds)")
+    print(f"FIGURE team_this_over_base_cpu {this / before:.2f} x ({this:.1f} s against {before:.1f} s CPU)")
+    print(f"FIGURE team_this_over_base_wall {w_this / w_before:.2f} x ({w_this:.1f} s against "
           f"{w_before:.1f} s)")
     print(f"FIGURE team_figures_identical {same}")
 
@@ -235,8 +235,8 @@ def main() -> None:
     ap.add_argument("--dask-no-profile", action="store_true",
                     help="with --dask-cpu: Dask's sampling profiler off on the workers")
     ap.add_argument("--team", default=None, metavar="SCENARIO",
-                    help="only the team cost (issue 27): this team scenario, simulated once against "
-                         "in workers, on --team-students honest files")
+                    help="only the team cost: this team scenario graded by this checkout against "
+                         "--base's, on --team-students honest files")
     ap.add_argument("--team-students", type=int, default=8)
     args = ap.parse_args()
     if args.team:

@@ -31,7 +31,7 @@ from beacon_sim.core.raycast import scan
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 
 def scoring(n_rounds: int) -> None:

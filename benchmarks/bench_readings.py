@@ -21,7 +21,7 @@ from bench_goals import beacon_scenario
 from figures import Clock, figure
 
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 COUNTS = (1, 10, 100, 1000)
 

@@ -25,8 +25,8 @@ import numpy as np
 from bench_goals import krejsa
 from figures import figure
 
-from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
+from beacon_sim.hosting.loading import build_filter
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
 
 
 class Trivial:

@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from beacon_sim.core.clutter import ClutterSpec, hide_ids_all
 from beacon_sim.core.scenario import parse_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 from tests.slam_helpers import lookalike_pairs, weighted_correct
 
 FRAME_MS = 1000.0 / 60.0

@@ -22,8 +22,8 @@ import numpy as np
 from beacon_sim.core.drivers import RandomGoalSpec
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import BUILTIN_FILTERS, build_filter, reset_filter
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, validate_estimate
+from beacon_sim.hosting.loading import BUILTIN_FILTERS, build_filter, reset_filter
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, validate_estimate
 
 PARAMS = {"pf": {"n_particles": 300}, "histogram": {"cell": 0.5}}
 KIDNAP_EVERY = 700      # ticks between kidnaps (random pose), on average

@@ -29,7 +29,7 @@ from beacon_sim.evaluation import plots
 from beacon_sim.evaluation.intervals import text as interval_text
 from beacon_sim.evaluation.montecarlo import default_jobs, run_monte_carlo
 from beacon_sim.evaluation.summary import Thresholds, evaluate
-from beacon_sim.filters.loading import available_filters
+from beacon_sim.hosting.loading import available_filters
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -412,7 +412,7 @@ def corridor_section() -> list[str]:
     ``python scripts/make_results.py --only corridor`` regenerates this section alone."""
     from beacon_sim.core.simulation import Simulation
     from beacon_sim.filters.grid.corridor import Corridor
-    from beacon_sim.filters.loading import build_filter
+    from beacon_sim.hosting.loading import build_filter
 
     def wilson(k: int, n: int, z: float = 1.96) -> str:
         p = k / n

@@ -28,7 +28,7 @@ import numpy as np
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 RADIUS = 0.5      # [m] a mode's neighbourhood ...
 HEADING = 0.5     # [rad] ... and its headings

@@ -10,7 +10,7 @@ import numpy as np
 from beacon_sim.core.clutter import ClutterSpec, hide_ids_all
 from beacon_sim.core.scenario import Scenario, parse_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 
 def ring_scenario(n_beacons: int = 6, duration: float = 20.0, *, map_: str = "unknown",

@@ -94,7 +94,7 @@ def test_a_reloaded_filter_catches_up_to_where_a_run_from_the_start_is():
     """Hot reload re-runs the new filter over the session so far (same Steps, same resets):
     its estimates equal, bit for bit, those of a filter that ran from the start."""
     from beacon_sim.core.scenario import load_scenario
-    from beacon_sim.filters.loading import build_filter
+    from beacon_sim.hosting.loading import build_filter
 
     sc = load_scenario("default")
     straight = Session(sc, ["ekf", "dead_reckoning"], seed=4)
@@ -121,7 +121,7 @@ def test_a_reloaded_filter_catches_up_to_where_a_run_from_the_start_is():
 
 def test_a_reload_too_slow_to_catch_up_restarts_from_the_initial_belief():
     from beacon_sim.core.scenario import load_scenario
-    from beacon_sim.filters.loading import build_filter
+    from beacon_sim.hosting.loading import build_filter
 
     sc = load_scenario("default")
     s = Session(sc, ["ekf"], seed=4)

@@ -23,7 +23,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.live_bound import LiveBound
 from beacon_sim.evaluation.pcrb import pcrb
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 from beacon_sim.runs.live import Session
 
 

@@ -19,8 +19,8 @@ from beacon_sim.app.render import ipx
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control
-from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.hosting.loading import build_filter
+from beacon_sim.hosting.runner import FilterRunner
 from beacon_sim.io.recording import RECORDINGS_DIR
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.user_commands import apply_commands

@@ -57,6 +57,44 @@ def test_the_family_contract_catches_one_family_importing_another(tmp_path):
     assert "The filters' shared home imports no family BROKEN" in r.stdout
 
 
+def test_the_wire_contract_catches_a_front_end_speaking_the_wire(tmp_path):
+    """A copy of the package whose evaluation imports the child protocol's frames: only the
+    hosting layer may (every front end goes through hosting/client.py)."""
+    shutil.copytree(ROOT / "beacon_sim", tmp_path / "beacon_sim",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
+    summary = tmp_path / "beacon_sim" / "evaluation" / "summary.py"
+    summary.write_text(summary.read_text() + "\nimport beacon_sim.hosting.wire  # the protocol\n")
+    r = lint_imports(tmp_path)
+    assert r.returncode != 0
+    assert "Only the hosting layer speaks the wire BROKEN" in r.stdout
+    assert "beacon_sim.evaluation.summary -> beacon_sim.hosting.wire" in r.stdout
+
+
+def _calls_of(name: str) -> dict[str, int]:
+    """Module (relative to beacon_sim/) -> how many calls ``name(...)`` or ``X.name(...)`` it holds."""
+    out: dict[str, int] = {}
+    for path in sorted((ROOT / "beacon_sim").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call):
+                f = node.func
+                called = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else None
+                if called == name:
+                    rel = str(path.relative_to(ROOT / "beacon_sim"))
+                    out[rel] = out.get(rel, 0) + 1
+    return out
+
+
+def test_a_filter_context_and_a_filter_child_are_each_built_in_one_place():
+    """``FilterContext`` is assembled by ``FilterContext.of_scenario`` alone (every front end
+    and the team filters call it), a filter's child process started by
+    ``hosting.client.start_child`` alone (eval, check and grade go through it)."""
+    assert _calls_of("FilterContext") == {}  # of_scenario builds it as ``cls(...)``
+    assert set(_calls_of("of_scenario")) >= {"hosting/loading.py", "hosting/client.py", "filters/team.py"}
+    assert _calls_of("FilterChild") == {"hosting/client.py": 1}
+    assert set(_calls_of("start_child")) >= {"hosting/conformance.py", "hosting/client.py"}
+
+
 # -- one home per idea (issue 22) ------------------------------------------------------------
 
 PACKAGE = ROOT / "beacon_sim"

@@ -23,7 +23,7 @@ from beacon_sim.evaluation.association_metrics import (
 )
 from beacon_sim.filters import association as assoc
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 from tests.helpers import make_scenario
 from tests.portable_checksums import TICKS, documented_checksums
 

@@ -21,7 +21,7 @@ from beacon_sim.evaluation.report import table_lines
 from beacon_sim.filters.gaussian import measurements as gm
 from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 from beacon_sim.filters.gaussian.measurements import SlotPacker, kalman_update
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 SEEDS = [2, 3, 11]
 CASES = [  # scenario, duration [s], filters (with parameters)

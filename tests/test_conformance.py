@@ -7,8 +7,8 @@ import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.filters.conformance import run_checks
-from beacon_sim.filters.loading import BUILTIN_FILTERS
+from beacon_sim.hosting.conformance import run_checks
+from beacon_sim.hosting.loading import BUILTIN_FILTERS
 
 BUILTINS = [n for n, t in BUILTIN_FILTERS.items() if importlib.util.find_spec(t.split(":")[0])]
 
@@ -145,7 +145,7 @@ FAULTS = {  # one injected fault -> the one check that must fail
 
 @pytest.mark.parametrize("fault", sorted(FAULTS))
 def test_one_injected_fault_gives_exactly_one_fail(fault, tmp_path, default, monkeypatch):
-    from beacon_sim.filters import conformance
+    from beacon_sim.hosting import conformance
 
     monkeypatch.setattr(conformance, "RUN_LIMIT_S", 0.5)
     kwargs, check = FAULTS[fault]
@@ -178,7 +178,7 @@ def _pair(theta=0.0, cov=None):
 
 
 def test_value_checks_each_answer_their_own_question():
-    from beacon_sim.filters import conformance as c
+    from beacon_sim.hosting import conformance as c
 
     ests = [_pair(), _pair(theta=4.0), _pair(cov=np.diag([0.1, -0.2, 0.1])), _pair()]
     problems = c.estimate_problems([], ests)
@@ -195,7 +195,7 @@ def test_value_checks_each_answer_their_own_question():
 
 
 def test_a_bad_estimate_after_reset_is_named_so():
-    from beacon_sim.filters import conformance as c
+    from beacon_sim.hosting import conformance as c
 
     flat = (np.zeros(2), np.eye(3))
     assert c.check_shapes(c.estimate_problems([flat], [_pair()])).message.startswith("after reset:")
@@ -203,7 +203,7 @@ def test_a_bad_estimate_after_reset_is_named_so():
 
 
 def test_determinism_and_global_rng_checks_read_one_trial():
-    from beacon_sim.filters import conformance as c
+    from beacon_sim.hosting import conformance as c
 
     same = c._Feed([_pair(), _pair()], None, 0)
     moved = c._Feed([_pair(), _pair(theta=0.1)], None, 0)
@@ -219,7 +219,7 @@ def test_determinism_and_global_rng_checks_read_one_trial():
 
 
 def test_empty_update_check_tells_spoilt_from_moved_from_raised():
-    from beacon_sim.filters import conformance as c
+    from beacon_sim.hosting import conformance as c
 
     nan = (np.full(3, np.nan), np.eye(3))
     assert not c.check_empty_update(c._EmptyTrial(_pair(), nan, None, None)).passed

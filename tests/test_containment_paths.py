@@ -11,8 +11,8 @@ import subprocess
 
 import pytest
 
-from beacon_sim.filters import containment
-from beacon_sim.filters.containment import Limits, launch
+from beacon_sim.hosting import containment
+from beacon_sim.hosting.containment import Limits, launch
 
 
 class _Stop(Exception):

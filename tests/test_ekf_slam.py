@@ -16,9 +16,9 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.evaluation.slam_metrics import gospa, joint_anees_band, joint_nees
 from beacon_sim.filters.base import GaussianBelief, LandmarkMap, MappingFilter
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.slam.base import observe, place
 from beacon_sim.filters.slam.ekf_slam import EKFSLAM
+from beacon_sim.hosting.loading import build_filter
 
 POSES = [np.array([1.0, 2.0, 0.3]), np.array([-1.0, 0.5, 3.1]), np.array([2.0, -3.0, -3.1])]
 LMS = [np.array([4.0, 3.0]), np.array([-2.5, -1.0]), np.array([2.2, -2.9])]

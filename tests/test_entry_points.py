@@ -16,7 +16,7 @@ import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.filters.loading import (
+from beacon_sim.hosting.loading import (
     ENTRY_POINT_GROUP,
     available_filters,
     build_filter,

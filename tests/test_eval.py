@@ -16,7 +16,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.metrics import nis, nis_batch
 from beacon_sim.evaluation.report import table_lines
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 from beacon_sim.runs.headless import run_headless
 
 ARGS = ["eval", "default", "--filter", "ekf", "--filter", "dead_reckoning", "--runs", "3",

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from beacon_sim.evaluation import montecarlo as mc
-from beacon_sim.filters.guard import DIVERGED, MAX_COV, MAX_MEAN
+from beacon_sim.hosting.guard import DIVERGED, MAX_COV, MAX_MEAN
 
 
 def _check_by_eigvalsh(means, covs):

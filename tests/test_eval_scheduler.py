@@ -157,7 +157,7 @@ def probe_package(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("sandbox", ["process", "bwrap"])
 def test_eval_hosts_a_module_filter_in_a_child(capsys, probe_package, sandbox):
-    from beacon_sim.filters.containment import bwrap_problem
+    from beacon_sim.hosting.containment import bwrap_problem
 
     if sandbox == "bwrap" and bwrap_problem():
         pytest.skip(bwrap_problem() or "")

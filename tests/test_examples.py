@@ -16,7 +16,7 @@ from beacon_sim.core.metrics import anees_band, nees, pose_errors
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import GaussianBelief
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 from beacon_sim.runs.headless import run_headless
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"

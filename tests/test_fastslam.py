@@ -14,9 +14,9 @@ from slam_helpers import ring_scenario, run, true_beacons
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.evaluation.slam_metrics import gospa
 from beacon_sim.filters.base import MappingFilter, ParticleBelief
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.slam.base import observe
 from beacon_sim.filters.slam.fastslam import FastSLAM2, inv_det, proposal_step
+from beacon_sim.hosting.loading import build_filter
 
 
 @pytest.mark.parametrize("kind", ["bearing", "range_bearing"])

@@ -15,8 +15,8 @@ from beacon_sim.core import motion
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.evaluation.slam_metrics import joint_anees_band, joint_nees
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.slam.fastslam import FastSLAM2
+from beacon_sim.hosting.loading import build_filter
 
 
 def test_the_covariance_option_does_not_touch_the_particles():

@@ -13,7 +13,6 @@ from slam_helpers import ring_scenario
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import GaussianBelief
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.registry import MRCLAM_GATE_CHI2
 from beacon_sim.filters.slam.fastslam import (
     GATED,
@@ -22,6 +21,7 @@ from beacon_sim.filters.slam.fastslam import (
     proposal_step,
     without_rows,
 )
+from beacon_sim.hosting.loading import build_filter
 
 POSE = np.array([9.0, 6.0, math.pi / 2])
 LANDMARK = np.array([6.0, 8.0])

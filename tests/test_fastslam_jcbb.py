@@ -18,9 +18,9 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters import association as assoc
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.slam.base import innovation, observe
 from beacon_sim.filters.slam.fastslam import FastSLAM2
+from beacon_sim.hosting.loading import build_filter
 
 
 def test_a_particles_joint_nis_is_the_stacked_formula_with_each_landmarks_own_noise():

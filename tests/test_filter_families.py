@@ -15,12 +15,12 @@ import beacon_sim.filters
 from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import load_team_scenario
-from beacon_sim.filters import MOVED
-from beacon_sim.filters.containment import Limits
-from beacon_sim.filters.isolated import FilterChild
-from beacon_sim.filters.loading import build_filter, load_filter_class
+from beacon_sim.filters import HOSTED, MOVED
 from beacon_sim.filters.registry import RECORDS
 from beacon_sim.filters.templates import TEMPLATES
+from beacon_sim.hosting.containment import Limits
+from beacon_sim.hosting.isolated import FilterChild
+from beacon_sim.hosting.loading import build_filter, load_filter_class
 from beacon_sim.runs.headless import run_headless
 
 FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "dead_reckoning", "measurements"},
@@ -89,14 +89,25 @@ def test_moved_lists_every_old_path_module():
     top = {f"beacon_sim.filters.{m.name}" for m in pkgutil.iter_modules(beacon_sim.filters.__path__)}
     shims = {name for name in top
              if (importlib.import_module(name).__doc__ or "").startswith("The old import path")}
-    assert shims | {"beacon_sim.filters.particle"} == set(MOVED)
+    assert shims | {"beacon_sim.filters.particle"} == set(MOVED) | set(HOSTED)
+
+
+@pytest.mark.parametrize("old", sorted(HOSTED))
+def test_an_old_hosting_path_re_exports_its_new_home(old):
+    """The modules that moved into the hosting layer and that the docs once named
+    (``beacon_sim.filters.runner.validate_estimate``, ``beacon_sim.filters.hot_reload``)
+    still import from their old path, as the very objects of the new home."""
+    shim, home = importlib.import_module(old), importlib.import_module(HOSTED[old])
+    assert shim.__all__ and set(shim.__all__) == set(getattr(home, "__all__", None) or _defined(home))
+    for name in shim.__all__:
+        assert getattr(shim, name) is getattr(home, name), name
 
 
 def test_the_child_preloads_every_builtin_filter_from_the_registry():
     """``PRELOAD`` (what a child run as ``nobody`` imports before it may lose the right to read
     the installation) is derived from the records: once a hand-kept list, it missed mcl,
     corridor, ekf_slam and fastslam."""
-    from beacon_sim.filters.child import PRELOAD
+    from beacon_sim.hosting.child import PRELOAD
 
     for record in RECORDS.values():
         assert record.module in PRELOAD, record.name

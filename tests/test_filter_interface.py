@@ -11,8 +11,8 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.base import Filter, FilterError
 from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 from beacon_sim.filters.gaussian.ukf import UnscentedKalmanFilter
-from beacon_sim.filters.loading import FilterLoadError, build_filter, load_filter_class
-from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.hosting.loading import FilterLoadError, build_filter, load_filter_class
+from beacon_sim.hosting.runner import FilterRunner
 
 FILE_FILTER = '''
 import numpy as np

@@ -18,7 +18,7 @@ from beacon_sim.core.metrics import anees_band, nees, pose_errors
 from beacon_sim.core.resources import scenario_dir
 from beacon_sim.core.scenario import parse_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 from beacon_sim.runs.headless import run_headless
 
 BEACONS = [{"id": 1, "x": 2.0, "y": 2.0}, {"id": 2, "x": 8.0, "y": 2.0},

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from beacon_sim.evaluation.grading import LOG_BYTES, GradeConfig, grade, write_outputs
-from beacon_sim.filters.containment import bwrap_problem
+from beacon_sim.hosting.containment import bwrap_problem
 
 ATTACKS = Path(__file__).parent / "attacks"
 HONEST = ("honest", "honest_tuned")

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from beacon_sim.cli.main import main
-from beacon_sim.filters.loading import load_filter_class
-from beacon_sim.filters.watchdog import FilterTimeout, time_limit
+from beacon_sim.hosting.loading import load_filter_class
+from beacon_sim.hosting.watchdog import FilterTimeout, time_limit
 
 ATTACKS = Path(__file__).parent / "attacks"
 

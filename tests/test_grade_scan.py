@@ -12,9 +12,10 @@ import pytest
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.evaluation.grading import GradeConfig, grade, is_scan_scenario
-from beacon_sim.evaluation.montecarlo import _hosted_context, one_run, simulate_run
+from beacon_sim.evaluation.montecarlo import one_run, simulate_run
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.filters.templates import render_scan_template
+from beacon_sim.hosting.client import hosted_context
 
 #: Short runs; a CPU-time limit far above the template's (about 0.6 ms a step here).
 CONFIG = GradeConfig(scenarios=("office",), seeds=(0, 1), duration=6.0, time_limit=30.0)
@@ -104,7 +105,7 @@ def test_the_child_gets_the_grid_and_never_the_truth(scan_class):
     exactly as the honest template."""
     sc = load_scenario("office")
     sr = simulate_run(sc, 0, 3.0, 0)
-    ctx = _hosted_context(sr, "Sam", None)
+    ctx = hosted_context(sr.scenario, sr.stream_key, "Sam", None)
     assert ctx.world.grid is not None and np.array_equal(ctx.world.grid.occupied, sc.world.grid.occupied)
     sent = pickle.dumps(ctx) + b"".join(sr.frames)
     for pose in sr.truth[1:]:

@@ -27,8 +27,8 @@ from pathlib import Path
 from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.evaluation.grading import SECRET_FILE, GradeConfig, grade, secret_fingerprint
-from beacon_sim.filters.conformance import run_checks
-from beacon_sim.filters.guard import DIVERGED
+from beacon_sim.hosting.conformance import run_checks
+from beacon_sim.hosting.guard import DIVERGED
 from beacon_sim.runs.headless import run_headless
 
 ATTACKS = Path(__file__).parent / "attacks"
@@ -202,7 +202,7 @@ def test_a_singular_covariance_is_never_ok(tmp_path, capsys):
     import numpy as np
 
     from beacon_sim.core.metrics import nees
-    from beacon_sim.filters.guard import NEES_NOT_FINITE
+    from beacon_sim.hosting.guard import NEES_NOT_FINITE
 
     values = nees(np.ones((3, 3)), np.array([np.eye(3), np.diag([1.0, 0.0, 1.0]), np.eye(3)]))
     assert values[0] == 3.0 and values[1] == np.inf and values[2] == 3.0
@@ -227,13 +227,14 @@ def test_nothing_of_the_secret_reaches_the_child():
     grade's secret nor a run's key, and the run's seed is not the entropy of any stream."""
     import pickle
 
-    from beacon_sim.evaluation.montecarlo import _hosted_context, simulate_run
+    from beacon_sim.evaluation.montecarlo import simulate_run
+    from beacon_sim.hosting.client import hosted_context
 
     secret = os.urandom(32)
     sr = simulate_run(load_scenario("default"), 1, 1.0, probe=True, secret=secret)
-    ctx = _hosted_context(sr, "MyEkf", None)
+    ctx = hosted_context(sr.scenario, sr.stream_key, "MyEkf", None)
     assert sr.extra is not None and sr.extra.frames_other is not None  # the probes' extra run
-    extra = _hosted_context(sr.extra, "MyEkf", None)
+    extra = hosted_context(sr.extra.scenario, sr.extra.stream_key, "MyEkf", None)
     sent = (pickle.dumps((ctx, extra)) + b"".join(sr.frames) + b"".join(sr.extra.frames)
             + b"".join(sr.extra.frames_other))
     assert secret not in sent and sr.stream_key not in sent and sr.extra.stream_key not in sent

@@ -1,5 +1,5 @@
 """Issue 29/30: a hosted SLAM filter's map comes back over the pipe with each estimate
-(filters/wire.py), judged in the grader's process; `check` judges a file's map; `grade`
+(hosting/wire.py), judged in the grader's process; `check` judges a file's map; `grade`
 scores a SLAM assignment (the path's ATE, the map's GOSPA, the joint NEES) beside the
 built-in EKF-SLAM on the same seeds."""
 
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.filters import conformance
 from beacon_sim.filters.base import LandmarkMap
-from beacon_sim.filters.landmark_check import MAX_LANDMARKS
 from beacon_sim.filters.templates import render_slam_template
-from beacon_sim.filters.wire import (
+from beacon_sim.hosting import conformance
+from beacon_sim.hosting.landmark_check import MAX_LANDMARKS
+from beacon_sim.hosting.wire import (
     MAX_MAP_BYTES,
     WireError,
     decode_landmarks,

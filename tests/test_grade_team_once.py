@@ -1,8 +1,7 @@
 """Issue 27: a team scenario in `grade` is simulated once per (scenario, seed) and each
 robot's ticks are streamed to every student's child (one copy of the filter per robot and
-seed, fed together), as the single-robot runs are; the figures are those of the former
-path (each student's team runs simulated in a worker, each robot's copy a child of its
-own) bit for bit."""
+seed, fed together), as the single-robot runs are; the figures are those of the same
+filter's in-process team run bit for bit."""
 
 from __future__ import annotations
 
@@ -50,26 +49,28 @@ def test_the_team_simulated_once_is_the_headless_runs_truth():
     assert len(ts.robots) == team.n_robots and all(len(r.frames) == 120 for r in ts.robots)
 
 
-def test_team_runs_streamed_once_equal_the_per_student_path_bit_for_bit(tmp_path):
+def test_team_runs_streamed_once_equal_the_in_process_team_run_bit_for_bit(tmp_path):
+    """The built-in EKF as a student's file (honest.py), its robots' copies fed in the
+    student's child, scores what the in-process team run of the built-in EKF (the grade's
+    team reference) scores, bit for bit; the functions form of the same EKF too."""
     klass = tmp_path / "class"
     klass.mkdir()
     shutil.copy(ATTACKS / "honest.py", klass / "honest.py")
     shutil.copy(ATTACKS / "functions.py", klass / "functions.py")
     (klass / "breaks.py").write_text(BREAKS, encoding="utf-8")
     cfg = GradeConfig(scenarios=("team_sparse",), seeds=(0, 1), duration=6.0, time_limit=30.0)
-    once = {r["student"]: r for r in grade(klass, cfg, jobs=2)["rows"]}
-    before = {r["student"]: r for r in grade(klass, cfg, jobs=2, team_in_workers=True)["rows"]}
-    assert set(once) == set(before) == {"honest", "functions", "breaks"}
+    board = grade(klass, cfg, jobs=2)
+    rows = {r["student"]: r for r in board["rows"]}
+    reference = board["reference"]["team_sparse"]
+    assert set(rows) == {"honest", "functions", "breaks"}
     for name in ("honest", "functions"):
-        assert not once[name]["failures"], once[name]["failures"]
-        for key in FIGURES:
-            assert once[name].get(key) == before[name].get(key), (name, key)
-    assert [r["student"] for r in sorted(once.values(), key=lambda r: r["rank"])] == \
-        [r["student"] for r in sorted(before.values(), key=lambda r: r["rank"])]
-    for rows in (once, before):  # a copy that breaks: the whole team's run, no score
-        r = rows["breaks"]
-        assert r["failed_runs"] == 2 and r["pos_rmse_m"] is None
-        assert all("ValueError: my update broke" in f["reason"] for f in r["failures"]), r["failures"]
+        assert not rows[name]["failures"], rows[name]["failures"]
+        for key in ("pos_rmse_m", "heading_rmse_rad", "anees", "anees_verdict"):
+            assert rows[name][key] == reference[key], (name, key)
+        assert rows[name]["rmse_over_pcrb"] == reference["rmse_over_pcrb"], name
+    r = rows["breaks"]  # a copy that breaks: the whole team's run, no score
+    assert r["failed_runs"] == 2 and r["pos_rmse_m"] is None
+    assert all("ValueError: my update broke" in f["reason"] for f in r["failures"]), r["failures"]
 
 
 def test_team_runs_streamed_once_on_dask_equal_local_processes(tmp_path):

@@ -1,4 +1,4 @@
-"""filters/runner.validate_estimate: the fast path for plain float64 arrays gives the
+"""hosting/runner.validate_estimate: the fast path for plain float64 arrays gives the
 verdicts of the full check on random and adversarial estimates (NaN, infinity, sums that
 overflow, asymmetric, not PSD, huge), and anything unusual takes the full check."""
 
@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from beacon_sim.filters.guard import _validate_any, validate_estimate
+from beacon_sim.hosting.guard import _validate_any, validate_estimate
 
 
 def _same(a, b) -> bool:

@@ -13,9 +13,9 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, Measurement
 from beacon_sim.core.world import World
-from beacon_sim.filters import conformance
 from beacon_sim.filters.base import FilterContext, GaussianBelief, GridBelief
 from beacon_sim.filters.grid.histogram import HistogramFilter
+from beacon_sim.hosting import conformance
 from beacon_sim.runs.headless import run_headless
 
 WORLD = World((0.0, 0.0, 10.0, 10.0), (Beacon(1, 2.0, 2.0), Beacon(2, 8.0, 3.0), Beacon(3, 4.0, 8.5)))

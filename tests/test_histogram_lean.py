@@ -11,7 +11,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.base import GaussianBelief
 from beacon_sim.filters.grid import histogram
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 
 def _random_grid(hf, seed):

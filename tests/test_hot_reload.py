@@ -11,9 +11,9 @@ from hot_reload_helpers import SOURCE, write
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.hot_reload import FilterFileWatcher, replace_in_runner, source_of
-from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.hosting.hot_reload import FilterFileWatcher, replace_in_runner, source_of
+from beacon_sim.hosting.loading import build_filter
+from beacon_sim.hosting.runner import FilterRunner
 
 
 class FakeClock:

@@ -19,10 +19,10 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.types import Measurement
 from beacon_sim.evaluation.slam_metrics import joint_anees_band, joint_nees
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.slam import inverse_depth as idp
 from beacon_sim.filters.slam.base import observe
 from beacon_sim.filters.slam.ekf_slam import EKFSLAM
+from beacon_sim.hosting.loading import build_filter
 
 POSES = [np.array([1.0, 2.0, 0.3]), np.array([-1.0, 0.5, 3.1]), np.array([2.0, -3.0, -3.1])]
 FEATURES = [np.array([0.0, 0.0, 0.9, 0.25]), np.array([-3.0, 1.0, 2.8, 0.6]),

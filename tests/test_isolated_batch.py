@@ -14,9 +14,9 @@ import pytest
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.streams import filter_stream
 from beacon_sim.evaluation.montecarlo import isolated_run, isolated_runs, one_run, simulate_run
-from beacon_sim.filters.containment import Limits
-from beacon_sim.filters.isolated import FilterChild
-from beacon_sim.filters.wire import (
+from beacon_sim.hosting.containment import Limits
+from beacon_sim.hosting.isolated import FilterChild
+from beacon_sim.hosting.wire import (
     EST_ENTRY,
     ESTIMATE,
     FAIL,
@@ -192,7 +192,7 @@ def test_a_batch_exchange_waits_the_reply_time_out_once_per_run(sims, tmp_path, 
     """Each run of a batch may use its whole CPU budget in one tick (an endless loop in every
     seed is stopped seed after seed), so the wall-time wait for a batch's answer is the
     reply time-out once per run it carries, not once in all."""
-    import beacon_sim.filters.isolated as isolated
+    import beacon_sim.hosting.isolated as isolated
 
     waits: list[float | None] = []
     real = isolated.read_reply

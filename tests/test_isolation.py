@@ -14,9 +14,9 @@ import pytest
 from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters import runner as isolation
-from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.runner import FilterRunner, FilterTrack
+from beacon_sim.hosting import runner as isolation
+from beacon_sim.hosting.loading import build_filter
+from beacon_sim.hosting.runner import FilterRunner, FilterTrack
 from beacon_sim.runs.headless import run_headless
 
 FAIL_AT = 5   # faulty filters misbehave on their 5th step

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from beacon_sim.cli.main import main
-from beacon_sim.filters.loading import filter_display_name, filter_names, split_label
+from beacon_sim.hosting.loading import filter_display_name, filter_names, split_label
 from tests.student_filters import write_class
 
 

@@ -15,7 +15,7 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.filters.gaussian import measurements as gm
 from beacon_sim.filters.gaussian import ukf as ukf_mod
 from beacon_sim.filters.gaussian.measurements import SlotPacker, kalman_update, kalman_update_low_rank
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 
 def many_beacons(n: int, kind: str = "range_bearing", seed: int = 0):

@@ -11,7 +11,7 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.grid.corridor import walls_seen
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 
 def test_walls_seen_from_a_scan():

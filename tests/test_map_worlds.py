@@ -255,7 +255,7 @@ def test_beacons_and_walls_in_one_world(tmp_path):
     sim = Simulation(sc)
     kinds = {m.kind for m in sim.step(Control(0.0, 0.0)).measurements}
     assert kinds == {"range_finder", "range_bearing"}
-    from beacon_sim.filters.loading import build_filter
+    from beacon_sim.hosting.loading import build_filter
 
     ekf = build_filter("ekf", sc, 1)
     before = ekf.estimate()[0]

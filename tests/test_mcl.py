@@ -15,8 +15,8 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import build_filter
 from beacon_sim.filters.particle.mcl import kld_bound, subsample_beams
+from beacon_sim.hosting.loading import build_filter
 
 
 def run(name: str, seed: int, seconds: float, params=None, every: float | None = None):

@@ -97,7 +97,7 @@ def test_the_batched_simulation_follows_the_single_one_at_standstill_and_slow():
 
 
 def test_dead_reckoning_covariance_stops_growing_at_standstill():
-    from beacon_sim.filters.loading import build_filters
+    from beacon_sim.hosting.loading import build_filters
 
     sc = load_scenario("assignment_kf")
     built, broken = build_filters(["dead_reckoning", "kf"], sc, sc.seed, {})

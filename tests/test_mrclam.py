@@ -171,7 +171,7 @@ def test_the_gate_rejects_an_injected_pi_flipped_bearing(folder):
     their belief; without the gate the EKF's heading is dragged off."""
     from beacon_sim.core.types import Measurement
     from beacon_sim.filters.base import GaussianBelief
-    from beacon_sim.filters.loading import build_filter
+    from beacon_sim.hosting.loading import build_filter
     from beacon_sim.runs.mrclam import MRCLAM_GATE_CHI2, mrclam_scenario
 
     f, info = folder

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.loading import build_filter, filter_names
+from beacon_sim.hosting.loading import build_filter, filter_names
 from beacon_sim.io.mrclam import load_mrclam
 from beacon_sim.runs.mrclam import MRCLAM_PARAMS, SENSOR_NAME, calibration_for, mrclam_scenario, run_mrclam
 from tests.test_mrclam import COMMENT, make_folder

@@ -17,7 +17,7 @@ from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.summary import Thresholds, evaluate
 from beacon_sim.filters.gaussian import ukf
 from beacon_sim.filters.gaussian.measurements import SlotPacker, nis
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 
 
 def with_outliers(name: str, rate: float):

@@ -15,9 +15,9 @@ from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
-from beacon_sim.filters import conformance
 from beacon_sim.filters.base import FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.particle.pf import ParticleFilter, weighted_pose_stats
+from beacon_sim.hosting import conformance
 from beacon_sim.runs.headless import run_headless
 
 WORLD = World((0.0, 0.0, 10.0, 10.0), (Beacon(1, 2.0, 2.0), Beacon(2, 8.0, 3.0), Beacon(3, 4.0, 8.5)))

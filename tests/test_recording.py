@@ -13,8 +13,8 @@ import pytest
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control
-from beacon_sim.filters.loading import build_filter
-from beacon_sim.filters.runner import FilterRunner
+from beacon_sim.hosting.loading import build_filter
+from beacon_sim.hosting.runner import FilterRunner
 from beacon_sim.io.recording import (
     FORMAT_VERSION,
     RecordingError,

@@ -16,11 +16,11 @@ from beacon_sim.cli.main import main
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters import registry
 from beacon_sim.filters.base import Batchable, BatchedFilter, FilterError
-from beacon_sim.filters.loading import BUILTIN_FILTERS, available_filters, build_filter, load_filter_class
 from beacon_sim.filters.param_ranges import check_resources
 from beacon_sim.filters.params import Param, Range
 from beacon_sim.filters.registry import COLOUR_NAMES, DASH_NAMES, RECORDS, FilterRecord
 from beacon_sim.filters.team import TEAM_FILTERS
+from beacon_sim.hosting.loading import BUILTIN_FILTERS, available_filters, build_filter, load_filter_class
 from beacon_sim.io.mrclam import load_mrclam
 from beacon_sim.runs import styles
 from beacon_sim.runs.mrclam import MRCLAM_PARAMS, run_mrclam

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.types import Step
-from beacon_sim.filters import watchdog
-from beacon_sim.filters.runner import FilterRunner
-from beacon_sim.filters.watchdog import FilterTimeout, StepWatch, time_limit
+from beacon_sim.hosting import watchdog
+from beacon_sim.hosting.runner import FilterRunner
+from beacon_sim.hosting.watchdog import FilterTimeout, StepWatch, time_limit
 
 
 def _step(tick: int) -> Step:
@@ -186,7 +186,7 @@ def test_estimates_the_filter_keeps_are_recorded_as_they_were(how):
 
 
 def test_fresh_estimates_are_kept_without_a_copy_and_others_are_copied():
-    from beacon_sim.filters.guard import validate_estimate
+    from beacon_sim.hosting.guard import validate_estimate
     fresh = (np.zeros(3), np.eye(3))
     got = validate_estimate(fresh, sole=True)
     assert got[0] is fresh[0] and got[1] is fresh[1]  # nothing but `fresh` holds them

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.filters import conformance
-from beacon_sim.filters.conformance import landmark_map_problems
-from beacon_sim.filters.loading import load_filter_class
+from beacon_sim.hosting import conformance
+from beacon_sim.hosting.conformance import landmark_map_problems
+from beacon_sim.hosting.loading import load_filter_class
 
 GOOD_COV = np.array([[[0.04, 0.01], [0.01, 0.09]]] * 2)
 

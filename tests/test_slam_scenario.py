@@ -13,7 +13,7 @@ from slam_helpers import ring_scenario
 
 from beacon_sim.core.resources import shipped_scenarios
 from beacon_sim.core.scenario import ScenarioError, load_scenario, parse_scenario
-from beacon_sim.filters.loading import build_filter
+from beacon_sim.hosting.loading import build_filter
 from beacon_sim.runs.headless import run_headless
 
 
@@ -105,7 +105,7 @@ def test_the_loop_closure_shrinks_the_whole_map_at_once():
 
 
 def test_a_localization_filter_on_an_unknown_map_gets_a_note_first():
-    from beacon_sim.filters.loading import sensor_note
+    from beacon_sim.hosting.loading import sensor_note
 
     sc = load_scenario("slam_loop")
     note = sensor_note("pf", sc)

@@ -11,7 +11,7 @@ import pytest
 from beacon_sim.core.motion import FULL_SLIP_OMEGA, FULL_SLIP_V, MotionNoise
 from beacon_sim.core.types import Control, Step
 from beacon_sim.filters import resampling
-from beacon_sim.filters.runner import SLOW_WINDOW, FilterRunner, FilterTrack, note_step_time
+from beacon_sim.hosting.runner import SLOW_WINDOW, FilterRunner, FilterTrack, note_step_time
 
 SPECIAL = [0.0, -0.0, 1e-300, 0.01, -0.03, FULL_SLIP_V, -FULL_SLIP_V, FULL_SLIP_OMEGA, 0.07, 0.5, -2.0,
            1e308, -1e308, math.inf, -math.inf, math.nan]
@@ -62,7 +62,7 @@ def test_the_runners_slow_step_record_equals_note_step_time(monkeypatch, seed):
     times = [int(t) for t in rng.choice([1e5, 3e7, 4.9e7, 5e7, 5.1e7, 9e7, 4e8], size=60,
                                         p=[0.4, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1])]
     clock = iter(itertools.chain.from_iterable((0, t) for t in times))
-    monkeypatch.setattr("beacon_sim.filters.runner.time.perf_counter_ns", lambda: next(clock))
+    monkeypatch.setattr("beacon_sim.hosting.runner.time.perf_counter_ns", lambda: next(clock))
     runner = FilterRunner({"f": Still()})
     ref = FilterTrack("ref", None)
     tr = runner.tracks["f"]

@@ -1,5 +1,5 @@
 """Issue 18 + 15: a team filter that fails anywhere is switched off with a message, the
-other team filters and the simulation go on, and it gets no score (filters/team_runner.py)."""
+other team filters and the simulation go on, and it gets no score (hosting/team_runner.py)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.filters import team as team_filters
 from beacon_sim.filters.team import IndependentTeam
-from beacon_sim.filters.team_runner import validate_team_estimates
+from beacon_sim.hosting.team_runner import validate_team_estimates
 from beacon_sim.runs.headless import run_headless
 
 TEAM = Path(__file__).parent.parent / "scenarios" / "team" / "team_sparse.toml"

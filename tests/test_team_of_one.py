@@ -11,10 +11,10 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
 from beacon_sim.core.team_scenario import as_team, load_any_scenario, load_team_scenario, team_of_one
-from beacon_sim.filters.loading import build_filters
-from beacon_sim.filters.runner import FilterRunner
-from beacon_sim.filters.team_runner import JointRunner, TeamRunner
-from beacon_sim.filters.team_specs import build_team_spec
+from beacon_sim.hosting.loading import build_filters
+from beacon_sim.hosting.runner import FilterRunner
+from beacon_sim.hosting.team_runner import JointRunner, TeamRunner
+from beacon_sim.hosting.team_specs import build_team_spec
 
 
 @pytest.mark.parametrize("name", ["krejsa_bearing_only", "default"])

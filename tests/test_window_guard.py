@@ -14,7 +14,7 @@ pygame = pytest.importorskip("pygame")
 
 from beacon_sim.app.main import App  # noqa: E402
 from beacon_sim.core.scenario import load_scenario  # noqa: E402
-from beacon_sim.filters import runner as runner_mod  # noqa: E402
+from beacon_sim.hosting import runner as runner_mod  # noqa: E402
 from beacon_sim.runs.live import Session  # noqa: E402
 
 GARBAGE = textwrap.dedent('''
@@ -168,7 +168,7 @@ def test_a_filter_hanging_in_init_delays_the_window_by_the_window_limit_only(tmp
     """The window cannot open before its filters are built: a filter stuck in ``__init__``
     is stopped after the window's construction limit (not the headless 30 s), switched off
     with that reason, and the others run."""
-    from beacon_sim.filters import loading
+    from beacon_sim.hosting import loading
 
     monkeypatch.setattr(loading, "WINDOW_BUILD_LIMIT_S", 0.5)  # read at call time
     path = tmp_path / "hang.py"

@@ -34,12 +34,12 @@ from beacon_sim.core.team import TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Step
 from beacon_sim.evaluation.live_bound import LiveBound
-from beacon_sim.filters.runner import note_user_interrupt
+from beacon_sim.hosting.runner import note_user_interrupt
 from beacon_sim.runs.live import Session, make_recorder
 
 if TYPE_CHECKING:  # imported where used: the window opens without them
     from beacon_sim.app.gif import GifRecorder
-    from beacon_sim.filters.hot_reload import FilterFileWatcher
+    from beacon_sim.hosting.hot_reload import FilterFileWatcher
 
 #: Frame time a scripted (``--frames``) session pretends each frame took [s].
 SCRIPTED_FRAME_S = 1.0 / 60.0
@@ -161,8 +161,8 @@ class App:
     def _make_watchers(self, interval: float) -> dict[str, FilterFileWatcher]:
         """A file watcher for every filter given as ``path.py:Class``, on the window's clock
         (``self.now``: real seconds, or 1/60 s per frame when scripted)."""
-        from beacon_sim.filters.hot_reload import FilterFileWatcher
-        from beacon_sim.filters.loading import filter_display_name
+        from beacon_sim.hosting.hot_reload import FilterFileWatcher
+        from beacon_sim.hosting.loading import filter_display_name
 
         s = self.session
         out: dict[str, FilterFileWatcher] = {}

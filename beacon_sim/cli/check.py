@@ -23,10 +23,10 @@ import numpy as np
 from beacon_sim.core.files import MAX_SOURCE_BYTES, check_user_file
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
-from beacon_sim.filters.conformance import CheckResult, print_report, run_checks
-from beacon_sim.filters.containment import SandboxError
-from beacon_sim.filters.hosting import hosted_source
-from beacon_sim.filters.loading import FilterLoadError, load_filter_class
+from beacon_sim.hosting.conformance import CheckResult, print_report, run_checks
+from beacon_sim.hosting.containment import SandboxError
+from beacon_sim.hosting.loading import FilterLoadError, load_filter_class
+from beacon_sim.hosting.sources import hosted_source
 from beacon_sim.runs.headless import run_headless
 
 #: The methods a team filter implements (filters/team.TeamFilter).

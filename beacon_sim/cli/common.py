@@ -14,7 +14,7 @@ from typing import Any, NoReturn
 from beacon_sim.core import arguments
 from beacon_sim.core.scenario import MAX_TICKS, Scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.filters.loading import FilterLoadError, check_param_names, parse_set_options, sensor_note
+from beacon_sim.hosting.loading import FilterLoadError, check_param_names, parse_set_options, sensor_note
 
 
 class Parser(argparse.ArgumentParser):

@@ -36,9 +36,8 @@ from beacon_sim.evaluation.summary import (
     write_team_outputs,
 )
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.containment import SandboxError
-from beacon_sim.filters.hosting import hosted_source
-from beacon_sim.filters.loading import (
+from beacon_sim.hosting.containment import SandboxError
+from beacon_sim.hosting.loading import (
     FilterLoadError,
     build_filter,
     check_param_names,
@@ -47,8 +46,9 @@ from beacon_sim.filters.loading import (
     parse_set_options,
     sensor_note,
 )
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
-from beacon_sim.filters.team_specs import check_team_specs
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
+from beacon_sim.hosting.sources import hosted_source
+from beacon_sim.hosting.team_specs import check_team_specs
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
 #: in a loop is stopped and marked, the evaluation goes on.

@@ -11,8 +11,8 @@ import textwrap
 from beacon_sim.core.resources import shipped_scenarios
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.team_scenario import TeamScenario, load_team_scenario, shipped_team_scenarios
-from beacon_sim.filters.loading import available_filters
 from beacon_sim.filters.team import TEAM_FILTERS
+from beacon_sim.hosting.loading import available_filters
 
 #: Left margin of a scenario's description [characters].
 INDENT = 6

@@ -20,7 +20,7 @@ from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options, check_common
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.errors import BeaconSimError, UsageError
-from beacon_sim.filters.runner import note_user_interrupt
+from beacon_sim.hosting.runner import note_user_interrupt
 from beacon_sim.version import __version__
 
 

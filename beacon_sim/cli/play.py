@@ -9,8 +9,8 @@ from beacon_sim.cli.common import check_frames, check_set_names, filter_params, 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import load_any_scenario
 from beacon_sim.errors import UsageError
-from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S, FilterLoadError, load_filter_class
-from beacon_sim.filters.team_specs import check_team_specs
+from beacon_sim.hosting.loading import WINDOW_BUILD_LIMIT_S, FilterLoadError, load_filter_class
+from beacon_sim.hosting.team_specs import check_team_specs
 
 #: The smallest window [px] everything fits in (the panel's lines, the help overlay).
 MIN_SIZE = (800, 600)

@@ -44,7 +44,7 @@ def check_filters(args: argparse.Namespace, recording: Recording, specs: list[st
     if not recording.is_team:
         check_set_names(args, specs)
         return
-    from beacon_sim.filters.team_specs import check_team_specs, team_filter_name
+    from beacon_sim.hosting.team_specs import check_team_specs, team_filter_name
 
     params = filter_params(args)
     running = {team_filter_name(s) for s in specs}

@@ -21,7 +21,7 @@ from beacon_sim.cli.tables import failed_text, fmt, print_run
 from beacon_sim.core.team_scenario import load_any_scenario
 from beacon_sim.evaluation.association_metrics import association_report
 from beacon_sim.evaluation.slam_run import print_slam_table, slam_figures
-from beacon_sim.filters.team_specs import check_team_specs
+from beacon_sim.hosting.team_specs import check_team_specs
 from beacon_sim.runs.headless import run_headless
 
 
@@ -34,7 +34,7 @@ def run_command(args: argparse.Namespace) -> int:
     if team.solo:  # single-robot filter specs
         check_set_names(args, specs)
         params = filter_params(args)
-    else:  # team filter specs (filters/team_specs.py)
+    else:  # team filter specs (hosting/team_specs.py)
         params = filter_params(args)
         check_team_specs(specs, team, params)
     result = run_headless(team, specs, seed=args.seed, duration=args.duration, params=params,

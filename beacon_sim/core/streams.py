@@ -74,7 +74,7 @@ def filter_stream(seed: int, name: str, secret: bytes | None = None) -> np.rando
 def keyed_global_seed(key: bytes, name: str) -> int:
     """The seed (128 bits) of the global ``np.random`` and ``random`` generators of a
     hosted filter ``name`` in the run whose key is ``key``: derived like its stream, never
-    the run's seed (``np_random_seed`` in filters/child.py seeds them with it)."""
+    the run's seed (``np_random_seed`` in hosting/child.py seeds them with it)."""
     return int.from_bytes(_digest(b"beacon-sim global rng v1", key, name.encode())[:16], "little")
 
 

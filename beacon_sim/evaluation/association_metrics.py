@@ -27,8 +27,8 @@ import numpy as np
 
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.loading import build_filters, filter_names
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, failure_text
+from beacon_sim.hosting.loading import build_filters, filter_names
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, failure_text
 
 
 @dataclass

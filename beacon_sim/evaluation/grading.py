@@ -64,14 +64,14 @@ from beacon_sim.evaluation.montecarlo import (
 from beacon_sim.evaluation.slam_metrics import ate, gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, joint_nees_at, mapped_beacons
 from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
-from beacon_sim.filters.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
-from beacon_sim.filters.feed import LOG_BYTES as FEED_LOG_BYTES
-from beacon_sim.filters.feed import PROBE_TICKS as FEED_PROBE_TICKS
-from beacon_sim.filters.feed import PROBES, ProbeFindings, child_limits, reply_timeout
-from beacon_sim.filters.isolated import ChildFailure, FilterChild
-from beacon_sim.filters.loading import FILTER_METHODS, FUNCTIONS, isolated_spec
-from beacon_sim.filters.runner import SLOW_STEP_MS
-from beacon_sim.filters.team_specs import MEMBER_PREFIX
+from beacon_sim.hosting.client import ChildSession, FilterChild, step_request
+from beacon_sim.hosting.containment import SANDBOXES, Limits, SandboxError, resolve_sandbox
+from beacon_sim.hosting.feed import LOG_BYTES as FEED_LOG_BYTES
+from beacon_sim.hosting.feed import PROBE_TICKS as FEED_PROBE_TICKS
+from beacon_sim.hosting.feed import PROBES, ProbeFindings, child_limits, reply_timeout
+from beacon_sim.hosting.loading import FILTER_METHODS, FUNCTIONS
+from beacon_sim.hosting.runner import SLOW_STEP_MS
+from beacon_sim.hosting.team_specs import MEMBER_PREFIX
 
 #: The student name of the built-in filter graded beside the students on team scenarios.
 REFERENCE = "__reference__"
@@ -226,7 +226,7 @@ def find_class(path: Path, class_name: str | None = None) -> str | None:
     named ``class_name``; else the last top-level class defining all of reset, predict,
     update and estimate; else None (the class that implements the interface, perhaps by
     inheritance, or the file's module-level functions: chosen in the student's own child
-    process, :func:`~beacon_sim.filters.loading.choose_filter`). Raises GradeError (syntax
+    process, :func:`~beacon_sim.hosting.loading.choose_filter`). Raises GradeError (syntax
     error, no such class)."""
     text = read_user_text(path, what="filter file", cap=MAX_SOURCE_BYTES, error=GradeError)
     try:
@@ -364,7 +364,7 @@ def run_tasks(tasks: Sequence[Task], jobs: int | None = None, scheduler: Any = N
 
 
 #: How many ticks the probes of a student's filter run (the first scenario and seed; see
-#: :mod:`beacon_sim.filters.feed`): the run fed again (is it deterministic?), the run with
+#: :mod:`beacon_sim.hosting.feed`): the run fed again (is it deterministic?), the run with
 #: its readings drawn again (does it use them?) and that fed again. LOG_BYTES: the most of
 #: a student's log the leaderboard keeps and links [bytes].
 PROBE_TICKS = FEED_PROBE_TICKS
@@ -398,7 +398,6 @@ def simulate_team_run(team: TeamScenario, seed: int, duration: float, index: int
     the key of the filters' streams (None: the public key)."""
     from beacon_sim.core.streams import run_key
     from beacon_sim.core.team import TeamSimulation
-    from beacon_sim.filters.wire import encode_request
 
     sim = TeamSimulation(team, seed)
     T, N = round(duration / team.dt), team.n_robots
@@ -413,7 +412,7 @@ def simulate_team_run(team: TeamScenario, seed: int, duration: float, index: int
             truth[k + 1, i] = st.true_pose
             controls[k, i] = (st.control.v, st.control.omega)
             kidnapped[k, i] = st.kidnapped
-            frames[i].append(encode_request("step", st.control, st.dt, tuple(st.measurements), False))
+            frames[i].append(step_request(st.control, st.dt, st.measurements, False))
     label = team.name if label is None else label
     checksum = sim.truth_checksum
     robots = [SimulatedRun(r.scenario, index, seed, truth[:, i].copy(), controls[:, i].copy(),
@@ -522,30 +521,25 @@ def run_student(job: StudentJob) -> StudentResult:
         src = Path(tmp) / job.filename
         src.write_bytes(job.source)
         log = Path(tmp) / "log.txt"
-        limits = _limits(job)
-        timeout = reply_timeout(job.time_limit)
-        child: FilterChild | None = None
+        session = ChildSession(src, job.class_name, log, job.sandbox, _limits(job),
+                               reply_timeout(job.time_limit))
         load_problem: str | None = None
 
         def task(sr: SimulatedRun) -> Task:
             return Task(job.student, job.filename, sr.label, sr.seed, None, job.time_limit, sr.index)
 
         def started() -> FilterChild | None:
-            nonlocal child, load_problem
-            if load_problem is None and child is None:
-                try:
-                    child = FilterChild(src, job.class_name, log, job.sandbox, limits, timeout)
-                    findings["form"] = child.form
-                except ChildFailure as exc:
-                    load_problem = findings["load_problem"] = str(exc)
+            nonlocal load_problem
+            child = session.child()
+            if child is not None:
+                findings["form"] = session.form
+            elif load_problem is None:
+                load_problem = findings["load_problem"] = session.load_problem
             return child
 
         def stop() -> None:
-            nonlocal child
-            if child is not None:
-                findings["child_cpu_s"] += child.reported_cpu_s
-                child.close()
-                child = None
+            session.stop()
+            findings["child_cpu_s"] = session.cpu_s
 
         def record(k: int, run: RunOutput, rep: dict[str, Any], wall_s: float) -> None:
             if rep.get("heading_unwrapped"):
@@ -557,11 +551,11 @@ def run_student(job: StudentJob) -> StudentResult:
         try:
             for batch in _batches(job.sims):
                 t0 = time.perf_counter()
-                if started() is None:
+                child = started()
+                if child is None:
                     for k in batch:
                         results[k] = TaskResult(task(job.sims[k]), None, load_problem, 0.0)
                     continue
-                assert child is not None
                 probing = batch[0] == 0  # the probes ride along in the first batch
                 runs, rep = isolated_runs(child, [job.sims[k] for k in batch], job.time_limit,
                                           probe_ticks=PROBE_TICKS if probing else None)
@@ -582,9 +576,9 @@ def run_student(job: StudentJob) -> StudentResult:
                             stop()
                         record(k, run, rep1, time.perf_counter() - t1)
                     first = results[0]
-                    if probing and first is not None and first.run is not None and started() is not None:
-                        assert child is not None
-                        if not _probe(child, job.sims[0], job, findings, first):
+                    again = started() if probing and first is not None and first.run is not None else None
+                    if again is not None and first is not None:
+                        if not _probe(again, job.sims[0], job, findings, first):
                             stop()
                 else:
                     wall = (time.perf_counter() - t0) / len(batch)
@@ -671,7 +665,7 @@ def run_student_shared(job: StudentJob, shared: tuple[list[SimulatedRun], list[T
 def _probe_findings(sr: SimulatedRun, probes: ProbeFindings, findings: dict[str, Any]) -> None:
     """``deterministic``, ``readings_used`` and the probes a filter failed on its own
     (``probe_failures``: a probe is one more run, and failing it is failing a run) from the
-    probes that rode in the first batch (:func:`~beacon_sim.filters.feed.judge_probes`)."""
+    probes that rode in the first batch (:func:`~beacon_sim.hosting.feed.judge_probes`)."""
     findings["deterministic"] = probes.deterministic
     findings["readings_used"] = probes.readings_used
     findings["probe_failures"] = [
@@ -811,8 +805,7 @@ def scenario_labels(scenarios: Sequence[str]) -> dict[str, str]:
 
 def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | None = None,
           scheduler: Any = None, progress: Callable[[int, int], None] | None = None,
-          cache: str | Path | None = None, team_in_workers: bool = False,
-          secret: bytes | None = None) -> dict[str, Any]:
+          cache: str | Path | None = None, secret: bytes | None = None) -> dict[str, Any]:
     """Grade every filter file in ``folder``; returns the leaderboard (``rows`` in rank
     order, ``config``, ``wall_s``, ``sandbox``, ``logs``, ``secret``) that
     :func:`write_outputs` writes.
@@ -827,10 +820,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     in a child process of its own (:func:`run_student`) that receives only what a filter
     may see; the scoring stays here. A team scenario's (scenario, seed) is simulated once too
     (:func:`simulate_team_run`) and each robot's ticks streamed to the student's child, one
-    copy of the filter per robot (issue 27). ``team_in_workers``: the former path instead,
-    each student's team runs simulated in a worker with each robot's copy a child of its
-    own (benchmarks/bench_grade.py compares the two; tests/test_grade_team_once.py holds
-    them equal).
+    copy of the filter per robot.
 
     ``cache``: a folder of earlier results, by the file's hash and the configuration
     (:func:`cache_key`): a student whose file and settings are unchanged is not run again
@@ -861,13 +851,12 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         for i, seed in enumerate(config.seeds):
             sims.append(simulate_run(sc, seed, duration, i, probe=not sims, label=n, secret=secret))
     team_sims: list[TeamSimulated] = []
-    if not team_in_workers:
-        for n in team_names:
-            team = scenarios[n]
-            assert isinstance(team, TeamScenario)
-            duration = team.duration if config.duration is None else config.duration
-            team_sims += [simulate_team_run(team, seed, duration, i, n, secret)
-                          for i, seed in enumerate(config.seeds)]
+    for n in team_names:
+        team = scenarios[n]
+        assert isinstance(team, TeamScenario)
+        duration = team.duration if config.duration is None else config.duration
+        team_sims += [simulate_team_run(team, seed, duration, i, n, secret)
+                      for i, seed in enumerate(config.seeds)]
     student_jobs = [StudentJob(st.name, st.path.name,
                                read_user_bytes(st.path, what="filter file", cap=MAX_SOURCE_BYTES,
                                                error=GradeError),
@@ -879,14 +868,10 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
     done_students, cached = _run_cached(student_jobs, jobs, scheduler, progress,
                                         Path(cache) if cache is not None else None)
     results = [r for sr in done_students for r in sr.results]
-    # Team scenarios: each robot's copy of the student's filter in a child process of its own.
-    # (a worker loads the scenario by its configured name or path; the result takes its label)
-    tasks = [Task(st.name, isolated_spec(st.spec, sandbox, config.time_limit), specs[sc], seed,
-                  config.duration, config.time_limit, i, secret)
-             for st in students if st.spec and team_in_workers for sc in team_names
-             for i, seed in enumerate(config.seeds)]
-    tasks += [Task(REFERENCE, REFERENCE_SPEC, specs[sc], seed, config.duration, config.time_limit, i)
-              for sc in team_names for i, seed in enumerate(config.seeds)]
+    # The team reference runs in process (a worker loads the scenario by its configured name
+    # or path; the result takes its label).
+    tasks = [Task(REFERENCE, REFERENCE_SPEC, specs[sc], seed, config.duration, config.time_limit, i)
+             for sc in team_names for i, seed in enumerate(config.seeds)]
     if tasks:
         results += [dataclasses.replace(r, task=dataclasses.replace(r.task, scenario=labels[r.task.scenario]))
                     for r in run_tasks(tasks, jobs, scheduler, config.memory_limit_gb, None)]
@@ -1149,7 +1134,7 @@ def reference_slam_run(sr: SimulatedRun, spec: str = SLAM_REFERENCE_SPEC) -> dic
     when it failed (a built-in that raises or diverges there says nothing of the students)."""
     import pickle
 
-    from beacon_sim.filters.loading import build_filter
+    from beacon_sim.hosting.loading import build_filter
 
     try:
         flt: Any = build_filter(spec, sr.scenario, sr.seed, name=spec)

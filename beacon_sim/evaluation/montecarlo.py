@@ -41,17 +41,17 @@ from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.filters.base import Batchable, FilterError
 from beacon_sim.filters.gaussian.measurements import BatchableFilter, SlotPacker, nis
-from beacon_sim.filters.guard import DIVERGED, MAX_COV, MAX_MEAN, NEES_NOT_FINITE, estimate_arrays
-from beacon_sim.filters.host import call_guarded
-from beacon_sim.filters.loading import (
+from beacon_sim.hosting.guard import DIVERGED, MAX_COV, MAX_MEAN, NEES_NOT_FINITE, estimate_arrays
+from beacon_sim.hosting.host import call_guarded
+from beacon_sim.hosting.loading import (
     FilterLoadError,
     build_filter,
     filter_display_name,
     filter_names,
     load_filter_class,
 )
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
-from beacon_sim.filters.watchdog import failure_line, is_filter_failure
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S
+from beacon_sim.hosting.watchdog import failure_line, is_filter_failure
 from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.progress import Progress
 
@@ -75,7 +75,7 @@ class FilterRun:
     failed: str | None = None
     means: np.ndarray | None = None  # (T, 3), kept for the first run only (trajectory plot)
     #: A hosted SLAM filter's map after its last step: (ids (M,) or None, means (M, 2) [m],
-    #: covs (M, 2, 2) [m^2]), judged as it came back (filters/wire.py); None without a map.
+    #: covs (M, 2, 2) [m^2]), judged as it came back (hosting/wire.py); None without a map.
     landmarks: tuple[np.ndarray | None, np.ndarray, np.ndarray] | None = None
     #: Its final ``joint()`` (mean (3 + 2M,), cov, landmark IDs (M,)), when it has one.
     joint: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -96,7 +96,7 @@ class RunOutput:
 
 def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     """Index of the first unusable estimate and why, in the guard's words and by its rules
-    (:func:`~beacon_sim.filters.guard.validate_estimate`: non-finite, diverged, asymmetric
+    (:func:`~beacon_sim.hosting.guard.validate_estimate`: non-finite, diverged, asymmetric
     or not PSD), so that ``eval`` and ``grade`` fail a filter where ``run`` does, and say
     the same (issue 37: they let a covariance grow to 1e100)."""
     n = means.shape[0]
@@ -192,7 +192,7 @@ def one_run(scenario: Scenario, specs: list[str], params: dict[str, dict[str, An
     Each filter's cost counts ``predict + update + estimate``; the prior estimate read for
     the NIS between predict and update is not counted. ``run_limit_s`` [s]: a filter whose
     steps take longer than this in all is stopped ("time limit"; an endless loop), see
-    ``filters.runner.time_limit``. ``secret``: the key of the filters' random streams
+    ``hosting.runner.time_limit``. ``secret``: the key of the filters' random streams
     (None: the public key; a grade's secret gives its figures,
     :func:`~beacon_sim.core.streams.filter_stream`).
     """
@@ -287,7 +287,7 @@ class SimulatedRun:
     #: grade's secret and the seed; None: the public key's). Stays in the grader.
     key: bytes | None = None
     #: The probes' extra run (a scenario's first run only): one more seed drawn from the
-    #: key, its first ticks, with its readings drawn again (filters/feed.py ``probe_slots``).
+    #: key, its first ticks, with its readings drawn again (hosting/feed.py ``probe_slots``).
     extra: SimulatedRun | None = None
 
     @property
@@ -319,8 +319,8 @@ def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
     again (``frames_other``, from a seed derived from the run's key); ``secret``: the key
     of the filters' streams (None: the public key)."""
     from beacon_sim.core.streams import run_key
-    from beacon_sim.filters.feed import PROBE_TICKS, other_readings_seed, probe_seed
-    from beacon_sim.filters.wire import encode_request
+    from beacon_sim.hosting.client import step_request
+    from beacon_sim.hosting.feed import PROBE_TICKS, other_readings_seed, probe_seed
 
     key = run_key(seed, secret)
     sim, T, truth, controls, kidnapped = start_run(scenario, seed, duration)
@@ -336,12 +336,10 @@ def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
         rec[i] = len(records)
         if step.measurements:
             records.append(step.measurements)
-        frames.append(encode_request("step", step.control, step.dt, tuple(step.measurements),
-                                     bool(step.measurements)))
+        frames.append(step_request(step.control, step.dt, step.measurements, bool(step.measurements)))
         if other is not None:
             st = other.step()
-            other_frames.append(encode_request("step", st.control, st.dt, tuple(st.measurements),
-                                               bool(st.measurements)))
+            other_frames.append(step_request(st.control, st.dt, st.measurements, bool(st.measurements)))
     if other is not None and other.truth_checksum != sim.truth_checksum:
         other_frames = []  # readings that moved the truth: no such probe here
     extra = None
@@ -355,28 +353,30 @@ def simulate_run(scenario: Scenario, seed: int, duration: float, index: int = 0,
 
 def _slot(sr: SimulatedRun, name: str, params: dict[str, Any] | None, frames: list[bytes] | None = None,
           ticks: int | None = None) -> Any:
-    """The :class:`~beacon_sim.filters.feed.Slot` of a hosted filter ``name`` on ``sr``."""
-    from beacon_sim.filters.feed import Slot
-    from beacon_sim.filters.loading import initial_belief
+    """The :class:`~beacon_sim.hosting.feed.Slot` of a hosted filter ``name`` on ``sr``
+    (:func:`~beacon_sim.hosting.client.hosted_slot`)."""
+    from beacon_sim.hosting.client import hosted_slot
 
-    frames = sr.frames if frames is None else frames
-    return Slot(_hosted_context(sr, name, params), initial_belief(sr.scenario), frames,
-                len(frames) if ticks is None else min(ticks, len(frames)), name)
+    return hosted_slot(sr.scenario, sr.stream_key, name, params, sr.frames if frames is None else frames,
+                       ticks)
+
+
+def _padded(a: np.ndarray, T: int) -> np.ndarray:
+    """``a`` (rows, ...) with NaN rows after its own up to ``T`` rows (a run that stopped early)."""
+    if a.shape[0] >= T:
+        return a
+    return np.concatenate([a, np.full((T - a.shape[0], *a.shape[1:]), np.nan)])
 
 
 def _run_of(fed: Any, k: int, sr: SimulatedRun, name: str, keep_means: bool) -> RunOutput:
     """Slot k of a fed batch scored as :func:`one_run` scores the filter on ``sr``."""
     T = len(sr.frames)
-    store = fed.store[:T, k]
-    if store.shape[0] < T:
-        store = np.concatenate([store, np.full((T - store.shape[0], 24), np.nan)])
-    means = np.ascontiguousarray(store[:, 12:15])
-    covs = np.ascontiguousarray(store[:, 15:24]).reshape(T, 3, 3)
+    means, covs = _padded(fed.means(k)[:T], T), _padded(fed.covs(k)[:T], T)
     pm, pc = np.full((len(sr.records), 3), np.nan), np.full((len(sr.records), 3, 3), np.nan)
     ticks = np.flatnonzero(fed.has_prior[:T, k])
     rows = sr.record_index[ticks]
-    pm[rows] = store[ticks, 0:3]
-    pc[rows] = store[ticks, 3:12].reshape(-1, 3, 3)
+    pm[rows] = fed.prior_means(k)[ticks]
+    pc[rows] = fed.prior_covs(k)[ticks]
     out = _hosted_output(sr, name, means, covs, pm, pc, fed.done(k), fed.failed[k],
                          int(fed.walls[:, k].sum()), keep_means)
     fr = out.filters[name]
@@ -389,9 +389,9 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
                  other: bool = False, global_seed: int | None = None,
                  ticks: int | None = None, name: str | None = None,
                  params: dict[str, Any] | None = None) -> tuple[RunOutput, dict[str, Any]]:
-    """:func:`one_run` of the filter in ``child`` (a :class:`~beacon_sim.filters.isolated.FilterChild`)
+    """:func:`one_run` of the filter in ``child`` (a :class:`~beacon_sim.hosting.isolated.FilterChild`)
     on the simulated run ``sr``: the same numbers bit for bit, the truth never sent (a batch
-    of one, :func:`~beacon_sim.filters.feed.feed_batch`). Returns the run and what the child
+    of one, :func:`~beacon_sim.hosting.feed.feed_batch`). Returns the run and what the child
     reported (``np_global`` / ``py_global``: the filter drew from the global generators;
     ``failed_child``: the child must not be reused). ``other``: the run with its readings
     drawn again (a probe, not a graded run); ``global_seed``: the global RNGs' seed
@@ -399,7 +399,7 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     first ``ticks`` ticks (a probe; ``report["means"]`` holds its estimates); ``name``: the
     filter's name in the run (default its class's: its random generator's stream);
     ``params``: its parameters (default the scenario's ``[filters.NAME]``)."""
-    from beacon_sim.filters.feed import feed_batch
+    from beacon_sim.hosting.client import feed_batch
 
     name = name or child.class_name
     frames = sr.frames_other if other and sr.frames_other is not None else sr.frames
@@ -407,30 +407,15 @@ def isolated_run(child: Any, sr: SimulatedRun, run_limit_s: float | None, keep_m
     fed = feed_batch(child, [slot], run_limit_s, sr.global_seed(name) if global_seed is None else global_seed)
     report = dict(fed.report)
     done = fed.done(0)
-    theta = fed.store[:done, 0, 14]
+    theta = fed.means(0)[:done, 2]
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
     if ticks is not None:  # a probe: its estimates only
         T = slot.ticks
-        report["means"] = np.ascontiguousarray(fed.store[:T, 0, 12:15])
+        report["means"] = fed.means(0)[:T]
         report["failed"] = fed.failed[0]
         return RunOutput(sr.index, sr.seed, sr.truth[:T + 1], sr.controls[:T], sr.kidnapped[:T],
                          sr.truth_checksum), report
     return _run_of(fed, 0, sr, name, keep_means), report
-
-
-def _hosted_context(sr: SimulatedRun, name: str, params: dict[str, Any] | None) -> Any:
-    """The :class:`~beacon_sim.filters.base.FilterContext` a hosted filter gets for the run
-    ``sr``: what it may see, its parameters (default the scenario's ``[filters.NAME]``) and
-    its own random generator (its name's stream of the run's key: never the seed)."""
-    from beacon_sim.core.streams import keyed_stream
-    from beacon_sim.filters.base import FilterContext
-
-    scenario = sr.scenario
-    return FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known,
-                         dt=scenario.dt,
-                         motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                         params=dict(scenario.filter_params.get(name, {})) if params is None else params,
-                         rng=keyed_stream(sr.stream_key, name))
 
 
 def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndarray, pm: np.ndarray,
@@ -459,7 +444,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
     child, one exchange per tick carrying every run's control, dt and readings and bringing
     back every estimate (the pipe's round trip paid once per tick, not once per run;
-    :func:`~beacon_sim.filters.feed.feed_batch`). Each filter is built and fed exactly as
+    :func:`~beacon_sim.hosting.feed.feed_batch`). Each filter is built and fed exactly as
     alone, with its own CPU-time budget, failure and cost, so a filter that does not draw
     from the global generators gives the numbers of :func:`isolated_run` bit for bit; a
     filter that fails fails its own run only, a child that dies fails every run still
@@ -469,16 +454,16 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
     shared by the batch: rerun alone; ``failed_child``: do not reuse).
 
     ``probe_ticks``: the probes of ``sims[0]`` ride along, on its first ``probe_ticks``
-    ticks (:func:`~beacon_sim.filters.feed.probe_slots`: fed again; and its extra run,
+    ticks (:func:`~beacon_sim.hosting.feed.probe_slots`: fed again; and its extra run,
     ``sims[0].extra``, fed its readings and its readings drawn again), every slot in an
     order drawn from the run's key, so that the child cannot tell a probe from a scored
     run; their findings are in ``report["probes"]``
-    (:class:`~beacon_sim.filters.feed.ProbeFindings`).
+    (:class:`~beacon_sim.hosting.feed.ProbeFindings`).
 
     ``name`` and ``params`` may be lists, one per run (the robots of a team scenario: each
     robot's copy its own name, so its own random stream); the runs' records are keyed by
     the first name."""
-    from beacon_sim.filters.feed import feed_batch, judge_probes, probe_slots, slot_order
+    from beacon_sim.hosting.client import feed_batch, judge_probes, probe_slots, slot_order
 
     R = len(sims)
     names = list(name) if isinstance(name, list) else [name or child.class_name] * R
@@ -500,7 +485,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
         order = slot_order(sims[0].stream_key, len(slots))
     fed = feed_batch(child, slots, run_limit_s, sims[0].global_seed(names[0]), order)
     report = dict(fed.report)
-    theta = np.concatenate([fed.store[:fed.done(k), k, 14] for k in range(R)])
+    theta = np.concatenate([fed.means(k)[:fed.done(k), 2] for k in range(R)])
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
     if probes:
         ex = sims[0].extra
@@ -793,7 +778,7 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
                              batch: bool | None = None, scheduler: Any = None) -> list[RunOutput]:
     """:func:`run_monte_carlo` with every filter file (``path.py:Class``), module filter
     (``pkg.mod:Class``) and entry-point filter in a child process of its own
-    (:mod:`beacon_sim.filters.isolated`, :func:`~beacon_sim.filters.hosting.hosted_source`):
+    (:mod:`beacon_sim.hosting.isolated`, :func:`~beacon_sim.hosting.sources.hosted_source`):
     the built-in filters run as before (the same numbers), each hosted filter's runs are
     streamed from simulations made here, and the records are merged in ``specs`` order.
     The same figures as in process, bit for bit, for a filter that does not reach for the
@@ -803,9 +788,9 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
     import tempfile
     from pathlib import Path
 
-    from beacon_sim.filters.containment import resolve_sandbox
-    from beacon_sim.filters.hosting import hosted_source
-    from beacon_sim.filters.loading import merged_params
+    from beacon_sim.hosting.containment import resolve_sandbox
+    from beacon_sim.hosting.loading import merged_params
+    from beacon_sim.hosting.sources import hosted_source
 
     duration = scenario.duration if duration is None else duration
     params = params or {}
@@ -820,7 +805,7 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
     sims = [simulate_run(scenario, seed + i, duration, i) for i in range(runs)]
     level = resolve_sandbox(sandbox) if scheduler is None else sandbox  # on Dask: the worker's
     logs = Path(log_dir) if log_dir is not None else Path(tempfile.mkdtemp(prefix="beacon-sim-eval-"))
-    tasks: list[tuple[Any, ...]] = []
+    tasks: list[HostedTask] = []
     task_names: list[str] = []
     for spec, name in zip(specs, names, strict=True):
         where = hosted[spec]
@@ -833,16 +818,16 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
                                                       error=FilterLoadError))
                        if isinstance(source, Path) else source.module)
         fp = merged_params(spec, scenario, params.get(filter_display_name(spec)))
-        tasks.append((shipped, cls, name, fp, sims, run_limit_s, runs, level, memory_gb,
-                      None if scheduler is not None else str(logs / f"{name}.log")))
+        tasks.append(HostedTask(shipped, cls, name, fp, sims, run_limit_s, level, memory_gb,
+                                None if scheduler is not None else str(logs / f"{name}.log")))
         task_names.append(name)
     isolated: dict[str, list[FilterRun]] = {}
     if scheduler is not None:
-        on_dask(scheduler, _hosted_task, tasks,
+        on_dask(scheduler, hosted_runs, tasks,
                 lambda i, recs: isolated.__setitem__(task_names[i], recs))
     else:
         for name, t in zip(task_names, tasks, strict=True):
-            isolated[name] = _hosted_task(t)
+            isolated[name] = hosted_runs(t)
     result = []
     for i, sr in enumerate(sims):
         run = RunOutput(sr.index, sr.seed, sr.truth, sr.controls, sr.kidnapped, sr.truth_checksum)
@@ -852,22 +837,61 @@ def run_monte_carlo_isolated(scenario: Scenario, specs: list[str], runs: int, se
     return result
 
 
-def hosted_runs(source: Any, cls: str | None, name: str, fp: dict[str, Any],
-                sims: list[SimulatedRun], run_limit_s: float | None, runs: int, sandbox: str,
-                memory_gb: float, log: str | None) -> list[FilterRun]:
-    """Every run of one hosted filter, in a child of its own (a new one after a child
-    that must not be reused): ``source`` a file's path, ``(file name, its bytes)`` (sent
-    to a Dask worker) or a module's :class:`~beacon_sim.filters.containment.ModuleSource`;
-    ``sandbox`` a level (``auto`` resolved here); ``log`` the child's log (None: a
-    temporary one)."""
+@dataclass
+class HostedTask:
+    """Every run of one hosted filter (what :func:`hosted_runs` does, a Dask task of
+    :func:`run_monte_carlo_isolated`).
+
+    Attributes
+    ----------
+    source : Path, (str, bytes), ModuleSource or str
+        The filter's file, the file's name and bytes (sent to a Dask worker), its module's
+        package (:class:`~beacon_sim.hosting.containment.ModuleSource`), or a module's name
+        (found on the worker).
+    class_name : str or None
+        Its class (None: the file's choice).
+    name : str
+        Its name in the run (its random generator's stream).
+    params : dict
+        Its parameters (the scenario's ``[filters.NAME]`` and ``--set`` values).
+    sims : list of SimulatedRun
+        The runs, simulated once by the caller.
+    run_limit_s : float or None
+        Its CPU-time limit per run [s].
+    sandbox : str
+        The containment level (``auto`` resolved where the task runs).
+    memory_gb : float
+        Its child's memory limit [GB].
+    log : str or None
+        Its child's log (None: a temporary one).
+    """
+
+    source: Any
+    class_name: str | None
+    name: str
+    params: dict[str, Any]
+    sims: list[SimulatedRun]
+    run_limit_s: float | None
+    sandbox: str
+    memory_gb: float
+    log: str | None
+
+
+def hosted_runs(task: HostedTask) -> list[FilterRun]:
+    """Every run of one hosted filter (``task``), in a child of its own
+    (:class:`~beacon_sim.hosting.client.ChildSession`: a new one after a child that must not
+    be reused): a file's runs fed together, unless it draws from the global generators
+    (their stream would be shared), then one at a time."""
     import shutil
     import tempfile
     from pathlib import Path
 
-    from beacon_sim.filters.containment import Limits, module_source, resolve_sandbox
-    from beacon_sim.filters.isolated import ChildFailure, FilterChild
-    from beacon_sim.filters.loading import FilterLoadError
+    from beacon_sim.hosting.client import ChildSession
+    from beacon_sim.hosting.containment import Limits, module_source, resolve_sandbox
+    from beacon_sim.hosting.loading import FilterLoadError
 
+    sims, name, run_limit_s = task.sims, task.name, task.run_limit_s
+    source = task.source
     tmp = Path(tempfile.mkdtemp(prefix="beacon-sim-hosted-"))
     try:
         if isinstance(source, tuple):
@@ -879,54 +903,36 @@ def hosted_runs(source: Any, cls: str | None, name: str, fp: dict[str, Any],
             if found is None:
                 raise FilterLoadError(f"{source}: cannot import module {source!r} on this Dask worker")
             source = found
-        level = resolve_sandbox(sandbox)
-        log_path = Path(log) if log is not None else tmp / "log.txt"
-        limits = Limits(memory_gb=memory_gb,
-                        cpu_s=None if run_limit_s is None else run_limit_s * runs * 1.5 + 60)
-        records: list[FilterRun] = []
-        child: FilterChild | None = None
-        why: str | None = None
+        log_path = Path(task.log) if task.log is not None else tmp / "log.txt"
+        limits = Limits(memory_gb=task.memory_gb,
+                        cpu_s=None if run_limit_s is None else run_limit_s * len(sims) * 1.5 + 60)
         timeout = max(60.0, 5 * (run_limit_s or 60.0))
-        if isinstance(source, Path) and len({len(sr.frames) for sr in sims}) == 1:
-            # a file: its runs fed together (each from a fresh copy of the file), unless it
-            # draws from the global generators (their stream would be shared: one at a time)
-            try:
-                child = FilterChild(source, cls, log_path, level, limits, timeout)
-            except ChildFailure as exc:
-                why = str(exc)
-            if child is not None:
-                outs, rep = isolated_runs(child, sims, run_limit_s, name=name, params=fp)
-                if not (rep.get("np_global") or rep.get("py_global")):
-                    child.close()
-                    return [out.filters[name] for out in outs]
-                child.close()
-                child = None
-        for sr in sims:
-            if why is None and child is None:
-                try:
-                    child = FilterChild(source, cls, log_path, level, limits, timeout)
-                except ChildFailure as exc:
-                    why = str(exc)
-            if child is None:
-                T = len(sr.frames)
-                records.append(finish_filter(np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan),
-                                             sr.truth, 0, why or "failed", 0.0, 0, 0, sr.index == 0))
-                continue
-            out, rep = isolated_run(child, sr, run_limit_s, keep_means=sr.index == 0, name=name,
-                                    params=fp)
-            records.append(out.filters[name])
-            if rep.get("failed_child"):
-                child.close()
-                child = None
-        if child is not None:
-            child.close()
-        return records
+        with ChildSession(source, task.class_name, log_path, resolve_sandbox(task.sandbox), limits,
+                          timeout) as session:
+            if isinstance(source, Path) and len({len(sr.frames) for sr in sims}) == 1:
+                child = session.child()
+                if child is not None:
+                    outs, rep = isolated_runs(child, sims, run_limit_s, name=name, params=task.params)
+                    session.stop()
+                    if not (rep.get("np_global") or rep.get("py_global")):
+                        return [out.filters[name] for out in outs]
+            records: list[FilterRun] = []
+            for sr in sims:
+                child = session.child()
+                if child is None:
+                    T = len(sr.frames)
+                    records.append(finish_filter(np.full((T, 3), np.nan), np.full((T, 3, 3), np.nan),
+                                                 sr.truth, 0, session.load_problem or "failed", 0.0, 0, 0,
+                                                 sr.index == 0))
+                    continue
+                out, rep = isolated_run(child, sr, run_limit_s, keep_means=sr.index == 0, name=name,
+                                        params=task.params)
+                records.append(out.filters[name])
+                if rep.get("failed_child"):
+                    session.stop()
+            return records
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _hosted_task(args: tuple[Any, ...]) -> list[FilterRun]:
-    return hosted_runs(*args)
 
 
 class ClusterError(RuntimeError):

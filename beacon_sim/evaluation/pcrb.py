@@ -60,7 +60,7 @@ from beacon_sim.core.team_models import relative_range_bearing, relative_rows
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import broad_gaussian
-from beacon_sim.filters.loading import initial_belief
+from beacon_sim.hosting.loading import initial_belief
 
 #: Position sensors enumerate every detected subset of the visible beacons up to this many.
 MAX_SUBSET_BEACONS = 10

@@ -38,7 +38,7 @@ from beacon_sim.evaluation import intervals
 from beacon_sim.evaluation.metrics import diverged, recovery_times
 from beacon_sim.evaluation.montecarlo import RunOutput, TeamRunOutput, stack
 from beacon_sim.evaluation.pcrb import bound_rmse, pcrb, robot_blocks, team_pcrb
-from beacon_sim.filters.loading import initial_belief
+from beacon_sim.hosting.loading import initial_belief
 from beacon_sim.runs.headless import anees_verdict
 
 

@@ -26,3 +26,11 @@ MOVED = {
     "beacon_sim.filters.ekf_slam": "beacon_sim.filters.slam.ekf_slam",
     "beacon_sim.filters.fastslam": "beacon_sim.filters.slam.fastslam",
 }
+
+#: The old import path of each module that moved into the hosting layer (running someone's
+#: filter, ``beacon_sim.hosting``) and that the docs once named -> its new home; each is a
+#: short module that re-exports the new one's public names.
+HOSTED = {
+    "beacon_sim.filters.runner": "beacon_sim.hosting.runner",
+    "beacon_sim.filters.hot_reload": "beacon_sim.hosting.hot_reload",
+}

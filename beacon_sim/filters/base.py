@@ -20,7 +20,7 @@ import difflib
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -29,6 +29,9 @@ from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.errors import BeaconSimError
+
+if TYPE_CHECKING:
+    from beacon_sim.core.scenario import Scenario
 
 
 class FilterError(BeaconSimError):
@@ -103,6 +106,19 @@ class FilterContext:
     params: Mapping[str, Any] = field(default_factory=dict)
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
     map_known: bool = True
+
+    @classmethod
+    def of_scenario(cls, scenario: Scenario, name: str, params: Mapping[str, Any],
+                    rng: np.random.Generator, *, world: World | None = None) -> FilterContext:
+        """The context of filter ``name`` on ``scenario``: what the scenario tells the filters
+        (its filter world, map, tick, model motion noise and sensors), the filter's
+        ``params`` and its own generator ``rng``; ``world``: instead of the scenario's filter
+        world (a team's members share the team's). Every front end (run, eval, check, grade,
+        the window, the team filters) builds a filter's context here."""
+        return cls(name=name, world=scenario.filter_world if world is None else world,
+                   dt=scenario.dt, motion_noise=scenario.model_motion_noise,
+                   sensors=scenario.model_sensors, params=params, rng=rng,
+                   map_known=scenario.map_known)
 
     def sensor(self, name: str) -> SensorSpec:
         """The spec (with the filter's noise) of the sensor that produced a measurement."""

@@ -4,7 +4,7 @@ A record says everything the rest of the program needs to know about a built-in 
 its name, where its class is (imported only when used), its batched form for Monte Carlo
 runs, the documented range of each parameter (beside the class's ``defaults``), how it is
 drawn, and the parameters a MRCLAM run gives it. The tables other modules read are
-derived from these records: ``BUILTIN_FILTERS`` (filters/loading.py), the parameter checks
+derived from these records: ``BUILTIN_FILTERS`` (hosting/loading.py), the parameter checks
 (filters/param_ranges.py), ``KIND_STYLES`` and ``TEAM_STYLES`` (runs/styles.py) and
 ``MRCLAM_PARAMS`` (runs/mrclam.py). Adding a built-in filter = its module + one record.
 """
@@ -232,7 +232,7 @@ def team_records() -> Iterator[FilterRecord]:
 def builtin_modules() -> tuple[str, ...]:
     """The module of every built-in filter (its class's and its batched form's), each once, in
     listing order: what a hosted filter's process imports before it may lose the right to read
-    the installation (``PRELOAD`` in filters/child.py), so a student may subclass any of them."""
+    the installation (``PRELOAD`` in hosting/child.py), so a student may subclass any of them."""
     modules = [t.partition(":")[0] for r in RECORDS.values() for t in (r.target, r.batched) if t]
     return tuple(dict.fromkeys(modules))
 

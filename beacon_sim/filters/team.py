@@ -109,10 +109,8 @@ def team_context(team: TeamScenario, name: str, params: Mapping[str, Any] | None
     members = []
     for r in team.robots:
         sc = r.scenario
-        ctx = FilterContext(name=f"{name}/{r.name}", world=team.world, dt=team.dt,
-                            motion_noise=sc.model_motion_noise, sensors=sc.model_sensors,
-                            params=dict(sc.filter_params.get("ekf", {})),
-                            rng=filter_stream(seed, f"{name}/{r.id}"))
+        ctx = FilterContext.of_scenario(sc, f"{name}/{r.name}", dict(sc.filter_params.get("ekf", {})),
+                                        filter_stream(seed, f"{name}/{r.id}"), world=team.world)
         members.append(TeamMember(r.id, ctx, r.model_robot_sensors))
     return TeamContext(name, team.world, team.dt, tuple(members), dict(params or {}))
 

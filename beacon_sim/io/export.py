@@ -19,7 +19,7 @@ import numpy as np
 from beacon_sim.core.files import atomic_write, read_user_bytes
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.types import Step
-from beacon_sim.filters.runner import FilterTrack
+from beacon_sim.hosting.runner import FilterTrack
 from beacon_sim.io.recording import Recording
 from beacon_sim.io.tables import (
     MAX_EXPORT_BYTES,

@@ -56,7 +56,7 @@ theta]`` per robot) instead of ``"pose"``. The checksums are the team's
 (:class:`beacon_sim.core.team.TeamSimulation` ``truth_checksum``, and
 ``beacon_sim.runs.recorder.TeamReadingsHash`` over every robot's readings); a single-robot
 filter run on every robot (``independent:F``) is stored as one team filter
-(``filters/team_runner.StackedTrack``). :func:`load_recording` reads both kinds into one
+(``hosting/team_runner.StackedTrack``). :func:`load_recording` reads both kinds into one
 :class:`Recording` (a single robot's file as a team of one).
 
 This module is the format: reading a file (:func:`load_recording`) and the pieces the writer
@@ -109,7 +109,7 @@ from beacon_sim.core.team_scenario import (
 )
 from beacon_sim.core.types import Control
 from beacon_sim.errors import BeaconSimError
-from beacon_sim.filters.team_runner import TeamRunner
+from beacon_sim.hosting.team_runner import TeamRunner
 from beacon_sim.version import __version__
 
 FORMAT_NAME = "beacon-sim-recording"
@@ -397,7 +397,7 @@ class EstimateDigests:
 
 def recorded_tracks(runner: Any) -> dict[str, Any]:
     """The tracks a recording stores, by filter name, in the run's order: a
-    :class:`~beacon_sim.filters.team_runner.TeamRunner` on a team of one, its one robot's
+    :class:`~beacon_sim.hosting.team_runner.TeamRunner` on a team of one, its one robot's
     tracks (a single robot's file); on a team, ``team_tracks()``: each team filter's joint
     track, each single-robot filter's copies as one ``StackedTrack`` (every robot's estimate,
     robot by robot: the former joint ``IndependentTeam``'s). Anything else with ``tracks``

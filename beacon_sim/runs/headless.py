@@ -4,7 +4,7 @@ A single robot is a team of one (issue 22): :func:`run_headless` takes a single-
 :class:`~beacon_sim.core.scenario.Scenario` as :func:`~beacon_sim.core.team_scenario.as_team`
 makes it, and runs every scenario the same way, a
 :class:`~beacon_sim.core.team.TeamSimulation` fed tick by tick to a
-:class:`~beacon_sim.filters.team_runner.TeamRunner`. A team of one draws from the run's own
+:class:`~beacon_sim.hosting.team_runner.TeamRunner`. A team of one draws from the run's own
 seed, so its truth and its filters' estimates are the single-robot run's bit for bit.
 
 The simulation and the filters see exactly the same ticks; the truth does not depend on the
@@ -30,9 +30,9 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario, as_team, team_of_one
 from beacon_sim.core.types import Step
-from beacon_sim.filters.guard import NEES_NOT_FINITE
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, FilterTrack, failure_text
-from beacon_sim.filters.team_runner import TeamRunner
+from beacon_sim.hosting.guard import NEES_NOT_FINITE
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, FilterTrack, failure_text
+from beacon_sim.hosting.team_runner import TeamRunner
 from beacon_sim.runs.progress import Progress
 
 #: The figures of a run that a failed filter does not get (null in JSON, empty in CSV).
@@ -153,7 +153,7 @@ class RunResult:
         """Switch off, after the run, every filter whose NEES against the truth is not finite
         at some tick (a covariance that leaves no room for the error it had), from that tick,
         with the one line ``eval``, ``check`` and ``grade`` give
-        (:data:`~beacon_sim.filters.guard.NEES_NOT_FINITE`): such a filter is never scored as
+        (:data:`~beacon_sim.hosting.guard.NEES_NOT_FINITE`): such a filter is never scored as
         working (issue 37). A failure it had later is replaced by this earlier one."""
         row = {s.tick: k for k, s in enumerate(self.team_steps)}
         for name in self.names:
@@ -305,7 +305,7 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
     """Simulate ``duration`` seconds (default: the scenario's) and feed every filter.
 
     ``filters``: for a single robot, filter specs (built-in names, ``pkg.mod:Class``,
-    ``file.py:Class``); for a team, team filter specs (``filters/team_specs.py``:
+    ``file.py:Class``); for a team, team filter specs (``hosting/team_specs.py``:
     ``centralised``, ``independent:F``, ``file.py:MyTeam``); None runs the scenario's
     ``default_filters``. ``params``: ``{filter name: {key: value}}``. ``step_limit_s`` [s]: a
     tick of a filter that takes longer stops it; ``run_limit_s`` [s]: so does its filter time

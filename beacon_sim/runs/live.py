@@ -4,7 +4,7 @@ panel shows (a :class:`~beacon_sim.runs.scene.Scene`).
 
 A single robot is a team of one (issue 22): :class:`Session` runs any scenario as a team
 (``core.team_scenario.as_team``), its :class:`~beacon_sim.core.team.TeamSimulation` and a
-:class:`~beacon_sim.filters.team_runner.TeamRunner`. On a team of one it builds and feeds
+:class:`~beacon_sim.hosting.team_runner.TeamRunner`. On a team of one it builds and feeds
 exactly what a single-robot session always did (the same truth, the same estimates, the same
 recording); on a team, Tab changes the driven robot and the others follow their drivers.
 
@@ -34,8 +34,8 @@ from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.team_scenario import TeamScenario, as_team
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 from beacon_sim.filters.base import Belief, Filter, GaussianBelief
-from beacon_sim.filters.loading import WINDOW_BUILD_LIMIT_S, reset_filter
-from beacon_sim.filters.runner import (
+from beacon_sim.hosting.loading import WINDOW_BUILD_LIMIT_S, reset_filter
+from beacon_sim.hosting.runner import (
     WINDOW_STEP_LIMIT_S,
     FilterRunner,
     FilterTrack,
@@ -45,7 +45,7 @@ from beacon_sim.filters.runner import (
     validate_belief,
     validate_estimate,
 )
-from beacon_sim.filters.team_runner import JointRunner, TeamRunner, team_filter_of, validate_team_estimates
+from beacon_sim.hosting.team_runner import JointRunner, TeamRunner, team_filter_of, validate_team_estimates
 from beacon_sim.io.recording import TEAM_COMMAND_KINDS, default_recording_path, validate_command
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
@@ -76,7 +76,7 @@ class Session:
         A single-robot scenario runs as a team of one.
     specs : list of str
         Filter specs: on a single robot, built-in names, ``pkg.mod:Class``, ``file.py:Class``;
-        on a team, team filter names or ``independent:F`` (see ``filters/team_specs.py``).
+        on a team, team filter names or ``independent:F`` (see ``hosting/team_specs.py``).
     seed : int, optional
         Defaults to the scenario's.
     params : dict, optional

@@ -4,7 +4,7 @@ several at once (a single robot is a team of one).
 - The noise the filters are told comes from the data (:func:`calibrate`): odometry against
   ground truth and measurement residuals against ground truth, with robust statistics; by
   default from the data set's other robots, never the scored one (:func:`calibration_for`).
-- Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` over the
+- Every filter runs through :class:`~beacon_sim.hosting.team_runner.TeamRunner` over the
   robots of :func:`mrclam_team` (:func:`run_mrclam`). One robot: odometry and measurements
   interleaved by time stamp (seed 001 section III.C), the filters predicting with the latest
   command up to each reading's time. Several (issue 18): one common clock, each robot's own
@@ -41,13 +41,13 @@ from beacon_sim.core.team_scenario import RobotSensorSpec, TeamRobot, TeamScenar
 from beacon_sim.core.types import Beacon, Control, EventRecord, Measurement, Step
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, GaussianBelief, LandmarkMap
-from beacon_sim.filters.loading import split_label
 from beacon_sim.filters.registry import MRCLAM_DEFAULTS, MRCLAM_ROBUST
 from beacon_sim.filters.registry import MRCLAM_GATE_CHI2 as MRCLAM_GATE_CHI2  # re-exported
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, failure_text, guarded_call, validate_estimate
 from beacon_sim.filters.team import TEAM_FILTERS
-from beacon_sim.filters.team_runner import TeamRunner, validate_team_estimates
-from beacon_sim.filters.team_specs import check_team_specs, member_spec, team_filter_name
+from beacon_sim.hosting.loading import split_label
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, failure_text, guarded_call, validate_estimate
+from beacon_sim.hosting.team_runner import TeamRunner, validate_team_estimates
+from beacon_sim.hosting.team_specs import check_team_specs, member_spec, team_filter_name
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError
 from beacon_sim.runs.headless import ACCURACY_KEYS
 from beacon_sim.runs.scene import FilterStatus, Trail
@@ -960,7 +960,7 @@ def map_withheld(spec: str) -> bool:
     """Whether ``--slam`` withholds the map from filter ``spec``: a SLAM filter (its class has
     ``landmarks()``, docs/slam.md) maps the landmarks itself; any other filter keeps the
     surveyed map (it could not run without it) and is the known-map reference."""
-    from beacon_sim.filters.loading import load_filter_class
+    from beacon_sim.hosting.loading import load_filter_class
 
     return callable(getattr(load_filter_class(spec), "landmarks", None))
 
@@ -971,7 +971,7 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
                unknown_ids: bool = False, slam: bool = False, record_maps: bool = False) -> MrclamRun:
     """Run filters over one robot's data, or over several robots of a data set at once.
 
-    Every filter runs through :class:`~beacon_sim.filters.team_runner.TeamRunner` (one
+    Every filter runs through :class:`~beacon_sim.hosting.team_runner.TeamRunner` (one
     robot is a team of one, :func:`mrclam_team`), starting at the ground truth of the
     first common odometry time (``INITIAL_STD``). One robot (``dt`` None): its odometry and
     readings interleaved by time stamp (:func:`_feed_by_time_stamps`); single-robot filter
@@ -1002,7 +1002,7 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     ``record_maps`` (one robot): keep every SLAM filter's map after each update
     (``MrclamRun.map_history``), for the window.
     """
-    from beacon_sim.filters.loading import check_param_names, filter_names
+    from beacon_sim.hosting.loading import check_param_names, filter_names
 
     robots = [data] if isinstance(data, MrclamData) else list(data)
     if not robots:

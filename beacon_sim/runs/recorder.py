@@ -178,7 +178,7 @@ class Recorder:
             self._write({"type": "signature", "hmac": self._signer.hexdigest()})
 
     def attach(self, runner: Any) -> None:
-        """The session's filters (a :class:`~beacon_sim.filters.team_runner.TeamRunner`, or
+        """The session's filters (a :class:`~beacon_sim.hosting.team_runner.TeamRunner`, or
         anything with ``tracks``: see :func:`~beacon_sim.io.recording.recorded_tracks`),
         before the first tick: writes the filters line (each filter's effective parameters,
         from the built filter) and digests its estimates from then on."""

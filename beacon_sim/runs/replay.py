@@ -9,7 +9,7 @@ Each tick goes as it went live: the recorded user commands (a kidnap of the robo
 a reset of the filters), then every robot steps, the recorded driven robot on its recorded
 command (or, on a team's file where its own driver chose it live, that driver again, so the
 driver's state follows), the others on their drivers; then the filters are fed
-(:class:`~beacon_sim.filters.team_runner.TeamRunner`: each single-robot filter on each
+(:class:`~beacon_sim.hosting.team_runner.TeamRunner`: each single-robot filter on each
 robot, each team filter once). A recording never makes beacon-sim import code: only
 built-in filters and installed entry points are run from a file
 (:func:`is_builtin_spec`).
@@ -27,10 +27,10 @@ import numpy as np
 
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.core.types import Control
-from beacon_sim.filters.loading import filter_names, split_label
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S
-from beacon_sim.filters.team_runner import TeamRunner
-from beacon_sim.filters.team_specs import MEMBER_PREFIX, team_filter_name
+from beacon_sim.hosting.loading import filter_names, split_label
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S
+from beacon_sim.hosting.team_runner import TeamRunner
+from beacon_sim.hosting.team_specs import MEMBER_PREFIX, team_filter_name
 from beacon_sim.io.recording import (
     EstimateDigests,
     Recording,

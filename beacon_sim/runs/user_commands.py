@@ -25,10 +25,10 @@ from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.filters.base import Filter
-from beacon_sim.filters.loading import reset_filter
-from beacon_sim.filters.runner import HEADLESS_STEP_LIMIT_S, guarded_call
 from beacon_sim.filters.team import initial_beliefs
-from beacon_sim.filters.team_runner import JointRunner, TeamRunner, team_filter_of
+from beacon_sim.hosting.loading import reset_filter
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, guarded_call
+from beacon_sim.hosting.team_runner import JointRunner, TeamRunner, team_filter_of
 from beacon_sim.io.recording import validate_command
 
 

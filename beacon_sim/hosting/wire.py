@@ -1,5 +1,5 @@
-"""The pipe between the grader and a filter's child process (:mod:`beacon_sim.filters.child`,
-:mod:`beacon_sim.filters.isolated`): frames of bytes, in lockstep.
+"""The pipe between the grader and a filter's child process (:mod:`beacon_sim.hosting.child`,
+:mod:`beacon_sim.hosting.isolated`): frames of bytes, in lockstep.
 
 Grader -> child: ``length (4 bytes) + pickle`` of a tuple ``(op, *args)``: the child trusts
 the grader. Child -> grader: ``tag (1 byte) + length (4 bytes) + payload``, never a pickle
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.filters.landmark_check import MAX_LANDMARKS, landmark_count_problem, landmark_map_problems
+from beacon_sim.hosting.landmark_check import MAX_LANDMARKS, landmark_count_problem, landmark_map_problems
 
 #: Reply tags (child -> grader). MULTI: one answer per filter of a seed batch; MAPPED: an
 #: ESTIMATE followed by the filter's map (``landmarks()``: a SLAM filter's step).
@@ -209,7 +209,7 @@ MAX_MAP_BYTES = _MAP_HEAD.size + MAX_LANDMARKS * (8 + 16 + 32)
 def encode_landmarks(lm: Any) -> bytes | str:
     """The map block of what a filter's ``landmarks()`` returned (child side): bytes, or the
     one-line fault of a map that cannot be sent (not a LandmarkMap, wrong shapes, over
-    :data:`~beacon_sim.filters.landmark_check.MAX_LANDMARKS` landmarks). The values (finite,
+    :data:`~beacon_sim.hosting.landmark_check.MAX_LANDMARKS` landmarks). The values (finite,
     symmetric PSD covariances) are judged by the grader, which trusts nothing it reads."""
     if lm is None or not all(hasattr(lm, a) for a in ("ids", "means", "covs")):
         return landmark_map_problems(lm)[0]
@@ -255,7 +255,7 @@ def split_mapped(payload: bytes) -> tuple[bytes, bytes]:
 def decode_landmarks(block: bytes) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """(ids (M,) or None, means (M, 2) [m], covs (M, 2, 2) [m^2]) of a map block (grader
     side), fresh arrays; their values are not judged here
-    (:func:`~beacon_sim.filters.landmark_check.landmark_map_problems` does). Raises
+    (:func:`~beacon_sim.hosting.landmark_check.landmark_map_problems` does). Raises
     :class:`WireError` for a block whose size does not match its head or over the limit,
     :class:`MapFault` for a block that carries a fault (:func:`map_fault_block`)."""
     if len(block) < _MAP_HEAD.size:

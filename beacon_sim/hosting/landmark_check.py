@@ -1,7 +1,7 @@
 """What is wrong with a SLAM filter's map estimate (``landmarks()``, docs/slam.md), in one
 message per fault: the same words whether the filter runs in this process (``check
 --sandbox none``, the window) or in a child process whose map came back over the pipe
-(:mod:`beacon_sim.filters.wire`, judged in the grader)."""
+(:mod:`beacon_sim.hosting.wire`, judged in the grader)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Feeding a batch of runs to a hosted filter: the one client of the child's batch protocol
-(:mod:`beacon_sim.filters.child`), shared by ``grade``, ``eval``'s hosted runs and
+(:mod:`beacon_sim.hosting.child`), shared by ``grade``, ``eval``'s hosted runs and
 ``check`` (issue 37), so that a filter sees the same calls, in the same order, with the
 same limits, whichever of them feeds it, and is judged by the same rules.
 
@@ -25,7 +25,7 @@ identical runs differently to tell them apart, and that is what the determinism 
 flags.
 
 :class:`LocalChild` serves the same protocol in this process (a built-in filter, or
-``check --sandbox none``), with the child's own code (:class:`~beacon_sim.filters.child.Batch`).
+``check --sandbox none``), with the child's own code (:class:`~beacon_sim.hosting.child.Batch`).
 """
 
 from __future__ import annotations
@@ -39,10 +39,11 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterContext, GaussianBelief
-from beacon_sim.filters.containment import Limits
-from beacon_sim.filters.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
-from beacon_sim.filters.wire import (
+from beacon_sim.hosting.containment import Limits
+from beacon_sim.hosting.isolated import MIN_REPLY_TIMEOUT_S, ChildFailure, FilterChild
+from beacon_sim.hosting.wire import (
     ESTIMATE,
     MAPPED,
     OK,
@@ -127,7 +128,7 @@ class Slot:
     initial : GaussianBelief or None
         Its initial belief (None: a global start).
     frames : sequence of bytes
-        The "step" request of each tick (:func:`~beacon_sim.filters.wire.encode_request`).
+        The "step" request of each tick (:func:`~beacon_sim.hosting.wire.encode_request`).
     ticks : int
         How many of them it is fed.
     spec : str
@@ -179,6 +180,14 @@ class Fed:
     def covs(self, k: int) -> np.ndarray:
         """Slot k's estimates' covariances (T, 3, 3)."""
         return np.ascontiguousarray(self.store[:, k, 15:24]).reshape(-1, 3, 3)
+
+    def prior_means(self, k: int) -> np.ndarray:
+        """Slot k's estimates after predict: means (T, 3) (NaN on a tick without one)."""
+        return np.ascontiguousarray(self.store[:, k, 0:3])
+
+    def prior_covs(self, k: int) -> np.ndarray:
+        """Slot k's estimates after predict: covariances (T, 3, 3)."""
+        return np.ascontiguousarray(self.store[:, k, 3:12]).reshape(-1, 3, 3)
 
     def done(self, k: int) -> int:
         """How many ticks slot k answered."""
@@ -381,12 +390,12 @@ def _horizon(fed: Fed, k: int) -> int:
 
 class LocalChild(FilterChild):
     """The child's batch protocol served in this process (a built-in filter, or
-    ``check --sandbox none``): the same :class:`~beacon_sim.filters.child.Batch` code
+    ``check --sandbox none``): the same :class:`~beacon_sim.hosting.child.Batch` code
     builds and steps the filters, so their calls and verdicts are those of a hosted one.
     The global generators are seeded for a batch and restored after it."""
 
     def __init__(self, cls: type):
-        from beacon_sim.filters.child import Server
+        from beacon_sim.hosting.child import Server
 
         self.limits, self.sandbox = Limits(), "none"
         self.source_name = getattr(cls, "__name__", "filter")
@@ -409,8 +418,8 @@ class LocalChild(FilterChild):
         self._saved: tuple[Any, Any] | None = None
 
     def request(self, frame: bytes, expect: int | None = None, runs: int = 1) -> tuple[bytes, bytes]:
-        from beacon_sim.filters.child import serve_one
-        from beacon_sim.filters.wire import FAIL
+        from beacon_sim.hosting.child import serve_one
+        from beacon_sim.hosting.wire import FAIL
 
         req = pickle.loads(frame[4:])
         if req[0] in ("bbuild", "build"):
@@ -444,15 +453,21 @@ class LocalChild(FilterChild):
             self._saved = None
 
 
+def step_request(control: Control, dt: float, measurements: Sequence[Measurement], want_prior: bool) -> bytes:
+    """One tick's "step" request, pickled once and sent to every child fed that run: the
+    command, dt [s] and the readings (what a filter may see), and whether the estimate
+    after predict is wanted too (a tick with readings: for the NIS)."""
+    return encode_request("step", control, dt, tuple(measurements), bool(want_prior))
+
+
 def step_frames(steps: Sequence[Any]) -> list[bytes]:
     """The "step" requests of simulated ``steps`` (:class:`~beacon_sim.core.types.Step`), as
     every front end sends them: the control, dt, the readings, and whether the estimate
     after predict is wanted (on a tick with readings, for the NIS)."""
-    return [encode_request("step", st.control, st.dt, tuple(st.measurements), bool(st.measurements))
-            for st in steps]
+    return [step_request(st.control, st.dt, st.measurements, bool(st.measurements)) for st in steps]
 
 
 __all__ = ["GRADE_MEMORY_GB", "GRADE_RUN_S", "GRADE_SEEDS", "GRADE_TIME_LIMIT_S", "LEAD_FAILED",
            "LOG_BYTES", "PROBES", "PROBE_TICKS", "Fed", "LocalChild", "ProbeFindings", "Slot",
            "child_limits", "feed_batch", "grade_limits", "judge_probes", "other_readings_seed",
-           "probe_seed", "probe_slots", "reply_timeout", "slot_order", "step_frames"]
+           "probe_seed", "probe_slots", "reply_timeout", "slot_order", "step_frames", "step_request"]

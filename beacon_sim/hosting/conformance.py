@@ -1,14 +1,14 @@
 """Conformance checks for any filter (docs/architecture.md), used by ``beacon-sim check``.
 
 ``check`` feeds a filter as ``grade`` does (issue 37: watched and scored look the same):
-the same batch protocol (:mod:`beacon_sim.filters.feed`: one run of a default grade's length
+the same batch protocol (:mod:`beacon_sim.hosting.feed`: one run of a default grade's length
 on a fresh random seed, and the grade's probes, in an order drawn from a fresh random key),
 the same limits (a default grade's: its run's CPU-time budget, its child's memory and CPU
 backstop), the same random streams (keyed by a fresh secret, never the seed) and the same
-verdicts (the guard's rules and words, :mod:`beacon_sim.filters.guard`). A file is hosted in
+verdicts (the guard's rules and words, :mod:`beacon_sim.hosting.guard`). A file is hosted in
 a child process of its own, started as a grade starts it; a built-in filter (or
 ``--sandbox none``) is served in this process by the same code
-(:class:`~beacon_sim.filters.feed.LocalChild`).
+(:class:`~beacon_sim.hosting.feed.LocalChild`).
 
 From what the filter returned the checks judge, each on its own (one fault, one FAIL): the
 interface, the construction, that every step returned, shapes, finite values (not diverged,
@@ -42,8 +42,9 @@ from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.streams import keyed_global_seed, keyed_stream, run_key
 from beacon_sim.filters.base import FilterContext, FilterError
-from beacon_sim.filters.containment import resolve_sandbox
-from beacon_sim.filters.feed import (
+from beacon_sim.hosting.client import FilterChild, start_child, step_request
+from beacon_sim.hosting.containment import resolve_sandbox
+from beacon_sim.hosting.feed import (
     GRADE_RUN_S,
     GRADE_SEEDS,
     GRADE_TIME_LIMIT_S,
@@ -62,19 +63,17 @@ from beacon_sim.filters.feed import (
     slot_order,
     step_frames,
 )
-from beacon_sim.filters.guard import DIVERGED, MAX_COV, MAX_MEAN, NEES_NOT_FINITE
-from beacon_sim.filters.hosting import hosted_source
-from beacon_sim.filters.isolated import FilterChild
-from beacon_sim.filters.landmark_check import landmark_map_problems
-from beacon_sim.filters.loading import (
+from beacon_sim.hosting.guard import DIVERGED, MAX_COV, MAX_MEAN, NEES_NOT_FINITE
+from beacon_sim.hosting.landmark_check import landmark_map_problems
+from beacon_sim.hosting.loading import (
     FilterLoadError,
     filter_display_name,
     initial_belief,
     load_filter_class,
     merged_params,
 )
-from beacon_sim.filters.watchdog import FilterFailed
-from beacon_sim.filters.wire import encode_request
+from beacon_sim.hosting.sources import hosted_source
+from beacon_sim.hosting.watchdog import FilterFailed
 
 #: How long check's run is [s] (a default grade's run; at most the scenario's length) and its
 #: CPU-time budget [s] (a default grade's time limit): over it, "runs" fails ("time limit").
@@ -153,9 +152,7 @@ class _Host:
         else:
             name = filter_display_name(spec)
             params = merged_params(spec, scenario)
-        return FilterContext(name=name, world=scenario.filter_world, map_known=scenario.map_known,
-                             dt=scenario.dt, motion_noise=scenario.model_motion_noise,
-                             sensors=scenario.model_sensors, params=params, rng=keyed_stream(key, name))
+        return FilterContext.of_scenario(scenario, name, params, keyed_stream(key, name))
 
     def close(self) -> None:
         self.child.close()
@@ -171,7 +168,7 @@ def _open_host(spec: str, isolated: bool, sandbox: str) -> _Host:
         if isinstance(path, Path) and not path.is_file():
             raise FilterLoadError(f"{path}: no such filter file")
         log = Path(tempfile.mkdtemp(prefix="beacon-sim-check-")) / "log.txt"
-        child = FilterChild(path, cls, log, resolve_sandbox(sandbox), grade_limits(),
+        child = start_child(path, cls, log, resolve_sandbox(sandbox), grade_limits(),
                             reply_timeout_s=reply_timeout(RUN_LIMIT_S))
         return _Host(child, True, log)
     return _Host(LocalChild(load_filter_class(spec)), False)
@@ -455,7 +452,7 @@ class _RngTrial:
     drew_np: bool
     drew_py: bool
     others: tuple[_Feed, _Feed] | None = None
-    #: The probes' own verdict (:func:`~beacon_sim.filters.feed.judge_probes`: which tick
+    #: The probes' own verdict (:func:`~beacon_sim.hosting.feed.judge_probes`: which tick
     #: was answered, and why each stopped), when there is one: it decides.
     judged: ProbeFindings | None = None
 
@@ -512,9 +509,7 @@ def report_cost(run: _Feed, scenario: Scenario, frames: Sequence[bytes],
     n = len(frames)
     ekf = LocalChild(ExtendedKalmanFilter)
     key = run_key(0)
-    ctx = FilterContext("ekf", scenario.filter_world, scenario.dt, scenario.model_motion_noise,
-                        scenario.model_sensors, merged_params("ekf", scenario), keyed_stream(key, "ekf"),
-                        scenario.map_known)
+    ctx = FilterContext.of_scenario(scenario, "ekf", merged_params("ekf", scenario), keyed_stream(key, "ekf"))
     ref = feed_batch(ekf, [Slot(ctx, initial_belief(scenario), frames, n, "ekf")], None,
                      keyed_global_seed(key, "ekf"))
     ekf_us = float(ref.walls[:, 0].sum()) / 1e3 / max(ref.done(0), 1)
@@ -535,7 +530,7 @@ def run_checks(spec: str, scenario: Scenario, *, isolated: bool = True, sandbox:
                seeds: Sequence[int] | None = None) -> list[CheckResult]:
     """Run every check on the filter named ``spec`` with ``scenario``'s map and sensors.
 
-    The filter is run as a default grade runs it (:data:`~beacon_sim.filters.feed.GRADE_SEEDS`
+    The filter is run as a default grade runs it (:data:`~beacon_sim.hosting.feed.GRADE_SEEDS`
     runs of :data:`RUN_S` seconds, fed together with the probes of the first): a file in a
     child process of its own (``isolated``, the default; ``sandbox`` as for ``grade``),
     started with a grade's limits; its code never runs in this process, and a filter that
@@ -688,7 +683,7 @@ def _empty_update(host: _Host, fed: Fed, r: int, run: _Run, runs: CheckResult,
         n = sum(1 for h in run.has_readings[:fed.done(r)] if not h)
         return runs, _result("empty update", True, f"accepted on the {n} ticks without readings before")
     _, control, dt, meas, _want = pickle.loads(run.frames[k][4:])
-    empty = encode_request("step", control, dt, tuple(meas), True)
+    empty = step_request(control, dt, meas, True)
     with_readings = next((f for f, h in zip(run.frames, run.has_readings, strict=True) if h), None)
     slots = [Slot(main.ctx, main.initial, [empty], 1, main.spec)]
     if with_readings is not None:

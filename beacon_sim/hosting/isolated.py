@@ -1,6 +1,6 @@
 """A filter in a child process of its own (the grader's side): :class:`FilterChild` starts
-and talks to the child (:mod:`beacon_sim.filters.child`, contained as
-:mod:`beacon_sim.filters.containment` says), and :class:`IsolatedFilter` is the proxy
+and talks to the child (:mod:`beacon_sim.hosting.child`, contained as
+:mod:`beacon_sim.hosting.containment` says), and :class:`IsolatedFilter` is the proxy
 that satisfies :class:`~beacon_sim.filters.base.Filter`, so the runner, ``eval`` and
 ``check`` drive it like any filter.
 
@@ -8,8 +8,8 @@ The child gets only what a filter may see: its :class:`~beacon_sim.filters.base.
 (beacon map, dt, motion noise, sensors, parameters, its random generator), its initial
 belief, then each tick's control, dt and readings, in lockstep (tick k+1 is sent only
 after estimate k came back). A child that dies, breaks the protocol or does not answer in
-time fails with the real reason (:func:`~beacon_sim.filters.containment.exit_reason`),
-as a :class:`~beacon_sim.filters.watchdog.FilterFailed` whose message is that reason.
+time fails with the real reason (:func:`~beacon_sim.hosting.containment.exit_reason`),
+as a :class:`~beacon_sim.hosting.watchdog.FilterFailed` whose message is that reason.
 """
 
 from __future__ import annotations
@@ -26,46 +26,35 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import (
-    Belief,
     FilterContext,
     GaussianBelief,
-    GridBelief,
-    LandmarkMap,
-    ParticleBelief,
 )
-from beacon_sim.filters.containment import (
+from beacon_sim.hosting.containment import (
     Launched,
     Limits,
     ModuleSource,
     exit_reason,
     launch,
 )
-from beacon_sim.filters.watchdog import FilterFailed
-from beacon_sim.filters.wire import (
-    BELIEF,
+from beacon_sim.hosting.watchdog import FilterFailed
+from beacon_sim.hosting.wire import (
     EST_ENTRY,
     ESTIMATE,
     FAIL,
     JOINT,
-    MAPPED,
     MAX_BATCH,
     MULTI,
     OK,
     REPORT,
     WireError,
-    decode_belief,
     decode_joint,
     encode_batch,
     encode_request,
-    map_problem,
-    parse_estimate,
     parse_json,
     parse_multi,
     read_reply,
     send_frame,
-    split_mapped,
 )
 
 #: The longest the grader waits for one answer of a child [s] of wall time, at least: a
@@ -92,7 +81,7 @@ class FilterChild:
     ----------
     source : Path or ModuleSource
         The student's file, or the module filter's package
-        (:func:`~beacon_sim.filters.hosting.hosted_source`), copied read-only into the
+        (:func:`~beacon_sim.hosting.sources.hosted_source`), copied read-only into the
         child's own folder.
     class_name : str or None
         The filter class (None: the class that implements the interface, else the file's
@@ -100,7 +89,7 @@ class FilterChild:
     log : Path
         The student's log: the child's stdout and stderr, cut at ``limits.log_bytes``.
     sandbox : str
-        ``bwrap`` or ``process`` (:func:`~beacon_sim.filters.containment.resolve_sandbox`).
+        ``bwrap`` or ``process`` (:func:`~beacon_sim.hosting.containment.resolve_sandbox`).
     limits : Limits
         Memory, CPU, file size and log limits of the child.
     reply_timeout_s : float
@@ -131,7 +120,7 @@ class FilterChild:
 
     # -- the pipe -------------------------------------------------------------------
     def request(self, frame: bytes, expect: int | None = None, runs: int = 1) -> tuple[bytes, bytes]:
-        """Send a frame made by :func:`~beacon_sim.filters.wire.encode_request` and read the
+        """Send a frame made by :func:`~beacon_sim.hosting.wire.encode_request` and read the
         answer (``expect``: its likely size [bytes], read at once; ``runs``: how many runs'
         steps it carries, each given the reply time-out); a FAIL answer or a dead child
         raises :class:`ChildFailure`."""
@@ -246,7 +235,7 @@ class FilterChild:
     # -- a batch of runs: one filter per seed, one exchange per tick ------------------
     def call_multi(self, frame: bytes, count: int) -> list[tuple[bytes, bytes]] | np.ndarray:
         """Send a batch request of ``count`` runs and read its MULTI answer
-        (:func:`~beacon_sim.filters.wire.parse_multi`); anything else from the child, or a
+        (:func:`~beacon_sim.hosting.wire.parse_multi`); anything else from the child, or a
         malformed answer, stops it (:class:`ChildFailure`, ``died``)."""
         tag, payload = self.request(frame, 5 + count * EST_ENTRY.itemsize, max(1, count))
         try:
@@ -272,7 +261,7 @@ class FilterChild:
         """Build one fresh filter per run of a batch (``(ctx, initial, spec)`` each), each with
         its own CPU-time budget ``run_limit_s`` [s], the global RNGs seeded once from
         ``global_seed`` (derived from the run's key, never its seed): None per built filter,
-        else why its construction failed. (:func:`~beacon_sim.filters.feed.feed_batch`
+        else why its construction failed. (:func:`~beacon_sim.hosting.feed.feed_batch`
         drives a batch.)"""
         if not 1 <= len(builds) <= MAX_BATCH:
             raise ValueError(f"a batch of {len(builds)} runs: expected 1 to {MAX_BATCH}")
@@ -309,7 +298,7 @@ class FilterChild:
     def final_joint(self, slot: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The final ``joint()`` (mean (3 + 2M,), cov, landmark IDs (M,)) of run ``slot`` of
         the batch (None: of the one filter), checked
-        (:func:`~beacon_sim.filters.wire.decode_joint`), or None when the filter reports none.
+        (:func:`~beacon_sim.hosting.wire.decode_joint`), or None when the filter reports none.
         Asked one run at a time (a joint of 500 landmarks is 8 MB)."""
         if self.info.get("joint") is not True:
             return None
@@ -325,147 +314,4 @@ class FilterChild:
         return self._report(self.call_json("bend"))
 
 
-class IsolatedFilter:
-    """The proxy of a filter in a :class:`FilterChild`: a
-    :class:`~beacon_sim.filters.base.Filter` for the runner, ``eval`` and ``check``.
-
-    ``predict`` is held until ``update`` so that a step is one exchange with the child
-    (predict, update and estimate there); a failure raises :class:`ChildFailure` (a
-    :class:`~beacon_sim.filters.watchdog.FilterFailed`: the runner's one line is the
-    child's reason). A hosted SLAM filter (its class has ``landmarks()``) gets an
-    :class:`IsolatedMappingFilter`: its map comes back with each step's estimate."""
-
-    def __new__(cls, child: FilterChild, *args: Any, **kwargs: Any) -> IsolatedFilter:
-        if cls is IsolatedFilter and child.info.get("landmarks") is True:
-            cls = IsolatedMappingFilter
-        return super().__new__(cls)
-
-    def __init__(self, child: FilterChild, ctx: FilterContext, initial: GaussianBelief | None,
-                 global_seed: int, run_limit_s: float | None, spec: str,
-                 step_limit_s: float | None = None, strict_map: bool = True):
-        self.child = child
-        #: A SLAM filter's bad map raises at the step that brought it (switched off, as a bad
-        #: estimate); False (``check``): at ``landmarks()``, so the pose checks go on.
-        self.strict_map = strict_map
-        self._map_fault: str | None = None
-        self.supports_global = True  # the child resets with the scenario's own belief
-        self._pending: tuple[Control, float] | None = None
-        self._est: Any = None
-        self._map: LandmarkMap | None = None  # the map the last step brought back (SLAM)
-        #: The wall time of the last predict + update + estimate in the child [ns] (its own
-        #: cost, without the exchange), or None.
-        self.last_step_ns: int | None = None
-        child.build(ctx, initial, global_seed, run_limit_s, spec, step_limit_s)
-
-    def reset(self, initial: GaussianBelief | None) -> None:
-        self._pending, self._est, self._map = None, None, None
-        self.child.call("reset", initial)
-
-    def predict(self, control: Control, dt: float) -> None:
-        self._flush()
-        self._pending, self._est = (control, dt), None
-
-    def _flush(self) -> None:
-        if self._pending is not None:
-            control, dt = self._pending
-            self._pending, self._map = None, None
-            self.child.call("predict", control, dt)
-
-    def update(self, measurements: Any) -> None:
-        meas: tuple[Measurement, ...] = tuple(measurements)
-        if self._pending is not None:
-            control, dt = self._pending
-            self._pending = None
-            tag, payload = self.child.call("step", control, dt, meas, False)
-            self._map = self._map_fault = None
-            if tag == MAPPED:
-                payload, block = split_mapped(payload)
-                tag = ESTIMATE
-                self._map, self._map_fault = _judged_map(block)
-                if self._map_fault is not None and self.strict_map:
-                    raise ChildFailure(self._map_fault)
-            self._est = _estimate_of(tag, payload)
-            self.last_step_ns = parse_estimate(payload)[0] if tag == ESTIMATE else None
-            return
-        self._est, self._map = None, None
-        self.child.call("update", meas)
-
-    def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        self._flush()
-        if self._est is None:
-            tag, payload = self.child.call("estimate")
-            self._est = _estimate_of(tag, payload)
-        est: Any = self._est
-        if isinstance(est, tuple) and len(est) == 2 and all(isinstance(a, np.ndarray) for a in est):
-            return est[0].copy(), est[1].copy()
-        return est
-
-    def belief(self) -> Belief:
-        self._flush()
-        tag, payload = self.child.call("belief")
-        if tag != BELIEF:
-            raise ChildFailure("the filter's process broke the protocol")
-        kind, arrays, _ = decode_belief(payload)
-        if kind == "gaussian" and len(arrays) == 2:
-            return GaussianBelief(arrays[0], arrays[1])
-        if kind == "particles" and len(arrays) == 2:
-            return ParticleBelief(arrays[0], arrays[1])
-        if kind == "grid" and len(arrays) == 3 and arrays[1].size == 2 and arrays[2].size == 1:
-            return GridBelief(arrays[0], (float(arrays[1][0]), float(arrays[1][1])), float(arrays[2]))
-        raise ChildFailure("the filter's process sent a malformed belief")
-
-
-class IsolatedMappingFilter(IsolatedFilter):
-    """The proxy of a hosted SLAM filter: ``landmarks()`` is the map that came back with the
-    last step (judged in this process, as every map: finite, shapes, symmetric PSD
-    covariances, at most :data:`~beacon_sim.filters.landmark_check.MAX_LANDMARKS`), else
-    the child is asked for it. A bad map raises :class:`ChildFailure` with its one line."""
-
-    def landmarks(self) -> LandmarkMap:
-        self._flush()
-        if self._map_fault is not None:
-            raise ChildFailure(self._map_fault)
-        if self._map is None:
-            tag, payload = self.child.call("landmarks")
-            if tag != MAPPED:
-                raise ChildFailure("the filter's process broke the protocol")
-            got, why = _judged_map(split_mapped(payload)[1])
-            if why is not None or got is None:
-                raise ChildFailure(why or "landmarks(): a bad map")
-            self._map = got
-        lm = self._map
-        return LandmarkMap(None if lm.ids is None else lm.ids.copy(), lm.means.copy(), lm.covs.copy())
-
-
-def _judged_map(block: bytes) -> tuple[LandmarkMap | None, str | None]:
-    """The map of a MAPPED reply, judged (:func:`~beacon_sim.filters.wire.map_problem`):
-    (the map, None) or (None, its fault in one line); a malformed block raises
-    :class:`ChildFailure` (the child broke the protocol)."""
-    try:
-        got, why = map_problem(block)
-    except WireError as exc:
-        raise ChildFailure(f"the filter's process {exc}", died=False) from None
-    if why is not None or got is None:
-        return None, why or "landmarks(): a bad map"
-    return LandmarkMap(*got), None
-
-
-def _estimate_of(tag: bytes, payload: bytes) -> Any:
-    """What the child's answer says the filter's ``estimate()`` returned: the pair of arrays;
-    with a step limit (``check``) also an unusable one as it was (arrays of another shape,
-    None, or a stand-in of the same kind) for the checks to judge."""
-    if tag == ESTIMATE:
-        return parse_estimate(payload)[2]
-    if tag != BELIEF:
-        raise ChildFailure("the filter's process broke the protocol")
-    kind, arrays, head = decode_belief(payload)
-    if kind == "estimate" and len(arrays) == 2:
-        return arrays[0], arrays[1]
-    if kind == "estimate-unusable":
-        if head.get("none"):
-            return None
-        return ("not numbers", "not numbers") if head.get("pair") else ("not a pair",)
-    raise ChildFailure("the filter's process broke the protocol")
-
-
-__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild", "IsolatedFilter", "IsolatedMappingFilter"]
+__all__ = ["MIN_REPLY_TIMEOUT_S", "ChildFailure", "FilterChild"]

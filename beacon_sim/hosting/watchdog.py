@@ -320,7 +320,7 @@ def exit_text(exc: BaseException) -> str:
 
 class FilterFailed(Exception):
     """A filter's failure already put in one line elsewhere (by the child process that
-    hosts it, :mod:`beacon_sim.filters.isolated`): :func:`one_line` gives the line as it is."""
+    hosts it, :mod:`beacon_sim.hosting.isolated`): :func:`one_line` gives the line as it is."""
 
 
 def one_line(exc: BaseException) -> str:

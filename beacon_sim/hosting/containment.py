@@ -3,7 +3,7 @@ protects against").
 
 Two levels:
 
-- ``process``: a fresh interpreter (``python -s -B -m beacon_sim.filters.child``), an empty
+- ``process``: a fresh interpreter (``python -s -B -m beacon_sim.hosting.child``), an empty
   temporary working directory, the pipes on stdin and stdout (moved by the child to fresh
   descriptors, stdin then closed and stdout and stderr to the student's log, cut at
   ``log_bytes``), a scrubbed environment, its own session (so the whole group can be
@@ -151,7 +151,7 @@ def resolve_sandbox(choice: str) -> str:
 
 def package_root() -> Path:
     """The folder that holds the ``beacon_sim`` package this grader runs."""
-    return Path(__file__).resolve().parents[2]  # beacon_sim/filters/containment.py
+    return Path(__file__).resolve().parents[2]  # beacon_sim/hosting/containment.py
 
 
 def child_env(home: str, extra_path: str | None = None) -> dict[str, str]:
@@ -248,7 +248,7 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
     # The pipes are the child's stdin (requests) and stdout (replies), which it moves to
     # fresh descriptors before any student code runs: its command line holds no descriptor
     # numbers of the grader's (they told one grading process from another: issue 37).
-    child = [sys.executable, "-s", "-B", "-m", "beacon_sim.filters.child", json.dumps(cfg)]
+    child = [sys.executable, "-s", "-B", "-m", "beacon_sim.hosting.child", json.dumps(cfg)]
     if sandbox == "bwrap":
         env = child_env(BOX_WORK, BOX_SRC if module else None)
         argv = [shutil.which("bwrap") or "bwrap", "--unshare-all", "--die-with-parent",

@@ -1,6 +1,6 @@
-"""The child process that hosts one student's filter: ``python -m beacon_sim.filters.child
+"""The child process that hosts one student's filter: ``python -m beacon_sim.hosting.child
 CONFIG_JSON`` with the grader's requests on stdin, its replies to stdout and its log on
-stderr (started by :mod:`beacon_sim.filters.isolated`, never by hand). It moves the two
+stderr (started by :mod:`beacon_sim.hosting.isolated`, never by hand). It moves the two
 pipes to fresh descriptors and points stdout at the log before any student code runs, so
 nothing of the grader's process (its descriptor numbers) reaches it.
 
@@ -8,7 +8,7 @@ It starts from a clean interpreter (no fork of the grader: nothing of the grader
 no truth, no other student's results), contains itself before any student code runs
 (resource limits; bounded stdout and stderr; the unprivileged user ``nobody`` when started
 as root outside a sandbox), then serves requests over the pipe in lockstep
-(:mod:`beacon_sim.filters.wire`): it receives only what a filter may see (its
+(:mod:`beacon_sim.hosting.wire`): it receives only what a filter may see (its
 ``FilterContext``, its initial belief, then each tick's control, dt and readings) and
 answers with estimates. The global ``random`` and ``np.random`` generators are seeded with
 a number the grader derives from the run's key and the filter's name
@@ -71,8 +71,8 @@ def map_of(f: Any) -> bytes | str | None:
     lm = getattr(f, "landmarks", None)
     if not callable(lm):
         return None
-    from beacon_sim.filters.watchdog import one_line
-    from beacon_sim.filters.wire import encode_landmarks
+    from beacon_sim.hosting.watchdog import one_line
+    from beacon_sim.hosting.wire import encode_landmarks
 
     try:
         got = lm()
@@ -165,9 +165,9 @@ def _same_np(a: Any, b: Any) -> bool:
 
 
 class Server:
-    """The requests of :mod:`beacon_sim.filters.isolated`, one at a time. Its replies go to
+    """The requests of :mod:`beacon_sim.hosting.isolated`, one at a time. Its replies go to
     the pipe ``wfd``, or to ``sink`` (the same server in the grader's own process:
-    :class:`~beacon_sim.filters.feed.LocalChild`)."""
+    :class:`~beacon_sim.hosting.feed.LocalChild`)."""
 
     def __init__(self, wfd: int | None, sink: Any = None):
         self.wfd = wfd
@@ -185,7 +185,7 @@ class Server:
         """``fn()`` under the step limit, if one is set: over it, the step's one line."""
         if self.step_limit_s is None:
             return fn()
-        from beacon_sim.filters.watchdog import FilterFailed, FilterTimeout, time_limit
+        from beacon_sim.hosting.watchdog import FilterFailed, FilterTimeout, time_limit
 
         try:
             with time_limit(self.step_limit_s, cpu=True, backstop=False):
@@ -194,7 +194,7 @@ class Server:
             raise FilterFailed(f"time limit: a step took over {self.step_limit_s:g} s") from None
 
     def send(self, frame: bytes) -> None:
-        from beacon_sim.filters.wire import send_frame
+        from beacon_sim.hosting.wire import send_frame
 
         if self.sink is not None:
             self.sink(frame)
@@ -203,12 +203,12 @@ class Server:
         send_frame(self.wfd, frame)
 
     def fail(self, why: str, tb: str = "") -> None:
-        from beacon_sim.filters.wire import FAIL, reply_json
+        from beacon_sim.hosting.wire import FAIL, reply_json
 
         self.send(reply_json(FAIL, {"why": why, "tb": tb}))
 
     def handle(self, req: tuple[Any, ...]) -> None:
-        from beacon_sim.filters.wire import OK, reply_json
+        from beacon_sim.hosting.wire import OK, reply_json
 
         op = req[0]
         getattr(self, "op_" + op)(*req[1:])
@@ -218,14 +218,14 @@ class Server:
     def op_load(self, path: str, class_name: str | None) -> None:
         from pathlib import Path
 
-        from beacon_sim.filters.loading import choose_filter, import_file
-        from beacon_sim.filters.wire import OK, reply_json
+        from beacon_sim.hosting.loading import choose_filter, import_file
+        from beacon_sim.hosting.wire import OK, reply_json
 
         if path.startswith("module:"):  # a module filter: its package copied onto the path
             import importlib
 
-            from beacon_sim.filters.loading import IMPORT_LIMIT_S
-            from beacon_sim.filters.runner import run_filter_code
+            from beacon_sim.hosting.loading import IMPORT_LIMIT_S
+            from beacon_sim.hosting.runner import run_filter_code
 
             name = path.removeprefix("module:")
             module = run_filter_code(lambda: importlib.import_module(name), IMPORT_LIMIT_S, "import")
@@ -251,9 +251,9 @@ class Server:
 
     def op_build(self, ctx: Any, initial: Any, global_seed: int, run_limit_s: float | None,
                  spec: str, step_limit_s: float | None = None) -> None:
-        from beacon_sim.filters.loading import build_from_context
-        from beacon_sim.filters.watchdog import time_limit
-        from beacon_sim.filters.wire import OK, reply_json
+        from beacon_sim.hosting.loading import build_from_context
+        from beacon_sim.hosting.watchdog import time_limit
+        from beacon_sim.hosting.wire import OK, reply_json
 
         self.end_limit()
         np_random_seed(global_seed)
@@ -267,8 +267,8 @@ class Server:
         self.send(reply_json(OK, {}))
 
     def op_step(self, control: Any, dt: float, measurements: Any, want_prior: bool) -> None:
-        from beacon_sim.filters.guard import estimate_arrays
-        from beacon_sim.filters.wire import reply_estimate
+        from beacon_sim.hosting.guard import estimate_arrays
+        from beacon_sim.hosting.wire import reply_estimate
 
         f = self.flt
 
@@ -286,7 +286,7 @@ class Server:
             if isinstance(pri, str):
                 return self.fail("after predict: " + pri)
         if isinstance(block, str):  # the map's fault as data: the grader decides (wire.py)
-            from beacon_sim.filters.wire import map_fault_block
+            from beacon_sim.hosting.wire import map_fault_block
 
             block = map_fault_block(block)
         self.send(reply_estimate(wall, pri, post, block))
@@ -297,7 +297,7 @@ class Server:
         only there): arrays of numbers of any shape, or what it was instead."""
         import numpy as np
 
-        from beacon_sim.filters.wire import encode_belief
+        from beacon_sim.hosting.wire import encode_belief
 
         if isinstance(est, tuple | list) and len(est) == 2:
             try:
@@ -320,8 +320,8 @@ class Server:
         self.step_limited(lambda: self.flt.reset(initial))
 
     def op_estimate(self) -> None:
-        from beacon_sim.filters.guard import estimate_arrays
-        from beacon_sim.filters.wire import reply_estimate
+        from beacon_sim.hosting.guard import estimate_arrays
+        from beacon_sim.hosting.wire import reply_estimate
 
         est = self.step_limited(self.flt.estimate)
         post = estimate_arrays(est)
@@ -335,7 +335,7 @@ class Server:
         for ``landmarks()`` outside a step (after reset)."""
         import numpy as np
 
-        from beacon_sim.filters.wire import reply_estimate
+        from beacon_sim.hosting.wire import reply_estimate
 
         block = self.step_limited(lambda: map_of(self.flt))
         if not isinstance(block, bytes):
@@ -348,7 +348,7 @@ class Server:
         import numpy as np
 
         from beacon_sim.filters.base import GaussianBelief, GridBelief, ParticleBelief
-        from beacon_sim.filters.wire import encode_belief
+        from beacon_sim.hosting.wire import encode_belief
 
         b = self.step_limited(self.flt.belief)
         if isinstance(b, GaussianBelief):
@@ -367,7 +367,7 @@ class Server:
         """Build one filter per run of the batch (``(ctx, initial, spec)`` each, as
         :meth:`op_build`), the global RNGs seeded once from ``global_seed``; each run has
         its own CPU-time budget ``run_limit_s``. Answers MULTI: OK or FAIL per run. Nothing
-        says which run is scored and which is a probe (:mod:`beacon_sim.filters.feed`)."""
+        says which run is scored and which is a probe (:mod:`beacon_sim.hosting.feed`)."""
         self.end_limit()
         self.flt = None
         np_random_seed(global_seed)
@@ -399,7 +399,7 @@ class Server:
             return self.cls
         from pathlib import Path
 
-        from beacon_sim.filters.loading import choose_filter, import_file
+        from beacon_sim.hosting.loading import choose_filter, import_file
 
         path, class_name = self.file
         return choose_filter(import_file(Path(path), "student"), class_name, Path(path).name)
@@ -415,14 +415,14 @@ class Server:
         """The final ``joint()`` (mean, cov, landmark IDs) of the runs ``slots`` of the batch,
         for the joint NEES: MULTI, per run a JOINT entry (the three as float arrays) or OK
         (no ``joint()``, it raised or ran out of its run's time, or a map over
-        :data:`~beacon_sim.filters.wire.MAX_JOINT_LANDMARKS`: not reported)."""
+        :data:`~beacon_sim.hosting.wire.MAX_JOINT_LANDMARKS`: not reported)."""
         assert self.batch is not None
         self.send(self.batch.joints(slots))
 
     def op_joint(self) -> None:
         """The final ``joint()`` of the one filter (as :meth:`op_bjoint`, one MULTI entry)."""
-        from beacon_sim.filters.watchdog import StepWatch
-        from beacon_sim.filters.wire import reply_multi
+        from beacon_sim.hosting.watchdog import StepWatch
+        from beacon_sim.hosting.wire import reply_multi
 
         self.send(reply_multi([joint_entry(self.flt, StepWatch(cpu=True), self.step_limit_s)]))
 
@@ -437,7 +437,7 @@ class Server:
             self.limit = None
 
     def op_end(self) -> None:
-        from beacon_sim.filters.wire import REPORT, reply_json
+        from beacon_sim.hosting.wire import REPORT, reply_json
 
         self.end_limit()
         np_used = py_used = False
@@ -468,10 +468,10 @@ def joint_entry(f: Any, watch: Any, seconds: float | None) -> bytes:
     """The reply entry of a filter's final ``joint()`` (mean, cov, IDs): a JOINT entry of
     three float arrays, or OK when there is none to report (no ``joint()``, it raised or
     ran over ``seconds`` [s] of CPU time under ``watch``, or more than
-    :data:`~beacon_sim.filters.wire.MAX_JOINT_LANDMARKS` landmarks)."""
+    :data:`~beacon_sim.hosting.wire.MAX_JOINT_LANDMARKS` landmarks)."""
     import numpy as np
 
-    from beacon_sim.filters.wire import MAX_JOINT_LANDMARKS, OK, encode_joint, reply
+    from beacon_sim.hosting.wire import MAX_JOINT_LANDMARKS, OK, encode_joint, reply
 
     joint = getattr(f, "joint", None)
     if not callable(joint):
@@ -493,12 +493,12 @@ class Batch:
     """The filters of one batch of runs (one per seed, and the probes: nothing here tells
     them apart), each from its own fresh copy of the student's file (``fresh_class()``),
     with its own CPU-time budget, failure and cost; a failed one is switched off and the
-    others go on. Also what :class:`~beacon_sim.filters.feed.LocalChild` runs in process."""
+    others go on. Also what :class:`~beacon_sim.hosting.feed.LocalChild` runs in process."""
 
     def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None):
-        from beacon_sim.filters.loading import build_from_context
-        from beacon_sim.filters.watchdog import StepWatch
-        from beacon_sim.filters.wire import OK, reply, reply_multi
+        from beacon_sim.hosting.loading import build_from_context
+        from beacon_sim.hosting.watchdog import StepWatch
+        from beacon_sim.hosting.wire import OK, reply, reply_multi
 
         self.limit_s = run_limit_s
         self.over = (None if run_limit_s is None
@@ -535,8 +535,8 @@ class Batch:
             self.used[k] += time.thread_time_ns() - c0
 
     def firsts(self, slots: list[int]) -> bytes:
-        from beacon_sim.filters.guard import estimate_arrays
-        from beacon_sim.filters.wire import reply_estimate, reply_multi
+        from beacon_sim.hosting.guard import estimate_arrays
+        from beacon_sim.hosting.wire import reply_estimate, reply_multi
 
         entries = []
         for k in slots:
@@ -553,7 +553,7 @@ class Batch:
 
     def beliefs(self, slots: list[int]) -> bytes:
         from beacon_sim.filters.base import GaussianBelief, GridBelief, ParticleBelief
-        from beacon_sim.filters.wire import OK, reply, reply_multi
+        from beacon_sim.hosting.wire import OK, reply, reply_multi
 
         entries = []
         for k in slots:
@@ -573,19 +573,19 @@ class Batch:
     def _fail(self, exc: BaseException, prefix: str = "") -> bytes:
         import traceback
 
-        from beacon_sim.filters.host import failure_of
-        from beacon_sim.filters.wire import FAIL, reply_json
+        from beacon_sim.hosting.host import failure_of
+        from beacon_sim.hosting.wire import FAIL, reply_json
 
         why = failure_of(exc, self.limit_s, self.over) or f"{type(exc).__name__} raised by the filter"
         return reply_json(FAIL, {"why": prefix + why, "tb": traceback.format_exc()})
 
     def _fail_text(self, why: str) -> bytes:
-        from beacon_sim.filters.wire import FAIL, reply_json
+        from beacon_sim.hosting.wire import FAIL, reply_json
 
         return reply_json(FAIL, {"why": why, "tb": ""})
 
     def joints(self, slots: list[int]) -> bytes:
-        from beacon_sim.filters.wire import reply_multi
+        from beacon_sim.hosting.wire import reply_multi
 
         entries = []
         for k in slots:
@@ -597,8 +597,8 @@ class Batch:
     def step(self, slots: list[int], bodies: list[bytes]) -> bytes:
         import pickle
 
-        from beacon_sim.filters.guard import estimate_arrays
-        from beacon_sim.filters.wire import reply_estimate, reply_multi
+        from beacon_sim.hosting.guard import estimate_arrays
+        from beacon_sim.hosting.wire import reply_estimate, reply_multi
 
         clock, cpu, watch, limit = time.perf_counter_ns, time.thread_time_ns, self.watch, self.limit_s
         entries = []
@@ -651,11 +651,11 @@ def main(argv: list[str]) -> int:
     os.close(null)
     import traceback  # noqa: F401 - everything the child needs, before it may lose the right to read it
 
-    import beacon_sim.filters.guard
-    import beacon_sim.filters.host
-    import beacon_sim.filters.loading
-    import beacon_sim.filters.watchdog  # noqa: F401
-    from beacon_sim.filters.wire import read_request
+    import beacon_sim.hosting.guard
+    import beacon_sim.hosting.host
+    import beacon_sim.hosting.loading
+    import beacon_sim.hosting.watchdog  # noqa: F401
+    from beacon_sim.hosting.wire import read_request
 
     _contain(cfg)
 
@@ -673,7 +673,7 @@ def serve_one(server: Server, req: tuple[Any, ...], cfg: dict[str, Any]) -> bool
     line. False when the answer could not be sent (the grader is gone)."""
     import traceback
 
-    from beacon_sim.filters.host import failure_of
+    from beacon_sim.hosting.host import failure_of
 
     try:
         server.handle(req)

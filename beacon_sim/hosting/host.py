@@ -5,11 +5,11 @@ checks and the isolated child alike.
 A filter's call ends in one of four ways: it returns; it raises an ``Exception`` (``Type:
 message``); it raises ``SystemExit`` or a ``KeyboardInterrupt`` that is not the user's own
 (``SystemExit(3) raised by the filter``); it runs out of time (``time limit: ...``, see
-:mod:`beacon_sim.filters.watchdog`). The user's own Ctrl-C always goes through.
+:mod:`beacon_sim.hosting.watchdog`). The user's own Ctrl-C always goes through.
 
 The seam: whatever satisfies :class:`~beacon_sim.filters.base.Filter` can be hosted, an
 object in this process or the proxy of a filter in a child process
-(:mod:`beacon_sim.filters.isolated`).
+(:mod:`beacon_sim.hosting.isolated`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import traceback
 from collections.abc import Callable
 from typing import TypeVar
 
-from beacon_sim.filters.watchdog import (
+from beacon_sim.hosting.watchdog import (
     FilterExit,
     FilterTimeout,
     exit_text,
@@ -45,7 +45,7 @@ def failure_of(exc: BaseException, seconds: float | None, over: str | None = Non
 
 def call_guarded(fn: Callable[[], T], seconds: float | None, *, cpu: bool = False,
                  over: str | None = None) -> tuple[T | None, str | None, str]:
-    """``fn()`` under :class:`~beacon_sim.filters.watchdog.time_limit` (``cpu``: CPU time):
+    """``fn()`` under :class:`~beacon_sim.hosting.watchdog.time_limit` (``cpu``: CPU time):
     (its value, None, "") or (None, why it failed in one line, the traceback)."""
     try:
         with time_limit(seconds, cpu):

@@ -6,7 +6,7 @@ filter of a team run, and how each is named and built.
 - a student's team filter class (``my_team.py:MyTeam``, ``pkg.mod:Class``): the same;
 - ``independent:F`` (optionally labelled ``alice=independent:./alice.py:MyEkf``): every
   robot's own single-robot filter F (a built-in, an entry point or a file), beacon readings
-  only. :class:`~beacon_sim.filters.team_runner.TeamRunner` runs one copy of F per robot under
+  only. :class:`~beacon_sim.hosting.team_runner.TeamRunner` runs one copy of F per robot under
   the single-robot guard; :func:`build_team_spec` wraps the copies in one
   :class:`~beacon_sim.filters.team.IndependentTeam` for code that wants a team filter object.
 """
@@ -18,14 +18,6 @@ from typing import Any
 
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import (
-    BUILD_LIMIT_S,
-    build_filter,
-    filter_display_name,
-    load_filter_class,
-    split_label,
-)
-from beacon_sim.filters.runner import run_filter_code
 from beacon_sim.filters.team import (
     TEAM_FILTERS,
     IndependentTeam,
@@ -34,6 +26,14 @@ from beacon_sim.filters.team import (
     initial_beliefs,
     team_context,
 )
+from beacon_sim.hosting.loading import (
+    BUILD_LIMIT_S,
+    build_filter,
+    filter_display_name,
+    load_filter_class,
+    split_label,
+)
+from beacon_sim.hosting.runner import run_filter_code
 
 #: ``independent:F``: every robot's own single-robot filter F (a built-in name, pkg.mod:Class
 #: or file.py:Class), beacon readings only.

@@ -2,19 +2,19 @@
 
 :class:`TeamRunner` is what every front end (window, headless run, replay, MRCLAM) runs:
 each single-robot filter spec runs one copy per robot, each copy in that robot's
-:class:`~beacon_sim.filters.runner.FilterRunner` (the single-robot guard, the step view, hot
+:class:`~beacon_sim.hosting.runner.FilterRunner` (the single-robot guard, the step view, hot
 reload); each team filter spec runs once over the joint state in a :class:`JointRunner`.
 With one robot and single-robot specs it *is* one FilterRunner (``members[0]``), built and
 fed exactly as a single-robot run always was.
 
 :class:`JointRunner` feeds each team tick to any number of team filters, side by side on the
-same data: the team form of :class:`~beacon_sim.filters.runner.FilterRunner`, with the same
+same data: the team form of :class:`~beacon_sim.hosting.runner.FilterRunner`, with the same
 guard.
 
 A team filter that raises (``SystemExit`` and a time-out included) or returns anything
 but one usable ``(mean (3,), cov (3, 3))`` per robot is switched off with a one-line
 message; the simulation and the other team filters go on. Each robot's estimate goes
-through :func:`~beacon_sim.filters.runner.validate_estimate`, the one guard every front
+through :func:`~beacon_sim.hosting.runner.validate_estimate`, the one guard every front
 end uses. A failed filter keeps the estimates it gave before it failed and gets no score.
 
 A track's ``means[k]`` is (N, 3) [m, m, rad] and ``covs[k]`` (N, 3, 3): every robot's
@@ -35,8 +35,9 @@ from beacon_sim.core.team import TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterError
-from beacon_sim.filters.loading import BUILD_LIMIT_S, build_filter, build_filters, filter_names
-from beacon_sim.filters.runner import (
+from beacon_sim.filters.team import TeamFilter
+from beacon_sim.hosting.loading import BUILD_LIMIT_S, build_filter, build_filters, filter_names
+from beacon_sim.hosting.runner import (
     NOT_BUILT,
     FilterRunner,
     FilterTimeout,
@@ -50,8 +51,7 @@ from beacon_sim.filters.runner import (
     time_limit,
     validate_estimate,
 )
-from beacon_sim.filters.team import TeamFilter
-from beacon_sim.filters.team_specs import build_team_spec, member_spec, team_filter_name
+from beacon_sim.hosting.team_specs import build_team_spec, member_spec, team_filter_name
 
 
 def team_filter_of(track: FilterTrack) -> TeamFilter | None:
@@ -161,8 +161,8 @@ class TeamRunner:
     """Every filter of a run over ``team``'s robots, by name, in the order given.
 
     ``specs``: on a team of one (``team.solo``), single-robot filter specs, named by
-    :func:`~beacon_sim.filters.loading.filter_names`, exactly as a single-robot run; on a
-    team, the specs of :mod:`~beacon_sim.filters.team_specs` (``independent:F`` runs F on
+    :func:`~beacon_sim.hosting.loading.filter_names`, exactly as a single-robot run; on a
+    team, the specs of :mod:`~beacon_sim.hosting.team_specs` (``independent:F`` runs F on
     every robot, a team filter once). ``params``: ``{name: {key: value}}``.
 
     ``members[i]`` is robot i's FilterRunner of the single-robot filters (keyed by the run's

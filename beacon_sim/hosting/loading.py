@@ -23,11 +23,11 @@ import numpy as np
 
 from beacon_sim.core.files import MAX_SOURCE_BYTES, check_user_file
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.streams import filter_stream, keyed_global_seed, run_key
+from beacon_sim.core.streams import filter_stream
 from beacon_sim.filters.base import Filter, FilterContext, FilterError, GaussianBelief, broad_gaussian
 from beacon_sim.filters.param_ranges import check_params
 from beacon_sim.filters.registry import TARGETS
-from beacon_sim.filters.runner import FilterExit, run_filter_code
+from beacon_sim.hosting.runner import FilterExit, run_filter_code
 
 if TYPE_CHECKING:
     import importlib.metadata
@@ -234,9 +234,6 @@ def filter_display_name(spec: str) -> str:
     label, spec = split_label(spec)
     if label:
         return label
-    m = _ISOLATED.match(spec)
-    if m is not None:
-        return filter_display_name(m.group(3))
     if ":" not in spec and spec.endswith(".py"):
         return Path(spec).stem
     return spec.rpartition(":")[2] if ":" in spec else spec
@@ -325,72 +322,14 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
 
     The object is not checked against :class:`~beacon_sim.filters.base.Filter` here (a
     student's class is duck-typed): one that lacks a method is switched off by the
-    :class:`~beacon_sim.filters.runner.FilterRunner` when it first fails, and
+    :class:`~beacon_sim.hosting.runner.FilterRunner` when it first fails, and
     ``beacon-sim check`` names what is missing.
     """
-    if spec.startswith(ISOLATED_PREFIX):  # a file hosted in a child process (grade's team runs)
-        return _build_isolated(spec, scenario, seed, name, params, secret)
     cls = load_filter_class(spec)
     name = name or filter_display_name(spec)
-    ctx = FilterContext(
-        name=name,
-        world=scenario.filter_world,
-        map_known=scenario.map_known,
-        dt=scenario.dt,
-        motion_noise=scenario.model_motion_noise,
-        sensors=scenario.model_sensors,
-        params=merged_params(spec, scenario, params),
-        rng=filter_stream(seed, name, secret),
-    )
+    ctx = FilterContext.of_scenario(scenario, name, merged_params(spec, scenario, params),
+                                    filter_stream(seed, name, secret))
     return build_from_context(cls, ctx, initial_belief(scenario), spec, limit_s=limit_s)
-
-
-#: ``isolated[SANDBOX,LIMIT_S]:path.py:Class``: the file's filter in a child process of its
-#: own (:mod:`beacon_sim.filters.isolated`), with that containment level and CPU-time limit
-#: per run. What ``grade`` gives each robot of a team scenario.
-ISOLATED_PREFIX = "isolated["
-_ISOLATED = re.compile(r"^isolated\[(auto|bwrap|process),([0-9.eE+-]+|none)\]:(.+)$")
-
-
-def isolated_spec(spec: str, sandbox: str, limit_s: float | None) -> str:
-    """The spec that hosts the file filter ``spec`` in a child process (see ``ISOLATED_PREFIX``)."""
-    return f"isolated[{sandbox},{'none' if limit_s is None else repr(float(limit_s))}]:{spec}"
-
-
-def _build_isolated(spec: str, scenario: Scenario, seed: int, name: str | None,
-                    params: dict[str, Any] | None, secret: bytes | None = None) -> Filter:
-    """A proxy of the file filter in ``spec`` in a fresh child process, closed with the proxy
-    (its stream and its global generators' seed derived from the run's key, never the seed)."""
-    import tempfile
-    import weakref
-
-    from beacon_sim.filters.containment import Limits, resolve_sandbox
-    from beacon_sim.filters.isolated import FilterChild, IsolatedFilter
-
-    m = _ISOLATED.match(spec)
-    if m is None:
-        raise FilterLoadError(f"{spec}: expected isolated[SANDBOX,LIMIT_S]:path.py:Class")
-    sandbox, limit, inner = m.group(1), m.group(2), m.group(3)
-    limit_s = None if limit == "none" else float(limit)
-    bare = split_label(inner)[1]
-    target, _, cls_name = bare.rpartition(":") if ":" in bare else (bare, "", "")
-    log = Path(tempfile.mkdtemp(prefix="beacon-sim-member-")) / "log.txt"
-    child = FilterChild(Path(target), cls_name or None, log, resolve_sandbox(sandbox),
-                        Limits(cpu_s=None if limit_s is None else 1.5 * limit_s + 60),
-                        reply_timeout_s=max(60.0, 5 * (limit_s or 12.0)))
-    name = name or filter_display_name(inner)
-    ctx = FilterContext(name=name, world=scenario.filter_world, dt=scenario.dt,
-                        motion_noise=scenario.model_motion_noise, sensors=scenario.model_sensors,
-                        params=merged_params(inner, scenario, params), rng=filter_stream(seed, name, secret),
-                        map_known=scenario.map_known)
-    try:
-        flt = IsolatedFilter(child, ctx, initial_belief(scenario),
-                             keyed_global_seed(run_key(seed, secret), name), limit_s, inner)
-    except BaseException:
-        child.close()
-        raise
-    weakref.finalize(flt, child.close)
-    return flt
 
 
 def build_from_context(cls: type, ctx: FilterContext, initial: GaussianBelief | None, spec: str,

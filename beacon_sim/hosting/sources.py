@@ -1,13 +1,13 @@
 """Which filters ``eval``, ``check`` and ``grade`` host in a child process of their own
-(:mod:`beacon_sim.filters.isolated`), and where the child gets their code: a file, or a
-module's top-level package (:class:`~beacon_sim.filters.containment.ModuleSource`)."""
+(:mod:`beacon_sim.hosting.isolated`), and where the child gets their code: a file, or a
+module's top-level package (:class:`~beacon_sim.hosting.containment.ModuleSource`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from beacon_sim.filters.containment import ModuleSource, module_source
-from beacon_sim.filters.loading import (
+from beacon_sim.hosting.containment import ModuleSource, module_source
+from beacon_sim.hosting.loading import (
     BUILTIN_FILTERS,
     FilterLoadError,
     entry_point_filters,
@@ -22,7 +22,7 @@ def hosted_source(spec: str) -> tuple[Path | ModuleSource, str | None] | None:
     entry point's module, with the class name (None: the file's choice). None for the
     built-in filters and ``beacon_sim``'s own modules (they may run in process) and for
     names that are no filter (loading them in process says why, in one line). A module
-    that cannot be found raises :class:`~beacon_sim.filters.loading.FilterLoadError`;
+    that cannot be found raises :class:`~beacon_sim.hosting.loading.FilterLoadError`;
     nothing of the module runs here."""
     bare = split_label(spec)[1]
     if is_file_spec(spec):
