@@ -1,4 +1,4 @@
-"""Write the office floor of issue 30 as a ROS map_server map: assets/maps/office.{yaml,pgm}.
+"""Write the office floor as a ROS map_server map: assets/maps/office.{yaml,pgm}.
 
     python scripts/make_office_map.py [--out assets/maps]
 

@@ -248,7 +248,7 @@ def mrclam_section(folder: Path | None, have: set[str]) -> list[str]:
         f"{MRCLAM_BLOCK_S:g} s blocks (the errors of real data persist for tens of seconds, so "
         "single steps are not independent).", "",
         *lines, "",
-        "Goal for every robot (issue 26): RMSE <= 0.26 m, ANEES 1.5-6, at most 5 % of steps above "
+        "Goal for every robot: RMSE <= 0.26 m, ANEES 1.5-6, at most 5 % of steps above "
         "the chi-square 99 % point, no particle-filter jump over 1 m. Met: " + "; ".join(
             f"{f} {sum(v)}/{len(v)} robots" for f, v in goals.items()) + ". Ranges over the robots: "
         + "; ".join(f"{f} position RMSE {min(v[0] for v in vals):.3f}-{max(v[0] for v in vals):.3f} m, "
@@ -273,7 +273,7 @@ def anees_cell(value, iv) -> str:
     return with_iv(value, iv, ".3g")
 
 
-SLAM_HEADER = "## SLAM on MRCLAM (issue 29): EKF-SLAM and FastSLAM 2.0 without the map"
+SLAM_HEADER = "## SLAM on MRCLAM: EKF-SLAM and FastSLAM 2.0 without the map"
 #: The filters of the SLAM table: the two SLAM filters (no map), the EKF given the map, and
 #: odometry alone (the floor a SLAM filter must beat to have used its readings at all).
 SLAM_FILTERS = ("ekf_slam", "fastslam", "ekf", "dead_reckoning")
@@ -400,7 +400,7 @@ def slam_section(folder: Path | None, have: set[str]) -> list[str]:
         "What it shows is discussed in [slam.md](slam.md#slam-on-real-data-mrclam).", ""]
 
 
-# ---- seed 004: the corridor's discrete Bayes filter (issue 30; `--only corridor`) ----------
+# ---- seed 004: the corridor's discrete Bayes filter (`--only corridor`) ----------------------
 
 CORRIDOR_HEADER = "## [Seed 004](references.md#seed-004): the corridor's discrete Bayes filter"
 

@@ -1,4 +1,4 @@
-"""The bound's screenshots of docs/maps.md (issue 30): the window with the live PCRB (key B)
+"""The bound's screenshots of docs/maps.md: the window with the live PCRB (key B)
 on, in a map world, paused at a given time.
 
     SDL_VIDEODRIVER=dummy python scripts/maps_bound_figure.py office 20 docs/figures/maps_bound_office.png

@@ -1,4 +1,4 @@
-"""The figure of docs/maps.md (issue 30): a map drawn from walls, one scan, the likelihood field.
+"""The figure of docs/maps.md: a map drawn from walls, one scan, the likelihood field.
 
     python scripts/maps_figure.py [--seed 0] [--out docs/figures]
     SDL_VIDEODRIVER=dummy python scripts/maps_figure.py --window   # maps_field.png

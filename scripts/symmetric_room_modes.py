@@ -1,4 +1,4 @@
-"""How often the symmetric room's two clouds both live until the symmetry breaks (issue 30).
+"""How often the symmetric room's two clouds both live until the symmetry breaks.
 
     python scripts/symmetric_room_modes.py [--seeds 100-119] [--set mcl.KEY=VALUE ...] [--jobs 2]
 

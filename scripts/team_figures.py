@@ -1,4 +1,4 @@
-"""Figures of docs/multi-robot.md (issue 18): team_sparse, one seeded run.
+"""Figures of docs/multi-robot.md: team_sparse, one seeded run.
 
     python scripts/team_figures.py [--seed 1] [--out docs/figures]
 

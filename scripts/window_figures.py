@@ -1,4 +1,4 @@
-"""The window's screenshots in docs/window.md (issue 25), at a projector's 1024x768 and at
+"""The window's screenshots in docs/window.md, at a projector's 1024x768 and at
 1920x1080, made with the window's own drawing (SDL's dummy driver, scripted frames):
 
 - ``three``: assignment_kf 52.9 s in, three beacons in view, the KF's 4 cm ellipse in the

@@ -41,7 +41,7 @@ def _recordings_in_the_checkout() -> set[Path]:
 
 @pytest.fixture(autouse=True)
 def _no_recordings_in_the_checkout():
-    """Fail the test that leaves a new file in the checkout's recordings/ (issue 24: a test
+    """Fail the test that leaves a new file in the checkout's recordings/ (a test
     that plays must pass --no-record or chdir to its tmp_path)."""
     before = _recordings_in_the_checkout()
     yield

@@ -1,4 +1,4 @@
-"""A seeded generator of hostile input (issue 15): malformed scenarios mutated from the
+"""A seeded generator of hostile input: malformed scenarios mutated from the
 shipped ones, hand-made scenarios, bad recordings, bad MRCLAM folders, bad command lines and
 faulty filters. Every case is a command line for ``beacon-sim`` plus the files it needs;
 tests/test_hostile_corpus.py runs them and checks exit status 0 or 2, at most two lines on
@@ -574,7 +574,7 @@ def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, 
                for c in bad_recordings(random.Random(seed + 19), team_recording_text(tmp), 20)])
 
 
-# --------------------------------------------------------------------------- issue 24
+# --------------------------------------------------------------------------- files
 #: The front ends that read a scenario file, as command lines (``s.toml`` in the case folder).
 SCENARIO_FRONT_ENDS: list[list[str]] = [
     ["run", "s.toml", "--duration", "2"],
@@ -602,7 +602,7 @@ def _deep(n: int, open_: str = "[", close: str = "]") -> str:
 
 
 def issue24_scenarios() -> dict[str, str]:
-    """Scenario texts of issue 24 (each named by what is wrong), and new kinds."""
+    """Scenario texts that once ended in a traceback (each named by what is wrong), and new kinds."""
     room = _ROOM + _SENSOR
     big_beacons = ", ".join(f"{{id={i},x=1,y=1}}" for i in range(1_000_000))
     return {
@@ -649,7 +649,7 @@ def issue24_scenarios() -> dict[str, str]:
 
 
 def issue24_recordings(base: str) -> dict[str, str]:
-    """Corruptions of a real single-robot recording (issue 24's and new kinds)."""
+    """Corruptions of a real single-robot recording (kinds that once ended in a traceback, and new)."""
     lines = base.splitlines()
     reset = '"c":[{"kind":"reset"}]'
     assert reset in base, "the base recording holds a reset"
@@ -784,7 +784,7 @@ def issue24_mrclam(rng: random.Random) -> dict[str, dict[str, str]]:
 
 
 def issue24_cases(tmp: Path) -> list[Case]:
-    """Issue 24's inputs that ended in a traceback, and new kinds, each through every front
+    """Inputs that once ended in a traceback, and new kinds, each through every front
     end that reads it (scenarios: run, play, eval, check; recordings: replay headless, in
     the window, export; MRCLAM: mrclam headless, window, calibrate); ``--duration`` in run,
     eval and mrclam. (A ``recordings`` that is not a folder: tests/test_replay_verification.py.)"""
@@ -811,7 +811,7 @@ def issue24_cases(tmp: Path) -> list[Case]:
     return cases
 
 
-#: Issue 24's kinds (and some new ones) that must be refused: exit 2 and this in the one
+#: The kinds (old and new) that must be refused: exit 2 and this in the one
 #: line on stderr (the file, the key or line, what was expected). Keyed by the case's kind.
 ISSUE24_REFUSED: dict[str, str] = {
     "scenario-range-std-zero": "s.toml: sensors[0].range_std = 0: expected a number in [1e-06",

@@ -1,4 +1,4 @@
-"""The Python API is as strict as the command line (issue 28): each misuse raises the
+"""The Python API is as strict as the command line: each misuse raises the
 project's error (a ``BeaconSimError``, still a ``ValueError``) with the message the command
 line prints for the same mistake, from the same checking code."""
 
@@ -94,7 +94,7 @@ def test_errors_share_one_base_and_stay_value_errors():
              bs.MrclamError, bs.GradeError, bs.UsageError]
     for kind in kinds:
         assert issubclass(kind, bs.BeaconSimError) and issubclass(kind, ValueError)
-    try:  # code written before issue 28 keeps catching them
+    try:  # code written before 0.3.0 keeps catching them
         bs.run("default", ["ekf"], seed=-1)
     except ValueError as exc:
         assert isinstance(exc, bs.BeaconSimError)

@@ -1,4 +1,4 @@
-"""Every key of every binding table has its handler (issue 22: the window dispatches from
+"""Every key of every binding table has its handler (the window dispatches from
 the controls table, ``App.act`` -> ``act_<action>``), and an action nobody handles is an
 error, not a silent no-op."""
 

@@ -1,4 +1,4 @@
-"""Issue 25, "a demo that never surprises": what a class sees in the window is true, visible
+"""A demo that never surprises: what a class sees in the window is true, visible
 from the back row, fits a projector's 1024x768, and replays.
 
 Each test is one bullet of the issue (the motion model's are in tests/test_motion_slip.py).

@@ -1,4 +1,4 @@
-"""Issue 27, the frame that carries a tick: the window's smooth drawing (the world's picture
+"""The frame that carries a tick: the window's smooth drawing (the world's picture
 kept between ticks, a tick's picture one frame later, the drawing in two phases) and the
 heap settling change no result and no picture; only when the picture appears."""
 

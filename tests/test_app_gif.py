@@ -1,4 +1,4 @@
-"""Animated GIFs for slides (issue 12, item 7): ``play --gif`` and ``replay --gif`` with
+"""Animated GIFs for slides: ``play --gif`` and ``replay --gif`` with
 ``--start`` / ``--end`` write a GIF with one frame per 6 window frames, 640 px wide, read
 back with Pillow; and the command line options that start the window paused or slower."""
 

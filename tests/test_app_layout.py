@@ -1,4 +1,4 @@
-"""Text and panel scale with the window (issue 12, item 6): at 1024x768 (a classroom
+"""Text and panel scale with the window: at 1024x768 (a classroom
 projector) every line of the panel fits inside it, and at 1600x1000 the text is larger."""
 
 from __future__ import annotations

@@ -58,7 +58,7 @@ def test_grid_step_is_1_2_5_and_at_least_the_minimum_spacing():
 
 def test_particles_are_written_as_blocks_through_the_pixel_array():
     """3x3 px blocks up to 20,000 particles (seen on a projector), 2x2 above, in the filter's
-    colour darkened to 4.5:1 against the floor (issue 25)."""
+    colour darkened to 4.5:1 against the floor."""
     surf = pygame.Surface((400, 400))
     surf.fill((255, 255, 255))
     v = View((0.0, 0.0, 4.0, 4.0), (0, 0, 400, 400))  # scale (400 - 88) / 4 = 78 px/m

@@ -1,4 +1,4 @@
-"""Predict and update, step by step (issue 12, item 4): while paused the window draws each
+"""Predict and update, step by step: while paused the window draws each
 Gaussian filter's ellipse after predict (the prior, dashed) and after update (the
 posterior, solid) of the last tick, and the beacons the update used; B draws the best
 achievable ellipse, the PCRB, computed live along the true path. ``--paused`` starts so."""

@@ -1,4 +1,4 @@
-"""The team window (issue 18, part 3) under SDL's dummy driver: every robot and each team
+"""The team window under SDL's dummy driver: every robot and each team
 filter's belief of each robot drawn, Tab switches the driven robot, the same key presses
 give the same truth whatever the frame rate, a failing team filter is switched off with its
 message while the others go on, and ``beacon-sim play TEAM`` opens it."""
@@ -132,7 +132,7 @@ def test_tab_switches_the_driven_robot_and_w_drives_it_while_the_others_follow_d
     assert s.driven == 1 and s.driven_name == "relay"
     assert "relay" in app.banner_text  # the window says who is driven now
     # the keys take over the relay's last command (it was following its waypoints), rounded
-    # to the keyboard's steps (issue 25: no fractional omega left curving the robot)
+    # to the keyboard's steps (no fractional omega left curving the robot)
     last = s.last_step.steps[1].control
     lim = s.keyboard.limits
     assert s.keyboard.control.v == pytest.approx(round(last.v / lim.v_step) * lim.v_step) != 0

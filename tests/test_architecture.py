@@ -95,7 +95,7 @@ def test_a_filter_context_and_a_filter_child_are_each_built_in_one_place():
     assert set(_calls_of("start_child")) >= {"hosting/conformance.py", "hosting/client.py"}
 
 
-# -- one home per idea (issue 22) ------------------------------------------------------------
+# -- one home per idea -------------------------------------------------------------------
 
 PACKAGE = ROOT / "beacon_sim"
 #: Each idea, the pattern that writes it out, and the only modules allowed to: its home, and
@@ -161,3 +161,31 @@ def test_no_module_imports_another_modules_private_names():
                     if alias.name.startswith("_") and not alias.name.startswith("__"):
                         found.add((path.relative_to(PACKAGE).as_posix(), alias.name))
     assert found <= KNOWN_PRIVATE_IMPORTS, f"private names imported: {sorted(found - KNOWN_PRIVATE_IMPORTS)}"
+
+
+# -- docs/architecture.md names every module ---------------------------------------------------
+
+def unnamed_modules(package: Path, doc: str) -> list[str]:
+    """The modules of ``package`` (paths under it, ``__init__.py`` aside) that ``doc`` does not
+    name as a backticked path, e.g. `` `runs/mrclam/feeding.py` ``."""
+    named = set(re.findall(r"`([\w/.]+\.py)`", doc))
+    modules = sorted(p.relative_to(package).as_posix() for p in package.rglob("*.py")
+                     if p.name != "__init__.py" and "__pycache__" not in p.parts)
+    return [m for m in modules if m not in named]
+
+
+def test_architecture_md_names_every_module():
+    """A newcomer finds every module in docs/architecture.md ("Every module, floor by floor").
+    A module added (or moved) without its line there is listed, to be added."""
+    missing = unnamed_modules(PACKAGE, (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8"))
+    assert not missing, ("docs/architecture.md does not name these modules of beacon_sim/ (add a "
+                         "line each to 'Every module, floor by floor'):\n"
+                         + "\n".join(f"  `{m}`" for m in missing))
+
+
+def test_the_module_check_lists_a_module_the_doc_omits(tmp_path):
+    (tmp_path / "core").mkdir()
+    for name in ("core/__init__.py", "core/angles.py", "core/new_idea.py", "top.py"):
+        (tmp_path / name).write_text("", encoding="utf-8")
+    doc = "| `core/angles.py` | angles |\n`top.py` and `angles.py`"
+    assert unnamed_modules(tmp_path, doc) == ["core/new_idea.py"]

@@ -1,4 +1,4 @@
-"""Data association (issue 29, first step) against hand-built cases, brute force and the maths:
+"""Data association against hand-built cases, brute force and the maths:
 Mahalanobis distances and the joint NIS against explicit loops, JCBB against an exhaustive search,
 the joint NIS of the true pairing chi-square distributed (the cross terms are right), the per-particle
 maximum-likelihood association against a loop, and the sensor side (clutter, hidden IDs)."""

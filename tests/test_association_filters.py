@@ -1,4 +1,4 @@
-"""Unknown correspondence wired in (issue 29, step 2): the scenario keys and their errors, the
+"""Unknown correspondence wired in: the scenario keys and their errors, the
 simulation hiding IDs (truth kept aside, other streams untouched), each filter's association
 hook (a no-op with known IDs, the known update when the answer is forced), the metrics, and
 the look-alike lesson: on ``lookalike_beacons`` the EKF locks one door off, the particle filter

@@ -1,4 +1,4 @@
-"""The window's association layer (issue 29): which lines it draws, and that a wrong pairing
+"""The window's association layer: which lines it draws, and that a wrong pairing
 shows as dark red pixels (drawn in a dummy-video window, never shown)."""
 
 import numpy as np

@@ -38,7 +38,7 @@ def _same_step(a, b):
 def test_batched_runs_are_the_single_runs_bit_for_bit(name):
     sc = load_scenario(name)
     if any(s.correspondence != "known" for s in sc.sensors):
-        # issue 29: the batch tells every ID (runs without IDs are never batched), so it is
+        # The batch tells every ID (runs without IDs are never batched), so it is
         # the single runs with the IDs told
         sc = with_known_correspondence(sc)
     seeds = [0, 1, 7, 12345]

@@ -29,9 +29,9 @@ FILTERS = {
     "ulps_circle": ["ekf", "ukf", "pf"],
     "global_kidnap": ["pf", "histogram"],
     "slam_loop": ["ekf_slam", "fastslam"],  # the known-map bound is a floor for SLAM too
-    "slam_bearing_only": ["ekf_slam"],  # bearing-only SLAM (issue 29): a floor too
+    "slam_bearing_only": ["ekf_slam"],  # bearing-only SLAM: a floor too
     "lookalike_beacons": ["ekf", "pf"],  # readings without IDs: the bound knows them (a floor)
-    # map worlds (issue 30): the scan's bound (core/scan_jacobian.py)
+    # map worlds: the scan's bound (core/scan_jacobian.py)
     "corridor": ["mcl"],
     "office": ["mcl"],
     "symmetric_room": ["mcl"],
@@ -62,7 +62,7 @@ def _z_scores(sc, runs, names, restart=False, keep=None):
 
 
 def test_every_shipped_scenario_is_checked():
-    """Every shipped scenario, the map worlds too (issue 30: the PCRB of a scan)."""
+    """Every shipped scenario, the map worlds too (the PCRB of a scan)."""
     scanned = {n for n in shipped_scenarios()
                if any(s.kind == "range_finder" for s in load_scenario(n).sensors)}
     assert {"corridor", "office", "symmetric_room"} <= scanned

@@ -1,4 +1,4 @@
-"""The classroom demonstration (issue 12): in ``default`` and ``assignment_kf`` every
+"""The classroom demonstration: in ``default`` and ``assignment_kf`` every
 Gaussian filter's 95 % ellipse grows to several robot widths in the blind stretch and falls
 back to a few centimetres once three beacons are in view, and the window shows it (nothing
 covers an ellipse, not even the true robot)."""

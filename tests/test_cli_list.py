@@ -1,4 +1,4 @@
-"""``beacon-sim list`` (issue 12, item 8): every scenario described in words a student
+"""``beacon-sim list``: every scenario described in words a student
 understands, in full (wrapped to the terminal, never cut), without the design notes'
 "Seed 00x:" labels."""
 

@@ -1,4 +1,4 @@
-"""The command line as a Unix tool (issue 28): quiet when the reader of its output leaves
+"""The command line as a Unix tool: quiet when the reader of its output leaves
 (``beacon-sim list | head``), and every option and argument has a help text."""
 
 from __future__ import annotations

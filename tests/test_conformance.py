@@ -239,7 +239,7 @@ def test_run_checks_gives_the_checks_in_their_order(default):
 
 
 def test_a_filter_that_never_ran_a_step_is_not_said_to_pass_its_value_checks(tmp_path, default):
-    """Issue 37: check used to print 13 of 14 PASS and "cost 0.0 us" for a filter whose every
+    """``check`` used to print 13 of 14 PASS and "cost 0.0 us" for a filter whose every
     step raised: the value checks had nothing to judge. Now they say so, and so does the cost."""
     spec = write_filter(tmp_path, "Dead", extra_predict="raise KeyError('x')")
     results = {r.name: r for r in run_checks(spec, default, seeds=[1])}
@@ -252,7 +252,7 @@ def test_a_filter_that_never_ran_a_step_is_not_said_to_pass_its_value_checks(tmp
 
 def test_a_slam_filters_cost_is_not_set_beside_the_ekf():
     """A SLAM filter maps as it goes: its cost is not that of a localization EKF's task, so
-    check does not print a ratio to it (issue 37: "67.3x")."""
+    check does not print a ratio to it ("67.3x")."""
     results = {r.name: r for r in run_checks("ekf_slam", load_scenario("slam_loop"), isolated=False,
                                              seeds=[1])}
     assert "us per step" in results["cost"].message and "ekf" not in results["cost"].message

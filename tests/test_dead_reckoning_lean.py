@@ -1,4 +1,4 @@
-"""Dead reckoning's lean prediction (issue 16) is the filter template's, bit for bit, on
+"""Dead reckoning's lean prediction is the filter template's, bit for bit, on
 every shipped scenario, and a noise model of one's own still goes through its process_cov."""
 
 import dataclasses

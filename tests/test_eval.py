@@ -133,7 +133,7 @@ def test_batched_nis_equals_the_sum_of_per_tick_nis(name):
 
 
 def test_eval_outputs_name_files_not_their_folders(tmp_path, capsys):
-    """Issue 35: a scenario file and a filter file given by path; the printed JSON and the CSV
+    """A scenario file and a filter file given by path; the printed JSON and the CSV
     and JSON files of --out name them (the scenario's name, the filter's class), never the
     folder they are in, since they are shared."""
     where = tmp_path / "where" / "they" / "are"

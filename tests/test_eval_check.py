@@ -12,7 +12,7 @@ from beacon_sim.hosting.guard import DIVERGED, MAX_COV, MAX_MEAN
 
 def _check_by_eigvalsh(means, covs):
     """_check as it was (eigvalsh of every matrix), with the guard's one divergence rule
-    (issue 37: a mean beyond MAX_MEAN or a covariance entry over MAX_COV, as ``run``)."""
+    (a mean beyond MAX_MEAN or a covariance entry over MAX_COV, as ``run``)."""
     n = means.shape[0]
     bad = ~(np.all(np.isfinite(means), axis=1) & np.all(np.isfinite(covs), axis=(1, 2)))
     first = int(np.argmax(bad)) if bad.any() else n

@@ -1,6 +1,6 @@
-"""``eval --scheduler`` (issue 28): the same runs on a Dask cluster as on local processes,
+"""``eval --scheduler``: the same runs on a Dask cluster as on local processes,
 bit for bit, file filters hosted there too; and module filters (``pkg.mod:Class``) hosted
-in a child process of their own by ``eval`` and ``check`` (issue 23)."""
+in a child process of their own by ``eval`` and ``check``."""
 
 from __future__ import annotations
 
@@ -78,7 +78,7 @@ def test_dask_runs_equal_local_runs_bit_for_bit(cluster):
 
 
 def test_runs_grouped_into_dask_tasks_come_back_in_seed_order(cluster, monkeypatch):
-    # issue 27: several runs a task on the per-run path; 5 runs on 2 workers at one task a
+    # Several runs a task on the per-run path; 5 runs on 2 workers at one task a
     # worker are groups of 3 and 2, and every run is the local one, in its place
     import beacon_sim.evaluation.montecarlo as mc
 
@@ -219,7 +219,7 @@ def test_a_missing_module_is_one_line_exit_2(capsys):
 
 def test_the_lean_dask_settings_are_dasks_own_keys():
     # a key Dask does not know would be set silently and do nothing: each must be one of its
-    # defaults (issue 27, docs/performance.md)
+    # defaults (docs/performance.md)
     pytest.importorskip("dask.distributed")
     import dask
 

@@ -20,7 +20,7 @@ from beacon_sim.hosting.loading import build_filter
 from beacon_sim.runs.headless import run_headless
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
-#: The default scenario before issue 12's retune: the numbers below are written for it.
+#: The default scenario before its 0.2.0 retune: the numbers below are written for it.
 DEFAULT_QUIET = Path(__file__).resolve().parent / "data" / "default_quiet.toml"
 STUDENT = f"{EXAMPLES / 'student_ekf.py'}:StudentEKF"
 FILTERPY = f"{EXAMPLES / 'filterpy_wrapper.py'}:FilterpyEKF"

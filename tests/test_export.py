@@ -129,7 +129,7 @@ def test_export_refuses_a_team_recording_in_one_line(tmp_path, capsys):
 
 
 def test_exports_name_files_not_the_folders_they_were_in(recorded, tmp_path, capsys):
-    """Issue 35: an export is shared, so it names the recorded scenario file and filter
+    """An export is shared, so it names the recorded scenario file and filter
     files by their file names, never by where they were on the machine (the .npz header,
     the .csv tables, the MCAP's messages and metadata)."""
     import shutil

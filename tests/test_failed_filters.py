@@ -1,4 +1,4 @@
-"""A failed filter gets no score (issue 13): ``run --json``, ``eval`` (table, JSON, CSV)
+"""A failed filter gets no score: ``run --json``, ``eval`` (table, JSON, CSV)
 show FAILED with the reason and the time, no accuracy figures; ``--strict`` exits 1."""
 
 from __future__ import annotations

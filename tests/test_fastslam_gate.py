@@ -1,4 +1,4 @@
-"""FastSLAM 2.0's outlier gate on readings with IDs (``gate_chi2``, issue 29): a reading off
+"""FastSLAM 2.0's outlier gate on readings with IDs (``gate_chi2``): a reading off
 by pi is dropped for all particles when none can explain it (the pose, the map and the
 linearised covariance's EKF-SLAM recursion do not move; ungated, they do); a reading some
 particles explain is used by all, as without the gate."""

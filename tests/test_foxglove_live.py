@@ -1,4 +1,4 @@
-"""Live streaming to Foxglove (issue 28): a WebSocket client on localhost (the Foxglove
+"""Live streaming to Foxglove: a WebSocket client on localhost (the Foxglove
 protocol, tests/foxglove_client.py) receives a live session, every message decoded with
 the schema its channel advertises; and ``beacon-sim play --foxglove PORT`` serves one."""
 

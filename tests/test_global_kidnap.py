@@ -1,4 +1,4 @@
-"""The harder global-localization scenario (issue 14): ``global_kidnap`` (3.5 m range,
+"""The harder global-localization scenario: ``global_kidnap`` (3.5 m range,
 detection probability 0.5). The particle and grid filters recover from a random kidnap
 within 15 s in at least 90 % of 20 seeded trials, with the scenario's own filter settings.
 

@@ -1,4 +1,4 @@
-"""``beacon-sim grade`` (issue 13, items 6-7): a class of filter files, working, slow and
+"""``beacon-sim grade``: a class of filter files, working, slow and
 broken in every way; failed filters have no score and rank below working ones; the same
 results on local processes and on a Dask LocalCluster; the page opens in chromium and sorts."""
 
@@ -175,7 +175,7 @@ class Blind(FilterBase):
 
 
 def test_no_row_says_a_bare_consistent_beside_an_error_over_twice_the_bound(tmp_path):
-    """Issue 26: the page's and the CSV's verdict weigh the error against the bound."""
+    """The page's and the CSV's verdict weigh the error against the bound."""
     klass = tmp_path / "class"
     klass.mkdir()
     (klass / "blind.py").write_text(BLIND)
@@ -195,7 +195,7 @@ def test_no_row_says_a_bare_consistent_beside_an_error_over_twice_the_bound(tmp_
 
 
 def test_outputs_name_a_scenario_file_not_its_folder(tmp_path, capsys):
-    """Issue 35: grade.json, grade.csv and the pages name a scenario given by path by its file
+    """The files grade.json, grade.csv and the pages name a scenario given by path by its file
     name (a shipped one by its name), never by the folder it is in, since they are shared;
     the runs still load it from there, a team scenario's in the workers too."""
     klass = write_class(tmp_path / "class", ["alice", "carol"])

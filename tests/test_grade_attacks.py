@@ -1,4 +1,4 @@
-"""Grades you can trust (issue 23): a class of honest students and one hostile file per
+"""Grades you can trust: a class of honest students and one hostile file per
 attack (tests/attacks/), graded with each student's filter in a child process of its own.
 
 Every attack has its own assertion on the outcome: the honest students' scores are bit for

@@ -1,5 +1,5 @@
-"""The isolated host behind ``eval`` and ``check`` (issue 23: "which front ends"), the
-function form and the class choice, the CPU-time watchdog, and issue 24's two bullets (a
+"""The isolated host behind ``eval`` and ``check``, the
+function form and the class choice, the CPU-time watchdog, and two more cases (a
 huge but finite covariance, a filter raising KeyboardInterrupt in ``check``)."""
 
 from __future__ import annotations

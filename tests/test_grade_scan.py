@@ -1,4 +1,4 @@
-"""Issue 30: `grade` with a scan-based filter (a range finder in a map world): the
+"""`grade` with a scan-based filter (a range finder in a map world): the
 `new-filter --scan` template graded beside the built-in mcl, its figures those of the
 in-process run of the same seeds, and a child that gets the grid it is entitled to and
 never the truth."""

@@ -1,4 +1,4 @@
-"""Issue 37: a grade is evidence.
+"""A grade is evidence.
 
 1. Nothing a filter is given reveals the run's seed: a file that reads everything it is
    given (its context and generator, the global generators, its command line, environment

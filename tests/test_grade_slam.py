@@ -1,4 +1,4 @@
-"""Issue 29/30: a hosted SLAM filter's map comes back over the pipe with each estimate
+"""A hosted SLAM filter's map comes back over the pipe with each estimate
 (hosting/wire.py), judged in the grader's process; `check` judges a file's map; `grade`
 scores a SLAM assignment (the path's ATE, the map's GOSPA, the joint NEES) beside the
 built-in EKF-SLAM on the same seeds."""

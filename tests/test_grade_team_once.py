@@ -1,4 +1,4 @@
-"""Issue 27: a team scenario in `grade` is simulated once per (scenario, seed) and each
+"""A team scenario in `grade` is simulated once per (scenario, seed) and each
 robot's ticks are streamed to every student's child (one copy of the filter per robot and
 seed, fed together), as the single-robot runs are; the figures are those of the same
 filter's in-process team run bit for bit."""

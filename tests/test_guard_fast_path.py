@@ -92,7 +92,7 @@ def test_unusual_inputs_take_the_full_check():
 
 
 def test_other_shapes_of_three_and_nine_entries_get_the_full_checks_message():
-    # the fast path checks sizes and lets the unpacking settle the shape (issue 27)
+    # the fast path checks sizes and lets the unpacking settle the shape
     means = [np.zeros(3), np.zeros((3, 1)), np.zeros((1, 3)), np.zeros((1, 1, 3))]
     covs = [np.eye(3), np.eye(3).reshape(9), np.eye(3).reshape(1, 9), np.eye(3).reshape(3, 3, 1),
             np.eye(3).reshape(1, 3, 3), np.eye(3).reshape(9, 1)]

@@ -1,4 +1,4 @@
-"""The Gymnasium env where users meet it (issue 28): ``gym.make`` in a fresh process, the
+"""The Gymnasium env where users meet it: ``gym.make`` in a fresh process, the
 spec's episode length, bad actions refused in one line, and pickling (vector envs, saving)."""
 
 from __future__ import annotations

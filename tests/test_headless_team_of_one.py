@@ -1,4 +1,4 @@
-"""Issue 22(a), the headless floor: one headless run over N robots. A single-robot run is the
+"""The headless floor: one headless run over N robots. A single-robot run is the
 N-robot run with N = 1 (the same class), and its figures are those of a plain single-robot
 loop (Simulation + FilterRunner, written out here as ``run`` computed them before), key by
 key; the wall-clock timings aside."""

@@ -62,7 +62,7 @@ def test_turning_moves_the_heading():
 
 
 def test_blur_adds_the_motion_noise_variance():
-    # the legacy slip: noise at standstill (the scaled slip of issue 25 has none, below)
+    # the legacy slip: noise at standstill (the scaled slip has none, below)
     noise = MotionNoise(v_std=0.2, slip="legacy")
     hf = make_hf(noise=noise)
     hf.reset(GaussianBelief(np.array([5.0, 5.0, 0.0]), np.diag([0.04, 0.04, 0.01])))

@@ -1,4 +1,4 @@
-"""The lean histogram filter (issue 16): the blur, the heading roll and the estimate work in
+"""The lean histogram filter: the blur, the heading roll and the estimate work in
 place or in one pass over the grid, with the results of the plain full-grid forms - the
 grid bit for bit, the moments to 1e-9."""
 

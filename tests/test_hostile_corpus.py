@@ -1,4 +1,4 @@
-"""The hostile-input corpus (issue 15): nothing a user types, loads or plugs in crashes, hangs
+"""The hostile-input corpus: nothing a user types, loads or plugs in crashes, hangs
 or corrupts the program. Each case of tests/hostile.py (seeded: mutated and hand-made
 scenarios, bad recordings, bad MRCLAM folders, bad command lines, faulty filters) runs
 in-process through ``beacon-sim``'s ``main``; a sample runs as a subprocess under a memory
@@ -130,7 +130,7 @@ def test_corpus_sample_as_subprocesses(cases, tmp_path):
     assert not bad, "\n".join(bad)
 
 
-#: Issue 24's bound on every case [s] (in-process; generous for a busy machine).
+#: The bound on every case [s] (in-process; generous for a busy machine).
 ISSUE24_LIMIT_S = 10.0
 
 
@@ -140,7 +140,7 @@ def issue24(tmp_path_factory) -> list[Case]:
 
 
 def test_issue_24_inputs_through_every_front_end(issue24, tmp_path):
-    """Issue 24's inputs that ended in a traceback, and new kinds, each through every front
+    """Inputs that once ended in a traceback, and new kinds, each through every front
     end that reads it: exit 0 or 2, at most two lines on stderr, no traceback, within 10 s;
     those that must be refused (ISSUE24_REFUSED) exit 2 with a line naming the file and the
     key or line."""

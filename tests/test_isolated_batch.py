@@ -1,4 +1,4 @@
-"""A student's seeds fed together (issue 23's cost, issue 27): one filter per seed in the
+"""A student's seeds fed together: one filter per seed in the
 child, one exchange per tick. Every estimate equals the in-process run's, bit for bit, for
 several built-in filters and a student file; a filter failing in one seed fails that seed
 only; the wire's batch answer is strict. Runs are short (3 s of simulated time)."""

@@ -1,4 +1,4 @@
-"""Filter names (issue 13, item 5): ``--filter alice=./alice.py:MyEkf`` labels a filter;
+"""Filter names: ``--filter alice=./alice.py:MyEkf`` labels a filter;
 unlabelled file filters whose class names clash take their file's name."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Updates linear in the readings (issue 16): over LOW_RANK_ROWS readings the UKF's and the
+"""Updates linear in the readings: over LOW_RANK_ROWS readings the UKF's and the
 batched Kalman updates never form S (m x m) and give the direct solve's results to 1e-9; the
 shipped scenarios stay on the direct path (their bits unchanged)."""
 

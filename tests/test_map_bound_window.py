@@ -1,4 +1,4 @@
-"""The live bound in a map world (issue 30): the window's LiveBound takes the range finder's
+"""The live bound in a map world: the window's LiveBound takes the range finder's
 scans (it used to switch itself off), equals the offline PCRB tick by tick, and is drawn:
 in the magnifier's inner box when it is millimetres beside a filter's centimetres."""
 

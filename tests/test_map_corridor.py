@@ -1,4 +1,4 @@
-"""Seed 004's discrete Bayes filter on the corridor scenario's laser (issue 30):
+"""Seed 004's discrete Bayes filter on the corridor scenario's laser:
 ``filters/grid/corridor.py``'s CorridorFilter."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
-"""Recording and bit-exact replay of a map session (issue 30): the walls come back from the
+"""Recording and bit-exact replay of a map session: the walls come back from the
 map file the scenario names, the scans replay bit for bit, and mcl's figures are the run's.
-The recording names the scenario without a folder (issue 35): the map file is looked for
+The recording names the scenario without a folder: the map file is looked for
 beside a shipped scenario, or beside the path an older recording holds."""
 
 from __future__ import annotations
@@ -120,7 +120,7 @@ def with_header(out: Path, path: Path, edit) -> Path:
 
 
 def test_an_older_recording_names_a_changed_map_file(tmp_path, capsys):
-    """A recording made before issue 35 holds the scenario's path: the map file beside it
+    """A recording made before format version 4 holds the scenario's path: the map file beside it
     is still looked for, and a missing or altered one is said (the recorded map is used)."""
     sc, out, maps = record_office_copy(tmp_path)
 
@@ -153,7 +153,7 @@ def test_an_edited_stored_map_is_refused(tmp_path):
 
 
 def test_a_recording_made_before_the_map_was_stored_still_replays(tmp_path, capsys):
-    """A header without "map" (recorded before issue 30 stored it, with the scenario's
+    """A header without "map" (recorded before 0.3.0 stored it, with the scenario's
     path) reads the map file the scenario names, as it did."""
     _, out, _ = record_office_copy(tmp_path, ticks=20)
     ref, _ = replay_json(out, capsys)

@@ -1,4 +1,4 @@
-"""The window in map worlds (issue 30): the likelihood field on L, and a panel that says what
+"""The window in map worlds: the likelihood field on L, and a panel that says what
 the range finder senses instead of warning about beacons a walls-only world does not have."""
 
 from __future__ import annotations

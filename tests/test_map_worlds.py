@@ -1,4 +1,4 @@
-"""Worlds with walls (issue 30): ``world.map`` / ``[world.walls]`` in a scenario, the bumper
+"""Worlds with walls: ``world.map`` / ``[world.walls]`` in a scenario, the bumper
 against walls, the range_finder sensor, and the three shipped map scenarios."""
 
 from __future__ import annotations

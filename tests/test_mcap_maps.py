@@ -1,4 +1,4 @@
-"""MCAP export of a map session (issue 30): each scan as a foxglove.LaserScan (the step's
+"""MCAP export of a map session: each scan as a foxglove.LaserScan (the step's
 ranges, the beam angles, the true pose as its origin) and the occupancy grid once as a
 foxglove.Grid (size, resolution, origin and cells of the map), through the SDK the beacon
 world uses; read back with the ``mcap`` reader and decoded with the schemas in the file,

@@ -1,4 +1,4 @@
-"""filters/particle/mcl.py (issue 30): scan-based MCL with AMCL's names, on the shipped maps."""
+"""filters/particle/mcl.py: scan-based MCL with AMCL's names, on the shipped maps."""
 
 from __future__ import annotations
 
@@ -217,7 +217,7 @@ def test_corridor_global_localization_converges_to_the_true_cell():
     """Seed 004's corridor, started lost: after 60 s (the robot has passed the doors) the
     estimate is in the robot's 1 m cell, facing its way, and stays there to 90 s; KLD-sampling
     has shrunk the set from max_particles. Not every run gets there by 60 s in this corridor
-    of look-alike cells: runs 0-9 did in 2 of 10 with the filter streams before issue 37
+    of look-alike cells: runs 0-9 did in 2 of 10 with the filter streams before they were keyed
     (runs 4 and 5) and in 2 of 10 with the keyed ones (runs 2 and 8); run 2 is one of those."""
     checked = 0
     for st, f in run("corridor", 2, 90.0, every=10.0):
@@ -270,9 +270,9 @@ def test_the_symmetric_room_keeps_both_clouds_over_seeds():
     """Over 30 seeds used neither to tune the scenario (100-119) nor to measure it (200-239,
     400-439), each run up to the breaking observation (the partition seen, near 40 s): both
     clouds live until then in at least 25. The rate measured for the shipped settings is 37
-    of 40 (0.93) on the filter streams before issue 37 and 36 of 40 (0.90) on the keyed ones
+    of 40 (0.93) on the filter streams before they were keyed and 36 of 40 (0.90) on the keyed ones
     (seeds 200-239); at 0.90 this passes with probability 0.93, with the settings before
-    (30 of 40, 0.75) with probability 0.20. (It asked 26 before issue 37: 0.93 at 0.93; the
+    (30 of 40, 0.75) with probability 0.20. (It asked 26 before the keyed streams: 0.93 at 0.93; the
     keyed streams gave these 30 seeds 25.) (About 40 s of CPU: the first seconds carry
     50,000 particles.)"""
     modes = symmetric_room_modes()

@@ -1,10 +1,10 @@
-"""Issue 25's motion model: slip that scales with the command, and a bumped turn that replays.
+"""The motion model's slip: slip that scales with the command, and a bumped turn that replays.
 
 - At v = omega = 0 the truth does not move (the "scaled" slip model); the filters' process
   noise, the batched simulation and the PCRB follow the same gain.
 - A robot that turns into a wall is recorded with the command the truth executed, so its
   recording replays "verified".
-- A recording without the "slip_model" header key (made before issue 25) replays with the
+- A recording without the "slip_model" header key (made before 0.3.0) replays with the
   legacy model, to the same truth it was recorded with.
 """
 
@@ -75,7 +75,7 @@ def test_a_stopped_robot_stays_within_a_centimetre_over_a_minute(name):
     for _ in range(round(60.0 / sc.dt)):
         sim.step(Control(0.0, 0.0))
     assert np.hypot(*(sim.pose[:2] - start[:2])) < 0.01
-    # the legacy model (what the class saw before issue 25) creeps past the bound
+    # the legacy model (what the class saw before 0.3.0) creeps past the bound
     old = Simulation(scenario_with_slip(sc, "legacy"))
     for _ in range(round(60.0 / sc.dt)):
         old.step(Control(0.0, 0.0))
@@ -147,7 +147,7 @@ def test_an_old_recording_replays_with_the_legacy_model(tmp_path):
     sc = scenario_with_slip(load_scenario("assignment_kf"), "legacy")
     path = tmp_path / "old.jsonl"
     rec = Recorder(path, load_scenario("assignment_kf"), sc.seed, ["kf"], {})
-    rec.shadow = TeamSimulation(team_of_one(sc), sc.seed)   # a recorder from before issue 25
+    rec.shadow = TeamSimulation(team_of_one(sc), sc.seed)   # a recorder from before 0.3.0
     for k in range(1, 201):
         rec.record_tick(k, Control(0.0, 0.0) if k > 50 else Control(0.3, 0.2), [])
     rec.close()
@@ -246,7 +246,7 @@ def test_an_old_team_recording_replays_with_the_legacy_model(tmp_path):
     team = load_team_scenario("team_sparse")
     path = tmp_path / "old_team.jsonl"
     rec = Recorder(path, team, team.seed, ["independent"], {})
-    rec.shadow = TeamSimulation(team_with_slip(team, "legacy"), team.seed)  # before issue 25
+    rec.shadow = TeamSimulation(team_with_slip(team, "legacy"), team.seed)  # before 0.3.0
     for k in range(1, 121):
         rec.record_tick(k, 0, Control(0.0, 0.0) if k > 40 else Control(0.3, 0.2))
     rec.close()

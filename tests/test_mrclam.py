@@ -142,7 +142,7 @@ def test_calibration_finds_the_command_scale_and_removes_it_from_the_noise(tmp_p
 
 UNGATED_EKF = "beacon_sim.filters.gaussian.ekf:ExtendedKalmanFilter"  # same filter, no MRCLAM defaults
 #: Its gate off explicitly: a sensor that declares outliers (MRCLAM's calibrated rate) turns
-#: the EKF's gate on by default (issue 26).
+#: the EKF's gate on by default.
 UNGATED = {"ExtendedKalmanFilter": {"gate_chi2": 0.0}}
 
 

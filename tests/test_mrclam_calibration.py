@@ -1,4 +1,4 @@
-"""MRCLAM calibration not fitted on the scored run (issue 26): leave-one-robot-out by
+"""MRCLAM calibration not fitted on the scored run: leave-one-robot-out by
 default, the source printed, the fitted-on-itself mode labelled."""
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def test_a_folder_with_one_robot_falls_back_and_says_so(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("robot", [1, 2, 3, 4, 5])
 def test_dataset6_goals_with_calibration_from_the_other_robots(robot, mrclam_dataset6):
-    """Issue 26's goals on every robot of Dataset 6, the noise from the four others (the
+    """The MRCLAM goals (docs/results.md) on every robot of Dataset 6, the noise from the four others (the
     figures: docs/results.md, `python scripts/make_results.py --only mrclam`)."""
     run = run_mrclam(load_mrclam(mrclam_dataset6, robot), ["ekf", "ukf", "pf"])
     assert "not on the scored run" in run.calibration.source and run.calibration.inflation > 1.0

@@ -1,4 +1,4 @@
-"""``beacon-sim mrclam DIR --robot N --slam`` (issue 29): the SLAM filters get no landmark map
+"""``beacon-sim mrclam DIR --robot N --slam``: the SLAM filters get no landmark map
 (an empty ``ctx.world``, ``map_known`` False), the known-map EKF keeps it, and the final maps
 are scored against the data set's surveyed landmarks. On Dataset 6 robot 1's first two
 minutes (skipped when the data set is absent) and on the synthetic folder of
@@ -98,7 +98,7 @@ def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run, mrclam_dat
     # EKF-SLAM's joint Gaussian gives a joint NEES over the pose and its landmarks
     assert figs["ekf_slam"]["joint_dof"] == 3 + 2 * figs["ekf_slam"]["map_landmarks"]
     assert math.isfinite(figs["ekf_slam"]["joint_nees"]) and figs["ekf_slam"]["joint_nees"] > 0
-    # FastSLAM reports EKF-SLAM's linearised covariance as its joint Gaussian (issue 29)
+    # FastSLAM reports EKF-SLAM's linearised covariance as its joint Gaussian
     assert figs["fastslam"]["joint_dof"] == 3 + 2 * figs["fastslam"]["map_landmarks"]
     assert math.isfinite(figs["fastslam"]["joint_nees"]) and figs["fastslam"]["joint_nees"] > 0
     assert figs["ekf"]["map_given"] is True and figs["ekf"]["map_gospa_m"] is None
@@ -337,8 +337,8 @@ def test_the_gate_keeps_the_flipped_bearings_out_of_ekf_slams_map(synthetic):
 
 
 #: FastSLAM's per-landmark map error on the synthetic square [m]: its particles' draws set
-#: it, from 0.03 to 0.19 m over six filter streams (issue 37's keyed streams, the public key
-#: and five others); the stream before issue 37 gave just under 0.1 m.
+#: it, from 0.03 to 0.19 m over six filter streams (the keyed streams, the public key
+#: and five others); the stream before the keyed streams gave just under 0.1 m.
 FASTSLAM_PER_LANDMARK_M = 0.2
 
 

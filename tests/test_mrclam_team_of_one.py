@@ -1,4 +1,4 @@
-"""One MRCLAM run over N robots (issue 22): a single robot is a team of one, run through
+"""One MRCLAM run over N robots: a single robot is a team of one, run through
 TeamRunner, and gives exactly what a straightforward loop over its odometry and readings
 gives; a team run keeps its keys, and each robot's own filter run as ``independent:ekf``
 (one FilterRunner per robot) equals the ``independent`` team filter."""

@@ -1,4 +1,4 @@
-"""``beacon-sim mrclam DIR --robot N --unknown-ids`` (issue 29): the filters get every reading
+"""``beacon-sim mrclam DIR --robot N --unknown-ids``: the filters get every reading
 without its barcode (all IDs ``UNKNOWN_ID``) and associate it with the map themselves; the
 barcodes only score the associations. On the synthetic folder of tests/test_mrclam.py (fast),
 and on Dataset 6 robot 1 when present (slow)."""

@@ -1,4 +1,4 @@
-"""No absolute path of one machine in what the project ships (issue 35): the code, tests,
+"""No absolute path of one machine in what the project ships: the code, tests,
 docs, README, scripts, benchmarks, examples and scenarios name no checkout, home or shared
 folder. Data sets are found through BEACON_SIM_MRCLAM (docs/mrclam.md), files by paths
 relative to the checkout or the package. System paths (/proc, /dev, /tmp, /usr, /etc,

@@ -34,5 +34,5 @@ def test_the_python_api_notebook_runs_top_to_bottom(tmp_path, monkeypatch):
         assert f"{name:12s} estimates (600, 3)" in text
         assert f"{name:12s} position RMSE" in text
     assert "['blackout_start', 'blackout_end']" in text
-    assert "'err_pos_m', 'nees']" in text                               # the tidy tables (issue 28)
+    assert "'err_pos_m', 'nees']" in text                               # the tidy tables
     assert sum("image/png" in o.get("data", {}) for o in outputs) == 3  # three figures drawn

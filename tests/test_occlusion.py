@@ -1,4 +1,4 @@
-"""Beacons behind walls (issue 30): a beacon sensor in a world with walls does not see a
+"""Beacons behind walls: a beacon sensor in a world with walls does not see a
 beacon whose line of sight crosses an occupied cell (``occluded_by_walls``, on by default);
 the simulation, the batched Monte Carlo path and the PCRB share that visibility
 (``sensors.visible_mask``); in worlds without walls nothing changes, bit for bit."""
@@ -66,7 +66,7 @@ def test_a_beacon_behind_a_wall_is_not_sensed_one_in_sight_is():
     assert visible_beacons(spec, pose, sc.world).tolist() == [False, True, True]
     m = sense(spec, pose, sc.world, np.random.default_rng(0))
     assert sorted(m.beacon_ids.tolist()) == [2, 3]
-    # Off: seen through the wall, as before issue 30's occlusion.
+    # Off: seen through the wall, as before occlusion (0.3.0).
     off = parse_scenario(_world_dict(occluded=False), "<test>")
     assert visible_beacons(off.sensors[0], pose, off.world).all()
     m = sense(off.sensors[0], pose, off.world, np.random.default_rng(0))

@@ -1,4 +1,4 @@
-"""Outliers in simulation (issue 26): when a scenario declares them, the EKF and UKF gate
+"""Outliers in simulation: when a scenario declares them, the EKF and UKF gate
 by default (the chi-square 99 % point for the readings' degrees of freedom, kept in the
 filters' parameters), the batched forms gate as the per-run ones, and the particle
 filter's mixture and lost test allow for them."""
@@ -62,7 +62,7 @@ def test_a_subclass_that_declares_its_own_gate_keeps_it(name, cls, tmp_path):
 def test_filters_near_the_bound_with_declared_outliers():
     # 20 % of the readings replaced by random ones and the filters told so: without the
     # gate the EKF reached 8.75x the bound (ANEES 906) and the PF 12.7x; now near 1, but for
-    # the PF's rare hard run: on the keyed filter streams (issue 37) one of these three runs
+    # the PF's rare hard run: on the keyed filter streams one of these three runs
     # ends at 0.38 m (the others 0.08 m), 2.2x the bound pooled; seeds 43-54 (12 more runs)
     # gave 0.77-1.26x. So the PF's bound here is 2.5x, still five times below the ungated 12.7x.
     sc = with_outliers("default", 0.2)

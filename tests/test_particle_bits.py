@@ -1,4 +1,4 @@
-"""The particle filter's results bit for bit as before issue 27's speed work (a5d21dd): the
+"""The particle filter's results bit for bit as before the 0.3.0 speed work (a5d21dd): the
 SHA-256 of every estimate, particle, weight and HUD figure over scripted ticks
 (``pf_trace.py``), for the main options; a change of results, or of the order of the random
 draws, fails here.
@@ -8,7 +8,7 @@ dot and matrix products round differently by processor. So the digests are pinne
 maths that every x86-64 machine with AVX2 can run: numpy's dispatch capped below AVX-512
 (``NPY_DISABLE_CPU_FEATURES``) and OpenBLAS's Haswell kernels (``OPENBLAS_CORETYPE``); the
 traces run in a subprocess under it. a5d21dd's particle filter gives exactly these digests
-under it (checked when they were pinned, issue 35). Elsewhere (ARM64, another BLAS, another
+under it (checked when they were pinned). Elsewhere (ARM64, another BLAS, another
 numpy) the test says why it cannot run.
 
 To re-record after a deliberate change of results: ``python tests/test_particle_bits.py``.

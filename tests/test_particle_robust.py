@@ -1,4 +1,4 @@
-"""The particle filter on seeds nobody tuned to (issue 26): it does not lose the robot on
+"""The particle filter on seeds nobody tuned to: it does not lose the robot on
 ``default``, and its covariance does not collapse after a kidnap."""
 
 from __future__ import annotations

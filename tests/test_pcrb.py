@@ -23,7 +23,7 @@ BEACONS = [{"id": 1, "x": 2.0, "y": 2.0}, {"id": 2, "x": 8.0, "y": 3.0},
 
 def _static(sensor: dict, pose_std=(0.05, 0.04, 0.02)):
     """A robot standing still (v = 0, so F = I) with additive pose noise: linear-Gaussian.
-    The legacy slip model: the "scaled" one (issue 25) has no noise at standstill."""
+    The legacy slip model: the "scaled" one has no noise at standstill."""
     return scenario_with_slip(parse_scenario({
         "name": "static", "dt": 0.1,
         "world": {"bounds": [0.0, 0.0, 10.0, 10.0], "beacons": BEACONS},

@@ -1,4 +1,4 @@
-"""The PCRB of a team's joint state (issue 18/5, evaluation/pcrb.team_pcrb): without
+"""The PCRB of a team's joint state (evaluation/pcrb.team_pcrb): without
 robot-to-robot readings it is each robot's own bound; with them the readings couple the
 robots and the explorer of team_sparse, which sees no beacon, gets a bound far below its
 bound alone; the centralised filter's Monte Carlo error is not below the joint bound."""

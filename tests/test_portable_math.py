@@ -1,4 +1,4 @@
-"""The simulation's maths is the same bits on every machine (issue 35).
+"""The simulation's maths is the same bits on every machine.
 
 - The portable kernels (core/portable_math.py) are accurate: within 3 ulp of the C library
   (Python's ``math``) on seeded random inputs, with the C library's signs of zero and pi.

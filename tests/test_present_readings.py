@@ -1,4 +1,4 @@
-"""The batched readings cost what the readings present cost (issue 16): with R runs' slots
+"""The batched readings cost what the readings present cost: with R runs' slots
 (``SlotPacker``), ``StackedReadings.linearise`` and ``predict`` can compute only the slots
 that hold a reading (they do when few do, ``PRESENT_FRACTION``), and that gives, bit for
 bit, the whole-map computation with the empty slots at 0 (H = 0, innovation 0, prediction

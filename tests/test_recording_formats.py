@@ -1,11 +1,11 @@
-"""Recording formats kept (issue 22): one writer and one reader over N robots.
+"""Recording formats kept: one writer and one reader over N robots.
 
 ``tests/data/old_recordings`` holds files written by every earlier writer: versions 1 and 2
 (single robot), version 2 (a team), and version 3 of a single robot and of a team written by
-the two writers that existed before issue 22 (``Recorder`` and ``TeamRecorder``), from the
+the two writers that existed before 0.3.0 (``Recorder`` and ``TeamRecorder``), from the
 scripted sessions below. The one writer of today writes the same lines from the same
 session: the same kinds in the same order, the same ticks, drivers and user commands, the
-same header. (Byte for byte until issue 35: since then the truth uses the portable maths,
+same header. (Byte for byte until format version 4: since then the truth uses the portable maths,
 so its numbers and checksums differ in the last bits, and version 4 adds the maths
 fingerprint and the estimates' values.) Every file loads and replays from its recorded
 commands, with a status that says what it verified (tests/test_replay_verification.py).
@@ -116,7 +116,7 @@ def header_free(lines: list[str]) -> list[str]:
     return [json.dumps(head), *lines[1:]]
 
 
-#: What version 4 adds to a header (issue 35), and the header fields of when, by which
+#: What version 4 adds to a header, and the header fields of when, by which
 #: release and from which folder a file was written.
 NEW_OR_LOCAL = ("version", "maths", "maths_description", "created", "program_version",
                 "scenario_source")
@@ -166,7 +166,7 @@ def scripted(tmp_path_factory):
                                            ("team", "v3_team_sparse.jsonl")])
 def test_the_one_writer_writes_what_the_two_wrote(scripted, kind, old):
     """Recorder (one robot) and TeamRecorder (a team) wrote the files under OLD before
-    issue 22; the one Recorder writes the same lines from the same scripted session (the
+    0.3.0; the one Recorder writes the same lines from the same scripted session (the
     same header, the same ticks and commands, the same kinds of line in the same order)."""
     new = scripted(kind).read_text(encoding="utf-8").splitlines()
     before = (OLD / old).read_text(encoding="utf-8").splitlines()
@@ -179,7 +179,7 @@ def test_the_one_writer_writes_what_the_two_wrote(scripted, kind, old):
         {k: v for k, v in head_before.items() if k not in NEW_OR_LOCAL}
     assert head["scenario_source"] == Path(head_before["scenario_source"]).stem  # shipped: its name
     # line 2, the filters' effective parameters, grows by the parameters added to the
-    # filters since (issue 29's association, at its defaults)
+    # filters since (the association parameters, at their defaults)
     added = json.loads(new[1])["filters"], json.loads(before[1])["filters"]
     assert added[0].keys() == added[1].keys()
     for name, entry in added[1].items():

@@ -1,4 +1,4 @@
-"""Recordings verify anywhere (issue 35): a recording names the maths that made it and stores
+"""Recordings verify anywhere: a recording names the maths that made it and stores
 its filters' estimate values, so a replay on other maths checks the inputs bit for bit and
 the estimates within a stated tolerance; an edit of the inputs is named everywhere; a file
 made before says honestly what it cannot prove; no recording holds a folder.
@@ -329,7 +329,7 @@ def test_the_window_gives_the_same_verdict_on_other_maths(made_there):
 
 # ------------------------------------------------------------------------------ old files
 def as_version_3(objs: list[dict]) -> list[dict]:
-    """A file as beacon-sim wrote it before issue 35: no maths, no estimate values."""
+    """A file as beacon-sim wrote it before format version 4: no maths, no estimate values."""
     objs[0]["version"] = 3
     del objs[0]["maths"], objs[0]["maths_description"]
     for o in objs:

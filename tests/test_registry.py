@@ -1,4 +1,4 @@
-"""One record per built-in filter (filters/registry.py, issue 22): adding a built-in filter
+"""One record per built-in filter (filters/registry.py): adding a built-in filter
 is its module and one record. A toy filter registered in a fixture is listed, loads by
 name, has its parameter ranges checked, its drawing style and its MRCLAM defaults; every
 shipped record agrees with its class (ranges beside real defaults, batched form)."""

@@ -1,4 +1,4 @@
-"""What replay claims (issues 15 and 24): the checksums of a recording cover the readings and
+"""What replay claims: the checksums of a recording cover the readings and
 the scenario text as well as the truth (version 3: also the filter settings and estimates,
 tests/test_replay_verification.py; version 4: the maths, tests/test_recording_maths.py);
 version 1 files still replay, verified for the truth

@@ -1,4 +1,4 @@
-"""What "verified" means (issue 24): a version 3 recording stores the effective filter
+"""What "verified" means: a version 3 recording stores the effective filter
 parameters and digests of the estimates, so replay checks everything that shapes a result
 and names the field an edit touched; older files say what they cover; an optional HMAC
 signs the file; two sessions never write one file; the window shows a mismatch."""
@@ -217,7 +217,7 @@ def not_verified(tick: int, dt: float) -> str:
             f"checksum); replayed from its recorded commands")
 
 
-#: What each old file replays with since the portable maths (issue 35): the truth of the
+#: What each old file replays with since the portable maths: the truth of the
 #: sparse_kidnap run did not move (the portable sin and cos equal the C library's on its
 #: poses), its bearings did.
 OLD_STATUS = {

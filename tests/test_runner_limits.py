@@ -1,4 +1,4 @@
-"""The runner's time limits after issue 27 (StepWatch: the thread's watchdog entry armed in
+"""The runner's time limits with StepWatch (the thread's watchdog entry armed in
 place each step): an endless loop is still stopped, a CPU-time limit counts CPU and not
 sleep, nothing is raised after a step has ended, limits nest, and the verdicts and figures
 of working filters are those of the general ``time_limit``. Limits are generous and no

@@ -1,4 +1,4 @@
-"""Issue 41, items 1 and 2: files are read as what they are, writes are atomic.
+"""Files are read as what they are, writes are atomic.
 
 Reading: a FIFO, ``/dev/zero`` or ``/dev/urandom`` named as a scenario, a map YAML, a map
 image, a recording or a grade config, a PNG header claiming 30,000 x 30,000 pixels, a

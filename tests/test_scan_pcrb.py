@@ -1,4 +1,4 @@
-"""The PCRB of a range finder's scan (issue 30): each beam's range derivative from the wall's
+"""The PCRB of a range finder's scan: each beam's range derivative from the wall's
 normal (core/scan_jacobian.py) against slopes of the ray cast itself on hand-built maps,
 the dropped beams (misses, grazing hits, rays from inside a wall), the scan's information,
 and the bound along paths: finite and below mcl in the shipped map worlds, growing along a

@@ -1,4 +1,4 @@
-"""One tick schedule (core/schedule.py, issue 22): the simulation, the batched simulation,
+"""One tick schedule (core/schedule.py): the simulation, the batched simulation,
 the team simulation (per robot), the offline PCRB and the live bound read the same object, so the
 readings the simulation makes are exactly the ones the bound counts."""
 

@@ -1,4 +1,4 @@
-"""One home per idea (issue 22): the bearing model lives in core/measurement_models.py and
+"""One home per idea: the bearing model lives in core/measurement_models.py and
 the circular mean in core/angles.py. Where a hot path keeps a fused fast form (shared sines
 and cosines, unrolled sigma points), it is held here to the one home, so the two cannot
 drift apart."""

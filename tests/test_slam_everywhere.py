@@ -1,4 +1,4 @@
-"""Issue 29, step 4: SLAM where a user looks. ``check`` judges a SLAM filter's
+"""SLAM where a user looks. ``check`` judges a SLAM filter's
 ``landmarks()``; ``run --json`` gives each SLAM filter's ATE, map GOSPA and final joint NEES;
 the HUD says "no IDs" under unknown correspondence and does not call unlabelled beacons
 missed."""
@@ -263,7 +263,7 @@ def test_a_slam_file_in_a_process_of_its_own_has_its_map_judged(tmp_path, capsys
     assert main(["new-filter", str(tmp_path / "plain.py")]) == 0
     capsys.readouterr()
     res = _by_name(conformance.run_checks(f"{path}:MySlam", load_scenario("slam_loop")))
-    # issue 29/30: the map comes back over the pipe with each estimate and is judged here
+    # The map comes back over the pipe with each estimate and is judged here
     assert res["landmarks"].passed and "on every step" in res["landmarks"].message
     assert "--sandbox none" not in res["landmarks"].message
     plain = _by_name(conformance.run_checks(str(tmp_path / "plain.py"), load_scenario("default")))

@@ -1,4 +1,4 @@
-"""Issue 27's fast paths against the general code they stand in for: the same values and the
+"""The fast paths against the general code they stand in for: the same values and the
 same verdicts (the slip gain of one command on floats, the runner's slow-step record inline,
 the systematic resampler's counts in place)."""
 
@@ -84,7 +84,7 @@ def test_systematic_resampling_counts_equal_the_diff_of_the_boundaries(n_out):
         w /= w.sum()
         seed = int(rng.integers(1 << 30))
         idx = resampling.systematic(w, n_out, np.random.default_rng(seed))
-        # the reference: the same boundaries, np.diff of them as before issue 27
+        # the reference: the same boundaries, np.diff of them as before the fast path
         c = np.cumsum(w, dtype=np.float64)
         c *= n_out / c[-1]
         c[-1] = n_out
@@ -133,7 +133,7 @@ def test_the_pfs_unlabeled_test_equals_associations():
 
 
 def _weighted_pose_stats_before(P, w):
-    """weighted_pose_stats as it was before issue 27's third round (numpy on the 3x3)."""
+    """weighted_pose_stats as it was before its fast path (numpy on the 3x3)."""
     from beacon_sim.core.angles import wrap
     E = np.empty((3, P.shape[1]), dtype=P.dtype)
     wt = np.empty(P.shape[1], dtype=P.dtype)
@@ -153,7 +153,7 @@ def _weighted_pose_stats_before(P, w):
     cov = 0.5 * (cov + cov.T)
     from beacon_sim.filters.particle.pf import _above
 
-    clip = not _above(cov, 1e-12)  # the test the code has used since issue 16
+    clip = not _above(cov, 1e-12)  # the test the code has used since 0.2.0
     if clip:
         vals, vecs = np.linalg.eigh(cov)
         cov = (vecs * np.maximum(vals, 1e-12)) @ vecs.T

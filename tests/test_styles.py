@@ -1,5 +1,5 @@
 """A filter kind has the same colour and line style in the window and in the evaluation's
-plots: one table, ``runs/styles.py``, read by both (issue 12)."""
+plots: one table, ``runs/styles.py``, read by both."""
 
 from __future__ import annotations
 

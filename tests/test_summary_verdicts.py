@@ -1,5 +1,5 @@
 """Verdicts that weigh accuracy against the bound, the reasons named below the bound, and
-the bootstrap intervals over runs (issue 26)."""
+the bootstrap intervals over runs."""
 
 from __future__ import annotations
 

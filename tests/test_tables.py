@@ -1,4 +1,4 @@
-"""Tidy tables (issue 28): a run's truth, estimates (long form), readings, events and metrics
+"""Tidy tables: a run's truth, estimates (long form), readings, events and metrics
 as DataFrames that pandas' plotting takes directly, one name per field in the API, the
 ``.npz`` and the ``.csv`` files, and exports written with the old names still loading."""
 
@@ -109,7 +109,7 @@ def test_one_name_per_field_in_the_api_the_npz_and_the_csv(run, tmp_path):
 
 
 def _old_npz(arrays):
-    """The arrays as ``beacon-sim export`` wrote them before issue 28."""
+    """The arrays as ``beacon-sim export`` wrote them before 0.3.0."""
     old = {k: v for k, v in arrays.items() if not k.startswith(("readings_", "events_", "truth_time"))}
     old["truth_time"] = arrays["truth_time_s"]
     for new, was in (("tick", "tick"), ("time_s", "time"), ("sensor", "sensor"), ("kind", "kind"),
@@ -137,7 +137,7 @@ def test_an_npz_with_the_old_names_still_loads(run, tmp_path):
 
 
 def test_csv_files_with_the_old_names_still_load(run, tmp_path):
-    """Before issue 28: ``X.measurements.csv`` with ``z0..z2``, event poses without units."""
+    """Before 0.3.0: ``X.measurements.csv`` with ``z0..z2``, event poses without units."""
     new = tmp_path / "new.csv"
     run.export(new)
     old = tmp_path / "old.csv"

@@ -1,4 +1,4 @@
-"""Issue 18: several robots that see each other (core/team*.py, filters/team.py, runs/headless.py)."""
+"""Several robots that see each other (core/team*.py, filters/team.py, runs/headless.py)."""
 
 from __future__ import annotations
 

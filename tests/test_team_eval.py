@@ -1,4 +1,4 @@
-"""``beacon-sim run``, ``eval`` and ``grade`` on a team scenario (issue 18/5): exit
+"""``beacon-sim run``, ``eval`` and ``grade`` on a team scenario: exit
 statuses, a row per robot and the team's, JSON fields, the joint PCRB in eval, and a team
 filter that raises gets no score."""
 

@@ -1,4 +1,4 @@
-"""Issue 18 + 15: a team filter that fails anywhere is switched off with a message, the
+"""A team filter that fails anywhere is switched off with a message, the
 other team filters and the simulation go on, and it gets no score (hosting/team_runner.py)."""
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ def test_validate_team_estimates_checks_every_robot():
     ("ci.fusion=x", "fusion = 'x': expected 'ci' or 'naive'"),
 ])
 def test_team_filter_parameters_have_ranges(setting, says, capsys):
-    """Issue 15's rule for every number a user types, on the team filters' --set too."""
+    """The physical-range rule for every number a user types, on the team filters' --set too."""
     from beacon_sim.cli.main import main
 
     name = setting.split(".")[0]
@@ -114,7 +114,7 @@ def test_team_filter_parameters_have_ranges(setting, says, capsys):
 @pytest.mark.parametrize("spec", ["independent:{evil}:Evil", "{evil}:Evil", "independent:evil_mod:Evil",
                                   "x=independent:../{evil}:Evil"])
 def test_a_team_scenario_never_runs_code_it_names(tmp_path, spec, capsys):
-    """Files are data (issue 15) on the team path too: a shared team scenario whose
+    """Files are data on the team path too: a shared team scenario whose
     default_filters name a file or a module is refused before anything is imported."""
     from beacon_sim.cli.main import main
 

@@ -1,4 +1,4 @@
-"""Issue 18: MRCLAM robot sightings kept for the team run (barcodes mapped through each
+"""MRCLAM robot sightings kept for the team run (barcodes mapped through each
 folder's own Barcodes.dat), and `beacon-sim mrclam DIR --team` on Dataset 6 when present."""
 
 from __future__ import annotations

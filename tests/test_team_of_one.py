@@ -1,4 +1,4 @@
-"""A single robot is a team of one (issue 22): the team-of-one scenario, simulation and
+"""A single robot is a team of one: the team-of-one scenario, simulation and
 runner give the single-robot run bit for bit, and a team's ``independent:F`` run through
 :class:`TeamRunner` equals the joint ``IndependentTeam`` form."""
 

@@ -1,4 +1,4 @@
-"""A student's own team filter (issue 18, "the filter interface grows"): a class in one
+"""A student's own team filter: a class in one
 file with reset / predict / update / estimates, built with a TeamContext, plugged in with
 ``--filter my_team.py:MyTeam`` wherever team filters run, under the same guard."""
 

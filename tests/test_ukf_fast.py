@@ -1,4 +1,4 @@
-"""The UKF's hot paths on Python floats (issue 16) against the straightforward numpy
+"""The UKF's hot paths on Python floats against the straightforward numpy
 formulation of the same equations, on random cases: the closed-form prediction, the update
 for a few readings (floats, and S solved on arrays), gating, wide headings (the limited
 spread), and angles near +-pi. Agreement to 1e-9."""

@@ -1,4 +1,4 @@
-"""The window never crashes on what a filter returns (issue 13, item 2): estimate() and
+"""The window never crashes on what a filter returns: estimate() and
 belief() of any shape, type, None, NaN, an exception, an endless loop: the filter is
 switched off on screen with the reason, the others go on, the window keeps drawing."""
 
@@ -200,7 +200,7 @@ def test_a_belief_is_read_and_checked_once_per_tick_not_once_per_frame():
     flt.belief = lambda: calls.append(1) or real()
     first = s.belief("pf")
     assert s.belief("pf") is first and s.belief("pf") is first and len(calls) == 1
-    s.drive("w")  # moving: a stopped robot's particles stand still (issue 25's slip)
+    s.drive("w")  # moving: a stopped robot's particles stand still (the scaled slip)
     s.tick()
     second = s.belief("pf")
     assert len(calls) == 2 and second is not first

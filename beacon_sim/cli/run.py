@@ -42,11 +42,11 @@ def run_command(args: argparse.Namespace) -> int:
     if team.solo:
         print_sensor_notes(specs, team.robots[0].scenario)
     data = result.as_json()
-    slam = slam_figures(result)  # issue 29: each SLAM filter's ATE, map GOSPA, joint NEES
+    slam = slam_figures(result)  # each SLAM filter's ATE, map GOSPA, joint NEES
     for name, fig in slam.items():
         data["filters"][name]["slam"] = fig
     scored = None
-    if getattr(args, "associations", False) and team.solo:  # issue 29: a second run, IDs told
+    if getattr(args, "associations", False) and team.solo:  # a second run, IDs told
         scored = association_report(team.robots[0].scenario, args.filters, args.seed,
                                     args.duration, params)
         data["associations"] = scored.json

@@ -236,7 +236,7 @@ class BatchSimulation:
         pose += noise.pose_std_at(cv, cw) * E[:, 2:]
         pose[:, 2] = wrap(pose[:, 2])
         inside = world.contains(pose[:, :2])
-        if world.grid is not None:                       # walls are solid (issue 30)
+        if world.grid is not None:                       # walls are solid
             r = self.scenario.robot_radius
             inside &= np.array([not into_wall(world, old[i], pose[i], r) for i in range(R)])
         if not np.all(inside):

@@ -1,6 +1,6 @@
 """A user's files: read only when they are what they claim, written only whole.
 
-The one home for both directions (issue 41):
+The one home for both directions:
 
 - **Reading.** :func:`read_user_bytes` and :func:`read_user_text` read a file a user named (a
   scenario, a map YAML and its image, a grade config, a student's filter file) only when it

@@ -85,8 +85,8 @@ def jacobian_control(pose, dt):
 
 #: The slip models (``MotionNoise.slip``). "scaled": the constant noise terms (``v_std``,
 #: ``omega_std``, ``pose_std``) fade to zero as the command does, so a stopped robot does not
-#: move (issue 25). "legacy": they apply whatever the command, even at v = omega = 0 (before
-#: issue 25; recordings without a "slip_model" header key replay with it).
+#: move. "legacy": they apply whatever the command, even at v = omega = 0 (before
+#: 0.3.0; recordings without a "slip_model" header key replay with it).
 SLIP_MODELS = ("scaled", "legacy")
 #: Under the "scaled" model the constant terms are at full strength once
 #: ``|v| / FULL_SLIP_V + |omega| / FULL_SLIP_OMEGA >= 1`` [m/s, rad/s] (half the keyboard's

@@ -36,7 +36,7 @@ class Simulation:
     readings_seed : int, optional
         The seed of the sensors' and clutter's streams only (default ``seed``): the same
         truth, controls and events with the readings drawn again (``grade``'s probe of
-        whether a filter uses its readings, drawn like any run's; issue 37).
+        whether a filter uses its readings, drawn like any run's).
     """
 
     def __init__(self, scenario: Scenario, seed: int | None = None, readings_seed: int | None = None):
@@ -50,7 +50,7 @@ class Simulation:
         self._motion_rng = stream(self.seed, "motion")
         self._events_rng = stream(self.seed, "events")
         self._sensor_rngs = {s.name: stream(rs, "sensor", s.name) for s in scenario.sensors}
-        # Unknown correspondence (issue 29): clutter and the shuffle on streams of their own.
+        # Unknown correspondence: clutter and the shuffle on streams of their own.
         self._clutter_rngs = {s.name: stream(rs, "clutter", s.name) for s in scenario.sensors
                               if s.correspondence == "unknown"}
         self.driver = Driver(scenario.driver, scenario.world, stream(self.seed, "driver"))
@@ -194,7 +194,7 @@ def bumped_heading(noise, bursts, theta0: float, omega: float, e_omega: float, e
     """The heading [rad] after a tick the bumper stopped: the command the filters are told,
     v = 0 and ``omega`` [rad/s], executed with that command's noise (the draws ``e_omega``,
     ``e_theta`` of the tick). Slip scales with the command, so a robot pushed straight into
-    a wall does not turn (issue 25); with ``slip_gain`` equal for the given and the told
+    a wall does not turn; with ``slip_gain`` equal for the given and the told
     command (the legacy model, or a turn of 0.1 rad/s and more) the caller keeps its own."""
     sw = float(noise.control_std(0.0, omega)[1])
     g = noise.slip_gain(0.0, omega)
@@ -213,7 +213,7 @@ def _kidnap_text(kid: Kidnap) -> str:
 
 
 #: The slip model a recording's header names ("slip_model") when it was made under the
-#: current one; a header without the key was made before issue 25: "legacy".
+#: current one; a header without the key was made before 0.3.0: "legacy".
 CURRENT_SLIP_MODEL = "scaled"
 RECORDED_BEFORE_SLIP_MODEL = "legacy"
 

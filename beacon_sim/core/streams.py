@@ -4,7 +4,7 @@
 index), so adding a filter or a sensor never changes any other stream. Nothing in the
 project calls the global ``np.random.*`` or ``random.*``.
 
-A filter's own generator is different (issue 37): a filter is somebody else's code, and a
+A filter's own generator is different: a filter is somebody else's code, and a
 generator whose ``SeedSequence`` holds the run's seed (its ``entropy``, readable from
 ``ctx.rng.bit_generator.seed_seq``, and pickled with it) hands that code the seed, from
 which it re-simulates the truth. So a filter's stream comes from a *run key*: SHA-256 of a

@@ -1,4 +1,4 @@
-"""Several robots in one world (issue 18): each robot runs the single-robot
+"""Several robots in one world: each robot runs the single-robot
 :class:`~beacon_sim.core.simulation.Simulation` (truth, beacon sensors, driver) with its own
 seed, and robot sensors read the others after every robot has moved.
 

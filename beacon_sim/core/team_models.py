@@ -1,5 +1,5 @@
 """Robot-to-robot readings: the expected measurement of robot j seen from robot i, and its
-Jacobians with respect to both poses (issue 18).
+Jacobians with respect to both poses.
 
 Poses are ``[x, y, theta]`` [m, m, rad] in the world frame. The observer i measures the
 range [m] to the subject j and the bearing [rad] to it relative to i's heading::

@@ -1,4 +1,4 @@
-"""How well filters associate readings without IDs, and what their mistakes cost (issue 29).
+"""How well filters associate readings without IDs, and what their mistakes cost.
 
 A scenario whose sensors say ``correspondence = "unknown"`` is run once as it is; after every
 update each filter's ``associations()`` (``FilterBase``; for each reading without IDs, the

@@ -152,11 +152,11 @@ def nis_batch(records, prior_means: np.ndarray, prior_covs: np.ndarray,
     for j, meas in enumerate(records):
         for m in meas:
             if m.kind not in groups:
-                continue  # a range finder's scan (issue 30): no Gaussian model to test
+                continue  # a range finder's scan: no Gaussian model to test
             if m.kind in ("bearing", "range_bearing") and len(m) and m.beacon_ids[0] < 0:
-                continue  # no beacon ID (unknown correspondence, issue 29): no model to test
+                continue  # no beacon ID (unknown correspondence): no model to test
             if m.kind not in groups:
-                continue  # a scan (range_finder, issue 30): no Gaussian reading model to test
+                continue  # a scan (range_finder): no Gaussian reading model to test
             groups[m.kind].append((j, m))
     tick, nu, H, var = [], [], [], []
 

@@ -1,7 +1,7 @@
 """Monte Carlo runs over N robots reduced to the figures of the table and the curves of the plots.
 
 A single robot's runs (:func:`evaluate`) give its figures, the PCRB and the curves; a team's
-(:func:`evaluate_team`, issue 18) are the N-robot case: each robot's figures are the
+(:func:`evaluate_team`) are the N-robot case: each robot's figures are the
 single-robot evaluation's (``evaluate`` on that robot's scenario, its truth and each
 filter's estimates of it, which also gives the robot's bound *alone*, from its own beacon
 readings), the team's the RMSE over all robots and the mean of their ANEES, and

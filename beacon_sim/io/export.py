@@ -156,7 +156,7 @@ def csv_paths(out: Path) -> dict[str, Path]:
             "events": Path(f"{stem}.events.csv"), "estimates": Path(f"{stem}.estimates.csv")}
 
 
-#: Before issue 28 the readings file was ``X.measurements.csv``.
+#: Before 0.3.0 the readings file was ``X.measurements.csv``.
 OLD_CSV_FILES = {"readings": "measurements"}
 
 
@@ -183,7 +183,7 @@ def write_export(arrays: dict[str, np.ndarray], out: Path) -> list[Path]:
 
 def load_export(path: str | Path) -> dict[str, dict[str, np.ndarray]]:
     """The tables (:func:`beacon_sim.io.tables.tables`) of an export: a ``.npz`` file or the
-    ``.csv`` files of :func:`csv_paths` (give ``X.csv``), written now or before issue 28 (old
+    ``.csv`` files of :func:`csv_paths` (give ``X.csv``), written now or before 0.3.0 (old
     names are renamed). A table the export does not have (estimates without filters) is
     absent. Raises ``ValueError`` naming the file for anything else."""
     path = Path(path)

@@ -13,7 +13,7 @@
   ``BEACON_SIM_MRCLAM``; docs/mrclam.md says where MRCLAM comes from).
 
 Frames and units: metres, radians, world frame of the data set (Vicon), bearings relative to
-the heading and wrapped to [-pi, pi). Running filters on the data: beacon_sim/runs/mrclam.py.
+the heading and wrapped to [-pi, pi). Running filters on the data: beacon_sim/runs/mrclam/.
 """
 
 from __future__ import annotations
@@ -173,7 +173,7 @@ class MrclamData:
     sightings : ndarray (k, 4)
         ``t [s], subject, range [m], bearing [rad]``: the sightings of the other robots
         (subjects 1-5 other than this one), sorted by time, one per robot and time stamp;
-        filled only when loaded with ``robot_sightings=True`` (issue 18), else empty.
+        filled only when loaded with ``robot_sightings=True``, else empty.
     """
 
     folder: Path

@@ -14,7 +14,7 @@ Column names carry their unit: ``_m`` metres, ``_rad`` radians, ``_s`` seconds, 
 ``_radps`` rad/s; covariances are in the products of those units, NEES has none. Frames as
 everywhere: world frame, theta counter-clockwise from +x. ``.npz`` keys are
 ``<table>_<column>`` for the readings and events (``readings_range_m``), so a field has the
-same name everywhere; files written with the names before issue 28 (``meas_z``,
+same name everywhere; files written with the names before 0.3.0 (``meas_z``,
 ``event_pose_before``, ``time_s`` / ``z0..z2`` CSV columns, ...) load through
 :func:`upgrade_arrays` and :func:`read_csv_tables`.
 """
@@ -49,14 +49,14 @@ POSE_AFTER = ("x_after_m", "y_after_m", "theta_after_rad")
 EVENT_COLUMNS = ("tick", "time_s", "kind", "detail", *POSE_BEFORE, *POSE_AFTER)
 TABLES = ("truth", "estimates", "readings", "events")
 
-#: ``.npz`` keys renamed in issue 28 (old -> new); ``meas_z`` and the event poses are split.
+#: ``.npz`` keys renamed in 0.3.0 (old -> new); ``meas_z`` and the event poses are split.
 OLD_NPZ_KEYS = {"truth_time": "truth_time_s", "meas_tick": "readings_tick",
                 "meas_time": "readings_time_s", "meas_sensor": "readings_sensor",
                 "meas_kind": "readings_kind", "meas_beacon_id": "readings_beacon_id",
                 "meas_hdop": "readings_hdop", "event_tick": "events_tick",
                 "event_time": "events_time_s", "event_kind": "events_kind",
                 "event_detail": "events_detail"}
-#: CSV columns renamed in issue 28, per file (``z0..z2`` are split by kind).
+#: CSV columns renamed in 0.3.0, per file (``z0..z2`` are split by kind).
 OLD_CSV_COLUMNS = {"events": {"x_before": "x_before_m", "y_before": "y_before_m",
                               "theta_before": "theta_before_rad", "x_after": "x_after_m",
                               "y_after": "y_after_m", "theta_after": "theta_after_rad"}}
@@ -96,7 +96,7 @@ def prefixed(arrays: Mapping[str, np.ndarray], table: str) -> dict[str, np.ndarr
 
 
 def upgrade_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Flat export arrays with the names of today, from a file written before issue 28 or now."""
+    """Flat export arrays with the names of today, from a file written before 0.3.0 or now."""
     out = {OLD_NPZ_KEYS.get(k, k): v for k, v in arrays.items()
            if k not in ("meas_z", "event_pose_before", "event_pose_after")}
     if "meas_z" in arrays:
@@ -207,7 +207,7 @@ def _cell(v) -> str:
 
 
 def read_table_csv(path: Path, name: str) -> dict[str, np.ndarray]:
-    """A table written by :func:`write_table_csv` (or before issue 28) back as columns."""
+    """A table written by :func:`write_table_csv` (or before 0.3.0) back as columns."""
     text = read_user_text(path, what="export", cap=MAX_EXPORT_BYTES)
     rows = list(csv.reader(io.StringIO(text, newline="")))
     if not rows:
@@ -226,7 +226,7 @@ def read_table_csv(path: Path, name: str) -> dict[str, np.ndarray]:
                 out[c] = np.array([float(v) for v in vals], dtype=float)
             except ValueError:
                 out[c] = np.array(vals, dtype=str)
-    if name == "readings" and "z0" in out:  # before issue 28: z0..z2 in the sensor's order
+    if name == "readings" and "z0" in out:  # before 0.3.0: z0..z2 in the sensor's order
         z = np.column_stack([out.pop(f"z{j}") for j in range(3)])
         values = reading_values(out["kind"], z)
         hdop = out.pop("hdop")

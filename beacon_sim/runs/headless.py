@@ -1,6 +1,6 @@
 """One headless run over N robots: a scenario, a seed, some filters; the figures ``run`` prints.
 
-A single robot is a team of one (issue 22): :func:`run_headless` takes a single-robot
+A single robot is a team of one: :func:`run_headless` takes a single-robot
 :class:`~beacon_sim.core.scenario.Scenario` as :func:`~beacon_sim.core.team_scenario.as_team`
 makes it, and runs every scenario the same way, a
 :class:`~beacon_sim.core.team.TeamSimulation` fed tick by tick to a
@@ -154,7 +154,7 @@ class RunResult:
         at some tick (a covariance that leaves no room for the error it had), from that tick,
         with the one line ``eval``, ``check`` and ``grade`` give
         (:data:`~beacon_sim.hosting.guard.NEES_NOT_FINITE`): such a filter is never scored as
-        working (issue 37). A failure it had later is replaced by this earlier one."""
+        working. A failure it had later is replaced by this earlier one."""
         row = {s.tick: k for k, s in enumerate(self.team_steps)}
         for name in self.names:
             ticks, means, covs = self.filters.series(name)

@@ -5,10 +5,10 @@ The one writer, :class:`Recorder`, re-simulates alongside the caller (a shadow
 :class:`~beacon_sim.core.team.TeamSimulation` from the same scenario and seed, given the
 same commands), so the file carries its own checksums whatever the caller passes. A team
 of one (a single robot) is written in a single robot's format, byte for byte as before
-issue 22; a team in a team's (the driven robot's index and command per tick). Lines are
+0.3.0; a team in a team's (the driven robot's index and command per tick). Lines are
 flushed at least every half second of simulated or wall time: a killed program leaves a
 file that replays to within a second of the kill. The header names the maths of the machine
-that records (issue 35) and the scenario without a folder; the estimates lines hold the
+that records and the scenario without a folder; the estimates lines hold the
 filters' estimates beside their digests, so a replay on other maths compares them within a
 tolerance (beacon_sim/runs/replay_maths.py).
 """
@@ -67,7 +67,7 @@ class Recorder:
     scenario : Scenario or TeamScenario
         Loaded from a TOML file; its text is stored so replay rebuilds it exactly. A single
         robot's scenario, or a team of one made from one (``TeamScenario.solo``), is written
-        in a single robot's format, byte for byte as before issue 22; a team in a team's.
+        in a single robot's format, byte for byte as before 0.3.0; a team in a team's.
     seed : int
     filters : list of str
         The filter specs of the run.
@@ -98,7 +98,7 @@ class Recorder:
         stored_map: dict[str, Any] = {}
         if self.solo:
             first = team.robots[0].scenario
-            # A map file the scenario names goes into the header (issue 30): the grid this
+            # A map file the scenario names goes into the header: the grid this
             # run uses, so a replay needs neither the file nor that it be unchanged.
             map_name = map_file_name(text, first.source)
             grid = first.world.grid if map_name is not None else None
@@ -154,8 +154,8 @@ class Recorder:
             "seed": self.seed, "dt": scenario.dt,
             "filters": list(filters), "params": {k: dict(v) for k, v in (params or {}).items()},
             "checkpoint_every": self.checkpoint_every, "signed": self._signer is not None,
-            "slip_model": CURRENT_SLIP_MODEL,  # the shadow's (issue 25); absent: "legacy"
-            # which float64 kernels made the estimates (issue 35): a replay on other maths
+            "slip_model": CURRENT_SLIP_MODEL,  # the shadow's; absent: "legacy" (before 0.3.0)
+            # which float64 kernels made the estimates: a replay on other maths
             # compares them within a tolerance, not bit for bit
             "maths": maths_fingerprint(), "maths_description": maths_description(),
             **(extra or {}),
@@ -304,7 +304,7 @@ class Recorder:
         None: its driver's, the same draws ``step(None)`` would make). A team lets the
         driven robot's driver choose again on ``autopilot`` (the shadow's driver state
         follows) and writes what it chose. The call ``record_tick(tick, control, commands)``
-        of a single robot (before issue 22) is still taken.
+        of a single robot (before 0.3.0) is still taken.
         """
         if driven is None or isinstance(driven, Control):  # (tick, control, commands)
             driven, control, commands, autopilot = 0, driven, control, False

@@ -67,7 +67,7 @@ OTHER_STYLES: list[tuple[RGB, Dash]] = [
     (OKABE_ITO[6], SOLID)]
 STYLE_CYCLE: list[Dash] = [SOLID, DASHED, DOTTED, DASH_DOT, SHORT_DASH]
 
-#: Team filters (issue 18, ``filters/team.py``) by name, from their records: the baseline
+#: Team filters (``filters/team.py``) by name, from their records: the baseline
 #: that ignores the teammates is grey like dead reckoning; the joint EKF blue and solid; the
 #: pairwise decentralised EKF orange, dash-dot; covariance intersection bluish green and
 #: dashed; naive fusion, the overconfident counter-example, vermillion and dotted. Others (a

@@ -1,6 +1,6 @@
 """Attack: write a forged answer straight onto the pipe to the grader, here a malformed
-estimate frame. Its descriptor is not on the child's command line (issue 37 moved the pipes
-to descriptors of the child's own), so it writes to every pipe it holds (/proc/self/fd). The
+estimate frame. Its descriptor is not on the child's command line (the pipes are
+descriptors of the child's own), so it writes to every pipe it holds (/proc/self/fd). The
 grader must stop this child and fail this student only, never raise."""
 
 import os

@@ -1,4 +1,4 @@
-"""Attack (issue 37): spot the probes and fail them on purpose (a failed probe used to hide
+"""Attack: spot the probes and fail them on purpose (a failed probe used to hide
 the filter from the determinism and readings checks). Every copy of the filter in the
 child notes the first readings it is fed (module state shared through ``builtins``,
 which a fresh import of the file does not reset); a copy fed readings another copy was

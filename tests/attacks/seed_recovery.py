@@ -1,8 +1,8 @@
-"""Attack (issue 37): find the run's seed in what the filter is given, then simulate the run
+"""Attack: find the run's seed in what the filter is given, then simulate the run
 itself and return its truth. It reads ctx.rng (its SeedSequence's entropy and spawn key,
 its PCG64 state), the global np.random and random states, sys.argv, /proc/self/cmdline, the
 environment, the files it can see and the context's parameters, and tries every number
-found there, and the seeds 0..199, against each: the streams before issue 37 (the seed as
+found there, and the seeds 0..199, against each: the streams before they were keyed (the seed as
 the SeedSequence's entropy), the public key's streams of run, eval and the window (a
 brute force over small seeds), the global generators seeded the old way. With a seed that
 fits, it simulates the shipped scenario whose world and tick it was given and returns the

@@ -1,4 +1,4 @@
-"""Attack (issue 37): be honest when watched, cheat when scored. To tell ``check`` from
+"""Attack: be honest when watched, cheat when scored. To tell ``check`` from
 ``grade`` this file looks at everything its process shows when it is built: its command
 line (sys.argv and /proc/self/cmdline), environment, working folder, user, resource limits,
 the call stack that builds it, what the grader's objects in its process hold (the batch's

@@ -199,7 +199,7 @@ class ExtendedKalmanFilter(VelocityGaussian):
         self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.joseph = bool(self.params["joseph"])
         self.rejected = 0  # readings dropped by the gate so far
-        association.attach(self)  # unknown correspondence (issue 29)
+        association.attach(self)  # unknown correspondence: the association state
 
     def batched(self, runs: int) -> BatchedEKF:
         mean, cov = self.estimate()
@@ -292,7 +292,7 @@ class ExtendedKalmanFilter(VelocityGaussian):
     def update(self, measurements: Sequence[Measurement]) -> None:
         if not measurements:
             return
-        measurements = association.associate_gaussian(self, measurements)  # unknown IDs: issue 29
+        measurements = association.associate_gaussian(self, measurements)  # unknown IDs: associated first
         rows = 0
         for m in measurements:
             rows += m.z.size

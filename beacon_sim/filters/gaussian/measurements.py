@@ -387,7 +387,7 @@ class SlotPacker:
         a = 0
         for s in sensors:
             bxy: np.ndarray | None
-            if s.kind == "range_finder":   # a laser scan (issue 30): no Gaussian slots, unread
+            if s.kind == "range_finder":   # a laser scan: no Gaussian slots, unread
                 continue
             if s.kind in BEACON_KINDS:
                 var = [float(v) ** 2 for v in s.reading_std()]
@@ -828,7 +828,7 @@ class BatchableFilter(FilterBase):
         for s in self.ctx.sensors:
             if s.kind not in KINDS:
                 return f"sensor kind {s.kind!r} is not batched"
-            if s.correspondence != "known":  # issue 29: the batched runs carry beacon IDs
+            if s.correspondence != "known":  # the batched runs carry beacon IDs
                 return f"sensor {s.name!r} has unknown correspondence (not batched)"
         return None
 

@@ -377,7 +377,7 @@ class UnscentedKalmanFilter(BatchableFilter):
         self.models = ReadingModels(ctx)
         self.gate = effective_gate(self)   # on when the scenario declares outliers
         self.rejected = 0  # readings dropped by the gate so far
-        association.attach(self)  # unknown correspondence (issue 29)
+        association.attach(self)  # unknown correspondence: the association state
         self._Wm_now, self._Wc_now = self.Wm, self.Wc  # the weights of the last sigma points
         self._x = self._y = self._th = 0.0             # the mean [m, m, rad]
         self._p = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)       # P's distinct entries p00 p01 p02 p11 p12 p22
@@ -541,7 +541,7 @@ class UnscentedKalmanFilter(BatchableFilter):
     def update(self, measurements: Sequence[Measurement]) -> None:
         if not measurements:
             return
-        measurements = association.associate_gaussian(self, measurements)  # unknown IDs: issue 29
+        measurements = association.associate_gaussian(self, measurements)  # unknown IDs: associated first
         rows = 0
         for m in measurements:
             width = _ROWS_PER_READING.get(m.kind)

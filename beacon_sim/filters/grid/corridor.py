@@ -14,7 +14,7 @@ Control updates (seed 004, section 3.1):
 
 Measurement update (section 3.2): ``bel(x) = eta p(z | x) bel(x)``.
 
-``CorridorFilter`` (issue 30, ``--filter corridor``) runs it on the ``corridor`` scenario: the
+``CorridorFilter`` (``--filter corridor``) runs it on the ``corridor`` scenario: the
 robot's driving cut into the seed's "forward one cell" and "turn" commands, the walls read
 from its laser scan.
 """
@@ -106,7 +106,7 @@ def walls_seen(m: Measurement, wall_dist: float, half_width: float = math.radian
 
 
 class CorridorFilter(FilterBase):
-    """Seed 004's discrete Bayes filter driven by the corridor scenario (issue 30).
+    """Seed 004's discrete Bayes filter driven by the corridor scenario.
 
     The 20 states of :class:`Corridor` (cell and direction). The motion is cut into the
     seed's commands: every ``cell`` metres driven is a "forward", every half turn

@@ -253,7 +253,7 @@ class HistogramFilter(FilterBase):
         cell_var = self.cell**2 / 6.0         # within-cell position + slab offset
         _, sin_th1, cos_th1 = self._trig()
         cos_th, sin_th = cos_th1[:, None, None], sin_th1[:, None, None]
-        # Readings without IDs (issue 29): a mixture over the beacons, added as ``mixed``.
+        # Readings without IDs: a mixture over the beacons, added as ``mixed``.
         measurements, mixed = association.grid_mixture(self, measurements, cos_th, sin_th)
         # Beacon readings without outliers: every reading's C, S and lxy are combinations of
         # five fixed x-y arrays of its beacon (kappa cos a, kappa sin a, kappa, r, r^2, see

@@ -1,4 +1,4 @@
-"""Scan-based Monte Carlo localization on an occupancy grid, as ROS AMCL does it (issue 30).
+"""Scan-based Monte Carlo localization on an occupancy grid, as ROS AMCL does it.
 
 A particle filter whose measurement is a laser scan (a ``range_finder`` sensor, docs/maps.md),
 with the parameter names of ROS amcl (nav2 drops the ``laser_`` prefix of some) so that its

@@ -23,7 +23,7 @@
 - Lost test: a reading no particle explains at the ``lost_chi2`` point, beyond the declared
   outlier share, raises ``lost``; while it is high the covariance is mixed with a uniform
   pose over the world (``lost_cov``). A weight collapse (ESS < ``COLLAPSE_ESS``) keeps the
-  predicted spread / ESS as a floor and jitters the resampled copies by it (issue 26).
+  predicted spread / ESS as a floor and jitters the resampled copies by it.
 - Adaptive count: KLD-sampling (Fox 2003) between ``n_min`` and ``n_max``, or seed 002's
   scheme (keep drawing until the summed fit of the drawn particles exceeds ``ver_max``).
 - Estimate: weighted mean and covariance, circular mean for heading, heading residuals
@@ -327,7 +327,7 @@ class ParticleFilter(FilterBase):
             measurements = [m for m in measurements if len(m)]
         if not measurements:
             return
-        if "_association" in self.__dict__:  # issue 29: forget the last per-particle choices
+        if "_association" in self.__dict__:  # unknown IDs: forget the last per-particle choices
             association.particle_start(self)
         if self._pending_resample:
             self._resample()
@@ -557,7 +557,7 @@ class ParticleFilter(FilterBase):
         if self._ll_fresh and m.kind not in ("bearing", "range_bearing"):
             ll[:] = 0.0  # the zeros it adds to (see _tick_loglik)
             self._ll_fresh = False
-        if _unlabeled(m):  # unknown correspondence: ML per particle (issue 29)
+        if _unlabeled(m):  # unknown correspondence: ML per particle
             if self._ll_fresh:
                 ll[:] = 0.0
                 self._ll_fresh = False
