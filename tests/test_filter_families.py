@@ -27,7 +27,8 @@ FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "dead_reckoning", "measurements"},
             "particle": {"pf", "mcl"},
             "grid": {"histogram", "corridor"},
             "slam": {"base", "ekf_slam", "fastslam", "inverse_depth"},
-            "smoothing": {"fixed_lag", "recorder", "rts"}}
+            "smoothing": {"fixed_lag", "recorder", "rts"},
+            "graph": {"graph", "se2", "solver"}}
 
 
 def test_each_family_is_a_package_of_its_modules():

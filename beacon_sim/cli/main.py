@@ -14,7 +14,7 @@ import sys
 import threading
 from collections.abc import Callable
 
-from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, replay, run
+from beacon_sim.cli import check, export, graph, listing, mrclam, new_filter, play, replay, run
 from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options, check_common
@@ -187,6 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="draw a new secret even when OUT/grade.secret exists")
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
 
+    graph.add_parser(sub)
+
     p = sub.add_parser("new-filter", help="write a working, commented filter template")
     p.add_argument("path", help="the .py file to write (refused if it exists)")
     p.add_argument("--team", action="store_true",
@@ -216,6 +218,7 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "mrclam": mrclam.mrclam_command,
     "new-filter": new_filter.new_filter_command,
     "grade": grade_cli.grade_command,
+    "graph": graph.graph_command,
 }
 
 
