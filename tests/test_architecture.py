@@ -52,7 +52,7 @@ def test_the_family_contract_catches_one_family_importing_another(tmp_path):
     resampling.write_text(resampling.read_text() + "\nimport beacon_sim.filters.slam.base  # a family\n")
     r = lint_imports(tmp_path)
     assert r.returncode != 0
-    assert "Filter families are independent: gaussian, particle, grid, slam BROKEN" in r.stdout
+    assert "Filter families are independent BROKEN" in r.stdout
     assert "beacon_sim.filters.grid.corridor -> beacon_sim.filters.particle.pf" in r.stdout
     assert "The filters' shared home imports no family BROKEN" in r.stdout
 

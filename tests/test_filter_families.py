@@ -26,7 +26,9 @@ from beacon_sim.runs.headless import run_headless
 FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "dead_reckoning", "measurements"},
             "particle": {"pf", "mcl"},
             "grid": {"histogram", "corridor"},
-            "slam": {"base", "ekf_slam", "fastslam", "inverse_depth"}}
+            "slam": {"base", "ekf_slam", "fastslam", "inverse_depth"},
+            "smoothing": {"fixed_lag", "recorder", "rts"},
+            "graph": {"graph", "se2", "solver"}}
 
 
 def test_each_family_is_a_package_of_its_modules():

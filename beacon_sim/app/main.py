@@ -15,6 +15,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import astuple, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -72,6 +73,9 @@ class App:
     #: Which binding table the keys, the mouse and the help overlay use (controls.TABLES);
     #: a live team's window uses ``team`` (Tab drives the next robot): :attr:`mode`.
     MODE = "play"
+    #: A mode's drawing under the estimates, in the world's coordinates (the replay's smoothed
+    #: tracks): ``overlay(surf, view, line_width)``, or None.
+    world_overlay: Callable[[Any, Any, int], None] | None = None
     #: What draws the world (a subclass may draw more: the team window's robots).
     RENDERER: type[WorldRenderer] = WorldRenderer
     #: What draws the panel, the banner and the help.
@@ -460,15 +464,19 @@ class App:
                                and self.bound.valid) else None
         self.renderer.bound_cov = bound.P if bound is not None else None  # the magnifier's
 
+        overlay = self.world_overlay
+
         def extra(surf, view, lw):
             if bound is not None:
                 self.renderer.bound(surf, view, self.session.true_pose, bound.P)
             if steps:
                 self.renderer.priors(surf, view, steps, self.colours, self.session.used_ids())
+            if overlay is not None:
+                overlay(surf, view, lw)
 
         key = self.world_key(drag, steps, bound)
         args = (self.view, self.session, self.colours, self.show, drag, dashes,
-                extra if (steps or bound is not None) else None)
+                extra if (steps or bound is not None or overlay is not None) else None)
         shown = None  # the key of the world's picture left on the screen
         if key is None:
             self.renderer.draw(surf, *args)

@@ -21,17 +21,26 @@ from typing import Any, cast
 
 import pygame
 
-from beacon_sim.app import palette
+from beacon_sim.app import palette, render
 from beacon_sim.app.hud import wrap_text
 from beacon_sim.app.main import App
+from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.io.recording import Recording
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.mrclam import MrclamPlayback
 from beacon_sim.runs.replay import ReplaySession
 from beacon_sim.runs.scene import Timeline
+from beacon_sim.runs.smoothing import SmoothedTrack
 
 #: Left / Right arrows seek by this much simulated time [s].
 SEEK_STEP_S = 5.0
+#: The smoothed ellipse's dashes [px on, px off].
+SMOOTHED_DASH = (10, 6)
+
+
+def tint(colour: tuple[int, int, int], amount: float = 0.45) -> tuple[int, int, int]:
+    """``colour`` mixed with white by ``amount`` (0: itself, 1: white)."""
+    return tuple(round(c + (255 - c) * amount) for c in colour)  # type: ignore[return-value]
 
 
 class ReplayApp(App):
@@ -45,8 +54,11 @@ class ReplayApp(App):
     MODE = "replay"
 
     def __init__(self, session: ReplaySession | MrclamPlayback, size=(1280, 800),
-                 scripted: bool = False):
+                 scripted: bool = False, smoothed: dict[str, SmoothedTrack] | None = None):
         self.reported = False
+        self.smoothed = smoothed or {}  # --smooth: each smoothed filter's whole run
+        if self.smoothed:
+            self.world_overlay = self.draw_smoothed
         self.end_tick: int | None = None  # stop the window here (--end, --gif)
         self.stop_at_end = False  # quit once the recording is over (--gif)
         self.user_flips: set[str] = set()  # filters the user showed / hid (kept over seeks)
@@ -181,10 +193,44 @@ class ReplayApp(App):
         for k, img in enumerate(imgs):
             surf.blit(img, img.get_rect(midtop=(box.centerx, box.top + 12 + title.get_height() + k * lh)))
 
+    def draw_smoothed(self, surf, view, lw: int) -> None:
+        """``--smooth`` (the world overlay, under the estimates): each visible smoothed
+        filter's smoothed trajectory up to the current tick and its dashed 95 % ellipse there,
+        in a light tint of the filter's colour beside the filter's own (the smoother has used
+        every reading of the run, later ones too)."""
+        s = self.session
+        tick = s.tick_count
+        lw = max(2 * lw // 3, 2)
+        for name, tr in self.smoothed.items():
+            k = tr.at(tick)
+            if k is None or not s.visible.get(name, False):
+                continue
+            colour = tint(self.colours[name])
+            if k >= 1 and self.show.trails:
+                render.polyline(surf, colour, view.to_px(tr.smoothed_means[:k + 1, :2]), lw)
+            if self.show.ellipses:
+                ellipse = covariance_ellipse(tr.smoothed_means[k, :2], tr.smoothed_covs[k, :2, :2],
+                                             render.ELLIPSE_SCALE2, 96)
+                render.polyline(surf, colour, view.to_px(ellipse), lw, dash=SMOOTHED_DASH, closed=True)
+
+    def draw_smoothed_legend(self, surf) -> None:
+        """What the light lines are, bottom left of the world view."""
+        font = self.fonts["small"]
+        img = font.render("light line, dashed ellipse: smoothed (RTS: every reading of the run, later "
+                          "ones too)", True, palette.TEXT)
+        x, y, _, h = self.view.area
+        box = img.get_rect(bottomleft=(x + 14, y + h - 12)).inflate(12, 6)
+        pygame.draw.rect(surf, palette.PANEL, box, border_radius=4)
+        pygame.draw.rect(surf, palette.PANEL_EDGE, box, 1, border_radius=4)
+        surf.blit(img, img.get_rect(center=box.center))
+
     def draw_extra(self, surf) -> None:
         """The timeline: elapsed / total, the bar with the recorded commands marked, the
-        position marker; the mismatch banner when the replay differs (and a team's legend)."""
+        position marker; the mismatch banner when the replay differs (and a team's legend);
+        the smoothed tracks (``--smooth``)."""
         super().draw_extra(surf)
+        if self.smoothed:
+            self.draw_smoothed_legend(surf)
         self.draw_mismatch(surf)
         s = self.session
         r = self.timeline_rect
@@ -221,7 +267,8 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
                 frames: int | None = None, screenshot: str | None = None, *,
                 paused: bool = False, gif: str | None = None, start: float | None = None,
                 end: float | None = None, size: tuple[int, int] = (1280, 800),
-                gif_width: int | None = 640, foxglove: int | None = None) -> int:
+                gif_width: int | None = 640, foxglove: int | None = None,
+                smoothed: dict[str, SmoothedTrack] | None = None) -> int:
     """The replay window until quit (or ``frames`` frames, each counting 1/60 s); saves the
     last frame to ``screenshot``. Returns 2 when the replay differs from the recording (0
     for a recording made before the portable maths whose truth differs: not verified, said
@@ -236,7 +283,7 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
     check_display()  # no window to show it in: one line, exit 2 (not an invisible replay)
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     session = ReplaySession(recording, specs, params)
-    app = ReplayApp(session, size, scripted=frames is not None or gif is not None)
+    app = ReplayApp(session, size, scripted=frames is not None or gif is not None, smoothed=smoothed)
     dt = session.scenario.dt
     if start:
         app.seek(min(round(start / dt), session.total_ticks))

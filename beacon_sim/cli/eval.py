@@ -28,6 +28,8 @@ from beacon_sim.evaluation.montecarlo import (
     run_team_monte_carlo,
 )
 from beacon_sim.evaluation.report import table_lines, write_outputs
+from beacon_sim.evaluation.smoothing_run import smoothing_monte_carlo
+from beacon_sim.evaluation.smoothing_run import table_lines as smoothing_lines
 from beacon_sim.evaluation.summary import (
     Thresholds,
     evaluate,
@@ -49,6 +51,7 @@ from beacon_sim.hosting.loading import (
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
 from beacon_sim.hosting.sources import hosted_source
 from beacon_sim.hosting.team_specs import check_team_specs
+from beacon_sim.runs.smoothing import smoothable
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
 #: in a loop is stopped and marked, the evaluation goes on.
@@ -191,15 +194,37 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
             raise UsageError(f"{sc.name}: a filter's code raised {what} during the evaluation; "
                              "run it alone with beacon-sim run to see which") from None
         meta, curves = evaluate(sc, runs, Thresholds())
+        smoothed = _smoothed(args, sc, specs, params)
+        if smoothed:
+            meta["smoothing"] = smoothed
         results.append((sc, meta, curves))
         if not args.json:
             print("\n".join(table_lines(meta)))
+            if smoothed:
+                print("\n".join(smoothing_lines(smoothed)))
             for spec in specs:   # a filter the scenario's sensors cannot feed: say so, as run does
                 note = sensor_note(spec, sc)
                 if note:
                     print(note)
             print()
     return results
+
+
+def _smoothed(args: argparse.Namespace, sc: Any, specs: list[str],
+              params: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """``--smooth``: each EKF/UKF of the evaluation filtered and smoothed over the same seeds
+    (``evaluation/smoothing_run.py``), by filter name; empty without ``--smooth``."""
+    if not getattr(args, "smooth", False):
+        return {}
+    seeds = range(args.seed or 0, (args.seed or 0) + args.runs)
+    out = {}
+    for spec in specs:
+        if smoothable(spec):
+            name = filter_display_name(spec)
+            out[name] = smoothing_monte_carlo(sc, spec, seeds, args.duration, params.get(name))
+    if not out:
+        print(f"note: --smooth: no filter of {sc.name} can be smoothed (ekf, ukf)", file=sys.stderr)
+    return out
 
 
 def team_metas(args: argparse.Namespace) -> list[dict[str, Any]]:

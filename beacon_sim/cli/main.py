@@ -14,7 +14,7 @@ import sys
 import threading
 from collections.abc import Callable
 
-from beacon_sim.cli import check, export, listing, mrclam, new_filter, play, replay, run
+from beacon_sim.cli import check, export, graph, listing, mrclam, new_filter, play, replay, run
 from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options, check_common
@@ -60,6 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--associations", action="store_true",
                    help="readings without IDs: also score each filter's associations and their "
                         "RMSE cost against a run with known IDs (docs/association.md)")
+    p.add_argument("--smooth", action="store_true",
+                   help="also smooth the EKF/UKF runs (Rauch-Tung-Striebel) and report filtered and "
+                        "smoothed against the truth and the bounds (docs/smoothing.md)")
 
     p = sub.add_parser("check", help="conformance report for a filter")
     p.add_argument("filter", help="a built-in name, pkg.mod:Class, file.py:Class or a file of functions")
@@ -94,6 +97,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on a Dask cluster, e.g. tcp://host:8786 (the same results as local "
                         "--jobs; docs/evaluation.md)")
+    p.add_argument("--smooth", action="store_true",
+                   help="also smooth the EKF/UKF runs (Rauch-Tung-Striebel) over the same seeds: "
+                        "RMSE and ANEES filtered and smoothed, against the filtering and smoothing "
+                        "bounds, with intervals (docs/smoothing.md)")
 
     p = sub.add_parser("replay", help="replay a recording bit for bit, with any filters")
     p.add_argument("file", help="a recording (.jsonl) written by beacon-sim play")
@@ -109,6 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", default="1280x800", help="on screen: window size WxH in pixels")
     p.add_argument("--gif-width", default="640", metavar="PX",
                    help="the GIF's width in pixels, or 'window' for the window's (default 640)")
+    p.add_argument("--smooth", action="store_true",
+                   help="on screen: draw each EKF/UKF's smoothed trajectory and ellipse (RTS over the "
+                        "whole recording) beside the filtered ones (docs/smoothing.md)")
     add_foxglove_option(p, "the replay window's session")
 
     p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv) or "
@@ -177,6 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="draw a new secret even when OUT/grade.secret exists")
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
 
+    graph.add_parser(sub)
+
     p = sub.add_parser("new-filter", help="write a working, commented filter template")
     p.add_argument("path", help="the .py file to write (refused if it exists)")
     p.add_argument("--team", action="store_true",
@@ -206,6 +218,7 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "mrclam": mrclam.mrclam_command,
     "new-filter": new_filter.new_filter_command,
     "grade": grade_cli.grade_command,
+    "graph": graph.graph_command,
 }
 
 

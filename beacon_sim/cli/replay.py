@@ -78,12 +78,26 @@ def replay_command(args: argparse.Namespace) -> int:
             os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
         from beacon_sim.app.replay import show_replay  # pygame only when a window opens
 
+        smoothed = None
+        if getattr(args, "smooth", False):  # the EKF/UKF of the recording, smoothed (docs/smoothing.md)
+            from beacon_sim.runs.smoothing import NotSmoothable, smooth_recording
+
+            try:
+                smoothed = smooth_recording(recording, specs, merged)
+            except (NotSmoothable, ReplayMismatch) as exc:
+                raise UsageError(str(exc)) from None
+            if not smoothed:
+                print("note: --smooth: no filter of this replay can be smoothed (ekf, ukf)", file=sys.stderr)
+
         return show_replay(recording, specs, merged, args.frames, args.screenshot,
                            paused=args.paused, gif=args.gif, start=args.start, end=args.end,
                            size=parse_size(args.size), gif_width=parse_gif_width(args.gif_width),
-                           foxglove=check_foxglove(args))
+                           foxglove=check_foxglove(args), smoothed=smoothed)
     if getattr(args, "foxglove", None) is not None:
         raise UsageError("--foxglove streams the replay window: drop --headless")
+    if getattr(args, "smooth", False):
+        raise UsageError("replay --smooth draws in the window: drop --headless (run --smooth prints "
+                         "the figures)")
     try:
         out = replay_recording(recording, args.filters or None, params)
     except ReplayMismatch as exc:

@@ -19,8 +19,11 @@ from beacon_sim.cli.common import (
 )
 from beacon_sim.cli.tables import failed_text, fmt, print_run
 from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.association_metrics import association_report
 from beacon_sim.evaluation.slam_run import print_slam_table, slam_figures
+from beacon_sim.evaluation.smoothing_run import run_figures
+from beacon_sim.evaluation.smoothing_run import table_lines as smoothing_lines
 from beacon_sim.hosting.team_specs import check_team_specs
 from beacon_sim.runs.headless import run_headless
 
@@ -45,6 +48,15 @@ def run_command(args: argparse.Namespace) -> int:
     slam = slam_figures(result)  # each SLAM filter's ATE, map GOSPA, joint NEES
     for name, fig in slam.items():
         data["filters"][name]["slam"] = fig
+    smoothed = None
+    if getattr(args, "smooth", False):  # EKF/UKF runs smoothed (docs/smoothing.md)
+        if not team.solo:
+            raise UsageError("run --smooth: single-robot scenarios only")
+        smoothed = run_figures(team.robots[0].scenario, specs, result.seed, result.steps, params)
+        for name, fig in smoothed.items():
+            data["filters"][name]["smoothing"] = fig
+        if not smoothed:
+            print("note: --smooth: no filter of this run can be smoothed (ekf, ukf)", file=sys.stderr)
     scored = None
     if getattr(args, "associations", False) and team.solo:  # a second run, IDs told
         scored = association_report(team.robots[0].scenario, args.filters, args.seed,
@@ -55,6 +67,8 @@ def run_command(args: argparse.Namespace) -> int:
     elif team.solo:
         print_run(data)
         print_slam_table(slam)
+        if smoothed:
+            print("\n".join(smoothing_lines(smoothed)))
     else:
         print_team_run(data)
     print_failures(result.tracks.values())
