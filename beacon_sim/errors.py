@@ -17,3 +17,8 @@ class BeaconSimError(ValueError):
 
 class UsageError(BeaconSimError):
     """A bad command-line option or API argument (seed, duration, ...); the message is one line."""
+
+
+class FileReplacedWarning(UserWarning):
+    """A file beacon-sim wrote replaced one that another writer finished after this write
+    began (two exports to one path at once): the later says so; the message is one line."""

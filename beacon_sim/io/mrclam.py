@@ -26,12 +26,15 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.files import read_user_bytes
 from beacon_sim.errors import BeaconSimError
 
 #: Subjects 1-5 are the robots in every MRCLAM data set; landmarks are 6 and up.
 ROBOT_SUBJECTS = range(1, 6)
 #: Ground-truth samples further apart than this [s] are a gap: no evaluation inside it.
 MAX_TRUTH_GAP_S = 0.5
+#: Largest MRCLAM ``.dat`` file read [bytes] (the data sets' largest is about 3 MB).
+MAX_TABLE_BYTES = 256 * 2**20
 
 
 class MrclamError(BeaconSimError):
@@ -119,13 +122,14 @@ def read_table(path: Path, ncols: int, columns: str,
     Lines starting with ``#`` and blank lines are skipped; CRLF and tabs/spaces are fine.
     ``ranges``: (name, lowest, highest) per column; a value outside is refused as bad data.
     """
-    if not path.is_file():
+    if not path.exists():
         raise MrclamError(f"{path}: missing (an MRCLAM folder holds {path.name} with columns "
                           f"{columns})")
+    data = read_user_bytes(path, what="MRCLAM data file", cap=MAX_TABLE_BYTES, error=MrclamError)
     try:
-        raw = path.read_bytes().decode("ascii")
+        raw = data.decode("ascii")
     except UnicodeDecodeError as exc:
-        bad_line = path.read_bytes()[: exc.start].count(b"\n") + 1
+        bad_line = data[: exc.start].count(b"\n") + 1
         raise MrclamError(f"{path}:{bad_line}: not a text line (byte {exc.start})") from None
     rows: list[list[float]] = []
     numbers: list[int] = []
