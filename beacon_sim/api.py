@@ -35,7 +35,7 @@ from beacon_sim.core.scenario import load_scenario as _load_scenario
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.team_scenario import load_team_scenario as _load_team_scenario
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.errors import BeaconSimError, UsageError
+from beacon_sim.errors import ArgumentTypeError, BeaconSimError, UsageError, short_repr
 from beacon_sim.evaluation import plots
 from beacon_sim.evaluation.montecarlo import RunOutput, finish_filter
 from beacon_sim.evaluation.summary import evaluate
@@ -85,6 +85,10 @@ def load_scenario(name_or_path: str | Path, changes: Mapping[str, Any] | None = 
     (an integer picks an entry of an array of tables). A bad key or value raises
     :class:`~beacon_sim.core.scenario.ScenarioError` naming it, as for a file.
     """
+    _check_path_like(name_or_path, "name_or_path=")
+    if changes is not None and not isinstance(changes, Mapping):
+        raise ArgumentTypeError(f"changes={short_repr(changes)}: expected a dict of dotted scenario keys "
+                                "to values, e.g. {'duration': 30}")
     if not changes:
         return _load_scenario(name_or_path)
     import copy
@@ -96,20 +100,38 @@ def load_scenario(name_or_path: str | Path, changes: Mapping[str, Any] | None = 
     return parse_scenario(data, f"{path} (changed in code)", name=path.stem, base_dir=path.parent)
 
 
-def _set_key(data: dict, key: str, value: Any) -> None:
+def _check_path_like(value: Any, label: str) -> None:
+    """A scenario or file argument: a name or path (``str`` or ``Path``), else ArgumentTypeError."""
+    if not isinstance(value, str | Path):
+        raise ArgumentTypeError(f"{label}{short_repr(value)}: expected a name or a path (str or Path)")
+
+
+def _set_key(data: dict, key: Any, value: Any) -> None:
+    """``data`` with the dotted ``key`` set to ``value`` (an integer part picks an entry of
+    an array of tables); ScenarioError naming the key for one that does not fit."""
+    if not isinstance(key, str) or not key:
+        raise ScenarioError(f"changes: key {short_repr(key)}: expected a dotted key such as "
+                            "'sensors.0.max_range'")
     parts = key.split(".")
     node: Any = data
-    for i, part in enumerate(parts[:-1]):
+    for i, part in enumerate(parts):
+        where = ".".join(parts[:i]) or "the scenario"
+        last = i == len(parts) - 1
         if isinstance(node, list):
             if not part.isdigit() or int(part) >= len(node):
-                raise ScenarioError(f"changes: {key}: {'.'.join(parts[:i])} has {len(node)} entries")
-            node = node[int(part)]
+                raise ScenarioError(f"changes: {key}: {where} is an array of {len(node)} entries: "
+                                    f"expected an index from 0 to {len(node) - 1}, got {part!r}")
+            if last:
+                node[int(part)] = value
+            else:
+                node = node[int(part)]
+        elif isinstance(node, dict):
+            if last:
+                node[part] = value
+            else:
+                node = node.setdefault(part, {})
         else:
-            node = node.setdefault(part, {})
-    if isinstance(node, list):
-        node[int(parts[-1])] = value
-    else:
-        node[parts[-1]] = value
+            raise ScenarioError(f"changes: {key}: {where} is a value ({short_repr(node)}), not a table")
 
 
 def _spec(f: str | type) -> str:
@@ -130,6 +152,9 @@ def _specs(filters: Sequence[str | type] | None) -> list[str] | None:
         return None
     if isinstance(filters, str | type):
         filters = [filters]
+    if not isinstance(filters, list | tuple):
+        raise ArgumentTypeError(f"filters={short_repr(filters)}: expected a list of filter names or classes, "
+                                "e.g. ['ekf', 'pf']")
     classes = [f for f in filters if isinstance(f, type)]
     names = [c.__name__ for c in classes]
     for c in classes:
@@ -149,6 +174,8 @@ def run(scenario: Scenario | str | Path, filters: Sequence[str | type] | None = 
     ``--set NAME.KEY=VALUE``. ``seed`` / ``duration`` [s]: default the scenario's.
     Same scenario and seed give the same run, bit for bit.
     """
+    if not isinstance(scenario, Scenario):
+        _check_path_like(scenario, "scenario=")
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     seed, duration = _check_run(sc, seed, duration)
     specs = _specs(filters)
@@ -177,6 +204,8 @@ def replay(recording: str | Path | Recording, filters: Sequence[str | type] | No
     """A recording (``beacon-sim play`` writes them) replayed bit for bit, like
     ``beacon-sim replay FILE --headless``; ``filters`` None runs the recorded built-in ones.
     A team's recording gives a :class:`TeamRun`."""
+    if not isinstance(recording, Recording):
+        _check_path_like(recording, "recording=")
     rec = recording if isinstance(recording, Recording) else load_recording(recording)
     specs = _specs(filters)
     plain = _plain_params(params)
@@ -295,7 +324,11 @@ class Run:
 
     def errors(self, name: str) -> np.ndarray:
         """(T, 3) estimate - truth of filter ``name`` [m, m, rad], heading wrapped."""
-        return pose_errors(self.estimates[name], self.truth[1:])
+        estimates = self.estimates
+        if not isinstance(name, str) or name not in estimates:
+            raise UsageError(f"name={short_repr(name)}: not a filter of this run (its filters: "
+                             f"{', '.join(estimates) or 'none'})")
+        return pose_errors(estimates[name], self.truth[1:])
 
     @property
     def readings(self) -> Columns:

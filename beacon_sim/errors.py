@@ -17,3 +17,22 @@ class BeaconSimError(ValueError):
 
 class UsageError(BeaconSimError):
     """A bad command-line option or API argument (seed, duration, ...); the message is one line."""
+
+
+class ArgumentTypeError(UsageError, TypeError):
+    """An API argument of the wrong type (``run(scenario=5)``): a :class:`UsageError` that is
+    also a ``TypeError``, so both ``except ValueError`` and ``except TypeError`` catch it."""
+
+
+class FileReplacedWarning(UserWarning):
+    """A file beacon-sim wrote replaced one that another writer finished after this write
+    began (two exports to one path at once): the later says so; the message is one line."""
+
+
+def short_repr(value: object) -> str:
+    """``repr(value)`` for a one-line message: at most 60 characters, and a huge integer by
+    its size (``10**400`` is "<a 1329-bit int>", not 401 digits)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**40:
+        return f"<a {value.bit_length()}-bit int>"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

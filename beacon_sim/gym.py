@@ -15,6 +15,7 @@ by the window's own renderer.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -22,10 +23,12 @@ from typing import Any
 import gymnasium
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
-from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.core.arguments import check_seed
+from beacon_sim.core.scenario import MAX_TICKS, Scenario, load_scenario
 from beacon_sim.core.types import Control, Step
-from beacon_sim.errors import UsageError
+from beacon_sim.errors import ArgumentTypeError, UsageError, short_repr
 from beacon_sim.runs.live import Session
 
 #: Numbers per observation slot: a beacon sensor's slot is one beacon, a fix sensor's slot
@@ -79,13 +82,33 @@ def check_action(action: Any) -> np.ndarray:
     :class:`~beacon_sim.errors.UsageError` (a ValueError) saying what was expected."""
     try:
         a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise UsageError(f"action {action!r}: expected two numbers [v m/s, omega rad/s]") from None
+    except (TypeError, ValueError, OverflowError):
+        raise UsageError(f"action {short_repr(action)}: expected two numbers [v m/s, omega rad/s]") from None
     if a.shape != (2,):
         raise UsageError(f"action of shape {a.shape}: expected shape (2,), [v m/s, omega rad/s]")
     if not np.all(np.isfinite(a)):
         raise UsageError(f"action {a.tolist()}: expected finite numbers [v m/s, omega rad/s] (NaN or inf)")
     return a
+
+
+#: Most simulation ticks one ``step()`` runs.
+MAX_TICKS_PER_STEP = 10_000
+
+
+class ResetNeededError(UsageError, ResetNeeded):
+    """``step()`` (or ``render()``) before ``reset()``: the project's error (a ValueError) that
+    is also Gymnasium's ``ResetNeeded``."""
+
+
+def _whole(label: str, value: Any, hi: int) -> int | None:
+    """None, or a whole number from 1 to ``hi`` (not a bool, not a float), else UsageError."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ArgumentTypeError(f"{label}{short_repr(value)}: expected a whole number from 1 to {hi:,}")
+    if not 1 <= int(value) <= hi:
+        raise UsageError(f"{label}{short_repr(value)}: expected a whole number from 1 to {hi:,}")
+    return int(value)
 
 
 class _Session(Session):
@@ -139,13 +162,23 @@ class BeaconEnv(gymnasium.Env):
                  ticks_per_step: int | None = None, max_steps: int | None = None,
                  params: dict[str, dict[str, Any]] | None = None, render_mode: str | None = None,
                  size: tuple[int, int] = (640, 440), failed_penalty: float = 100.0):
-        sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        if not isinstance(scenario, Scenario | str | Path):
+            raise ArgumentTypeError(f"scenario={short_repr(scenario)}: expected a Scenario, a name or a path")
         if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode {render_mode!r}: expected one of {self.metadata['render_modes']}")
+            raise UsageError(f"render_mode={short_repr(render_mode)}: expected None or one of "
+                             f"{', '.join(map(repr, self.metadata['render_modes']))}")
+        if isinstance(filters, str) or not isinstance(filters, Sequence) \
+                or not all(isinstance(f, str) for f in filters):
+            raise ArgumentTypeError(f"filters={short_repr(filters)}: expected a list of filter names, "
+                                    "e.g. ['ekf']")
+        if not filters:
+            raise UsageError("filters=[]: expected at least one filter (the reward and the episode "
+                             "follow it)")
+        ticks_per_step = _whole("ticks_per_step=", ticks_per_step, MAX_TICKS_PER_STEP)
+        max_steps = _whole("max_steps=", max_steps, MAX_TICKS)
+        sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         self.scenario = sc
         self.specs = list(filters)
-        if not self.specs:
-            raise ValueError("filters: at least one filter (the reward and the episode follow it)")
         self.params = dict(params or {})
         self.reward_fn = reward or neg_log_det()
         self.failed_penalty = float(failed_penalty)
@@ -186,6 +219,9 @@ class BeaconEnv(gymnasium.Env):
         """A new episode. ``seed`` seeds the run itself (truth, sensors, filters: the same
         seed, the same episode for the same actions); None draws one from the env's
         generator."""
+        seed = check_seed(seed, "seed=")
+        if options is not None and not isinstance(options, dict):
+            raise ArgumentTypeError(f"options={short_repr(options)}: expected None or a dict")
         super().reset(seed=seed)
         run_seed = int(seed) if seed is not None else int(self.np_random.integers(2**31 - 1))
         self.filter_names = list(self._start(run_seed).names)
@@ -202,7 +238,7 @@ class BeaconEnv(gymnasium.Env):
     def step(self, action):
         """Apply ``action = [v, omega]`` [m/s, rad/s] for ``ticks_per_step`` ticks."""
         if self.session is None:
-            raise RuntimeError("call reset() before step()")
+            raise ResetNeededError("step() before reset(): call reset() first (Gymnasium's order)")
         a = np.clip(check_action(action), self.action_space.low, self.action_space.high)
         steps = self._advance(Control(float(a[0]), float(a[1])))
         self.steps_taken += 1

@@ -562,6 +562,42 @@ def faulty_filter_cases(recording: str) -> list[Case]:
     return cases
 
 
+# --------------------------------------------------------------------------- bounded work
+def _shipped_text(name: str) -> str:
+    return (Path(__file__).resolve().parents[1] / "scenarios" / f"{name}.toml").read_text(encoding="utf-8")
+
+
+def bounded_work_cases() -> list[Case]:
+    """Work with no bound, each refused at load with the number in the message (exit 2), or
+    a filter that cannot run switched off in one line (exit 0), through every front end that
+    reads it: clutter, beacons on an unknown map, runs x duration, a grade config's seeds x
+    duration, MRCLAM time stamps a day apart, a localization filter on an unknown map."""
+    lookalike = _shipped_text("lookalike_beacons").replace("clutter_rate = 0.1", "clutter_rate = 100")
+    slam = _shipped_text("slam_loop")
+    head, rest = slam.split("beacons = [", 1)
+    many = "beacons = [\n" + "".join(f"  {{ id = {1000 + i}, x = {1 + (i % 40) * 0.3:.1f}, "
+                                      f"y = {1 + (i // 40) * 0.3:.1f} }},\n" for i in range(600))
+    slam_many = head + many + rest
+    cases = []
+    for label, text in (("clutter-100", lookalike), ("slam-600-beacons", slam_many)):
+        for argv in SCENARIO_FRONT_ENDS:
+            cases.append(Case(f"work-{label}-{argv[0]}", list(argv), {"s.toml": text}))
+    cases.append(Case("work-eval-runs-x-duration",
+                      ["eval", "default", "--runs", "100000", "--duration", "100"]))
+    cases.append(Case("work-grade-seeds-x-duration", ["grade", "class", "--config", "g.toml"],
+                      {"g.toml": f"seeds = {list(range(10_000))}\nduration = 86400\n",
+                       "class/alice.py": "x = 1\n"}))
+    cases.append(Case("work-unknown-map-ekf", ["run", "slam_loop", "--filter", "ekf", "--duration", "2"]))
+    files = {f"m/{k}": v for k, v in mrclam_folder(random.Random(41), "none").items()}
+    rows = files["m/Robot1_Odometry.dat"].split("\r\n")
+    rows[len(rows) // 2] = "1e12" + rows[len(rows) // 2][rows[len(rows) // 2].index(" "):]
+    files["m/Robot1_Odometry.dat"] = "\r\n".join(rows)
+    for argv in (["mrclam", "m", "--robot", "1", "--headless", "--slam", "--filter", "ekf_slam"],
+                 *MRCLAM_FRONT_ENDS):
+        cases.append(Case(f"work-mrclam-stamp-1e12-{len(cases)}", list(argv), files))
+    return cases
+
+
 def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, mrclam: int = 28,
            command_lines: int = 30, team: int = 60) -> list[Case]:
     """The whole corpus, deterministic for a seed."""
@@ -571,7 +607,8 @@ def corpus(tmp: Path, seed: int = 15, mutated: int = 200, recordings: int = 40, 
             + bad_mrclam(rng, mrclam) + bad_command_lines(rng, command_lines) + faulty_filter_cases(rec)
             + mutated_team_scenarios(random.Random(seed + 18), team)
             + [dataclasses.replace(c, name="team-" + c.name)
-               for c in bad_recordings(random.Random(seed + 19), team_recording_text(tmp), 20)])
+               for c in bad_recordings(random.Random(seed + 19), team_recording_text(tmp), 20)]
+            + bounded_work_cases())
 
 
 # --------------------------------------------------------------------------- files

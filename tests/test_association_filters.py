@@ -58,7 +58,7 @@ def test_the_keys_default_to_known_and_no_clutter():
      r"sensors\[0\]\.correspondence = 'maybe': expected one of 'known', 'unknown'"),
     ({"correspondence": "known", "clutter_rate": 0.5},
      r"sensors\[0\]\.clutter_rate = 0\.5: expected 0 unless"),
-    ({"clutter_rate": -1.0}, r"sensors\[0\]\.clutter_rate = -1\.0: expected a number in \[0, 100\]"),
+    ({"clutter_rate": -1.0}, r"sensors\[0\]\.clutter_rate = -1\.0: expected a number in \[0, 5\]"),
     ({"clutter_rate": "lots"}, r"sensors\[0\]\.clutter_rate = 'lots': expected a number"),
     ({"max_range": math.inf},
      r"sensors\[0\]\.max_range = inf: expected a finite range when clutter_rate > 0"),

@@ -36,7 +36,8 @@ def test_a_recorded_map_session_replays_bit_for_bit(tmp_path, capsys):
     ref = run_headless(sc, ["mcl"], seed=3, duration=5.0,
                        params={"mcl": {"max_particles": 800, "min_particles": 200}}).as_json()
     assert got["truth_checksum"] == ref["truth_checksum"]
-    assert got["replay"]["checksum_status"].startswith("verified: truth and readings")
+    assert got["replay"]["checksum_status"] == ("not verified: the filter settings and estimates (not "
+                                                 "recorded); truth and readings verified")
     assert got["measurements"] == ref["measurements"]
     assert got["measurements"]["laser"] == 25 * 181          # readings counted per beam
     for key in ("pos_rmse_m", "heading_rmse_rad", "anees"):
@@ -94,7 +95,10 @@ def test_the_recording_holds_the_map_and_replays_without_the_file(tmp_path, caps
     assert header["map"]["sha256"] == sc.world.grid.sha256()
     assert len(out.read_bytes()) < 50_000       # 96,000 cells, compressed
     ref, err = replay_json(out, capsys)
-    assert ref["replay"]["checksum_status"].startswith("verified: truth and readings")
+    assert ref["replay"]["checksum_status"].startswith(
+        "not verified: the stored map (its own sha256 is all it can be checked against, and an edit "
+        "can recompute that; a user's map file is not looked for);")
+    assert ref["replay"]["checksum_status"].endswith("truth and readings verified")
     assert "map" not in err
 
     for name in ("office.yaml", "office.pgm"):
@@ -162,5 +166,9 @@ def test_a_recording_made_before_the_map_was_stored_still_replays(tmp_path, caps
         del header["map"]
         header["scenario_source"] = str(tmp_path / "scen" / "office.toml")
     got, _ = replay_json(with_header(out, tmp_path / "old.jsonl", as_before), capsys)
-    assert got["replay"]["checksum_status"] == ref["replay"]["checksum_status"]
+    # the same, but for the stored map, which the old file does not hold (it reads the file)
+    gap = "the stored map (its own sha256 is all it can be checked against"
+    assert gap in ref["replay"]["checksum_status"] and gap not in got["replay"]["checksum_status"]
+    assert got["replay"]["checksum_status"].split("; ")[-1] == \
+        ref["replay"]["checksum_status"].split("; ")[-1] == "truth and readings verified"
     assert figures(got) == figures(ref)

@@ -229,7 +229,7 @@ def test_a_team_of_one_is_recorded_in_a_single_robots_format(tmp_path):
     rec = load_recording(tmp_path / "0.jsonl")
     assert not rec.is_team and rec.ticks[9].commands == [{"kind": "kidnap", "pose": [1.0, 1.0, 0.0]}]
     assert replay_recording(rec).extra["replay"]["checksum_status"] == \
-        "verified: truth and readings; filter settings not recorded"
+        "not verified: the filter settings and estimates (not recorded); truth and readings verified"
 
 
 def test_a_single_robot_command_is_refused_in_a_teams_file_and_back(tmp_path):

@@ -303,9 +303,10 @@ def test_estimates_beyond_the_tolerance_on_other_maths_are_not_verified(made_the
             o["digests" if o["type"] == "estimates" else "estimates"]["ekf"] = "0" * 64
     path = write(tmp_path / "beyond.jsonl", objs)
     status = status_of(path)
-    assert status.startswith("verified except: histogram: not verified (different maths): its "
+    assert status.startswith("not verified: histogram: not verified (different maths): its "
                              "estimates differ from the recorded ones by 0.001 m"), status
-    assert "at tick 20, beyond the tolerance; recorded on a machine whose maths differs" in status
+    assert ("at tick 20, beyond the tolerance; truth, readings, filter settings and the other "
+            "estimates verified; recorded on a machine whose maths differs") in status
     assert "the other estimates within the tolerance" in status
     assert "edited" not in status
     assert main(["replay", str(path), "--headless"]) == 0
@@ -313,8 +314,8 @@ def test_estimates_beyond_the_tolerance_on_other_maths_are_not_verified(made_the
 
 def test_other_filters_on_other_maths_verify_the_truth_and_readings(made_there):
     status = replay_recording(load_recording(made_there), ["ukf"]).extra["replay"]["checksum_status"]
-    assert status == ("verified: truth and readings; other filters or parameters than the "
-                      "recorded ones, so the estimates are not compared; recorded on a machine "
+    assert status == ("not verified: the estimates (other filters or parameters than the "
+                      "recorded ones); truth and readings verified; recorded on a machine "
                       f"whose maths differs ({load_recording(made_there).maths_description}; "
                       f"here {maths_description()})")
 
@@ -359,8 +360,9 @@ def test_a_file_that_does_not_name_its_maths_is_never_called_edited(made_here, t
     objs = as_version_3(objects(made_here))
     next(o for o in objs if o["type"] == "estimates")["digests"]["histogram"] = "0" * 64
     assert status_of(write(tmp_path / "v3-est.jsonl", objs)) == (
-        "verified except: histogram: its estimates differ from the recorded ones: not verified "
-        "(the file does not say which maths made it)")
+        "not verified: histogram: its estimates differ from the recorded ones: not verified "
+        "(the file does not say which maths made it); truth, readings, filter settings and the "
+        "other estimates verified")
 
 
 # ------------------------------------------------------------------------------ tolerance

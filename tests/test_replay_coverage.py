@@ -86,7 +86,8 @@ def test_version_1_replays_verified_for_the_truth_only(recorded, tmp_path):
         return obj["type"] not in ("filters", "estimates")
     old = _rewrite(recorded, tmp_path / "v1.jsonl", v1, strip)
     status = replay_recording(load_recording(old)).extra["replay"]["checksum_status"]
-    assert status == "verified: truth only; readings and filter settings not recorded (a version 1 file)"
+    assert status == ("not verified: the readings and filter settings (a version 1 file records "
+                      "neither); the truth verified")
 
 
 def test_no_checksums_is_not_verified(recorded, tmp_path):

@@ -171,10 +171,10 @@ def test_other_filters_or_set_are_verified_for_truth_and_readings_only(recorded,
     path, _ = recorded
     rec = load_recording(path)
     assert replay_recording(rec, ["ukf"]).extra["replay"]["checksum_status"] == (
-        "verified: truth and readings; other filters or parameters than the recorded ones, so "
-        "the estimates are not compared")
+        "not verified: the estimates (other filters or parameters than the recorded ones); "
+        "truth and readings verified")
     status = replay_recording(rec, None, {"ekf": {"gate_chi2": 3.0}}).extra["replay"]["checksum_status"]
-    assert status.startswith("verified: truth and readings; other filters")
+    assert status.startswith("not verified: the estimates (other filters")
     # the recorded filters named explicitly, in order: everything is compared
     assert replay_recording(rec, list(FILTERS)).extra["replay"]["checksum_status"] == "verified"
 
@@ -194,9 +194,10 @@ def test_filters_switched_off_or_reloaded_live_are_listed_not_compared(tmp_path)
         s.tick()
     s.close()
     status = status_of(path)
-    assert re.fullmatch(r"verified except: dead_reckoning: switched off live at tick \d+: time limit: "
+    assert re.fullmatch(r"not verified: dead_reckoning: switched off live at tick \d+: time limit: "
                         r"a step took over 0.5 s; ekf: reloaded live at tick \d+: its estimates are "
-                        r"not compared", status), status
+                        r"not compared; truth, readings, filter settings and the other estimates "
+                        r"verified", status), status
 
 
 def test_a_file_without_filter_settings_says_so(tmp_path):
@@ -206,7 +207,8 @@ def test_a_file_without_filter_settings_says_so(tmp_path):
         for k in range(1, 21):
             rec.record_tick(k, None)
     status = replay_recording(load_recording(path)).extra["replay"]["checksum_status"]
-    assert status == "verified: truth and readings; filter settings not recorded"
+    assert status == ("not verified: the filter settings and estimates (not recorded); "
+        "truth and readings verified")
 
 
 def not_verified(tick: int, dt: float) -> str:
@@ -221,8 +223,8 @@ def not_verified(tick: int, dt: float) -> str:
 #: sparse_kidnap run did not move (the portable sin and cos equal the C library's on its
 #: poses), its bearings did.
 OLD_STATUS = {
-    "v1_sparse_kidnap.jsonl": "verified: truth only; readings and filter settings not recorded "
-                              "(a version 1 file)",
+    "v1_sparse_kidnap.jsonl": "not verified: the readings and filter settings (a version 1 file "
+                              "records neither); the truth verified",
     "v2_sparse_kidnap.jsonl": not_verified(2, 0.1),
     "v2_team_sparse.jsonl": not_verified(2, 0.05),
     "v3_sparse_kidnap.jsonl": not_verified(4, 0.1),

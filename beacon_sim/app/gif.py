@@ -21,6 +21,7 @@ from pathlib import Path
 import pygame
 
 from beacon_sim.app import palette
+from beacon_sim.core.files import atomic_write
 
 #: Default: one GIF frame every 6 window frames (10 per second at 60 FPS).
 EVERY = 6
@@ -136,9 +137,10 @@ class GifRecorder:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         # optimize: each frame keeps only the box that changed, unchanged pixels in it
         # transparent (long runs of one index: LZW packs them into little).
-        images[0].save(self.path, save_all=True, append_images=images[1:], loop=0,
-                       duration=self.duration_ms, optimize=True, disposal=1,
-                       transparency=TRANSPARENT)
+        with atomic_write(self.path, "wb", what="GIF") as fh:  # the previous file stays on an error
+            images[0].save(fh, format="GIF", save_all=True, append_images=images[1:], loop=0,
+                           duration=self.duration_ms, optimize=True, disposal=1,
+                           transparency=TRANSPARENT)
         return len(images)
 
 

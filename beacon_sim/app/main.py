@@ -30,6 +30,7 @@ from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
 from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
+from beacon_sim.core.files import atomic_write
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team import TeamStep
 from beacon_sim.core.team_scenario import TeamScenario
@@ -629,8 +630,9 @@ class App:
         path = Path(path)
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            pygame.image.save(self.screen, str(path))
+        try:  # whole or not at all: a full disk leaves the previous file as it was
+            with atomic_write(path, "wb", what="screenshot") as fh:
+                pygame.image.save(self.screen, fh, path.name)
         except pygame.error as exc:  # a path that cannot be written: one line, exit 2
             raise OSError(0, str(exc), str(path)) from None
 

@@ -125,9 +125,11 @@ def print_sensor_notes(specs: list[str], scenario: Scenario) -> None:
 
 
 def print_failures(tracks) -> None:
-    """A failed filter's reason and traceback on stderr (the table says FAILED)."""
+    """A failed filter's reason and traceback on stderr (the table says FAILED); no
+    traceback for a ``FilterError``, whose one line says it all (a localization filter
+    given a reading of a beacon not on its map)."""
     for track in tracks:
         if track.failed:
-            tb = getattr(track, "traceback", None)
+            tb = None if str(track.failed).startswith("FilterError:") else getattr(track, "traceback", None)
             print(f"filter {track.name} failed: {track.failed}" + (f"\n{tb}" if tb else ""),
                   file=sys.stderr)

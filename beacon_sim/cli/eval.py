@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from beacon_sim.cli.common import check_duration
+from beacon_sim.core.arguments import check_simulated_total
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
@@ -101,6 +102,11 @@ def eval_command(args: argparse.Namespace) -> int:
         return _failures(args, metas)
     params = parse_set_options(getattr(args, "set_params", []) or [])
     scenarios = [load_scenario(s) for s in args.scenarios]
+    for sc in scenarios:
+        check_duration(args.duration, sc)  # (a duration of too many ticks says so first)
+    check_simulated_total(args.runs * len(scenarios),
+                          max(args.duration or sc.duration for sc in scenarios),
+                          f"eval --runs {args.runs}", UsageError)
     for sc in scenarios:  # bad filter names and parameters: a one-line error, before any run
         specs = list(args.filters or sc.default_filters)
         check_param_names(params, specs)

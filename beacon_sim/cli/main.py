@@ -12,6 +12,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Callable
 
 from beacon_sim.cli import check, export, graph, listing, mrclam, new_filter, play, replay, run
@@ -19,7 +20,7 @@ from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options, check_common
 from beacon_sim.core.threads import limit_blas_threads
-from beacon_sim.errors import BeaconSimError, UsageError
+from beacon_sim.errors import BeaconSimError, FileReplacedWarning, UsageError
 from beacon_sim.hosting.runner import note_user_interrupt
 from beacon_sim.version import __version__
 
@@ -239,8 +240,25 @@ def _silence_stdout() -> None:
         pass
 
 
+def _one_line_notes(showwarning: Callable[..., None]) -> Callable[..., None]:
+    """``warnings.showwarning`` printing beacon-sim's own notes (a replaced file) as one
+    line, ``beacon-sim: note: ...``; any other warning as ``showwarning`` does."""
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        if isinstance(category, type) and issubclass(category, FileReplacedWarning):
+            print(f"beacon-sim: note: {message}", file=sys.stderr)
+        else:
+            showwarning(message, category, filename, lineno, file, line)
+    return show
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``beacon-sim`` console script; returns the exit status."""
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_notes(warnings.showwarning)
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if threading.current_thread() is threading.main_thread() \
             and signal.getsignal(signal.SIGINT) is signal.default_int_handler:

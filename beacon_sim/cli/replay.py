@@ -101,14 +101,14 @@ def replay_command(args: argparse.Namespace) -> int:
     try:
         out = replay_recording(recording, args.filters or None, params)
     except ReplayMismatch as exc:
-        raise UsageError(str(exc)) from None
+        raise UsageError(f"not verified: {exc}") from None
     info, data = out.extra["replay"], out.as_json()
     data["replay"] = info
     if args.json:
         print(json.dumps(data, default=float))
     else:
         print(f"replay {info['file']}: {info['ticks']} ticks, truth checksum "
-              f"{out.truth_checksum} {info['checksum_status']}")
+              f"{out.truth_checksum}: {info['checksum_status']}")
         (print_team_run if recording.is_team else print_run)(data)
     print_failures(out.tracks.values())
     return 0

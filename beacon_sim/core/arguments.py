@@ -64,3 +64,31 @@ def check_tick(dt: object, lo: float, hi: float, label: str = "dt=",
     if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not lo <= float(dt) <= hi:
         raise error(f"{_named(label, dt)}: expected a tick from {lo:g} to {hi:g} s")
     return float(dt)
+
+
+#: The most simulated time one command may ask for in all [s]: runs x seconds per run (x
+#: scenarios), about 11.6 days; a soak of one long run stays within it. Raise it with
+#: ``BEACON_SIM_MAX_SIMULATED_S``.
+MAX_SIMULATED_S = 1_000_000.0
+
+
+def check_simulated_total(runs: int, seconds: float, label: str,
+                          error: type[BeaconSimError] = UsageError) -> None:
+    """Refuse ``runs`` runs of ``seconds`` simulated seconds each when together they exceed
+    :data:`MAX_SIMULATED_S` (or ``BEACON_SIM_MAX_SIMULATED_S``); ``label`` names what asked
+    (``"--runs 10000 x --duration 86400"``). The message has both numbers and the cap."""
+    import os
+
+    cap = MAX_SIMULATED_S
+    raw = os.environ.get("BEACON_SIM_MAX_SIMULATED_S")
+    if raw is not None:
+        try:
+            cap = float(raw)
+        except ValueError:
+            cap = math.nan
+        if not (cap > 0 and math.isfinite(cap)):
+            raise error(f"BEACON_SIM_MAX_SIMULATED_S={raw[:40]!r}: expected a positive number of seconds")
+    total = runs * seconds
+    if total > cap:
+        raise error(f"{label}: {runs:,} runs x {seconds:,.6g} s = {total:,.0f} simulated seconds: at most "
+                    f"{cap:,.0f} in one command (set BEACON_SIM_MAX_SIMULATED_S to raise it)")

@@ -13,7 +13,9 @@ The one home for both directions:
 - **Writing.** :func:`atomic_output` gives a temporary path beside the target and renames it
   into place (``os.replace``) only when the body finished; :func:`atomic_write` opens that
   path as a file. A full disk, an error or a kill leaves the previous file as it was (never
-  a truncated or 0-byte file), and the message names the file.
+  a truncated or 0-byte file), and the message names the file. Writers to one path at once
+  each write their own temporary file; one that replaces a file another writer renamed
+  into place after it began says so (:class:`~beacon_sim.errors.FileReplacedWarning`).
 
 Every failure is the caller's error class (a :class:`~beacon_sim.errors.BeaconSimError`),
 one line naming the file.
@@ -25,11 +27,12 @@ import contextlib
 import os
 import secrets
 import stat
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from beacon_sim.errors import BeaconSimError
+from beacon_sim.errors import BeaconSimError, FileReplacedWarning
 
 #: Largest Python source file read or imported as a filter [bytes].
 MAX_SOURCE_BYTES = 4 * 2**20
@@ -139,6 +142,7 @@ def atomic_output(path: str | Path, *, what: str = "file",
     path = Path(path)
     folder = path.parent
     tmp = folder / f".{path.name}.{secrets.token_hex(4)}.tmp"
+    before = _identity(path)
     try:
         # created here, empty and with the permissions of a new file (umask applies)
         os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0),
@@ -147,7 +151,11 @@ def atomic_output(path: str | Path, *, what: str = "file",
         raise error(f"{path}: cannot write the {what}: {exc.strerror or type(exc).__name__}") from None
     try:
         yield tmp
+        meanwhile = _identity(path) != before
         os.replace(tmp, path)
+        if meanwhile:
+            warnings.warn(f"{path}: another writer wrote this {what} while this one was being "
+                          "written; this one replaced it", FileReplacedWarning, stacklevel=3)
     except OSError as exc:
         _remove(tmp)
         raise error(f"{path}: cannot write the {what}: {exc.strerror or type(exc).__name__} "
@@ -155,6 +163,16 @@ def atomic_output(path: str | Path, *, what: str = "file",
     except BaseException:
         _remove(tmp)
         raise
+
+
+def _identity(path: Path) -> tuple[int, int, int, int] | None:
+    """What tells one version of ``path`` from another (device, inode, size, modification
+    time [ns]), or None when there is no file: another writer's rename changes it."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
 
 
 def _remove(tmp: Path) -> None:

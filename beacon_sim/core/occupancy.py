@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core import portable_math as pm
-from beacon_sim.core.files import read_user_bytes, read_user_text
+from beacon_sim.core.files import atomic_write, read_user_bytes, read_user_text, write_text_atomic
 from beacon_sim.core.types import read_only
 from beacon_sim.errors import BeaconSimError
 
@@ -422,10 +422,11 @@ def save_map(grid: OccupancyGrid, yaml_path: str | Path, *, image: str | None = 
     image_path = path.parent / image_name
     write_pgm(image_path, values[::-1], ascii_pgm=ascii_pgm)
     x, y, yaw = grid.origin
-    path.write_text(
+    write_text_atomic(
+        path,
         f"image: {image_name}\nresolution: {grid.resolution!r}\norigin: [{x!r}, {y!r}, {yaw!r}]\n"
         f"negate: {negate}\noccupied_thresh: {occupied_thresh!r}\nfree_thresh: {free_thresh!r}\n"
-        "mode: trinary\n", encoding="utf-8")
+        "mode: trinary\n", what="map YAML", error=MapError)
     return image_path
 
 
@@ -541,11 +542,14 @@ def read_pgm_bytes(data: bytes, source: str) -> np.ndarray:
 
 
 def write_pgm(path: Path, values: np.ndarray, *, ascii_pgm: bool = False) -> None:
-    """Write 8-bit grey ``values`` (shape (height, width), top line first) as P5 (or P2)."""
+    """Write 8-bit grey ``values`` (shape (height, width), top line first) as P5 (or P2),
+    whole or not at all (the previous file stays on an error)."""
     values = np.asarray(values, dtype=np.uint8)
     h, w = values.shape
     if ascii_pgm:
         rows = "\n".join(" ".join(str(int(v)) for v in row) for row in values)
-        path.write_bytes(f"P2\n# beacon-sim map\n{w} {h}\n255\n{rows}\n".encode("ascii"))
+        data = f"P2\n# beacon-sim map\n{w} {h}\n255\n{rows}\n".encode("ascii")
     else:
-        path.write_bytes(f"P5\n# beacon-sim map\n{w} {h}\n255\n".encode("ascii") + values.tobytes())
+        data = f"P5\n# beacon-sim map\n{w} {h}\n255\n".encode("ascii") + values.tobytes()
+    with atomic_write(path, "wb", what="map image", error=MapError) as fh:
+        fh.write(data)

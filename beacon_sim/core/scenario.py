@@ -135,6 +135,8 @@ MAX_FRAC: Final = 10.0
 #: Most beacons, sensors and events in a scenario, and most ticks covered by all the
 #: blackouts and noise bursts together (their per-tick tables must fit in memory).
 MAX_BEACONS: Final = 10_000
+#: Most beacons with ``model.map = "unknown"`` (SLAM: the filters' state grows with the map).
+MAX_SLAM_BEACONS: Final = 500
 MAX_SENSORS: Final = 100
 MAX_EVENTS: Final = 10_000
 MAX_EVENT_TICKS: Final = 2_000_000
@@ -520,7 +522,7 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
 
 
 #: Most false detections per reading a sensor may declare (issue 29).
-MAX_CLUTTER_RATE: Final = 100.0
+MAX_CLUTTER_RATE: Final = 5.0
 
 
 def _correspondence(t: _Table, kind: str) -> dict[str, Any]:
@@ -779,6 +781,9 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
 
     m = top.sub("model", {})
     map_known = m.string("map", "known", choices=("known", "unknown")) == "known"
+    if not map_known and len(beacons) > MAX_SLAM_BEACONS:
+        m.fail(m.key("map"), "unknown", f"a map the filters build of at most {MAX_SLAM_BEACONS:,} "
+               f"beacons (the world has {len(beacons):,}: a SLAM filter's work grows with each)")
     if map_known and anchors:
         raise ScenarioError(f"{file}: {anchors[0][1]} = true: an anchor only means something when "
                             f"the filters are not given the map; add model.map = \"unknown\" (SLAM) "

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.arguments import check_simulated_total
 from beacon_sim.core.files import (
     MAX_SOURCE_BYTES,
     atomic_write,
@@ -193,6 +194,9 @@ def load_config(path: str | Path | None) -> GradeConfig:
         class_name=_config_name(path, data),
         sandbox=_config_sandbox(path, data),
         pseudonyms=_config_bool(path, data, "pseudonyms"))
+    if cfg.duration is not None:
+        check_simulated_total(len(cfg.seeds) * len(cfg.scenarios), cfg.duration,
+                              f"{path}: seeds x scenarios x duration", GradeError)
     return cfg
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import json
 import re
+import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -181,6 +182,19 @@ def write_export(arrays: dict[str, np.ndarray], out: Path) -> list[Path]:
     raise ValueError(f"{out}: expected a .npz, .csv or .mcap file name")
 
 
+def check_unpacked_size(path: Path, data: bytes, cap: int) -> None:
+    """Refuse a ``.npz`` whose members would unpack to more than ``cap`` bytes in all (a
+    decompression bomb: a small file that inflates to gigabytes), read from the archive's
+    directory before anything is decompressed; ``ValueError`` naming the file."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as z:
+            total = sum(info.file_size for info in z.infolist())
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        raise ValueError(f"{path}: not a .npz export (not a zip archive: {str(exc)[:60]})") from None
+    if total > cap:
+        raise ValueError(f"{path}: unpacks to {total:,} bytes: an export holds at most {cap:,}")
+
+
 def load_export(path: str | Path) -> dict[str, dict[str, np.ndarray]]:
     """The tables (:func:`beacon_sim.io.tables.tables`) of an export: a ``.npz`` file or the
     ``.csv`` files of :func:`csv_paths` (give ``X.csv``), written now or before 0.3.0 (old
@@ -189,8 +203,12 @@ def load_export(path: str | Path) -> dict[str, dict[str, np.ndarray]]:
     path = Path(path)
     if path.suffix == ".npz":
         data = read_user_bytes(path, what="export", cap=MAX_EXPORT_BYTES)
-        with np.load(io.BytesIO(data), allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
+        check_unpacked_size(path, data, MAX_EXPORT_BYTES)
+        try:
+            with np.load(io.BytesIO(data), allow_pickle=False) as z:
+                arrays = {k: z[k] for k in z.files}
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            raise ValueError(f"{path}: not a readable .npz export ({str(exc)[:80]})") from None
         if "truth" not in arrays:
             raise ValueError(f"{path}: not a beacon-sim export (no 'truth' array)")
         out = tables(arrays)

@@ -10,8 +10,10 @@ same numbers; a metadata record ``beacon-sim`` holds the scenario, dt, seed and 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -37,7 +39,10 @@ def write_mcap(path: Path | str, scenario: Scenario, arrays: Mapping[str, np.nda
     names = [str(n) for n in a.get("filter_names", [])]
     with atomic_output(path, what="MCAP file") as tmp:  # the old file stays until this one is whole
         try:
-            _write(fox, tmp, scenario, a, names, metadata, __version__)
+            with open(tmp, "wb") as raw:
+                sink = _QuietSink(raw)
+                _write(fox, sink, scenario, a, names, metadata, __version__)
+                sink.finish()
         except (OSError, BeaconSimError):
             raise
         except Exception as exc:
@@ -50,7 +55,54 @@ def write_mcap(path: Path | str, scenario: Scenario, arrays: Mapping[str, np.nda
     return path
 
 
-def _write(fox, tmp: Path, scenario: Scenario, a: Mapping[str, np.ndarray], names: list[str],
+class _QuietSink:
+    """The file the SDK writes through (``write``, ``seek``, ``flush``). The first error (a
+    full disk) is kept and every later write skipped, so the SDK does not log a line per
+    message; :meth:`finish` raises it once the SDK is done (the caller's one line)."""
+
+    def __init__(self, fh: BinaryIO):
+        self.fh = fh
+        self.error: OSError | None = None
+
+    def write(self, data: bytes) -> int:
+        if self.error is None:
+            try:
+                self.fh.write(data)
+            except OSError as exc:
+                self.error = exc
+        return len(data)
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        if self.error is None:
+            try:
+                return self.fh.seek(offset, whence)
+            except OSError as exc:  # (a seek flushes the buffer first)
+                self.error = exc
+        return offset if whence == 0 else 0
+
+    def tell(self) -> int:
+        return self.fh.tell() if self.error is None else 0
+
+    def flush(self) -> None:
+        if self.error is None:
+            try:
+                self.fh.flush()
+            except OSError as exc:
+                self.error = exc
+
+    def finish(self) -> None:
+        """Flushed and on the disk, or the first error raised."""
+        self.flush()
+        if self.error is None:
+            try:
+                os.fsync(self.fh.fileno())
+            except OSError as exc:
+                self.error = exc
+        if self.error is not None:
+            raise self.error
+
+
+def _write(fox, tmp: Path | _QuietSink, scenario: Scenario, a: Mapping[str, np.ndarray], names: list[str],
            metadata: Mapping[str, str] | None, version: str) -> None:
     context = fox.Context()  # this file's channels only
     writer = fox.open_mcap(tmp, allow_overwrite=True, context=context)

@@ -26,12 +26,17 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.files import read_user_bytes
 from beacon_sim.errors import BeaconSimError
 
 #: Subjects 1-5 are the robots in every MRCLAM data set; landmarks are 6 and up.
 ROBOT_SUBJECTS = range(1, 6)
 #: Ground-truth samples further apart than this [s] are a gap: no evaluation inside it.
 MAX_TRUTH_GAP_S = 0.5
+#: Longest span of one robot's time stamps [s] (the data sets' runs last under an hour).
+MAX_SPAN_S = 86_400
+#: Largest MRCLAM ``.dat`` file read [bytes] (the data sets' largest is about 3 MB).
+MAX_TABLE_BYTES = 256 * 2**20
 
 
 class MrclamError(BeaconSimError):
@@ -119,13 +124,14 @@ def read_table(path: Path, ncols: int, columns: str,
     Lines starting with ``#`` and blank lines are skipped; CRLF and tabs/spaces are fine.
     ``ranges``: (name, lowest, highest) per column; a value outside is refused as bad data.
     """
-    if not path.is_file():
+    if not path.exists():
         raise MrclamError(f"{path}: missing (an MRCLAM folder holds {path.name} with columns "
                           f"{columns})")
+    data = read_user_bytes(path, what="MRCLAM data file", cap=MAX_TABLE_BYTES, error=MrclamError)
     try:
-        raw = path.read_bytes().decode("ascii")
+        raw = data.decode("ascii")
     except UnicodeDecodeError as exc:
-        bad_line = path.read_bytes()[: exc.start].count(b"\n") + 1
+        bad_line = data[: exc.start].count(b"\n") + 1
         raise MrclamError(f"{path}:{bad_line}: not a text line (byte {exc.start})") from None
     rows: list[list[float]] = []
     numbers: list[int] = []
@@ -209,6 +215,22 @@ def interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np
     return poses, ok
 
 
+def _check_time_span(folder: Path, robot: int, tables: dict[str, np.ndarray]) -> None:
+    """Refuse time stamps spread over more than :data:`MAX_SPAN_S` (a row at t = 1e12 among
+    rows of 2009 would have a run step through millennia), naming the file and the row's
+    time farthest from the odometry's median."""
+    t_all = np.concatenate([t[:, 0] for t in tables.values()])
+    span = float(t_all.max() - t_all.min())
+    if span <= MAX_SPAN_S:
+        return
+    centre = float(np.median(tables["Odometry"][:, 0]))
+    name, worst = max(((n, float(t[np.argmax(np.abs(t[:, 0] - centre)), 0])) for n, t in tables.items()),
+                      key=lambda item: abs(item[1] - centre))
+    raise MrclamError(f"{folder / f'Robot{robot}_{name}.dat'}: a time stamp of {worst:.6g} s lies "
+                      f"{abs(worst - centre):.4g} s from the odometry's median ({centre:.6g} s): a data "
+                      f"set's time stamps span at most {MAX_SPAN_S:,} s (one day)")
+
+
 def load_mrclam(folder: str | Path | None, robot: int, robot_sightings: bool = False) -> MrclamData:
     """Load and clean one robot of an MRCLAM data set. ``folder``: as :func:`find_dataset`
     takes it (None: ``$BEACON_SIM_MRCLAM``). ``robot_sightings`` also keeps the sightings of
@@ -226,6 +248,7 @@ def load_mrclam(folder: str | Path | None, robot: int, robot_sightings: bool = F
     gt = read_table(folder / f"Robot{robot}_Groundtruth.dat", 4, "time, x, y, theta",
                     COLUMNS["Groundtruth"])
 
+    _check_time_span(folder, robot, {"Odometry": od, "Measurement": ms, "Groundtruth": gt})
     barcodes = {int(b): int(s) for s, b in bc}
     landmarks = {int(r[0]): (float(r[1]), float(r[2])) for r in lm}
     od = od[np.argsort(od[:, 0], kind="stable")]

@@ -471,6 +471,9 @@ class FileParts:
     estimates: dict[int, dict[str, Any]] = field(default_factory=dict)  # tick -> line
     signature: str = "not signed"
     signature_error: str | None = None  # a signature line that does not match (names it)
+    # why the stored map could not be checked against a map file (None: no stored map, or
+    # it is the shipped scenario's map file cell for cell)
+    map_unverified: str | None = None
 
 
 @dataclass
@@ -907,6 +910,11 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[Any], dict[int, dict[st
             if header["version"] >= 3 and (not ticks or obj["k"] != ticks[-1].tick):
                 raise _fail(path, n, f"checkpoint of tick {obj['k']} after the line of tick "
                                      f"{ticks[-1].tick if ticks else 0}")
+            if obj["k"] in checkpoints or obj["k"] in parts.estimates:
+                # the recorder writes a tick's checkpoint once, before its estimates line
+                before = "another checkpoint" if obj["k"] in checkpoints else "its estimates line"
+                raise _fail(path, n, f"checkpoint of tick {obj['k']} out of order (after {before} "
+                                     "of that tick): was the file edited?")
             checkpoints[obj["k"]] = obj
         elif kind == "estimates" and header["version"] >= 3:
             if type(obj.get("k")) is not int or not _digests_ok(obj.get("digests")) \
@@ -1006,10 +1014,16 @@ def load_recording(path) -> Recording:
         source = header.get("scenario_source")
         grid = recorded_map(path, header)
         if grid is not None:
-            note = disk_map_note(grid, str(header["map"]["file"]),
-                                 source if isinstance(source, str) else None)
+            src = source if isinstance(source, str) else None
+            note = disk_map_note(grid, str(header["map"]["file"]), src)
             if note is not None:
                 notes.append(f"{path}: {note}")
+            if note is not None or (scenario_folder(src) is None
+                                    and not Path(str(header["map"]["file"])).is_absolute()):
+                why = "it differs from the map file" if note and "differs" in note else \
+                    "the map file cannot be read" if note else "a user's map file is not looked for"
+                parts.map_unverified = (f"the stored map (its own sha256 is all it can be checked "
+                                        f"against, and an edit can recompute that; {why})")
         scenario = rebuild_scenario(header["scenario_toml"], file, header["scenario_name"],
                                     source, map_grid=grid)
         _check_dt(path, header, scenario.dt)

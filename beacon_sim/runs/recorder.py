@@ -15,6 +15,7 @@ tolerance (beacon_sim/runs/replay_maths.py).
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import hashlib
 import time
@@ -161,7 +162,7 @@ class Recorder:
             **(extra or {}),
         }
         self._write(header)
-        self._file.flush()
+        self._flush()
         self._last_flush_wall = time.monotonic()
         self._last_flush_tick = 0
 
@@ -169,9 +170,25 @@ class Recorder:
         """One line (signed when a key is set)."""
         assert self._file is not None
         text = dumps(obj) + "\n"
-        self._file.write(text)
+        try:
+            self._file.write(text)
+        except OSError as exc:
+            raise self._disk_error(exc) from None
         if self._signer is not None:
             self._signer.add(text)
+
+    def _disk_error(self, exc: OSError) -> RecordingError:
+        """A write that failed (a full disk, a removed drive): one line naming the file."""
+        return RecordingError(f"{self.path}: cannot write the recording: "
+                              f"{exc.strerror or type(exc).__name__} (the file keeps the ticks "
+                              "written before; it replays up to its last complete tick)")
+
+    def _flush(self) -> None:
+        assert self._file is not None
+        try:
+            self._file.flush()
+        except OSError as exc:
+            raise self._disk_error(exc) from None
 
     def _sign(self) -> None:
         if self._signer is not None:
@@ -263,7 +280,7 @@ class Recorder:
         now = time.monotonic()
         if (now - self._last_flush_wall >= FLUSH_EVERY_S
                 or (tick - self._last_flush_tick) * self.dt >= FLUSH_EVERY_S):
-            self._file.flush()
+            self._flush()
             self._last_flush_wall = now
             self._last_flush_tick = tick
 
@@ -279,10 +296,17 @@ class Recorder:
             end["values"] = self._values_map(self.shadow.tick)
             if self._notes:
                 end["notes"] = dict(self._notes)
-        self._write(end)
-        self._sign()
-        self._file.close()
-        self._file = None
+        file = self._file
+        try:
+            self._write(end)
+            self._sign()
+            file.close()
+        except OSError as exc:
+            raise self._disk_error(exc) from None
+        finally:
+            self._file = None
+            with contextlib.suppress(OSError):
+                file.close()
 
     def __enter__(self):
         return self

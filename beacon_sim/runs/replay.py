@@ -189,11 +189,12 @@ class FilterVerifier:
                                 f"the recorded ones by {diff.text()} at tick {tick}, beyond "
                                 f"the tolerance")
 
-    def coverage(self) -> str:
-        """What the check covered beyond truth and readings, as the status's suffix ("" when
-        everything was compared bit for bit), and on other maths how the estimates
-        compared."""
-        return self._coverage() + self.maths_note()
+    def coverage(self) -> tuple[list[str], str, str]:
+        """What the check covered beyond truth and readings: (each thing it could not
+        verify, with why; what it did verify, in words; on other maths, how the estimates
+        compared). An empty list: everything was compared bit for bit."""
+        gaps, checked = self._gaps()
+        return gaps, checked, self.maths_note()
 
     def maths_note(self) -> str:
         """"" on the maths the file was made with (or a file that does not say); else that
@@ -215,22 +216,33 @@ class FilterVerifier:
         return (note + f", {which} within the tolerance ({TOLERANCE_TEXT}; largest difference "
                 f"{worst.text()})")
 
-    def _coverage(self) -> str:
+    def _gaps(self) -> tuple[list[str], str]:
+        gaps, checked = self._filter_gaps()
         rec = self.recording
+        if rec.parts.map_unverified and rec.parts.signature != "signed and verified":
+            gaps.insert(0, rec.parts.map_unverified)
+        return gaps, checked
+
+    def _filter_gaps(self) -> tuple[list[str], str]:
+        rec = self.recording
+        if not rec.filters and not self.tracks:  # no filter ran: nothing of theirs to check
+            return ([] if rec.version > 1 else ["the readings (a version 1 file does not record them)"],
+                    "truth and readings" if rec.version > 1 else "the truth")
         if rec.version == 1:
-            return ": truth only; readings and filter settings not recorded (a version 1 file)"
+            return ["the readings and filter settings (a version 1 file records neither)"], "the truth"
         if rec.version == 2:
-            return ": truth and readings; filter settings not recorded (a version 2 file)"
+            return (["the filter settings and estimates (a version 2 file records neither)"],
+                    "truth and readings")
         if rec.parts.settings is None:
-            return ": truth and readings; filter settings not recorded"
+            return ["the filter settings and estimates (not recorded)"], "truth and readings"
         if not self.compare:
-            return (": truth and readings; other filters or parameters than the recorded ones, "
-                    "so the estimates are not compared")
+            return (["the estimates (other filters or parameters than the recorded ones)"],
+                    "truth and readings")
         if not self.compared_lines and rec.parts.estimates == {} and not (rec.end or {}).get("estimates"):
-            return ": truth, readings and filter settings; no estimates recorded"
-        out = [f"{n} not run (named by a file or module)" for n in self.skipped]
+            return ["the estimates (none recorded)"], "truth, readings and filter settings"
+        out = [f"{n} (not run: named by a file or module)" for n in self.skipped]
         out += [f"{n}: {why}" for n, why in sorted(self.unchecked.items())]
-        return (" except: " + "; ".join(out)) if out else ""
+        return out, "truth, readings, filter settings and the other estimates"
 
 
 def _same_bits(recorded: Sequence[float], replayed: Sequence[float] | None) -> bool:
@@ -402,6 +414,19 @@ def checksums_mismatch(rec: TickRecord, truth: str, readings: str) -> str | None
     return None
 
 
+def autopilot_mismatch(rec: TickRecord, step: TeamStep) -> str | None:
+    """On a tick whose driven robot's own driver chose the command (a team's autopilot
+    tick), the replay's driver chooses again: what differs when its command is not the
+    recorded ``u`` bit for bit (an edited command is never skipped), else None."""
+    if not rec.autopilot or not 0 <= rec.driven < len(step.steps):
+        return None
+    chosen = step.steps[rec.driven].control
+    if (chosen.v, chosen.omega) == (rec.control.v, rec.control.omega):
+        return None
+    return (f"robot {rec.driven}'s command u (its driver chose [{chosen.v!r}, {chosen.omega!r}] "
+            f"again; the file says [{rec.control.v!r}, {rec.control.omega!r}])")
+
+
 def recorded_controls(rec: TickRecord) -> dict[int, Control]:
     """The commands a recorded tick gives: the driven robot's (none on a team's autopilot
     tick: its driver chooses again), the others' drivers choose theirs."""
@@ -446,7 +471,7 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
         truth.observe(step)
         sim_ns += time.perf_counter_ns() - a
         if verify and unverified is None:
-            why, bad = truth.tick_mismatch(rec), rec.tick
+            why, bad = autopilot_mismatch(rec, step) or truth.tick_mismatch(rec), rec.tick
             cp = recording.checkpoints.get(rec.tick)
             if why is None and cp is not None and truth.state_differs(cp):
                 why, bad = "the checkpoint", _first_bad_tick(recording, rec.tick)
@@ -509,24 +534,30 @@ def tick_checked(recording: Recording, rec: TickRecord) -> int:
                and (recording.version < 2 or rec.readings_checksum is not None))
 
 
-def verification_status(recording: Recording, checked: int, ticks: int,
-                        at_end: bool, coverage: str | None = None) -> str:
+def verification_status(recording: Recording, checked: int, ticks: int, at_end: bool,
+                        coverage: tuple[list[str], str, str] | None = None) -> str:
     """What a replay may claim, in words (docs/replay.md, "What replay verifies"). The end
     line's checksums cover every tick; without it only the ticks that carry checksums count.
-    ``coverage`` (:meth:`FilterVerifier.coverage`) says what was not compared: "verified"
-    alone means truth, readings, filter settings and estimates all matched."""
-    if coverage is None:
-        coverage = FilterVerifier(recording, None, False, []).coverage()
+    ``coverage`` (:meth:`FilterVerifier.coverage`) lists what could not be compared: then
+    the status begins "not verified: <what>" and says what was. "verified" alone means
+    truth, readings, the commands, filter settings and estimates all matched."""
+    gaps, what, note = coverage or FilterVerifier(recording, None, False, []).coverage()
+    missing = "; ".join(gaps)
     if not ticks and not at_end:
         return "nothing checked yet (no tick replayed)"
     end = recording.end
     if at_end and end is not None and (recording.version < 2 or "readings_checksum" in end):
-        return "verified" + coverage
-    if ticks and checked == ticks:
-        return "verified up to the last complete tick" + coverage
-    if checked or (end is not None and at_end):
-        return f"partly verified: {checked} of {ticks} ticks carry checksums" + coverage
-    return "not verified: the recording holds no checksums"
+        level = "verified"
+    elif ticks and checked == ticks:
+        level = "verified up to the last complete tick"
+    elif checked or (end is not None and at_end):
+        return (f"partly verified: {checked} of {ticks} ticks carry checksums"
+                + (f"; not verified: {missing}" if gaps else "") + note)
+    else:
+        return "not verified: the recording holds no checksums"
+    if gaps:
+        return f"not verified: {missing}; {what} {level}{note}"
+    return level + note
 
 
 def _first_bad_tick(recording: Recording, tick: int) -> int:
@@ -646,16 +677,16 @@ class ReplaySession(Session):
         self.truth.observe(step)
         self.verifier.fold(rec.tick)
         if self.mismatch is None and self.unverified is None:
-            self._check(rec)
+            self._check(rec, step)
         self._apply_recorded_driving()
         return step
 
-    def _check(self, rec: TickRecord) -> None:
+    def _check(self, rec: TickRecord, step: TeamStep) -> None:
         """The tick's checksums and estimates against the file (as :func:`replay_recording`):
         a difference is a mismatch, or on a file that does not name its maths whose truth
         differs, the reason it is not verified."""
         line = self.recording.parts.estimates.get(rec.tick)
-        why = self.truth.tick_mismatch(rec)
+        why = autopilot_mismatch(rec, step) or self.truth.tick_mismatch(rec)
         if why is not None and self.recording.maths is None:
             self.unverified = old_maths_text(rec.tick, self.scenario.dt, why)
             return
