@@ -1,5 +1,6 @@
-"""``beacon-sim export FILE --out run.npz|run.csv|run.mcap``: a recording, or a headless run of
-a scenario, as arrays (with every filter's estimates) or as an MCAP file for Foxglove."""
+"""``beacon-sim export FILE --out run.npz|run.csv|run.mcap [--ros2]``: a recording, or a
+headless run of a scenario, as arrays (with every filter's estimates), as an MCAP file for
+Foxglove, or (``--ros2``, ``run.mcap`` or ``run.db3``) as a ROS 2 bag folder ``run/``."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording, skipped_note
 
 SUFFIXES = (".npz", ".csv", ".mcap")
+ROS2_SUFFIXES = (".mcap", ".db3")
 
 
 def is_recording(file: str) -> bool:
@@ -27,8 +29,13 @@ def is_recording(file: str) -> bool:
 
 def export_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
-    if out.suffix not in SUFFIXES:
-        raise UsageError(f"--out {out}: expected a .npz, .csv or .mcap file name")
+    ros2 = bool(getattr(args, "ros2", False))
+    if ros2 and out.suffix not in ROS2_SUFFIXES:
+        raise UsageError(f"--out {out}: with --ros2, expected run.mcap or run.db3 (the bag's storage)")
+    if out.suffix not in SUFFIXES + ROS2_SUFFIXES or (out.suffix == ".db3" and not ros2):
+        raise UsageError(f"--out {out}: expected a .npz, .csv or .mcap file name (.db3 with --ros2)")
+    if ros2 and out.with_suffix("").exists() and not (out.with_suffix("") / "metadata.yaml").is_file():
+        raise UsageError(f"--out {out}: {out.with_suffix('')} exists and is not a ROS 2 bag folder")
     if not out.parent.is_dir():
         raise UsageError(f"--out {out}: no such folder {out.parent}")
     check_duration(args.duration)
@@ -56,7 +63,14 @@ def export_command(args: argparse.Namespace) -> int:
         arrays = step_arrays(scenario, result.steps)
         arrays.update(filter_arrays(result.runner.tracks, len(result.steps)))
     print_failures(result.runner.tracks.values())
-    if out.suffix == ".mcap":
+    if ros2:
+        try:
+            from beacon_sim.io.ros2 import write_ros2_bag
+            written = [write_ros2_bag(out, result.scenario, arrays,
+                                      {"seed": str(result.seed), "truth_checksum": result.truth_checksum})]
+        except ImportError as exc:
+            raise UsageError(str(exc)) from None
+    elif out.suffix == ".mcap":
         try:
             from beacon_sim.io.mcap import write_mcap
             written = [write_mcap(out, result.scenario, arrays,
