@@ -6,13 +6,16 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from beacon_sim.cli.common import check_duration, check_set_names, filter_params, print_failures
 from beacon_sim.cli.replay import load
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.errors import UsageError
+from beacon_sim.evaluation.pcrb import pcrb
 from beacon_sim.io.export import filter_arrays, step_arrays, trace_arrays, write_export
+from beacon_sim.io.foxglove import BeliefFrame, read_frame
 from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay_recording, skipped_note
 
@@ -27,6 +30,22 @@ def is_recording(file: str) -> bool:
     return p.is_file() and p.suffix != ".toml"
 
 
+class FrameKeeper:
+    """Keeps each tick's :class:`BeliefFrame` (particles, grid beliefs, SLAM maps) while a run
+    goes, for the MCAP export: an ``on_tick`` of ``run_headless`` / ``replay_recording``."""
+
+    def __init__(self) -> None:
+        self.frames: dict[int, BeliefFrame] = {}
+
+    def __call__(self, step, runner) -> None:
+        self.frames[step.tick] = read_frame(runner.members[0].tracks)
+
+    def with_bound(self, scenario, arrays) -> dict[int, BeliefFrame]:
+        """The frames with the PCRB of the run's true path (:func:`beacon_sim.evaluation.pcrb.pcrb`)."""
+        bound = pcrb(scenario, arrays["truth"][None], arrays["control"][None])[0]
+        return {k: replace(f, bound=bound[k - 1]) for k, f in self.frames.items() if 1 <= k <= len(bound)}
+
+
 def export_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
     ros2 = bool(getattr(args, "ros2", False))
@@ -39,6 +58,7 @@ def export_command(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise UsageError(f"--out {out}: no such folder {out.parent}")
     check_duration(args.duration)
+    keeper = FrameKeeper() if out.suffix == ".mcap" and not ros2 else None
     if is_recording(args.file):
         if args.seed is not None or args.duration is not None:
             raise UsageError("--seed and --duration are for a scenario; a recording has its own")
@@ -48,7 +68,7 @@ def export_command(args: argparse.Namespace) -> int:
                              "recording or a scenario")
         check_set_names(args, recorded_filter_specs(recording, args.filters)[0])
         try:
-            result = replay_recording(recording, args.filters, filter_params(args))
+            result = replay_recording(recording, args.filters, filter_params(args), on_tick=keeper)
         except ReplayMismatch as exc:
             raise UsageError(str(exc)) from None
         for spec in result.extra["replay"]["skipped_filters"]:
@@ -59,7 +79,7 @@ def export_command(args: argparse.Namespace) -> int:
         check_duration(args.duration, scenario)
         check_set_names(args, list(args.filters or scenario.default_filters))
         result = run_headless(scenario, args.filters, seed=args.seed, duration=args.duration,
-                              params=filter_params(args))
+                              params=filter_params(args), on_tick=keeper)
         arrays = step_arrays(scenario, result.steps)
         arrays.update(filter_arrays(result.runner.tracks, len(result.steps)))
     print_failures(result.runner.tracks.values())
@@ -72,9 +92,11 @@ def export_command(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
     elif out.suffix == ".mcap":
         try:
-            from beacon_sim.io.mcap import write_mcap
+            from beacon_sim.io.mcap import layout_path, write_mcap
+            assert keeper is not None
             written = [write_mcap(out, result.scenario, arrays,
-                                  {"seed": str(result.seed), "truth_checksum": result.truth_checksum})]
+                                  {"seed": str(result.seed), "truth_checksum": result.truth_checksum},
+                                  keeper.with_bound(result.scenario, arrays)), layout_path(out)]
         except ImportError as exc:
             raise UsageError(str(exc)) from None
     else:
