@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from beacon_sim.evaluation.grading import (
     read_secret,
     write_outputs,
 )
+from beacon_sim.runs.progress import Progress
 
 
 def grade_command(args: argparse.Namespace) -> int:
@@ -48,13 +48,12 @@ def grade_command(args: argparse.Namespace) -> int:
             raise UsageError("--scheduler needs Dask: pip install 'beacon-sim[grade]'") from None
     out = Path(args.out) if args.out else Path(args.dir) / "grade_out"
     secret, whence = _secret(args, out)
-    tty = sys.stderr.isatty()
+    bar: list[Progress] = []  # made at the first report, when the total is known
 
     def progress(done: int, total: int) -> None:
-        if tty:
-            sys.stderr.write(f"\rgrade: {done}/{total} runs ")
-            if done == total:
-                sys.stderr.write("\n")
+        if not bar:
+            bar.append(Progress(total, "grade", True))
+        bar[0].update(done)
 
     t0 = time.perf_counter()
     try:
