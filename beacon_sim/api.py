@@ -23,6 +23,7 @@ import numpy as np
 from beacon_sim.core import angles, measurement_models, motion
 from beacon_sim.core.arguments import check_duration, check_seed
 from beacon_sim.core.metrics import pose_errors
+from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import (
     MAX_TICKS,
     Scenario,
@@ -191,7 +192,7 @@ def load_tables(path: str | Path) -> dict[str, Any]:
     """The tidy tables of an export (``run.npz``, or the ``run.csv`` files) as pandas
     DataFrames: ``truth``, ``readings``, ``events`` and, when filters ran, ``estimates``
     (columns as :meth:`Run.tables`). Files written before issue 28, with the old names, load
-    too. Needs pandas (``pip install 'beacon-sim[pandas]'``)."""
+    too. Needs pandas (``pip install pandas``)."""
     pd = _pandas()
     try:
         tabs = load_export(path)
@@ -205,7 +206,7 @@ def _pandas():
     try:
         return importlib.import_module("pandas")
     except ImportError as exc:
-        raise ImportError("tables as DataFrames need pandas: pip install 'beacon-sim[pandas]'") from exc
+        raise ImportError(install_hint("pandas")) from exc
 
 
 def __getattr__(name: str):
@@ -327,7 +328,7 @@ class Run:
     def to_frame(self, table: str = "estimates"):
         """One tidy table as a pandas ``DataFrame`` (long form: ``df.plot`` and seaborn take
         it directly, e.g. ``sns.lineplot(run.to_frame(), x="time_s", y="err_pos_m",
-        hue="filter")``). Needs pandas (``pip install 'beacon-sim[pandas]'``)."""
+        hue="filter")``). Needs pandas (``pip install pandas``)."""
         return _pandas().DataFrame(self.columns(table))
 
     def tables(self) -> dict[str, Any]:

@@ -19,9 +19,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import gymnasium
 import numpy as np
-from gymnasium import spaces
+
+from beacon_sim.core.optional import install_hint
+
+try:
+    import gymnasium
+    from gymnasium import spaces
+except ImportError as exc:  # one line that says what to install
+    raise ImportError(install_hint("gymnasium", "beacon_sim.gym (the Gymnasium environment)")) from exc
 
 from beacon_sim.core.scenario import Scenario, load_scenario
 from beacon_sim.core.types import Control, Step

@@ -12,6 +12,7 @@ import math
 import time
 from pathlib import Path
 
+from beacon_sim.core.optional import install_hint
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.grading import (
     SECRET_FILE,
@@ -45,7 +46,7 @@ def grade_command(args: argparse.Namespace) -> int:
         try:
             import dask.distributed  # noqa: F401
         except ImportError:
-            raise UsageError("--scheduler needs Dask: pip install 'beacon-sim[grade]'") from None
+            raise UsageError(install_hint("dask", "--scheduler")) from None
     out = Path(args.out) if args.out else Path(args.dir) / "grade_out"
     secret, whence = _secret(args, out)
     bar: list[Progress] = []  # made at the first report, when the total is known

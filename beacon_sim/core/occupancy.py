@@ -507,7 +507,7 @@ def _read_png(path: Path) -> np.ndarray:
     try:
         from PIL import Image
     except ImportError:
-        raise MapError(f"{path}: reading PNG maps needs Pillow (pip install 'beacon-sim[gif]'), "
+        raise MapError(f"{path}: {install_hint('PIL', 'reading PNG maps')}, "
                        "or convert the image to PGM") from None
     data = read_user_bytes(path, what="map image", cap=MAX_PNG_BYTES, error=MapError)
     w, h = png_size(data, str(path))

@@ -65,11 +65,12 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.metrics import pose_errors
+from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.filters.base import GridBelief, LandmarkMap, ParticleBelief
 from beacon_sim.io.tables import COV_COLUMNS, UPPER, Z_COLUMNS
 
-INSTALL_HINT = "Foxglove output needs the foxglove-sdk package: pip install 'beacon-sim[mcap]'"
+INSTALL_HINT = install_hint("foxglove")
 FRAME = "world"
 ROBOT_FRAME = "robot"
 #: The 95 % x-y ellipse: sqrt of the chi-square quantile for 2 degrees of freedom.

@@ -50,13 +50,13 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.motion import move
+from beacon_sim.core.optional import install_hint
 from beacon_sim.core.raycast import beam_angles
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.errors import BeaconSimError
 from beacon_sim.io.tables import prefixed, reading_matrix, upgrade_arrays
 
-INSTALL_HINT = ("ROS 2 bags need the rosbags package: pip install rosbags "
-                "(from a checkout: pip install -e '.[ros]')")
+INSTALL_HINT = install_hint("rosbags")
 #: Storage by the ``--out`` suffix: rosbags' storage plugins.
 STORAGES = {".mcap": "MCAP", ".db3": "SQLITE3"}
 MAP_FRAME, ODOM_FRAME, BASE_FRAME = "map", "odom", "base_link"
