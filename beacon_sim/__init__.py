@@ -18,11 +18,11 @@ from beacon_sim.version import __version__
 #: author needs (``FilterBase``, the beliefs, ``Control`` / ``Measurement``, and the modules
 #: ``motion``, ``measurement_models`` and ``angles``) and the errors, all ``BeaconSimError``
 #: (a ``ValueError``).
-__all__ = ["BeaconSimError", "Control", "Filter", "FilterBase", "FilterContext", "FilterError",
-           "FilterLoadError", "GaussianBelief", "GradeError", "GridBelief", "Measurement", "MrclamError",
-           "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
-           "UsageError", "__version__", "angles", "load_scenario", "load_tables", "load_team_scenario",
-           "measurement_models", "motion", "replay", "run", "run_team"]
+__all__ = ["BeaconSimError", "Control", "Evaluation", "Filter", "FilterBase", "FilterContext",
+           "FilterError", "FilterLoadError", "GaussianBelief", "GradeError", "GridBelief", "Measurement",
+           "MrclamError", "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError",
+           "TeamRun", "UsageError", "__version__", "angles", "evaluate", "load_scenario", "load_tables",
+           "load_team_scenario", "measurement_models", "motion", "replay", "run", "run_team"]
 
 
 def __getattr__(name: str):

@@ -23,6 +23,7 @@ import numpy as np
 from beacon_sim.core import angles, measurement_models, motion
 from beacon_sim.core.arguments import check_duration, check_seed
 from beacon_sim.core.metrics import pose_errors
+from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import (
     MAX_TICKS,
     Scenario,
@@ -37,8 +38,9 @@ from beacon_sim.core.team_scenario import load_team_scenario as _load_team_scena
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.errors import ArgumentTypeError, BeaconSimError, UsageError, short_repr
 from beacon_sim.evaluation import plots
-from beacon_sim.evaluation.montecarlo import RunOutput, finish_filter
-from beacon_sim.evaluation.summary import evaluate
+from beacon_sim.evaluation.mc_tables import monte_carlo_tables
+from beacon_sim.evaluation.montecarlo import RunOutput, finish_filter, run_monte_carlo
+from beacon_sim.evaluation.summary import evaluate as summarise
 from beacon_sim.filters.base import (
     Filter,
     FilterBase,
@@ -61,11 +63,11 @@ from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay
 #: protocol, the beliefs, the readings' and controls' types, and the models as modules:
 #: ``motion``, ``measurement_models``, ``angles``); the errors, all ``BeaconSimError``.
 #: ``GradeError`` comes from the module's ``__getattr__`` (the grading module loads on first use).
-__all__ = ["BeaconSimError", "Control", "Filter", "FilterBase", "FilterContext", "FilterError",
+__all__ = ["BeaconSimError", "Control", "Evaluation", "Filter", "FilterBase", "FilterContext", "FilterError",
            "FilterLoadError", "GaussianBelief", "GradeError",  # noqa: F822
            "GridBelief", "Measurement", "MrclamError",
            "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
-           "UsageError", "angles", "load_scenario", "load_tables", "load_team_scenario",
+           "UsageError", "angles", "evaluate", "load_scenario", "load_tables", "load_team_scenario",
            "measurement_models", "motion", "replay", "run", "run_team"]
 #: The export formats of :meth:`Run.export`.
 EXPORT_SUFFIXES = (".npz", ".csv", ".mcap")
@@ -219,7 +221,7 @@ def load_tables(path: str | Path) -> dict[str, Any]:
     """The tidy tables of an export (``run.npz``, or the ``run.csv`` files) as pandas
     DataFrames: ``truth``, ``readings``, ``events`` and, when filters ran, ``estimates``
     (columns as :meth:`Run.tables`). Files written before issue 28, with the old names, load
-    too. Needs pandas (``pip install 'beacon-sim[pandas]'``)."""
+    too. Needs pandas (``pip install pandas``)."""
     pd = _pandas()
     try:
         tabs = load_export(path)
@@ -233,7 +235,7 @@ def _pandas():
     try:
         return importlib.import_module("pandas")
     except ImportError as exc:
-        raise ImportError("tables as DataFrames need pandas: pip install 'beacon-sim[pandas]'") from exc
+        raise ImportError(install_hint("pandas")) from exc
 
 
 def __getattr__(name: str):
@@ -359,7 +361,7 @@ class Run:
     def to_frame(self, table: str = "estimates"):
         """One tidy table as a pandas ``DataFrame`` (long form: ``df.plot`` and seaborn take
         it directly, e.g. ``sns.lineplot(run.to_frame(), x="time_s", y="err_pos_m",
-        hue="filter")``). Needs pandas (``pip install 'beacon-sim[pandas]'``)."""
+        hue="filter")``). Needs pandas (``pip install pandas``)."""
         return _pandas().DataFrame(self.columns(table))
 
     def tables(self) -> dict[str, Any]:
@@ -382,7 +384,7 @@ class Run:
             out.filters[name] = finish_filter(
                 self._arrays["est_mean"][i].copy(), self._arrays["est_cov"][i].copy(), self.truth,
                 tr.steps, tr.failed, 0.0, 0, tr.step_ns, keep_means=True)
-        return evaluate(self.scenario, [out])[1]
+        return summarise(self.scenario, [out])[1]
 
     def plot_trajectories(self):
         """The true path, each filter's estimate and the beacons: a matplotlib ``Figure``."""
@@ -408,6 +410,63 @@ class Run:
             return [write_mcap(path, self.scenario, self._arrays,
                                {"seed": str(self.seed), "truth_checksum": self.result.truth_checksum})]
         return write_export(self._arrays, path)
+
+
+class Evaluation:
+    """The result of :func:`evaluate`: Monte Carlo runs as two tidy tables
+    (:mod:`beacon_sim.evaluation.mc_tables`).
+
+    ``columns("ticks")``: one row per run, filter and tick (error, sigma, NEES, the PCRB's
+    sigma, ``in_model``); ``columns("runs")``: one row per run and filter (RMSE, MSE, ANEES,
+    cost, failure). Each a dict of numpy arrays; ``to_frame(table)`` a pandas DataFrame,
+    ``to_pandas()`` both. ``outputs`` holds the runs themselves.
+    """
+
+    TABLES = ("ticks", "runs")
+
+    def __init__(self, scenario: Scenario, outputs: list[RunOutput]):
+        self.scenario = scenario
+        self.outputs = outputs
+        self._tables = monte_carlo_tables(scenario, outputs)
+
+    def __repr__(self) -> str:
+        names = list(self.outputs[0].filters) if self.outputs else []
+        return f"<Evaluation {self.scenario.name!r}: {len(self.outputs)} runs of {', '.join(names)}>"
+
+    def columns(self, table: str = "ticks") -> Columns:
+        """One table as columns of numpy arrays: ``"ticks"`` or ``"runs"``."""
+        if table not in self.TABLES:
+            raise UsageError(f"table {table!r}: expected one of {', '.join(self.TABLES)}")
+        return Columns({k: v.copy() for k, v in self._tables[table].items()})
+
+    def to_frame(self, table: str = "ticks"):
+        """One table as a pandas DataFrame, long form: ``sns.lineplot(ev.to_frame(),
+        x="time_s", y="err_pos_m", hue="filter")`` draws each filter's mean error and its
+        95 % band over the runs. Needs pandas."""
+        return _pandas().DataFrame(self.columns(table))
+
+    def to_pandas(self) -> dict[str, Any]:
+        """``{"ticks": DataFrame, "runs": DataFrame}``. Needs pandas."""
+        return {t: self.to_frame(t) for t in self.TABLES}
+
+
+def evaluate(scenario: Scenario | str | Path, filters: Sequence[str | type] | None = None, *,
+             runs: int = 20, seed: int = 0, duration: float | None = None,
+             params: Mapping[str, Mapping[str, Any]] | None = None, jobs: int | None = 1) -> Evaluation:
+    """Monte Carlo, as ``beacon-sim eval``: ``runs`` runs with seeds ``seed, seed + 1, ...``
+    (the same runs as ``eval --runs N --seed S``), returned as tidy tables
+    (:class:`Evaluation`). ``jobs``: processes (1: this one; None: every core)."""
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise UsageError(f"runs={runs!r}: expected a whole number >= 1")
+    seed_checked, duration = _check_run(sc, seed, duration)
+    specs = _specs(filters)
+    plain = _plain_params(params)
+    names = list(sc.default_filters if specs is None else specs)
+    check_param_names(plain, names)
+    outputs = run_monte_carlo(sc, names, runs, seed=int(seed_checked or 0), duration=duration,
+                              jobs=jobs, params=plain, progress=False)
+    return Evaluation(sc, outputs)
 
 
 def load_team_scenario(name_or_path: str | Path) -> TeamScenario:

@@ -20,10 +20,16 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import gymnasium
 import numpy as np
-from gymnasium import spaces
-from gymnasium.error import ResetNeeded
+
+from beacon_sim.core.optional import install_hint
+
+try:
+    import gymnasium
+    from gymnasium import spaces
+    from gymnasium.error import ResetNeeded
+except ImportError as exc:  # one line that says what to install
+    raise ImportError(install_hint("gymnasium", "beacon_sim.gym (the Gymnasium environment)")) from exc
 
 from beacon_sim.core.arguments import check_seed
 from beacon_sim.core.scenario import MAX_TICKS, Scenario, load_scenario

@@ -8,7 +8,7 @@ of the EKF's covariance, so a policy earns more when the filter is surer of the 
 - greedy: drive to the beacon nearest the EKF's estimate (it only uses the filter's belief,
   never the true pose) and circle it at about 1 m, keeping it in view.
 
-Nothing is trained. Run it (``pip install 'beacon-sim[gym]'``)::
+Nothing is trained. Run it (``pip install 'gymnasium'``)::
 
     python examples/gym_policies.py                   # 3 episodes of 30 s each
     python examples/gym_policies.py --render out.png  # also save the greedy run's last frame

@@ -53,7 +53,7 @@ class FoxgloveClient:
     """Connects to ``ws://127.0.0.1:PORT``, reads the advertisements, subscribes to every
     channel and collects decoded messages: ``messages[topic] -> [(log_time ns, dict)]``."""
 
-    def __init__(self, port: int, timeout: float = 30.0):
+    def __init__(self, port: int, timeout: float = 30.0, subprotocol: str = SUBPROTOCOL):
         deadline = time.monotonic() + timeout
         while True:  # the server may still be starting
             try:
@@ -67,7 +67,7 @@ class FoxgloveClient:
         self.sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
                            f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
                            f"Sec-WebSocket-Version: 13\r\n"
-                           f"Sec-WebSocket-Protocol: {SUBPROTOCOL}\r\n\r\n").encode())
+                           f"Sec-WebSocket-Protocol: {subprotocol}\r\n\r\n").encode())
         head = b""
         while b"\r\n\r\n" not in head:
             chunk = self.sock.recv(1)

@@ -102,3 +102,21 @@ def test_foxglove_option_errors_are_one_line(tmp_path, capsys):
     live_run(p, rec, ticks=20)
     assert main(["replay", str(rec), "--headless", "--foxglove"]) == 2
     assert "--foxglove streams the replay window: drop --headless" in capsys.readouterr().err
+
+
+def test_which_clients_connect_by_subprotocol():
+    """The SDK's server speaks ``foxglove.sdk.v1``: a client offering it (today's Foxglove app
+    offers it beside the older name) connects; one offering only ``foxglove.websocket.v1``
+    (older Foxglove Studio releases, Lichtblick) is refused with HTTP 400 (docs/replay.md)."""
+    sc = load_scenario("default")
+    live = LiveFoxglove(sc, ["ekf"], port=0)
+    try:
+        for offered in ("foxglove.sdk.v1", "foxglove.websocket.v1, foxglove.sdk.v1"):
+            client = FoxgloveClient(live.port, timeout=10, subprotocol=offered)
+            client.pump(5, until=lambda c: c.server_info is not None)
+            assert client.server_info["name"] == "beacon-sim default"
+            client.close()
+        with pytest.raises(AssertionError, match="400"):
+            FoxgloveClient(live.port, timeout=10, subprotocol="foxglove.websocket.v1")
+    finally:
+        live.close()

@@ -70,12 +70,14 @@ def test_recording_round_trip(recorded, tmp_path):
     assert main(["export", str(rec_path), "--out", str(out)]) == 0
     summary, msgs = read(out)  # every message decodes with its schema
     # schemas: Foxglove's official ones (protobuf descriptors), ours for the numbers (JSON Schema)
-    assert {s.name for s in summary.schemas.values()} == FOXGLOVE | {"beacon_sim.FilterStats"}
+    ours = {"beacon_sim.FilterStats", "beacon_sim.Readings", "beacon_sim.BoundStats"}
+    assert {s.name for s in summary.schemas.values()} == FOXGLOVE | ours
     for s in summary.schemas.values():
-        assert s.encoding == ("jsonschema" if s.name == "beacon_sim.FilterStats" else "protobuf")
+        assert s.encoding == ("jsonschema" if s.name in ours else "protobuf")
     names = ("ekf", "dead_reckoning")
     topics = {c.topic: c for c in summary.channels.values()}
     assert set(topics) == {"/world", "/truth/pose", "/tf", "/truth/scene", "/trails", "/readings", "/events",
+                           "/readings/values", "/pcrb", "/pcrb/stats",
                            *(f"/filters/{n}/{t}" for n in names for t in ("pose", "scene", "stats"))}
     schema_of = {t: summary.schemas[c.schema_id].name for t, c in topics.items()}
     assert schema_of["/truth/pose"] == schema_of["/filters/ekf/pose"] == "foxglove.PoseInFrame"
@@ -85,7 +87,8 @@ def test_recording_round_trip(recorded, tmp_path):
     counts = {summary.channels[cid].topic: n for cid, n in summary.statistics.channel_message_counts.items()}
     reading_ticks = {s.tick for s in steps if any(len(m) for m in s.measurements)}
     expected = {"/world": 1, "/truth/pose": 161, "/tf": 161, "/truth/scene": 161, "/trails": 161,
-                "/readings": len(reading_ticks), "/events": 3,
+                "/readings": len(reading_ticks), "/readings/values": len(reading_ticks), "/events": 3,
+                "/pcrb": 160, "/pcrb/stats": 160,
                 **{f"/filters/{n}/{t}": 160 for n in names for t in ("pose", "scene", "stats")}}
     assert counts == expected
     assert {t: len(v) for t, v in msgs.items()} == expected
@@ -99,6 +102,15 @@ def test_recording_round_trip(recorded, tmp_path):
             assert stamp_ns(stamp) == log_time, topic
     assert [r[0] for r in msgs["/truth/pose"]] == [k * dt_ns for k in range(161)]
     assert [r[0] for r in msgs["/readings"]] == [k * dt_ns for k in sorted(reading_ticks)]
+    # the readings as numbers, each range and bearing exactly the step's
+    by_tick = {s.tick: s for s in steps}
+    for log_time, _, msg, _ in msgs["/readings/values"]:
+        s = by_tick[log_time // dt_ns]
+        want = [(m.sensor, int(i), float(z[0]), float(z[1])) for m in s.measurements
+                for z, i in zip(m.z, m.beacon_ids, strict=True)]
+        got = [(r["sensor"], r["beacon_id"], r["range_m"], r["bearing_rad"]) for r in msg["readings"]]
+        assert got == want
+        assert all(r["kind"] == "range_bearing" and r["x_m"] is None for r in msg["readings"])
     assert [r[0] // dt_ns for r in msgs["/events"]] == [40, 120, 130]
     assert [r[2]["level"] for r in msgs["/events"]] == ["WARNING"] * 3  # kidnaps: warnings
     assert summary.statistics.message_start_time == 0

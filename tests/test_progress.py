@@ -12,11 +12,30 @@ def test_short_work_prints_nothing(capsys):
     assert capsys.readouterr().err == ""
 
 
-def test_a_long_run_draws_a_bar_that_ends_at_the_total(capsys, monkeypatch):
+class _Terminal:
+    """A stderr that says it is a terminal."""
+
+    def __init__(self):
+        import io
+        self.buf = io.StringIO()
+
+    def isatty(self):
+        return True
+
+    def write(self, text):
+        return self.buf.write(text)
+
+    def flush(self):
+        pass
+
+
+def test_a_long_run_draws_a_bar_that_ends_at_the_total(monkeypatch):
     monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)   # as if every tick took a long time
     monkeypatch.setattr(progress, "REDRAW_EVERY_S", 0.0)
+    term = _Terminal()
+    monkeypatch.setattr("sys.stderr", term)
     run_headless(load_scenario("default"), ["ekf"], duration=2.0, progress=True)
-    err = capsys.readouterr().err
+    err = term.buf.getvalue()
     assert "run default [" in err and err.rstrip().endswith("s")
     assert "40/40 ticks" in err and err.endswith("\n")
 
@@ -25,3 +44,51 @@ def test_disabled_prints_nothing(capsys, monkeypatch):
     monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)
     run_headless(load_scenario("default"), ["ekf"], duration=2.0, progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_off_a_terminal_progress_is_plain_lines(monkeypatch):
+    import io
+
+    monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 0.0)
+    log = io.StringIO()
+    bar = progress.Progress(3, "eval x", True, stream=log)
+    for _ in range(3):
+        bar.advance()
+    lines = log.getvalue().splitlines()
+    assert lines[0].startswith("eval x: 1/3 runs, ") and "eta" in lines[0]
+    assert lines[-1].startswith("eval x: 3/3 runs, ") and lines[-1].endswith("(done)")
+    assert "\r" not in log.getvalue()
+
+
+def _to_a_log_file(path, argv):
+    import contextlib
+
+    from beacon_sim.cli.main import main
+
+    with open(path, "w", encoding="utf-8") as log, contextlib.redirect_stderr(log):
+        code = main(argv)
+    return code, path.read_text(encoding="utf-8").splitlines()
+
+
+def test_eval_and_grade_write_progress_lines_to_a_log_file(tmp_path, monkeypatch):
+    from tests.student_filters import write_class
+
+    monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)   # as if each run took long
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 0.0)
+    code, lines = _to_a_log_file(tmp_path / "eval.log", ["eval", "default", "--filter", "ekf", "--runs", "3",
+                                                          "--duration", "2", "--jobs", "1",
+                                                          "--out", str(tmp_path / "ev")])
+    assert code == 0
+    ours = [ln for ln in lines if ln.startswith("eval default: ")]
+    assert [ln.split(",")[0] for ln in ours] == [f"eval default: {k}/3 runs" for k in (1, 2, 3)]
+    assert ours[-1].endswith("(done)")
+    klass = write_class(tmp_path / "class", ["alice", "bob"])
+    cfg = tmp_path / "grade.toml"
+    cfg.write_text('scenarios = ["default"]\nseeds = [3, 4]\nduration = 2.0\ntime_limit = 5.0\n')
+    code, lines = _to_a_log_file(tmp_path / "grade.log", ["grade", str(klass), "--config", str(cfg),
+                                                           "--out", str(tmp_path / "o"), "--jobs", "1"])
+    ours = [ln for ln in lines if ln.startswith("grade: ")]
+    assert ours and ours[-1].startswith("grade: ") and ours[-1].endswith("(done)")
+    total = ours[-1].split(",")[0].split("/")[1].split()[0]
+    assert ours[-1].startswith(f"grade: {total}/{total} runs")

@@ -22,6 +22,7 @@ import pygame
 
 from beacon_sim.app import palette
 from beacon_sim.core.files import atomic_write
+from beacon_sim.core.optional import install_hint
 
 #: Default: one GIF frame every 6 window frames (10 per second at 60 FPS).
 EVERY = 6
@@ -31,7 +32,7 @@ WIDTH = 640
 MAX_FRAMES = 6000
 #: Palette index kept free for "unchanged since the previous frame".
 TRANSPARENT = 255
-INSTALL_HINT = "--gif needs Pillow: pip install 'beacon-sim[gif]'"
+INSTALL_HINT = install_hint("PIL", "--gif")
 
 
 def pillow_available() -> bool:

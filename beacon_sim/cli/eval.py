@@ -18,6 +18,7 @@ from typing import Any
 
 from beacon_sim.cli.common import check_duration
 from beacon_sim.core.arguments import check_simulated_total
+from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
@@ -162,7 +163,7 @@ def _connect(address: str | None) -> tuple[Any, bool]:
     try:
         import dask.distributed  # noqa: F401
     except ImportError:
-        raise UsageError("--scheduler needs Dask: pip install 'beacon-sim[grade]'") from None
+        raise UsageError(install_hint("dask", "--scheduler")) from None
     try:
         return dask_client(address)
     except (OSError, TimeoutError, ValueError) as exc:

@@ -9,10 +9,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import sys
 import time
 from pathlib import Path
 
+from beacon_sim.core.optional import install_hint
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.grading import (
     SECRET_FILE,
@@ -22,6 +22,7 @@ from beacon_sim.evaluation.grading import (
     read_secret,
     write_outputs,
 )
+from beacon_sim.runs.progress import Progress
 
 
 def grade_command(args: argparse.Namespace) -> int:
@@ -45,16 +46,15 @@ def grade_command(args: argparse.Namespace) -> int:
         try:
             import dask.distributed  # noqa: F401
         except ImportError:
-            raise UsageError("--scheduler needs Dask: pip install 'beacon-sim[grade]'") from None
+            raise UsageError(install_hint("dask", "--scheduler")) from None
     out = Path(args.out) if args.out else Path(args.dir) / "grade_out"
     secret, whence = _secret(args, out)
-    tty = sys.stderr.isatty()
+    bar: list[Progress] = []  # made at the first report, when the total is known
 
     def progress(done: int, total: int) -> None:
-        if tty:
-            sys.stderr.write(f"\rgrade: {done}/{total} runs ")
-            if done == total:
-                sys.stderr.write("\n")
+        if not bar:
+            bar.append(Progress(total, "grade", True))
+        bar[0].update(done)
 
     t0 = time.perf_counter()
     try:

@@ -122,10 +122,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "whole recording) beside the filtered ones (docs/smoothing.md)")
     add_foxglove_option(p, "the replay window's session")
 
-    p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv) or "
-                                      "MCAP for Foxglove (.mcap)")
+    p = sub.add_parser("export", help="a recording or a headless run as arrays (.npz, .csv), "
+                                      "MCAP for Foxglove (.mcap) or a ROS 2 bag (--ros2)")
     p.add_argument("file", metavar="FILE", help="a recording (.jsonl) or a scenario (name or .toml)")
-    p.add_argument("--out", required=True, metavar="PATH", help="run.npz, run.csv or run.mcap")
+    p.add_argument("--out", required=True, metavar="PATH",
+                   help="run.npz, run.csv or run.mcap; with --ros2 run.mcap or run.db3 (the bag folder run/)")
+    p.add_argument("--ros2", action="store_true",
+                   help="a ROS 2 bag (standard messages, frames map/odom/base_link; docs/replay.md) "
+                        "in MCAP (.mcap) or SQLite 3 (.db3) storage; needs rosbags")
     add_filter_options(p)
     p.add_argument("--seed", type=int, help="a scenario's seed (default: the scenario's)")
     p.add_argument("--duration", type=float, metavar="S", help="a scenario: seconds to simulate")

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_sensor_notes
+from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import load_any_scenario
 from beacon_sim.errors import UsageError
@@ -105,7 +106,7 @@ def check_foxglove(args: argparse.Namespace) -> int | None:
     try:
         import foxglove  # noqa: F401
     except ImportError:
-        raise UsageError("--foxglove needs foxglove-sdk: pip install 'beacon-sim[mcap]'") from None
+        raise UsageError(install_hint("foxglove", "--foxglove")) from None
     return port
 
 
@@ -124,4 +125,4 @@ def check_gif(path: str | None) -> None:
     try:
         import PIL  # noqa: F401
     except ImportError:
-        raise UsageError("--gif needs Pillow: pip install 'beacon-sim[gif]'") from None
+        raise UsageError(install_hint("PIL", "--gif")) from None

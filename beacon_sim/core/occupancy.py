@@ -8,8 +8,9 @@ map_server. Row 0 is the bottom row (the image's last line), as in ``nav_msgs/Oc
 Cell values are trinary like map_server's default mode: ``FREE`` (0), ``OCCUPIED`` (100),
 ``UNKNOWN`` (-1).
 
-The map_server YAML read here is its flat subset (``key: value`` lines, ``#`` comments,
-``origin: [x, y, yaw]``), parsed by hand so the basic install needs no YAML library. PGM
+The map_server YAML is read with PyYAML when it is installed (the ``maps`` extra: any valid
+YAML), else its flat subset (``key: value`` lines, ``#`` comments, ``origin: [x, y, yaw]``)
+by hand, so the basic install needs no YAML library. PGM
 images (P5 binary and P2 ASCII, 8 or 16 bit) are read and written with numpy; PNG needs
 Pillow (the ``gif`` extra) and says so in one line when it is absent.
 """
@@ -29,6 +30,7 @@ import numpy as np
 
 from beacon_sim.core import portable_math as pm
 from beacon_sim.core.files import atomic_write, read_user_bytes, read_user_text, write_text_atomic
+from beacon_sim.core.optional import install_hint, optional
 from beacon_sim.core.types import read_only
 from beacon_sim.errors import BeaconSimError
 
@@ -320,6 +322,8 @@ def _parse_scalar(text: str):
     text = text.strip()
     if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
         return text[1:-1]
+    if text in ("true", "True", "false", "False"):
+        return text.lower() == "true"
     try:
         return int(text)
     except ValueError:
@@ -330,16 +334,54 @@ def _parse_scalar(text: str):
         return text
 
 
+#: The keys whose values are numbers (a YAML 1.1 reader takes ``5e-2``, no dot, as a string).
+_NUMBER_KEYS = ("resolution", "occupied_thresh", "free_thresh", "negate")
+
+
 def parse_map_yaml(text: str, source: str) -> dict:
-    """The flat ``key: value`` mapping of a map_server YAML text (``source`` names it in errors)."""
+    """The mapping of a map_server YAML text (``source`` names it in errors).
+
+    With PyYAML installed (the ``maps`` extra), any valid YAML: a leading ``---``, an origin
+    as a block list, ``negate: false``, a one-line ``{...}`` mapping. Without it, the flat
+    subset map_server writes (:func:`parse_flat_map_yaml`); both give the same mapping for
+    that subset (tests/test_map_yaml.py).
+    """
+    yaml = optional("yaml")
+    if yaml is None:
+        return parse_flat_map_yaml(text, source)
+    try:
+        meta = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}: " if mark is not None else ""
+        why = " ".join(str(getattr(exc, "problem", None) or exc).split())
+        raise MapError(f"{source}: {where}not valid YAML: {why}") from None
+    if not isinstance(meta, dict):
+        raise MapError(f"{source}: expected a mapping of 'key: value' lines, got {type(meta).__name__}")
+    out = {str(k): v for k, v in meta.items()}
+    for key in _NUMBER_KEYS:
+        value = out.get(key)
+        if isinstance(value, str):
+            out[key] = _parse_scalar(value)
+    if isinstance(out.get("origin"), list):
+        out["origin"] = [_parse_scalar(v) if isinstance(v, str) else v for v in out["origin"]]
+    return out
+
+
+def parse_flat_map_yaml(text: str, source: str) -> dict:
+    """The flat ``key: value`` mapping of a map_server YAML text, read by hand (the base
+    install's reader): ``key: value`` lines, ``#`` comments, ``[a, b, c]`` lists, a leading
+    ``---``; a line it cannot read is an error naming the line and PyYAML."""
     out: dict = {}
     for number, raw in enumerate(text.splitlines(), start=1):
         line = re.sub(r"\s+#.*$", "", raw).strip() if not raw.lstrip().startswith("#") else ""
-        if not line:
+        if not line or (line in ("---", "...") and not out):
             continue
         key, sep, value = line.partition(":")
-        if not sep or not key.strip():
-            raise MapError(f"{source}: line {number}: expected 'key: value', got {raw.strip()!r}")
+        if not sep or not re.fullmatch(r"[A-Za-z_][\w.-]*", key.strip()):
+            raise MapError(f"{source}: line {number}: expected 'key: value', got {raw.strip()!r} "
+                           f"(this reader takes map_server's flat form; for any YAML: "
+                           f"{install_hint('yaml', 'reading it')})")
         out[key.strip()] = _parse_value(value)
     return out
 
@@ -466,7 +508,7 @@ def _read_png(path: Path) -> np.ndarray:
     try:
         from PIL import Image
     except ImportError:
-        raise MapError(f"{path}: reading PNG maps needs Pillow (pip install 'beacon-sim[gif]'), "
+        raise MapError(f"{path}: {install_hint('PIL', 'reading PNG maps')}, "
                        "or convert the image to PGM") from None
     data = read_user_bytes(path, what="map image", cap=MAX_PNG_BYTES, error=MapError)
     w, h = png_size(data, str(path))

@@ -20,7 +20,6 @@ over N robots (``runs.headless.run_headless``), reduced per robot to the single-
 from __future__ import annotations
 
 import os
-import sys
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -703,8 +702,8 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
     jobs = min(jobs, runs)
     params = params or {}
-    if progress is None:
-        progress = sys.stderr.isatty()
+    if progress is None:  # a bar on a terminal, periodic lines in a log (runs/progress.py)
+        progress = True
     bar = Progress(runs, f"eval {scenario.name}", progress)
     out: list[RunOutput | None] = [None] * runs
     if batch is not False:

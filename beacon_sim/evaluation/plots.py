@@ -15,9 +15,10 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.files import atomic_output
+from beacon_sim.core.optional import install_hint
 from beacon_sim.runs.styles import BOUND_STYLE, filter_styles, hex_colour, plot_linestyle
 
-INSTALL_HINT = "plots skipped: matplotlib is not installed (pip install 'beacon-sim[plot]')"
+INSTALL_HINT = "plots skipped: " + install_hint("matplotlib", "drawing plots")
 
 
 def available() -> bool:

@@ -16,8 +16,8 @@ topic                            schema                      one message
 ``/filters/NAME/scene``          foxglove.SceneUpdate        same ticks: the estimate as an arrow
                                                              in the filter's colour, its 95 % x-y
                                                              ellipse, the covariance in metadata
-``/filters/NAME/stats``          beacon_sim.FilterStats      same ticks: error, sigma, NEES (JSON;
-                                                             for the Plot panel)
+``/filters/NAME/stats``          beacon_sim.FilterStats      same ticks: error, sigma, NEES, the
+                                                             covariance (JSON; for the Plot panel)
 ``/trails``                      foxglove.SceneUpdate        per tick: the paths so far, truth and
                                                              each filter in its colour
 ``/readings``                    foxglove.SceneUpdate        per tick with readings: rays from the
@@ -31,6 +31,21 @@ topic                            schema                      one message
                                                              ranges [m], first / last beam angle
                                                              [rad], the true pose as the origin
 ``/events``                      foxglove.Log                per event and per filter switched off
+``/filters/NAME/particles``      foxglove.PosesInFrame       per tick, a particle filter: at most
+                                                             :data:`MAX_PARTICLES_SHOWN` particles
+                                                             drawn systematically by weight (the
+                                                             counts on ``/filters/NAME/stats``)
+``/filters/NAME/grid``           foxglove.Grid               per tick, a grid filter: the x-y
+                                                             probability (one FLOAT32 field
+                                                             ``probability``, heading summed out)
+``/filters/NAME/map``            foxglove.SceneUpdate        per tick, a SLAM filter: each landmark
+                                                             (a sphere, its label) and its 95 %
+                                                             ellipse; the numbers in metadata
+``/pcrb``                        foxglove.SceneUpdate        per tick when the bound is given: the
+                                                             PCRB's 95 % x-y ellipse on the truth
+``/pcrb/stats``                  beacon_sim.BoundStats       same ticks: its sigmas and covariance
+``/readings/values``             beacon_sim.Readings         per tick with landmark readings: each
+                                                             reading's numbers (JSON, plottable)
 ===============================  ==========================  ======================================
 
 Frame ``world`` is the simulation's world frame (x right, y up, metres; z = 0 the floor); a
@@ -43,15 +58,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.metrics import pose_errors
+from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.filters.base import GridBelief, LandmarkMap, ParticleBelief
+from beacon_sim.io.tables import COV_COLUMNS, UPPER, Z_COLUMNS
 
-INSTALL_HINT = "Foxglove output needs the foxglove-sdk package: pip install 'beacon-sim[mcap]'"
+INSTALL_HINT = install_hint("foxglove")
 FRAME = "world"
 ROBOT_FRAME = "robot"
 #: The 95 % x-y ellipse: sqrt of the chi-square quantile for 2 degrees of freedom.
@@ -66,7 +85,41 @@ READING_COLOUR = (0.9, 0.6, 0.0)
 TRAIL_PIECE = 50
 #: The numbers of ``/filters/NAME/stats`` (beacon_sim.FilterStats), with their units.
 STATS_FIELDS = ("err_x_m", "err_y_m", "err_theta_rad", "err_pos_m", "sigma_x_m", "sigma_y_m",
-                "sigma_theta_rad", "nees")
+                "sigma_theta_rad", "nees", *COV_COLUMNS)
+#: The most particles ``/filters/NAME/particles`` carries per tick.
+MAX_PARTICLES_SHOWN = 500
+BOUND_COLOUR = (0.35, 0.35, 0.35)
+#: The numbers of ``/pcrb/stats`` (beacon_sim.BoundStats).
+BOUND_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_theta_rad", "sigma_pos_m", *COV_COLUMNS)
+_STAMP = {"type": "object", "properties": {"sec": {"type": "integer", "minimum": 0},
+                                          "nsec": {"type": "integer", "minimum": 0}},
+          "required": ["sec", "nsec"]}
+BOUND_SCHEMA: dict[str, Any] = {
+    "title": "beacon_sim.BoundStats", "type": "object",
+    "description": "The posterior Cramer-Rao bound at one tick: no unbiased estimator's error "
+                   "covariance is smaller. sigma_pos_m: sqrt of the x-y block's largest eigenvalue",
+    "properties": {"timestamp": _STAMP, "tick": {"type": "integer", "minimum": 0},
+                   **{f: {"type": ["number", "null"]} for f in BOUND_FIELDS}},
+    "required": ["timestamp", "tick", *BOUND_FIELDS],
+}
+#: A reading's numbers on ``/readings/values`` (null where its kind has none).
+READING_FIELDS = ("range_m", "bearing_rad", "x_m", "y_m", "theta_rad")
+READINGS_SCHEMA: dict[str, Any] = {
+    "title": "beacon_sim.Readings", "type": "object",
+    "description": "One tick's landmark readings (range finder scans are on /scan/SENSOR): "
+                   "sensor, kind, beacon ID (-1 for a fix or an unknown ID) and the numbers, "
+                   "robot frame for range and bearing, world frame for a fix",
+    "properties": {
+        "timestamp": _STAMP, "tick": {"type": "integer", "minimum": 0},
+        "readings": {"type": "array", "items": {
+            "type": "object",
+            "properties": {"sensor": {"type": "string"}, "kind": {"type": "string"},
+                           "beacon_id": {"type": "integer"},
+                           **{f: {"type": ["number", "null"]} for f in READING_FIELDS}},
+            "required": ["sensor", "kind", "beacon_id", *READING_FIELDS]}},
+    },
+    "required": ["timestamp", "tick", "readings"],
+}
 STATS_SCHEMA: dict[str, Any] = {
     "title": "beacon_sim.FilterStats", "type": "object",
     "description": "A filter's estimate against the truth at one tick: error (estimate - truth, "
@@ -78,6 +131,10 @@ STATS_SCHEMA: dict[str, Any] = {
                       "required": ["sec", "nsec"]},
         "tick": {"type": "integer", "minimum": 0},
         **{f: {"type": ["number", "null"]} for f in STATS_FIELDS},
+        "particles_total": {"type": "integer", "minimum": 0,
+                            "description": "a particle filter: its particle count"},
+        "particles_shown": {"type": "integer", "minimum": 0,
+                            "description": "a particle filter: how many /filters/NAME/particles carries"},
     },
     "required": ["timestamp", "tick", *STATS_FIELDS],
 }
@@ -112,7 +169,78 @@ def filter_stats(mean: np.ndarray, cov: np.ndarray, truth: np.ndarray) -> dict[s
                                     "err_pos_m": float(np.hypot(err[0], err[1]))}
     out.update({"sigma_x_m": float(sig[0]), "sigma_y_m": float(sig[1]), "sigma_theta_rad": float(sig[2]),
                 "nees": nees})
+    cov = np.asarray(cov, dtype=float)
+    out.update({c: float(cov[i, j]) for c, (i, j) in zip(COV_COLUMNS, UPPER, strict=True)})
     return {k: (v if v is None or math.isfinite(v) else None) for k, v in out.items()}
+
+
+#: The JSON topics' schemas, by the kind :meth:`Publisher.channel` takes.
+JSON_SCHEMAS = {"stats": STATS_SCHEMA, "bound": BOUND_SCHEMA, "readings": READINGS_SCHEMA}
+
+
+def shown_particles(poses: np.ndarray, weights: np.ndarray, most: int = MAX_PARTICLES_SHOWN) -> np.ndarray:
+    """At most ``most`` of the particles ``poses`` (N, 3): all when N <= ``most``, else a
+    systematic draw by ``weights`` (the offsets (k + 1/2) / most: deterministic, no random
+    numbers used), so the cloud shown has the belief's shape."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    if len(poses) <= most:
+        return poses.copy()
+    w = np.asarray(weights, dtype=float).reshape(-1)
+    c = np.cumsum(w)
+    idx = np.searchsorted(c, (np.arange(most) + 0.5) / most * c[-1])
+    return poses[np.minimum(idx, len(poses) - 1)]
+
+
+@dataclass(frozen=True)
+class BeliefFrame:
+    """What one tick shows beyond the estimates, as the window draws it.
+
+    particles : name -> (shown poses (K, 3) [m, m, rad], the filter's particle count N)
+    grids : name -> the x-y probability of a grid filter
+    landmarks : name -> a SLAM filter's map
+    bound : the PCRB (3, 3) [m^2, m^2, rad^2] at this tick, or None
+    """
+
+    particles: Mapping[str, tuple[np.ndarray, int]] = field(default_factory=dict)
+    grids: Mapping[str, GridBelief] = field(default_factory=dict)
+    landmarks: Mapping[str, LandmarkMap] = field(default_factory=dict)
+    bound: np.ndarray | None = None
+
+
+def belief_frame(beliefs: Mapping[str, Any], landmarks: Mapping[str, Any] | None = None,
+                 bound: np.ndarray | None = None) -> BeliefFrame:
+    """A :class:`BeliefFrame` from each filter's ``belief()`` (None or a Gaussian: nothing
+    beyond the estimate) and SLAM filters' ``landmarks()``; particles subsampled now
+    (:func:`shown_particles`), so a frame kept for an export stays small."""
+    particles: dict[str, tuple[np.ndarray, int]] = {}
+    grids: dict[str, GridBelief] = {}
+    for name, bel in beliefs.items():
+        if isinstance(bel, ParticleBelief):
+            particles[name] = (shown_particles(bel.poses, bel.weights), len(bel.poses))
+        elif isinstance(bel, GridBelief):
+            grids[name] = GridBelief(np.asarray(bel.prob, dtype=np.float32).copy(),
+                                     (float(bel.origin[0]), float(bel.origin[1])), float(bel.cell))
+    maps = {n: lm for n, lm in (landmarks or {}).items() if isinstance(lm, LandmarkMap)}
+    return BeliefFrame(particles, grids, maps, None if bound is None else np.asarray(bound, dtype=float))
+
+
+def read_frame(tracks: Mapping[str, Any], bound: np.ndarray | None = None) -> BeliefFrame:
+    """The :class:`BeliefFrame` of a runner's ``tracks`` now: each running filter's
+    ``belief()`` and (SLAM) ``landmarks()``; a filter whose call raises shows nothing more
+    this tick (the run itself decides whether it goes on)."""
+    beliefs: dict[str, Any] = {}
+    maps: dict[str, Any] = {}
+    for name, tr in tracks.items():
+        flt = getattr(tr, "filter", None)
+        if flt is None or getattr(tr, "failed", None):
+            continue
+        try:
+            beliefs[name] = flt.belief()
+            if callable(getattr(flt, "landmarks", None)):
+                maps[name] = flt.landmarks()
+        except Exception:  # a student's belief(): the estimate still goes out
+            continue
+    return belief_frame(beliefs, maps, bound)
 
 
 class Publisher:
@@ -140,19 +268,21 @@ class Publisher:
     # -- channels ---------------------------------------------------------------------------
     def channel(self, topic: str, kind: str) -> Any:
         """The channel of ``topic``, created on first use: ``kind`` is a foxglove.channels
-        name without ``Channel`` (``"SceneUpdate"``) or ``"stats"`` (JSON)."""
+        name without ``Channel`` (``"SceneUpdate"``) or a key of :data:`JSON_SCHEMAS` (JSON)."""
         ch = self._channels.get(topic)
         if ch is None:
-            if kind == "stats":
-                ch = self.fox.Channel(topic, schema=STATS_SCHEMA, context=self.context)
+            if kind in JSON_SCHEMAS:
+                ch = self.fox.Channel(topic, schema=JSON_SCHEMAS[kind], context=self.context)
             else:
                 ch = getattr(self.ch, f"{kind}Channel")(topic, context=self.context)
             self._channels[topic] = ch
         return ch
 
-    def declare(self) -> None:
+    def declare(self, frame: BeliefFrame | None = None) -> None:
         """Create every topic's channel now (a live server advertises them before the first
-        tick, so a client subscribes in time); an MCAP file creates them on first use."""
+        tick, so a client subscribes in time); an MCAP file creates them on first use.
+        ``frame``: a first :class:`BeliefFrame`, for the particle, grid, map and bound topics
+        it has."""
         for topic, kind in (("/world", "SceneUpdate"), ("/truth/pose", "PoseInFrame"),
                             ("/tf", "FrameTransform"), ("/truth/scene", "SceneUpdate"),
                             ("/trails", "SceneUpdate"), ("/readings", "SceneUpdate"), ("/events", "Log")):
@@ -165,6 +295,23 @@ class Publisher:
             self.channel(f"/filters/{name}/pose", "PoseInFrame")
             self.channel(f"/filters/{name}/scene", "SceneUpdate")
             self.channel(f"/filters/{name}/stats", "stats")
+        if any(s.kind != "range_finder" for s in self.scenario.sensors):
+            self.channel("/readings/values", "readings")
+        if frame is not None:
+            for name in frame.particles:
+                self.channel(f"/filters/{name}/particles", "PosesInFrame")
+            for name in frame.grids:
+                self.channel(f"/filters/{name}/grid", "Grid")
+            for name in frame.landmarks:
+                self.channel(f"/filters/{name}/map", "SceneUpdate")
+            if frame.bound is not None:
+                self.channel("/pcrb", "SceneUpdate")
+                self.channel("/pcrb/stats", "bound")
+
+    @property
+    def topics(self) -> list[str]:
+        """The topics with a channel so far."""
+        return list(self._channels)
 
     def close(self) -> None:
         for ch in self._channels.values():
@@ -258,10 +405,12 @@ class Publisher:
     def tick(self, tick: int, truth: np.ndarray,
              estimates: Mapping[str, tuple[np.ndarray, np.ndarray] | None],
              readings: Sequence[tuple[str, str, np.ndarray, int]] = (),
-             events: Sequence[tuple[str, str]] = ()) -> None:
+             events: Sequence[tuple[str, str]] = (), frame: BeliefFrame | None = None) -> None:
         """One tick: the true pose [m, m, rad], each filter's ``(mean, cov)`` (None: no
-        estimate this tick), the readings as ``(sensor, kind, z row, beacon id)`` and the
-        events as ``(kind, detail)``."""
+        estimate this tick), the readings as ``(sensor, kind, z row, beacon id)``, the
+        events as ``(kind, detail)`` and what the window draws beyond the estimates
+        (``frame``: particles, grids, SLAM maps, the PCRB)."""
+        frame = frame or BeliefFrame()
         m = self.msg
         ns = tick * self.dt_ns
         if tick <= self._last_tick:
@@ -291,9 +440,11 @@ class Publisher:
             self.channel(f"/filters/{name}/scene", "SceneUpdate").log(
                 m.SceneUpdate(entities=[self._estimate_entity(ns, name, mean, cov, rgb, length)]),
                 log_time=ns)
-            self.channel(f"/filters/{name}/stats", "stats").log(
-                {"timestamp": {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}, "tick": int(tick),
-                 **filter_stats(mean, cov, truth)}, log_time=ns)
+            stats = {"timestamp": self._stamp(ns), "tick": int(tick), **filter_stats(mean, cov, truth)}
+            if name in frame.particles:
+                stats["particles_total"] = frame.particles[name][1]
+                stats["particles_shown"] = len(frame.particles[name][0])
+            self.channel(f"/filters/{name}/stats", "stats").log(stats, log_time=ns)
             trail_entities.append(self._trail(name, ns, mean[0], mean[1], rgb))
         self.channel("/trails", "SceneUpdate").log(m.SceneUpdate(entities=trail_entities), log_time=ns)
         scans: dict[str, list] = {}
@@ -307,9 +458,98 @@ class Publisher:
             self.channel(f"/scan/{sensor}", "LaserScan").log(self._laser_scan(ns, truth, beams), log_time=ns)
         if others:
             self.channel("/readings", "SceneUpdate").log(self._readings(ns, truth, others), log_time=ns)
+            self.channel("/readings/values", "readings").log(self._reading_values(ns, tick, others),
+                                                             log_time=ns)
+        self._beliefs(ns, tick, truth, frame)
         for kind, detail in events:
             self.log_event(ns, "events", f"{kind}: {detail}" if detail else kind,
                            m.LogLevel.Warning if kind == "kidnap" else m.LogLevel.Info)
+
+    def _stamp(self, ns: int) -> dict[str, int]:
+        return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+
+    def _reading_values(self, ns: int, tick: int, rows: Sequence[tuple[str, str, np.ndarray, int]]) -> dict:
+        """``/readings/values``: each reading's numbers by name (the readings table's columns)."""
+        out = []
+        for sensor, kind, z, bid in rows:
+            vals: dict[str, float | None] = dict.fromkeys(READING_FIELDS)
+            for j, col in enumerate(Z_COLUMNS.get(kind, ())):
+                v = float(z[j])
+                vals[col] = v if math.isfinite(v) else None
+            out.append({"sensor": str(sensor), "kind": str(kind), "beacon_id": int(bid), **vals})
+        return {"timestamp": self._stamp(ns), "tick": int(tick), "readings": out}
+
+    def _beliefs(self, ns: int, tick: int, truth: np.ndarray, frame: BeliefFrame) -> None:
+        """The particle clouds, grid beliefs, SLAM maps and the PCRB of one tick."""
+        m = self.msg
+        for name, (poses, _) in frame.particles.items():
+            self.channel(f"/filters/{name}/particles", "PosesInFrame").log(m.PosesInFrame(
+                timestamp=self._time(ns), frame_id=FRAME,
+                poses=[self._pose(p[0], p[1], float(p[2])) for p in poses]), log_time=ns)
+        for name, grid in frame.grids.items():
+            self.channel(f"/filters/{name}/grid", "Grid").log(self._belief_grid(ns, grid), log_time=ns)
+        for name, lm in frame.landmarks.items():
+            i = self.names.index(name) if name in self.names else 0
+            self.channel(f"/filters/{name}/map", "SceneUpdate").log(
+                m.SceneUpdate(entities=[self._landmark_entity(ns, name, lm, colour_of(i))]), log_time=ns)
+        if frame.bound is not None:
+            P = np.asarray(frame.bound, dtype=float)
+            ellipse = self._ellipse(float(truth[0]), float(truth[1]), P[:2, :2], BOUND_COLOUR, 0.25, z=0.005)
+            self.channel("/pcrb", "SceneUpdate").log(m.SceneUpdate(entities=[
+                self._entity(ns, "pcrb/ellipse", spheres=[ellipse])]), log_time=ns)
+            with np.errstate(all="ignore"):
+                pos = float(np.sqrt(max(float(np.linalg.eigvalsh(0.5 * (P[:2, :2] + P[:2, :2].T))[-1]), 0.0)))
+            nums = {"sigma_x_m": math.sqrt(max(P[0, 0], 0.0)), "sigma_y_m": math.sqrt(max(P[1, 1], 0.0)),
+                    "sigma_theta_rad": math.sqrt(max(P[2, 2], 0.0)), "sigma_pos_m": pos,
+                    **{c: float(P[i, j]) for c, (i, j) in zip(COV_COLUMNS, UPPER, strict=True)}}
+            self.channel("/pcrb/stats", "bound").log(
+                {"timestamp": self._stamp(ns), "tick": int(tick),
+                 **{k: (v if math.isfinite(v) else None) for k, v in nums.items()}}, log_time=ns)
+
+    def _belief_grid(self, ns: int, grid: GridBelief):
+        """A grid belief as a foxglove.Grid: one FLOAT32 cell ``probability`` each, rows along
+        +y (row j = the cells ``[ymin + j cell, ...)``), columns along +x, the pose its corner."""
+        m = self.msg
+        prob = np.asarray(grid.prob, dtype="<f4")  # (nx, ny)
+        nx = prob.shape[0]
+        return m.Grid(timestamp=self._time(ns), frame_id=FRAME,
+                      pose=self._pose(grid.origin[0], grid.origin[1], 0.0, z=-0.01), column_count=int(nx),
+                      cell_size=m.Vector2(x=float(grid.cell), y=float(grid.cell)),
+                      row_stride=int(nx) * 4, cell_stride=4,
+                      fields=[m.PackedElementField(name="probability", offset=0,
+                                                   type=m.PackedElementFieldNumericType.Float32)],
+                      data=np.ascontiguousarray(prob.T).tobytes())
+
+    def _ellipse(self, x: float, y: float, cov2: np.ndarray, rgb: tuple[float, float, float], alpha: float,
+                 z: float = 0.0):
+        """The 95 % ellipse of the x-y covariance ``cov2`` (2, 2) [m^2] at (x, y): a flat sphere."""
+        m = self.msg
+        with np.errstate(all="ignore"):
+            vals, vecs = np.linalg.eigh(0.5 * (cov2 + cov2.T))
+        vals = np.nan_to_num(np.clip(vals, 0.0, None))
+        angle = math.atan2(vecs[1, 1], vecs[0, 1]) if np.all(np.isfinite(vecs)) else 0.0
+        size = m.Vector3(x=2 * ELLIPSE_SCALE * math.sqrt(vals[1]), y=2 * ELLIPSE_SCALE * math.sqrt(vals[0]),
+                         z=0.01)
+        return m.SpherePrimitive(pose=self._pose(x, y, angle, z=z), size=size, color=self._colour(rgb, alpha))
+
+    def _landmark_entity(self, ns: int, name: str, lm: LandmarkMap, rgb: tuple[float, float, float]):
+        """A SLAM map: per landmark a small sphere at its mean, its 95 % ellipse and a label
+        (``L<beacon id>``, or ``L<row>`` without IDs); each landmark's mean and covariance
+        (``landmark_K`` -> ``id x y cov_xx cov_xy cov_yy``) in the metadata."""
+        m = self.msg
+        means = np.asarray(lm.means, dtype=float).reshape(-1, 2)
+        covs = np.asarray(lm.covs, dtype=float).reshape(-1, 2, 2)
+        ids = list(range(len(means))) if lm.ids is None else [int(v) for v in lm.ids]
+        spheres, texts, meta = [], [], []
+        for k, ((x, y), c) in enumerate(zip(means, covs, strict=True)):
+            spheres.append(m.SpherePrimitive(pose=self._pose(x, y, z=0.1),
+                                             size=m.Vector3(x=0.12, y=0.12, z=0.12), color=self._colour(rgb)))
+            spheres.append(self._ellipse(float(x), float(y), c, rgb, 0.3, z=0.02))
+            texts.append(m.TextPrimitive(pose=self._pose(x, y, z=0.3), billboard=True, font_size=12.0,
+                                         scale_invariant=True, color=self._colour(rgb), text=f"L{ids[k]}"))
+            meta.append(m.KeyValuePair(key=f"landmark_{k}", value=" ".join(
+                [str(ids[k])] + [repr(float(v)) for v in (x, y, c[0, 0], c[0, 1], c[1, 1])])))
+        return self._entity(ns, f"{name}/landmarks", metadata=meta, spheres=spheres, texts=texts)
 
     def log_event(self, ns: int, name: str, text: str, level: Any = None) -> None:
         m = self.msg
@@ -326,18 +566,11 @@ class Publisher:
         """The estimate as an arrow and its 95 % x-y ellipse (a flat sphere); the covariance
         (row-major, [m^2, m^2 rad, rad^2]) and the 2-sigma heading in the metadata."""
         m = self.msg
-        with np.errstate(all="ignore"):
-            vals, vecs = np.linalg.eigh(0.5 * (cov[:2, :2] + cov[:2, :2].T))
-        vals = np.nan_to_num(np.clip(vals, 0.0, None))
-        angle = math.atan2(vecs[1, 1], vecs[0, 1]) if np.all(np.isfinite(vecs)) else 0.0
-        size = m.Vector3(x=2 * ELLIPSE_SCALE * math.sqrt(vals[1]), y=2 * ELLIPSE_SCALE * math.sqrt(vals[0]),
-                         z=0.01)
         meta = [m.KeyValuePair(key=f"cov_{a}{b}", value=repr(float(cov[i, j])))
                 for i, a in enumerate("xyt") for j, b in enumerate("xyt")]
         meta.append(m.KeyValuePair(key="heading_2sigma_rad",
                                    value=repr(2 * math.sqrt(max(float(np.nan_to_num(cov[2, 2])), 0.0)))))
-        ellipse = m.SpherePrimitive(pose=self._pose(mean[0], mean[1], angle), size=size,
-                                    color=self._colour(rgb, 0.35))
+        ellipse = self._ellipse(float(mean[0]), float(mean[1]), cov[:2, :2], rgb, 0.35)
         return self._entity(ns, f"{name}/estimate", metadata=meta, spheres=[ellipse],
                             arrows=[self._arrow(mean, rgb, length)])
 
@@ -394,3 +627,59 @@ class Publisher:
             entities.append(self._entity(ns, f"readings/{sensor}", self.periods_ns.get(sensor, 0),
                                          lines=lines, spheres=prims["spheres"]))
         return m.SceneUpdate(entities=entities)
+
+
+def layout(topics: Sequence[str], filter_names: Sequence[str]) -> dict[str, Any]:
+    """A Foxglove app layout (Layouts > Import from file) for a run with these ``topics``:
+    a 3D panel in frame ``world`` showing every scene, pose, grid, scan and particle topic;
+    Plot panels of each filter's x error against its sigma, the position error against the
+    PCRB's sigma, and the NEES; a Log panel on ``/events``. A panel names only topics the
+    run has."""
+    topics = list(topics)
+    three_d: dict[str, Any] = {}
+    for t in topics:
+        if t.endswith("/stats") or t in ("/events", "/readings/values"):
+            continue
+        cfg: dict[str, Any] = {"visible": True}
+        if t.endswith("/grid"):
+            cfg.update({"colorField": "probability", "colorMode": "colormap", "colorMap": "turbo"})
+        elif t == "/map":
+            cfg.update({"colorField": "occupancy", "colorMode": "colormap", "colorMap": "rainbow"})
+        elif t.endswith("/particles"):
+            cfg.update({"type": "arrow", "arrowScale": [0.15, 0.03, 0.03]})
+        three_d[t] = cfg
+
+    def series(path: str, label: str) -> dict[str, Any]:
+        return {"value": path, "enabled": True, "timestampMethod": "receiveTime", "label": label}
+
+    names = [n for n in filter_names if f"/filters/{n}/stats" in topics]
+    err_x = [s for n in names for s in (series(f"/filters/{n}/stats.err_x_m", f"{n} error x [m]"),
+                                        series(f"/filters/{n}/stats.sigma_x_m", f"{n} sigma x [m]"))]
+    pos = [series(f"/filters/{n}/stats.err_pos_m", f"{n} position error [m]") for n in names]
+    if "/pcrb/stats" in topics:
+        pos.append(series("/pcrb/stats.sigma_pos_m", "PCRB sigma [m]"))
+    nees = [series(f"/filters/{n}/stats.nees", f"{n} NEES") for n in names]
+
+    def plot(title: str, paths: list) -> dict[str, Any]:
+        return {"title": title, "paths": paths, "showLegend": True, "legendDisplay": "floating",
+                "showXAxisLabels": True, "showYAxisLabels": True, "xAxisVal": "timestamp", "isSynced": True}
+
+    return {
+        "configById": {
+            "3D!beacon": {"followTf": FRAME, "followMode": "follow-none", "topics": three_d,
+                          "cameraState": {"perspective": False, "distance": 30, "phi": 0, "thetaOffset": 90,
+                                          "targetOffset": [0, 0, 0]}},
+            "Plot!error": plot("x error and sigma", err_x),
+            "Plot!position": plot("position error and the PCRB", pos),
+            "Plot!nees": plot("NEES", nees),
+            "Log!events": {"topicToRender": "/events", "minLogLevel": 1, "searchTerms": []},
+        },
+        "globalVariables": {}, "userNodes": {}, "playbackConfig": {"speed": 1},
+        "layout": {"direction": "row", "splitPercentage": 60, "first": "3D!beacon",
+                   "second": {"direction": "column", "splitPercentage": 75,
+                              "first": {"direction": "column", "splitPercentage": 33,
+                                        "first": "Plot!error",
+                                        "second": {"direction": "column", "first": "Plot!position",
+                                                   "second": "Plot!nees"}},
+                              "second": "Log!events"}},
+    }

@@ -10,6 +10,7 @@ same numbers; a metadata record ``beacon-sim`` holds the scenario, dt, seed and 
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -17,20 +18,25 @@ from typing import BinaryIO
 
 import numpy as np
 
-from beacon_sim.core.files import atomic_output
+from beacon_sim.core.files import atomic_output, write_text_atomic
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.errors import BeaconSimError
-from beacon_sim.io.foxglove import INSTALL_HINT, Publisher, foxglove_modules
+from beacon_sim.io.foxglove import INSTALL_HINT, BeliefFrame, Publisher, foxglove_modules, layout
 from beacon_sim.io.tables import prefixed, reading_matrix, upgrade_arrays
 
 __all__ = ["INSTALL_HINT", "write_mcap"]
 
 
 def write_mcap(path: Path | str, scenario: Scenario, arrays: Mapping[str, np.ndarray],
-               metadata: Mapping[str, str] | None = None) -> Path:
+               metadata: Mapping[str, str] | None = None,
+               frames: Mapping[int, BeliefFrame] | None = None) -> Path:
     """Write the run in ``arrays`` (step arrays, plus filter arrays when filters ran) to an
     MCAP file at ``path`` (replaced if it exists), tick by tick in time order; ``metadata``
-    goes into the ``beacon-sim`` metadata record. Returns the path."""
+    goes into the ``beacon-sim`` metadata record; ``frames`` (tick -> :class:`BeliefFrame`,
+    kept while the run went: :func:`beacon_sim.io.foxglove.read_frame`) adds the particles,
+    grid beliefs, SLAM maps and PCRB of those ticks. Beside it, ``X.layout.json``: a layout
+    for the Foxglove app that opens the file's topics (:func:`beacon_sim.io.foxglove.layout`).
+    Returns the path."""
     fox, _, _ = foxglove_modules()
     from beacon_sim.version import __version__
 
@@ -41,7 +47,7 @@ def write_mcap(path: Path | str, scenario: Scenario, arrays: Mapping[str, np.nda
         try:
             with open(tmp, "wb") as raw:
                 sink = _QuietSink(raw)
-                _write(fox, sink, scenario, a, names, metadata, __version__)
+                topics = _write(fox, sink, scenario, a, names, metadata, __version__, frames or {})
                 sink.finish()
         except (OSError, BeaconSimError):
             raise
@@ -52,6 +58,8 @@ def write_mcap(path: Path | str, scenario: Scenario, arrays: Mapping[str, np.nda
             why = " ".join(str(exc).split())[:200] or type(exc).__name__
             raise BeaconSimError(f"{path}: cannot write the MCAP file: {why} (the previous file, "
                                  "if any, is unchanged)") from None
+    write_text_atomic(layout_path(path), json.dumps(layout(topics, names), indent=1) + "\n",
+                      what="Foxglove layout")
     return path
 
 
@@ -102,8 +110,14 @@ class _QuietSink:
             raise self.error
 
 
+def layout_path(path: Path | str) -> Path:
+    """The Foxglove layout written beside an MCAP file: ``run.mcap`` -> ``run.layout.json``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.layout.json")
+
+
 def _write(fox, tmp: Path | _QuietSink, scenario: Scenario, a: Mapping[str, np.ndarray], names: list[str],
-           metadata: Mapping[str, str] | None, version: str) -> None:
+           metadata: Mapping[str, str] | None, version: str, frames: Mapping[int, BeliefFrame]) -> list[str]:
     context = fox.Context()  # this file's channels only
     writer = fox.open_mcap(tmp, allow_overwrite=True, context=context)
     pub = Publisher(scenario, names, context)
@@ -135,12 +149,13 @@ def _write(fox, tmp: Path | _QuietSink, scenario: Scenario, a: Mapping[str, np.n
                     mean = a["est_mean"][i][k - 1]
                     if not np.isnan(mean).all():
                         est[name] = (mean, a["est_cov"][i][k - 1])
-            pub.tick(k, truth[k], est, by_tick_r.get(k, ()), by_tick_e.get(k, ()))
+            pub.tick(k, truth[k], est, by_tick_r.get(k, ()), by_tick_e.get(k, ()), frames.get(k))
             for name, why in fail_at.get(k, ()):
                 pub.failed(k, name, why)
         meta = {"scenario": scenario.name, "dt_s": repr(scenario.dt), "library": f"beacon-sim {version}"}
         meta.update(metadata or {})
         writer.write_metadata("beacon-sim", {k: str(v) for k, v in meta.items()})
+        return pub.topics
     finally:
         pub.close()
         writer.close()

@@ -19,6 +19,7 @@ controlled_vehicles[0]``, its single-robot views (``scenario``, ``steps``, ``run
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -301,7 +302,8 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
                  seed: int | None = None, duration: float | None = None,
                  params: dict[str, dict[str, Any]] | None = None, progress: bool = False, *,
                  step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
-                 run_limit_s: float | None = None, secret: bytes | None = None) -> RunResult:
+                 run_limit_s: float | None = None, secret: bytes | None = None,
+                 on_tick: Callable[[Any, TeamRunner], None] | None = None) -> RunResult:
     """Simulate ``duration`` seconds (default: the scenario's) and feed every filter.
 
     ``filters``: for a single robot, filter specs (built-in names, ``pkg.mod:Class``,
@@ -312,6 +314,8 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
     in the run passing this (``eval --time-limit``). ``progress``: a progress bar on stderr
     once the run has taken a second. ``secret``: the key of the filters' random streams
     (None: the public key, reproducible from the seed alone; ``grade``'s secret).
+    ``on_tick(step, runner)`` is called after the filters took each tick (an export reads
+    their beliefs there).
     """
     team = as_team(scenario)
     seed = team.seed if seed is None else seed
@@ -332,6 +336,8 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
         sim_ns += time.perf_counter_ns() - a
         steps.append(step)
         runner.feed(step)
+        if on_tick is not None:
+            on_tick(step, runner)
         if run_limit_s is not None:  # the team filters' run limit (the members' is their runner's)
             for name, tr in joint.items():
                 if not tr.failed and tr.step_ns > run_limit_s * 1e9:

@@ -18,7 +18,7 @@ built-in filters and installed entry points are run from a file
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence, Set
+from collections.abc import Callable, Sequence, Set
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -435,7 +435,8 @@ def recorded_controls(rec: TickRecord) -> dict[int, Control]:
 
 def replay_recording(recording: Recording, filters: list[str] | None = None,
                      params: dict[str, dict[str, Any]] | None = None,
-                     verify: bool = True) -> RunResult:
+                     verify: bool = True, *,
+                     on_tick: Callable[[Any, TeamRunner], None] | None = None) -> RunResult:
     """Re-simulate a recording of any number of robots, feeding the filters; check the
     truth, the readings and (a version 3 file, the recorded filters) the filter settings
     and estimates against the file.
@@ -446,6 +447,8 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
     Returns what ``run`` gives on the recording's scenario, a
     :class:`~beacon_sim.runs.headless.RunResult` over its robots, with ``extra["replay"]``:
     what was checked (file, ticks, checksum status, skipped filters, warnings).
+    ``on_tick(step, runner)`` is called after the filters took each tick (an export reads
+    their beliefs there).
     """
     specs, skipped = recorded_filter_specs(recording, filters)
     used = recorded_params(recording, params)
@@ -480,6 +483,8 @@ def replay_recording(recording: Recording, filters: list[str] | None = None,
             checked += tick_checked(recording, rec)
         steps.append(step)
         runner.feed(step)
+        if on_tick is not None:
+            on_tick(step, runner)
         if verify and unverified is None:
             line = estimates.get(rec.tick)
             verifier.fold(rec.tick)
