@@ -488,16 +488,35 @@ class App:
             self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
                                  bound is not None, avoid=self.renderer.axis_rects,
                                  world=self.renderer._world_rect(self.view))
+        off = self.switched_off_lines()
+        if off:
+            self.hud.switched_off(surf, pygame.Rect(self.view.area), off, avoid=self.renderer.axis_rects)
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
         # Nothing drawn over the world: the next frame may leave its picture as it is.
-        overlaid = bool(steps) or bound is not None or self.now < self.banner_until or self.help
+        overlaid = (bool(steps) or bound is not None or self.now < self.banner_until or self.help
+                    or bool(off))
         self._on_screen = None if overlaid or self.team_view \
             or type(self).draw_extra is not App.draw_extra else shown
         pygame.display.flip()
+
+    def switched_off_lines(self) -> list[tuple[str, tuple]]:
+        """A line ``(text, colour)`` per switched-off filter, for the note on the world: why,
+        and whether R brings it back (a filter that was built; one that could not be built
+        stays off)."""
+        out = []
+        run = getattr(self.session, "filters_run", None)
+        for name in self.session.names:
+            why = self.session.status[name].failed
+            if not why:
+                continue
+            built = run is not None and run.track(name, 0).filter is not None
+            out.append((f"{name} switched off: {why}" + ("  (R: back on)" if built else ""),
+                        self.colours[name]))
+        return out
 
     def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int],
                    args: tuple) -> tuple[tuple, int]:
