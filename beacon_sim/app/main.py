@@ -341,8 +341,14 @@ class App:
         self.view.fit()
 
     def act_screenshot(self) -> None:
-        path = Path(time.strftime("beacon-sim-%Y%m%d-%H%M%S.png"))
-        self.save_screenshot(path)
+        """F12: the window as it is, without the banner, saved to a new file under
+        ``screenshots/`` (:func:`screenshot_path`)."""
+        path = screenshot_path(self.session.scenario.name)
+        banner, self.banner_until = self.banner_until, -1.0  # no banner in the picture
+        try:
+            self.save_screenshot(path, present=True)
+        finally:
+            self.banner_until = banner
         self.flash(f"saved {path}")
 
     def act_help(self) -> None:
@@ -635,7 +641,11 @@ class App:
             finally:
                 self.smooth = smooth
 
-    def save_screenshot(self, path) -> None:
+    def save_screenshot(self, path, present: bool = False) -> None:
+        """The window into the PNG ``path`` (the present, not a tick behind; ``present``:
+        drawn afresh, so that whatever was drawn over the world is as it is now)."""
+        if present:
+            self.world_stale = True
         self.show_present()
         path = Path(path)
         if path.parent and not path.parent.exists():
@@ -703,6 +713,22 @@ class App:
     def close(self) -> None:
         self.session.close()
         pygame.display.quit()
+
+
+#: Where F12 saves (under the current directory), as recordings go to ``recordings/``.
+SCREENSHOTS_DIR = "screenshots"
+
+
+def screenshot_path(scenario_name: str) -> Path:
+    """``screenshots/<scenario>_<YYYYmmdd-HHMMSS>.png``, with ``-2``, ``-3``, ... when that
+    name is taken (two presses in one second): never an earlier picture overwritten."""
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in scenario_name) or "window"
+    base = Path(SCREENSHOTS_DIR) / f"{safe}_{time.strftime('%Y%m%d-%H%M%S')}"
+    path, n = base.with_suffix(".png"), 2
+    while path.exists():
+        path = Path(f"{base}-{n}.png")
+        n += 1
+    return path
 
 
 class DeliveredSpeed:
