@@ -559,6 +559,53 @@ def corridor_section() -> list[str]:
     return md
 
 
+STANDSTILL_HEADER = "## The particle filter at rest: a minute's standstill"
+STANDSTILL_SCENARIOS = ("default", "two_rooms", "assignment_kf")
+STANDSTILL_SEEDS = range(1000, 1020)  # seeds no test or tuning used
+
+
+def standstill_nees(scenario: str, seed: int, seconds: float, gate: bool) -> float:
+    """The particle filter's NEES after ``seconds`` [s] with the robot at rest from t = 0
+    (the window's keyboard, never pressed), its standstill gate on or off."""
+    from beacon_sim.runs.live import Session
+
+    sc = load_scenario(scenario)
+    params = None if gate else {"pf": {"update_min_d": 0.0, "update_min_a": 0.0}}
+    s = Session(sc, ["pf"], seed, params)
+    for _ in range(round(seconds / sc.dt)):
+        s.tick()
+    return float(s.status["pf"].nees)
+
+
+def standstill_section() -> list[str]:
+    """The particle filter's NEES after 60 s at rest, with and without its standstill gate
+    (``update_min_d`` / ``update_min_a``), over 20 seeds on three scenarios."""
+    from beacon_sim.core.metrics import anees_band
+    from beacon_sim.runs.scene import NEES_BAND
+
+    lo, hi = anees_band(len(STANDSTILL_SEEDS), 3)
+    md = [STANDSTILL_HEADER, "",
+          f"The robot stands still from t = 0 for 60 s (the window's keyboard, never pressed); "
+          f"`pf` with its defaults (2,000 particles). Seeds {STANDSTILL_SEEDS.start}.."
+          f"{STANDSTILL_SEEDS.stop - 1}. NEES at 60 s: the mean over the seeds against the 95 % "
+          f"band for {len(STANDSTILL_SEEDS)} values [{lo:.2f}, {hi:.2f}], the median, the "
+          f"largest and how many seeds are inside one NEES's 95 % band [{NEES_BAND[0]:.2f}, "
+          f"{NEES_BAND[1]:.2f}]. Gate on (the default, `update_min_d` = 0.001 m, `update_min_a` "
+          "= 0.001 rad: no weighting until the command has moved or turned that much since the "
+          "last update, AMCL's rule) and off (0, 0: every tick's readings weighed on particles "
+          "that cannot move).", "",
+          "| scenario | gate | mean NEES | median | largest | seeds in band |", "|---|---|---|---|---|---|"]
+    for name in STANDSTILL_SCENARIOS:
+        for gate in (True, False):
+            v = np.array([standstill_nees(name, seed, 60.0, gate) for seed in STANDSTILL_SEEDS])
+            inside = int(np.count_nonzero((v >= NEES_BAND[0]) & (v <= NEES_BAND[1])))
+            md.append(f"| {name} | {'on' if gate else 'off'} | {v.mean():.3g} | {np.median(v):.3g} | "
+                      f"{v.max():.3g} | {inside}/{len(v)} |")
+    md += ["", "With the gate, the cloud keeps the spread it had when the robot stopped; a kidnap "
+           "while the robot stands still shows once it moves again (AMCL's behaviour too).", ""]
+    return md
+
+
 def splice_section(text: str, header: str, section: list[str]) -> str:
     """``text`` (results.md) with the section that starts at ``header`` replaced by
     ``section`` (up to the next ``## `` heading or the closing ``_Generated`` line)."""
@@ -577,7 +624,7 @@ def main() -> int:
     ap.add_argument("--mrclam", metavar="DIR",
                     help="the MRCLAM data set (default: where BEACON_SIM_MRCLAM says; docs/mrclam.md)")
     ap.add_argument("--jobs", type=int, default=default_jobs())
-    ap.add_argument("--only", choices=("mrclam", "slam", "corridor"),
+    ap.add_argument("--only", choices=("mrclam", "slam", "corridor", "standstill"),
                     help="regenerate only this section of results.md")
     args = ap.parse_args()
     args.mrclam = mrclam_folder(args.mrclam)
@@ -595,6 +642,14 @@ def main() -> int:
             text = splice_section(text, SLAM_HEADER, section)
         path.write_text(text, encoding="utf-8")
         print(f"wrote the SLAM section of {path}", file=sys.stderr)
+        return 0
+    if args.only == "standstill":
+        path = DOCS / "results.md"
+        text = path.read_text(encoding="utf-8")
+        if STANDSTILL_HEADER not in text.split("\n"):   # the first time: before the corridor's
+            text = text.replace(CORRIDOR_HEADER, STANDSTILL_HEADER + "\n\n" + CORRIDOR_HEADER, 1)
+        path.write_text(splice_section(text, STANDSTILL_HEADER, standstill_section()), encoding="utf-8")
+        print(f"wrote the standstill section of {path}", file=sys.stderr)
         return 0
     if args.only == "corridor":
         path = DOCS / "results.md"
@@ -819,6 +874,7 @@ def main() -> int:
            *md_table(meta), ""]
     md += figures(sc, curves, meta, "global_kidnap")
 
+    md += standstill_section()
     # ---- seed 001 ---------------------------------------------------------------------
     md += corridor_section()
     md += mrclam_section(args.mrclam, have)

@@ -196,7 +196,7 @@ def test_every_key_of_the_table_reaches_its_action(app, monkeypatch, tmp_path):
             expected.append(name)
     frames(app, 1)
     assert seen == expected
-    assert list(tmp_path.glob("beacon-sim-*.png"))
+    assert list(tmp_path.glob("screenshots/*.png"))
 
 
 def test_unknown_action_is_an_error(app):

@@ -11,7 +11,7 @@ import pygame
 from beacon_sim.app import association_layer, controls, palette
 from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids, polyline, sensors_read
 from beacon_sim.core.clutter import UNKNOWN_ID
-from beacon_sim.runs.scene import NEES_BAND, Scene
+from beacon_sim.runs.scene import NEES_WINDOW_BAND, NEES_WINDOW_S, Scene
 
 
 def wrap_text(font: pygame.font.Font, text: str, width: int) -> list[str]:
@@ -138,7 +138,7 @@ class Hud:
                 r = self._blit(surf, f"err {st.pos_err:5.2f} m {deg:+6.1f} deg", "small",
                                palette.TEXT, (x + 10, y))
                 nx = max(x + int(w * 0.66), r.right + sl // 2)
-                if nx + f["small"].size(nees_text(st.nees))[0] > rect.right - 6:  # no room:
+                if nx + f["small"].size(nees_label(st))[0] + 8 > rect.right - 6:  # no room:
                     y += sl  # its own line
                     nx = x + 10
                 self.nees(surf, st, (nx, y))
@@ -161,7 +161,7 @@ class Hud:
         self.footer(surf, rect, x, w, y, [
             f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 = {ELLIPSE_SCALE2:.2f})",
             "wedge: heading +-2 sigma",
-            f"NEES band 95 %: {NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}",
+            *nees_legend(),
             "black outline: true robot; line: path",
         ], info)
 
@@ -222,8 +222,7 @@ class Hud:
             y += 4
 
         self.footer(surf, rect, x, w, y, [
-            f"ellipse: {ELLIPSE_LEVEL:.0%} of each robot's x-y; NEES band 95 %: "
-            f"{NEES_BAND[0]:.2f} .. {NEES_BAND[1]:.2f}"], info)
+            f"ellipse: {ELLIPSE_LEVEL:.0%} of each robot's x-y", *nees_legend()], info)
 
     def legend_rows(self, width: int, names: list[str]) -> list[list[tuple[str, str]]]:
         """The legend's entries (text, what) in rows that fit ``width`` [px]: the readings
@@ -368,13 +367,19 @@ class Hud:
         return y
 
     def nees(self, surf, st, at, label: bool = True) -> pygame.Rect:
-        """``NEES v`` (``label`` False: the value alone) of a FilterStatus, on the warning
-        colour when outside its 95 % band."""
-        out = st.nees_out_of_band
-        text = nees_text(st.nees) if label else nees_text(st.nees).removeprefix("NEES ")
-        return self._blit(surf, text, "small",
-                          palette.BANNER_TEXT if out else palette.TEXT, at,
-                          bg=palette.WARN if out else None)
+        """A FilterStatus's NEES (``label`` False: the value alone, :func:`nees_label`): the
+        mean over the window, on the warning colour when above its band, outlined in it
+        when below; before the window is full the tick's NEES, dimmed (no verdict)."""
+        text = nees_label(st) if label else nees_label(st).removeprefix("NEES ")
+        verdict = st.nees_verdict
+        if verdict is None:
+            dim = math.isnan(st.nees_mean)
+            return self._blit(surf, text, "small", palette.TEXT_DIM if dim else palette.TEXT, at)
+        if verdict == "high":
+            return self._blit(surf, text, "small", palette.BANNER_TEXT, at, bg=palette.WARN)
+        r = self._blit(surf, text, "small", palette.WARN, at)
+        pygame.draw.rect(surf, palette.WARN, r.inflate(8, 2), 2)
+        return r
 
     def footer(self, surf, rect: pygame.Rect, x: int, w: int, y: int, legend: list[str],
                info: dict) -> None:
@@ -439,6 +444,37 @@ class Hud:
         for k, t in enumerate(out):
             self._blit(surf, t, "small", palette.TEXT, (box.left + 10, box.top + 5 + k * lh))
         self.step_box = box
+        return box
+
+    def switched_off(self, surf, area: pygame.Rect, lines: list[tuple[str, tuple]],
+                     avoid=()) -> pygame.Rect | None:
+        """Switched-off filters said on the world, not only in the panel: a box at the bottom
+        right of the world's area, a line per filter ``(text, colour)`` with a swatch of the
+        filter's colour, raised above the axis labels (``avoid``) it would cover. Returns the
+        box (None: no line)."""
+        if not lines:
+            return None
+        font = self.fonts["small"]
+        lh = font.get_linesize()
+        sw = lh - 6  # the colour swatch [px]
+        rows: list[tuple[str, tuple | None]] = []
+        for text, colour in lines:
+            for k, t in enumerate(wrap_text(font, text, area.width - 60 - sw)):
+                rows.append((t, colour if k == 0 else None))
+        w = max(font.size(t)[0] for t, _ in rows) + sw + 28
+        h = lh * len(rows) + 10
+        box = pygame.Rect(area.right - 8 - w, area.bottom - 6 - h, w, h)
+        covered = [r for r in avoid if r.colliderect(box)]
+        if covered:
+            box.bottom = min(r.top for r in covered) - 4
+        surf.fill(palette.PANEL, box)
+        pygame.draw.rect(surf, palette.WARN, box, 3)
+        for k, (t, swatch) in enumerate(rows):
+            y = box.top + 5 + k * lh
+            if swatch is not None:
+                surf.fill(swatch, pygame.Rect(box.left + 10, y + 3, sw, sw))
+            self._blit(surf, t, "small", palette.TEXT, (box.left + 18 + sw, y))
+        self.off_box = box
         return box
 
     def banner(self, surf, area: pygame.Rect, text: str) -> None:
@@ -587,6 +623,20 @@ def split_columns(heights: list[float], ncol: int) -> tuple[list[int], float]:
                key=lambda k: max(sum(heights[:k]), sum(heights[k:])))
     return ([0] * best + [1] * (len(heights) - best),
             float(max(sum(heights[:best]), sum(heights[best:]))))
+
+
+def nees_label(st) -> str:
+    """What the panel writes for a FilterStatus's NEES: the window's mean (``NEES 2.9``), or
+    before the window is full the tick's value (``NEES 0.0``, dimmed)."""
+    value = st.nees if math.isnan(st.nees_mean) else st.nees_mean
+    return nees_text(value)
+
+
+def nees_legend() -> list[str]:
+    """The panel's lines saying what the NEES figure and its badge mean."""
+    lo, hi = NEES_WINDOW_BAND
+    return [f"NEES: {NEES_WINDOW_S:.0f} s mean, band {lo:.2f} .. {hi:.2f}",
+            "orange: over-, outlined: underconfident"]
 
 
 def nees_text(nees: float) -> str:

@@ -346,8 +346,14 @@ class App:
         self.view.fit()
 
     def act_screenshot(self) -> None:
-        path = Path(time.strftime("beacon-sim-%Y%m%d-%H%M%S.png"))
-        self.save_screenshot(path)
+        """F12: the window as it is, without the banner, saved to a new file under
+        ``screenshots/`` (:func:`screenshot_path`)."""
+        path = screenshot_path(self.session.scenario.name)
+        banner, self.banner_until = self.banner_until, -1.0  # no banner in the picture
+        try:
+            self.save_screenshot(path, present=True)
+        finally:
+            self.banner_until = banner
         self.flash(f"saved {path}")
 
     def act_help(self) -> None:
@@ -497,16 +503,35 @@ class App:
             self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
                                  bound is not None, avoid=self.renderer.axis_rects,
                                  world=self.renderer._world_rect(self.view))
+        off = self.switched_off_lines()
+        if off:
+            self.hud.switched_off(surf, pygame.Rect(self.view.area), off, avoid=self.renderer.axis_rects)
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
         # Nothing drawn over the world: the next frame may leave its picture as it is.
-        overlaid = bool(steps) or bound is not None or self.now < self.banner_until or self.help
+        overlaid = (bool(steps) or bound is not None or self.now < self.banner_until or self.help
+                    or bool(off))
         self._on_screen = None if overlaid or self.team_view \
             or type(self).draw_extra is not App.draw_extra else shown
         pygame.display.flip()
+
+    def switched_off_lines(self) -> list[tuple[str, tuple]]:
+        """A line ``(text, colour)`` per switched-off filter, for the note on the world: why,
+        and whether R brings it back (a filter that was built; one that could not be built
+        stays off)."""
+        out = []
+        run = getattr(self.session, "filters_run", None)
+        for name in self.session.names:
+            why = self.session.status[name].failed
+            if not why:
+                continue
+            built = run is not None and run.track(name, 0).filter is not None
+            out.append((f"{name} switched off: {why}" + ("  (R: back on)" if built else ""),
+                        self.colours[name]))
+        return out
 
     def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int],
                    args: tuple) -> tuple[tuple, int]:
@@ -625,7 +650,11 @@ class App:
             finally:
                 self.smooth = smooth
 
-    def save_screenshot(self, path) -> None:
+    def save_screenshot(self, path, present: bool = False) -> None:
+        """The window into the PNG ``path`` (the present, not a tick behind; ``present``:
+        drawn afresh, so that whatever was drawn over the world is as it is now)."""
+        if present:
+            self.world_stale = True
         self.show_present()
         path = Path(path)
         if path.parent and not path.parent.exists():
@@ -694,6 +723,22 @@ class App:
     def close(self) -> None:
         self.session.close()
         pygame.display.quit()
+
+
+#: Where F12 saves (under the current directory), as recordings go to ``recordings/``.
+SCREENSHOTS_DIR = "screenshots"
+
+
+def screenshot_path(scenario_name: str) -> Path:
+    """``screenshots/<scenario>_<YYYYmmdd-HHMMSS>.png``, with ``-2``, ``-3``, ... when that
+    name is taken (two presses in one second): never an earlier picture overwritten."""
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in scenario_name) or "window"
+    base = Path(SCREENSHOTS_DIR) / f"{safe}_{time.strftime('%Y%m%d-%H%M%S')}"
+    path, n = base.with_suffix(".png"), 2
+    while path.exists():
+        path = Path(f"{base}-{n}.png")
+        n += 1
+    return path
 
 
 class DeliveredSpeed:

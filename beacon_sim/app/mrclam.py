@@ -14,9 +14,10 @@ from beacon_sim.app.replay import ReplayApp
 from beacon_sim.runs.mrclam import MrclamPlayback, MrclamRun
 
 
-def show_mrclam(run: MrclamRun, frames: int | None = None, screenshot: str | None = None) -> int:
-    """The window over a finished MRCLAM run, until quit (or ``frames`` frames of 1/60 s);
-    ``screenshot`` saves the last frame. Without a display it says so and returns 0 (the
+def show_mrclam(run: MrclamRun, frames: int | None = None, screenshot: str | None = None,
+                size: tuple[int, int] = (1280, 800)) -> int:
+    """The window over a finished MRCLAM run, ``size`` (W, H) [px], until quit (or ``frames``
+    frames of 1/60 s); ``screenshot`` saves the last frame. Without a display it says so and returns 0 (the
     table printed before is the result)."""
     from beacon_sim.app.main import check_display
     from beacon_sim.errors import UsageError
@@ -28,7 +29,7 @@ def show_mrclam(run: MrclamRun, frames: int | None = None, screenshot: str | Non
         print(f"note: {exc}; results above are headless", file=sys.stderr)
         return 0
     try:
-        app = ReplayApp(MrclamPlayback(run), scripted=frames is not None)
+        app = ReplayApp(MrclamPlayback(run), size, scripted=frames is not None)
     except pygame.error as exc:
         print(f"note: cannot open a window ({exc}); results above are headless", file=sys.stderr)
         return 0

@@ -163,6 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "surveyed landmarks (docs/slam.md)")
     p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
+    p.add_argument("--size", default="1280x800", help="the window's size WxH in pixels")
 
     p = sub.add_parser("grade", help="grade a folder of filter files (one per student): "
                                      "CSV + HTML leaderboard")

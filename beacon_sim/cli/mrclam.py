@@ -13,6 +13,7 @@ import json
 from typing import Any
 
 from beacon_sim.cli.common import check_duration, check_frames, filter_params, print_failures
+from beacon_sim.cli.play import parse_size
 from beacon_sim.cli.tables import failed_text, fmt
 from beacon_sim.errors import UsageError
 from beacon_sim.io.mrclam import ROBOT_SUBJECTS, MrclamData, MrclamError, load_mrclam
@@ -148,6 +149,7 @@ def mrclam_command(args: argparse.Namespace) -> int:
     team = getattr(args, "team", False)
     if not team:
         check_frames(args.frames)
+    size = parse_size(getattr(args, "size", "1280x800"))  # a bad --size: said before the run
     slam = getattr(args, "slam", False)
     if slam and team:
         raise UsageError("--slam runs one robot: use --robot N, not --team (the team filters "
@@ -200,4 +202,4 @@ def mrclam_command(args: argparse.Namespace) -> int:
         return 0
     from beacon_sim.app.mrclam import show_mrclam  # pygame only when a window opens
 
-    return show_mrclam(run, args.frames, args.screenshot)
+    return show_mrclam(run, args.frames, args.screenshot, size)

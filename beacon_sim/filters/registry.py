@@ -133,6 +133,8 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "cluster_radius": Range(1e-3, 1e6, "particles this near the mode form it [m]"),
                          "heading_k_a": Range(0.0, 100.0, "K_a of seed 002 eq. 13"),
                          "temper_ess": Range(*_FRACTION, "progressive correction below this ESS share"),
+                         "update_min_d": Range(0.0, 1e3, "weight only after moving this far [m]"),
+                         "update_min_a": Range(0.0, 2 * math.pi, "weight only after turning this much [rad]"),
                          "lost_chi2": Range(1e-6, 1.0 - 1e-12, "a reading is unexplained when even the best "
                                                                 "particle is beyond this chi-square point")},
                  mrclam={"n_particles": 4000, "augmented": False, "roughen": 1.25}, mrclam_robust=True,

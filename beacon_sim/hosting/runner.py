@@ -64,7 +64,14 @@ NOT_BUILT = "not constructed"
 #: The longest a step (predict + update + estimate) may take in a headless run and in the
 #: window before the filter is stopped [s]: far beyond real time, not a benchmark.
 HEADLESS_STEP_LIMIT_S = 10.0
-WINDOW_STEP_LIMIT_S = 0.5
+#: The window's limit on a step and on any other call into a filter (belief, estimate,
+#: reset), in CPU time of the filter's own thread [s] (``cpu_limits``): a busy machine makes
+#: a step wait for a core, which costs wall time but no CPU time, so the machine's load never
+#: switches a filter off. Generous for the built-in filters, whose heaviest step on a shipped
+#: scenario uses about 0.06 s (mcl with 50,000 particles); a student's endless loop freezes
+#: the window this long. Code that sleeps is stopped by the wall-time backstop only
+#: (``CPU_BACKSTOP_FACTOR`` times this plus ``CPU_BACKSTOP_S``).
+WINDOW_STEP_LIMIT_S = 1.0
 
 #: A filter whose recent steps (predict + update + estimate) average more than this gets
 #: ``track.slow_warning`` [ms].

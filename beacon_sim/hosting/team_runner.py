@@ -101,9 +101,11 @@ class JointRunner:
     """
 
     def __init__(self, filters: Mapping[str, Any], n_robots: int,
-                 step_limit_s: float | None = None, keep: int | None = None):
+                 step_limit_s: float | None = None, keep: int | None = None,
+                 cpu_limits: bool = False):
         self.n_robots = n_robots
         self.step_limit_s = step_limit_s
+        self.cpu_limits = cpu_limits  # the step limit in the filter thread's CPU time
         self.tracks: dict[str, FilterTrack] = {
             name: bounded_track(name, f, keep, failed=None if f is not None else NOT_BUILT)
             for name, f in filters.items()}
@@ -127,7 +129,7 @@ class JointRunner:
             t0 = time.perf_counter_ns()
             try:
                 try:
-                    with time_limit(limit):
+                    with time_limit(limit, self.cpu_limits):
                         f.predict(controls, dt)
                         f.update(readings)
                         est = f.estimates()
@@ -227,7 +229,8 @@ class TeamRunner:
         joint_built, joint_why = build_team_filters(
             list(joint_specs),
             lambda n: build_team_spec(joint_specs[n], team, settings.get(n), seed), build_limit_s)
-        self.joint = JointRunner(joint_built, self.n_robots, step_limit_s=step_limit_s, keep=keep)
+        self.joint = JointRunner(joint_built, self.n_robots, step_limit_s=step_limit_s, keep=keep,
+                                 cpu_limits=cpu_limits)
         for name, reason in joint_why.items():
             self.joint.tracks[name].failed = f"could not be built: {reason}"
 

@@ -40,7 +40,7 @@ from beacon_sim.hosting.runner import (
     FilterRunner,
     FilterTrack,
     bounded_track,
-    guarded_call,
+    call_guarded,
     status_line,
     validate_belief,
     validate_estimate,
@@ -107,7 +107,7 @@ class Session:
         team = self.team
         self.filters_run = TeamRunner(team, self.specs, self.seed, self.params,
                                       step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES,
-                                      build_limit_s=WINDOW_BUILD_LIMIT_S)
+                                      cpu_limits=True, build_limit_s=WINDOW_BUILD_LIMIT_S)
         self.names = list(self.filters_run.names)
         for runner in self.filters_run.members:
             runner.priors = {}
@@ -326,7 +326,7 @@ class Session:
                       validate: Callable[[object], Any], raised_prefix: str = "") -> Any:
         """``validate(call())`` under the window's time limit; None, and the filter switched
         off with the reason, when the call raises, hangs or returns something unusable."""
-        value, why, tb = guarded_call(call, WINDOW_STEP_LIMIT_S)
+        value, why, tb = call_guarded(call, WINDOW_STEP_LIMIT_S, cpu=True)
         if why is None:
             checked = validate(value)
             if not isinstance(checked, str):
@@ -372,14 +372,15 @@ class Session:
             self._install(name, bounded_track(name, flt, KEEP_ESTIMATES))
             return (f"{name} reloaded from the initial belief (the session keeps "
                     f"{HISTORY_S / 60:.0f} minutes of history to catch up over)")
-        catch_up = FilterRunner({name: flt}, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES)
+        catch_up = FilterRunner({name: flt}, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES,
+                                cpu_limits=True)
         t0 = time.perf_counter()
         for i, team_step in enumerate(self.steps):
             step = team_step.steps[0]
             cmds = self.commands.get(step.tick)
             if cmds and not catch_up.tracks[name].failed:
                 for _, (why, tb) in apply_to_filters(cmds, {name: flt}, self.scenario,
-                                                     WINDOW_STEP_LIMIT_S).items():
+                                                     WINDOW_STEP_LIMIT_S, cpu=True).items():
                     catch_up.fail(name, why, tb, step.time - step.dt)
             catch_up.feed(step)
             elapsed = time.perf_counter() - t0
@@ -408,7 +409,7 @@ class Session:
         st.failed, st.warning = track.failed, status_line(track)
         last = self.last_step
         if track.means and last is not None and track.ticks[-1] == last.tick:
-            st.measure(track.means[-1], track.covs[-1], last.steps[0].true_pose)
+            st.measure(track.means[-1], track.covs[-1], last.steps[0].true_pose, self.team.dt)
         self.runner.priors.pop(name, None)
         self._keep_priors()
 
@@ -423,7 +424,7 @@ class Session:
                 if tr.filter is None or tr.failed:
                     continue
                 # a student's belief() may raise (or exit, or hang) before the first tick
-                bel, why, _ = guarded_call(tr.filter.belief, WINDOW_STEP_LIMIT_S)
+                bel, why, _ = call_guarded(tr.filter.belief, WINDOW_STEP_LIMIT_S, cpu=True)
                 if why is None and isinstance(bel, GaussianBelief):
                     keep.add(name)
             runner.keep_prior = frozenset(keep)
@@ -476,12 +477,21 @@ class Session:
         if not cmds:
             return
         for name in apply_to_run(cmds, self.sim, self.filters_run, WINDOW_STEP_LIMIT_S,
-                                 self.sim.time):
+                                 self.sim.time, cpu=True):
             self._sync_status(name)
+        if any(c["kind"] == "reset" for c in cmds):  # switched-off filters may be back on
+            for name in self.names:
+                self._sync_status(name)
+            self._keep_priors()
         if any(c["kind"] in ("reset", "global_reset") for c in cmds):
             for trails in self.trails.values():
                 for trail in trails:
                     trail.brk()
+            for figures in self.robot_status.values():  # NEES judged afresh after a reset
+                for st in figures:
+                    st.clear_window()
+            for st in self.status.values():
+                st.clear_window()
 
     def _after(self, step: TeamStep) -> None:
         self.last_step = step
@@ -511,7 +521,8 @@ class Session:
                     continue
                 for i, t in enumerate(tracks):
                     self.trails[name][i].add(t.means[-1])
-                    self.robot_status[name][i].measure(t.means[-1], t.covs[-1], step.steps[i].true_pose)
+                    self.robot_status[name][i].measure(t.means[-1], t.covs[-1], step.steps[i].true_pose,
+                                                       step.dt)
                 continue
             tr = run.joint.tracks[name]
             if not tr.ticks or tr.ticks[-1] != step.tick:
@@ -519,7 +530,7 @@ class Session:
             means, covs = tr.means[-1], tr.covs[-1]
             for i, s in enumerate(step.steps):
                 self.trails[name][i].add(means[i])
-                self.robot_status[name][i].measure(means[i], covs[i], s.true_pose)
+                self.robot_status[name][i].measure(means[i], covs[i], s.true_pose, step.dt)
         if self.on_step:
             for listener in self.on_step:
                 listener(step.steps[0])

@@ -9,8 +9,9 @@ is a path drawn behind a robot or an estimate. No pygame here.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Set as AbstractSet
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -25,6 +26,22 @@ from beacon_sim.filters.base import Belief
 #: freedom, from the same function as every other consistency band; outside it the HUD
 #: highlights the value.
 NEES_BAND = anees_band(1, dof=3)
+
+#: The panel's NEES verdict is on the mean NEES over the last ``NEES_WINDOW_S`` simulated
+#: seconds (none before the window is full, nor after a reset until it is full again): one
+#: tick's NEES of a consistent filter is out of its 95 % band 5 % of the time, a blinking
+#: badge on a healthy filter.
+NEES_WINDOW_S = 20.0
+#: The window's mean is judged as the mean of this many independent NEES values (one per
+#: 2 s: a filter's errors on consecutive ticks are far from independent), at 99 %: on a
+#: consistent EKF over an hour of driving on ``default`` it is out of its band about twice
+#: (``benchmarks/bench_nees_alarm.py``; per-tick flags: about 700 times).
+NEES_WINDOW_SAMPLES = 10
+NEES_WINDOW_CONFIDENCE = 0.99
+NEES_WINDOW_BAND = anees_band(NEES_WINDOW_SAMPLES, dof=3, confidence=NEES_WINDOW_CONFIDENCE)
+#: A verdict stays this long [s] after the mean was last outside its band: a mean that
+#: hovers at the band's edge does not make the badge blink.
+NEES_HOLD_S = 5.0
 
 
 class Trail:
@@ -90,10 +107,21 @@ class FilterStatus:
     heading_sigma: float = math.nan  # [rad]
     failed: str | None = None
     warning: str | None = None  # e.g. slower than the time budget
+    #: The mean NEES over the last NEES_WINDOW_S seconds; NaN until the window is full.
+    nees_mean: float = math.nan
+    _recent: deque[float] = field(default_factory=deque, repr=False)
+    _verdict: str | None = field(default=None, repr=False)
+    _hold: int = field(default=0, repr=False)  # ticks the verdict is still held
 
-    def measure(self, mean, cov, truth) -> None:
+    def clear_window(self) -> None:
+        """Forget the NEES window (a reset: the filter starts again from its initial belief)."""
+        self._recent.clear()
+        self.nees_mean = math.nan
+        self._verdict, self._hold = None, 0
+
+    def measure(self, mean, cov, truth, dt: float = 0.05) -> None:
         """The errors [m, rad], the sigmas [m, rad] and NEES of the estimate ``(mean, cov)``
-        against ``truth``."""
+        against ``truth``, and the mean NEES of the window (estimates ``dt`` [s] apart)."""
         cov = np.asarray(cov, dtype=float)
         try:
             self.pos_sigma = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
@@ -107,10 +135,33 @@ class FilterStatus:
             self.nees = float(e @ np.linalg.solve(cov, e))
         except np.linalg.LinAlgError:
             self.nees = math.inf
+        recent = self._recent
+        recent.append(self.nees if not math.isnan(self.nees) else math.inf)
+        k = max(round(NEES_WINDOW_S / dt), 1)
+        while len(recent) > k:
+            recent.popleft()
+        m = self.nees_mean = sum(recent) / k if len(recent) == k else math.nan
+        now = None if math.isnan(m) else ("high" if m > NEES_WINDOW_BAND[1] else
+                                          "low" if m < NEES_WINDOW_BAND[0] else None)
+        if now is not None:
+            self._verdict, self._hold = now, round(NEES_HOLD_S / dt)
+        elif self._hold > 0:
+            self._hold -= 1
+        else:
+            self._verdict = None
+
+    @property
+    def nees_verdict(self) -> str | None:
+        """``"high"``: the window's mean NEES is above its band (the error is larger than the
+        filter claims: overconfident); ``"low"``: below it (the filter claims more
+        uncertainty than its error shows); None: within (for ``NEES_HOLD_S`` at least), or
+        the window is not full yet."""
+        return self._verdict
 
     @property
     def nees_out_of_band(self) -> bool:
-        return math.isfinite(self.nees) and not NEES_BAND[0] <= self.nees <= NEES_BAND[1]
+        """Whether the window's mean NEES is outside its band (:attr:`nees_verdict`)."""
+        return self.nees_verdict is not None
 
 
 class Scene(Protocol):

@@ -83,22 +83,37 @@ def filter_kind(name: str) -> str:
     return name.rstrip("'")
 
 
+#: The colours a filter takes, in order, when its kind's colour is already another kind's
+#: among the filters shown together.
+SPARE_COLOURS: list[RGB] = [*OKABE_ITO, (0, 0, 0), DEAD_RECKONING]
+
+
 def filter_styles(names: list[str]) -> dict[str, tuple[RGB, Dash]]:
     """``(colour, dash pattern)`` per filter name: by kind; a repeated kind (``ekf'``) keeps
-    the colour and takes the next line style."""
+    the colour and takes the next line style. Different kinds shown together never share a
+    colour: a kind whose colour an earlier kind took (mcl and ekf_slam are both sky blue; a
+    named filter ``delayed=ekf_slam`` takes the first of ``OTHER_STYLES``) takes the first
+    of ``SPARE_COLOURS`` no other kind of ``names`` has."""
     out: dict[str, tuple[RGB, Dash]] = {}
+    kind_colour: dict[str, RGB] = {}
+    wanted = {KIND_STYLES[filter_kind(n)][0] for n in names if filter_kind(n) in KIND_STYLES}
     others = 0
     for name in names:
         kind = filter_kind(name)
-        if kind in KIND_STYLES:
-            colour, dash = KIND_STYLES[kind]
+        if kind in kind_colour:  # a repeated kind: its colour, the next line style
+            colour, dash = kind_colour[kind], next(out[n] for n in out if filter_kind(n) == kind)[1]
         else:
-            same = next((out[n] for n in out if filter_kind(n) == kind), None)
-            if same is None:
+            if kind in KIND_STYLES:
+                colour, dash = KIND_STYLES[kind]
+            else:
                 colour, dash = OTHER_STYLES[others % len(OTHER_STYLES)]
                 others += 1
-            else:
-                colour, dash = same
+            taken = set(kind_colour.values())
+            if colour in taken:
+                spare = [c for c in SPARE_COLOURS if c not in taken and c not in wanted]
+                spare = spare or [c for c in SPARE_COLOURS if c not in taken]
+                colour = spare[0] if spare else colour
+            kind_colour[kind] = colour
         repeats = len(name) - len(kind)
         if repeats:
             dash = STYLE_CYCLE[(STYLE_CYCLE.index(dash) + repeats) % len(STYLE_CYCLE)]

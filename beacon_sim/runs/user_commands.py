@@ -5,7 +5,8 @@ The commands themselves (small JSON-ready dicts) are defined with the recording 
 :data:`beacon_sim.io.recording.COMMAND_KINDS`:
 - ``kidnap`` with a ``pose``: teleport the robot there; without: to a random pose drawn from
   the events stream;
-- ``reset``: every filter back to the scenario's initial belief;
+- ``reset``: every filter back to the scenario's initial belief, a switched-off one included
+  (it runs again unless its reset fails: see :func:`switch_back_on`);
 - ``global_reset``: filters that support it get a uniform belief;
 - ``toggle``: show / hide a filter (display only: nothing here).
 Commands are applied before the simulation step of the tick they are recorded with.
@@ -27,7 +28,7 @@ from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.hosting.loading import reset_filter
-from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, guarded_call
+from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, NOT_BUILT, call_guarded
 from beacon_sim.hosting.team_runner import JointRunner, TeamRunner, team_filter_of
 from beacon_sim.io.recording import validate_command
 
@@ -47,11 +48,12 @@ def apply_commands(commands: Iterable[Mapping], sim: Simulation, filters: Mappin
 
 
 def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
-                     scenario: Scenario, limit_s: float | None = HEADLESS_STEP_LIMIT_S
-                     ) -> dict[str, tuple[str, str]]:
+                     scenario: Scenario, limit_s: float | None = HEADLESS_STEP_LIMIT_S,
+                     cpu: bool = False) -> dict[str, tuple[str, str]]:
     """The filters' part of user commands (resets), also for a filter that catches up over a
     session's history after a hot reload. Each ``reset`` runs under the runner's guard (time
-    limit ``limit_s`` [s]; an exception, ``SystemExit`` included, is that filter's failure):
+    limit ``limit_s`` [s], of CPU time with ``cpu``; an exception, ``SystemExit`` included,
+    is that filter's failure):
     returns ``{name: (why, traceback)}`` of the filters that failed, which get no further
     command."""
     failed: dict[str, tuple[str, str]] = {}
@@ -61,9 +63,9 @@ def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
             if name in failed:
                 continue
             if kind == "reset":
-                _, why, tb = guarded_call(partial(reset_filter, f, scenario), limit_s)
+                _, why, tb = call_guarded(partial(reset_filter, f, scenario), limit_s, cpu=cpu)
             elif kind == "global_reset" and getattr(f, "supports_global", False):
-                _, why, tb = guarded_call(partial(f.reset, None), limit_s)
+                _, why, tb = call_guarded(partial(f.reset, None), limit_s, cpu=cpu)
             else:
                 continue
             if why is not None:
@@ -72,12 +74,15 @@ def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
 
 
 def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation, run: TeamRunner,
-                 limit_s: float | None, time_s: float) -> dict[str, tuple[str, str]]:
+                 limit_s: float | None, time_s: float, cpu: bool = False
+                 ) -> dict[str, tuple[str, str]]:
     """User commands on a run of N robots (a single robot is a team of one), before the
     tick's step: a kidnap of the robot it names (robot 0 when it names none); resets of every
     robot's working filters (:func:`apply_to_filters`) and of the team filters
     (:func:`reset_team_filters`). A filter whose reset fails is switched off (on every
-    robot, at ``time_s`` [s]); returns those ``{name: (why, traceback)}``."""
+    robot, at ``time_s`` [s]); returns those ``{name: (why, traceback)}``. A ``reset``
+    first switches back on every filter that was switched off (:func:`switch_back_on`).
+    ``cpu``: the limit counts the filter thread's CPU time (the window's)."""
     commands = list(commands)
     if not commands:
         return {}
@@ -85,19 +90,42 @@ def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation, run: TeamRunn
         validate_command(cmd)
         if cmd["kind"] == "kidnap":
             sim.sims[int(cmd.get("robot", 0))].request_kidnap(cmd.get("pose"))
+    if any(c["kind"] == "reset" for c in commands):
+        switch_back_on(run)
     failed: dict[str, tuple[str, str]] = {}
     for robot, runner in zip(run.team.robots, run.members, strict=True):
         working = {n: t.filter for n, t in runner.tracks.items() if t.filter and not t.failed}
-        for name, (why, tb) in apply_to_filters(commands, working, robot.scenario, limit_s).items():
+        for name, (why, tb) in apply_to_filters(commands, working, robot.scenario, limit_s,
+                                                cpu).items():
             run.fail(name, why, tb, time_s)
             failed[name] = (why, tb)
     if any(c["kind"] in ("reset", "global_reset") for c in commands):
-        reset_team_filters(run.joint, run.team, limit_s, time_s)
+        reset_team_filters(run.joint, run.team, limit_s, time_s, cpu)
     return failed
 
 
+def switch_back_on(run: TeamRunner) -> list[str]:
+    """Clear the failure of every filter that was built and then switched off (by a time
+    limit, an exception, an unusable estimate), on every robot and among the team filters,
+    so that the reset that follows puts it back to the initial belief and it runs again
+    (one whose reset fails is switched off again, with that reason). A filter that could not
+    be built stays off. Returns the names switched back on."""
+    back: list[str] = []
+    for runner in run.members:
+        for name, tr in runner.tracks.items():
+            if tr.failed and tr.failed != NOT_BUILT and tr.filter is not None:
+                tr.failed, tr.traceback, tr.failed_time_s = None, "", None
+                if name not in back:
+                    back.append(name)
+    for name, tr in run.joint.tracks.items():
+        if tr.failed and team_filter_of(tr) is not None:
+            tr.failed, tr.traceback, tr.failed_time_s = None, "", None
+            back.append(name)
+    return back
+
+
 def reset_team_filters(runner: JointRunner, team: TeamScenario, limit_s: float | None,
-                       time_s: float) -> None:
+                       time_s: float, cpu: bool = False) -> None:
     """The ``reset`` user command on the team filters: every working one back to the
     scenario's initial beliefs, under the guard (one that fails is switched off), the same
     live and on replay."""
@@ -108,6 +136,6 @@ def reset_team_filters(runner: JointRunner, team: TeamScenario, limit_s: float |
         f = team_filter_of(tr)
         if tr.failed or f is None:
             continue
-        _, why, tb = guarded_call(partial(f.reset, beliefs), limit_s)
+        _, why, tb = call_guarded(partial(f.reset, beliefs), limit_s, cpu=cpu)
         if why is not None:
             runner.fail(name, f"reset: {why}", tb, time_s)

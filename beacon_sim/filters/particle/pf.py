@@ -137,6 +137,8 @@ class ParticleFilter(FilterBase):
         "heading_weight": False,    # seed 002 eq. 14 heading term
         "heading_k_a": 0.03 * math.pi,  # K_a of eq. 13 [rad/s/m... as in the seed]
         "dtype": "float32",         # particle storage: float32 | float64
+        "update_min_d": 0.001,      # [m] weight only after the command moved this far ...
+        "update_min_a": 0.001,      # [rad] ... or turned this much since the last update
     }
 
     def __init__(self, ctx: FilterContext):
@@ -235,6 +237,8 @@ class ParticleFilter(FilterBase):
         self._trig_n = 0
         self._last_v = 0.0
         self._theta_pred = float(self.estimate()[0][2])
+        self._moved = (0.0, 0.0)  # command's distance [m] and turn [rad] since the last update
+        self._updated = False     # an update since the reset (the first always runs)
 
     def set_particles(self, poses, weights=None) -> None:
         """Replace the particle set: ``poses`` (n, 3) [m, m, rad], optional weights (n,)."""
@@ -298,6 +302,9 @@ class ParticleFilter(FilterBase):
         self._theta_pred += control.omega * dt
         self._last_v = abs(control.v)
         self._cache = None
+        # the standstill gate (AMCL's update_min_d / update_min_a, see update)
+        md, ma = self._moved
+        self._moved = (md + abs(control.v) * dt, ma + abs(control.omega) * dt)
 
     def _wrap_inplace(self, a: np.ndarray) -> None:
         """Wrap angles in place to [-pi, pi) (values within a few turns)."""
@@ -327,6 +334,15 @@ class ParticleFilter(FilterBase):
             measurements = [m for m in measurements if len(m)]
         if not measurements:
             return
+        # A robot at rest: no weighting until the command has moved update_min_d or turned
+        # update_min_a since the last update. Particles that do not move cannot diversify,
+        # so weighting and resampling them tick after tick on the same spot collapses the
+        # cloud onto a few poses (NEES in the thousands after a minute); AMCL's answer.
+        md, ma = self._moved
+        if self._updated and md < self.params["update_min_d"] and ma < self.params["update_min_a"]:
+            return
+        self._moved = (0.0, 0.0)
+        self._updated = True
         if "_association" in self.__dict__:  # unknown IDs: forget the last per-particle choices
             association.particle_start(self)
         if self._pending_resample:
