@@ -5,9 +5,9 @@ shared sky blue; so did mcl and ekf_slam, fastslam and corridor."""
 from __future__ import annotations
 
 import pytest
-from beacon_sim.hosting.loading import filter_names
 
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.hosting.loading import filter_names
 from beacon_sim.runs.styles import KIND_STYLES, filter_styles
 
 

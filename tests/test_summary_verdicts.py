@@ -3,10 +3,12 @@ the bootstrap intervals over runs."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
+from beacon_sim.core.drivers import ConstantSpec
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.evaluation import intervals
 from beacon_sim.evaluation.montecarlo import run_monte_carlo
@@ -25,7 +27,22 @@ def test_verdict_names_the_distance_from_the_bound():
     assert overall_verdict("consistent", 14.2) == "consistent, but 14.2x the bound"
     assert overall_verdict("optimistic", 3.0) == "optimistic, but 3.0x the bound"
     assert overall_verdict("FAILED", 9.0) == "FAILED"
-    assert overall_verdict("consistent", None) == "consistent"
+    assert overall_verdict("consistent", None) == "consistent, no bound to compare"
+    assert overall_verdict("pessimistic", math.nan) == "pessimistic, no bound to compare"
+
+
+def test_a_robot_that_never_moves_has_no_bound_to_compare():
+    """A robot standing still from a start known to a nanometre: the PCRB is zero, so the
+    verdict says there is nothing to weigh the error against, not a bare ANEES word."""
+    sc = load_scenario("default")
+    sc = dataclasses.replace(sc, driver=ConstantSpec(v=0.0, omega=0.0),
+                             initial_belief=dataclasses.replace(sc.initial_belief, std=(1e-9,) * 3))
+    runs = run_monte_carlo(sc, ["ekf"], 2, seed=3, duration=3.0, jobs=1, progress=False)
+    meta, _ = evaluate(sc, runs, Thresholds())
+    r = meta["filters"]["ekf"]
+    assert meta["pcrb"]["pos_rmse_m"] == 0.0 and r["rmse_over_pcrb"] is None
+    assert r["verdict"] == f"{r['anees_verdict']}, no bound to compare"
+    assert "no bound to compare" in "\n".join(table_lines(meta, timing=False))
 
 
 def test_no_bare_consistent_beside_an_error_over_twice_the_bound():

@@ -112,9 +112,12 @@ def overall_verdict(calibration: str, ratio: float | None) -> str:
     consistent / optimistic / pessimistic / FAILED) with the accuracy against the bound
     (``ratio``, RMSE/PCRB): ``"consistent"`` only within ``NEAR_BOUND`` of the bound,
     ``"consistent, 1.6x the bound"`` up to ``FAR_FROM_BOUND``, then
-    ``"consistent, but 14.2x the bound"``."""
-    if calibration == "FAILED" or ratio is None or not math.isfinite(ratio):
+    ``"consistent, but 14.2x the bound"``; ``"consistent, no bound to compare"`` when there
+    is no ratio (a bound of zero or none: a robot that never moves from a known start)."""
+    if calibration == "FAILED":
         return calibration
+    if ratio is None or not math.isfinite(ratio):
+        return f"{calibration}, no bound to compare"
     if ratio > FAR_FROM_BOUND:
         return f"{calibration}, but {ratio:.1f}x the bound"
     if ratio > NEAR_BOUND:
