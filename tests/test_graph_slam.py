@@ -248,3 +248,20 @@ def test_graph_window_steps_and_saves_a_screenshot(tmp_path):
     assert main(["graph", str(path), "--steps", "2", "--frames", "3", "--sparsity", "--ellipses",
                  "--screenshot", str(png)]) == 0
     assert png.stat().st_size > 1000
+
+
+def test_a_step_the_solver_cannot_take_is_said_in_the_window_and_moves_nothing():
+    import os
+
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    from beacon_sim.app.graph_window import GraphWindow
+
+    # a landmark seen once by bearing only: nothing fixes its range, H is singular
+    g = FactorGraph(np.zeros((2, 3)), np.array([[1.0, 1.0]]),
+                    [EdgeSet("pose", "odometry", [0], [1], [[1.0, 0.0, 0.0]], np.eye(3)[None]),
+                     EdgeSet("bearing", "landmark", [1], [0], [[0.3]], np.eye(1)[None])])
+    w = GraphWindow(g, size=(900, 600))
+    w.step()
+    assert w.message.startswith("no step:") and w.solver.iteration == 0
+    np.testing.assert_array_equal(w.solver.graph.poses, g.poses)
+    w.draw()

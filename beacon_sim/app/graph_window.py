@@ -83,8 +83,14 @@ class GraphWindow:
 
     # -- actions -------------------------------------------------------------------------
     def step(self) -> None:
+        """One solver step; a system the solver cannot solve (a node no edge fixes) is said
+        on the panel and the nodes stay where they are."""
         t0 = time.process_time()
-        self.last = self.solver.step()
+        try:
+            self.last = self.solver.step()
+        except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
+            self.message = f"no step: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+            return
         self.step_ms = 1e3 * (time.process_time() - t0)
         self.ellipses = None
         if self.show_ellipses:

@@ -196,12 +196,12 @@ class GraphSolver:
         before = self.graph.chi2_by_class()
         rows, cols, vals, b = normal_equations(self.graph, self.layout)
         n = self.layout.size
-        self.iteration += 1
+        it = self.iteration + 1  # counted once the step is solved
         if self.method == "gn":
             dx = -Factor(rows, cols, vals, n, 0.0, self.sparse).solve(b)
             new = apply_step(self.graph, self.layout, dx)
             self.graph = new
-            report = StepReport(self.iteration, "gn", before, new.chi2_by_class(),
+            report = StepReport(it, "gn", before, new.chi2_by_class(),
                                 float(np.linalg.norm(dx)), True, 0.0, n)
         else:
             while True:
@@ -216,8 +216,9 @@ class GraphSolver:
             if ok:
                 self.graph = new
                 self.lam = max(self.lam / 3.0, 1e-12)
-            report = StepReport(self.iteration, "lm", before, after if ok else before,
+            report = StepReport(it, "lm", before, after if ok else before,
                                 float(np.linalg.norm(dx)), ok, lam, n)
+        self.iteration = it
         self.history.append(report)
         return report
 
