@@ -288,7 +288,7 @@ def test_a_collapsed_cloud_is_roughened_and_a_diverse_one_left_bit_for_bit():
     sc = load_scenario("office")
     f = build_filter("mcl", sc, 5080, params={"min_particles": 500, "max_particles": 500})
     mean = f.poses.mean(axis=0)
-    P = np.repeat([mean, mean + (0.02, 0.0, 0.0)], 250, axis=0)
+    P = np.repeat([mean, mean + np.array([0.02, 0.0, 0.0])], 250, axis=0)
     f._set(P)
     f._resample()
     distinct = len(np.unique(f.poses, axis=0))
