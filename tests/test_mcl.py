@@ -279,3 +279,28 @@ def test_the_symmetric_room_keeps_both_clouds_over_seeds():
     runs = [modes.one_run((seed, {}), until_break=True) for seed in range(300, 330)]
     assert all(r["broke"] is not None and 35.0 < r["broke"] < 45.0 for r in runs)
     assert sum(r["both"] for r in runs) >= 25, [(r["seed"], r["lowest"]) for r in runs if not r["both"]]
+
+
+def test_a_collapsed_cloud_is_roughened_and_a_diverse_one_left_bit_for_bit():
+    """Standing still, resampling copies the heaviest poses until few remain (the office
+    soak: 500 particles on 2 poses); below ``min_distinct`` of distinct poses the copies are
+    roughened, in free space, near where they were; a cloud with diversity is untouched."""
+    sc = load_scenario("office")
+    f = build_filter("mcl", sc, 5080, params={"min_particles": 500, "max_particles": 500})
+    mean = f.poses.mean(axis=0)
+    P = np.repeat([mean, mean + np.array([0.02, 0.0, 0.0])], 250, axis=0)
+    f._set(P)
+    f._resample()
+    distinct = len(np.unique(f.poses, axis=0))
+    assert distinct >= 0.05 * f.n and f.n == 500
+    assert np.all(f.in_free_space(f.poses))
+    assert np.abs(f.poses[:, :2] - mean[:2]).max() < 0.2  # roughened near the two poses
+    diverse = build_filter("mcl", sc, 5080, params={"min_particles": 500, "max_particles": 500})
+    before = diverse.poses.copy()
+    diverse._keep_diversity()
+    np.testing.assert_array_equal(diverse.poses, before)
+    off = build_filter("mcl", sc, 5080, params={"min_particles": 500, "max_particles": 500,
+                                                 "min_distinct": 0.0})
+    off._set(P.copy())
+    off._keep_diversity()
+    assert len(np.unique(off.poses, axis=0)) == 2  # documented switch: 0 turns it off

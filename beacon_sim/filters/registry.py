@@ -170,7 +170,8 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "laser_sigma_hit": Range(1e-6, 1e3, "hit std [m]"),
                          "laser_lambda_short": Range(1e-6, 1e3, "short-reading rate [1/m]"),
                          "laser_likelihood_max_dist": Range(1e-3, 1e3, "likelihood field's distance cap [m]"),
-                         "laser_max_range": Range(-1.0, 1e6, "max range [m]; -1: the sensor's")}),
+                         "laser_max_range": Range(-1.0, 1e6, "max range [m]; -1: the sensor's"),
+                         "min_distinct": Range(0.0, 1.0, "roughening below this share of distinct poses")}),
     # Seed 004's discrete Bayes filter on the corridor scenario's scans (issue 30).
     FilterRecord("corridor", "beacon_sim.filters.grid.corridor:CorridorFilter", ("yellow", "dash-dot"),
                  ranges={"x0": Range(-1e6, 1e6, "the corridor's start [m]"),

@@ -42,19 +42,33 @@ def _type_name(x: object) -> str:
     return "None" if x is None else type(x).__name__
 
 
+#: The guard's semi-definiteness threshold, relative to the largest entry: a covariance is
+#: refused when an eigenvalue is below ``-PSD_TOLERANCE * max|entry|``.
+PSD_TOLERANCE = 1e-9
+#: How far from that threshold the guard's verdict may differ from an eigenvalue test
+#: (``numpy.linalg.eigvalsh``), relative to the largest entry: only a matrix whose smallest
+#: eigenvalue lies within this of ``-PSD_TOLERANCE * max|entry|`` may be judged either way
+#: (tests/test_guard_eigen.py checks it on near-singular covariances).
+PSD_AGREEMENT = 1e-12
+
+
 def _not_psd(a: float, b: float, d: float, e: float, f: float, g: float) -> bool:
     """Whether the symmetric 3x3 ``[[a, b, d], [b, e, f], [d, f, g]]`` (finite floats) has
-    an eigenvalue below ``-1e-9 * max|entry|``: the matrix plus ``1e-9 max|entry| I`` is
-    tested for positive definiteness by its leading principal minors (Sylvester), a few
-    float operations instead of an eigen-decomposition. Same verdict as
-    ``eigvalsh(c).min() < -1e-9 * scale`` up to rounding."""
-    tol = 1e-9 * max(abs(a), abs(b), abs(d), abs(e), abs(f), abs(g), 1e-12)
+    an eigenvalue below ``-PSD_TOLERANCE * max|entry|``: a Cholesky factorisation of the
+    matrix plus ``PSD_TOLERANCE max|entry| I`` (a few float operations instead of an
+    eigen-decomposition). Cholesky is backward stable, so the verdict is the eigenvalue
+    test's within :data:`PSD_AGREEMENT`; the determinants of the leading minors were not (a
+    near-singular covariance, eigenvalues 1e-12, 1.3e-12 and 0.027, lost its determinant to
+    rounding and was refused)."""
+    tol = PSD_TOLERANCE * max(abs(a), abs(b), abs(d), abs(e), abs(f), abs(g), 1e-12)
     a, e, g = a + tol, e + tol, g + tol
     if a <= 0.0:
         return True
-    if a * e - b * b <= 0.0:
+    e1 = e - b * (b / a)
+    if e1 <= 0.0:
         return True
-    return a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0
+    f1 = f - d * (b / a)
+    return g - d * (d / a) - f1 * (f1 / e1) <= 0.0
 
 
 def _getrefcount(x: object) -> int:
@@ -129,8 +143,13 @@ def validate_estimate(est: object, *, sole: bool = False, _f8: np.dtype = _F8,
                         # _not_psd inline: its tolerance is 1e-9 * s here (0.5 * (b + b) == b exactly)
                         tol = 1e-9 * s
                         a, e, g = a + tol, e + tol, g + tol
-                        if a <= 0.0 or a * e - b * b <= 0.0 \
-                                or a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d) <= 0.0:
+                        if a <= 0.0:
+                            return _NOT_PSD
+                        e1 = e - b * (b / a)
+                        if e1 <= 0.0:
+                            return _NOT_PSD
+                        f1 = f - d * (b / a)
+                        if g - d * (d / a) - f1 * (f1 / e1) <= 0.0:
                             return _NOT_PSD
                         if (sole and _rc(m0) <= _sa and _rc(c0) <= _sa and _rc(est) <= _sp
                                 and m0.base is None and c0.base is None):

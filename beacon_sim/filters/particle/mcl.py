@@ -63,6 +63,10 @@ LASER_MODELS = ("likelihood_field", "beam")
 MOTION_TRIES = 10
 
 
+#: Least roughening std [m, m, rad] of a collapsed cloud (:meth:`MonteCarloLocalization._keep_diversity`).
+ROUGHENING_FLOOR = np.array([0.01, 0.01, 0.005])
+
+
 def subsample_beams(n_beams: int, max_beams: int) -> np.ndarray:
     """Indices of at most ``max_beams`` beams spread evenly over ``n_beams`` (the first and
     the last included), as AMCL's ``laser_max_beams`` picks them."""
@@ -124,6 +128,7 @@ class MonteCarloLocalization(FilterBase):
         "laser_likelihood_max_dist": 2.0,  # [m] the likelihood field's distance cap
         "laser_max_range": -1.0,           # [m]; -1: the sensor's max_range (AMCL's meaning)
         "dtype": "float32",                # likelihood field's end points: float32 | float64
+        "min_distinct": 0.05,              # roughening below this share of distinct poses
     }
 
     def __init__(self, ctx: FilterContext):
@@ -383,6 +388,7 @@ class MonteCarloLocalization(FilterBase):
         count = int(ok[0]) + 1 if ok.size else n_max
         if p["resampler"] == "multinomial":
             self._set(cand[:count].copy())
+            self._keep_diversity()
             return
         # The KLD count came from draws in random order (what its bound assumes); which
         # particles make up the new set is then drawn with the lower-variance scheme: the
@@ -393,3 +399,34 @@ class MonteCarloLocalization(FilterBase):
         keep = self.poses[resample(p["resampler"], w, count - k, rng)] if count > k \
             else self.poses[:0]
         self._set(np.concatenate([keep, cand[:count][mask[:count]]]) if k else keep.copy())
+        self._keep_diversity()
+
+    def _keep_diversity(self) -> None:
+        """Roughening (Gordon, Salmond and Smith 1993) of a cloud that has collapsed: when
+        fewer than ``min_distinct`` of the particles are distinct poses (standing still,
+        resampling copies the heaviest few until two poses remain: a filter with no spread
+        left to track with), every copy after the first of a pose is moved by a normal
+        draw of std ``0.2 * spread * n^(-1/3)`` per axis (``spread``: the cloud's range on
+        that axis), at least 1 cm and 0.005 rad; a draw that lands outside free space stays
+        where it was. A cloud with diversity is left as it was, bit for bit, and draws
+        nothing."""
+        frac = float(self.params["min_distinct"])
+        if frac <= 0.0 or self.n < 2:
+            return
+        _, first = np.unique(self.poses, axis=0, return_index=True)
+        if len(first) >= frac * self.n:
+            return
+        copies = np.ones(self.n, dtype=bool)
+        copies[first] = False
+        idx = np.flatnonzero(copies)
+        spread = self.poses.max(axis=0) - self.poses.min(axis=0)
+        std = np.maximum(0.2 * spread * self.n ** (-1.0 / 3.0), ROUGHENING_FLOOR)
+        moved = self.poses[idx] + self.ctx.rng.normal(size=(idx.size, 3)) * std
+        moved[:, 2] = wrap(moved[:, 2])
+        if self._walls:
+            ok = self.in_free_space(moved)
+            moved[~ok] = self.poses[idx[~ok]]
+        P = self.poses.copy()
+        P[idx] = moved
+        self.poses = P
+        self._cache = None
