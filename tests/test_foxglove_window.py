@@ -139,6 +139,14 @@ def test_mcap_carries_the_slam_maps(tmp_path):
     assert "/filters/fastslam/particles" in msgs  # FastSLAM's pose particles
 
 
+@pytest.fixture
+def no_step_limit(monkeypatch):
+    """A decoding test, not a time-limit test: a loaded machine must not switch a filter off."""
+    from beacon_sim.runs import live
+
+    monkeypatch.setattr(live, "WINDOW_STEP_LIMIT_S", 60.0)
+
+
 def run_live(scenario: str, filters: list[str], ticks: int, topics: set[str]):
     sc = load_scenario(scenario)
     session = Session(sc, filters, 3)
@@ -160,7 +168,7 @@ def run_live(scenario: str, filters: list[str], ticks: int, topics: set[str]):
     return session, live, client.messages, advertised
 
 
-def test_a_live_client_decodes_particles_grid_bound_and_readings():
+def test_a_live_client_decodes_particles_grid_bound_and_readings(no_step_limit):
     topics = {"/filters/pf/particles", "/filters/histogram/grid", "/pcrb", "/pcrb/stats", "/filters/pf/stats"}
     session, live, got, advertised = run_live("default", ["pf", "histogram"], 30, topics)
     assert advertised["/filters/pf/particles"] == "foxglove.PosesInFrame"
@@ -177,7 +185,7 @@ def test_a_live_client_decodes_particles_grid_bound_and_readings():
                                            for r in m["readings"])
 
 
-def test_a_live_client_decodes_the_slam_map():
+def test_a_live_client_decodes_the_slam_map(no_step_limit):
     topics = {"/filters/ekf_slam/map", "/filters/fastslam/map"}
     session, _, got, advertised = run_live("slam_loop", ["ekf_slam", "fastslam"], 20, topics)
     assert advertised["/filters/ekf_slam/map"] == "foxglove.SceneUpdate"
