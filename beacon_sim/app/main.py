@@ -239,7 +239,8 @@ class App:
                 self.act(action)
         elif event.type == pygame.MOUSEBUTTONDOWN:
             clicked = controls.mouse_action(event.button, self.mode)
-            if clicked == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos):
+            if clicked == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos) \
+                    and not self.over_the_world(event.pos):
                 self.drag_start = event.pos
             elif clicked == "pan":
                 self.pan_from = event.pos
@@ -258,6 +259,17 @@ class App:
         elif event.type in (pygame.VIDEORESIZE, pygame.WINDOWSIZECHANGED):
             self.screen = display_surface()
             self._layout(self.screen.get_size())
+
+    def over_the_world(self, pos) -> bool:
+        """Whether the pixel ``pos`` is on something drawn over the world (the magnifier, the
+        note of switched-off filters): a click there is not a kidnap to the point under it."""
+        boxes = []
+        mag = self.renderer.last_magnifier
+        if mag is not None:
+            boxes.append(mag.get("block", mag["rect"]))
+        if getattr(self.hud, "off_box", None) is not None and self.switched_off_lines():
+            boxes.append(self.hud.off_box)
+        return any(pygame.Rect(b).collidepoint(pos) for b in boxes)
 
     def act(self, action: str) -> None:
         """Do one action of the binding table (``controls.TABLES``): the method
