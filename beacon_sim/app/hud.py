@@ -477,8 +477,9 @@ class Hud:
         self.off_box = box
         return box
 
-    def banner(self, surf, area: pygame.Rect, text: str) -> None:
-        """A large message across the top of the world view (kidnap, screenshot saved)."""
+    def banner(self, surf, area: pygame.Rect, text: str, avoid: pygame.Rect | None = None) -> None:
+        """A large message across the top of the world view (kidnap, screenshot saved), or
+        across its bottom when at the top it would cover ``avoid`` (the robot)."""
         font = "banner" if self.fonts["banner"].size(text)[0] <= area.width - 60 else "hud"
         lines = wrap_text(self.fonts[font], text, area.width - 60)[:4]
         imgs = [self.fonts[font].render(line, True, palette.BANNER_TEXT) for line in lines]
@@ -487,7 +488,10 @@ class Hud:
         lh = self.fonts[font].get_linesize()
         r = pygame.Rect(0, 0, max(i.get_width() for i in imgs), lh * len(imgs))
         r.midtop = (area.centerx, area.top + 14)
+        if avoid is not None and r.inflate(36, 16).colliderect(avoid):
+            r.midbottom = (area.centerx, area.bottom - 14)
         box = r.inflate(36, 16)
+        self.banner_box = box
         pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)
         pygame.draw.rect(surf, palette.TEXT, box, 3, border_radius=10)
         for k, img in enumerate(imgs):
