@@ -7,8 +7,11 @@ import pytest
 
 pygame = pytest.importorskip("pygame")
 
-from test_app_replay import make, run_until  # noqa: E402
-from test_app_replay import recorded  # noqa: E402,F401 - the fixture
+from test_app_replay import (  # noqa: E402
+    make,
+    recorded,  # noqa: F401 - the fixture
+    run_until,
+)
 
 from beacon_sim.app.main import App  # noqa: E402
 from beacon_sim.core.scenario import load_scenario  # noqa: E402
