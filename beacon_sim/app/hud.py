@@ -156,7 +156,12 @@ class Hud:
             size = f"{bpos:5.2f} m" if bpos >= 0.01 else f"{bpos * 1000:4.1f} mm"  # map worlds: mm
             self._blit(surf, f"sigma {size} {math.degrees(bhead):6.1f} deg", "small",
                        palette.TEXT_DIM, (x + 10, y))
-            y += f["small"].get_linesize() + 4
+            y += f["small"].get_linesize()
+            for name in inside_the_bound(session, bpos):
+                for line in wrap_text(f["small"], f"{name} claims more than is possible", w - 10):
+                    self._blit(surf, line, "small", palette.WARN, (x + 10, y))
+                    y += f["small"].get_linesize()
+            y += 4
 
         self.footer(surf, rect, x, w, y, [
             f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 = {ELLIPSE_SCALE2:.2f})",
@@ -627,6 +632,25 @@ def split_columns(heights: list[float], ncol: int) -> tuple[list[int], float]:
                key=lambda k: max(sum(heights[:k]), sum(heights[k:])))
     return ([0] * best + [1] * (len(heights) - best),
             float(max(sum(heights[:best]), sum(heights[best:]))))
+
+
+#: A filter is said to claim more than is possible when its position sigma is below this
+#: share of the bound's (a few per cent either way are the two models' rounding).
+INSIDE_BOUND = 0.9
+
+
+def inside_the_bound(session, bound_sigma: float) -> list[str]:
+    """The shown filters whose position sigma [m] is below the best achievable one (the
+    PCRB's, ``bound_sigma``): a filter told a model that loses uncertainty (the classroom
+    KF's A = I never turns heading uncertainty into position uncertainty, which the bound's
+    motion Jacobian does) claims more than is possible."""
+    out = []
+    for name in session.names:
+        st = session.status[name]
+        if (session.visible[name] and not st.failed and math.isfinite(st.pos_sigma)
+                and st.pos_sigma < INSIDE_BOUND * bound_sigma):
+            out.append(name)
+    return out
 
 
 def nees_label(st) -> str:
