@@ -11,11 +11,11 @@ import pytest
 
 pytest.importorskip("pygame")
 
-from beacon_sim.app.hud import INSIDE_BOUND, inside_the_bound  # noqa: E402
-from beacon_sim.core.scenario import load_scenario  # noqa: E402
-from beacon_sim.evaluation.live_bound import LiveBound  # noqa: E402
-from beacon_sim.runs.live import Session  # noqa: E402
-from beacon_sim.runs.scene import FilterStatus  # noqa: E402
+from beacon_sim.app.hud import INSIDE_BOUND, inside_the_bound
+from beacon_sim.core.scenario import load_scenario
+from beacon_sim.evaluation.live_bound import LiveBound
+from beacon_sim.runs.live import Session
+from beacon_sim.runs.scene import FilterStatus
 
 
 def test_a_filter_below_the_bound_is_named():
