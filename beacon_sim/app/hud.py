@@ -156,7 +156,12 @@ class Hud:
             size = f"{bpos:5.2f} m" if bpos >= 0.01 else f"{bpos * 1000:4.1f} mm"  # map worlds: mm
             self._blit(surf, f"sigma {size} {math.degrees(bhead):6.1f} deg", "small",
                        palette.TEXT_DIM, (x + 10, y))
-            y += f["small"].get_linesize() + 4
+            y += f["small"].get_linesize()
+            for name in inside_the_bound(session, bpos):
+                for line in wrap_text(f["small"], f"{name} claims more than is possible", w - 10):
+                    self._blit(surf, line, "small", palette.WARN, (x + 10, y))
+                    y += f["small"].get_linesize()
+            y += 4
 
         self.footer(surf, rect, x, w, y, [
             f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 = {ELLIPSE_SCALE2:.2f})",
@@ -477,8 +482,9 @@ class Hud:
         self.off_box = box
         return box
 
-    def banner(self, surf, area: pygame.Rect, text: str) -> None:
-        """A large message across the top of the world view (kidnap, screenshot saved)."""
+    def banner(self, surf, area: pygame.Rect, text: str, avoid: pygame.Rect | None = None) -> None:
+        """A large message across the top of the world view (kidnap, screenshot saved), or
+        across its bottom when at the top it would cover ``avoid`` (the robot)."""
         font = "banner" if self.fonts["banner"].size(text)[0] <= area.width - 60 else "hud"
         lines = wrap_text(self.fonts[font], text, area.width - 60)[:4]
         imgs = [self.fonts[font].render(line, True, palette.BANNER_TEXT) for line in lines]
@@ -487,7 +493,10 @@ class Hud:
         lh = self.fonts[font].get_linesize()
         r = pygame.Rect(0, 0, max(i.get_width() for i in imgs), lh * len(imgs))
         r.midtop = (area.centerx, area.top + 14)
+        if avoid is not None and r.inflate(36, 16).colliderect(avoid):
+            r.midbottom = (area.centerx, area.bottom - 14)
         box = r.inflate(36, 16)
+        self.banner_box = box
         pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)
         pygame.draw.rect(surf, palette.TEXT, box, 3, border_radius=10)
         for k, img in enumerate(imgs):
@@ -623,6 +632,25 @@ def split_columns(heights: list[float], ncol: int) -> tuple[list[int], float]:
                key=lambda k: max(sum(heights[:k]), sum(heights[k:])))
     return ([0] * best + [1] * (len(heights) - best),
             float(max(sum(heights[:best]), sum(heights[best:]))))
+
+
+#: A filter is said to claim more than is possible when its position sigma is below this
+#: share of the bound's (a few per cent either way are the two models' rounding).
+INSIDE_BOUND = 0.9
+
+
+def inside_the_bound(session, bound_sigma: float) -> list[str]:
+    """The shown filters whose position sigma [m] is below the best achievable one (the
+    PCRB's, ``bound_sigma``): a filter told a model that loses uncertainty (the classroom
+    KF's A = I never turns heading uncertainty into position uncertainty, which the bound's
+    motion Jacobian does) claims more than is possible."""
+    out = []
+    for name in session.names:
+        st = session.status[name]
+        if (session.visible[name] and not st.failed and math.isfinite(st.pos_sigma)
+                and st.pos_sigma < INSIDE_BOUND * bound_sigma):
+            out.append(name)
+    return out
 
 
 def nees_label(st) -> str:

@@ -244,7 +244,8 @@ class App:
                 self.act(action)
         elif event.type == pygame.MOUSEBUTTONDOWN:
             clicked = controls.mouse_action(event.button, self.mode)
-            if clicked == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos):
+            if clicked == "kidnap_click" and pygame.Rect(self.view.area).collidepoint(event.pos) \
+                    and not self.over_the_world(event.pos):
                 self.drag_start = event.pos
             elif clicked == "pan":
                 self.pan_from = event.pos
@@ -263,6 +264,24 @@ class App:
         elif event.type in (pygame.VIDEORESIZE, pygame.WINDOWSIZECHANGED):
             self.screen = display_surface()
             self._layout(self.screen.get_size())
+
+    def robot_box(self) -> pygame.Rect:
+        """The driven robot on the screen, with a margin [px]: what a banner must not cover."""
+        pose = self.session.true_pose
+        c = self.view.to_px(np.asarray(pose[:2], dtype=float))
+        r = max(self.session.scenario.robot_radius * self.view.scale, 14.0) * 2.0
+        return pygame.Rect(int(c[0] - r), int(c[1] - r), int(2 * r), int(2 * r))
+
+    def over_the_world(self, pos) -> bool:
+        """Whether the pixel ``pos`` is on something drawn over the world (the magnifier, the
+        note of switched-off filters): a click there is not a kidnap to the point under it."""
+        boxes = []
+        mag = self.renderer.last_magnifier
+        if mag is not None:
+            boxes.append(mag.get("block", mag["rect"]))
+        if getattr(self.hud, "off_box", None) is not None and self.switched_off_lines():
+            boxes.append(self.hud.off_box)
+        return any(pygame.Rect(b).collidepoint(pos) for b in boxes)
 
     def act(self, action: str) -> None:
         """Do one action of the binding table (``controls.TABLES``): the method
@@ -507,7 +526,7 @@ class App:
         if off:
             self.hud.switched_off(surf, pygame.Rect(self.view.area), off, avoid=self.renderer.axis_rects)
         if self.now < self.banner_until:
-            self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text)
+            self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text, self.robot_box())
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)

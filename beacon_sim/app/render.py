@@ -823,7 +823,16 @@ class WorldRenderer:
                   pygame.Rect(area.left + 12, area.top + 40, side, side + strip_h + 2),
                   pygame.Rect(area.left + 12, area.bottom - side - strip_h - 14, side,
                               side + strip_h + 2)]
-        block = next((b for b in blocks if not b.colliderect(robot_box)), blocks[0])
+        # the corner that hides the least: never the robot, then the fewest beacons and
+        # their labels, then the least of the room (the world's bounds) -- the margins first
+        room = self._world_rect(view)
+        beacons = list(self.beacon_rects)
+
+        def hidden(b: pygame.Rect) -> tuple[bool, int, int]:
+            over = b.clip(room)
+            return (b.colliderect(robot_box), len(b.collidelistall(beacons)), over.width * over.height)
+
+        block = min(blocks, key=hidden)  # (the first of equals: top right first)
         rect = pygame.Rect(block.left, block.top, side, side)
         # the zoom: the largest small ellipse (or the spread of the means) half the inset
         centre = np.asarray(pose[:2], dtype=float)
@@ -896,7 +905,7 @@ class WorldRenderer:
                      3, dash)
             surf.blit(self.text(f"{MAGNIFIER_BOUND}  {format_length(b_axis)}", font_key, palette.TEXT),
                       (x0 + 26, y))
-        self.last_magnifier = {"rect": rect, "scale": scale, "across_px": drawn,
+        self.last_magnifier = {"rect": rect, "block": rect.union(strip), "scale": scale, "across_px": drawn,
                                "bound_px": b_axis * scale if with_bound else None,
                                "bound_zoom": bound_zoom}
 

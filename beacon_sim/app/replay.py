@@ -87,9 +87,11 @@ class ReplayApp(App):
 
     # --- seeking --------------------------------------------------------------------------
     def seek(self, tick: int) -> None:
-        """Show the run at ``tick`` (the scene knows how: see its ``seek``)."""
+        """Show the run at ``tick`` (the scene knows how: see its ``seek``). A banner of an
+        event (a bump, a kidnap) belongs to the time it happened: a seek clears it."""
         self.timeline.seek(tick, self.user_flips)
         self.clock.accumulator = 0.0
+        self.banner_until = -1.0
 
     def ticks_due(self, real_dt: float) -> int:
         if self.seek_to is not None:  # at most one seek per frame (a drag sends many)

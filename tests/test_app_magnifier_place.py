@@ -1,0 +1,45 @@
+"""The magnifier hides no beacon and as little of the room as it can (the top right corner
+held beacon 6 at 1024x768), and a click on it is not a kidnap to the point hidden under it."""
+
+from __future__ import annotations
+
+import pytest
+
+pygame = pytest.importorskip("pygame")
+
+from beacon_sim.app.main import App  # noqa: E402
+from beacon_sim.core.scenario import load_scenario  # noqa: E402
+from beacon_sim.runs.live import Session  # noqa: E402
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1920, 1080)])
+def test_the_magnifier_covers_no_beacon_nor_the_robot(size):
+    app = App(Session(load_scenario("default"), ["ekf", "dead_reckoning"]), size, scripted=True)
+    try:
+        app.run(30)
+        app.draw()
+        mag = app.renderer.last_magnifier
+        assert mag is not None
+        block = mag["block"]
+        assert block.collidelist(app.renderer.beacon_rects) < 0, block
+        robot = app.view.to_px(app.session.true_pose[:2])
+        assert not block.collidepoint(int(robot[0]), int(robot[1]))
+    finally:
+        app.close()
+
+
+def test_a_click_on_the_magnifier_does_not_kidnap():
+    app = App(Session(load_scenario("default"), ["ekf"]), (1024, 768), scripted=True)
+    try:
+        app.run(30)
+        app.draw()
+        at = app.renderer.last_magnifier["block"].center
+        for kind in (pygame.MOUSEBUTTONDOWN, pygame.MOUSEBUTTONUP):
+            app.handle(pygame.event.Event(kind, button=1, pos=at))
+        assert app.session.pending == []  # no kidnap queued
+        free = (app.view.area[0] + 5, app.view.area[1] + 5)  # elsewhere on the world: a kidnap
+        for kind in (pygame.MOUSEBUTTONDOWN, pygame.MOUSEBUTTONUP):
+            app.handle(pygame.event.Event(kind, button=1, pos=free))
+        assert [c["kind"] for c in app.session.pending] == ["kidnap"]
+    finally:
+        app.close()
