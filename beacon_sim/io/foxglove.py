@@ -50,6 +50,7 @@ import numpy as np
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensor_kinds import names_beacons
 
 INSTALL_HINT = "Foxglove output needs the foxglove-sdk package: pip install 'beacon-sim[mcap]'"
 FRAME = "world"
@@ -367,7 +368,8 @@ class Publisher:
     def _readings(self, ns: int, truth: np.ndarray, rows: Sequence[tuple[str, str, np.ndarray, int]]):
         """One tick's readings as rays from the true pose: range_bearing, the measured range
         along the measured bearing; bearing, along the bearing as far as the true beacon; a
-        pose / position fix, a small sphere at the fix. One entity per sensor, living one
+        pose / position fix, a small sphere at the fix; a reading of another kind that names its
+        beacon, a ray to that beacon. One entity per sensor, living one
         sensor period."""
         m = self.msg
         x, y, th = (float(v) for v in truth)
@@ -382,10 +384,13 @@ class Publisher:
                     r, b = math.hypot(bx - x, by - y), float(z[0])
                 prims["points"] += [self._pt(x, y, 0.05),
                                     self._pt(x + r * math.cos(th + b), y + r * math.sin(th + b), 0.05)]
-            else:
+            elif kind in ("pose", "position"):
                 prims["spheres"].append(m.SpherePrimitive(pose=self._pose(z[0], z[1]),
                                                           size=m.Vector3(x=0.15, y=0.15, z=0.15),
                                                           color=self._colour(READING_COLOUR, 0.8)))
+            elif names_beacons(kind) and bid in self.beacons:   # another kind: a ray to its beacon
+                bx, by = self.beacons[bid]
+                prims["points"] += [self._pt(x, y, 0.05), self._pt(bx, by, 0.05)]
         entities = []
         for sensor, prims in by_sensor.items():
             lines = [m.LinePrimitive(type=m.LinePrimitiveLineType.LineList, pose=self._pose(0, 0),
