@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from beacon_sim.filters.guard import PSD_AGREEMENT, PSD_TOLERANCE, _not_psd, validate_estimate
 
 

@@ -10,6 +10,7 @@ import pygame
 
 from beacon_sim.app import association_layer, controls, palette
 from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids, polyline, sensors_read
+from beacon_sim.core import sensor_kinds
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.runs.scene import NEES_WINDOW_BAND, NEES_WINDOW_S, Scene
 
@@ -122,6 +123,9 @@ class Hud:
                 self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
                            palette.WARN, (x, y))
                 y += sl
+        for text in kind_lines(session):   # kinds registered beside the built-in ones
+            self._blit(surf, text, "small", palette.TEXT, (x, y))
+            y += sl
         y += 6
         y = self.rule(surf, rect, x, y)
 
@@ -594,6 +598,21 @@ def beacons_in_view(session) -> tuple[list[int], int, set[int]]:
         labelled |= {int(i) for i in ids[ids != UNKNOWN_ID]}
         unlabelled += int(np.count_nonzero(ids == UNKNOWN_ID))
     return sorted(labelled), unlabelled, labelled | association_layer.seen_by_truth(session)
+
+
+def kind_lines(session) -> list[str]:
+    """The panel's line for each sensor of a kind registered beside the built-in ones
+    (core/sensor_kinds.py): ``<kind label> (<sensor>): <rows> readings`` of this tick."""
+    rows: dict[str, int] = {}
+    for m in session.readings():
+        rows[m.sensor] = rows.get(m.sensor, 0) + len(m)
+    out = []
+    for s in session.scenario.sensors:
+        kind = sensor_kinds.KINDS.get(s.kind)
+        if kind is not None and s.kind not in sensor_kinds.BUILTIN:
+            n = rows.get(s.name, 0)
+            out.append(f"{kind.label or kind.name} ({s.name}): {n} reading{'s' if n != 1 else ''}")
+    return out
 
 
 def scan_in_view(session) -> tuple[int, int]:

@@ -36,7 +36,8 @@ from beacon_sim.core.drivers import CircleSpec, ConstantSpec, KeyboardSpec, Rand
 from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.motion import move_portable
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.sensors import SensorSpec, sense, visible_mask
+from beacon_sim.core.sensor_kinds import draw
+from beacon_sim.core.sensors import SensorSpec, visible_mask
 from beacon_sim.core.simulation import Simulation, _kidnap_text, bumped_heading, into_wall
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 
@@ -272,7 +273,7 @@ class BatchSimulation:
             if spec.kind in _BEACON_KINDS:
                 got = self._sense_beacons(spec, pose)
             else:
-                per_run = [sense(spec, pose[i], world, s._sensor_rngs[spec.name]) for i, s in enumerate(sims)]
+                per_run = [draw(spec, pose[i], world, s._sensor_rngs[spec.name]) for i, s in enumerate(sims)]
                 got = OtherReadings(spec.name, spec.kind, per_run) \
                     if any(m is not None for m in per_run) else None
             if blacked or got is None:

@@ -34,7 +34,8 @@ from beacon_sim.core.files import check_user_file, read_user_text
 from beacon_sim.core.keyboard_drive import KeyboardLimits
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.occupancy import MapError, OccupancyGrid, from_walls, load_map
-from beacon_sim.core.sensors import SENSOR_KINDS, SensorNoise, SensorSpec
+from beacon_sim.core.sensor_kinds import kind_names, param_keys, sensor_kind
+from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon
 from beacon_sim.core.world import World
 from beacon_sim.errors import BeaconSimError
@@ -268,7 +269,7 @@ class _Table:
         self.data = data
         self.used: set[str] = set()
         # Unknown keys first: a misspelt table name should not be reported as a missing one.
-        known = _KNOWN.get(_generic_path(path))
+        known = _known(_generic_path(path))
         if known is not None:
             for k in data:
                 if k not in known:
@@ -392,7 +393,16 @@ class _Table:
 
 
 def _known_keys(table: _Table) -> set[str]:
-    return _KNOWN.get(_generic_path(table.path), set())
+    return _known(_generic_path(table.path)) or set()
+
+
+def _known(path: str) -> set[str] | None:
+    """The keys a table at ``path`` (``sensors[]``) may have: a sensor's include the keys
+    every registered kind declares (core/sensor_kinds.py)."""
+    known = _KNOWN.get(path)
+    if path == "sensors[]" and known is not None:
+        return known | set(param_keys())
+    return known
 
 
 def _generic_path(path: str) -> str:
@@ -481,7 +491,7 @@ def _sensor_noise(t: _Table, base: SensorNoise) -> SensorNoise:
 
 
 def _sensor(t: _Table, dt: float) -> SensorSpec:
-    kind = t.string("kind", choices=SENSOR_KINDS)
+    kind = t.string("kind", choices=kind_names())
     name = t.string("name", kind)
     period = t.number("period", dt, lo=0, hi=MAX_TICKS * dt, lo_open=True)
     ratio = period / dt
@@ -517,6 +527,10 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
             t.fail(t.key("z_hit"), model["z_hit"], "weights z_hit + z_short + z_max + z_rand > 0")
         spec = replace(spec, n_beams=t.integer("n_beams", 180, lo=1, hi=MAX_BEAMS),
                        range_model=RangeModelParams(**model, laser_max_range=spec.max_range))
+    own = sensor_kind(kind).params
+    if own:
+        spec = replace(spec, params=tuple((p.key, t.number(p.key, p.default, lo=p.lo, hi=p.hi))
+                                          for p in own))
     t.finish()
     return spec
 
@@ -744,11 +758,12 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
     for i, n in enumerate(names):
         if n in names[:i]:
             raise ScenarioError(f"{file}: sensors[{i}].name = {n!r}: expected a unique name")
-    if any(s.kind != "range_finder" for s in sensors) and not beacons:
+    if any(sensor_kind(s.kind).needs_beacons for s in sensors) and not beacons:
         raise ScenarioError(f"{file}: world.beacons = []: expected at least one beacon for the sensors")
-    if any(s.kind == "range_finder" for s in sensors) and grid is None:
-        raise ScenarioError(f"{file}: world: a range_finder sensor needs walls: expected "
-                            f"world.map = \"file.yaml\" or a [world.walls] table")
+    for s in sensors:
+        if sensor_kind(s.kind).needs_walls and grid is None:
+            raise ScenarioError(f"{file}: world: a {s.kind} sensor needs walls: expected "
+                                f"world.map = \"file.yaml\" or a [world.walls] table")
 
     driver = _driver(top.sub("driver", {}), world)
     k = top.sub("keyboard", {})

@@ -33,8 +33,6 @@ from beacon_sim.core.raycast import beam_angles, line_of_sight, scan
 from beacon_sim.core.types import MEASUREMENT_DIMS, Measurement
 from beacon_sim.core.world import World
 
-SENSOR_KINDS = tuple(MEASUREMENT_DIMS)
-
 
 @dataclass(frozen=True)
 class SensorNoise:
@@ -60,7 +58,8 @@ class SensorSpec:
     ----------
     name : str
     kind : str
-        One of ``bearing``, ``range_bearing``, ``pose``, ``position``.
+        A registered sensor kind (core/sensor_kinds.py): ``bearing``, ``range_bearing``,
+        ``pose``, ``position``, ``range_finder``, or one registered later.
     period : float
         Time between readings [s]; a multiple of the scenario's dt.
     max_range : float
@@ -90,6 +89,9 @@ class SensorSpec:
     occluded_by_walls : bool
         Beacon sensors in a world with walls: a beacon behind a wall is not seen (default).
         No effect in a world without walls.
+    params : tuple of (str, float)
+        The values of the keys the sensor's kind declares (core/sensor_kind.py's
+        ``KindParam``): :meth:`param` reads one.
     """
 
     name: str
@@ -107,6 +109,14 @@ class SensorSpec:
     n_beams: int = 0
     range_model: RangeModelParams | None = None
     occluded_by_walls: bool = True
+    params: tuple[tuple[str, float], ...] = ()
+
+    def param(self, key: str) -> float:
+        """The value of a key the sensor's kind declares (``SensorKind.params``)."""
+        for k, v in self.params:
+            if k == key:
+                return v
+        raise KeyError(f"sensor {self.name!r} ({self.kind}) has no parameter {key!r}")
 
     def fix_std(self, n_beacons: int, hdop_value: float = 1.0) -> np.ndarray:
         """Standard deviations of one fix row: pose ``[sx, sy, sth]`` or position ``[sx, sy]``."""

@@ -20,7 +20,7 @@ from beacon_sim.core.events import Blackout, Kidnap, active_ticks, first_tick_at
 from beacon_sim.core.motion import SLIP_MODELS, move_portable, with_slip
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.schedule import tick_schedule
-from beacon_sim.core.sensors import sense
+from beacon_sim.core.sensor_kinds import draw
 from beacon_sim.core.streams import stream
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 
@@ -156,7 +156,7 @@ class Simulation:
             if not self.schedule.due(spec.name, k):
                 continue
             rng = self._sensor_rngs[spec.name]
-            m = sense(spec, pose, self.world, rng)  # draw even when blacked out: stable streams
+            m = draw(spec, pose, self.world, rng)  # draw even when blacked out: stable streams
             ids = None
             if spec.name in self._clutter_rngs:  # IDs hidden, clutter added, truth kept aside
                 m, ids = unlabel(m, spec, self._clutter_rngs[spec.name])

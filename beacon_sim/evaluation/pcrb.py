@@ -55,12 +55,16 @@ from beacon_sim.core.raycast import beam_angles
 from beacon_sim.core.scan_jacobian import scan_information
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.schedule import TickSchedule, tick_schedule
+from beacon_sim.core.sensor_kinds import model_of
 from beacon_sim.core.sensors import SensorSpec, in_view, visible_mask
 from beacon_sim.core.team_models import relative_range_bearing, relative_rows
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import broad_gaussian
 from beacon_sim.hosting.loading import initial_belief
+
+#: The kinds whose information is written out here (the others: their record's model).
+_OWN_KINDS = ("bearing", "range_bearing", "pose", "position")
 
 #: Position sensors enumerate every detected subset of the visible beacons up to this many.
 MAX_SUBSET_BEACONS = 10
@@ -88,6 +92,13 @@ def measurement_information(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray
             RangeModelParams(laser_max_range=spec.max_range)
         return scan_information(world.grid, poses, beam_angles(spec.n_beams, spec.fov),
                                 model.laser_max_range, model.sigma_hit, float(model.weights[0]))
+    if spec.kind not in _OWN_KINDS:   # another kind: its record's model (core/sensor_kinds.py)
+        kind_model = model_of(spec.kind)
+        if kind_model is None:
+            raise ValueError(f"unknown sensor kind {spec.kind!r}")
+        if world is None:
+            raise ValueError(f"a {spec.kind} sensor's information needs the world (its beacons)")
+        return kind_model.information(spec, poses, world)
     pos = poses[:, :2]
     vis = in_view(spec, poses, bxy) if world is None else visible_mask(spec, poses, world)
     p = spec.detection_prob * (1.0 - spec.outlier_rate)

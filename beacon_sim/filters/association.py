@@ -46,11 +46,12 @@ from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.metrics import chi2_quantile
+from beacon_sim.core.sensor_kinds import dims
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import FilterContext, FilterError
 
 #: The reading kinds that need association and the width of one row.
-READING_DIMS = {"bearing": 1, "range_bearing": 2}
+READING_DIMS = {k: dims(k) for k in ("bearing", "range_bearing")}
 
 #: Default probability that a true pairing passes the gate (and the joint test).
 GATE_PROB = 0.99

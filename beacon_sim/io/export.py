@@ -19,6 +19,7 @@ import numpy as np
 
 from beacon_sim.core.files import atomic_write, read_user_bytes
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensor_kinds import names_beacons
 from beacon_sim.core.types import Step
 from beacon_sim.hosting.runner import FilterTrack
 from beacon_sim.io.recording import Recording
@@ -30,6 +31,7 @@ from beacon_sim.io.tables import (
     reading_values,
     tables,
     write_table_csv,
+    z_width,
 )
 
 
@@ -49,15 +51,16 @@ def step_arrays(scenario: Scenario, steps: Sequence[Step]) -> dict[str, np.ndarr
         "control": np.array([[s.control.v, s.control.omega] for s in steps], dtype=float).reshape(-1, 2),
     }
     mt, msens, mkind, mid, mz, mh = [], [], [], [], [], []
+    width = z_width()
     for s in steps:
         for m in s.measurements:
-            fix = m.kind in ("pose", "position", "range_finder")   # no beacon ID per row
+            fix = not names_beacons(m.kind)   # a fix or a scan: no beacon ID per row
             for i in range(len(m)):
                 mt.append(s.tick)
                 msens.append(m.sensor)
                 mkind.append(m.kind)
                 mid.append(-1 if fix else int(m.beacon_ids[i]))
-                row = np.full(3, np.nan)
+                row = np.full(width, np.nan)
                 row[: m.z.shape[1]] = m.z[i]
                 mz.append(row)
                 mh.append(m.hdop)
@@ -67,7 +70,7 @@ def step_arrays(scenario: Scenario, steps: Sequence[Step]) -> dict[str, np.ndarr
     out["readings_sensor"] = np.array(msens, dtype=str)
     out["readings_kind"] = kinds
     out["readings_beacon_id"] = np.array(mid, dtype=int)
-    for c, v in reading_values(kinds, np.array(mz, dtype=float).reshape(-1, 3)).items():
+    for c, v in reading_values(kinds, np.array(mz, dtype=float).reshape(-1, width)).items():
         out[f"readings_{c}"] = v
     out["readings_hdop"] = np.array(mh, dtype=float)
     ev = [e for s in steps for e in s.events]

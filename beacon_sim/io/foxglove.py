@@ -63,12 +63,14 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core import sensor_kinds
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensor_kinds import names_beacons
 from beacon_sim.filters.base import GridBelief, LandmarkMap, ParticleBelief
-from beacon_sim.io.tables import COV_COLUMNS, UPPER, Z_COLUMNS
+from beacon_sim.io.tables import COV_COLUMNS, UPPER
 
 INSTALL_HINT = install_hint("foxglove")
 FRAME = "world"
@@ -473,7 +475,10 @@ class Publisher:
         out = []
         for sensor, kind, z, bid in rows:
             vals: dict[str, float | None] = dict.fromkeys(READING_FIELDS)
-            for j, col in enumerate(Z_COLUMNS.get(kind, ())):
+            record = sensor_kinds.KINDS.get(str(kind))
+            for j, col in enumerate(record.columns if record is not None else ()):
+                if col not in vals:  # a registered kind's own column: not in the schema
+                    continue
                 v = float(z[j])
                 vals[col] = v if math.isfinite(v) else None
             out.append({"sensor": str(sensor), "kind": str(kind), "beacon_id": int(bid), **vals})
@@ -600,7 +605,8 @@ class Publisher:
     def _readings(self, ns: int, truth: np.ndarray, rows: Sequence[tuple[str, str, np.ndarray, int]]):
         """One tick's readings as rays from the true pose: range_bearing, the measured range
         along the measured bearing; bearing, along the bearing as far as the true beacon; a
-        pose / position fix, a small sphere at the fix. One entity per sensor, living one
+        pose / position fix, a small sphere at the fix; a reading of another kind that names its
+        beacon, a ray to that beacon. One entity per sensor, living one
         sensor period."""
         m = self.msg
         x, y, th = (float(v) for v in truth)
@@ -615,10 +621,13 @@ class Publisher:
                     r, b = math.hypot(bx - x, by - y), float(z[0])
                 prims["points"] += [self._pt(x, y, 0.05),
                                     self._pt(x + r * math.cos(th + b), y + r * math.sin(th + b), 0.05)]
-            else:
+            elif kind in ("pose", "position"):
                 prims["spheres"].append(m.SpherePrimitive(pose=self._pose(z[0], z[1]),
                                                           size=m.Vector3(x=0.15, y=0.15, z=0.15),
                                                           color=self._colour(READING_COLOUR, 0.8)))
+            elif names_beacons(kind) and bid in self.beacons:   # another kind: a ray to its beacon
+                bx, by = self.beacons[bid]
+                prims["points"] += [self._pt(x, y, 0.05), self._pt(bx, by, 0.05)]
         entities = []
         for sensor, prims in by_sensor.items():
             lines = [m.LinePrimitive(type=m.LinePrimitiveLineType.LineList, pose=self._pose(0, 0),

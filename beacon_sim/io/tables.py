@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from beacon_sim.core import sensor_kinds
 from beacon_sim.core.files import atomic_write, read_user_text
 from beacon_sim.core.metrics import pose_errors
 
@@ -37,13 +38,30 @@ COV_COLUMNS = ("cov_xx", "cov_xy", "cov_xt", "cov_yy", "cov_yt", "cov_tt")
 UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 ESTIMATE_COLUMNS = ("tick", "time_s", "filter", "x_m", "y_m", "theta_rad", *COV_COLUMNS,
                     "err_x_m", "err_y_m", "err_theta_rad", "err_pos_m", "nees")
-#: A reading's numbers by kind, in the order of the sensor's ``z`` row (a range finder's row
-#: is one beam: its range and its angle from the heading).
-Z_COLUMNS = {"bearing": ("bearing_rad",), "range_bearing": ("range_m", "bearing_rad"),
-             "pose": ("x_m", "y_m", "theta_rad"), "position": ("x_m", "y_m"),
-             "range_finder": ("range_m", "bearing_rad")}
+#: The built-in kinds' reading columns, in the tables' order; a registered kind's own
+#: columns follow them (:func:`value_columns`). Each kind's row order is its record's
+#: ``columns`` (core/sensor_kinds.py; a range finder's row is one beam: its range and its
+#: angle from the heading).
 VALUE_COLUMNS = ("range_m", "bearing_rad", "x_m", "y_m", "theta_rad")
 READING_COLUMNS = ("tick", "time_s", "sensor", "kind", "beacon_id", *VALUE_COLUMNS, "hdop")
+
+
+def value_columns() -> tuple[str, ...]:
+    """:data:`VALUE_COLUMNS` and then the columns of registered kinds that it lacks."""
+    extra = [c for c in sensor_kinds.value_columns() if c not in VALUE_COLUMNS]
+    return (*VALUE_COLUMNS, *extra)
+
+
+def reading_columns() -> tuple[str, ...]:
+    """The readings table's columns (:data:`READING_COLUMNS` with every registered kind's)."""
+    return ("tick", "time_s", "sensor", "kind", "beacon_id", *value_columns(), "hdop")
+
+
+def z_width() -> int:
+    """Width of the NaN-padded reading rows: the widest kind's row, at least 3."""
+    return max(3, *(k.dims for k in sensor_kinds.KINDS.values()))
+
+
 POSE_BEFORE = ("x_before_m", "y_before_m", "theta_before_rad")
 POSE_AFTER = ("x_after_m", "y_after_m", "theta_after_rad")
 EVENT_COLUMNS = ("tick", "time_s", "kind", "detail", *POSE_BEFORE, *POSE_AFTER)
@@ -65,13 +83,14 @@ _STR = {"filter", "sensor", "kind", "detail"}
 
 
 def reading_values(kinds: np.ndarray, z: np.ndarray) -> dict[str, np.ndarray]:
-    """The (M, 3) NaN-padded readings ``z`` of kinds ``kinds`` (M,) as the named columns of
-    :data:`VALUE_COLUMNS`."""
-    z = np.asarray(z, dtype=float).reshape(-1, 3)
-    out = {c: np.full(len(z), np.nan) for c in VALUE_COLUMNS}
-    for kind, cols in Z_COLUMNS.items():
-        rows = np.asarray(kinds) == kind
-        for j, c in enumerate(cols):
+    """The (M, w) NaN-padded readings ``z`` of kinds ``kinds`` (M,) as the named columns of
+    :func:`value_columns` (each kind's columns from its record)."""
+    kinds = np.asarray(kinds)
+    z = np.asarray(z, dtype=float).reshape(len(kinds), -1)
+    out = {c: np.full(len(z), np.nan) for c in value_columns()}
+    for kind in sensor_kinds.KINDS.values():
+        rows = kinds == kind.name
+        for j, c in enumerate(kind.columns):
             out[c][rows] = z[rows, j]
     return out
 
@@ -80,11 +99,12 @@ def reading_matrix(readings: Mapping[str, np.ndarray]) -> np.ndarray:
     """The inverse of :func:`reading_values`: each reading's numbers in the sensor's ``z``
     order, (M, 3) NaN-padded."""
     kinds = np.asarray(readings["kind"])
-    z = np.full((len(kinds), 3), np.nan)
-    for kind, cols in Z_COLUMNS.items():
-        rows = kinds == kind
-        for j, c in enumerate(cols):
-            z[rows, j] = np.asarray(readings[c], dtype=float)[rows]
+    z = np.full((len(kinds), z_width()), np.nan)
+    for kind in sensor_kinds.KINDS.values():
+        rows = kinds == kind.name
+        for j, c in enumerate(kind.columns):
+            if c in readings:
+                z[rows, j] = np.asarray(readings[c], dtype=float)[rows]
     return z
 
 
@@ -159,7 +179,7 @@ def tables(arrays: Mapping[str, np.ndarray]) -> dict[str, dict[str, np.ndarray]]
     a = upgrade_arrays(arrays)
     readings, events = prefixed(a, "readings"), prefixed(a, "events")
     return {"truth": truth_table(a), "estimates": estimate_table(a),
-            "readings": {c: readings[c] for c in READING_COLUMNS},
+            "readings": {c: readings[c] for c in reading_columns() if c in READING_COLUMNS or c in readings},
             "events": {c: events[c] for c in EVENT_COLUMNS}}
 
 

@@ -51,6 +51,7 @@ from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterContext, GaussianBelief, broad_gaussian
 from beacon_sim.filters.gaussian.measurements import (
+    KINDS,
     BatchableFilter,
     BatchedGaussian,
     ReadingModels,
@@ -60,7 +61,9 @@ from beacon_sim.filters.gaussian.measurements import (
     effective_gate,
     gated_rows,
     kalman_update,
+    kalman_update_full,
     kalman_update_low_rank,
+    model_readings,
     nis,
     process_cov_terms,
 )
@@ -294,11 +297,25 @@ class ExtendedKalmanFilter(VelocityGaussian):
             return
         measurements = association.associate_gaussian(self, measurements)  # unknown IDs: associated first
         rows = 0
+        others = False
         for m in measurements:
             rows += m.z.size
-        if rows > STACKED_ROWS and self.update_stacked(measurements):
-            return
-        self.update_rows(measurements)
+            if m.kind not in KINDS:
+                others = True
+        if not (rows > STACKED_ROWS and self.update_stacked(measurements)):
+            self.update_rows(measurements)
+        if others:
+            self.update_models(measurements)
+
+    def update_models(self, measurements: Sequence[Measurement]) -> None:
+        """The readings of other kinds (``model_readings``), one after another, each
+        linearised at the current mean with its kind's model (H, the innovation, a full R)."""
+        for spec, m, model in model_readings(self.ctx, measurements):
+            H, nu, R = model.linearise(spec, m, self.mean, self.ctx.world)
+            mean, P = kalman_update_full(self.mean, self.cov, H, nu, R, self.joseph)
+            self.x, self.y, self.th = mean.tolist()
+            (p00, p01, p02), (_, p11, p12), (_, _, p22) = P.tolist()
+            self.p = (p00, p01, p02, p11, p12, p22)
 
     def update_rows(self, measurements: Sequence[Measurement]) -> None:
         """The update row by row on floats (one linearisation point; see the module)."""

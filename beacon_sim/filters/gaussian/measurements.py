@@ -34,16 +34,20 @@ from beacon_sim.core.batch_simulation import BatchTick, BeaconReadings
 from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.sensor_kind import MeasurementModel
+from beacon_sim.core.sensor_kinds import beacon_kinds, model_of, sensor_kind
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError
 
-BEACON_KINDS = ("bearing", "range_bearing")
-FIX_KINDS = ("pose", "position")
-KINDS = BEACON_KINDS + FIX_KINDS
-_ANGLE_PATTERN = {"bearing": (True,), "range_bearing": (False, True), "pose": (False, False, True),
-                  "position": (False, False)}
+#: The kinds these filters have fast forms of (any other: its record's model,
+#: :func:`model_readings`); which of them name a beacon per row, and their angle columns,
+#: come from their records (core/sensor_kinds.py).
+KINDS = ("bearing", "range_bearing", "pose", "position")
+BEACON_KINDS = beacon_kinds(KINDS)
+FIX_KINDS = tuple(k for k in KINDS if k not in BEACON_KINDS)
+_ANGLE_PATTERN = {k: sensor_kind(k).angles for k in KINDS}
 _I3 = np.eye(3)
 
 #: Readings (rows of a tick's stacked update) above which the Kalman updates take their
@@ -662,6 +666,41 @@ def nis(mean: np.ndarray, P: np.ndarray, st: StackedReadings) -> np.ndarray:
     return np.sum(nu * solve(S, nu[..., None], strict=False)[..., 0], axis=-1)
 
 
+# -- kinds weighed by their record's model ------------------------------------------------
+def model_readings(ctx: FilterContext, measurements: Iterable[Measurement]
+                   ) -> list[tuple[SensorSpec, Measurement, MeasurementModel]]:
+    """The readings of kinds these filters have no form of their own for (not in
+    :data:`KINDS`) whose record has a measurement model (core/sensor_kinds.py), each with
+    its sensor and model: the EKF linearises them with the model's H and R, the UKF passes
+    its sigma points through the model's h. A scan (no model) is left out."""
+    out = []
+    for m in measurements:
+        if m.kind in KINDS or not len(m):
+            continue
+        model = model_of(m.kind)
+        if model is not None:
+            out.append((ctx.sensor(m.sensor), m, model))
+    return out
+
+
+def kalman_update_full(mean: np.ndarray, P: np.ndarray, H: np.ndarray, nu: np.ndarray, R: np.ndarray,
+                       joseph: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The Kalman update of one run with a full noise covariance R (m, m) (correlated
+    readings): S = H P H^T + R, K = P H^T S^-1, mean + K nu (heading wrapped),
+    P = (I - K H) P (I - K H)^T + K R K^T (Joseph) or P - K H P, symmetrised."""
+    HP = H @ P
+    S = HP @ H.T + R
+    Kt = np.linalg.solve(S, HP)                          # K^T = S^-1 H P
+    mean = corrected_mean(np.asarray(mean, dtype=float), Kt, nu)
+    K = Kt.T
+    if joseph:
+        A = _I3 - K @ H
+        P = A @ P @ A.T + K @ R @ Kt
+    else:
+        P = P - K @ HP
+    return mean, symmetrise(np.array(P))
+
+
 # -- process noise -----------------------------------------------------------------------
 def process_cov_terms(noise: MotionNoise, theta: Any, c: Any, s: Any, v: Any, omega: Any, dt: float
                       ) -> tuple[Any, ...]:
@@ -728,7 +767,7 @@ class BatchedGaussian:
 
 
 #: Degrees of freedom of one gated group of rows: a beacon's reading or a fix.
-READING_DOF = {"bearing": 1, "range_bearing": 2, "position": 2, "pose": 3}
+READING_DOF = {k: sensor_kind(k).dims for k in KINDS}
 #: The gate's chi-square quantile when the scenario tells the filters its readings have
 #: outliers and ``gate_chi2`` is not given.
 OUTLIER_GATE_QUANTILE = 0.99
@@ -859,7 +898,9 @@ __all__ = [
     "gate_blocks",
     "gated_rows",
     "kalman_update",
+    "kalman_update_full",
     "kalman_update_low_rank",
+    "model_readings",
     "nis",
     "nis_low_rank",
     "outlier_gate",

@@ -56,6 +56,7 @@ from beacon_sim.filters.gaussian.measurements import (
     cov_matrix,
     effective_gate,
     gate_blocks,
+    model_readings,
     process_cov_terms,
     solve,
     stack,
@@ -543,14 +544,32 @@ class UnscentedKalmanFilter(BatchableFilter):
             return
         measurements = association.associate_gaussian(self, measurements)  # unknown IDs: associated first
         rows = 0
+        others = False
         for m in measurements:
             width = _ROWS_PER_READING.get(m.kind)
             if width is not None and len(m):
                 rows += width if m.kind in FIX_KINDS else width * len(m)
-        if rows == 0:
-            return
-        if rows > FLOAT_ROWS or not self._update_floats(measurements):
+            elif width is None:
+                others = True
+        if rows and (rows > FLOAT_ROWS or not self._update_floats(measurements)):
             self._update_arrays(measurements)
+        if others:
+            self._update_models(measurements)
+
+    def _update_models(self, measurements: Sequence[Measurement]) -> None:
+        """The readings of other kinds (``model_readings``), one after another: sigma points
+        from the current belief through the kind's model h, its full R, the same
+        :func:`innovation_parts` and :func:`correct` as the array form."""
+        for spec, m, model in model_readings(self.ctx, measurements):
+            mean, cov = self.mean, self.cov
+            D = np.array(self._offsets())
+            Z = model.expected(spec, m, mean + D, self.ctx.world)
+            ang = model.angle_rows(m)
+            sel = np.flatnonzero(ang) if ang.any() else None
+            z = np.asarray(m.z, dtype=float).reshape(-1)
+            dZ, WdZ, Pxz, nu = innovation_parts(Z, D, z, sel, self._Wm_now, self._Wc_now)
+            S = dZ.T @ WdZ + model.noise(spec, m)
+            self.mean, self.cov = correct(mean, cov, S, Pxz, nu)
 
     # -- the update on floats (a few readings) ----------------------------------------------
     def _update_floats(self, measurements: Sequence[Measurement]) -> bool:

@@ -31,6 +31,7 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.geometry import hdop
+from beacon_sim.core.sensor_kinds import model_of
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, GridBelief
@@ -330,8 +331,12 @@ class HistogramFilter(FilterBase):
                 var = (spec.noise.position_std * h) ** 2 + cell_var
                 d2 = (self.xc[:, None] - z[0, 0]) ** 2 + (self.yc[None, :] - z[0, 1]) ** 2
                 lxy -= 0.5 * d2 / var + np.log(var)      # seed 002 eq. 11, 2-D normalised
-            else:
-                raise FilterError(f"histogram: unknown measurement kind {m.kind!r}")
+            else:   # any other kind: its record's model at every cell and heading
+                model = model_of(m.kind)
+                if model is None:
+                    raise FilterError(f"histogram: unknown measurement kind {m.kind!r}")
+                term = model.loglik(spec, m, self._cell_poses(), self.ctx.world).reshape(self.grid.shape)
+                mixed = term if mixed is None else mixed + term
         L = self._L
         g = self.grid
         if mixed is None:
@@ -390,6 +395,16 @@ class HistogramFilter(FilterBase):
             g += b
             self._rows = None
         self._cache = None
+
+    def _cell_poses(self) -> np.ndarray:
+        """The pose of every cell's centre, (nh nx ny, 3) [m, m, rad], in the grid's order
+        [heading, x, y] (for a kind weighed by its record's model)."""
+        th = self._trig()[0]
+        out = np.empty((self.nh, self.nx, self.ny, 3))
+        out[..., 0] = self.xc[None, :, None]
+        out[..., 1] = self.yc[None, None, :]
+        out[..., 2] = th[:, None, None]
+        return out.reshape(-1, 3)
 
     def _beacon_basis(self, sensor: str, bearing_std: float, b: int) -> np.ndarray:
         """The x-y arrays of beacon ``b`` for a bearing reading of ``sensor``, as rows of a

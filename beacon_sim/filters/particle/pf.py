@@ -43,6 +43,7 @@ from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.sensor_kinds import model_of
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
@@ -687,7 +688,14 @@ class ParticleFilter(FilterBase):
             if extra is not None:
                 extra += const
             return 2
-        raise FilterError(f"pf: unknown measurement kind {m.kind!r}")
+        # Any other kind: its record's model (core/sensor_kinds.py), on the particles as arrays.
+        model = model_of(m.kind)
+        if model is None:
+            raise FilterError(f"pf: unknown measurement kind {m.kind!r}")
+        row = model.loglik(spec, m, self._P[:, :n].T.astype(np.float64), self.ctx.world)
+        self._count_unexplained(row, int(m.z.size), eps)
+        ll += row
+        return int(m.z.size)
 
     # ----------------------------------------------------------------- resampling
     def _resample(self) -> None:
