@@ -71,7 +71,7 @@ def write_class(folder: Path, honest: int, hostile: bool) -> list[str]:
 
 
 def figures(board: dict, names: list[str]) -> dict[str, tuple]:
-    return {r["student"]: tuple(r[k] for k in FIGURES) for r in board["rows"] if r["student"] in names}
+    return {r["student"]: tuple(r[k] for k in FIGURES) for r in board.rows if r["student"] in names}
 
 
 _MEASURE = """
@@ -84,6 +84,7 @@ cfg = GradeConfig(**json.loads(sys.argv[2]))
 s0, c0, t0 = cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN), time.perf_counter()
 extra = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
 board = grade(sys.argv[1], cfg, jobs=json.loads(sys.argv[3]), **extra)
+board = board.document() if hasattr(board, "document") else board  # a base checkout: a dict
 wall = time.perf_counter() - t0
 s1, c1 = cpu(resource.RUSAGE_SELF), cpu(resource.RUSAGE_CHILDREN)
 print(json.dumps({"wall": wall, "self": s1 - s0, "children": c1 - c0,
@@ -146,7 +147,7 @@ def dask_cpu(args: argparse.Namespace, hon: Path, cfg: GradeConfig, runs: int) -
             c0, s0 = proc_cpu(pids), self_cpu()
             board = grade(hon, GradeConfig(**{**local_cfg, "scenarios": cfg.scenarios, "seeds": cfg.seeds}),
                           scheduler=client)
-            extra = board["child_cpu_s"] if board["sandbox"] == "bwrap" else 0.0
+            extra = board.child_cpu_s if board.sandbox == "bwrap" else 0.0
             got["dask"].append(proc_cpu(pids) - c0 + self_cpu() - s0 + extra)
     local, remote = median(got["local"]), median(got["dask"])
     print(f"FIGURE dask_cpu_load_1min {load0:.2f} -> {os.getloadavg()[0]:.2f}")
@@ -264,7 +265,7 @@ def main() -> None:
     t0 = time.perf_counter()
     board = grade(klass, cfg, jobs=args.jobs)
     local_s = time.perf_counter() - t0
-    print(f"FIGURE grade_local_wall {local_s:.1f} s (sandbox {board['sandbox']}, jobs "
+    print(f"FIGURE grade_local_wall {local_s:.1f} s (sandbox {board.sandbox}, jobs "
           f"{args.jobs or 'default'}, {args.seeds} seeds x {args.duration:g} s)")
     write_class(tmp / "alone", 21, hostile=False)
     alone = grade(tmp / "alone", cfg, jobs=args.jobs)
@@ -272,7 +273,7 @@ def main() -> None:
     print(f"FIGURE honest_identical_to_alone_local {same} ({len(honest)} students)")
     print("ROWS " + json.dumps([(r["rank"], r["student"], r["pos_rmse_m"], r.get("suspicious"),
                                  [f["reason"] for f in r["failures"][:1]], r.get("flags"))
-                                for r in board["rows"]], default=str))
+                                for r in board.rows], default=str))
 
     if not args.no_dask:
         from dask.distributed import Client, LocalCluster
@@ -284,7 +285,7 @@ def main() -> None:
             dask_s = time.perf_counter() - t0
         print(f"FIGURE grade_dask_wall {dask_s:.1f} s (LocalCluster {args.jobs or 2} workers x 1 thread)")
         print(f"FIGURE honest_identical_to_alone_dask {figures(remote, honest) == figures(alone, honest)}")
-        everyone = [r["student"] for r in board["rows"]]
+        everyone = [r["student"] for r in board.rows]
         print(f"FIGURE dask_identical_to_local {figures(remote, everyone) == figures(board, everyone)}")
 
     if args.base is not None:  # the cost of a graded run: the honest class, isolated vs in process

@@ -1,4 +1,4 @@
-"""evaluation.montecarlo._check: the eigenvalues are asked only where a 3x3 Cholesky test is
+"""evaluation.montecarlo.records._check: the eigenvalues are asked only where a 3x3 Cholesky test is
 inconclusive, and the verdicts (first unusable estimate and why) are those of eigvalsh on
 every matrix, on random and adversarial covariances."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from beacon_sim.evaluation import montecarlo as mc
+from beacon_sim.evaluation.montecarlo import records as mc
 from beacon_sim.hosting.guard import DIVERGED, MAX_COV, MAX_MEAN
 
 

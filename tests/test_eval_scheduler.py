@@ -80,7 +80,7 @@ def test_dask_runs_equal_local_runs_bit_for_bit(cluster):
 def test_runs_grouped_into_dask_tasks_come_back_in_seed_order(cluster, monkeypatch):
     # Several runs a task on the per-run path; 5 runs on 2 workers at one task a
     # worker are groups of 3 and 2, and every run is the local one, in its place
-    import beacon_sim.evaluation.montecarlo as mc
+    import beacon_sim.evaluation.montecarlo.sweep as mc
 
     monkeypatch.setattr(mc, "TASKS_PER_DASK_WORKER", 1)
     seen = []

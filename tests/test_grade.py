@@ -36,7 +36,7 @@ def _rows(path: Path) -> list[dict[str, str]]:
 
 
 def test_failed_filters_have_no_score_and_rank_below_working_ones(board, tmp_path):
-    rows = board["rows"]
+    rows = board.rows
     assert {r["student"] for r in rows} == set(STUDENTS)
     working = [r["student"] for r in rows if not r["failed_runs"]]
     assert set(working) == set(WORKING)
@@ -81,7 +81,7 @@ def test_local_cluster_gives_the_same_results_as_local_processes(board, klass, t
     write_outputs(remote, tmp_path / "dask")
     assert _without_cost(_rows(tmp_path / "local" / "grade.csv")) == \
         _without_cost(_rows(tmp_path / "dask" / "grade.csv"))
-    for a, b in zip(board["rows"], remote["rows"], strict=True):
+    for a, b in zip(board.rows, remote.rows, strict=True):
         assert a["plot"] == b["plot"]
 
 
@@ -181,9 +181,9 @@ def test_no_row_says_a_bare_consistent_beside_an_error_over_twice_the_bound(tmp_
     (klass / "blind.py").write_text(BLIND)
     shutil.copy(Path(__file__).parent / "attacks" / "honest.py", klass / "honest.py")
     board = grade(klass, GradeConfig(scenarios=("default",), seeds=(0,), duration=40.0), jobs=2)
-    far = [r for r in board["rows"] if r["rmse_over_pcrb"] is not None and r["rmse_over_pcrb"] > 2]
+    far = [r for r in board.rows if r["rmse_over_pcrb"] is not None and r["rmse_over_pcrb"] > 2]
     assert [r["student"] for r in far] == ["blind"]  # the honest EKF is near the bound
-    for r in board["rows"]:
+    for r in board.rows:
         if r in far:
             assert ", but " in r["verdict"] and "x the bound" in r["verdict"], r["verdict"]
         else:

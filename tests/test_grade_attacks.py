@@ -9,6 +9,7 @@ time, and generous); runs are short (4 s of simulated time, two seeds)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 from pathlib import Path
@@ -66,7 +67,7 @@ def alone(tmp_path_factory):
 
 
 def _row(board, student):
-    return next(r for r in board["rows"] if r["student"] == student)
+    return next(r for r in board.rows if r["student"] == student)
 
 
 def test_honest_scores_are_bit_identical_to_grading_them_alone(board, alone):
@@ -111,9 +112,9 @@ def test_os_exit_fails_its_own_student_with_the_real_reason(board):
     row = _row(board, "os_exit")
     assert row["failed_runs"] == 2 and row["pos_rmse_m"] is None
     assert all("exited with status 3" in f["reason"] for f in row["failures"]), row["failures"]
-    others = [r for r in board["rows"] if r["student"] not in ("os_exit", "forge_reply")]
+    others = [r for r in board.rows if r["student"] not in ("os_exit", "forge_reply")]
     assert not any("exited" in f["reason"] or "died" in f["reason"] for r in others for f in r["failures"])
-    assert board["rows"][-1]["student"] in ("os_exit", "forge_reply")  # below every working filter
+    assert board.rows[-1]["student"] in ("os_exit", "forge_reply")  # below every working filter
 
 
 def test_a_forged_answer_on_the_pipe_fails_its_own_student(board):
@@ -134,7 +135,7 @@ def test_a_global_rng_filter_is_reproducible_and_flagged(board, tmp_path):
     # graded alone with the class's secret (the grader seeds the global generators from it,
     # never from the run's seed): the same figures bit for bit
     again = grade(_klass(tmp_path / "again", ["global_rng"]), CONFIG, jobs=1,
-                  secret=bytes.fromhex(board["secret"]))
+                  secret=bytes.fromhex(board.secret))
     assert {k: _row(again, "global_rng")[k] for k in FIGURES} == {k: row[k] for k in FIGURES}
     assert _row(board, "honest")["global_rng"] is False
 
@@ -152,8 +153,8 @@ def test_the_filter_class_is_chosen_and_functions_are_a_filter(board):
 def test_the_page_shows_the_sandbox_the_logs_and_no_attacker_above_an_honest_student(board, tmp_path):
     write_outputs(board, tmp_path)
     page = (tmp_path / "grade.html").read_text()
-    assert board["sandbox"] in ("bwrap", "process") and "a process of its own" in page
-    ranks = {r["student"]: r["rank"] for r in board["rows"]}
+    assert board.sandbox in ("bwrap", "process") and "a process of its own" in page
+    ranks = {r["student"]: r["rank"] for r in board.rows}
     assert ranks["os_exit"] > max(ranks[n] for n in HONEST)
     assert (tmp_path / "grade.csv").read_text().count("\n") == len(HONEST + HOSTILE) + 1
 
@@ -164,7 +165,7 @@ def test_a_print_flood_is_cut_and_kept_off_the_graders_output(tmp_path, capfd):
     row = _row(b, "print_flood")
     assert row["failed_runs"] == 0, row["failures"]
     assert len(out) + len(err) < 10_000  # 20 KB a step x 160 steps went to the log, not here
-    log = b["logs"]["print_flood"]
+    log = b.logs["print_flood"]
     assert "[output cut at" in log and len(log.encode()) <= LOG_BYTES + 300
     write_outputs(b, tmp_path / "out")
     assert (tmp_path / "out" / "logs" / "print_flood.log").stat().st_size <= LOG_BYTES + 300
@@ -178,7 +179,7 @@ def test_both_containment_levels_grade_the_same(tmp_path, sandbox, alone):
 
     cfg = dataclasses.replace(CONFIG, sandbox=sandbox)
     b = grade(_klass(tmp_path / "c", ["honest", "os_exit", "file_writes"]), cfg, jobs=2)
-    assert b["sandbox"] == sandbox
+    assert b.sandbox == sandbox
     assert {k: _row(b, "honest")[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
     assert "exited with status 3" in _row(b, "os_exit")["failures"][0]["reason"]
     assert not (tmp_path / "c" / "pwned.txt").exists()
@@ -207,7 +208,7 @@ def test_a_page_per_student_and_pseudonyms_on_the_class_page(board, tmp_path):
     page = (tmp_path / "named" / "students" / "os_exit.html").read_text()
     assert "exited with status 3" in page and "../grade.html" in page and "<svg" in page
     assert 'href="students/honest.html"' in (tmp_path / "named" / "grade.html").read_text()
-    anon = {**board, "config": {**board["config"], "pseudonyms": True}}
+    anon = dataclasses.replace(board, config={**board.config, "pseudonyms": True})
     write_outputs(anon, tmp_path / "anon")
     html = (tmp_path / "anon" / "grade.html").read_text()
     with open(tmp_path / "anon" / "pseudonyms.csv", newline="") as fh:
@@ -222,11 +223,11 @@ def test_regrading_reuses_unchanged_students_and_runs_a_changed_file(tmp_path, a
     klass = _klass(tmp_path / "c", HONEST)
     cache = tmp_path / "cache"
     first = grade(klass, CONFIG, jobs=2, cache=cache)
-    assert first["cached_students"] == []
+    assert first.cached_students == []
     shutil.copyfile(ATTACKS / "os_exit.py", klass / "honest_tuned.py")  # a corrected (here: broken) file
-    assert grade(klass, CONFIG, jobs=1, cache=cache)["cached_students"] == []  # a new secret: all again
-    again = grade(klass, CONFIG, jobs=2, cache=cache, secret=bytes.fromhex(first["secret"]))
-    assert again["cached_students"] == ["honest"]  # the kept secret: the unchanged file reused
+    assert grade(klass, CONFIG, jobs=1, cache=cache).cached_students == []  # a new secret: all again
+    again = grade(klass, CONFIG, jobs=2, cache=cache, secret=bytes.fromhex(first.secret))
+    assert again.cached_students == ["honest"]  # the kept secret: the unchanged file reused
     assert {k: _row(again, "honest")[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
     assert "exited with status 3" in _row(again, "honest_tuned")["failures"][0]["reason"]
 
@@ -237,10 +238,10 @@ def test_team_scenarios_host_each_robots_filter_in_a_child_too(tmp_path):
     nothing, os._exit fails its own student with the real reason."""
     cfg = GradeConfig(scenarios=("team_sparse",), seeds=(0,), duration=3.0, time_limit=30.0)
     b = grade(_klass(tmp_path / "c", ["honest", "frame_walk", "os_exit"]), cfg, jobs=2)
-    ref = b["reference"]["team_sparse"]["pos_rmse_m"]
+    ref = b.reference["team_sparse"]["pos_rmse_m"]
     assert _row(b, "honest")["pos_rmse_m"] == ref == _row(b, "frame_walk")["pos_rmse_m"]
     assert "exited with status 3" in _row(b, "os_exit")["failures"][0]["reason"]
-    assert b["team_in_process"] == []
+    assert b.team_in_process == []
 
 
 def test_the_probes_find_determinism_and_the_use_of_readings(board, tmp_path):

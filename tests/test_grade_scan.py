@@ -71,15 +71,15 @@ def test_grade_scores_the_scan_template_as_its_in_process_run_beside_mcl(scan_cl
     from beacon_sim.evaluation.grading import write_outputs
 
     board = grade(scan_class, CONFIG, jobs=1)
-    row = board["rows"][0]
+    row = board.rows[0]
     assert row["student"] == "sam" and not row["failures"], row["failures"]
-    ref = board["scan_reference"]["office"]
+    ref = board.scan_reference["office"]
     assert ref["filter"] == "mcl" and 0 < ref["pos_rmse_m"] < 0.5
     # the same seeds in process, the filter named as the grader names it (its class)
     sc = load_scenario("office")
     # (with the grade's secret: the template draws from ctx.rng, which grade keys with it)
     runs = [one_run(sc, [f"{scan_class / 'sam.py'}:Sam"], {}, seed, CONFIG.duration, index=i,
-                    secret=bytes.fromhex(board["secret"])) for i, seed in enumerate(CONFIG.seeds)]
+                    secret=bytes.fromhex(board.secret)) for i, seed in enumerate(CONFIG.seeds)]
     for detail, run in zip(row["run_detail"], runs, strict=True):
         e = run.filters["Sam"].err
         assert detail["pos_rmse_m"] == float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))
@@ -118,10 +118,10 @@ def test_the_child_gets_the_grid_and_never_the_truth(scan_class):
     peek = scan_class / "peek.py"
     peek.write_text(render_scan_template("Honest", "peek.py") + PEEK, encoding="utf-8")
     board = grade(scan_class, CONFIG, jobs=1)
-    rows = {r["student"]: r for r in board["rows"]}
+    rows = {r["student"]: r for r in board.rows}
     assert not rows["peek"]["failures"], rows["peek"]["failures"]
     assert rows["peek"]["pos_rmse_m"] == rows["sam"]["pos_rmse_m"]  # found nothing to use
-    log = board["logs"]["peek"]
+    log = board.logs["peek"]
     assert f"grid {tuple(sc.world.grid.shape)}" in log
     assert "found 0" in log and "found 1" not in log
 

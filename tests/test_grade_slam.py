@@ -169,8 +169,8 @@ def test_grade_scores_a_slam_class_beside_the_built_in_ekf_slam(tmp_path, capsys
     folder = slam_class(tmp_path)
     capsys.readouterr()
     board = grade(folder, GradeConfig(**SLAM_CONFIG), jobs=2)
-    rows = {r["student"]: r for r in board["rows"]}
-    ref = board["slam_reference"]["slam_loop"]
+    rows = {r["student"]: r for r in board.rows}
+    ref = board.slam_reference["slam_loop"]
     assert ref["filter"] == "ekf_slam" and ref["ate_m"] > 0 and ref["joint_nees"] > 0
     alice = rows["alice"]
     assert not alice["failures"], alice["failures"]
@@ -221,7 +221,7 @@ def test_a_looping_landmarks_fails_its_run_on_its_time_limit(tmp_path):
     (folder / "dave.py").write_text(render_slam_template("Dave", "dave.py").replace(doc, loop + doc),
                                     encoding="utf-8")
     board = grade(folder, GradeConfig(**{**SLAM_CONFIG, "seeds": (0,), "time_limit": 1.0}), jobs=1)
-    row = board["rows"][0]
+    row = board.rows[0]
     assert row["failed_runs"] == 1 and row["map_gospa_m"] is None
     assert "time limit: over 1 s of filter time" in row["failures"][0]["reason"], row["failures"]
 
@@ -236,7 +236,7 @@ def test_the_templates_gospa_in_grade_is_what_run_reports(tmp_path, capsys):
     folder.mkdir()
     assert main(["new-filter", str(folder / "alice.py"), "--slam"]) == 0
     board = grade(folder, GradeConfig(scenarios=("slam_loop",), seeds=(3,), duration=12.0), jobs=1)
-    got = board["rows"][0]["slam"]["slam_loop"]
+    got = board.rows[0]["slam"]["slam_loop"]
     capsys.readouterr()
     assert main(["run", "slam_loop", "--filter", str(folder / "alice.py"), "--filter", "ekf_slam",
                  "--seed", "3", "--duration", "12", "--json"]) == 0
@@ -244,7 +244,7 @@ def test_the_templates_gospa_in_grade_is_what_run_reports(tmp_path, capsys):
     assert got["map_gospa_m"] == run["alice"]["slam"]["map_gospa_m"]
     assert got["ate_m"] == run["alice"]["slam"]["ate_m"]
     assert got["map_missed"] == run["alice"]["slam"]["map_missed"]
-    ref = board["slam_reference"]["slam_loop"]
+    ref = board.slam_reference["slam_loop"]
     assert ref["map_gospa_m"] == run["ekf_slam"]["slam"]["map_gospa_m"]
     assert ref["ate_m"] == run["ekf_slam"]["slam"]["ate_m"]
     assert ref["joint_nees"] == run["ekf_slam"]["slam"]["joint_nees"]

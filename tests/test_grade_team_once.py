@@ -60,8 +60,8 @@ def test_team_runs_streamed_once_equal_the_in_process_team_run_bit_for_bit(tmp_p
     (klass / "breaks.py").write_text(BREAKS, encoding="utf-8")
     cfg = GradeConfig(scenarios=("team_sparse",), seeds=(0, 1), duration=6.0, time_limit=30.0)
     board = grade(klass, cfg, jobs=2)
-    rows = {r["student"]: r for r in board["rows"]}
-    reference = board["reference"]["team_sparse"]
+    rows = {r["student"]: r for r in board.rows}
+    reference = board.reference["team_sparse"]
     assert set(rows) == {"honest", "functions", "breaks"}
     for name in ("honest", "functions"):
         assert not rows[name]["failures"], rows[name]["failures"]
@@ -80,10 +80,10 @@ def test_team_runs_streamed_once_on_dask_equal_local_processes(tmp_path):
     klass.mkdir()
     shutil.copy(ATTACKS / "honest.py", klass / "honest.py")
     cfg = GradeConfig(scenarios=("default", "team_sparse"), seeds=(0,), duration=4.0)
-    local = grade(klass, cfg, jobs=1)["rows"][0]
+    local = grade(klass, cfg, jobs=1).rows[0]
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
-        remote = grade(klass, cfg, scheduler=client)["rows"][0]
+        remote = grade(klass, cfg, scheduler=client).rows[0]
     assert not local["failures"] and not remote["failures"]
     for key in FIGURES:
         assert local.get(key) == remote.get(key), key

@@ -171,8 +171,8 @@ def test_grade_a_students_filter_as_every_robots_own(tmp_path: Path):
     klass = write_class(tmp_path / "class", ["alice", "carol"])
     board = grade(klass, GradeConfig(scenarios=("team_sparse",), seeds=(0, 1), duration=4.0,
                                      time_limit=5.0), jobs=1)
-    rows = {r["student"]: r for r in board["rows"]}
-    ref = board["reference"]["team_sparse"]
+    rows = {r["student"]: r for r in board.rows}
+    ref = board.reference["team_sparse"]
     assert set(ref["robots"]) == set(ROBOTS) and ref["pos_rmse_m"] > 0
     alice = rows["alice"]  # the built-in EKF in a student's file: the reference exactly
     assert alice["rank"] == 1 and alice["failed_runs"] == 0

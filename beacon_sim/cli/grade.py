@@ -63,7 +63,7 @@ def grade_command(args: argparse.Namespace) -> int:
     except GradeError as exc:
         raise UsageError(str(exc)) from None
     written = write_outputs(board, out)
-    for r in board["rows"]:
+    for r in board.rows:
         score = ("FAILED " + str(r["failed_runs"]) + "/" + str(r["runs"]) if r["failed_runs"]
                  else f"{r['pos_rmse_m']:.4f} m  {r['anees_verdict']}")
         if r.get("suspicious"):
@@ -81,26 +81,26 @@ def grade_command(args: argparse.Namespace) -> int:
             if not r["failed_runs"]:
                 print(f"{'':>5}{sc}: ATE {_num(m['ate_m'], '.4f')} m, map GOSPA "
                       f"{_num(m['map_gospa_m'], '.4f')} m, joint NEES {_num(m['joint_nees'], '.2f')}")
-    for sc, ref in board.get("slam_reference", {}).items():
+    for sc, ref in board.slam_reference.items():
         print(f"reference on {sc} (built-in {ref['filter']}): ATE {_num(ref['ate_m'], '.4f')} m, map GOSPA "
               f"{_num(ref['map_gospa_m'], '.4f')} m, joint NEES {_num(ref['joint_nees'], '.2f')}")
-    for sc, ref in board.get("scan_reference", {}).items():
+    for sc, ref in board.scan_reference.items():
         print(f"reference on {sc} (built-in {ref['filter']}): {_num(ref['pos_rmse_m'], '.4f')} m")
-    for sc, ref in board.get("reference", {}).items():
+    for sc, ref in board.reference.items():
         if ref["pos_rmse_m"] is not None:
             print(f"reference on {sc} (built-in independent EKF): team {ref['pos_rmse_m']:.4f} m  "
                   f"ANEES {ref['anees']:.2f}  "
                   + ", ".join(f"{rn} {v['pos_rmse_m']:.4f} m" for rn, v in ref["robots"].items()))
-    if board.get("cached_students"):
-        print(f"{len(board['cached_students'])} student(s) unchanged since the last grade: results "
+    if board.cached_students:
+        print(f"{len(board.cached_students)} student(s) unchanged since the last grade: results "
               f"reused from {out / 'cache'} (--no-cache runs them again)")
-    print(f"the students' random streams are keyed by {whence} (fingerprint {board['secret_sha256']}), "
+    print(f"the students' random streams are keyed by {whence} (fingerprint {board.secret_sha256}), "
           f"kept in {out / SECRET_FILE}: --secret-file it to regrade these figures bit for bit; "
           "do not hand it out")
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
           f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
-          f"in its own process, sandbox: {board.get('sandbox', 'process')})")
-    failed = any(r["failed_runs"] for r in board["rows"])
+          f"in its own process, sandbox: {board.sandbox})")
+    failed = any(r["failed_runs"] for r in board.rows)
     return 1 if failed and args.strict else 0
 
 

@@ -1,8 +1,8 @@
 """A filter in a child process of its own (the grader's side): :class:`FilterChild` starts
 and talks to the child (:mod:`beacon_sim.hosting.child`, contained as
-:mod:`beacon_sim.hosting.containment` says), and :class:`IsolatedFilter` is the proxy
-that satisfies :class:`~beacon_sim.filters.base.Filter`, so the runner, ``eval`` and
-``check`` drive it like any filter.
+:mod:`beacon_sim.hosting.containment` says). Front ends reach it through the hosting
+layer's one client (:mod:`beacon_sim.hosting.client`), which starts it and feeds it
+batches of runs (:func:`~beacon_sim.hosting.feed.feed_batch`).
 
 The child gets only what a filter may see: its :class:`~beacon_sim.filters.base.FilterContext`
 (beacon map, dt, motion noise, sensors, parameters, its random generator), its initial
@@ -212,16 +212,7 @@ class FilterChild:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    # -- one run ----------------------------------------------------------------------
-    def build(self, ctx: FilterContext, initial: GaussianBelief | None, global_seed: int,
-              run_limit_s: float | None, spec: str, step_limit_s: float | None = None) -> None:
-        """Build and reset a fresh filter in the child for one run (the global RNGs seeded
-        from ``global_seed``, the run's CPU-time limit armed; ``step_limit_s``: each
-        request's CPU-time limit too)."""
-        # A fresh copy of the world: no cached properties (a read-only mapping cannot be pickled).
-        ctx = dataclasses.replace(ctx, world=dataclasses.replace(ctx.world))
-        self.call_json("build", ctx, initial, int(global_seed), run_limit_s, spec, step_limit_s)
-
+    # -- the end of a run ------------------------------------------------------------
     def end(self) -> dict[str, Any]:
         """End the run: whether the filter drew from the global ``np.random`` / ``random``."""
         return self._report(self.call_json("end"))

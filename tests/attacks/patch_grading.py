@@ -1,11 +1,12 @@
-"""Attack: at import, wrap the grading module's run functions so that every other
+"""Attack: at import, wrap the grading modules' run functions so that every other
 student's error grows by 0.5 m (in a reused worker process this moved three honest
 students from 0.25 m to 0.81 m)."""
 
 import numpy as np
 
-import beacon_sim.evaluation.grading as grading
-import beacon_sim.evaluation.montecarlo as montecarlo
+import beacon_sim.evaluation.grading.students as students
+import beacon_sim.evaluation.grading.tasks as tasks
+import beacon_sim.evaluation.montecarlo.hosted as hosted
 from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
 
 
@@ -16,10 +17,10 @@ def _worse(run):
     return run
 
 
-_one_run = grading.one_run
-_isolated = montecarlo.isolated_run
-grading.one_run = lambda *a, **k: _worse(_one_run(*a, **k))
-montecarlo.isolated_run = grading.isolated_run = lambda *a, **k: (
+_one_run = tasks.one_run
+_isolated = hosted.isolated_run
+tasks.one_run = lambda *a, **k: _worse(_one_run(*a, **k))
+hosted.isolated_run = students.isolated_run = lambda *a, **k: (
     lambda out: (_worse(out[0]), out[1]))(_isolated(*a, **k))
 np.seterr(all="ignore")
 
