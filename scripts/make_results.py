@@ -1063,6 +1063,7 @@ FIGURES: tuple[Entry, ...] = (
     Entry("corridor", CORRIDOR_HEADER, fig_corridor),
     Entry("corridor_global", "## Global localization in the `corridor`: mcl and the corridor filter",
           fig_corridor_mcl),
+    Entry("slam_loop", "## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs", fig_slam_loop),
     Entry("mrclam", MRCLAM_HEADER, fig_mrclam, seeded=False),
     Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),
 )
