@@ -59,7 +59,7 @@ def test_every_section_is_one_registry_entry(make_results):
     headers = [e.header for e in make_results.FIGURES]
     assert len(set(names)) == len(names) and len(set(headers)) == len(headers)
     assert all(h.startswith("## ") for h in headers)
-    assert {"default", "krejsa", "corridor"} <= set(names)
+    assert {"default", "krejsa", "corridor", "corridor_global"} <= set(names)
     assert all(e.seeded for e in make_results.FIGURES if e.name not in ("mrclam", "slam"))
 
 

@@ -14,6 +14,8 @@ from beacon_sim.core.raycast import scan
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Measurement
+from beacon_sim.evaluation.found import CORRIDOR_CHECK_S, found_at
+from beacon_sim.evaluation.montecarlo import FilterRun, RunOutput, run_monte_carlo
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.particle.mcl import kld_bound, subsample_beams
 from beacon_sim.hosting.loading import build_filter
@@ -168,7 +170,10 @@ def test_selective_resampling_waits_for_a_low_ess():
     m = Measurement("laser", "range_finder", np.column_stack([r, rel]), np.zeros(0, dtype=int))
     for selective, lopsided, resampled in ((True, False, False), (True, True, True),
                                            (False, False, True)):
-        f = build_filter("mcl", sc, 2, params={"selective_resampling": selective})
+        # multinomial (the corridor's own is systematic, which copies an evenly weighted
+        # set particle for particle: no change to see)
+        f = build_filter("mcl", sc, 2, params={"selective_resampling": selective,
+                                               "resampler": "multinomial"})
         f.scan_log_likelihood = lambda m, f=f: (np.zeros(f.n), 30)  # a scan that tells nothing
         logw = np.zeros(f.n)
         logw[: f.n // 4 if lopsided else f.n] = 5.0     # ESS about n / 4, or n
@@ -213,22 +218,57 @@ def test_same_seed_same_particles():
         np.testing.assert_array_equal(x, y)
 
 
-def test_corridor_global_localization_converges_to_the_true_cell():
-    """Seed 004's corridor, started lost: after 60 s (the robot has passed the doors) the
-    estimate is in the robot's 1 m cell, facing its way, and stays there to 90 s; KLD-sampling
-    has shrunk the set from max_particles. Not every run gets there by 60 s in this corridor
-    of look-alike cells: runs 0-9 did in 2 of 10 with the filter streams before they were keyed
-    (runs 4 and 5) and in 2 of 10 with the keyed ones (runs 2 and 8); run 2 is one of those."""
-    checked = 0
-    for st, f in run("corridor", 2, 90.0, every=10.0):
-        if st.time < 60.0:
-            continue
-        mean, _ = f.estimate()
-        assert math.floor(mean[0]) == math.floor(st.true_pose[0]), st.time
-        assert math.cos(mean[2] - st.true_pose[2]) > 0.9
-        assert f.n < f.params["max_particles"]
-        checked += 1
-    assert checked == 4
+#: The corridor's test seeds: the default tier's first 8, the slow tier's 40. Neither range
+#: was used to tune the scenario (600-639) nor by the docs' figures (20000..., 30000...).
+CORRIDOR_SEEDS = range(700, 740)
+
+
+def corridor_found(seeds) -> dict[str, list[bool]]:
+    """Per filter (mcl, corridor), whether each seeded run of the shipped corridor, started
+    lost, found the robot: within half a cell of it and facing its way at 60, 70, 80 and 90 s
+    (``evaluation.found``)."""
+    sc = load_scenario("corridor")
+    runs = [r for s in seeds for r in run_monte_carlo(sc, ["mcl", "corridor"], 1, seed=s, jobs=1,
+                                                         duration=max(CORRIDOR_CHECK_S), progress=False)]
+    return {f: [found_at(r, f, sc.dt) for r in runs] for f in ("mcl", "corridor")}
+
+
+def test_corridor_global_localization_finds_the_robot():
+    """Seed 004's corridor, started lost: mcl and the corridor filter hold the robot's place
+    from 60 s (it has driven the corridor there and back) to 90 s in at least 5 of 6 seeded
+    runs (a filter that finds it in nine runs of ten does so with probability 0.89; mcl as
+    it was, 17 % of runs, with probability 7e-4)."""
+    found = corridor_found(CORRIDOR_SEEDS[:6])
+    for name, ok in found.items():
+        assert sum(ok) >= 5, (name, ok)
+
+
+@pytest.mark.slow
+def test_corridor_global_localization_finds_the_robot_in_nine_runs_of_ten():
+    """The docs' claim (maps.md) on 40 seeds: at least 36 of 40 runs, each filter."""
+    found = corridor_found(CORRIDOR_SEEDS)
+    for name, ok in found.items():
+        assert sum(ok) >= 36, (name, sum(ok), [s for s, x in zip(CORRIDOR_SEEDS, ok, strict=True) if not x])
+
+
+def test_found_at_reads_the_error_at_the_check_times():
+    """``found_at`` on a hand-made run: found unless one check time's error is 0.5 m or more
+    or its heading 26 degrees or more off; a failed filter never found the robot."""
+    err = np.zeros((900, 3))
+    fr = FilterRun(err, np.ones((900, 3)), np.zeros(900), 0.0, 0, 0, 900)
+    r = RunOutput(0, 0, np.zeros((901, 3)), np.zeros((900, 2)), np.zeros(900, bool), "", {"f": fr})
+    assert found_at(r, "f", 0.1)
+    err[699] = [0.3, 0.39, 0.0]                  # 70 s: 0.49 m off
+    assert found_at(r, "f", 0.1)
+    err[699] = [0.3, 0.41, 0.0]                  # 0.51 m
+    assert not found_at(r, "f", 0.1)
+    err[699] = [0.0, 0.0, math.radians(26)]
+    assert not found_at(r, "f", 0.1)
+    err[699] = 0.0
+    with pytest.raises(ValueError, match="not in the run"):
+        found_at(r, "f", 0.1, times=(95.0,))
+    r.filters["f"] = dataclasses.replace(fr, failed="boom")
+    assert not found_at(r, "f", 0.1)
 
 
 def test_the_symmetric_room_keeps_two_clouds_until_the_partition_is_seen():

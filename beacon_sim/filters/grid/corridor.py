@@ -113,7 +113,8 @@ class CorridorFilter(FilterBase):
     accumulated a "turn" (after a "forward" if more than half a cell was driven since the
     last), each followed by a sensing of the next scan's walls (:func:`walls_seen`).
     The estimate is the belief's mean position on the corridor's centre line and circular
-    mean heading, with the cells' spread (plus a cell's uniform variance) as covariance;
+    mean heading (each state's cell centre moved on by the odometry since the last count),
+    with the cells' spread (plus a cell's uniform variance) as covariance;
     ``belief()`` is the grid of cells for the window's heat map. Without scans (another
     world) it only moves its belief.
     """
@@ -155,18 +156,28 @@ class CorridorFilter(FilterBase):
         return cell if math.cos(pose[2]) >= 0 else 2 * n - 1 - cell
 
     def predict(self, control: Control, dt: float) -> None:
-        self._driven += control.v * dt
-        self._turned += control.omega * dt
-        while self._driven >= self.params["cell"]:
+        """Odometry since the last count: the distance driven along the corridor (the
+        command's speed times the cosine of the heading turned since, so that an arc
+        through a turn counts what it gains and loses along the corridor) and the angle
+        turned; each cell of distance a "forward", each half turn a "turn"."""
+        half = 0.5 * control.omega * dt
+        self._driven += control.v * dt * math.cos(self._turned + half)
+        self._turned += 2 * half
+        cell = self.params["cell"]
+        while self._driven >= cell:
             self.bel = self.corridor.forward(self.bel)
-            self._driven -= self.params["cell"]
+            self._driven -= cell
             self._pending_sense = True
         while abs(self._turned) >= math.pi * 0.9:      # a half turn (the driver's, give or take)
-            if self._driven >= 0.5 * self.params["cell"]:   # most of a cell before turning
+            if self._driven >= 0.5 * cell:              # past the next cell's boundary first
                 self.bel = self.corridor.forward(self.bel)
+                self._driven -= cell
             self.bel = self.corridor.turn(self.bel)
             self._turned -= math.copysign(math.pi, self._turned)
-            self._driven = 0.0                          # the seed turns on the spot
+            # The robot is _driven past its cell's centre in the old direction: as far
+            # behind it in the new one (the next "forward" comes at the next centre, where
+            # the sensing sees the doors whole).
+            self._driven = -self._driven
             self._pending_sense = True
 
     def update(self, measurements: Sequence[Measurement]) -> None:
@@ -180,8 +191,12 @@ class CorridorFilter(FilterBase):
         p, n = self.params, self.corridor.n_cells
         states = np.arange(self.corridor.n_states)
         cells = np.where(states < n, states, 2 * n - 1 - states)
-        x = p["x0"] + (cells + 0.5) * p["cell"]
-        th = np.where(states < n, 0.0, -math.pi)
+        # Each state's pose now: its cell's centre (where the last "forward" or "turn" left
+        # the robot) moved on by the distance driven and the angle turned since, along the
+        # state's direction; the belief changes only every metre, the robot in between.
+        east = states < n
+        x = p["x0"] + (cells + 0.5) * p["cell"] + np.where(east, 1.0, -1.0) * self._driven
+        th = np.angle(np.exp(1j * (np.where(east, 0.0, -math.pi) + self._turned)))
         mx = float(self.bel @ x)
         s, c = float(self.bel @ np.sin(th)), float(self.bel @ np.cos(th))
         mth = math.atan2(s, c) if abs(s) + abs(c) > 1e-12 else 0.0

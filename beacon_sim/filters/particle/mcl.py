@@ -129,6 +129,8 @@ class MonteCarloLocalization(FilterBase):
         "laser_max_range": -1.0,           # [m]; -1: the sensor's max_range (AMCL's meaning)
         "dtype": "float32",                # likelihood field's end points: float32 | float64
         "min_distinct": 0.05,              # roughening below this share of distinct poses
+        "blocked_motion_weight": 1.0,      # weight factor of a particle whose move the map
+                                           #   blocks (every draw into a wall); AMCL: 1
     }
 
     def __init__(self, ctx: FilterContext):
@@ -264,6 +266,12 @@ class MonteCarloLocalization(FilterBase):
             if bad.size:
                 stay = bad[self.in_free_space(old[bad])]
                 P[stay] = old[stay]
+                # A particle none of whose draws moved it: the odometry says the robot moved,
+                # which from there it could not (AMCL keeps its weight: 1.0).
+                blocked = float(self.params["blocked_motion_weight"])
+                if blocked != 1.0:
+                    self.logw = self.logw.copy()
+                    self.logw[bad] += math.log(blocked)
         self.poses = P
         self.n = len(P)
         md, ma = self._moved
