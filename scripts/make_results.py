@@ -984,11 +984,10 @@ def slam_loop_seed(seed: int, have: set[str]) -> tuple[dict, np.ndarray, np.ndar
     """One seeded run of ``slam_loop`` for every case of ``SLAM_LOOP_CASES``: per case label
     the ATE [m], the map GOSPA [m] (None with the map given), the final pose NEES and the
     joint NEES per dof (None without IDs); and the true path and the controls."""
-    from beacon_sim.filters.loading import build_filter
-
     from beacon_sim.core.clutter import ClutterSpec, hide_ids_all
     from beacon_sim.core.simulation import Simulation
     from beacon_sim.evaluation.slam_metrics import ate, gospa, joint_nees
+    from beacon_sim.hosting.loading import build_filter
 
     sc = load_scenario("slam_loop")
     truth_xy = {b.id: (b.x, b.y) for b in sc.world.beacons}

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from beacon_sim.filters.guard import PSD_AGREEMENT, PSD_TOLERANCE, _not_psd, validate_estimate
+
+from beacon_sim.hosting.guard import PSD_AGREEMENT, PSD_TOLERANCE, _not_psd, validate_estimate
 
 
 def _rotation(rng: np.random.Generator) -> np.ndarray:

@@ -58,7 +58,7 @@ from beacon_sim.core.schedule import TickSchedule, tick_schedule
 from beacon_sim.core.sensor_kinds import model_of
 from beacon_sim.core.sensors import SensorSpec, in_view, visible_mask
 from beacon_sim.core.team_models import relative_range_bearing, relative_rows
-from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
+from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario, as_team
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import broad_gaussian
 from beacon_sim.hosting.loading import initial_belief
@@ -226,43 +226,80 @@ def step_terms(scenario: Scenario, sched: TickSchedule, k: int, prev: np.ndarray
     return F, Q, info
 
 
-def pcrb(scenario: Scenario, truths: np.ndarray, controls: np.ndarray,
+def pcrb(scenario: Scenario | TeamScenario, truths: np.ndarray, controls: np.ndarray,
          kidnapped: np.ndarray | None = None, initial_cov: np.ndarray | None = None,
-         restart_at_kidnap: bool = False) -> np.ndarray:
-    """The bound on the error covariance after every step of a batch of runs.
+         restart_at_kidnap: bool = False, robot_sensing: bool = True) -> np.ndarray:
+    """The bound on the error covariance after every step of a batch of runs, over N robots
+    (Tichavsky et al. 1998; a single robot is a team of one).
+
+    Per step: ``P_pred = F P F^T + Q`` (F, Q block diagonal: each robot's own motion,
+    :func:`step_terms`), then ``P = (P_pred^-1 + I_z)^-1`` where I_z holds each robot's
+    beacon information on its diagonal block plus, for a team, every robot reading's
+    (:func:`robot_information`), which couples the observer's and the subject's blocks.
+    With no robot reading the blocks stay uncorrelated and each diagonal block is that
+    robot's own bound.
 
     Parameters
     ----------
-    scenario : Scenario
-        Supplies dt, the truth's motion noise and sensors, events, beacons and the prior.
-    truths : array (R, T + 1, 3) [m, m, rad]
+    scenario : Scenario or TeamScenario
+        Supplies dt, the truth's motion noise and sensors, events, beacons and the prior
+        (each robot's own, for a team).
+    truths : array (R, T + 1, 3), or (R, T + 1, N, 3) for a team [m, m, rad]
         True poses; row 0 is the initial pose, row k the pose after step k.
-    controls : array (R, T, 2) [m/s, rad/s]
+    controls : array (R, T, 2), or (R, T, N, 2) for a team [m/s, rad/s]
         The command of each step.
     kidnapped : bool array (R, T), optional
         Steps on which the robot was teleported; used only with ``restart_at_kidnap``.
     initial_cov : array (3, 3), optional
-        Covariance of the initial pose; default :func:`start_cov`.
+        Covariance of each robot's initial pose; default :func:`start_cov`.
     restart_at_kidnap : bool
         Reset the bound to the broad world-uniform Gaussian on each kidnap (the former
         behaviour; not a lower bound, kept to show why).
+    robot_sensing : bool
+        A team's robot readings count (False: each robot alone).
 
     Returns
     -------
-    ndarray (R, T, 3, 3)
+    ndarray (R, T, 3, 3), or (R, T, 3N, 3N) for a team
         ``P_k`` [m^2, m^2, rad^2]: no unbiased estimator has a smaller error covariance.
     """
+    solo = not isinstance(scenario, TeamScenario)
+    team = as_team(scenario)
     truths = np.asarray(truths, dtype=float)
     controls = np.asarray(controls, dtype=float)
-    R, T = controls.shape[:2]
-    if initial_cov is None:
-        initial_cov = start_cov(scenario)
-    P = np.broadcast_to(np.asarray(initial_cov, dtype=float), (R, 3, 3)).copy()
-    P_lost = np.asarray(broad_gaussian(scenario.world).cov, dtype=float)
-    sched = tick_schedule(scenario)
-    out = np.empty((R, T, 3, 3))
+    if solo:
+        truths, controls = truths[:, :, None, :], controls[:, :, None, :]
+    R, T, N = controls.shape[:3]
+    n = 3 * N
+    scenarios = [r.scenario for r in team.robots]
+    scheds = [tick_schedule(r.scenario, r.robot_sensors) for r in team.robots]
+    P = np.zeros((R, n, n))
+    P_lost = np.zeros((n, n))
+    for i, sc in enumerate(scenarios):
+        b = slice(3 * i, 3 * i + 3)
+        P[:, b, b] = start_cov(sc) if initial_cov is None else np.asarray(initial_cov, dtype=float)
+        P_lost[b, b] = np.asarray(broad_gaussian(sc.world).cov, dtype=float)
+    out = np.empty((R, T, n, n))
+    F = np.zeros((R, n, n))
+    Q = np.zeros((R, n, n))
     for k in range(1, T + 1):
-        F, Q, info = step_terms(scenario, sched, k, truths[:, k - 1], controls[:, k - 1], truths[:, k])
+        info = None
+        for i, sc in enumerate(scenarios):
+            b = slice(3 * i, 3 * i + 3)
+            Fi, Qi, Ii = step_terms(sc, scheds[i], k, truths[:, k - 1, i], controls[:, k - 1, i],
+                                    truths[:, k, i])
+            if N == 1:   # one robot: its own terms as they are
+                F, Q, info = Fi, Qi, Ii
+            else:
+                F[:, b, b], Q[:, b, b] = Fi, Qi
+                if Ii is not None:
+                    info = np.zeros((R, n, n)) if info is None else info
+                    info[:, b, b] += Ii
+            if robot_sensing:
+                for spec in team.robots[i].robot_sensors:
+                    if scheds[i].due(spec.name, k):
+                        info = np.zeros((R, n, n)) if info is None else info
+                        info += robot_information(spec, i, truths[:, k])
         P = F @ P @ np.swapaxes(F, 1, 2) + Q  # P_pred = F P F^T + Q
         if restart_at_kidnap and kidnapped is not None and kidnapped[:, k - 1].any():
             P[kidnapped[:, k - 1]] = P_lost
@@ -311,54 +348,9 @@ def robot_information(spec: RobotSensorSpec, observer: int, poses: np.ndarray) -
 
 def team_pcrb(team: TeamScenario, truths: np.ndarray, controls: np.ndarray,
               robot_sensing: bool = True) -> np.ndarray:
-    """The bound on the joint error covariance of a team (Tichavsky et al. 1998 on the
-    joint state ``[x_1, y_1, th_1, ..., x_N, y_N, th_N]``), after every step of a batch of
-    runs. The same recursion as :func:`pcrb`, per step::
-
-        P_pred = F P F^T + Q        F, Q block diagonal: each robot's own motion (step_terms)
-        J      = P_pred^-1 + I_z    I_z: each robot's beacon information on its diagonal
-                                    block, plus every robot reading's (robot_information),
-                                    which couples the observer's and the subject's blocks
-
-    With no robot reading (``robot_sensing=False``, or none in range) the blocks stay
-    uncorrelated and each diagonal block is that robot's single-robot :func:`pcrb`.
-
-    truths : (R, T + 1, N, 3) [m, m, rad], row 0 the initial poses; controls : (R, T, N, 2).
-    Returns (R, T, 3N, 3N).
-    """
-    truths = np.asarray(truths, dtype=float)
-    controls = np.asarray(controls, dtype=float)
-    R, T, N = controls.shape[:3]
-    n = 3 * N
-    scenarios = [r.scenario for r in team.robots]
-    scheds = [tick_schedule(r.scenario, r.robot_sensors) for r in team.robots]
-    P = np.zeros((R, n, n))
-    for i, sc in enumerate(scenarios):
-        P[:, 3 * i:3 * i + 3, 3 * i:3 * i + 3] = start_cov(sc)
-    out = np.empty((R, T, n, n))
-    F = np.zeros((R, n, n))
-    Q = np.zeros((R, n, n))
-    for k in range(1, T + 1):
-        info = np.zeros((R, n, n))
-        read = False
-        for i, sc in enumerate(scenarios):
-            b = slice(3 * i, 3 * i + 3)
-            Fi, Qi, Ii = step_terms(sc, scheds[i], k, truths[:, k - 1, i], controls[:, k - 1, i],
-                                    truths[:, k, i])
-            F[:, b, b], Q[:, b, b] = Fi, Qi
-            if Ii is not None:
-                info[:, b, b] += Ii
-                read = True
-            if robot_sensing:
-                for spec in team.robots[i].robot_sensors:
-                    if scheds[i].due(spec.name, k):
-                        info += robot_information(spec, i, truths[:, k])
-                        read = True
-        P = F @ P @ np.swapaxes(F, 1, 2) + Q
-        if read:
-            P = information_update(P, info)
-        out[:, k - 1] = P
-    return out
+    """:func:`pcrb` of a team (its old name): truths (R, T + 1, N, 3), controls (R, T, N, 2),
+    returns (R, T, 3N, 3N)."""
+    return pcrb(team, truths, controls, robot_sensing=robot_sensing)
 
 
 def robot_blocks(P: np.ndarray, i: int) -> np.ndarray:

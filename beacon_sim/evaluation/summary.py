@@ -5,7 +5,7 @@ A single robot's runs (:func:`evaluate`) give its figures, the PCRB and the curv
 single-robot evaluation's (``evaluate`` on that robot's scenario, its truth and each
 filter's estimates of it, which also gives the robot's bound *alone*, from its own beacon
 readings), the team's the RMSE over all robots and the mean of their ANEES, and
-``rmse_over_pcrb`` divides by the joint bound (``pcrb.team_pcrb``). A filter that failed in
+``rmse_over_pcrb`` divides by the joint bound (``pcrb.pcrb`` over the team). A filter that failed in
 any run gets no score (its figures None, its verdicts FAILED), for one robot or N.
 
 Averages are over runs and steps (a filter's steps after it failed are left out). The
@@ -37,7 +37,7 @@ from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.evaluation import intervals
 from beacon_sim.evaluation.metrics import diverged, recovery_times
 from beacon_sim.evaluation.montecarlo import RunOutput, TeamRunOutput, stack
-from beacon_sim.evaluation.pcrb import bound_rmse, pcrb, robot_blocks, team_pcrb
+from beacon_sim.evaluation.pcrb import bound_rmse, pcrb, robot_blocks
 from beacon_sim.hosting.loading import initial_belief
 from beacon_sim.runs.headless import anees_verdict
 
@@ -370,7 +370,7 @@ def evaluate_team(team: TeamScenario, runs: list[TeamRunOutput],
     truths = np.stack([r.truth for r in runs])          # (R, T + 1, N, 3)
     controls = np.stack([r.controls for r in runs])     # (R, T, N, 2)
     T = controls.shape[1]
-    P = team_pcrb(team, truths, controls)
+    P = pcrb(team, truths, controls)
     robot_names = [r.name for r in team.robots]
     per_robot = []  # each robot's single-robot evaluation (its bound alone inside)
     bounds: dict[str, Any] = {}
