@@ -452,9 +452,10 @@ class Hud:
         return box
 
     def switched_off(self, surf, area: pygame.Rect, lines: list[tuple[str, tuple]],
-                     avoid=()) -> pygame.Rect | None:
+                     avoid=(), keep_clear=()) -> pygame.Rect | None:
         """Switched-off filters said on the world, not only in the panel: a box at the bottom
-        right of the world's area, a line per filter ``(text, colour)`` with a swatch of the
+        right of the world's area (bottom left where it would cover ``keep_clear``, the
+        magnifier), a line per filter ``(text, colour)`` with a swatch of the
         filter's colour, raised above the axis labels (``avoid``) it would cover. Returns the
         box (None: no line)."""
         if not lines:
@@ -469,6 +470,8 @@ class Hud:
         w = max(font.size(t)[0] for t, _ in rows) + sw + 28
         h = lh * len(rows) + 10
         box = pygame.Rect(area.right - 8 - w, area.bottom - 6 - h, w, h)
+        if box.collidelist(list(keep_clear)) >= 0:  # the magnifier there: the bottom left
+            box.left = area.left + 8
         covered = [r for r in avoid if r.colliderect(box)]
         if covered:
             box.bottom = min(r.top for r in covered) - 4
@@ -663,8 +666,7 @@ def nees_label(st) -> str:
 def nees_legend() -> list[str]:
     """The panel's lines saying what the NEES figure and its badge mean."""
     lo, hi = NEES_WINDOW_BAND
-    return [f"NEES: {NEES_WINDOW_S:.0f} s mean, band {lo:.2f} .. {hi:.2f}",
-            "orange: over-, outlined: underconfident"]
+    return [f"NEES: {NEES_WINDOW_S:.0f} s mean; orange > {hi:.2f}, outlined < {lo:.2f}"]
 
 
 def nees_text(nees: float) -> str:
