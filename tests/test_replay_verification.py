@@ -341,7 +341,9 @@ def test_the_window_shows_a_mismatch_in_a_banner(recorded, tmp_path):
         return int(np.all(strip == palette.BANNER_BG, axis=-1).sum())
     try:
         app.run(3)
-        assert app.session.mismatch is None and banner_pixels() == 0
+        # no banner yet (the EKF's vermillion, the banner's colour, may be in the magnifier's
+        # strip when it takes a bottom corner: under a hundred pixels; the banner thousands)
+        assert app.session.mismatch is None and banner_pixels() < 500
         while app.session.mismatch is None and app.frames < 400:
             app.run(app.frames + 1)
         assert "estimates of filter ekf" in app.session.mismatch

@@ -456,9 +456,10 @@ class Hud:
         return box
 
     def switched_off(self, surf, area: pygame.Rect, lines: list[tuple[str, tuple]],
-                     avoid=()) -> pygame.Rect | None:
+                     avoid=(), keep_clear=()) -> pygame.Rect | None:
         """Switched-off filters said on the world, not only in the panel: a box at the bottom
-        right of the world's area, a line per filter ``(text, colour)`` with a swatch of the
+        right of the world's area (bottom left where it would cover ``keep_clear``, the
+        magnifier), a line per filter ``(text, colour)`` with a swatch of the
         filter's colour, raised above the axis labels (``avoid``) it would cover. Returns the
         box (None: no line)."""
         if not lines:
@@ -473,6 +474,8 @@ class Hud:
         w = max(font.size(t)[0] for t, _ in rows) + sw + 28
         h = lh * len(rows) + 10
         box = pygame.Rect(area.right - 8 - w, area.bottom - 6 - h, w, h)
+        if box.collidelist(list(keep_clear)) >= 0:  # the magnifier there: the bottom left
+            box.left = area.left + 8
         covered = [r for r in avoid if r.colliderect(box)]
         if covered:
             box.bottom = min(r.top for r in covered) - 4
@@ -488,7 +491,7 @@ class Hud:
 
     def banner(self, surf, area: pygame.Rect, text: str, avoid: pygame.Rect | None = None) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved), or
-        across its bottom when at the top it would cover ``avoid`` (the robot)."""
+        just under ``avoid`` (the robot) when at the top it would cover it."""
         font = "banner" if self.fonts["banner"].size(text)[0] <= area.width - 60 else "hud"
         lines = wrap_text(self.fonts[font], text, area.width - 60)[:4]
         imgs = [self.fonts[font].render(line, True, palette.BANNER_TEXT) for line in lines]
@@ -498,7 +501,9 @@ class Hud:
         r = pygame.Rect(0, 0, max(i.get_width() for i in imgs), lh * len(imgs))
         r.midtop = (area.centerx, area.top + 14)
         if avoid is not None and r.inflate(36, 16).colliderect(avoid):
-            r.midbottom = (area.centerx, area.bottom - 14)
+            r.top = avoid.bottom + 16  # just under the robot (the bottom edge is the replay's)
+            if r.inflate(36, 16).bottom > area.bottom:
+                r.midbottom = (area.centerx, area.bottom - 14)
         box = r.inflate(36, 16)
         self.banner_box = box
         pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)
@@ -682,8 +687,7 @@ def nees_label(st) -> str:
 def nees_legend() -> list[str]:
     """The panel's lines saying what the NEES figure and its badge mean."""
     lo, hi = NEES_WINDOW_BAND
-    return [f"NEES: {NEES_WINDOW_S:.0f} s mean, band {lo:.2f} .. {hi:.2f}",
-            "orange: over-, outlined: underconfident"]
+    return [f"NEES: {NEES_WINDOW_S:.0f} s mean; orange > {hi:.2f}, outlined < {lo:.2f}"]
 
 
 def nees_text(nees: float) -> str:

@@ -524,7 +524,9 @@ class App:
                                  world=self.renderer._world_rect(self.view))
         off = self.switched_off_lines()
         if off:
-            self.hud.switched_off(surf, pygame.Rect(self.view.area), off, avoid=self.renderer.axis_rects)
+            mag = self.renderer.last_magnifier
+            self.hud.switched_off(surf, pygame.Rect(self.view.area), off, avoid=self.renderer.axis_rects,
+                                  keep_clear=[mag.get("block", mag["rect"])] if mag else [])
         if self.now < self.banner_until:
             self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text, self.robot_box())
         self.draw_extra(surf)
