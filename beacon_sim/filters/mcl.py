@@ -7,6 +7,7 @@ the public names of its new home. New code imports from there."""
 from beacon_sim.filters.particle.mcl import (
     LASER_MODELS,
     MOTION_TRIES,
+    ROUGHENING_FLOOR,
     MonteCarloLocalization,
     kld_bound,
     open_grid,
@@ -14,5 +15,6 @@ from beacon_sim.filters.particle.mcl import (
 )
 
 __all__ = [
-    "LASER_MODELS", "MOTION_TRIES", "MonteCarloLocalization", "kld_bound", "open_grid", "subsample_beams",
+    "LASER_MODELS", "MOTION_TRIES", "ROUGHENING_FLOOR", "MonteCarloLocalization", "kld_bound", "open_grid",
+    "subsample_beams",
 ]
