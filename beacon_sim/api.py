@@ -220,7 +220,7 @@ def replay(recording: str | Path | Recording, filters: Sequence[str | type] | No
 def load_tables(path: str | Path) -> dict[str, Any]:
     """The tidy tables of an export (``run.npz``, or the ``run.csv`` files) as pandas
     DataFrames: ``truth``, ``readings``, ``events`` and, when filters ran, ``estimates``
-    (columns as :meth:`Run.tables`). Files written before issue 28, with the old names, load
+    (columns as :meth:`Run.tables`). Older files, with the old column names, load
     too. Needs pandas (``pip install pandas``)."""
     pd = _pandas()
     try:
@@ -246,7 +246,7 @@ def __getattr__(name: str):
 
 class Columns(dict):
     """A table's columns (name -> 1-D array, all the same length): ``pd.DataFrame(cols)``
-    takes it as it is. The names before issue 28 (``time``, ``z``, ``pose_before``,
+    takes it as it is. The old names (``time``, ``z``, ``pose_before``,
     ``pose_after``) still work, with a ``DeprecationWarning``."""
 
     def __missing__(self, key: str) -> np.ndarray:

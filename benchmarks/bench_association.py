@@ -1,4 +1,4 @@
-"""Cost of data association per tick (issue 29, first step; docs/association.md).
+"""Cost of data association per tick (docs/association.md).
 
 Three cases, each on fixed seeded data:
 - ``typical``: 12 beacons, 6 range-bearing readings of them plus 1 clutter, a pose known to
@@ -14,7 +14,7 @@ Three cases, each on fixed seeded data:
   beacons.
 - ``filters``: each built-in filter's predict + update per tick with readings on the first 10 s
   of ``lookalike_beacons`` (readings without IDs), against the same filter on the same run
-  with the IDs told (the peer): what associating costs inside the filters (issue 29, step 2).
+  with the IDs told (the peer): what associating costs inside the filters.
 Target: JCBB on the typical tick within 2 ms (the window draws at 60 FPS, 16.7 ms a frame,
 with the sensors at 10 Hz). Best of ``--repeat`` tries.
 Usage: python benchmarks/bench_association.py [--repeat K]

@@ -1,4 +1,4 @@
-"""Dask's CPU against local processes (issue 27): the same ``eval`` runs on 2 local processes
+"""Dask's CPU against local processes: the same ``eval`` runs on 2 local processes
 and on a Dask LocalCluster of 2 worker processes x 1 thread, CPU time of every process
 (this one, which holds the scheduler, the nannies and the client; the workers; the local
 pool's children), interleaved rounds, medians, results compared bit for bit.

@@ -1,5 +1,5 @@
 """Wall time of a Monte Carlo evaluation: 100 runs x 2,000 steps x the Gaussian filters
-(kf, ekf, ukf) on `default`, in parallel processes (issue 16's target: 5 s with 2 jobs at
+(kf, ekf, ukf) on `default`, in parallel processes (target: 5 s with 2 jobs at
 load < 2), with the CPU time of the workers beside it and the load average.
 
 The filters run batched across runs (each filter's batched form, driven by

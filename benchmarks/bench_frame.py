@@ -6,7 +6,7 @@ and prints the median and 99th percentile of the frame time and the load average
 the simulation ticks due (dt = 0.05 s: one tick every third frame), every filter's update,
 drawing and flip. Targets on the 2-core machine: p99 <= 8 ms at load < 2 and <= 16.7 ms (60 FPS) at
 load 4 with 10,000 particles; median <= 33 ms with 100,000. The frames run as ``App.run``
-runs them (smooth drawing and heap settling, issue 27); ``bench_frames.py`` compares views
+runs them (smooth drawing and heap settling); ``bench_frames.py`` compares views
 and window sizes against an older commit.
 
     python benchmarks/bench_frame.py [--frames 400] [--particles 10000 100000]
@@ -42,7 +42,7 @@ def bench(n_particles: int, frames: int, warmup: int = 30, chart: bool = True) -
     app = App(session, (1280, 800), scripted=True)
     if chart:
         app.act("chart")  # the strip chart on: the classroom view's heaviest frame
-    app.smooth = app.settle_heap = True  # what App.run switches on (issue 27)
+    app.smooth = app.settle_heap = True  # what App.run switches on
     try:
         for _ in range(warmup):
             app.frame(SCRIPTED_FRAME_S)
@@ -89,7 +89,7 @@ def main() -> None:
             print("  filter update per tick: " + ", ".join(
                 f"{k} {v:.2f} ms" for k, v in r["filter_ms_per_tick"].items()))
             what = f"frame, {' + '.join(r['filters'])}, pf {n:,}, {on.strip()}"
-            if n <= 10_000:   # issue 16: p99 <= 8 ms at load < 2, <= 16.7 ms (60 FPS) at load 4
+            if n <= 10_000:   # targets: p99 <= 8 ms at load < 2, <= 16.7 ms (60 FPS) at load 4
                 figure(what + ", p99", r["p99_ms"], "ms", target=8.0 if load < 2 else 16.7,
                        cpu=r["cpu_p99_ms"])
             else:

@@ -1,5 +1,5 @@
 """The window's frame time in the heaviest classroom view and the default view, against an
-older commit in the same run (issue 27).
+older commit in the same run.
 
 Views (SDL dummy driver, scripted frames of 1/60 s, autopilot, x1):
 
@@ -48,7 +48,7 @@ VIEWS = {
     "heavy_kidnap": ("global_kidnap", ["ekf", "ukf", "pf", "histogram"]),
     "light": ("default", ["ekf", "dead_reckoning"]),
 }
-#: p99 targets of the heavy views [ms] by window size (issue 27, at load < 2).
+#: p99 targets of the heavy views [ms] by window size (at load < 2).
 TARGETS = {"1280x800": 8.0, "1920x1080": 10.0}
 #: The light view may be at most this much slower than the base commit (p99 ratio).
 LIGHT_RATIO = 1.1

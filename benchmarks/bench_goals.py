@@ -1,17 +1,17 @@
-"""Issue 16's goals, each as a ratio against a peer measured in the same run, CPU beside wall.
+"""The performance goals, each as a ratio against a peer measured in the same run, CPU beside wall.
 
 Run:  python benchmarks/bench_goals.py [--quick]
 
-Rows (targets from the issues; docs/performance.md keeps the table):
+Rows (targets in brackets; docs/performance.md keeps the table):
 - pf step at 100k particles / a minimal hand-written numpy particle filter (<= 1.2x);
 - pf step / the tight numpy floor (``TightPF``: our models, every buffer kept) at 1k
-  (<= 1.3x) and 100k (<= 1.15x) particles, the median of interleaved rounds (issue 27);
+  (<= 1.3x) and 100k (<= 1.15x) particles, the median of interleaved rounds;
 - ekf step / a plain-Python sequential EKF, 4 bearings a step (<= 1.2x);
 - ukf step / ekf step on the same problem (<= 2.5x);
 - the runner's guard of one estimate (<= 3 us), beside an EKF step;
 - headless `default`, 120 s, all six filters: CPU (<= 2.0 s), beside the bare simulation;
 - ukf step and a batched eval with 1000 beacons in view / 100 in view (<= 15x: linear);
-  the ekf step with 1000 in view / the ukf's (<= 1.0, issue 27; all counts: bench_readings.py);
+  the ekf step with 1000 in view / the ukf's (<= 1.0; all counts: bench_readings.py);
 - a batched eval on a 1000-beacon map with 2 in view / the per-run path (sizing by readings).
 The eval (100 x 2,000 x 3 filters, 2 jobs) and the window's frame are bench_eval.py and
 bench_frame.py. Everything runs with numpy's BLAS on one thread (``figures.py``).
@@ -341,7 +341,7 @@ def main() -> None:
     figure("pf step, 100k particles (CPU)", ours.cpu / n * 1e3, "ms", peer="minimal numpy pf",
            peer_value=mine.cpu / n * 1e3, target=1.2, target_of="ratio")
 
-    # PF against the tight floor (issue 27): fixed per-call costs at 1k, the whole at 100k
+    # PF against the tight floor: fixed per-call costs at 1k, the whole at 100k
     # many short interleaved rounds (a 1k round is ~20 ms): the median is decisive at load
     floors = ((1_000, 100, 15 if q else 31, 1.3), (100_000, 10 if q else 20, 7 if q else 9, 1.15))
     for count, reps, tries, target in floors:

@@ -1,4 +1,4 @@
-"""Grading a class with each student's filter in a process of its own (issue 23): a class of
+"""Grading a class with each student's filter in a process of its own: a class of
 36 files (honest variations of the EKF and the hostile files of tests/attacks and
 tests/student_filters), graded locally and on a Dask LocalCluster; every honest student's
 figures compared, bit for bit, with grading the honest students alone; and the cost of a

@@ -1,4 +1,4 @@
-"""The single-robot and team paths against an earlier commit (issue 22: "benchmarks no slower").
+"""The single-robot and team paths against an earlier commit (the target: no slower).
 
 Each round runs, in a fresh process per tree, alternating this checkout and ``--base``: a
 headless run of ``default`` with four filters (60 s simulated), a live Session ticking 1,200

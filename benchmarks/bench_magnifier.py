@@ -1,4 +1,4 @@
-"""What the magnifier (issue 25) costs a frame: the CPU time of drawing one frame of
+"""What the magnifier costs a frame: the CPU time of drawing one frame of
 assignment_kf at 1024x768, 52.9 s in (three beacons in view, the KF's ellipse 9 cm across,
 so the magnifier is open), with the magnifier and, as the peer, with it switched off, in
 the same run. Target: at most 1.5x the frame without it (it is 0.5 ms on the 2-core

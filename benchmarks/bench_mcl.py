@@ -1,4 +1,4 @@
-"""Scan-based MCL (filters/particle/mcl.py, issue 30) measured as AMCL's users measure it.
+"""Scan-based MCL (filters/particle/mcl.py) measured as AMCL's users measure it.
 
 Run:  .venv/bin/python benchmarks/bench_mcl.py [--quick] [--trials N]
 

@@ -1,4 +1,4 @@
-"""The cost of the portable maths (issue 35): the simulation and a headless run, on this
+"""The cost of the portable maths: the simulation and a headless run, on this
 checkout against another commit (default: the one before the portable maths), interleaved.
 
     python benchmarks/bench_portable.py [--before REF] [--rounds N]

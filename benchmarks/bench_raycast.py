@@ -1,4 +1,4 @@
-"""Cost of the range finder's maths on an occupancy grid (issue 30's speed targets).
+"""Cost of the range finder's maths on an occupancy grid (against its speed targets).
 
 Run:  .venv/bin/python benchmarks/bench_raycast.py [--quick]
 

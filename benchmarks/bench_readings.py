@@ -1,4 +1,4 @@
-"""The EKF's and the UKF's step cost by the number of readings in view (issue 27).
+"""The EKF's and the UKF's step cost by the number of readings in view.
 
 Run:  python benchmarks/bench_readings.py [--rounds 5] [--seconds 1.0]
 

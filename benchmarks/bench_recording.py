@@ -1,4 +1,4 @@
-"""What a version 3 recording costs (issue 24): a live session of the default scenario on
+"""What a version 3 recording costs: a live session of the default scenario on
 autopilot with the EKF and dead reckoning, recorded (filter settings, estimate digests every
 checkpoint), then loaded and replayed with every check; the peer is the same session without
 a recorder.

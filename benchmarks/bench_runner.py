@@ -1,4 +1,4 @@
-"""What the runner adds around a filter (issue 27): the cost of one step through
+"""What the runner adds around a filter: the cost of one step through
 ``FilterRunner.feed`` minus the same filter's bare ``predict`` + ``update`` + ``estimate``,
 CPU time (the process's: the watchdog thread's included), interleaved rounds (bare then
 runner, runner then bare, ...), the median of the rounds' own differences, with their
@@ -6,7 +6,7 @@ quartiles (how decisive the median is).
 
 Run:  python benchmarks/bench_runner.py [--quick]
 
-Rows (targets from issue 27): the runner's own cost per filter-step for a trivial filter
+Rows, with their targets: the runner's own cost per filter-step for a trivial filter
 (no work: the pure overhead) and the EKF (4 bearings a step), <= 3 us each, and for the PF
 with 100k particles <= 5 % of its step (its rounds vary by more than 3 us: the resampling
 and the machine's load). The runner runs as ``beacon-sim run``

@@ -1,4 +1,4 @@
-"""Cost of the PCRB in map worlds (issue 30): the bound of 8 runs x 60 s of each shipped map
+"""Cost of the PCRB in map worlds: the bound of 8 runs x 60 s of each shipped map
 scenario, its range finder's every scan ray cast and differentiated (core/scan_jacobian.py).
 
 Run:  .venv/bin/python benchmarks/bench_scan_pcrb.py [--quick]

@@ -1,4 +1,4 @@
-"""Cost per step of the team filters for 2, 5 and 10 robots (issue 18, docs/multi-robot.md).
+"""Cost per step of the team filters for 2, 5 and 10 robots (docs/multi-robot.md).
 
 A 20 m x 20 m room with 12 beacons; N robots on random-goal tours, each with a 4 m
 range-bearing beacon sensor and a robot range-bearing sensor of unlimited range at 10 Hz

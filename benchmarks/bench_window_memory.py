@@ -1,4 +1,4 @@
-"""Memory of the window over a long session (issue 15): the resident set size while a
+"""Memory of the window over a long session: the resident set size while a
 window's session runs one simulated hour (72,000 ticks at dt = 0.05 s) with four filters,
 drawn every 10th tick, and the same for the team window on team_sparse. Prints the RSS
 at seven points and the growth from the second to the last in MiB per hour; a bounded

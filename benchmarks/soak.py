@@ -1,4 +1,4 @@
-"""Soak test (issue 15): every built-in filter over a long run with random driving, frequent
+"""Soak test: every built-in filter over a long run with random driving, frequent
 kidnaps and resets, checking after every step that each estimate is finite with a symmetric
 positive semi-definite covariance (the runner's own guard, ``validate_estimate``).
 

@@ -1,4 +1,4 @@
-"""The window's association layer (issue 29): for readings without IDs, a line from each
+"""The window's association layer: for readings without IDs, a line from each
 filter's estimate to the beacon it gave each reading to, in the filter's colour when that is
 the beacon the reading came from, dashed vermillion when it is not (the simulator knows:
 ``Step.true_ids``; clutter given a beacon is wrong too). Readings a filter left unpaired

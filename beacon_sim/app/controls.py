@@ -99,7 +99,7 @@ REPLAY_BINDINGS: tuple[Binding, ...] = tuple(
     b for b in BINDINGS if b.group == "Time") + _REPLAY_ONLY + tuple(
     b for b in BINDINGS if b.group != "Time" and b.action not in _NOT_IN_REPLAY)
 
-#: A team scenario (issue 18): the play keys act on the driven robot, Tab switches which;
+#: A team scenario: the play keys act on the driven robot, Tab switches which;
 #: the keys of single-robot features a team window does not have (uniform belief, particles,
 #: strip chart, step view, PCRB) are left out.
 _NEXT_ROBOT = Binding("Tab", _k("K_TAB"), "next_robot",

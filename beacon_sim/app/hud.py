@@ -104,7 +104,7 @@ class Hud:
         y = self.command(surf, x, y, session.next_control(), session.drive_mode)
         world = session.scenario.world
         scanning = any(s.kind == "range_finder" for s in session.scenario.sensors)
-        if scanning:  # a map world: what the range finder senses (issue 30)
+        if scanning:  # a map world: what the range finder senses
             beams, hits = scan_in_view(session)
             text = f"scan: {hits} of {beams} beams hit" if beams else "scan: none yet"
             self._blit(surf, text, "hud", palette.WARN if beams and not hits else palette.TEXT,

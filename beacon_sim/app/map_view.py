@@ -1,4 +1,4 @@
-"""Drawing a world's walls and a laser scan (issue 30): the occupancy grid as dark cells under
+"""Drawing a world's walls and a laser scan: the occupancy grid as dark cells under
 everything, and each beam of a range_finder reading from the robot to its end point, beams
 that hit something in blue with a dot at the hit, no-return (max-range) beams in light grey.
 On a key (L) the likelihood field goes under the walls: each free cell's distance to the

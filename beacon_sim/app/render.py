@@ -319,7 +319,7 @@ class WorldRenderer:
                     if session.visible[name]:
                         self.trail(surf, view, session.trail(name), colours[name], 2)
             self.rays(surf, view, sc.world, pose, session.readings())
-            seen = session.seen_ids() | association_layer.seen_by_truth(session)  # issue 29
+            seen = session.seen_ids() | association_layer.seen_by_truth(session)  # + those read without IDs
             self.beacons(surf, view, sc.world, seen,
                          missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
             self.robot(surf, view, pose, sc.robot_radius)  # the truth UNDER every belief
@@ -333,7 +333,7 @@ class WorldRenderer:
                 extra(surf, view, self.lw)
             if show.ellipses:
                 self.map_layer.draw(surf, view, session, list(beliefs), colours, dashes, self.lw, polyline)
-            association_layer.draw(surf, view, session, colours, self.lw, polyline)  # issue 29
+            association_layer.draw(surf, view, session, colours, self.lw, polyline)  # reading -> its beacon
             estimates = []
             for name in session.names:
                 if name not in beliefs:
@@ -518,7 +518,7 @@ class WorldRenderer:
         self._grid(full, view, world_rect)
         if self.show_field:
             map_view.draw_field(full, view, grid)  # the likelihood field, under the walls
-        map_view.draw_map(full, view, grid)      # walls (issue 30)
+        map_view.draw_map(full, view, grid)      # walls (the occupancy grid)
         pygame.draw.rect(full, palette.BOUNDS, world_rect.inflate(4, 4), 3)
         self._axis_labels(full, view, world_rect)
         layer.blit(full, (0, 0), area)
@@ -703,7 +703,7 @@ class WorldRenderer:
         range, with a cross at its end; a bearing alone runs to the world's edge)."""
         far = 2.0 * math.hypot(world.width, world.height)
         for m in readings:
-            if m.kind == "range_finder":    # a laser scan (issue 30): app/map_view.py
+            if m.kind == "range_finder":    # a laser scan: app/map_view.py
                 spec = next((s for s in self.last_world_sensors if s.name == m.sensor), None)
                 map_view.draw_scan(surf, view, pose, m, spec.max_range if spec else math.inf)
                 continue

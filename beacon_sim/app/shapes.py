@@ -81,7 +81,7 @@ def rays(pose, m: Measurement, beacon_xy: np.ndarray, far: float) -> np.ndarray:
 
 
 def robot_rays(pose, m: Measurement, seen_xy: np.ndarray) -> np.ndarray:
-    """Segments (k, 2, 2) [m] from an observer's pose for one robot reading (issue 18):
+    """Segments (k, 2, 2) [m] from an observer's pose for one robot reading:
     along the measured bearing, as long as the measured range (``robot_range_bearing``) or,
     for a bearing alone (``robot_bearing``), as far as the seen robot (``seen_xy`` (k, 2),
     its true position: the reading itself gives no length)."""

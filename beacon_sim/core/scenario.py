@@ -508,7 +508,7 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
         min_beacons=t.integer("min_beacons", 2 if kind == "position" else 1, lo=1, hi=MAX_BEACONS),
         beacon_height=t.number("beacon_height", 0.0, lo=0, hi=MAX_COORD),
         noise=_sensor_noise(t, SensorNoise()),
-        occluded_by_walls=t.boolean("occluded_by_walls", True),  # issue 30: walls hide beacons
+        occluded_by_walls=t.boolean("occluded_by_walls", True),  # walls hide beacons
         **_correspondence(t, kind),
     )
     if kind == "position" and spec.min_beacons < 2:
@@ -535,7 +535,7 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
     return spec
 
 
-#: Most false detections per reading a sensor may declare (issue 29).
+#: Most false detections per reading a sensor may declare (clutter).
 MAX_CLUTTER_RATE: Final = 5.0
 
 
@@ -697,7 +697,7 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
                    map_grid: OccupancyGrid | None = None) -> Scenario:
     """Validate a decoded TOML document and build the :class:`Scenario`. A ``world.map`` path
     is relative to ``base_dir`` (default: the folder of ``file``); ``map_grid``, when given,
-    is that map instead of the file (a recording's stored map, issue 30)."""
+    is that map instead of the file (a recording's stored map)."""
     top = _Table(data, "", file)
     name = top.string("name", name or Path(file).stem)
     description = top.string("description", "")

@@ -5,7 +5,7 @@ draw with ``detection_prob`` succeeds. With probability ``outlier_rate`` a readi
 replaced by a uniformly random (wrong) one. Each call draws a fixed number of random
 numbers, so the sensor stream's state depends only on how many times it was called.
 
-A ``range_finder`` (issue 30, docs/maps.md) is a laser scan of ``n_beams`` beams over ``fov``,
+A ``range_finder`` (docs/maps.md) is a laser scan of ``n_beams`` beams over ``fov``,
 ray cast on the world's walls from the true pose, each reading drawn from the beam model
 (its four parts, ``range_model``) with the sensor's stream.
 

@@ -1,4 +1,4 @@
-"""Team scenarios (issue 18): several robots in one world, declared as ``[[robots]]``.
+"""Team scenarios: several robots in one world, declared as ``[[robots]]``.
 
 A team file has the single-robot file's top-level keys (``name``, ``description``, ``dt``,
 ``duration``, ``seed``, ``[world]``, ``[keyboard]``, ``default_filters``, ``[filters.*]``)
@@ -67,7 +67,7 @@ DEFAULT_TEAM_FILTERS = ("independent", "centralised", "decentralised", "ci")
 
 @dataclass(frozen=True)
 class RobotSensorSpec:
-    """A sensor that measures the other robots of the team (issue 18).
+    """A sensor that measures the other robots of the team.
 
     kind : ``robot_range_bearing`` (range [m] and bearing [rad]) or ``robot_bearing``.
     period [s], max_range [m], fov [rad] (centred on the heading), detection_prob: as a

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: Measurement kinds and the width of one row of ``Measurement.z``.
-#: ``range_finder`` (issue 30) is a laser scan: one row ``[range, beam angle]`` per beam.
+#: ``range_finder`` is a laser scan: one row ``[range, beam angle]`` per beam.
 MEASUREMENT_DIMS = {"bearing": 1, "range_bearing": 2, "pose": 3, "position": 2, "range_finder": 2}
 
 

@@ -12,7 +12,7 @@ from typing import Any
 from beacon_sim.core.threads import limit_blas_threads
 
 #: Dask settings for the workers (and the client) of ``eval --scheduler`` and grading
-#: (issue 27; docs/performance.md): with no task to run, a Dask cluster still spends CPU on
+#: (docs/performance.md): with no task to run, a Dask cluster still spends CPU on
 #: its event loops' ticks, its memory and system monitors and the workers' sampling
 #: profiler, in proportion to the wall time: 115 ms of CPU a second for a LocalCluster of
 #: 2 workers with Dask's defaults, 16 ms with these, so eval on Dask costs within a few per

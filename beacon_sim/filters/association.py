@@ -25,7 +25,7 @@ their ``beacon_ids`` (n,).
 The result of the Gaussian methods is an :class:`Association`: for each reading, the ID of the
 beacon it was given to, or None (clutter, or no beacon compatible with it).
 
-The filters' hooks (issue 29, step 2; each filter calls one at the start of its update and
+The filters' hooks (each filter calls one at the start of its update and
 returns at once when every sensor tells its IDs): :func:`associate_gaussian` (EKF, UKF: NN or
 JCBB at the predicted belief, then a labeled reading), :func:`particle_loglik` (per-particle
 maximum likelihood), :func:`grid_mixture` (the histogram's mixture over the beacons). What
@@ -532,7 +532,7 @@ def _particle_d2(kind: str, z: np.ndarray, poses: np.ndarray, beacon_xy: np.ndar
     return best, np.take_along_axis(d2, best[..., None], axis=2)[..., 0]
 
 
-# -- Wiring into the filters (issue 29, step 2) ----------------------------------------------
+# -- Wiring into the filters -----------------------------------------------------------------
 # Each filter calls one hook at the start of its update (docs/association.md, "In the
 # filters"); the state lives on the filter as ``_association`` and ``FilterBase.associations``
 # reports it. Known-correspondence runs take the first branch of every hook and are unchanged.

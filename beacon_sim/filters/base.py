@@ -11,7 +11,7 @@ A filter is any object with::
 
 and optionally ``associations() -> {sensor: (beacon ID or None, ...)}``: for each reading
 without IDs (unknown correspondence) of the last update, the beacon it was given to
-(issue 29; ``FilterBase`` provides it for the built-in filters, docs/association.md).
+(``FilterBase`` provides it for the built-in filters, docs/association.md).
 """
 
 from __future__ import annotations

@@ -149,7 +149,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                  # of outliers into a jump across the room (robot 5: 4.5 m).
                  mrclam={"floor": 0.0}, mrclam_robust=True,
                  memory=grid_memory),
-    # Issue 30: scan-based MCL on an occupancy grid, with ROS amcl's parameter names.
+    # Scan-based MCL on an occupancy grid, with ROS amcl's parameter names.
     FilterRecord("mcl", "beacon_sim.filters.particle.mcl:MonteCarloLocalization", ("sky blue", "dotted"),
                  ranges={"min_particles": Range(*_N, "KLD-sampling's fewest particles"),
                          "max_particles": Range(*_N, "KLD-sampling's most particles"),
@@ -172,7 +172,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "laser_likelihood_max_dist": Range(1e-3, 1e3, "likelihood field's distance cap [m]"),
                          "laser_max_range": Range(-1.0, 1e6, "max range [m]; -1: the sensor's"),
                          "min_distinct": Range(0.0, 1.0, "roughening below this share of distinct poses")}),
-    # Seed 004's discrete Bayes filter on the corridor scenario's scans (issue 30).
+    # Seed 004's discrete Bayes filter on the corridor scenario's scans.
     FilterRecord("corridor", "beacon_sim.filters.grid.corridor:CorridorFilter", ("yellow", "dash-dot"),
                  ranges={"x0": Range(-1e6, 1e6, "the corridor's start [m]"),
                          "y_centre": Range(-1e6, 1e6, "its centre line [m]"),

@@ -1,4 +1,4 @@
-"""Filters for a team of robots (issue 18): the :class:`TeamFilter` protocol beside the
+"""Filters for a team of robots: the :class:`TeamFilter` protocol beside the
 single-robot :class:`~beacon_sim.filters.base.Filter` (which is unchanged), and four team
 filters.
 

@@ -1,6 +1,6 @@
 """Conformance checks for any filter (docs/architecture.md), used by ``beacon-sim check``.
 
-``check`` feeds a filter as ``grade`` does (issue 37: watched and scored look the same):
+``check`` feeds a filter as ``grade`` does (watched and scored look the same):
 the same batch protocol (:mod:`beacon_sim.hosting.feed`: one run of a default grade's length
 on a fresh random seed, and the grade's probes, in an order drawn from a fresh random key),
 the same limits (a default grade's: its run's CPU-time budget, its child's memory and CPU

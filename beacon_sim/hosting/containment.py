@@ -247,7 +247,7 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
         "fsize_bytes": limits.fsize_bytes, "log_bytes": limits.log_bytes, "drop_user": drop}
     # The pipes are the child's stdin (requests) and stdout (replies), which it moves to
     # fresh descriptors before any student code runs: its command line holds no descriptor
-    # numbers of the grader's (they told one grading process from another: issue 37).
+    # numbers of the grader's (they told one grading process from another).
     child = [sys.executable, "-s", "-B", "-m", "beacon_sim.hosting.child", json.dumps(cfg)]
     if sandbox == "bwrap":
         env = child_env(BOX_WORK, BOX_SRC if module else None)

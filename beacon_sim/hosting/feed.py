@@ -1,6 +1,6 @@
 """Feeding a batch of runs to a hosted filter: the one client of the child's batch protocol
 (:mod:`beacon_sim.hosting.child`), shared by ``grade``, ``eval``'s hosted runs and
-``check`` (issue 37), so that a filter sees the same calls, in the same order, with the
+``check``, so that a filter sees the same calls, in the same order, with the
 same limits, whichever of them feeds it, and is judged by the same rules.
 
 A batch is a list of :class:`Slot` (one filter each: its context, initial belief, the
@@ -12,8 +12,8 @@ is still going for its ``belief()``, and ends the batch (did it draw from the gl
 generators?).
 
 The probes (:func:`probe_slots`) are what ``grade`` and ``check`` ask of a filter besides
-its scored runs, each drawn like a scored run (issue 37: "a probe is one more seed, not a
-recognisable special case"): the first run fed again ("again": is the filter
+its scored runs, each drawn like a scored run (a probe is one more seed, not a
+recognisable special case): the first run fed again ("again": is the filter
 deterministic?), and one more seed, drawn from the run's key, fed with its readings
 ("extra") and with its readings drawn again from another stream ("extra_redrawn"): does
 the filter use its readings? (No probe shares a scored run's truth with other readings: a

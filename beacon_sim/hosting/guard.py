@@ -175,13 +175,13 @@ def validate_estimate(est: object, *, sole: bool = False, _f8: np.dtype = _F8,
 
 #: The one line of a diverged estimate, in every front end (``run``, ``eval``, ``check``,
 #: ``grade``, the window): a mean beyond :data:`MAX_MEAN` or a covariance entry over
-#: :data:`MAX_COV`. The one divergence rule (issue 37): ``eval`` and ``grade`` used 1e100.
+#: :data:`MAX_COV`. The one divergence rule: ``eval`` and ``grade`` once used 1e100.
 DIVERGED = (f"estimate() returned a mean beyond {MAX_MEAN:g} or a covariance entry over {MAX_COV:g} "
             "(diverged)")
 #: The one line of an estimate whose covariance rules out the error it had (its NEES
 #: ``e^T P^-1 e`` against the truth is infinite or NaN: a singular covariance with the error
 #: outside its range). Judged where the truth is (``run``, ``eval``, ``grade`` and ``check``
-#: score it, never the filter's process); such a filter is never "ok" (issue 37).
+#: score it, never the filter's process); such a filter is never "ok".
 NEES_NOT_FINITE = ("estimate() returned a covariance that leaves no room for the estimate's error "
                    "(NEES not finite)")
 _DIVERGED = DIVERGED

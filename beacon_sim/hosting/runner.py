@@ -8,7 +8,7 @@ duck-typed): its missing method raises on the first step and it is switched off.
 that is slow on every step gets a warning (:func:`note_step_time`); :func:`status_line` is
 what the window and the terminal show for either.
 
-The runner is one of three rooms (issue 22, "a filter host with a seam"): the guard
+The runner is one of three rooms (a filter host with a seam): the guard
 (:mod:`beacon_sim.hosting.guard`, what a filter returned), the watchdog
 (:mod:`beacon_sim.hosting.watchdog`, time limits and interrupts) and the host
 (:mod:`beacon_sim.hosting.host`, the one guarded-call ladder). Their names are re-exported
@@ -245,7 +245,7 @@ class FilterRunner:
     def feed(self, step: Step) -> None:
         """Predict with the step's command, update with its measurements, record.
 
-        The per-step work around a filter is kept small (issue 27, ``benchmarks/bench_runner.py``):
+        The per-step work around a filter is kept small (``benchmarks/bench_runner.py``):
         the thread's :class:`StepWatch` entry armed and ended in place (the same protocol, no
         object, no lock unless the watchdog fired), the ladder of :func:`call_guarded` inlined,
         the guard's fast path for the usual float64 estimate, whose arrays are kept without a

@@ -1,4 +1,4 @@
-"""Team filter specs (issue 18): what ``run``, ``play``, ``eval`` and ``grade`` accept as a
+"""Team filter specs: what ``run``, ``play``, ``eval`` and ``grade`` accept as a
 filter of a team run, and how each is named and built.
 
 - a name of :data:`~beacon_sim.filters.team.TEAM_FILTERS` (``centralised``, ``ci``, ...): one

@@ -40,12 +40,12 @@ Version 1 files (no readings checksums, no scenario checksum), version 2 files (
 filter settings, no estimates) and version 3 files (no maths fingerprint, no estimate
 values) are still read; a replay says what they cover.
 
-The header's ``"slip_model"`` (issue 25: ``"scaled"``, slip scaling with the command) names
+The header's ``"slip_model"`` (``"scaled"``, slip scaling with the command) names
 the motion noise the run was made with; a file without it was made before and replays with
 ``"legacy"`` (noise at standstill). The tick's ``u`` is the command as given, also on a
 tick the bumper stopped (the filters were told v = 0).
 
-One format over N robots (issue 22: a single robot is a team of one). A single robot's
+One format over N robots (a single robot is a team of one). A single robot's
 file is the format above, unchanged since version 1; a team's (several robots,
 docs/multi-robot.md) is the same format with ``"kind": "team"`` in the header (and
 ``"robots"``: their names); the scenario is the team file, ``filters`` team filter specs.
@@ -118,7 +118,7 @@ FORMAT_VERSION = 4
 #: adds the readings (``r`` per tick, ``readings_checksum``) and the scenario text
 #: (``scenario_sha256`` in the header, 16 hex digits); version 3 the effective filter
 #: parameters (the filters line), digests of the estimates (estimates lines), the full
-#: SHA-256 of the scenario and the optional HMAC signature; version 4 (issue 35: truth and
+#: SHA-256 of the scenario and the optional HMAC signature; version 4 (truth and
 #: readings made with the portable maths, the same bits on every machine) the maths
 #: fingerprint of the machine that made it and the estimates' values at every estimates
 #: line, so that a replay on other maths compares them within a tolerance.
@@ -138,8 +138,8 @@ VALUES_PER_ROBOT = 9
 #: model's version): the one place a new such key is declared. A version 3 header holding a
 #: key in neither HEADER_KEYS nor MODEL_KEYS is refused (an edit, or a newer writer); the
 #: replay checks the truth these keys shape through the truth and readings checksums.
-MODEL_KEYS: tuple[str, ...] = ("slip_model",  # issue 25: the motion noise model
-                                "map")  # issue 30: the occupancy grid a world.map names
+MODEL_KEYS: tuple[str, ...] = ("slip_model",  # the motion noise model
+                                "map")  # the occupancy grid a world.map names
 #: The environment variable holding the key of the optional HMAC signature.
 KEY_VARIABLE = "BEACON_SIM_RECORDING_KEY"
 
@@ -299,12 +299,12 @@ def scenario_label(source: str) -> str:
 def scenario_folder(source: str | None) -> Path | None:
     """The folder of the scenario file a header's ``scenario_source`` names, for the files
     it names beside it (a map): a shipped scenario's (by name), the recorded folder of a
-    file written before issue 35 (a path), None for a user's file name (its folder is not
+    file written before version 4 (a path), None for a user's file name (its folder is not
     recorded) or no source."""
     if not source:
         return None
     path = Path(source)
-    if path.parent != Path("."):  # a path: a recording made before issue 35
+    if path.parent != Path("."):  # a path: a recording made before version 4
         return path.parent
     if path.suffix == ".toml":  # a user's file, by name only
         return None
@@ -547,14 +547,14 @@ def rebuild_scenario(text: str, file: str, name: str, source: str | None = None,
                      map_grid: OccupancyGrid | None = None) -> Scenario:
     """A scenario from its stored text (the same checks and caps as loading the file); a
     map file it names is ``map_grid`` when given (the recorded map), else read from beside
-    ``source``, the header's ``scenario_source`` (issue 30; :func:`scenario_folder`)."""
+    ``source``, the header's ``scenario_source`` (:func:`scenario_folder`)."""
     base = scenario_folder(source)
     return parse_scenario(parse_toml_text(text, file), file, name=name, base_dir=base,
                           map_grid=map_grid)
 
 
 # --------------------------------------------------------------------------------------------
-# The map in the header (issue 30)
+# The map in the header (a map world's occupancy grid)
 
 
 def map_file_name(text: str, file: str) -> str | None:
@@ -576,8 +576,8 @@ def map_header(grid: OccupancyGrid, name: str) -> dict[str, Any]:
 
 
 def recorded_map(path: Path, header: Mapping[str, Any]) -> OccupancyGrid | None:
-    """The grid a header's ``"map"`` holds (None: the file has none, e.g. made before issue
-    30), checked against its digest (RecordingError naming what is wrong)."""
+    """The grid a header's ``"map"`` holds (None: the file has none, e.g. made before maps were
+    recorded), checked against its digest (RecordingError naming what is wrong)."""
     m = header.get("map")
     if m is None:
         return None
@@ -989,7 +989,7 @@ def _check_dt(path: Path, header: dict[str, Any], dt: float) -> None:
 
 
 def _slip_model(path: Path, header: Mapping[str, Any]) -> str:
-    """The header's "slip_model" (issue 25); "legacy" for a file made before it."""
+    """The header's "slip_model" (the motion noise model); "legacy" for a file made before it."""
     model = header.get("slip_model", RECORDED_BEFORE_SLIP_MODEL)
     if model not in SLIP_MODELS:
         raise _fail(path, 1, f"corrupted header: slip_model = {model!r} (expected "

@@ -2,7 +2,7 @@
 side, the keyboard's command for the driven robot, user commands, trails and the figures the
 panel shows (a :class:`~beacon_sim.runs.scene.Scene`).
 
-A single robot is a team of one (issue 22): :class:`Session` runs any scenario as a team
+A single robot is a team of one: :class:`Session` runs any scenario as a team
 (``core.team_scenario.as_team``), its :class:`~beacon_sim.core.team.TeamSimulation` and a
 :class:`~beacon_sim.hosting.team_runner.TeamRunner`. On a team of one it builds and feeds
 exactly what a single-robot session always did (the same truth, the same estimates, the same

@@ -265,7 +265,7 @@ def default_params(flt: Any) -> dict[str, Any] | None:
 
 def without_added_defaults(recorded: Any, replayed: Any, defaults: Any) -> Any:
     """``replayed`` without the parameters ``recorded`` lacks and that are at their class
-    default: parameters a newer beacon-sim added to a filter (issue 29's ``association``),
+    default: parameters a newer beacon-sim added to a filter (such as ``association``),
     which a file written before cannot hold. Any other difference stays, and the estimate
     digests still check that the filter gave the recorded estimates bit for bit."""
     if isinstance(recorded, dict) and isinstance(replayed, dict) and isinstance(defaults, dict):

@@ -311,7 +311,7 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
         for key in ("pos_rmse_m", "heading_rmse_rad", "anees", "rmse_over_pcrb"):
             row[key] = float(np.mean(figures[key])) if figures[key] else None
         row["anees_verdict"] = verdicts[0] if len(set(verdicts)) == 1 else "/".join(verdicts)
-        # what the page shows: the ANEES word with the distance from the bound (issue 26), so
+        # what the page shows: the ANEES word with the distance from the bound, so
         # no row says a bare "consistent" beside an error over twice the bound
         row["verdict"] = overall_verdict(row["anees_verdict"], row["rmse_over_pcrb"])
         for key in ("ate_m", "map_gospa_m", "joint_nees"):  # over the SLAM scenarios

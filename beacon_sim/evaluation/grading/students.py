@@ -42,7 +42,7 @@ LOG_BYTES = FEED_LOG_BYTES
 
 @dataclass
 class TeamSimulated:
-    """One team (scenario, seed) simulated once by the grader (issue 27): each robot's run
+    """One team (scenario, seed) simulated once by the grader: each robot's run
     as a :class:`~beacon_sim.evaluation.montecarlo.SimulatedRun` (its command, dt and beacon
     readings per tick, what that robot's copy of a student's filter is fed; its truth stays
     here) and the team's arrays for the scoring."""
@@ -269,7 +269,7 @@ def run_student(job: StudentJob) -> StudentResult:
 
 def _run_team_batches(job: StudentJob, started: Callable[[], FilterChild | None],
                       stop: Callable[[], None], record_team: dict[str, Any]) -> list[TaskResult]:
-    """The student's team runs (issue 27): per team scenario, every robot of every seed fed
+    """The student's team runs: per team scenario, every robot of every seed fed
     together in the student's child (one filter per robot and seed, one exchange per tick),
     on the runs the grader simulated once; each robot's copy named ``CLASS/ROBOT_ID`` (its
     own random stream), with the scenario's ``[filters.CLASS]``. A filter that draws from

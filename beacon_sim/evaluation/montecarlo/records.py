@@ -57,7 +57,7 @@ def _check(means: np.ndarray, covs: np.ndarray) -> tuple[int, str | None]:
     """Index of the first unusable estimate and why, in the guard's words and by its rules
     (:func:`~beacon_sim.hosting.guard.validate_estimate`: non-finite, diverged, asymmetric
     or not PSD), so that ``eval`` and ``grade`` fail a filter where ``run`` does, and say
-    the same (issue 37: they let a covariance grow to 1e100)."""
+    the same (they once let a covariance grow to 1e100)."""
     n = means.shape[0]
     bad = ~(np.all(np.isfinite(means), axis=1) & np.all(np.isfinite(covs), axis=(1, 2)))
     first = int(np.argmax(bad)) if bad.any() else n
