@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.optional import install_hint
 from beacon_sim.errors import BeaconSimError
 from beacon_sim.filters.graph.graph import FactorGraph
 
@@ -125,8 +126,7 @@ class Factor:
         if sparse is None:
             sparse = sci is not None and n > DENSE_MAX
         if not sparse and n > DENSE_LIMIT:
-            raise BeaconSimError(f"a graph of {n} unknowns needs scipy's sparse solver: "
-                                 "pip install 'beacon-sim[science]'")
+            raise BeaconSimError(install_hint("scipy", f"a graph of {n} unknowns (scipy's sparse solver)"))
         self.sparse = sparse
         if sparse:
             sp, spla = sci
