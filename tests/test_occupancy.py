@@ -164,7 +164,7 @@ def test_png_maps(tmp_path, monkeypatch):
     Image.fromarray(grey16).save(tmp_path / "m.png")
     assert load_map(path).cells.tolist() == [[UNKNOWN, FREE], [OCCUPIED, FREE]]   # row 0: bottom
     monkeypatch.setitem(sys.modules, "PIL", None)   # as if Pillow were not installed
-    with pytest.raises(MapError, match="(?i)needs pillow"):
+    with pytest.raises(MapError, match=r"(?i)needs pillow"):
         load_map(path)
 
 
