@@ -100,7 +100,7 @@ def run(sc, filters, runs, jobs, duration=None, thresholds=None, params=None, *,
     # batch=False: the cost columns are each filter's own per-step cost, as `beacon-sim run`
     # reports it (the batched Monte Carlo path gives the same figures, but cheaper costs).
     rs = run_monte_carlo(sc, filters, runs, seed=seed, duration=duration, jobs=jobs, params=params,
-                         progress=sys.stderr.isatty(), batch=False)
+                         progress=True, batch=False)  # a bar, or lines in a log
     meta, curves = evaluate(sc, rs, thresholds or Thresholds())
     print(f"{sc.name}: {runs} runs (seeds {seed}..{seed + runs - 1}) of {', '.join(filters)} "
           f"in {time.perf_counter() - t:.1f} s", file=sys.stderr)
@@ -601,7 +601,7 @@ def standstill_section(seeds: range, checks: dict | None = None) -> list[str]:
     lo, hi = anees_band(len(seeds), 3)
     md = [STANDSTILL_HEADER, "",
           f"The robot stands still from t = 0 for 60 s (the window's keyboard, never pressed); "
-          f"`pf` with its defaults (2,000 particles). Seeds {seeds.start}.."
+          f"`pf` with its defaults (2,000 particles), seeds {seeds.start}.."
           f"{seeds.stop - 1}. NEES at 60 s: the mean over the seeds against the 95 % "
           f"band for {len(seeds)} values [{lo:.2f}, {hi:.2f}], the median, the "
           f"largest and how many seeds are inside one NEES's 95 % band [{NEES_BAND[0]:.2f}, "

@@ -88,3 +88,16 @@ def test_wilson_interval_by_hand(make_results):
     lo, hi = make_results.wilson_interval(7, 40)
     assert round(lo, 2) == 0.09 and round(hi, 2) == 0.32
     assert make_results.wilson_interval(40, 40)[1] == 1.0
+
+
+def test_make_results_reports_progress_in_a_log(make_results, capsys, monkeypatch):
+    """Off a terminal (pytest's captured stderr) each figure's Monte Carlo prints plain
+    progress lines, as eval does: a long regeneration shows a sign of life in a log file."""
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.runs import progress
+
+    monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 0.0)
+    make_results.run(load_scenario("default"), ["ekf"], 2, 1, duration=1.0, seed=0)
+    err = capsys.readouterr().err
+    assert re.search(r"^eval default: 2/2 runs", err, flags=re.M), err
