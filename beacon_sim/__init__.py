@@ -18,11 +18,13 @@ from beacon_sim.version import __version__
 #: author needs (``FilterBase``, the beliefs, ``Control`` / ``Measurement``, and the modules
 #: ``motion``, ``measurement_models`` and ``angles``) and the errors, all ``BeaconSimError``
 #: (a ``ValueError``).
-__all__ = ["BeaconSimError", "Control", "Evaluation", "Filter", "FilterBase", "FilterContext",
-           "FilterError", "FilterLoadError", "GaussianBelief", "GradeError", "GridBelief", "Measurement",
-           "MrclamError", "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError",
-           "TeamRun", "UsageError", "__version__", "angles", "evaluate", "load_scenario", "load_tables",
-           "load_team_scenario", "measurement_models", "motion", "replay", "run", "run_team"]
+__all__ = ["BeaconSimError", "Control", "Evaluation", "ExtendedKalmanFilter", "Filter", "FilterBase",
+           "FilterContext", "FilterError", "FilterLoadError", "GaussianBelief", "GradeError", "GridBelief",
+           "LandmarkMap", "LikelihoodField", "Measurement", "MrclamError", "ParticleBelief",
+           "RangeModelParams", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
+           "UsageError", "__version__", "angles", "broad_gaussian", "evaluate", "load_scenario",
+           "load_tables", "load_team_scenario", "measurement_models", "motion", "replay", "run",
+           "run_team", "systematic", "wrap"]
 
 
 def __getattr__(name: str):

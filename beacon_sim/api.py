@@ -21,7 +21,9 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core import angles, measurement_models, motion
+from beacon_sim.core.angles import wrap
 from beacon_sim.core.arguments import check_duration, check_seed
+from beacon_sim.core.beam_model import LikelihoodField, RangeModelParams
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import (
@@ -48,8 +50,12 @@ from beacon_sim.filters.base import (
     FilterError,
     GaussianBelief,
     GridBelief,
+    LandmarkMap,
     ParticleBelief,
+    broad_gaussian,
 )
+from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.resampling import systematic
 from beacon_sim.hosting.loading import FilterLoadError, check_param_names
 from beacon_sim.hosting.team_specs import check_team_specs
 from beacon_sim.io.export import filter_arrays, load_export, step_arrays, trace_arrays, write_export
@@ -61,14 +67,19 @@ from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay
 
 #: The public API. Functions and results; what a filter author needs (the filter base and
 #: protocol, the beliefs, the readings' and controls' types, and the models as modules:
-#: ``motion``, ``measurement_models``, ``angles``); the errors, all ``BeaconSimError``.
+#: ``motion``, ``measurement_models``, ``angles``, and ``wrap``, ``broad_gaussian``,
+#: ``LandmarkMap``, ``LikelihoodField``, ``RangeModelParams``, ``systematic``, and the built-in
+#: ``ExtendedKalmanFilter`` to build on: what the examples and the ``new-filter`` templates
+#: import); the errors, all ``BeaconSimError``.
 #: ``GradeError`` comes from the module's ``__getattr__`` (the grading module loads on first use).
-__all__ = ["BeaconSimError", "Control", "Evaluation", "Filter", "FilterBase", "FilterContext", "FilterError",
+__all__ = ["BeaconSimError", "Control", "Evaluation", "ExtendedKalmanFilter", "Filter", "FilterBase",
+           "FilterContext", "FilterError",
            "FilterLoadError", "GaussianBelief", "GradeError",  # noqa: F822
-           "GridBelief", "Measurement", "MrclamError",
-           "ParticleBelief", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
-           "UsageError", "angles", "evaluate", "load_scenario", "load_tables", "load_team_scenario",
-           "measurement_models", "motion", "replay", "run", "run_team"]
+           "GridBelief", "LandmarkMap", "LikelihoodField", "Measurement", "MrclamError",
+           "ParticleBelief", "RangeModelParams", "RecordingError", "ReplayMismatch", "Run", "ScenarioError",
+           "TeamRun", "UsageError", "angles", "broad_gaussian", "evaluate", "load_scenario", "load_tables",
+           "load_team_scenario", "measurement_models", "motion", "replay", "run", "run_team", "systematic",
+           "wrap"]
 #: The export formats of :meth:`Run.export`.
 EXPORT_SUFFIXES = (".npz", ".csv", ".mcap")
 

@@ -18,11 +18,19 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from beacon_sim.core import measurement_models as mm
-from beacon_sim.core import motion
-from beacon_sim.core.angles import wrap
-from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, broad_gaussian
+from beacon_sim.api import (
+    Control,
+    FilterBase,
+    FilterContext,
+    GaussianBelief,
+    Measurement,
+    broad_gaussian,
+    motion,
+    wrap,
+)
+from beacon_sim.api import (
+    measurement_models as mm,
+)
 
 
 class StudentEKF(FilterBase):

@@ -230,3 +230,74 @@ def test_the_lean_dask_settings_are_dasks_own_keys():
         assert type(default) is type(value) or isinstance(default, str), (key, default, value)
         with dask.config.set({key: value}):
             assert dask.config.get(key) == value
+
+
+def _within(seconds, fn):
+    """``fn()``'s exception (or None) and whether it returned within ``seconds``, run in a
+    thread so that a hang fails the test instead of stalling it."""
+    import threading
+
+    got: list = []
+
+    def call():
+        try:
+            fn()
+            got.append(None)
+        except BaseException as exc:  # handed to the test
+            got.append(exc)
+
+    t = threading.Thread(target=call, daemon=True)
+    t.start()
+    t.join(seconds)
+    return (got[0] if got else None), not t.is_alive()
+
+
+def test_no_worker_is_one_line_within_the_time_out(monkeypatch, capsys):
+    """A scheduler with no worker: ``on_dask`` gives up after ``NO_WORKER_TIMEOUT_S`` with a
+    one-line ClusterError, and ``eval --scheduler ADDRESS`` with one line and exit status 2,
+    instead of waiting for ever (the bound is generous: only a hang can miss it)."""
+    distributed = pytest.importorskip("dask.distributed")
+    from beacon_sim.evaluation import cluster as cluster_module
+    from beacon_sim.evaluation.montecarlo import ClusterError
+
+    monkeypatch.setattr(cluster_module, "NO_WORKER_TIMEOUT_S", 1.0)
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as c, \
+            distributed.Client(c) as client:
+        exc, returned = _within(120.0, lambda: on_dask(client, abs, [1, 2], lambda i, r: None))
+        assert returned, "on_dask still waits for a worker"
+        assert isinstance(exc, ClusterError) and "\n" not in str(exc)
+        assert str(exc).startswith("Dask: no worker at ") and "for 1 s" in str(exc)
+        address = c.scheduler_address
+        code: list = []
+        exc, returned = _within(120.0, lambda: code.append(main(
+            ["eval", "default", "--runs", "2", "--duration", "1", "--jobs", "1",
+             "--scheduler", address])))
+        assert returned and exc is None and code == [2]
+        err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+        assert len(err) == 1 and "no worker at" in err[0] and "Traceback" not in err[0]
+
+
+def test_no_worker_left_mid_run_is_one_line_within_the_time_out(monkeypatch):
+    """The last worker leaves with tasks pending (Dask would keep them for a worker that never
+    comes): a one-line ClusterError, even with ``lost`` given (grading), within a generous bound."""
+    import time as time_module
+
+    distributed = pytest.importorskip("dask.distributed")
+    from beacon_sim.evaluation import cluster as cluster_module
+    from beacon_sim.evaluation.montecarlo import ClusterError
+
+    monkeypatch.setattr(cluster_module, "NO_WORKER_TIMEOUT_S", 1.0)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as c, distributed.Client(c) as client:
+        got: list = []
+
+        def first_done(i, r):  # the first result in: the only worker goes away
+            got.append(r)
+            if len(got) == 1:
+                c.scale(0)
+
+        exc, returned = _within(120.0, lambda: on_dask(client, time_module.sleep, [0.0] + [0.5] * 20,
+                                                       first_done, lost=lambda i, e: None))
+        assert returned, "on_dask still waits for a worker"
+        assert isinstance(exc, ClusterError) and "\n" not in str(exc) and "no worker at" in str(exc)
+        assert len(got) < 21

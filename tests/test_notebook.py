@@ -1,5 +1,6 @@
 """examples/python_api.ipynb runs top to bottom in a fresh kernel (nbclient, the test extra),
-and shows what it says: the three filters' arrays, the metrics, the events and two plots."""
+and shows what it says: the three filters' arrays, the metrics, the events, the plots and the
+Monte Carlo error bands drawn by seaborn from ``evaluate``'s per-tick frame as it is."""
 
 from __future__ import annotations
 
@@ -35,4 +36,9 @@ def test_the_python_api_notebook_runs_top_to_bottom(tmp_path, monkeypatch):
         assert f"{name:12s} position RMSE" in text
     assert "['blackout_start', 'blackout_end']" in text
     assert "'err_pos_m', 'nees']" in text                               # the tidy tables
-    assert sum("image/png" in o.get("data", {}) for o in outputs) == 3  # three figures drawn
+    assert sum("image/png" in o.get("data", {}) for o in outputs) == 4  # four figures drawn
+    # the Monte Carlo bands: seaborn straight from evaluate()'s per-tick frame
+    assert "6400 rows: 8 runs x 2 filters x 400 ticks" in text
+    band = next(c for c in nb.cells if c.cell_type == "code" and "sns.lineplot(ticks" in c.source)
+    assert "pivot" not in band.source and "melt" not in band.source
+    assert any("image/png" in o.get("data", {}) for o in band.outputs)

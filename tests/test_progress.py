@@ -92,3 +92,45 @@ def test_eval_and_grade_write_progress_lines_to_a_log_file(tmp_path, monkeypatch
     assert ours and ours[-1].startswith("grade: ") and ours[-1].endswith("(done)")
     total = ours[-1].split(",")[0].split("/")[1].split()[0]
     assert ours[-1].startswith(f"grade: {total}/{total} runs")
+
+
+def test_mrclam_writes_progress_lines_to_a_log_file_and_keeps_its_results(tmp_path, monkeypatch):
+    """``beacon-sim mrclam --headless`` off a terminal: plain ``mrclam: k/N s of data`` lines,
+    the last one ``(done)``; the run's figures are the same as without progress, bit for bit."""
+    import json
+
+    import numpy as np
+
+    from beacon_sim.io.mrclam import load_mrclam
+    from beacon_sim.runs.mrclam import run_mrclam
+    from tests.test_mrclam import make_folder
+
+    folder = tmp_path / "SyntheticSet"
+    make_folder(folder, seconds=20.0)
+    monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)   # as if the data took long to feed
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 0.0)
+    code, lines = _to_a_log_file(tmp_path / "mrclam.log", ["mrclam", str(folder), "--robot", "1",
+                                                           "--headless", "--filter", "ekf",
+                                                           "--duration", "10", "--json"])
+    assert code == 0
+    ours = [ln for ln in lines if ln.startswith("mrclam: ")]
+    assert len(ours) >= 3 and "\r" not in "".join(lines)
+    assert ours[-1].startswith("mrclam: 10/10 s of data, ") and ours[-1].endswith("(done)")
+    done = [int(ln.split(": ")[1].split("/")[0]) for ln in ours]
+    assert done == sorted(done) and len(set(done)) == len(done)
+    data = load_mrclam(folder, 1)
+    quiet = run_mrclam(data, ["ekf"], duration=10.0, calibration="self")
+    loud = run_mrclam(data, ["ekf"], duration=10.0, calibration="self", progress=True)
+
+    def figures(run):  # every figure but the wall-clock ones
+        d = run.as_json()
+        d.pop("wall_s")
+        for row in d["filters"].values():
+            row.pop("us_per_step")
+        return json.dumps(d, default=float, sort_keys=True)
+
+    assert figures(quiet) == figures(loud)
+    a, b = quiet.tracks["ekf"], loud.tracks["ekf"]
+    assert np.array_equal(a.times, b.times)
+    assert np.array_equal(a.means, b.means, equal_nan=True)
+    assert np.array_equal(a.covs, b.covs, equal_nan=True)

@@ -22,6 +22,7 @@ from beacon_sim.evaluation.grading import (
     read_secret,
     write_outputs,
 )
+from beacon_sim.evaluation.montecarlo import ClusterError
 from beacon_sim.runs.progress import Progress
 
 
@@ -60,7 +61,7 @@ def grade_command(args: argparse.Namespace) -> int:
     try:
         board = grade(args.dir, cfg, jobs=args.jobs, scheduler=scheduler, progress=progress,
                       cache=None if getattr(args, "no_cache", False) else out / "cache", secret=secret)
-    except GradeError as exc:
+    except (GradeError, ClusterError) as exc:
         raise UsageError(str(exc)) from None
     written = write_outputs(board, out)
     for r in board.rows:

@@ -182,7 +182,7 @@ def mrclam_command(args: argparse.Namespace) -> int:
                          duration, filter_params(args),
                          calibration=getattr(args, "calibration", None) or "others",
                          unknown_ids=getattr(args, "unknown_ids", False), slam=slam,
-                         record_maps=slam and not args.headless)
+                         record_maps=slam and not args.headless, progress=True)
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
     d = run.as_json()

@@ -6,6 +6,7 @@ limit (:func:`init_worker`).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -28,7 +29,16 @@ DASK_LEAN_CONFIG: dict[str, Any] = {
 
 
 class ClusterError(RuntimeError):
-    """The Dask cluster lost a task (its worker died, the scheduler went away)."""
+    """The Dask cluster lost a task (its worker died, the scheduler went away), or it has had
+    no worker for :data:`NO_WORKER_TIMEOUT_S`."""
+
+
+#: How long [s] a Dask cluster may have no worker, before the first task or after the last
+#: worker left mid-run, before :func:`on_dask` gives up with one line (a ClusterError;
+#: ``eval``/``grade --scheduler``: exit status 2) instead of waiting for ever.
+NO_WORKER_TIMEOUT_S = 30.0
+#: How often [s] :func:`on_dask` looks for finished tasks, and for workers, while it waits.
+_POLL_S = 0.05
 
 
 #: The exceptions of ``dask.distributed`` that mean a task was lost, not that it raised.
@@ -65,19 +75,24 @@ def on_dask(scheduler: Any, fn: Callable[..., Any], tasks: list[Any],
 
     A task that raised or whose worker died: ``lost(index, exc)`` when given (grading:
     that task's student fails, the others go on), else a one-line :class:`ClusterError`
-    for a lost worker and the exception itself otherwise."""
+    for a lost worker and the exception itself otherwise.
+
+    A cluster with no worker at the start, or none left while tasks are pending, for
+    :data:`NO_WORKER_TIMEOUT_S`: a one-line :class:`ClusterError` (even with ``lost``: no
+    task can finish)."""
     from dask.distributed import as_completed
 
     client, own = dask_client(scheduler)
     data = None
     try:
+        _wait_for_a_worker(client)
         if shared is not None:
             (data,) = client.scatter([shared], broadcast=True, hash=False)
             futures = client.map(fn, list(tasks), shared=data, pure=False)
         else:
             futures = client.map(fn, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
-        for fut in as_completed(futures, loop=client.loop):  # not the default client's loop
+        for fut in _as_completed_while_workers(client, as_completed(futures, loop=client.loop)):
             i = index[fut.key]
             try:
                 result = fut.result()
@@ -97,6 +112,50 @@ def on_dask(scheduler: Any, fn: Callable[..., Any], tasks: list[Any],
             data.release()
         if own:
             client.close()
+
+
+def _workers_now(client: Any) -> int:
+    """The cluster's workers as the scheduler counts them now."""
+    return len(client.scheduler_info().get("workers", {}))
+
+
+def _no_worker(client: Any) -> ClusterError:
+    where = getattr(client.scheduler, "address", None) or "the scheduler"
+    return ClusterError(f"Dask: no worker at {where} for {NO_WORKER_TIMEOUT_S:g} s "
+                        "(start workers: dask worker ADDRESS)")
+
+
+def _wait_for_a_worker(client: Any) -> None:
+    """Return once the cluster has a worker; a :class:`ClusterError` after
+    :data:`NO_WORKER_TIMEOUT_S` without one."""
+    try:
+        client.wait_for_workers(1, timeout=NO_WORKER_TIMEOUT_S)
+    except TimeoutError:
+        raise _no_worker(client) from None
+
+
+def _as_completed_while_workers(client: Any, finished: Any) -> Any:
+    """The futures of ``finished`` (a Dask ``as_completed``) as they finish, while the cluster
+    keeps a worker: a :class:`ClusterError` once it has had none for :data:`NO_WORKER_TIMEOUT_S`
+    with tasks pending (Dask itself would wait for ever)."""
+    idle_since: float | None = None
+    looked = 0.0
+    while not finished.is_empty():
+        batch = finished.next_batch(block=False)
+        if batch:
+            idle_since = None
+            yield from batch
+            continue
+        now = time.monotonic()
+        if now - looked >= 0.5:
+            looked = now
+            if _workers_now(client) > 0:
+                idle_since = None
+            elif idle_since is None:
+                idle_since = now
+            elif now - idle_since >= NO_WORKER_TIMEOUT_S:
+                raise _no_worker(client)
+        time.sleep(_POLL_S)
 
 
 def limit_worker_memory(gb: float) -> None:

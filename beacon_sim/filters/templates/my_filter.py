@@ -39,11 +39,19 @@ import numpy as np
 #   mm.pose_fix(pose) / mm.position_fix(pose)    -> h for pose / position fixes
 #                                                   (H = identity / mm.POSITION_H)
 #   mm.bearing_many / mm.range_many              -> the same for N poses (particle filters)
-from beacon_sim.core import measurement_models as mm
-from beacon_sim.core import motion
-from beacon_sim.core.angles import wrap
-from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, broad_gaussian
+from beacon_sim.api import (
+    Control,
+    FilterBase,
+    FilterContext,
+    GaussianBelief,
+    Measurement,
+    broad_gaussian,
+    motion,
+    wrap,
+)
+from beacon_sim.api import (
+    measurement_models as mm,
+)
 
 
 class MyFilter(FilterBase):

@@ -26,11 +26,18 @@ from typing import ClassVar
 
 import numpy as np
 
-from beacon_sim.core.angles import wrap
-from beacon_sim.core.beam_model import LikelihoodField, RangeModelParams
-from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, ParticleBelief
-from beacon_sim.filters.resampling import systematic
+from beacon_sim.api import (
+    Control,
+    FilterBase,
+    FilterContext,
+    GaussianBelief,
+    LikelihoodField,
+    Measurement,
+    ParticleBelief,
+    RangeModelParams,
+    systematic,
+    wrap,
+)
 
 
 class MyScan(FilterBase):

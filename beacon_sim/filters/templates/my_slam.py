@@ -26,10 +26,17 @@ from typing import ClassVar
 
 import numpy as np
 
-from beacon_sim.core import motion
-from beacon_sim.core.angles import wrap
-from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.base import FilterBase, FilterContext, GaussianBelief, LandmarkMap, broad_gaussian
+from beacon_sim.api import (
+    Control,
+    FilterBase,
+    FilterContext,
+    GaussianBelief,
+    LandmarkMap,
+    Measurement,
+    broad_gaussian,
+    motion,
+    wrap,
+)
 
 
 class MySlam(FilterBase):

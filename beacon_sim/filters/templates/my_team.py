@@ -13,7 +13,7 @@ Try it (from the folder this file is in):
 Frames and units: world frame, metres, radians, seconds; a pose is [x, y, theta].
 """
 
-from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.api import ExtendedKalmanFilter
 
 
 class MyTeam:

@@ -18,6 +18,7 @@ from beacon_sim.runs.mrclam.associations import AssociationCount, score_associat
 from beacon_sim.runs.mrclam.calibration import Calibration, command_integrals
 from beacon_sim.runs.mrclam.map_history import MapHistory, snapshot_maps
 from beacon_sim.runs.mrclam.scenario import SENSOR_NAME, SIGHTING_SENSOR
+from beacon_sim.runs.progress import Progress
 
 #: Seed of the shuffle of each time stamp's rows when their IDs are hidden (the file's order
 #: must not hint at the landmark); fixed, so a run is the same bit for bit.
@@ -41,8 +42,8 @@ def _feed(runners: Sequence[TeamRunner], tick: int, time_s: float, dt: float,
 def feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: Calibration,
                         t_start: float, t_end: float,
                         scores: dict[str, AssociationCount] | None = None,
-                        maps: dict[str, MapHistory] | None = None
-                        ) -> tuple[np.ndarray, np.ndarray, int, int]:
+                        maps: dict[str, MapHistory] | None = None,
+                        progress: Progress | None = None) -> tuple[np.ndarray, np.ndarray, int, int]:
     """One robot's odometry and readings interleaved by time stamp (seed 001 section III.C):
     predict with the latest command (times ``cal``'s command scales) up to each reading's time
     stamp, in steps of at most 1.5 median odometry intervals (long gaps are split), update
@@ -56,7 +57,9 @@ def feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: Ca
     counted into ``scores`` against the barcodes (:func:`score_associations`).
 
     ``maps`` given (``--slam`` in the window): after each update every working SLAM filter's
-    ``landmarks()`` is kept in ``maps`` (:func:`snapshot_maps`), for the playback to draw."""
+    ``landmarks()`` is kept in ``maps`` (:func:`snapshot_maps`), for the playback to draw.
+
+    ``progress`` given: told the whole seconds of data fed so far (it only reports)."""
     od = data.odometry
     shuffle = np.random.default_rng(UNKNOWN_IDS_SHUFFLE_SEED)
     ms = data.measurements
@@ -106,6 +109,10 @@ def feed_by_time_stamps(runners: Sequence[TeamRunner], data: MrclamData, cal: Ca
             i_od += 1
         times.append(t)
         ticks.append(tick)
+        if progress is not None and int(t - t_start) > progress.done:
+            progress.update(min(int(t - t_start), progress.total))
+    if progress is not None and progress.done < progress.total:
+        progress.update(progress.total)
     return np.array(times), np.array(ticks, dtype=np.int64), n_me, len(ms)
 
 
@@ -125,12 +132,14 @@ def _per_tick(rows: np.ndarray, sensor: str, kind: str, t_start: float, t_last: 
 
 def feed_on_a_clock(runners: Sequence[TeamRunner], data: Sequence[MrclamData],
                     cals: Sequence[Calibration], t_start: float, t_end: float,
-                    dt: float) -> tuple[np.ndarray, np.ndarray, int, int]:
+                    dt: float, progress: Progress | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Every robot on one clock of ``dt`` [s] from ``t_start``: each tick a robot moves by
     the exact integral of its piecewise-constant odometry commands over the tick
     (v = ds/dt, omega = da/dt, times its calibration's command scales); the landmark readings
     and sightings stamped inside the tick update at its end. Returns the tick times, the
-    ticks, the ticks with a landmark reading, and the landmark readings used."""
+    ticks, the ticks with a landmark reading, and the landmark readings used. ``progress``
+    given: told the whole seconds of data fed so far (it only reports)."""
     n_ticks = int((t_end - t_start) // dt)
     times = t_start + dt * np.arange(n_ticks + 1)
     controls = []
@@ -145,6 +154,10 @@ def feed_on_a_clock(runners: Sequence[TeamRunner], data: Sequence[MrclamData],
     for k in range(n_ticks):
         _feed(runners, k + 1, float(times[k + 1] - t_start), dt, [c[k] for c in controls],
               [lm.get(k, _NO_READINGS) for lm in landmarks], [s.get(k, _NO_READINGS) for s in seen])
+        if progress is not None and int(times[k + 1] - t_start) > progress.done:
+            progress.update(min(int(times[k + 1] - t_start), progress.total))
+    if progress is not None and progress.done < progress.total:
+        progress.update(progress.total)
     updates = len(set().union(*landmarks))
     used = sum(len(m) for lm in landmarks for ms in lm.values() for m in ms)
     return times, np.arange(n_ticks + 1), updates, used

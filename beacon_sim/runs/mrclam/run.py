@@ -33,7 +33,8 @@ from beacon_sim.runs.mrclam.runners import run_calibrated, run_span
 def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | None = None,
                duration: float | None = None, params: dict[str, dict[str, Any]] | None = None,
                calibration: Calibration | str | None = "others", dt: float | None = None,
-               unknown_ids: bool = False, slam: bool = False, record_maps: bool = False) -> MrclamRun:
+               unknown_ids: bool = False, slam: bool = False, record_maps: bool = False,
+               progress: bool = False) -> MrclamRun:
     """Run filters over one robot's data, or over several robots of a data set at once.
 
     Every filter runs through :class:`~beacon_sim.hosting.team_runner.TeamRunner` (one
@@ -66,6 +67,10 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     filters ``SLAM_MRCLAM_FILTERS``. With ``unknown_ids`` too, the readings also come without barcodes.
     ``record_maps`` (one robot): keep every SLAM filter's map after each update
     (``MrclamRun.map_history``), for the window.
+
+    ``progress``: the seconds of data fed so far on stderr, as ``run``'s progress (a bar on a
+    terminal, a plain line every few seconds in a log file); the results are the same with or
+    without it.
     """
     robots = [data] if isinstance(data, MrclamData) else list(data)
     if not robots:
@@ -74,7 +79,7 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     options.check(len(robots))
     t_start, t_end = run_span(robots, duration)
     return run_calibrated(robots, _calibrations(robots, calibration, t_end), filters, t_start, t_end,
-                          params, options)
+                          params, options, progress)
 
 
 def _calibrations(robots: list[MrclamData], calibration: Calibration | str | None,

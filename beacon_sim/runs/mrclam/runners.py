@@ -7,6 +7,7 @@ told (the Gaussian filters the inflated noise, the robust ones the calibrated no
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -25,6 +26,7 @@ from beacon_sim.runs.mrclam.map_history import SLAM_MRCLAM_FILTERS, MapHistory, 
 from beacon_sim.runs.mrclam.options import MrclamOptions
 from beacon_sim.runs.mrclam.results import MrclamRun, MrclamTrack
 from beacon_sim.runs.mrclam.scenario import TEAM_DT, mrclam_team
+from beacon_sim.runs.progress import Progress
 
 
 def run_span(robots: Sequence[MrclamData], duration: float | None) -> tuple[float, float]:
@@ -119,11 +121,13 @@ def _runners(robots: list[MrclamData], cals: list[Calibration], specs: list[str]
 
 def run_calibrated(robots: list[MrclamData], cals: list[Calibration], filters: list[str] | None,
                    t_start: float, t_end: float, params: dict[str, dict[str, Any]] | None,
-                   options: MrclamOptions) -> MrclamRun:
+                   options: MrclamOptions, progress: bool = False) -> MrclamRun:
     """Filters ``filters`` (None: the team's defaults, or ``SLAM_MRCLAM_FILTERS`` with
     ``slam``) over ``robots`` from ``t_start`` to ``t_end`` [s], robot ``i`` told noise
     ``cals[i]`` (inflated for the Gaussian filters). One robot without ``options.dt``: fed by
-    time stamp; otherwise on a clock of ``options.dt`` (default ``TEAM_DT``)."""
+    time stamp; otherwise on a clock of ``options.dt`` (default ``TEAM_DT``). ``progress``:
+    the seconds of data fed, on stderr (:mod:`beacon_sim.runs.progress`: a bar on a terminal,
+    plain periodic lines in a log); it changes nothing in the results."""
     from beacon_sim.hosting.loading import check_param_names
 
     options.check(len(robots))
@@ -139,15 +143,16 @@ def run_calibrated(robots: list[MrclamData], cals: list[Calibration], filters: l
     runners, names, withheld = _runners(robots, cals, specs, team, t_start, t_end, dt_team, params,
                                          options)
     starts = [_start_estimates(r) for r in runners]
+    bar = Progress(max(1, math.ceil(t_end - t_start)), "mrclam", progress, unit="s of data")
     t0 = time.perf_counter()
     scores: dict[str, AssociationCount] | None = {} if options.unknown_ids else None
     maps: dict[str, MapHistory] | None = {} if options.record_maps else None
     if team.solo and options.dt is None:
         times, ticks, updates, readings = feed_by_time_stamps(runners, robots[0], cals[0], t_start,
-                                                              t_end, scores, maps)
+                                                              t_end, scores, maps, bar)
     else:
         times, ticks, updates, readings = feed_on_a_clock(runners, robots, cals, t_start, t_end,
-                                                          dt_team)
+                                                          dt_team, bar)
     wall = time.perf_counter() - t0
     failed = {}
     tracks: list[dict[str, MrclamTrack]] = [{} for _ in robots]
