@@ -1,5 +1,6 @@
 """The evaluation's outputs: the terminal table, ``eval.csv`` (the table), ``eval_runs.csv``
-(one row per run and filter), ``eval.json`` and the PNG plots.
+(one row per run and filter), ``eval_recovery.csv`` (one row per kidnap and filter),
+``eval.json`` and the PNG plots.
 """
 
 from __future__ import annotations
@@ -11,16 +12,30 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from beacon_sim.core.files import atomic_write
 from beacon_sim.evaluation.intervals import text as interval_text
 
-#: A failed filter's accuracy cells are empty (None), its row says ``failed_runs`` and the
-#: first failure (seed, time, reason).
-COLUMNS = ("filter", "pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees",
-           "anees_lo", "anees_hi", "anees_verdict", "verdict", "nees_steps_in_band", "anis", "anis_verdict",
-           "divergences", "recovery", "us_per_step", "rmse_over_pcrb", "rmse_over_pcrb_lo",
-           "rmse_over_pcrb_hi", "anees_ci_lo", "anees_ci_hi", "pcrb_pos_rmse_m", "failed_runs",
-           "first_failure")
+#: ``eval.csv``'s columns, one row per scenario and filter. Every column that has a unit
+#: names it; a field has the same name in every file (``eval_runs.csv``, ``eval_recovery.csv``,
+#: :func:`beacon_sim.evaluate`'s tables). A failed filter's accuracy cells are empty, its row
+#: says ``failed_runs`` and the first failure (seed, time, reason). Recovery: ``kidnap_runs``
+#: kidnaps x runs, ``recovered_runs`` of them recovered, ``recovery_median_s`` the median time
+#: to recover over all of them (one that never recovered counting as infinitely late: ``inf``
+#: when fewer than half recovered, empty when the scenario has no kidnap); per kidnap in
+#: ``eval_recovery.csv``.
+COLUMNS = ("scenario", "runs", "steps", "filter", "pos_rmse_m", "heading_rmse_rad", "mse_x_m2",
+           "mse_y_m2", "mse_theta_rad2", "anees", "anees_lo", "anees_hi", "anees_verdict", "verdict",
+           "nees_share_in_band", "anis", "anis_verdict", "diverged_runs", "kidnap_runs",
+           "recovered_runs", "recovery_median_s", "us_per_step", "rmse_over_pcrb",
+           "rmse_over_pcrb_lo", "rmse_over_pcrb_hi", "anees_ci_lo", "anees_ci_hi",
+           "pcrb_pos_rmse_m", "failed_runs", "first_failure")
+#: ``eval_recovery.csv``: one row per scenario, filter and kidnap (``kidnap`` counts from 1),
+#: with the median's and the count's 95 % bootstrap intervals over runs.
+RECOVERY_COLUMNS = ("scenario", "filter", "kidnap", "runs", "recovered_runs", "recovered_runs_lo",
+                    "recovered_runs_hi", "recovery_median_s", "recovery_median_s_lo",
+                    "recovery_median_s_hi", "recovery_max_s")
 
 
 def _num(x, fmt: str) -> str:
@@ -114,21 +129,48 @@ def _verdict(r: dict[str, Any]) -> str:
 
 
 def _csv_row(meta: dict[str, Any], name: str, r: dict[str, Any]) -> dict[str, Any]:
-    return {
+    kidnap_runs = sum(k["runs"] for k in r["recovery"])
+    row = {
         "scenario": meta["scenario"], "runs": meta["runs"], "steps": meta["steps"], "filter": name,
         "pos_rmse_m": r["pos_rmse_m"], "heading_rmse_rad": r["heading_rmse_rad"],
-        "mse_x": r["mse_x"], "mse_y": r["mse_y"], "mse_theta": r["mse_theta"],
+        "mse_x_m2": r["mse_x"], "mse_y_m2": r["mse_y"], "mse_theta_rad2": r["mse_theta"],
         "anees": r["anees"], "anees_lo": r["anees_band"][0], "anees_hi": r["anees_band"][1],
         "anees_verdict": r["anees_verdict"], "verdict": _verdict(r),
-        "nees_steps_in_band": r["nees_steps_in_band"],
-        "anis": r["anis"], "anis_verdict": r["anis_verdict"], "divergences": r["divergences"],
-        "recovery": recovery_text(r["recovery"]), "us_per_step": r["us_per_step"],
+        "nees_share_in_band": r["nees_steps_in_band"],
+        "anis": r["anis"], "anis_verdict": r["anis_verdict"], "diverged_runs": r["divergences"],
+        "kidnap_runs": kidnap_runs,
+        "recovered_runs": sum(k["recovered"] for k in r["recovery"]),
+        "recovery_median_s": _pooled_recovery_median(r) if kidnap_runs else None,
+        "us_per_step": r["us_per_step"],
         "rmse_over_pcrb": r["rmse_over_pcrb"],
         "rmse_over_pcrb_lo": _end(r, "rmse_over_pcrb", 0), "rmse_over_pcrb_hi": _end(r, "rmse_over_pcrb", 1),
         "anees_ci_lo": _end(r, "anees", 0), "anees_ci_hi": _end(r, "anees", 1),
         "pcrb_pos_rmse_m": meta["pcrb"]["pos_rmse_m"],
         "failed_runs": r.get("failed_runs", 0), "first_failure": r["failed"][0] if r["failed"] else "",
     }
+    assert tuple(row) == COLUMNS
+    return row
+
+
+def _pooled_recovery_median(r: dict[str, Any]) -> float:
+    """The median recovery time [s] over every kidnap of every run, a run that never
+    recovered counting as infinitely late (``inf`` when fewer than half recovered)."""
+    times = [math.inf if v is None else v for p in r["per_run"] for v in p["recovery_s"]]
+    return float(np.median(np.asarray(times, dtype=float))) if times else math.inf
+
+
+def _recovery_rows(meta: dict[str, Any], name: str, r: dict[str, Any]) -> list[dict[str, Any]]:
+    rows = []
+    for k, rec in enumerate(r["recovery"]):
+        med_iv = rec.get("median_s_interval") or (None, None)
+        count_iv = rec.get("recovered_interval") or (None, None)
+        rows.append({"scenario": meta["scenario"], "filter": name, "kidnap": k + 1, "runs": rec["runs"],
+                     "recovered_runs": rec["recovered"], "recovered_runs_lo": count_iv[0],
+                     "recovered_runs_hi": count_iv[1],
+                     "recovery_median_s": math.inf if rec["median_s"] is None else rec["median_s"],
+                     "recovery_median_s_lo": med_iv[0], "recovery_median_s_hi": med_iv[1],
+                     "recovery_max_s": rec.get("max_s")})
+    return rows
 
 
 def _end(r: dict[str, Any], key: str, i: int) -> float | None:
@@ -141,26 +183,34 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     written = []
     with atomic_write(out / "eval.csv", "w", newline="", what="eval table") as fh:
-        w = None
+        w = csv.DictWriter(fh, fieldnames=COLUMNS)
+        w.writeheader()
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
-                row = _csv_row(meta, name, r)
-                if w is None:
-                    w = csv.DictWriter(fh, fieldnames=list(row))
-                    w.writeheader()
-                w.writerow(row)
+                w.writerow(_csv_row(meta, name, r))
     written.append(out / "eval.csv")
+    with atomic_write(out / "eval_recovery.csv", "w", newline="", what="eval table") as fh:
+        w = csv.DictWriter(fh, fieldnames=RECOVERY_COLUMNS)
+        w.writeheader()
+        for _, meta, _ in results:
+            for name, r in meta["filters"].items():
+                w.writerows(_recovery_rows(meta, name, r))
+    written.append(out / "eval_recovery.csv")
+    kidnaps = max((len(p["recovery_s"]) for _, meta, _ in results for r in meta["filters"].values()
+                   for p in r["per_run"]), default=0)
     with atomic_write(out / "eval_runs.csv", "w", newline="", what="eval table") as fh:
         rows = csv.writer(fh)
         rows.writerow(["scenario", "filter", "seed", "pos_rmse_m", "heading_rmse_rad", "anees",
-                    "diverged", "recovery_s", "us_per_step", "failed", "failed_time_s"])
+                       "diverged", *[f"recovery_{k + 1}_s" for k in range(kidnaps)], "us_per_step",
+                       "failed", "failed_time_s"])
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
                 for p in r["per_run"]:
-                    rec = ";".join("inf" if v is None else f"{v:g}" for v in p["recovery_s"])
+                    rec = [math.inf if v is None else v for v in p["recovery_s"]]
+                    rec += [None] * (kidnaps - len(rec))
                     rows.writerow([meta["scenario"], name, p["seed"], p["pos_rmse_m"],
-                                p["heading_rmse_rad"], p["anees"], int(p["diverged"]), rec,
-                                p["us_per_step"], p["failed"] or "", p.get("failed_time_s")])
+                                   p["heading_rmse_rad"], p["anees"], int(p["diverged"]), *rec,
+                                   p["us_per_step"], p["failed"] or "", p.get("failed_time_s")])
     written.append(out / "eval_runs.csv")
     with atomic_write(out / "eval.json", "w", what="eval document") as fh:
         json.dump(document, fh, indent=1, default=float)
