@@ -276,6 +276,83 @@ def anees_cell(value, iv) -> str:
     return with_iv(value, iv, ".3g")
 
 
+ASSOCIATION_HEADER = "## Association on MRCLAM: every robot with and without its barcodes"
+#: The association table's filters: (label, filter spec, parameters).
+ASSOCIATION_FILTERS = (("ekf (NN)", "ekf", {}), ("ekf (JCBB)", "jcbb=ekf", {"jcbb": {"association": "jcbb"}}),
+                       ("ukf (NN)", "ukf", {}), ("pf (ML per particle)", "pf", {}))
+
+
+def association_section(folder: Path | None) -> list[str]:
+    """The known-map filters on every MRCLAM robot, whole runs, told the barcodes and not
+    (``--unknown-ids``): RMSE and ANEES both ways, and how many readings each associated with
+    the landmark its barcode names; 95 % block-bootstrap intervals over the run's 30 s blocks."""
+    md = [ASSOCIATION_HEADER, ""]
+    if folder is None:
+        return [*md, "Needs a copy of a UTIAS MRCLAM data set (`--mrclam DIR`).", ""]
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+    from beacon_sim.io.mrclam import load_mrclam
+    from beacon_sim.runs.mrclam import run_mrclam
+
+    specs = [spec for _, spec, _ in ASSOCIATION_FILTERS]
+    params: dict = {}
+    for _, _, p in ASSOCIATION_FILTERS:
+        params.update(p)
+    lines = ["| robot | filter | pos RMSE with IDs [m] | without IDs [m] | ANEES with IDs | without IDs "
+             "| readings given the barcoded landmark | false | missed |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    per_filter: dict[str, list[tuple[float, float, float]]] = {}
+    for robot in (1, 2, 3, 4, 5):
+        data = load_mrclam(folder, robot)
+        runs = {ids: run_mrclam(data, specs, params=params, calibration="others", unknown_ids=not ids)
+                for ids in (True, False)}
+        evals = {ids: run.evaluate() for ids, run in runs.items()}
+        for label, spec, _ in ASSOCIATION_FILTERS:
+            name = spec.split("=")[0]
+            a, b = evals[True].get(name, {}), evals[False].get(name, {})
+            if a.get("pos_rmse_m") is None or b.get("pos_rmse_m") is None:
+                lines.append(f"| {robot} | {label} | failed | | | | | | |")
+                continue
+            ia, ib = mrclam_intervals(runs[True], name), mrclam_intervals(runs[False], name)
+            count = runs[False].associations.get(name)
+            share = "-"
+            false = missed = "-"
+            frac = math.nan
+            if count is not None and count.readings:
+                hits, rows = count.block_sums(MRCLAM_BLOCK_S)
+                iv = ratio_of_sums(hits, rows)
+                frac = count.fraction_correct
+                pct = None if iv is None else [None if x is None else 100 * x for x in iv]
+                share = f"{count.correct} / {count.readings} = {with_iv(100 * frac, pct, '.1f')} %"
+                false, missed = str(count.false), str(count.missed)
+            per_filter.setdefault(label, []).append((a["pos_rmse_m"], b["pos_rmse_m"], frac))
+            print(f"association robot {robot} {label}: {a['pos_rmse_m']:.3f} -> {b['pos_rmse_m']:.3f} m, "
+                  f"{share}", file=sys.stderr, flush=True)
+            lines.append(f"| {robot} | {label} | {with_iv(a['pos_rmse_m'], ia['rmse'], '.3f')} "
+                         f"| {with_iv(b['pos_rmse_m'], ib['rmse'], '.3f')} "
+                         f"| {with_iv(a.get('anees'), ia['anees'], '.2f')} "
+                         f"| {with_iv(b.get('anees'), ib['anees'], '.2f')} | {share} | {false} | {missed} |")
+    summary = ["| filter | pos RMSE with IDs, over robots [m] | without IDs [m] | RMSE without / with, "
+               "median over robots | readings given the barcoded landmark, over robots |",
+               "|---|---|---|---|---|"]
+    for label, rows in per_filter.items():
+        w, wo, fr = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
+        summary.append(f"| {label} | {w.min():.3f}-{w.max():.3f} | {wo.min():.3f}-{wo.max():.3f} "
+                       f"| {np.median(wo / w):.2f} ({(wo / w).min():.2f}-{(wo / w).max():.2f}) "
+                       f"| {100 * np.nanmin(fr):.1f}-{100 * np.nanmax(fr):.1f} % |")
+    return [
+        *md,
+        f"{folder.name}, all five robots, whole runs. `beacon-sim mrclam DIR --robot N --headless "
+        "--filter ekf --filter jcbb=ekf --set jcbb.association=jcbb --filter ukf --filter pf` and the "
+        "same with `--unknown-ids`, which hides every reading's barcode from the filters (they "
+        "associate each reading with the 15 surveyed landmarks themselves: nearest neighbour, JCBB, "
+        "or per particle) and keeps it only to score them "
+        "([association.md](association.md#real-data-beacon-sim-mrclam-dir---robot-n---unknown-ids)). "
+        "The noise is the leave-one-robot-out calibration of the table above, the same both ways. "
+        "Brackets: 95 % block-bootstrap intervals over the run's 30 s blocks. Regenerate with "
+        "`python scripts/make_results.py --only association`.", "",
+        *lines, "", "Over the five robots:", "", *summary, ""]
+
+
 SLAM_HEADER = "## SLAM on MRCLAM: EKF-SLAM and FastSLAM 2.0 without the map"
 #: The filters of the SLAM table: the two SLAM filters (no map), the EKF given the map, and
 #: odometry alone (the floor a SLAM filter must beat to have used its readings at all).
@@ -964,7 +1041,7 @@ def fig_corridor_mcl(ctx: Context) -> Figure:
         "at each of 60, 70, 80 and 90 s (by then the robot has driven the corridor's length "
         f"and back), the filter's estimate lies within {FOUND_RADIUS_M:g} m of the robot (in the "
         "1 m cell centred on it) and faces its way (cos of the heading error > 0.9), the "
-        "criterion of `tests/test_mcl.py` (`evaluation.found`). Brackets: 95 % Wilson intervals.", "",
+        "criterion of `tests/filters/test_mcl.py` (`evaluation.found`). Brackets: 95 % Wilson intervals.", "",
         "| filter | runs that found the robot | runs that did not (seeds) |", "|---|---|---|",
         *rows, ""], checks)
 
@@ -1092,6 +1169,11 @@ def fig_mrclam(ctx: Context) -> Figure:
     return Figure(mrclam_section(ctx.mrclam, ctx.have)[2:])
 
 
+def fig_mrclam_association(ctx: Context) -> Figure:
+    """The known-map filters on every MRCLAM robot with and without barcodes (no seeds)."""
+    return Figure(association_section(ctx.mrclam)[2:])
+
+
 def fig_mrclam_slam(ctx: Context) -> Figure:
     """EKF-SLAM and FastSLAM on every MRCLAM robot (no seeds)."""
     return Figure(slam_section(ctx.mrclam, ctx.have)[2:])
@@ -1123,6 +1205,7 @@ FIGURES: tuple[Entry, ...] = (
           fig_corridor_mcl),
     Entry("slam_loop", "## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs", fig_slam_loop),
     Entry("mrclam", MRCLAM_HEADER, fig_mrclam, seeded=False),
+    Entry("association", ASSOCIATION_HEADER, fig_mrclam_association, seeded=False),
     Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),
 )
 

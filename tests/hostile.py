@@ -1,7 +1,7 @@
 """A seeded generator of hostile input: malformed scenarios mutated from the
 shipped ones, hand-made scenarios, bad recordings, bad MRCLAM folders, bad command lines and
 faulty filters. Every case is a command line for ``beacon-sim`` plus the files it needs;
-tests/test_hostile_corpus.py runs them and checks exit status 0 or 2, at most two lines on
+tests/cli/test_hostile_corpus.py runs them and checks exit status 0 or 2, at most two lines on
 stderr for exit 2, no traceback, and a time bound.
 """
 
@@ -824,7 +824,7 @@ def issue24_cases(tmp: Path) -> list[Case]:
     """Inputs that once ended in a traceback, and new kinds, each through every front
     end that reads it (scenarios: run, play, eval, check; recordings: replay headless, in
     the window, export; MRCLAM: mrclam headless, window, calibrate); ``--duration`` in run,
-    eval and mrclam. (A ``recordings`` that is not a folder: tests/test_replay_verification.py.)"""
+    eval and mrclam. (A ``recordings`` that is not a folder: tests/runs/test_replay_verification.py.)"""
     cases = []
     for name, text in issue24_scenarios().items():
         for argv in SCENARIO_FRONT_ENDS:

@@ -1,4 +1,4 @@
-"""A particle filter's whole output over scripted ticks, as one SHA-256 (tests/test_particle_bits.py).
+"""A particle filter's whole output over scripted ticks, as one SHA-256 (tests/filters/test_particle_bits.py).
 
 Each case runs a ParticleFilter through 60 ticks of a scripted tour with the readings of
 several sensor kinds (bearings with declared outliers, range-bearings, pose and position

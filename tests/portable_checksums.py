@@ -1,6 +1,6 @@
 """Truth and readings checksums of every shipped scenario over a fixed number of ticks, and
 digests of the portable kernels on fixed inputs: what must be the same bits on every machine
-(tests/test_portable_math.py runs this under every numpy dispatch the machine can run, and
+(tests/core/test_portable_math.py runs this under every numpy dispatch the machine can run, and
 compares with the table in docs/portability.md).
 
 ``python tests/portable_checksums.py`` prints the JSON; ``--table`` prints the docs' table.

@@ -1,5 +1,5 @@
-"""Small SLAM scenarios and a run loop for the SLAM tests (tests/test_ekf_slam*.py,
-tests/test_fastslam*.py, tests/test_slam*.py)."""
+"""Small SLAM scenarios and a run loop for the SLAM tests (tests/filters/test_ekf_slam*.py,
+test_fastslam*.py, test_slam*.py) and benchmarks/bench_slam.py."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def true_beacons(sc: Scenario) -> dict[int, tuple[float, float]]:
 def lookalike_pairs(duration: float) -> Scenario:
     """Five pairs of look-alike beacons 0.4 m apart on a 4 m ring, range-bearing readings, a
     robot with a poor gyro (omega_std 0.15 rad/s) on a 3 m circle, no map given (the
-    scenario of tests/test_fastslam_jcbb.py and benchmarks/bench_slam.py --association)."""
+    scenario of tests/filters/test_fastslam_jcbb.py and benchmarks/bench_slam.py --association)."""
     bs = []
     for i in range(5):
         a = 2 * math.pi * i / 5 + 0.3

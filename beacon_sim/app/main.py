@@ -295,7 +295,7 @@ class App:
             raise ValueError(f"no handler for the action {action!r}")
         handler(int(number)) if number else handler()
 
-    # --- the actions (one per binding of controls.py; tests/test_app_keys_doc.py) ----------
+    # --- the actions (one per binding of controls.py; tests/app/test_app_keys_doc.py) ----------
     def act_next_robot(self) -> None:
         self.flash(f"driving {self.session.next_robot()}")
 

@@ -1,6 +1,6 @@
 """R runs of one scenario simulated together: the truth and the beacon sensors as (R, ...)
 arrays, bit for bit the steps of R single :class:`~beacon_sim.core.simulation.Simulation`
-runs (the Monte Carlo evaluation's simulation; tests/test_batch_simulation.py compares).
+runs (the Monte Carlo evaluation's simulation; tests/core/test_batch_simulation.py compares).
 
 Each run keeps its own random streams, driver and checksums: a :class:`Simulation` per run
 holds them, and every tick draws from each run's streams exactly what its own ``step``

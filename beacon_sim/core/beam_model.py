@@ -175,7 +175,7 @@ def distance_transform(occupied: np.ndarray, max_distance: float | None = None) 
     faster there: benchmarks/bench_scipy_paths.py), :func:`distance_transform_numpy`
     otherwise (on a small map numpy takes less than importing scipy). Both are exact: each
     distance is the square root of the same integer sum of squares, so the results are equal
-    bit for bit (tests/test_scipy_paths.py) and a run is the same with or without scipy.
+    bit for bit (tests/core/test_scipy_paths.py) and a run is the same with or without scipy.
     """
     occ = np.asarray(occupied, dtype=bool)
     ndimage = optional("scipy.ndimage") if occ.size >= SCIPY_MIN_CELLS else None

@@ -40,7 +40,7 @@ def move(pose, v, omega, dt):
 def move_portable(pose, v, omega, dt):
     """:func:`move` with the portable kernels (core/portable_math.py): the truth's motion,
     the same bits on every machine. Filters use :func:`move` (numpy's fast kernels, equal
-    to within a few ulp: tests/test_portable_math.py)."""
+    to within a few ulp: tests/core/test_portable_math.py)."""
     pose = np.asarray(pose, dtype=float)
     if pose.ndim == 1 and np.ndim(v) == 0 and np.ndim(omega) == 0:
         theta = pose[2]

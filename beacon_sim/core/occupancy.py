@@ -344,7 +344,7 @@ def parse_map_yaml(text: str, source: str) -> dict:
     With PyYAML installed (the ``maps`` extra), any valid YAML: a leading ``---``, an origin
     as a block list, ``negate: false``, a one-line ``{...}`` mapping. Without it, the flat
     subset map_server writes (:func:`parse_flat_map_yaml`); both give the same mapping for
-    that subset (tests/test_map_yaml.py).
+    that subset (tests/core/test_map_yaml.py).
     """
     yaml = optional("yaml")
     if yaml is None:

@@ -11,7 +11,7 @@ without AVX-512, ARM64, Linux, macOS and Windows (docs/portability.md).
 
 Each kernel comes twice: for numpy arrays (``sin``, ``atan2``...) and for Python floats
 (``sin1``, ``atan2_1``...: no array overhead, for one pose a tick). Both do the same IEEE
-operations in the same order, so they give the same bits (tests/test_portable_math.py holds
+operations in the same order, so they give the same bits (tests/core/test_portable_math.py holds
 them equal, and the kernels within 3 ulp of the C library on random inputs). The polynomials
 are near-minimax fits made by ``scripts/fit_portable_math.py``; they are part of the format of
 a run: changing one changes every checksum.

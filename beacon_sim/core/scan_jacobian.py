@@ -18,7 +18,7 @@ cells with a free 4-neighbour) within 6 cells of the cell the beam enters
 (:func:`wall_normals`, Gaussian weights, sigma 3 cells). It is exact for walls along the
 grid's axes and at 45 degrees (by symmetry) and within a degree or two at other angles.
 The tests hold it to least-squares slopes of the ray cast itself over offsets of a few
-cells (tests/test_scan_pcrb.py): exact for axis-aligned walls, 2 % at 45 degrees, 4 % at
+cells (tests/evaluation/test_scan_pcrb.py): exact for axis-aligned walls, 2 % at 45 degrees, 4 % at
 30 degrees. Where the surface cells around the hit are no line (a corner, a pillar or a
 door jamb smaller than the window: the fit's smaller spread over a tenth of the larger,
 ``MAX_CORNERNESS``) the normal is that of the cell face the beam enters through, a grid

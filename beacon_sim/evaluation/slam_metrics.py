@@ -38,7 +38,7 @@ def min_cost_assignment(cost: np.ndarray) -> list[tuple[int, int]]:
     scipy's ``optimize.linear_sum_assignment`` when scipy is installed (the ``science``
     extra; 15-90x faster on 50-500 landmarks: benchmarks/bench_scipy_paths.py), else
     :func:`min_cost_assignment_numpy`. Both are exact: the same minimum cost, and the same
-    pairs whenever the minimum is reached by one assignment only (tests/test_scipy_paths.py).
+    pairs whenever the minimum is reached by one assignment only (tests/core/test_scipy_paths.py).
     """
     cost = np.asarray(cost, dtype=float)
     optimize = optional("scipy.optimize") if cost.size and np.isfinite(cost).all() else None

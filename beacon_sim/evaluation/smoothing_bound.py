@@ -11,7 +11,7 @@ Jacobians along the true path (the same terms as ``pcrb.step_terms``)::
 J is block tridiagonal. The diagonal blocks of ``J^-1`` (each tick's bound) come from the
 forward recursion of ``pcrb.pcrb`` followed by a Rauch-Tung-Striebel backward pass over the
 bound itself (:func:`smoothing_bound`, O(T)); :func:`trajectory_information` builds J
-densely for small T, and tests/test_smoothing_bound.py holds the two equal. The same
+densely for small T, and tests/evaluation/test_smoothing_bound.py holds the two equal. The same
 backward pass (``filters/smoothing/rts.py``) turns the filters' moments into the smoothers'.
 
 A known start (P_0 = 0, the simulation's) has no inverse; the forward-backward form needs

@@ -48,7 +48,7 @@ PSD_TOLERANCE = 1e-9
 #: How far from that threshold the guard's verdict may differ from an eigenvalue test
 #: (``numpy.linalg.eigvalsh``), relative to the largest entry: only a matrix whose smallest
 #: eigenvalue lies within this of ``-PSD_TOLERANCE * max|entry|`` may be judged either way
-#: (tests/test_guard_eigen.py checks it on near-singular covariances).
+#: (tests/hosting/test_guard_eigen.py checks it on near-singular covariances).
 PSD_AGREEMENT = 1e-12
 
 
@@ -115,7 +115,7 @@ def validate_estimate(est: object, *, sole: bool = False, _f8: np.dtype = _F8,
     The usual case, float64 arrays of 3 and 9 entries, is judged here with float
     comparisons; anything else, and anything the fast path cannot settle, takes the full
     check (:func:`_validate_any`), which names what is wrong. The verdicts are the same
-    (tests/test_guard_fast_path.py): the shapes are those of the unpacking (any other shape
+    (tests/hosting/test_guard_fast_path.py): the shapes are those of the unpacking (any other shape
     of 3 and 9 entries fails it, or leaves lists that no float comparison takes: TypeError);
     an exactly symmetric covariance whose entries lie within [-s, s], s its largest diagonal
     entry with 1e-12 <= s <= MAX_COV, has every entry finite (a NaN fails every comparison)

@@ -3,7 +3,7 @@ recorded (``filters/smoothing/recorder.py``), then the Rauch-Tung-Striebel backw
 
 The filter is rebuilt exactly as the run built it (``loading.build_filter``: its scenario,
 seed, name and parameters), so the filtered track it gives again is the run's, bit for bit
-(tests/test_smoothing.py), and the run itself is never touched. Only filters whose belief is
+(tests/filters/test_smoothing.py), and the run itself is never touched. Only filters whose belief is
 one Gaussian predicted with the velocity model are smoothed: the EKF and the UKF (and a
 student's subclass of either).
 """

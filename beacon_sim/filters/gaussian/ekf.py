@@ -25,7 +25,7 @@ floats: a numpy call costs about 1 us even on a 3x3 array (design.md section 9).
 (many beacons in view) the float loop costs about 1.7 us a reading, so the tick's rows are
 linearised on arrays and the same update is taken in information form, linear in the rows
 (``measurements.kalman_update_low_rank``: ``G = H^T R^-1 H``, a 3x3 solve);
-the two agree to rounding (tests/test_ekf_stacked.py).
+the two agree to rounding (tests/filters/test_ekf_stacked.py).
 
 Optional gating (seed 001's closing advice): a beacon's reading (1 row, 2 rows for
 range-bearing, the whole fix for pose/position) is dropped when its squared Mahalanobis
@@ -238,7 +238,7 @@ class ExtendedKalmanFilter(VelocityGaussian):
                     q = dx * dx + dy * dy
                     # bearing h = atan2(dy, dx) - theta, H = [dy/q, -dx/q, -1] (seed 000 eq. 10):
                     # measurement_models.relative_bearing_scalar inlined (a call per reading
-                    # costs 5 %; tests/test_ekf.py holds the update to the model's)
+                    # costs 5 %; tests/filters/test_ekf.py holds the update to the model's)
                     hb = wrap_(atan2(dy, dx) - th)
                     brow = (dy / q, -dx / q, -1.0, wrap_(zrow[-1] - hb), vb, hb)
                     if kind == "bearing":

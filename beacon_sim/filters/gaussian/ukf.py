@@ -345,7 +345,7 @@ class UnscentedKalmanFilter(BatchableFilter):
     The belief is kept on Python floats (``mean`` and ``cov`` are arrays made on request), and
     prediction and, for up to ``FLOAT_ROWS`` readings a tick, the update run on floats with
     the same equations as the array forms (:func:`innovation`, :func:`correct`); results agree
-    with them to 1e-9 (tests/test_ukf_fast.py).
+    with them to 1e-9 (tests/filters/test_ukf_fast.py).
 
     Parameters (``ctx.params``)
     ---------------------------

@@ -16,7 +16,7 @@ kind                nodes             error e (what g2o / the simulation's senso
 
 Each class's ``label`` (odometry, loop closure, landmark) is what the chi2 per class is
 reported under. chi2 = sum over edges of ``e^T Omega e``. The Jacobians are analytic
-(tests/test_graph_slam.py holds them to finite differences); a node's update is additive
+(tests/filters/test_graph_slam.py holds them to finite differences); a node's update is additive
 (``x + dx``, headings wrapped), as g2o's VertexSE2 and VertexPointXY.
 """
 

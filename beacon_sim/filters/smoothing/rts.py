@@ -11,7 +11,7 @@ belief ``(m_0, P_0)``. With ``F_k`` the motion Jacobian of the step k - 1 -> k (
     P_k^s = P_k + C_k (P_{k+1}^s - P_{k+1}^-) C_k^T
 
 On a linear-Gaussian model this is exactly the posterior of each state given all the data
-(the batch least-squares solution: tests/test_smoothing.py). ``P_k^s <= P_k``: the smoothed
+(the batch least-squares solution: tests/filters/test_smoothing.py). ``P_k^s <= P_k``: the smoothed
 ellipse is never larger than the filtered one. For the UKF the gain uses the same Jacobian
 (the extended RTS on the UKF's moments), not the sigma points' cross-covariance.
 

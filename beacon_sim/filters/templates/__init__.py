@@ -13,7 +13,7 @@
   (docs/maps.md).
 
 Being modules, they are read by ruff, mypy and the import contracts as the rest of the
-package is, and what a student gets is exactly what is checked (tests/test_filter_families.py).
+package is, and what a student gets is exactly what is checked (tests/filters/test_filter_families.py).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -20,28 +20,48 @@ class AssociationCount:
 
     ``correct``: given the landmark whose barcode the camera read; ``false``: given another
     landmark; ``missed``: given none (dropped as clutter). ``readings`` = their sum: the rows
-    of the updates after which the filter reported ``associations()`` for the camera."""
+    of the updates after which the filter reported ``associations()`` for the camera.
+    ``times_s`` and ``hits``: per scored row, its time from the run's start [s] and whether it
+    was correct, for intervals over blocks of the run (:meth:`block_sums`)."""
 
     readings: int = 0
     correct: int = 0
     false: int = 0
     missed: int = 0
+    times_s: list[float] = field(default_factory=list, repr=False)
+    hits: list[bool] = field(default_factory=list, repr=False)
 
     @property
     def fraction_correct(self) -> float:
         """Share of the scored readings given the right landmark (nan with none)."""
         return self.correct / self.readings if self.readings else math.nan
 
-    def add(self, given: Sequence[int | None], truth: np.ndarray) -> None:
-        """Count one reading's rows: ``given`` per row (landmark ID or None), ``truth`` the barcodes."""
+    def add(self, given: Sequence[int | None], truth: np.ndarray, time_s: float = math.nan) -> None:
+        """Count one reading's rows: ``given`` per row (landmark ID or None), ``truth`` the
+        barcodes, ``time_s`` [s] the reading's time from the run's start."""
         for g, t in zip(given, truth.tolist(), strict=True):
             self.readings += 1
+            hit = g is not None and int(g) == int(t)
             if g is None:
                 self.missed += 1
-            elif int(g) == int(t):
+            elif hit:
                 self.correct += 1
             else:
                 self.false += 1
+            self.times_s.append(float(time_s))
+            self.hits.append(hit)
+
+    def block_sums(self, block_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Per ``block_s``-second block of the run that holds scored rows: (correct rows, rows),
+        for a block-bootstrap interval of :attr:`fraction_correct`."""
+        t = np.asarray(self.times_s, dtype=float)
+        if not t.size or not np.all(np.isfinite(t)):
+            return np.zeros(0), np.zeros(0)
+        blk = np.floor((t - t.min()) / block_s).astype(int)
+        rows = np.bincount(blk).astype(float)
+        hits = np.bincount(blk, np.asarray(self.hits, dtype=float))
+        keep = rows > 0
+        return hits[keep], rows[keep]
 
     def as_json(self) -> dict[str, float]:
         return {"readings": self.readings, "correct": self.correct, "false": self.false,
@@ -65,4 +85,4 @@ def score_associations(runners: Sequence[TeamRunner], truth: np.ndarray, time_s:
                 continue
             rows = given.get(SENSOR_NAME) if isinstance(given, dict) else None
             if rows is not None and len(rows) == len(truth):
-                scores.setdefault(name, AssociationCount()).add(tuple(rows), truth)
+                scores.setdefault(name, AssociationCount()).add(tuple(rows), truth, time_s)

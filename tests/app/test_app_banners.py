@@ -1,0 +1,45 @@
+"""Banners cover no robot (at the top of the world when the robot is not under it, else at
+its bottom) and an event's banner is cleared by a seek in a replay."""
+
+from __future__ import annotations
+
+import pytest
+
+pygame = pytest.importorskip("pygame")
+
+from replay_app_helpers import (  # noqa: E402
+    make,
+    run_until,
+)
+
+from beacon_sim.app.main import App  # noqa: E402
+from beacon_sim.core.scenario import load_scenario  # noqa: E402
+from beacon_sim.runs.live import Session  # noqa: E402
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1920, 1080)])
+def test_a_banner_does_not_sit_on_the_robot(size):
+    app = App(Session(load_scenario("default"), ["ekf"]), size, scripted=True)
+    try:
+        top_middle = app.view.to_world((app.view.area[0] + app.view.area[2] / 2, app.view.area[1] + 40))
+        for y in (float(top_middle[1]), 1.0):  # under the banner's usual place, and away from it
+            app.session.command({"kind": "kidnap", "pose": [float(top_middle[0]), y, 0.0]})
+            app.run(app.frames + 6)
+            app.flash("KIDNAPPED  (a long message across the top of the world)")
+            app.draw()
+            assert not app.hud.banner_box.colliderect(app.robot_box()), (y, app.hud.banner_box)
+            assert pygame.Rect(app.view.area).contains(app.hud.banner_box)
+    finally:
+        app.close()
+
+
+def test_a_seek_clears_the_kidnap_banner(recorded):
+    path, _ = recorded
+    app = make(path)
+    try:
+        run_until(app, 152)  # the recorded kidnap at tick 150
+        assert app.now < app.banner_until and "KIDNAPPED" in app.banner_text
+        app.seek(20)
+        assert not app.now < app.banner_until
+    finally:
+        app.close()

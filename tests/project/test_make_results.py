@@ -1,0 +1,103 @@
+"""scripts/make_results.py's seed discipline: the docs' figures are made on seeds no test
+uses, the check re-runs them on a second disjoint range, and every section is one registry
+entry."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def make_results():
+    spec = importlib.util.spec_from_file_location("make_results", ROOT / "scripts" / "make_results.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["make_results"] = module        # dataclasses look their module up there
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.modules.pop("make_results", None)
+
+
+#: A seed a test passes: ``seed=N``, ``seeds=(N, ...)``, ``seed = N``, ``Simulation(sc, N)``'s
+#: keyword forms, and ``for seed in range(A, B)``.
+SEED_LITERAL = re.compile(r"seeds?\w*\s*=\s*\(?\s*(\d+)")
+SEED_RANGE = re.compile(r"seed\w*\s+in\s+range\(\s*(\d+)\s*,\s*(\d+)")
+
+
+def test_no_test_uses_the_docs_or_the_check_seeds(make_results):
+    """The first 10,000 seeds from each range are the figures' (the most runs a figure
+    makes is 100): no seed a test passes may fall there."""
+    ranges = [(make_results.DOCS_SEED, make_results.DOCS_SEED + 10_000),
+              (make_results.CHECK_SEED, make_results.CHECK_SEED + 10_000)]
+    assert ranges[0][1] <= ranges[1][0]
+    found = []
+    for path in sorted((ROOT / "tests").rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        seeds = [(int(m.group(1)), int(m.group(1)) + 1) for m in SEED_LITERAL.finditer(text)]
+        seeds += [(int(m.group(1)), int(m.group(2))) for m in SEED_RANGE.finditer(text)]
+        for a, b in seeds:
+            if any(a < hi and lo < b for lo, hi in ranges):
+                found.append(f"{path.name}: seeds {a}..{b - 1}")
+    assert not found, found
+    # the pattern does find the seeds tests use (it is not blind)
+    here = Path(__file__).read_text(encoding="utf-8")
+    assert SEED_LITERAL.search("run_monte_carlo(sc, ['pf'], 4, seed=5000, jobs=1)").group(1) == "5000"
+    assert SEED_RANGE.search("for seed in range(300, 330)").groups() == ("300", "330")
+    assert "DOCS_SEED" in here
+
+
+def test_every_section_is_one_registry_entry(make_results):
+    names = [e.name for e in make_results.FIGURES]
+    headers = [e.header for e in make_results.FIGURES]
+    assert len(set(names)) == len(names) and len(set(headers)) == len(headers)
+    assert all(h.startswith("## ") for h in headers)
+    assert {"default", "krejsa", "corridor", "corridor_global"} <= set(names)
+    assert all(e.seeded for e in make_results.FIGURES if e.name not in ("mrclam", "association", "slam"))
+
+
+def test_every_seeded_section_of_the_docs_names_its_seeds(make_results):
+    """results.md as committed: each seeded section says it was made from DOCS_SEED on."""
+    text = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+    for e in make_results.FIGURES:
+        if not e.seeded:
+            continue
+        assert e.header in text, e.header
+        body = text.split(e.header, 1)[1].split("\n## ", 1)[0]
+        assert f"seeds {make_results.DOCS_SEED}.." in body, e.name
+
+
+def test_intervals_agree_when_they_share_a_point(make_results):
+    overlap = make_results.overlap
+    assert overlap([1.0, 2.0], [2.0, 3.0]) is True
+    assert overlap([1.0, 2.0], [2.1, 3.0]) is False
+    assert overlap([None, 2.0], [1.5, None]) is True       # open ends
+    assert overlap([5.0, None], [1.0, 4.0]) is False
+    assert overlap(None, [1.0, 2.0]) is None                # nothing to compare
+
+
+def test_wilson_interval_by_hand(make_results):
+    """7 of 40 (the issue's corridor figure): [0.09, 0.32]."""
+    lo, hi = make_results.wilson_interval(7, 40)
+    assert round(lo, 2) == 0.09 and round(hi, 2) == 0.32
+    assert make_results.wilson_interval(40, 40)[1] == 1.0
+
+
+def test_make_results_reports_progress_in_a_log(make_results, capsys, monkeypatch):
+    """Off a terminal (pytest's captured stderr) each figure's Monte Carlo prints plain
+    progress lines, as eval does: a long regeneration shows a sign of life in a log file."""
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.runs import progress
+
+    monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 0.0)
+    make_results.run(load_scenario("default"), ["ekf"], 2, 1, duration=1.0, seed=0)
+    err = capsys.readouterr().err
+    assert re.search(r"^eval default: 2/2 runs", err, flags=re.M), err
