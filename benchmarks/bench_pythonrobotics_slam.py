@@ -193,7 +193,8 @@ def main() -> int:
                 r["gospa"] = gospa(r["map"], lms).value
                 rows[name].append(r)
         print(f"\n{n} landmarks")
-        print(f"{'filter':<20}{'pos RMSE [m]':>14}{'map GOSPA [m]':>15}{'mean NEES':>11}{'us/tick':>10}{'cost ratio':>12}")
+        print(f"{'filter':<20}{'pos RMSE [m]':>14}{'map GOSPA [m]':>15}{'mean NEES':>11}"
+              f"{'us/tick':>10}{'cost ratio':>12}")
         peer_us = statistics.median(r["us"] for r in rows["pythonrobotics"])
         for name in names:
             rs = rows[name]
