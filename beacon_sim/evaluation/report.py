@@ -4,13 +4,13 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import sys
 from pathlib import Path
 from typing import Any
 
+from beacon_sim.core.csv_cells import csv_dict_writer, csv_writer
 from beacon_sim.core.files import atomic_write
 from beacon_sim.evaluation.intervals import text as interval_text
 
@@ -146,12 +146,12 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
             for name, r in meta["filters"].items():
                 row = _csv_row(meta, name, r)
                 if w is None:
-                    w = csv.DictWriter(fh, fieldnames=list(row))
+                    w = csv_dict_writer(fh, list(row))
                     w.writeheader()
                 w.writerow(row)
     written.append(out / "eval.csv")
     with atomic_write(out / "eval_runs.csv", "w", newline="", what="eval table") as fh:
-        rows = csv.writer(fh)
+        rows = csv_writer(fh)
         rows.writerow(["scenario", "filter", "seed", "pos_rmse_m", "heading_rmse_rad", "anees",
                     "diverged", "recovery_s", "us_per_step", "failed", "failed_time_s"])
         for _, meta, _ in results:

@@ -17,7 +17,6 @@ uses every degree of freedom.
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import math
@@ -29,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.csv_cells import csv_dict_writer, csv_writer
 from beacon_sim.core.events import Kidnap
 from beacon_sim.core.files import atomic_write
 from beacon_sim.core.metrics import anees_band
@@ -503,7 +503,7 @@ def write_team_outputs(out: Path, metas: list[dict[str, Any]], document: dict[st
             "anees_lo", "anees_hi", "anees_verdict", "pcrb_pos_rmse_m", "pcrb_alone_pos_rmse_m",
             "rmse_over_pcrb", "us_per_step", "failed_runs", "first_failure"]
     with atomic_write(out / "eval.csv", "w", newline="", what="eval table") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
+        w = csv_dict_writer(fh, cols)
         w.writeheader()
         for m in metas:
             for name, r in m["filters"].items():
@@ -521,7 +521,7 @@ def write_team_outputs(out: Path, metas: list[dict[str, Any]], document: dict[st
                                 else m["pcrb"]["team_alone_pos_rmse_m"],
                                 "rmse_over_pcrb": v["rmse_over_pcrb"]})
     with atomic_write(out / "eval_runs.csv", "w", newline="", what="eval table") as fh:
-        w2 = csv.writer(fh)
+        w2 = csv_writer(fh)
         robots = sorted({rn for m in metas for rn in m["robots"]})
         w2.writerow(["scenario", "filter", "seed", "team_pos_rmse_m", *[f"{rn}_pos_rmse_m" for rn in robots],
                      "us_per_step", "failed", "failed_time_s"])

@@ -4,10 +4,10 @@ assignment).
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 from typing import Any
 
+from beacon_sim.core.csv_cells import csv_writer
 from beacon_sim.core.files import (
     atomic_write,
 )
@@ -37,7 +37,7 @@ def write_csv(board: dict[str, Any], path: Path) -> Path:
     """One row per student, in rank order; a failed student's figures are empty cells."""
     slam = bool(board.get("slam_reference"))
     with atomic_write(path, "w", newline="", what="grade table", error=GradeError) as fh:
-        w = csv.writer(fh)
+        w = csv_writer(fh)
         w.writerow(CSV_COLUMNS + (SLAM_CSV_COLUMNS if slam else ()))
         for r in board["rows"]:
             extra = ["" if r.get(k) is None else r[k] for k in SLAM_CSV_COLUMNS] if slam else []
