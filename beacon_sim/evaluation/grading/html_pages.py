@@ -77,10 +77,12 @@ def _slam_note(board: dict[str, Any]) -> str:
     parts = [f"{html.escape(n)}: ATE {num(r['ate_m'], '.4f')} m, map GOSPA {num(r['map_gospa_m'], '.4f')} m, "
              f"joint NEES {num(r['joint_nees'], '.2f')}" for n, r in ref.items()]
     return (f" On a SLAM scenario (the filters are not given the beacon map) ATE is the path's RMS "
-            f"position error, map GOSPA the error of the final map against the beacons it had to map "
+            f"position error over every seed (the pos RMSE on that scenario), map GOSPA the error "
+            f"of the final map against the beacons it had to map "
             f"(cut-off {GOSPA_CUTOFF_M:g} m: a missed or a false landmark costs as much as one "
             f"{GOSPA_CUTOFF_M / math.sqrt(2):.2f} m off), joint NEES the final pose-and-map NEES "
-            f"(for a filter with joint(); chi-square with 3 + 2M degrees of freedom), seed means. "
+            f"(for a filter with joint(); chi-square with 3 + 2M degrees of freedom), the last "
+            f"two seed means. "
             f"The built-in {SLAM_REFERENCE_SPEC} on the same seeds: " + "; ".join(parts) + ".")
 
 
@@ -246,7 +248,8 @@ def _slam_table(row: dict[str, Any]) -> str:
     lines = "".join(f"<tr><td>{html.escape(n)}</td>"
                     + "".join(f"<td class=num>{num(v[k], fmt)}</td>" for k, fmt in keys) + "</tr>"
                     for n, v in slam.items())
-    return ("<h2>The map (SLAM scenarios, seed means)</h2><table><thead><tr><th>scenario</th><th>ATE [m]</th>"
+    return ("<h2>The map (SLAM scenarios; ATE over every seed, the rest seed means)</h2>"
+            "<table><thead><tr><th>scenario</th><th>ATE [m]</th>"
             f"<th>{SLAM_REFERENCE_SPEC} ATE</th><th>map GOSPA [m]</th><th>{SLAM_REFERENCE_SPEC} GOSPA</th>"
             "<th>landmarks</th><th>missed</th><th>false</th><th>joint NEES</th>"
             f"<th>{SLAM_REFERENCE_SPEC} joint NEES</th></tr></thead><tbody>{lines}</tbody></table>")

@@ -115,12 +115,19 @@ def run_slam_figures(sc: Scenario, err: np.ndarray, landmarks: tuple[Any, Any, A
 
 
 def _mean_figures(per_run: list[dict[str, Any]]) -> dict[str, Any]:
-    """The seed mean of each SLAM figure, None unless every run has it."""
+    """The seed mean of each SLAM figure, None unless every run has it; ATE as the RMS over
+    the seeds (the runs are of one length), so that it is the pooled position RMSE the row's
+    "pos RMSE" is on that scenario: one quantity, one number."""
     out: dict[str, Any] = {}
     for k in SLAM_FIGURES:
         vals = [r[k] for r in per_run]
-        out[k] = (float(np.mean(vals)) if vals and all(v is not None and math.isfinite(v) for v in vals)
-                  else None)
+        ok = vals and all(v is not None and math.isfinite(v) for v in vals)
+        if not ok:
+            out[k] = None
+        elif k == "ate_m":
+            out[k] = float(np.sqrt(np.mean(np.square(vals))))
+        else:
+            out[k] = float(np.mean(vals))
     return out
 
 
