@@ -22,6 +22,7 @@ from beacon_sim.evaluation.grading import (
     read_secret,
     write_outputs,
 )
+from beacon_sim.evaluation.grading.gradescope import write_gradescope
 from beacon_sim.evaluation.montecarlo import ClusterError
 from beacon_sim.runs.progress import Progress
 
@@ -64,9 +65,18 @@ def grade_command(args: argparse.Namespace) -> int:
     except (GradeError, ClusterError) as exc:
         raise UsageError(str(exc)) from None
     written = write_outputs(board, out)
+    if getattr(args, "gradescope", None):
+        try:
+            gs = write_gradescope(board.document(), Path(args.gradescope))
+        except GradeError as exc:
+            raise UsageError(str(exc)) from None
+        written.append(Path(args.gradescope))
+        print(f"Gradescope: {len(gs)} results.json in {args.gradescope}")
     for r in board.rows:
         score = ("FAILED " + str(r["failed_runs"]) + "/" + str(r["runs"]) if r["failed_runs"]
                  else f"{r['pos_rmse_m']:.4f} m  {r['anees_verdict']}")
+        if "rubric_score" in r:
+            score = f"{r['rubric_score']:g}/{r['rubric_max']:g} points  " + score
         if r.get("suspicious"):
             score = "SUSPICIOUS (not ranked) " + score
         print(f"{r['rank']:>3}  {r['student']:<20} {score}")

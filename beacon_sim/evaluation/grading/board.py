@@ -22,6 +22,7 @@ from beacon_sim.evaluation.grading.config import GradeConfig, GradeError, scenar
 from beacon_sim.evaluation.grading.roster import find_students
 from beacon_sim.evaluation.grading.scoring import (
     add_findings,
+    add_rubric,
     is_scan_scenario,
     is_slam_scenario,
     rank_key,
@@ -204,6 +205,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
                 "pos_rmse_m": mine, "reference_pos_rmse_m": theirs,
                 "over_reference": mine / theirs if mine is not None and theirs else None}
         add_findings(row, found.get(st.name))
+        add_rubric(row, config)
         rows.append(row)
     rows.sort(key=rank_key)
     for k, row in enumerate(rows, 1):

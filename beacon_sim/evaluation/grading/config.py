@@ -14,6 +14,7 @@ from typing import Any
 from beacon_sim.core.arguments import check_simulated_total
 from beacon_sim.core.scenario import read_user_toml
 from beacon_sim.errors import BeaconSimError
+from beacon_sim.evaluation.grading.rubric import RubricItem, parse_rubric
 from beacon_sim.hosting.containment import SANDBOXES
 
 
@@ -36,6 +37,9 @@ class GradeConfig:
         against"); ``auto``: bubblewrap where it works, else the process level.
     pseudonyms : the class page (grade.html) names students by a pseudonym; the teacher's
         files (grade.csv, grade.json, pseudonyms.csv) keep the real names.
+    rubric : the course's tests and points (``[[rubric]]`` tables,
+        :mod:`~beacon_sim.evaluation.grading.rubric`): each row's ``rubric`` and
+        ``rubric_score``, and Gradescope's results.json (``grade --gradescope``).
     """
 
     scenarios: tuple[str, ...] = ("default",)
@@ -46,6 +50,7 @@ class GradeConfig:
     class_name: str | None = None
     sandbox: str = "auto"
     pseudonyms: bool = False
+    rubric: tuple[RubricItem, ...] = ()
 
 
 #: The longest run a grading configuration may ask for [s] (one simulated day).
@@ -120,7 +125,8 @@ def load_config(path: str | Path | None) -> GradeConfig:
                                        hi=1e4, allow_zero=True),
         class_name=_config_name(path, data),
         sandbox=_config_sandbox(path, data),
-        pseudonyms=_config_bool(path, data, "pseudonyms"))
+        pseudonyms=_config_bool(path, data, "pseudonyms"),
+        rubric=parse_rubric(path, data["rubric"], GradeError) if "rubric" in data else ())
     if cfg.duration is not None:
         check_simulated_total(len(cfg.seeds) * len(cfg.scenarios), cfg.duration,
                               f"{path}: seeds x scenarios x duration", GradeError)

@@ -138,6 +138,9 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
             ("us_per_step", "cost [us/step]"), ("failed_runs", "failed runs")]
     if board.get("slam_reference"):  # a SLAM assignment: the map columns
         cols[3:3] = [("ate_m", "ATE [m]"), ("map_gospa_m", "map GOSPA [m]"), ("joint_nees", "joint NEES")]
+    if cfg.get("rubric"):  # the course's points, as results.json gives them
+        total = sum(float(item["points"]) for item in cfg["rubric"])
+        cols.insert(2, ("rubric_score", f"points (of {total:g})"))
 
     def cell(r: dict[str, Any], key: str) -> str:
         v = r.get(key, r["anees_verdict"]) if key == "verdict" else r.get(key)
@@ -146,6 +149,8 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
         if isinstance(v, float):
             two = ("anees", "rmse_over_pcrb", "joint_nees")
             fmt = ".1f" if key == "us_per_step" else (".2f" if key in two else ".4f")
+            if key == "rubric_score":
+                fmt = "g"
             return f'<td class="num">{v:{fmt}}</td>'
         if isinstance(v, int):
             return f'<td class="num">{v}</td>'
@@ -219,6 +224,7 @@ status {status(row)}; position RMSE {num(row['pos_rmse_m'], '.4f')} m; heading R
 ({html.escape(str(row['anees_verdict']))});
 RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} us per step.</p>
 {_slam_table(row)}
+{_rubric_table(row)}
 <h2>Runs</h2>
 <table><thead><tr><th>scenario</th><th>seed</th><th>pos RMSE [m]</th><th>steps</th><th>cost [us/step]</th>
 <th>failure</th></tr></thead><tbody>{runs}</tbody></table>
@@ -253,3 +259,17 @@ def _slam_table(row: dict[str, Any]) -> str:
             f"<th>{SLAM_REFERENCE_SPEC} ATE</th><th>map GOSPA [m]</th><th>{SLAM_REFERENCE_SPEC} GOSPA</th>"
             "<th>landmarks</th><th>missed</th><th>false</th><th>joint NEES</th>"
             f"<th>{SLAM_REFERENCE_SPEC} joint NEES</th></tr></thead><tbody>{lines}</tbody></table>")
+
+
+def _rubric_table(row: dict[str, Any]) -> str:
+    """A student page's rubric: each test's points and what was measured (results.json's)."""
+    tests = row.get("rubric")
+    if not tests:
+        return ""
+    lines = "".join(f"<tr><td>{html.escape(t['name'])}</td><td class=num>{t['score']:g}</td>"
+                    f"<td class=num>{t['max_score']:g}</td>"
+                    f"<td>{html.escape(t['output'] or '')}</td></tr>"
+                    for t in tests)
+    return (f"<h2>Points: {row['rubric_score']:g} of {row['rubric_max']:g}</h2>"
+            "<table><thead><tr><th>test</th>"
+            f"<th>points</th><th>of</th><th>measured</th></tr></thead><tbody>{lines}</tbody></table>")

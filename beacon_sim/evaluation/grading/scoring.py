@@ -15,6 +15,8 @@ from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.evaluation.grading.config import GradeConfig
 from beacon_sim.evaluation.grading.roster import Student
+from beacon_sim.evaluation.grading.rubric import score_row, tracking_figures
+from beacon_sim.evaluation.grading.rubric import total as rubric_total
 from beacon_sim.evaluation.grading.students import StudentResult
 from beacon_sim.evaluation.grading.svg import svg_plot
 from beacon_sim.evaluation.grading.tasks import TaskResult
@@ -267,6 +269,7 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
                                                         "rmse_over_pcrb", "us_per_step")}
     verdicts, failures, curves = [], [], []
     seen: list[str] = []  # the scenarios with a verdict, in order
+    tracks: dict[int, list[dict[str, Any]]] = {}
     team_rows: dict[str, Any] = {}
     slam_rows: dict[str, Any] = {}
     for name in config.scenarios:
@@ -312,6 +315,13 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
         curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
         if slam_reference and name in slam_reference and len(runs) == len(res):
             slam_rows[name] = _slam_row(sc, runs, slam_reference[name])  # type: ignore[arg-type]
+    if config.rubric:  # the course's tracking tests: each single-robot run's figures
+        for i, item in enumerate(config.rubric):
+            if item.test in ("builds", "keeps"):
+                tracks[i] = [tracking_figures(next(iter(r.run.filters.values())).err, scenarios[n].dt, item)
+                             for n in config.scenarios if not isinstance(scenarios[n], TeamScenario)
+                             for r in sorted(by.get((st.name, n), []), key=lambda r: r.task.index)
+                             if isinstance(r.run, RunOutput)]
     failures += list(probe_failures)
     if not failures and verdicts and (not figures["anees"] or not all(map(math.isfinite, figures["anees"]))):
         # a working filter without a finite ANEES is never "ok": the guard's words
@@ -340,7 +350,19 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
             vals = [v[key] for v in slam_rows.values()]
             if slam_rows:
                 row[key] = float(np.mean(vals)) if all(v is not None for v in vals) else None
+    if tracks:
+        row["rubric_tracking"] = tracks
     return row
+
+
+def add_rubric(row: dict[str, Any], config: GradeConfig) -> None:
+    """The course's rubric on a finished row (after :func:`add_findings`: a suspicious row
+    gets no points): ``rubric`` (the tests), ``rubric_score`` and ``rubric_max``."""
+    if not config.rubric:
+        return
+    row["rubric"] = score_row(row, config.rubric, row.get("rubric_tracking") or {})
+    row["rubric_score"] = rubric_total(row["rubric"])
+    row["rubric_max"] = float(sum(item.points for item in config.rubric))
 
 
 def _slam_row(sc: Scenario, runs: list[RunOutput], ref: dict[str, Any]) -> dict[str, Any]:
