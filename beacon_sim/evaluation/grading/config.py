@@ -37,6 +37,9 @@ class GradeConfig:
         against"); ``auto``: bubblewrap where it works, else the process level.
     pseudonyms : the class page (grade.html) names students by a pseudonym; the teacher's
         files (grade.csv, grade.json, pseudonyms.csv) keep the real names.
+    total_time_s : a student's total wall time [s] for all its runs (default None: twice
+        every run's CPU budget and two minutes); when it runs out the student's child is
+        stopped and its unfinished runs fail, saying so.
     rubric : the course's tests and points (``[[rubric]]`` tables,
         :mod:`~beacon_sim.evaluation.grading.rubric`): each row's ``rubric`` and
         ``rubric_score``, and Gradescope's results.json (``grade --gradescope``).
@@ -50,6 +53,7 @@ class GradeConfig:
     class_name: str | None = None
     sandbox: str = "auto"
     pseudonyms: bool = False
+    total_time_s: float | None = None
     rubric: tuple[RubricItem, ...] = ()
 
 
@@ -76,7 +80,7 @@ def _config_list(path: str | Path, data: dict[str, Any], key: str, kind: type, w
     return tuple(value)
 
 
-def _config_number(path: str | Path, data: dict[str, Any], key: str, default: float, *, hi: float,
+def _config_number(path: str | Path, data: dict[str, Any], key: str, default: float | None, *, hi: float,
                    zero_is_none: bool = False, allow_zero: bool = False) -> Any:
     """``key`` as a finite number in (0, hi] ([0, hi] with ``allow_zero``; 0 means None with
     ``zero_is_none``)."""
@@ -126,6 +130,7 @@ def load_config(path: str | Path | None) -> GradeConfig:
         class_name=_config_name(path, data),
         sandbox=_config_sandbox(path, data),
         pseudonyms=_config_bool(path, data, "pseudonyms"),
+        total_time_s=_config_number(path, data, "total_time_s", None, hi=7 * 86400.0, zero_is_none=True),
         rubric=parse_rubric(path, data["rubric"], GradeError) if "rubric" in data else ())
     if cfg.duration is not None:
         check_simulated_total(len(cfg.seeds) * len(cfg.scenarios), cfg.duration,

@@ -92,9 +92,34 @@ def add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
                      f"{', '.join(unmapped)} (docs/slam.md)")
     if row.get("anees_by_scenario"):
         flags.append(row["anees_by_scenario"])
+    row["limits_hit"] = limits_hit(row)
+    flags += [f"limit hit: {what}" for what in row["limits_hit"]]
     if row.get("us_per_step") is not None and row["us_per_step"] > SLOW_STEP_MS * 1e3:
         flags.append(f"slow: {row['us_per_step'] / 1e3:.0f} ms per step (over {SLOW_STEP_MS:g} ms)")
     row["flags"] = flags
+
+
+#: The student's limits, by the words of the failure each gives, and how the page names
+#: them (each a grade config key, docs/grading.md "Settings").
+LIMIT_WORDS = (
+    ("time limit: over", "CPU time per run (time_limit; every thread of the filter counts)"),
+    ("construction failed: __init__: time limit", "CPU time to build the filter (30 s)"),
+    ("total time limit", "total wall time of the student (total_time_s)"),
+    ("MemoryError", "memory (memory_limit_gb; all the filter's threads together)"),
+    ("memory limit", "memory (memory_limit_gb; all the filter's threads together)"),
+    ("started a process", "processes (none may be started: their use cannot be counted)"),
+    ("CPU time limit", "CPU time of the student's process (its backstop)"),
+)
+
+
+def limits_hit(row: dict[str, Any]) -> list[str]:
+    """The limits a row's failures hit, by :data:`LIMIT_WORDS`, each once, in that order."""
+    reasons = [str(f.get("reason") or "") for f in row.get("failures", [])]
+    out = []
+    for words, name in LIMIT_WORDS:
+        if name not in out and any(words in r for r in reasons):
+            out.append(name)
+    return out
 
 
 def is_slam_scenario(sc: Scenario | TeamScenario) -> bool:
