@@ -43,6 +43,8 @@ def grade_command(args: argparse.Namespace) -> int:
         cfg = dataclasses.replace(cfg, sandbox=args.sandbox)
     if getattr(args, "pseudonyms", False):
         cfg = dataclasses.replace(cfg, pseudonyms=True)
+    if getattr(args, "allow_unisolated", False):
+        cfg = dataclasses.replace(cfg, allow_unisolated=True)
     scheduler = args.scheduler
     if scheduler is not None:
         try:
@@ -111,6 +113,8 @@ def grade_command(args: argparse.Namespace) -> int:
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
           f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
           f"in its own process, sandbox: {board.sandbox})")
+    if board.not_isolated:
+        print(board.not_isolated)
     failed = any(r["failed_runs"] for r in board.rows)
     return 1 if failed and args.strict else 0
 

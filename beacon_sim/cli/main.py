@@ -181,6 +181,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-cache", action="store_true",
                    help="run every student again (default: a student whose file and settings are "
                         "unchanged reuses OUT/cache)")
+    p.add_argument("--allow-unisolated", action="store_true",
+                   help="grade a class at the process level although the students' processes are "
+                        "not isolated from each other (no bubblewrap); the page and the terminal "
+                        "say what a file could do (docs/threat-model.md)")
     p.add_argument("--pseudonyms", action="store_true",
                    help="the class page names students by pseudonyms (pseudonyms.csv maps them)")
     secret = p.add_mutually_exclusive_group()

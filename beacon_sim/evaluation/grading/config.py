@@ -37,6 +37,10 @@ class GradeConfig:
         against"); ``auto``: bubblewrap where it works, else the process level.
     pseudonyms : the class page (grade.html) names students by a pseudonym; the teacher's
         files (grade.csv, grade.json, pseudonyms.csv) keep the real names.
+    allow_unisolated : grade a class (more than one file) at the process level, where the
+        students' processes are not isolated from each other (docs/threat-model.md); without
+        it such a grade is refused, and with it the page and the terminal say what a file
+        could do.
     total_time_s : a student's total wall time [s] for all its runs (default None: twice
         every run's CPU budget and two minutes); when it runs out the student's child is
         stopped and its unfinished runs fail, saying so.
@@ -54,6 +58,7 @@ class GradeConfig:
     sandbox: str = "auto"
     pseudonyms: bool = False
     total_time_s: float | None = None
+    allow_unisolated: bool = False
     rubric: tuple[RubricItem, ...] = ()
 
 
@@ -130,6 +135,7 @@ def load_config(path: str | Path | None) -> GradeConfig:
         class_name=_config_name(path, data),
         sandbox=_config_sandbox(path, data),
         pseudonyms=_config_bool(path, data, "pseudonyms"),
+        allow_unisolated=_config_bool(path, data, "allow_unisolated"),
         total_time_s=_config_number(path, data, "total_time_s", None, hi=7 * 86400.0, zero_is_none=True),
         rubric=parse_rubric(path, data["rubric"], GradeError) if "rubric" in data else ())
     if cfg.duration is not None:

@@ -103,10 +103,16 @@ def _notes(board: dict[str, Any]) -> str:
     return _reference_note(board) + _slam_note(board) + _scan_note(board)
 
 
+def _isolation_banner(board: dict[str, Any]) -> str:
+    """The page's warning when the students were not isolated from each other."""
+    text = board.get("not_isolated")
+    return f'<p class="why"><strong>{html.escape(text)}</strong></p>' if text else ""
+
+
 def _sandbox_text(board: dict[str, Any]) -> str:
     level = board.get("sandbox", "process")
     text = ("bubblewrap sandbox: no network, read-only system, its own file alone" if level == "bwrap"
-            else "process level: its own user, folder and limits, no OS sandbox")
+            else "process level: its own folder and limits, no OS sandbox: not isolated from the others")
     if board.get("team_in_process"):
         text += "; team scenarios in process, not isolated"
     return text
@@ -181,6 +187,7 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
 <html lang="en"><head><meta charset="utf-8"><title>beacon-sim grade</title>
 <style>{_CSS}</style></head><body>
 <h1>Leaderboard</h1>
+{_isolation_banner(board)}
 <p class="note">{board['students']} students, {board['runs_per_student']} runs each: scenarios
 {html.escape(', '.join(cfg['scenarios']))}; seeds {html.escape(', '.join(map(str, cfg['seeds'])))};
 {'each scenario' + chr(39) + 's duration' if cfg['duration'] is None else f"{cfg['duration']:g} s"} per run;
