@@ -149,7 +149,8 @@ class Runs(ExtendedKalmanFilter):
     (folder / "forks.py").write_text(HEAD + forks, encoding="utf-8")
     (folder / "runs.py").write_text(HEAD + runs, encoding="utf-8")
     (folder / "honest.py").write_text(HEAD + FILES["honest"], encoding="utf-8")
-    board = grade(folder, dataclasses.replace(CONFIG, sandbox="process", allow_unisolated=True), jobs=1, secret=bytes(32))
+    cfg = dataclasses.replace(CONFIG, sandbox="process", allow_unisolated=True)
+    board = grade(folder, cfg, jobs=1, secret=bytes(32))
     rows = {r["student"]: r for r in board.rows}
     assert not rows["honest"]["failed_runs"]
     for student in ("forks", "runs"):
