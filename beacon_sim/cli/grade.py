@@ -22,6 +22,7 @@ from beacon_sim.evaluation.grading import (
     read_secret,
     write_outputs,
 )
+from beacon_sim.evaluation.grading.gradescope import write_gradescope
 from beacon_sim.evaluation.montecarlo import ClusterError
 from beacon_sim.runs.progress import Progress
 
@@ -42,6 +43,8 @@ def grade_command(args: argparse.Namespace) -> int:
         cfg = dataclasses.replace(cfg, sandbox=args.sandbox)
     if getattr(args, "pseudonyms", False):
         cfg = dataclasses.replace(cfg, pseudonyms=True)
+    if getattr(args, "allow_unisolated", False):
+        cfg = dataclasses.replace(cfg, allow_unisolated=True)
     scheduler = args.scheduler
     if scheduler is not None:
         try:
@@ -64,9 +67,18 @@ def grade_command(args: argparse.Namespace) -> int:
     except (GradeError, ClusterError) as exc:
         raise UsageError(str(exc)) from None
     written = write_outputs(board, out)
+    if getattr(args, "gradescope", None):
+        try:
+            gs = write_gradescope(board.document(), Path(args.gradescope))
+        except GradeError as exc:
+            raise UsageError(str(exc)) from None
+        written.append(Path(args.gradescope))
+        print(f"Gradescope: {len(gs)} results.json in {args.gradescope}")
     for r in board.rows:
         score = ("FAILED " + str(r["failed_runs"]) + "/" + str(r["runs"]) if r["failed_runs"]
                  else f"{r['pos_rmse_m']:.4f} m  {r['anees_verdict']}")
+        if "rubric_score" in r:
+            score = f"{r['rubric_score']:g}/{r['rubric_max']:g} points  " + score
         if r.get("suspicious"):
             score = "SUSPICIOUS (not ranked) " + score
         print(f"{r['rank']:>3}  {r['student']:<20} {score}")
@@ -101,6 +113,8 @@ def grade_command(args: argparse.Namespace) -> int:
     print(f"wrote {', '.join(str(p) for p in written)} in {time.perf_counter() - t0:.1f} s "
           f"({'Dask ' + str(scheduler) if scheduler else 'local processes'}; each student's filter "
           f"in its own process, sandbox: {board.sandbox})")
+    if board.not_isolated:
+        print(board.not_isolated)
     failed = any(r["failed_runs"] for r in board.rows)
     return 1 if failed and args.strict else 0
 

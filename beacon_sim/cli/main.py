@@ -15,7 +15,7 @@ import threading
 import warnings
 from collections.abc import Callable
 
-from beacon_sim.cli import check, export, graph, listing, mrclam, new_filter, play, replay, run
+from beacon_sim.cli import autograde, check, export, graph, listing, mrclam, new_filter, play, replay, run
 from beacon_sim.cli import eval as eval_cli
 from beacon_sim.cli import grade as grade_cli
 from beacon_sim.cli.common import Parser, add_filter_options, check_common
@@ -181,6 +181,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-cache", action="store_true",
                    help="run every student again (default: a student whose file and settings are "
                         "unchanged reuses OUT/cache)")
+    p.add_argument("--allow-unisolated", action="store_true",
+                   help="grade a class at the process level although the students' processes are "
+                        "not isolated from each other (no bubblewrap); the page and the terminal "
+                        "say what a file could do (docs/threat-model.md)")
     p.add_argument("--pseudonyms", action="store_true",
                    help="the class page names students by pseudonyms (pseudonyms.csv maps them)")
     secret = p.add_mutually_exclusive_group()
@@ -192,6 +196,20 @@ def build_parser() -> argparse.ArgumentParser:
     secret.add_argument("--new-secret", action="store_true",
                         help="draw a new secret even when OUT/grade.secret exists")
     p.add_argument("--strict", action="store_true", help="exit status 1 when any filter failed")
+    p.add_argument("--gradescope", metavar="DIR",
+                   help="also write DIR/STUDENT/results.json, Gradescope's autograder output, "
+                        "from the config's [[rubric]] (docs/grading.md)")
+
+    p = sub.add_parser("autograde", help="grade one submission against a rubric and write "
+                                         "Gradescope's results.json (a course's run_autograder)")
+    p.add_argument("submission", help="the filter file, or a folder holding exactly one .py file")
+    p.add_argument("--config", metavar="TOML", required=True,
+                   help="the grade config with its [[rubric]] (docs/grading.md)")
+    p.add_argument("--results", metavar="PATH",
+                   help="where results.json goes (default /autograder/results/results.json)")
+    p.add_argument("--secret-file", metavar="FILE",
+                   help="key the filter's random streams with this grade's secret (a regrade "
+                        "bit for bit; default a new secret)")
 
     graph.add_parser(sub)
 
@@ -224,6 +242,7 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "mrclam": mrclam.mrclam_command,
     "new-filter": new_filter.new_filter_command,
     "grade": grade_cli.grade_command,
+    "autograde": autograde.autograde_command,
     "graph": graph.graph_command,
 }
 

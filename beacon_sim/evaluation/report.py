@@ -5,7 +5,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import sys
@@ -14,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.csv_cells import csv_dict_writer, csv_writer
 from beacon_sim.core.files import atomic_write
 from beacon_sim.evaluation.intervals import text as interval_text
 
@@ -183,14 +183,14 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     written = []
     with atomic_write(out / "eval.csv", "w", newline="", what="eval table") as fh:
-        w = csv.DictWriter(fh, fieldnames=COLUMNS)
+        w = csv_dict_writer(fh, list(COLUMNS))
         w.writeheader()
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
                 w.writerow(_csv_row(meta, name, r))
     written.append(out / "eval.csv")
     with atomic_write(out / "eval_recovery.csv", "w", newline="", what="eval table") as fh:
-        w = csv.DictWriter(fh, fieldnames=RECOVERY_COLUMNS)
+        w = csv_dict_writer(fh, list(RECOVERY_COLUMNS))
         w.writeheader()
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
@@ -199,7 +199,7 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
     kidnaps = max((len(p["recovery_s"]) for _, meta, _ in results for r in meta["filters"].values()
                    for p in r["per_run"]), default=0)
     with atomic_write(out / "eval_runs.csv", "w", newline="", what="eval table") as fh:
-        rows = csv.writer(fh)
+        rows = csv_writer(fh)
         rows.writerow(["scenario", "filter", "seed", "pos_rmse_m", "heading_rmse_rad", "anees",
                        "diverged", *[f"recovery_{k + 1}_s" for k in range(kidnaps)], "us_per_step",
                        "failed", "failed_time_s"])

@@ -373,7 +373,7 @@ class Server:
         np_random_seed(global_seed)
         self.rng_states = (_np_state(), random.getstate())
         assert self.cls is not None
-        self.batch = Batch(self.fresh_class, builds, run_limit_s)
+        self.batch = Batch(self.fresh_class, builds, run_limit_s, all_threads=self.sink is None)
         self.send(self.batch.built)
 
     def op_bfirst(self, slots: list[int]) -> None:
@@ -495,12 +495,22 @@ class Batch:
     with its own CPU-time budget, failure and cost; a failed one is switched off and the
     others go on. Also what :class:`~beacon_sim.hosting.feed.LocalChild` runs in process."""
 
-    def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None):
+    def __init__(self, fresh_class: Any, builds: list[tuple[Any, Any, str]], run_limit_s: float | None,
+                 all_threads: bool = False):
         from beacon_sim.hosting.loading import build_from_context
+        from beacon_sim.hosting.processes import children_usage
         from beacon_sim.hosting.watchdog import StepWatch
         from beacon_sim.hosting.wire import OK, reply, reply_multi
 
         self.limit_s = run_limit_s
+        #: In a student's own process (hosted): a run is charged the CPU time of every
+        #: thread of the process while its filter's code runs (a helper thread's work counts),
+        #: and the CPU the other threads use between exchanges, shared among the runs still
+        #: going; in the grader's process (LocalChild) its own thread's only.
+        self.cpu = time.process_time_ns if all_threads else time.thread_time_ns
+        self.all_threads = all_threads
+        self._mark: tuple[int, int] | None = None
+        self._children = children_usage() if all_threads else None
         self.over = (None if run_limit_s is None
                      else f"time limit: over {run_limit_s:g} s of filter time in the run")
         self.watch = StepWatch(cpu=True)
@@ -508,8 +518,8 @@ class Batch:
         self.used = [0] * len(builds)  # CPU time of each run's filter code [ns]
         entries = []
         for ctx, initial, spec in builds:  # the import's and the build's own limits, as
-            try:                           # alone; the run's budget counts the steps
-                flt = build_from_context(fresh_class(), ctx, initial, spec)
+            try:                           # alone (CPU time); the run's budget counts the steps
+                flt = build_from_context(fresh_class(), ctx, initial, spec, cpu=True)
             except BaseException as exc:
                 self.filters.append(None)
                 entries.append(self._fail(exc, "construction failed: "))
@@ -517,6 +527,40 @@ class Batch:
             self.filters.append(flt)
             entries.append(reply(OK))
         self.built = reply_multi(entries)
+        self.mark()
+
+    def mark(self) -> None:
+        """The end of an exchange: from here, CPU the process uses outside the main thread
+        (a helper thread working between ticks) is charged at the next exchange."""
+        if self.all_threads:
+            self._mark = (time.process_time_ns(), time.thread_time_ns())
+
+    def processes_started(self) -> str | None:
+        """Whether the student's code started a process (one still running, below this one:
+        the child is their subreaper, so a double fork stays below it; or one that ran and
+        was reaped): its CPU time and memory cannot be counted with the student's at the
+        process level, so it is not allowed. Such processes are killed."""
+        from beacon_sim.hosting.processes import PROCESS_NOT_ALLOWED, children_usage, stop_descendants
+
+        if not self.all_threads:
+            return None
+        ran = children_usage() != self._children
+        if stop_descendants() or ran:
+            self._children = children_usage()
+            return PROCESS_NOT_ALLOWED
+        return None
+
+    def charge_between(self) -> None:
+        """Charge the CPU time the other threads used since the last exchange to the runs
+        still going, in equal shares (each run's budget its own: nothing says which run's
+        filter started the thread)."""
+        if self._mark is None:
+            return
+        other = (time.process_time_ns() - self._mark[0]) - (time.thread_time_ns() - self._mark[1])
+        live = [k for k, f in enumerate(self.filters) if f is not None]
+        if other > 0 and live:
+            for k in live:
+                self.used[k] += other // len(live)
 
     def switch_off(self, k: int) -> None:
         """Run k failed: its filter is dropped."""
@@ -526,13 +570,13 @@ class Batch:
         """``fn()`` of run k's filter under what is left of its run's CPU-time budget,
         charged to it (the estimate after reset, the final belief)."""
         limit = self.limit_s
-        c0 = time.thread_time_ns()
+        c0 = self.cpu()
         try:
             self.watch.seconds = None if limit is None else limit - self.used[k] / 1e9
             with self.watch:
                 return fn()
         finally:
-            self.used[k] += time.thread_time_ns() - c0
+            self.used[k] += self.cpu() - c0
 
     def firsts(self, slots: list[int]) -> bytes:
         from beacon_sim.hosting.guard import estimate_arrays
@@ -600,7 +644,8 @@ class Batch:
         from beacon_sim.hosting.guard import estimate_arrays
         from beacon_sim.hosting.wire import reply_estimate, reply_multi
 
-        clock, cpu, watch, limit = time.perf_counter_ns, time.thread_time_ns, self.watch, self.limit_s
+        clock, cpu, watch, limit = time.perf_counter_ns, self.cpu, self.watch, self.limit_s
+        self.charge_between()
         entries = []
         for k, body in zip(slots, bodies, strict=True):
             f = self.filters[k] if 0 <= k < len(self.filters) else None
@@ -638,7 +683,15 @@ class Batch:
                 entries.append(self._fail_text(block))
                 continue
             entries.append(reply_estimate(wall, pri, post, block))
-        return reply_multi(entries)
+        started = self.processes_started()
+        if started:  # every run still going fails: nothing says which run's filter did it
+            entries = [self._fail_text(started) if self.filters[k] is not None else e
+                       for k, e in zip(slots, entries, strict=True)]
+            for k in slots:
+                self.switch_off(k)
+        out = reply_multi(entries)
+        self.mark()
+        return out
 
 
 def main(argv: list[str]) -> int:
@@ -654,18 +707,27 @@ def main(argv: list[str]) -> int:
     import beacon_sim.hosting.guard
     import beacon_sim.hosting.host
     import beacon_sim.hosting.loading
+    import beacon_sim.hosting.processes
     import beacon_sim.hosting.watchdog  # noqa: F401
     from beacon_sim.hosting.wire import read_request
 
     _contain(cfg)
+    from beacon_sim.hosting.processes import become_subreaper
+
+    become_subreaper()
+
+    from beacon_sim.hosting.processes import stop_descendants
 
     server = Server(wfd)
-    while True:
-        req = read_request(rfd)
-        if req is None:
-            return 0
-        if not serve_one(server, req, cfg):
-            return 1
+    try:
+        while True:
+            req = read_request(rfd)
+            if req is None:
+                return 0
+            if not serve_one(server, req, cfg):
+                return 1
+    finally:
+        stop_descendants()  # nothing the student's code started outlives its process
 
 
 def serve_one(server: Server, req: tuple[Any, ...], cfg: dict[str, Any]) -> bool:

@@ -16,7 +16,7 @@ and a covariance that leaves room for the error it had: a finite NEES), a symmet
 semi-definite covariance, a heading in [-pi, pi), ``belief()``, that an update without
 readings is accepted, that the run fed again gives bit-identical estimates, and that the
 filter draws nothing from the global ``np.random`` / ``random`` generators; the report ends
-with the cost per step beside the built-in ekf's.
+with the cost per step beside a built-in filter's of its own kind (ekf, ekf_slam or mcl).
 
 Scenario: when the given scenario has no sensor the filter can use (a filter may say which
 kinds it uses in a ``sensor_kinds`` class attribute, e.g. the KF uses pose and position
@@ -89,6 +89,20 @@ class CheckResult:
     passed: bool
     message: str = ""
     advice: str = ""
+    #: False: nothing to judge it on (the filter never got that far): printed "SKIP", not
+    #: "PASS", and not counted as passed.
+    judged: bool = True
+    #: Not a check at all (the cost, where the output went): printed "NOTE", not counted.
+    note: bool = False
+
+    @property
+    def mark(self) -> str:
+        """How the report marks it: PASS, FAIL, SKIP (not judged) or NOTE (not a check)."""
+        if self.note:
+            return "NOTE"
+        if not self.passed:
+            return "FAIL"
+        return "PASS" if self.judged else "SKIP"
 
 
 def _scenario_for(host: Any, scenario: Scenario) -> tuple[Scenario, str]:
@@ -263,9 +277,16 @@ def _loads_failed(exc: Exception) -> CheckResult:
                        "without errors")
 
 
-def _result(name: str, passed: object, message: str = "", advice: str = "") -> CheckResult:
-    """A CheckResult whose advice is kept only when the check failed."""
-    return CheckResult(name, bool(passed), message, "" if passed else advice)
+def _result(name: str, passed: object, message: str = "", advice: str = "", *,
+            note: bool = False) -> CheckResult:
+    """A CheckResult whose advice is kept only when the check failed; a passing one whose
+    message says "not judged" was not judged (SKIP); ``note``: not a check (NOTE)."""
+    judged = not (passed and message.startswith("not judged"))
+    return CheckResult(name, bool(passed), message, "" if passed else advice, judged, note)
+
+
+#: What a check that had nothing to judge says when no step of any run returned.
+NO_STEP = "not judged: no step returned an estimate (see runs)"
 
 
 def check_loads(host: _Host) -> CheckResult:
@@ -493,36 +514,50 @@ def check_global_rng(trial: _RngTrial) -> CheckResult:
                    "__init__)")
 
 
+def cost_peer(scenario: Scenario, mapping: bool = False) -> str:
+    """The built-in filter whose cost a filter's is set beside: one of its own kind doing the
+    same task (``ekf_slam`` for a SLAM filter or a withheld map, ``mcl`` on a map world with
+    a range finder, else ``ekf``): a ratio to a filter with another task says nothing."""
+    if mapping or not scenario.map_known:
+        return "ekf_slam"
+    if any(s.kind == "range_finder" for s in scenario.sensors):
+        return "mcl"
+    return "ekf"
+
+
 def report_cost(run: _Feed, scenario: Scenario, frames: Sequence[bytes],
                 mapping: bool = False) -> CheckResult:
-    """The cost per step [us] over ``run``'s steps beside the built-in ekf's on ``frames``
-    (the first run's steps; not a check). Not beside the ekf for a SLAM filter
-    (``mapping``) or on a scenario the ekf cannot read (a scan, an unknown map): a ratio of
-    different tasks."""
+    """The cost per step [us] over ``run``'s steps beside that of the built-in peer of its
+    kind (:func:`cost_peer`) fed ``frames`` (the first run's steps) in this process. Not a
+    check (a NOTE); nothing to report when no step ran."""
     if not run.estimates:
-        return _result("cost", True, "no step ran: no cost to report")
-    from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
-
+        return _result("cost", True, "no step ran: no cost to report", note=True)
     mine = run.step_ns / 1e3 / len(run.estimates)
-    if mapping or not scenario.map_known or any(s.kind == "range_finder" for s in scenario.sensors):
-        return _result("cost", True, f"{mine:.1f} us per step (predict + update + estimate)")
-    n = len(frames)
-    ekf = LocalChild(ExtendedKalmanFilter)
-    key = run_key(0)
-    ctx = FilterContext.of_scenario(scenario, "ekf", merged_params("ekf", scenario), keyed_stream(key, "ekf"))
-    ref = feed_batch(ekf, [Slot(ctx, initial_belief(scenario), frames, n, "ekf")], None,
-                     keyed_global_seed(key, "ekf"))
-    ekf_us = float(ref.walls[:, 0].sum()) / 1e3 / max(ref.done(0), 1)
-    return _result("cost", True, f"{mine:.1f} us per step (predict + update + estimate); the "
-                   f"built-in ekf: {ekf_us:.1f} us on the same steps "
-                   f"({mine / max(ekf_us, 1e-9):.1f}x)")
+    own = f"{mine:.1f} us per step (predict + update + estimate)"
+    peer = cost_peer(scenario, mapping)
+    try:
+        cls = load_filter_class(peer)
+        n = len(frames)
+        key = run_key(0)
+        ctx = FilterContext.of_scenario(scenario, peer, merged_params(peer, scenario),
+                                        keyed_stream(key, peer))
+        ref = feed_batch(LocalChild(cls), [Slot(ctx, initial_belief(scenario), frames, n, peer)], None,
+                         keyed_global_seed(key, peer))
+    except Exception:  # a peer that cannot read this scenario: no ratio rather than a wrong one
+        return _result("cost", True, own, note=True)
+    if ref.failed[0] is not None or not ref.done(0):
+        return _result("cost", True, own, note=True)
+    peer_us = float(ref.walls[:, 0].sum()) / 1e3 / max(ref.done(0), 1)
+    return _result("cost", True, f"{own}; the built-in {peer}: {peer_us:.1f} us on the same steps "
+                   f"({mine / max(peer_us, 1e-9):.1f}x)", note=True)
 
 
 def report_output(host: _Host) -> list[CheckResult]:
     """Where the filter's printed output went, if it printed anything (not a check)."""
     log = host.log
     if log is not None and log.exists() and log.stat().st_size:
-        return [_result("output", True, f"the filter printed {log.stat().st_size} bytes: see {log}")]
+        return [_result("output", True, f"the filter printed {log.stat().st_size} bytes: see {log}",
+                        note=True)]
     return []
 
 
@@ -649,9 +684,9 @@ def _checks(host: _Host, spec: str, scenario: Scenario, seeds: Sequence[int]) ->
             runs = _result("runs", False, f"one more run (seed {ex.seed}), step {at + 1}: {why}", RUNS_ADVICE)
     values = [check_shapes(problems), check_finite(problems), check_covariance_symmetric(problems),
               check_covariance_psd(problems), check_heading_wrapped(problems)]
-    if not any(j[0].estimates for j in judged) and not problems:  # nothing to judge: say so
-        values = [_result(v.name, True, "not judged: no step returned an estimate (see runs)")
-                  for v in values]
+    stepped = any(j[0].estimates for j in judged)
+    if not stepped and not problems:  # nothing to judge: say so
+        values = [_result(v.name, True, NO_STEP) for v in values]
     belief_fault = next((r for r in range(R) if fed.beliefs[r] not in (None, "not asked")), None)
     belief = check_belief(fed.beliefs[0] if belief_fault is None
                           else _in_run(belief_fault, sims[belief_fault], fed.beliefs[belief_fault] or ""))
@@ -662,12 +697,14 @@ def _checks(host: _Host, spec: str, scenario: Scenario, seeds: Sequence[int]) ->
     rng = _RngTrial(_fed_feed(fed, 0, horizon), again, bool(fed.report.get("np_global")),
                     bool(fed.report.get("py_global")), None, pf)
     readings = [] if pf.readings_used is not False else [_result(
-        "readings", True, "note: the estimates do not change when the readings are drawn again: the "
-        "filter uses none of them (grade says so too)")]
+        "readings", True, "the estimates do not change when the readings are drawn again: the "
+        "filter uses none of them (grade says so too)", note=True)]
     steps = [j[0] for j in judged]
     cost = _Feed([e for f in steps for e in f.estimates], None, sum(f.step_ns for f in steps))
-    return [*results, runs, *values, belief, *landmarks, empty, check_determinism(rng),
-            check_global_rng(rng), *readings,
+    after = [belief, *landmarks, empty, check_determinism(rng), check_global_rng(rng)]
+    if not stepped:  # a filter that never ran a step passes nothing it was not asked (FAILs stay)
+        after = [r if not r.passed else _result(r.name, True, NO_STEP) for r in after]
+    return [*results, runs, *values, *after, *readings,
             report_cost(cost, scenario, sims[0].frames, host.info.get("landmarks") is True)]
 
 
@@ -732,14 +769,17 @@ def print_report(spec: str, results: list[CheckResult]) -> None:
     print(f"conformance of {spec}:")
     width = max((len(r.name) for r in results), default=0)
     for r in results:
-        mark = "PASS" if r.passed else "FAIL"
-        print(f"  {mark}  {r.name:<{width}}  {r.message}")
+        print(f"  {r.mark}  {r.name:<{width}}  {r.message}")
     failed = [r for r in results if not r.passed]
     if failed:
         print("what to fix:")
         for r in failed:
             print(f"  - {r.name}: {r.advice}")
-    print(f"{len(results) - len(failed)} of {len(results)} checks passed")
+    checks = [r for r in results if not r.note]
+    skipped = sum(1 for r in checks if r.mark == "SKIP")
+    passed = sum(1 for r in checks if r.mark == "PASS")
+    print(f"{passed} of {len(checks)} checks passed"
+          + (f"; {skipped} not judged (the filter never got that far)" if skipped else ""))
 
 
 __all__ = ["CheckResult", "check_landmarks", "landmark_map_problems", "print_report", "run_checks"]

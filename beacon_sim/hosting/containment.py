@@ -149,6 +149,20 @@ def resolve_sandbox(choice: str) -> str:
     return "process"
 
 
+def unisolated_warning(user: str | None = None) -> str:
+    """What the process level does not stop, in words for the page and the terminal: every
+    student's process runs as one user (``nobody`` under a root grader, else the grader's)."""
+    if user is None:
+        user = "nobody" if hasattr(os, "geteuid") and os.geteuid() == 0 else "the grader's own user"
+    return (f"NOT ISOLATED: graded at the process level, without bubblewrap. Every student's "
+            f"process ran as {user}, so a file could signal, slow or kill its classmates' processes, "
+            "leave files in /tmp and /dev/shm for later students, start a process that outlives "
+            "its grade by undoing the grader's subreaper"
+            + ("" if user == "nobody" else ", and read what that user can read: the grader's memory "
+               "through /proc, the grade's secret and the other submissions")
+            + ". Install bubblewrap (Debian: apt-get install bubblewrap) for isolated grades.")
+
+
 def package_root() -> Path:
     """The folder that holds the ``beacon_sim`` package this grader runs."""
     return Path(__file__).resolve().parents[2]  # beacon_sim/hosting/containment.py
@@ -304,4 +318,4 @@ def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
 
 __all__ = ["MODULE_PREFIX", "SANDBOXES", "Launched", "Limits", "ModuleSource", "SandboxError",
            "bwrap_problem", "child_env", "exit_reason", "launch", "module_source", "package_root",
-           "resolve_sandbox"]
+           "resolve_sandbox", "unisolated_warning"]

@@ -333,14 +333,15 @@ def build_filter(spec: str, scenario: Scenario, seed: int, name: str | None = No
 
 
 def build_from_context(cls: type, ctx: FilterContext, initial: GaussianBelief | None, spec: str,
-                       *, limit_s: float = BUILD_LIMIT_S) -> Filter:
+                       *, limit_s: float = BUILD_LIMIT_S, cpu: bool = False) -> Filter:
     """Construct ``cls(ctx)`` and reset it to ``initial`` (None: a global start; a broad
     Gaussian for a filter that cannot represent a uniform belief), each under a time limit:
     what :func:`build_filter` does, and what the isolated child does with the context the
-    grader sends it."""
+    grader sends it; ``cpu``: the limit is CPU time (the hosted child: a verdict that does
+    not depend on the machine's load), else wall time (the window must open in time)."""
     check_params(cls, ctx.params, ctx.world)  # finite, in range, fits in memory
     try:
-        flt: Filter = run_filter_code(lambda: cls(ctx), limit_s, "__init__")
+        flt: Filter = run_filter_code(lambda: cls(ctx), limit_s, "__init__", cpu=cpu)
     except FilterError:
         raise
     except TypeError as exc:
@@ -353,7 +354,7 @@ def build_from_context(cls: type, ctx: FilterContext, initial: GaussianBelief | 
             init = broad_gaussian(ctx.world)
         flt.reset(init)
 
-    run_filter_code(reset, limit_s, "reset")
+    run_filter_code(reset, limit_s, "reset", cpu=cpu)
     return flt
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core import sensor_kinds
+from beacon_sim.core.csv_cells import csv_writer, unguard_cell
 from beacon_sim.core.files import atomic_write, read_user_text
 from beacon_sim.core.metrics import pose_errors
 
@@ -210,7 +211,7 @@ def write_table_csv(table: Mapping[str, np.ndarray], path: Path) -> Path:
     cols = list(table)
     n = len(next(iter(table.values()))) if table else 0
     with atomic_write(path, "w", newline="", what="export") as f:  # whole, or the old file stays
-        w = csv.writer(f)
+        w = csv_writer(f)
         w.writerow(cols)
         data = [table[c] for c in cols]
         for i in range(n):
@@ -236,7 +237,7 @@ def read_table_csv(path: Path, name: str) -> dict[str, np.ndarray]:
     body = rows[1:]
     out: dict[str, np.ndarray] = {}
     for j, c in enumerate(header):
-        vals = [r[j] for r in body]
+        vals = [unguard_cell(r[j]) for r in body]
         if c in _STR:
             out[c] = np.array(vals, dtype=str)
         elif c in _INT:

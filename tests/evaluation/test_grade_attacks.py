@@ -177,7 +177,7 @@ def test_both_containment_levels_grade_the_same(tmp_path, sandbox, alone):
         pytest.skip(f"no bubblewrap sandbox here: {bwrap_problem()}")
     import dataclasses
 
-    cfg = dataclasses.replace(CONFIG, sandbox=sandbox)
+    cfg = dataclasses.replace(CONFIG, sandbox=sandbox, allow_unisolated=True)
     b = grade(_klass(tmp_path / "c", ["honest", "os_exit", "file_writes"]), cfg, jobs=2)
     assert b.sandbox == sandbox
     assert {k: _row(b, "honest")[k] for k in FIGURES} == {k: _row(alone, "honest")[k] for k in FIGURES}
@@ -191,7 +191,7 @@ def test_a_result_far_below_the_bound_is_suspicious_and_kept_out_of_the_ranking(
     import dataclasses
 
     b = grade(_klass(tmp_path / "c", ["honest", "resimulate"]),
-              dataclasses.replace(CONFIG, sandbox="process"), jobs=2)
+              dataclasses.replace(CONFIG, sandbox="process", allow_unisolated=True), jobs=2)
     row, honest = _row(b, "resimulate"), _row(b, "honest")
     if row["pos_rmse_m"] is not None and row["pos_rmse_m"] < honest["pos_rmse_m"]:
         assert row["suspicious"] and "RMSE/PCRB" in row["suspicious"], row

@@ -177,6 +177,10 @@ def test_grade_scores_a_slam_class_beside_the_built_in_ekf_slam(tmp_path, capsys
     slam = alice["slam"]["slam_loop"]
     assert slam["mapped"] and slam["map_landmarks"] >= 1
     assert alice["ate_m"] == slam["ate_m"] > 0 and alice["map_gospa_m"] == slam["map_gospa_m"] > 0
+    # ATE is the path's RMS position error: the row's pos RMSE on the one SLAM scenario, the
+    # same number (it was the seeds' mean of per-run RMS, a different one under the same name)
+    for r in (alice, rows["erin"], rows["frank"]):
+        assert r["ate_m"] == pytest.approx(r["pos_rmse_m"], rel=1e-12), r["student"]
     assert alice["joint_nees"] is None  # the template has no joint()
     assert slam["reference_map_gospa_m"] == ref["map_gospa_m"]
     # the template never corrects: its path is worse than EKF-SLAM's

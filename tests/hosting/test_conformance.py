@@ -238,22 +238,43 @@ def test_run_checks_gives_the_checks_in_their_order(default):
                      "no global RNG", "cost"]
 
 
-def test_a_filter_that_never_ran_a_step_is_not_said_to_pass_its_value_checks(tmp_path, default):
+def test_a_filter_that_never_ran_a_step_is_not_said_to_pass_anything_it_was_not_asked(tmp_path, default,
+                                                                                       capsys):
     """``check`` used to print 13 of 14 PASS and "cost 0.0 us" for a filter whose every
-    step raised: the value checks had nothing to judge. Now they say so, and so does the cost."""
+    step raised: the checks after "runs" had nothing to judge. Now each says so and is
+    marked SKIP, the cost is a NOTE with no figure, and the tally counts neither as passed."""
     spec = write_filter(tmp_path, "Dead", extra_predict="raise KeyError('x')")
     results = {r.name: r for r in run_checks(spec, default, seeds=[1])}
     assert not results["runs"].passed and "KeyError" in results["runs"].message
-    for name in ("shapes", "finite", "symmetric covariance", "positive semi-definite covariance",
-                 "heading wrapped"):
+    after = ("shapes", "finite", "symmetric covariance", "positive semi-definite covariance",
+             "heading wrapped", "belief", "empty update", "deterministic", "no global RNG")
+    for name in after:
         assert results[name].message.startswith("not judged"), (name, results[name].message)
-    assert results["cost"].message == "no step ran: no cost to report"
+        assert results[name].mark == "SKIP", name
+    assert results["cost"].message == "no step ran: no cost to report" and results["cost"].mark == "NOTE"
+    assert main(["check", spec]) == 1
+    out = capsys.readouterr().out
+    assert "PASS  " + "shapes" not in out and "0.0 us" not in out
+    marks = [line.split()[0] for line in out.splitlines()[1:15]]
+    assert marks.count("PASS") == 3  # loads, interface, constructs
+    assert f"3 of 13 checks passed; {len(after)} not judged" in out
 
 
-def test_a_slam_filters_cost_is_not_set_beside_the_ekf():
+def test_a_slam_filters_cost_is_set_beside_a_slam_filter_not_the_ekf():
     """A SLAM filter maps as it goes: its cost is not that of a localization EKF's task, so
-    check does not print a ratio to it ("67.3x")."""
+    check sets it beside the built-in EKF-SLAM's on the same steps, not the ekf's ("67.3x")."""
     results = {r.name: r for r in run_checks("ekf_slam", load_scenario("slam_loop"), isolated=False,
                                              seeds=[1])}
-    assert "us per step" in results["cost"].message and "ekf" not in results["cost"].message
+    cost = results["cost"].message
+    assert "us per step" in cost and "the built-in ekf_slam:" in cost and "the built-in ekf:" not in cost
+
+
+def test_the_cost_peer_is_of_the_filters_own_kind():
+    from beacon_sim.hosting.conformance import cost_peer
+
+    assert cost_peer(load_scenario("default")) == "ekf"
+    assert cost_peer(load_scenario("default"), mapping=True) == "ekf_slam"
+    assert cost_peer(load_scenario("slam_loop")) == "ekf_slam"
+    assert cost_peer(load_scenario("corridor")) == "mcl"
+
 

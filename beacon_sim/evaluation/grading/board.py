@@ -22,6 +22,7 @@ from beacon_sim.evaluation.grading.config import GradeConfig, GradeError, scenar
 from beacon_sim.evaluation.grading.roster import find_students
 from beacon_sim.evaluation.grading.scoring import (
     add_findings,
+    add_rubric,
     is_scan_scenario,
     is_slam_scenario,
     rank_key,
@@ -39,7 +40,7 @@ from beacon_sim.evaluation.montecarlo import (
     TeamRunOutput,
     simulate_run,
 )
-from beacon_sim.hosting.containment import SandboxError, resolve_sandbox
+from beacon_sim.hosting.containment import SandboxError, bwrap_problem, resolve_sandbox, unisolated_warning
 
 
 @dataclass
@@ -78,6 +79,9 @@ class GradeResult:
         What the students' children said they used [s] (their own word: cost figures only).
     logs : dict
         Each student's log (stdout and stderr of its child).
+    not_isolated : str
+        At the process level: what a file could do to its classmates and the grader (the
+        page and the terminal say it); empty under bubblewrap.
     """
 
     rows: list[dict[str, Any]]
@@ -96,6 +100,7 @@ class GradeResult:
     secret_sha256: str
     child_cpu_s: float
     logs: dict[str, str]
+    not_isolated: str = ""
 
     def document(self) -> dict[str, Any]:
         """The leaderboard as one document (its fields, in order, not copied): what the CSV
@@ -141,6 +146,11 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         sandbox = resolve_sandbox(config.sandbox)
     except (ValueError, SandboxError) as exc:  # ScenarioError: one line
         raise GradeError(str(exc)) from None
+    if sandbox == "process" and len(students) > 1 and not config.allow_unisolated:
+        raise GradeError("grading a class at the process level: the students' processes are not "
+                         "isolated from each other (bubblewrap " + (bwrap_problem() or "was not chosen")
+                         + "); install bubblewrap, or say allow_unisolated = true (--allow-unisolated) "
+                         "to grade anyway (docs/threat-model.md)")
     team_names = [n for n, sc in scenarios.items() if isinstance(sc, TeamScenario)]
     single = [n for n in config.scenarios if n not in team_names]
     sims: list[SimulatedRun] = []
@@ -161,7 +171,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
                                read_user_bytes(st.path, what="filter file", cap=MAX_SOURCE_BYTES,
                                                error=GradeError),
                                config.class_name or st.class_name, sims, config.time_limit,
-                               config.memory_limit_gb, sandbox, team_sims)
+                               config.memory_limit_gb, sandbox, team_sims, config.total_time_s)
                     for st in students if st.spec and (sims or team_sims)]
     if cache is not None and not students_cannot_write_here(sandbox):
         cache = None  # a child running as this user could plant a pickle: no cache
@@ -204,6 +214,7 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
                 "pos_rmse_m": mine, "reference_pos_rmse_m": theirs,
                 "over_reference": mine / theirs if mine is not None and theirs else None}
         add_findings(row, found.get(st.name))
+        add_rubric(row, config)
         rows.append(row)
     rows.sort(key=rank_key)
     for k, row in enumerate(rows, 1):
@@ -214,4 +225,5 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
         scan_reference=scan_reference, sandbox=sandbox, isolated=True, team_in_process=[],
         cached_students=cached, secret=secret.hex(), secret_sha256=secret_fingerprint(secret),
         child_cpu_s=sum(float(sr.findings.get("child_cpu_s", 0.0)) for sr in done_students),
-        logs={sr.student: sr.log for sr in done_students})
+        logs={sr.student: sr.log for sr in done_students},
+        not_isolated=unisolated_warning() if sandbox == "process" else "")

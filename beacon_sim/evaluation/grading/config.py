@@ -14,6 +14,7 @@ from typing import Any
 from beacon_sim.core.arguments import check_simulated_total
 from beacon_sim.core.scenario import read_user_toml
 from beacon_sim.errors import BeaconSimError
+from beacon_sim.evaluation.grading.rubric import RubricItem, parse_rubric
 from beacon_sim.hosting.containment import SANDBOXES
 
 
@@ -36,6 +37,16 @@ class GradeConfig:
         against"); ``auto``: bubblewrap where it works, else the process level.
     pseudonyms : the class page (grade.html) names students by a pseudonym; the teacher's
         files (grade.csv, grade.json, pseudonyms.csv) keep the real names.
+    allow_unisolated : grade a class (more than one file) at the process level, where the
+        students' processes are not isolated from each other (docs/threat-model.md); without
+        it such a grade is refused, and with it the page and the terminal say what a file
+        could do.
+    total_time_s : a student's total wall time [s] for all its runs (default None: twice
+        every run's CPU budget and two minutes); when it runs out the student's child is
+        stopped and its unfinished runs fail, saying so.
+    rubric : the course's tests and points (``[[rubric]]`` tables,
+        :mod:`~beacon_sim.evaluation.grading.rubric`): each row's ``rubric`` and
+        ``rubric_score``, and Gradescope's results.json (``grade --gradescope``).
     """
 
     scenarios: tuple[str, ...] = ("default",)
@@ -46,6 +57,9 @@ class GradeConfig:
     class_name: str | None = None
     sandbox: str = "auto"
     pseudonyms: bool = False
+    total_time_s: float | None = None
+    allow_unisolated: bool = False
+    rubric: tuple[RubricItem, ...] = ()
 
 
 #: The longest run a grading configuration may ask for [s] (one simulated day).
@@ -71,7 +85,7 @@ def _config_list(path: str | Path, data: dict[str, Any], key: str, kind: type, w
     return tuple(value)
 
 
-def _config_number(path: str | Path, data: dict[str, Any], key: str, default: float, *, hi: float,
+def _config_number(path: str | Path, data: dict[str, Any], key: str, default: float | None, *, hi: float,
                    zero_is_none: bool = False, allow_zero: bool = False) -> Any:
     """``key`` as a finite number in (0, hi] ([0, hi] with ``allow_zero``; 0 means None with
     ``zero_is_none``)."""
@@ -120,7 +134,10 @@ def load_config(path: str | Path | None) -> GradeConfig:
                                        hi=1e4, allow_zero=True),
         class_name=_config_name(path, data),
         sandbox=_config_sandbox(path, data),
-        pseudonyms=_config_bool(path, data, "pseudonyms"))
+        pseudonyms=_config_bool(path, data, "pseudonyms"),
+        allow_unisolated=_config_bool(path, data, "allow_unisolated"),
+        total_time_s=_config_number(path, data, "total_time_s", None, hi=7 * 86400.0, zero_is_none=True),
+        rubric=parse_rubric(path, data["rubric"], GradeError) if "rubric" in data else ())
     if cfg.duration is not None:
         check_simulated_total(len(cfg.seeds) * len(cfg.scenarios), cfg.duration,
                               f"{path}: seeds x scenarios x duration", GradeError)

@@ -4,10 +4,10 @@ assignment).
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 from typing import Any
 
+from beacon_sim.core.csv_cells import csv_writer
 from beacon_sim.core.files import (
     atomic_write,
 )
@@ -21,6 +21,9 @@ CSV_COLUMNS = ("rank", "student", "file", "status", "pos_rmse_m", "heading_rmse_
 #: The map columns a SLAM assignment adds (after :data:`CSV_COLUMNS`; seed means over the
 #: SLAM scenarios; empty for a failed filter, and the map's for a filter without one).
 SLAM_CSV_COLUMNS = ("ate_m", "map_gospa_m", "joint_nees")
+#: The columns a rubric adds (last): the points, the most there are, and each test's points
+#: in a column of its own, ``rubric_1``... in the rubric's order (what results.json says).
+RUBRIC_CSV_COLUMNS = ("rubric_score", "rubric_max")
 
 
 def _yes_no(v: object) -> str:
@@ -37,10 +40,15 @@ def write_csv(board: dict[str, Any], path: Path) -> Path:
     """One row per student, in rank order; a failed student's figures are empty cells."""
     slam = bool(board.get("slam_reference"))
     with atomic_write(path, "w", newline="", what="grade table", error=GradeError) as fh:
-        w = csv.writer(fh)
-        w.writerow(CSV_COLUMNS + (SLAM_CSV_COLUMNS if slam else ()))
+        w = csv_writer(fh)
+        rubric = board["config"].get("rubric") or ()
+        tests = tuple(f"rubric_{i + 1}" for i in range(len(rubric)))
+        w.writerow(CSV_COLUMNS + (SLAM_CSV_COLUMNS if slam else ())
+                   + ((*RUBRIC_CSV_COLUMNS, *tests) if rubric else ()))
         for r in board["rows"]:
             extra = ["" if r.get(k) is None else r[k] for k in SLAM_CSV_COLUMNS] if slam else []
+            if rubric:
+                extra += [r["rubric_score"], r["rubric_max"], *(t["score"] for t in r["rubric"])]
             w.writerow([r["rank"], r["student"], r["file"], status(r),
                         *("" if r[k] is None else r[k] for k in ("pos_rmse_m", "heading_rmse_rad",
                                                                  "anees")),

@@ -77,10 +77,12 @@ def _slam_note(board: dict[str, Any]) -> str:
     parts = [f"{html.escape(n)}: ATE {num(r['ate_m'], '.4f')} m, map GOSPA {num(r['map_gospa_m'], '.4f')} m, "
              f"joint NEES {num(r['joint_nees'], '.2f')}" for n, r in ref.items()]
     return (f" On a SLAM scenario (the filters are not given the beacon map) ATE is the path's RMS "
-            f"position error, map GOSPA the error of the final map against the beacons it had to map "
+            f"position error over every seed (the pos RMSE on that scenario), map GOSPA the error "
+            f"of the final map against the beacons it had to map "
             f"(cut-off {GOSPA_CUTOFF_M:g} m: a missed or a false landmark costs as much as one "
             f"{GOSPA_CUTOFF_M / math.sqrt(2):.2f} m off), joint NEES the final pose-and-map NEES "
-            f"(for a filter with joint(); chi-square with 3 + 2M degrees of freedom), seed means. "
+            f"(for a filter with joint(); chi-square with 3 + 2M degrees of freedom), the last "
+            f"two seed means. "
             f"The built-in {SLAM_REFERENCE_SPEC} on the same seeds: " + "; ".join(parts) + ".")
 
 
@@ -101,10 +103,16 @@ def _notes(board: dict[str, Any]) -> str:
     return _reference_note(board) + _slam_note(board) + _scan_note(board)
 
 
+def _isolation_banner(board: dict[str, Any]) -> str:
+    """The page's warning when the students were not isolated from each other."""
+    text = board.get("not_isolated")
+    return f'<p class="why"><strong>{html.escape(text)}</strong></p>' if text else ""
+
+
 def _sandbox_text(board: dict[str, Any]) -> str:
     level = board.get("sandbox", "process")
     text = ("bubblewrap sandbox: no network, read-only system, its own file alone" if level == "bwrap"
-            else "process level: its own user, folder and limits, no OS sandbox")
+            else "process level: its own folder and limits, no OS sandbox: not isolated from the others")
     if board.get("team_in_process"):
         text += "; team scenarios in process, not isolated"
     return text
@@ -136,6 +144,9 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
             ("us_per_step", "cost [us/step]"), ("failed_runs", "failed runs")]
     if board.get("slam_reference"):  # a SLAM assignment: the map columns
         cols[3:3] = [("ate_m", "ATE [m]"), ("map_gospa_m", "map GOSPA [m]"), ("joint_nees", "joint NEES")]
+    if cfg.get("rubric"):  # the course's points, as results.json gives them
+        total = sum(float(item["points"]) for item in cfg["rubric"])
+        cols.insert(2, ("rubric_score", f"points (of {total:g})"))
 
     def cell(r: dict[str, Any], key: str) -> str:
         v = r.get(key, r["anees_verdict"]) if key == "verdict" else r.get(key)
@@ -144,6 +155,8 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
         if isinstance(v, float):
             two = ("anees", "rmse_over_pcrb", "joint_nees")
             fmt = ".1f" if key == "us_per_step" else (".2f" if key in two else ".4f")
+            if key == "rubric_score":
+                fmt = "g"
             return f'<td class="num">{v:{fmt}}</td>'
         if isinstance(v, int):
             return f'<td class="num">{v}</td>'
@@ -174,6 +187,7 @@ def write_html(board: dict[str, Any], path: Path) -> Path:
 <html lang="en"><head><meta charset="utf-8"><title>beacon-sim grade</title>
 <style>{_CSS}</style></head><body>
 <h1>Leaderboard</h1>
+{_isolation_banner(board)}
 <p class="note">{board['students']} students, {board['runs_per_student']} runs each: scenarios
 {html.escape(', '.join(cfg['scenarios']))}; seeds {html.escape(', '.join(map(str, cfg['seeds'])))};
 {'each scenario' + chr(39) + 's duration' if cfg['duration'] is None else f"{cfg['duration']:g} s"} per run;
@@ -217,6 +231,7 @@ status {status(row)}; position RMSE {num(row['pos_rmse_m'], '.4f')} m; heading R
 ({html.escape(str(row['anees_verdict']))});
 RMSE/PCRB {num(row['rmse_over_pcrb'], '.2f')}; {num(row['us_per_step'], '.1f')} us per step.</p>
 {_slam_table(row)}
+{_rubric_table(row)}
 <h2>Runs</h2>
 <table><thead><tr><th>scenario</th><th>seed</th><th>pos RMSE [m]</th><th>steps</th><th>cost [us/step]</th>
 <th>failure</th></tr></thead><tbody>{runs}</tbody></table>
@@ -246,7 +261,22 @@ def _slam_table(row: dict[str, Any]) -> str:
     lines = "".join(f"<tr><td>{html.escape(n)}</td>"
                     + "".join(f"<td class=num>{num(v[k], fmt)}</td>" for k, fmt in keys) + "</tr>"
                     for n, v in slam.items())
-    return ("<h2>The map (SLAM scenarios, seed means)</h2><table><thead><tr><th>scenario</th><th>ATE [m]</th>"
+    return ("<h2>The map (SLAM scenarios; ATE over every seed, the rest seed means)</h2>"
+            "<table><thead><tr><th>scenario</th><th>ATE [m]</th>"
             f"<th>{SLAM_REFERENCE_SPEC} ATE</th><th>map GOSPA [m]</th><th>{SLAM_REFERENCE_SPEC} GOSPA</th>"
             "<th>landmarks</th><th>missed</th><th>false</th><th>joint NEES</th>"
             f"<th>{SLAM_REFERENCE_SPEC} joint NEES</th></tr></thead><tbody>{lines}</tbody></table>")
+
+
+def _rubric_table(row: dict[str, Any]) -> str:
+    """A student page's rubric: each test's points and what was measured (results.json's)."""
+    tests = row.get("rubric")
+    if not tests:
+        return ""
+    lines = "".join(f"<tr><td>{html.escape(t['name'])}</td><td class=num>{t['score']:g}</td>"
+                    f"<td class=num>{t['max_score']:g}</td>"
+                    f"<td>{html.escape(t['output'] or '')}</td></tr>"
+                    for t in tests)
+    return (f"<h2>Points: {row['rubric_score']:g} of {row['rubric_max']:g}</h2>"
+            "<table><thead><tr><th>test</th>"
+            f"<th>points</th><th>of</th><th>measured</th></tr></thead><tbody>{lines}</tbody></table>")

@@ -4,10 +4,10 @@ pages, ``grade.json``, the logs, the pseudonyms and the grade's secret.
 
 from __future__ import annotations
 
-import csv
 import json
 from pathlib import Path
 
+from beacon_sim.core.csv_cells import csv_writer
 from beacon_sim.core.files import (
     atomic_write,
     write_text_atomic,
@@ -40,7 +40,7 @@ def write_outputs(result: GradeResult, out: Path) -> list[Path]:
                            logs.get(r["student"], ""))
     if board["config"].get("pseudonyms"):
         with atomic_write(out / "pseudonyms.csv", "w", newline="", error=GradeError) as fh:
-            w = csv.writer(fh)
+            w = csv_writer(fh)
             w.writerow(("pseudonym", "student", "file"))
             for r in board["rows"]:
                 w.writerow((shown[r["student"]], r["student"], r["file"]))

@@ -10,10 +10,13 @@ from typing import Any
 
 import numpy as np
 
+from beacon_sim.core.metrics import anees_band
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.evaluation.grading.config import GradeConfig
 from beacon_sim.evaluation.grading.roster import Student
+from beacon_sim.evaluation.grading.rubric import score_row, tracking_figures
+from beacon_sim.evaluation.grading.rubric import total as rubric_total
 from beacon_sim.evaluation.grading.students import StudentResult
 from beacon_sim.evaluation.grading.svg import svg_plot
 from beacon_sim.evaluation.grading.tasks import TaskResult
@@ -26,7 +29,9 @@ from beacon_sim.evaluation.montecarlo import (
 from beacon_sim.evaluation.slam_metrics import ate, gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, joint_nees_at, mapped_beacons
 from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
+from beacon_sim.hosting.guard import NEES_NOT_FINITE
 from beacon_sim.hosting.runner import SLOW_STEP_MS
+from beacon_sim.runs.headless import anees_verdict
 
 #: The built-in filter graded beside the students on a SLAM scenario (``[model] map =
 #: "unknown"``), in the grader's process on the same simulated runs: the map's reference.
@@ -85,9 +90,36 @@ def add_findings(row: dict[str, Any], res: StudentResult | None) -> None:
     if unmapped:
         flags.append(f"no landmarks(): the filter reports no map, so its map is not scored on "
                      f"{', '.join(unmapped)} (docs/slam.md)")
+    if row.get("anees_by_scenario"):
+        flags.append(row["anees_by_scenario"])
+    row["limits_hit"] = limits_hit(row)
+    flags += [f"limit hit: {what}" for what in row["limits_hit"]]
     if row.get("us_per_step") is not None and row["us_per_step"] > SLOW_STEP_MS * 1e3:
         flags.append(f"slow: {row['us_per_step'] / 1e3:.0f} ms per step (over {SLOW_STEP_MS:g} ms)")
     row["flags"] = flags
+
+
+#: The student's limits, by the words of the failure each gives, and how the page names
+#: them (each a grade config key, docs/grading.md "Settings").
+LIMIT_WORDS = (
+    ("time limit: over", "CPU time per run (time_limit; every thread of the filter counts)"),
+    ("construction failed: __init__: time limit", "CPU time to build the filter (30 s)"),
+    ("total time limit", "total wall time of the student (total_time_s)"),
+    ("MemoryError", "memory (memory_limit_gb; all the filter's threads together)"),
+    ("memory limit", "memory (memory_limit_gb; all the filter's threads together)"),
+    ("started a process", "processes (none may be started: their use cannot be counted)"),
+    ("CPU time limit", "CPU time of the student's process (its backstop)"),
+)
+
+
+def limits_hit(row: dict[str, Any]) -> list[str]:
+    """The limits a row's failures hit, by :data:`LIMIT_WORDS`, each once, in that order."""
+    reasons = [str(f.get("reason") or "") for f in row.get("failures", [])]
+    out = []
+    for words, name in LIMIT_WORDS:
+        if name not in out and any(words in r for r in reasons):
+            out.append(name)
+    return out
 
 
 def is_slam_scenario(sc: Scenario | TeamScenario) -> bool:
@@ -115,12 +147,19 @@ def run_slam_figures(sc: Scenario, err: np.ndarray, landmarks: tuple[Any, Any, A
 
 
 def _mean_figures(per_run: list[dict[str, Any]]) -> dict[str, Any]:
-    """The seed mean of each SLAM figure, None unless every run has it."""
+    """The seed mean of each SLAM figure, None unless every run has it; ATE as the RMS over
+    the seeds (the runs are of one length), so that it is the pooled position RMSE the row's
+    "pos RMSE" is on that scenario: one quantity, one number."""
     out: dict[str, Any] = {}
     for k in SLAM_FIGURES:
         vals = [r[k] for r in per_run]
-        out[k] = (float(np.mean(vals)) if vals and all(v is not None and math.isfinite(v) for v in vals)
-                  else None)
+        ok = vals and all(v is not None and math.isfinite(v) for v in vals)
+        if not ok:
+            out[k] = None
+        elif k == "ate_m":
+            out[k] = float(np.sqrt(np.mean(np.square(vals))))
+        else:
+            out[k] = float(np.mean(vals))
     return out
 
 
@@ -254,6 +293,8 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
     figures: dict[str, list[float]] = {k: [] for k in ("pos_rmse_m", "heading_rmse_rad", "anees",
                                                         "rmse_over_pcrb", "us_per_step")}
     verdicts, failures, curves = [], [], []
+    seen: list[str] = []  # the scenarios with a verdict, in order
+    tracks: dict[int, list[dict[str, Any]]] = {}
     team_rows: dict[str, Any] = {}
     slam_rows: dict[str, Any] = {}
     for name in config.scenarios:
@@ -273,6 +314,7 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
                 if tf.get(key) is not None:
                     figures[key].append(float(tf[key]))
             verdicts.append(tf["anees_verdict"])
+            seen.append(name)
             curves.append((f"{name} (mean over robots)", *tf["curve"]))
             ref = (reference or {}).get(name, {})
             team_rows[name] = {k: tf[k] for k in ("pos_rmse_m", "heading_rmse_rad", "anees",
@@ -294,10 +336,21 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
             if fr.get(key) is not None:
                 figures[key].append(float(fr[key]))
         verdicts.append(fr["anees_verdict"])
+        seen.append(name)
         curves.append((name, times, np.hypot(c["err0"][:, 0], c["err0"][:, 1])))
         if slam_reference and name in slam_reference and len(runs) == len(res):
             slam_rows[name] = _slam_row(sc, runs, slam_reference[name])  # type: ignore[arg-type]
+    if config.rubric:  # the course's tracking tests: each single-robot run's figures
+        for i, item in enumerate(config.rubric):
+            if item.test in ("builds", "keeps"):
+                tracks[i] = [tracking_figures(next(iter(r.run.filters.values())).err, scenarios[n].dt, item)
+                             for n in config.scenarios if not isinstance(scenarios[n], TeamScenario)
+                             for r in sorted(by.get((st.name, n), []), key=lambda r: r.task.index)
+                             if isinstance(r.run, RunOutput)]
     failures += list(probe_failures)
+    if not failures and verdicts and (not figures["anees"] or not all(map(math.isfinite, figures["anees"]))):
+        # a working filter without a finite ANEES is never "ok": the guard's words
+        failures.append({"scenario": "-", "seed": None, "time_s": None, "reason": NEES_NOT_FINITE})
     row["failures"] = failures
     row["failed_runs"] = len(failures)
     row["run_detail"] = _run_detail(st, config, by)
@@ -310,7 +363,11 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
     if not failures:
         for key in ("pos_rmse_m", "heading_rmse_rad", "anees", "rmse_over_pcrb"):
             row[key] = float(np.mean(figures[key])) if figures[key] else None
-        row["anees_verdict"] = verdicts[0] if len(set(verdicts)) == 1 else "/".join(verdicts)
+        row["anees_verdict"], scen_flag = row_anees_verdict(row["anees"], verdicts, figures["anees"],
+                                                            [n for n in config.scenarios if n in seen],
+                                                            len(config.seeds))
+        if scen_flag:
+            row["anees_by_scenario"] = scen_flag
         # what the page shows: the ANEES word with the distance from the bound, so
         # no row says a bare "consistent" beside an error over twice the bound
         row["verdict"] = overall_verdict(row["anees_verdict"], row["rmse_over_pcrb"])
@@ -318,7 +375,19 @@ def student_row(st: Student, config: GradeConfig, scenarios: dict[str, Scenario 
             vals = [v[key] for v in slam_rows.values()]
             if slam_rows:
                 row[key] = float(np.mean(vals)) if all(v is not None for v in vals) else None
+    if tracks:
+        row["rubric_tracking"] = tracks
     return row
+
+
+def add_rubric(row: dict[str, Any], config: GradeConfig) -> None:
+    """The course's rubric on a finished row (after :func:`add_findings`: a suspicious row
+    gets no points): ``rubric`` (the tests), ``rubric_score`` and ``rubric_max``."""
+    if not config.rubric:
+        return
+    row["rubric"] = score_row(row, config.rubric, row.get("rubric_tracking") or {})
+    row["rubric_score"] = rubric_total(row["rubric"])
+    row["rubric_max"] = float(sum(item.points for item in config.rubric))
 
 
 def _slam_row(sc: Scenario, runs: list[RunOutput], ref: dict[str, Any]) -> dict[str, Any]:
@@ -356,6 +425,26 @@ def _run_detail(st: Student, config: GradeConfig, by: dict[tuple[str, str], list
                             us_per_step=fr.step_ns / 1e3 / max(fr.steps, 1), failed=fr.failed)
             out.append(line)
     return out
+
+
+def row_anees_verdict(anees: float | None, verdicts: list[str], per_scenario: list[float],
+                      names: list[str], n_seeds: int) -> tuple[str, str | None]:
+    """The row's consistency word for the row's ANEES, by the one rule every front end uses
+    (:func:`~beacon_sim.runs.headless.anees_verdict` against the band of the runs it
+    averages): one scenario, its own verdict; several, the mean judged against the band of
+    all their runs, never a list of words beside a number only one of them fits
+    ("consistent/optimistic" beside ANEES 30,884). Also, when the scenarios' words differ,
+    each scenario's ANEES and word (shown as a warning)."""
+    if len(verdicts) == 1:
+        return verdicts[0], None
+    if anees is None or not math.isfinite(anees):
+        return "FAILED", None
+    lo, hi = anees_band(n_seeds * len(verdicts))
+    word = anees_verdict(anees, lo, hi)
+    if len(set(verdicts)) == 1:
+        return word, None
+    parts = [f"{n} {v:,.2f} ({w})" for n, v, w in zip(names, per_scenario, verdicts, strict=False)]
+    return word, "ANEES by scenario: " + "; ".join(parts)
 
 
 def rank_key(row: dict[str, Any]) -> tuple:

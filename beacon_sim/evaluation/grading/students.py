@@ -7,6 +7,7 @@ the hosting layer's one client (:class:`~beacon_sim.hosting.client.ChildSession`
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -140,6 +141,8 @@ class StudentJob:
     memory_limit_gb: float
     sandbox: str
     team_sims: list[TeamSimulated] = dataclasses.field(default_factory=list)  # team scenarios
+    #: The student's total wall time [s] (None: :func:`total_time_limit`'s default).
+    total_time_s: float | None = None
 
 
 @dataclass
@@ -151,6 +154,21 @@ class StudentResult:
     findings: dict[str, Any]
     log: str
     sandbox: str
+
+
+def total_time_limit(job: StudentJob) -> float:
+    """A student's total wall time [s]: the job's, or by default twice every run's CPU
+    budget (the scored runs, the probes and team robots) and two minutes for starting."""
+    if job.total_time_s is not None:
+        return job.total_time_s
+    runs = len(job.sims) + len(PROBES) + sum(len(ts.robots) for ts in job.team_sims)
+    return 2.0 * runs * job.time_limit + 120.0
+
+
+def total_time_text(seconds: float) -> str:
+    """The words of a run stopped by the student's total wall time."""
+    return (f"the student's total time limit: {seconds:g} s of wall time for all its runs "
+            "(total_time_s) was used up")
 
 
 def _limits(job: StudentJob) -> Limits:
@@ -193,6 +211,19 @@ def run_student(job: StudentJob) -> StudentResult:
         session = ChildSession(src, job.class_name, log, job.sandbox, _limits(job),
                                reply_timeout(job.time_limit))
         load_problem: str | None = None
+        total = total_time_limit(job)
+        out_of_time = threading.Event()
+
+        def expire() -> None:  # the student's total wall time is up: no new child, stop this one
+            out_of_time.set()
+            session.load_problem = total_time_text(total)
+            current = session.current
+            if current is not None:
+                current.kill()
+
+        timer = threading.Timer(total, expire)
+        timer.daemon = True
+        timer.start()
 
         def task(sr: SimulatedRun) -> Task:
             return Task(job.student, job.filename, sr.label, sr.seed, None, job.time_limit, sr.index)
@@ -257,7 +288,11 @@ def run_student(job: StudentJob) -> StudentResult:
                         _probe_findings(job.sims[0], rep.get("probes") or ProbeFindings(), findings)
             team_results += _run_team_batches(job, started, stop, record_team=findings)
         finally:
+            timer.cancel()
             stop()
+        if out_of_time.is_set():
+            findings["limits_hit"] = [total_time_text(total)]
+            _blame_total_time([r for r in results if r is not None] + team_results, total_time_text(total))
         raw = log.read_bytes() if log.exists() else b""
         text = raw[:LOG_BYTES + 100].decode("utf-8", "replace")
         if len(raw) > LOG_BYTES + 100:
@@ -265,6 +300,19 @@ def run_student(job: StudentJob) -> StudentResult:
     findings["wall_s"] = time.perf_counter() - t_start
     return StudentResult(job.student, [r for r in results if r is not None] + team_results, findings, text,
                          job.sandbox)
+
+
+def _blame_total_time(results: list[TaskResult], why: str) -> None:
+    """After the student's total time ran out: every run that failed (its child was
+    stopped, or never started) says so, not what the stop looked like from inside."""
+    for r in results:
+        if r.run is None:
+            r.problem = why
+            continue
+        frs = r.run.filters.values()
+        for fr in (f for group in frs for f in (group if isinstance(group, list) else [group])):
+            if fr.failed:
+                fr.failed = why
 
 
 def _run_team_batches(job: StudentJob, started: Callable[[], FilterChild | None],
