@@ -19,7 +19,8 @@ and the same readings, tick by tick, and start at the true pose:
   ignores the readings' IDs and associates by Mahalanobis distance; its process and reading
   noise is its constant ``Cx``);
 - ``beacon_sim``: the built-in ``ekf_slam`` through the filter interface, told the true
-  noise, with the readings' IDs (``ids``) and without them (``no ids``: it associates).
+  noise, with the readings' IDs (``ids``) and without them (``no ids``: it associates by
+  JCBB, its default; ``no ids, nn``: by nearest neighbour, as the peer does).
 
 Figures per filter, over the seeds: position RMSE against the truth [m], map GOSPA at the end
 (c = 1 m, docs/slam.md) [m], the pose NEES averaged over the run (3 for a consistent filter),
@@ -147,8 +148,8 @@ def run_peer(peer, truths, odo, readings) -> dict:
             "map": x[3:, 0].reshape(-1, 2), "us": 1e6 * cpu / len(truths)}
 
 
-def run_ours(sc, truths, odo, readings, ids: bool) -> dict:
-    f = build_filter("ekf_slam", sc, 0)
+def run_ours(sc, truths, odo, readings, ids: bool, association: str = "jcbb") -> dict:
+    f = build_filter("ekf_slam", sc, 0, params={"ekf_slam": {"association": association}})
     sq, ns, cpu = 0.0, 0.0, 0.0
     for k in range(len(truths)):
         z = readings[k]
@@ -177,7 +178,7 @@ def main() -> int:
         print(f"PythonRobotics not found (set {PEER_VARIABLE} to its folder): nothing measured")
         return 0
     peer = load_peer(folder)
-    names = ("pythonrobotics", "beacon_sim ids", "beacon_sim no ids")
+    names = ("pythonrobotics", "beacon_sim ids", "beacon_sim no ids", "beacon_sim no ids, nn")
     print(f"EKF-SLAM on PythonRobotics' problem ({SIM_TIME:g} s at dt {DT:g} s), seeds 0..{args.seeds - 1}; "
           f"load {os.getloadavg()[0]:.1f}")
     for n in args.landmarks:
@@ -189,7 +190,8 @@ def main() -> int:
             order = list(names) if seed % 2 == 0 else list(reversed(names))
             for name in order:
                 r = (run_peer(peer, truths, odo, readings) if name == "pythonrobotics"
-                     else run_ours(sc, truths, odo, readings, ids=name.endswith(" ids") and "no" not in name))
+                     else run_ours(sc, truths, odo, readings, ids="no ids" not in name,
+                                   association="nn" if name.endswith("nn") else "jcbb"))
                 r["gospa"] = gospa(r["map"], lms).value
                 rows[name].append(r)
         print(f"\n{n} landmarks")

@@ -194,7 +194,8 @@ def write_outputs(out: Path, results, document: dict[str, Any]) -> list[Path]:
         w.writeheader()
         for _, meta, _ in results:
             for name, r in meta["filters"].items():
-                w.writerows(_recovery_rows(meta, name, r))
+                for row in _recovery_rows(meta, name, r):
+                    w.writerow(row)
     written.append(out / "eval_recovery.csv")
     kidnaps = max((len(p["recovery_s"]) for _, meta, _ in results for r in meta["filters"].values()
                    for p in r["per_run"]), default=0)
