@@ -20,8 +20,10 @@ from collections.abc import Iterable
 import numpy as np
 
 from beacon_sim.core import measurement_models as mm
+from beacon_sim.core.range_kind import RANGE
 from beacon_sim.core.sensor_kind import KindParam, MeasurementModel, SensorKind
 from beacon_sim.core.sensors import SensorSpec, sense, sense_scan
+from beacon_sim.core.tdoa_kind import TDOA
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
 
@@ -115,6 +117,10 @@ KINDS: dict[str, SensorKind] = {k.name: k for k in (
 
 #: The kinds with built-in scenario keys of their own (read by core/scenario.py).
 BUILTIN = tuple(KINDS)
+
+# The distance kinds (docs/distance_beacons.md): each a record in a module of its own,
+# registered as a plugin's kind would be.
+KINDS.update({k.name: k for k in (RANGE, TDOA)})
 
 
 def register_kind(kind: SensorKind) -> SensorKind:

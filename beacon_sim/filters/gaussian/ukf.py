@@ -568,7 +568,7 @@ class UnscentedKalmanFilter(BatchableFilter):
             sel = np.flatnonzero(ang) if ang.any() else None
             z = np.asarray(m.z, dtype=float).reshape(-1)
             dZ, WdZ, Pxz, nu = innovation_parts(Z, D, z, sel, self._Wm_now, self._Wc_now)
-            S = dZ.T @ WdZ + model.noise(spec, m)
+            S = dZ.T @ WdZ + model.noise_at(spec, m, self.ctx.world)
             self.mean, self.cov = correct(mean, cov, S, Pxz, nu)
 
     # -- the update on floats (a few readings) ----------------------------------------------
