@@ -23,6 +23,7 @@ from beacon_sim.core import measurement_models as mm
 from beacon_sim.core.range_kind import RANGE
 from beacon_sim.core.sensor_kind import KindParam, MeasurementModel, SensorKind
 from beacon_sim.core.sensors import SensorSpec, sense, sense_scan
+from beacon_sim.core.tdoa_fix_kind import TDOA_FIX
 from beacon_sim.core.tdoa_kind import TDOA
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
@@ -120,7 +121,7 @@ BUILTIN = tuple(KINDS)
 
 # The distance kinds (docs/distance_beacons.md): each a record in a module of its own,
 # registered as a plugin's kind would be.
-KINDS.update({k.name: k for k in (RANGE, TDOA)})
+KINDS.update({k.name: k for k in (RANGE, TDOA, TDOA_FIX)})
 
 
 def register_kind(kind: SensorKind) -> SensorKind:
