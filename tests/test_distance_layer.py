@@ -87,3 +87,32 @@ def test_the_window_draws_curves_fix_and_hdop_key(tmp_path, monkeypatch):
         other.run(other.frames + 3)
     finally:
         other.close()
+
+
+@pytest.mark.parametrize("scenario", ["ulps_leave", "uwb_room", "ruiz_ulps"])
+def test_the_gym_observation_holds_each_distance(scenario):
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    from beacon_sim.gym import BeaconEnv, observation_names
+
+    env = BeaconEnv(scenario, ["ekf"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_env(env, skip_render_check=True)
+    obs, _ = env.reset(seed=4)
+    for _ in range(3):
+        obs, *_ = env.step(np.zeros(2, dtype=np.float32))
+    names = observation_names(env.scenario)
+    assert len(names) == obs.shape[0] == 3 * len(env.scenario.world.beacons)
+    m = env.session.readings()[0]
+    heard = obs[0::3]
+    assert heard.sum() == len(m.beacon_ids) and np.all(obs[2::3] <= 1)
+    if m.kind == "tdoa":
+        ref = [b.id for b in env.scenario.world.beacons].index(int(m.beacon_ids[0]))
+        assert obs[3 * ref + 2] == 1.0 and obs[3 * ref + 1] == 0.0 and obs[2::3].sum() == 1.0
+        diffs = sorted(float(v) for v in obs[1::3] if v != 0.0)
+        assert np.allclose(diffs, sorted(m.z[:, 0].astype(np.float32)))
+    else:
+        assert np.allclose(sorted(obs[1::3][heard > 0]), sorted(m.z[:, 0].astype(np.float32)))

@@ -368,6 +368,8 @@ class UnscentedKalmanFilter(BatchableFilter):
                                               "scaled": None, "gate_chi2": None,
                                               **dict.fromkeys(association.GAUSSIAN_PARAMS)}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
+    #: Readings of any other kind with a measurement model are weighed with that model.
+    weighs_kind_models: ClassVar[bool] = True
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
