@@ -330,6 +330,12 @@ def test_hostile_scenarios_give_one_clear_line(tmp_path, capsys, kind, extra, be
     assert main(["run", str(path), "--duration", "1"]) == 2
     out = capsys.readouterr()
     assert "Traceback" not in out.err and words in out.err
+    # the Python API and the Gym environment: the same one line
+    from beacon_sim.gym import BeaconEnv
+    for front in (lambda: api.run(str(path), ["ekf"], duration=1.0), lambda: BeaconEnv(str(path), ["ekf"])):
+        with pytest.raises(ScenarioError) as err:
+            front()
+        assert words in str(err.value) and "\n" not in str(err.value)
 
 
 @pytest.mark.parametrize("old, new, words", [("beacon_height = 2.0", "beacon_height = nan", "beacon_height"),
