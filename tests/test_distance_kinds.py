@@ -353,3 +353,24 @@ def test_the_records_say_what_each_kind_is():
     assert sensor_kind("range") is RANGE and sensor_kind("tdoa") is TDOA
     assert RANGE.carries_ids and not TDOA.carries_ids
     assert RANGE.columns == ("range_m",) and TDOA.columns == ("range_diff_m",)
+
+
+@pytest.mark.parametrize("scenario, column", [("ruiz_ulps", "range_diff_m"), ("uwb_room", "range_m")])
+def test_distance_readings_are_exported_to_npz_csv_and_mcap(tmp_path, scenario, column):
+    from mcap.reader import make_reader
+
+    from beacon_sim.io.export import load_export
+
+    run = api.run(scenario, ["ekf"], duration=3.0)
+    got = run.readings[column]
+    assert np.isfinite(got).all() and len(got) > 20
+    other = "range_m" if column == "range_diff_m" else "range_diff_m"
+    assert np.isnan(run.readings[other]).all()
+    for suffix in (".npz", ".csv"):
+        run.export(tmp_path / f"run{suffix}")
+        back = load_export(tmp_path / f"run{suffix}")["readings"]
+        assert np.array_equal(back[column], got)
+    (path,) = run.export(tmp_path / "run.mcap")
+    with open(path, "rb") as f:
+        topics = {ch.topic for _, ch, _ in make_reader(f).iter_messages()}
+    assert "/readings" in topics
