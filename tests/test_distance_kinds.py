@@ -370,6 +370,13 @@ def test_distance_readings_are_exported_to_npz_csv_and_mcap(tmp_path, scenario, 
         run.export(tmp_path / f"run{suffix}")
         back = load_export(tmp_path / f"run{suffix}")["readings"]
         assert np.array_equal(back[column], got)
+    if column == "range_diff_m":   # the reference a row of its own, difference 0; every row its beacon
+        ids = run.readings["beacon_id"]
+        assert (ids > 0).all() and np.sum(got == 0.0) == len(got) // 4
+        m = Simulation(load_scenario(scenario)).step().measurements[0]   # the same first tick
+        tick1 = run.readings["tick"] == 1
+        assert ids[tick1].tolist() == m.beacon_ids.tolist()
+        assert got[tick1].tolist() == [0.0, *m.z[:, 0].tolist()]
     (path,) = run.export(tmp_path / "run.mcap")
     with open(path, "rb") as f:
         topics = {ch.topic for _, ch, _ in make_reader(f).iter_messages()}

@@ -36,6 +36,10 @@ Draw = Callable[[SensorSpec, np.ndarray, World, np.random.Generator], "Measureme
 #: returns ``"key = value: expected ..."`` with the key's full path (the loader adds the file).
 Check = Callable[[SensorSpec, World, str], "str | None"]
 
+#: The readings table's rows of one reading (exports, MCAP, Foxglove): the beacon ID of each
+#: row (-1: none) and the rows of values (k', d).
+TableRows = Callable[[Measurement], "tuple[np.ndarray, np.ndarray]"]
+
 
 @dataclass(frozen=True)
 class KindParam:
@@ -161,6 +165,9 @@ class SensorKind:
     check : callable or None
         Why a sensor of this kind cannot work in a world (:data:`Check`), asked when a
         scenario is loaded; None: nothing to check beyond the keys' ranges.
+    table_rows : callable or None
+        The readings table's rows of a reading (:data:`TableRows`); None: z's rows, each
+        with its beacon when ``carries_ids`` (else -1).
     """
 
     name: str
@@ -173,6 +180,7 @@ class SensorKind:
     needs_walls: bool = False
     label: str = ""
     check: Check | None = None
+    table_rows: TableRows | None = None
 
     def __post_init__(self) -> None:
         if self.model is not None:
@@ -180,6 +188,14 @@ class SensorKind:
                 raise ValueError(f"sensor kind {self.name!r}: its model has {len(self.model.angles)} "
                                  f"columns, its record {len(self.columns)}")
             self.model.carries_ids = self.carries_ids
+
+    def rows(self, m: Measurement) -> tuple[np.ndarray, np.ndarray]:
+        """(beacon ID per row (-1: none), rows of values) of ``m`` for the readings table."""
+        if self.table_rows is not None:
+            return self.table_rows(m)
+        z = np.asarray(m.z, dtype=float).reshape(len(m), -1)
+        ids = np.asarray(m.beacon_ids, dtype=int) if self.carries_ids else np.full(len(m), -1)
+        return ids, z
 
     @property
     def dims(self) -> int:
@@ -192,4 +208,4 @@ class SensorKind:
         return tuple(c.endswith("_rad") for c in self.columns)
 
 
-__all__ = ["Check", "Draw", "KindParam", "MeasurementModel", "SensorKind"]
+__all__ = ["Check", "Draw", "KindParam", "MeasurementModel", "SensorKind", "TableRows"]

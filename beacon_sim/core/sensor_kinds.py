@@ -173,6 +173,16 @@ def names_beacons(name: str) -> bool:
     return True if kind is None else kind.carries_ids
 
 
+def table_rows(m: Measurement) -> tuple[np.ndarray, np.ndarray]:
+    """The readings table's rows of ``m`` (its kind's :meth:`SensorKind.rows`): the beacon ID
+    of each row (-1: none) and the rows of values; a kind not registered here names a beacon
+    per row."""
+    kind = KINDS.get(m.kind)
+    if kind is None:
+        return np.asarray(m.beacon_ids, dtype=int), np.asarray(m.z, dtype=float).reshape(len(m), -1)
+    return kind.rows(m)
+
+
 def param_keys() -> tuple[str, ...]:
     """The scenario keys every registered kind declares (``SensorKind.params``)."""
     return tuple(p.key for k in KINDS.values() for p in k.params)
@@ -189,4 +199,4 @@ def value_columns() -> tuple[str, ...]:
 __all__ = ["BUILTIN", "KINDS", "BearingModel", "KindParam", "MeasurementModel", "PoseFixModel",
            "PositionFixModel", "RangeBearingModel", "SensorKind", "beacon_kinds", "dims", "draw",
            "kind_names", "model_of", "names_beacons", "param_keys", "register_kind", "sensor_kind",
-           "value_columns"]
+           "table_rows", "value_columns"]

@@ -13,7 +13,9 @@ A reading: ``z`` (k, 1), row i the difference ``d_i`` [m]; ``beacon_ids`` (k + 1
 reference first, then the beacon of each row (the rows do not each name their beacon
 alone, so the record's ``carries_ids`` is False). The reference is ``reference_id`` (a
 tick on which it is not heard gives no reading) or, with ``reference_id = -1``, the
-strongest beacon heard (the nearest). Geometry, cone and walls: core/ceiling_beacons.py.
+strongest beacon heard (the nearest). In the readings table (exports) the reference is a row
+of its own, difference 0, so every row names its beacon. Geometry, cone and walls:
+core/ceiling_beacons.py.
 """
 
 from __future__ import annotations
@@ -149,6 +151,13 @@ class TdoaModel(MeasurementModel):
         return out / spec.noise.range_std ** 2
 
 
+def tdoa_table_rows(m: Measurement) -> tuple[np.ndarray, np.ndarray]:
+    """The readings table's rows of a tdoa reading: the reference first, its difference
+    against itself exactly 0, then each beacon's difference, every row naming its beacon."""
+    z = np.vstack([np.zeros((1, 1)), np.asarray(m.z, dtype=float).reshape(-1, 1)])
+    return np.asarray(m.beacon_ids, dtype=int), z
+
+
 def check_tdoa(spec: SensorSpec, world: World, path: str) -> str | None:
     """Two beacons at least, none two at one point, a reference that is a beacon the
     receiver can hear somewhere in the world, no uniform outliers."""
@@ -178,7 +187,8 @@ def check_tdoa(spec: SensorSpec, world: World, path: str) -> str | None:
 
 
 TDOA = SensorKind("tdoa", ("range_diff_m",), carries_ids=False, draw=draw_tdoa, model=TdoaModel(),
-                  params=(REFERENCE, NAIVE, cb.CONE), label="range differences", check=check_tdoa)
+                  params=(REFERENCE, NAIVE, cb.CONE), label="range differences", check=check_tdoa,
+                  table_rows=tdoa_table_rows)
 
 __all__ = ["MAX_SUBSET_BEACONS", "NAIVE", "REFERENCE", "TDOA", "TdoaModel", "check_tdoa",
-           "choose_reference", "difference_cov", "draw_tdoa", "least_heard", "naive"]
+           "choose_reference", "difference_cov", "draw_tdoa", "least_heard", "naive", "tdoa_table_rows"]
