@@ -42,6 +42,10 @@ from beacon_sim.runs.live import Session
 BEACON_SLOT = ("seen", "range_m", "cos_bearing", "sin_bearing")
 FIX_SLOT = ("fresh", "x_m", "y_m", "cos_theta", "sin_theta")
 SCAN_FRESH = "fresh"
+#: A distance sensor's slot per beacon: ``range`` its range, ``tdoa`` its difference against
+#: the reference (the reference's slot: heard, 0, is_reference 1).
+DISTANCE_SLOT = ("heard", "distance_m", "is_reference")
+DISTANCE_KINDS = ("range", "tdoa")
 SCAN_RANGE = "scan_range_m"
 ENV_ID = "beacon_sim/Localize-v0"
 #: What ``gymnasium.make`` takes in a fresh process: Gymnasium 1.x loads no plug-ins, so the
@@ -204,7 +208,8 @@ class BeaconEnv(gymnasium.Env):
         xmin, ymin, xmax, ymax = sc.world.bounds
         far = 2.0 * math.hypot(xmax - xmin, ymax - ymin)
         # A scan's ranges lie in [0, the sensor's max_range].
-        lim = {"seen": (0.0, 1.0), "fresh": (0.0, 1.0), "range_m": (0.0, far),
+        lim = {"seen": (0.0, 1.0), "fresh": (0.0, 1.0), "range_m": (0.0, far), "heard": (0.0, 1.0),
+               "distance_m": (-far, far), "is_reference": (0.0, 1.0),
                "x_m": (xmin - far, xmax + far), "y_m": (ymin - far, ymax + far)}
         max_range = {s.name: s.max_range if math.isfinite(s.max_range) else far for s in sc.sensors}
         bounds = [(0.0, max_range[name]) if f == SCAN_RANGE else lim.get(f, (-1.0, 1.0))
@@ -328,6 +333,14 @@ class BeaconEnv(gymnasium.Env):
                         rng = float(row[0]) if m.kind == "range_bearing" else 0.0
                         b = float(row[-1])
                         obs[j:j + 4] = (1.0, rng, math.cos(b), math.sin(b))
+            elif kind == "distance":
+                if m is not None:
+                    slot = {int(b): k for k, b in enumerate(self._beacon_ids)}
+                    ids = [int(b) for b in m.beacon_ids]
+                    values = [0.0, *m.z[:, 0].tolist()] if m.kind == "tdoa" else m.z[:, 0].tolist()
+                    for k, (bid, v) in enumerate(zip(ids, values, strict=True)):
+                        j = i + len(DISTANCE_SLOT) * slot[bid]
+                        obs[j:j + 3] = (1.0, v, 1.0 if (m.kind == "tdoa" and k == 0) else 0.0)
             elif kind == "scan":
                 if m is not None:   # fresh, then the ranges [m] in the sensor's beam order
                     obs[i] = 1.0
@@ -362,6 +375,8 @@ def observation_layout(scenario: Scenario) -> list[tuple[str, str, tuple[str, ..
         if s.kind in ("bearing", "range_bearing"):
             fields = tuple(f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in BEACON_SLOT)
             out.append((s.name, "beacon", tuple(f.rpartition(".")[2] for f in fields)))
+        elif s.kind in DISTANCE_KINDS:
+            out.append((s.name, "distance", DISTANCE_SLOT * len(scenario.world.beacons)))
         elif s.kind == "range_finder":
             out.append((s.name, "scan", (SCAN_FRESH,) + (SCAN_RANGE,) * s.n_beams))
         else:
@@ -376,6 +391,8 @@ def observation_names(scenario: Scenario) -> list[str]:
     for s in scenario.sensors:
         if s.kind in ("bearing", "range_bearing"):
             names += [f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in BEACON_SLOT]
+        elif s.kind in DISTANCE_KINDS:
+            names += [f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in DISTANCE_SLOT]
         elif s.kind == "range_finder":
             names += [f"{s.name}.{SCAN_FRESH}"] + [f"{s.name}.beam{k}.range_m" for k in range(s.n_beams)]
         else:

@@ -929,6 +929,117 @@ def fig_ulps(ctx: Context) -> Figure:
     return Figure(md, table_checks(meta, rs))
 
 
+#: Under the beacon patch / outside it: horizontal distance [m] of the robot from the patch's
+#: centre (seed 002's patch is 0.67 m x 0.75 m).
+PATCH_IN_M = 0.5
+PATCH_OUT_M = 2.5
+
+
+def with_sensor_keys(sc, told: dict | None = None, kind: str | None = None, **truth):
+    """``sc`` with its first sensor changed: ``kind``, the truth's kind keys ``truth`` (for
+    the filters too) and the kind keys only the filters are told (``told``)."""
+    s = sc.sensors[0]
+    keys = dict(s.params)
+    keys.update(truth)
+    if kind is not None:
+        from beacon_sim.core.sensor_kinds import sensor_kind
+        keys = {p.key: keys.get(p.key, p.default) for p in sensor_kind(kind).params}
+    true = dataclasses.replace(s, kind=kind or s.kind, params=tuple(keys.items()))
+    keys.update(told or {})
+    model = dataclasses.replace(sc.model_sensors[0], kind=kind or s.kind, params=tuple(keys.items()))
+    return dataclasses.replace(sc, sensors=(true,), model_sensors=(model,))
+
+
+def axis_nees(ctx: Context, sc, name: str, k: int) -> tuple[dict, float | None]:
+    """EKF runs of ``sc`` from the context's seeds: per region (under the patch, outside it),
+    the NEES of the x-y error along the major and the minor axis of the filter's own x-y
+    ellipse (1 each for an honest filter) and the x-y NEES (2), with 95 % bootstrap
+    intervals over the runs; and the runs' 3-D ANEES."""
+    from beacon_sim import api
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+
+    centre = sc.world.beacon_xy.mean(axis=0)
+    sums = {(r, q): [] for r in ("in", "out") for q in ("major", "minor", "xy", "n")}
+    nees3 = []
+    for i in range(ctx.n(k)):
+        run = api.run(sc, [name], seed=ctx.seed + i)
+        err = run.errors(name)
+        P = run.covariances[name]
+        nees3.append(np.einsum("ti,tij,tj->t", err, np.linalg.inv(P), err))
+        vals, vecs = np.linalg.eigh(P[:, :2, :2])                   # ascending: minor, major
+        proj = np.einsum("tij,ti->tj", vecs, err[:, :2])
+        per = proj ** 2 / vals
+        dist = np.hypot(*(run.truth[1:, :2] - centre).T)
+        for region, mask in (("in", dist <= PATCH_IN_M), ("out", dist >= PATCH_OUT_M)):
+            sums[(region, "major")].append(per[mask, 1].sum())
+            sums[(region, "minor")].append(per[mask, 0].sum())
+            sums[(region, "xy")].append(per[mask].sum())
+            sums[(region, "n")].append(float(mask.sum()))
+    out = {}
+    for region in ("in", "out"):
+        n = np.array(sums[(region, "n")])
+        for q in ("major", "minor", "xy"):
+            num = np.array(sums[(region, q)])
+            out[(region, q)] = (float(num.sum() / max(n.sum(), 1)), ratio_of_sums(num, n))
+    a = np.array([x.mean() for x in nees3])
+    return out, (float(a.mean()), ratio_of_sums(np.array([x.sum() for x in nees3]),
+                                              np.array([float(x.size) for x in nees3])))
+
+
+def fig_distance(ctx: Context) -> Figure:
+    """Seed 002 at the level of its distances: tight (the range differences in the EKF, UKF
+    and PF) against loose (the trilaterated fix), and the naive independent-difference
+    update inside and outside the beacon patch."""
+    from beacon_sim.core.metrics import anees_band
+
+    md: list[str] = []
+    checks: dict[str, Check] = {}
+    sc = load_scenario("ruiz_ulps")
+    flt = [f for f in ("ekf", "ukf", "pf") if f in ctx.have]
+    rs, meta, _ = evaluated(ctx, sc, flt, 50)
+    md += ["**Tight coupling** on `ruiz_ulps`: the filters update on the range differences "
+           "with their true covariance sigma_d^2 (I + 1 1^T) (seed 002's geometry, path, "
+           "noise and odometry errors).", "", *md_table(meta), ""]
+    checks.update(table_checks(meta, rs))
+    loose = with_sensor_keys(sc, kind="tdoa_fix")
+    rs2, meta2, _ = evaluated(ctx, loose, [f for f in ("ekf", "pf") if f in ctx.have], 50)
+    iso = with_sensor_keys(sc, kind="tdoa_fix", told={"isotropic_fix": 1.0})
+    rs3, meta3, _ = evaluated(ctx, iso, ["ekf"], 50)
+    md += ["**Loose coupling**, the seed's chain: the same differences trilaterated by "
+           "Gauss-Newton into a position fix (`tdoa_fix`), fed to the filters with the fix's "
+           "covariance from the geometry (its HDOP ellipse):", "", *md_table(meta2), "",
+           "The same fix with seed 002's eq. 11 (sigma_d x HDOP on each axis, a circle of the "
+           "right size but not the right shape):", "", *md_table(meta3), ""]
+    checks.update({f"loose {k}": v for k, v in table_checks(meta2, rs2).items()})
+    checks.update({f"loose eq.11 {k}": v for k, v in table_checks(meta3, rs3).items()})
+    leave = load_scenario("ulps_leave")
+    rows = []
+    n = ctx.n(50)
+    for label, told in (("true covariance", 0.0), ("naive (independent, 2 sigma^2)", 1.0)):
+        per, (anees, anees_iv) = axis_nees(ctx, with_sensor_keys(leave, told={"naive_differences": told}),
+                                           "ekf", 50)
+        cells = [with_iv(per[(r, q)][0], per[(r, q)][1], ".2f") for r in ("in", "out")
+                 for q in ("major", "minor", "xy")]
+        rows.append(f"| {label} | {with_iv(anees, anees_iv, '.2f')} | " + " | ".join(cells) + " |")
+        checks[f"leave {label} ANEES"] = (anees, anees_iv)
+        for r in ("in", "out"):
+            for q in ("major", "minor"):
+                checks[f"leave {label} NEES {q} axis {r}"] = per[(r, q)]
+    lo, hi = anees_band(n)
+    md += [f"**The naive update** on `ulps_leave` (the robot starts under the patch and drives "
+           f"3.5 m out and back): the EKF told the differences' true covariance against the EKF "
+           f"told they are independent with variance 2 sigma_d^2 each. {n} runs, seeds "
+           f"{ctx.seeds(50)}; ANEES band [{lo:.2f}, {hi:.2f}]. Per-axis NEES: the squared x-y "
+           f"error along the major and the minor axis of the filter's own x-y ellipse over "
+           f"that axis's variance (1 for an honest filter), under the patch (within "
+           f"{PATCH_IN_M} m of its centre) and outside it (beyond {PATCH_OUT_M} m); x-y NEES "
+           f"(2 for an honest filter). Brackets: 95 % bootstrap intervals over the runs.", "",
+           "| EKF told | ANEES (3-D) | major axis, under | minor axis, under | x-y, under "
+           "| major axis, outside | minor axis, outside | x-y, outside |",
+           "|---|---|---|---|---|---|---|---|", *rows, ""]
+    return Figure(md, checks)
+
+
 def fig_assignment(ctx: Context) -> Figure:
     """Seed 003: the classroom KF with no beacon in view and with three."""
     md: list[str] = []
@@ -1196,6 +1307,8 @@ FIGURES: tuple[Entry, ...] = (
     Entry("krejsa", "## [Seed 000](references.md#seed-000): EKF against UKF, bearing-only beacons, "
                     "with the kidnap", fig_krejsa),
     Entry("ulps", "## [Seed 002](references.md#seed-002): particle filter on the ULPS circle", fig_ulps),
+    Entry("distance", "## [Seed 002](references.md#seed-002) at the level of its distances: tight "
+                      "against loose coupling, and the naive TDOA update", fig_distance),
     Entry("assignment", "## [Seed 003](references.md#seed-003): the classroom KF — no beacon in view "
                         "against three", fig_assignment),
     Entry("global_kidnap", "## Global localization and kidnaps: `global_kidnap`", fig_global_kidnap),

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pygame
 
-from beacon_sim.app import controls, palette
+from beacon_sim.app import controls, distance_layer, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.heap import HeapSettler
 from beacon_sim.app.hud import Hud, fps_of
@@ -360,6 +360,11 @@ class App:
 
     def act_field(self) -> None:
         self.show.field = not self.show.field
+
+    def act_hdop(self) -> None:
+        self.show.hdop = not self.show.hdop
+        if self.show.hdop and distance_layer.distance_sensor(self.session.scenario.sensors) is None:
+            self.flash("no HDOP here: the scenario has no range, tdoa or tdoa_fix sensor")
 
     def act_fit(self) -> None:
         self.view.fit()

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pygame
 
-from beacon_sim.app import association_layer, map_view, palette, shapes
+from beacon_sim.app import association_layer, distance_layer, map_view, palette, shapes
 from beacon_sim.app.map_layer import MapLayer
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.core.schedule import period_ticks
@@ -112,6 +112,7 @@ class ShowOptions:
     step: bool = True  # while paused: the last tick's prior and posterior (V)
     bound: bool = False  # the best achievable covariance, the PCRB (B)
     field: bool = False  # a map world's likelihood field under the walls (L)
+    hdop: bool = False  # distance beacons: the floor shaded by the layout's HDOP (O)
 
 
 def line_width(height_px: int) -> int:
@@ -253,6 +254,7 @@ class WorldRenderer:
         self.lw = 4  # line width [px]; each frame's begin() sets it for the window's height
         self.show_field = False  # the likelihood field under the walls (ShowOptions.field)
         self.map_layer = MapLayer()  # SLAM filters' estimated maps (app/map_layer.py)
+        self.hdop_layer = distance_layer.HdopShading()  # distance beacons' HDOP floor (O)
         self.last_magnifier: dict | None = None  # what the magnifier drew (see magnifier)
         # the live PCRB (3, 3) the window shows (B), or None: the magnifier draws it too
         self.bound_cov: np.ndarray | None = None
@@ -301,6 +303,9 @@ class WorldRenderer:
         old_clip = self.begin(surf, view)
         try:
             self.sensor_discs(surf, view, sc.sensors, pose)
+            if show.hdop:
+                self.hdop_layer.draw(surf, view, sc.world, sc.sensors,
+                                     self._world_rect(view).clip(surf.get_clip()))
             beliefs = {}
             for name in session.names:
                 if not session.visible[name] or session.status[name].failed:
@@ -319,6 +324,8 @@ class WorldRenderer:
                     if session.visible[name]:
                         self.trail(surf, view, session.trail(name), colours[name], 2)
             self.rays(surf, view, sc.world, pose, session.readings())
+            distance_layer.readings(surf, view, sc.world, sc.sensors, pose, session.readings(), self.lw,
+                                    polyline)
             seen = session.seen_ids() | association_layer.seen_by_truth(session)  # + those read without IDs
             self.beacons(surf, view, sc.world, seen,
                          missed_ids(sensors_read(sc, session.tick_count), sc.world, pose, seen))
@@ -351,6 +358,10 @@ class WorldRenderer:
                 self.magnifier(surf, view, pose, estimates, colours, dashes, sc.robot_radius)
             if drag is not None:
                 self._drag_ghost(surf, view, drag, pose, sc.robot_radius)
+            if show.hdop and distance_layer.distance_sensor(sc.sensors) is not None:
+                spec = distance_layer.distance_sensor(sc.sensors)
+                self.hdop_layer.key_box(surf, self._world_rect(view).clip(surf.get_clip()),
+                                        self.fonts["small"], spec.kind)
         finally:
             surf.set_clip(old_clip)
 
@@ -707,7 +718,7 @@ class WorldRenderer:
                 spec = next((s for s in self.last_world_sensors if s.name == m.sensor), None)
                 map_view.draw_scan(surf, view, pose, m, spec.max_range if spec else math.inf)
                 continue
-            if m.kind in ("pose", "position"):
+            if m.kind in ("pose", "position", *distance_layer.DISTANCE_KINDS):
                 bxy = world.beacon_positions(m.beacon_ids) if len(m.beacon_ids) else np.zeros((0, 2))
                 segs = shapes.rays(pose, m, bxy, far)
             else:

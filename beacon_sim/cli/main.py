@@ -221,6 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a SLAM filter that maps the beacons itself (docs/slam.md)")
     p.add_argument("--scan", action="store_true",
                    help="a particle filter on laser scans and an occupancy grid (docs/maps.md)")
+    p.add_argument("--tdoa", action="store_true",
+                   help="an EKF on range differences from ceiling beacons (docs/distance_beacons.md)")
     return parser
 
 

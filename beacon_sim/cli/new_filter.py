@@ -1,6 +1,6 @@
-"""``beacon-sim new-filter PATH [--team | --slam | --scan]``: write a working, commented filter
+"""``beacon-sim new-filter PATH [--team | --slam | --scan | --tdoa]``: write a working, commented filter
 template (a team filter's with ``--team``, a SLAM filter's with ``--slam``, a scan-based
-particle filter's with ``--scan``)."""
+particle filter's with ``--scan``, a range-difference EKF's with ``--tdoa``)."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from beacon_sim.filters.templates import (
     class_name_for,
     render_scan_template,
     render_slam_template,
+    render_tdoa_template,
     render_team_template,
     render_template,
 )
@@ -29,12 +30,14 @@ TEMPLATES = {
     "scan": (render_scan_template, "the scan-based particle filter class {cls} (a small MCL "
              "on the map's likelihood field, with TODOs for recovery and KLD-sampling)", "office ",
              "mcl"),
+    "tdoa": (render_tdoa_template, "the TDOA filter class {cls} (an EKF on range differences, "
+             "with a TODO for their correlated covariance)", "ulps_leave ", "ekf"),
 }
 
 #: The options that choose a kind other than the plain filter's (at most one of them).
-KIND_OPTIONS = ("team", "slam", "scan")
+KIND_OPTIONS = ("team", "slam", "scan", "tdoa")
 #: The scenario ``check`` needs for a kind whose filter does nothing on the default one.
-CHECK_ON = {"scan": "corridor"}
+CHECK_ON = {"scan": "corridor", "tdoa": "ruiz_ulps"}
 
 
 def new_filter_command(args: argparse.Namespace) -> int:

@@ -760,7 +760,11 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
             raise ScenarioError(f"{file}: sensors[{i}].name = {n!r}: expected a unique name")
     if any(sensor_kind(s.kind).needs_beacons for s in sensors) and not beacons:
         raise ScenarioError(f"{file}: world.beacons = []: expected at least one beacon for the sensors")
-    for s in sensors:
+    for i, s in enumerate(sensors):
+        check = sensor_kind(s.kind).check
+        why = None if check is None else check(s, world, f"sensors[{i}]")
+        if why:
+            raise ScenarioError(f"{file}: {why}")
         if sensor_kind(s.kind).needs_walls and grid is None:
             raise ScenarioError(f"{file}: world: a {s.kind} sensor needs walls: expected "
                                 f"world.map = \"file.yaml\" or a [world.walls] table")
@@ -809,7 +813,9 @@ def parse_scenario(data: dict[str, Any], file: str, name: str = "", *,
     for s in sensors:
         if ms.has(s.name):
             st = ms.sub(s.name)
-            model_sensors.append(replace(s, noise=_sensor_noise(st, s.noise)))
+            own = sensor_kind(s.kind).params   # the filters may be told other kind keys too
+            told = tuple((p.key, st.number(p.key, s.param(p.key), lo=p.lo, hi=p.hi)) for p in own)
+            model_sensors.append(replace(s, noise=_sensor_noise(st, s.noise), params=told))
             st.finish()
         else:
             model_sensors.append(s)

@@ -31,6 +31,15 @@ from beacon_sim.core.world import World
 #: (or ``portable=True`` in core/measurement_models.py): the same bits on every machine.
 Draw = Callable[[SensorSpec, np.ndarray, World, np.random.Generator], "Measurement | None"]
 
+#: Why a sensor of this kind cannot work in a world (None: it can), checked when a scenario
+#: is loaded; given the sensor, the world and the sensor table's path (``sensors[0]``), it
+#: returns ``"key = value: expected ..."`` with the key's full path (the loader adds the file).
+Check = Callable[[SensorSpec, World, str], "str | None"]
+
+#: The readings table's rows of one reading (exports, MCAP, Foxglove): the beacon ID of each
+#: row (-1: none) and the rows of values (k', d).
+TableRows = Callable[[Measurement], "tuple[np.ndarray, np.ndarray]"]
+
 
 @dataclass(frozen=True)
 class KindParam:
@@ -69,6 +78,11 @@ class MeasurementModel:
         """R, the noise covariance of the flattened reading: shape (k d, k d)."""
         raise NotImplementedError
 
+    def noise_at(self, spec: SensorSpec, m: Measurement, world: World) -> np.ndarray:
+        """R where it depends on the map too (a fix's covariance from the beacons'
+        geometry); by default :meth:`noise`. The filters and :meth:`loglik` call this one."""
+        return self.noise(spec, m)
+
     def angle_rows(self, m: Measurement) -> np.ndarray:
         """(k d,) bool: the flattened rows that are angles."""
         return np.tile(np.asarray(self.angles, dtype=bool), len(m))
@@ -86,13 +100,13 @@ class MeasurementModel:
         """``(H (k d, 3), nu = z - h(pose) (k d,), R (k d, k d))`` at one pose: the EKF's."""
         pose = np.asarray(pose, dtype=float).reshape(3)
         h = self.expected(spec, m, pose[None, :], world)[0]
-        return self.jacobian(spec, m, pose, world), self.residual(m, h), self.noise(spec, m)
+        return self.jacobian(spec, m, pose, world), self.residual(m, h), self.noise_at(spec, m, world)
 
     def loglik(self, spec: SensorSpec, m: Measurement, poses: np.ndarray, world: World) -> np.ndarray:
         """Log-likelihood of ``m`` at poses (N, 3), up to a constant that is the same at every
         pose: ``-0.5 nu^T R^-1 nu`` (N,), on arrays (no loop over poses)."""
         nu = self.residual(m, self.expected(spec, m, np.asarray(poses, dtype=float).reshape(-1, 3), world))
-        L = np.linalg.cholesky(self.noise(spec, m))
+        L = np.linalg.cholesky(self.noise_at(spec, m, world))
         w = np.linalg.solve(L, nu.T)          # (k d, N): whitened residuals
         return -0.5 * np.einsum("ij,ij->j", w, w)
 
@@ -148,6 +162,12 @@ class SensorKind:
         A scenario with a sensor of this kind must have beacons / walls.
     label : str
         What the window's panel calls it.
+    check : callable or None
+        Why a sensor of this kind cannot work in a world (:data:`Check`), asked when a
+        scenario is loaded; None: nothing to check beyond the keys' ranges.
+    table_rows : callable or None
+        The readings table's rows of a reading (:data:`TableRows`); None: z's rows, each
+        with its beacon when ``carries_ids`` (else -1).
     """
 
     name: str
@@ -159,6 +179,8 @@ class SensorKind:
     needs_beacons: bool = True
     needs_walls: bool = False
     label: str = ""
+    check: Check | None = None
+    table_rows: TableRows | None = None
 
     def __post_init__(self) -> None:
         if self.model is not None:
@@ -166,6 +188,14 @@ class SensorKind:
                 raise ValueError(f"sensor kind {self.name!r}: its model has {len(self.model.angles)} "
                                  f"columns, its record {len(self.columns)}")
             self.model.carries_ids = self.carries_ids
+
+    def rows(self, m: Measurement) -> tuple[np.ndarray, np.ndarray]:
+        """(beacon ID per row (-1: none), rows of values) of ``m`` for the readings table."""
+        if self.table_rows is not None:
+            return self.table_rows(m)
+        z = np.asarray(m.z, dtype=float).reshape(len(m), -1)
+        ids = np.asarray(m.beacon_ids, dtype=int) if self.carries_ids else np.full(len(m), -1)
+        return ids, z
 
     @property
     def dims(self) -> int:
@@ -178,4 +208,4 @@ class SensorKind:
         return tuple(c.endswith("_rad") for c in self.columns)
 
 
-__all__ = ["Draw", "KindParam", "MeasurementModel", "SensorKind"]
+__all__ = ["Check", "Draw", "KindParam", "MeasurementModel", "SensorKind", "TableRows"]

@@ -20,8 +20,11 @@ from collections.abc import Iterable
 import numpy as np
 
 from beacon_sim.core import measurement_models as mm
+from beacon_sim.core.range_kind import RANGE
 from beacon_sim.core.sensor_kind import KindParam, MeasurementModel, SensorKind
 from beacon_sim.core.sensors import SensorSpec, sense, sense_scan
+from beacon_sim.core.tdoa_fix_kind import TDOA_FIX
+from beacon_sim.core.tdoa_kind import TDOA
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
 
@@ -116,6 +119,10 @@ KINDS: dict[str, SensorKind] = {k.name: k for k in (
 #: The kinds with built-in scenario keys of their own (read by core/scenario.py).
 BUILTIN = tuple(KINDS)
 
+# The distance kinds (docs/distance_beacons.md): each a record in a module of its own,
+# registered as a plugin's kind would be.
+KINDS.update({k.name: k for k in (RANGE, TDOA, TDOA_FIX)})
+
 
 def register_kind(kind: SensorKind) -> SensorKind:
     """Add ``kind`` to :data:`KINDS` (a name already there is refused); returns it."""
@@ -166,6 +173,16 @@ def names_beacons(name: str) -> bool:
     return True if kind is None else kind.carries_ids
 
 
+def table_rows(m: Measurement) -> tuple[np.ndarray, np.ndarray]:
+    """The readings table's rows of ``m`` (its kind's :meth:`SensorKind.rows`): the beacon ID
+    of each row (-1: none) and the rows of values; a kind not registered here names a beacon
+    per row."""
+    kind = KINDS.get(m.kind)
+    if kind is None:
+        return np.asarray(m.beacon_ids, dtype=int), np.asarray(m.z, dtype=float).reshape(len(m), -1)
+    return kind.rows(m)
+
+
 def param_keys() -> tuple[str, ...]:
     """The scenario keys every registered kind declares (``SensorKind.params``)."""
     return tuple(p.key for k in KINDS.values() for p in k.params)
@@ -182,4 +199,4 @@ def value_columns() -> tuple[str, ...]:
 __all__ = ["BUILTIN", "KINDS", "BearingModel", "KindParam", "MeasurementModel", "PoseFixModel",
            "PositionFixModel", "RangeBearingModel", "SensorKind", "beacon_kinds", "dims", "draw",
            "kind_names", "model_of", "names_beacons", "param_keys", "register_kind", "sensor_kind",
-           "value_columns"]
+           "table_rows", "value_columns"]

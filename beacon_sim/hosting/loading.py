@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from beacon_sim.core import sensor_kinds
 from beacon_sim.core.files import MAX_SOURCE_BYTES, check_user_file
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.streams import filter_stream
@@ -409,6 +410,10 @@ def sensor_note(spec: str, scenario: Scenario) -> str | None:
                 f"first reading of a beacon it was not given (docs/slam.md; try ekf_slam, fastslam)")
     if kinds is None or any(s.kind in kinds for s in scenario.sensors):
         return None
+    if getattr(cls, "weighs_kind_models", False) and any(
+            s.kind not in sensor_kinds.BUILTIN and sensor_kinds.model_of(s.kind) is not None
+            for s in scenario.sensors):
+        return None   # a kind it has no form of, weighed with its record's model
     have = ", ".join(sorted({s.kind for s in scenario.sensors})) or "no sensors"
     return (f"note: {filter_display_name(spec)} uses {' / '.join(kinds)} readings and "
             f"{scenario.name} has {have}: it only predicts (dead reckoning)")

@@ -19,7 +19,7 @@ import numpy as np
 
 from beacon_sim.core.files import atomic_write, read_user_bytes
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.sensor_kinds import names_beacons
+from beacon_sim.core.sensor_kinds import table_rows
 from beacon_sim.core.types import Step
 from beacon_sim.hosting.runner import FilterTrack
 from beacon_sim.io.recording import Recording
@@ -54,14 +54,14 @@ def step_arrays(scenario: Scenario, steps: Sequence[Step]) -> dict[str, np.ndarr
     width = z_width()
     for s in steps:
         for m in s.measurements:
-            fix = not names_beacons(m.kind)   # a fix or a scan: no beacon ID per row
-            for i in range(len(m)):
+            ids, zs = table_rows(m)   # a fix's or a scan's rows name no beacon (-1)
+            for bid, zrow in zip(ids.tolist(), zs, strict=True):
                 mt.append(s.tick)
                 msens.append(m.sensor)
                 mkind.append(m.kind)
-                mid.append(-1 if fix else int(m.beacon_ids[i]))
+                mid.append(int(bid))
                 row = np.full(width, np.nan)
-                row[: m.z.shape[1]] = m.z[i]
+                row[: zs.shape[1]] = zrow
                 mz.append(row)
                 mh.append(m.hdop)
     kinds = np.array(mkind, dtype=str)

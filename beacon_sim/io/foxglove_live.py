@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensor_kinds import table_rows
 from beacon_sim.core.types import Step
 from beacon_sim.io.foxglove import BeliefFrame, Publisher, belief_frame, foxglove_modules
 
@@ -27,10 +28,9 @@ def step_readings(step: Step) -> list[tuple[str, str, np.ndarray, int]]:
     beacon -1 for a fix."""
     rows = []
     for m in step.measurements:
-        fix = m.kind in ("pose", "position", "range_finder")   # no beacon ID per row
-        for i in range(len(m)):
-            rows.append((m.sensor, m.kind, np.asarray(m.z[i], dtype=float),
-                         -1 if fix else int(m.beacon_ids[i])))
+        ids, zs = table_rows(m)   # a fix's or a scan's rows name no beacon (-1)
+        for bid, zrow in zip(ids.tolist(), zs, strict=True):
+            rows.append((m.sensor, m.kind, np.asarray(zrow, dtype=float), int(bid)))
     return rows
 
 

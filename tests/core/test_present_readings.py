@@ -15,6 +15,7 @@ from beacon_sim.core.batch_simulation import BatchSimulation
 from beacon_sim.core.resources import scenario_dir, shipped_scenarios
 from beacon_sim.core.scenario import load_scenario, parse_scenario
 from beacon_sim.filters.gaussian.measurements import FIX_KINDS, SlotPacker
+from beacon_sim.filters.gaussian.measurements import KINDS as SLOT_KINDS
 
 
 def _mixed_map():
@@ -33,7 +34,8 @@ def _mixed_map():
 
 #: The shipped scenarios with beacon readings (a range finder's scans have no Gaussian slots).
 WITH_BEACON_READINGS = [n for n in shipped_scenarios()
-                        if any(s.kind != "range_finder" for s in load_scenario(n).sensors)]
+                        if any(s.kind != "range_finder" for s in load_scenario(n).sensors)
+                        and all(s.kind in SLOT_KINDS for s in load_scenario(n).sensors)]
 
 
 @pytest.mark.parametrize("name", [*WITH_BEACON_READINGS, "mixed"])

@@ -19,7 +19,8 @@ def test_the_records_agree_with_the_simulations_readings():
     assert BUILTIN == tuple(MEASUREMENT_DIMS)
     for name, d in MEASUREMENT_DIMS.items():
         assert sensor_kind(name).dims == d
-    assert value_columns() == VALUE_COLUMNS     # the built-in kinds add no column
+    # the built-in kinds add no column; the distance kinds one, the tdoa's differences
+    assert value_columns() == (*VALUE_COLUMNS, "range_diff_m")
     assert [names_beacons(k) for k in BUILTIN] == [True, True, False, False, False]
     sim = Simulation(load_scenario("default"))
     seen = [m for _ in range(200) for m in sim.step().measurements]

@@ -27,6 +27,9 @@ FILTERS = {
     "krejsa_bearing_only": ["ekf", "ukf", "pf"],
     "sparse_kidnap": ["pf", "histogram"],
     "ulps_circle": ["ekf", "ukf", "pf"],
+    "ruiz_ulps": ["ekf", "ukf", "pf"],   # range differences: the correlated TDOA information
+    "ulps_leave": ["ekf", "ukf", "pf"],
+    "uwb_room": ["ekf", "pf"],           # ranges with longer paths: the bound weighs them out
     "global_kidnap": ["pf", "histogram"],
     "slam_loop": ["ekf_slam", "fastslam"],  # the known-map bound is a floor for SLAM too
     "slam_bearing_only": ["ekf_slam"],  # bearing-only SLAM: a floor too

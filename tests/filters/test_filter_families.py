@@ -125,7 +125,8 @@ def test_the_child_preloads_every_builtin_filter_from_the_registry():
 # -- the new-filter templates: real modules, copied --------------------------------------------
 
 #: The scenario each kind of template runs on.
-TEMPLATE_SCENARIOS = {"filter": "default", "team": "team_sparse", "slam": "slam_loop", "scan": "corridor"}
+TEMPLATE_SCENARIOS = {"filter": "default", "team": "team_sparse", "slam": "slam_loop", "scan": "corridor",
+                      "tdoa": "ruiz_ulps"}
 
 
 @pytest.mark.parametrize("kind", sorted(TEMPLATES))

@@ -195,6 +195,8 @@ class ExtendedKalmanFilter(VelocityGaussian):
     batch_params: ClassVar[dict[str, Any]] = {"joseph": None, "gate_chi2": None,
                                               **dict.fromkeys(association.GAUSSIAN_PARAMS)}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
+    #: Readings of any other kind with a measurement model are weighed with that model.
+    weighs_kind_models: ClassVar[bool] = True
 
     def __init__(self, ctx: FilterContext):
         self.models = ReadingModels(ctx)

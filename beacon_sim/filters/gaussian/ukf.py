@@ -368,6 +368,8 @@ class UnscentedKalmanFilter(BatchableFilter):
                                               "scaled": None, "gate_chi2": None,
                                               **dict.fromkeys(association.GAUSSIAN_PARAMS)}
     sensor_kinds: ClassVar[tuple[str, ...]] = ("bearing", "range_bearing", "pose", "position")
+    #: Readings of any other kind with a measurement model are weighed with that model.
+    weighs_kind_models: ClassVar[bool] = True
 
     def __init__(self, ctx: FilterContext):
         super().__init__(ctx)
@@ -568,7 +570,7 @@ class UnscentedKalmanFilter(BatchableFilter):
             sel = np.flatnonzero(ang) if ang.any() else None
             z = np.asarray(m.z, dtype=float).reshape(-1)
             dZ, WdZ, Pxz, nu = innovation_parts(Z, D, z, sel, self._Wm_now, self._Wc_now)
-            S = dZ.T @ WdZ + model.noise(spec, m)
+            S = dZ.T @ WdZ + model.noise_at(spec, m, self.ctx.world)
             self.mean, self.cov = correct(mean, cov, S, Pxz, nu)
 
     # -- the update on floats (a few readings) ----------------------------------------------
