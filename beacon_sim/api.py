@@ -270,7 +270,7 @@ class Columns(dict):
             value = np.column_stack([self[f"x_{w}_m"], self[f"y_{w}_m"], self[f"theta_{w}_rad"]])
         else:
             raise KeyError(key)
-        warnings.warn(f"{key!r} is an old name: see Run.readings / Run.events (issue 28)",
+        warnings.warn(f"{key!r} is an old name: see Run.readings / Run.events (docs/python-api.md)",
                       DeprecationWarning, stacklevel=2)
         return value
 

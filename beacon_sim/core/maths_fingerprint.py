@@ -4,7 +4,7 @@ The simulation's truth and readings use only the portable kernels of
 :mod:`beacon_sim.core.portable_math`, so they are the same bits on every machine. The filters
 use numpy's fast kernels (``sin``, ``exp``, ``arctan2``...) and BLAS, whose last bit depends on
 the processor (numpy dispatches float64 transcendental functions to AVX-512 code on some x86-64
-processors, numpy issue 23523; OpenBLAS picks its dot and matrix kernels by processor) and
+processors, numpy#23523; OpenBLAS picks its dot and matrix kernels by processor) and
 on the numpy build. Two processes whose fingerprints are
 equal computed every kernel below identically on the probe inputs; a recording stores the
 fingerprint of the machine that made it, so a replay knows whether the estimates can match bit

@@ -2,7 +2,7 @@
 
 numpy's float64 ``sin``, ``exp``, ``log``, ``arctan2``... run different code on different
 processors (on x86-64 with AVX-512, SVML kernels that round the last bit differently from the
-C library; numpy issue 23523), and the C library's own ``math.atan2`` differs between glibc,
+C library; numpy#23523), and the C library's own ``math.atan2`` differs between glibc,
 macOS and Windows, and between glibc's FMA and non-FMA variants. Only ``+ - * /`` and ``sqrt``
 are rounded the same by every IEEE-754 machine. The kernels here are built from those alone
 (plus exact operations: ``abs``, ``rint``, ``floor``, ``frexp``, ``ldexp``, ``copysign``,
