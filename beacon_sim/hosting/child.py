@@ -540,12 +540,19 @@ class Batch:
         the child is their subreaper, so a double fork stays below it; or one that ran and
         was reaped): its CPU time and memory cannot be counted with the student's at the
         process level, so it is not allowed. Such processes are killed."""
-        from beacon_sim.hosting.processes import PROCESS_NOT_ALLOWED, children_usage, stop_descendants
+        from beacon_sim.hosting.processes import (
+            PROCESS_NOT_ALLOWED,
+            children_usage,
+            has_children,
+            stop_descendants,
+        )
 
         if not self.all_threads:
             return None
         ran = children_usage() != self._children
-        if stop_descendants() or ran:
+        if not ran and not has_children():  # the every-tick case: nothing below this process
+            return None
+        if stop_descendants() or ran or children_usage() != self._children:
             self._children = children_usage()
             return PROCESS_NOT_ALLOWED
         return None

@@ -87,3 +87,13 @@ def stop_descendants(rounds: int = 200) -> bool:
                 pass
         time.sleep(0.005)
     return found
+
+
+def has_children() -> bool:
+    """Whether this process has a child, running or ended (one system call: the cheap test
+    made every tick; a process anywhere below this one, its subreaper, implies a child)."""
+    try:
+        os.waitpid(-1, os.WNOHANG)
+    except ChildProcessError:
+        return False
+    return True

@@ -182,3 +182,46 @@ def test_a_students_total_wall_time_is_capped_and_said(tmp_path):
     assert r["failed_runs"] >= 2, r["failures"]
     assert all("total time limit: 2 s of wall time" in f["reason"] for f in r["failures"]), r["failures"]
     assert any(f.startswith("limit hit: total wall time") for f in r["flags"]), r["flags"]
+
+
+class _Sleeps:
+    def __init__(self, ctx):
+        time.sleep(0.6)  # waits: no CPU
+
+    def reset(self, initial):
+        pass
+
+
+class _Burns(_Sleeps):
+    def __init__(self, ctx):
+        t0 = time.thread_time()
+        while time.thread_time() - t0 < 0.6:
+            pass
+
+
+def test_construction_is_limited_by_cpu_time_in_a_grade_not_wall_time():
+    """A hosted filter is built under a CPU-time limit (``cpu=True``: a constructor that
+    waits for a core on a loaded machine is not failed, one that burns is); the window's
+    build keeps its wall-time limit. Here with a 0.3 s limit."""
+    from beacon_sim.core.scenario import load_scenario
+    from beacon_sim.filters.base import FilterContext
+    from beacon_sim.hosting.loading import build_from_context, initial_belief
+    from beacon_sim.hosting.watchdog import FilterExit
+
+    sc = load_scenario("two_rooms")
+    ctx = FilterContext.of_scenario(sc, "x", {}, None)
+    build_from_context(_Sleeps, ctx, initial_belief(sc), "x", limit_s=0.3, cpu=True)
+    with pytest.raises(FilterExit, match="time limit"):
+        build_from_context(_Burns, ctx, initial_belief(sc), "x", limit_s=0.3, cpu=True)
+    with pytest.raises(FilterExit, match="time limit"):
+        build_from_context(_Sleeps, ctx, initial_belief(sc), "x", limit_s=0.3)  # wall: the window's
+
+
+def test_a_batch_builds_its_filters_under_the_cpu_time_limit(monkeypatch):
+    import beacon_sim.hosting.loading as loading
+    from beacon_sim.hosting.child import Batch
+
+    seen = []
+    monkeypatch.setattr(loading, "build_from_context", lambda *a, **k: seen.append(k) or object())
+    Batch(lambda: object, [(None, None, "x")], 1.0)
+    assert seen == [{"cpu": True}]
