@@ -149,7 +149,7 @@ def run_peer(peer, truths, odo, readings) -> dict:
 
 
 def run_ours(sc, truths, odo, readings, ids: bool, association: str = "jcbb") -> dict:
-    f = build_filter("ekf_slam", sc, 0, params={"ekf_slam": {"association": association}})
+    f = build_filter("ekf_slam", sc, 0, params={"association": association})
     sq, ns, cpu = 0.0, 0.0, 0.0
     for k in range(len(truths)):
         z = readings[k]
