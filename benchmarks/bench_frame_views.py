@@ -26,10 +26,14 @@ os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 import numpy as np
 
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
-from beacon_sim.core.resources import scenario_dir
-from beacon_sim.core.team_scenario import load_any_scenario
-from beacon_sim.runs.live import Session
+from beacon_sim.core.threads import limit_blas_threads
+
+limit_blas_threads()  # one BLAS thread, as the window has (``beacon-sim`` sets it at start)
+
+from beacon_sim.app.main import SCRIPTED_FRAME_S, App  # noqa: E402
+from beacon_sim.core.resources import scenario_dir  # noqa: E402
+from beacon_sim.core.team_scenario import load_any_scenario  # noqa: E402
+from beacon_sim.runs.live import Session  # noqa: E402
 
 #: The heavier commands the docs show, beyond each scenario's defaults: (label, scenario,
 #: filters or None for the defaults, parameters).

@@ -622,12 +622,15 @@ class App:
 
     def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
         """What the world's picture depends on, as (everything but the tick, the tick); None
-        where it is not kept (smooth off; a replay, a team: they draw every frame). Between
+        where it is not kept (smooth off; a replay: it draws every frame). Between
         two ticks a live session's world changes only through what the first part holds."""
         s = self.session
-        if not self.smooth or type(s) is not Session or self.team_view:
+        if not self.smooth or type(s) is not Session:
             return None
-        tracks = tuple((n, id(t.filter), bool(t.failed)) for n, t in s.runner.tracks.items())
+        tracks: tuple[object, ...] = tuple((n, id(t.filter), bool(t.failed))
+                                           for n, t in s.runner.tracks.items())
+        if self.team_view:  # the team filters and the robot the keys drive (its halo, its tag)
+            tracks += (s.driven, *((n, id(t.filter), bool(t.failed)) for n, t in s.joint.tracks.items()))
         static = (self.world_version, id(s), self.view.key, self.screen.get_size(),
                   astuple(self.show), tuple(s.visible.items()), tracks,
                   tuple(bool(st.failed) for st in s.status.values()), drag, tuple(steps),

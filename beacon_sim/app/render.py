@@ -291,7 +291,11 @@ class WorldRenderer:
         each ``next`` draws one more layer (the floor and the heat maps, the trails, rays,
         beacons and the true robot, the particles, ``extra`` and the estimates, the
         magnifier), all from the same session state (the window spreads them over two
-        frames). The clip is restored when it ends or is closed half way."""
+        frames). The clip is restored when it ends or is closed half way. A team's world
+        (:meth:`team_phases`) takes fewer steps."""
+        if getattr(session, "n_robots", 1) > 1:  # a team's world, in its own steps
+            yield from self.team_phases(surf, view, session, colours, show, drag, dashes, extra)
+            return
         sc = session.scenario
         self.last_world = sc.world
         self.last_world_sensors = sc.sensors
@@ -361,13 +365,26 @@ class WorldRenderer:
         """The world of a team (``session.n_robots`` > 1): every robot, ringed and tagged,
         the driven one on a halo; each filter's estimate of each robot (arrow and x-y
         ellipse, no heading wedges); beacon and robot-to-robot readings."""
-        team = session.team
-        self.last_world = team.world
+        for _ in self.team_phases(surf, view, session, colours, show, drag, dashes, extra):
+            pass
+
+    def team_phases(self, surf, view, session, colours, show, drag=None, dashes=None, extra=None):
+        """:meth:`draw_team` as a generator of two steps (see :meth:`phases`)."""
+        self.last_world = session.team.world
         self.show_field = show.field
         dashes = dashes or {}
+        old_clip = self.begin(surf, view)
+        try:
+            yield from self._team_layers(surf, view, session, colours, show, drag, dashes, extra)
+        finally:
+            surf.set_clip(old_clip)
+
+    def _team_layers(self, surf, view, session, colours, show, drag, dashes, extra):
+        """:meth:`team_phases`' layers, inside the clip: the floor's pieces, the readings and
+        the robots; then the beliefs, the rings and the tags."""
+        team = session.team
         poses = session.poses
         radii = [r.scenario.robot_radius for r in team.robots]
-        old_clip = self.begin(surf, view)
         for r, pose in zip(team.robots, poses, strict=True):
             self.sensor_discs(surf, view, r.scenario.sensors, pose)
         shown = [n for n in session.names if session.visible[n] and not session.status[n].failed]
@@ -385,6 +402,7 @@ class WorldRenderer:
         self.driven_halo(surf, view, poses[session.driven], radii[session.driven])
         for pose, radius in zip(poses, radii, strict=True):
             self.robot(surf, view, pose, radius)  # the truth UNDER every belief
+        yield
         if extra is not None:
             extra(surf, view, self.lw)
         beliefs = {name: session.estimates(name) for name in shown}
@@ -399,7 +417,6 @@ class WorldRenderer:
             self.name_tag(surf, view, pose, radii[i], r.name, i == session.driven)
         if drag is not None:
             self._drag_ghost(surf, view, drag, session.true_pose, radii[session.driven])
-        surf.set_clip(old_clip)
 
     def robot_rays(self, surf, view, session, pose, readings) -> None:
         """Robot-to-robot readings taken at ``pose``: dashed purple lines, each ending in a
