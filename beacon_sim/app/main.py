@@ -28,6 +28,7 @@ from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.heap import HeapSettler
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
+from beacon_sim.app.framebuffer import choose_framebuffer
 from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.core.files import atomic_write
@@ -93,6 +94,8 @@ class App:
         self.recording = recording
         pygame.display.init()
         pygame.font.init()
+        #: How frames reach the screen (app/framebuffer.py): X11's own framebuffer on X11
+        self.framebuffer = choose_framebuffer(pygame.display.get_driver())
         self.screen = pygame.display.set_mode(size, pygame.RESIZABLE)
         self.screen.fill(palette.OUTSIDE)  # never a black window, even for a moment
         pygame.display.flip()
