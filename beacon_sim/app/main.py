@@ -25,10 +25,10 @@ import pygame
 
 from beacon_sim.app import controls, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
+from beacon_sim.app.framebuffer import choose_framebuffer
 from beacon_sim.app.heap import HeapSettler
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
-from beacon_sim.app.framebuffer import choose_framebuffer
 from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.core.files import atomic_write
