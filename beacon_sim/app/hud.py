@@ -118,12 +118,15 @@ class Hud:
             y += lh
             missed = sorted(missed_ids(sensors_read(session.scenario, session.tick_count),
                                        world, session.true_pose, seen))
-            self._blit(surf, ids_text(labelled, unlabelled), "small", palette.TEXT_DIM, (x, y))
-            y += sl
-            if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
-                self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
-                           palette.WARN, (x, y))
+            for line in wrap_text(f["small"], ids_text(labelled, unlabelled), w - sl):
+                self._blit(surf, line, "small", palette.TEXT_DIM, (x + sl // 2, y))
                 y += sl
+            if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
+                # wrapped to the panel's width: a data set misses a dozen landmarks at once
+                for line in wrap_text(f["small"], f"missed in range: {', '.join(map(str, missed))}",
+                                      w - sl):
+                    self._blit(surf, line, "small", palette.WARN, (x + sl // 2, y))
+                    y += sl
         for text in kind_lines(session):   # kinds registered beside the built-in ones
             self._blit(surf, text, "small", palette.TEXT, (x, y))
             y += sl
@@ -332,7 +335,9 @@ class Hud:
                         info: dict) -> int:
         """The scenario's name, then the time, the speed factor and PAUSED / running."""
         lh = self.fonts["hud"].get_linesize()
-        self._blit(surf, title, "title", palette.TEXT, (x, y))
+        # a long name (a data set's run) in the smaller font, and cut only if still too long
+        font = "title" if self.fonts["title"].size(title)[0] <= w else "hud"
+        self._blit(surf, short(self.fonts[font], title, w), font, palette.TEXT, (x, y))
         y += self.fonts["title"].get_linesize() + 2
         state = "PAUSED" if info.get("paused") else "running"
         speed = info.get("speed", 1.0)
