@@ -118,14 +118,15 @@ class Hud:
             y += lh
             missed = sorted(missed_ids(sensors_read(session.scenario, session.tick_count),
                                        world, session.true_pose, seen))
-            for line in wrap_text(f["small"], ids_text(labelled, unlabelled), w - sl):
-                self._blit(surf, line, "small", palette.TEXT_DIM, (x + sl // 2, y))
+            indent = f["small"].size("  ")[0]
+            for line in wrap_text(f["small"], ids_text(labelled, unlabelled), w - indent):
+                self._blit(surf, "  " + line, "small", palette.TEXT_DIM, (x, y))
                 y += sl
             if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
                 # wrapped to the panel's width: a data set misses a dozen landmarks at once
                 for line in wrap_text(f["small"], f"missed in range: {', '.join(map(str, missed))}",
-                                      w - sl):
-                    self._blit(surf, line, "small", palette.WARN, (x + sl // 2, y))
+                                      w - indent):
+                    self._blit(surf, "  " + line, "small", palette.WARN, (x, y))
                     y += sl
         for text in kind_lines(session):   # kinds registered beside the built-in ones
             self._blit(surf, text, "small", palette.TEXT, (x, y))
