@@ -20,6 +20,7 @@ import pygame
 
 from beacon_sim.app import palette
 from beacon_sim.app.assets import load_fonts
+from beacon_sim.app.framebuffer import choose_framebuffer
 from beacon_sim.core.geometry import CHI2_2DOF, covariance_ellipse
 from beacon_sim.filters.graph.graph import FactorGraph
 from beacon_sim.filters.graph.solver import GraphSolver, Layout, StepReport, marginals, normal_equations
@@ -42,6 +43,7 @@ class GraphWindow:
                  title: str = ""):
         pygame.display.init()
         pygame.font.init()
+        choose_framebuffer(pygame.display.get_driver())
         self.screen = pygame.display.set_mode(size)
         pygame.display.set_caption(f"beacon-sim graph: {title or graph.source}")
         self.fonts = load_fonts(size[1], size[0])

@@ -71,6 +71,7 @@ class Hud:
         self.mode = mode
         self.help_drawn: list[tuple[str, str]] = []
         self._cache: dict[tuple, pygame.Surface] = {}
+        self._legend: tuple[tuple, pygame.Surface, pygame.Rect] | None = None  # world_legend's picture
 
     def _text(self, text: str, font: str, colour) -> pygame.Surface:
         """The rendered text, from a cache (most of the panel is the same every frame)."""
@@ -117,12 +118,16 @@ class Hud:
             y += lh
             missed = sorted(missed_ids(sensors_read(session.scenario, session.tick_count),
                                        world, session.true_pose, seen))
-            self._blit(surf, ids_text(labelled, unlabelled), "small", palette.TEXT_DIM, (x, y))
-            y += sl
-            if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
-                self._blit(surf, f"  missed in range: {', '.join(map(str, missed))}", "small",
-                           palette.WARN, (x, y))
+            indent = f["small"].size("  ")[0]
+            for line in wrap_text(f["small"], ids_text(labelled, unlabelled), w - indent):
+                self._blit(surf, "  " + line, "small", palette.TEXT_DIM, (x, y))
                 y += sl
+            if missed:  # in the drawn sensor disc but not detected: ringed dashed on the map
+                # wrapped to the panel's width: a data set misses a dozen landmarks at once
+                for line in wrap_text(f["small"], f"missed in range: {', '.join(map(str, missed))}",
+                                      w - indent):
+                    self._blit(surf, "  " + line, "small", palette.WARN, (x, y))
+                    y += sl
         for text in kind_lines(session):   # kinds registered beside the built-in ones
             self._blit(surf, text, "small", palette.TEXT, (x, y))
             y += sl
@@ -262,11 +267,25 @@ class Hud:
                      lw: int) -> pygame.Rect:
         """What the lines in the world mean, with a sample of each, in a box at the top left
         of ``area`` (the strip under the world view): the readings, the robots, each team
-        filter's style."""
+        filter's style. Drawn once into a picture kept until what it shows changes (the
+        filters shown, their styles, the size), then blitted: the same pixels every frame."""
+        names = [n for n in session.names if session.visible[n]]
+        key = (area.size, lw, tuple((n, colours[n], tuple(dashes.get(n) or ())) for n in names))
+        if self._legend is None or self._legend[0] != key:
+            pic = pygame.Surface(area.size, 0, surf)
+            box = self._draw_world_legend(pic, pic.get_rect(), names, colours, dashes, lw)
+            self._legend = (key, pic, box)
+        _, pic, box = self._legend
+        surf.blit(pic, area)
+        return box.move(area.topleft)
+
+    def _draw_world_legend(self, surf, area: pygame.Rect, names: list[str], colours, dashes,
+                           lw: int) -> pygame.Rect:
+        """:meth:`world_legend`'s drawing, of the filters ``names``, onto ``surf``."""
         f = self.fonts["small"]
         sl = f.get_linesize()
         sample = 3 * sl
-        rows = self.legend_rows(area.width, [n for n in session.names if session.visible[n]])
+        rows = self.legend_rows(area.width, names)
         widths = [sum(sample + 12 + f.size(t)[0] + 24 for t, _ in row) for row in rows]
         box = pygame.Rect(area.left + 8, area.top + 4, min(max(widths) + 12, area.width - 16),
                           len(rows) * (sl + 8) + 10)
@@ -317,7 +336,9 @@ class Hud:
                         info: dict) -> int:
         """The scenario's name, then the time, the speed factor and PAUSED / running."""
         lh = self.fonts["hud"].get_linesize()
-        self._blit(surf, title, "title", palette.TEXT, (x, y))
+        # a long name (a data set's run) in the smaller font, and cut only if still too long
+        font = "title" if self.fonts["title"].size(title)[0] <= w else "hud"
+        self._blit(surf, short(self.fonts[font], title, w), font, palette.TEXT, (x, y))
         y += self.fonts["title"].get_linesize() + 2
         state = "PAUSED" if info.get("paused") else "running"
         speed = info.get("speed", 1.0)

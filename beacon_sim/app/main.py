@@ -25,6 +25,7 @@ import pygame
 
 from beacon_sim.app import controls, distance_layer, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
+from beacon_sim.app.framebuffer import choose_framebuffer
 from beacon_sim.app.heap import HeapSettler
 from beacon_sim.app.hud import Hud, fps_of
 from beacon_sim.app.loop import StepClock
@@ -93,6 +94,8 @@ class App:
         self.recording = recording
         pygame.display.init()
         pygame.font.init()
+        #: How frames reach the screen (app/framebuffer.py): X11's own framebuffer on X11
+        self.framebuffer = choose_framebuffer(pygame.display.get_driver())
         self.screen = pygame.display.set_mode(size, pygame.RESIZABLE)
         self.screen.fill(palette.OUTSIDE)  # never a black window, even for a moment
         pygame.display.flip()
@@ -627,12 +630,15 @@ class App:
 
     def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
         """What the world's picture depends on, as (everything but the tick, the tick); None
-        where it is not kept (smooth off; a replay, a team: they draw every frame). Between
+        where it is not kept (smooth off; a replay: it draws every frame). Between
         two ticks a live session's world changes only through what the first part holds."""
         s = self.session
-        if not self.smooth or type(s) is not Session or self.team_view:
+        if not self.smooth or type(s) is not Session:
             return None
-        tracks = tuple((n, id(t.filter), bool(t.failed)) for n, t in s.runner.tracks.items())
+        tracks: tuple[object, ...] = tuple((n, id(t.filter), bool(t.failed))
+                                           for n, t in s.runner.tracks.items())
+        if self.team_view:  # the team filters and the robot the keys drive (its halo, its tag)
+            tracks += (s.driven, *((n, id(t.filter), bool(t.failed)) for n, t in s.joint.tracks.items()))
         static = (self.world_version, id(s), self.view.key, self.screen.get_size(),
                   astuple(self.show), tuple(s.visible.items()), tracks,
                   tuple(bool(st.failed) for st in s.status.values()), drag, tuple(steps),

@@ -1,6 +1,7 @@
 """Drawing a world's walls and a laser scan: the occupancy grid as dark cells under
 everything, and each beam of a range_finder reading from the robot to its end point, beams
-that hit something in blue with a dot at the hit, no-return (max-range) beams in light grey.
+that hit something in blue with a dot at the hit, no-return (max-range) beams in light grey
+up to the wall they meet, readings beyond the wall (random ones) dashed vermillion to it.
 On a key (L) the likelihood field goes under the walls: each free cell's distance to the
 nearest wall (the transform the likelihood-field model precomputes) as a heat layer, hot at
 the walls and fading out at the cap (AMCL's ``laser_likelihood_max_dist``, 2 m).
@@ -18,6 +19,7 @@ import pygame
 
 from beacon_sim.core.beam_model import distance_transform
 from beacon_sim.core.occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from beacon_sim.core.raycast import cast_rays
 from beacon_sim.core.types import Measurement
 
 #: Occupied cells: near-black, so that walls read as solid on a projector.
@@ -27,6 +29,8 @@ UNKNOWN_CELL = (170, 170, 165)
 #: A beam that hit something (Okabe-Ito blue) and one with no return (max range).
 BEAM_HIT = (0, 114, 178)
 BEAM_NONE = (200, 200, 196)
+#: A reading beyond the wall on its beam (a random reading the map cannot explain): vermillion.
+BEAM_BEYOND = (213, 94, 0)
 #: Largest scaled map image [px] (beyond it the visible part only is scaled).
 MAX_MAP_PIXELS = 6_000_000
 #: The likelihood field's heat colour (Okabe-Ito vermillion) and its opacity at a wall.
@@ -135,14 +139,31 @@ def scan_segments(pose, m: Measurement) -> np.ndarray:
     return np.stack([np.broadcast_to(p, end.shape), end], axis=1)
 
 
-def draw_scan(surf: pygame.Surface, view, pose, m: Measurement, max_range: float, width: int = 1) -> None:
-    """One scan taken at ``pose``: no-return beams light grey, hits blue with a dot."""
-    segs = scan_segments(pose, m)
-    hit = np.asarray(m.z[:, 0]) < max_range
-    px = view.to_px(segs)
-    for (a, b), h in zip(px, hit, strict=True):
-        if not h:
+def draw_scan(surf: pygame.Surface, view, pose, m: Measurement, max_range: float, width: int = 1,
+              grid: OccupancyGrid | None = None) -> None:
+    """One scan taken at ``pose``: hits blue with a dot; no-return beams light grey; with the
+    map ``grid``, a no-return beam stops at the wall it meets (the laser saw nothing up to
+    there, not through it), and a reading that lands beyond the wall on its beam (the beam
+    model's random readings) is drawn to the wall only, dashed vermillion and ending in a
+    ring: a reading the map cannot explain, not a hit."""
+    z = np.asarray(m.z, dtype=float)
+    hit = z[:, 0] < max_range
+    through = np.zeros(len(z), dtype=bool)
+    if grid is not None and len(z):
+        wall = cast_rays(grid, np.asarray(pose[:2], dtype=float), pose[2] + z[:, 1], max_range)
+        tol = max(2.0 * grid.resolution, 0.05)  # a wall's own cell, and rounding
+        through = hit & (z[:, 0] > wall + tol)
+        hit &= ~through
+        z = z.copy()
+        z[:, 0] = np.where(through | ~hit, np.minimum(z[:, 0], wall), z[:, 0])
+    px = view.to_px(scan_segments(pose, Measurement(m.sensor, m.kind, z, m.beacon_ids)))
+    for (a, b), h, t in zip(px, hit, through, strict=True):
+        if not h and not t:
             pygame.draw.line(surf, BEAM_NONE, a, b, width)
+    for (a, b), t in zip(px, through, strict=True):
+        if t:
+            _dashed(surf, BEAM_BEYOND, a, b, max(width, 2))
+            pygame.draw.circle(surf, BEAM_BEYOND, (round(b[0]), round(b[1])), max(3, width + 2), 2)
     for (a, b), h in zip(px, hit, strict=True):
         if h:
             pygame.draw.line(surf, BEAM_HIT, a, b, width)
@@ -150,3 +171,16 @@ def draw_scan(surf: pygame.Surface, view, pose, m: Measurement, max_range: float
     for (_, b), h in zip(px, hit, strict=True):
         if h:
             pygame.draw.circle(surf, BEAM_HIT, (round(b[0]), round(b[1])), dot)
+
+
+def _dashed(surf: pygame.Surface, colour, a, b, width: int, on: float = 6.0, off: float = 4.0) -> None:
+    """A dashed straight line from ``a`` to ``b`` [px]."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    length = float(np.hypot(*(b - a)))
+    if not length > 0:
+        return
+    u = (b - a) / length
+    t = 0.0
+    while t < length:
+        pygame.draw.line(surf, colour, a + u * t, a + u * min(t + on, length), width)
+        t += on + off

@@ -293,7 +293,11 @@ class WorldRenderer:
         each ``next`` draws one more layer (the floor and the heat maps, the trails, rays,
         beacons and the true robot, the particles, ``extra`` and the estimates, the
         magnifier), all from the same session state (the window spreads them over two
-        frames). The clip is restored when it ends or is closed half way."""
+        frames). The clip is restored when it ends or is closed half way. A team's world
+        (:meth:`team_phases`) takes fewer steps."""
+        if getattr(session, "n_robots", 1) > 1:  # a team's world, in its own steps
+            yield from self.team_phases(surf, view, session, colours, show, drag, dashes, extra)
+            return
         sc = session.scenario
         self.last_world = sc.world
         self.last_world_sensors = sc.sensors
@@ -372,13 +376,26 @@ class WorldRenderer:
         """The world of a team (``session.n_robots`` > 1): every robot, ringed and tagged,
         the driven one on a halo; each filter's estimate of each robot (arrow and x-y
         ellipse, no heading wedges); beacon and robot-to-robot readings."""
-        team = session.team
-        self.last_world = team.world
+        for _ in self.team_phases(surf, view, session, colours, show, drag, dashes, extra):
+            pass
+
+    def team_phases(self, surf, view, session, colours, show, drag=None, dashes=None, extra=None):
+        """:meth:`draw_team` as a generator of two steps (see :meth:`phases`)."""
+        self.last_world = session.team.world
         self.show_field = show.field
         dashes = dashes or {}
+        old_clip = self.begin(surf, view)
+        try:
+            yield from self._team_layers(surf, view, session, colours, show, drag, dashes, extra)
+        finally:
+            surf.set_clip(old_clip)
+
+    def _team_layers(self, surf, view, session, colours, show, drag, dashes, extra):
+        """:meth:`team_phases`' layers, inside the clip: the floor's pieces, the readings and
+        the robots; then the beliefs, the rings and the tags."""
+        team = session.team
         poses = session.poses
         radii = [r.scenario.robot_radius for r in team.robots]
-        old_clip = self.begin(surf, view)
         for r, pose in zip(team.robots, poses, strict=True):
             self.sensor_discs(surf, view, r.scenario.sensors, pose)
         shown = [n for n in session.names if session.visible[n] and not session.status[n].failed]
@@ -396,6 +413,7 @@ class WorldRenderer:
         self.driven_halo(surf, view, poses[session.driven], radii[session.driven])
         for pose, radius in zip(poses, radii, strict=True):
             self.robot(surf, view, pose, radius)  # the truth UNDER every belief
+        yield
         if extra is not None:
             extra(surf, view, self.lw)
         beliefs = {name: session.estimates(name) for name in shown}
@@ -410,7 +428,6 @@ class WorldRenderer:
             self.name_tag(surf, view, pose, radii[i], r.name, i == session.driven)
         if drag is not None:
             self._drag_ghost(surf, view, drag, session.true_pose, radii[session.driven])
-        surf.set_clip(old_clip)
 
     def robot_rays(self, surf, view, session, pose, readings) -> None:
         """Robot-to-robot readings taken at ``pose``: dashed purple lines, each ending in a
@@ -499,9 +516,106 @@ class WorldRenderer:
                 for key, mean, cov in order:
                     self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), radius,
                                      wedge=True, ellipse=False)
+            xmin, ymin, xmax, ymax = view.bounds
+            too_big = math.hypot(xmax - xmin, ymax - ymin)  # a 95 % ellipse wider than the world
+            self._lost_labels: list[pygame.Rect] = []
+            shown = []
             for key, mean, cov in order:
-                self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), radius,
-                                 wedge=False)
+                across = ellipse_diameter(cov)
+                if not across <= too_big:  # lost (or not a number): a marker, not lines
+                    self.lost_marker(surf, view, key, mean, across, colours[key], dashes.get(key))
+                else:
+                    shown.append((key, mean, cov))
+            self._ellipses(surf, view, shown, colours, dashes)
+
+    def _ellipses(self, surf, view: View, estimates, colours, dashes) -> None:
+        """The 95 % ellipses of ``estimates`` (solid ones first). Ellipses that lie on one
+        another (every point within a line width) are drawn in stripes, each colour in turn
+        along the outline and an equal share of it, with a note naming them: one drawn over
+        the other hid it (a dashed one left the other only its gaps)."""
+        lw = self.lw
+        outlines = [view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 96))
+                    for _, mean, cov in estimates]
+        groups: list[list[int]] = []
+        for i in range(len(estimates)):
+            if np.all(np.isfinite(outlines[i])):
+                for g in groups:
+                    if np.max(np.hypot(*(outlines[g[0]] - outlines[i]).T)) <= lw:
+                        g.append(i)
+                        break
+                else:
+                    groups.append([i])
+        striped = {i: (g.index(i), len(g)) for g in groups if len(g) > 1 for i in g}
+        for i, (key, mean, cov) in enumerate(estimates):
+            if i not in striped:
+                self.uncertainty(surf, view, mean, cov, colours[key], dashes.get(key), 0.0, wedge=False)
+        for g in groups:
+            if len(g) < 2:
+                continue
+            pts = outlines[g[0]]
+            seg = 3.0 * lw
+            arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+            polyline(surf, colours[estimates[g[0]][0]], pts, lw, None, closed=True)
+            for k, i in enumerate(g[1:]):
+                # the same outline in stripes over the first, each started a stripe further
+                # on: the colours take turns (two: exactly, half and half)
+                start = int(np.searchsorted(arc, (k * seg) % max(arc[-1], 1e-9)))
+                polyline(surf, colours[estimates[i][0]], np.roll(pts, -start, axis=0), lw,
+                         (seg, (len(g) - 1) * seg), closed=True)
+            if max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1])) < 80:  # under the robot: the magnifier's
+                continue
+            names = ", ".join(estimates[i][0] for i in g)
+            img = self.text(f"{names}: same ellipse", "small", palette.TEXT)
+            top = pts[int(np.argmin(pts[:, 1]))]
+            box = img.get_rect(midbottom=(ipx(top[0]), ipx(top[1]) - lw - 2)).inflate(8, 2)
+            box.clamp_ip(surf.get_clip())
+            surf.fill(palette.PANEL, box)
+            surf.blit(img, img.get_rect(center=box.center))
+
+    def lost_marker(self, surf, view: View, key: str, mean, across: float, colour, dash) -> None:
+        """A belief whose 95 % ellipse is wider than the world (``across`` [m]): instead of
+        lines crossing the world and its margins, a ring at the estimate (kept inside the
+        world) with four ticks pointing out, and a label beside it that keeps off the other
+        such labels: "dead_reckoning: 95 % ellipse 16 m, wider than the world"."""
+        xmin, ymin, xmax, ymax = view.bounds
+        at = np.array([min(max(float(mean[0]), xmin), xmax), min(max(float(mean[1]), ymin), ymax)])
+        c = view.to_px(at) if np.all(np.isfinite(at)) else view.to_px(np.array([xmin, ymax]))
+        r = 22.0
+        ring = circle(np.asarray(c, dtype=float), r, 48)
+        polyline(surf, colour, ring, self.lw, dash, closed=True)
+        for a in (0.25, 0.75, 1.25, 1.75):  # ticks pointing out: the belief goes on beyond
+            d = np.array([math.cos(a * math.pi), math.sin(a * math.pi)])
+            pygame.draw.line(surf, colour, c + d * (r + 3), c + d * (r + 13), max(self.lw - 1, 2))
+        size = f"{across:.0f} m, wider than the world" if math.isfinite(across) else "not a number"
+        img = self.text(f"{key}: 95 % ellipse {size}", "small", palette.TEXT)
+        clip = surf.get_clip()
+        taken = self._lost_labels
+        cx, cy, step = ipx(c[0]), ipx(c[1]), img.get_height() + 8
+        box = None
+        world = self._world_rect(view)
+        for k in range(4):  # first in the margins above and under the world: it hides nothing
+            spot = img.get_rect(midbottom=(cx, world.top - 8 - k * step)) if k % 2 == 0 \
+                else img.get_rect(midtop=(cx, world.bottom + 30 + (k // 2) * step))
+            spot = spot.inflate(10, 4)
+            spot.clamp_ip(pygame.Rect(world.left, clip.top, world.width, clip.height).clip(clip))
+            if clip.contains(spot) and not spot.colliderect(world) and spot.collidelist(taken) < 0:
+                box = spot
+                break
+        for k in range(12 if box is None else 0):  # beside the ring (right, left), further down, up
+            dy = (k // 2 + 1) // 2 * step * (1 if (k // 2) % 2 else -1)
+            spot = img.get_rect(midleft=(cx + ipx(r) + 18, cy + dy)) if k % 2 == 0 \
+                else img.get_rect(midright=(cx - ipx(r) - 18, cy + dy))
+            spot = spot.inflate(10, 4)
+            if clip.contains(spot) and spot.collidelist(taken) < 0:
+                box = spot
+                break
+        if box is None:
+            box = img.get_rect(midleft=(cx + ipx(r) + 18, cy)).inflate(10, 4)
+            box.clamp_ip(clip)
+        taken.append(box)
+        surf.fill(palette.PANEL, box)
+        pygame.draw.rect(surf, colour, box, 2)
+        surf.blit(img, img.get_rect(center=box.center))
 
     def trail(self, surf, view: View, trail, colour, width: int) -> None:
         """A :class:`~beacon_sim.runs.scene.Trail`'s pieces as polylines ``width`` px wide."""
@@ -579,13 +693,18 @@ class WorldRenderer:
 
     def sensor_discs(self, surf, view: View, sensors, pose) -> None:
         """Each beacon sensor's range (a disc, or a sector for a limited field of view)
-        around ``pose``, tinted under the grid, clipped to the world."""
+        around ``pose``, tinted under the grid, clipped to the world; in a world with walls,
+        cut where the walls hide what lies behind (a sensor with ``occluded_by_walls``)."""
         area_clip = surf.get_clip()
         surf.set_clip(self._world_rect(view).clip(area_clip))
+        grid = getattr(self.last_world, "grid", None)
         for spec in sensors:
             if not math.isfinite(spec.max_range):
                 continue
-            if spec.fov >= 2 * math.pi:
+            walls = grid if getattr(spec, "occluded_by_walls", False) else None
+            if walls is not None:
+                outline = shapes.sensor_outline(pose, spec.fov, spec.max_range, walls)
+            elif spec.fov >= 2 * math.pi:
                 outline = circle(pose[:2], spec.max_range, 96)
             else:
                 outline = shapes.sector(pose, spec.fov, spec.max_range)
@@ -716,7 +835,8 @@ class WorldRenderer:
         for m in readings:
             if m.kind == "range_finder":    # a laser scan: app/map_view.py
                 spec = next((s for s in self.last_world_sensors if s.name == m.sensor), None)
-                map_view.draw_scan(surf, view, pose, m, spec.max_range if spec else math.inf)
+                map_view.draw_scan(surf, view, pose, m, spec.max_range if spec else math.inf,
+                                   grid=getattr(world, "grid", None))
                 continue
             if m.kind in ("pose", "position", *distance_layer.DISTANCE_KINDS):
                 bxy = world.beacon_positions(m.beacon_ids) if len(m.beacon_ids) else np.zeros((0, 2))

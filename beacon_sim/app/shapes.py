@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from beacon_sim.core.raycast import cast_rays
 from beacon_sim.core.types import Measurement
 
 
@@ -54,6 +55,22 @@ def wedge(pose, half_angle: float, radius: float, n: int = 24) -> np.ndarray:
     t = pose[2] + np.linspace(-half_angle, half_angle, n)
     arc = xy + radius * np.stack([np.cos(t), np.sin(t)], 1)
     return np.vstack([xy, arc, xy])
+
+
+def sensor_outline(pose, fov: float, radius: float, grid=None, n: int = 240) -> np.ndarray:
+    """What a sensor of field of view ``fov`` [rad] and range ``radius`` [m] at ``pose`` can
+    reach, as a closed outline [m]: its disc (or sector), cut where a ray from the pose meets
+    a wall of the occupancy grid ``grid`` (beacons behind a wall are not seen; None: no walls).
+    ``n`` rays over the field of view (240: about one every 1.5 degrees)."""
+    xy = np.asarray(pose[:2], dtype=float)
+    full = fov >= 2.0 * math.pi
+    if full:
+        t = pose[2] + np.linspace(-math.pi, math.pi, n, endpoint=False)
+    else:
+        t = pose[2] + np.linspace(-0.5 * fov, 0.5 * fov, max(n * fov / (2.0 * math.pi), 8.0).__ceil__())
+    r = cast_rays(grid, xy, t, radius) if grid is not None else np.full(t.shape, float(radius))
+    arc = xy + r[:, None] * np.stack([np.cos(t), np.sin(t)], 1)
+    return arc if full else np.vstack([xy, arc, xy])
 
 
 def sector(pose, fov: float, radius: float, n: int = 48) -> np.ndarray:

@@ -250,3 +250,51 @@ def test_particles_through_one_flat_index_equal_the_two_index_path():
     drawn = (out[0] != np.array([250, 250, 240])).any(axis=2).sum()
     assert 5000 < drawn < 600 * 400 // 2  # the particles were drawn, the floor shows
     assert np.array_equal(out[0], out[1])
+
+
+def test_the_team_window_keeps_its_worlds_and_its_legends_picture_and_shows_the_present():
+    """A team's world is kept between ticks as a single robot's is (drawn once a tick, not
+    every frame), each frame showing the present or the previous tick's picture; the
+    legend under the world is a kept picture with the pixels of a fresh drawing."""
+    from beacon_sim.core.team_scenario import load_team_scenario
+
+    s = Session(load_team_scenario("team_sparse"), ["independent", "centralised", "ci"])
+    s.toggle_autopilot()
+    app = App(s, (1280, 800), scripted=True)
+    app.smooth = True
+    drawn = []
+    team_phases = app.renderer.team_phases
+
+    def counted(*args, **kwargs):
+        drawn.append(app.frames)
+        return team_phases(*args, **kwargs)
+
+    app.renderer.team_phases = counted
+    try:
+        app.frame(SCRIPTED_FRAME_S)
+        previous = fresh_world(app)
+        stale = 0
+        for _ in range(60):
+            app.frame(SCRIPTED_FRAME_S)
+            present = fresh_world(app)
+            shown = world_pixels(app)
+            if app.world_stale:
+                stale += 1
+                assert app.ticks_this_frame > 0
+                assert np.array_equal(shown, previous)
+            else:
+                assert np.array_equal(shown, present), f"frame {app.frames}"
+                previous = present
+        ticks = app.session.tick_count
+        assert stale >= 5
+        # one drawing a tick (and the first frame's), each fresh_world call aside
+        assert len(drawn) - 61 <= ticks + 1 < 61
+        area = app.legend_area()
+        legend = pygame.Surface(area.size, 0, app.screen)
+        names = [n for n in s.names if s.visible[n]]
+        app.hud._draw_world_legend(legend, legend.get_rect(), names, app.colours, app.dashes,
+                                   app.renderer.lw)
+        assert np.array_equal(pygame.surfarray.array3d(app.screen.subsurface(area)),
+                              pygame.surfarray.array3d(legend))
+    finally:
+        app.close()

@@ -90,3 +90,42 @@ def test_text_and_panel_grow_with_the_window(panel):
     assert small.linesize < big.linesize
     assert small.rect.width < big.rect.width
     assert small.rect.width <= 0.3 * 1024
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1920, 1080)])
+def test_a_long_name_and_a_dozen_missed_beacons_fit_the_panel(size, monkeypatch):
+    """A data set's run (MRCLAM: ``mrclam_Dataset6_robot1``, a dozen landmarks in range and
+    missed at once): the title and the missed list stay inside the panel (they ran past
+    its edge), the list wrapped, not cut."""
+    import dataclasses
+
+    from beacon_sim.app import hud
+
+    drawn = []
+    real = Hud._blit
+
+    def spy(self, surf, text, font, colour, at, bg=None):
+        r = real(self, surf, text, font, colour, at, bg)
+        drawn.append((text, r))
+        return r
+
+    monkeypatch.setattr(Hud, "_blit", spy)
+    missed = list(range(6, 21))
+    monkeypatch.setattr(hud, "missed_ids", lambda *a, **k: set(missed))
+    sc = load_scenario("default")
+    sc = dataclasses.replace(sc, name="mrclam_Dataset6_robot1_with_a_longer_name_still")
+    app = App(Session(sc, ["ekf", "ukf", "dead_reckoning"]), size, scripted=True)
+    try:
+        app.frame(SCRIPTED_FRAME_S)
+        drawn.clear()
+        app.draw()
+        rect = app.panel_rect
+        texts = [(t, r) for t, r in drawn if r.left >= rect.left]
+        for text, r in texts:
+            assert r.right <= rect.right - 4 and r.bottom <= rect.bottom, (size, text, r)
+        said = " ".join(t for t, _ in texts)
+        assert all(f"{i}," in said or said.rstrip().endswith(str(i)) or f" {i} " in f" {said} "
+                   for i in missed), said
+        assert any(t.startswith("mrclam_Dataset6") for t, _ in texts)
+    finally:
+        app.close()

@@ -62,29 +62,32 @@ def record_calls(obj, method, calls):
 
 def test_every_robot_and_each_filters_belief_of_each_robot_are_drawn(app):
     frames(app, 60)  # 1 s: 20 ticks
-    robots, ellipses, tags = [], [], []
+    robots, calls, tags = [], [], []
     record_calls(app.renderer, "robot", robots)
-    record_calls(app.renderer, "uncertainty", ellipses)
+    record_calls(app.renderer, "_ellipses", calls)
     record_calls(app.renderer, "name_tag", tags)
-    frames(app, 1)
+    app.smooth = False  # the world drawn afresh now (the loop keeps its picture between ticks)
+    app.draw()
     s = app.session
     poses = s.poses
     # each true robot once, at its true pose
     assert len(robots) == 3
     for (_, _, pose, _), truth in zip(robots, poses, strict=True):
         assert np.array_equal(pose, truth)
-    # each filter's 95 % ellipse of each robot, at that filter's estimate of it, in its colour
+    # each filter's 95 % ellipse of each robot, at that filter's estimate of it (drawn in
+    # its colour, or in stripes with the filters whose ellipse lies on it)
+    ellipses = [e for c in calls for e in c[2]]
     assert len(ellipses) == len(FILTERS) * 3
     for name in FILTERS:
         means, covs = s.estimates(name)
-        mine = [c for c in ellipses if c[4] == app.colours[name]]
+        mine = [e for e in ellipses if e[0] == name]
         assert len(mine) == 3, name
         for i in range(3):
-            assert any(np.array_equal(c[2], means[i]) and np.array_equal(c[3], covs[i]) for c in mine)
+            assert any(np.array_equal(e[1], means[i]) and np.array_equal(e[2], covs[i]) for e in mine)
     # each robot's name on its tag; only the driven one (scout) marked
     assert [(t[4], t[5]) for t in tags] == [("scout", True), ("relay", False), ("explorer", False)]
     # and on the screen: each filter's colour near the explorer, whose beliefs differ (on
-    # the scout, ci's belief is the independent one's exactly and covers it), and each
+    # the scout, ci's belief is the independent one's exactly: stripes), and each
     # robot's ring in the robot colour
     pix = pygame.surfarray.pixels3d(app.screen)
     try:
@@ -108,7 +111,8 @@ def test_robot_readings_are_drawn_as_dashed_lines_apart_from_beacon_readings(app
     rays, robot_rays = [], []
     record_calls(app.renderer, "rays", rays)
     record_calls(app.renderer, "robot_rays", robot_rays)
-    frames(app, 1)
+    app.smooth = False  # the world drawn afresh now (the loop keeps its picture between ticks)
+    app.draw()
     assert [list(c[4]) for c in rays] == [s.beacon_readings(i) for i in range(3)]
     assert [list(c[4]) for c in robot_rays] == [s.robot_readings(i) for i in range(3)]
     assert all(m.kind.startswith("robot_") for c in robot_rays for m in c[4])

@@ -101,6 +101,32 @@ def test_no_particle_moves_out_of_free_space():
         assert inside_the_symmetric_room(f.poses, f.grid).all(), st.time
 
 
+def test_free_space_is_the_maps_free_cells_the_grid_finds():
+    """The kept table of free cells answers as the map's own cell lookup does, for poses in
+    and around the office (walls, free floor, off the map) and for ones that are not
+    numbers, on a map given at an angle too."""
+    sc = load_scenario("office")
+    rng = np.random.default_rng(41)
+    for yaw in (0.0, 0.3):
+        g = sc.world.grid
+        grid = dataclasses.replace(g, origin=(g.origin[0], g.origin[1], yaw)) if yaw else g
+        world = dataclasses.replace(sc.world, grid=grid)
+        f = build_filter("mcl", dataclasses.replace(sc, world=world), 1,
+                         params={"max_particles": 10, "min_particles": 1})
+        x0, y0, x1, y1 = sc.world.bounds
+        poses = np.column_stack([rng.uniform(x0 - 2, x1 + 2, 20000), rng.uniform(y0 - 2, y1 + 2, 20000),
+                                 rng.uniform(-3, 3, 20000)])
+        poses[:5, 0] = [np.nan, np.inf, -np.inf, 1e300, -1e300]
+        with np.errstate(invalid="ignore"):  # the poses that are not numbers
+            rc = grid.world_to_cell(poses[:, :2])
+            rows, cols = grid.shape
+            want = grid.in_grid(rc) & (grid.cells[np.clip(rc[:, 0], 0, rows - 1),
+                                                  np.clip(rc[:, 1], 0, cols - 1)] == 0)
+            got = f.in_free_space(poses)
+        assert 2000 < int(want.sum()) < 18000  # both answers occur
+        assert np.array_equal(got, want)
+
+
 def test_a_particle_in_a_wall_scores_least():
     grid = from_walls((0, 0, 4, 4), 0.05, segments=[[(0, 0), (4, 0), (4, 4), (0, 4), (0, 0)]],
                       polygons=[[(1.0, 1.0), (2.0, 1.0), (2.0, 2.0), (1.0, 2.0)]])

@@ -165,6 +165,7 @@ class MonteCarloLocalization(FilterBase):
         if free.size == 0:
             raise FilterError("mcl: the map has no free cell")
         self._free_cells = free
+        self._is_free = self.grid.cells.reshape(-1) == 0  # per cell, row by row (in_free_space)
         self._cols = cols
         self.n = 0
         self.poses = np.zeros((0, 3))
@@ -322,12 +323,18 @@ class MonteCarloLocalization(FilterBase):
         return log_beam_likelihood(ranges, expected, params), len(idx)
 
     def in_free_space(self, poses: np.ndarray) -> np.ndarray:
-        """Whether each pose (n, 3) lies in a free cell of the map (off the map: no)."""
-        rc = self.grid.world_to_cell(poses[:, :2])
-        inside = self.grid.in_grid(rc)
+        """Whether each pose (n, 3) lies in a free cell of the map (off the map: no).
+
+        The map's cell of each pose as ``OccupancyGrid.world_to_cell`` finds it (the same
+        floor of the same grid coordinates), looked up in a flat table of the free cells
+        made with the filter (its map never changes): the motion's map prior asks this
+        of every particle on every predict, and of the redrawn ones up to ten times more."""
         rows, cols = self.grid.shape
-        free = self.grid.cells[np.clip(rc[:, 0], 0, rows - 1), np.clip(rc[:, 1], 0, cols - 1)] == 0
-        return inside & free
+        uv = np.floor(self.grid.world_to_grid(poses[:, :2]))
+        u, v = uv[:, 0], uv[:, 1]  # column, row (NaN and any reach off the grid: outside)
+        inside = (v >= 0) & (v < rows) & (u >= 0) & (u < cols)
+        at = np.clip(v, 0, rows - 1) * cols + np.clip(u, 0, cols - 1)
+        return inside & self._is_free[np.nan_to_num(at).astype(np.intp)]
 
     def update(self, measurements: Sequence[Measurement]) -> None:
         """Weight by every scan of the tick, then (every ``resample_interval`` updates)
