@@ -438,7 +438,8 @@ def _range_text(lo: float, hi: float, lo_open: bool = False) -> str:
 # the key it resembles was not written in the file.
 _NOISE_KEYS = {"v_std", "v_frac", "omega_std", "omega_frac", "pose_std"}
 _SENSOR_NOISE_KEYS = {"bearing_std", "range_std", "position_std", "heading_std"}
-#: A range finder's keys (docs/maps.md): beams per scan and the truth's beam model.
+#: A laser scan's keys (a kind whose record has ``scan``; docs/maps.md): beams per scan and the
+#: truth's beam model.
 _RANGE_MODEL_KEYS = ("z_hit", "z_short", "z_max", "z_rand", "sigma_hit", "lambda_short")
 _RANGE_FINDER_KEYS = {"n_beams", *_RANGE_MODEL_KEYS}
 #: Most beams in one scan.
@@ -516,10 +517,10 @@ def _sensor(t: _Table, dt: float) -> SensorSpec:
     if spec.clutter_rate > 0 and kind == "range_bearing" and not math.isfinite(spec.max_range):
         t.fail(t.key("max_range"), spec.max_range, "a finite range when clutter_rate > 0 (clutter "
                                                    "ranges are uniform in [0, max_range])")
-    if kind == "range_finder":
+    if sensor_kind(kind).scan:
         if not math.isfinite(spec.max_range):
             t.fail(t.key("max_range"), t.raw("max_range", "inf"),
-                   "a finite maximum range [m] for a range_finder (its no-return reading)")
+                   f"a finite maximum range [m] for a {kind} (its no-return reading)")
         d = RangeModelParams()
         model = {k: t.number(k, getattr(d, k), lo=0, hi=MAX_STD,
                              lo_open=k in ("sigma_hit", "lambda_short")) for k in _RANGE_MODEL_KEYS}

@@ -35,7 +35,7 @@ from beacon_sim.core.measurement_models import relative_bearing
 from beacon_sim.core.metrics import chi2_quantile
 from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.sensor_kind import MeasurementModel
-from beacon_sim.core.sensor_kinds import beacon_kinds, model_of, sensor_kind
+from beacon_sim.core.sensor_kinds import beacon_kinds, is_scan, model_of, sensor_kind
 from beacon_sim.core.sensors import SensorSpec
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
@@ -391,7 +391,7 @@ class SlotPacker:
         a = 0
         for s in sensors:
             bxy: np.ndarray | None
-            if s.kind == "range_finder":   # a laser scan: no Gaussian slots, unread
+            if is_scan(s.kind):   # a laser scan: no Gaussian slots, unread
                 continue
             if s.kind in BEACON_KINDS:
                 var = [float(v) ** 2 for v in s.reading_std()]
@@ -490,7 +490,7 @@ class SlotPacker:
         fix_var: list[np.ndarray] = []
         for i, measurements in enumerate(runs):
             for m in measurements:
-                if m.kind == "range_finder":   # scans have no slots (the filters ignore them)
+                if is_scan(m.kind):   # scans have no slots (the filters ignore them)
                     continue
                 try:
                     table = self.slots_of[m.sensor]
