@@ -111,12 +111,12 @@ KINDS: dict[str, SensorKind] = {k.name: k for k in (
     SensorKind("position", ("x_m", "y_m"), carries_ids=False, draw=sense, model=PositionFixModel(),
                label="position fix"),
     # A laser scan (docs/maps.md): rows [range, beam angle]; read by the scan filters with
-    # the beam model (no Gaussian model); its keys are read by core/scenario.py.
+    # the beam model (no Gaussian model); its keys are read by core/scenario/parser.py.
     SensorKind("range_finder", ("range_m", "bearing_rad"), carries_ids=False, draw=_sense_scan,
                needs_beacons=False, needs_walls=True, label="laser scan", scan=True),
 )}
 
-#: The kinds with built-in scenario keys of their own (read by core/scenario.py).
+#: The kinds with built-in scenario keys of their own (read by core/scenario/parser.py).
 BUILTIN = tuple(KINDS)
 
 # The distance kinds (docs/distance_beacons.md): each a record in a module of its own,
