@@ -26,9 +26,7 @@ from typing import Any
 from beacon_sim.core.team import TeamSimulation, TeamStep
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S
 from beacon_sim.hosting.team_runner import TeamRunner
-from beacon_sim.io.recording import (
-    Recording,
-)
+from beacon_sim.io.recording import Recording
 from beacon_sim.runs.headless import RunResult
 from beacon_sim.runs.replay_checks import (
     ReplayedTruth,

@@ -18,9 +18,7 @@ from beacon_sim.runs.replay_filters import (
     FilterVerifier,
     ReplayMismatch,
 )
-from beacon_sim.runs.replay_maths import (
-    old_maths_text,
-)
+from beacon_sim.runs.replay_maths import old_maths_text
 
 
 def with_signature(status: str, recording: Recording) -> str:

@@ -26,9 +26,7 @@ from beacon_sim.runs.replay_filters import (
     ReplayMismatch,
     replay_verifier,
 )
-from beacon_sim.runs.replay_maths import (
-    old_maths_text,
-)
+from beacon_sim.runs.replay_maths import old_maths_text
 
 
 def replay_label(path: Path) -> str:

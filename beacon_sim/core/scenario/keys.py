@@ -8,8 +8,6 @@ import re
 
 from beacon_sim.core.sensor_kinds import param_keys
 
-# Every key each table may hold, so that an unknown key gets a "did you mean" even when
-# the key it resembles was not written in the file.
 _NOISE_KEYS = {"v_std", "v_frac", "omega_std", "omega_frac", "pose_std"}
 _SENSOR_NOISE_KEYS = {"bearing_std", "range_std", "position_std", "heading_std"}
 #: A laser scan's keys (a kind whose record has ``scan``; docs/maps.md): beams per scan and the

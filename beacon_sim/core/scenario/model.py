@@ -7,9 +7,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from beacon_sim.core import arguments
-from beacon_sim.core.drivers import (
-    DriverSpec,
-)
+from beacon_sim.core.drivers import DriverSpec
 from beacon_sim.core.events import Event
 from beacon_sim.core.keyboard_drive import KeyboardLimits
 from beacon_sim.core.motion import MotionNoise

@@ -67,9 +67,7 @@ from beacon_sim.filters.gaussian.measurements.readings import (
     model_readings,
     stack,
 )
-from beacon_sim.filters.gaussian.measurements.slots import (
-    SlotPacker,
-)
+from beacon_sim.filters.gaussian.measurements.slots import SlotPacker
 
 __all__ = [
     "ALL_ROWS",
