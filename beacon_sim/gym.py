@@ -33,6 +33,7 @@ except ImportError as exc:  # one line that says what to install
 
 from beacon_sim.core.arguments import check_seed
 from beacon_sim.core.scenario import MAX_TICKS, Scenario, load_scenario
+from beacon_sim.core.sensor_kinds import is_scan
 from beacon_sim.core.types import Control, Step
 from beacon_sim.errors import ArgumentTypeError, UsageError, short_repr
 from beacon_sim.runs.live import Session
@@ -377,7 +378,7 @@ def observation_layout(scenario: Scenario) -> list[tuple[str, str, tuple[str, ..
             out.append((s.name, "beacon", tuple(f.rpartition(".")[2] for f in fields)))
         elif s.kind in DISTANCE_KINDS:
             out.append((s.name, "distance", DISTANCE_SLOT * len(scenario.world.beacons)))
-        elif s.kind == "range_finder":
+        elif is_scan(s.kind):
             out.append((s.name, "scan", (SCAN_FRESH,) + (SCAN_RANGE,) * s.n_beams))
         else:
             out.append((s.name, "fix", FIX_SLOT))
@@ -393,7 +394,7 @@ def observation_names(scenario: Scenario) -> list[str]:
             names += [f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in BEACON_SLOT]
         elif s.kind in DISTANCE_KINDS:
             names += [f"{s.name}.B{b.id}.{f}" for b in scenario.world.beacons for f in DISTANCE_SLOT]
-        elif s.kind == "range_finder":
+        elif is_scan(s.kind):
             names += [f"{s.name}.{SCAN_FRESH}"] + [f"{s.name}.beam{k}.range_m" for k in range(s.n_beams)]
         else:
             names += [f"{s.name}.{f}" for f in FIX_SLOT]

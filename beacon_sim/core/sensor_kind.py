@@ -168,6 +168,12 @@ class SensorKind:
     table_rows : callable or None
         The readings table's rows of a reading (:data:`TableRows`); None: z's rows, each
         with its beacon when ``carries_ids`` (else -1).
+    scan : bool
+        A laser scan: each row is one beam ``[range_m, bearing_rad]`` in the robot frame;
+        the scenario reads its beams (``n_beams``, ``fov``) and beam model keys and wants a
+        finite ``max_range``; the scan filters (mcl, corridor) read it, the Gaussian filters
+        have no slots for it; its Cramer-Rao information comes from the walls
+        (core/scan_jacobian.py); it is drawn as a LaserScan in the exports.
     """
 
     name: str
@@ -181,6 +187,7 @@ class SensorKind:
     label: str = ""
     check: Check | None = None
     table_rows: TableRows | None = None
+    scan: bool = False
 
     def __post_init__(self) -> None:
         if self.model is not None:

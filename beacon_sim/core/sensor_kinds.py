@@ -111,12 +111,12 @@ KINDS: dict[str, SensorKind] = {k.name: k for k in (
     SensorKind("position", ("x_m", "y_m"), carries_ids=False, draw=sense, model=PositionFixModel(),
                label="position fix"),
     # A laser scan (docs/maps.md): rows [range, beam angle]; read by the scan filters with
-    # the beam model (no Gaussian model); its keys are read by core/scenario.py.
+    # the beam model (no Gaussian model); its keys are read by core/scenario/parser.py.
     SensorKind("range_finder", ("range_m", "bearing_rad"), carries_ids=False, draw=_sense_scan,
-               needs_beacons=False, needs_walls=True, label="laser scan"),
+               needs_beacons=False, needs_walls=True, label="laser scan", scan=True),
 )}
 
-#: The kinds with built-in scenario keys of their own (read by core/scenario.py).
+#: The kinds with built-in scenario keys of their own (read by core/scenario/parser.py).
 BUILTIN = tuple(KINDS)
 
 # The distance kinds (docs/distance_beacons.md): each a record in a module of its own,
@@ -173,6 +173,18 @@ def names_beacons(name: str) -> bool:
     return True if kind is None else kind.carries_ids
 
 
+def is_scan(name: str) -> bool:
+    """Whether kind ``name`` is a laser scan (:attr:`SensorKind.scan`; a kind not registered
+    here is not)."""
+    kind = KINDS.get(name)
+    return kind is not None and kind.scan
+
+
+def scan_sensors(sensors: Iterable[SensorSpec]) -> tuple[str, ...]:
+    """The names of the ``sensors`` whose kind is a laser scan, in order."""
+    return tuple(s.name for s in sensors if is_scan(s.kind))
+
+
 def table_rows(m: Measurement) -> tuple[np.ndarray, np.ndarray]:
     """The readings table's rows of ``m`` (its kind's :meth:`SensorKind.rows`): the beacon ID
     of each row (-1: none) and the rows of values; a kind not registered here names a beacon
@@ -198,5 +210,5 @@ def value_columns() -> tuple[str, ...]:
 
 __all__ = ["BUILTIN", "KINDS", "BearingModel", "KindParam", "MeasurementModel", "PoseFixModel",
            "PositionFixModel", "RangeBearingModel", "SensorKind", "beacon_kinds", "dims", "draw",
-           "kind_names", "model_of", "names_beacons", "param_keys", "register_kind", "sensor_kind",
-           "table_rows", "value_columns"]
+           "is_scan", "kind_names", "model_of", "names_beacons", "param_keys", "register_kind",
+           "scan_sensors", "sensor_kind", "table_rows", "value_columns"]

@@ -175,9 +175,9 @@ def sense(
 
     Beacon sensors return one row per detected beacon (None when none is detected); fixes
     return a single row when at least ``min_beacons`` beacons are detected.
+    The draw of the built-in beacon and fix kinds (bearing, range_bearing, pose, position);
+    a laser scan is drawn by :func:`sense_scan` (its kind's record, core/sensor_kinds.py).
     """
-    if spec.kind == "range_finder":
-        return sense_scan(spec, pose, world, rng)
     n = len(world.beacons)
     d = MEASUREMENT_DIMS[spec.kind]
     # Fixed-size draws: the stream advances the same way whatever is seen.

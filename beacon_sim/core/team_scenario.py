@@ -18,7 +18,7 @@ and, instead of ``[robot]``, ``[[sensors]]``, ``[driver]``, ``[initial_belief]``
     kind = "robot_range_bearing"   # or "robot_bearing": sees the other robots
     name, period, max_range, fov, detection_prob, range_std, bearing_std
 
-Each robot is validated by the single-robot parser (``core/scenario.py``) on a document
+Each robot is validated by the single-robot parser (``core/scenario/``) on a document
 made of the shared keys and that robot's keys, so every check and message is the same;
 the key paths in messages are rewritten to ``robots[i]....``. A single-robot file is not
 touched by any of this (``load_scenario`` rejects ``robots``).
@@ -38,11 +38,11 @@ from beacon_sim.core.scenario import (
     MAX_TICKS,
     Scenario,
     ScenarioError,
-    _sensor_noise,
-    _Table,
+    Table,
     parse_scenario,
     read_toml,
     resolve_scenario_path,
+    sensor_noise,
 )
 from beacon_sim.core.sensors import SensorNoise
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS
@@ -138,7 +138,7 @@ def is_team_document(data: Any) -> bool:
     return isinstance(data, dict) and "robots" in data
 
 
-def _robot_sensor(t: _Table, dt: float) -> RobotSensorSpec:
+def _robot_sensor(t: Table, dt: float) -> RobotSensorSpec:
     kind = t.string("kind", choices=tuple(ROBOT_MEASUREMENT_DIMS))
     name = t.string("name", kind)
     period = t.number("period", dt, lo=0, hi=MAX_TICKS * dt, lo_open=True)
@@ -150,7 +150,7 @@ def _robot_sensor(t: _Table, dt: float) -> RobotSensorSpec:
         max_range=t.number("max_range", math.inf, lo=0, hi=1e6, lo_open=True, allow_inf=True),
         fov=t.number("fov", 2 * math.pi, lo=0, hi=2 * math.pi, lo_open=True),
         detection_prob=t.number("detection_prob", 1.0, lo=0, hi=1),
-        noise=_sensor_noise(t, SensorNoise()),
+        noise=sensor_noise(t, SensorNoise()),
     )
     t.finish()
     return spec
@@ -212,7 +212,7 @@ def parse_team_scenario(data: dict[str, Any], file: str, name: str = "") -> Team
         bad = [k for k in rd if k not in ROBOT_KEYS]
         if bad:
             raise ScenarioError(f"{file}: unknown key '{path}.{bad[0]}'")
-        t = _Table(rd, path, file)
+        t = Table(rd, path, file)
         rname = t.string("name", f"robot{i + 1}")
         rid = t.integer("id", i + 1, lo=1, hi=2**31 - 1)
         if rname in names:
@@ -228,7 +228,7 @@ def parse_team_scenario(data: dict[str, Any], file: str, name: str = "") -> Team
         beacon_sensors = [s for s in sensors if not str(s.get("kind", "")).startswith("robot_")]
         sensor_index = [k for k, s in enumerate(sensors) if not str(s.get("kind", "")).startswith("robot_")]
         dt = float(shared.get("dt", 0.1)) if isinstance(shared.get("dt", 0.1), int | float) else 0.1
-        robot_sensors = tuple(_robot_sensor(_Table(s, f"{path}.sensors[{k}]", file), dt)
+        robot_sensors = tuple(_robot_sensor(Table(s, f"{path}.sensors[{k}]", file), dt)
                               for k, s in enumerate(sensors) if str(s.get("kind", "")).startswith("robot_"))
         model = dict(rd.get("model", {})) if isinstance(rd.get("model", {}), dict) else rd.get("model")
         model_robot: list[RobotSensorSpec] = []
@@ -236,8 +236,8 @@ def parse_team_scenario(data: dict[str, Any], file: str, name: str = "") -> Team
             ms = dict(model["sensors"])
             for rs in robot_sensors:
                 if rs.name in ms:
-                    st = _Table(ms.pop(rs.name), f"{path}.model.sensors.{rs.name}", file)
-                    model_robot.append(replace(rs, noise=_sensor_noise(st, rs.noise)))
+                    st = Table(ms.pop(rs.name), f"{path}.model.sensors.{rs.name}", file)
+                    model_robot.append(replace(rs, noise=sensor_noise(st, rs.noise)))
                     st.finish()
                 else:
                     model_robot.append(rs)

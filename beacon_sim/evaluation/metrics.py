@@ -156,7 +156,7 @@ def nis_batch(records, prior_means: np.ndarray, prior_covs: np.ndarray,
             if m.kind in ("bearing", "range_bearing") and len(m) and m.beacon_ids[0] < 0:
                 continue  # no beacon ID (unknown correspondence): no model to test
             if m.kind not in groups:
-                continue  # a scan (range_finder): no Gaussian reading model to test
+                continue  # a laser scan: no Gaussian reading model to test
             groups[m.kind].append((j, m))
     tick, nu, H, var = [], [], [], []
 

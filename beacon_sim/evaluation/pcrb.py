@@ -55,7 +55,7 @@ from beacon_sim.core.raycast import beam_angles
 from beacon_sim.core.scan_jacobian import scan_information
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.schedule import TickSchedule, tick_schedule
-from beacon_sim.core.sensor_kinds import model_of
+from beacon_sim.core.sensor_kinds import is_scan, model_of
 from beacon_sim.core.sensors import SensorSpec, in_view, visible_mask
 from beacon_sim.core.team_models import relative_range_bearing, relative_rows
 from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario, as_team
@@ -85,7 +85,7 @@ def measurement_information(spec: SensorSpec, poses: np.ndarray, bxy: np.ndarray
     (``sensors.visible_mask``, the simulation's visibility). Without it beacons are seen
     through everything and a range finder is refused."""
     R = poses.shape[0]
-    if spec.kind == "range_finder":
+    if is_scan(spec.kind):
         if world is None:
             raise ValueError("a range finder's information needs the world (its walls)")
         model = spec.range_model if spec.range_model is not None else \

@@ -68,7 +68,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.optional import install_hint
 from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.sensor_kinds import names_beacons
+from beacon_sim.core.sensor_kinds import is_scan, names_beacons, scan_sensors
 from beacon_sim.filters.base import GridBelief, LandmarkMap, ParticleBelief
 from beacon_sim.io.tables import COV_COLUMNS, UPPER
 
@@ -261,7 +261,7 @@ class Publisher:
         self.dt_ns = round(scenario.dt * 1e9)
         self.periods_ns = {s.name: round(s.period * 1e9) for s in scenario.sensors}
         self.beacons = {b.id: (b.x, b.y) for b in scenario.world.beacons}
-        self.scanners = [s.name for s in scenario.sensors if s.kind == "range_finder"]
+        self.scanners = list(scan_sensors(scenario.sensors))
         self._channels: dict[str, Any] = {}
         self._trails: dict[str, list[tuple[float, float]]] = {}
         self._trail_start: dict[str, int] = {}
@@ -297,7 +297,7 @@ class Publisher:
             self.channel(f"/filters/{name}/pose", "PoseInFrame")
             self.channel(f"/filters/{name}/scene", "SceneUpdate")
             self.channel(f"/filters/{name}/stats", "stats")
-        if any(s.kind != "range_finder" for s in self.scenario.sensors):
+        if any(not is_scan(s.kind) for s in self.scenario.sensors):
             self.channel("/readings/values", "readings")
         if frame is not None:
             for name in frame.particles:
@@ -452,7 +452,7 @@ class Publisher:
         scans: dict[str, list] = {}
         others = []
         for row in readings:
-            if row[1] == "range_finder":
+            if is_scan(row[1]):
                 scans.setdefault(row[0], []).append(row[2])
             else:
                 others.append(row)

@@ -53,6 +53,7 @@ from beacon_sim.core.motion import move
 from beacon_sim.core.optional import install_hint
 from beacon_sim.core.raycast import beam_angles
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensor_kinds import scan_sensors
 from beacon_sim.errors import BeaconSimError
 from beacon_sim.io.tables import prefixed, reading_matrix, upgrade_arrays
 
@@ -280,7 +281,7 @@ def _scans(a: Mapping[str, np.ndarray], scenario: Scenario) -> dict[int, list[tu
     """Each tick's range finder scans: ``tick -> [(sensor, rows [range, bearing])]``."""
     readings = prefixed(a, "readings")
     z = reading_matrix(readings)
-    scanners = {s.name for s in scenario.sensors if s.kind == "range_finder"}
+    scanners = set(scan_sensors(scenario.sensors))
     rows: dict[tuple[int, str], list[np.ndarray]] = {}
     for j, (k, sensor) in enumerate(zip(readings["tick"], readings["sensor"], strict=True)):
         if str(sensor) in scanners:

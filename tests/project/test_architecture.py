@@ -110,8 +110,7 @@ HOMES = {
                            "filters/gaussian/ukf.py"}),
 }
 #: Private names imported from another module today (the owners' files; none may be added).
-KNOWN_PRIVATE_IMPORTS = {("core/batch_simulation.py", "_kidnap_text"),
-                         ("core/team_scenario.py", "_sensor_noise"), ("core/team_scenario.py", "_Table")}
+KNOWN_PRIVATE_IMPORTS = {("core/batch_simulation.py", "_kidnap_text")}
 
 
 def _code_lines(path: Path):

@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from beacon_sim.core.sensor_kinds import is_scan
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, GridBelief
 
@@ -181,7 +182,7 @@ class CorridorFilter(FilterBase):
             self._pending_sense = True
 
     def update(self, measurements: Sequence[Measurement]) -> None:
-        scans = [m for m in measurements if m.kind == "range_finder" and len(m)]
+        scans = [m for m in measurements if is_scan(m.kind) and len(m)]
         if scans and self._pending_sense:
             self.last_reading = walls_seen(scans[-1], self.params["wall_dist"])
             self.bel = self.corridor.sense(self.bel, self.last_reading)

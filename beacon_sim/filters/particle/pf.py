@@ -47,46 +47,28 @@ from beacon_sim.core.sensor_kinds import model_of
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters import association
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
+from beacon_sim.filters.particle.fast_calls import clip as _clip
+from beacon_sim.filters.particle.fast_calls import eigh3 as _eigh
+from beacon_sim.filters.particle.fast_calls import reduce_any as _any
+from beacon_sim.filters.particle.fast_calls import reduce_max as _max
+from beacon_sim.filters.particle.fast_calls import reduce_sum as _sum
+from beacon_sim.filters.particle.log_weights import ess as _ess
+from beacon_sim.filters.particle.log_weights import logsumexp_inplace as _logsumexp_inplace
+from beacon_sim.filters.particle.log_weights import logsumexp_into as _logsumexp_into
+from beacon_sim.filters.particle.log_weights import plus as _plus
+from beacon_sim.filters.particle.log_weights import scaled_sum as _scaled_sum
+from beacon_sim.filters.particle.pose_stats import TWO_PI, weighted_pose_stats
 from beacon_sim.filters.resampling import RESAMPLERS, resample
 
-TWO_PI = 2.0 * math.pi
+#: Fewer effective particles than this after an update: the weight has collapsed
+#: (see ``ParticleFilter._collapse_floor``).
+COLLAPSE_ESS = 5.0
 
+#: ``lost`` from which the covariance admits being lost, with no declared outliers: an
+#: unexplained reading in the last four ticks with readings at the default ``alpha_fast``.
+LOST_AT = 0.1
 
-def _find_clip():
-    """The ufunc ``np.clip`` ends in (its Python layers cost ~3 us a call on small arrays);
-    absent: ``np.clip`` itself. The same values either way."""
-    core = getattr(np, "_core", None) or getattr(np, "core", None)
-    return getattr(getattr(core, "umath", None), "clip", None) or np.clip
-
-
-_clip = _find_clip()
-# The reductions behind ndarray.max / sum and np.max / np.sum, called directly: the same
-# results without their Python layers (1-1.5 us a call, a few per step).
-_max = np.maximum.reduce
-_min = np.minimum.reduce
-_sum = np.add.reduce
-_any = np.logical_or.reduce
-
-
-def _find_eigh():
-    """The gufunc ``np.linalg.eigh`` calls for a real array (``UPLO="L"``); absent: None."""
-    ul = getattr(np.linalg, "_umath_linalg", None)
-    return getattr(ul, "eigh_lo", None)
-
-
-_EIGH_LO = _find_eigh()
-
-
-def _eigh(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``np.linalg.eigh(a)`` of a float64 3x3 ``a``: the same LAPACK call and results without
-    its Python layers (~7 us of a ~12 us call). Non-finite entries take ``np.linalg.eigh``
-    itself (its LinAlgError); a finite symmetric 3x3 always converges."""
-    r0, r1, r2 = a.tolist()
-    if _EIGH_LO is None or not math.isfinite(sum(r0) + sum(r1) + sum(r2)):
-        vals, vecs = np.linalg.eigh(a)
-        return vals, vecs
-    vals, vecs = _EIGH_LO(a, signature="d->dd")
-    return vals, vecs
+_MAX_STAGES = 8   # progressive correction: the last stage takes what is left of the likelihood
 
 
 def _unlabeled(m: Measurement) -> bool:
@@ -918,142 +900,4 @@ class ParticleFilter(FilterBase):
         return views
 
 
-def weighted_pose_stats(P: np.ndarray, w: np.ndarray, work: np.ndarray | None = None,
-                        trig: tuple[np.ndarray, np.ndarray] | None = None
-                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and covariance of weighted poses.
-
-    Parameters
-    ----------
-    P : ndarray, shape (3, n) [m, m, rad]
-        Rows x, y, theta (float32 or float64; sums are done in that precision).
-    w : ndarray, shape (n,)
-        Normalised weights.
-    work : ndarray, shape (>= 4, >= n), optional
-        Scratch space of P's dtype, to avoid allocating.
-    trig : (ndarray, ndarray), optional
-        ``sin`` and ``cos`` of the headings ``P[2]`` (P's dtype), when already at hand.
-
-    Returns
-    -------
-    mean : ndarray (3,)
-        Weighted mean position and circular mean heading.
-    cov : ndarray (3, 3)
-        ``sum w e e^T`` with the heading residual wrapped to [-pi, pi).
-    """
-    n = P.shape[1]
-    if work is None:
-        work = np.empty((4, n), dtype=P.dtype)
-    E = work[:3, :n]
-    wt = work[3, :n]
-    wt[:] = w
-    mx = float(np.dot(wt, P[0]))
-    my = float(np.dot(wt, P[1]))
-    if trig is None:
-        trig = np.sin(P[2], out=E[0]), np.cos(P[2], out=E[1])
-    mth = wrap(math.atan2(float(np.dot(wt, trig[0])), float(np.dot(wt, trig[1]))))
-    np.subtract(P[0], mx, out=E[0])
-    np.subtract(P[1], my, out=E[1])
-    e = E[2]
-    np.subtract(P[2], mth, out=e)            # in (-2 pi, 2 pi): wrap by at most one turn
-    # rarely: test first (the largest and the smallest, one call each; a NaN takes the full
-    # test), wrap only then
-    if not _max(e) < math.pi and _any(np.greater_equal(e, math.pi)):
-        np.subtract(e, TWO_PI, out=e, where=e >= math.pi)
-    if not _min(e) >= -math.pi and _any(np.less(e, -math.pi)):
-        np.add(e, TWO_PI, out=e, where=e < -math.pi)
-    WE = np.multiply(E, wt)
-    # 0.5 (C + C^T) in float64 on the entries (exactly numpy's operations: the float32
-    # entries are floats exactly, a + b == b + a, and 0.5 (a + a) == a), without three small
-    # arrays' calls
-    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = (WE @ E.T).tolist()
-    s01, s02, s12 = 0.5 * (a01 + a10), 0.5 * (a02 + a20), 0.5 * (a12 + a21)
-    a00, a11, a22 = 0.5 * (a00 + a00), 0.5 * (a11 + a11), 0.5 * (a22 + a22)
-    cov = np.array([[a00, s01, s02], [s01, a11, s12], [s02, s12, a22]])
-    if _above_entries(a00, s01, s02, a11, s12, a22, 1e-12):  # every eigenvalue above the clip
-        return np.array([mx, my, mth]), cov
-    # float32 sums can leave a tiny negative eigenvalue when the set has collapsed: clip.
-    vals, vecs = _eigh(cov)
-    cov = (vecs * np.maximum(vals, 1e-12)) @ vecs.T
-    cov = 0.5 * (cov + cov.T)
-    return np.array([mx, my, mth]), cov
-
-
-def _above(cov: np.ndarray, floor: float) -> bool:
-    """True when the symmetric 3x3 ``cov - floor I`` is positive definite (its Cholesky
-    pivots on floats are positive), i.e. every eigenvalue of cov exceeds ``floor``: then the
-    eigenvalue clip of :func:`weighted_pose_stats` is the identity, and an eigen-decomposition
-    (~50 us) is not needed."""
-    (a00, a01, a02), (_, a11, a12), (_, _, a22) = cov.tolist()
-    return _above_entries(a00, a01, a02, a11, a12, a22, floor)
-
-
-def _above_entries(a00: float, a01: float, a02: float, a11: float, a12: float, a22: float,
-                   floor: float) -> bool:
-    """:func:`_above` of the symmetric 3x3 with these upper-triangle entries."""
-    a00 -= floor
-    if not a00 > 0.0:
-        return False
-    l10, l20 = a01 / a00, a02 / a00
-    p1 = a11 - floor - l10 * a01
-    if not p1 > 0.0:
-        return False
-    q = a12 - l20 * a01
-    return a22 - floor - l20 * a02 - q * q / p1 > 0.0
-
-
-#: Fewer effective particles than this after an update: the weight has collapsed
-#: (see ``ParticleFilter._collapse_floor``).
-COLLAPSE_ESS = 5.0
-
-#: ``lost`` from which the covariance admits being lost, with no declared outliers: an
-#: unexplained reading in the last four ticks with readings at the default ``alpha_fast``.
-LOST_AT = 0.1
-
-_MAX_STAGES = 8   # progressive correction: the last stage takes what is left of the likelihood
-
-
-def _ess(logw: np.ndarray, out: np.ndarray | None = None) -> float:
-    """Effective sample size ``(sum w)^2 / sum w^2`` of unnormalised log-weights (n,);
-    ``out`` (n,) float64 scratch (may be ``logw`` itself) saves the allocations."""
-    w = np.subtract(logw, float(_max(logw)), out=out)
-    np.exp(w, out=w)
-    return float(_sum(w) ** 2 / np.dot(w, w))
-
-
-def _scaled_sum(logw: np.ndarray, lam: float, total: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """``logw + lam * total`` into ``out`` (the same operations, no allocation)."""
-    np.multiply(total, lam, out=out)
-    out += logw
-    return out
-
-
-def _plus(logw: np.ndarray, ll: np.ndarray, extra: np.ndarray | None, out: np.ndarray) -> np.ndarray:
-    """``logw + ll (+ extra)`` into ``out``."""
-    np.add(logw, ll, out=out)
-    if extra is not None:
-        out += extra
-    return out
-
-
-def _logsumexp_into(a: np.ndarray, out: np.ndarray) -> float:
-    """log(sum(exp(a))), with ``out`` (like ``a``) as scratch: :func:`_logsumexp_inplace` of a
-    copy of ``a``, without the copy (the same operations on the same values)."""
-    m = float(_max(a))
-    if not math.isfinite(m):
-        return m
-    np.subtract(a, m, out=out)
-    np.maximum(out, -700.0, out=out)
-    np.exp(out, out=out)
-    return m + math.log(float(_sum(out)))
-
-
-def _logsumexp_inplace(a: np.ndarray) -> float:
-    """log(sum(exp(a))), using ``a`` as scratch (it is overwritten)."""
-    m = float(_max(a))
-    if not math.isfinite(m):
-        return m
-    a -= m
-    np.maximum(a, -700.0, out=a)   # exp of values below -745 underflows on a 10x slower path
-    np.exp(a, out=a)
-    return m + math.log(float(_sum(a)))
+__all__ = ["COLLAPSE_ESS", "LOST_AT", "TWO_PI", "ParticleFilter", "weighted_pose_stats"]
