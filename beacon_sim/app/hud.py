@@ -12,6 +12,7 @@ from beacon_sim.app import association_layer, controls, palette
 from beacon_sim.app.render import ELLIPSE_LEVEL, ELLIPSE_SCALE2, missed_ids, polyline, sensors_read
 from beacon_sim.core import sensor_kinds
 from beacon_sim.core.clutter import UNKNOWN_ID
+from beacon_sim.core.sensor_kinds import is_scan, scan_sensors
 from beacon_sim.runs.scene import NEES_WINDOW_BAND, NEES_WINDOW_S, Scene
 
 
@@ -104,7 +105,7 @@ class Hud:
         y = self.title_and_clock(surf, x, w, y, session.scenario.name, session.time, info)
         y = self.command(surf, x, y, session.next_control(), session.drive_mode)
         world = session.scenario.world
-        scanning = any(s.kind == "range_finder" for s in session.scenario.sensors)
+        scanning = bool(scan_sensors(session.scenario.sensors))
         if scanning:  # a map world: what the range finder senses
             beams, hits = scan_in_view(session)
             text = f"scan: {hits} of {beams} beams hit" if beams else "scan: none yet"
@@ -647,7 +648,7 @@ def scan_in_view(session) -> tuple[int, int]:
     spec = {s.name: s for s in session.scenario.sensors}
     beams = hits = 0
     for m in session.readings():
-        if m.kind != "range_finder":
+        if not is_scan(m.kind):
             continue
         r = np.asarray(m.z, dtype=float)[:, 0]
         beams += len(r)

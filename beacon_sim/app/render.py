@@ -17,6 +17,7 @@ from beacon_sim.app import association_layer, distance_layer, map_view, palette,
 from beacon_sim.app.map_layer import MapLayer
 from beacon_sim.core.geometry import CHI2_2DOF, circle, covariance_ellipse
 from beacon_sim.core.schedule import period_ticks
+from beacon_sim.core.sensor_kinds import is_scan
 from beacon_sim.core.sensors import visible_beacons
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import GridBelief, ParticleBelief
@@ -833,7 +834,7 @@ class WorldRenderer:
         range, with a cross at its end; a bearing alone runs to the world's edge)."""
         far = 2.0 * math.hypot(world.width, world.height)
         for m in readings:
-            if m.kind == "range_finder":    # a laser scan: app/map_view.py
+            if is_scan(m.kind):    # a laser scan: app/map_view.py
                 spec = next((s for s in self.last_world_sensors if s.name == m.sensor), None)
                 map_view.draw_scan(surf, view, pose, m, spec.max_range if spec else math.inf,
                                    grid=getattr(world, "grid", None))

@@ -39,6 +39,7 @@ import numpy as np
 
 from beacon_sim.core.metrics import pose_errors
 from beacon_sim.core.scenario import Scenario, load_scenario
+from beacon_sim.core.sensor_kinds import scan_sensors
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.streams import keyed_global_seed, keyed_stream, run_key
 from beacon_sim.filters.base import FilterContext, FilterError
@@ -520,7 +521,7 @@ def cost_peer(scenario: Scenario, mapping: bool = False) -> str:
     a range finder, else ``ekf``): a ratio to a filter with another task says nothing."""
     if mapping or not scenario.map_known:
         return "ekf_slam"
-    if any(s.kind == "range_finder" for s in scenario.sensors):
+    if scan_sensors(scenario.sensors):
         return "mcl"
     return "ekf"
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from beacon_sim.core.metrics import anees_band
 from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.sensor_kinds import scan_sensors
 from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.evaluation.grading.config import GradeConfig
 from beacon_sim.evaluation.grading.roster import Student
@@ -200,7 +201,7 @@ def score_slam_reference(sims: list[SimulatedRun], names: list[str]) -> dict[str
 def is_scan_scenario(sc: Scenario | TeamScenario) -> bool:
     """A single-robot map world (walls) with a range finder: a scan-based assignment."""
     return (isinstance(sc, Scenario) and sc.world.grid is not None
-            and any(s.kind == "range_finder" for s in sc.model_sensors))
+            and bool(scan_sensors(sc.model_sensors)))
 
 
 def score_scan_reference(scenarios: dict[str, Scenario | TeamScenario], names: list[str],

@@ -51,6 +51,7 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.beam_model import LikelihoodField, RangeModelParams, log_beam_likelihood
 from beacon_sim.core.occupancy import OccupancyGrid
 from beacon_sim.core.raycast import expected_ranges
+from beacon_sim.core.sensor_kinds import is_scan
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterBase, FilterContext, FilterError, GaussianBelief, ParticleBelief
 from beacon_sim.filters.particle.pf import weighted_pose_stats
@@ -339,7 +340,7 @@ class MonteCarloLocalization(FilterBase):
     def update(self, measurements: Sequence[Measurement]) -> None:
         """Weight by every scan of the tick, then (every ``resample_interval`` updates)
         resample with KLD-sampling and augmented-MCL random particles."""
-        scans = [m for m in measurements if m.kind == "range_finder" and len(m)]
+        scans = [m for m in measurements if is_scan(m.kind) and len(m)]
         if not scans:
             return
         p = self.params
