@@ -206,6 +206,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a SLAM filter that maps the beacons itself (docs/slam.md)")
     p.add_argument("--scan", action="store_true",
                    help="a particle filter on laser scans and an occupancy grid (docs/maps.md)")
+    p.add_argument("--gauss-newton", action="store_true",
+                   help="a graph SLAM solver's Gauss-Newton step, for `graph --solver` (docs/smoothing.md)")
     return parser
 
 

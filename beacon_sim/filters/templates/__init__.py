@@ -10,7 +10,10 @@
   newly seen beacon on its map, with a TODO that turns it into EKF-SLAM (docs/slam.md);
 - ``my_scan.py`` (``--scan``): a small Monte Carlo localization weighting its particles by a
   laser scan with the map's likelihood field, with TODOs towards the built-in ``mcl``
-  (docs/maps.md).
+  (docs/maps.md);
+- ``my_gauss_newton.py`` (``--gauss-newton``): a graph SLAM solver whose step builds the
+  normal equations edge by edge and walks down the gradient, with a TODO that makes it the
+  built-in Gauss-Newton step (``beacon-sim graph --solver``; docs/smoothing.md).
 
 Being modules, they are read by ruff, mypy and the import contracts as the rest of the
 package is, and what a student gets is exactly what is checked (tests/test_filter_families.py).
@@ -25,7 +28,8 @@ from pathlib import Path
 
 #: Each kind of template: its module, whose class and file names are the ones replaced.
 TEMPLATES = {"filter": ("my_filter", "MyFilter"), "team": ("my_team", "MyTeam"),
-             "slam": ("my_slam", "MySlam"), "scan": ("my_scan", "MyScan")}
+             "slam": ("my_slam", "MySlam"), "scan": ("my_scan", "MyScan"),
+             "gauss_newton": ("my_gauss_newton", "MyGaussNewton")}
 
 
 def source(kind: str) -> str:
@@ -66,6 +70,11 @@ def render_scan_template(class_name: str, file_name: str) -> str:
     return render("scan", class_name, file_name)
 
 
+def render_gauss_newton_template(class_name: str, file_name: str) -> str:
+    """The Gauss-Newton template's text for ``class_name`` in a file named ``file_name``."""
+    return render("gauss_newton", class_name, file_name)
+
+
 def class_name_for(path: Path) -> str:
     """``my_filter.py`` -> ``MyFilter``; a name that is not an identifier -> ``MyFilter``."""
     words = [w for w in re.split(r"[^0-9A-Za-z]+", path.stem) if w]
@@ -75,5 +84,6 @@ def class_name_for(path: Path) -> str:
     return name
 
 
-__all__ = ["TEMPLATES", "class_name_for", "render", "render_scan_template", "render_slam_template",
+__all__ = ["TEMPLATES", "class_name_for", "render", "render_gauss_newton_template", "render_scan_template",
+           "render_slam_template",
            "render_team_template", "render_template", "source"]
