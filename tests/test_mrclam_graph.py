@@ -101,3 +101,32 @@ def test_graph_without_slam_or_barcodes_is_a_one_line_error(synthetic, capsys, e
 def test_run_refuses_graph_without_slam(synthetic):
     with pytest.raises(MrclamError, match="--graph"):
         run_mrclam(load_mrclam(synthetic, 1), ["ekf"], graph=True)
+
+
+def test_delayed_commands_shift_the_odometry_and_hold_the_first_command(synthetic):
+    from beacon_sim.runs.mrclam.graph_slam import delayed, recorded_steps
+    from beacon_sim.runs.mrclam.runners import run_span
+
+    d = load_mrclam(synthetic, 1)
+    assert delayed(d, 0.0) is d
+    late = delayed(d, 0.2)
+    np.testing.assert_array_equal(late.odometry[1:, 0], d.odometry[:, 0] + 0.2)
+    np.testing.assert_array_equal(late.odometry[0], d.odometry[0])
+    t0, t1 = run_span([d], 10.0)
+    cal = calibration_for_self(d)
+    now, later = recorded_steps(d, cal, t0, t1), recorded_steps(d, cal, t0, t1, 0.2)
+    # each command starts 0.2 s later: the turn commanded up to a time is the undelayed one 0.2 s earlier
+
+    def turn(steps, t):
+        return sum(s.control.omega * s.dt for s in steps if s.time <= t + 1e-9)
+
+    grid = np.arange(1.0, 9.0, 0.25)  # turns from 1 s on (the first command is held 0.2 s longer)
+    shifted = max(abs(turn(later, t) - turn(later, 1.0) - turn(now, t - 0.2) + turn(now, 0.8)) for t in grid)
+    unshifted = max(abs(turn(later, t) - turn(later, 1.0) - turn(now, t) + turn(now, 1.0)) for t in grid)
+    assert shifted < 0.01 < unshifted, (shifted, unshifted)
+
+
+def calibration_for_self(d):
+    from beacon_sim.runs.mrclam import calibration_for
+
+    return calibration_for(d, "self")
