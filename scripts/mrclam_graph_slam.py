@@ -4,6 +4,7 @@ tables), the pose ANEES (the graph's marginals), the final map's GOSPA against t
 (c = 1 m), the GOSPA after a rigid fit and the turn that fit needs, and the readings dropped.
 
 Usage: python scripts/mrclam_graph_slam.py [DIR] [--command-delay S] [--robots 1,2,3,4,5]
+[--no-pose-covariances] (without the poses' marginals, most of the CPU: no ANEES then)
 (DIR: a data set folder, default where BEACON_SIM_MRCLAM says; the noise leave-one-robot-out,
 as ``beacon-sim mrclam DIR --robot N --slam --graph``, whose graph_slam row this is).
 """
@@ -33,6 +34,7 @@ def main() -> None:
     ap.add_argument("dir", nargs="?")
     ap.add_argument("--command-delay", type=float, default=0.0, metavar="S")
     ap.add_argument("--robots", default=",".join(str(r) for r in ROBOT_SUBJECTS))
+    ap.add_argument("--no-pose-covariances", action="store_true")
     args = ap.parse_args()
     folder = find_dataset(args.dir)
     print(f"graph SLAM on {folder.name}, commands delayed {args.command_delay:g} s")
@@ -43,7 +45,8 @@ def main() -> None:
         c0 = time.process_time()
         data = load_mrclam(folder, robot)
         t0, t1 = run_span([data], None)
-        tr, _ = graph_slam_track(data, calibration_for(data, "others", t1), t0, t1, args.command_delay)
+        tr, _ = graph_slam_track(data, calibration_for(data, "others", t1), t0, t1, args.command_delay,
+                                 not args.no_pose_covariances)
         truth, ok = data.truth_at(tr.times)
         e = pose_errors(tr.means[ok], truth[ok])
         t = tr.times[ok]
@@ -52,13 +55,13 @@ def main() -> None:
         keep = cnt > 0
         sq = np.bincount(blk, e[:, 0] ** 2 + e[:, 1] ** 2)[keep]
         ate = math.sqrt(sq.sum() / cnt[keep].sum())
-        anees = float(np.mean(nees_or_inf(e, tr.covs[ok])))
+        anees = ("-" if args.no_pose_covariances else f"{np.mean(nees_or_inf(e, tr.covs[ok])):.2f}")
         lm = tr.filter.landmarks()
         ids = np.array(sorted(k for k in data.landmarks if k not in ROBOT_SUBJECTS))
         xy = np.array([data.landmarks[k] for k in ids])
         shape, turn = aligned_gospa(lm.means, xy, lm.ids, ids)
         g = gospa(lm.means, xy, c=GOSPA_CUTOFF_M).value
-        print(f"| {robot} | {ate:.3f} {text(ratio_of_sums(sq, cnt[keep], sqrt=True), '.3f')} | {anees:.2f} "
+        print(f"| {robot} | {ate:.3f} {text(ratio_of_sums(sq, cnt[keep], sqrt=True), '.3f')} | {anees} "
               f"| {g:.3f} | {shape:.3f} ({math.degrees(turn):+.1f}°) "
               f"| {tr.filter.rejected} | {time.process_time() - c0:.0f} |", flush=True)
 

@@ -130,3 +130,18 @@ def calibration_for_self(d):
     from beacon_sim.runs.mrclam import calibration_for
 
     return calibration_for(d, "self")
+
+
+def test_without_pose_covariances_the_landmarks_keep_theirs(synthetic):
+    from beacon_sim.runs.mrclam import calibration_for
+    from beacon_sim.runs.mrclam.graph_slam import graph_slam_track
+    from beacon_sim.runs.mrclam.runners import run_span
+
+    d = load_mrclam(synthetic, 1)
+    t0, t1 = run_span([d], 10.0)
+    cal = calibration_for(d, "self")
+    full, _ = graph_slam_track(d, cal, t0, t1)
+    lean, _ = graph_slam_track(d, cal, t0, t1, pose_covariances=False)
+    np.testing.assert_array_equal(lean.means, full.means)
+    assert np.isnan(lean.covs[1:]).all() and np.isfinite(full.covs).all()
+    np.testing.assert_allclose(lean.filter.landmarks().covs, full.filter.landmarks().covs, rtol=1e-9)

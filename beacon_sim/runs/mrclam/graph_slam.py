@@ -100,18 +100,23 @@ def recorded_steps(data: MrclamData, cal: Calibration, t_start: float, t_end: fl
 
 
 def graph_slam_track(data: MrclamData, cal: Calibration, t_start: float, t_end: float,
-                     command_delay_s: float = 0.0) -> tuple[MrclamTrack, MapHistory]:
+                     command_delay_s: float = 0.0, pose_covariances: bool = True
+                     ) -> tuple[MrclamTrack, MapHistory]:
     """Graph SLAM over one robot's run from ``t_start`` to ``t_end`` [s] told noise ``cal``
     (inflated as the Gaussian filters are), the commands delayed by ``command_delay_s``: its
     track (pose nodes at their data set times, marginal covariances; ``us_per_step``: CPU of
     building and solving per step fed) and its map as a one-entry history at the run's end
-    (the window draws it)."""
+    (the window draws it). ``pose_covariances`` False: the poses' marginals are not computed
+    (NaN; most of the CPU of a whole run: about 45 s for robot 4's 2,240 poses), the
+    landmarks' are."""
     c0 = time.process_time()
     steps = recorded_steps(data, cal, t_start, t_end, command_delay_s)
     scenario = mrclam_scenario(data, inflated(cal), t_start, t_end, map_known=False)
     dg = drive_graph(scenario, steps, GRAPH_MAX_GAP)
     solved, report = solve_incrementally(dg.graph, GRAPH_CHUNK, "lm", outlier_chi2=MRCLAM_GATE_CHI2)
-    pose_covs, mark_covs = marginals(solved)
+    pose_covs, mark_covs = marginals(solved, None if pose_covariances else [0])
+    if not pose_covariances:
+        pose_covs = np.full((solved.n_poses, 3, 3), np.nan)
     pose_covs[0] = np.diag(np.square(INITIAL_STD))  # the fixed start: the filters' initial belief
     cpu = time.process_time() - c0
     times = t_start + np.array([0.0] + [s.time for s in steps])[dg.ticks]
