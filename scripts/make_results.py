@@ -1,6 +1,6 @@
 """Regenerate docs/results.md and docs/results/*.png in one run (a few minutes on 2 cores).
 
-Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only mrclam|slam|corridor]
+Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only NAME[,NAME]]
 
 Every number in docs/results.md comes from this script: the seeds' findings (000 Krejsa
 EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF, 004 the
@@ -1102,6 +1102,46 @@ def fig_mrclam_slam(ctx: Context) -> Figure:
     return Figure(slam_section(ctx.mrclam, ctx.have)[2:])
 
 
+#: The smoothing section's heading (docs/smoothing.md links to it).
+SMOOTHING_HEADER = "## Smoothing: the EKF's Rauch-Tung-Striebel smoother on `default`"
+
+
+def fig_smoothing(ctx: Context) -> Figure:
+    """The EKF and its RTS smoother on ``default``: RMSE against the truth, the filtering
+    bound (PCRB) and the smoothing bound, ANEES, over seeded runs with bootstrap intervals."""
+    from beacon_sim.evaluation.intervals import text
+    from beacon_sim.evaluation.smoothing_run import smoothing_monte_carlo
+
+    sc = load_scenario("default")
+    n = ctx.n(50)
+    t0 = time.process_time()
+    f = smoothing_monte_carlo(sc, "ekf", range(ctx.seed, ctx.seed + n))
+    cpu = time.process_time() - t0
+    rows = ["| estimate | pos RMSE [m] | heading RMSE [rad] | ANEES | bound pos RMSE [m] | RMSE / bound |",
+            "|---|---|---|---|---|---|"]
+    checks: dict[str, Check] = {}
+    for label, bound in (("filtered", "filtering PCRB"), ("smoothed", "smoothing bound")):
+        r = f[label]
+        rows.append(f"| ekf {label} | {r['pos_rmse_m']:.4f} {text(r['pos_rmse_m_ci'], '.4f')} | "
+                    f"{r['heading_rmse_rad']:.4f} | {r['anees']:.2f} {text(r['anees_ci'], '.2f')} | "
+                    f"{r['bound_pos_rmse_m']:.4f} ({bound}) | {r['pos_rmse_over_bound']:.3f} "
+                    f"{text(r['pos_rmse_over_bound_ci'], '.3f')} |")
+        checks[f"smoothing ekf {label} pos RMSE"] = (r["pos_rmse_m"], r["pos_rmse_m_ci"])
+        checks[f"smoothing ekf {label} RMSE / bound"] = (r["pos_rmse_over_bound"],
+                                                         r["pos_rmse_over_bound_ci"])
+    lo, hi = f["anees_band"]
+    md = [f"{f['runs']} runs x {sc.duration:g} s on seeds {ctx.seeds(50)} (`beacon-sim eval default "
+          f"--filter ekf --runs {n} --seed {ctx.seed} --smooth`; regenerate with `python "
+          f"scripts/make_results.py --only smoothing`, {cpu:.0f} s of CPU here); 95 % bootstrap "
+          "intervals over runs. The filtered track is set against the filtering bound (PCRB), the "
+          "smoothed against the smoothing bound (the bound of the whole trajectory, "
+          "docs/smoothing.md).", "", *rows, "",
+          f"The ANEES's 95 % chi-square band over all {f['ticks']} ticks (3 dof): [{lo:.2f}, "
+          f"{hi:.2f}]; filtered {'inside' if lo <= f['filtered']['anees'] <= hi else 'outside'}, "
+          f"smoothed {'inside' if lo <= f['smoothed']['anees'] <= hi else 'outside'}.", ""]
+    return Figure(md, checks)
+
+
 @dataclasses.dataclass(frozen=True)
 class Entry:
     """A section of results.md: its name (``--only NAME``), its heading, the function that
@@ -1129,6 +1169,7 @@ FIGURES: tuple[Entry, ...] = (
     Entry("slam_loop", "## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs", fig_slam_loop),
     Entry("mrclam", MRCLAM_HEADER, fig_mrclam, seeded=False),
     Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),
+    Entry("smoothing", SMOOTHING_HEADER, fig_smoothing),
 )
 
 
