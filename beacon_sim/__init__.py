@@ -16,12 +16,15 @@ from beacon_sim.version import __version__
 
 #: The public API (docs/python-api.md): the run functions and their results, what a filter
 #: author needs (``FilterBase``, the beliefs, ``Control`` / ``Measurement``, and the modules
-#: ``motion``, ``measurement_models`` and ``angles``) and the errors, all ``BeaconSimError``
+#: ``motion``, ``measurement_models`` and ``angles``; for a Gauss-Newton step of one's own,
+#: ``FactorGraph``, ``GraphSolver`` and ``StepReport``) and the errors, all ``BeaconSimError``
 #: (a ``ValueError``).
-__all__ = ["BeaconSimError", "Control", "Evaluation", "ExtendedKalmanFilter", "Filter", "FilterBase",
-           "FilterContext", "FilterError", "FilterLoadError", "GaussianBelief", "GradeError", "GridBelief",
+__all__ = ["BeaconSimError", "Control", "Evaluation", "ExtendedKalmanFilter", "FactorGraph", "Filter",
+           "FilterBase", "FilterContext", "FilterError", "FilterLoadError", "GaussianBelief", "GradeError",
+           "GraphSolver", "GridBelief",
            "LandmarkMap", "LikelihoodField", "Measurement", "MrclamError", "ParticleBelief",
-           "RangeModelParams", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "TeamRun",
+           "RangeModelParams", "RecordingError", "ReplayMismatch", "Run", "ScenarioError", "StepReport",
+           "TeamRun",
            "UsageError", "__version__", "angles", "broad_gaussian", "evaluate", "load_scenario",
            "load_tables", "load_team_scenario", "measurement_models", "motion", "replay", "run",
            "run_team", "systematic", "wrap"]

@@ -55,6 +55,7 @@ from beacon_sim.filters.base import (
     broad_gaussian,
 )
 from beacon_sim.filters.gaussian.ekf import ExtendedKalmanFilter
+from beacon_sim.filters.graph import FactorGraph, GraphSolver, StepReport
 from beacon_sim.filters.resampling import systematic
 from beacon_sim.hosting.loading import FilterLoadError, check_param_names
 from beacon_sim.hosting.team_specs import check_team_specs
@@ -72,12 +73,13 @@ from beacon_sim.runs.replay import ReplayMismatch, recorded_filter_specs, replay
 #: ``ExtendedKalmanFilter`` to build on: what the examples and the ``new-filter`` templates
 #: import); the errors, all ``BeaconSimError``.
 #: ``GradeError`` comes from the module's ``__getattr__`` (the grading module loads on first use).
-__all__ = ["BeaconSimError", "Control", "Evaluation", "ExtendedKalmanFilter", "Filter", "FilterBase",
-           "FilterContext", "FilterError",
+__all__ = ["BeaconSimError", "Control", "Evaluation", "ExtendedKalmanFilter", "FactorGraph", "Filter",
+           "FilterBase", "FilterContext", "FilterError",
            "FilterLoadError", "GaussianBelief", "GradeError",  # noqa: F822
-           "GridBelief", "LandmarkMap", "LikelihoodField", "Measurement", "MrclamError",
+           "GraphSolver", "GridBelief", "LandmarkMap", "LikelihoodField", "Measurement", "MrclamError",
            "ParticleBelief", "RangeModelParams", "RecordingError", "ReplayMismatch", "Run", "ScenarioError",
-           "TeamRun", "UsageError", "angles", "broad_gaussian", "evaluate", "load_scenario", "load_tables",
+           "StepReport", "TeamRun", "UsageError", "angles", "broad_gaussian", "evaluate", "load_scenario",
+           "load_tables",
            "load_team_scenario", "measurement_models", "motion", "replay", "run", "run_team", "systematic",
            "wrap"]
 #: The export formats of :meth:`Run.export`.

@@ -1,6 +1,6 @@
 """Regenerate docs/results.md and docs/results/*.png in one run (a few minutes on 2 cores).
 
-Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only mrclam|slam|corridor]
+Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only NAME[,NAME]]
 
 Every number in docs/results.md comes from this script: the seeds' findings (000 Krejsa
 EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF, 004 the
@@ -370,8 +370,8 @@ def slam_section(folder: Path | None, have: set[str]) -> list[str]:
 
     md = [SLAM_HEADER, ""]
     if folder is None:
-        return [*md, "This table is produced by `beacon-sim mrclam DIR --robot N --slam --headless` "
-                     "on a copy of a UTIAS MRCLAM data set (not shipped with the project); point "
+        return [*md, "This table is produced by `beacon-sim mrclam DIR --robot N --slam --graph "
+                     "--headless` on a copy of a UTIAS MRCLAM data set (not shipped with the project); point "
                      "`scripts/make_results.py --mrclam DIR` at one to include it here.", ""]
     flt = [f for f in SLAM_FILTERS if f in have]
     blind = [f for f in flt if f in ("ekf_slam", "fastslam")]
@@ -391,7 +391,7 @@ def slam_section(folder: Path | None, have: set[str]) -> list[str]:
     for robot in (1, 2, 3, 4, 5):
         data = load_mrclam(folder, robot)
         cal = calibration_for(data, "others")
-        runs = [("barcodes", run_mrclam(data, flt, calibration=cal, slam=True))]
+        runs = [("barcodes", run_mrclam(data, flt, calibration=cal, slam=True, graph=bool(blind)))]
         if blind:
             runs.append(("none", run_mrclam(data, blind, calibration=cal, slam=True, unknown_ids=True)))
         for ids, res in runs:
@@ -442,11 +442,16 @@ def slam_section(folder: Path | None, have: set[str]) -> list[str]:
     return [
         *md,
         f"{folder.name}, all five robots, whole runs. `beacon-sim mrclam DIR --robot N --slam "
-        f"--headless` (and `--unknown-ids` for the rows without IDs): `ekf_slam` and `fastslam` "
+        f"--graph --headless` (and `--unknown-ids` for the rows without IDs): `ekf_slam` and "
+        f"`fastslam` "
         f"(FastSLAM 2.0, 100 particles, the default) are **not given the landmark map** (no anchors;"
         f" the known start pose fixes the frame) and map the 15 landmarks themselves; `ekf` is the "
         f"known-map EKF of the table above on the same runs, `dead_reckoning` the odometry alone "
-        f"(what a filter that learnt nothing from its readings would do). The noise is the same "
+        f"(what a filter that learnt nothing from its readings would do); `graph_slam` (`--graph`, "
+        f"with barcodes only) is graph SLAM on the same steps: the whole run's odometry and readings"
+        f" as one factor graph, solved by Levenberg-Marquardt as it grows, the readings past the "
+        f"gate at the optimum dropped (docs/slam.md, \"Graph SLAM on MRCLAM\"). The noise is the "
+        f"same "
         f"leave-one-robot-out calibration as there (from the four other robots, the variance "
         f"inflation included; never fitted on the scored robot); no SLAM parameter was tuned on this"
         f" data (EKF-SLAM and FastSLAM gate readings with IDs at the known-map EKF's 99.9 % "
@@ -1290,6 +1295,46 @@ def fig_mrclam_slam(ctx: Context) -> Figure:
     return Figure(slam_section(ctx.mrclam, ctx.have)[2:])
 
 
+#: The smoothing section's heading (docs/smoothing.md links to it).
+SMOOTHING_HEADER = "## Smoothing: the EKF's Rauch-Tung-Striebel smoother on `default`"
+
+
+def fig_smoothing(ctx: Context) -> Figure:
+    """The EKF and its RTS smoother on ``default``: RMSE against the truth, the filtering
+    bound (PCRB) and the smoothing bound, ANEES, over seeded runs with bootstrap intervals."""
+    from beacon_sim.evaluation.intervals import text
+    from beacon_sim.evaluation.smoothing_run import smoothing_monte_carlo
+
+    sc = load_scenario("default")
+    n = ctx.n(50)
+    t0 = time.process_time()
+    f = smoothing_monte_carlo(sc, "ekf", range(ctx.seed, ctx.seed + n))
+    cpu = time.process_time() - t0
+    rows = ["| estimate | pos RMSE [m] | heading RMSE [rad] | ANEES | bound pos RMSE [m] | RMSE / bound |",
+            "|---|---|---|---|---|---|"]
+    checks: dict[str, Check] = {}
+    for label, bound in (("filtered", "filtering PCRB"), ("smoothed", "smoothing bound")):
+        r = f[label]
+        rows.append(f"| ekf {label} | {r['pos_rmse_m']:.4f} {text(r['pos_rmse_m_ci'], '.4f')} | "
+                    f"{r['heading_rmse_rad']:.4f} | {r['anees']:.2f} {text(r['anees_ci'], '.2f')} | "
+                    f"{r['bound_pos_rmse_m']:.4f} ({bound}) | {r['pos_rmse_over_bound']:.3f} "
+                    f"{text(r['pos_rmse_over_bound_ci'], '.3f')} |")
+        checks[f"smoothing ekf {label} pos RMSE"] = (r["pos_rmse_m"], r["pos_rmse_m_ci"])
+        checks[f"smoothing ekf {label} RMSE / bound"] = (r["pos_rmse_over_bound"],
+                                                         r["pos_rmse_over_bound_ci"])
+    lo, hi = f["anees_band"]
+    md = [f"{f['runs']} runs x {sc.duration:g} s on seeds {ctx.seeds(50)} (`beacon-sim eval default "
+          f"--filter ekf --runs {n} --seed {ctx.seed} --smooth`; regenerate with `python "
+          f"scripts/make_results.py --only smoothing`, {cpu:.0f} s of CPU here); 95 % bootstrap "
+          "intervals over runs. The filtered track is set against the filtering bound (PCRB), the "
+          "smoothed against the smoothing bound (the bound of the whole trajectory, "
+          "docs/smoothing.md).", "", *rows, "",
+          f"The ANEES's 95 % chi-square band over all {f['ticks']} ticks (3 dof): [{lo:.2f}, "
+          f"{hi:.2f}]; filtered {'inside' if lo <= f['filtered']['anees'] <= hi else 'outside'}, "
+          f"smoothed {'inside' if lo <= f['smoothed']['anees'] <= hi else 'outside'}.", ""]
+    return Figure(md, checks)
+
+
 @dataclasses.dataclass(frozen=True)
 class Entry:
     """A section of results.md: its name (``--only NAME``), its heading, the function that
@@ -1320,6 +1365,7 @@ FIGURES: tuple[Entry, ...] = (
     Entry("mrclam", MRCLAM_HEADER, fig_mrclam, seeded=False),
     Entry("association", ASSOCIATION_HEADER, fig_mrclam_association, seeded=False),
     Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),
+    Entry("smoothing", SMOOTHING_HEADER, fig_smoothing),
 )
 
 

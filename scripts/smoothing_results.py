@@ -1,6 +1,8 @@
-"""Print docs/results.md's smoothing figure: the EKF and its Rauch-Tung-Striebel smoother
-on ``default`` over 50 seeds the tests and the tuning never used (1000..1049), against the
+"""Print the smoothing figure: the EKF and its Rauch-Tung-Striebel smoother on ``default``
+over 50 seeds the tests and the tuning never used (1000..1049 by default), against the
 truth, the filtering bound (PCRB) and the smoothing bound, with 95 % bootstrap intervals.
+docs/results.md's is made by ``python scripts/make_results.py --only smoothing`` (seeds
+20000..20049).
 
 Usage: python scripts/smoothing_results.py [--runs N] [--first-seed S] [--filter ekf|ukf]
 (the same as ``beacon-sim eval default --filter ekf --runs 50 --seed 1000 --smooth``).

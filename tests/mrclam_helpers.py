@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.io.mrclam import read_table
 
 COMMENT = ("# UTIAS Multi-Robot Cooperative Localization and Mapping Dataset\r\n"
            "# produced by a test\r\n# {what} Data Fomat:\r\n# {cols}\r\n")
@@ -80,3 +81,8 @@ def make_folder(folder: Path, seconds: float = 120.0, seed: int = 1, drives: flo
     return {"n_robot": n_robot, "n_unknown": n_unknown, "n_flip": n_flip, "n_meas": len(meas),
             "pose": pose, "t": t}
 
+
+def surveyed_landmarks(folder: Path) -> np.ndarray:
+    """The landmarks' surveyed positions (x, y) [m], read straight from the file."""
+    table = read_table(folder / "Landmark_Groundtruth.dat", 5, "subject x y sx sy")
+    return table[table[:, 0] > 5][:, 1:3]

@@ -40,7 +40,7 @@ class GraphWindow:
 
     def __init__(self, graph: FactorGraph, method: str = "gn", size: tuple[int, int] = (1280, 800),
                  truth_poses: np.ndarray | None = None, truth_marks: np.ndarray | None = None,
-                 title: str = ""):
+                 title: str = "", solver_cls: type[GraphSolver] = GraphSolver):
         pygame.display.init()
         pygame.font.init()
         choose_framebuffer(pygame.display.get_driver())
@@ -49,7 +49,8 @@ class GraphWindow:
         self.fonts = load_fonts(size[1], size[0])
         self.initial = graph
         self.method = method
-        self.solver = GraphSolver(graph, method)
+        self.solver_cls = solver_cls
+        self.solver = solver_cls(graph, method)
         self.truth_poses, self.truth_marks = truth_poses, truth_marks
         self.title = title or graph.source
         self.last: StepReport | None = None
@@ -90,7 +91,7 @@ class GraphWindow:
         t0 = time.process_time()
         try:
             self.last = self.solver.step()
-        except (np.linalg.LinAlgError, RuntimeError, ValueError) as exc:
+        except Exception as exc:  # a singular system, or a user's solver (--solver) that raised
             self.message = f"no step: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
             return
         self.step_ms = 1e3 * (time.process_time() - t0)
@@ -101,12 +102,12 @@ class GraphWindow:
     def toggle_method(self) -> None:
         self.method = "lm" if self.method == "gn" else "gn"
         graph, it = self.solver.graph, self.solver.iteration
-        self.solver = GraphSolver(graph, self.method)
+        self.solver = self.solver_cls(graph, self.method)
         self.solver.iteration = it
         self.message = f"next steps: {'Levenberg-Marquardt' if self.method == 'lm' else 'Gauss-Newton'}"
 
     def reset(self) -> None:
-        self.solver = GraphSolver(self.initial, self.method)
+        self.solver = self.solver_cls(self.initial, self.method)
         self.last, self.ellipses = None, None
         if self.show_ellipses:
             self._marginals()
@@ -282,12 +283,13 @@ def _num(v: float | None) -> str:
 def show_graph(graph: FactorGraph, method: str = "gn", frames: int | None = None,
                screenshot: str | None = None, steps: int = 0, size: tuple[int, int] = (1280, 800),
                ellipses: bool = False, sparsity: bool = False, truth_poses: np.ndarray | None = None,
-               truth_marks: np.ndarray | None = None, title: str = "") -> int:
+               truth_marks: np.ndarray | None = None, title: str = "",
+               solver_cls: type[GraphSolver] = GraphSolver) -> int:
     """The window until quit; saves the last frame to ``screenshot``."""
     from beacon_sim.app.main import check_display
 
     check_display()
-    win = GraphWindow(graph, method, size, truth_poses, truth_marks, title)
+    win = GraphWindow(graph, method, size, truth_poses, truth_marks, title, solver_cls)
     win.show_ellipses, win.show_sparsity = ellipses, sparsity
     if ellipses:
         win._marginals()

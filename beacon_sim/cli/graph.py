@@ -1,6 +1,7 @@
 """``beacon-sim graph SOURCE [--method gn|lm] [--steps N] [--headless] [--json] [--seed N]
-[--duration S] [--frames N] [--screenshot PNG] [--ellipses] [--sparsity] [--size WxH]``:
-graph SLAM on a g2o file or on a simulated drive, solved step by step.
+[--duration S] [--frames N] [--screenshot PNG] [--ellipses] [--sparsity] [--size WxH]
+[--solver FILE.py:Class]``: graph SLAM on a g2o file or on a simulated drive, solved step by
+step (by the built-in solver, or by a user's subclass of it: ``new-filter --gauss-newton``).
 
 SOURCE is a ``.g2o`` file (its own initial values) or a scenario (a drive with EKF-SLAM
 beside it, its commands and readings the graph). Headless: every step's chi2 per edge class
@@ -34,10 +35,29 @@ def _row(it: Any, chi: dict[str, float], labels: list[str], ms: str) -> str:
         f"{sum(chi.values()):>18,.2f}{ms:>9}"
 
 
-def iterate(graph: FactorGraph, method: str, steps: int | None) -> tuple[GraphSolver, list[dict[str, Any]]]:
-    """The solver stepped ``steps`` times (None: until chi2 stops falling, at most 50), each
-    step's figures printed as it goes."""
-    solver = GraphSolver(graph, method)
+def load_solver(spec: str) -> type[GraphSolver]:
+    """``FILE.py:Class``: a subclass of :class:`GraphSolver` from a user's file; one-line
+    :class:`UsageError` otherwise."""
+    from beacon_sim.hosting.loading import FilterLoadError, import_file
+
+    path, _, name = spec.rpartition(":")
+    if not path or not name:
+        raise UsageError(f"--solver {spec}: expected FILE.py:Class")
+    try:
+        module = import_file(Path(path))
+    except FilterLoadError as exc:
+        raise UsageError(f"--solver {spec}: {exc}") from None
+    cls = getattr(module, name, None)
+    if not (isinstance(cls, type) and issubclass(cls, GraphSolver)):
+        raise UsageError(f"--solver {spec}: {path} has no class {name} built on beacon_sim.GraphSolver")
+    return cls
+
+
+def iterate(graph: FactorGraph, method: str, steps: int | None,
+            solver_cls: type[GraphSolver] = GraphSolver) -> tuple[GraphSolver, list[dict[str, Any]]]:
+    """The solver (``solver_cls``) stepped ``steps`` times (None: until chi2 stops falling, at
+    most 50), each step's figures printed as it goes."""
+    solver = solver_cls(graph, method)
     labels = list(graph.chi2_by_class())
     print(f"{'iter':>5}" + "".join(f"{k:>16}" for k in labels) + f"{'chi2 total':>18}{'CPU ms':>9}")
     print(_row(0, graph.chi2_by_class(), labels, ""))
@@ -58,6 +78,7 @@ def graph_command(args: argparse.Namespace) -> int:
     method = args.method
     if args.steps is not None and args.steps < 0:
         raise UsageError(f"--steps {args.steps}: expected a number of solver steps >= 0")
+    solver_cls = GraphSolver if args.solver is None else load_solver(args.solver)
     truth_poses = truth_marks = None
     res = dg = None
     if args.source.endswith(".g2o") or Path(args.source).suffix == ".g2o":
@@ -87,11 +108,12 @@ def graph_command(args: argparse.Namespace) -> int:
 
         return show_graph(graph, method, args.frames, args.screenshot, args.steps or 0,
                           parse_size(args.size), args.ellipses, args.sparsity, truth_poses, truth_marks,
-                          title)
+                          title, solver_cls)
     print(f"{title}: {graph.n_poses} poses, {graph.n_landmarks} landmarks, {graph.n_edges} edges "
           f"({', '.join(f'{len(e)} {e.label} ({e.kind})' for e in graph.edges)}); "
-          f"{'Gauss-Newton' if method == 'gn' else 'Levenberg-Marquardt'}, pose {graph.fixed[0]} fixed")
-    solver, rows = iterate(graph, method, args.steps)
+          + (f"{solver_cls.__name__} of {args.solver}" if args.solver else
+             'Gauss-Newton' if method == 'gn' else 'Levenberg-Marquardt') + f", pose {graph.fixed[0]} fixed")
+    solver, rows = iterate(graph, method, args.steps, solver_cls)
     data: dict[str, Any] = {"source": args.source, "poses": graph.n_poses, "landmarks": graph.n_landmarks,
                             "edges": graph.n_edges, "method": method, "initial_chi2": graph.chi2(),
                             "final_chi2": solver.graph.chi2(), "iterations": rows}
@@ -125,6 +147,8 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--ellipses", action="store_true", help="on screen: start with the 95 %% ellipses (E)")
     p.add_argument("--sparsity", action="store_true", help="on screen: start with H's sparsity shown (S)")
     p.add_argument("--size", default="1280x800", help="on screen: window size WxH in pixels")
+    p.add_argument("--solver", metavar="FILE.py:Class",
+                   help="step with your own solver class (a GraphSolver subclass: new-filter --gauss-newton)")
 
 
-__all__ = ["add_parser", "graph_command", "iterate"]
+__all__ = ["add_parser", "graph_command", "iterate", "load_solver"]

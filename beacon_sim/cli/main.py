@@ -161,6 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="withhold the landmark map from the SLAM filters (default ekf_slam, "
                         "fastslam, and the EKF given the map); score their maps against the "
                         "surveyed landmarks (docs/slam.md)")
+    p.add_argument("--graph", action="store_true",
+                   help="with --slam: graph SLAM too, the whole run's odometry and readings "
+                        "solved as one factor graph, scored beside the SLAM filters")
     p.add_argument("--frames", type=int, help="quit the window after N frames (for scripts and tests)")
     p.add_argument("--screenshot", metavar="PNG", help="save the window's last frame to PNG")
     p.add_argument("--size", default="1280x800", help="the window's size WxH in pixels")
@@ -223,6 +226,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a particle filter on laser scans and an occupancy grid (docs/maps.md)")
     p.add_argument("--tdoa", action="store_true",
                    help="an EKF on range differences from ceiling beacons (docs/distance_beacons.md)")
+    p.add_argument("--gauss-newton", action="store_true",
+                   help="a graph SLAM solver's Gauss-Newton step, for `graph --solver` (docs/smoothing.md)")
     return parser
 
 

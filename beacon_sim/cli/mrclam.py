@@ -182,7 +182,8 @@ def mrclam_command(args: argparse.Namespace) -> int:
                          duration, filter_params(args),
                          calibration=getattr(args, "calibration", None) or "others",
                          unknown_ids=getattr(args, "unknown_ids", False), slam=slam,
-                         record_maps=slam and not args.headless, progress=True)
+                         record_maps=slam and not args.headless, progress=True,
+                         graph=getattr(args, "graph", False))
     except MrclamError as exc:
         raise UsageError(str(exc)) from None
     d = run.as_json()

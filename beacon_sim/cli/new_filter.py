@@ -1,6 +1,7 @@
-"""``beacon-sim new-filter PATH [--team | --slam | --scan | --tdoa]``: write a working, commented filter
-template (a team filter's with ``--team``, a SLAM filter's with ``--slam``, a scan-based
-particle filter's with ``--scan``, a range-difference EKF's with ``--tdoa``)."""
+"""``beacon-sim new-filter PATH [--team | --slam | --scan | --tdoa | --gauss-newton]``: write a
+working, commented filter template (a team filter's with ``--team``, a SLAM filter's with
+``--slam``, a scan-based particle filter's with ``--scan``, a range-difference EKF's with
+``--tdoa``), or with ``--gauss-newton`` a graph SLAM solver's step for ``beacon-sim graph --solver``."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from beacon_sim.core.files import write_text_atomic
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.templates import (
     class_name_for,
+    render_gauss_newton_template,
     render_scan_template,
     render_slam_template,
     render_tdoa_template,
@@ -32,10 +34,13 @@ TEMPLATES = {
              "mcl"),
     "tdoa": (render_tdoa_template, "the TDOA filter class {cls} (an EKF on range differences, "
              "with a TODO for their correlated covariance)", "ulps_leave ", "ekf"),
+    "gauss_newton": (render_gauss_newton_template, "the graph SLAM solver class {cls} (its step "
+                     "builds the normal equations and walks down the gradient, with a TODO for the "
+                     "Gauss-Newton solve)", "slam_loop", "gn"),
 }
 
 #: The options that choose a kind other than the plain filter's (at most one of them).
-KIND_OPTIONS = ("team", "slam", "scan", "tdoa")
+KIND_OPTIONS = ("team", "slam", "scan", "tdoa", "gauss_newton")
 #: The scenario ``check`` needs for a kind whose filter does nothing on the default one.
 CHECK_ON = {"scan": "corridor", "tdoa": "ruiz_ulps"}
 
@@ -51,7 +56,8 @@ def new_filter_command(args: argparse.Namespace) -> int:
         raise UsageError(f"new-filter {path}: no folder {path.parent}")
     chosen = [k for k in KIND_OPTIONS if getattr(args, k, False)]
     if len(chosen) > 1:
-        raise UsageError(f"new-filter: {' and '.join('--' + k for k in chosen)} cannot be combined; "
+        raise UsageError(f"new-filter: {' and '.join('--' + k.replace('_', '-') for k in chosen)} "
+                         "cannot be combined; "
                          "choose one")
     kind = chosen[0] if chosen else "filter"
     render, what, scenario, beside = TEMPLATES[kind]
@@ -60,6 +66,10 @@ def new_filter_command(args: argparse.Namespace) -> int:
     write_text_atomic(path, render(cls, path.name), what="filter file", error=UsageError)
     print(f"wrote {path} with {what.format(cls=cls)}")
     print("next:")
+    if kind == "gauss_newton":  # a solver, not a filter: the graph command runs it
+        print(f"  beacon-sim graph {scenario} --solver {shown}:{cls} --headless")
+        print(f"  beacon-sim graph {scenario} --solver {shown}:{cls}     # N: one step")
+        return 0
     check_on = f" --scenario {CHECK_ON[kind]}" if kind in CHECK_ON else ""
     print(f"  beacon-sim check {shown}:{cls}{check_on}")
     print(f"  beacon-sim play {scenario}--filter {shown}:{cls} --filter {beside}")

@@ -65,7 +65,7 @@ def odometry(scenario: Scenario, steps: Sequence[Step]) -> tuple[np.ndarray, np.
     return delta, S + np.diag(np.square(ODOMETRY_FLOOR))
 
 
-def drive_graph(scenario: Scenario, steps: Sequence[Step]) -> DriveGraph:
+def drive_graph(scenario: Scenario, steps: Sequence[Step], max_gap: int = MAX_GAP) -> DriveGraph:
     """The factor graph of a single robot's run (see the module)."""
     T = len(steps)
     read = [k + 1 for k, st in enumerate(steps)
@@ -73,8 +73,8 @@ def drive_graph(scenario: Scenario, steps: Sequence[Step]) -> DriveGraph:
     node_ticks = sorted({0, T, *read})
     filled = [0]
     for t in node_ticks[1:]:
-        while t - filled[-1] > MAX_GAP:
-            filled.append(filled[-1] + MAX_GAP)
+        while t - filled[-1] > max_gap:
+            filled.append(filled[-1] + max_gap)
         filled.append(t)
     ticks = np.array(filled, dtype=np.int64)
     row = {int(t): k for k, t in enumerate(ticks)}

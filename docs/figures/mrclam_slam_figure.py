@@ -1,6 +1,7 @@
 """The window figure of docs/slam.md's real-data section: Dataset 6 robot 1 with ``--slam``
-(EKF-SLAM and FastSLAM 2.0 not given the map, the known-map EKF), seen at the end of the run:
-each SLAM filter's final landmarks with their 95 % ellipses beside the surveyed ones.
+(EKF-SLAM and FastSLAM 2.0 not given the map, the known-map EKF) and graph SLAM on the same
+steps (``--graph``), seen at the end of the run: each SLAM filter's final landmarks with their
+95 % ellipses (the graph's: its marginal covariances) beside the surveyed ones.
 
 Usage: python docs/figures/mrclam_slam_figure.py DATASET_DIR [ROBOT] [OUT.png]
 (DATASET_DIR "": where BEACON_SIM_MRCLAM says; docs/mrclam.md)
@@ -26,7 +27,7 @@ def main() -> int:
     robot = int(sys.argv[2]) if len(sys.argv) > 2 else 1
     default = Path(__file__).with_name(f"mrclam_slam_robot{robot}.png")
     out = Path(sys.argv[3]) if len(sys.argv) > 3 else default
-    run = run_mrclam(load_mrclam(folder, robot), None, slam=True, record_maps=True)
+    run = run_mrclam(load_mrclam(folder, robot), None, slam=True, record_maps=True, graph=True)
     playback = MrclamPlayback(run)
     app = ReplayApp(playback, scripted=True)
     try:

@@ -28,7 +28,7 @@ FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "dead_reckoning", "measurements"},
             "grid": {"histogram", "corridor"},
             "slam": {"base", "ekf_slam", "fastslam", "inverse_depth"},
             "smoothing": {"fixed_lag", "recorder", "rts"},
-            "graph": {"graph", "se2", "solver"}}
+            "graph": {"graph", "se2", "solver", "incremental"}}
 
 
 def test_each_family_is_a_package_of_its_modules():
@@ -136,7 +136,7 @@ def test_new_filter_copies_the_template_module_and_the_copy_runs(kind, tmp_path,
     gets), and the copy runs as it is."""
     module, cls = TEMPLATES[kind]
     text = Path(importlib.import_module(f"beacon_sim.filters.templates.{module}").__file__).read_text()
-    option = [] if kind == "filter" else [f"--{kind}"]
+    option = [] if kind == "filter" else [f"--{kind.replace('_', '-')}"]
     assert main(["new-filter", str(tmp_path / f"{module}.py"), *option]) == 0
     assert (tmp_path / f"{module}.py").read_text() == text  # its own names: the module itself
     copy = tmp_path / "ada_lovelace.py"
@@ -145,6 +145,11 @@ def test_new_filter_copies_the_template_module_and_the_copy_runs(kind, tmp_path,
     assert copy.read_text() == text.replace(cls, "AdaLovelace").replace(f"{module}.py", "ada_lovelace.py")
     assert text.count(cls) and text.count(f"{module}.py")  # both names were there to replace
 
+    if kind == "gauss_newton":  # a solver: the graph command steps it
+        assert main(["graph", "slam_loop", "--solver", f"{copy}:AdaLovelace", "--headless",
+                     "--steps", "2", "--duration", "5"]) == 0
+        assert "AdaLovelace of" in capsys.readouterr().out
+        return
     name = TEMPLATE_SCENARIOS[kind]
     scenario = load_team_scenario(name) if kind == "team" else load_scenario(name)
     run = run_headless(scenario, [f"{copy}:AdaLovelace"], seed=2, duration=2.0)

@@ -9,7 +9,7 @@ import itertools
 
 import numpy as np
 import pytest
-from graph_data import graph_file
+from graph_data import graph_file, synthetic_graph
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.motion import move
@@ -58,36 +58,8 @@ def test_between_undoes_compose():
     np.testing.assert_allclose(between(a, compose(a, b)), np.column_stack([b[:, :2], b[:, 2]]), atol=1e-12)
 
 
-def _synthetic(seed: int = 5, n: int = 30, m: int = 6) -> tuple[FactorGraph, np.ndarray, np.ndarray]:
-    """A square drive with odometry, a loop closure and range-bearing landmark edges, the
-    measurements noisy, the initial values perturbed; returns it and the true nodes."""
-    rng = np.random.default_rng(seed)
-    steps = np.tile([[0.5, 0.0, 2 * np.pi / n]], (n - 1, 1))
-    truth = [np.zeros(3)]
-    for s in steps:
-        truth.append(compose(truth[-1], s))
-    P = np.array(truth)
-    L = rng.uniform(-1, 4, (m, 2))
-    so = np.array([0.02, 0.02, 0.01])
-    z_odo = between(P[:-1], P[1:]) + rng.normal(size=(n - 1, 3)) * so
-    z_loop = between(P[-1:], P[:1]) + rng.normal(size=(1, 3)) * so
-    pi, lj = np.repeat(np.arange(n), m), np.tile(np.arange(m), n)
-    d = L[lj] - P[pi, :2]
-    z_rb = np.column_stack([np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0]) - P[pi, 2]])
-    z_rb += rng.normal(size=z_rb.shape) * [0.05, 0.02]
-    z_rb[:, 1] = (z_rb[:, 1] + np.pi) % (2 * np.pi) - np.pi
-    edges = [EdgeSet("pose", "odometry", np.arange(n - 1), np.arange(1, n), z_odo,
-                     np.tile(np.diag(1 / so**2), (n - 1, 1, 1))),
-             EdgeSet("pose", "loop closure", [n - 1], [0], z_loop, np.diag(1 / so**2)[None]),
-             EdgeSet("range_bearing", "landmark", pi, lj, z_rb,
-                     np.tile(np.diag([1 / 0.05**2, 1 / 0.02**2]), (n * m, 1, 1)))]
-    init_P = P + rng.normal(size=P.shape) * [0.1, 0.1, 0.05]
-    init_P[0] = P[0]
-    return FactorGraph(init_P, L + rng.normal(size=L.shape) * 0.2, edges), P, L
-
-
 def test_gauss_newton_reaches_the_optimum_sparse_and_dense_alike():
-    g, P, L = _synthetic()
+    g, P, L = synthetic_graph()
     dense = GraphSolver(g, "gn", sparse=False)
     sparse = GraphSolver(g, "gn", sparse=True)
     dense.solve(20, rel_tol=1e-13)
@@ -106,7 +78,7 @@ def test_gauss_newton_reaches_the_optimum_sparse_and_dense_alike():
 
 
 def test_levenberg_marquardt_never_raises_chi2_and_reaches_the_same_optimum():
-    g, _, _ = _synthetic(seed=8)
+    g, _, _ = synthetic_graph(seed=8)
     lm = GraphSolver(g, "lm", lam=10.0)
     reports = lm.solve(60, rel_tol=1e-10)
     totals = [reports[0].total_before] + [r.total_after for r in reports]
@@ -117,7 +89,7 @@ def test_levenberg_marquardt_never_raises_chi2_and_reaches_the_same_optimum():
 
 
 def test_marginals_are_blocks_of_the_inverse_information():
-    g, _, _ = _synthetic(seed=3, n=12, m=3)
+    g, _, _ = synthetic_graph(seed=3, n=12, m=3)
     s = GraphSolver(g)
     s.solve(20)
     layout = Layout(s.graph)

@@ -8,17 +8,16 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-from mrclam_helpers import make_folder
+from mrclam_helpers import make_folder, surveyed_landmarks
 
 from beacon_sim.cli.main import main
 from beacon_sim.evaluation.slam_metrics import gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, mrclam_slam_figures
 from beacon_sim.filters.slam.ekf_slam import EKFSLAM
-from beacon_sim.io.mrclam import MrclamError, load_mrclam, read_table
+from beacon_sim.io.mrclam import MrclamError, load_mrclam
 from beacon_sim.runs.mrclam import SLAM_MRCLAM_FILTERS, map_withheld, nees_or_inf, run_mrclam
 
 #: The window of the real-data tests [s]: robot 1 sees 6 of the 15 landmarks in it.
@@ -44,12 +43,6 @@ def synthetic(tmp_path_factory):
     return f
 
 
-def _surveyed(folder: Path) -> np.ndarray:
-    """The landmarks' surveyed positions (x, y) [m], read straight from the file."""
-    table = read_table(folder / "Landmark_Groundtruth.dat", 5, "subject x y sx sy")
-    return table[table[:, 0] > 5][:, 1:3]
-
-
 def test_default_slam_filters_and_which_are_blind():
     assert SLAM_MRCLAM_FILTERS == ("ekf_slam", "fastslam", "ekf")
     assert map_withheld("ekf_slam") and map_withheld("fastslam")
@@ -61,7 +54,7 @@ def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run, mrcl
     run = robot1_run
     assert run.slam and list(run.tracks) == list(SLAM_MRCLAM_FILTERS)
     assert run.map_given == {"ekf_slam": False, "fastslam": False, "ekf": True}
-    n_landmarks = len(_surveyed(mrclam_dataset6))
+    n_landmarks = len(surveyed_landmarks(mrclam_dataset6))
     assert n_landmarks == 15
     for name in ("ekf_slam", "fastslam"):
         ctx = run.tracks[name].filter.ctx
@@ -78,7 +71,7 @@ def test_the_slam_filters_are_given_no_map_and_the_ekf_keeps_it(robot1_run, mrcl
 def test_the_map_is_scored_against_the_surveyed_landmarks(robot1_run, mrclam_dataset6):
     run = robot1_run
     figs = mrclam_slam_figures(run)
-    truth = _surveyed(mrclam_dataset6)
+    truth = surveyed_landmarks(mrclam_dataset6)
     for name in ("ekf_slam", "fastslam"):
         r = figs[name]
         assert r is not None and r["map_given"] is False
@@ -193,7 +186,7 @@ def test_synthetic_slam_maps_the_square(synthetic, monkeypatch):
     # every EKF-SLAM built (the filter, and FastSLAM's linearised covariance) saw no map
     assert seen_worlds and all(w == () for w in seen_worlds)
     figs = mrclam_slam_figures(run)
-    truth = _surveyed(synthetic)
+    truth = surveyed_landmarks(synthetic)
     for name in ("ekf_slam", "fastslam"):
         r = figs[name]
         assert (r["map_landmarks"], r["map_missed"], r["map_false"]) == (5, 0, 0), r
@@ -328,7 +321,7 @@ def test_the_gate_keeps_the_flipped_bearings_out_of_ekf_slams_map(synthetic):
     assert flt.params["gate_chi2"] > 0 and flt.rejected > 0
     off = run_mrclam(load_mrclam(synthetic, 1), ["ekf_slam"], calibration="self", slam=True,
                      params={"ekf_slam": {"gate_chi2": 0.0}})
-    truth = _surveyed(synthetic)
+    truth = surveyed_landmarks(synthetic)
     g_on = gospa(flt.landmarks().means, truth, c=GOSPA_CUTOFF_M)
     g_off = gospa(off.tracks["ekf_slam"].filter.landmarks().means, truth, c=GOSPA_CUTOFF_M)
     assert len(g_on.pairs) == 5 and g_on.missed == 0 and g_on.false == 0
@@ -353,7 +346,7 @@ def test_the_gate_keeps_the_flipped_bearings_out_of_fastslams_map(synthetic):
     off = run_mrclam(load_mrclam(synthetic, 1), ["fastslam"], calibration="self", slam=True,
                      params={"fastslam": {"gate_chi2": 0.0}})
     assert off.tracks["fastslam"].filter.rejected == 0
-    truth = _surveyed(synthetic)
+    truth = surveyed_landmarks(synthetic)
     g_on = gospa(flt.landmarks().means, truth, c=GOSPA_CUTOFF_M)
     g_off = gospa(off.tracks["fastslam"].filter.landmarks().means, truth, c=GOSPA_CUTOFF_M)
     assert len(g_on.pairs) == 5 and g_on.missed == 0 and g_on.false == 0

@@ -13,7 +13,10 @@
   (docs/maps.md);
 - ``my_tdoa.py`` (``--tdoa``): an EKF on range differences against a reference beacon with
   the naive independent-difference covariance, with a TODO for the true correlated one
-  (docs/distance_beacons.md).
+  (docs/distance_beacons.md);
+- ``my_gauss_newton.py`` (``--gauss-newton``): a graph SLAM solver whose step builds the
+  normal equations edge by edge and walks down the gradient, with a TODO that makes it the
+  built-in Gauss-Newton step (``beacon-sim graph --solver``; docs/smoothing.md).
 
 Being modules, they are read by ruff, mypy and the import contracts as the rest of the
 package is, and what a student gets is exactly what is checked (tests/filters/test_filter_families.py).
@@ -29,7 +32,8 @@ from pathlib import Path
 #: Each kind of template: its module, whose class and file names are the ones replaced.
 TEMPLATES = {"filter": ("my_filter", "MyFilter"), "team": ("my_team", "MyTeam"),
              "slam": ("my_slam", "MySlam"), "scan": ("my_scan", "MyScan"),
-             "tdoa": ("my_tdoa", "MyTdoa")}
+             "tdoa": ("my_tdoa", "MyTdoa"),
+             "gauss_newton": ("my_gauss_newton", "MyGaussNewton")}
 
 
 def source(kind: str) -> str:
@@ -75,6 +79,11 @@ def render_tdoa_template(class_name: str, file_name: str) -> str:
     return render("tdoa", class_name, file_name)
 
 
+def render_gauss_newton_template(class_name: str, file_name: str) -> str:
+    """The Gauss-Newton template's text for ``class_name`` in a file named ``file_name``."""
+    return render("gauss_newton", class_name, file_name)
+
+
 def class_name_for(path: Path) -> str:
     """``my_filter.py`` -> ``MyFilter``; a name that is not an identifier -> ``MyFilter``."""
     words = [w for w in re.split(r"[^0-9A-Za-z]+", path.stem) if w]
@@ -84,5 +93,6 @@ def class_name_for(path: Path) -> str:
     return name
 
 
-__all__ = ["TEMPLATES", "class_name_for", "render", "render_scan_template", "render_slam_template",
-           "render_tdoa_template", "render_team_template", "render_template", "source"]
+__all__ = ["TEMPLATES", "class_name_for", "render", "render_gauss_newton_template",
+           "render_scan_template", "render_slam_template", "render_tdoa_template",
+           "render_team_template", "render_template", "source"]

@@ -34,7 +34,7 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
                duration: float | None = None, params: dict[str, dict[str, Any]] | None = None,
                calibration: Calibration | str | None = "others", dt: float | None = None,
                unknown_ids: bool = False, slam: bool = False, record_maps: bool = False,
-               progress: bool = False) -> MrclamRun:
+               progress: bool = False, graph: bool = False) -> MrclamRun:
     """Run filters over one robot's data, or over several robots of a data set at once.
 
     Every filter runs through :class:`~beacon_sim.hosting.team_runner.TeamRunner` (one
@@ -68,6 +68,10 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     ``record_maps`` (one robot): keep every SLAM filter's map after each update
     (``MrclamRun.map_history``), for the window.
 
+    ``graph`` (with ``slam``, one robot, barcodes): graph SLAM over the same steps, solved
+    after the run (runs/mrclam/graph_slam.py), is one more track, ``graph_slam``, scored
+    beside the SLAM filters.
+
     ``progress``: the seconds of data fed so far on stderr, as ``run``'s progress (a bar on a
     terminal, a plain line every few seconds in a log file); the results are the same with or
     without it.
@@ -75,7 +79,7 @@ def run_mrclam(data: MrclamData | Sequence[MrclamData], filters: list[str] | Non
     robots = [data] if isinstance(data, MrclamData) else list(data)
     if not robots:
         raise MrclamError("run_mrclam: no robot to run")
-    options = MrclamOptions(dt, unknown_ids, slam, record_maps)
+    options = MrclamOptions(dt, unknown_ids, slam, record_maps, graph)
     options.check(len(robots))
     t_start, t_end = run_span(robots, duration)
     return run_calibrated(robots, _calibrations(robots, calibration, t_end), filters, t_start, t_end,

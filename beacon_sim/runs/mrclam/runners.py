@@ -164,6 +164,16 @@ def run_calibrated(robots: list[MrclamData], cals: list[Calibration], filters: l
             mine.update(theirs)
     tracks = [{n: t[n] for n in names} for t in tracks]  # in the order the filters were named
     given = {n: not withheld[s] for n, s in zip(names, specs, strict=True)}
+    if options.graph:
+        from beacon_sim.runs.mrclam.graph_slam import GRAPH_NAME, graph_slam_track
+
+        if GRAPH_NAME in tracks[0]:
+            raise MrclamError(f"--graph adds a track named {GRAPH_NAME}: name no filter so")
+        tracks[0][GRAPH_NAME], history = graph_slam_track(robots[0], cals[0], t_start, t_end)
+        given[GRAPH_NAME] = False
+        if maps is not None:
+            maps[GRAPH_NAME] = history
+        names = [*names, GRAPH_NAME]
     return MrclamRun(robots, team, cals, tracks, t_start, t_end, updates, readings, wall,
                      {n: failed[n] for n in names if n in failed}, options.unknown_ids,
                      {n: scores[n] for n in names if scores and n in scores}, options.slam, given,
