@@ -3,7 +3,10 @@
 - ``pf.py``: the particle filter for beacon readings and fixes (``--filter pf``): Monte Carlo
   localization, adaptive size (KLD or seed 002's), recovery from kidnaps;
 - ``mcl.py``: Monte Carlo localization on an occupancy grid's laser scans (``--filter mcl``,
-  ROS amcl's ideas and parameter names).
+  ROS amcl's ideas and parameter names);
+- what ``pf.py`` uses beside its algorithm: ``pose_stats.py`` (the weighted mean and
+  covariance of the particles), ``log_weights.py`` (log-sum-exp and the effective sample
+  size), ``fast_calls.py`` (numpy calls without their Python layers, for the hot path).
 
 The resampling schemes they use are shared (``filters/resampling.py``: FastSLAM resamples
 too), as are the interface (``filters/base.py``) and data association
