@@ -32,13 +32,8 @@ from beacon_sim.evaluation.montecarlo import (
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.smoothing_run import smoothing_monte_carlo
 from beacon_sim.evaluation.smoothing_run import table_lines as smoothing_lines
-from beacon_sim.evaluation.summary import (
-    Thresholds,
-    evaluate,
-    evaluate_team,
-    team_table_lines,
-    write_team_outputs,
-)
+from beacon_sim.evaluation.summary import Evaluation, Thresholds
+from beacon_sim.evaluation.team_summary import evaluate_team, team_table_lines, write_team_outputs
 from beacon_sim.filters.base import FilterError
 from beacon_sim.hosting.containment import SandboxError
 from beacon_sim.hosting.loading import (
@@ -181,15 +176,18 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
         try:
             limit = getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S
             batch = False if getattr(args, "no_batch", False) else None
+            ev = Evaluation(sc, Thresholds())
             if _isolated(args) and any(hosted_source(s) is not None for s in specs):
-                runs = run_monte_carlo_isolated(sc, specs, args.runs, seed=args.seed or 0,
-                                                duration=args.duration, jobs=args.jobs, params=params,
-                                                run_limit_s=limit, sandbox=args.sandbox or "auto",
-                                                batch=batch, scheduler=scheduler)
-            else:
-                runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
-                                       jobs=args.jobs, params=params, batch=batch, run_limit_s=limit,
-                                       scheduler=scheduler)
+                # a hosted filter's runs are fed from simulations kept for them: not streamed
+                for run in run_monte_carlo_isolated(sc, specs, args.runs, seed=args.seed or 0,
+                                                    duration=args.duration, jobs=args.jobs, params=params,
+                                                    run_limit_s=limit, sandbox=args.sandbox or "auto",
+                                                    batch=batch, scheduler=scheduler):
+                    ev.add(run)
+            else:   # each run reduced as it ends and dropped: memory does not grow with --runs
+                run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
+                                jobs=args.jobs, params=params, batch=batch, run_limit_s=limit,
+                                scheduler=scheduler, on_run=ev.add_any, keep_runs=False)
         except (SandboxError, ClusterError) as exc:
             raise UsageError(str(exc)) from None
         except (SystemExit, KeyboardInterrupt) as exc:
@@ -200,7 +198,7 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
             what = exit_text(exc).removesuffix(" raised by the filter")
             raise UsageError(f"{sc.name}: a filter's code raised {what} during the evaluation; "
                              "run it alone with beacon-sim run to see which") from None
-        meta, curves = evaluate(sc, runs, Thresholds())
+        meta, curves = ev.result()
         smoothed = _smoothed(args, sc, specs, params)
         if smoothed:
             meta["smoothing"] = smoothed
@@ -236,7 +234,7 @@ def _smoothed(args: argparse.Namespace, sc: Any, specs: list[str],
 
 def team_metas(args: argparse.Namespace) -> list[dict[str, Any]]:
     """``eval`` on team scenarios: team filters (``--filter``, default the scenario's), a row
-    per robot and the team's, the joint PCRB (``summary.evaluate_team``); each scenario's
+    per robot and the team's, the joint PCRB (``team_summary.evaluate_team``); each scenario's
     table printed unless ``--json``. ``--time-limit S``: a filter's time limit per run, as
     for a single robot; ``--no-batch`` changes nothing (team runs are not batched)."""
     params = parse_set_options(getattr(args, "set_params", []) or [])

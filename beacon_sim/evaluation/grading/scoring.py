@@ -25,7 +25,8 @@ from beacon_sim.evaluation.montecarlo import (
 )
 from beacon_sim.evaluation.slam_metrics import ate, gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, joint_nees_at, mapped_beacons
-from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
+from beacon_sim.evaluation.summary import Thresholds, evaluate, overall_verdict
+from beacon_sim.evaluation.team_summary import evaluate_team
 from beacon_sim.hosting.runner import SLOW_STEP_MS
 
 #: The built-in filter graded beside the students on a SLAM scenario (``[model] map =
