@@ -13,6 +13,7 @@ import argparse
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.montecarlo import (
     ClusterError,
+    RunOutput,
     dask_client,
     run_monte_carlo,
     run_monte_carlo_isolated,
@@ -48,6 +50,7 @@ from beacon_sim.hosting.loading import (
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
 from beacon_sim.hosting.sources import hosted_source
 from beacon_sim.hosting.team_specs import check_team_specs
+from beacon_sim.runs.headless import SLOW_CPU_PER_SIM_S, slow_note
 from beacon_sim.runs.smoothing import smoothable
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
@@ -177,17 +180,18 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
             limit = getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S
             batch = False if getattr(args, "no_batch", False) else None
             ev = Evaluation(sc, Thresholds())
+            take = _saying_if_slow(ev, sc, args.runs, args.duration or sc.duration)
             if _isolated(args) and any(hosted_source(s) is not None for s in specs):
                 # a hosted filter's runs are fed from simulations kept for them: not streamed
                 for run in run_monte_carlo_isolated(sc, specs, args.runs, seed=args.seed or 0,
                                                     duration=args.duration, jobs=args.jobs, params=params,
                                                     run_limit_s=limit, sandbox=args.sandbox or "auto",
                                                     batch=batch, scheduler=scheduler):
-                    ev.add(run)
+                    take(run)
             else:   # each run reduced as it ends and dropped: memory does not grow with --runs
                 run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
                                 jobs=args.jobs, params=params, batch=batch, run_limit_s=limit,
-                                scheduler=scheduler, on_run=ev.add_any, keep_runs=False)
+                                scheduler=scheduler, on_run=take, keep_runs=False)
         except (SandboxError, ClusterError) as exc:
             raise UsageError(str(exc)) from None
         except (SystemExit, KeyboardInterrupt) as exc:
@@ -213,6 +217,26 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
                     print(note)
             print()
     return results
+
+
+def _saying_if_slow(ev: Evaluation, sc: Any, runs: int, duration: float) -> Callable[[RunOutput], None]:
+    """``ev.add_any`` that says once, on stderr, when a filter takes more than
+    ``SLOW_CPU_PER_SIM_S`` seconds of filter time per simulated second of a run."""
+    said = False
+
+    def take(run: RunOutput) -> None:
+        nonlocal said
+        if not said:
+            for name, fr in run.filters.items():
+                per = fr.step_ns / 1e9 / max(fr.steps * sc.dt, 1e-9)
+                if per > SLOW_CPU_PER_SIM_S:
+                    print(slow_note(f"filter {name}", per, runs * duration, what="filter time"),
+                          file=sys.stderr)
+                    said = True
+                    break
+        ev.add_any(run)
+
+    return take
 
 
 def _smoothed(args: argparse.Namespace, sc: Any, specs: list[str],
