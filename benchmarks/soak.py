@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
@@ -164,14 +163,14 @@ def soak_scenario(name: str, steps: int, seed: int) -> int:
             if why is not None:  # switched off for good: counted once
                 tallies[n].count(k, why)
                 live.discard(n)
-        if k % max(1, steps // 5) == 0:
-            print(f"  {name}: {k:,} steps, CPU {time.process_time() - c0:.0f} s", file=sys.stderr,
-                  flush=True)
-    for n in runner.names:
-        tallies[n].us_per_step = sum(runner.track(n, i).us_per_step for i in range(team.n_robots)
-                                     if runner.is_member(n) or i == 0)
-    return report(f"{team.name} (default filters, seed {seed})", steps, team.dt,
-                  time.process_time() - c0, time.perf_counter() - t0, tallies)
+        if k % max(1, steps // 10) == 0 or k == steps:  # the figures so far, in case it is cut short
+            for n in runner.names:
+                tallies[n].us_per_step = sum(runner.track(n, i).us_per_step for i in range(team.n_robots)
+                                             if runner.is_member(n) or i == 0)
+            off = report(f"{team.name} (default filters, seed {seed})"
+                         + ("" if k == steps else f" [so far, of {steps:,}]"), k, team.dt,
+                         time.process_time() - c0, time.perf_counter() - t0, tallies)
+    return off
 
 
 def main() -> int:
