@@ -13,6 +13,7 @@ import argparse
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.montecarlo import (
     ClusterError,
+    RunOutput,
     dask_client,
     run_monte_carlo,
     run_monte_carlo_isolated,
@@ -32,13 +34,8 @@ from beacon_sim.evaluation.montecarlo import (
 from beacon_sim.evaluation.report import table_lines, write_outputs
 from beacon_sim.evaluation.smoothing_run import smoothing_monte_carlo
 from beacon_sim.evaluation.smoothing_run import table_lines as smoothing_lines
-from beacon_sim.evaluation.summary import (
-    Thresholds,
-    evaluate,
-    evaluate_team,
-    team_table_lines,
-    write_team_outputs,
-)
+from beacon_sim.evaluation.summary import Evaluation, Thresholds
+from beacon_sim.evaluation.team_summary import evaluate_team, team_table_lines, write_team_outputs
 from beacon_sim.filters.base import FilterError
 from beacon_sim.hosting.containment import SandboxError
 from beacon_sim.hosting.loading import (
@@ -53,6 +50,7 @@ from beacon_sim.hosting.loading import (
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, exit_text, is_filter_failure
 from beacon_sim.hosting.sources import hosted_source
 from beacon_sim.hosting.team_specs import check_team_specs
+from beacon_sim.runs.headless import SLOW_CPU_PER_SIM_S, slow_note
 from beacon_sim.runs.smoothing import smoothable
 
 #: Each filter's time limit per run when ``--time-limit`` is not given [s]: a filter stuck
@@ -181,15 +179,19 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
         try:
             limit = getattr(args, "time_limit", None) or DEFAULT_RUN_LIMIT_S
             batch = False if getattr(args, "no_batch", False) else None
+            ev = Evaluation(sc, Thresholds())
+            take = _saying_if_slow(ev, sc, args.runs, args.duration or sc.duration)
             if _isolated(args) and any(hosted_source(s) is not None for s in specs):
-                runs = run_monte_carlo_isolated(sc, specs, args.runs, seed=args.seed or 0,
-                                                duration=args.duration, jobs=args.jobs, params=params,
-                                                run_limit_s=limit, sandbox=args.sandbox or "auto",
-                                                batch=batch, scheduler=scheduler)
-            else:
-                runs = run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
-                                       jobs=args.jobs, params=params, batch=batch, run_limit_s=limit,
-                                       scheduler=scheduler)
+                # a hosted filter's runs are fed from simulations kept for them: not streamed
+                for run in run_monte_carlo_isolated(sc, specs, args.runs, seed=args.seed or 0,
+                                                    duration=args.duration, jobs=args.jobs, params=params,
+                                                    run_limit_s=limit, sandbox=args.sandbox or "auto",
+                                                    batch=batch, scheduler=scheduler):
+                    take(run)
+            else:   # each run reduced as it ends and dropped: memory does not grow with --runs
+                run_monte_carlo(sc, specs, args.runs, seed=args.seed or 0, duration=args.duration,
+                                jobs=args.jobs, params=params, batch=batch, run_limit_s=limit,
+                                scheduler=scheduler, on_run=take, keep_runs=False)
         except (SandboxError, ClusterError) as exc:
             raise UsageError(str(exc)) from None
         except (SystemExit, KeyboardInterrupt) as exc:
@@ -200,7 +202,7 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
             what = exit_text(exc).removesuffix(" raised by the filter")
             raise UsageError(f"{sc.name}: a filter's code raised {what} during the evaluation; "
                              "run it alone with beacon-sim run to see which") from None
-        meta, curves = evaluate(sc, runs, Thresholds())
+        meta, curves = ev.result()
         smoothed = _smoothed(args, sc, specs, params)
         if smoothed:
             meta["smoothing"] = smoothed
@@ -215,6 +217,26 @@ def _evaluate_all(args: argparse.Namespace, scenarios: list[Any], params: dict[s
                     print(note)
             print()
     return results
+
+
+def _saying_if_slow(ev: Evaluation, sc: Any, runs: int, duration: float) -> Callable[[RunOutput], None]:
+    """``ev.add_any`` that says once, on stderr, when a filter takes more than
+    ``SLOW_CPU_PER_SIM_S`` seconds of filter time per simulated second of a run."""
+    said = False
+
+    def take(run: RunOutput) -> None:
+        nonlocal said
+        if not said:
+            for name, fr in run.filters.items():
+                per = fr.step_ns / 1e9 / max(fr.steps * sc.dt, 1e-9)
+                if per > SLOW_CPU_PER_SIM_S:
+                    print(slow_note(f"filter {name}", per, runs * duration, what="filter time"),
+                          file=sys.stderr)
+                    said = True
+                    break
+        ev.add_any(run)
+
+    return take
 
 
 def _smoothed(args: argparse.Namespace, sc: Any, specs: list[str],
@@ -236,7 +258,7 @@ def _smoothed(args: argparse.Namespace, sc: Any, specs: list[str],
 
 def team_metas(args: argparse.Namespace) -> list[dict[str, Any]]:
     """``eval`` on team scenarios: team filters (``--filter``, default the scenario's), a row
-    per robot and the team's, the joint PCRB (``summary.evaluate_team``); each scenario's
+    per robot and the team's, the joint PCRB (``team_summary.evaluate_team``); each scenario's
     table printed unless ``--json``. ``--time-limit S``: a filter's time limit per run, as
     for a single robot; ``--no-batch`` changes nothing (team runs are not batched)."""
     params = parse_set_options(getattr(args, "set_params", []) or [])

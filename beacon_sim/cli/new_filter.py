@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from beacon_sim.core.files import write_text_atomic
+from beacon_sim.core.files import create_text_new
 from beacon_sim.errors import UsageError
 from beacon_sim.filters.templates import (
     class_name_for,
@@ -63,7 +63,10 @@ def new_filter_command(args: argparse.Namespace) -> int:
     render, what, scenario, beside = TEMPLATES[kind]
     cls = class_name_for(path)
     shown = path.as_posix() if path.is_absolute() or "/" in path.as_posix() else f"./{path.name}"
-    write_text_atomic(path, render(cls, path.name), what="filter file", error=UsageError)
+    try:   # created only if no file has that name at that moment (not just at the check above)
+        create_text_new(path, render(cls, path.name), what="filter file", error=UsageError)
+    except UsageError as exc:
+        raise UsageError(f"new-filter {exc}") from None
     print(f"wrote {path} with {what.format(cls=cls)}")
     print("next:")
     if kind == "gauss_newton":  # a solver, not a filter: the graph command runs it

@@ -41,7 +41,7 @@ def run_command(args: argparse.Namespace) -> int:
         params = filter_params(args)
         check_team_specs(specs, team, params)
     result = run_headless(team, specs, seed=args.seed, duration=args.duration, params=params,
-                          progress=True)
+                          progress=True, on_slow=lambda line: print(line, file=sys.stderr))
     if team.solo:
         print_sensor_notes(specs, team.robots[0].scenario)
     data = result.as_json()

@@ -24,6 +24,7 @@ one line naming the file.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import stat
@@ -202,3 +203,46 @@ def write_text_atomic(path: str | Path, text: str, *, what: str = "file",
     """``text`` written to ``path`` whole or not at all (:func:`atomic_write`)."""
     with atomic_write(path, "w", what=what, error=error, **open_args) as fh:
         fh.write(text)
+
+
+
+def create_text_new(path: str | Path, text: str, *, what: str = "file",
+                    error: type[BeaconSimError] = BeaconSimError) -> None:
+    """``text`` written to ``path`` (UTF-8) whole or not at all, and only if no ``path``
+    exists at the moment it is created: the text goes to a temporary file beside it, which
+    is then hard-linked as ``path`` (``os.link`` fails when the name exists, so a file
+    another program made after any earlier check is never replaced). Where the file system
+    has no hard links, ``path`` is created with ``O_EXCL`` and written in place (removed
+    again if the write fails). A ``path`` that exists: ``error`` saying so; any other
+    ``OSError``: ``error`` naming ``path``."""
+    path = Path(path)
+    tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    exists = f"{path}: the file exists; choose another name"
+    try:
+        os.close(os.open(tmp, flags, 0o666))   # ours alone (a random name, created exclusively)
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            raise error(exists) from None
+        except OSError as exc:
+            if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV, errno.EMLINK):
+                raise
+            try:   # no hard links on this file system: an exclusive create, written in place
+                fd = os.open(path, flags, 0o666)
+            except FileExistsError:
+                raise error(exists) from None
+            try:
+                with os.fdopen(fd, "w", encoding="utf-8") as out:
+                    out.write(text)
+            except BaseException:
+                _remove(path)
+                raise
+    except OSError as exc:
+        raise error(f"{path}: cannot write the {what}: {exc.strerror or type(exc).__name__}") from None
+    finally:
+        _remove(tmp)

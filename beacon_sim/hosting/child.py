@@ -191,7 +191,7 @@ class Server:
             with time_limit(self.step_limit_s, cpu=True, backstop=False):
                 return fn()
         except FilterTimeout:
-            raise FilterFailed(f"time limit: a step took over {self.step_limit_s:g} s") from None
+            raise FilterFailed(f"time limit: a step took over {self.step_limit_s:g} s of CPU") from None
 
     def send(self, frame: bytes) -> None:
         from beacon_sim.hosting.wire import send_frame

@@ -225,11 +225,12 @@ class FilterRunner:
 
     def _over(self, of_run: bool) -> str:
         """The message of a step stopped by its time limit (see :meth:`_limit`)."""
+        cpu = self.cpu_limits   # a CPU-time limit says so: the wall clock may show far more
         if of_run:
-            return f"time limit: over {self.run_limit_s:g} s of filter time in the run"
+            return f"time limit: over {self.run_limit_s:g} s of filter {'CPU ' if cpu else ''}time in the run"
         if self.step_limit_s is None:
             return ""
-        return f"time limit: a step took over {self.step_limit_s:g} s"
+        return f"time limit: a step took over {self.step_limit_s:g} s{' of CPU' if cpu else ''}"
 
     def _step(self, track: FilterTrack, f: Filter, step: Step) -> object:
         """predict, (the prior for the step view), update, estimate: one step of one filter."""

@@ -39,6 +39,22 @@ from beacon_sim.runs.progress import Progress
 #: The figures of a run that a failed filter does not get (null in JSON, empty in CSV).
 ACCURACY_KEYS = ("pos_rmse_m", "heading_rmse_rad", "mse_x", "mse_y", "mse_theta", "anees")
 
+#: A run that costs more than this [s of CPU per simulated second] says so, once, naming
+#: what costs it (``run``, ``eval``): a world or a filter that slow would otherwise look hung.
+SLOW_CPU_PER_SIM_S = 3.0
+#: It is judged once this much CPU has been spent [s], so the start-up costs do not count.
+SLOW_JUDGED_AFTER_CPU_S = 1.0
+
+
+def slow_note(who: str, per_sim_s: float, simulated_s: float, what: str = "CPU") -> str:
+    """The one line saying a run is slow: ``who`` (a filter, or "the simulation") costs
+    ``per_sim_s`` seconds of ``what`` per simulated second, so ``simulated_s`` simulated
+    seconds take about that many times longer."""
+    total = per_sim_s * simulated_s
+    took = f"{total / 60:.0f} min" if total >= 120 else f"{total:.0f} s"
+    return (f"note: {who} costs {per_sim_s:.1f} s of {what} per simulated second (over "
+            f"{SLOW_CPU_PER_SIM_S:g}); {simulated_s:g} s simulated will take about {took}")
+
 
 def anees_verdict(value: float, lo: float, hi: float) -> str:
     """``consistent`` inside the band [lo, hi], ``optimistic`` above it (errors larger than
@@ -303,7 +319,8 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
                  params: dict[str, dict[str, Any]] | None = None, progress: bool = False, *,
                  step_limit_s: float | None = HEADLESS_STEP_LIMIT_S,
                  run_limit_s: float | None = None, secret: bytes | None = None,
-                 on_tick: Callable[[Any, TeamRunner], None] | None = None) -> RunResult:
+                 on_tick: Callable[[Any, TeamRunner], None] | None = None,
+                 on_slow: Callable[[str], None] | None = None) -> RunResult:
     """Simulate ``duration`` seconds (default: the scenario's) and feed every filter.
 
     ``filters``: for a single robot, filter specs (built-in names, ``pkg.mod:Class``,
@@ -315,7 +332,10 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
     once the run has taken a second. ``secret``: the key of the filters' random streams
     (None: the public key, reproducible from the seed alone; ``grade``'s secret).
     ``on_tick(step, runner)`` is called after the filters took each tick (an export reads
-    their beliefs there).
+    their beliefs there). ``on_slow(line)`` is called once, as soon as the run has cost more
+    than ``SLOW_CPU_PER_SIM_S`` seconds of CPU (this thread's: the simulation and the filters
+    run in it) per simulated second, with a line naming the simulation or the filter that
+    costs most (:func:`slow_note`).
     """
     team = as_team(scenario)
     seed = team.seed if seed is None else seed
@@ -330,12 +350,21 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
     steps = []
     t0 = time.perf_counter()
     sim_ns = 0
+    cpu0 = time.thread_time_ns()
+    sim_cpu_ns = 0
     for _ in range(n):
         a = time.perf_counter_ns()
+        ca = time.thread_time_ns()
         step = sim.step()
+        sim_cpu_ns += time.thread_time_ns() - ca
         sim_ns += time.perf_counter_ns() - a
         steps.append(step)
         runner.feed(step)
+        if on_slow is not None:
+            cpu = (time.thread_time_ns() - cpu0) / 1e9
+            if cpu > SLOW_JUDGED_AFTER_CPU_S and cpu > SLOW_CPU_PER_SIM_S * step.time:
+                on_slow(slow_note(_costliest(runner, sim_cpu_ns / 1e9, cpu), cpu / step.time, duration))
+                on_slow = None
         if on_tick is not None:
             on_tick(step, runner)
         if run_limit_s is not None:  # the team filters' run limit (the members' is their runner's)
@@ -349,3 +378,17 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
     result = RunResult(team, seed, steps, runner, wall, sim_ns / 1e9, checksum)
     result.fail_unbounded_nees()
     return result
+
+
+def _costliest(runner: TeamRunner, sim_cpu_s: float, cpu_s: float) -> str:
+    """What costs a slow run most: "the simulation" when it took over half of ``cpu_s``,
+    else the filter with the most step time (over every robot's copy), named."""
+    if sim_cpu_s > 0.5 * cpu_s:
+        return "the simulation"
+    cost: dict[str, int] = {}
+    for r in runner.members:
+        for name, tr in r.tracks.items():
+            cost[name] = cost.get(name, 0) + tr.step_ns
+    for name, tr in runner.joint.tracks.items():
+        cost[name] = cost.get(name, 0) + tr.step_ns
+    return f"filter {max(cost, key=lambda k: cost[k])}" if cost else "the run"

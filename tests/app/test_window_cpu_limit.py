@@ -81,7 +81,7 @@ def test_a_step_that_waits_is_not_switched_off_one_that_burns_cpu_is(slow_file, 
     assert time.perf_counter() - t0 >= 3 * LIMIT_S  # the sleep did cost wall time
     assert s.status["Sleeps"].failed is None
     assert len(s.runner.tracks["Sleeps"].means) == 6
-    assert s.status["Burns"].failed == f"time limit: a step took over {LIMIT_S:g} s"
+    assert s.status["Burns"].failed == f"time limit: a step took over {LIMIT_S:g} s of CPU"
     assert s.status["ekf"].failed is None
 
 

@@ -55,7 +55,7 @@ def test_an_endless_loop_is_stopped_and_the_others_go_on(cpu):
     runner = FilterRunner({"loops": Plain(loop_at=3), "ok": Plain()}, step_limit_s=0.3, cpu_limits=cpu)
     _feed(runner, 6)
     loops, ok = runner.tracks["loops"], runner.tracks["ok"]
-    assert loops.failed == "time limit: a step took over 0.3 s"
+    assert loops.failed == "time limit: a step took over 0.3 s" + (" of CPU" if cpu else "")
     assert loops.failed_time_s == pytest.approx(0.2) and loops.steps == 2
     assert ok.failed is None and ok.steps == 6
     assert [m[0] for m in ok.means] == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
@@ -74,14 +74,14 @@ def test_a_cpu_limit_counts_cpu_not_sleep():
     # 1 s of CPU under a 0.2 s CPU limit is stopped
     runner = FilterRunner({"busy": Plain(work=1.0)}, step_limit_s=0.2, cpu_limits=True)
     _feed(runner, 1)
-    assert runner.tracks["busy"].failed == "time limit: a step took over 0.2 s"
+    assert runner.tracks["busy"].failed == "time limit: a step took over 0.2 s of CPU"
 
 
 def test_the_run_limit_is_what_is_left_of_it():
     runner = FilterRunner({"busy": Plain(work=0.15)}, run_limit_s=0.5, cpu_limits=True)
     _feed(runner, 10)
     tr = runner.tracks["busy"]
-    assert tr.failed == "time limit: over 0.5 s of filter time in the run"
+    assert tr.failed == "time limit: over 0.5 s of filter CPU time in the run"
     # 3 steps of 0.15 s of CPU fit in 0.5 s, whatever the load: under CPU limits the run's
     # account is the filter thread's CPU time (a 0.15 s CPU step took 0.54 s wall at load 16)
     assert tr.steps == 3

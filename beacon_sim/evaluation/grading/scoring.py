@@ -29,7 +29,8 @@ from beacon_sim.evaluation.montecarlo import (
 )
 from beacon_sim.evaluation.slam_metrics import ate, gospa
 from beacon_sim.evaluation.slam_run import GOSPA_CUTOFF_M, joint_nees_at, mapped_beacons
-from beacon_sim.evaluation.summary import Thresholds, evaluate, evaluate_team, overall_verdict
+from beacon_sim.evaluation.summary import Thresholds, evaluate, overall_verdict
+from beacon_sim.evaluation.team_summary import evaluate_team
 from beacon_sim.hosting.guard import NEES_NOT_FINITE
 from beacon_sim.hosting.runner import SLOW_STEP_MS
 from beacon_sim.runs.headless import anees_verdict

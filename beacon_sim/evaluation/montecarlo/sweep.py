@@ -34,6 +34,17 @@ def _task_group(group: list[Any]) -> list[RunOutput]:
 #: that one slow group does not leave the other workers idle long).
 TASKS_PER_DASK_WORKER = 3
 
+#: The most run-steps one batch of the batched path holds (:func:`batch_size`): a batch keeps
+#: every run's estimates (mean and covariance, 96 bytes a step per filter) until it ends, so
+#: a thousand runs go as batches of a hundred or so, not as one.
+BATCH_RUN_STEPS = 20_000
+
+
+def batch_size(steps: int) -> int:
+    """How many runs of ``steps`` steps one batch takes: 8 to 256, about ``BATCH_RUN_STEPS``
+    run-steps (the results do not depend on it: a run's numbers never depend on its batch)."""
+    return max(8, min(256, BATCH_RUN_STEPS // max(steps, 1)))
+
 
 def default_jobs() -> int:
     """All the cores this process may use."""
@@ -50,8 +61,13 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
                     on_run: Callable[[RunOutput], None] | None = None,
                     batch: bool | None = None,
                     run_limit_s: float | None = None,
-                    scheduler: Any = None) -> list[RunOutput]:
+                    scheduler: Any = None, keep_runs: bool = True) -> list[RunOutput]:
     """``runs`` runs with seeds ``seed, seed + 1, ...``; returns them in seed order.
+
+    ``on_run(run)`` is called with each run as it ends (in the order they end; ``run.index``
+    says which it is); ``keep_runs`` False returns none of them (an empty list), so that a
+    caller which reduces each run in ``on_run`` (``summary.Evaluation``) holds no run's
+    arrays.
 
     ``scheduler``: None runs on ``jobs`` local processes; a Dask scheduler's address
     (``tcp://host:8786``), a ``dask.distributed`` Client or cluster runs the same tasks
@@ -86,23 +102,29 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
         if scheduler is not None and jobs_given is None:  # one batch per Dask worker
             jobs = min(runs, max(1, dask_workers(scheduler)))
         bounds = [round(k * runs / jobs) for k in range(jobs + 1)]
-        chunks = [list(range(a, b)) for a, b in pairwise(bounds) if b > a]
+        size = batch_size(round(duration / scenario.dt))
+        chunks = [list(range(a, b))[i:i + size] for a, b in pairwise(bounds) if b > a
+                  for i in range(0, b - a, size)]
         btasks = [(scenario, list(specs), params, [seed + i for i in c], duration, c, 0) for c in chunks]
 
         def collect(done: list[RunOutput]) -> None:
             for r in done:
-                out[r.index] = r
+                if keep_runs:
+                    out[r.index] = r
                 bar.advance()
                 if on_run:
                     on_run(r)
 
         if scheduler is not None:
             on_dask(scheduler, batch_task, btasks, lambda _i, done: collect(done))
-        elif len(btasks) == 1:
-            collect(batch_task(btasks[0]))
+        elif jobs == 1 or len(btasks) == 1:
+            for bt in btasks:
+                collect(batch_task(bt))
         else:
-            with ProcessPoolExecutor(max_workers=len(btasks), initializer=init_worker) as pool:
-                for fut in as_completed([pool.submit(batch_task, t) for t in btasks]):
+            with ProcessPoolExecutor(max_workers=min(jobs, len(btasks)), initializer=init_worker) as pool:
+                pending = {pool.submit(batch_task, bt) for bt in btasks}
+                for fut in as_completed(pending):
+                    pending.discard(fut)   # dropped once taken: no finished batch is held
                     collect(fut.result())
         return [o for o in out if o is not None]
     tasks = [(scenario, list(specs), params, seed + i, duration, i, i == 0, run_limit_s)
@@ -115,7 +137,8 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
 
         def group_done(k: int, rs: list[RunOutput]) -> None:
             for i, r in zip(groups[k], rs, strict=True):
-                out[i] = r
+                if keep_runs:
+                    out[i] = r
                 bar.advance()
                 if on_run:
                     on_run(r)
@@ -124,7 +147,8 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
     elif jobs == 1:
         for i, t in enumerate(tasks):
             run = _task(t)
-            out[i] = run
+            if keep_runs:
+                out[i] = run
             bar.advance()
             if on_run:
                 on_run(run)
@@ -133,7 +157,9 @@ def run_monte_carlo(scenario: Scenario, specs: list[str], runs: int, seed: int =
             futures = {pool.submit(_task, t): i for i, t in enumerate(tasks)}
             for done in as_completed(futures):
                 run = done.result()
-                out[futures[done]] = run
+                i = futures.pop(done)   # dropped once taken: no finished run is held
+                if keep_runs:
+                    out[i] = run
                 bar.advance()
                 if on_run:
                     on_run(run)
