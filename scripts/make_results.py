@@ -1,14 +1,16 @@
-"""Regenerate docs/results.md and docs/results/*.png in one run (a few minutes on 2 cores).
+"""Regenerate docs/results.md and docs/results/*.png in one run (tens of minutes on 2 shared cores).
 
-Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only mrclam|slam|corridor]
+Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only NAME[,NAME]]
+       [--check-seeds]
 
 Every number in docs/results.md comes from this script: the seeds' findings (000 Krejsa
 EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF, 004 the
-corridor's discrete Bayes filter), the
-evaluation's targets on `default` and global localization with kidnaps (`global_kidnap`).
-Monte Carlo runs use seeds 0, 1, 2, ...; the same command gives the same tables (except the
-cost columns, which are measured).
-"""
+corridor's discrete Bayes filter), the evaluation's targets on `default`, global localization
+with kidnaps (`global_kidnap`), and the Monte Carlo figures the other pages quote (SLAM on
+`slam_loop`, association without IDs, `team_sparse`, the office's kidnap recovery, the
+symmetric room's two clouds; each entry's ``quoted_in``). Monte Carlo runs use seeds
+DOCS_SEED, DOCS_SEED + 1, ... (``--check-seeds``: CHECK_SEED, ...); the same command gives the
+same tables (except the cost columns, which are measured)."""
 
 from __future__ import annotations
 
