@@ -1,14 +1,16 @@
-"""Regenerate docs/results.md and docs/results/*.png in one run (a few minutes on 2 cores).
+"""Regenerate docs/results.md and docs/results/*.png in one run (tens of minutes on 2 shared cores).
 
 Usage: python scripts/make_results.py [--runs-scale F] [--mrclam DIR] [--jobs J] [--only NAME[,NAME]]
+       [--check-seeds]
 
 Every number in docs/results.md comes from this script: the seeds' findings (000 Krejsa
 EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF, 004 the
-corridor's discrete Bayes filter), the
-evaluation's targets on `default` and global localization with kidnaps (`global_kidnap`).
-Monte Carlo runs use seeds 0, 1, 2, ...; the same command gives the same tables (except the
-cost columns, which are measured).
-"""
+corridor's discrete Bayes filter), the evaluation's targets on `default`, global localization
+with kidnaps (`global_kidnap`), and the Monte Carlo figures the other pages quote (SLAM on
+`slam_loop`, association without IDs, `team_sparse`, the office's kidnap recovery, the
+symmetric room's two clouds; each entry's ``quoted_in``). Monte Carlo runs use seeds
+DOCS_SEED, DOCS_SEED + 1, ... (``--check-seeds``: CHECK_SEED, ...); the same command gives the
+same tables (except the cost columns, which are measured)."""
 
 from __future__ import annotations
 
@@ -1162,6 +1164,243 @@ def fig_corridor_mcl(ctx: Context) -> Figure:
         *rows, ""], checks)
 
 
+# ---- figures whose tables other pages quote (association.md, multi-robot.md, maps.md) ----
+
+
+def helper_module(folder: str, name: str):
+    """A module of ``scripts/`` or ``benchmarks/`` (``symmetric_room_modes``, ``bench_mcl``),
+    imported by name so that worker processes find it too: the figures reuse their runs."""
+    import importlib
+
+    where = str(ROOT / folder)
+    if where not in sys.path:
+        sys.path.insert(0, where)
+    return importlib.import_module(name)
+
+
+def mean_interval(values) -> list | None:
+    """95 % bootstrap interval over runs of the mean of per-run ``values``."""
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+
+    a = np.asarray(values, dtype=float)
+    return ratio_of_sums(a, np.ones(len(a)))
+
+
+def rms_interval(values) -> list | None:
+    """95 % bootstrap interval over runs of the RMS of per-run RMS ``values`` (runs of equal length)."""
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+
+    a = np.asarray(values, dtype=float)
+    return ratio_of_sums(a * a, np.ones(len(a)), sqrt=True)
+
+
+#: The association figures' filters: (spec, label); ``jcbb`` is the EKF with JCBB.
+ASSOCIATION_FILTERS = (("ekf", "ekf (NN)"), ("jcbb=ekf", "ekf (JCBB)"), ("ukf", "ukf (NN)"),
+                       ("pf", "pf"), ("histogram", "histogram"))
+#: On ``default_unknown`` also the histogram filter with a smaller uniform floor (kidnap prior).
+FLOOR_FILTER = ("floor=histogram", "histogram, `floor = 1e-9`")
+
+
+def association_filters(which: str) -> tuple[tuple[str, str], ...]:
+    """The (spec, label) pairs of the association figure on ``which``."""
+    return ASSOCIATION_FILTERS + ((FLOOR_FILTER,) if which == "default_unknown" else ())
+
+
+def default_unknown_ids():
+    """``default`` with its sensor's IDs hidden and 0.3 clutter a reading (docs/association.md)."""
+    sc = load_scenario("default")
+
+    def hidden(sensors):
+        return tuple(dataclasses.replace(s, correspondence="unknown", clutter_rate=0.3) for s in sensors)
+    return dataclasses.replace(sc, name="default_unknown", sensors=hidden(sc.sensors),
+                               model_sensors=hidden(sc.model_sensors))
+
+
+def association_seed(args: tuple[str, int]) -> dict:
+    """One seed of ``beacon-sim run SCENARIO --associations`` with ``ASSOCIATION_FILTERS``:
+    per filter label its :class:`AssociationScore` (the run as it is, then with the IDs told)."""
+    from beacon_sim.evaluation.association_metrics import association_scores
+
+    which, seed = args
+    sc = default_unknown_ids() if which == "default_unknown" else load_scenario(which)
+    specs = [s for s, _ in association_filters(which)]
+    scores = association_scores(sc, specs, seed=seed, params={"jcbb": {"association": "jcbb"},
+                                                              "floor": {"floor": 1e-9}})
+    names = {s.split("=")[0]: label for s, label in association_filters(which)}
+    return {names[k]: v for k, v in scores.items()}
+
+
+def association_figure(ctx: Context, which: str, k: int, intro_text: str) -> Figure:
+    """The association table of ``which`` over ``ctx.n(k)`` seeded runs, pooled, with intervals."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+
+    seeds = range(ctx.seed, ctx.seed + ctx.n(k))
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        runs = list(pool.map(association_seed, [(which, s) for s in seeds]))
+    checks: dict[str, Check] = {}
+    rows = []
+    for _, label in association_filters(which):
+        sc = [r[label] for r in runs]
+        if any(s.failed for s in sc):
+            rows.append(f"| {label} | switched off: {next(s.failed for s in sc if s.failed)} | | | | |")
+            continue
+        right = ratio_of_sums(np.array([s.correct for s in sc]), np.array([s.readings for s in sc]))
+        share = sum(s.correct for s in sc) / max(1, sum(s.readings for s in sc))
+        rm = [s.rmse for s in sc]
+        kn = [s.rmse_known for s in sc]
+        cost = [s.rmse_cost for s in sc]
+        v_rm, v_kn = float(np.sqrt(np.mean(np.square(rm)))), float(np.sqrt(np.mean(np.square(kn))))
+        checks[f"{label} share correct"] = (share, right)
+        checks[f"{label} pos RMSE, IDs unknown [m]"] = (v_rm, rms_interval(rm))
+        checks[f"{label} pos RMSE, IDs told [m]"] = (v_kn, rms_interval(kn))
+        far = sum(r > 1.0 for r in rm)
+        rows.append(f"| {label} | {sum(s.readings for s in sc)} | {with_iv(share, right, '.3f')} "
+                    f"| {sum(s.false for s in sc)} / {sum(s.missed for s in sc)} "
+                    f"| {with_iv(v_rm, rms_interval(rm), '.3f')} | {with_iv(v_kn, rms_interval(kn), '.3f')} "
+                    f"| {with_iv(float(np.mean(cost)), mean_interval(cost), '+.3f')} | {far}/{len(sc)} |")
+    return Figure([
+        f"{intro_text} {len(seeds)} seeded runs, seeds {ctx.seeds(k)}, each run twice: as it is "
+        "and with the IDs told and no clutter (the same truth; `evaluation/association_metrics.py`, "
+        "the columns of [association.md](association.md#metrics-beacon-sim-run---associations)). "
+        "Pooled over the runs; RMSE: the root mean square of the runs' position RMSE; cost: the "
+        "mean per run of RMSE with unknown IDs minus RMSE with the IDs told; brackets: 95 % "
+        "bootstrap intervals over the runs.", "",
+        "| filter | readings | given their beacon (clutter: none) | false / missed | pos RMSE, IDs "
+        "unknown [m] | IDs told [m] | cost [m] | runs above 1 m |",
+        "|---|---|---|---|---|---|---|---|", *rows, ""], checks)
+
+
+def fig_lookalike(ctx: Context) -> Figure:
+    """Association on ``lookalike_beacons``: ten look-alike doors, the filter told one door off."""
+    return association_figure(
+        ctx, "lookalike_beacons", 20,
+        "`beacon-sim run lookalike_beacons --associations --filter ekf --filter jcbb=ekf --set "
+        "jcbb.association=jcbb --filter ukf --filter pf --filter histogram` (30 s; the robot "
+        "starts at x = 4 m and is told 6 m, one door off; [association.md](association.md"
+        "#the-look-alike-lesson-beacon-sim-play-lookalike_beacons)),")
+
+
+def fig_unknown_ids(ctx: Context) -> Figure:
+    """Association on ``default`` with the IDs hidden and clutter 0.3 a reading."""
+    return association_figure(
+        ctx, "default_unknown", 10,
+        "`default` with its sensor given `correspondence = \"unknown\"` and `clutter_rate = 0.3` "
+        "(120 s; the same filters and command as the look-alike table, and `--filter "
+        "floor=histogram --set floor.floor=1e-9`: the histogram filter with a smaller uniform "
+        "floor),")
+
+
+def fig_team_sparse(ctx: Context) -> Figure:
+    """team_sparse: per robot and for the team, each team filter's RMSE and ANEES against
+    the joint PCRB and each robot's bound alone (docs/multi-robot.md)."""
+    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.evaluation.montecarlo.sweep import run_team_monte_carlo
+    from beacon_sim.evaluation.summary import evaluate_team
+
+    team = load_team_scenario("team_sparse")
+    flt = ["independent", "centralised", "decentralised", "ci", "naive"]   # team filters: always built in
+    t0 = time.perf_counter()
+    rs = run_team_monte_carlo(team, flt, ctx.n(20), seed=ctx.seed, jobs=ctx.jobs)
+    meta = evaluate_team(team, rs)
+    names = meta["robots"]
+    checks: dict[str, Check] = {}
+    rows = []
+    for f in flt:
+        row = meta["filters"][f]
+        cells = []
+        for i, rn in enumerate(names):
+            one = [r.robot(i) for r in rs]
+            m, _ = evaluate(team.robots[i].scenario, one)
+            r = m["filters"][f]
+            iv_r, iv_a = pos_rmse_interval(one, f), (r.get("intervals") or {}).get("anees")
+            checks[f"{f} {rn} pos RMSE [m]"] = (r["pos_rmse_m"], iv_r)
+            checks[f"{f} {rn} ANEES"] = (r["anees"], iv_a)
+            cells.append(f"{with_iv(r['pos_rmse_m'], iv_r, '.3f')} / {with_iv(r['anees'], iv_a, '.3g')}")
+        t = row["team"]
+        rows.append(f"| {f} | {' | '.join(cells)} | {fmt(t['pos_rmse_m'])} / {fmt(t['anees'], '.3g')} "
+                    f"({t['anees_verdict']}) | {fmt(t['rmse_over_pcrb'], '.2f')} "
+                    f"| {fmt(row['us_per_step'], '.0f')} |")
+    b = meta["pcrb"]
+    rows.append(f"| joint PCRB | {' | '.join(fmt(b['robots'][n]['pos_rmse_m']) for n in names)} "
+                f"| {fmt(b['team_pos_rmse_m'])} | | |")
+    rows.append(f"| PCRB alone | {' | '.join(fmt(b['robots'][n]['alone_pos_rmse_m']) for n in names)} "
+                f"| {fmt(b['team_alone_pos_rmse_m'])} | | |")
+    lo, hi = next(iter(meta["filters"].values()))["anees_band"]
+    tlo, thi = next(iter(meta["filters"].values()))["team_anees_band"]
+    return Figure([
+        f"`beacon-sim eval team_sparse --runs {ctx.n(20)} --seed {ctx.seed} "
+        + " ".join(f"--filter {f}" for f in flt) +
+        f"`: {ctx.n(20)} runs of {team.duration:g} s, seeds {ctx.seeds(20)} "
+        f"({time.perf_counter() - t0:.0f} s here). Per robot: position RMSE [m] / ANEES "
+        f"(95 % band [{lo:.2f}, {hi:.2f}]), brackets 95 % bootstrap intervals over the runs; the "
+        f"team: RMSE over the robots / mean ANEES (band [{tlo:.2f}, {thi:.2f}]) and RMSE / joint "
+        "PCRB; µs per tick of the whole team filter (measured, varies with the load). What it "
+        "shows is discussed in [multi-robot.md](multi-robot.md#team_sparse).", "",
+        f"| filter | {' | '.join(names)} | team | team RMSE/PCRB | µs/tick |",
+        "|---|" + "---|" * (len(names) + 3), *rows, ""], checks)
+
+
+def office_seed(seed: int) -> bool:
+    """One office kidnap trial (``benchmarks/bench_mcl.py``'s): mcl within 0.5 m at the end."""
+    return helper_module("benchmarks", "bench_mcl").recovered(seed)
+
+
+def fig_office_kidnap(ctx: Context) -> Figure:
+    """Kidnap recovery in the ``office``: the share of runs whose mcl estimate ends within
+    0.5 m of the truth, 70 s after the kidnap to the corridor's far end."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    seeds = list(range(ctx.seed, ctx.seed + ctx.n(40)))
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        ok = list(pool.map(office_seed, seeds))
+    k, n = sum(ok), len(ok)
+    missed = [str(s) for s, good in zip(seeds, ok, strict=True) if not good]
+    return Figure([
+        f"`office` as shipped, mcl with the scenario's parameters, {n} runs, seeds "
+        f"{ctx.seeds(40)}: a run *recovers* when mcl's estimate at the end (140 s, 70 s after "
+        "the kidnap to the corridor's far end) is within 0.5 m of the robot (`python "
+        "benchmarks/bench_mcl.py`'s trial, `recovered`). Brackets: 95 % Wilson interval. What it "
+        "shows is discussed in [maps.md](maps.md#speed-and-accuracy-benchmarksbench_mclpy).", "",
+        "| filter | runs recovered | runs that did not (seeds) |", "|---|---|---|",
+        f"| mcl | {wilson(k, n)} | {', '.join(missed) or 'none'} |", ""],
+        {f"mcl: runs recovered after the kidnap (of {n})": (k / n, wilson_interval(k, n))})
+
+
+def symmetric_seed(seed: int) -> dict:
+    """One ``symmetric_room`` run as ``scripts/symmetric_room_modes.py`` judges it."""
+    return helper_module("scripts", "symmetric_room_modes").one_run((seed, {}))
+
+
+def fig_symmetric_room(ctx: Context) -> Figure:
+    """The symmetric room's two clouds: how often both live until the partition is seen,
+    and how often mcl ends on the right one (``scripts/symmetric_room_modes.py``)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    seeds = list(range(ctx.seed, ctx.seed + ctx.n(40)))
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        res = list(pool.map(symmetric_seed, seeds))
+    n = len(res)
+    rows, checks = [], {}
+    for key, what in (("both", "both clouds live to the partition"), ("right", "ends on the truth")):
+        k = sum(r[key] for r in res)
+        checks[f"mcl: runs where {what} (of {n})"] = (k / n, wilson_interval(k, n))
+        missed = [str(r["seed"]) for r in res if not r[key]]
+        rows.append(f"| {what} | {wilson(k, n)} | {', '.join(missed) or 'none'} |")
+    broke = [r["broke"] for r in res if r["broke"] is not None]
+    return Figure([
+        f"`symmetric_room` as shipped (mcl started lost, 50,000 particles at the start, "
+        f"systematic and selective resampling), {n} runs of 100 s, seeds {ctx.seeds(40)}, each "
+        "judged by `scripts/symmetric_room_modes.py`: *both live* when from 7.5 s until the "
+        "first true scan with a beam on the partition (the breaking observation, here at "
+        f"{min(broke, default=math.nan):.1f}-{max(broke, default=math.nan):.1f} s) the weight within "
+        "0.5 m and 0.5 rad of the truth and of its mirror image are both at least 0.02 at every "
+        "0.5 s check; *on the truth* when at the end at least 0.9 of the weight is near the "
+        "truth. Brackets: 95 % Wilson intervals. What it shows is discussed in "
+        "[maps.md](maps.md#the-shipped-map-scenarios).", "",
+        "| what | runs | runs where not (seeds) |", "|---|---|---|", *rows, ""], checks)
+
 #: slam_loop's cases: (filter, IDs hidden, parameters, label).
 SLAM_LOOP_CASES = (
     ("ekf", False, None, "`ekf` given the true map"),
@@ -1338,12 +1577,16 @@ def fig_smoothing(ctx: Context) -> Figure:
 @dataclasses.dataclass(frozen=True)
 class Entry:
     """A section of results.md: its name (``--only NAME``), its heading, the function that
-    makes it, and whether it is seeded (``--check-seeds`` re-runs the seeded ones)."""
+    makes it, whether it is seeded (``--check-seeds`` re-runs the seeded ones) and the pages
+    that quote it."""
 
     name: str
     header: str
     make: Callable[[Context], Figure]
     seeded: bool = True
+    #: The pages (docs/*.md) that quote this section's figures: each links the section
+    #: instead of printing numbers of its own (tests/project/test_make_results.py).
+    quoted_in: tuple[str, ...] = ()
 
 
 #: The sections of results.md, in their order. A new figure is a function above and a line here.
@@ -1360,8 +1603,19 @@ FIGURES: tuple[Entry, ...] = (
     Entry("standstill", STANDSTILL_HEADER, fig_standstill),
     Entry("corridor", CORRIDOR_HEADER, fig_corridor),
     Entry("corridor_global", "## Global localization in the `corridor`: mcl and the corridor filter",
-          fig_corridor_mcl),
-    Entry("slam_loop", "## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs", fig_slam_loop),
+          fig_corridor_mcl, quoted_in=("maps.md",)),
+    Entry("slam_loop", "## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs",
+          fig_slam_loop, quoted_in=("slam.md",)),
+    Entry("lookalike", "## Association without IDs: `lookalike_beacons`", fig_lookalike,
+          quoted_in=("association.md",)),
+    Entry("unknown_ids", "## Association without IDs: `default` with clutter", fig_unknown_ids,
+          quoted_in=("association.md",)),
+    Entry("team_sparse", "## Cooperative localization: `team_sparse`", fig_team_sparse,
+          quoted_in=("multi-robot.md",)),
+    Entry("office_kidnap", "## Kidnap recovery in the `office`: mcl", fig_office_kidnap,
+          quoted_in=("maps.md",)),
+    Entry("symmetric_room", "## Two clouds in the `symmetric_room`: mcl", fig_symmetric_room,
+          quoted_in=("maps.md",)),
     Entry("mrclam", MRCLAM_HEADER, fig_mrclam, seeded=False),
     Entry("association", ASSOCIATION_HEADER, fig_mrclam_association, seeded=False),
     Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),

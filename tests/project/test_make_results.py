@@ -101,3 +101,43 @@ def test_make_results_reports_progress_in_a_log(make_results, capsys, monkeypatc
     make_results.run(load_scenario("default"), ["ekf"], 2, 1, duration=1.0, seed=0)
     err = capsys.readouterr().err
     assert re.search(r"^eval default: 2/2 runs", err, flags=re.M), err
+
+
+def anchor(header: str) -> str:
+    """The anchor GitHub gives a ``## `` heading: link targets dropped, lower case, punctuation
+    other than ``-`` and ``_`` removed, spaces to ``-``."""
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", header.removeprefix("## "))
+    return re.sub(r"[^\w\- ]", "", text.lower()).replace(" ", "-")
+
+
+def test_anchor_by_hand():
+    assert anchor("## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs") == \
+        "slam-on-slam_loop-ekf-slam-and-fastslam-20-over-seeded-runs"
+    assert anchor("## [Seed 001](references.md#seed-001): EKF against UKF on MRCLAM (real data)") == \
+        "seed-001-ekf-against-ukf-on-mrclam-real-data"
+
+
+def test_every_link_into_results_names_a_section(make_results):
+    """A page that quotes results.md links a section that exists (a renamed heading would
+    leave the link dangling)."""
+    anchors = {anchor(e.header) for e in make_results.FIGURES}
+    dangling = []
+    for path in sorted((ROOT / "docs").glob("*.md")):
+        for target in re.findall(r"\(results\.md#([^)\s]+)\)", path.read_text(encoding="utf-8")):
+            if target not in anchors:
+                dangling.append(f"{path.name}: results.md#{target}")
+    assert not dangling, dangling
+
+
+def test_pages_that_quote_a_figure_link_its_section(make_results):
+    """Each page an entry names in ``quoted_in`` links that section of results.md: its
+    figures come from the script's seeds, not from numbers typed on the page."""
+    missing = []
+    for e in make_results.FIGURES:
+        for page in e.quoted_in:
+            text = (ROOT / "docs" / page).read_text(encoding="utf-8")
+            if f"(results.md#{anchor(e.header)})" not in text:
+                missing.append(f"{page} does not link results.md#{anchor(e.header)} ({e.name})")
+    assert not missing, missing
+    quoted = {e.name for e in make_results.FIGURES if e.quoted_in}
+    assert {"lookalike", "unknown_ids", "team_sparse", "office_kidnap", "symmetric_room"} <= quoted
