@@ -168,7 +168,8 @@ def test_grade_scores_a_slam_class_beside_the_built_in_ekf_slam(tmp_path, capsys
 
     folder = slam_class(tmp_path)
     capsys.readouterr()
-    board = grade(folder, GradeConfig(**SLAM_CONFIG), jobs=2)
+    # a fixed secret: the probe runs (drawn from it) are the same in every run of the test
+    board = grade(folder, GradeConfig(**SLAM_CONFIG), jobs=2, secret=b"\x07" * 32)
     rows = {r["student"]: r for r in board.rows}
     ref = board.slam_reference["slam_loop"]
     assert ref["filter"] == "ekf_slam" and ref["ate_m"] > 0 and ref["joint_nees"] > 0
@@ -197,7 +198,8 @@ def test_grade_scores_a_slam_class_beside_the_built_in_ekf_slam(tmp_path, capsys
     assert any("reports no map" in f for f in frank["flags"]), frank["flags"]
     # a bad map: switched off with the reason, no score
     r = rows["carol"]
-    assert r["failed_runs"] == 2 and r["pos_rmse_m"] is None
+    # both scored seeds fail; a probe (one more run, drawn from the secret) may fail too
+    assert r["failed_runs"] >= len(SLAM_CONFIG["seeds"]) and r["pos_rmse_m"] is None
     assert r["ate_m"] is None and r["map_gospa_m"] is None
     assert all("landmarks(): NaN or infinity" in f["reason"] for f in r["failures"]), r["failures"]
     assert not any("reports no map" in f for f in r["flags"])  # it did, until it broke
