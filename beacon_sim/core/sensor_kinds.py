@@ -5,7 +5,7 @@ scenario's ``kind`` choices and keys, the simulation's draw, the readings' width
 tidy tables' columns, the filters' fallback to a kind's model, the Cramer-Rao bound), so
 a kind registered later (``register_kind``, or ``KINDS[name] = record`` in a test) is
 seen everywhere. Adding a kind = its record and model (here or in a module of its own)
-and its tests (docs/sensors.md, "Adding a sensor kind").
+and its tests (CONTRIBUTING.md, "Adding a sensor kind").
 
 The built-in filters keep their own fast forms of the built-in kinds (the EKF's and UKF's
 readings on floats, the particle filter's von Mises bearings, the grid filter's separable
