@@ -3,6 +3,8 @@ the ``slow`` tier (the real MRCLAM data set's whole runs, the largest Monte Carl
 only when asked for."""
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -96,3 +98,17 @@ def mrclam_calibration():
         return cache[key]
 
     return calibration
+
+
+@pytest.fixture()
+def busy_machine():
+    """Two busy-spinning processes beside the test (an artificial load), for the tests that
+    show a verdict does not depend on the machine's load."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        yield procs
+    finally:
+        for p in procs:
+            p.kill()
+        for p in procs:
+            p.wait(timeout=30)

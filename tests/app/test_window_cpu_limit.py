@@ -5,8 +5,6 @@ brings it back."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import textwrap
 import time
 
@@ -58,19 +56,6 @@ def slow_file(tmp_path, monkeypatch):
     path = tmp_path / "slow.py"
     path.write_text(SLOW)
     return path
-
-
-@pytest.fixture()
-def busy_machine():
-    """Two busy-spinning processes beside the test (an artificial load)."""
-    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
-    try:
-        yield procs
-    finally:
-        for p in procs:
-            p.kill()
-        for p in procs:
-            p.wait(timeout=30)
 
 
 def test_a_step_that_waits_is_not_switched_off_one_that_burns_cpu_is(slow_file, busy_machine):

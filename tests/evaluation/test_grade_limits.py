@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import subprocess
-import sys
 import textwrap
 import time
 
@@ -85,19 +83,6 @@ def _class(folder, extra=None):
     for name, body in {**FILES, **(extra or {})}.items():
         (folder / f"{name}.py").write_text(HEAD + body, encoding="utf-8")
     return folder
-
-
-@pytest.fixture()
-def busy_machine():
-    """Two busy-spinning processes beside the test (an artificial load)."""
-    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
-    try:
-        yield procs
-    finally:
-        for p in procs:
-            p.kill()
-        for p in procs:
-            p.wait(timeout=30)
 
 
 def test_every_threads_cpu_counts_and_a_wait_does_not_beside_a_busy_machine(tmp_path, busy_machine):
