@@ -10,7 +10,7 @@ from pathlib import Path
 
 from beacon_sim.core.files import create_text_new
 from beacon_sim.errors import UsageError
-from beacon_sim.filters.templates import (
+from beacon_sim.templates import (
     class_name_for,
     render_gauss_newton_template,
     render_scan_template,

@@ -14,8 +14,8 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.evaluation.grading import GradeConfig, grade, is_scan_scenario
 from beacon_sim.evaluation.montecarlo import one_run, simulate_run
 from beacon_sim.evaluation.summary import Thresholds, evaluate
-from beacon_sim.filters.templates import render_scan_template
 from beacon_sim.hosting.client import hosted_context
+from beacon_sim.templates import render_scan_template
 
 #: Short runs; a CPU-time limit far above the template's (about 0.6 ms a step here).
 CONFIG = GradeConfig(scenarios=("office",), seeds=(0, 1), duration=6.0, time_limit=30.0)

@@ -12,7 +12,6 @@ import pytest
 
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters.base import LandmarkMap
-from beacon_sim.filters.templates import render_slam_template
 from beacon_sim.hosting import conformance
 from beacon_sim.hosting.landmark_check import MAX_LANDMARKS
 from beacon_sim.hosting.wire import (
@@ -23,6 +22,7 @@ from beacon_sim.hosting.wire import (
     map_fault_block,
     map_problem,
 )
+from beacon_sim.templates import render_slam_template
 
 #: Hostile ``landmarks()`` bodies, each appended to the SLAM template as a subclass, and the
 #: words its one-line fault must contain.

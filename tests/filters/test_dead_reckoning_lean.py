@@ -11,8 +11,8 @@ from beacon_sim.core.motion import MotionNoise
 from beacon_sim.core.resources import shipped_scenarios
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.filters.templates import render_template
 from beacon_sim.hosting.loading import build_filter
+from beacon_sim.templates import render_template
 
 
 def _template_class():

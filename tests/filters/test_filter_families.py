@@ -17,11 +17,11 @@ from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.filters import HOSTED, MOVED
 from beacon_sim.filters.registry import RECORDS
-from beacon_sim.filters.templates import TEMPLATES
 from beacon_sim.hosting.containment import Limits
 from beacon_sim.hosting.isolated import FilterChild
 from beacon_sim.hosting.loading import build_filter, load_filter_class
 from beacon_sim.runs.headless import run_headless
+from beacon_sim.templates import TEMPLATES
 
 FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "unscented", "dead_reckoning", "measurements"},
             "particle": {"pf", "mcl", "pose_stats", "log_weights", "fast_calls"},
@@ -135,7 +135,7 @@ def test_new_filter_copies_the_template_module_and_the_copy_runs(kind, tmp_path,
     names for the module's (so what ruff, mypy and the contracts check is what a student
     gets), and the copy runs as it is."""
     module, cls = TEMPLATES[kind]
-    text = Path(importlib.import_module(f"beacon_sim.filters.templates.{module}").__file__).read_text()
+    text = Path(importlib.import_module(f"beacon_sim.templates.{module}").__file__).read_text()
     option = [] if kind == "filter" else [f"--{kind.replace('_', '-')}"]
     assert main(["new-filter", str(tmp_path / f"{module}.py"), *option]) == 0
     assert (tmp_path / f"{module}.py").read_text() == text  # its own names: the module itself

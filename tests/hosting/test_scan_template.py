@@ -10,8 +10,8 @@ import pytest
 from beacon_sim.cli.main import main
 from beacon_sim.cli.new_filter import TEMPLATES
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.filters.templates import render_scan_template
 from beacon_sim.runs.headless import run_headless
+from beacon_sim.templates import render_scan_template
 
 
 @pytest.fixture

@@ -10,10 +10,10 @@ import pytest
 from beacon_sim.cli.main import main
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.filters.templates import render_slam_template
 from beacon_sim.hosting import conformance
 from beacon_sim.hosting.loading import load_filter_class
 from beacon_sim.runs.headless import run_headless
+from beacon_sim.templates import render_slam_template
 
 
 @pytest.fixture

@@ -16,7 +16,7 @@ import beacon_sim
 ROOT = Path(__file__).resolve().parents[2]
 #: The public modules a user's code may import from.
 PUBLIC_MODULES = {"beacon_sim", "beacon_sim.api", "beacon_sim.gym"}
-SOURCES = sorted([*ROOT.glob("examples/*.py"), *ROOT.glob("beacon_sim/filters/templates/my_*.py")])
+SOURCES = sorted([*ROOT.glob("examples/*.py"), *ROOT.glob("beacon_sim/templates/my_*.py")])
 NOTEBOOKS = sorted(ROOT.glob("examples/*.ipynb"))
 
 

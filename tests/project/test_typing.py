@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from beacon_sim.filters.registry import single_records
-from beacon_sim.filters.templates import render_template
+from beacon_sim.templates import render_template
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -4,7 +4,7 @@ The mean follows the velocity model with the command; the covariance grows as th
 prediction would (``F P F^T + Q``), so its ellipse shows how fast odometry alone drifts.
 
 One run: written with the core's numpy model functions, as the filter template
-(``filters/templates/my_filter.py``) writes it, which must stay bit for bit this filter. R
+(``templates/my_filter.py``) writes it, which must stay bit for bit this filter. R
 runs at once: the EKF's prediction on arrays (``ekf.BatchedVelocityGaussian``), the same maths.
 """
 
