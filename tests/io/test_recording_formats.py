@@ -14,6 +14,7 @@ commands, with a status that says what it verified (tests/runs/test_replay_verif
 from __future__ import annotations
 
 import json
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -119,7 +120,7 @@ def header_free(lines: list[str]) -> list[str]:
 #: What version 4 adds to a header, and the header fields of when, by which
 #: release and from which folder a file was written.
 NEW_OR_LOCAL = ("version", "maths", "maths_description", "created", "program_version",
-                "scenario_source")
+                "scenario_source", "scenario_toml", "scenario_sha256")
 
 
 def shape(line: str) -> tuple:
@@ -178,6 +179,8 @@ def test_the_one_writer_writes_what_the_two_wrote(scripted, kind, old):
     assert {k: v for k, v in head.items() if k not in NEW_OR_LOCAL} == \
         {k: v for k, v in head_before.items() if k not in NEW_OR_LOCAL}
     assert head["scenario_source"] == Path(head_before["scenario_source"]).stem  # shipped: its name
+    # the scenario file as it was shipped: the same scenario, its comments since reworded
+    assert tomllib.loads(head["scenario_toml"]) == tomllib.loads(head_before["scenario_toml"])
     # line 2, the filters' effective parameters, grows by the parameters added to the
     # filters since (the association parameters, at their defaults)
     added = json.loads(new[1])["filters"], json.loads(before[1])["filters"]
