@@ -179,3 +179,57 @@ def test_smoother_beats_the_filter_and_is_consistent_over_seeded_runs():
     assert s["pos_rmse_over_bound"] > 0.8
     # errors and bound are of one run's sizes (not a degenerate zero bound)
     assert 0.01 < s["bound_pos_rmse_m"] < 1.0
+
+
+def _ukf_with(mean, cov):
+    from beacon_sim.filters.base import GaussianBelief
+    ukf = build_filter("ukf", _default(), 3)
+    ukf.reset(GaussianBelief(np.array(mean, dtype=float), np.array(cov, dtype=float)))
+    return ukf
+
+
+@pytest.mark.parametrize(("cov", "control"), [
+    (np.diag([0.04, 0.09, 0.3]), Control(0.8, 0.4)),
+    ([[0.5, 0.1, 0.05], [0.1, 0.3, -0.08], [0.05, -0.08, 0.9]], Control(1.5, -0.7)),
+    (np.diag([1e-4, 1e-4, 1e-6]), Control(0.3, 0.0)),
+])
+def test_the_ukf_cross_covariance_is_the_sigma_points_weighted_sum(cov, control):
+    """``motion_cross_covariance`` against its definition, written out point by point:
+    D = sum_i Wc_i (X_i - m)(f(X_i) - m^-)^T over the filter's own sigma points moved by
+    the velocity model, m^- the filter's predicted mean (heading residuals wrapped)."""
+    from beacon_sim.core.angles import wrap
+    dt = 0.1
+    ukf = _ukf_with([1.0, 2.0, 2.9], cov)   # near +-pi: the residuals must wrap
+    m = ukf.mean.copy()
+    X = ukf._sigma_points()
+    Wc = np.array(ukf._weights_now()[1])
+    D = ukf.motion_cross_covariance(control, dt)
+    np.testing.assert_array_equal(ukf.mean, m)      # it reads the belief, changes nothing
+    ukf.predict(control, dt)
+    m_pred = ukf.mean
+    Y = np.column_stack([X[:, 0] + control.v * dt * np.cos(X[:, 2]),
+                         X[:, 1] + control.v * dt * np.sin(X[:, 2]),
+                         X[:, 2] + control.omega * dt])
+    dY = Y - m_pred
+    dY[:, 2] = [wrap(float(a)) for a in dY[:, 2]]
+    brute = ((X - m) * Wc[:, None]).T @ dY
+    np.testing.assert_allclose(D, brute, rtol=1e-9, atol=1e-12)
+
+
+def test_the_unscented_gain_is_the_extended_one_for_a_narrow_belief():
+    """With a tiny heading spread the velocity model is linear over the sigma points: the
+    statistical linearisation D^T P^-1 is the Jacobian at the mean."""
+    from beacon_sim.filters.smoothing.rts import statistical_jacobian
+    ukf = _ukf_with([0.0, 0.0, 0.7], np.diag([1e-6, 2e-6, 1e-8]))
+    u = Control(1.0, 0.3)
+    F = statistical_jacobian(ukf.motion_cross_covariance(u, 0.1), ukf.cov)
+    np.testing.assert_allclose(F, velocity_jacobian(ukf.mean, 1.0, 0.1), atol=1e-6)
+
+
+def test_the_unscented_smoother_beats_the_ukf_and_is_consistent_over_seeded_runs():
+    """As the EKF's test above, for the UKF with the unscented RTS gain."""
+    f = smoothing_monte_carlo(_default(), "ukf", range(500, 508), duration=40.0)
+    s, fl = f["smoothed"], f["filtered"]
+    assert s["pos_rmse_m"] < 0.85 * fl["pos_rmse_m"]
+    assert 2.0 < s["anees"] < 4.5
+    assert s["pos_rmse_over_bound"] > 0.8

@@ -326,6 +326,25 @@ class UnscentedKalmanFilter(BatchableFilter):
         vk = vdt * k
         self._x, self._y, self._th = m0 + vk * C, m1 + vk * S, wrap(m2 + w * dt)
 
+    def motion_cross_covariance(self, control: Control, dt: float) -> np.ndarray:
+        """``D = Cov(x_k, x_{k+1}^-)`` (3, 3) [state units squared]: the cross-covariance between
+        the belief now and the prediction :meth:`predict` would make with ``control`` over
+        ``dt`` [s], from the same sigma points (the unscented RTS smoother's gain is
+        ``D (P_{k+1}^-)^-1``; Sarkka 2008). Reads the belief, changes nothing.
+
+        The points m +- a_i move to m^- +- p_i plus a term shared by each pair (the
+        closed form of :meth:`predict`), so ``D = 2 Wc_1 sum a_i p_i^T``: the noise Q is
+        added after the points are moved and does not enter."""
+        vdt = float(control.v) * dt
+        cols = self._columns()
+        wc1 = self._weights_now()[1][1]
+        S, C = math.sin(self._th), math.cos(self._th)
+        D = np.zeros((3, 3))
+        for a0, a1, h in cols:
+            s = vdt * math.sin(h)
+            D += np.outer((a0, a1, h), (a0 - S * s, a1 + C * s, h))
+        return 2.0 * wc1 * D
+
     def _predict_points(self, v: float, w: float, dt: float, cols: Sequence[tuple[float, float, float]],
                         Wm: list[float], Wc: list[float]) -> None:
         """:meth:`predict` as the loop over the sigma points (what the closed form sums)."""

@@ -5,7 +5,10 @@ that predicts with the velocity model (the EKF, the UKF): it passes every call t
 unchanged and reads ``estimate()`` after each ``predict`` and ``update``, so the filter's
 results are its own, bit for bit (``estimate()`` only reads the belief). It also keeps each
 tick's motion Jacobian ``F`` at the mean the prediction started from, which the
-Rauch-Tung-Striebel gain needs.
+Rauch-Tung-Striebel gain needs; for a filter that says how its prediction is correlated with
+its belief (``motion_cross_covariance(control, dt)``, the UKF's sigma points), the
+statistical linearisation of that instead (``rts.statistical_jacobian``: the unscented RTS
+gain).
 
 A ``reset`` (a user's reset in the window) starts a new segment: a smoother never joins two
 beliefs the filter did not join itself.
@@ -20,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.smoothing.rts import rts_smooth, velocity_jacobian
+from beacon_sim.filters.smoothing.rts import rts_smooth, statistical_jacobian, velocity_jacobian
 
 
 @dataclass
@@ -80,7 +83,11 @@ class MomentRecorder:
 
     def predict(self, control: Control, dt: float) -> None:
         seg = self.segments[-1]
-        F = velocity_jacobian(seg.means[-1], float(control.v), dt)
+        cross = getattr(self.filter, "motion_cross_covariance", None)
+        if callable(cross):   # read before the prediction: it reads the belief it starts from
+            F = statistical_jacobian(np.asarray(cross(control, dt), dtype=float), seg.covs[-1])
+        else:
+            F = velocity_jacobian(seg.means[-1], float(control.v), dt)
         self.filter.predict(control, dt)
         self.tick += 1
         mean, cov = _gaussian(self.filter.estimate())

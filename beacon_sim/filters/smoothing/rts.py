@@ -12,8 +12,12 @@ belief ``(m_0, P_0)``. With ``F_k`` the motion Jacobian of the step k - 1 -> k (
 
 On a linear-Gaussian model this is exactly the posterior of each state given all the data
 (the batch least-squares solution: tests/filters/test_smoothing.py). ``P_k^s <= P_k``: the smoothed
-ellipse is never larger than the filtered one. For the UKF the gain uses the same Jacobian
-(the extended RTS on the UKF's moments), not the sigma points' cross-covariance.
+ellipse is never larger than the filtered one.
+
+For the UKF the gain is the unscented RTS smoother's (Sarkka 2008), ``C_k = D_{k+1}
+(P_{k+1}^-)^-1`` with ``D_{k+1} = Cov(x_k, x_{k+1}^-)`` from the sigma points the filter
+predicted with: the same backward pass with ``F_{k+1}`` replaced by the statistical
+linearisation ``D_{k+1}^T P_k^-1`` (:func:`statistical_jacobian`), which gives exactly that gain.
 
 States [x, y, theta] in [m, m, rad], covariances in [m^2, m^2, rad^2].
 """
@@ -37,6 +41,17 @@ def velocity_jacobian(mean: np.ndarray, v: float, dt: float) -> np.ndarray:
     return np.array([[1.0, 0.0, -v * dt * math.sin(th)],
                      [0.0, 1.0, v * dt * math.cos(th)],
                      [0.0, 0.0, 1.0]])
+
+
+def statistical_jacobian(D: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """``F = D^T P^-1`` (n, n): the linear map that a prediction with cross-covariance ``D =
+    Cov(x_k, x_{k+1}^-)`` from the belief covariance ``P`` amounts to, so that the RTS gain
+    ``P F^T (P^-)^-1`` is ``D (P^-)^-1``. A singular ``P`` (no spread on some axis, so no
+    cross-covariance there either) by the pseudo-inverse."""
+    try:
+        return np.linalg.solve(P, D).T
+    except np.linalg.LinAlgError:
+        return (np.linalg.pinv(P, hermitian=True) @ D).T
 
 
 def smoother_gain(P: np.ndarray, F: np.ndarray, P_pred: np.ndarray) -> np.ndarray:
@@ -99,4 +114,4 @@ def rts_smooth(means: np.ndarray, covs: np.ndarray, pred_means: np.ndarray, pred
     return ms, Ps
 
 
-__all__ = ["HEADING", "rts_smooth", "rts_step", "smoother_gain", "velocity_jacobian"]
+__all__ = ["HEADING", "rts_smooth", "rts_step", "smoother_gain", "statistical_jacobian", "velocity_jacobian"]
