@@ -27,10 +27,12 @@ from beacon_sim.app import controls, distance_layer, palette
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.framebuffer import choose_framebuffer
 from beacon_sim.app.heap import HeapSettler
-from beacon_sim.app.hud import Hud, fps_of
+from beacon_sim.app.hud import Hud
 from beacon_sim.app.loop import StepClock
+from beacon_sim.app.pace import fps_of
 from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
+from beacon_sim.app.view import world_rect
 from beacon_sim.core.files import atomic_write
 from beacon_sim.core.scenario import Scenario
 from beacon_sim.core.team import TeamStep
@@ -529,7 +531,7 @@ class App:
         if steps or bound is not None:
             self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
                                  bound is not None, avoid=self.renderer.axis_rects,
-                                 world=self.renderer._world_rect(self.view))
+                                 world=world_rect(self.view))
         off = self.switched_off_lines()
         if off:
             mag = self.renderer.last_magnifier

@@ -21,9 +21,11 @@ from typing import Any, cast
 
 import pygame
 
-from beacon_sim.app import palette, render
-from beacon_sim.app.hud import wrap_text
+from beacon_sim.app import palette
+from beacon_sim.app.estimate_layer import ELLIPSE_SCALE2
 from beacon_sim.app.main import App
+from beacon_sim.app.strokes import polyline
+from beacon_sim.app.text import wrap_text
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.io.recording import Recording
 from beacon_sim.runs.live import Session
@@ -209,11 +211,11 @@ class ReplayApp(App):
                 continue
             colour = tint(self.colours[name])
             if k >= 1 and self.show.trails:
-                render.polyline(surf, colour, view.to_px(tr.smoothed_means[:k + 1, :2]), lw)
+                polyline(surf, colour, view.to_px(tr.smoothed_means[:k + 1, :2]), lw)
             if self.show.ellipses:
                 ellipse = covariance_ellipse(tr.smoothed_means[k, :2], tr.smoothed_covs[k, :2, :2],
-                                             render.ELLIPSE_SCALE2, 96)
-                render.polyline(surf, colour, view.to_px(ellipse), lw, dash=SMOOTHED_DASH, closed=True)
+                                             ELLIPSE_SCALE2, 96)
+                polyline(surf, colour, view.to_px(ellipse), lw, dash=SMOOTHED_DASH, closed=True)
 
     def draw_smoothed_legend(self, surf) -> None:
         """What the light lines are, bottom left of the world view."""

@@ -17,7 +17,7 @@ import pytest
 
 from beacon_sim.app import palette
 from beacon_sim.app.main import App
-from beacon_sim.app.render import ipx
+from beacon_sim.app.view import ipx
 from beacon_sim.core.team import TeamSimulation
 from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.core.types import Control
