@@ -24,11 +24,12 @@ from beacon_sim.app.estimate_layer import ellipse_diameter
 from beacon_sim.app.help_overlay import split_columns
 from beacon_sim.app.hud import Hud
 from beacon_sim.app.in_view import missed_ids
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App, DeliveredSpeed
+from beacon_sim.app.pace import DeliveredSpeed
 from beacon_sim.app.render import View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.app.text import fit_text
 from beacon_sim.app.view import world_rect
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.cli.main import main
 from beacon_sim.cli.play import MIN_SIZE, parse_size
 from beacon_sim.core.scenario import load_scenario
@@ -251,7 +252,7 @@ def test_beacon_labels_keep_off_the_axis_labels_in_krejsa_bearing_only():
 
 
 def test_robot_names_keep_off_the_beacon_labels_in_team_sparse():
-    from beacon_sim.app.main import App
+    from beacon_sim.app.window import App
     from beacon_sim.core.team_scenario import load_team_scenario
     from beacon_sim.runs.live import Session
 

@@ -15,8 +15,8 @@ import pygame
 import pytest
 
 from beacon_sim.app import heap
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
 from beacon_sim.app.strokes import JOINT_TURN, notched_joints
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.live import Session

@@ -13,7 +13,7 @@ import pygame
 import pytest
 
 from beacon_sim.app.hud import Hud
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.live import Session
 
