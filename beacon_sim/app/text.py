@@ -48,25 +48,27 @@ def short(font: pygame.font.Font, text: str, width: int) -> str:
 
 
 class TextPainter:
-    """Rendered text kept for the next frames (most of the panel is the same every frame); the
-    panel, the notes over the world, the legend and the help stand on it (``hud.Hud``)."""
+    """Rendered text kept for the next frames (most of what is written is the same every
+    frame): the world's layers (``canvas.Canvas``) and the panel, the notes over the world,
+    the legend and the help (``hud.Hud``) stand on it."""
 
     def __init__(self, fonts: dict[str, pygame.font.Font]):
         self.fonts = fonts
         self._cache: dict[tuple, pygame.Surface] = {}
 
-    def _text(self, text: str, font: str, colour) -> pygame.Surface:
-        """The rendered text, from a cache (most of the panel is the same every frame)."""
+    def text(self, text: str, font: str, colour) -> pygame.Surface:
+        """``text`` rendered in ``fonts[font]`` and ``colour``, from the cache."""
         key = (text, font, colour)
         img = self._cache.get(key)
         if img is None:
-            if len(self._cache) > 400:
+            if len(self._cache) > 512:
                 self._cache.clear()
             img = self._cache[key] = self.fonts[font].render(text, True, colour)
         return img
 
     def _blit(self, surf, text: str, font: str, colour, at, bg=None) -> pygame.Rect:
-        img = self._text(text, font, colour)
+        """``text`` blitted with its top left at ``at`` [px] (on ``bg`` if given); its rect."""
+        img = self.text(text, font, colour)
         r = img.get_rect(topleft=(int(at[0]), int(at[1])))
         if bg is not None:
             surf.fill(bg, r.inflate(8, 2))
