@@ -286,7 +286,7 @@ def show_graph(graph: FactorGraph, method: str = "gn", frames: int | None = None
                truth_marks: np.ndarray | None = None, title: str = "",
                solver_cls: type[GraphSolver] = GraphSolver) -> int:
     """The window until quit; saves the last frame to ``screenshot``."""
-    from beacon_sim.app.main import check_display
+    from beacon_sim.app.display import check_display
 
     check_display()
     win = GraphWindow(graph, method, size, truth_poses, truth_marks, title, solver_cls)

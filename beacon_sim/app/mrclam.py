@@ -19,7 +19,7 @@ def show_mrclam(run: MrclamRun, frames: int | None = None, screenshot: str | Non
     """The window over a finished MRCLAM run, ``size`` (W, H) [px], until quit (or ``frames``
     frames of 1/60 s); ``screenshot`` saves the last frame. Without a display it says so and returns 0 (the
     table printed before is the result)."""
-    from beacon_sim.app.main import check_display
+    from beacon_sim.app.display import check_display
     from beacon_sim.errors import UsageError
 
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")

@@ -21,9 +21,11 @@ from typing import Any, cast
 
 import pygame
 
-from beacon_sim.app import palette, render
-from beacon_sim.app.hud import wrap_text
-from beacon_sim.app.main import App
+from beacon_sim.app import palette
+from beacon_sim.app.estimate_layer import ELLIPSE_SCALE2
+from beacon_sim.app.strokes import polyline
+from beacon_sim.app.text import wrap_text
+from beacon_sim.app.window import App
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.io.recording import Recording
 from beacon_sim.runs.live import Session
@@ -209,11 +211,11 @@ class ReplayApp(App):
                 continue
             colour = tint(self.colours[name])
             if k >= 1 and self.show.trails:
-                render.polyline(surf, colour, view.to_px(tr.smoothed_means[:k + 1, :2]), lw)
+                polyline(surf, colour, view.to_px(tr.smoothed_means[:k + 1, :2]), lw)
             if self.show.ellipses:
                 ellipse = covariance_ellipse(tr.smoothed_means[k, :2], tr.smoothed_covs[k, :2, :2],
-                                             render.ELLIPSE_SCALE2, 96)
-                render.polyline(surf, colour, view.to_px(ellipse), lw, dash=SMOOTHED_DASH, closed=True)
+                                             ELLIPSE_SCALE2, 96)
+                polyline(surf, colour, view.to_px(ellipse), lw, dash=SMOOTHED_DASH, closed=True)
 
     def draw_smoothed_legend(self, surf) -> None:
         """What the light lines are, bottom left of the world view."""
@@ -279,7 +281,8 @@ def show_replay(recording: Recording, specs: list[str], params: dict[str, dict[s
     ``start`` / ``end`` [s]: seek to ``start`` first, stop at ``end``. With ``gif`` the
     window is scripted (1/60 s per frame, as fast as it draws), captures every 6th frame
     from ``start`` to ``end`` (default: the end of the recording) and writes the GIF."""
-    from beacon_sim.app.main import check_display, finish_gif
+    from beacon_sim.app.display import check_display
+    from beacon_sim.app.main import finish_gif
     from beacon_sim.app.main import start as start_app
 
     check_display()  # no window to show it in: one line, exit 2 (not an invisible replay)

@@ -16,7 +16,8 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import palette
-from beacon_sim.app.render import ipx, polyline
+from beacon_sim.app.strokes import polyline
+from beacon_sim.app.view import ipx
 from beacon_sim.runs.styles import filter_kind
 
 #: The filter kind that does not set the chart's scale (see :meth:`StripChart.y_range`).

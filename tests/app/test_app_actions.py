@@ -7,8 +7,9 @@ from __future__ import annotations
 import pytest
 
 from beacon_sim.app import controls
-from beacon_sim.app.main import DRIVE_KEYS, App
+from beacon_sim.app.actions import DRIVE_KEYS
 from beacon_sim.app.replay import ReplayApp
+from beacon_sim.app.window import App
 
 #: Actions the window handles in ``handle`` (mouse buttons and drags), not through ``act``.
 MOUSE_ACTIONS = {"kidnap_click", "zoom", "pan", "seek_click"}

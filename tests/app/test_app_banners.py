@@ -12,7 +12,7 @@ from replay_app_helpers import (  # noqa: E402
     run_until,
 )
 
-from beacon_sim.app.main import App  # noqa: E402
+from beacon_sim.app.window import App  # noqa: E402
 from beacon_sim.core.scenario import load_scenario  # noqa: E402
 from beacon_sim.runs.live import Session  # noqa: E402
 

@@ -16,7 +16,7 @@ import pygame
 import pytest
 
 from beacon_sim.app import map_view, shapes
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.core.raycast import cast_rays
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.types import Measurement

@@ -20,10 +20,16 @@ import pygame
 import pytest
 
 from beacon_sim.app import palette
-from beacon_sim.app.hud import Hud, fit_text, split_columns
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App, DeliveredSpeed
-from beacon_sim.app.render import View, WorldRenderer, ellipse_diameter, missed_ids
+from beacon_sim.app.estimate_layer import ellipse_diameter
+from beacon_sim.app.help_overlay import split_columns
+from beacon_sim.app.hud import Hud
+from beacon_sim.app.in_view import missed_ids
+from beacon_sim.app.pace import DeliveredSpeed
+from beacon_sim.app.render import View, WorldRenderer
 from beacon_sim.app.strip import StripChart
+from beacon_sim.app.text import fit_text
+from beacon_sim.app.view import world_rect
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.cli.main import main
 from beacon_sim.cli.play import MIN_SIZE, parse_size
 from beacon_sim.core.scenario import load_scenario
@@ -246,7 +252,7 @@ def test_beacon_labels_keep_off_the_axis_labels_in_krejsa_bearing_only():
 
 
 def test_robot_names_keep_off_the_beacon_labels_in_team_sparse():
-    from beacon_sim.app.main import App
+    from beacon_sim.app.window import App
     from beacon_sim.core.team_scenario import load_team_scenario
     from beacon_sim.runs.live import Session
 
@@ -334,7 +340,7 @@ def test_the_first_frame_is_drawn_before_any_tick_with_the_particles_spread():
         assert arr.max() > 0  # not black
         heavy = palette.particle_colours(app.colours["pf"])[0]
         mask = np.all(arr == heavy, axis=2)
-        wr = app.renderer._world_rect(app.view)
+        wr = world_rect(app.view)
         xs = (slice(wr.left, wr.centerx), slice(wr.centerx, wr.right))
         ys = (slice(wr.top, wr.centery), slice(wr.centery, wr.bottom))
         quads = [mask[x, y] for x in xs for y in ys]

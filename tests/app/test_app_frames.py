@@ -15,8 +15,8 @@ import pygame
 import pytest
 
 from beacon_sim.app import heap
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
-from beacon_sim.app.render import JOINT_TURN, notched_joints
+from beacon_sim.app.strokes import JOINT_TURN, notched_joints
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.live import Session
@@ -202,7 +202,7 @@ def test_notched_joints_are_the_turns_and_the_changes_of_stroke_axis():
 
 @pytest.mark.parametrize("dash", [None, (5, 8)])
 def test_polyline_with_fewer_round_caps_looks_the_same(dash):
-    from beacon_sim.app import render
+    from beacon_sim.app import strokes
 
     ell = covariance_ellipse(np.array([320.0, 240.0]), np.diag([180.0, 70.0]) ** 2, 1.0, 96)
     surfs = []
@@ -210,14 +210,14 @@ def test_polyline_with_fewer_round_caps_looks_the_same(dash):
         surf = pygame.Surface((640, 480))
         surf.fill((255, 255, 255))
         if all_caps:
-            real = render.notched_joints
-            render.notched_joints = lambda pts: np.ones(len(pts) - 2, dtype=bool)
+            real = strokes.notched_joints
+            strokes.notched_joints = lambda pts: np.ones(len(pts) - 2, dtype=bool)
             try:
-                render.polyline(surf, (200, 0, 0), ell, 4, dash, closed=True)
+                strokes.polyline(surf, (200, 0, 0), ell, 4, dash, closed=True)
             finally:
-                render.notched_joints = real
+                strokes.notched_joints = real
         else:
-            render.polyline(surf, (200, 0, 0), ell, 4, dash, closed=True)
+            strokes.polyline(surf, (200, 0, 0), ell, 4, dash, closed=True)
         surfs.append(pygame.surfarray.array3d(surf))
     drawn = (surfs[1] != 255).any(axis=2).sum()
     differ = (surfs[0] != surfs[1]).any(axis=2).sum()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from hot_reload_helpers import SOURCE, write
 
-from beacon_sim.app.main import App
+from beacon_sim.app.window import App
 from beacon_sim.cli.main import build_parser
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.live import Session

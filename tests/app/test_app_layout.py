@@ -13,7 +13,7 @@ import pygame
 import pytest
 
 from beacon_sim.app.hud import Hud
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.live import Session
 
@@ -99,7 +99,7 @@ def test_a_long_name_and_a_dozen_missed_beacons_fit_the_panel(size, monkeypatch)
     its edge), the list wrapped, not cut."""
     import dataclasses
 
-    from beacon_sim.app import hud
+    from beacon_sim.app import panel
 
     drawn = []
     real = Hud._blit
@@ -111,7 +111,7 @@ def test_a_long_name_and_a_dozen_missed_beacons_fit_the_panel(size, monkeypatch)
 
     monkeypatch.setattr(Hud, "_blit", spy)
     missed = list(range(6, 21))
-    monkeypatch.setattr(hud, "missed_ids", lambda *a, **k: set(missed))
+    monkeypatch.setattr(panel, "missed_ids", lambda *a, **k: set(missed))
     sc = load_scenario("default")
     sc = dataclasses.replace(sc, name="mrclam_Dataset6_robot1_with_a_longer_name_still")
     app = App(Session(sc, ["ekf", "ukf", "dead_reckoning"]), size, scripted=True)

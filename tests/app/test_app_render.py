@@ -16,7 +16,8 @@ import pytest
 from beacon_sim.app import shapes
 from beacon_sim.app.loop import SPEEDS, StepClock
 from beacon_sim.app.palette import OKABE_ITO, filter_colours, filter_styles, particle_colours
-from beacon_sim.app.render import View, WorldRenderer, nice_step
+from beacon_sim.app.render import View, WorldRenderer
+from beacon_sim.app.view import nice_step
 from beacon_sim.core.types import Measurement
 from beacon_sim.filters.base import GridBelief
 

@@ -15,8 +15,9 @@ import pygame
 import pytest
 
 from beacon_sim.app import controls
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
-from beacon_sim.app.render import ELLIPSE_SCALE2, ipx
+from beacon_sim.app.estimate_layer import ELLIPSE_SCALE2
+from beacon_sim.app.view import ipx
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.cli.main import main
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.core.scenario import load_scenario

@@ -14,8 +14,8 @@ import pygame
 import pytest
 
 from beacon_sim.app import controls, palette
-from beacon_sim.app.main import App
-from beacon_sim.app.render import ipx
+from beacon_sim.app.view import ipx
+from beacon_sim.app.window import App
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.types import Control

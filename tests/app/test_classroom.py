@@ -15,8 +15,8 @@ import numpy as np
 import pygame
 import pytest
 
-from beacon_sim.app.main import App
-from beacon_sim.app.render import ELLIPSE_SCALE2
+from beacon_sim.app.estimate_layer import ELLIPSE_SCALE2
+from beacon_sim.app.window import App
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.headless import run_headless

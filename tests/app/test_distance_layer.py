@@ -50,7 +50,7 @@ def test_the_window_draws_curves_fix_and_hdop_key(tmp_path, monkeypatch):
     import pygame
 
     from beacon_sim.app import distance_layer
-    from beacon_sim.app.main import App
+    from beacon_sim.app.window import App
     from beacon_sim.runs.live import Session
 
     drawn = {"curves": 0, "fix": 0}

@@ -14,7 +14,7 @@ import pygame
 
 from beacon_sim.app import framebuffer
 from beacon_sim.app.framebuffer import ENV, choose_framebuffer
-from beacon_sim.app.main import App
+from beacon_sim.app.window import App
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.live import Session
 

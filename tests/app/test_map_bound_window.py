@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from beacon_sim.app.main import SCRIPTED_FRAME_S, App
+from beacon_sim.app.window import SCRIPTED_FRAME_S, App
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.evaluation.live_bound import LiveBound

@@ -8,8 +8,8 @@ import pygame
 import pytest
 
 from beacon_sim.app import controls, map_view, palette
-from beacon_sim.app.hud import scan_in_view
-from beacon_sim.app.main import App
+from beacon_sim.app.in_view import scan_in_view
+from beacon_sim.app.window import App
 from beacon_sim.core.beam_model import distance_transform
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.runs.live import Session

@@ -12,8 +12,8 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 import numpy as np
 import pygame
 
-from beacon_sim.app.main import App
 from beacon_sim.app.map_layer import ELLIPSE_95, checked_map
+from beacon_sim.app.window import App
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.core.scenario import load_scenario
 from beacon_sim.filters.base import LandmarkMap

@@ -12,7 +12,7 @@ import pytest
 
 pygame = pytest.importorskip("pygame")
 
-from beacon_sim.app.main import App  # noqa: E402
+from beacon_sim.app.window import App  # noqa: E402
 from beacon_sim.core.scenario import load_scenario  # noqa: E402
 from beacon_sim.hosting import runner as runner_mod  # noqa: E402
 from beacon_sim.runs.live import Session  # noqa: E402
