@@ -271,16 +271,20 @@ class Panel(TextPainter):
         bottom of the panel (below ``y`` at least)."""
         f = self.fonts
         sl = f["small"].get_linesize()
-        lines = [part for line in legend for part in wrap_text(f["small"], line, w)]
+        notes = [part for line in legend for part in wrap_text(f["small"], line, w)]
         rec = info.get("recording")
-        lines.append(f"FPS {info.get('fps', 0):4.0f}")
+        status = [f"FPS {info.get('fps', 0):4.0f}"]
         if info.get("mode") == "replay":
-            lines[-1] += "   REPLAY"
+            status[-1] += "   REPLAY"
         elif rec:  # the file's name (the folder is recordings/), its middle cut if need be
             name = getattr(rec, "name", str(rec))
-            lines.append(fit_text(f["small"], f"REC {name}", rect.right - 16 - x))
+            status.append(fit_text(f["small"], f"REC {name}", rect.right - 16 - x))
         else:
-            lines[-1] += "   not recording"
+            status[-1] += "   not recording"
+        # A full panel (a team's at 1920x1080: a block per filter) keeps the status and the
+        # help hint and drops the legend's last lines (the help overlay, H, says it all).
+        room = (rect.bottom - 16 - (y + 6) - 6) // sl - 1 - len(status)
+        lines = notes[:max(room, 0)] + status
         y = max(y + 6, rect.bottom - (len(lines) + 1) * sl - 16)
         pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
         y += 6

@@ -129,3 +129,36 @@ def test_a_long_name_and_a_dozen_missed_beacons_fit_the_panel(size, monkeypatch)
         assert any(t.startswith("mrclam_Dataset6") for t, _ in texts)
     finally:
         app.close()
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1280, 800), (1920, 1080)])
+def test_a_team_panel_keeps_its_status_and_help_inside_the_panel(size, monkeypatch):
+    """team_sparse with four team filters fills the panel (a block per filter, three robots):
+    every line still ends inside it, the FPS line and the help hint included (at 1920x1080
+    the hint was drawn below the window's edge)."""
+    from beacon_sim.core.team_scenario import load_team_scenario
+    drawn = []
+    real = Hud._blit
+
+    def spy(self, surf, text, font, colour, at, bg=None):
+        r = real(self, surf, text, font, colour, at, bg)
+        drawn.append((text, r))
+        return r
+
+    monkeypatch.setattr(Hud, "_blit", spy)
+    team = load_team_scenario("team_sparse")
+    s = Session(team, list(team.default_filters), None)
+    app = App(s, size, scripted=True)
+    try:
+        for _ in range(30):
+            app.frame(SCRIPTED_FRAME_S)
+        drawn.clear()
+        app.draw()
+        rect = app.panel_rect
+        texts = [(t, r) for t, r in drawn if r.left >= rect.left]
+    finally:
+        app.close()
+    said = [t for t, _ in texts]
+    assert any(t.startswith("H: help") for t in said) and any(t.startswith("FPS") for t in said)
+    for text, r in texts:
+        assert r.bottom <= rect.bottom and r.right <= rect.right - 4, (size, text, r)
