@@ -89,6 +89,15 @@ class Magnifier(EstimateLayer):
             return (b.colliderect(robot_box), len(b.collidelistall(beacons)), over.width * over.height)
 
         block = min(blocks, key=hidden)  # (the first of equals: top right first)
+        if hidden(block)[:2] > (False, 0):  # every corner hides the robot or a beacon: try
+            tall = side + strip_h + 2       # the middles of the four edges too
+            edges = [pygame.Rect(area.centerx - side // 2, area.top + 12, side, tall),
+                     pygame.Rect(area.centerx - side // 2, area.bottom - tall - 12, side, tall),
+                     pygame.Rect(area.left + 12, area.centery - tall // 2, side, tall),
+                     pygame.Rect(area.right - side - 12, area.centery - tall // 2, side, tall)]
+            edge = min(edges, key=hidden)
+            if hidden(edge)[:2] < hidden(block)[:2]:
+                block = edge
         rect = pygame.Rect(block.left, block.top, side, side)
         # the zoom: the largest small ellipse (or the spread of the means) half the inset
         centre = np.asarray(pose[:2], dtype=float)

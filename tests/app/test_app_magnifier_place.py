@@ -43,3 +43,29 @@ def test_a_click_on_the_magnifier_does_not_kidnap():
         assert [c["kind"] for c in app.session.pending] == ["kidnap"]
     finally:
         app.close()
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1920, 1080)])
+def test_with_a_beacon_in_every_corner_the_magnifier_takes_a_free_edge(size):
+    """A beacon under each of the four corners' places (as MRCLAM's field has them): the
+    magnifier moves to the middle of an edge that hides no beacon, rather than onto one."""
+    import dataclasses
+
+    from beacon_sim.core.world import Beacon
+    sc = load_scenario("default")
+    corners = [Beacon(1, 0.4, 0.4), Beacon(2, 11.6, 0.4), Beacon(3, 0.4, 7.6), Beacon(4, 11.6, 7.6),
+               Beacon(5, 3.5, 2.2)]  # and one near the robot (at 2.5, 2.2), so the EKF converges
+    world = dataclasses.replace(sc.world, beacons=tuple(corners))
+    sc = dataclasses.replace(sc, world=world)
+    app = App(Session(sc, ["ekf"]), size, scripted=True)
+    try:
+        app.run(30)
+        app.draw()
+        mag = app.renderer.last_magnifier
+        assert mag is not None
+        block = mag["block"]
+        assert block.collidelist(app.renderer.beacon_rects) < 0, (block, app.renderer.beacon_rects)
+        robot = app.view.to_px(app.session.true_pose[:2])
+        assert not block.collidepoint(int(robot[0]), int(robot[1]))
+    finally:
+        app.close()
