@@ -7,8 +7,9 @@ Every number in docs/results.md comes from this script: the seeds' findings (000
 EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF, 004 the
 corridor's discrete Bayes filter), the evaluation's targets on `default`, global localization
 with kidnaps (`global_kidnap`), and the Monte Carlo figures the other pages quote (SLAM on
-`slam_loop`, association without IDs, `team_sparse`, the office's kidnap recovery, the
-symmetric room's two clouds; each entry's ``quoted_in``). Monte Carlo runs use seeds
+`slam_loop`, bearing-only SLAM, FastSLAM's association without IDs, association without IDs,
+`team_sparse`, the office's kidnap recovery, the symmetric room's two clouds, mcl against the
+scan bound, `two_rooms`; each entry's ``quoted_in``). Monte Carlo runs use seeds
 DOCS_SEED, DOCS_SEED + 1, ... (``--check-seeds``: CHECK_SEED, ...); the same command gives the
 same tables (except the cost columns, which are measured)."""
 
