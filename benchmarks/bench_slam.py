@@ -190,42 +190,47 @@ def accuracy(runs: int) -> None:
     print(f"{'known-map PCRB':<32} {ci(floor):>16}   (RMS of sqrt(Pxx + Pyy) over the path)")
 
 
-def association(runs: int) -> None:
-    """``--association``: FastSLAM's per-particle ML against per-particle JCBB on five
-    look-alike pairs with clutter (0.5 a tick), 20 s, 30 particles: the weighted share of
-    right (reading, particle) associations (a beacon's reading given to the particle's
-    landmark nearest that beacon; clutter given to none), the map's GOSPA and the CPU per
-    tick, over seeded runs."""
+def association_seed(method: str, seed: int) -> tuple[float, float, float]:
+    """One seeded run of ``--association``'s case (FastSLAM with per-particle ``method``,
+    ``"ml"`` or ``"jcbb"``, 30 particles, on five look-alike pairs with 0.5 clutter readings
+    a tick, 20 s): the weighted share of right (reading, particle) associations (a beacon's
+    reading given to the particle's landmark nearest that beacon; clutter given to none),
+    the final map's GOSPA (c = 1 m) [m] and the CPU per tick [ms]
+    (``scripts/make_results.py --only fastslam_association`` runs it on the docs' seeds)."""
     from beacon_sim.evaluation.slam_metrics import gospa
 
     sc = lookalike_pairs(20.0)
     xy, ids = sc.world.beacon_xy, np.asarray(sc.world.beacon_ids)
+    flt = build_filter("fastslam", sc, seed, params={"n_particles": 30, "association": method})
+    sim = Simulation(sc, seed)
+    rng = np.random.default_rng(seed + 1000)
+    good = total = 0.0
+    ticks = 0
+    with Clock() as c:
+        for _ in range(round(sc.duration / sc.dt)):
+            st = sim.step()
+            fired = [x for x in sc.sensors if x.name in {m.sensor for m in st.measurements}]
+            spec = {x.name: ClutterSpec(0.5) for x in fired}
+            ms, truth = hide_ids_all(st.measurements, fired, spec, rng)
+            flt.predict(st.control, st.dt)
+            flt.update(ms)
+            ticks += 1
+            if "beacons" not in truth:
+                continue
+            g, k = weighted_correct(flt, truth["beacons"], xy, ids)
+            good, total = good + g, total + k
+    return good / total, gospa(flt.landmarks().means, xy, c=1.0).value, 1e3 * c.cpu / ticks
+
+
+def association(runs: int) -> None:
+    """``--association``: FastSLAM's per-particle ML against per-particle JCBB on five
+    look-alike pairs with clutter (0.5 a tick), 20 s, 30 particles, over seeded runs
+    (:func:`association_seed`)."""
     print(f"lookalike pairs with clutter, {runs} seeded runs (seeds 0..{runs - 1}), 30 particles, "
           "95 % intervals")
     for method in ("ml", "jcbb"):
-        fr, gs, cpu_ms = [], [], []
-        for seed in range(runs):
-            flt = build_filter("fastslam", sc, seed, params={"n_particles": 30, "association": method})
-            sim = Simulation(sc, seed)
-            rng = np.random.default_rng(seed + 1000)
-            good = total = 0.0
-            ticks = 0
-            with Clock() as c:
-                for _ in range(round(sc.duration / sc.dt)):
-                    st = sim.step()
-                    fired = [x for x in sc.sensors if x.name in {m.sensor for m in st.measurements}]
-                    spec = {x.name: ClutterSpec(0.5) for x in fired}
-                    ms, truth = hide_ids_all(st.measurements, fired, spec, rng)
-                    flt.predict(st.control, st.dt)
-                    flt.update(ms)
-                    ticks += 1
-                    if "beacons" not in truth:
-                        continue
-                    g, k = weighted_correct(flt, truth["beacons"], xy, ids)
-                    good, total = good + g, total + k
-            fr.append(good / total)
-            gs.append(gospa(flt.landmarks().means, xy, c=1.0).value)
-            cpu_ms.append(1e3 * c.cpu / ticks)
+        fr, gs, cpu_ms = (list(v) for v in zip(*(association_seed(method, seed) for seed in range(runs)),
+                                                strict=True))
 
         def ci(v):
             v = np.asarray(v)

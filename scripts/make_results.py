@@ -7,8 +7,9 @@ Every number in docs/results.md comes from this script: the seeds' findings (000
 EKF/UKF bearing-only, 001 MRCLAM, 002 ULPS particle filter, 003 the classroom KF, 004 the
 corridor's discrete Bayes filter), the evaluation's targets on `default`, global localization
 with kidnaps (`global_kidnap`), and the Monte Carlo figures the other pages quote (SLAM on
-`slam_loop`, association without IDs, `team_sparse`, the office's kidnap recovery, the
-symmetric room's two clouds; each entry's ``quoted_in``). Monte Carlo runs use seeds
+`slam_loop`, bearing-only SLAM, FastSLAM's association without IDs, association without IDs,
+`team_sparse`, the office's kidnap recovery, the symmetric room's two clouds, mcl against the
+scan bound, `two_rooms`; each entry's ``quoted_in``). Monte Carlo runs use seeds
 DOCS_SEED, DOCS_SEED + 1, ... (``--check-seeds``: CHECK_SEED, ...); the same command gives the
 same tables (except the cost columns, which are measured)."""
 
@@ -1512,6 +1513,189 @@ def fig_slam_loop(ctx: Context) -> Figure:
         "|---|---|---|---|---|", *rows, ""], checks)
 
 
+#: slam_bearing_only's checked times [s] (joint ANEES) and its two initialisations.
+BEARING_ONLY_TIMES = (10.0, 20.0, 40.0)
+BEARING_ONLY_INITS = ("delayed", "inverse_depth")
+
+
+def bearing_only_seed(args: tuple[str, int]) -> dict:
+    """One seeded run of ``slam_bearing_only`` with EKF-SLAM's ``bearing_init`` = ``init``:
+    the joint NEES and its dof at each of ``BEARING_ONLY_TIMES``, the landmarks on the map at
+    the first, and the final map's RMS error over its landmarks [m]."""
+    from beacon_sim.core.simulation import Simulation
+    from beacon_sim.evaluation.slam_metrics import joint_nees
+    from beacon_sim.hosting.loading import build_filter
+
+    init, seed = args
+    sc = load_scenario("slam_bearing_only")
+    truth = {b.id: (b.x, b.y) for b in sc.world.beacons}
+    ticks = {round(t / sc.dt): t for t in BEARING_ONLY_TIMES}
+    flt = build_filter("ekf_slam", sc, seed, params={"bearing_init": init})
+    sim = Simulation(sc, seed)
+    out: dict = {"nees": {}, "dof": {}}
+    for _ in range(round(sc.duration / sc.dt)):
+        st = sim.step()
+        flt.predict(st.control, st.dt)
+        flt.update(st.measurements)
+        if st.tick in ticks:
+            mu, P, ids = flt.joint()
+            out["nees"][ticks[st.tick]] = joint_nees(mu, P, ids, st.true_pose, truth)
+            out["dof"][ticks[st.tick]] = mu.size
+            if ticks[st.tick] == BEARING_ONLY_TIMES[0]:
+                out["mapped_first"] = len(flt.landmarks().ids)
+    lm = flt.landmarks()
+    out["map_rms"] = math.sqrt(np.mean([np.sum((m - np.asarray(truth[int(b)])) ** 2)
+                                        for b, m in zip(lm.ids, lm.means, strict=True)]))
+    out["mapped"] = len(lm.ids)
+    return out
+
+
+def fig_bearing_only(ctx: Context) -> Figure:
+    """Bearing-only EKF-SLAM on ``slam_bearing_only``: inverse depth against the delayed
+    initialisation, the joint ANEES at 10, 20 and 40 s against its 99 % band, the landmarks
+    mapped at 10 s and the final map error, over seeded runs."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+    from beacon_sim.evaluation.slam_metrics import joint_anees_band
+
+    seeds = list(range(ctx.seed, ctx.seed + ctx.n(20)))
+    cases = [(init, s) for init in BEARING_ONLY_INITS for s in seeds]
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        done = dict(zip(cases, pool.map(bearing_only_seed, cases), strict=True))
+    checks: dict[str, Check] = {}
+    rows = []
+    for init in BEARING_ONLY_INITS:
+        runs = [done[(init, s)] for s in seeds]
+        cells = []
+        for t in BEARING_ONLY_TIMES:
+            nees = np.array([r["nees"][t] for r in runs])
+            dof = np.array([r["dof"][t] for r in runs], dtype=float)
+            anees, iv = float(nees.sum() / dof.sum()), ratio_of_sums(nees, dof)
+            lo, hi = joint_anees_band(1, int(dof.sum()), 0.99)
+            checks[f"`{init}` joint ANEES at {t:g} s"] = (anees, iv)
+            inside = "" if lo <= anees <= hi else ", outside"
+            cells.append(f"{with_iv(anees, iv, '.2f')} ({lo:.2f}-{hi:.2f}{inside})")
+        first = np.array([r["mapped_first"] for r in runs], dtype=float)
+        err = np.array([r["map_rms"] for r in runs])
+        checks[f"`{init}` landmarks on the map at {BEARING_ONLY_TIMES[0]:g} s"] = (
+            float(first.mean()), mean_interval(first))
+        checks[f"`{init}` final map error, RMS [m]"] = (float(err.mean()), mean_interval(err))
+        all_mapped = sum(r["mapped"] == 5 for r in runs)
+        rows.append(f"| `\"{init}\"` | {' / '.join(cells)} "
+                    f"| {with_iv(float(first.mean()), mean_interval(first), '.1f')} of 5 "
+                    f"| {all_mapped}/{len(runs)} "
+                    f"| {with_iv(float(err.mean()), mean_interval(err), '.4f')} |")
+    return Figure([
+        f"`slam_bearing_only` as shipped (five beacons to map, two anchors, a 360-degree bearing "
+        f"sensor, 40 s), `ekf_slam` with each `bearing_init`, {len(seeds)} runs, seeds "
+        f"{ctx.seeds(20)} (the same runs for both). Joint ANEES: the joint NEES over the pose and "
+        "the mapped Euclidean landmarks, summed over the runs and divided by the summed degrees "
+        "of freedom (1 for an honest filter; in parentheses its 99 % chi-square band for those "
+        "degrees of freedom); map error: the final map's RMS "
+        "distance to the true beacons, mean over the runs. Brackets: 95 % bootstrap intervals "
+        "over the runs. What it shows is discussed in [slam.md](slam.md#bearing-only-slam-slam_bearing_only)"
+        ".", "",
+        "| `bearing_init` | joint ANEES at 10 / 20 / 40 s | landmarks on the map at 10 s "
+        "| runs with all five mapped at 40 s | final map error, RMS [m] |",
+        "|---|---|---|---|---|", *rows, ""], checks)
+
+
+def fastslam_association_seed(args: tuple[str, int]) -> tuple[float, float, float]:
+    """``benchmarks/bench_slam.py``'s ``association_seed``: one seeded look-alike run."""
+    return helper_module("benchmarks", "bench_slam").association_seed(*args)
+
+
+def fig_fastslam_association(ctx: Context) -> Figure:
+    """FastSLAM's per-particle association without IDs: ML against JCBB on five look-alike
+    pairs with clutter (``bench_slam.py --association``'s case) over seeded runs."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    seeds = list(range(ctx.seed, ctx.seed + ctx.n(20)))
+    cases = [(m, s) for m in ("ml", "jcbb") for s in seeds]
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        done = dict(zip(cases, pool.map(fastslam_association_seed, cases), strict=True))
+    checks: dict[str, Check] = {}
+    rows = []
+    for method, label in (("ml", "`\"ml\"` (default)"), ("jcbb", "`\"jcbb\"`")):
+        fr, gs, cpu = (np.array(v) for v in zip(*(done[(method, s)] for s in seeds), strict=True))
+        ivf, ivg = mean_interval(fr), mean_interval(gs)
+        checks[f"{method}: share of right associations"] = (float(fr.mean()), ivf)
+        checks[f"{method}: map GOSPA [m]"] = (float(gs.mean()), ivg)
+        rows.append(f"| {label} | {with_iv(float(fr.mean()), ivf, '.3f')} "
+                    f"| {with_iv(float(gs.mean()), ivg, '.3f')} | {np.median(cpu):.1f} |")
+    return Figure([
+        "FastSLAM 2.0 without IDs, 30 particles, on five pairs of look-alike beacons 0.4 m apart "
+        "on a 4 m ring with clutter (0.5 false readings a tick), a poor gyro, 20 s "
+        f"(`benchmarks/bench_slam.py --association`'s case), {len(seeds)} runs, seeds "
+        f"{ctx.seeds(20)} (the same runs for both). A reading is associated right when a "
+        "particle gives it to its landmark nearest the reading's beacon, or clutter to none, "
+        "weighted by the particles' weights; map GOSPA (c = 1 m): the final map against the "
+        "beacons. Means over the runs; brackets: 95 % bootstrap intervals over the runs; CPU: "
+        "the median over the runs (measured, not reproducible). What it shows is discussed in "
+        "[slam.md](slam.md#fastslam-20-fastslam).", "",
+        "| per-particle association | right associations | map GOSPA, c = 1 m [m] | CPU per tick [ms] |",
+        "|---|---|---|---|", *rows, ""], checks)
+
+
+#: The map worlds whose bound ``fig_map_bound`` compares mcl with, the runs in each and their length [s].
+MAP_BOUND_SCENARIOS = ("office", "corridor", "symmetric_room")
+MAP_BOUND_RUNS = 10
+MAP_BOUND_SECONDS = 30.0
+
+
+def fig_map_bound(ctx: Context) -> Figure:
+    """mcl against the scan PCRB in the map worlds: ``eval``'s RMSE/PCRB over seeded runs of
+    ``MAP_BOUND_SECONDS`` (a global start's first 15 s left out, as ``eval`` does)."""
+    checks: dict[str, Check] = {}
+    rows = []
+    k = MAP_BOUND_RUNS
+    for name in MAP_BOUND_SCENARIOS:
+        sc = load_scenario(name)
+        _, meta, _ = evaluated(ctx, sc, ["mcl"], k, duration=MAP_BOUND_SECONDS)
+        r = meta["filters"]["mcl"]
+        iv = (r.get("intervals") or {}).get("rmse_over_pcrb")
+        checks[f"{name}: mcl RMSE/PCRB"] = (r["rmse_over_pcrb"], iv)
+        checks[f"{name}: mcl pos RMSE [m]"] = (r["pos_rmse_m"], r.get("pos_rmse_interval"))
+        rows.append(f"| `{name}` | {meta['pcrb']['pos_rmse_m'] * 1e3:.2f} "
+                    f"| {with_iv(r['pos_rmse_m'], r.get('pos_rmse_interval'), '.4f')} "
+                    f"| {with_iv(r['rmse_over_pcrb'], iv, '.3g')} | {r['divergences']}/{ctx.n(k)} |")
+    return Figure([
+        f"Each map world as shipped, mcl with the scenario's settings, {ctx.n(k)} runs of "
+        f"{MAP_BOUND_SECONDS:g} s in each, seeds {ctx.seeds(k)} "
+        "(`beacon-sim eval NAME --filter mcl --duration 30`; the scan's information in the "
+        "posterior Cramér-Rao bound, [maps.md](maps.md#the-bound)). The corridor and the "
+        "symmetric room start lost: their first 15 s are left out of both figures. Brackets: "
+        "95 % bootstrap intervals over the runs.", "",
+        "| scenario | PCRB, position [mm] | mcl pos RMSE [m] | mcl RMSE/PCRB | diverged |",
+        "|---|---|---|---|---|", *rows, ""], checks)
+
+
+#: When the ``two_rooms`` robot is in the east room, out of sight of every beacon [s].
+TWO_ROOMS_BLIND_S = (15.0, 36.0)
+
+
+def fig_two_rooms(ctx: Context) -> Figure:
+    """``two_rooms``: beacons behind walls; the EKF, the PF and dead reckoning against the
+    PCRB while the robot is blind in the east room and after."""
+    sc = load_scenario("two_rooms")
+    flt = [f for f in ("ekf", "pf", "dead_reckoning") if f in ctx.have]
+    rs, meta, curves = evaluated(ctx, sc, flt, 20, duration=40.0)
+    t = np.asarray(curves["time"])
+    bound = np.asarray(curves["pcrb_pos_t"])
+    i0, i1 = (int(np.argmin(np.abs(t - x))) for x in TWO_ROOMS_BLIND_S)
+    peak = int(np.argmax(bound))
+    md = [f"`two_rooms` as shipped, 40 s (`beacon-sim eval two_rooms --duration 40`). The robot "
+          "is in the east room, where the walls hide every beacon but one lining up with the "
+          f"doorway, from about 15 s to 36 s: the bound's position RMSE is {100 * bound[i0]:.1f} cm "
+          f"at {t[i0]:.0f} s, {100 * bound[peak]:.1f} cm at most ({t[peak]:.1f} s) and "
+          f"{100 * bound[min(i1 + 20, len(t) - 1)]:.1f} cm at {t[min(i1 + 20, len(t) - 1)]:.0f} s, "
+          "once the beacons are in sight again. What it shows is discussed in "
+          "[maps.md](maps.md#beacons-behind-walls).", "", *md_table(meta), ""]
+    md += drawn(ctx, sc, curves, meta, "two_rooms")
+    return Figure(md, table_checks(meta, rs))
+
+
 def fig_standstill(ctx: Context) -> Figure:
     """The particle filter at rest: NEES after a minute's standstill, gate on and off."""
     checks: dict[str, Check] = {}
@@ -1606,6 +1790,10 @@ FIGURES: tuple[Entry, ...] = (
           fig_corridor_mcl, quoted_in=("maps.md",)),
     Entry("slam_loop", "## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs",
           fig_slam_loop, quoted_in=("slam.md",)),
+    Entry("bearing_only", "## Bearing-only SLAM on `slam_bearing_only`: inverse depth against "
+                          "delayed initialisation", fig_bearing_only, quoted_in=("slam.md",)),
+    Entry("fastslam_association", "## FastSLAM without IDs: per-particle ML against JCBB on "
+                                  "look-alike pairs", fig_fastslam_association, quoted_in=("slam.md",)),
     Entry("lookalike", "## Association without IDs: `lookalike_beacons`", fig_lookalike,
           quoted_in=("association.md",)),
     Entry("unknown_ids", "## Association without IDs: `default` with clutter", fig_unknown_ids,
@@ -1616,6 +1804,9 @@ FIGURES: tuple[Entry, ...] = (
           quoted_in=("maps.md",)),
     Entry("symmetric_room", "## Two clouds in the `symmetric_room`: mcl", fig_symmetric_room,
           quoted_in=("maps.md",)),
+    Entry("map_bound", "## The scan bound in the map worlds: mcl against the PCRB", fig_map_bound,
+          quoted_in=("maps.md",)),
+    Entry("two_rooms", "## Beacons behind walls: `two_rooms`", fig_two_rooms, quoted_in=("maps.md",)),
     Entry("mrclam", MRCLAM_HEADER, fig_mrclam, seeded=False),
     Entry("association", ASSOCIATION_HEADER, fig_mrclam_association, seeded=False),
     Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),

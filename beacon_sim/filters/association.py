@@ -554,8 +554,13 @@ def _particle_d2(kind: str, z: np.ndarray, poses: np.ndarray, beacon_xy: np.ndar
 #: The Gaussian filters' association methods (parameter ``association``).
 METHODS = ("nn", "jcbb")
 
-#: The parameters the EKF and the UKF take for unknown correspondence, with their defaults.
-GAUSSIAN_PARAMS = {"association": "nn", "association_prob": GATE_PROB}
+#: The parameters the EKF and the UKF take for unknown correspondence, with their defaults:
+#: the method, its gate's probability, the factor on the innovation covariance S the gate
+#: and the joint test use (1: as the filter's update), and the share of the gated beacons'
+#: likelihood the nearest beacon's group must hold for a reading to be associated, else it
+#: is refused as ambiguous (dropped as clutter; :func:`refuse_ambiguous`; 0: off).
+GAUSSIAN_PARAMS = {"association": "nn", "association_prob": GATE_PROB, "association_inflation": 1.0,
+                   "unambiguous_share": 0.0}
 
 #: The share of unlabeled readings the particle and histogram filters take as clutter at
 #: least (their likelihood's floor): a reading no beacon explains costs a bounded amount.
@@ -571,12 +576,19 @@ class _Wiring:
     """One filter's association state: the map, whether any sensor is unlabeled, and what
     the last update associated (``last``: sensor name -> beacon ID or None per row)."""
 
-    def __init__(self, ctx: FilterContext, method: str = "nn", prob: float = GATE_PROB):
+    def __init__(self, ctx: FilterContext, method: str = "nn", prob: float = GATE_PROB,
+                 inflation: float = 1.0, share: float = 0.0):
         if method not in METHODS:
             raise FilterError(f"{ctx.name}: association = {method!r}: expected one of "
                               + ", ".join(map(repr, METHODS)))
         if not 0.0 < prob < 1.0:
             raise FilterError(f"{ctx.name}: association_prob = {prob!r}: expected a probability in (0, 1)")
+        if not (isinstance(inflation, int | float) and math.isfinite(inflation) and inflation >= 1.0):
+            raise FilterError(f"{ctx.name}: association_inflation = {inflation!r}: expected a number >= 1")
+        if not (isinstance(share, int | float) and 0.0 <= share < 1.0):
+            raise FilterError(f"{ctx.name}: unambiguous_share = {share!r}: expected a share in [0, 1)")
+        self.inflation = float(inflation)
+        self.share = float(share)
         self.ctx = ctx
         self.unknown = any(s.correspondence != "known" for s in ctx.sensors)
         self.xy = ctx.world.beacon_xy
@@ -594,7 +606,61 @@ def attach(flt: Any) -> None:
     """Give a Gaussian filter (EKF, UKF) its association state from ``flt.params``
     (``association``, ``association_prob``); FilterError for a bad value. Call in __init__."""
     p = flt.params
-    flt._association = _Wiring(flt.ctx, p.get("association", "nn"), p.get("association_prob", GATE_PROB))
+    flt._association = _Wiring(flt.ctx, p.get("association", "nn"), p.get("association_prob", GATE_PROB),
+                               p.get("association_inflation", 1.0), p.get("unambiguous_share", 0.0))
+
+
+def inflated(lin: Linearised, factor: float) -> Linearised:
+    """``lin`` with every innovation covariance ``S`` (and the pose covariance and reading
+    noise it is made of) multiplied by ``factor``: the distances ``d2`` divided by it. For
+    association only: a wider gate and joint test for errors the update's model leaves out
+    (real data's late readings, range bias); the update itself keeps its own ``S``."""
+    if factor == 1.0:
+        return lin
+    return Linearised(lin.kind, lin.nu, lin.H, lin.P * factor, lin.r * factor, lin.S * factor,
+                      lin.d2 / factor, None if lin.Z is None else lin.Z * factor)
+
+
+def refuse_ambiguous(lin: Linearised, prob: float, share: float) -> Linearised:
+    """``lin`` with every *ambiguous* reading made compatible with no beacon (its row of
+    ``d2`` set to ``inf``, so it is dropped as clutter).
+
+    The beacons a reading is compared with are those inside its gate (``d2 <= gate(prob,
+    d)``); each has the Gaussian likelihood ``exp(-d2 / 2) / sqrt(det S)`` (equal priors).
+    The nearest beacon's *group* is the gated beacons the sensor cannot tell from it: their
+    expected readings differ from the nearest's by at most the gate under the reading noise
+    R alone (``dz^T R^-1 dz <= gate``, ``dz`` the difference of the two expected readings,
+    bearing wrapped). The reading is ambiguous when its nearest beacon's group holds less
+    than ``share`` of the gated beacons' summed likelihood: a beacon the sensor could tell
+    apart fits it nearly as well, and only the pose's uncertainty makes both fit. The nearest
+    would then be a guess that, when wrong, pulls the pose towards the wrong beacon and makes
+    the next wrong pairing likelier (real data after a long blind stretch: a heading 20
+    degrees off, readings given a beacon a metre from theirs). A group of landmarks 18-25 cm
+    apart seen from metres counts as one: the nearest is kept, wrong by at most their
+    distance."""
+    g = gate(prob, lin.dim)
+    m, n = lin.d2.shape
+    if n < 2 or m == 0:
+        return lin
+    gated = lin.d2 <= g                                     # (m, n)
+    if not (gated.sum(axis=1) >= 2).any():
+        return lin
+    rows = np.arange(m)
+    best = np.argmin(lin.d2, axis=1)
+    dz = lin.nu[rows, best][:, None, :] - lin.nu            # h_j - h_best, (m, n, d)
+    dz[..., -1] = wrap(dz[..., -1])
+    alike = np.einsum("mnd,d->mn", dz * dz, 1.0 / lin.r) <= g
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logdet = np.linalg.slogdet(lin.S)[1]                # (n,)
+        like = np.where(gated, np.exp(-0.5 * (lin.d2 - lin.d2[rows, best][:, None])
+                                      - 0.5 * (logdet[None, :] - logdet[best][:, None])), 0.0)
+    total = like.sum(axis=1)
+    ambiguous = gated[rows, best] & (np.where(alike, like, 0.0).sum(axis=1) < share * total)
+    if not ambiguous.any():
+        return lin
+    d2 = lin.d2.copy()
+    d2[ambiguous] = np.inf
+    return Linearised(lin.kind, lin.nu, lin.H, lin.P, lin.r, lin.S, d2, lin.Z)
 
 
 def associate_gaussian(flt: Any, measurements: Sequence[Measurement]) -> Sequence[Measurement]:
@@ -611,7 +677,10 @@ def associate_gaussian(flt: Any, measurements: Sequence[Measurement]) -> Sequenc
         if not is_unlabeled(m):
             out.append(m)
             continue
-        lin = linearise(m.kind, m.z, flt.mean, flt.cov, w.xy, flt.ctx.sensor(m.sensor).reading_std())
+        lin = inflated(linearise(m.kind, m.z, flt.mean, flt.cov, w.xy,
+                                 flt.ctx.sensor(m.sensor).reading_std()), w.inflation)
+        if w.share > 0.0:
+            lin = refuse_ambiguous(lin, w.prob, w.share)
         found = (jcbb if w.method == "jcbb" else nearest_neighbour)(lin, w.ids, w.prob)
         w.last[m.sensor] = found.beacon_ids
         keep = [i for i, b in enumerate(found.beacon_ids) if b is not None]

@@ -65,6 +65,46 @@ def test_mahalanobis_distances_match_a_brute_force_loop(kind):
     assert np.all(np.abs(lin.nu[..., -1]) <= math.pi)
 
 
+def test_an_inflated_linearisation_is_the_linearisation_of_the_inflated_belief_and_noise():
+    """``inflated(lin, k)``: the distances of the same readings under k P and k R (by the
+    brute-force loop), and the joint NIS of any pairing divided by k."""
+    rng = np.random.default_rng(11)
+    xy = rng.uniform(-8, 8, (5, 2))
+    mean, P = np.array([0.2, 0.1, 0.4]), np.diag([0.04, 0.09, 0.02])
+    std, k = [0.3, 0.05], 2.5
+    z = np.hstack([rng.uniform(1, 10, (4, 1)), rng.uniform(-math.pi, math.pi, (4, 1))])
+    lin = assoc.linearise("range_bearing", z, mean, P, xy, std)
+    big = assoc.inflated(lin, k)
+    want = brute_force_d2("range_bearing", z, mean, k * P, xy, np.sqrt(k) * np.array(std))
+    assert np.allclose(big.d2, want, rtol=1e-9)
+    pairing = ((0, 1), (2, 3))
+    assert assoc.joint_nis(big, pairing) == pytest.approx(assoc.joint_nis(lin, pairing) / k, rel=1e-9)
+    assert assoc.inflated(lin, 1.0) is lin
+
+
+def test_refuse_ambiguous_drops_a_reading_two_distinguishable_beacons_fit_alike():
+    """Against the definitions: beacons 7 and 8 of the look-alike case are 0.2 rad apart
+    (20 sigma of the 0.01 rad bearing: distinguishable) and both inside the gate of a
+    reading between them under the 0.2 rad heading sigma. The nearest's share of the summed
+    Gaussian likelihood, computed here by hand, decides: refused when the share asked for is
+    above it, kept below. A beacon 0.005 rad from the nearest (half a bearing sigma:
+    indistinguishable) is in its group, so it never makes a reading ambiguous."""
+    z = np.array([[0.02]])
+    lin = assoc.linearise("bearing", z, np.zeros(3), LOOKALIKE_P, LOOKALIKE_XY, [0.01])
+    assert np.all(lin.d2 <= assoc.gate(0.99, 1))
+    like = np.exp(-0.5 * lin.d2[0]) / np.sqrt(np.linalg.det(lin.S))
+    own = like.max() / like.sum()
+    assert 0.5 < own < 0.9
+    assert np.all(np.isinf(assoc.refuse_ambiguous(lin, 0.99, own + 0.01).d2))
+    assert np.array_equal(assoc.refuse_ambiguous(lin, 0.99, own - 0.01).d2, lin.d2)
+    assert assoc.nearest_neighbour(assoc.refuse_ambiguous(lin, 0.99, own + 0.01), LOOKALIKE_IDS
+                                   ).beacon_ids == (None,)
+    twin = np.array([[5 * math.cos(0.1), 5 * math.sin(0.1)], [5 * math.cos(0.095), 5 * math.sin(0.095)]])
+    lin2 = assoc.linearise("bearing", np.array([[0.098]]), np.zeros(3), LOOKALIKE_P, twin, [0.01])
+    assert np.all(lin2.d2 <= assoc.gate(0.99, 1))
+    assert np.array_equal(assoc.refuse_ambiguous(lin2, 0.99, 0.999).d2, lin2.d2)
+
+
 def test_a_bearing_residual_across_pi_is_small():
     xy = np.array([[-5.0, 0.001]])  # bearing ~ +pi from the origin
     lin = assoc.linearise("bearing", np.array([[-math.pi + 0.01]]), np.zeros(3), np.eye(3) * 1e-4, xy, [0.05])

@@ -210,6 +210,42 @@ def test_a_bad_association_parameter_is_one_line():
         build_filter("ukf", unknown_scenario(), 0, params={"association_prob": 1.5})
 
 
+def test_bad_ambiguity_and_inflation_parameters_are_one_line():
+    with pytest.raises(FilterError, match=r"unambiguous_share = 1\.0: expected a share in \[0, 1\)"):
+        build_filter("ekf", unknown_scenario(), 0, params={"unambiguous_share": 1.0})
+    with pytest.raises(FilterError, match=r"association_inflation = 0\.5: expected a number >= 1"):
+        build_filter("ukf", unknown_scenario(), 0, params={"association_inflation": 0.5})
+
+
+@pytest.mark.parametrize("name", ["ekf", "ukf"])
+def test_an_ambiguous_reading_is_refused_with_a_share_and_given_the_nearest_without(name):
+    """The belief's heading uncertain by 0.3 rad; a reading whose bearing lies between two
+    beacons 0.4 rad apart (distinguishable by the sensor's 0.02 rad bearing, but both in the
+    gate): with ``unambiguous_share`` it is dropped (the estimate unchanged), without it the
+    nearest takes it. A reading one beacon alone fits is kept either way."""
+    from beacon_sim.core.sensors import SensorNoise
+    from beacon_sim.core.types import Beacon
+
+    sc = unknown_scenario(clutter_rate=0.0)
+    x0, y0, th0 = sc.initial_pose
+    beacons = tuple(Beacon(i + 1, x0 + 4 * math.cos(th0 + a), y0 + 4 * math.sin(th0 + a))
+                    for i, a in enumerate((0.2, -0.2, 1.8)))
+    sensors = tuple(replace(s, noise=SensorNoise(range_std=0.3, bearing_std=0.02)) for s in sc.sensors)
+    sc = replace(sc, world=World(sc.world.bounds, beacons), sensors=sensors, model_sensors=sensors,
+                 initial_belief=replace(sc.initial_belief, std=(0.05, 0.05, 0.3)))
+    between = Measurement("rb", "range_bearing", np.array([[4.0, 0.01]]), np.array([UNKNOWN_ID]))
+    alone = Measurement("rb", "range_bearing", np.array([[4.0, 1.75]]), np.array([UNKNOWN_ID]))
+    for share, want in ((0.8, (None,)), (0.0, (1,))):
+        f = build_filter(name, sc, 0, params={"unambiguous_share": share})
+        mean0 = f.estimate()[0].copy()
+        f.update([between])
+        assert f.associations() == {"rb": want}, share
+        assert np.array_equal(f.estimate()[0], mean0) == (want == (None,))
+        f = build_filter(name, sc, 0, params={"unambiguous_share": share})
+        f.update([alone])
+        assert f.associations() == {"rb": (3,)}
+
+
 def test_unknown_correspondence_is_not_batched():
     f = build_filter("ekf", unknown_scenario(), 0)
     assert "unknown correspondence" in f.batch_blocker

@@ -48,7 +48,8 @@ def test_parameters_merge_and_unknown_ones_are_refused():
     sc = make_scenario(filters={"ukf": {"alpha": 0.5}})
     f = build_filter("ukf", sc, 0, params={"kappa": 1.0})
     assert f.params == {"alpha": 0.5, "beta": 2.0, "kappa": 1.0, "scaled": True, "gate_chi2": 0.0,
-                        "association": "nn", "association_prob": 0.99}
+                        "association": "nn", "association_prob": 0.99, "association_inflation": 1.0,
+                        "unambiguous_share": 0.0}
     with pytest.raises(FilterError, match="did you mean 'gate_chi2'"):
         build_filter("ekf", sc, 0, params={"gate_chi": 3.0})
 

@@ -140,4 +140,21 @@ def test_pages_that_quote_a_figure_link_its_section(make_results):
                 missing.append(f"{page} does not link results.md#{anchor(e.header)} ({e.name})")
     assert not missing, missing
     quoted = {e.name for e in make_results.FIGURES if e.quoted_in}
-    assert {"lookalike", "unknown_ids", "team_sparse", "office_kidnap", "symmetric_room"} <= quoted
+    assert {"lookalike", "unknown_ids", "team_sparse", "office_kidnap", "symmetric_room", "bearing_only",
+            "fastslam_association", "map_bound", "two_rooms"} <= quoted
+
+
+def test_every_link_out_of_a_section_names_a_heading(make_results):
+    """A section's "what it shows is discussed in PAGE#ANCHOR" names a heading of that page
+    (the prose the figure moves with): the script's own text and results.md as committed."""
+    def headings(page: str) -> set[str]:
+        text = (ROOT / "docs" / page).read_text(encoding="utf-8")
+        return {anchor("## " + h) for h in re.findall(r"^#{1,6} (.+)$", text, flags=re.M)}
+
+    script = (ROOT / "scripts" / "make_results.py").read_text(encoding="utf-8")
+    results = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+    dangling = []
+    for page, target in set(re.findall(r"\]\(([\w-]+\.md)#([^)\s]+)\)", script + results)):
+        if page != "results.md" and (ROOT / "docs" / page).exists() and target not in headings(page):
+            dangling.append(f"{page}#{target}")
+    assert not dangling, sorted(dangling)
