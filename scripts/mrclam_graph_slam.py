@@ -96,9 +96,12 @@ def main() -> None:
         shape, turn = aligned_gospa(lm.means, xy, lm.ids, ids)
         g = gospa(lm.means, xy, c=GOSPA_CUTOFF_M).value
         k = tr.filter.first_reading
-        true_k, ok_k = data.truth_at(tr.times[[k]])
-        first = (f"{math.degrees(float(wrap(tr.means[k, 2] - true_k[0, 2]))):+.2f} ({tr.times[k] - t0:.1f})"
-                 if ok_k[0] else "-")
+        first = "-"
+        if k is not None:
+            true_k, ok_k = data.truth_at(tr.times[[k]])
+            if ok_k[0]:
+                err = math.degrees(float(wrap(tr.means[k, 2] - true_k[0, 2])))
+                first = f"{err:+.2f} ({tr.times[k] - t0:.1f})"
         print(f"| {robot} | {ate:.3f} {text(ratio_of_sums(sq[cnt > 0], cnt[cnt > 0], sqrt=True), '.3f')} "
               f"| {anees} | {g:.3f} | {shape:.3f} ({math.degrees(turn):+.1f}°) "
               f"| {tr.filter.rejected} | {first} | {aligned:.3f} | {time.process_time() - c0:.0f} |",
