@@ -88,6 +88,49 @@ def test_levenberg_marquardt_never_raises_chi2_and_reaches_the_same_optimum():
     assert lm.graph.chi2() == pytest.approx(gn.graph.chi2(), rel=1e-6)
 
 
+def _drive_read_from(k: int) -> FactorGraph:
+    """The synthetic drive without its loop closure and with no reading before pose ``k``."""
+    g, _, _ = synthetic_graph(seed=9)
+    odo, rb = g.edges[0], g.edges[2]
+    late = rb.i >= k
+    rb = EdgeSet(rb.kind, rb.label, rb.i[late], rb.j[late], rb.z[late], rb.info[late])
+    return FactorGraph(g.poses, g.landmarks, [odo, rb], g.fixed)
+
+
+def test_the_poses_up_to_the_first_reading_are_dead_reckoning_at_the_optimum():
+    k = 6
+    g = _drive_read_from(k)
+    assert g.first_landmark_pose() == k
+    gn = GraphSolver(g, "gn")
+    gn.solve(30, rel_tol=1e-13)
+    odo = g.edges[0]
+    dead = [g.poses[0]]
+    for z in odo.z[:k]:
+        dead.append(compose(dead[-1], z))
+    np.testing.assert_allclose(gn.graph.poses[:k + 1], np.array(dead), atol=1e-8)
+    # the later poses are not: the readings moved them off dead reckoning
+    for z in odo.z[k:]:
+        dead.append(compose(dead[-1], z))
+    assert np.abs(gn.graph.poses[k + 1:, :2] - np.array(dead)[k + 1:, :2]).max() > 0.01
+
+
+def test_a_rigid_motion_of_the_map_and_the_later_poses_costs_only_the_edge_into_the_first_reading():
+    k = 6
+    g = _drive_read_from(k)
+    turn, shift = 0.3, np.array([0.7, -0.4])
+    c, s = np.cos(turn), np.sin(turn)
+    rot = np.array([[c, -s], [s, c]])
+    poses, marks = g.poses.copy(), g.landmarks @ rot.T + shift
+    poses[k:, :2] = poses[k:, :2] @ rot.T + shift
+    poses[k:, 2] += turn
+    odo, rb = g.edges
+    np.testing.assert_allclose(rb.chi2(poses, marks), rb.chi2(g.poses, g.landmarks), rtol=1e-9)
+    before, after = odo.chi2(g.poses, g.landmarks), odo.chi2(poses, marks)
+    moved = np.flatnonzero(~np.isclose(before, after, rtol=1e-9, atol=1e-12))
+    np.testing.assert_array_equal(moved, [k - 1])
+    assert FactorGraph(g.poses, g.landmarks, [odo]).first_landmark_pose() is None
+
+
 def test_marginals_are_blocks_of_the_inverse_information():
     g, _, _ = synthetic_graph(seed=3, n=12, m=3)
     s = GraphSolver(g)

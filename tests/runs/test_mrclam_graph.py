@@ -78,6 +78,12 @@ def test_graph_slam_on_the_synthetic_folder_maps_the_square(synthetic):
     assert g["ate_m"] < figs["dead_reckoning"]["ate_m"], figs
     # its marginals are covariances; the window gets its final map
     assert np.all(np.linalg.eigvalsh(lm.covs) > 0)
+    # the map's frame: the first pose with a reading is where dead reckoning put it
+    flt = run.tracks[GRAPH_NAME].filter
+    k = flt.first_reading
+    assert k is not None and k > 0
+    assert run.tracks[GRAPH_NAME].times[k] >= d.measurements[0, 0] - 1e-9
+    np.testing.assert_allclose(run.tracks[GRAPH_NAME].means[:k + 1], flt.dead_reckoned[:k + 1], atol=1e-6)
     assert np.all(np.linalg.eigvalsh(run.tracks[GRAPH_NAME].covs[1:]) > 0)
     assert run.map_history[GRAPH_NAME].at(run.t_end) is not None
     ev = run.evaluate()[GRAPH_NAME]

@@ -183,6 +183,16 @@ class FactorGraph:
     def chi2(self) -> float:
         return float(sum(self.chi2_by_class().values()))
 
+    def first_landmark_pose(self) -> int | None:
+        """The lowest pose index with a landmark edge (None: no landmark edge). In a drive's
+        graph (the start pose fixed, odometry edges chaining pose k-1 to pose k) nothing but
+        the odometry touches the poses up to this one, so at the optimum they are dead
+        reckoning exactly; and a rigid motion of every later pose with the whole map changes
+        no edge but the odometry edge into this pose: the map's frame is this pose's,
+        and only the odometry before the first reading fixes it (docs/slam.md)."""
+        firsts = [int(es.i.min()) for es in self.edges if es.to_landmark and len(es)]
+        return min(firsts) if firsts else None
+
     def worst_edges(self, k: int) -> list[tuple[float, str, int, int]]:
         """The ``k`` edges of largest chi2: (chi2, label, i, j)."""
         rows: list[tuple[float, str, int, int]] = []

@@ -68,12 +68,18 @@ class _StepRecorder:
 
 class GraphSlamMap:
     """The solved graph's map, reported as a SLAM filter reports its own (``landmarks()``),
-    and what the solve did (``report``; ``rejected``: the readings dropped as outliers)."""
+    and what the solve did (``report``; ``rejected``: the readings dropped as outliers;
+    ``dead_reckoned``: the pose nodes (n, 3) from the commands alone, the initial values;
+    ``first_reading``: the first pose node with a reading, whose solved pose is its dead
+    reckoning and sets the map's frame, see ``FactorGraph.first_landmark_pose``)."""
 
-    def __init__(self, ids: np.ndarray, means: np.ndarray, covs: np.ndarray, report: IncrementalReport):
+    def __init__(self, ids: np.ndarray, means: np.ndarray, covs: np.ndarray, report: IncrementalReport,
+                 dead_reckoned: np.ndarray | None = None, first_reading: int | None = None):
         self._map = LandmarkMap(ids, means, covs)
         self.report = report
         self.rejected = report.dropped
+        self.dead_reckoned = dead_reckoned
+        self.first_reading = first_reading
 
     def landmarks(self) -> LandmarkMap:
         return self._map
@@ -121,7 +127,8 @@ def graph_slam_track(data: MrclamData, cal: Calibration, t_start: float, t_end: 
     cpu = time.process_time() - c0
     times = t_start + np.array([0.0] + [s.time for s in steps])[dg.ticks]
     ids = np.asarray(solved.landmark_ids, dtype=np.int64)
-    flt = GraphSlamMap(ids, solved.landmarks.copy(), mark_covs, report)
+    flt = GraphSlamMap(ids, solved.landmarks.copy(), mark_covs, report, dg.graph.poses.copy(),
+                       dg.graph.first_landmark_pose())
     track = MrclamTrack(GRAPH_NAME, flt, times, solved.poses.copy(), pose_covs,
                         us_per_step=1e6 * cpu / max(len(steps), 1))
     history = MapHistory([float(times[-1])], [flt.landmarks()])
