@@ -24,7 +24,8 @@ from beacon_sim.hosting.loading import build_filter, load_filter_class
 from beacon_sim.runs.headless import run_headless
 
 FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "unscented", "dead_reckoning", "measurements"},
-            "particle": {"pf", "mcl", "pose_stats", "log_weights", "fast_calls"},
+            "particle": {"pf", "mcl", "pose_stats", "log_weights", "fast_calls", "recovery", "regularise",
+                         "adaptive_count"},
             "grid": {"histogram", "corridor"},
             "slam": {"base", "ekf_slam", "fastslam", "inverse_depth"},
             "smoothing": {"fixed_lag", "recorder", "rts"},
