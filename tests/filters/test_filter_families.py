@@ -27,7 +27,9 @@ FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "unscented", "dead_reckoning", "mea
             "particle": {"pf", "mcl", "pose_stats", "log_weights", "fast_calls", "recovery", "regularise",
                          "adaptive_count"},
             "grid": {"histogram", "corridor"},
-            "slam": {"base", "ekf_slam", "fastslam", "inverse_depth"},
+            "slam": {"base", "ekf_slam", "fastslam", "inverse_depth", "fastslam_proposal",
+                     "particle_association",
+                     "linearised_covariance"},
             "smoothing": {"fixed_lag", "recorder", "rts"},
             "graph": {"graph", "se2", "solver", "incremental"}}
 

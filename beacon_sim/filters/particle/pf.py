@@ -409,11 +409,10 @@ class ParticleFilter(FilterBase, Recovery, Regularisation):
             known = self._sensor_of[m.sensor] = (spec, m.kind, model, model.particle_constants(spec))
         spec, _, model, consts = known
         fit = model.particle_fit(spec, consts, m, self, self.ctx.world)
+        fits, dof, scalars, log_u, const = fit
         eps = spec.outlier_rate
-        fits: np.ndarray = fit.fits
-        self._count_unexplained(fits, fit.dof, eps)
-        const = fit.const
-        if eps > 0 and fit.log_u is not None:
+        self._count_unexplained(fits, dof, eps)
+        if eps > 0 and log_u is not None:
             fits, const = with_outliers(fit, eps)
         if fits.ndim == 2:  # one row per beacon: their sum
             k = fits.shape[0]
@@ -434,7 +433,7 @@ class ParticleFilter(FilterBase, Recovery, Regularisation):
             if self._extra is None:
                 self._extra = np.zeros(self.n)
             self._extra += const
-        return fit.scalars
+        return scalars
 
     # ----------------------------------------------------------------- resampling
     def _resample(self) -> None:
