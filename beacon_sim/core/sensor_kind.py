@@ -7,8 +7,9 @@ it adds to a ``[[sensors]]`` table, how the simulation draws a reading, and how 
 is weighed: ``h`` (expected reading at poses), ``H`` (its Jacobian), ``R`` (its noise
 covariance, a full matrix: correlated rows are allowed) and the log-likelihood at many poses
 (particles, grid cells). The Gaussian filters use h, H and R, the particle and grid filters
-the log-likelihood, the Cramer-Rao bound the Fisher information. The registry of kinds is
-core/sensor_kinds.py.
+the log-likelihood (a particle filter through :meth:`MeasurementModel.particle_fit`, on its
+own buffers: core/particle_likelihood.py), the Cramer-Rao bound the Fisher information. The
+registry of kinds is core/sensor_kinds.py.
 
 Frames and units: poses ``[x, y, theta]`` [m, m, rad] in the world frame; angle components
 of a reading are wrapped to [-pi, pi) and their residuals are wrapped before use.
@@ -18,10 +19,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.particle_likelihood import ParticleCloud, ParticleFit
 from beacon_sim.core.sensors import SensorSpec, visible_mask
 from beacon_sim.core.types import Measurement
 from beacon_sim.core.world import World
@@ -109,6 +112,20 @@ class MeasurementModel:
         L = np.linalg.cholesky(self.noise_at(spec, m, world))
         w = np.linalg.solve(L, nu.T)          # (k d, N): whitened residuals
         return -0.5 * np.einsum("ij,ij->j", w, w)
+
+    def particle_constants(self, spec: SensorSpec) -> Any:
+        """What :meth:`particle_fit` needs of a sensor that does not change (its noise),
+        worked out once per sensor by the filter that keeps it; None by default."""
+        return None
+
+    def particle_fit(self, spec: SensorSpec, consts: Any, m: Measurement, cloud: ParticleCloud,
+                     world: World) -> ParticleFit:
+        """``m`` weighed at a particle filter's particles (core/particle_likelihood.py);
+        ``consts`` is :meth:`particle_constants`. By default :meth:`loglik` on the particles
+        as float64 poses, one fit for the whole reading, not mixed with outliers; the
+        built-in kinds have fast forms on the particles' own dtype and buffers."""
+        size = int(m.z.size)
+        return ParticleFit(self.loglik(spec, m, cloud.poses64(), world), size, size)
 
     def information(self, spec: SensorSpec, poses: np.ndarray, world: World) -> np.ndarray:
         """Expected Fisher information (R, 3, 3) of one reading at true poses (R, 3):

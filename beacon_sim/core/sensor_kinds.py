@@ -7,19 +7,23 @@ a kind registered later (``register_kind``, or ``KINDS[name] = record`` in a tes
 seen everywhere. Adding a kind = its record and model (here or in a module of its own)
 and its tests (CONTRIBUTING.md, "Adding a sensor kind").
 
-The built-in filters keep their own fast forms of the built-in kinds (the EKF's and UKF's
-readings on floats, the particle filter's von Mises bearings, the grid filter's separable
-terms); a kind they have no form of is weighed with its record's model.
+The built-in kinds' models weigh a reading at a particle filter's particles in fast forms
+(``particle_fit``: core/particle_likelihood.py, the von Mises bearings and the fixes, which
+the particle filter composes). The EKF, UKF and grid filter keep their own fast forms of
+the built-in kinds (the readings on floats, the grid's separable terms); a kind they have no
+form of is weighed with its record's model.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
 from beacon_sim.core import measurement_models as mm
+from beacon_sim.core import particle_likelihood as pl
 from beacon_sim.core.range_kind import RANGE
 from beacon_sim.core.sensor_kind import KindParam, MeasurementModel, SensorKind
 from beacon_sim.core.sensors import SensorSpec, sense, sense_scan
@@ -45,6 +49,13 @@ class BearingModel(MeasurementModel):
     def noise(self, spec: SensorSpec, m: Measurement) -> np.ndarray:
         return np.diag(np.tile(spec.reading_std() ** 2, len(m)))
 
+    def particle_constants(self, spec: SensorSpec) -> Any:
+        return pl.beacon_constants(spec)
+
+    def particle_fit(self, spec: SensorSpec, consts: Any, m: Measurement, cloud: pl.ParticleCloud,
+                     world: World) -> pl.ParticleFit:
+        return pl.von_mises_fit(spec, consts, m, cloud, world, False)
+
 
 class RangeBearingModel(MeasurementModel):
     """``range_bearing``: ``[range, bearing]`` per beacon (seed 001)."""
@@ -64,6 +75,13 @@ class RangeBearingModel(MeasurementModel):
     def noise(self, spec: SensorSpec, m: Measurement) -> np.ndarray:
         return np.diag(np.tile(spec.reading_std() ** 2, len(m)))
 
+    def particle_constants(self, spec: SensorSpec) -> Any:
+        return pl.beacon_constants(spec)
+
+    def particle_fit(self, spec: SensorSpec, consts: Any, m: Measurement, cloud: pl.ParticleCloud,
+                     world: World) -> pl.ParticleFit:
+        return pl.von_mises_fit(spec, consts, m, cloud, world, True)
+
 
 class PoseFixModel(MeasurementModel):
     """``pose``: h = pose, H = I (seed 003); noise shrinks with the beacons used."""
@@ -78,6 +96,10 @@ class PoseFixModel(MeasurementModel):
 
     def noise(self, spec: SensorSpec, m: Measurement) -> np.ndarray:
         return np.diag(spec.fix_std(max(len(m.beacon_ids), 1)) ** 2)
+
+    def particle_fit(self, spec: SensorSpec, consts: Any, m: Measurement, cloud: pl.ParticleCloud,
+                     world: World) -> pl.ParticleFit:
+        return pl.pose_fit(spec, m, cloud, world)
 
 
 class PositionFixModel(MeasurementModel):
@@ -94,6 +116,10 @@ class PositionFixModel(MeasurementModel):
     def noise(self, spec: SensorSpec, m: Measurement) -> np.ndarray:
         h = m.hdop if math.isfinite(m.hdop) else 1.0
         return np.diag(spec.fix_std(len(m.beacon_ids), h) ** 2)
+
+    def particle_fit(self, spec: SensorSpec, consts: Any, m: Measurement, cloud: pl.ParticleCloud,
+                     world: World) -> pl.ParticleFit:
+        return pl.position_fit(spec, m, cloud, world)
 
 
 def _sense_scan(spec: SensorSpec, pose: np.ndarray, world: World, rng: np.random.Generator) -> Measurement:

@@ -24,9 +24,12 @@ from beacon_sim.runs.headless import run_headless
 from beacon_sim.templates import TEMPLATES
 
 FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "unscented", "dead_reckoning", "measurements"},
-            "particle": {"pf", "mcl", "pose_stats", "log_weights", "fast_calls"},
+            "particle": {"pf", "mcl", "pose_stats", "log_weights", "fast_calls", "recovery", "regularise",
+                         "adaptive_count"},
             "grid": {"histogram", "corridor"},
-            "slam": {"base", "ekf_slam", "fastslam", "inverse_depth"},
+            "slam": {"base", "ekf_slam", "fastslam", "inverse_depth", "fastslam_proposal",
+                     "particle_association",
+                     "linearised_covariance"},
             "smoothing": {"fixed_lag", "recorder", "rts"},
             "graph": {"graph", "se2", "solver", "incremental"}}
 

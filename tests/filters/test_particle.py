@@ -10,7 +10,10 @@ from beacon_sim.core.events import Kidnap
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.metrics import anees_band, nees, pose_errors
 from beacon_sim.core.motion import MotionNoise
+from beacon_sim.core.particle_likelihood import ParticleFit
 from beacon_sim.core.scenario import InitialBelief, load_scenario
+from beacon_sim.core.sensor_kind import MeasurementModel, SensorKind
+from beacon_sim.core.sensor_kinds import KINDS
 from beacon_sim.core.sensors import SensorNoise, SensorSpec
 from beacon_sim.core.types import Beacon, Control, Measurement
 from beacon_sim.core.world import World
@@ -336,3 +339,46 @@ def test_pose_stats_skip_the_eigen_clip_only_when_it_changes_nothing():
         tol = 1e-9 if P.dtype == np.float64 else 1e-6 * max(1.0, float(np.abs(ref).max()))
         assert np.abs(cov - ref).max() < tol
         assert np.linalg.eigvalsh(cov).min() > 0.0
+
+
+class _ReadsX(MeasurementModel):
+    """A toy kind reading the x coordinate [m] (sd 0.3 m), with a particle form of its own."""
+
+    angles = (False,)
+
+    def __init__(self):
+        self.fits = 0
+
+    def expected(self, spec, m, poses, world):
+        return np.asarray(poses, dtype=float)[:, :1]
+
+    def jacobian(self, spec, m, pose, world):
+        return np.array([[1.0, 0.0, 0.0]])
+
+    def noise(self, spec, m):
+        return np.eye(1) * 0.3 ** 2
+
+    def particle_fit(self, spec, consts, m, cloud, world):
+        self.fits += 1
+        x, _, _ = cloud.xy_theta()
+        return ParticleFit(-0.5 * ((x.astype(float) - m.z[0, 0]) / 0.3) ** 2, 1, 1)
+
+
+def test_the_pf_weighs_a_reading_with_its_kinds_own_particle_fit(monkeypatch):
+    """A kind registered with a particle form of its own (no edit of the filter): from equal
+    weights one update leaves them proportional to its likelihood (Bayes' rule), and a
+    reading no particle explains raises the lost test."""
+    model = _ReadsX()
+    monkeypatch.setitem(KINDS, "toy_x", SensorKind("toy_x", ("x_m",), carries_ids=False,
+                                                   draw=lambda *a: None, model=model))
+    pf = make_pf([SensorSpec("x", "toy_x")], {"n_particles": 3, "augmented": False, "dtype": "float64"})
+    xs = np.array([4.0, 5.0, 6.5])
+    pf.set_particles([[x, 5.0, 0.0] for x in xs])
+    pf.update([Measurement("x", "toy_x", np.array([[5.2]]), np.zeros(0, dtype=int))])
+    expect = np.exp(-0.5 * ((xs - 5.2) / 0.3) ** 2)
+    assert pf.weights() == pytest.approx(expect / expect.sum(), rel=1e-9)
+    assert model.fits == 1 and pf.lost == 0.0
+    pf.set_particles([[x, 5.0, 0.0] for x in xs])
+    pf.predict(Control(0.5, 0.0), 0.1)  # past the standstill gate
+    pf.update([Measurement("x", "toy_x", np.array([[9.5]]), np.zeros(0, dtype=int))])
+    assert pf.lost == pytest.approx(pf.params["alpha_fast"])  # one unexplained reading of one

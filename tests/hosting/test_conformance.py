@@ -171,14 +171,15 @@ def test_check_prints_the_cost_beside_the_ekf(tmp_path, capsys):
     assert "cost" in out and "us per step" in out and "the built-in ekf" in out
 
 
-# The small checks, each asked on its own (run_checks is the list of them in order).
+# The small checks, each asked on its own (hosting/check_verdicts.py; run_checks is the list of
+# them in order).
 
 def _pair(theta=0.0, cov=None):
     return np.array([1.0, 2.0, theta]), np.eye(3) * 0.01 if cov is None else cov
 
 
 def test_value_checks_each_answer_their_own_question():
-    from beacon_sim.hosting import conformance as c
+    from beacon_sim.hosting import check_verdicts as c
 
     ests = [_pair(), _pair(theta=4.0), _pair(cov=np.diag([0.1, -0.2, 0.1])), _pair()]
     problems = c.estimate_problems([], ests)
@@ -195,7 +196,7 @@ def test_value_checks_each_answer_their_own_question():
 
 
 def test_a_bad_estimate_after_reset_is_named_so():
-    from beacon_sim.hosting import conformance as c
+    from beacon_sim.hosting import check_verdicts as c
 
     flat = (np.zeros(2), np.eye(3))
     assert c.check_shapes(c.estimate_problems([flat], [_pair()])).message.startswith("after reset:")
@@ -203,31 +204,31 @@ def test_a_bad_estimate_after_reset_is_named_so():
 
 
 def test_determinism_and_global_rng_checks_read_one_trial():
-    from beacon_sim.hosting import conformance as c
+    from beacon_sim.hosting import check_verdicts as c
 
-    same = c._Feed([_pair(), _pair()], None, 0)
-    moved = c._Feed([_pair(), _pair(theta=0.1)], None, 0)
-    assert c.check_determinism(c._RngTrial(same, same, False, False)).passed
-    r = c.check_determinism(c._RngTrial(same, moved, False, False))
+    same = c.FedSteps([_pair(), _pair()], None, 0)
+    moved = c.FedSteps([_pair(), _pair(theta=0.1)], None, 0)
+    assert c.check_determinism(c.RngTrial(same, same, False, False)).passed
+    r = c.check_determinism(c.RngTrial(same, moved, False, False))
     assert not r.passed and "from step 2" in r.message
-    short = c._Feed([_pair()], (2, "KeyError: 'k'"), 0)
-    assert "from step 2" in c.check_determinism(c._RngTrial(same, short, False, False)).message
-    assert c.check_global_rng(c._RngTrial(same, same, False, False)).passed
-    py_only = c.check_global_rng(c._RngTrial(same, same, False, True))
+    short = c.FedSteps([_pair()], (2, "KeyError: 'k'"), 0)
+    assert "from step 2" in c.check_determinism(c.RngTrial(same, short, False, False)).message
+    assert c.check_global_rng(c.RngTrial(same, same, False, False)).passed
+    py_only = c.check_global_rng(c.RngTrial(same, same, False, True))
     assert not py_only.passed and py_only.message.endswith("global random generator")
-    assert "np.random" in c.check_global_rng(c._RngTrial(same, same, True, False)).message
+    assert "np.random" in c.check_global_rng(c.RngTrial(same, same, True, False)).message
 
 
 def test_empty_update_check_tells_spoilt_from_moved_from_raised():
-    from beacon_sim.hosting import conformance as c
+    from beacon_sim.hosting import check_verdicts as c
 
     nan = (np.full(3, np.nan), np.eye(3))
-    assert not c.check_empty_update(c._EmptyTrial(_pair(), nan, None, None)).passed
-    moved = c.check_empty_update(c._EmptyTrial(_pair(), _pair(theta=0.2), None, None))
+    assert not c.check_empty_update(c.EmptyTrial(_pair(), nan, None, None)).passed
+    moved = c.check_empty_update(c.EmptyTrial(_pair(), _pair(theta=0.2), None, None))
     assert moved.passed and moved.message == "accepted; the mean moved"
-    raised = c.check_empty_update(c._EmptyTrial(_pair(), None, "IndexError: empty", None))
+    raised = c.check_empty_update(c.EmptyTrial(_pair(), None, "IndexError: empty", None))
     assert not raised.passed and raised.message == "IndexError: empty"
-    assert c.check_empty_update(c._EmptyTrial(None, None, None, "RuntimeError: x")).passed
+    assert c.check_empty_update(c.EmptyTrial(None, None, None, "RuntimeError: x")).passed
 
 
 def test_run_checks_gives_the_checks_in_their_order(default):
@@ -270,7 +271,7 @@ def test_a_slam_filters_cost_is_set_beside_a_slam_filter_not_the_ekf():
 
 
 def test_the_cost_peer_is_of_the_filters_own_kind():
-    from beacon_sim.hosting.conformance import cost_peer
+    from beacon_sim.hosting.check_verdicts import cost_peer
 
     assert cost_peer(load_scenario("default")) == "ekf"
     assert cost_peer(load_scenario("default"), mapping=True) == "ekf_slam"

@@ -1,6 +1,7 @@
-"""The weighted mean and covariance of a particle set (poses ``[x, y, theta]`` [m, m, rad],
-world frame): the circular mean heading, heading residuals wrapped, the covariance clipped to
-positive definite only when it is not already (a Cholesky test on floats)."""
+"""The summary of a particle set (poses ``[x, y, theta]`` [m, m, rad], world frame): its
+weighted mean and covariance (the circular mean heading, heading residuals wrapped, the
+covariance clipped to positive definite only when it is not already, a Cholesky test on
+floats), and the particles of its dominant mode (``estimate = "cluster"``)."""
 
 from __future__ import annotations
 
@@ -101,5 +102,30 @@ def above_entries(a00: float, a01: float, a02: float, a11: float, a12: float, a2
     return a22 - floor - l20 * a02 - q * q / p1 > 0.0
 
 
+def dominant_cluster(P: np.ndarray, w: np.ndarray, bounds: tuple[float, float, float, float],
+                     cell: float, radius: float) -> np.ndarray:
+    """Indices of the particles of the heaviest mode of ``P`` (3, n) with weights ``w`` (n,):
+    the coarse x-y ``cell`` [m] of the world's ``bounds`` with the most weight in its 3x3
+    neighbourhood, then all particles within ``radius`` [m] of that neighbourhood's
+    weighted mean."""
+    xmin, ymin, xmax, ymax = bounds
+    nx = max(1, math.ceil((xmax - xmin) / cell))
+    ny = max(1, math.ceil((ymax - ymin) / cell))
+    ix = np.clip(((P[0] - xmin) / cell).astype(np.int64), 0, nx - 1)
+    iy = np.clip(((P[1] - ymin) / cell).astype(np.int64), 0, ny - 1)
+    H = np.bincount(ix * ny + iy, weights=w, minlength=nx * ny).reshape(nx, ny)
+    Hp = np.pad(H, 1)
+    S = np.zeros_like(H)
+    for a in (-1, 0, 1):
+        for b in (-1, 0, 1):
+            S += Hp[1 + a: 1 + a + nx, 1 + b: 1 + b + ny]
+    cx, cy = np.unravel_index(int(np.argmax(S)), S.shape)
+    near = (np.abs(ix - cx) <= 1) & (np.abs(iy - cy) <= 1)
+    wn = w[near]
+    mx = float(np.dot(wn, P[0][near]) / wn.sum())
+    my = float(np.dot(wn, P[1][near]) / wn.sum())
+    sel = np.flatnonzero((P[0] - mx) ** 2 + (P[1] - my) ** 2 <= radius * radius)
+    return sel if sel.size else np.flatnonzero(near)
 
-__all__ = ["TWO_PI", "above", "above_entries", "weighted_pose_stats"]
+
+__all__ = ["TWO_PI", "above", "above_entries", "dominant_cluster", "weighted_pose_stats"]

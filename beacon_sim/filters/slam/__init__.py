@@ -7,7 +7,10 @@
   (``--filter ekf_slam``);
 - ``inverse_depth.py``: inverse-depth landmarks, EKF-SLAM's bearing-only initialisation;
 - ``fastslam.py``: FastSLAM 2.0, particles over the path, each with its own landmark EKFs
-  (``--filter fastslam``).
+  (``--filter fastslam``); with ``fastslam_proposal.py`` (a reading folded into each
+  particle's pose proposal, and its weight), ``particle_association.py`` (which landmark each
+  particle pairs each reading with: ML, JCBB, the known-ID gate) and
+  ``linearised_covariance.py`` (the EKF-SLAM covariance it reports).
 
 They import the shared home (``filters/base.py``, ``filters/association.py``,
 ``filters/resampling.py``) and the core, never another family (an import-linter contract in

@@ -32,13 +32,16 @@ weighs the particle by ``p0``. Particles with different maps can hold different 
 Anchors (beacons whose position the filter is given) are landmarks with C = 0 that are
 never updated. Resampling (systematic) when the effective sample size falls below
 ``ess_threshold`` N.
+
+Beside this module: the proposal's equations (``fastslam_proposal.py``), the association
+per particle (``particle_association.py``) and the reported covariance
+(``linearised_covariance.py``); their names are re-exported here.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import replace
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -47,7 +50,6 @@ from beacon_sim.core.angles import wrap
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.motion import MotionNoise, move
 from beacon_sim.core.types import Control, Measurement
-from beacon_sim.filters.association import JointInformation, information_sums, jcbb_search
 from beacon_sim.filters.association import gate as chi2_gate
 from beacon_sim.filters.base import (
     FilterContext,
@@ -59,7 +61,6 @@ from beacon_sim.filters.base import (
 )
 from beacon_sim.filters.resampling import effective_sample_size, systematic
 from beacon_sim.filters.slam.base import (
-    SLAM_KINDS,
     Reading,
     SlamFilterBase,
     innovation,
@@ -67,78 +68,12 @@ from beacon_sim.filters.slam.base import (
     place,
     unknown,
 )
-
-#: Target of a reading for one particle: a slot index (>= 0), or one of these.
-NEW = -1      # start a landmark
-IGNORED = -2  # between the gate and the new-landmark distance: weight only
-GATED = -3    # a reading with an ID this particle rejects as an outlier (``gate_chi2``)
-#: ``lid`` of an empty landmark slot.
-EMPTY = UNKNOWN_ID - 1
+from beacon_sim.filters.slam.fastslam_proposal import inv_det, predictive_distance, proposal_step
+from beacon_sim.filters.slam.linearised_covariance import LinearisedCovariance, without_rows
+from beacon_sim.filters.slam.particle_association import EMPTY, GATED, IGNORED, NEW, ParticleAssociation
 
 
-def inv_det(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse and determinant of a stack of 1 x 1 or 2 x 2 matrices S (..., d, d), written
-    out (numpy's batched solve costs ~1 us per tiny matrix; this, a few numpy calls in all)."""
-    if S.shape[-1] == 1:
-        det = S[..., 0, 0]
-        return 1.0 / S, det
-    a, b, c, d = S[..., 0, 0], S[..., 0, 1], S[..., 1, 0], S[..., 1, 1]
-    det = a * d - b * c
-    inv = np.empty_like(S)
-    inv[..., 0, 0] = d / det
-    inv[..., 0, 1] = -b / det
-    inv[..., 1, 0] = -c / det
-    inv[..., 1, 1] = a / det
-    return inv, det
-
-
-def predictive_distance(kind: str, z: np.ndarray, R: np.ndarray, mu: np.ndarray, Sig: np.ndarray,
-                        lm: np.ndarray, lc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Squared Mahalanobis distance ``nu^T L^-1 nu`` of one reading for K particles, and
-    ``log det(2 pi L)``, with ``L = Hx Sigma Hx^T + Hm C Hm^T + R`` the reading's predictive
-    covariance against each particle's proposal (the quantities of :func:`proposal_step`).
-    Shapes as there; returns two (K,) arrays."""
-    zhat, Hx, Hm = observe(kind, mu, lm)
-    nu = innovation(z[None, :], zhat)
-    L = Hx @ Sig @ Hx.transpose(0, 2, 1) + Hm @ lc @ Hm.transpose(0, 2, 1) + R
-    Linv, det = inv_det(L)
-    d = nu.shape[1]
-    return np.einsum("ki,kij,kj->k", nu, Linv, nu), np.log(det) + d * math.log(2.0 * math.pi)
-
-
-def proposal_step(kind: str, z: np.ndarray, R: np.ndarray, mu: np.ndarray, Sig: np.ndarray,
-                  lm: np.ndarray, lc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One reading folded into K particles' pose proposals (the module docstring's equations).
-
-    Parameters
-    ----------
-    kind, z, R : the reading (d,) and its noise covariance (d, d)
-    mu, Sig : ndarray, shapes (K, 3), (K, 3, 3): each particle's proposal so far
-    lm, lc : ndarray, shapes (K, 2), (K, 2, 2): the landmark each particle pairs it with
-
-    Returns
-    -------
-    mu, Sig : the proposals with the reading in
-    loglik : ndarray, shape (K,): ``log N(nu; 0, L)``, the factor of the importance weight
-    """
-    zhat, Hx, Hm = observe(kind, mu, lm)
-    nu = innovation(z[None, :], zhat)
-    HxT = Hx.transpose(0, 2, 1)
-    Z = Hm @ lc @ Hm.transpose(0, 2, 1) + R      # reading noise plus landmark uncertainty
-    SHt = Sig @ HxT                               # Sigma Hx^T (K, 3, d)
-    L = Hx @ SHt + Z
-    Linv, det = inv_det(L)
-    K = SHt @ Linv
-    mu = mu + np.einsum("kij,kj->ki", K, nu)
-    mu[:, 2] = wrap(mu[:, 2])
-    Sig = Sig - K @ SHt.transpose(0, 2, 1)
-    Sig = 0.5 * (Sig + Sig.transpose(0, 2, 1))
-    d = nu.shape[1]
-    loglik = -0.5 * (np.einsum("ki,kij,kj->k", nu, Linv, nu) + np.log(det) + d * math.log(2.0 * math.pi))
-    return mu, Sig, loglik
-
-
-class FastSLAM2(SlamFilterBase):
+class FastSLAM2(SlamFilterBase, ParticleAssociation):
     """FastSLAM 2.0 with per-particle landmark EKFs, known or unknown correspondence.
 
     Parameters (``ctx.params``)
@@ -423,124 +358,6 @@ class FastSLAM2(SlamFilterBase):
         t = chi2_gate(float(self.params["new_landmark_prob"]), d)
         return -0.5 * t - 0.5 * math.log((2.0 * math.pi) ** d * float(np.linalg.det(rd.R)))
 
-    def _known_targets(self, rd: Reading) -> np.ndarray:
-        """The slot of the reading's beacon in each particle's map (or NEW)."""
-        match = self.lid == rd.beacon_id
-        return np.where(match.any(axis=1), match.argmax(axis=1), NEW)
-
-    def _unknown_targets(self, rows: list[Reading], mu: np.ndarray, Sig: np.ndarray
-                         ) -> list[np.ndarray]:
-        """Per-particle maximum-likelihood association of unlabelled readings of one sensor
-        (one kind and R): the slot each particle gives each reading (or NEW / IGNORED).
-
-        All the tick's readings are associated against the proposal before any of them is
-        folded in: the expected reading, the Jacobians and L of every (particle, landmark)
-        pair do not depend on the reading, so they are computed once (N x C) and each reading
-        costs only its innovations."""
-        n, m = self.n, len(rows)
-        cmax = int(self.count.max())
-        if cmax == 0:
-            return [np.full(n, NEW) for _ in rows]
-        kind, R = rows[0].kind, rows[0].R
-        lm = self.lm[:, :cmax]
-        zhat, Hx, Hm = observe(kind, np.repeat(mu, cmax, axis=0), lm.reshape(-1, 2))
-        d = zhat.shape[1]
-        Hx = Hx.reshape(n, cmax, d, 3)
-        Hm = Hm.reshape(n, cmax, d, 2)
-        Z = Hm @ self.lc[:, :cmax] @ Hm.swapaxes(-1, -2) + R       # (n, C, d, d)
-        L = Hx @ Sig[:, None] @ Hx.swapaxes(-1, -2) + Z
-        z = np.stack([rd.z for rd in rows])                        # (m, d)
-        nu = innovation(z[None, :, None, :], zhat.reshape(n, 1, cmax, d))  # (n, m, C, d)
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            Linv, det = inv_det(L)
-            d2 = np.einsum("nmci,ncij,nmcj->nmc", nu, Linv, nu)
-            score = d2 + np.log(det)[:, None, :]
-        valid = (self.lid[:, :cmax] > EMPTY)[:, None, :]
-        score = np.where(valid & np.isfinite(score), score, np.inf)
-        best = np.argmin(score, axis=2)                            # (n, m)
-        d2b = np.take_along_axis(d2, best[..., None], axis=2)[..., 0]
-        okb = np.isfinite(np.take_along_axis(score, best[..., None], axis=2)[..., 0])
-        d2b = np.where(okb, d2b, np.inf)
-        gate = chi2_gate(float(self.params["gate_prob"]), d)
-        new = chi2_gate(float(self.params["new_landmark_prob"]), d)
-        tgt = np.where(d2b <= gate, best, np.where(d2b > new, NEW, IGNORED))
-        if self.params["association"] == "jcbb":
-            d2v = np.where(valid & np.isfinite(d2), d2, np.inf)
-            self._jcbb_targets(tgt, nu, Hx, Sig, Z, d2v, d, new)
-        return [tgt[:, i] for i in range(m)]
-
-    def _jcbb_targets(self, tgt: np.ndarray, nu: np.ndarray, Hx: np.ndarray, Sig: np.ndarray,
-                      Z: np.ndarray, d2: np.ndarray, d: int, new: float) -> None:
-        """Per-particle JCBB (``association = "jcbb"``): each particle's pairing of the tick's
-        readings with its landmarks by ``association.jcbb_search``, the joint test against the
-        particle's proposal ``Sigma`` (shared by the readings) and each landmark's own
-        ``Z = Hm C Hm^T + R`` (independent landmarks). Only the gated candidates are searched
-        (a particle with none skips the search); each landmark gets at most one reading; a
-        reading left out is NEW beyond the new-landmark distance, else IGNORED. A particle
-        whose search passes ``max_nodes`` keeps its maximum-likelihood targets. Writes
-        ``tgt`` (n, m) in place and counts into ``last_jcbb``."""
-        prob = float(self.params["gate_prob"])
-        cap = int(self.params["max_nodes"])
-        gated = d2 <= chi2_gate(prob, d)                                   # (n, m, C)
-        searched = np.flatnonzero(gated.any(axis=(1, 2)))
-        stats = {"searched": int(searched.size), "unambiguous": 0, "fallback": 0, "nodes": 0}
-        if searched.size:
-            a, b, M = information_sums(nu[searched], Hx[searched], Z[searched])
-            left = np.where(np.min(d2, axis=2, initial=np.inf) > new, NEW, IGNORED)  # (n, m)
-            dims = [d] * tgt.shape[1]
-            easy = self._unambiguous(tgt, searched, gated[searched], Sig[searched], a, b, M, d, prob, left)
-            stats["unambiguous"] = int(easy.sum())
-            for s, k in enumerate(searched.tolist()):
-                if easy[s]:
-                    continue
-                joint = JointInformation(Sig[k], a[s], b[s], M[s])
-                pairing, _, nodes = jcbb_search(d2[k], dims, joint, prob, cap)
-                stats["nodes"] += nodes
-                if pairing is None:
-                    stats["fallback"] += 1
-                    continue
-                row = left[k].copy()
-                for i, j in pairing:
-                    row[i] = j
-                tgt[k] = row
-        self.last_jcbb = stats
-
-    @staticmethod
-    def _unambiguous(tgt: np.ndarray, rows: np.ndarray, gated: np.ndarray, Sig: np.ndarray,
-                     a: np.ndarray, b: np.ndarray, M: np.ndarray, d: int, prob: float,
-                     left: np.ndarray) -> np.ndarray:
-        """JCBB's answer for the particles where it needs no search, all at once: every
-        reading has at most one gated landmark and no two share one. The search would then
-        pair the readings in index order, each prefix tested jointly; when every prefix
-        passes, pairing them all is its answer (the most pairs; any other leaf has fewer).
-        Those particles' targets are written into ``tgt``; returns which of ``rows`` they
-        are (the others go to the search)."""
-        ncand = gated.sum(axis=2)                                          # (s, m)
-        easy = np.all(ncand <= 1, axis=1) & np.all(gated.sum(axis=1) <= 1, axis=1)
-        if not easy.any():
-            return easy
-        e = np.flatnonzero(easy)
-        has = ncand[e] == 1                                                 # (e, m)
-        j = np.argmax(gated[e], axis=2)                                     # (e, m)
-        ii = np.arange(j.shape[1])[None, :]
-        a_s = np.where(has, a[e[:, None], ii, j], 0.0)                      # (e, m)
-        b_s = np.where(has[..., None], b[e[:, None], ii, j], 0.0)           # (e, m, 3)
-        M_s = np.where(has[..., None, None], M[e[:, None], j], 0.0)         # (e, m, 3, 3)
-        ca, cb, cM = np.cumsum(a_s, axis=1), np.cumsum(b_s, axis=1), np.cumsum(M_s, axis=1)
-        P = Sig[e][:, None]                                                 # (e, 1, 3, 3)
-        with np.errstate(invalid="ignore", over="ignore"):
-            x = np.linalg.solve(np.eye(3) + P @ cM, (P @ cb[..., None]))[..., 0]
-            value = ca - np.einsum("emk,emk->em", cb, x)
-        dof = d * np.cumsum(has, axis=1)
-        limit = np.array([chi2_gate(prob, int(k)) if k else np.inf for k in range(d * j.shape[1] + 1)])
-        ok = np.all(~has | (np.isfinite(value) & (value <= limit[dof])), axis=1)
-        easy[e[~ok]] = False
-        for q in np.flatnonzero(ok).tolist():
-            row = left[rows[e[q]]].copy()
-            row[has[q]] = j[q][has[q]]
-            tgt[rows[e[q]]] = row
-        return easy
-
     def update(self, measurements: Sequence[Measurement]) -> None:
         rows = list(self.readings(measurements))
         if not rows:
@@ -589,18 +406,6 @@ class FastSLAM2(SlamFilterBase):
             self.lid, self.count, self.hits = self.lid[idx], self.count[idx], self.hits[idx]
             self.logw = np.zeros(self.n)
             self.last_targets = [t[idx] for t in self.last_targets]
-
-    def _gate(self, rd: Reading, tgt: np.ndarray, k: np.ndarray, mu: np.ndarray, Sig: np.ndarray,
-              gate: float) -> np.ndarray:
-        """The known-ID outlier gate (``gate_chi2``, the class docstring) on one reading: when
-        every particle ``k`` that has its landmark rejects it, every particle's target is
-        GATED (the reading is dropped, no weight changes); else the targets are returned as
-        they are."""
-        d2, _ = predictive_distance(rd.kind, rd.z, rd.R, mu[k], Sig[k], self.lm[k, tgt[k]],
-                                    self.lc[k, tgt[k]])
-        if np.any(d2 <= gate):  # a distance that is not finite is an outlier too
-            return tgt
-        return np.full_like(tgt, GATED)
 
     def _landmark_updates(self, done: list[tuple[Reading, np.ndarray]]) -> None:
         """Each paired landmark's EKF update from the sampled pose; new landmarks placed;
@@ -665,73 +470,5 @@ class FastSLAM2(SlamFilterBase):
         self.hits[k[view], c[view]] = 0
 
 
-def without_rows(measurements: Sequence[Measurement], rows: Sequence[int]) -> list[Measurement]:
-    """The tick's measurements with the beacon readings numbered ``rows`` taken out (the
-    numbering of ``SlamFilterBase.readings``: the SLAM kinds' rows in order)."""
-    out = list(measurements)
-    if not rows:
-        return out
-    drop = set(rows)
-    first = 0
-    for q, m in enumerate(out):
-        if m.kind not in SLAM_KINDS:
-            continue
-        n = len(m.beacon_ids)
-        keep = np.array([first + r not in drop for r in range(n)], dtype=bool)
-        if not keep.all():
-            out[q] = replace(m, z=np.asarray(m.z)[keep], beacon_ids=np.asarray(m.beacon_ids)[keep])
-        first += n
-    return out
-
-
-class LinearisedCovariance:
-    """FastSLAM's reported uncertainty with ``covariance = "linearised"``: EKF-SLAM's
-    covariance recursion (``ekf_slam.EKFSLAM``, the same readings, the same models) whose
-    mean is reset to the particles' mean before each prediction and update, so only its
-    covariance P is kept: the Jacobians F, H and the new-landmark G are those at FastSLAM's
-    estimate. It is the covariance a Gaussian filter at that estimate would carry, cross terms
-    between the pose and every landmark included, which the particles lose to resampling
-    (Bailey, Nieto and Nebot 2006). Known IDs: a reading of an unlabelled landmark switches
-    it off (``ok`` False) and the particle set's moments are reported."""
-
-    def __init__(self, ctx: FilterContext, initial: GaussianBelief | None):
-        from beacon_sim.filters.slam.ekf_slam import EKFSLAM  # the recursion itself, not copied
-
-        self.ekf = EKFSLAM(replace(ctx, params={}))
-        self.ekf.reset(initial)
-        self.ok = True
-
-    def _sync(self, pose: np.ndarray, means: dict[int, np.ndarray]) -> None:
-        ekf = self.ekf
-        ekf.mu[:3] = pose
-        for bid, j in ekf.index.items():
-            m = means.get(bid)
-            if m is not None:
-                ekf.mu[3 + 2 * j:5 + 2 * j] = m
-
-    def predict(self, pose: np.ndarray, control: Control, dt: float) -> None:
-        if self.ok:
-            self.ekf.mu[:3] = pose
-            self._guarded(lambda: self.ekf.predict(control, dt))
-
-    def update(self, pose: np.ndarray, means: dict[int, np.ndarray], measurements: Sequence[Measurement]
-               ) -> None:
-        if not self.ok:
-            return
-        if any(np.any(np.asarray(m.beacon_ids) == UNKNOWN_ID) for m in measurements if m.kind in SLAM_KINDS):
-            self.ok = False
-            return
-        self._sync(pose, means)
-        self._guarded(lambda: self.ekf.update(measurements))
-
-    def _guarded(self, step: Callable[[], None]) -> None:
-        """Run one step; if it fails or leaves P not finite, switch the linearised covariance
-        off (the particle set's is reported from then on) rather than the filter."""
-        try:
-            with np.errstate(all="ignore"):
-                step()
-        except (FilterError, np.linalg.LinAlgError, ValueError):
-            self.ok = False
-            return
-        if not np.all(np.isfinite(self.ekf.P)):
-            self.ok = False
+__all__ = ["EMPTY", "GATED", "IGNORED", "NEW", "FastSLAM2", "LinearisedCovariance", "inv_det",
+           "predictive_distance", "proposal_step", "without_rows"]
