@@ -13,6 +13,6 @@ Read in this order:
 
 Each filter also has a batched form (R runs as arrays) for Monte Carlo evaluation, held to
 the one-run form by tests. The family imports the shared home (``filters/base.py``,
-``filters/association.py``, ``filters/params.py``) and the core, never another family
+``filters/association/``, ``filters/params.py``) and the core, never another family
 (an import-linter contract in pyproject.toml).
 """

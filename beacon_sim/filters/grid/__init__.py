@@ -5,6 +5,6 @@
 - ``corridor.py``: seed 004's corridor, the discrete Bayes filter in its smallest form
   (``--filter corridor``, on the corridor scenario's scans).
 
-They import the shared home (``filters/base.py``, ``filters/association.py``) and the core,
+They import the shared home (``filters/base.py``, ``filters/association/``) and the core,
 never another family (an import-linter contract in pyproject.toml).
 """

@@ -15,7 +15,7 @@ How a reading is weighed at the particles is its sensor kind's, not the family's
 model in the core (``particle_fit``, core/particle_likelihood.py), which any particle filter
 composes. The resampling schemes they use are shared (``filters/resampling.py``: FastSLAM
 resamples too), as are the interface (``filters/base.py``) and data association
-(``filters/association.py``). The family never imports another family (an import-linter
+(``filters/association/``). The family never imports another family (an import-linter
 contract in pyproject.toml).
 
 ``beacon_sim.filters.particle`` was the particle filter's own module before the families:

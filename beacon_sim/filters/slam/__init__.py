@@ -12,7 +12,7 @@
   particle pairs each reading with: ML, JCBB, the known-ID gate) and
   ``linearised_covariance.py`` (the EKF-SLAM covariance it reports).
 
-They import the shared home (``filters/base.py``, ``filters/association.py``,
+They import the shared home (``filters/base.py``, ``filters/association/``,
 ``filters/resampling.py``) and the core, never another family (an import-linter contract in
 pyproject.toml).
 """
