@@ -113,7 +113,7 @@ RECORDS: dict[str, FilterRecord] = {r.name: r for r in (
                          "beta": Range(0.0, 100.0, "prior knowledge of the distribution (2: Gaussian)"),
                          "kappa": Range(-2.5, 100.0, "secondary scaling"),
                          "gate_chi2": _GATE},
-                 batched="beacon_sim.filters.gaussian.ukf:BatchedUKF",
+                 batched="beacon_sim.filters.gaussian.ukf_batched:BatchedUKF",
                  mrclam={"gate_chi2": MRCLAM_GATE_CHI2}),
     FilterRecord("pf", "beacon_sim.filters.particle.pf:ParticleFilter", ("reddish purple", "dotted"),
                  ranges={"n_particles": Range(*_N, "particles (fixed size)"),

@@ -23,7 +23,7 @@ from beacon_sim.hosting.loading import build_filter, load_filter_class
 from beacon_sim.runs.headless import run_headless
 from beacon_sim.templates import TEMPLATES
 
-FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "unscented", "dead_reckoning", "measurements"},
+FAMILIES = {"gaussian": {"kf", "ekf", "ukf", "ukf_batched", "unscented", "dead_reckoning", "measurements"},
             "particle": {"pf", "mcl", "pose_stats", "log_weights", "fast_calls", "recovery", "regularise",
                          "adaptive_count"},
             "grid": {"histogram", "corridor"},
