@@ -258,8 +258,8 @@ class Server:
         self.end_limit()
         np_random_seed(global_seed)
         self.rng_states = (_np_state(), random.getstate())
-        assert self.cls is not None
-        self.flt = build_from_context(self.cls, ctx, initial, spec)
+        cls = self.cls if self.cls is not None else self.fresh_class()
+        self.flt = build_from_context(cls, ctx, initial, spec)
         self.limit_s, self.step_limit_s = run_limit_s, step_limit_s
         if run_limit_s is not None:
             self.limit = time_limit(run_limit_s, cpu=True, backstop=False)
@@ -369,10 +369,9 @@ class Server:
         its own CPU-time budget ``run_limit_s``. Answers MULTI: OK or FAIL per run. Nothing
         says which run is scored and which is a probe (:mod:`beacon_sim.hosting.feed`)."""
         self.end_limit()
-        self.flt = None
+        self.release()
         np_random_seed(global_seed)
         self.rng_states = (_np_state(), random.getstate())
-        assert self.cls is not None
         self.batch = Batch(self.fresh_class, builds, run_limit_s, all_threads=self.sink is None)
         self.send(self.batch.built)
 
@@ -390,6 +389,22 @@ class Server:
         assert self.batch is not None
         self.send(self.batch.beliefs(slots))
 
+    def release(self) -> None:
+        """Drop the previous batch's filters and the copies of the student's file they came
+        from (the file is imported afresh for every filter), and collect them, so that a new
+        batch starts with the whole memory limit: nothing of a run's memory is left for the
+        next (a table at module level included)."""
+        import gc
+
+        self.flt = None
+        self.batch = None
+        if self.sink is not None:  # in the grader's own process: nothing of the student's here
+            return
+        if self.file is not None:  # the loaded copy too: every build imports its own
+            self.cls = None
+            sys.modules.pop("student", None)
+        gc.collect()
+
     def fresh_class(self) -> type:
         """The filter class of a fresh copy of the student's file (imported again: its own
         module-level state, as a file of functions keeps), so that no state crosses the runs
@@ -402,7 +417,9 @@ class Server:
         from beacon_sim.hosting.loading import choose_filter, import_file
 
         path, class_name = self.file
-        return choose_filter(import_file(Path(path), "student"), class_name, Path(path).name)
+        self.cls = None  # the previous copy belongs to its filter alone
+        self.cls = choose_filter(import_file(Path(path), "student"), class_name, Path(path).name)
+        return self.cls
 
     def op_bstep(self, bodies: list[bytes], slots: list[int]) -> None:
         """One tick of the runs ``slots`` of the batch (``bodies``: their "step" requests

@@ -241,6 +241,11 @@ def run_student(job: StudentJob) -> StudentResult:
             session.stop()
             findings["child_cpu_s"] = session.cpu_s
 
+        def restart() -> FilterChild | str:  # a fresh child (a run alone: its own memory)
+            stop()
+            child = started()
+            return child if child is not None else (load_problem or "the file did not load")
+
         def record(k: int, run: RunOutput, rep: dict[str, Any], wall_s: float) -> None:
             if rep.get("heading_unwrapped"):
                 findings["heading_wrapped"] = False
@@ -258,8 +263,8 @@ def run_student(job: StudentJob) -> StudentResult:
                     continue
                 probing = batch[0] == 0  # the probes ride along in the first batch
                 runs, rep = isolated_runs(child, [job.sims[k] for k in batch], job.time_limit,
-                                          probe_ticks=PROBE_TICKS if probing else None)
-                if rep.get("failed_child"):
+                                          probe_ticks=PROBE_TICKS if probing else None, restart=restart)
+                if rep.get("failed_child") or rep.get("alone"):
                     stop()
                 if rep.get("np_global") or rep.get("py_global"):
                     findings["global_rng"] = True
