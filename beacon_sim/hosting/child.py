@@ -45,6 +45,9 @@ PRELOAD = ("numpy", "numpy.linalg", "numpy.random", "math", "cmath", "random", "
            "beacon_sim.filters.base", "beacon_sim.filters.association", "beacon_sim.filters.resampling",
            *builtin_modules(), *MOVED)
 NOBODY = 65534
+#: Why the kernel does not refuse new processes, signals to others and tracing in this
+#: child (:mod:`beacon_sim.hosting.syscall_filter`), or None when it does.
+KERNEL_BLOCK: str | None = "not installed"
 
 
 
@@ -247,7 +250,8 @@ class Server:
                                   "module": str(self.cls.__module__), "sensor_kinds": kinds,
                                   "supports_global": bool(getattr(self.cls, "supports_global", False)),
                                   "landmarks": callable(getattr(self.cls, "landmarks", None)),
-                                  "joint": callable(getattr(self.cls, "joint", None))}))
+                                  "joint": callable(getattr(self.cls, "joint", None)),
+                                  "syscall_filter_off": KERNEL_BLOCK}))
 
     def op_build(self, ctx: Any, initial: Any, global_seed: int, run_limit_s: float | None,
                  spec: str, step_limit_s: float | None = None) -> None:
@@ -736,9 +740,14 @@ def main(argv: list[str]) -> int:
     from beacon_sim.hosting.wire import read_request
 
     _contain(cfg)
-    from beacon_sim.hosting.processes import become_subreaper
+    from beacon_sim.hosting.processes import PROCESS_NOT_ALLOWED, become_subreaper
+    from beacon_sim.hosting.syscall_filter import install, refuse_in_python
 
     become_subreaper()
+    global KERNEL_BLOCK
+    KERNEL_BLOCK = install() if cfg.get("syscall_filter", True) else "not asked for"
+    if KERNEL_BLOCK is None:
+        refuse_in_python(PROCESS_NOT_ALLOWED + " (refused by the kernel)")
 
     from beacon_sim.hosting.processes import stop_descendants
 
