@@ -6,12 +6,13 @@ nothing of the grader's process (its descriptor numbers) reaches it.
 
 It starts from a clean interpreter (no fork of the grader: nothing of the grader's memory,
 no truth, no other student's results), contains itself before any student code runs
-(resource limits; bounded stdout and stderr; the unprivileged user ``nobody`` when started
-as root outside a sandbox), then serves requests over the pipe in lockstep
-(:mod:`beacon_sim.hosting.wire`): it receives only what a filter may see (its
-``FilterContext``, its initial belief, then each tick's control, dt and readings) and
-answers with estimates. The global ``random`` and ``np.random`` generators are seeded with
-a number the grader derives from the run's key and the filter's name
+(resource limits; bounded stdout and stderr; a user of its own when started as root
+outside a sandbox, :mod:`beacon_sim.hosting.child_users`; the kernel's refusal of new
+processes, signals to others and tracing, :mod:`beacon_sim.hosting.syscall_filter`), then
+serves requests over the pipe in lockstep (:mod:`beacon_sim.hosting.wire`): it receives
+only what a filter may see (its ``FilterContext``, its initial belief, then each tick's
+control, dt and readings) and answers with estimates. The global ``random`` and
+``np.random`` generators are seeded with a number the grader derives from the run's key and the filter's name
 (:func:`~beacon_sim.core.streams.keyed_global_seed`), never with the run's seed, and the end
 of a run reports whether the filter drew from them. Nothing the child is given holds the
 run's seed (docs/grading.md, "What a filter can learn").
@@ -31,7 +32,7 @@ from beacon_sim.filters import MOVED
 from beacon_sim.filters.registry import builtin_modules
 
 #: Modules loaded before privileges are dropped (a root grader without a sandbox runs the
-#: child as ``nobody``, who may not be able to read the Python installation afterwards): the
+#: child as a user of its own, who may not be able to read the Python installation afterwards): the
 #: standard library a filter may use, the core's models, the filters' shared home, every
 #: built-in filter's module (from the registry: a new filter is never missed) and the old
 #: paths of those that moved into a family.
@@ -141,16 +142,17 @@ def _contain(cfg: dict[str, Any]) -> None:
     if cfg.get("drop_user") and hasattr(os, "geteuid") and os.geteuid() == 0:
         import importlib
 
-        limit(resource.RLIMIT_NPROC, 256)  # the processes of nobody: no fork bomb
+        limit(resource.RLIMIT_NPROC, 256)  # the tasks (threads) of its user: no fork bomb
 
         for name in PRELOAD:
             try:
                 importlib.import_module(name)
             except ImportError:
                 pass
+        uid = int(cfg.get("uid", NOBODY))  # its own user, from the grader's reserved range
         os.setgroups([])
-        os.setgid(NOBODY)
-        os.setuid(NOBODY)
+        os.setgid(uid)
+        os.setuid(uid)
 
 
 def _np_state() -> Any:
@@ -786,7 +788,7 @@ def serve_one(server: Server, req: tuple[Any, ...], cfg: dict[str, Any]) -> bool
         elif req[0] == "load":
             why = str(exc) if isinstance(exc, ValueError) else why
             if cfg.get("drop_user") and ("ModuleNotFoundError" in why or "PermissionError" in why):
-                why += (" (as the user nobody, who cannot read this Python installation, only "
+                why += (" (as a user of its own, who cannot read this Python installation, only "
                         "preloaded modules import: use --sandbox bwrap)")
         try:
             server.fail(why, traceback.format_exc())

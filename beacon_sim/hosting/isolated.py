@@ -204,6 +204,8 @@ class FilterChild:
         with contextlib.suppress(OSError):
             os.killpg(proc.proc.pid, signal.SIGKILL)  # anything it left running
         shutil.rmtree(proc.tmp, ignore_errors=True)
+        if proc.lease is not None:  # its user's processes and files, then the user ID
+            proc.lease.release()
         self._log.close()
 
     def __enter__(self) -> FilterChild:
