@@ -113,12 +113,16 @@ def _copy_module(source: ModuleSource, dest: Path) -> None:
 @dataclass(frozen=True)
 class Limits:
     """A child's limits: address space [GB] (0: none), CPU time of the whole child [s]
-    (None: none), the size of any file it writes [bytes], its log [bytes]."""
+    (None: none), the size of any file it writes [bytes], its log [bytes], all it may
+    write [bytes] (under bubblewrap the sizes of its RAM file systems: half for its
+    working folder, a quarter each for /tmp and /dev/shm; at the process level measured
+    by :func:`disk_used`)."""
 
     memory_gb: float = 4.0
     cpu_s: float | None = None
     fsize_bytes: int = 8 << 20
     log_bytes: int = 256 << 10
+    disk_bytes: int = 64 << 20
 
 
 @functools.lru_cache(maxsize=1)
@@ -295,9 +299,13 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
         argv = [shutil.which("bwrap") or "bwrap", "--unshare-all", "--die-with-parent",
                 # an empty /tmp first: a bind made before it (a checkout or a virtual
                 # environment under /tmp, as a CI clone may be) would be hidden by it
-                "--new-session", "--clearenv", "--tmpfs", "/tmp", *_ro_binds(),
+                "--new-session", "--clearenv", "--size", str(max(limits.disk_bytes // 4, 4096)),
+                "--tmpfs", "/tmp", *_ro_binds(),
                 "--dev", "/dev", "--proc", "/proc",
-                "--bind", str(work), BOX_WORK, "--ro-bind", str(src), BOX_SRC,
+                # what it writes is in RAM, capped (nothing reaches the machine's disk)
+                "--size", str(max(limits.disk_bytes // 4, 4096)), "--tmpfs", "/dev/shm",
+                "--size", str(max(limits.disk_bytes // 2, 4096)), "--tmpfs", BOX_WORK,
+                "--ro-bind", str(src), BOX_SRC,
                 "--chdir", BOX_WORK, "--uid", str(NOBODY), "--gid", str(NOBODY)]
         for k, v in env.items():
             argv += ["--setenv", k, v]
@@ -321,6 +329,44 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
         os.close(r_child)
         os.close(w_child)
     return Launched(proc, w_parent, r_parent, tmp, sandbox, source_in_child, lease)
+
+
+def disk_used(work: Path, uid: int | None = None) -> int:
+    """What a child at the process level has written [bytes, allocated]: its working
+    folder, and with its own user ``uid`` (a root grader) what that user owns at the top of
+    the shared temporary folders."""
+    from beacon_sim.hosting.child_users import SHARED_TMP
+
+    def walk(p: str) -> int:
+        total = 0
+        try:
+            st = os.lstat(p)
+        except OSError:
+            return 0
+        total += st.st_blocks * 512
+        if os.path.isdir(p) and not os.path.islink(p):
+            try:
+                names = os.listdir(p)
+            except OSError:
+                return total
+            for n in names:
+                total += walk(os.path.join(p, n))
+        return total
+
+    used = walk(str(work))
+    if uid is not None:
+        for top in SHARED_TMP:
+            try:
+                entries = list(os.scandir(top))
+            except OSError:
+                continue
+            for e in entries:
+                try:
+                    if e.stat(follow_symlinks=False).st_uid == uid:
+                        used += walk(e.path)
+                except OSError:
+                    continue
+    return used
 
 
 def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
@@ -348,5 +394,5 @@ def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
 
 
 __all__ = ["MODULE_PREFIX", "SANDBOXES", "Launched", "Limits", "ModuleSource", "SandboxError",
-           "bwrap_problem", "child_env", "exit_reason", "launch", "module_source", "package_root",
-           "resolve_sandbox", "unisolated_warning"]
+           "bwrap_problem", "child_env", "disk_used", "exit_reason", "launch", "module_source",
+           "package_root", "resolve_sandbox", "unisolated_warning"]

@@ -66,17 +66,21 @@ GRADE_SEEDS = 5
 GRADE_RUN_S = 60.0
 GRADE_TIME_LIMIT_S = 60.0
 GRADE_MEMORY_GB = 4.0
+GRADE_DISK_MB = 64.0
 #: The most of a student's log a grade keeps [bytes] (and ``check``'s child writes).
 LOG_BYTES = 256 << 10
 #: Why a probe stopped when the run it probes failed (its failure is that run's).
 LEAD_FAILED = "the run it probes failed"
 
 
-def child_limits(time_limit_s: float, runs: int, memory_gb: float = GRADE_MEMORY_GB) -> Limits:
+def child_limits(time_limit_s: float, runs: int, memory_gb: float = GRADE_MEMORY_GB,
+                 disk_mb: float = GRADE_DISK_MB) -> Limits:
     """A student's child's limits for ``runs`` runs of ``time_limit_s`` [s] each: its
     address space, a CPU-time backstop for the whole child (1.5 times the runs' budgets
-    and a minute for imports), the grade's log size. ``grade`` and ``check`` both."""
-    return Limits(memory_gb=memory_gb, cpu_s=time_limit_s * runs * 1.5 + 60.0, log_bytes=LOG_BYTES)
+    and a minute for imports), what it may write [MB], the grade's log size. ``grade`` and
+    ``check`` both."""
+    return Limits(memory_gb=memory_gb, cpu_s=time_limit_s * runs * 1.5 + 60.0, log_bytes=LOG_BYTES,
+                  disk_bytes=int(disk_mb * 2**20))
 
 
 def reply_timeout(time_limit_s: float) -> float:
@@ -358,6 +362,12 @@ def _feed_together(child: Any, slots: Sequence[Slot], run_limit_s: float | None,
             for j, (tag, payload) in zip(alive, child.batch_belief(alive), strict=True):
                 fed.beliefs[order[j]] = None if tag == OK else child.failure_text(payload)
         fed.report = child.batch_end()
+        over = child.disk_problem()
+        if over is not None:  # what it wrote is the batch's: every run of it fails
+            for k in range(S):
+                if fed.built[k] and (failed[k] is None or failed[k] == LEAD_FAILED):
+                    fail(k, over, int(answered[:, k].sum()))
+            fed.report["failed_child"] = True
     except ChildFailure as exc:  # the whole child: every slot still going fails with its reason
         for k in range(S):
             n = int(answered[:, k].sum())
@@ -519,6 +529,9 @@ class LocalChild(FilterChild):
 
     def kill(self) -> None:
         pass
+
+    def disk_problem(self) -> str | None:
+        return None
 
     def close(self) -> None:
         if self._saved is not None:

@@ -143,6 +143,8 @@ class StudentJob:
     team_sims: list[TeamSimulated] = dataclasses.field(default_factory=list)  # team scenarios
     #: The student's total wall time [s] (None: :func:`total_time_limit`'s default).
     total_time_s: float | None = None
+    #: What the student's process may write [MB] (its folder, /tmp, /dev/shm).
+    disk_limit_mb: float = 64.0
 
 
 @dataclass
@@ -173,7 +175,7 @@ def total_time_text(seconds: float) -> str:
 
 def _limits(job: StudentJob) -> Limits:
     runs = len(job.sims) + len(PROBES) + sum(len(ts.robots) for ts in job.team_sims)
-    return child_limits(job.time_limit, runs, job.memory_limit_gb)
+    return child_limits(job.time_limit, runs, job.memory_limit_gb, job.disk_limit_mb)
 
 
 def _batches(sims: list[SimulatedRun]) -> list[list[int]]:
