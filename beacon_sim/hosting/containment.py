@@ -242,6 +242,19 @@ def _ro_binds() -> list[str]:
     return args
 
 
+def hide_memory() -> bool:
+    """Make this process (the one that starts children: the grader or its worker, which
+    hold the truth) not dumpable (Linux ``PR_SET_DUMPABLE`` 0), so that a child of the same
+    user cannot open its ``/proc/<pid>/mem``, ``maps`` or ``environ``; whether it is so."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(4, 0, 0, 0, 0) == 0  # PR_SET_DUMPABLE
+    except (OSError, AttributeError):
+        return False
+
+
 @dataclass
 class Launched:
     """A started child: the process, the grader's ends of the pipes, its temporary folder
@@ -277,6 +290,8 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
     os.chmod(src, 0o555)
     os.chmod(tmp, 0o755)
     drop = root and sandbox == "process"
+    if sandbox == "process":
+        hide_memory()
     lease = None
     if drop:  # a user of its own: classmates cannot read, write, signal or trace it
         from beacon_sim.hosting.child_users import give_to, lease_uid
@@ -394,5 +409,5 @@ def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
 
 
 __all__ = ["MODULE_PREFIX", "SANDBOXES", "Launched", "Limits", "ModuleSource", "SandboxError",
-           "bwrap_problem", "child_env", "disk_used", "exit_reason", "launch", "module_source",
+           "bwrap_problem", "child_env", "disk_used", "exit_reason", "hide_memory", "launch", "module_source",
            "package_root", "resolve_sandbox", "unisolated_warning"]
