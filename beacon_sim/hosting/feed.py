@@ -25,7 +25,7 @@ identical runs differently to tell them apart, and that is what the determinism 
 flags.
 
 :class:`LocalChild` serves the same protocol in this process (a built-in filter, or
-``check --sandbox none``), with the child's own code (:class:`~beacon_sim.hosting.child.Batch`).
+``check --sandbox none``), with the child's own code (:class:`~beacon_sim.hosting.batch.Batch`).
 """
 
 from __future__ import annotations
@@ -474,7 +474,7 @@ def _horizon(fed: Fed, k: int) -> int:
 
 class LocalChild(FilterChild):
     """The child's batch protocol served in this process (a built-in filter, or
-    ``check --sandbox none``): the same :class:`~beacon_sim.hosting.child.Batch` code
+    ``check --sandbox none``): the same :class:`~beacon_sim.hosting.batch.Batch` code
     builds and steps the filters, so their calls and verdicts are those of a hosted one.
     The global generators are seeded for a batch and restored after it."""
 

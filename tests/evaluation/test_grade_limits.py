@@ -204,7 +204,7 @@ def test_construction_is_limited_by_cpu_time_in_a_grade_not_wall_time():
 
 def test_a_batch_builds_its_filters_under_the_cpu_time_limit(monkeypatch):
     import beacon_sim.hosting.loading as loading
-    from beacon_sim.hosting.child import Batch
+    from beacon_sim.hosting.batch import Batch
 
     seen = []
     monkeypatch.setattr(loading, "build_from_context", lambda *a, **k: seen.append(k) or object())
