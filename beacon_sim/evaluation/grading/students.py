@@ -233,6 +233,10 @@ def run_student(job: StudentJob) -> StudentResult:
         def started() -> FilterChild | None:
             nonlocal load_problem
             child = session.child()
+            if child is not None and out_of_time.is_set():
+                # the time ran out while it was starting (a loaded machine): expire() found
+                # no child to stop then, so it is stopped now and its runs fail saying so
+                child.kill()
             if child is not None:
                 findings["form"] = session.form
             elif load_problem is None:
