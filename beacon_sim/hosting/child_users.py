@@ -36,10 +36,12 @@ class UidLease:
 
     def release(self) -> None:
         """Kill what runs under the user, remove what it left in the shared folders, and
-        give the user ID back."""
+        give the user ID back, marked clean."""
         if self.lock < 0:
             return
         sweep(self.uid)
+        with contextlib.suppress(OSError):
+            os.ftruncate(self.lock, 0)  # clean: the next holder need not sweep
         with contextlib.suppress(OSError):
             os.close(self.lock)
         self.lock = -1
@@ -53,8 +55,8 @@ def _lock_dir() -> Path:
 
 
 def lease_uid() -> UidLease:
-    """A free user ID of the reserved range, swept of anything an earlier holder left
-    (raises OSError when all are in use)."""
+    """A free user ID of the reserved range, swept of anything an earlier holder left when
+    it was not given back clean (its grader died; raises OSError when all are in use)."""
     d = _lock_dir()
     start = os.getpid() % UIDS  # graders on one machine start their search apart
     for i in range(UIDS):
@@ -67,7 +69,9 @@ def lease_uid() -> UidLease:
         except OSError:
             os.close(fd)
             continue
-        sweep(uid)
+        if os.fstat(fd).st_size:  # marked in use: its last holder did not give it back
+            sweep(uid)
+        os.pwrite(fd, b"in use\n", 0)
         return UidLease(uid, fd)
     raise OSError(f"every user ID from {FIRST_UID} to {FIRST_UID + UIDS - 1} is in use by a child")
 

@@ -349,8 +349,8 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
 def disk_used(work: Path, uid: int | None = None) -> int:
     """What a child at the process level has written [bytes, allocated]: its working
     folder, and with its own user ``uid`` (a root grader) what that user owns at the top of
-    the shared temporary folders."""
-    from beacon_sim.hosting.child_users import SHARED_TMP
+    ``/dev/shm`` and ``/var/tmp`` (``/tmp``, often crowded, is not measured: what the user
+    left there is removed when the child ends)."""
 
     def walk(p: str) -> int:
         total = 0
@@ -370,7 +370,7 @@ def disk_used(work: Path, uid: int | None = None) -> int:
 
     used = walk(str(work))
     if uid is not None:
-        for top in SHARED_TMP:
+        for top in ("/dev/shm", "/var/tmp"):
             try:
                 entries = list(os.scandir(top))
             except OSError:

@@ -102,3 +102,21 @@ def test_each_lease_is_a_user_of_its_own_given_back_with_nothing_left_under_it()
         assert c.uid == a.uid and not processes_of(c.uid)
     finally:
         c.release()
+
+
+def test_a_user_left_in_use_by_a_dead_grader_is_swept_before_it_is_leased_again():
+    a = lease_uid()
+    uid = a.uid
+    stale = f"/dev/shm/beacon-sim-stale-{os.getpid()}-{time.monotonic_ns()}"
+    with open(stale, "w") as fh:
+        fh.write("for the next holder of this user")
+    os.chown(stale, uid, uid)
+    os.close(a.lock)  # its grader died: the user was never given back
+    a.lock = -1
+    b = lease_uid()
+    try:
+        assert b.uid == uid and not os.path.exists(stale)
+    finally:
+        b.release()
+        if os.path.exists(stale):
+            os.unlink(stale)

@@ -36,7 +36,7 @@ class GradeConfig:
     disk_limit_mb : what a student's process may write [MB] (default 64): under bubblewrap
         the size of its working folder, /tmp and /dev/shm (RAM file systems, half, a quarter
         and a quarter of it); at the process level its working folder (and, under a root
-        grader, its files in /tmp and /dev/shm), measured after each batch of runs.
+        grader, its files in /dev/shm and /var/tmp), measured after each batch of runs.
     class_name : the filter class in each file (default: found in the file).
     sandbox : ``auto``, ``bwrap`` or ``process`` (docs/grading.md, "What grading protects
         against"); ``auto``: bubblewrap where it works, else the process level.
