@@ -167,6 +167,8 @@ def cost(args: argparse.Namespace, hon: Path, runs: int) -> None:
     base_cfg = {"scenarios": ["default"], "seeds": list(range(args.seeds)), "duration": args.duration,
                 "time_limit": args.time_limit}
     iso_cfg = {**base_cfg, "sandbox": args.sandbox}
+    if args.sandbox == "process":  # a class there is graded only on the teacher's word
+        iso_cfg["allow_unisolated"] = True
     load0 = os.getloadavg()[0]
     got: dict[str, list[dict]] = {"iso": [], "base": []}
     for _ in range(args.rounds):

@@ -8,7 +8,9 @@ Two levels:
   descriptors, stdin then closed and stdout and stderr to the student's log, cut at
   ``log_bytes``), a scrubbed environment, its own session (so the whole group can be
   stopped), resource limits (address space, CPU seconds, file size, no core files) set by
-  the child before any student code runs, and the user ``nobody`` when the grader is root.
+  the child before any student code runs, a system call filter refusing new processes,
+  signals to other processes and tracing (:mod:`beacon_sim.hosting.syscall_filter`), and a
+  user of its own when the grader is root (:mod:`beacon_sim.hosting.child_users`).
 - ``bwrap``: the same inside bubblewrap (Debian's ``bubblewrap``): no network, new PID,
   IPC and UTS namespaces, an unprivileged user namespace, a read-only view of the system,
   the Python installation and the ``beacon_sim`` package alone, the student's own file
@@ -29,7 +31,10 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from beacon_sim.hosting.child_users import UidLease
 
 SANDBOXES = ("auto", "bwrap", "process")
 NOBODY = 65534
@@ -108,12 +113,16 @@ def _copy_module(source: ModuleSource, dest: Path) -> None:
 @dataclass(frozen=True)
 class Limits:
     """A child's limits: address space [GB] (0: none), CPU time of the whole child [s]
-    (None: none), the size of any file it writes [bytes], its log [bytes]."""
+    (None: none), the size of any file it writes [bytes], its log [bytes], all it may
+    write [bytes] (under bubblewrap the sizes of its RAM file systems: half for its
+    working folder, a quarter each for /tmp and /dev/shm; at the process level measured
+    by :func:`disk_used`)."""
 
     memory_gb: float = 4.0
     cpu_s: float | None = None
     fsize_bytes: int = 8 << 20
     log_bytes: int = 256 << 10
+    disk_bytes: int = 64 << 20
 
 
 @functools.lru_cache(maxsize=1)
@@ -149,18 +158,34 @@ def resolve_sandbox(choice: str) -> str:
     return "process"
 
 
-def unisolated_warning(user: str | None = None) -> str:
-    """What the process level does not stop, in words for the page and the terminal: every
-    student's process runs as one user (``nobody`` under a root grader, else the grader's)."""
-    if user is None:
-        user = "nobody" if hasattr(os, "geteuid") and os.geteuid() == 0 else "the grader's own user"
-    return (f"NOT ISOLATED: graded at the process level, without bubblewrap. Every student's "
-            f"process ran as {user}, so a file could signal, slow or kill its classmates' processes, "
-            "leave files in /tmp and /dev/shm for later students, start a process that outlives "
-            "its grade by undoing the grader's subreaper"
-            + ("" if user == "nobody" else ", and read what that user can read: the grader's memory "
-               "through /proc, the grade's secret and the other submissions")
-            + ". Install bubblewrap (Debian: apt-get install bubblewrap) for isolated grades.")
+def unisolated_warning(root: bool | None = None, kernel: str | None = "?") -> str:
+    """What the process level does not stop, in words for the page and the terminal.
+    ``root``: the grader is root (each child then runs as a user of its own, default: this
+    process's user); ``kernel``: why the child's system call filter is not installed
+    (:func:`~beacon_sim.hosting.syscall_filter.unavailable`; None: it is)."""
+    from beacon_sim.hosting.syscall_filter import unavailable
+
+    if root is None:
+        root = hasattr(os, "geteuid") and os.geteuid() == 0
+    if kernel == "?":
+        kernel = unavailable()
+    head = "NOT ISOLATED: graded at the process level, without bubblewrap. "
+    tail = ". Install bubblewrap (Debian: apt-get install bubblewrap) for isolated grades."
+    if root:
+        return (head + "Each student's process ran as a user of its own (from a reserved range), so "
+                "classmates could not signal, read or write each other's processes and files, and what "
+                "one left in /tmp and /dev/shm was removed after it"
+                + ("; the kernel refused it new processes and tracing" if kernel is None else
+                   f"; but no system call filter here ({kernel}): a process it starts by undoing the "
+                   "grader's subreaper could outlive its grade until its user is swept")
+                + ". Still open: the network, and everything on the machine that any user may read" + tail)
+    return (head + "Every student's process ran as the grader's own user, so a file could read what that "
+            "user can read (the grader's memory through /proc, the grade's secret and the other "
+            "submissions) and leave files in /tmp and /dev/shm for later students"
+            + ("; the kernel refused it new processes, signals to other processes and tracing"
+               if kernel is None else ", signal, slow or kill its classmates' processes, and start a "
+               "process that outlives its grade by undoing the grader's subreaper")
+            + tail)
 
 
 def package_root() -> Path:
@@ -217,6 +242,19 @@ def _ro_binds() -> list[str]:
     return args
 
 
+def hide_memory() -> bool:
+    """Make this process (the one that starts children: the grader or its worker, which
+    hold the truth) not dumpable (Linux ``PR_SET_DUMPABLE`` 0), so that a child of the same
+    user cannot open its ``/proc/<pid>/mem``, ``maps`` or ``environ``; whether it is so."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(4, 0, 0, 0, 0) == 0  # PR_SET_DUMPABLE
+    except (OSError, AttributeError):
+        return False
+
+
 @dataclass
 class Launched:
     """A started child: the process, the grader's ends of the pipes, its temporary folder
@@ -228,6 +266,8 @@ class Launched:
     tmp: Path
     sandbox: str
     source_in_child: str
+    #: The child's own user (a root grader at the process level), given back by ``close``.
+    lease: UidLease | None = None
 
 
 def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Limits) -> Launched:
@@ -250,15 +290,21 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
     os.chmod(src, 0o555)
     os.chmod(tmp, 0o755)
     drop = root and sandbox == "process"
-    if drop:
-        os.chown(work, NOBODY, NOBODY)
-        os.chmod(work, 0o700)
+    if sandbox == "process":
+        hide_memory()
+    lease = None
+    if drop:  # a user of its own: classmates cannot read, write, signal or trace it
+        from beacon_sim.hosting.child_users import give_to, lease_uid
+
+        lease = lease_uid()
+        give_to(lease.uid, tmp, src, work)
     r_child, w_parent = os.pipe()
     r_parent, w_child = os.pipe()
     cfg: dict[str, Any] = {
         "memory_bytes": int(limits.memory_gb * 2**30) if limits.memory_gb > 0 else 0,
         "cpu_s": int(limits.cpu_s) + 1 if limits.cpu_s else 0,
-        "fsize_bytes": limits.fsize_bytes, "log_bytes": limits.log_bytes, "drop_user": drop}
+        "fsize_bytes": limits.fsize_bytes, "log_bytes": limits.log_bytes, "drop_user": drop,
+        "uid": lease.uid if lease is not None else NOBODY}
     # The pipes are the child's stdin (requests) and stdout (replies), which it moves to
     # fresh descriptors before any student code runs: its command line holds no descriptor
     # numbers of the grader's (they told one grading process from another).
@@ -268,9 +314,13 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
         argv = [shutil.which("bwrap") or "bwrap", "--unshare-all", "--die-with-parent",
                 # an empty /tmp first: a bind made before it (a checkout or a virtual
                 # environment under /tmp, as a CI clone may be) would be hidden by it
-                "--new-session", "--clearenv", "--tmpfs", "/tmp", *_ro_binds(),
+                "--new-session", "--clearenv", "--size", str(max(limits.disk_bytes // 4, 4096)),
+                "--tmpfs", "/tmp", *_ro_binds(),
                 "--dev", "/dev", "--proc", "/proc",
-                "--bind", str(work), BOX_WORK, "--ro-bind", str(src), BOX_SRC,
+                # what it writes is in RAM, capped (nothing reaches the machine's disk)
+                "--size", str(max(limits.disk_bytes // 4, 4096)), "--tmpfs", "/dev/shm",
+                "--size", str(max(limits.disk_bytes // 2, 4096)), "--tmpfs", BOX_WORK,
+                "--ro-bind", str(src), BOX_SRC,
                 "--chdir", BOX_WORK, "--uid", str(NOBODY), "--gid", str(NOBODY)]
         for k, v in env.items():
             argv += ["--setenv", k, v]
@@ -286,10 +336,52 @@ def launch(source: Path | ModuleSource, log: IO[bytes], sandbox: str, limits: Li
     try:
         proc = subprocess.Popen(argv, stdin=r_child, stdout=w_child, stderr=log,
                                 cwd=str(work), env=popen_env, start_new_session=True, close_fds=True)
+    except BaseException:
+        if lease is not None:
+            lease.release()
+        raise
     finally:
         os.close(r_child)
         os.close(w_child)
-    return Launched(proc, w_parent, r_parent, tmp, sandbox, source_in_child)
+    return Launched(proc, w_parent, r_parent, tmp, sandbox, source_in_child, lease)
+
+
+def disk_used(work: Path, uid: int | None = None) -> int:
+    """What a child at the process level has written [bytes, allocated]: its working
+    folder, and with its own user ``uid`` (a root grader) what that user owns at the top of
+    ``/dev/shm`` and ``/var/tmp`` (``/tmp``, often crowded, is not measured: what the user
+    left there is removed when the child ends)."""
+
+    def walk(p: str) -> int:
+        total = 0
+        try:
+            st = os.lstat(p)
+        except OSError:
+            return 0
+        total += st.st_blocks * 512
+        if os.path.isdir(p) and not os.path.islink(p):
+            try:
+                names = os.listdir(p)
+            except OSError:
+                return total
+            for n in names:
+                total += walk(os.path.join(p, n))
+        return total
+
+    used = walk(str(work))
+    if uid is not None:
+        for top in ("/dev/shm", "/var/tmp"):
+            try:
+                entries = list(os.scandir(top))
+            except OSError:
+                continue
+            for e in entries:
+                try:
+                    if e.stat(follow_symlinks=False).st_uid == uid:
+                        used += walk(e.path)
+                except OSError:
+                    continue
+    return used
 
 
 def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
@@ -317,5 +409,5 @@ def exit_reason(returncode: int | None, sandbox: str, limits: Limits) -> str:
 
 
 __all__ = ["MODULE_PREFIX", "SANDBOXES", "Launched", "Limits", "ModuleSource", "SandboxError",
-           "bwrap_problem", "child_env", "exit_reason", "launch", "module_source", "package_root",
-           "resolve_sandbox", "unisolated_warning"]
+           "bwrap_problem", "child_env", "disk_used", "exit_reason", "hide_memory", "launch", "module_source",
+           "package_root", "resolve_sandbox", "unisolated_warning"]

@@ -25,7 +25,7 @@ identical runs differently to tell them apart, and that is what the determinism 
 flags.
 
 :class:`LocalChild` serves the same protocol in this process (a built-in filter, or
-``check --sandbox none``), with the child's own code (:class:`~beacon_sim.hosting.child.Batch`).
+``check --sandbox none``), with the child's own code (:class:`~beacon_sim.hosting.batch.Batch`).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from __future__ import annotations
 import hashlib
 import pickle
 import random
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,17 +66,21 @@ GRADE_SEEDS = 5
 GRADE_RUN_S = 60.0
 GRADE_TIME_LIMIT_S = 60.0
 GRADE_MEMORY_GB = 4.0
+GRADE_DISK_MB = 64.0
 #: The most of a student's log a grade keeps [bytes] (and ``check``'s child writes).
 LOG_BYTES = 256 << 10
 #: Why a probe stopped when the run it probes failed (its failure is that run's).
 LEAD_FAILED = "the run it probes failed"
 
 
-def child_limits(time_limit_s: float, runs: int, memory_gb: float = GRADE_MEMORY_GB) -> Limits:
+def child_limits(time_limit_s: float, runs: int, memory_gb: float = GRADE_MEMORY_GB,
+                 disk_mb: float = GRADE_DISK_MB) -> Limits:
     """A student's child's limits for ``runs`` runs of ``time_limit_s`` [s] each: its
     address space, a CPU-time backstop for the whole child (1.5 times the runs' budgets
-    and a minute for imports), the grade's log size. ``grade`` and ``check`` both."""
-    return Limits(memory_gb=memory_gb, cpu_s=time_limit_s * runs * 1.5 + 60.0, log_bytes=LOG_BYTES)
+    and a minute for imports), what it may write [MB], the grade's log size. ``grade`` and
+    ``check`` both."""
+    return Limits(memory_gb=memory_gb, cpu_s=time_limit_s * runs * 1.5 + 60.0, log_bytes=LOG_BYTES,
+                  disk_bytes=int(disk_mb * 2**20))
 
 
 def reply_timeout(time_limit_s: float) -> float:
@@ -195,14 +199,88 @@ class Fed:
 
 
 def feed_batch(child: Any, slots: Sequence[Slot], run_limit_s: float | None, global_seed: int,
-               order: Sequence[int] | None = None, joints: bool = True) -> Fed:
+               order: Sequence[int] | None = None, joints: bool = True,
+               restart: Callable[[], Any] | None = None) -> Fed:
     """Build the filters of ``slots`` in ``child`` (a :class:`FilterChild` or
     :class:`LocalChild`) and feed them (see the module's docstring): each with its own
     CPU-time budget ``run_limit_s`` [s], the global generators seeded once with
     ``global_seed`` (derived from the run's key, never its seed), in ``order`` (position j
     holds slot ``order[j]``; default as given). A slot that fails fails alone; a child that
     dies fails every slot still going with its reason. ``joints``: ask the runs that have a
-    map (and are not probes) for their final ``joint()``."""
+    map (and are not probes) for their final ``joint()``.
+
+    ``restart`` (a function that stops the current child and returns a fresh one, or why
+    there is none): the memory limit is each slot's own. The slots of a batch share one
+    address space, so when a slot of a batch of several fails in a way the memory limit
+    can cause (:func:`memory_suspect`), the whole batch is fed again one slot per fresh
+    child (:func:`feed_alone`), as each would be graded alone; ``report["alone"]`` says so."""
+    fed = _feed_together(child, slots, run_limit_s, global_seed, order, joints)
+    if restart is None or len(slots) < 2 or not any(memory_suspect(w) for w in fed.failed):
+        return fed
+    return feed_alone(restart, slots, run_limit_s, global_seed, order, joints)
+
+
+def memory_suspect(why: str | None) -> bool:
+    """Whether a slot's failure ``why`` may come from the memory limit of the process it
+    shared with other slots: a ``MemoryError``, a thread that could not start, or the
+    process killed by a signal an allocation that failed in compiled code sends."""
+    if not why:
+        return False
+    return any(w in why for w in ("MemoryError", "can't start new thread", "memory limit", "SIGSEGV",
+                                  "SIGABRT", "SIGBUS", "was killed by SIGKILL"))
+
+
+def feed_alone(restart: Callable[[], Any], slots: Sequence[Slot], run_limit_s: float | None,
+               global_seed: int, order: Sequence[int] | None = None, joints: bool = True) -> Fed:
+    """:func:`feed_batch` with each slot alone in a fresh child (``restart()``: stops the
+    current child and returns a fresh one, or a string saying why there is none), in
+    ``order``: each its own address space, memory limit and CPU-time backstop, as if it
+    were the only run graded. A probe is fed all its ticks and cut afterwards where the run
+    it probes failed, exactly where :func:`feed_batch` would have stopped it (so the order
+    need not put the runs before their probes, and says nothing of which slot is one)."""
+    S = len(slots)
+    order = list(range(S)) if order is None else [int(k) for k in order]
+    T = max((s.ticks for s in slots), default=0)
+    fed = Fed(np.full((T, S, 24), np.nan), np.zeros((T, S), dtype=bool), np.zeros((T, S), dtype=bool),
+              np.zeros((T, S), dtype=np.int64), [None] * S, [None] * S, [False] * S, [None] * S,
+              [None] * S, [None] * S, ["not asked"] * S, {"alone": True})
+    for k in order:
+        s = slots[k]
+        child = restart()
+        if isinstance(child, str) or child is None:
+            fed.failed[k], fed.failed_at[k] = child or "the filter's process could not be started", 0
+            continue
+        one = _feed_together(child, [Slot(s.ctx, s.initial, s.frames, s.ticks, s.spec)], run_limit_s,
+                             global_seed, None, joints and s.lead is None)
+        n = one.store.shape[0]
+        fed.store[:n, k], fed.has_prior[:n, k] = one.store[:, 0], one.has_prior[:, 0]
+        fed.answered[:n, k], fed.walls[:n, k] = one.answered[:, 0], one.walls[:, 0]
+        fed.failed[k], fed.failed_at[k], fed.built[k] = one.failed[0], one.failed_at[0], one.built[0]
+        fed.first[k], fed.maps[k], fed.joints[k], fed.beliefs[k] = (one.first[0], one.maps[0], one.joints[0],
+                                                                    one.beliefs[0])
+        for key in ("np_global", "py_global", "failed_child", "died"):
+            fed.report[key] = bool(fed.report.get(key) or one.report.get(key))
+        if one.report.get("traceback") and not fed.report.get("traceback"):
+            fed.report["traceback"] = one.report["traceback"]
+    for k, s in enumerate(slots):  # each probe stopped where the run it probes failed
+        if s.lead is None:
+            continue
+        lead = s.lead
+        cut = (0 if not fed.built[lead] else
+               None if fed.failed[lead] is None else int(fed.failed_at[lead] or 0) + 1)
+        own = fed.failed_at[k] if fed.failed[k] is not None else None
+        if cut is None or cut >= s.ticks or not fed.built[k] or (own is not None and own < cut):
+            continue
+        fed.store[cut:, k] = np.nan
+        fed.has_prior[cut:, k] = fed.answered[cut:, k] = False
+        fed.walls[cut:, k] = 0
+        fed.failed[k], fed.failed_at[k], fed.beliefs[k] = LEAD_FAILED, cut, "not asked"
+    return fed
+
+
+def _feed_together(child: Any, slots: Sequence[Slot], run_limit_s: float | None, global_seed: int,
+                   order: Sequence[int] | None, joints: bool) -> Fed:
+    """Every slot in ``child`` at once, one exchange per tick (:func:`feed_batch`)."""
     S = len(slots)
     order = list(range(S)) if order is None else [int(k) for k in order]
     if sorted(order) != list(range(S)):
@@ -284,6 +362,12 @@ def feed_batch(child: Any, slots: Sequence[Slot], run_limit_s: float | None, glo
             for j, (tag, payload) in zip(alive, child.batch_belief(alive), strict=True):
                 fed.beliefs[order[j]] = None if tag == OK else child.failure_text(payload)
         fed.report = child.batch_end()
+        over = child.disk_problem()
+        if over is not None:  # what it wrote is the batch's: every run of it fails
+            for k in range(S):
+                if fed.built[k] and (failed[k] is None or failed[k] == LEAD_FAILED):
+                    fail(k, over, int(answered[:, k].sum()))
+            fed.report["failed_child"] = True
     except ChildFailure as exc:  # the whole child: every slot still going fails with its reason
         for k in range(S):
             n = int(answered[:, k].sum())
@@ -390,7 +474,7 @@ def _horizon(fed: Fed, k: int) -> int:
 
 class LocalChild(FilterChild):
     """The child's batch protocol served in this process (a built-in filter, or
-    ``check --sandbox none``): the same :class:`~beacon_sim.hosting.child.Batch` code
+    ``check --sandbox none``): the same :class:`~beacon_sim.hosting.batch.Batch` code
     builds and steps the filters, so their calls and verdicts are those of a hosted one.
     The global generators are seeded for a batch and restored after it."""
 
@@ -446,6 +530,9 @@ class LocalChild(FilterChild):
     def kill(self) -> None:
         pass
 
+    def disk_problem(self) -> str | None:
+        return None
+
     def close(self) -> None:
         if self._saved is not None:
             np.random.set_state(self._saved[0])  # noqa: NPY002
@@ -469,5 +556,6 @@ def step_frames(steps: Sequence[Any]) -> list[bytes]:
 
 __all__ = ["GRADE_MEMORY_GB", "GRADE_RUN_S", "GRADE_SEEDS", "GRADE_TIME_LIMIT_S", "LEAD_FAILED",
            "LOG_BYTES", "PROBES", "PROBE_TICKS", "Fed", "LocalChild", "ProbeFindings", "Slot",
-           "child_limits", "feed_batch", "grade_limits", "judge_probes", "other_readings_seed",
+           "child_limits", "feed_alone", "feed_batch", "grade_limits", "judge_probes", "memory_suspect",
+           "other_readings_seed",
            "probe_seed", "probe_slots", "reply_timeout", "slot_order", "step_frames", "step_request"]

@@ -34,6 +34,7 @@ from beacon_sim.hosting.containment import (
     Launched,
     Limits,
     ModuleSource,
+    disk_used,
     exit_reason,
     launch,
 )
@@ -176,6 +177,19 @@ class FilterChild:
             self.dead = exit_reason(code, self.sandbox, self.limits)
         return self.dead
 
+    def disk_problem(self) -> str | None:
+        """At the process level, the words of the disk limit when what the child wrote
+        (:func:`~beacon_sim.hosting.containment.disk_used`) is over it; None when it is not
+        (under bubblewrap the file systems' sizes enforce it: a write over it fails)."""
+        proc = self._proc
+        if proc is None or proc.sandbox != "process":
+            return None
+        used = disk_used(proc.tmp / "work", proc.lease.uid if proc.lease is not None else None)
+        if used <= self.limits.disk_bytes:
+            return None
+        return (f"disk limit: the filter's process wrote {used / 2**20:.1f} MB, over "
+                f"{self.limits.disk_bytes / 2**20:g} MB (disk_limit_mb)")
+
     def kill(self) -> None:
         """Stop the child and everything it started (its session)."""
         proc = self._proc
@@ -204,6 +218,8 @@ class FilterChild:
         with contextlib.suppress(OSError):
             os.killpg(proc.proc.pid, signal.SIGKILL)  # anything it left running
         shutil.rmtree(proc.tmp, ignore_errors=True)
+        if proc.lease is not None:  # its user's processes and files, then the user ID
+            proc.lease.release()
         self._log.close()
 
     def __enter__(self) -> FilterChild:

@@ -169,6 +169,19 @@ def test_a_students_total_wall_time_is_capped_and_said(tmp_path):
     assert any(f.startswith("limit hit: total wall time") for f in r["flags"]), r["flags"]
 
 
+def test_the_total_wall_time_holds_while_the_students_process_is_still_starting(tmp_path):
+    """A file slow to import (as a loaded machine makes any file): the time runs out before
+    the child is up, so there is no child to stop then; it is stopped as soon as it is."""
+    folder = tmp_path / "class"
+    folder.mkdir()
+    slow = HEAD + "\nburn(3.0)  # at import: still starting when the time is up\n\n\n" + FILES["honest"]
+    (folder / "slow.py").write_text(slow, encoding="utf-8")
+    cfg = GradeConfig(scenarios=("two_rooms",), seeds=(0,), duration=2.0, time_limit=30.0, total_time_s=1.0)
+    r = grade(folder, cfg, jobs=1, secret=bytes(32)).rows[0]
+    assert r["failed_runs"] == 1, r["failures"]
+    assert all("total time limit: 1 s of wall time" in f["reason"] for f in r["failures"]), r["failures"]
+
+
 class _Sleeps:
     def __init__(self, ctx):
         time.sleep(0.6)  # waits: no CPU
@@ -204,7 +217,7 @@ def test_construction_is_limited_by_cpu_time_in_a_grade_not_wall_time():
 
 def test_a_batch_builds_its_filters_under_the_cpu_time_limit(monkeypatch):
     import beacon_sim.hosting.loading as loading
-    from beacon_sim.hosting.child import Batch
+    from beacon_sim.hosting.batch import Batch
 
     seen = []
     monkeypatch.setattr(loading, "build_from_context", lambda *a, **k: seen.append(k) or object())

@@ -171,7 +171,8 @@ def grade(folder: str | Path, config: GradeConfig = GradeConfig(), jobs: int | N
                                read_user_bytes(st.path, what="filter file", cap=MAX_SOURCE_BYTES,
                                                error=GradeError),
                                config.class_name or st.class_name, sims, config.time_limit,
-                               config.memory_limit_gb, sandbox, team_sims, config.total_time_s)
+                               config.memory_limit_gb, sandbox, team_sims, config.total_time_s,
+                               config.disk_limit_mb)
                     for st in students if st.spec and (sims or team_sims)]
     if cache is not None and not students_cannot_write_here(sandbox):
         cache = None  # a child running as this user could plant a pickle: no cache

@@ -30,7 +30,7 @@ def cache_key(job: StudentJob) -> str:
 
     h = hashlib.sha256(job.source)
     meta = [job.filename, job.class_name, job.time_limit, job.memory_limit_gb, job.sandbox, __version__,
-            job.total_time_s,
+            job.total_time_s, job.disk_limit_mb,
             PROBE_TICKS, [(sr.label, sr.seed, len(sr.frames), sr.truth_checksum, repr(sr.scenario),
                            hashlib.sha256(sr.stream_key).hexdigest())  # the secret's mark, not it
                           for sr in job.sims],

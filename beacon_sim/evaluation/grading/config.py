@@ -30,8 +30,13 @@ class GradeConfig:
     seeds : the run seeds, the same for every student (default 0 to 4).
     duration : seconds per run [s] (default 60; None: each scenario's own).
     time_limit : a filter's time limit per run [s] (default 60).
-    memory_limit_gb : each student's child process's address-space limit [GB] (default 4;
-        0: none), on local processes and Dask workers alike.
+    memory_limit_gb : the address-space limit of each run's filter [GB] (default 4; 0:
+        none), on local processes and Dask workers alike (the seeds and the probes share one
+        process; when they run out together each is fed again in a process of its own).
+    disk_limit_mb : what a student's process may write [MB] (default 64): under bubblewrap
+        the size of its working folder, /tmp and /dev/shm (RAM file systems, half, a quarter
+        and a quarter of it); at the process level its working folder (and, under a root
+        grader, its files in /dev/shm and /var/tmp), measured after each batch of runs.
     class_name : the filter class in each file (default: found in the file).
     sandbox : ``auto``, ``bwrap`` or ``process`` (docs/grading.md, "What grading protects
         against"); ``auto``: bubblewrap where it works, else the process level.
@@ -54,6 +59,7 @@ class GradeConfig:
     duration: float | None = 60.0
     time_limit: float = 60.0
     memory_limit_gb: float = 4.0
+    disk_limit_mb: float = 64.0
     class_name: str | None = None
     sandbox: str = "auto"
     pseudonyms: bool = False
@@ -132,6 +138,7 @@ def load_config(path: str | Path | None) -> GradeConfig:
         time_limit=_config_number(path, data, "time_limit", GradeConfig.time_limit, hi=86400.0),
         memory_limit_gb=_config_number(path, data, "memory_limit_gb", GradeConfig.memory_limit_gb,
                                        hi=1e4, allow_zero=True),
+        disk_limit_mb=_config_number(path, data, "disk_limit_mb", GradeConfig.disk_limit_mb, hi=1e6),
         class_name=_config_name(path, data),
         sandbox=_config_sandbox(path, data),
         pseudonyms=_config_bool(path, data, "pseudonyms"),

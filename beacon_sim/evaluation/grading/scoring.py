@@ -107,8 +107,10 @@ LIMIT_WORDS = (
     ("time limit: over", "CPU time per run (time_limit; every thread of the filter counts)"),
     ("construction failed: __init__: time limit", "CPU time to build the filter (30 s)"),
     ("total time limit", "total wall time of the student (total_time_s)"),
-    ("MemoryError", "memory (memory_limit_gb; all the filter's threads together)"),
-    ("memory limit", "memory (memory_limit_gb; all the filter's threads together)"),
+    ("MemoryError", "memory (memory_limit_gb per run; all the filter's threads together)"),
+    ("memory limit", "memory (memory_limit_gb per run; all the filter's threads together)"),
+    ("disk limit", "disk (disk_limit_mb: its folder, /tmp and /dev/shm together)"),
+    ("No space left on device", "disk (disk_limit_mb: its folder, /tmp and /dev/shm together)"),
     ("started a process", "processes (none may be started: their use cannot be counted)"),
     ("CPU time limit", "CPU time of the student's process (its backstop)"),
 )

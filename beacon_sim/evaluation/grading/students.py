@@ -143,6 +143,8 @@ class StudentJob:
     team_sims: list[TeamSimulated] = dataclasses.field(default_factory=list)  # team scenarios
     #: The student's total wall time [s] (None: :func:`total_time_limit`'s default).
     total_time_s: float | None = None
+    #: What the student's process may write [MB] (its folder, /tmp, /dev/shm).
+    disk_limit_mb: float = 64.0
 
 
 @dataclass
@@ -173,7 +175,7 @@ def total_time_text(seconds: float) -> str:
 
 def _limits(job: StudentJob) -> Limits:
     runs = len(job.sims) + len(PROBES) + sum(len(ts.robots) for ts in job.team_sims)
-    return child_limits(job.time_limit, runs, job.memory_limit_gb)
+    return child_limits(job.time_limit, runs, job.memory_limit_gb, job.disk_limit_mb)
 
 
 def _batches(sims: list[SimulatedRun]) -> list[list[int]]:
@@ -231,6 +233,10 @@ def run_student(job: StudentJob) -> StudentResult:
         def started() -> FilterChild | None:
             nonlocal load_problem
             child = session.child()
+            if child is not None and out_of_time.is_set():
+                # the time ran out while it was starting (a loaded machine): expire() found
+                # no child to stop then, so it is stopped now and its runs fail saying so
+                child.kill()
             if child is not None:
                 findings["form"] = session.form
             elif load_problem is None:
@@ -240,6 +246,11 @@ def run_student(job: StudentJob) -> StudentResult:
         def stop() -> None:
             session.stop()
             findings["child_cpu_s"] = session.cpu_s
+
+        def restart() -> FilterChild | str:  # a fresh child (a run alone: its own memory)
+            stop()
+            child = started()
+            return child if child is not None else (load_problem or "the file did not load")
 
         def record(k: int, run: RunOutput, rep: dict[str, Any], wall_s: float) -> None:
             if rep.get("heading_unwrapped"):
@@ -258,8 +269,8 @@ def run_student(job: StudentJob) -> StudentResult:
                     continue
                 probing = batch[0] == 0  # the probes ride along in the first batch
                 runs, rep = isolated_runs(child, [job.sims[k] for k in batch], job.time_limit,
-                                          probe_ticks=PROBE_TICKS if probing else None)
-                if rep.get("failed_child"):
+                                          probe_ticks=PROBE_TICKS if probing else None, restart=restart)
+                if rep.get("failed_child") or rep.get("alone"):
                     stop()
                 if rep.get("np_global") or rep.get("py_global"):
                     findings["global_rng"] = True

@@ -115,7 +115,8 @@ def _hosted_output(sr: SimulatedRun, name: str, means: np.ndarray, covs: np.ndar
 def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | None,
                   name: str | list[str] | None = None,
                   params: dict[str, Any] | list[dict[str, Any]] | None = None,
-                  probe_ticks: int | None = None) -> tuple[list[RunOutput], dict[str, Any]]:
+                  probe_ticks: int | None = None,
+                  restart: Any = None) -> tuple[list[RunOutput], dict[str, Any]]:
     """:func:`isolated_run` of every run of ``sims`` at once: one filter per run in the
     child, one exchange per tick carrying every run's control, dt and readings and bringing
     back every estimate (the pipe's round trip paid once per tick, not once per run;
@@ -137,7 +138,11 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
 
     ``name`` and ``params`` may be lists, one per run (the robots of a team scenario: each
     robot's copy its own name, so its own random stream); the runs' records are keyed by
-    the first name."""
+    the first name.
+
+    ``restart`` (stops the child and returns a fresh one): each run's memory limit is its
+    own; a batch whose runs may have run out of the memory they shared is fed again one run
+    per fresh child (:func:`~beacon_sim.hosting.feed.feed_batch`)."""
     from beacon_sim.hosting.client import feed_batch, judge_probes, probe_slots, slot_order
 
     R = len(sims)
@@ -158,7 +163,7 @@ def isolated_runs(child: Any, sims: list[SimulatedRun], run_limit_s: float | Non
             probes[what] = len(slots)
             slots.append(slot)
         order = slot_order(sims[0].stream_key, len(slots))
-    fed = feed_batch(child, slots, run_limit_s, sims[0].global_seed(names[0]), order)
+    fed = feed_batch(child, slots, run_limit_s, sims[0].global_seed(names[0]), order, restart=restart)
     report = dict(fed.report)
     theta = np.concatenate([fed.means(k)[:fed.done(k), 2] for k in range(R)])
     report["heading_unwrapped"] = bool(np.any(~((theta >= -np.pi) & (theta < np.pi))))
