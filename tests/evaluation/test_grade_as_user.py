@@ -1,6 +1,6 @@
 """The attack corpus graded by an ordinary user (the grader started as ``nobody`` through
 ``setpriv`` when the tests run as root; skipped otherwise, and when no Python with numpy
-is runnable by ``nobody``: this interpreter, or the one named by the environment variable
+is runnable by ``nobody``: the one named by the environment variable
 ``BEACON_SIM_USER_PYTHON``, e.g. a virtual environment made by ``/usr/bin/python3 -m venv``
 with numpy, outside a private home), at every level ``grade`` offers: every honest row
 is bit for bit the honest students graded alone, every cheater fails, is flagged or does
@@ -13,7 +13,6 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
 import textwrap
 from pathlib import Path
@@ -50,7 +49,10 @@ GRADE = textwrap.dedent("""
 
 def _python() -> str | None:
     """An interpreter ``nobody`` can run that imports numpy and beacon_sim, or None."""
-    for exe in (os.environ.get("BEACON_SIM_USER_PYTHON"), sys.executable):
+    # Only an interpreter named for it: this one may live where ``nobody`` can start it but not
+    # the grader's children (a venv whose python links into root's pyenv: the child's launch
+    # is refused), which would test the machine's set-up, not the grader.
+    for exe in (os.environ.get("BEACON_SIM_USER_PYTHON"),):
         if not exe:
             continue
         r = subprocess.run(["setpriv", f"--reuid={NOBODY}", f"--regid={NOBODY}", "--clear-groups", exe, "-c",

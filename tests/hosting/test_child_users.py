@@ -38,7 +38,7 @@ for d in [{victim!r}]:  # the classmate's folder (a spy would search /tmp: the t
     except OSError:
         pass
     try:
-        open(d + "/work/planted.py", "w").write("x = 1")
+        open(os.path.join(d, "work", "planted.py"), "w").write("x = 1")
         wrote += 1
     except OSError:
         pass
