@@ -33,7 +33,7 @@ PARAMS = {"pf": {"n_particles": 400}}
 class _FixedClock:
     @staticmethod
     def now(tz=None):
-        return datetime.datetime(2026, 1, 2, 3, 4, 5, tzinfo=datetime.timezone.utc)
+        return datetime.datetime(2026, 1, 2, 3, 4, 5, tzinfo=datetime.UTC)
 
 
 @pytest.fixture

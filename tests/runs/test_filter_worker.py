@@ -76,7 +76,7 @@ class _FixedClock:
 
     @staticmethod
     def now(tz=None):
-        return datetime.datetime(2026, 1, 2, 3, 4, 5, tzinfo=datetime.timezone.utc)
+        return datetime.datetime(2026, 1, 2, 3, 4, 5, tzinfo=datetime.UTC)
 
 
 @pytest.fixture
@@ -162,7 +162,8 @@ def test_a_team_threaded_gives_the_synchronous_run(tmp_path, fixed_created):
     for threaded in (False, True):
         path = tmp_path / f"team_{threaded}.jsonl"
         s = Session(team, specs, 5, {}, Recorder(path, team, 5, specs, {}))
-        s.start_worker() if threaded else None
+        if threaded:
+            s.start_worker()
         for t in range(1, 81):
             if t == 20:
                 s.next_robot()
