@@ -588,7 +588,9 @@ class Session(WorkerTicks, FilterSwapping):
                     trail.add(est[0][i])
 
     def close(self) -> None:
-        """Write the recording's end line and close it (if the session is recorded)."""
+        """Finish the worker's ticks (if the filters run on one), write the recording's end
+        line and close it (if the session is recorded)."""
+        self.stop_worker()
         if self.recorder is not None:
             self.recorder.close()
             self.recorder = None
