@@ -27,10 +27,9 @@ from typing import Any, TextIO
 import numpy as np
 
 from beacon_sim.core.maths_fingerprint import maths_description, maths_fingerprint
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import Scenario, TeamScenario, as_team, team_of_one
 from beacon_sim.core.simulation import CURRENT_SLIP_MODEL
 from beacon_sim.core.team import TeamSimulation, TeamStep
-from beacon_sim.core.team_scenario import TeamScenario, as_team, team_of_one
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import (
     FLUSH_EVERY_S,
