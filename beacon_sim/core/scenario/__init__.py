@@ -42,7 +42,7 @@ from beacon_sim.core.scenario.limits import (
     MIN_SENSOR_STD,
     MIN_WORLD_SIDE,
 )
-from beacon_sim.core.scenario.model import InitialBelief, Scenario, ScenarioError
+from beacon_sim.core.scenario.model import InitialBelief, Scenario, ScenarioError, ScenarioHeader
 from beacon_sim.core.scenario.parser import load_scenario, parse_scenario, resolve_scenario_path, sensor_noise
 from beacon_sim.core.scenario.table import Table, Vec3, Vec4, finite_in
 from beacon_sim.core.scenario.team import (
@@ -104,6 +104,7 @@ __all__ = [
     "RobotSensorSpec",
     "Scenario",
     "ScenarioError",
+    "ScenarioHeader",
     "Table",
     "TeamRobot",
     "TeamScenario",

@@ -9,14 +9,12 @@ over N robots. The file format is ``team_parser.py``'s.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 from beacon_sim.core.keyboard_drive import KeyboardLimits
-from beacon_sim.core.scenario.model import Scenario
-from beacon_sim.core.sensors import SensorNoise
-from beacon_sim.core.world import World
+from beacon_sim.core.scenario.model import Scenario, ScenarioHeader
+from beacon_sim.core.sensors import SensorNoise, SensorReach
 
 #: Most robots in a team.
 MAX_ROBOTS = 100
@@ -25,20 +23,14 @@ DEFAULT_TEAM_FILTERS = ("independent", "centralised", "decentralised", "ci")
 
 
 @dataclass(frozen=True)
-class RobotSensorSpec:
+class RobotSensorSpec(SensorReach):
     """A sensor that measures the other robots of the team.
 
-    kind : ``robot_range_bearing`` (range [m] and bearing [rad]) or ``robot_bearing``.
-    period [s], max_range [m], fov [rad] (centred on the heading), detection_prob: as a
-    beacon sensor's. noise: ``range_std`` [m], ``bearing_std`` [rad].
+    kind : ``robot_range_bearing`` (range [m] and bearing [rad]) or ``robot_bearing``; the
+    reach (period, range, field of view, detection) as a beacon sensor's. noise:
+    ``range_std`` [m], ``bearing_std`` [rad].
     """
 
-    name: str
-    kind: str
-    period: float = 0.1
-    max_range: float = math.inf
-    fov: float = 2.0 * math.pi
-    detection_prob: float = 1.0
     noise: SensorNoise = field(default_factory=SensorNoise)
 
     def reading_std(self) -> tuple[float, ...]:
@@ -62,16 +54,9 @@ class TeamRobot:
 
 
 @dataclass(frozen=True)
-class TeamScenario:
-    """A validated team scenario: shared world and clock, and the robots."""
+class TeamScenario(ScenarioHeader):
+    """A validated scenario over N robots: the shared world and clock, and the robots."""
 
-    name: str
-    description: str
-    source: str
-    dt: float
-    duration: float
-    seed: int
-    world: World
     keyboard: KeyboardLimits
     robots: tuple[TeamRobot, ...]
     default_filters: tuple[str, ...] = DEFAULT_TEAM_FILTERS

@@ -35,9 +35,15 @@ from pathlib import Path
 from typing import Any
 
 from beacon_sim.core.resources import scenario_dir
-from beacon_sim.core.scenario.limits import MAX_SENSORS, MAX_TICKS
+from beacon_sim.core.scenario.limits import MAX_SENSORS
 from beacon_sim.core.scenario.model import ScenarioError
-from beacon_sim.core.scenario.parser import load_scenario, parse_scenario, resolve_scenario_path, sensor_noise
+from beacon_sim.core.scenario.parser import (
+    load_scenario,
+    parse_scenario,
+    resolve_scenario_path,
+    sensor_head,
+    sensor_noise,
+)
 from beacon_sim.core.scenario.table import Table
 from beacon_sim.core.scenario.team import (
     DEFAULT_TEAM_FILTERS,
@@ -71,12 +77,7 @@ def is_team_document(data: Any) -> bool:
 
 
 def _robot_sensor(t: Table, dt: float) -> RobotSensorSpec:
-    kind = t.string("kind", choices=tuple(ROBOT_MEASUREMENT_DIMS))
-    name = t.string("name", kind)
-    period = t.number("period", dt, lo=0, hi=MAX_TICKS * dt, lo_open=True)
-    ratio = period / dt
-    if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
-        t.fail(t.key("period"), period, f"a whole multiple of dt = {dt:g} s")
+    kind, name, period = sensor_head(t, dt, tuple(ROBOT_MEASUREMENT_DIMS))
     spec = RobotSensorSpec(
         name=name, kind=kind, period=period,
         max_range=t.number("max_range", math.inf, lo=0, hi=1e6, lo_open=True, allow_inf=True),
