@@ -373,7 +373,7 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
                                 "", step.time)
         bar.advance()
     wall = time.perf_counter() - t0
-    checksum = sim.sims[0].truth_checksum if team.solo else sim.truth_checksum
+    checksum = sim.truth_checksum  # a team of one: its robot's own (TeamSimulation)
     result = RunResult(team, seed, steps, runner, wall, sim_ns / 1e9, checksum)
     result.fail_unbounded_nees()
     return result
