@@ -33,7 +33,7 @@ limit_blas_threads()  # one BLAS thread, as the window has (``beacon-sim`` sets 
 
 from beacon_sim.app.main import SCRIPTED_FRAME_S, App  # noqa: E402
 from beacon_sim.core.resources import scenario_dir  # noqa: E402
-from beacon_sim.core.team_scenario import load_any_scenario  # noqa: E402
+from beacon_sim.core.scenario import load_any_scenario  # noqa: E402
 from beacon_sim.runs.live import Session  # noqa: E402
 
 #: The heavier commands the docs show, beyond each scenario's defaults: (label, scenario,

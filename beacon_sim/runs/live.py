@@ -3,7 +3,7 @@ side, the keyboard's command for the driven robot, user commands, trails and the
 panel shows (a :class:`~beacon_sim.runs.scene.Scene`).
 
 A single robot is a team of one: :class:`Session` runs any scenario as a team
-(``core.team_scenario.as_team``), its :class:`~beacon_sim.core.team.TeamSimulation` and a
+(``core.scenario.as_team``), its :class:`~beacon_sim.core.team.TeamSimulation` and a
 :class:`~beacon_sim.hosting.team_runner.TeamRunner`. On a team of one it builds and feeds
 exactly what a single-robot session always did (the same truth, the same estimates, the same
 recording); on a team, Tab changes the driven robot and the others follow their drivers.
@@ -28,10 +28,9 @@ import numpy as np
 
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardDrive, KeyboardLimits
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import Scenario, TeamScenario, as_team
 from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.team import TeamSimulation, TeamStep
-from beacon_sim.core.team_scenario import TeamScenario, as_team
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
 from beacon_sim.filters.base import Belief, GaussianBelief
 from beacon_sim.hosting.loading import WINDOW_BUILD_LIMIT_S

@@ -21,10 +21,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from functools import partial
 
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import Scenario, TeamScenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
-from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.hosting.loading import reset_filter
