@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_frame_views import DOC_COMMANDS, TARGET_MS, shipped  # noqa: E402
 
 from beacon_sim.app.main import SCRIPTED_FRAME_S, App  # noqa: E402
-from beacon_sim.core.team_scenario import load_any_scenario  # noqa: E402
+from beacon_sim.core.scenario import load_any_scenario  # noqa: E402
 from beacon_sim.runs.live import Session  # noqa: E402
 
 WAYS = ("in the tick", "worker")

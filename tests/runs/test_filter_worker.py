@@ -14,8 +14,7 @@ import types
 import numpy as np
 import pytest
 
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario, load_scenario
 from beacon_sim.runs import filter_snapshot, live
 from beacon_sim.runs import recorder as recorder_mod
 from beacon_sim.runs.filter_worker import FilterWorker
