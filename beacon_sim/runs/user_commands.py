@@ -89,6 +89,9 @@ def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation | None, run: T
         return {}
     if sim is not None:
         commands_to_sim(commands, sim)
+    else:
+        for cmd in commands:
+            validate_command(cmd)
     if any(c["kind"] == "reset" for c in commands):
         switch_back_on(run)
     failed: dict[str, tuple[str, str]] = {}
