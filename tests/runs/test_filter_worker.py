@@ -294,3 +294,30 @@ def test_the_worker_runs_jobs_in_order_and_raises_a_job_error_in_the_caller():
         w.results()
     assert w.stop(30) and not w.alive
     assert w.stop(1)  # idempotent
+
+
+def test_a_hot_reload_on_a_threaded_session_lands_between_the_same_ticks(tmp_path, fixed_created):
+    """A reload waits for the worker's ticks, then swaps the filter between two ticks: the
+    new filter catches up over the same history, and the file says the same."""
+    from beacon_sim.hosting.loading import build_filter
+
+    sc = load_scenario("default")
+    texts, sessions = [], []
+    for threaded in (False, True):
+        path = tmp_path / f"reload_{threaded}.jsonl"
+        s = Session(sc, ["ekf", "ukf"], 6, {}, Recorder(path, sc, 6, ["ekf", "ukf"], {}))
+        s.toggle_autopilot()
+        if threaded:
+            s.start_worker()
+        for t in range(1, 61):
+            s.tick()
+            if t == 40:
+                message = s.replace_filter("ekf", build_filter("ekf", sc, 6, name="ekf"))
+                assert "run over the 40 ticks" in message
+                assert not s.filters_behind and s.tick_count == 40
+        s.close()
+        texts.append(path.read_bytes())
+        sessions.append(s)
+    assert b"reloaded live at tick" in texts[0]
+    assert texts[0] == texts[1]
+    assert_same_run(*sessions)
