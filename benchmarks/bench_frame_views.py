@@ -9,6 +9,10 @@ time limit switched off (none expected, whatever the load); a last row gives the
 whole run saw and how many rows met their target. With one BLAS thread, as the window
 has. ``--load N`` runs N busy-spinning processes beside it (the row "at load >= 8").
 
+The frames here run the filters in each tick (as ``--frames N`` does); the window itself runs
+them on a worker thread: ``bench_frame_threads.py`` measures its main thread's CPU per frame
+against this way, in the same run.
+
     python benchmarks/bench_frame_views.py [--frames 300] [--sizes 1280x800 1920x1080]
         [--only default office ...] [--load 8]
 """

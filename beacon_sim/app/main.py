@@ -52,6 +52,8 @@ def play(options: PlayOptions) -> int:
     from beacon_sim.app.foxglove import stream
 
     live = stream(session, o.foxglove)
+    if live is not None:  # the stream reads the filters' tracks after each tick: in the tick
+        app.filter_thread = False
     try:
         run_window(app, o)
     finally:
