@@ -26,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.drivers import KeyboardSpec
-from beacon_sim.core.keyboard_drive import KeyboardDrive, KeyboardLimits
+from beacon_sim.core.keyboard_drive import KeyboardDrive
 from beacon_sim.core.scenario import Scenario, TeamScenario, as_team
 from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.team import TeamSimulation, TeamStep
@@ -49,6 +48,7 @@ from beacon_sim.runs.filter_swapping import HISTORY_S, KEEP_ESTIMATES, FilterSwa
 from beacon_sim.runs.filter_worker import FilterWorker, WorkerTicks
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
+from beacon_sim.runs.session_driving import SessionDriving
 from beacon_sim.runs.user_commands import apply_to_run, commands_to_sim
 
 #: Points of each estimate's trail on a team (one per filter and robot): about 20 s of a
@@ -57,7 +57,7 @@ from beacon_sim.runs.user_commands import apply_to_run, commands_to_sim
 TEAM_TRAIL_POINTS = 300
 
 
-class Session(WorkerTicks, FilterSwapping):
+class Session(WorkerTicks, FilterSwapping, SessionDriving):
     """A scenario (one robot or a team), a seed and named filters, advanced one tick at a time.
 
     Parameters
@@ -197,52 +197,6 @@ class Session(WorkerTicks, FilterSwapping):
                 self._shown.append({"kind": "toggle", "filter": cmd["filter"]})
         else:
             self.pending.append({**cmd, "robot": self.driven})
-
-    # --- driving --------------------------------------------------------------------------
-    @property
-    def has_autopilot(self) -> bool:
-        """Whether the driven robot has a driver of its own to hand over to (M)."""
-        return not isinstance(self.scenario.driver, KeyboardSpec)
-
-    def drive(self, key: str) -> None:
-        """W/S/A/D/X on the driven robot's command; driving by hand switches the autopilot off."""
-        if self.autopilot:
-            self.autopilot = False
-            self._take_over()
-        self.keyboard.press(key)
-
-    def toggle_autopilot(self) -> None:
-        self.autopilot = self.has_autopilot and not self.autopilot
-        if not self.autopilot:
-            self._take_over()
-
-    def _take_over(self) -> None:
-        """The keyboard starts from the driven robot's last command (no jolt): see
-        :func:`taken_over`."""
-        self.keyboard.v, self.keyboard.omega = taken_over(self.last_controls[self.driven],
-                                                          self.keyboard.limits)
-
-    def next_robot(self, step: int = 1) -> str:
-        """Tab: drive the next robot (the one driven so far goes back to its driver); the
-        keyboard takes over the new one's last command. Returns its name."""
-        self.driven = (self.driven + step) % self.n_robots
-        if self.autopilot and not self.has_autopilot:
-            self.autopilot = False
-        if not self.autopilot:
-            self._take_over()
-        return self.driven_name
-
-    def next_control(self) -> Control:
-        """The driven robot's command for the next tick."""
-        if self.autopilot:
-            sim = self.sim.sims[self.driven]
-            return sim.driver.control(sim.time, sim.pose)
-        return self.keyboard.control
-
-    @property
-    def drive_mode(self) -> str:
-        """Who drives, for the panel."""
-        return "AUTOPILOT (M)" if self.autopilot else "keyboard WASD, X stop"
 
     # --- what a window reads (the Scene protocol) -------------------------------------------
     # With a worker the scene is the tick shown (the filters' latest finished tick, a frame
@@ -593,16 +547,6 @@ class Session(WorkerTicks, FilterSwapping):
         if self.recorder is not None:
             self.recorder.close()
             self.recorder = None
-
-
-def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
-    """``(v, omega)`` the keyboard starts from when it takes over command ``c``: each rounded
-    to the nearest multiple of its step (``v_step``, ``omega_step``), clamped to the limits."""
-    v = round(c.v / limits.v_step) * limits.v_step
-    w = round(c.omega / limits.omega_step) * limits.omega_step
-    v = round(min(max(v, limits.v_min), limits.v_max), 9)
-    w = round(min(max(w, -limits.omega_max), limits.omega_max), 9)
-    return v + 0.0, w + 0.0
 
 
 def make_recorder(scenario: Scenario | TeamScenario, seed: int, specs: list[str],
