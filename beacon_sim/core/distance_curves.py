@@ -41,8 +41,16 @@ def _f_grad(px: float, py: float, b, ref, d: float, h2: float) -> tuple[float, f
 
 
 def _onto(px: float, py: float, b, ref, d, h2) -> tuple[float, float] | None:
+    """Newton steps from (px, py) onto the curve (``_f_grad`` written out: the hot loop)."""
+    bx, by = b
+    rx, ry = ref
     for _ in range(20):
-        f, gx, gy = _f_grad(px, py, b, ref, d, h2)
+        ux, uy = px - bx, py - by
+        vx, vy = px - rx, py - ry
+        rb = math.sqrt(ux * ux + uy * uy + h2)
+        rr = math.sqrt(vx * vx + vy * vy + h2)
+        mb, mr = max(rb, 1e-12), max(rr, 1e-12)
+        f, gx, gy = rb - rr - d, ux / mb - vx / mr, uy / mb - vy / mr
         gg = gx * gx + gy * gy
         if gg < 1e-18:
             return None
