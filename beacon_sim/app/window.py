@@ -418,7 +418,7 @@ class App(WindowActions, FilterReloading):
             if self._on_screen == key:
                 return key  # on the screen already
         elif again or (self._world is not None and self._world[0] == key[0] and self.defer_tick()):
-            shown = self._world or self._on_screen
+            shown = self._world or self._on_screen or key  # (again: the one on the screen)
             if self._on_screen != shown:
                 surf.blit(canvas, area, area)  # the previous tick's picture, once more
             self.world_stale = True
