@@ -156,31 +156,35 @@ def draw_scan(surf: pygame.Surface, view, pose, m: Measurement, max_range: float
         hit &= ~through
         z = z.copy()
         z[:, 0] = np.where(through | ~hit, np.minimum(z[:, 0], wall), z[:, 0])
-    px = view.to_px(scan_segments(pose, Measurement(m.sensor, m.kind, z, m.beacon_ids)))
-    for (a, b), h, t in zip(px, hit, through, strict=True):
+    # Python floats and bools from here: a scan's hundreds of beams, each a draw call.
+    px = view.to_px(scan_segments(pose, Measurement(m.sensor, m.kind, z, m.beacon_ids))).tolist()
+    hits, beyond = hit.tolist(), through.tolist()
+    for (a, b), h, t in zip(px, hits, beyond, strict=True):
         if not h and not t:
             pygame.draw.line(surf, BEAM_NONE, a, b, width)
-    for (a, b), t in zip(px, through, strict=True):
+    for (a, b), t in zip(px, beyond, strict=True):
         if t:
             _dashed(surf, BEAM_BEYOND, a, b, max(width, 2))
             pygame.draw.circle(surf, BEAM_BEYOND, (round(b[0]), round(b[1])), max(3, width + 2), 2)
-    for (a, b), h in zip(px, hit, strict=True):
+    for (a, b), h in zip(px, hits, strict=True):
         if h:
             pygame.draw.line(surf, BEAM_HIT, a, b, width)
     dot = max(2, width + 1)
-    for (_, b), h in zip(px, hit, strict=True):
+    for (_, b), h in zip(px, hits, strict=True):
         if h:
             pygame.draw.circle(surf, BEAM_HIT, (round(b[0]), round(b[1])), dot)
 
 
 def _dashed(surf: pygame.Surface, colour, a, b, width: int, on: float = 6.0, off: float = 4.0) -> None:
-    """A dashed straight line from ``a`` to ``b`` [px]."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    length = float(np.hypot(*(b - a)))
+    """A dashed straight line from ``a`` to ``b`` [px] (in plain floats: a scan draws many)."""
+    ax, ay = float(a[0]), float(a[1])
+    dx, dy = float(b[0]) - ax, float(b[1]) - ay
+    length = float(np.hypot(dx, dy))
     if not length > 0:
         return
-    u = (b - a) / length
+    ux, uy = dx / length, dy / length
     t = 0.0
     while t < length:
-        pygame.draw.line(surf, colour, a + u * t, a + u * min(t + on, length), width)
+        e = min(t + on, length)
+        pygame.draw.line(surf, colour, (ax + ux * t, ay + uy * t), (ax + ux * e, ay + uy * e), width)
         t += on + off

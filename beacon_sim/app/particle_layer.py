@@ -53,8 +53,9 @@ class ParticleLayer(Canvas):
             rows = arr.T  # (height, width): C-ordered when the pitch is 4 px a pixel
             if rows.flags.c_contiguous:  # one index per particle, a constant per offset
                 flat, width = rows.reshape(-1), rows.shape[1]
+                every = iy.astype(np.intp) * width + ix  # then one masked pick per layer
                 for mask, col in layers:
-                    at = iy[mask].astype(np.intp) * width + ix[mask]
+                    at = every[mask]
                     value = surf.map_rgb(col)
                     for dx, dy in offsets:
                         flat[at + (dy * width + dx)] = value

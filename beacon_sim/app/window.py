@@ -136,6 +136,7 @@ class App(WindowActions, FilterReloading):
         self._canvas: pygame.Surface | None = None  # the world is drawn here, then blitted
         # a half-drawn picture: its key, the phases generator, the steps done
         self._pending: tuple[tuple, int, Any, int] | None = None
+        self._again = False  # this frame began a picture again (a tick came half way)
         self.world_stale = False  # the screen shows the world one tick behind the session
         # the key of the world's picture on the screen, untouched by anything drawn over it
         # since (a banner, the help...); None when unknown
@@ -392,9 +393,9 @@ class App(WindowActions, FilterReloading):
         when nothing changed; else drawn into the canvas (``WorldRenderer.phases``) and kept.
         A frame that runs a tick after a frame that did not (:meth:`defer_tick`) shows the
         kept picture and draws the first layers of the new one, as many as keep it lighter
-        than the next frame, which draws the rest and shows it. The kept picture is not
-        blitted when the screen still holds it (:attr:`_on_screen`). Returns the key of the
-        picture shown."""
+        than the next frame, which draws the rest and shows it (so too when a tick comes half
+        way, once in a row). The kept picture is not blitted when the screen still holds it
+        (:attr:`_on_screen`). Returns the key of the picture shown."""
         area = pygame.Rect(self.view.area).clip(surf.get_rect())
         canvas = self._canvas
         if canvas is None or canvas.get_size() != surf.get_size():
@@ -404,6 +405,8 @@ class App(WindowActions, FilterReloading):
                 self._pending[2].close()
                 self._pending = None
         pending, self._pending = self._pending, None
+        self._again = again = (pending is not None and pending[:2] != key and not self._again
+                               and self._on_screen is not None and self._on_screen[0] == key[0])
         if pending is not None:
             if pending[:2] == key:
                 self._run_phases(pending[2], pending[3], PHASES)  # the rest, same state
@@ -414,8 +417,8 @@ class App(WindowActions, FilterReloading):
             self.world_stale = False
             if self._on_screen == key:
                 return key  # on the screen already
-        elif self._world is not None and self._world[0] == key[0] and self.defer_tick():
-            shown = self._world
+        elif again or (self._world is not None and self._world[0] == key[0] and self.defer_tick()):
+            shown = self._world or self._on_screen or key  # (again: the one on the screen)
             if self._on_screen != shown:
                 surf.blit(canvas, area, area)  # the previous tick's picture, once more
             self.world_stale = True

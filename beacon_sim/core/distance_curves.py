@@ -28,23 +28,37 @@ def range_circle(bxy, measured: float, height: float, n: int = 96) -> np.ndarray
     return np.asarray(bxy, dtype=float) + math.sqrt(r2) * np.stack([np.cos(t), np.sin(t)], 1)
 
 
-def _f_grad(p: np.ndarray, b: np.ndarray, ref: np.ndarray, d: float, h2: float) -> tuple[float, np.ndarray]:
-    u, v = p - b, p - ref
-    rb = math.sqrt(float(u @ u) + h2)
-    rr = math.sqrt(float(v @ v) + h2)
-    return rb - rr - d, u / max(rb, 1e-12) - v / max(rr, 1e-12)
+def _f_grad(px: float, py: float, b, ref, d: float, h2: float) -> tuple[float, float, float]:
+    """The residual ``r_b - r_ref - d`` [m] at (px, py) and its gradient (x, y), in plain
+    floats: the tracer calls this some thousands of times a curve (numpy's per-call cost
+    would be most of it)."""
+    ux, uy = px - b[0], py - b[1]
+    vx, vy = px - ref[0], py - ref[1]
+    rb = math.sqrt(ux * ux + uy * uy + h2)
+    rr = math.sqrt(vx * vx + vy * vy + h2)
+    mb, mr = max(rb, 1e-12), max(rr, 1e-12)
+    return rb - rr - d, ux / mb - vx / mr, uy / mb - vy / mr
 
 
-def _onto(p: np.ndarray, b, ref, d, h2) -> np.ndarray | None:
+def _onto(px: float, py: float, b, ref, d, h2) -> tuple[float, float] | None:
+    """Newton steps from (px, py) onto the curve (``_f_grad`` written out: the hot loop)."""
+    bx, by = b
+    rx, ry = ref
     for _ in range(20):
-        f, g = _f_grad(p, b, ref, d, h2)
-        gg = float(g @ g)
+        ux, uy = px - bx, py - by
+        vx, vy = px - rx, py - ry
+        rb = math.sqrt(ux * ux + uy * uy + h2)
+        rr = math.sqrt(vx * vx + vy * vy + h2)
+        mb, mr = max(rb, 1e-12), max(rr, 1e-12)
+        f, gx, gy = rb - rr - d, ux / mb - vx / mr, uy / mb - vy / mr
+        gg = gx * gx + gy * gy
         if gg < 1e-18:
             return None
-        p = p - (f / gg) * g
+        k = f / gg
+        px, py = px - k * gx, py - k * gy
         if abs(f) < 1e-9:
-            return p
-    return p if abs(_f_grad(p, b, ref, d, h2)[0]) < 1e-6 else None
+            return px, py
+    return (px, py) if abs(_f_grad(px, py, b, ref, d, h2)[0]) < 1e-6 else None
 
 
 def difference_curve(ref_xy, b_xy, d: float, height: float, near_xy, length: float,
@@ -52,28 +66,30 @@ def difference_curve(ref_xy, b_xy, d: float, height: float, near_xy, length: flo
     """Points (k, 2) [m] of the curve ``r_b - r_ref = d`` through the point nearest
     ``near_xy``, ``length`` metres each way; None when no such curve is near (|d| larger
     than the beacons' separation allows, or a flat spot)."""
-    b, ref = np.asarray(b_xy, dtype=float), np.asarray(ref_xy, dtype=float)
+    b = tuple(float(v) for v in np.asarray(b_xy, dtype=float)[:2])
+    ref = tuple(float(v) for v in np.asarray(ref_xy, dtype=float)[:2])
     h2 = height * height
     step = step or length / 80.0
-    p0 = _onto(np.asarray(near_xy, dtype=float).copy(), b, ref, d, h2)
+    near = np.asarray(near_xy, dtype=float)
+    p0 = _onto(float(near[0]), float(near[1]), b, ref, d, h2)
     if p0 is None:
         return None
     sides = []
     for sign in (1.0, -1.0):
-        pts, p = [], p0
+        pts, (px, py) = [], p0
         for _ in range(int(length / step)):
-            _, g = _f_grad(p, b, ref, d, h2)
-            t = np.array([-g[1], g[0]]) * sign
-            nt = math.hypot(t[0], t[1])
+            _, gx, gy = _f_grad(px, py, b, ref, d, h2)
+            tx, ty = -gy * sign, gx * sign
+            nt = math.hypot(tx, ty)
             if nt < 1e-12:
                 break
-            q = _onto(p + step * t / nt, b, ref, d, h2)
+            q = _onto(px + step * tx / nt, py + step * ty / nt, b, ref, d, h2)
             if q is None:
                 break
-            p = q
-            pts.append(p)
+            px, py = q
+            pts.append(q)
         sides.append(pts)
-    return np.array(sides[1][::-1] + [p0] + sides[0])
+    return np.array(sides[1][::-1] + [p0] + sides[0], dtype=float)
 
 
 def floor_hdop(kind: str, bounds, bxy, height: float, nx: int = 64, ny: int = 48

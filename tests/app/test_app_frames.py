@@ -111,6 +111,31 @@ def test_every_frame_shows_the_present_or_the_previous_ticks_picture():
         app.close()
 
 
+def test_a_tick_that_comes_half_way_through_a_picture_is_spread_over_two_frames_too():
+    """A frame whose tick lands while the previous tick's picture is half drawn keeps the
+    picture before on the screen and draws only part of the new one (not all of it in one
+    frame), once in a row; the frame after shows the present, as drawn from scratch."""
+    app = make_app(smooth=True)
+    try:
+        for _ in range(12):
+            app.frame(SCRIPTED_FRAME_S)
+        while app._pending is not None:
+            app.frame(SCRIPTED_FRAME_S)
+        while app._pending is None:  # a tick's picture begun, the one before on the screen
+            before = world_pixels(app)
+            app.frame(SCRIPTED_FRAME_S)
+        assert app.world_stale
+        app.frame(app.session.scenario.dt)  # another tick lands half way
+        assert app.ticks_this_frame == 1
+        assert app._pending is not None and app._pending[3] < 5  # part of the new picture
+        assert app.world_stale and np.array_equal(world_pixels(app), before)
+        app.frame(app.session.scenario.dt)  # and another at once: not spread twice in a row
+        assert app._pending is None
+        assert np.array_equal(world_pixels(app), fresh_world(app))
+    finally:
+        app.close()
+
+
 def test_the_world_is_drawn_as_without_smooth_and_a_screenshot_shows_the_present(tmp_path):
     plain, smooth = make_app(smooth=False), make_app(smooth=True)
     try:
