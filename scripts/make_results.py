@@ -1221,6 +1221,103 @@ def fig_kf_consistency(ctx: Context) -> Figure:
     return Figure(md, checks)
 
 
+# ---- outliers on ``default`` (docs/evaluation.md) ---------------------------------------
+
+#: The share of readings that are outliers in the outlier figure (``sensors.0.outlier_rate``).
+OUTLIER_RATE = 0.2
+
+
+def fig_outliers(ctx: Context) -> Figure:
+    """``default`` with a fifth of its readings outliers (declared to the filters): the EKF
+    with its chi-square gate and without, and the particle filter's outlier mixture."""
+    from beacon_sim.api import load_scenario as load_changed
+
+    sc = load_changed("default", {"sensors.0.outlier_rate": OUTLIER_RATE})
+    flt = [f for f in ("ekf", "nogate=ekf", "pf") if f.split("=")[-1] in ctx.have]
+    k = 12
+    params = {"nogate": {**sc.filter_params.get("ekf", {}), "gate_chi2": 0.0}}
+    _, meta, _ = run(sc, flt, ctx.n(k), ctx.jobs, params=params, seed=ctx.seed)
+    checks: dict[str, Check] = {}
+    rows = []
+    for f, label in (("ekf", "ekf, gated at the 99 % point (default)"),
+                     ("nogate", "ekf, `gate_chi2 = 0` (no gate)"), ("pf", "pf, outlier mixture")):
+        if f not in meta["filters"]:
+            continue
+        r = meta["filters"][f]
+        iv = r.get("intervals") or {}
+        checks[f"{f} RMSE/PCRB"] = (r["rmse_over_pcrb"], iv.get("rmse_over_pcrb"))
+        checks[f"{f} ANEES"] = (r["anees"], iv.get("anees"))
+        rows.append(f"| {label} | {with_iv(r['rmse_over_pcrb'], iv.get('rmse_over_pcrb'), '.2f')} "
+                    f"| {with_iv(r['anees'], iv.get('anees'), '.3g')} | {r['anees_verdict']} |")
+    lo, hi = next(iter(meta["filters"].values()))["anees_band"]
+    return Figure([
+        f"`default` with `outlier_rate = {OUTLIER_RATE:g}` in its sensor (a fifth of the readings "
+        f"replaced by a uniformly random, wrong one; the filters are told the rate), {ctx.n(k)} "
+        f"runs of {sc.duration:g} s, seeds {ctx.seeds(k)} (`beacon_sim.evaluate(beacon_sim."
+        f"load_scenario('default', {{'sensors.0.outlier_rate': {OUTLIER_RATE:g}}}), ...)`; the "
+        "second row with "
+        f"`--set ekf.gate_chi2=0`); ANEES band [{lo:.2f}, {hi:.2f}]. Brackets: 95 % bootstrap "
+        "intervals over the runs. What it shows is discussed in [evaluation.md]"
+        "(evaluation.md#the-columns).", "",
+        "| filter | RMSE/PCRB | ANEES | verdict |", "|---|---|---|---|", *rows, ""], checks)
+
+
+# ---- the window's NEES badge (docs/window.md) -------------------------------------------
+
+#: Simulated hours per seed of the NEES-badge figure.
+ALARM_HOURS = 1.0
+
+
+def poisson_rate_interval(k: int, hours: float) -> list[float]:
+    """The 95 % (Garwood, exact) interval [lo, hi] of an event rate per hour from ``k``
+    events in ``hours``."""
+    from beacon_sim.core.metrics import chi2_quantile
+
+    lo = chi2_quantile(0.025, 2 * k) / 2.0 if k > 0 else 0.0
+    return [lo / hours, chi2_quantile(0.975, 2 * k + 2) / 2.0 / hours]
+
+
+def alarm_seed(seed: int):
+    """``benchmarks/bench_nees_alarm.py``'s count for one seed: the EKF on ``default``."""
+    from beacon_sim.runs.nees_alarm import count_alarms
+
+    return count_alarms(load_scenario("default"), "ekf", seed, ALARM_HOURS * 3600.0)
+
+
+def fig_nees_alarm(ctx: Context) -> Figure:
+    """How often the window's NEES badge comes on for a consistent filter (the EKF on
+    ``default``), the 20 s windowed verdict against the per-tick band it replaced."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from beacon_sim.runs.scene import NEES_BAND
+
+    n = ctx.n(4)
+    seeds = list(range(ctx.seed, ctx.seed + n))
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        counts = list(pool.map(alarm_seed, seeds))
+    hours = sum(c.hours for c in counts)
+    checks: dict[str, Check] = {}
+    rows = []
+    for what, k in (("windowed badge (the panel's)", sum(c.windowed for c in counts)),
+                    ("... of them high (overconfident)", sum(c.high for c in counts)),
+                    ("per-tick badge (the old one)", sum(c.per_tick for c in counts))):
+        iv = poisson_rate_interval(k, hours)
+        checks[f"{what.split(' (')[0]}: alarms per hour"] = (k / hours, iv)
+        rows.append(f"| {what} | {k} | {with_iv(k / hours, iv, '.3g')} |")
+    per_seed = ", ".join(f"{s}: {c.windowed}" for s, c in zip(seeds, counts, strict=True))
+    return Figure([
+        f"The EKF on `default` (its driver, the scenario's noise, the filter told the true "
+        f"models), {ALARM_HOURS:g} h of simulated driving on each of {n} seeds, seeds "
+        f"{ctx.seeds(4)} (`python benchmarks/bench_nees_alarm.py --seeds {' '.join(map(str, seeds))}`). "
+        "The panel's badge judges the mean NEES over the last 20 s against the 99 % band for 10 "
+        "values; the old one judged each tick's NEES against its 95 % band "
+        f"[{NEES_BAND[0]:.2f}, {NEES_BAND[1]:.2f}]; an alarm is a verdict that comes on. "
+        "Brackets: exact (Garwood) 95 % Poisson intervals (alarms that come in bursts make "
+        f"them too narrow). Windowed alarms per seed: {per_seed}. What it shows is discussed "
+        "in [window.md](window.md#what-is-drawn).", "",
+        "| badge | alarms | per hour |", "|---|---|---|", *rows, ""], checks)
+
+
 def fig_global_kidnap(ctx: Context) -> Figure:
     """Global localization and two random kidnaps (``global_kidnap``): pf and histogram."""
     md: list[str] = []
@@ -1236,6 +1333,174 @@ def fig_global_kidnap(ctx: Context) -> Figure:
            *md_table(meta), ""]
     md += drawn(ctx, sc, curves, meta, "global_kidnap")
     return Figure(md, table_checks(meta, rs))
+
+
+# ---- the particle filter's own figures (docs/particle-and-grid.md) ----------------------
+
+def run_rmse(rs, name: str) -> np.ndarray:
+    """Each run's position RMSE [m] of filter ``name`` (steps with an estimate)."""
+    err = np.stack([r.filters[name].err for r in rs])
+    return np.sqrt(np.nanmean(err[..., 0] ** 2 + err[..., 1] ** 2, axis=1))
+
+
+def fig_pf_default(ctx: Context) -> Figure:
+    """The particle filter on ``default`` against the EKF, with augmented MCL's injection as
+    shipped and switched off: RMSE/PCRB, the worst run against the EKF, the largest error."""
+    sc = load_scenario("default")
+    flt = [f for f in ("ekf", "pf", "noinject=pf") if f.split("=")[-1] in ctx.have]
+    k = 20
+    # a labelled filter is not given the scenario's [filters.pf]: give it them, then the change
+    params = {"noinject": {**sc.filter_params.get("pf", {}), "augmented": False}}
+    rs, meta, _ = run(sc, flt, ctx.n(k), ctx.jobs, params=params, seed=ctx.seed)
+    ekf = run_rmse(rs, "ekf")
+    checks: dict[str, Check] = {}
+    rows = []
+    for f, label in (("ekf", "ekf"), ("pf", "pf (augmented MCL, as shipped)"),
+                     ("noinject", "pf, `augmented = false`")):
+        if f not in meta["filters"]:
+            continue
+        r = meta["filters"][f]
+        iv = (r.get("intervals") or {}).get("rmse_over_pcrb")
+        checks[f"{f} RMSE/PCRB"] = (r["rmse_over_pcrb"], iv)
+        per = run_rmse(rs, f)
+        ratio = per / ekf
+        worst = int(np.argmax(ratio))
+        err = np.stack([x.filters[f].err for x in rs])
+        peak = float(np.nanmax(np.hypot(err[..., 0], err[..., 1])))
+        if f == "ekf":
+            against = "- | -"
+        else:
+            checks[f"{f} mean of per-run RMSE / EKF's"] = (float(ratio.mean()), mean_interval(ratio))
+            against = (f"{with_iv(float(ratio.mean()), mean_interval(ratio), '.3f')} "
+                       f"| {ratio[worst]:.2f} (seed {rs[worst].seed}: {per[worst]:.3f} m against "
+                       f"{ekf[worst]:.3f} m)")
+        rows.append(f"| {label} | {with_iv(r['rmse_over_pcrb'], iv, '.2f')} | {against} "
+                    f"| {peak:.2f} | {r['anees']:.2f} |")
+    return Figure([
+        f"`default` as shipped (2,000 particles, the scenario's `temper_ess = 0.25`), {ctx.n(k)} "
+        f"runs of {sc.duration:g} s, seeds {ctx.seeds(k)} (`beacon-sim eval default --filter ekf "
+        f"--filter pf --runs {ctx.n(k)} --seed {ctx.seed}`; the last row with `--set "
+        "pf.augmented=false`). Per run, the PF's position RMSE over the EKF's on the same run; "
+        "the largest position error of any step of any run. Brackets: 95 % bootstrap intervals "
+        "over the runs. What it shows is discussed in [particle-and-grid.md]"
+        "(particle-and-grid.md#pf-monte-carlo-localization-beacon_simfiltersparticlepfpy).", "",
+        "| filter | RMSE/PCRB | per-run RMSE / EKF's, mean | worst run / EKF's | largest error [m] | ANEES |",
+        "|---|---|---|---|---|---|", *rows, ""], checks)
+
+
+def fig_pf_tempering(ctx: Context) -> Figure:
+    """The particle filter on ``assignment_kf`` with and without progressive correction
+    (``temper_ess``): ANEES, its median run, the runs whose NEES passes 100 and 1,000."""
+    sc = load_scenario("assignment_kf")
+    flt = [f for f in ("ekf", "pf", "untempered=pf") if f.split("=")[-1] in ctx.have]
+    k = 30
+    params = {"untempered": {**sc.filter_params.get("pf", {}), "temper_ess": 0.0}}
+    rs, meta, _ = run(sc, flt, ctx.n(k), ctx.jobs, params=params, seed=ctx.seed)
+    for name, r in meta["filters"].items():
+        r["pos_rmse_interval"] = pos_rmse_interval(rs, name)
+    checks: dict[str, Check] = {}
+    rows = []
+    for f, label in (("pf", "pf, `temper_ess = 0.25` (as shipped)"), ("untempered", "pf, `temper_ess = 0`"),
+                     ("ekf", "ekf")):
+        if f not in meta["filters"]:
+            continue
+        r = meta["filters"][f]
+        iv = (r.get("intervals") or {}).get("anees")
+        nees = np.stack([x.filters[f].nees for x in rs])
+        per_run = np.nanmean(nees, axis=1)
+        peak = np.nanmax(nees, axis=1)
+        over100, over1000 = int((peak > 100).sum()), int((peak > 1000).sum())
+        checks[f"{f} ANEES"] = (r["anees"], iv)
+        checks[f"{f} pos RMSE [m]"] = (r["pos_rmse_m"], r.get("pos_rmse_interval"))
+        checks[f"{f} runs with a NEES above 100 (of {len(rs)})"] = (
+            over100 / len(rs), wilson_interval(over100, len(rs)))
+        rows.append(f"| {label} | {with_iv(r['anees'], iv, '.3g')} | {r['anees_verdict']} "
+                    f"| {np.median(per_run):.2f} | {over100} | {over1000} "
+                    f"| {with_iv(r['pos_rmse_m'], r.get('pos_rmse_interval'), '.3f')} |")
+    lo, hi = next(iter(meta["filters"].values()))["anees_band"]
+    return Figure([
+        f"`assignment_kf` as shipped, {ctx.n(k)} runs x {sc.duration:g} s, seeds {ctx.seeds(k)} "
+        f"(`beacon-sim eval assignment_kf --filter ekf --filter pf --runs {ctx.n(k)} --seed "
+        f"{ctx.seed}`, the second PF row with `--set pf.temper_ess=0`); 2,000 particles; ANEES "
+        f"band [{lo:.2f}, {hi:.2f}]. Per run: the mean NEES (its median over runs) and whether any "
+        "step's NEES passes 100 or 1,000. Brackets: 95 % bootstrap intervals over the runs. What "
+        "it shows is discussed in [particle-and-grid.md]"
+        "(particle-and-grid.md#progressive-correction-on-assignment_kf).", "",
+        "| filter | ANEES | verdict | median run's mean NEES | runs with NEES > 100 | > 1,000 "
+        "| pos RMSE [m] |",
+        "|---|---|---|---|---|---|---|", *rows, ""], checks)
+
+
+#: ``tests/filters/test_global_kidnap.py``'s trial: localised start, one random kidnap at
+#: ``KIDNAP_TRIAL_S`` [s], recovered when the error stays under 0.5 m for 5 s within
+#: ``KIDNAP_ALLOWED_S`` [s].
+KIDNAP_TRIAL_S = 5.0
+KIDNAP_ALLOWED_S = 15.0
+#: The trial's filter settings: (filter, parameters over the scenario's, label).
+KIDNAP_CASES = (
+    ("pf", None, "pf, the scenario's settings (KLD 1,000-10,000, roughening 1)"),
+    ("histogram", None, "histogram, defaults"),
+    ("pf", {"adaptive": "off", "roughen": 0.0}, "pf, library defaults (2,000 fixed, no roughening)"),
+    ("pf", {"adaptive": "off", "roughen": 0.0, "augmented": False},
+     "pf, library defaults without augmented MCL"),
+)
+
+
+def kidnap_trial(args: tuple[int, int]) -> float:
+    """Recovery time [s] (inf if none) of ``KIDNAP_CASES[case]`` on ``global_kidnap`` with
+    one random kidnap, seed ``seed``."""
+    from beacon_sim.core.events import Kidnap
+    from beacon_sim.core.scenario import InitialBelief
+    from beacon_sim.evaluation.metrics import recovery_times
+    from beacon_sim.runs.headless import run_headless
+
+    case, seed = args
+    name, params, _ = KIDNAP_CASES[case]
+    base = load_scenario("global_kidnap")
+    sc = base.with_changes(events=(Kidnap(time=KIDNAP_TRIAL_S, random=True),),
+                           initial_belief=InitialBelief(mean=base.initial_pose, std=(0.1, 0.1, 0.05)))
+    th = Thresholds()
+    r = run_headless(sc, [name], seed=seed, duration=KIDNAP_TRIAL_S + KIDNAP_ALLOWED_S + th.recovery_hold_s,
+                     params={name: params} if params else None)
+    tr = r.runner.tracks[name]
+    if tr.failed is not None:
+        return math.inf
+    err = np.hypot(*(np.array(tr.means)[:, :2] - r.truth[:, :2]).T)
+    kidnaps = [i for i, s in enumerate(r.steps) if s.kidnapped]
+    times = np.array([s.time for s in r.steps])
+    return float(recovery_times(err, times, kidnaps, th.recovery_m, th.recovery_hold_s)[0])
+
+
+def fig_kidnap_trials(ctx: Context) -> Figure:
+    """One random kidnap on ``global_kidnap`` from a localised start: the trials recovered
+    within 15 s for the scenario's pf, the grid filter, and the pf without its settings."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    n = ctx.n(40)
+    seeds = list(range(ctx.seed, ctx.seed + n))
+    cases = [i for i, (f, _, _) in enumerate(KIDNAP_CASES) if f in ctx.have]
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        times = list(pool.map(kidnap_trial, [(c, s) for c in cases for s in seeds]))
+    checks: dict[str, Check] = {}
+    rows = []
+    for j, c in enumerate(cases):
+        t = np.array(times[j * n:(j + 1) * n])
+        ok = t <= KIDNAP_ALLOWED_S
+        k = int(ok.sum())
+        label = KIDNAP_CASES[c][2]
+        checks[f"{label}: trials recovered (of {n})"] = (k / n, wilson_interval(k, n))
+        missed = [str(s) for s, good in zip(seeds, ok, strict=True) if not good]
+        rows.append(f"| {label} | {wilson(k, n)} | {np.median(t):.1f} "
+                    f"| {'all' if k == 0 else ', '.join(missed) or 'none'} |")
+    return Figure([
+        f"`global_kidnap` with the trial of `tests/filters/test_global_kidnap.py`: a localised "
+        f"start (std 0.1 m, 0.1 m, 0.05 rad), one random kidnap at {KIDNAP_TRIAL_S:g} s; a trial "
+        f"*recovers* when the position error falls below 0.5 m within {KIDNAP_ALLOWED_S:g} s and "
+        f"stays there 5 s. {n} trials per filter, seeds {ctx.seeds(40)}. Brackets: 95 % Wilson "
+        "intervals. What it shows is discussed in [particle-and-grid.md]"
+        "(particle-and-grid.md#global_kidnap-global-localization-with-a-short-sighted-sensor).", "",
+        "| filter | trials recovered within 15 s | median recovery [s] | trials that did not (seeds) |",
+        "|---|---|---|---|", *rows, ""], checks)
 
 
 def fig_corridor_mcl(ctx: Context) -> Figure:
@@ -1860,6 +2125,47 @@ def fig_smoothing(ctx: Context) -> Figure:
     return Figure(md, checks)
 
 
+# ---- graph SLAM on slam_loop (docs/smoothing.md) -----------------------------------------
+
+def fig_graph_slam(ctx: Context) -> Figure:
+    """Graph SLAM (Gauss-Newton over the whole drive) against EKF-SLAM and odometry on
+    ``slam_loop``: the ATE at the graph's pose ticks, pooled over runs, and the map GOSPA."""
+    from beacon_sim.core.team_scenario import load_any_scenario
+    from beacon_sim.evaluation.graph_slam_run import PEER, run_sums, solve_drive
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+
+    sc = load_any_scenario("slam_loop").robots[0].scenario
+    k = 20
+    t0 = time.process_time()
+    sums = []
+    for seed in range(ctx.seed, ctx.seed + ctx.n(k)):
+        res, dg, solver, _ = solve_drive(sc, seed, None)
+        sums.append(run_sums(sc, res, dg, solver))
+    cpu = time.process_time() - t0
+    n = np.array([s["n"] for s in sums], dtype=float)
+    checks: dict[str, Check] = {}
+    rows = []
+    for key, label in (("graph", "graph SLAM (Gauss-Newton)"), (PEER, "EKF-SLAM"), ("odometry", "odometry")):
+        v = np.array([s[key] for s in sums], dtype=float)
+        ate, iv = float(np.sqrt(v.sum() / n.sum())), ratio_of_sums(v, n, sqrt=True)
+        checks[f"{key} ATE [m]"] = (ate, iv)
+        cell = "-"
+        if f"{key}_gospa" in sums[0]:
+            g = [s[f"{key}_gospa"] for s in sums]
+            checks[f"{key} map GOSPA [m]"] = (float(np.mean(g)), mean_interval(g))
+            cell = with_iv(float(np.mean(g)), mean_interval(g), ".3f")
+        rows.append(f"| {label} | {with_iv(ate, iv, '.3f')} | {cell} |")
+    return Figure([
+        f"`slam_loop`, {ctx.n(k)} runs, seeds {ctx.seeds(k)} (`python scripts/graph_slam_results.py "
+        f"--first-seed {ctx.seed} --runs {ctx.n(k)}`, {cpu:.0f} s of CPU here): graph SLAM solves "
+        "the whole drive's factor graph by Gauss-Newton; EKF-SLAM and odometry on the same "
+        "drive. ATE: the position error at the graph's pose ticks, pooled over the runs; map "
+        "GOSPA (c = 1 m): the final map against the beacons, the mean over runs. Brackets: 95 % "
+        "bootstrap intervals over the runs. What it shows is discussed in [smoothing.md]"
+        "(smoothing.md#from-a-drive).", "",
+        "| estimate on `slam_loop` | ATE [m] | map GOSPA [m] |", "|---|---|---|", *rows, ""], checks)
+
+
 @dataclasses.dataclass(frozen=True)
 class Entry:
     """A section of results.md: its name (``--only NAME``), its heading, the function that
@@ -1887,7 +2193,17 @@ FIGURES: tuple[Entry, ...] = (
                         "against three", fig_assignment),
     Entry("kf_consistency", "## The KF against the EKF: where A = I matters", fig_kf_consistency,
           quoted_in=("filters.md",)),
+    Entry("outliers", "## Outliers on `default`: the EKF's gate and the particle filter's mixture",
+          fig_outliers, quoted_in=("evaluation.md",)),
+    Entry("nees_alarm", "## The window's NEES badge: false alarms on a consistent EKF", fig_nees_alarm,
+          quoted_in=("window.md",)),
     Entry("global_kidnap", "## Global localization and kidnaps: `global_kidnap`", fig_global_kidnap),
+    Entry("kidnap_trials", "## One random kidnap on `global_kidnap`: recovery within 15 s",
+          fig_kidnap_trials, quoted_in=("particle-and-grid.md",)),
+    Entry("pf_default", "## The particle filter on `default`: augmented MCL against the EKF",
+          fig_pf_default, quoted_in=("particle-and-grid.md",)),
+    Entry("pf_tempering", "## Progressive correction: the particle filter on `assignment_kf`",
+          fig_pf_tempering, quoted_in=("particle-and-grid.md",)),
     Entry("standstill", STANDSTILL_HEADER, fig_standstill),
     Entry("corridor", CORRIDOR_HEADER, fig_corridor),
     Entry("corridor_global", "## Global localization in the `corridor`: mcl and the corridor filter",
@@ -1915,6 +2231,8 @@ FIGURES: tuple[Entry, ...] = (
     Entry("association", ASSOCIATION_HEADER, fig_mrclam_association, seeded=False),
     Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),
     Entry("smoothing", SMOOTHING_HEADER, fig_smoothing),
+    Entry("graph_slam", "## Graph SLAM on `slam_loop`: the whole drive at once against EKF-SLAM",
+          fig_graph_slam, quoted_in=("smoothing.md",)),
 )
 
 
