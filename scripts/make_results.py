@@ -1736,6 +1736,50 @@ def fig_office_kidnap(ctx: Context) -> Figure:
         {f"mcl: runs recovered after the kidnap (of {n})": (k / n, wilson_interval(k, n))})
 
 
+#: The office sweep's particle counts and seconds of tracking (before the kidnap at 70 s).
+OFFICE_SWEEP_COUNTS = (250, 1000, 4000, 16000)
+OFFICE_SWEEP_SECONDS = 60.0
+
+
+def office_track(args: tuple[int, int]) -> tuple[float, float]:
+    """``benchmarks/bench_mcl.py``'s ``track``: mcl with a fixed count in the office, one seed."""
+    n, seed = args
+    return helper_module("benchmarks", "bench_mcl").track(n, seed, OFFICE_SWEEP_SECONDS)
+
+
+def fig_office_sweep(ctx: Context) -> Figure:
+    """Error and CPU against the particle count (as Beluga's reports show them): mcl tracking
+    in the office from the scenario's start, fixed counts, the first 60 s."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    n = ctx.n(8)
+    seeds = list(range(ctx.seed, ctx.seed + n))
+    jobs = [(c, s) for c in OFFICE_SWEEP_COUNTS for s in seeds]
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        res = list(pool.map(office_track, jobs))
+    checks: dict[str, Check] = {}
+    rows = []
+    for i, c in enumerate(OFFICE_SWEEP_COUNTS):
+        rmse = np.array([r[0] for r in res[i * n:(i + 1) * n]])
+        cpu = float(np.median([r[1] for r in res[i * n:(i + 1) * n]]))
+        iv = rms_interval(rmse)
+        total = float(np.sqrt(np.mean(rmse ** 2)))
+        checks[f"{c} particles: position RMSE [m]"] = (total, iv)
+        rows.append(f"| {c:,} | {with_iv(total, iv, '.3f')} | {np.median(rmse):.3f} | {rmse.max():.3f} "
+                    f"| {cpu:.2f} |")
+    return Figure([
+        f"`office` as shipped, mcl tracking from the scenario's start with a fixed particle count "
+        f"(`min_particles` = `max_particles`), the first {OFFICE_SWEEP_SECONDS:g} s (before the "
+        f"kidnap), {n} runs per count, seeds {ctx.seeds(8)} (`benchmarks/bench_mcl.py`'s `track`). "
+        "Position RMSE over each run; over the runs its RMS with a 95 % bootstrap interval, the "
+        "median and the worst run; CPU: the median process time of one predict + update with a "
+        "scan (measured on this shared machine, not reproducible). What it shows is discussed "
+        "in [maps.md](maps.md#speed-and-accuracy-benchmarksbench_mclpy).", "",
+        "| particles | position RMSE, RMS over runs [m] | median run [m] | worst run [m] "
+        "| CPU per update [ms] |",
+        "|---|---|---|---|---|", *rows, ""], checks)
+
+
 def symmetric_seed(seed: int) -> dict:
     """One ``symmetric_room`` run as ``scripts/symmetric_room_modes.py`` judges it."""
     return helper_module("scripts", "symmetric_room_modes").one_run((seed, {}))
@@ -2005,6 +2049,90 @@ def fig_fastslam_association(ctx: Context) -> Figure:
         "|---|---|---|---|", *rows, ""], checks)
 
 
+# ---- FastSLAM's reported covariance on the benign ring (docs/slam.md) --------------------
+
+def ring_slam_scenario(n_beacons: int, duration: float):
+    """The benign SLAM ring of ``tests/filters/test_fastslam_covariance.py``: a 3 m circle in
+    a 12 m room, ``n_beacons`` on a 4.5 m ring all in view (8 m), range-bearing 0.05 m /
+    0.02 rad at 10 Hz, modest motion noise, no map given, the filters told the true noise."""
+    from beacon_sim.core.scenario import parse_scenario
+
+    beacons = [{"id": i + 1, "x": 6.0 + 4.5 * math.cos(2 * math.pi * i / n_beacons + 0.3),
+                "y": 6.0 + 4.5 * math.sin(2 * math.pi * i / n_beacons + 0.3)} for i in range(n_beacons)]
+    return parse_scenario({
+        "name": "ring_slam", "dt": 0.1, "duration": duration, "seed": 1,
+        "world": {"bounds": [0.0, 0.0, 12.0, 12.0], "beacons": beacons},
+        "robot": {"initial_pose": [9.0, 6.0, math.pi / 2],
+                  "motion_noise": {"v_std": 0.02, "v_frac": 0.05, "omega_std": 0.03, "omega_frac": 0.0,
+                                   "pose_std": [0.0, 0.0, 0.0]}},
+        "sensors": [{"name": "beacons", "kind": "range_bearing", "period": 0.1, "max_range": 8.0,
+                     "detection_prob": 1.0, "bearing_std": 0.02, "range_std": 0.05}],
+        "driver": {"kind": "circle", "radius": 3.0, "speed": 0.5},
+        "initial_belief": {"std": [0.01, 0.01, 0.005]},
+        "model": {"map": "unknown"}}, "ring_slam.toml")
+
+
+#: The ring figure's cases: (filter, parameters, label).
+RING_CASES = (("fastslam", {"n_particles": 50, "covariance": "particles"}, '`fastslam`, `"particles"`'),
+              ("fastslam", {"n_particles": 50, "covariance": "linearised"}, '`fastslam`, `"linearised"`'),
+              ("ekf_slam", None, "`ekf_slam`"))
+
+
+def ring_seed(seed: int) -> list[tuple[float, int]]:
+    """One seeded 10 s run of the ring per ``RING_CASES``: the final joint NEES and its dof."""
+    from beacon_sim.core.simulation import Simulation
+    from beacon_sim.evaluation.slam_metrics import joint_nees
+    from beacon_sim.hosting.loading import build_filter
+
+    sc = ring_slam_scenario(6, 10.0)
+    truth = {b.id: (b.x, b.y) for b in sc.world.beacons}
+    out = []
+    for spec, params, _ in RING_CASES:
+        flt = build_filter(spec, sc, seed, params=params)
+        sim = Simulation(sc, seed)
+        for _ in range(round(sc.duration / sc.dt)):
+            st = sim.step()
+            flt.predict(st.control, st.dt)
+            flt.update(st.measurements)
+        mu, P, ids = flt.joint()
+        out.append((float(joint_nees(mu, P, ids, st.true_pose, truth)), int(mu.size)))
+    return out
+
+
+def fig_fastslam_ring(ctx: Context) -> Figure:
+    """FastSLAM 2.0's final joint NEES on the benign ring with the particle set's own
+    covariance and with the linearised one, beside EKF-SLAM on the same runs."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from beacon_sim.evaluation.intervals import ratio_of_sums
+    from beacon_sim.evaluation.slam_metrics import joint_anees_band
+
+    n = ctx.n(20)
+    seeds = list(range(ctx.seed, ctx.seed + n))
+    with ProcessPoolExecutor(max(1, ctx.jobs)) as pool:
+        res = list(pool.map(ring_seed, seeds))
+    checks: dict[str, Check] = {}
+    rows = []
+    for j, (_, _, label) in enumerate(RING_CASES):
+        e = np.array([r[j][0] for r in res])
+        d = np.array([r[j][1] for r in res], dtype=float)
+        anees, iv = float(e.sum() / d.sum()), ratio_of_sums(e, d)
+        lo, hi = joint_anees_band(1, int(d.sum()), 0.99)
+        checks[f"{label.replace('`', '')}: joint ANEES per dof"] = (anees, iv)
+        where = "inside" if lo <= anees <= hi else "above" if anees > hi else "below"
+        rows.append(f"| {label} | {with_iv(anees, iv, '.3g')} | {lo:.2f}-{hi:.2f} | {where} |")
+    return Figure([
+        f"The benign ring of `tests/filters/test_fastslam_covariance.py` (a 3 m circle, six "
+        f"beacons on a 4.5 m ring all in view, range-bearing 0.05 m / 0.02 rad, no map given, "
+        f"known IDs), {n} runs of 10 s, seeds {ctx.seeds(20)}; FastSLAM 2.0 with 50 particles and "
+        "each `covariance`, EKF-SLAM on the same runs. The final joint NEES over the pose and "
+        "the six landmarks (15 dof a run), summed over the runs and divided by the summed dof "
+        "(1 for an honest filter), against its 99 % chi-square band. Brackets: 95 % bootstrap "
+        "intervals over the runs. What it shows is discussed in "
+        "[slam.md](slam.md#fastslam-20-fastslam).", "",
+        "| filter | joint ANEES / dof | 99 % band | against it |", "|---|---|---|---|", *rows, ""], checks)
+
+
 #: The map worlds whose bound ``fig_map_bound`` compares mcl with, the runs in each and their length [s].
 MAP_BOUND_SCENARIOS = ("office", "corridor", "symmetric_room")
 MAP_BOUND_RUNS = 10
@@ -2214,6 +2342,8 @@ FIGURES: tuple[Entry, ...] = (
                           "delayed initialisation", fig_bearing_only, quoted_in=("slam.md",)),
     Entry("fastslam_association", "## FastSLAM without IDs: per-particle ML against JCBB on "
                                   "look-alike pairs", fig_fastslam_association, quoted_in=("slam.md",)),
+    Entry("fastslam_ring", "## FastSLAM's reported covariance on a benign ring: the particles' against "
+                           "the linearised", fig_fastslam_ring, quoted_in=("slam.md",)),
     Entry("lookalike", "## Association without IDs: `lookalike_beacons`", fig_lookalike,
           quoted_in=("association.md",)),
     Entry("unknown_ids", "## Association without IDs: `default` with clutter", fig_unknown_ids,
@@ -2222,6 +2352,8 @@ FIGURES: tuple[Entry, ...] = (
           quoted_in=("multi-robot.md",)),
     Entry("office_kidnap", "## Kidnap recovery in the `office`: mcl", fig_office_kidnap,
           quoted_in=("maps.md",)),
+    Entry("office_sweep", "## Tracking in the `office`: mcl's error and cost against its particle count",
+          fig_office_sweep, quoted_in=("maps.md",)),
     Entry("symmetric_room", "## Two clouds in the `symmetric_room`: mcl", fig_symmetric_room,
           quoted_in=("maps.md",)),
     Entry("map_bound", "## The scan bound in the map worlds: mcl against the PCRB", fig_map_bound,
