@@ -57,7 +57,14 @@ from .particles import (
     fig_pf_tempering,
     fig_standstill,
 )
-from .slam import fig_bearing_only, fig_fastslam_association, fig_fastslam_ring, fig_graph_slam, fig_slam_loop
+from .slam import (
+    fig_bearing_only,
+    fig_bearing_ring,
+    fig_fastslam_association,
+    fig_fastslam_ring,
+    fig_graph_slam,
+    fig_slam_loop,
+)
 from .team import fig_team_sparse
 
 
@@ -111,6 +118,8 @@ FIGURES: tuple[Entry, ...] = (
                                   "look-alike pairs", fig_fastslam_association, quoted_in=("slam.md",)),
     Entry("fastslam_ring", "## FastSLAM's reported covariance on a benign ring: the particles' against "
                            "the linearised", fig_fastslam_ring, quoted_in=("slam.md",)),
+    Entry("bearing_ring", "## Bearing-only EKF-SLAM on a benign ring: the parallax threshold and inverse "
+                          "depth", fig_bearing_ring, quoted_in=("slam.md",)),
     Entry("lookalike", "## Association without IDs: `lookalike_beacons`", fig_lookalike,
           quoted_in=("association.md",)),
     Entry("unknown_ids", "## Association without IDs: `default` with clutter", fig_unknown_ids,
