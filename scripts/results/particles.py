@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from beacon_sim.core.scenario import load_scenario
+from beacon_sim.evaluation.montecarlo import run_monte_carlo
 from beacon_sim.evaluation.summary import Thresholds
 
 from .common import (
@@ -270,3 +271,60 @@ def fig_standstill(ctx: Context) -> Figure:
     checks: dict[str, Check] = {}
     md = standstill_section(range(ctx.seed, ctx.seed + ctx.n(20)), checks)[2:]
     return Figure(md, checks)
+
+
+#: The global start's horizon [s] (``global_kidnap``'s first kidnap is at 30 s) and the
+#: error that counts as found [m].
+GLOBAL_START_S = 30.0
+GLOBAL_START_FOUND_M = 0.5
+
+
+def found_time(err: np.ndarray, dt: float) -> float:
+    """The time [s] from which the position error ``err`` (T,) stays below
+    ``GLOBAL_START_FOUND_M`` to the end, inf if it does not end there."""
+    above = np.flatnonzero(~(err < GLOBAL_START_FOUND_M))
+    if above.size == 0:
+        return 0.0
+    return math.inf if above[-1] == err.size - 1 else (above[-1] + 1) * dt
+
+
+def before_kidnap(r) -> int:
+    """The steps of run ``r`` before its first kidnap (all of them without one)."""
+    k = np.flatnonzero(np.asarray(r.kidnapped))
+    return int(k[0]) if k.size else len(r.kidnapped)
+
+
+def fig_global_start(ctx: Context) -> Figure:
+    """``global_kidnap``'s global start: the time until each filter's error stays below 0.5 m,
+    for the PF with and without roughening and the grid filter."""
+    sc = load_scenario("global_kidnap")
+    flt = [f for f in ("pf", "noroughen=pf", "histogram") if f.split("=")[-1] in ctx.have]
+    k = 40
+    params = {"noroughen": {**sc.filter_params.get("pf", {}), "roughen": 0.0}}
+    rs = run_monte_carlo(sc, flt, ctx.n(k), seed=ctx.seed, duration=GLOBAL_START_S, jobs=ctx.jobs,
+                         params=params, progress=True)
+    checks: dict[str, Check] = {}
+    rows = []
+    for f, label in (("pf", "pf, the scenario's settings (KLD, `roughen = 1`)"),
+                     ("noroughen", "pf, `roughen = 0`"), ("histogram", "histogram")):
+        if f not in rs[0].filters:
+            continue
+        t = np.array([found_time(np.hypot(*r.filters[f].err[:before_kidnap(r), :2].T), sc.dt) for r in rs])
+        n = len(t)
+        row = [label]
+        for within in (6.0, 15.0):
+            kk = int((t <= within).sum())
+            checks[f"{f}: runs found within {within:g} s (of {n})"] = (kk / n, wilson_interval(kk, n))
+            row.append(wilson(kk, n))
+        fin = t[np.isfinite(t)]
+        row += [f"{np.median(t):.1f}", f"{fin.max():.1f}" if fin.size else "-"]
+        rows.append("| " + " | ".join(row) + " |")
+    return Figure([
+        f"`global_kidnap` as shipped, the filters started knowing nothing, the first "
+        f"{GLOBAL_START_S:g} s up to the first kidnap, {ctx.n(k)} runs, seeds {ctx.seeds(k)}; "
+        f"the last row but one with `--set pf.roughen=0`. A run is *found* at the time from which "
+        f"the position error stays below {GLOBAL_START_FOUND_M:g} m up to the kidnap. "
+        "Brackets: 95 % Wilson intervals. What it shows is discussed in [particle-and-grid.md]"
+        "(particle-and-grid.md#global_kidnap-global-localization-with-a-short-sighted-sensor).", "",
+        "| filter | found within 6 s | within 15 s | median time [s] | latest of those found [s] |",
+        "|---|---|---|---|---|", *rows, ""], checks)

@@ -52,6 +52,7 @@ from .mrclam import (
 from .particles import (
     STANDSTILL_HEADER,
     fig_global_kidnap,
+    fig_global_start,
     fig_kidnap_trials,
     fig_pf_default,
     fig_pf_tempering,
@@ -100,6 +101,8 @@ FIGURES: tuple[Entry, ...] = (
     Entry("nees_alarm", "## The window's NEES badge: false alarms on a consistent EKF", fig_nees_alarm,
           quoted_in=("window.md",)),
     Entry("global_kidnap", "## Global localization and kidnaps: `global_kidnap`", fig_global_kidnap),
+    Entry("global_start", "## The global start on `global_kidnap`: roughening and the grid filter",
+          fig_global_start, quoted_in=("particle-and-grid.md",)),
     Entry("kidnap_trials", "## One random kidnap on `global_kidnap`: recovery within 15 s",
           fig_kidnap_trials, quoted_in=("particle-and-grid.md",)),
     Entry("pf_default", "## The particle filter on `default`: augmented MCL against the EKF",
