@@ -30,8 +30,9 @@ def kf_prose(rows) -> list[str]:
             f"{ekf['pos_rmse_m']:.3f} m): this cheap robot's slip (1.5 cm per tick) and 30 % "
             "speed noise, which the KF does model, make most of the position's uncertainty in "
             "the blind stretch, and the heading-driven part it leaves out is the smaller one "
-            "(with 5 % speed noise and no slip, before the scenario was tuned for the projector, "
-            "the KF's ANEES was 16; [filters.md](filters.md)).")
+            "(with 5 % speed noise, no slip and 10 cm fixes, as before the scenario was tuned for "
+            "the projector, the heading-driven part dominates: [the KF against the EKF]"
+            "(#the-kf-against-the-ekf-where-a--i-matters)).")
     if "pf" in rows:
         pf = rows["pf"]
         out.append(
