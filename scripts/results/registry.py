@@ -33,6 +33,7 @@ from .gaussian import (
 from .maps import (
     CORRIDOR_HEADER,
     fig_corridor,
+    fig_corridor_ladder,
     fig_corridor_mcl,
     fig_map_bound,
     fig_office_kidnap,
@@ -113,6 +114,8 @@ FIGURES: tuple[Entry, ...] = (
     Entry("corridor", CORRIDOR_HEADER, fig_corridor),
     Entry("corridor_global", "## Global localization in the `corridor`: mcl and the corridor filter",
           fig_corridor_mcl, quoted_in=("maps.md",)),
+    Entry("corridor_ladder", "## The corridor's mcl settings before the shipped ones, on unseen seeds",
+          fig_corridor_ladder, quoted_in=("maps.md",)),
     Entry("slam_loop", "## SLAM on `slam_loop`: EKF-SLAM and FastSLAM 2.0 over seeded runs",
           fig_slam_loop, quoted_in=("slam.md",)),
     Entry("bearing_only", "## Bearing-only SLAM on `slam_bearing_only`: inverse depth against "
