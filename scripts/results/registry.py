@@ -38,6 +38,7 @@ from .maps import (
     fig_map_bound,
     fig_office_kidnap,
     fig_office_sweep,
+    fig_symmetric_before,
     fig_symmetric_room,
     fig_two_rooms,
 )
@@ -138,6 +139,8 @@ FIGURES: tuple[Entry, ...] = (
           fig_office_sweep, quoted_in=("maps.md",)),
     Entry("symmetric_room", "## Two clouds in the `symmetric_room`: mcl", fig_symmetric_room,
           quoted_in=("maps.md",)),
+    Entry("symmetric_before", "## The symmetric room's settings before the shipped ones, on unseen seeds",
+          fig_symmetric_before, quoted_in=("maps.md",)),
     Entry("map_bound", "## The scan bound in the map worlds: mcl against the PCRB", fig_map_bound,
           quoted_in=("maps.md",)),
     Entry("two_rooms", "## Beacons behind walls: `two_rooms`", fig_two_rooms, quoted_in=("maps.md",)),
