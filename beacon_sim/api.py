@@ -30,13 +30,13 @@ from beacon_sim.core.scenario import (
     MAX_TICKS,
     Scenario,
     ScenarioError,
+    TeamScenario,
     parse_scenario,
     read_toml,
     resolve_scenario_path,
 )
 from beacon_sim.core.scenario import load_scenario as _load_scenario
-from beacon_sim.core.team_scenario import TeamScenario
-from beacon_sim.core.team_scenario import load_team_scenario as _load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario as _load_team_scenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.errors import ArgumentTypeError, BeaconSimError, UsageError, short_repr
 from beacon_sim.evaluation import plots

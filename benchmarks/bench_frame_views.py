@@ -9,6 +9,10 @@ time limit switched off (none expected, whatever the load); a last row gives the
 whole run saw and how many rows met their target. With one BLAS thread, as the window
 has. ``--load N`` runs N busy-spinning processes beside it (the row "at load >= 8").
 
+The frames here run the filters in each tick (as ``--frames N`` does); the window itself runs
+them on a worker thread: ``bench_frame_threads.py`` measures its main thread's CPU per frame
+against this way, in the same run.
+
     python benchmarks/bench_frame_views.py [--frames 300] [--sizes 1280x800 1920x1080]
         [--only default office ...] [--load 8]
 """
@@ -33,7 +37,7 @@ limit_blas_threads()  # one BLAS thread, as the window has (``beacon-sim`` sets 
 
 from beacon_sim.app.main import SCRIPTED_FRAME_S, App  # noqa: E402
 from beacon_sim.core.resources import scenario_dir  # noqa: E402
-from beacon_sim.core.team_scenario import load_any_scenario  # noqa: E402
+from beacon_sim.core.scenario import load_any_scenario  # noqa: E402
 from beacon_sim.runs.live import Session  # noqa: E402
 
 #: The heavier commands the docs show, beyond each scenario's defaults: (label, scenario,

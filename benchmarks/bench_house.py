@@ -33,7 +33,7 @@ import json, time
 from beacon_sim.core.threads import limit_blas_threads
 limit_blas_threads()
 from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.runs.headless import run_headless
 from beacon_sim.runs.live import Session
 try:

@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 
-from beacon_sim.core.team_scenario import parse_team_scenario
+from beacon_sim.core.scenario import parse_team_scenario
 from beacon_sim.runs.headless import run_headless
 
 

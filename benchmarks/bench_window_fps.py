@@ -30,7 +30,7 @@ def child(size: str, frames: int, scenario: str) -> None:
     import pygame
 
     from beacon_sim.app.main import App
-    from beacon_sim.core.team_scenario import load_any_scenario
+    from beacon_sim.core.scenario import load_any_scenario
     from beacon_sim.core.threads import limit_blas_threads
     from beacon_sim.runs.live import Session
 

@@ -20,8 +20,7 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 from beacon_sim.app.main import App
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_scenario, load_team_scenario
 from beacon_sim.core.threads import limit_blas_threads
 from beacon_sim.runs.live import Session
 

@@ -35,10 +35,9 @@ import numpy as np
 from beacon_sim.core.drivers import RandomGoalSpec
 from beacon_sim.core.metrics import nees, pose_errors
 from beacon_sim.core.resources import shipped_scenarios
-from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.scenario import load_any_scenario, load_scenario, shipped_team_scenarios
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
-from beacon_sim.core.team_scenario import load_any_scenario, shipped_team_scenarios
 from beacon_sim.hosting.loading import BUILTIN_FILTERS, build_filter, reset_filter
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, validate_estimate
 from beacon_sim.hosting.team_runner import TeamRunner

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario
 from beacon_sim.evaluation.graph_slam_run import PEER, ate_table
 from beacon_sim.evaluation.intervals import text
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario
 from beacon_sim.evaluation.intervals import text
 from beacon_sim.evaluation.smoothing_run import smoothing_monte_carlo
 

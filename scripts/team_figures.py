@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.runs.headless import run_headless
 
 

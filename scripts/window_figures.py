@@ -55,8 +55,7 @@ def make_app(scenario: str, size: tuple[int, int], filters: list[str] | None = N
     """The window on ``filters`` (default: ``scenario``'s default filters), its driver at
     the wheel."""
     from beacon_sim.app.main import App
-    from beacon_sim.core.scenario import load_scenario
-    from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
+    from beacon_sim.core.scenario import is_team_scenario, load_scenario, load_team_scenario
     from beacon_sim.runs.live import Session
 
     if is_team_scenario(scenario):

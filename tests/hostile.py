@@ -265,7 +265,7 @@ def recording_text(tmp: Path) -> str:
 def team_recording_text(tmp: Path) -> str:
     """A short real team recording of ``team_sparse`` (written by the Recorder): the
     keys drive the scout, Tab, a kidnap and a reset."""
-    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.core.scenario import load_team_scenario
     from beacon_sim.runs.live import Session
     from beacon_sim.runs.recorder import Recorder
 

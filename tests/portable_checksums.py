@@ -18,10 +18,9 @@ import numpy as np
 
 from beacon_sim.core import portable_math as pm
 from beacon_sim.core.resources import shipped_scenarios
-from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.scenario import load_scenario, load_team_scenario, shipped_team_scenarios
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
-from beacon_sim.core.team_scenario import load_team_scenario, shipped_team_scenarios
 from beacon_sim.runs.recorder import TeamReadingsHash
 
 #: Ticks of each run in the table (docs/portability.md).

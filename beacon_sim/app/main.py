@@ -13,8 +13,7 @@ from typing import Any
 
 from beacon_sim.app.display import check_display
 from beacon_sim.app.window import SCRIPTED_FRAME_S, App
-from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import Scenario, TeamScenario
 from beacon_sim.runs.live import Session, make_recorder
 
 
@@ -53,6 +52,8 @@ def play(options: PlayOptions) -> int:
     from beacon_sim.app.foxglove import stream
 
     live = stream(session, o.foxglove)
+    if live is not None:  # the stream reads the filters' tracks after each tick: in the tick
+        app.filter_thread = False
     try:
         run_window(app, o)
     finally:

@@ -64,7 +64,12 @@ class FilterReloading:
                     print(res.traceback, file=sys.stderr, end="")
                 print(f"beacon-sim: {res.error}", file=sys.stderr)
 
+    def after_tick(self, step) -> None:
+        raise NotImplementedError  # what the window does after each tick shown (window.App)
+
     def swap_filter(self, name: str, flt) -> str:
-        """Replace a running filter (hot reload of a student's file); says how it caught up."""
+        """Replace a running filter (hot reload of a student's file); says how it caught up.
+        With the filters on a worker, its ticks are finished and shown first."""
         self.world_version += 1
+        self.session.settle(self.after_tick)
         return self.session.replace_filter(name, flt)

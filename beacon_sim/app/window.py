@@ -113,7 +113,14 @@ class App(WindowActions, FilterReloading):
         self.pan_from: tuple[int, int] | None = None
         self.reload_errors: dict[str, str] = {}  # filter name -> last failed reload (one line)
         self.watchers = self._make_watchers(watch_interval)
-        self.ticks_this_frame = 0  # simulation ticks run in the current frame
+        self.ticks_this_frame = 0  # simulation ticks run (with a worker: shown) in the current frame
+        # The filters on a worker thread (``runs/filter_worker``) while run() runs: None,
+        # when the frames are real (not scripted); True / False to say. ``lockstep``: each
+        # frame waits for the worker's ticks and shows them (what a scripted frame shows
+        # without one: the same picture, for tests).
+        self.filter_thread: bool | None = None
+        self.lockstep = False
+        self.owed_s = 0.0  # wall time not yet given to the clock while the worker catches up [s]
         # Freeze the heap after frames (heap.py); run() switches it on for its loop (and
         # unfreezes at its end), so that tests which build many windows in one process do
         # not freeze each other's garbage.
@@ -248,10 +255,17 @@ class App(WindowActions, FilterReloading):
             self.handle(event)
         self.poll_watchers()  # a filter object is swapped here, between ticks
         self.ticks_this_frame = self.ticks_due(real_dt)
-        c0 = time.process_time()
-        for _ in range(self.ticks_this_frame):
-            self.after_tick(self.session.tick())
-        self.tick_cpu = time.process_time() - c0
+        c0 = time.thread_time()
+        if getattr(self.session, "worker", None) is None:
+            for _ in range(self.ticks_this_frame):
+                self.after_tick(self.session.tick())
+        else:  # the filters run on the worker: show the ticks it finished
+            for _ in range(self.ticks_this_frame):
+                self.session.tick()
+            if self.lockstep:
+                self.session.settle_worker()
+            self.ticks_this_frame = self.session.collect(self.after_tick)
+        self.tick_cpu = time.thread_time() - c0
         self.pace.sample(self.now, self.session.time, self.clock.speed, self.clock.paused)
         self.draw()
         if self.gif is not None:
@@ -283,7 +297,16 @@ class App(WindowActions, FilterReloading):
                            + (f": {ev.detail}" if ev.detail else ""))
 
     def ticks_due(self, real_dt: float) -> int:
-        """How many simulation ticks to run this frame."""
+        """How many simulation ticks to run this frame. While the filters' worker has ticks
+        to finish, none: the frame's wall time is kept (``owed_s``) and given to the clock
+        once it has, so a worker slower than real time slows the simulation down as filters
+        run in the tick do (at most ``max_steps_per_frame`` ticks a frame, the rest of the
+        time dropped; the panel's delivered speed says so), and no filter tick is skipped."""
+        if getattr(self.session, "filters_behind", False):
+            if not self.clock.paused:
+                self.owed_s += real_dt
+            return 0
+        real_dt, self.owed_s = real_dt + self.owed_s, 0.0
         return self.clock.advance(real_dt)
 
     def draw(self) -> None:
@@ -410,9 +433,9 @@ class App(WindowActions, FilterReloading):
         else:
             self._run_phases(self.renderer.phases(canvas, *args), 0, PHASES)
             self._world, self.world_stale = key, False
-        c0 = time.process_time()
+        c0 = time.thread_time()
         surf.blit(canvas, area, area)
-        self.blit_cpu += 0.2 * (time.process_time() - c0 - self.blit_cpu)
+        self.blit_cpu += 0.2 * (time.thread_time() - c0 - self.blit_cpu)
         return key
 
     def _run_phases(self, phases, first: int, stop: int) -> int:
@@ -420,13 +443,13 @@ class App(WindowActions, FilterReloading):
         folding each one's CPU time into ``phase_cpu`` (a slow moving average); returns the
         step to go on from."""
         for i in range(first, stop):
-            c0 = time.process_time()
+            c0 = time.thread_time()
             try:
                 next(phases)
             except StopIteration:
                 return PHASES
             finally:
-                self.phase_cpu[i] += 0.2 * (time.process_time() - c0 - self.phase_cpu[i])
+                self.phase_cpu[i] += 0.2 * (time.thread_time() - c0 - self.phase_cpu[i])
         return stop
 
     def world_key(self, drag, steps, bound) -> tuple[tuple, int] | None:
@@ -511,7 +534,8 @@ class App(WindowActions, FilterReloading):
         if self._signals == 2:
             raise KeyboardInterrupt
         try:
-            self.session.close()
+            if self.stop_filter_thread(timeout=2.0):  # a filter that hangs gives up the recording's end
+                self.session.close()
         finally:
             os._exit(128 + signum)
 
@@ -522,6 +546,9 @@ class App(WindowActions, FilterReloading):
         # For the loop only: a later draw() draws everything, a later frame() freezes nothing.
         settle, self.settle_heap = self.settle_heap, True
         smooth, self.smooth = self.smooth, True
+        threaded = not self.scripted if self.filter_thread is None else self.filter_thread
+        if threaded and type(self.session) is Session:  # a live session (not a replay)
+            self.session.start_worker()
         previous = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
@@ -533,7 +560,18 @@ class App(WindowActions, FilterReloading):
                 signal.signal(sig, handler)
             self.smooth, self.settle_heap = smooth, settle
             self.heap.release()  # the loop's frozen heap is collectable again
+            self.stop_filter_thread()
         self.show_present()  # the last frame shows the present, not a tick behind
+
+    def stop_filter_thread(self, timeout: float | None = None) -> bool:
+        """Show the worker's last ticks and run the filters in each tick again (the end of
+        :meth:`run`, a close); with ``timeout`` [s], whether the worker ended in time."""
+        s = self.session
+        if getattr(s, "worker", None) is None:
+            return True
+        if timeout is None:
+            s.settle(self.after_tick)
+        return s.stop_worker(timeout)
 
     def _loop(self, max_frames: int | None) -> None:
         if self.frames == 0:  # the first picture at once, before any tick (t = 0 of a run)
@@ -554,5 +592,6 @@ class App(WindowActions, FilterReloading):
                                     else real_dt)
 
     def close(self) -> None:
+        self.stop_filter_thread()
         self.session.close()
         pygame.display.quit()

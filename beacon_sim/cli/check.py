@@ -21,8 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from beacon_sim.core.files import MAX_SOURCE_BYTES, check_user_file
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
+from beacon_sim.core.scenario import TeamScenario, is_team_scenario, load_scenario, load_team_scenario
 from beacon_sim.hosting.conformance import CheckResult, print_report, run_checks
 from beacon_sim.hosting.containment import SandboxError
 from beacon_sim.hosting.loading import FilterLoadError, load_filter_class

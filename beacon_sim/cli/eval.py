@@ -20,8 +20,7 @@ from typing import Any
 from beacon_sim.cli.common import check_duration
 from beacon_sim.core.arguments import check_simulated_total
 from beacon_sim.core.optional import install_hint
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
+from beacon_sim.core.scenario import is_team_scenario, load_scenario, load_team_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.montecarlo import (
     ClusterError,

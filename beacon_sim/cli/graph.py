@@ -22,7 +22,7 @@ import numpy as np
 
 from beacon_sim.cli.common import check_duration, check_frames
 from beacon_sim.cli.play import parse_size
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.graph_slam_run import PEER, drive, run_sums
 from beacon_sim.filters.graph.graph import FactorGraph

@@ -9,8 +9,13 @@ import shutil
 import textwrap
 
 from beacon_sim.core.resources import shipped_scenarios
-from beacon_sim.core.scenario import Scenario, load_scenario
-from beacon_sim.core.team_scenario import TeamScenario, load_team_scenario, shipped_team_scenarios
+from beacon_sim.core.scenario import (
+    Scenario,
+    TeamScenario,
+    load_scenario,
+    load_team_scenario,
+    shipped_team_scenarios,
+)
 from beacon_sim.filters.team import TEAM_FILTERS
 from beacon_sim.hosting.loading import available_filters
 

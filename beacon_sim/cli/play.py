@@ -7,8 +7,7 @@ import sys
 
 from beacon_sim.cli.common import check_frames, check_set_names, filter_params, print_sensor_notes
 from beacon_sim.core.optional import install_hint
-from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import Scenario, load_any_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.hosting.loading import WINDOW_BUILD_LIMIT_S, FilterLoadError, load_filter_class
 from beacon_sim.hosting.team_specs import check_team_specs

@@ -18,7 +18,7 @@ from beacon_sim.cli.common import (
     print_sensor_notes,
 )
 from beacon_sim.cli.tables import failed_text, fmt, print_run
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario
 from beacon_sim.errors import UsageError
 from beacon_sim.evaluation.association_metrics import association_report
 from beacon_sim.evaluation.slam_run import print_slam_table, slam_figures

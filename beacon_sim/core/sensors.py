@@ -51,7 +51,21 @@ class SensorNoise:
 
 
 @dataclass(frozen=True)
-class SensorSpec:
+class SensorReach:
+    """What every sensor declares, of beacons or of other robots: its ``name`` and ``kind``,
+    ``period`` [s] between readings, ``max_range`` [m], ``fov`` [rad] (centred on the
+    heading) and ``detection_prob`` (each target in reach is read with that probability)."""
+
+    name: str
+    kind: str
+    period: float = 0.1
+    max_range: float = math.inf
+    fov: float = 2.0 * math.pi
+    detection_prob: float = 1.0
+
+
+@dataclass(frozen=True)
+class SensorSpec(SensorReach):
     """One sensor of the robot, as a scenario file describes it.
 
     Attributes
@@ -94,12 +108,6 @@ class SensorSpec:
         ``KindParam``): :meth:`param` reads one.
     """
 
-    name: str
-    kind: str
-    period: float = 0.1
-    max_range: float = math.inf
-    fov: float = 2.0 * math.pi
-    detection_prob: float = 1.0
     outlier_rate: float = 0.0
     min_beacons: int = 1
     beacon_height: float = 0.0

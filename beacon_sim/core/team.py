@@ -24,11 +24,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from beacon_sim.core.angles import wrap
+from beacon_sim.core.scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.simulation import Simulation, scenario_with_slip
 from beacon_sim.core.streams import stream
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS, relative_range_bearing
-from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.types import Control, Measurement, Step
 
 

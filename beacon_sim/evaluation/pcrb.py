@@ -53,12 +53,11 @@ from beacon_sim.core.beam_model import RangeModelParams
 from beacon_sim.core.geometry import hdop
 from beacon_sim.core.raycast import beam_angles
 from beacon_sim.core.scan_jacobian import scan_information
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import RobotSensorSpec, Scenario, TeamScenario, as_team
 from beacon_sim.core.schedule import TickSchedule, tick_schedule
 from beacon_sim.core.sensor_kinds import is_scan, model_of
 from beacon_sim.core.sensors import SensorSpec, in_view, visible_mask
 from beacon_sim.core.team_models import relative_range_bearing, relative_rows
-from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario, as_team
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import broad_gaussian
 from beacon_sim.hosting.loading import initial_belief

@@ -21,7 +21,7 @@ import numpy as np
 from beacon_sim.core.csv_cells import csv_dict_writer, csv_writer
 from beacon_sim.core.files import atomic_write
 from beacon_sim.core.metrics import anees_band
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import TeamScenario
 from beacon_sim.evaluation.montecarlo import TeamRunOutput
 from beacon_sim.evaluation.pcrb import bound_rmse, pcrb, robot_blocks
 from beacon_sim.evaluation.summary import (

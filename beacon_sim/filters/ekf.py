@@ -4,18 +4,5 @@
 Files written against ``beacon_sim.filters.ekf`` keep working: this module only re-exports
 the public names of its new home. New code imports from there."""
 
-from beacon_sim.filters.gaussian.ekf import (
-    GATE_RECHECK,
-    STACKED_ROWS,
-    BatchedEKF,
-    BatchedVelocityGaussian,
-    ExtendedKalmanFilter,
-    Row,
-    VelocityGaussian,
-    predict_moments,
-)
-
-__all__ = [
-    "GATE_RECHECK", "STACKED_ROWS", "BatchedEKF", "BatchedVelocityGaussian", "ExtendedKalmanFilter",
-    "Row", "VelocityGaussian", "predict_moments",
-]
+from beacon_sim.filters.gaussian.ekf import *  # noqa: F403 (the old path re-exports its new home's public names)
+from beacon_sim.filters.gaussian.ekf import __all__ as __all__

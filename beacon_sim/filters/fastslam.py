@@ -4,20 +4,5 @@
 Files written against ``beacon_sim.filters.fastslam`` keep working: this module only re-exports
 the public names of its new home. New code imports from there."""
 
-from beacon_sim.filters.slam.fastslam import (
-    EMPTY,
-    GATED,
-    IGNORED,
-    NEW,
-    FastSLAM2,
-    LinearisedCovariance,
-    inv_det,
-    predictive_distance,
-    proposal_step,
-    without_rows,
-)
-
-__all__ = [
-    "EMPTY", "GATED", "IGNORED", "NEW", "FastSLAM2", "LinearisedCovariance", "inv_det",
-    "predictive_distance", "proposal_step", "without_rows",
-]
+from beacon_sim.filters.slam.fastslam import *  # noqa: F403 (the old path re-exports its new home's public names)
+from beacon_sim.filters.slam.fastslam import __all__ as __all__

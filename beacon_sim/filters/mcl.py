@@ -4,17 +4,5 @@
 Files written against ``beacon_sim.filters.mcl`` keep working: this module only re-exports
 the public names of its new home. New code imports from there."""
 
-from beacon_sim.filters.particle.mcl import (
-    LASER_MODELS,
-    MOTION_TRIES,
-    ROUGHENING_FLOOR,
-    MonteCarloLocalization,
-    kld_bound,
-    open_grid,
-    subsample_beams,
-)
-
-__all__ = [
-    "LASER_MODELS", "MOTION_TRIES", "ROUGHENING_FLOOR", "MonteCarloLocalization", "kld_bound", "open_grid",
-    "subsample_beams",
-]
+from beacon_sim.filters.particle.mcl import *  # noqa: F403 (the old path re-exports its new home's public names)
+from beacon_sim.filters.particle.mcl import __all__ as __all__

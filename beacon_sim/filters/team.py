@@ -41,9 +41,9 @@ import numpy as np
 
 from beacon_sim.core.angles import wrap
 from beacon_sim.core.measurement_models import relative_bearing_scalar
+from beacon_sim.core.scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.streams import filter_stream
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS, relative_rows, teammate_position
-from beacon_sim.core.team_scenario import RobotSensorSpec, TeamScenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.core.world import World
 from beacon_sim.filters.base import Belief, Filter, FilterContext, FilterError, GaussianBelief

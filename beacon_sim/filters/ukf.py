@@ -4,23 +4,5 @@
 Files written against ``beacon_sim.filters.ukf`` keep working: this module only re-exports
 the public names of its new home. New code imports from there."""
 
-from beacon_sim.filters.gaussian.ukf import (
-    MAX_HEADING_OFFSET,
-    BatchedUKF,
-    UnscentedKalmanFilter,
-    cholesky3,
-    correct,
-    correct_low_rank,
-    heading_limited_weights,
-    innovation,
-    innovation_parts,
-    robust_sqrt,
-    sigma_weights,
-    unscented_gate,
-)
-
-__all__ = [
-    "MAX_HEADING_OFFSET", "BatchedUKF", "UnscentedKalmanFilter", "cholesky3", "correct",
-    "correct_low_rank", "heading_limited_weights", "innovation", "innovation_parts", "robust_sqrt",
-    "sigma_weights", "unscented_gate",
-]
+from beacon_sim.filters.gaussian.ukf import *  # noqa: F403 (the old path re-exports its new home's public names)
+from beacon_sim.filters.gaussian.ukf import __all__ as __all__

@@ -184,3 +184,6 @@ def replace_in_runner(runner: FilterRunner, name: str, new_filter: Filter) -> No
     """Put a reloaded filter into a :class:`~beacon_sim.hosting.runner.FilterRunner` under
     ``name`` with a fresh track (no history, not failed, no slow warning)."""
     runner.tracks[name] = FilterTrack(name, new_filter)
+
+
+__all__ = ["FilterFileWatcher", "ReloadResult", "replace_in_runner", "source_of"]

@@ -31,8 +31,8 @@ from typing import Any, cast
 
 import numpy as np
 
+from beacon_sim.core.scenario import TeamScenario
 from beacon_sim.core.team import TeamStep
-from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.core.types import Control, Measurement
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.team import TeamFilter

@@ -16,7 +16,7 @@ from __future__ import annotations
 from functools import partial
 from typing import Any
 
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import TeamScenario
 from beacon_sim.filters.base import FilterError
 from beacon_sim.filters.team import (
     TEAM_FILTERS,

@@ -1,7 +1,7 @@
 """One headless run over N robots: a scenario, a seed, some filters; the figures ``run`` prints.
 
 A single robot is a team of one: :func:`run_headless` takes a single-robot
-:class:`~beacon_sim.core.scenario.Scenario` as :func:`~beacon_sim.core.team_scenario.as_team`
+:class:`~beacon_sim.core.scenario.Scenario` as :func:`~beacon_sim.core.scenario.as_team`
 makes it, and runs every scenario the same way, a
 :class:`~beacon_sim.core.team.TeamSimulation` fed tick by tick to a
 :class:`~beacon_sim.hosting.team_runner.TeamRunner`. A team of one draws from the run's own
@@ -27,9 +27,8 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.metrics import anees_band, nees, pose_errors, summary
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import Scenario, TeamScenario, as_team, team_of_one
 from beacon_sim.core.team import TeamSimulation, TeamStep
-from beacon_sim.core.team_scenario import TeamScenario, as_team, team_of_one
 from beacon_sim.core.types import Step
 from beacon_sim.hosting.guard import NEES_NOT_FINITE
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, FilterRunner, FilterTrack, failure_text
@@ -374,7 +373,7 @@ def run_headless(scenario: Scenario | TeamScenario, filters: list[str] | None = 
                                 "", step.time)
         bar.advance()
     wall = time.perf_counter() - t0
-    checksum = sim.sims[0].truth_checksum if team.solo else sim.truth_checksum
+    checksum = sim.truth_checksum  # a team of one: its robot's own (TeamSimulation)
     result = RunResult(team, seed, steps, runner, wall, sim_ns / 1e9, checksum)
     result.fail_unbounded_nees()
     return result

@@ -3,7 +3,7 @@ side, the keyboard's command for the driven robot, user commands, trails and the
 panel shows (a :class:`~beacon_sim.runs.scene.Scene`).
 
 A single robot is a team of one: :class:`Session` runs any scenario as a team
-(``core.team_scenario.as_team``), its :class:`~beacon_sim.core.team.TeamSimulation` and a
+(``core.scenario.as_team``), its :class:`~beacon_sim.core.team.TeamSimulation` and a
 :class:`~beacon_sim.hosting.team_runner.TeamRunner`. On a team of one it builds and feeds
 exactly what a single-robot session always did (the same truth, the same estimates, the same
 recording); on a team, Tab changes the driven robot and the others follow their drivers.
@@ -26,20 +26,16 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.drivers import KeyboardSpec
-from beacon_sim.core.keyboard_drive import KeyboardDrive, KeyboardLimits
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.keyboard_drive import KeyboardDrive
+from beacon_sim.core.scenario import Scenario, TeamScenario, as_team
 from beacon_sim.core.schedule import tick_schedule
 from beacon_sim.core.team import TeamSimulation, TeamStep
-from beacon_sim.core.team_scenario import TeamScenario, as_team
 from beacon_sim.core.types import Control, EventRecord, Measurement, Step
-from beacon_sim.filters.base import Belief, Filter, GaussianBelief
-from beacon_sim.hosting.loading import WINDOW_BUILD_LIMIT_S, reset_filter
+from beacon_sim.filters.base import Belief, GaussianBelief
+from beacon_sim.hosting.loading import WINDOW_BUILD_LIMIT_S
 from beacon_sim.hosting.runner import (
     WINDOW_STEP_LIMIT_S,
     FilterRunner,
-    FilterTrack,
-    bounded_track,
     call_guarded,
     status_line,
     validate_belief,
@@ -47,27 +43,21 @@ from beacon_sim.hosting.runner import (
 )
 from beacon_sim.hosting.team_runner import JointRunner, TeamRunner, team_filter_of, validate_team_estimates
 from beacon_sim.io.recording import TEAM_COMMAND_KINDS, default_recording_path, validate_command
+from beacon_sim.runs.filter_snapshot import FilterTick, filter_tick, read_drawing
+from beacon_sim.runs.filter_swapping import HISTORY_S, KEEP_ESTIMATES, FilterSwapping
+from beacon_sim.runs.filter_worker import FilterWorker, WorkerTicks
 from beacon_sim.runs.recorder import Recorder
 from beacon_sim.runs.scene import FilterStatus, Trail
-from beacon_sim.runs.user_commands import apply_to_filters, apply_to_run
+from beacon_sim.runs.session_driving import SessionDriving
+from beacon_sim.runs.user_commands import apply_to_run, commands_to_sim
 
-#: A reloaded filter catches up over the session's history when that takes at most this
-#: long [s] (estimated from its first steps); otherwise it restarts from the initial belief.
-CATCH_UP_BUDGET_S = 1.5
-#: The session keeps every tick for a catch-up up to this much simulated time [s] (about
-#: 0.7 kB a tick and robot: 20 minutes at 20 Hz is 17 MB); later reloads start from the
-#: initial belief.
-HISTORY_S = 1200.0
-#: Estimates a window's session keeps per filter (the screen needs the latest; a rebuilt
-#: trail at most this many points, the trail's own cap): memory does not grow with time.
-KEEP_ESTIMATES = 6000
 #: Points of each estimate's trail on a team (one per filter and robot): about 20 s of a
 #: robot at 0.3 m/s, so that a dozen estimate trails do not bury the truth's (which keeps
 #: the usual 6000). A single robot's estimate trails keep the usual cap.
 TEAM_TRAIL_POINTS = 300
 
 
-class Session:
+class Session(WorkerTicks, FilterSwapping, SessionDriving):
     """A scenario (one robot or a team), a seed and named filters, advanced one tick at a time.
 
     Parameters
@@ -96,6 +86,10 @@ class Session:
         # Called with the single robot's Step after the filters are fed (the window's live
         # bound, the live MCAP stream); kept over a restart.
         self.on_step: list[Callable[[Step], None]] = []
+        #: The thread the filters run on (:meth:`start_worker`), None: in each tick (the default).
+        self.worker: FilterWorker | None = None
+        self.filter_cpu_s = 0.0  # CPU time of the filters' part of every tick so far [s]
+        self._fail_time = 0.0  # on the worker: the simulated time of the tick it feeds [s]
         self.restart()
         if self.recorder is not None and hasattr(self.recorder, "attach"):
             # the recording stores the filters' settings and digests their estimates
@@ -104,6 +98,9 @@ class Session:
     def restart(self) -> None:
         """A fresh start: a new simulation from tick 0, the filters built and reset again,
         empty trails (what a replay's seek back uses)."""
+        threaded = self.worker is not None
+        if threaded:
+            self.stop_worker()
         team = self.team
         self.filters_run = TeamRunner(team, self.specs, self.seed, self.params,
                                       step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES,
@@ -141,12 +138,20 @@ class Session:
         self.status = {n: self.robot_status[n][0] if team.solo else FilterStatus(n)
                        for n in self.names}
         self._beliefs: dict[str, tuple[int, Any, Belief]] = {}
+        # With a worker (:meth:`start_worker`): the filters as of the tick shown
+        # (``runs/filter_snapshot``), the ticks the worker finished and not shown yet, and
+        # the tick shown (it may be a frame behind the simulation's).
+        self._state: FilterTick | None = None
+        self._waiting: list[tuple[TeamStep, list[dict], FilterTick]] = []
+        self._shown_at: tuple[int, float, np.ndarray] = (0, self.sim.time, self.sim.poses)
         for n in self.names:
             self._sync_status(n)
             est = self.estimates(n)
             if est is not None:
                 for trail, mean in zip(self.trails[n], est[0], strict=True):
                     trail.add(mean)
+        if threaded:
+            self.start_worker()
 
     # --- what the session is ---------------------------------------------------------------
     @property
@@ -193,70 +198,26 @@ class Session:
         else:
             self.pending.append({**cmd, "robot": self.driven})
 
-    # --- driving --------------------------------------------------------------------------
-    @property
-    def has_autopilot(self) -> bool:
-        """Whether the driven robot has a driver of its own to hand over to (M)."""
-        return not isinstance(self.scenario.driver, KeyboardSpec)
-
-    def drive(self, key: str) -> None:
-        """W/S/A/D/X on the driven robot's command; driving by hand switches the autopilot off."""
-        if self.autopilot:
-            self.autopilot = False
-            self._take_over()
-        self.keyboard.press(key)
-
-    def toggle_autopilot(self) -> None:
-        self.autopilot = self.has_autopilot and not self.autopilot
-        if not self.autopilot:
-            self._take_over()
-
-    def _take_over(self) -> None:
-        """The keyboard starts from the driven robot's last command (no jolt): see
-        :func:`taken_over`."""
-        self.keyboard.v, self.keyboard.omega = taken_over(self.last_controls[self.driven],
-                                                          self.keyboard.limits)
-
-    def next_robot(self, step: int = 1) -> str:
-        """Tab: drive the next robot (the one driven so far goes back to its driver); the
-        keyboard takes over the new one's last command. Returns its name."""
-        self.driven = (self.driven + step) % self.n_robots
-        if self.autopilot and not self.has_autopilot:
-            self.autopilot = False
-        if not self.autopilot:
-            self._take_over()
-        return self.driven_name
-
-    def next_control(self) -> Control:
-        """The driven robot's command for the next tick."""
-        if self.autopilot:
-            sim = self.sim.sims[self.driven]
-            return sim.driver.control(sim.time, sim.pose)
-        return self.keyboard.control
-
-    @property
-    def drive_mode(self) -> str:
-        """Who drives, for the panel."""
-        return "AUTOPILOT (M)" if self.autopilot else "keyboard WASD, X stop"
-
     # --- what a window reads (the Scene protocol) -------------------------------------------
+    # With a worker the scene is the tick shown (the filters' latest finished tick, a frame
+    # behind the simulation at most), truth and estimates alike.
     @property
     def tick_count(self) -> int:
-        return self.sim.tick
+        return self.sim.tick if self.worker is None else self._shown_at[0]
 
     @property
     def time(self) -> float:
-        return self.sim.time
+        return self.sim.time if self.worker is None else self._shown_at[1]
 
     @property
     def poses(self) -> np.ndarray:
         """Every robot's true pose now, shape (N, 3) [m, m, rad]."""
-        return self.sim.poses
+        return self.sim.poses if self.worker is None else self._shown_at[2]
 
     @property
     def true_pose(self) -> np.ndarray:
         """The driven robot's true pose (3,) [m, m, rad]."""
-        return self.sim.sims[self.driven].pose
+        return self.sim.sims[self.driven].pose if self.worker is None else self._shown_at[2][self.driven]
 
     @property
     def truth_trail(self) -> Trail:
@@ -274,6 +235,9 @@ class Session:
         that cannot be drawn. None for a team filter (its robots' estimates are drawn)."""
         if not self.filters_run.is_member(name):
             return None
+        if self.worker is not None:  # read on the worker after the tick shown
+            drawn = self._drawn()
+            return None if drawn is None else drawn.beliefs[name][self.driven]
         tr = self.filters_run.members[self.driven].tracks[name]
         if tr.failed or tr.filter is None:
             return None
@@ -299,6 +263,12 @@ class Session:
         """Every robot's latest estimate under ``name``: (means (N, 3), covs (N, 3, 3)); before
         the first tick the filter's initial belief (through the guard: None, and the filter
         switched off, when it is unusable)."""
+        if self.worker is not None:  # as of the tick shown
+            return None if self._state is None else self._state.latest[name]
+        return self._live_estimates(name)
+
+    def _live_estimates(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`estimates` read from the filters (not from the tick shown)."""
         latest = self.filters_run.latest(name)
         if latest is not None:
             return latest
@@ -338,80 +308,35 @@ class Session:
         return None
 
     def _switch_off(self, name: str, why: str, tb: str = "") -> None:
+        if self.worker is not None and self.worker.on_thread():  # shown with its tick
+            self.filters_run.fail(name, why, tb, self._fail_time)
+            return
         self.filters_run.fail(name, why, tb, self.sim.time)
         self._sync_status(name)
 
     def _sync_status(self, name: str) -> None:
         st = self.status[name]
+        if self.worker is not None and self._state is not None:  # as of the tick shown
+            st.failed = self._state.failed[name]
+            st.warning = self._state.warnings[name][self.driven]
+            return
         st.failed = self.filters_run.failed(name)
         st.warning = status_line(self.filters_run.track(name, self.driven))
 
     @property
     def filters(self) -> dict[str, object]:
-        """The driven robot's working filter objects by name (a team filter's joint object)."""
+        """The driven robot's working filter objects by name (a team filter's joint object);
+        with a worker, what the window reads of them after the tick shown (``FilterFace``)."""
+        if self.worker is not None:
+            drawn = self._drawn()
+            return {} if drawn is None else {n: f for n, f in drawn.faces[self.driven].items()
+                                             if not self.status[n].failed}
         out: dict[str, object] = {}
         for n in self.names:
             tr = self.filters_run.track(n, self.driven)
             if tr.filter is not None:
                 out[n] = tr.filter
         return out
-
-    def replace_filter(self, name: str, flt: Filter, budget_s: float = CATCH_UP_BUDGET_S) -> str:
-        """Swap in a new filter object under ``name`` (hot reload), same colour; one robot's
-        only (a team's filter copies are not hot reloaded: ValueError).
-
-        The new filter is run over every tick of the session so far (the same Steps and the
-        same resets the others had), so it appears where it would be had it run from the
-        start. When that would take longer than ``budget_s`` [s] (judged on its first
-        steps) it starts from the initial belief instead. Returns what happened, in words.
-        """
-        if self.n_robots != 1 or not self.filters_run.is_member(name):
-            raise ValueError("hot reload replaces a single robot's filter")
-        if len(self.steps) < self.sim.tick:  # the history was not kept this far
-            reset_filter(flt, self.scenario)
-            self._install(name, bounded_track(name, flt, KEEP_ESTIMATES))
-            return (f"{name} reloaded from the initial belief (the session keeps "
-                    f"{HISTORY_S / 60:.0f} minutes of history to catch up over)")
-        catch_up = FilterRunner({name: flt}, step_limit_s=WINDOW_STEP_LIMIT_S, keep=KEEP_ESTIMATES,
-                                cpu_limits=True)
-        t0 = time.perf_counter()
-        for i, team_step in enumerate(self.steps):
-            step = team_step.steps[0]
-            cmds = self.commands.get(step.tick)
-            if cmds and not catch_up.tracks[name].failed:
-                for _, (why, tb) in apply_to_filters(cmds, {name: flt}, self.scenario,
-                                                     WINDOW_STEP_LIMIT_S, cpu=True).items():
-                    catch_up.fail(name, why, tb, step.time - step.dt)
-            catch_up.feed(step)
-            elapsed = time.perf_counter() - t0
-            if catch_up.tracks[name].failed:
-                break
-            if i in (19, 199) and elapsed * len(self.steps) / (i + 1) > budget_s:
-                projected = elapsed * len(self.steps) / (i + 1)
-                reset_filter(flt, self.scenario)
-                self._install(name, bounded_track(name, flt, KEEP_ESTIMATES))
-                return (f"{name} reloaded from the initial belief: catching up over "
-                        f"{len(self.steps)} ticks would take about {projected:.0f} s")
-        self._install(name, catch_up.tracks[name])
-        if not self.steps:
-            return f"{name} reloaded"
-        return (f"{name} reloaded and run over the {len(self.steps)} ticks so far "
-                f"({time.perf_counter() - t0:.2f} s)")
-
-    def _install(self, name: str, track: FilterTrack) -> None:
-        """Put ``track`` in the runner under ``name``; rebuild its trail and status from it."""
-        self.runner.tracks[name] = track
-        trail = self.trails[name][0] = Trail()
-        for mean in track.means:
-            trail.add(mean)
-        st = self.status[name] = FilterStatus(name)
-        self.robot_status[name] = [st]
-        st.failed, st.warning = track.failed, status_line(track)
-        last = self.last_step
-        if track.means and last is not None and track.ticks[-1] == last.tick:
-            st.measure(track.means[-1], track.covs[-1], last.steps[0].true_pose, self.team.dt)
-        self.runner.priors.pop(name, None)
-        self._keep_priors()
 
     # --- the step view: predict, then update, of the last tick ------------------------------
     def _keep_priors(self) -> None:
@@ -439,6 +364,13 @@ class Session:
         runner = self.filters_run.members[self.driven]
         tr = runner.tracks.get(name)
         prior = runner.priors.get(name)
+        if self.worker is not None:  # as of the tick shown
+            drawn, state = self._drawn(), self._state
+            prior = None if drawn is None else drawn.priors[self.driven].get(name)
+            if (prior is None or state is None or state.failed[name] or name not in state.fresh
+                    or (latest := state.latest[name]) is None):
+                return None
+            return prior, (latest[0][self.driven], latest[1][self.driven])
         if (tr is None or prior is None or tr.failed or self.last_step is None or not tr.ticks
                 or tr.ticks[-1] != self.last_step.tick):
             return None
@@ -452,22 +384,40 @@ class Session:
 
     # --- one tick -------------------------------------------------------------------------
     def tick(self) -> TeamStep:
-        """Run one tick with the driven robot's command and the queued user commands."""
+        """Run one tick with the driven robot's command and the queued user commands. With a
+        worker (:meth:`start_worker`) only the simulation's part runs here; the recording,
+        the filters' part of the commands and the filters run on the worker, in order, and
+        :meth:`collect` shows the ticks they finished."""
         control = self.next_control()
         cmds, self.pending = self.pending, []
         tick = self.sim.tick + 1
-        if self.recorder is not None:
-            self.recorder.record_tick(tick, self.driven, control, self.autopilot, self._shown + cmds)
+        recorded = (tick, self.driven, control, self.autopilot, self._shown + cmds)
         self._shown = []
-        self._apply(cmds)
-        step = self.sim.step({self.driven: control})
-        self.filters_run.feed(step)
+        if self.worker is None:
+            c0 = time.thread_time()
+            if self.recorder is not None:
+                self.recorder.record_tick(*recorded)
+            self._apply(cmds)
+            self.filter_cpu_s += time.thread_time() - c0
+            step = self.sim.step({self.driven: control})
+            self._steered(step)
+            c0 = time.thread_time()
+            self.filters_run.feed(step)
+            outcome = self._filter_tick(step.tick)
+            self.filter_cpu_s += time.thread_time() - c0
+        else:
+            time_s = self.sim.time
+            commands_to_sim(cmds, self.sim)
+            step = self.sim.step({self.driven: control})
+            self._steered(step)
+            self.worker.submit(partial(self._filter_job, recorded, cmds, time_s, step))
         if step.time <= HISTORY_S:
             self.steps.append(step)
         self.controls.append(control)
         if cmds:
             self.commands[tick] = cmds
-        self._after(step)
+        if self.worker is None:
+            self._after(step, outcome)
         return step
 
     def _apply(self, cmds: list[dict]) -> None:
@@ -476,13 +426,25 @@ class Session:
         (under the guard: one that fails is switched off) and of the team filters."""
         if not cmds:
             return
-        for name in apply_to_run(cmds, self.sim, self.filters_run, WINDOW_STEP_LIMIT_S,
-                                 self.sim.time, cpu=True):
+        for name in self._commands_to_filters(cmds, self.sim, self.sim.time):
             self._sync_status(name)
         if any(c["kind"] == "reset" for c in cmds):  # switched-off filters may be back on
             for name in self.names:
                 self._sync_status(name)
+        self._commands_shown(cmds)
+
+    def _commands_to_filters(self, cmds: list[dict], sim: TeamSimulation | None,
+                             time_s: float) -> list[str]:
+        """The commands' part on the filters (and on ``sim`` unless None); the names of the
+        filters whose reset failed."""
+        failed = list(apply_to_run(cmds, sim, self.filters_run, WINDOW_STEP_LIMIT_S, time_s, cpu=True))
+        if any(c["kind"] == "reset" for c in cmds):
             self._keep_priors()
+        return failed
+
+    def _commands_shown(self, cmds: list[dict]) -> None:
+        """The commands' part on what is shown: a reset breaks the trails and starts the
+        NEES windows afresh."""
         if any(c["kind"] in ("reset", "global_reset") for c in cmds):
             for trails in self.trails.values():
                 for trail in trails:
@@ -493,10 +455,29 @@ class Session:
             for st in self.status.values():
                 st.clear_window()
 
-    def _after(self, step: TeamStep) -> None:
-        self.last_step = step
+    def _steered(self, step: TeamStep) -> None:
+        """What a tick changes in the driving at once (the next tick's command depends on
+        it): the robots' last commands; a bump stops the keyboard's robot."""
         for i, s in enumerate(step.steps):
             self.last_controls[i] = s.control
+        if not self.autopilot and any(e.kind == "bump" for e in step.steps[self.driven].events):
+            self.keyboard.v = 0.0  # the bumper stopped the robot: the command says so too
+
+    def _filter_tick(self, tick: int, drawing: bool = False) -> FilterTick:
+        """The filters just after ``tick`` (``runs/filter_snapshot``), read on the thread that
+        fed them; ``drawing``: with what the window draws of them."""
+        drawn = read_drawing(self.filters_run, self._switch_off) if drawing else None
+        return filter_tick(self.filters_run, self.names, tick, self._live_estimates, drawn)
+
+    def _after(self, step: TeamStep, outcome: FilterTick) -> None:
+        """Show tick ``step`` with its filters ``outcome``: the readings, the trails, the
+        figures (each estimate against the truth of its own tick), the listeners."""
+        self.last_step = step
+        self._state = outcome
+        if outcome.drawing is not None:
+            self._beliefs.clear()
+        self._shown_at = (step.tick, step.time, np.array([s.true_pose for s in step.steps]))
+        for i, s in enumerate(step.steps):
             seen = self._readings[i]
             for m in step.measurements(i):
                 seen[m.sensor] = (step.tick, m)
@@ -508,26 +489,14 @@ class Session:
             self.truth_trails[i].add(s.true_pose)
             self.recent_events.extend(s.events)
         del self.recent_events[:-20]
-        if not self.autopilot and any(e.kind == "bump" for e in step.steps[self.driven].events):
-            self.keyboard.v = 0.0  # the bumper stopped the robot: the command says so too
-        run = self.filters_run
         for name in self.names:
             self._sync_status(name)
-            if self.status[name].failed:
+            if self.status[name].failed or name not in outcome.fresh:
                 continue
-            if run.is_member(name):  # each robot's own copy: its latest estimate, no stacking
-                tracks = [r.tracks[name] for r in run.members]
-                if any(not t.ticks or t.ticks[-1] != step.tick for t in tracks):
-                    continue
-                for i, t in enumerate(tracks):
-                    self.trails[name][i].add(t.means[-1])
-                    self.robot_status[name][i].measure(t.means[-1], t.covs[-1], step.steps[i].true_pose,
-                                                       step.dt)
+            latest = outcome.latest[name]
+            if latest is None:
                 continue
-            tr = run.joint.tracks[name]
-            if not tr.ticks or tr.ticks[-1] != step.tick:
-                continue
-            means, covs = tr.means[-1], tr.covs[-1]
+            means, covs = latest
             for i, s in enumerate(step.steps):
                 self.trails[name][i].add(means[i])
                 self.robot_status[name][i].measure(means[i], covs[i], s.true_pose, step.dt)
@@ -572,20 +541,12 @@ class Session:
                     trail.add(est[0][i])
 
     def close(self) -> None:
-        """Write the recording's end line and close it (if the session is recorded)."""
+        """Finish the worker's ticks (if the filters run on one), write the recording's end
+        line and close it (if the session is recorded)."""
+        self.stop_worker()
         if self.recorder is not None:
             self.recorder.close()
             self.recorder = None
-
-
-def taken_over(c: Control, limits: KeyboardLimits) -> tuple[float, float]:
-    """``(v, omega)`` the keyboard starts from when it takes over command ``c``: each rounded
-    to the nearest multiple of its step (``v_step``, ``omega_step``), clamped to the limits."""
-    v = round(c.v / limits.v_step) * limits.v_step
-    w = round(c.omega / limits.omega_step) * limits.omega_step
-    v = round(min(max(v, limits.v_min), limits.v_max), 9)
-    w = round(min(max(w, -limits.omega_max), limits.omega_max), 9)
-    return v + 0.0, w + 0.0
 
 
 def make_recorder(scenario: Scenario | TeamScenario, seed: int, specs: list[str],

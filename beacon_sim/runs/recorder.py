@@ -27,10 +27,9 @@ from typing import Any, TextIO
 import numpy as np
 
 from beacon_sim.core.maths_fingerprint import maths_description, maths_fingerprint
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import Scenario, TeamScenario, as_team, team_of_one
 from beacon_sim.core.simulation import CURRENT_SLIP_MODEL
 from beacon_sim.core.team import TeamSimulation, TeamStep
-from beacon_sim.core.team_scenario import TeamScenario, as_team, team_of_one
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import (
     FLUSH_EVERY_S,
@@ -250,13 +249,13 @@ class Recorder:
         """Checksum of the true trajectory recorded so far (equals the caller's
         ``sim.truth_checksum`` after the same ticks, a single robot's ``Simulation``'s on a
         team of one: a cheap consistency check)."""
-        return self.shadow.sims[0].truth_checksum if self.solo else self.shadow.truth_checksum
+        return self.shadow.truth_checksum
 
     @property
     def readings_checksum(self) -> str:
         """Checksum of the readings recorded so far (a single robot's ``Simulation``'s on a
         team of one, :class:`TeamReadingsHash` on a team)."""
-        return self.shadow.sims[0].readings_checksum if self.solo else self.readings.checksum
+        return self.shadow.readings_checksum if self.solo else self.readings.checksum
 
     def _check_tick(self, tick: int) -> None:
         """Refuse a closed recorder; warn once when ticks are not recorded one by one."""

@@ -21,10 +21,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from functools import partial
 
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import Scenario, TeamScenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
-from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.filters.base import Filter
 from beacon_sim.filters.team import initial_beliefs
 from beacon_sim.hosting.loading import reset_filter
@@ -73,7 +72,7 @@ def apply_to_filters(commands: Iterable[Mapping], filters: Mapping[str, Filter],
     return failed
 
 
-def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation, run: TeamRunner,
+def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation | None, run: TeamRunner,
                  limit_s: float | None, time_s: float, cpu: bool = False
                  ) -> dict[str, tuple[str, str]]:
     """User commands on a run of N robots (a single robot is a team of one), before the
@@ -82,14 +81,17 @@ def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation, run: TeamRunn
     (:func:`reset_team_filters`). A filter whose reset fails is switched off (on every
     robot, at ``time_s`` [s]); returns those ``{name: (why, traceback)}``. A ``reset``
     first switches back on every filter that was switched off (:func:`switch_back_on`).
-    ``cpu``: the limit counts the filter thread's CPU time (the window's)."""
+    ``cpu``: the limit counts the filter thread's CPU time (the window's). ``sim`` None: the
+    filters' part only (a window whose filters run on a worker thread gave the simulation its
+    part, :func:`commands_to_sim`, on its own thread)."""
     commands = list(commands)
     if not commands:
         return {}
-    for cmd in commands:
-        validate_command(cmd)
-        if cmd["kind"] == "kidnap":
-            sim.sims[int(cmd.get("robot", 0))].request_kidnap(cmd.get("pose"))
+    if sim is not None:
+        commands_to_sim(commands, sim)
+    else:
+        for cmd in commands:
+            validate_command(cmd)
     if any(c["kind"] == "reset" for c in commands):
         switch_back_on(run)
     failed: dict[str, tuple[str, str]] = {}
@@ -102,6 +104,15 @@ def apply_to_run(commands: Iterable[Mapping], sim: TeamSimulation, run: TeamRunn
     if any(c["kind"] in ("reset", "global_reset") for c in commands):
         reset_team_filters(run.joint, run.team, limit_s, time_s, cpu)
     return failed
+
+
+def commands_to_sim(commands: Iterable[Mapping], sim: TeamSimulation) -> None:
+    """The simulation's part of user commands on a run of N robots: a kidnap of the robot it
+    names (robot 0 when it names none), requested for the next step."""
+    for cmd in commands:
+        validate_command(cmd)
+        if cmd["kind"] == "kidnap":
+            sim.sims[int(cmd.get("robot", 0))].request_kidnap(cmd.get("pose"))
 
 
 def switch_back_on(run: TeamRunner) -> list[str]:

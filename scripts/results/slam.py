@@ -344,7 +344,7 @@ def fig_fastslam_ring(ctx: Context) -> Figure:
 def fig_graph_slam(ctx: Context) -> Figure:
     """Graph SLAM (Gauss-Newton over the whole drive) against EKF-SLAM and odometry on
     ``slam_loop``: the ATE at the graph's pose ticks, pooled over runs, and the map GOSPA."""
-    from beacon_sim.core.team_scenario import load_any_scenario
+    from beacon_sim.core.scenario import load_any_scenario
     from beacon_sim.evaluation.graph_slam_run import PEER, run_sums, solve_drive
     from beacon_sim.evaluation.intervals import ratio_of_sums
 

@@ -12,7 +12,7 @@ from .common import Check, Context, Figure, fmt, pos_rmse_interval, with_iv
 def fig_team_sparse(ctx: Context) -> Figure:
     """team_sparse: per robot and for the team, each team filter's RMSE and ANEES against
     the joint PCRB and each robot's bound alone (docs/multi-robot.md)."""
-    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.core.scenario import load_team_scenario
     from beacon_sim.evaluation.montecarlo.sweep import run_team_monte_carlo
     from beacon_sim.evaluation.summary import evaluate_team
 

@@ -253,7 +253,7 @@ def test_beacon_labels_keep_off_the_axis_labels_in_krejsa_bearing_only():
 
 def test_robot_names_keep_off_the_beacon_labels_in_team_sparse():
     from beacon_sim.app.window import App
-    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.core.scenario import load_team_scenario
     from beacon_sim.runs.live import Session
 
     team = load_team_scenario("team_sparse")

@@ -256,7 +256,7 @@ def test_the_team_window_keeps_its_worlds_and_its_legends_picture_and_shows_the_
     """A team's world is kept between ticks as a single robot's is (drawn once a tick, not
     every frame), each frame showing the present or the previous tick's picture; the
     legend under the world is a kept picture with the pixels of a fresh drawing."""
-    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.core.scenario import load_team_scenario
 
     s = Session(load_team_scenario("team_sparse"), ["independent", "centralised", "ci"])
     s.toggle_autopilot()

@@ -136,7 +136,7 @@ def test_a_team_panel_keeps_its_status_and_help_inside_the_panel(size, monkeypat
     """team_sparse with four team filters fills the panel (a block per filter, three robots):
     every line still ends inside it, the FPS line and the help hint included (at 1920x1080
     the hint was drawn below the window's edge)."""
-    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.core.scenario import load_team_scenario
     drawn = []
     real = Hud._blit
 

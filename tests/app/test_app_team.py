@@ -18,8 +18,8 @@ import pytest
 from beacon_sim.app import palette
 from beacon_sim.app.view import ipx
 from beacon_sim.app.window import App
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.core.team import TeamSimulation
-from beacon_sim.core.team_scenario import load_team_scenario
 from beacon_sim.core.types import Control
 from beacon_sim.runs.live import KEEP_ESTIMATES, Session
 

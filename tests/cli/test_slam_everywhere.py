@@ -271,7 +271,7 @@ def test_a_slam_file_in_a_process_of_its_own_has_its_map_judged(tmp_path, capsys
 
 
 def test_the_team_panel_does_not_show_minus_one_as_a_beacon(monkeypatch):
-    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.core.scenario import load_team_scenario
     from beacon_sim.runs.live import Session
 
     team = load_team_scenario("team_sparse")

@@ -18,10 +18,9 @@ import pytest
 
 from beacon_sim.core import motion
 from beacon_sim.core.batch_simulation import BatchSimulation
-from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.scenario import load_scenario, team_of_one
 from beacon_sim.core.simulation import Simulation, scenario_with_slip
 from beacon_sim.core.team import TeamSimulation
-from beacon_sim.core.team_scenario import team_of_one
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import RecordingError, load_recording
 from beacon_sim.runs.live import Session
@@ -218,7 +217,7 @@ def test_the_batched_simulation_bumps_as_the_single_one(omega):
 
 
 def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
-    from beacon_sim.core.team_scenario import load_team_scenario
+    from beacon_sim.core.scenario import load_team_scenario
     from beacon_sim.runs.live import Session
 
     team = load_team_scenario("team_sparse")
@@ -243,8 +242,8 @@ def test_a_team_robot_turning_into_a_wall_replays_verified(tmp_path):
 
 def test_an_old_team_recording_replays_with_the_legacy_model(tmp_path):
     """A team file without "slip_model": every robot replays with the legacy slip."""
+    from beacon_sim.core.scenario import load_team_scenario
     from beacon_sim.core.team import TeamSimulation, team_with_slip
-    from beacon_sim.core.team_scenario import load_team_scenario
 
     team = load_team_scenario("team_sparse")
     path = tmp_path / "old_team.jsonl"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.metrics import anees_band
-from beacon_sim.core.scenario import ScenarioError, load_scenario
+from beacon_sim.core.scenario import ScenarioError, load_scenario, load_team_scenario, parse_team_scenario
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
 from beacon_sim.core.team_models import (
@@ -17,7 +17,6 @@ from beacon_sim.core.team_models import (
     relative_rows,
     teammate_position,
 )
-from beacon_sim.core.team_scenario import load_team_scenario, parse_team_scenario
 from beacon_sim.runs.headless import run_headless
 
 

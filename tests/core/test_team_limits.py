@@ -11,8 +11,7 @@ import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.resources import scenario_dir
-from beacon_sim.core.scenario import MAX_SLAM_BEACONS, ScenarioError
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import MAX_SLAM_BEACONS, ScenarioError, load_team_scenario
 
 
 def _team(tmp_path: Path, n_beacons: int, unknown_robot: int | None) -> Path:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.evaluation.grading import GradeConfig, grade, simulate_team_run
 from beacon_sim.runs.headless import run_headless
 

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.evaluation.montecarlo import run_team_monte_carlo
 from beacon_sim.evaluation.pcrb import pcrb, robot_blocks, team_pcrb
 

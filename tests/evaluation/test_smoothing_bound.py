@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario
 from beacon_sim.evaluation.pcrb import pcrb
 from beacon_sim.evaluation.smoothing_bound import smoothing_bound, trajectory_information
 from beacon_sim.runs.headless import run_headless

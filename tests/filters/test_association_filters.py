@@ -269,6 +269,23 @@ def test_the_particle_report_is_the_weighted_vote_of_the_particles():
     assert list(report) == step.true_ids["rb"].tolist()
 
 
+
+def test_the_particle_report_names_every_unlabeled_sensor_of_the_update():
+    """Two sensors with hidden IDs read in one update: the report holds both, each row
+    given a beacon or clutter (the filter keeps one wiring for the whole update)."""
+    sc = make_scenario(sensors=[{**UNKNOWN_SENSOR, "clutter_rate": 0.0},
+                                {**UNKNOWN_SENSOR, "name": "rb2", "clutter_rate": 0.0}])
+    f = build_filter("pf", sc, 0, params={"n_particles": 400})
+    step = Simulation(sc, 0).step()
+    assert {m.sensor for m in step.measurements} == {"rb", "rb2"}
+    f.predict(step.control, step.dt)
+    f.update(step.measurements)
+    report = f.associations()
+    assert set(report) == {"rb", "rb2"}
+    for sensor in ("rb", "rb2"):
+        assert list(report[sensor]) == step.true_ids[sensor].tolist()
+
+
 # -- metrics ------------------------------------------------------------------------------------
 def test_a_score_counts_correct_false_and_missed_rows():
     s = AssociationScore()

@@ -13,8 +13,7 @@ import pytest
 
 import beacon_sim.filters
 from beacon_sim.cli.main import main
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_scenario, load_team_scenario
 from beacon_sim.filters import HOSTED, MOVED
 from beacon_sim.filters.registry import RECORDS
 from beacon_sim.hosting.containment import Limits

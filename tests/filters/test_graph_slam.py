@@ -13,7 +13,7 @@ from graph_data import graph_file, synthetic_graph
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.motion import move
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario
 from beacon_sim.filters.graph import EdgeSet, FactorGraph, GraphSolver, marginals
 from beacon_sim.filters.graph.se2 import between, compose
 from beacon_sim.filters.graph.solver import Factor, Layout, normal_equations

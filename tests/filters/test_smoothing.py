@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from beacon_sim.core.team_scenario import load_any_scenario
+from beacon_sim.core.scenario import load_any_scenario
 from beacon_sim.core.types import Control
 from beacon_sim.evaluation.smoothing_run import smoothing_monte_carlo
 from beacon_sim.filters.smoothing import FixedLagSmoother, MomentRecorder, rts_smooth, velocity_jacobian

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from beacon_sim.cli.main import main
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.runs.headless import run_headless
 
 STUDENT = textwrap.dedent('''

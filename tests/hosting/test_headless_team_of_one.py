@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 
 from beacon_sim.core.metrics import summary
-from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.scenario import load_scenario, load_team_scenario, team_of_one
 from beacon_sim.core.simulation import Simulation
-from beacon_sim.core.team_scenario import load_team_scenario, team_of_one
 from beacon_sim.hosting.loading import build_filters
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, FilterRunner
 from beacon_sim.runs.headless import ACCURACY_KEYS, RunResult, run_headless

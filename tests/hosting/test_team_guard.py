@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.filters import team as team_filters
 from beacon_sim.filters.team import IndependentTeam
 from beacon_sim.hosting.team_runner import validate_team_estimates

@@ -7,10 +7,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from beacon_sim.core.scenario import load_scenario
+from beacon_sim.core.scenario import (
+    as_team,
+    load_any_scenario,
+    load_scenario,
+    load_team_scenario,
+    team_of_one,
+)
 from beacon_sim.core.simulation import Simulation
 from beacon_sim.core.team import TeamSimulation
-from beacon_sim.core.team_scenario import as_team, load_any_scenario, load_team_scenario, team_of_one
 from beacon_sim.hosting.loading import build_filters
 from beacon_sim.hosting.runner import FilterRunner
 from beacon_sim.hosting.team_runner import JointRunner, TeamRunner

@@ -20,8 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_team_scenario, team_of_one
+from beacon_sim.core.scenario import load_scenario, load_team_scenario, team_of_one
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording import load_recording
 from beacon_sim.runs.live import Session

@@ -17,8 +17,7 @@ import pytest
 
 from beacon_sim.cli.main import main
 from beacon_sim.core.occupancy import OccupancyGrid
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_scenario, load_team_scenario
 from beacon_sim.io.recording import RecordingError, load_recording, text_checksum
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import Recorder

@@ -24,8 +24,7 @@ import pytest
 from beacon_sim.app import palette
 from beacon_sim.app.replay import ReplayApp
 from beacon_sim.cli.main import main
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_scenario, load_team_scenario
 from beacon_sim.io.recording import (
     FORMAT_VERSION,
     KEY_VARIABLE,

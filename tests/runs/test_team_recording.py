@@ -23,7 +23,7 @@ import pytest
 
 from beacon_sim.app.main import App
 from beacon_sim.cli.main import main
-from beacon_sim.core.team_scenario import load_team_scenario
+from beacon_sim.core.scenario import load_team_scenario
 from beacon_sim.io.recording import Recording, RecordingError, load_recording
 from beacon_sim.runs.live import Session
 from beacon_sim.runs.recorder import Recorder

@@ -32,8 +32,10 @@ class InitialBelief:
 
 
 @dataclass(frozen=True)
-class Scenario:
-    """A complete, validated scenario. See docs/scenarios.md for every key."""
+class ScenarioHeader:
+    """What every scenario has, of one robot or a team (``team.TeamScenario``): its name,
+    description and source file, the clock (``dt`` [s] per tick, ``duration`` [s], ``seed``)
+    and the world."""
 
     name: str
     description: str
@@ -42,6 +44,12 @@ class Scenario:
     duration: float
     seed: int
     world: World
+
+
+@dataclass(frozen=True)
+class Scenario(ScenarioHeader):
+    """A complete, validated scenario of one robot. See docs/scenarios.md for every key."""
+
     initial_pose: tuple[float, float, float]
     robot_radius: float
     motion_noise: MotionNoise
@@ -86,4 +94,4 @@ class Scenario:
         return new
 
 
-__all__ = ["InitialBelief", "Scenario", "ScenarioError"]
+__all__ = ["InitialBelief", "Scenario", "ScenarioError", "ScenarioHeader"]

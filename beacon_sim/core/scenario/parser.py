@@ -86,13 +86,20 @@ def sensor_noise(t: Table, base: SensorNoise) -> SensorNoise:
     )
 
 
-def _sensor(t: Table, dt: float) -> SensorSpec:
-    kind = t.string("kind", choices=kind_names())
+def sensor_head(t: Table, dt: float, kinds: tuple[str, ...]) -> tuple[str, str, float]:
+    """A sensor table's ``kind`` (one of ``kinds``), ``name`` (default: the kind) and
+    ``period`` [s] (default ``dt``; a whole multiple of ``dt``), checked."""
+    kind = t.string("kind", choices=kinds)
     name = t.string("name", kind)
     period = t.number("period", dt, lo=0, hi=MAX_TICKS * dt, lo_open=True)
     ratio = period / dt
     if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
         t.fail(t.key("period"), period, f"a whole multiple of dt = {dt:g} s")
+    return kind, name, period
+
+
+def _sensor(t: Table, dt: float) -> SensorSpec:
+    kind, name, period = sensor_head(t, dt, kind_names())
     spec = SensorSpec(
         name=name,
         kind=kind,

@@ -15,8 +15,13 @@ from beacon_sim.core.files import (
     MAX_SOURCE_BYTES,
     read_user_bytes,
 )
-from beacon_sim.core.scenario import Scenario, load_scenario
-from beacon_sim.core.team_scenario import TeamScenario, is_team_scenario, load_team_scenario
+from beacon_sim.core.scenario import (
+    Scenario,
+    TeamScenario,
+    is_team_scenario,
+    load_scenario,
+    load_team_scenario,
+)
 from beacon_sim.evaluation.grading.cache import run_cached, students_cannot_write_here
 from beacon_sim.evaluation.grading.config import GradeConfig, GradeError, scenario_labels
 from beacon_sim.evaluation.grading.roster import find_students

@@ -11,9 +11,8 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.metrics import anees_band
-from beacon_sim.core.scenario import Scenario
+from beacon_sim.core.scenario import Scenario, TeamScenario
 from beacon_sim.core.sensor_kinds import scan_sensors
-from beacon_sim.core.team_scenario import TeamScenario
 from beacon_sim.evaluation.grading.config import GradeConfig
 from beacon_sim.evaluation.grading.roster import Student
 from beacon_sim.evaluation.grading.rubric import score_row, tracking_figures

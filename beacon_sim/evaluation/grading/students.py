@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import TeamScenario
 from beacon_sim.evaluation.grading.tasks import Task, TaskResult
 from beacon_sim.evaluation.montecarlo import (
     RunOutput,

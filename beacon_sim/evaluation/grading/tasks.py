@@ -12,8 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from beacon_sim.core.scenario import load_scenario
-from beacon_sim.core.team_scenario import is_team_scenario, load_team_scenario
+from beacon_sim.core.scenario import is_team_scenario, load_scenario, load_team_scenario
 from beacon_sim.evaluation.montecarlo import (
     RunOutput,
     TeamRunOutput,

@@ -9,8 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import Scenario, TeamScenario
 from beacon_sim.evaluation.metrics import nis_batch
 from beacon_sim.evaluation.montecarlo.records import RunOutput, TeamRunOutput, finish_filter
 from beacon_sim.evaluation.montecarlo.simulation import start_run

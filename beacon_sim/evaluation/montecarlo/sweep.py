@@ -10,8 +10,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from itertools import pairwise
 from typing import Any
 
-from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import Scenario, TeamScenario
 from beacon_sim.evaluation.cluster import dask_workers, init_worker, on_dask
 from beacon_sim.evaluation.montecarlo.batched import batch_reason, batch_task
 from beacon_sim.evaluation.montecarlo.in_process import one_run, team_one_run

@@ -198,7 +198,7 @@ def particle_loglik(flt: Any, m: Measurement, ll: np.ndarray) -> int:
     row, its maximum-likelihood beacon (:func:`particle_ml_association`) and adds
     ``-0.5 min(d2, gate)`` to ``ll`` (n,): a row no beacon explains within the gate counts as
     clutter, a bounded cost. Returns the number of scalar readings (as ``_loglik``)."""
-    w = flt.__dict__.get("to_association")
+    w = flt.__dict__.get("_association")
     if not isinstance(w, _ParticleWiring):
         w = flt._association = _ParticleWiring(flt.ctx)
     n = flt.n
@@ -217,7 +217,7 @@ def particle_loglik(flt: Any, m: Measurement, ll: np.ndarray) -> int:
 
 def particle_start(flt: Any) -> None:
     """Forget the last update's per-particle choices (called at each update's start)."""
-    w = flt.__dict__.get("to_association")
+    w = flt.__dict__.get("_association")
     if isinstance(w, _ParticleWiring):
         w.choices = {}
 
@@ -289,7 +289,7 @@ def grid_mixture(flt: Any, measurements: Sequence[Measurement], cos_th: np.ndarr
     bearings (and ranges up to ``max_range``) and ``c`` the sensor's clutter share
     (``rate / (1 + rate)``, at least ``MIN_CLUTTER_SHARE``). Each beacon's term is the
     filter's own von Mises bearing (noise inflated by the cell and the bin) and Gaussian range."""
-    w = flt.__dict__.get("to_association")
+    w = flt.__dict__.get("_association")
     if not isinstance(w, _GridWiring):
         w = flt._association = _GridWiring(flt.ctx)
     w.readings = []

@@ -79,3 +79,6 @@ class DeadReckoning(BatchableFilter):
 
 class BatchedDeadReckoning(BatchedVelocityGaussian):
     """:class:`DeadReckoning` for R runs: the EKF's prediction on arrays, no update."""
+
+
+__all__ = ["BatchedDeadReckoning", "DeadReckoning"]

@@ -502,3 +502,9 @@ class BatchedEKF(BatchedVelocityGaussian):
             return
         self.mean, self.cov, self.last_nis = kalman_update(self.mean, self.cov, H, nu, r, self.joseph,
                                                            want_nis=True, strict=False)
+
+
+__all__ = [
+    "GATE_RECHECK", "STACKED_ROWS", "BatchedEKF", "BatchedVelocityGaussian", "ExtendedKalmanFilter",
+    "Row", "VelocityGaussian", "predict_moments"
+]

@@ -216,3 +216,6 @@ class CorridorFilter(FilterBase):
         p = self.params
         return GridBelief(per_cell[:, None] / per_cell.sum(), (p["x0"], p["y_centre"] - p["width"] / 2),
                           p["cell"])
+
+
+__all__ = ["Corridor", "CorridorFilter", "walls_seen"]

@@ -535,3 +535,5 @@ def _shift_pile_inplace(slab: np.ndarray, sx: int, sy: int) -> None:
             a[n + s:] = 0.0
             a[0] += pile
 
+
+__all__ = ["TWO_PI", "HistogramFilter"]

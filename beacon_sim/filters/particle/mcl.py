@@ -446,3 +446,9 @@ class MonteCarloLocalization(FilterBase):
         P[idx] = moved
         self.poses = P
         self._cache = None
+
+
+__all__ = [
+    "LASER_MODELS", "MOTION_TRIES", "ROUGHENING_FLOOR", "MonteCarloLocalization", "kld_bound",
+    "open_grid", "subsample_beams"
+]

@@ -586,3 +586,6 @@ def triangulation_jacobian(v: np.ndarray, eps: float = 1e-7) -> np.ndarray:
             raise FilterError("bearing-only initialisation: rays too close to parallel")
         G[:, i] = (a - b) / (2 * eps)
     return G
+
+
+__all__ = ["EKFSLAM", "FullStateJoint", "nn_pairs", "triangulate", "triangulation_jacobian"]

@@ -15,20 +15,18 @@ from typing import Any
 from beacon_sim.core.files import open_user_file
 from beacon_sim.core.motion import SLIP_MODELS
 from beacon_sim.core.scenario import (
+    MAX_ROBOTS,
     MAX_SENSORS,
     MAX_SPEED,
     Scenario,
     ScenarioError,
+    TeamScenario,
     check_document,
     env_limit,
+    team_of_one,
 )
 from beacon_sim.core.simulation import RECORDED_BEFORE_SLIP_MODEL, scenario_with_slip
 from beacon_sim.core.team import team_with_slip
-from beacon_sim.core.team_scenario import (
-    MAX_ROBOTS,
-    TeamScenario,
-    team_of_one,
-)
 from beacon_sim.core.types import Control
 from beacon_sim.io.recording.format import (
     FORMAT_NAME,

@@ -18,14 +18,12 @@ from beacon_sim.core.scenario import (
     MAX_SCENARIO_BYTES,
     Scenario,
     ScenarioError,
-    env_limit,
-    parse_scenario,
-    parse_toml_text,
-)
-from beacon_sim.core.team_scenario import (
     TeamScenario,
+    env_limit,
     is_team_document,
+    parse_scenario,
     parse_team_scenario,
+    parse_toml_text,
 )
 from beacon_sim.io.recording.format import TEAM_KIND, RecordingError, failure, is_number, short_text
 

@@ -10,8 +10,7 @@ from typing import Any
 import numpy as np
 
 from beacon_sim.core.metrics import chi2_quantile, nees, pose_errors, summary
-from beacon_sim.core.scenario import Scenario
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import Scenario, TeamScenario
 from beacon_sim.io.mrclam import MrclamData
 from beacon_sim.runs.headless import ACCURACY_KEYS
 from beacon_sim.runs.mrclam.associations import AssociationCount

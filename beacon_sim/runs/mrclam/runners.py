@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from beacon_sim.core.team_scenario import TeamScenario
+from beacon_sim.core.scenario import TeamScenario
 from beacon_sim.hosting.runner import HEADLESS_STEP_LIMIT_S, failure_text, guarded_call, validate_estimate
 from beacon_sim.hosting.team_runner import TeamRunner, validate_team_estimates
 from beacon_sim.hosting.team_specs import check_team_specs, team_filter_name

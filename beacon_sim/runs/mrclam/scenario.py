@@ -13,9 +13,15 @@ import numpy as np
 
 from beacon_sim.core.drivers import KeyboardSpec
 from beacon_sim.core.keyboard_drive import KeyboardLimits
-from beacon_sim.core.scenario import InitialBelief, Scenario
+from beacon_sim.core.scenario import (
+    InitialBelief,
+    RobotSensorSpec,
+    Scenario,
+    TeamRobot,
+    TeamScenario,
+    team_of_one,
+)
 from beacon_sim.core.sensors import SensorSpec
-from beacon_sim.core.team_scenario import RobotSensorSpec, TeamRobot, TeamScenario, team_of_one
 from beacon_sim.core.types import Beacon
 from beacon_sim.core.world import World
 from beacon_sim.filters.registry import MRCLAM_DEFAULTS

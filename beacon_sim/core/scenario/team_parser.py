@@ -1,4 +1,6 @@
-"""Team scenarios: several robots in one world, declared as ``[[robots]]``.
+"""The team file format: ``[[robots]]`` in one world, parsed into a
+:class:`~beacon_sim.core.scenario.team.TeamScenario`; and the one entry that reads any
+scenario file as a team (:func:`load_any_scenario`, :func:`parse_any_scenario`).
 
 A team file has the single-robot file's top-level keys (``name``, ``description``, ``dt``,
 ``duration``, ``seed``, ``[world]``, ``[keyboard]``, ``default_filters``, ``[filters.*]``)
@@ -18,38 +20,43 @@ and, instead of ``[robot]``, ``[[sensors]]``, ``[driver]``, ``[initial_belief]``
     kind = "robot_range_bearing"   # or "robot_bearing": sees the other robots
     name, period, max_range, fov, detection_prob, range_std, bearing_std
 
-Each robot is validated by the single-robot parser (``core/scenario/``) on a document
-made of the shared keys and that robot's keys, so every check and message is the same;
-the key paths in messages are rewritten to ``robots[i]....``. A single-robot file is not
-touched by any of this (``load_scenario`` rejects ``robots``).
+Each robot is validated by the single-robot parser (``parser.py``) on a document made of
+the shared keys and that robot's keys, so every check and message is the same; the key
+paths in messages are rewritten to ``robots[i]....``. A single-robot file is not touched by
+any of this (``load_scenario`` rejects ``robots``).
 """
 
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from beacon_sim.core.keyboard_drive import KeyboardLimits
-from beacon_sim.core.scenario import (
-    MAX_SENSORS,
-    MAX_TICKS,
-    Scenario,
-    ScenarioError,
-    Table,
+from beacon_sim.core.resources import scenario_dir
+from beacon_sim.core.scenario.limits import MAX_SENSORS
+from beacon_sim.core.scenario.model import ScenarioError
+from beacon_sim.core.scenario.parser import (
+    load_scenario,
     parse_scenario,
-    read_toml,
     resolve_scenario_path,
+    sensor_head,
     sensor_noise,
 )
+from beacon_sim.core.scenario.table import Table
+from beacon_sim.core.scenario.team import (
+    DEFAULT_TEAM_FILTERS,
+    MAX_ROBOTS,
+    RobotSensorSpec,
+    TeamRobot,
+    TeamScenario,
+    team_of_one,
+)
+from beacon_sim.core.scenario.toml_files import read_toml
 from beacon_sim.core.sensors import SensorNoise
 from beacon_sim.core.team_models import ROBOT_MEASUREMENT_DIMS
-from beacon_sim.core.world import World
 
-#: Most robots in a team.
-MAX_ROBOTS = 100
 #: Keys of one ``[[robots]]`` entry.
 ROBOT_KEYS = {"name", "id", "initial_pose", "radius", "motion_noise", "driver", "initial_belief",
               "model", "sensors"}
@@ -61,76 +68,7 @@ _SINGLE_ONLY = ("robot", "sensors", "driver", "initial_belief", "model", "events
 #: (a shared file must not run code: only the command line and the API may name code).
 _DATA_TEAM_FILTER = re.compile(
     r"^(?:[A-Za-z0-9_][A-Za-z0-9_.'+-]{0,63}=)?(?:independent:)?[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}$")
-#: Team filters a team scenario runs by default.
-DEFAULT_TEAM_FILTERS = ("independent", "centralised", "decentralised", "ci")
 
-
-@dataclass(frozen=True)
-class RobotSensorSpec:
-    """A sensor that measures the other robots of the team.
-
-    kind : ``robot_range_bearing`` (range [m] and bearing [rad]) or ``robot_bearing``.
-    period [s], max_range [m], fov [rad] (centred on the heading), detection_prob: as a
-    beacon sensor's. noise: ``range_std`` [m], ``bearing_std`` [rad].
-    """
-
-    name: str
-    kind: str
-    period: float = 0.1
-    max_range: float = math.inf
-    fov: float = 2.0 * math.pi
-    detection_prob: float = 1.0
-    noise: SensorNoise = field(default_factory=SensorNoise)
-
-    def reading_std(self) -> tuple[float, ...]:
-        """Standard deviations of one reading: ``(sb,)`` or ``(sr, sb)``."""
-        if self.kind == "robot_bearing":
-            return (self.noise.bearing_std,)
-        return (self.noise.range_std, self.noise.bearing_std)
-
-
-@dataclass(frozen=True)
-class TeamRobot:
-    """One robot of a team: its ID, its own single-robot :class:`Scenario` (pose, noise,
-    beacon sensors, driver, initial belief, the model the filters are told) and its robot
-    sensors (true noise and the noise the filters are told)."""
-
-    name: str
-    id: int
-    scenario: Scenario
-    robot_sensors: tuple[RobotSensorSpec, ...] = ()
-    model_robot_sensors: tuple[RobotSensorSpec, ...] = ()
-
-
-@dataclass(frozen=True)
-class TeamScenario:
-    """A validated team scenario: shared world and clock, and the robots."""
-
-    name: str
-    description: str
-    source: str
-    dt: float
-    duration: float
-    seed: int
-    world: World
-    keyboard: KeyboardLimits
-    robots: tuple[TeamRobot, ...]
-    default_filters: tuple[str, ...] = DEFAULT_TEAM_FILTERS
-    filter_params: dict[str, dict[str, Any]] = field(default_factory=dict)
-    #: Made from a single-robot document (:func:`team_of_one`): its one robot's simulation
-    #: draws from the run's own seed, so its truth is the single-robot run's, bit for bit.
-    solo: bool = False
-
-    @property
-    def ids(self) -> tuple[int, ...]:
-        return tuple(r.id for r in self.robots)
-
-    @property
-    def n_robots(self) -> int:
-        return len(self.robots)
-
-    def with_changes(self, **changes) -> TeamScenario:
-        return replace(self, **changes)
 
 
 def is_team_document(data: Any) -> bool:
@@ -139,12 +77,7 @@ def is_team_document(data: Any) -> bool:
 
 
 def _robot_sensor(t: Table, dt: float) -> RobotSensorSpec:
-    kind = t.string("kind", choices=tuple(ROBOT_MEASUREMENT_DIMS))
-    name = t.string("name", kind)
-    period = t.number("period", dt, lo=0, hi=MAX_TICKS * dt, lo_open=True)
-    ratio = period / dt
-    if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
-        t.fail(t.key("period"), period, f"a whole multiple of dt = {dt:g} s")
+    kind, name, period = sensor_head(t, dt, tuple(ROBOT_MEASUREMENT_DIMS))
     spec = RobotSensorSpec(
         name=name, kind=kind, period=period,
         max_range=t.number("max_range", math.inf, lo=0, hi=1e6, lo_open=True, allow_inf=True),
@@ -266,29 +199,20 @@ def parse_team_scenario(data: dict[str, Any], file: str, name: str = "") -> Team
         filter_params=dict(first.filter_params))
 
 
-def team_of_one(scenario: Scenario) -> TeamScenario:
-    """A single-robot scenario as a team of one robot (ID 1, named ``robot``): the same
-    world, clock, keyboard, default filters and filter settings; the robot's own
-    :class:`Scenario` is ``scenario`` itself, and its simulation uses the run's seed
-    (``solo``), so a team-of-one run is the single-robot run bit for bit."""
-    robot = TeamRobot(name="robot", id=1, scenario=scenario)
-    return TeamScenario(
-        name=scenario.name, description=scenario.description, source=scenario.source,
-        dt=scenario.dt, duration=scenario.duration, seed=scenario.seed, world=scenario.world,
-        keyboard=scenario.keyboard, robots=(robot,), default_filters=scenario.default_filters,
-        filter_params=dict(scenario.filter_params), solo=True)
 
-
-def as_team(scenario: Scenario | TeamScenario) -> TeamScenario:
-    """``scenario`` as a team: a team scenario unchanged, a single-robot one as a team of one."""
-    return scenario if isinstance(scenario, TeamScenario) else team_of_one(scenario)
+def parse_any_scenario(data: Any, file: str, name: str = "") -> TeamScenario:
+    """Any decoded scenario document as a team: a ``[[robots]]`` document parsed by
+    :func:`parse_team_scenario`, a single-robot one by ``parse_scenario`` and made a team of
+    one (:func:`~beacon_sim.core.scenario.team.team_of_one`). ScenarioError: one line."""
+    if is_team_document(data):
+        return parse_team_scenario(data, file, name=name)
+    return team_of_one(parse_scenario(data, file))
 
 
 def load_any_scenario(name_or_path: str | Path) -> TeamScenario:
-    """Any scenario by shipped name or path, as a team: a ``[[robots]]`` file as its team, a
-    single-robot file as a team of one (:func:`team_of_one`). ScenarioError: one line."""
-    from beacon_sim.core.scenario import load_scenario
-
+    """Any scenario by shipped name or path, as a team (:func:`parse_any_scenario`): a
+    ``[[robots]]`` file as its team, a single-robot file as a team of one. ScenarioError:
+    one line."""
     if is_team_scenario(name_or_path):
         return load_team_scenario(name_or_path)
     return team_of_one(load_scenario(name_or_path))
@@ -296,8 +220,6 @@ def load_any_scenario(name_or_path: str | Path) -> TeamScenario:
 
 def resolve_team_path(name_or_path: str | Path) -> Path:
     """A shipped team scenario's name (``team_sparse``, in ``scenarios/team/``) or a path."""
-    from beacon_sim.core.resources import scenario_dir
-
     shipped = scenario_dir() / "team" / f"{name_or_path}.toml"
     if shipped.is_file():
         return shipped
@@ -306,8 +228,6 @@ def resolve_team_path(name_or_path: str | Path) -> Path:
 
 def shipped_team_scenarios() -> list[str]:
     """Names of the shipped team scenarios (``scenarios/team/*.toml``), sorted."""
-    from beacon_sim.core.resources import scenario_dir
-
     return sorted(p.stem for p in (scenario_dir() / "team").glob("*.toml"))
 
 

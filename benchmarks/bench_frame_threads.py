@@ -1,0 +1,133 @@
+"""The window's frames with its filters on a worker thread against the filters in each tick,
+in the same run: a row per shipped scenario (its default filters, on autopilot) and per heavier
+command the docs show (``bench_frame_views.py``'s rows), SDL dummy driver, frames paced at
+60 a second as ``App.run`` paces them (smooth drawing, heap settling), x1.
+
+For each view and way it prints the main thread's CPU time per frame (p50, p99: what decides
+whether a frame is late) and the filters' CPU time per simulated second (the filters' part of
+each tick: the recording, the commands, predict + update + estimate; on the worker also the
+beliefs it reads for drawing), with the simulated seconds per second delivered. The two ways
+are interleaved (rounds of ``--frames`` each, the order alternating) so that the machine's load
+falls on both alike. Targets: main-thread p99 <= 8 ms at 1280x800 and <= 10 ms at 1920x1080.
+
+    python benchmarks/bench_frame_threads.py [--frames 150] [--rounds 2] [--sizes 1280x800]
+        [--only corridor symmetric_room ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+import numpy as np
+
+from beacon_sim.core.threads import limit_blas_threads
+
+limit_blas_threads()  # one BLAS thread, as the window has
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_frame_views import DOC_COMMANDS, TARGET_MS, shipped  # noqa: E402
+
+from beacon_sim.app.main import SCRIPTED_FRAME_S, App  # noqa: E402
+from beacon_sim.core.scenario import load_any_scenario  # noqa: E402
+from beacon_sim.runs.live import Session  # noqa: E402
+
+WAYS = ("in the tick", "worker")
+
+
+def bench(scenario: str, specs: list[str] | None, params: dict, size: tuple[int, int],
+          frames: int, threaded: bool, warmup: int = 30) -> dict:
+    """One round of one view one way: the main thread's CPU per frame [s] of each frame, the
+    filters' CPU [s], the simulated seconds and the wall seconds it covered."""
+    team = load_any_scenario(scenario)
+    sc = team.robots[0].scenario if team.solo else team
+    session = Session(sc, list(specs or team.default_filters), None, params)
+    if session.has_autopilot:
+        session.toggle_autopilot()
+    app = App(session, size, scripted=True)
+    app.smooth = app.settle_heap = True
+    if threaded:
+        session.start_worker()
+    clock = time.thread_time
+    try:
+        for _ in range(warmup):
+            app.frame(SCRIPTED_FRAME_S)
+        worker = session.worker
+        f0 = worker.cpu_s if worker is not None else session.filter_cpu_s
+        s0, w0 = session.sim.time, time.perf_counter()
+        cpu = np.empty(frames)
+        due = time.perf_counter()
+        for i in range(frames):
+            c0 = clock()
+            app.frame(SCRIPTED_FRAME_S)
+            cpu[i] = clock() - c0
+            due += SCRIPTED_FRAME_S  # paced at 60 frames a second, as the window is
+            pause = due - time.perf_counter()
+            if pause > 0:
+                time.sleep(pause)
+            else:
+                due = time.perf_counter()
+        filters = (worker.cpu_s if worker is not None else session.filter_cpu_s) - f0
+        sim_s, wall_s = session.sim.time - s0, time.perf_counter() - w0
+        off = {n: session.status[n].failed for n in session.names if session.status[n].failed}
+        names = list(session.names)
+    finally:
+        app.close()
+    return {"cpu": cpu, "filters": filters, "sim": sim_s, "wall": wall_s, "off": off, "names": names}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=150, help="frames per round and way")
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--sizes", nargs="+", default=["1280x800"])
+    ap.add_argument("--only", nargs="+", help="only these scenarios (their rows and commands)")
+    a = ap.parse_args()
+    rows: list[tuple[str, str, list[str] | None, dict]] = [(s, s, None, {}) for s in shipped()]
+    rows += DOC_COMMANDS
+    if a.only:
+        rows = [r for r in rows if r[1] in a.only]
+    print(f"load average at the start {os.getloadavg()[0]:.1f}; {a.rounds} rounds of {a.frames} "
+          "frames per way, interleaved; main thread's CPU per frame; filters' CPU per simulated s")
+    print("| view | size | way | main p50 ms | main p99 ms | target | verdict | filters CPU s per sim s "
+          "| sim s per s | switched off | load |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    loads = [os.getloadavg()[0]]
+    met = total = 0
+    for label, scenario, specs, params in rows:
+        for text in a.sizes:
+            w, h = (int(v) for v in text.split("x"))
+            got: dict[str, list[dict]] = {way: [] for way in WAYS}
+            for r in range(a.rounds):
+                for threaded in ((False, True) if r % 2 == 0 else (True, False)):
+                    got[WAYS[threaded]].append(bench(scenario, specs, params, (w, h), a.frames, threaded))
+            loads.append(os.getloadavg()[0])
+            target = TARGET_MS.get((w, h), 10.0)
+            for way in WAYS:
+                runs = got[way]
+                cpu = 1e3 * np.concatenate([r["cpu"] for r in runs])
+                p50, p99 = float(np.median(cpu)), float(np.percentile(cpu, 99))
+                sim = sum(r["sim"] for r in runs)
+                per_sim = sum(r["filters"] for r in runs) / sim if sim > 0 else float("nan")
+                speed = sim / sum(r["wall"] for r in runs)
+                off = {k: v for r in runs for k, v in r["off"].items()}
+                verdict = "met" if p99 <= target else "NOT met"
+                if way == "worker":
+                    met, total = met + (verdict == "met"), total + 1
+                print(f"| {label} ({' + '.join(runs[0]['names'])}) | {w}x{h} | {way} | {p50:.1f} | "
+                      f"{p99:.1f} | {target:g} | {verdict} | {per_sim:.3f} | {speed:.2f} | "
+                      f"{', '.join(f'{k} ({v})' for k, v in off.items()) or 'none'} | "
+                      f"{loads[-1]:.1f} |", flush=True)
+    print(f"| load (1-min average over the run) | | worker | | | | {met} of {total} met | | | | "
+          f"{min(loads):.1f}-{max(loads):.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
