@@ -14,7 +14,7 @@ def fig_team_sparse(ctx: Context) -> Figure:
     the joint PCRB and each robot's bound alone (docs/multi-robot.md)."""
     from beacon_sim.core.scenario import load_team_scenario
     from beacon_sim.evaluation.montecarlo.sweep import run_team_monte_carlo
-    from beacon_sim.evaluation.summary import evaluate_team
+    from beacon_sim.evaluation.team_summary import evaluate_team
 
     team = load_team_scenario("team_sparse")
     flt = ["independent", "centralised", "decentralised", "ci", "naive"]   # team filters: always built in
