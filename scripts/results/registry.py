@@ -207,9 +207,13 @@ def overlap(a: list | None, b: list | None) -> bool | None:
 
 def check_seeds(entries: list[Entry], docs: Context, check: Context) -> int:
     """Every seeded figure's checked quantities on the docs range (as stored by the docs run,
-    else run again) and on the check range; prints the table; 1 if any pair disagrees."""
+    else run again) and on the check range; prints the table a row at a time as each figure
+    finishes; 1 if any pair disagrees."""
     stored = load_checks()
     rows, differ = [], 0
+    print(f"| figure | quantity | seeds {docs.seed}.. (docs) | seeds {check.seed}.. (check) "
+          "| intervals overlap |")
+    print("|---|---|---|---|---|", flush=True)
     for e in entries:
         if not e.seeded:
             continue
@@ -227,11 +231,8 @@ def check_seeds(entries: list[Entry], docs: Context, check: Context) -> int:
             rows.append(f"| {e.name} | {q} | {with_iv(a[q][0], a[q][1], '.3g')} "
                         f"| {with_iv(b[q][0], b[q][1], '.3g')} "
                         f"| {'-' if ok is None else 'yes' if ok else 'NO'} |")
+            print(rows[-1], flush=True)  # as each figure finishes: a long run shows its way
         print(f"checked {e.name}", file=sys.stderr, flush=True)
-    print(f"| figure | quantity | seeds {docs.seed}.. (docs) | seeds {check.seed}.. (check) "
-          "| intervals overlap |")
-    print("|---|---|---|---|---|")
-    print("\n".join(rows))
     print(f"\n{len(rows)} quantities, {differ} whose intervals do not overlap.")
     return 1 if differ else 0
 
