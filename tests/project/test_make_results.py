@@ -161,3 +161,61 @@ def test_every_link_out_of_a_section_names_a_heading(make_results):
         if page != "results.md" and (ROOT / "docs" / page).exists() and target not in headings(page):
             dangling.append(f"{page}#{target}")
     assert not dangling, sorted(dangling)
+
+
+#: ``seed N`` / ``seeds A-B`` (``..``, ``to``, ``and``) naming a random seed: not the five texts
+#: cited as "seed 000" .. "seed 004", written with leading zeros.
+SEED_NAMED = re.compile(r"\bseeds?\s+(?!0\d)(\d+)(?:\s*(?:-|\.\.|to|and)\s*(\d+))?", re.I)
+#: A figure: a decimal, a count "k/n" or "k of n", a percentage.
+FIGURE = re.compile(r"\d\.\d|\d+ ?/ ?\d+|\d+ of \d+|\d ?%")
+#: What a figure on seeds outside the docs' and the check's ranges must say it is.
+LABELLED = re.compile(r"tuning|tuned|\btests?\b|tests/|history|by hand|hand[- ]runs?\b|hand-measured"
+                      r"|benchmark|soak|\bone (?:run|drive|draw)\b", re.I)
+
+
+def unlabelled_seed_figures(text: str, lo: int, hi: int) -> list[str]:
+    """The paragraphs of a page that name a seed outside [lo, hi) beside a figure without
+    saying what it is (a tuning record, a test's, history, a benchmark's, one run). Code blocks
+    are left out (an output the text around it labels), and so are seeds inside inline code
+    (a command); a paragraph in a section whose opening paragraph runs a `benchmarks/` script
+    is that benchmark's report."""
+    text = re.sub(r"^```.*?^```", "", text, flags=re.M | re.S)
+    found = []
+    for section in re.split(r"^(?=#{1,6} )", text, flags=re.M):
+        paras = [p for p in re.split(r"\n\s*\n", section) if p.strip()]
+        opening = " ".join(paras[:2])        # the heading and the paragraph under it
+        benchmark_report = "benchmarks/" in opening
+        for para in paras:
+            bare = re.sub(r"`[^`\n]*`", "", para)
+            seeds = [int(m.group(1)) for m in SEED_NAMED.finditer(bare)]
+            if (any(not lo <= s < hi for s in seeds) and FIGURE.search(bare)
+                    and not LABELLED.search(para) and not benchmark_report):
+                found.append(" ".join(para.split())[:160])
+    return found
+
+
+def test_figures_on_other_seeds_say_what_they_are(make_results):
+    """A docs page that quotes a figure on seeds other than the docs' (20000..) and the
+    check's (30000..), such as the test seeds below 10000 or the tuning-era seeds 1000..,
+    says beside it that it is a tuning record, a test's figure, history or a benchmark's: it
+    is never presented as how well the shipped settings do (those are results.md's)."""
+    lo, hi = make_results.DOCS_SEED, make_results.CHECK_SEED + 10_000
+    bad = []
+    for path in [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]:
+        if path.name != "results.md":
+            text = path.read_text(encoding="utf-8")
+            bad += [f"{path.name}: {p}" for p in unlabelled_seed_figures(text, lo, hi)]
+    assert not bad, bad
+    # the check is not blind: a tuning-era figure is caught, the same labelled is not,
+    # and neither are the cited texts, a command, the docs' seeds or a benchmark's section
+    caught = unlabelled_seed_figures("FastSLAM's ATE was 0.209 m on seeds 1000-1009.", lo, hi)
+    assert len(caught) == 1
+    assert unlabelled_seed_figures("Seed 0: error 1.2 m at 40 s.\n\nNo figure on seed 5.", lo, hi) == \
+        ["Seed 0: error 1.2 m at 40 s."]
+    for fine in ("FastSLAM's ATE was 0.209 m on seeds 1000-1009, the tuning seeds.",
+                 "The tests hold 6 seeds (700-705, at least 5 of 6 found).",
+                 "As in seed 002, the fix is 1 cm x HDOP.",
+                 "Run `eval default --seed 1000`: 0.12 m.",
+                 "ATE 0.243 [0.204, 0.285] m on seeds 20000-20019.",
+                 "## Beside a peer\n\n`python benchmarks/bench_x.py`\n\nOn seed 1 the NEES is 19.6."):
+        assert unlabelled_seed_figures(fine, lo, hi) == [], fine
