@@ -88,12 +88,13 @@ class Entry:
 
 #: The sections of results.md, in their order. A new figure is a function above and a line here.
 FIGURES: tuple[Entry, ...] = (
-    Entry("default", "## Targets on `default`", fig_default),
+    Entry("default", "## Targets on `default`", fig_default, quoted_in=("evaluation.md",)),
     Entry("krejsa", "## [Seed 000](references.md#seed-000): EKF against UKF, bearing-only beacons, "
-                    "with the kidnap", fig_krejsa),
+                    "with the kidnap", fig_krejsa, quoted_in=("filters.md",)),
     Entry("ulps", "## [Seed 002](references.md#seed-002): particle filter on the ULPS circle", fig_ulps),
     Entry("distance", "## [Seed 002](references.md#seed-002) at the level of its distances: tight "
-                      "against loose coupling, and the naive TDOA update", fig_distance),
+                      "against loose coupling, and the naive TDOA update", fig_distance,
+          quoted_in=("distance_beacons.md",)),
     Entry("assignment", "## [Seed 003](references.md#seed-003): the classroom KF — no beacon in view "
                         "against three", fig_assignment),
     Entry("kf_consistency", "## The KF against the EKF: where A = I matters", fig_kf_consistency,
@@ -108,7 +109,7 @@ FIGURES: tuple[Entry, ...] = (
     Entry("kidnap_trials", "## One random kidnap on `global_kidnap`: recovery within 15 s",
           fig_kidnap_trials, quoted_in=("particle-and-grid.md",)),
     Entry("pf_default", "## The particle filter on `default`: augmented MCL against the EKF",
-          fig_pf_default, quoted_in=("particle-and-grid.md",)),
+          fig_pf_default, quoted_in=("particle-and-grid.md", "evaluation.md")),
     Entry("pf_tempering", "## Progressive correction: the particle filter on `assignment_kf`",
           fig_pf_tempering, quoted_in=("particle-and-grid.md",)),
     Entry("standstill", STANDSTILL_HEADER, fig_standstill),
@@ -145,8 +146,9 @@ FIGURES: tuple[Entry, ...] = (
           quoted_in=("maps.md",)),
     Entry("two_rooms", "## Beacons behind walls: `two_rooms`", fig_two_rooms, quoted_in=("maps.md",)),
     Entry("mrclam", MRCLAM_HEADER, fig_mrclam, seeded=False),
-    Entry("association", ASSOCIATION_HEADER, fig_mrclam_association, seeded=False),
-    Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False),
+    Entry("association", ASSOCIATION_HEADER, fig_mrclam_association, seeded=False,
+          quoted_in=("association.md", "slam.md")),
+    Entry("slam", SLAM_HEADER, fig_mrclam_slam, seeded=False, quoted_in=("slam.md",)),
     Entry("smoothing", SMOOTHING_HEADER, fig_smoothing),
     Entry("graph_slam", "## Graph SLAM on `slam_loop`: the whole drive at once against EKF-SLAM",
           fig_graph_slam, quoted_in=("smoothing.md",)),

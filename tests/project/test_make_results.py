@@ -143,7 +143,8 @@ def test_pages_that_quote_a_figure_link_its_section(make_results):
     assert {"lookalike", "unknown_ids", "team_sparse", "office_kidnap", "symmetric_room", "bearing_only",
             "fastslam_association", "map_bound", "two_rooms", "kf_consistency", "outliers", "nees_alarm",
             "kidnap_trials", "pf_default", "pf_tempering", "graph_slam", "office_sweep",
-            "fastslam_ring", "bearing_ring", "global_start", "corridor_ladder", "symmetric_before"} <= quoted
+            "fastslam_ring", "bearing_ring", "global_start", "corridor_ladder", "symmetric_before",
+            "krejsa", "distance", "default", "association", "slam"} <= quoted
 
 
 def test_every_link_out_of_a_section_names_a_heading(make_results):
