@@ -207,6 +207,13 @@ def overlap(a: list | None, b: list | None) -> bool | None:
     return lo <= hi
 
 
+#: How often two exact 95 % intervals of the same quantity, from disjoint seeds with equal
+#: spread, share no point: |a - b| > 2 x 1.96 se with sd(a - b) = sqrt(2) se, so
+#: P(|z| > 1.96 sqrt(2)) = 0.0056. Many quantities on one range (a filter's RMSE and its
+#: ANEES) move together, so the disagreements come in groups.
+CHANCE_APART = math.erfc(1.96)  # P(|z| > x) = erfc(x / sqrt(2)), x = 1.96 sqrt(2)
+
+
 def check_seeds(entries: list[Entry], docs: Context, check: Context) -> int:
     """Every seeded figure's checked quantities on the docs range (as stored by the docs run,
     else run again) and on the check range; prints the table a row at a time as each figure
@@ -235,7 +242,8 @@ def check_seeds(entries: list[Entry], docs: Context, check: Context) -> int:
                         f"| {'-' if ok is None else 'yes' if ok else 'NO'} |")
             print(rows[-1], flush=True)  # as each figure finishes: a long run shows its way
         print(f"checked {e.name}", file=sys.stderr, flush=True)
-    print(f"\n{len(rows)} quantities, {differ} whose intervals do not overlap.")
+    print(f"\n{len(rows)} quantities, {differ} whose intervals do not overlap; "
+          f"{CHANCE_APART * len(rows):.1f} expected by chance alone ({CHANCE_APART:.2%} of pairs).")
     return 1 if differ else 0
 
 
