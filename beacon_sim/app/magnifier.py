@@ -42,12 +42,13 @@ class Magnifier(EstimateLayer):
         self.bound_cov: np.ndarray | None = None
 
     def magnifier(self, surf, view: View, pose, estimates, colours, dashes, radius: float) -> None:
-        """A magnified inset (top right of the world) when an estimate's 95 % ellipse is
+        """A magnified inset (at a corner of the world, see below) when an estimate's 95 % ellipse is
         smaller than the robot's outline on screen (a converged KF's 2 cm lie inside it):
         the true position (black cross), those estimates (dot) and their ellipses at a
         zoom where the largest is about half the inset, a scale bar, and each ellipse's size
         in words. A frame marks the magnified part around the robot. ``last_magnifier``
-        holds what was drawn (for tests): rect, px per metre, {name: ellipse across [px]},
+        holds what was drawn (for tests): rect (the inset), block (with its strip of words),
+        px per metre, {name: ellipse across [px]},
         and the bound's across [px] (``bound_px``) when ``bound_cov`` is shown and small (a
         map world's bound is millimetres)."""
         r_px = max(radius, 14.0 / view.scale) * view.scale
@@ -64,40 +65,45 @@ class Magnifier(EstimateLayer):
         font = self.fonts["small"]
         lh = font.get_linesize()
         # wide enough for its words (the bar is at most half the width, its length beside it)
-        side = max(min(int(0.3 * min(area.width, area.height)), 360), 150,
-                   font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
-                   max((font.size(f"{key}  99 mm")[0] for key, *_ in small), default=0) + 50,
-                   font.size(f"{MAGNIFIER_BOUND}  99 mm")[0] + 50 if with_bound else 0)
+        floor = max(150, font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
+                    max((font.size(f"{key}  99 mm")[0] for key, *_ in small), default=0) + 50,
+                    font.size(f"{MAGNIFIER_BOUND}  99 mm")[0] + 50 if with_bound else 0)
         strip_h = lh * (len(small) + with_bound + 3) + 10
-        # a corner of the world's area that does not cover the robot (top right first)
         robot_px = view.to_px(np.asarray(pose[:2], dtype=float))
         robot_box = pygame.Rect(ipx(robot_px[0] - r_px) - 8, ipx(robot_px[1] - r_px) - 8,
                                 ipx(2 * r_px) + 16, ipx(2 * r_px) + 16)
-        blocks = [pygame.Rect(area.right - side - 12, area.top + 12, side, side + strip_h + 2),
-                  pygame.Rect(area.right - side - 12, area.bottom - side - strip_h - 14, side,
-                              side + strip_h + 2),
-                  pygame.Rect(area.left + 12, area.top + 40, side, side + strip_h + 2),
-                  pygame.Rect(area.left + 12, area.bottom - side - strip_h - 14, side,
-                              side + strip_h + 2)]
-        # the corner that hides the least: never the robot, then the fewest beacons and
-        # their labels, then the least of the room (the world's bounds) -- the margins first
         room = world_rect(view)
-        beacons = list(self.beacon_rects)
+        # the beacons and their labels, and the labels of beliefs wider than the world
+        beacons = [*self.beacon_rects, *getattr(self, "_lost_labels", ())]
 
-        def hidden(b: pygame.Rect) -> tuple[bool, int, int]:
-            over = b.clip(room)
-            return (b.colliderect(robot_box), len(b.collidelistall(beacons)), over.width * over.height)
+        def hidden(b: pygame.Rect) -> tuple[bool, int]:
+            return b.colliderect(robot_box), len(b.collidelistall(beacons))
 
-        block = min(blocks, key=hidden)  # (the first of equals: top right first)
-        if hidden(block)[:2] > (False, 0):  # every corner hides the robot or a beacon: try
-            tall = side + strip_h + 2       # the middles of the four edges too
+        # The place that hides the least: never the robot, then the fewest beacons and labels;
+        # then the largest inset (its full size, then smaller, down to its words'
+        # width, before it hides a beacon); then a corner (top right first) before the middle
+        # of an edge; then the least of the room (the world's bounds): the margins first.
+        best: tuple | None = None
+        full = max(min(int(0.3 * min(area.width, area.height)), 360), floor)
+        for rank, side in enumerate(dict.fromkeys((full, (full + floor) // 2, floor))):
+            tall = side + strip_h + 2
+            corners = [pygame.Rect(area.right - side - 12, area.top + 12, side, tall),
+                       pygame.Rect(area.right - side - 12, area.bottom - tall - 12, side, tall),
+                       pygame.Rect(area.left + 12, area.top + 40, side, tall),
+                       pygame.Rect(area.left + 12, area.bottom - tall - 12, side, tall)]
             edges = [pygame.Rect(area.centerx - side // 2, area.top + 12, side, tall),
                      pygame.Rect(area.centerx - side // 2, area.bottom - tall - 12, side, tall),
                      pygame.Rect(area.left + 12, area.centery - tall // 2, side, tall),
                      pygame.Rect(area.right - side - 12, area.centery - tall // 2, side, tall)]
-            edge = min(edges, key=hidden)
-            if hidden(edge)[:2] < hidden(block)[:2]:
-                block = edge
+            for order, b in enumerate(corners + edges):
+                over = b.clip(room)
+                key = (*hidden(b), rank, order >= len(corners), over.width * over.height, order)
+                if best is None or key < best[0]:
+                    best = (key, b, side)
+            if best is not None and best[0][:2] == (False, 0):
+                break  # free at this size: no smaller one
+        assert best is not None
+        _, block, side = best
         rect = pygame.Rect(block.left, block.top, side, side)
         # the zoom: the largest small ellipse (or the spread of the means) half the inset
         centre = np.asarray(pose[:2], dtype=float)
