@@ -24,8 +24,8 @@ a user presses them). Open every picture and check it against what its name says
   drawn apart from wall hits;
 - ``two_rooms_sensor_disc_clipped``: the sensor disc stopped by the walls;
 - ``team_panel_footer``: team_sparse's panel with its FPS line and help hint;
-- ``mrclam_window_size``: ``beacon-sim mrclam DIR --robot 1 --size WxH`` (if the data is at
-  ``$BEACON_SIM_MRCLAM``, default /work/shared/data/mrclam): title and missed list inside;
+- ``mrclam_window_size``: ``beacon-sim mrclam DIR --robot 1 --size WxH``, 40 s in (when
+  ``BEACON_SIM_MRCLAM`` names the data set's folder): title and missed list inside;
 - ``kf_inside_bound_assignment_kf_blind``: B on in the blind stretch, and what the screen
   says of the KF inside the bound;
 - ``f12_saved_file_no_banner`` (the file F12 wrote) / ``f12_window_saved_banner`` (the
@@ -262,10 +262,10 @@ class Review:
             app.close()
 
     def shot_mrclam(self, size) -> None:
-        data = Path(os.environ.get("BEACON_SIM_MRCLAM", "/work/shared/data/mrclam"))
-        folder = next((p for p in sorted(data.glob("Dataset*")) if p.is_dir()), None)
-        if folder is None:
-            print(f"no MRCLAM data at {data}: mrclam_window_size skipped", flush=True)
+        data = Path(os.environ.get("BEACON_SIM_MRCLAM", "") or "-")
+        folder = next((p for p in sorted(data.glob("Dataset*")) if p.is_dir()), data)
+        if not folder.is_dir():
+            print("BEACON_SIM_MRCLAM names no MRCLAM folder: mrclam_window_size skipped", flush=True)
             return
         from beacon_sim.cli.main import main
 
@@ -316,8 +316,8 @@ class Review:
 
 
 def main() -> None:
-    groups: dict[str, Callable] = {n[len("shot_"):]: getattr(Review, n)
-                                   for n in dir(Review) if n.startswith("shot_")}
+    groups: dict[str, Callable] = {n[len("shot_"):]: f for n, f in vars(Review).items()
+                                   if n.startswith("shot_")}  # in the order written
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", help="folder for the PNGs (default: a new folder under the "
                    "system's temporary directory)")
