@@ -11,8 +11,8 @@ a user presses them). Open every picture and check it against what its name says
   ``nees_no_badge_healthy_ekf_60s_default``: a consistent EKF after a minute;
 - ``pf_standstill_60s_{default,two_rooms}``: the particle filter after 10 s of driving, X,
   then 60 s standing still;
-- ``magnifier_{global_kidnap_5s,assignment_kf_blind,slam_loop_closure,mrclam_field}``: the
-  magnifier placed where it hides no beacon and not the robot;
+- ``magnifier_{global_kidnap_25s,assignment_kf_blind,assignment_kf_three,slam_loop_closure}``:
+  the magnifier (where it opens) placed where it hides no beacon and not the robot;
 - ``step_view_box_robot_bottom_left``, ``step_view_box_assignment_kf``: the step view's box
   (paused, one tick with ., B) not over the robot; ``bumper_banner_robot_at_top``: the bumper banner not
   over the robot at the top wall;
