@@ -111,7 +111,8 @@ class WorldNotes(TextPainter):
 
     def banner(self, surf, area: pygame.Rect, text: str, avoid: pygame.Rect | None = None) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved), or
-        just under ``avoid`` (the robot) when at the top it would cover it."""
+        across its bottom when at the top it would cover ``avoid`` (the robot), else just
+        under the robot. (Just under the robot it hid the beacons the robot was reading.)"""
         font = "banner" if self.fonts["banner"].size(text)[0] <= area.width - 60 else "hud"
         lines = wrap_text(self.fonts[font], text, area.width - 60)[:4]
         imgs = [self.fonts[font].render(line, True, palette.BANNER_TEXT) for line in lines]
@@ -121,9 +122,9 @@ class WorldNotes(TextPainter):
         r = pygame.Rect(0, 0, max(i.get_width() for i in imgs), lh * len(imgs))
         r.midtop = (area.centerx, area.top + 14)
         if avoid is not None and r.inflate(36, 16).colliderect(avoid):
-            r.top = avoid.bottom + 16  # just under the robot (the bottom edge is the replay's)
-            if r.inflate(36, 16).bottom > area.bottom:
-                r.midbottom = (area.centerx, area.bottom - 14)
+            r.midbottom = (area.centerx, area.bottom - 14)
+            if r.inflate(36, 16).colliderect(avoid):
+                r.top = avoid.bottom + 16  # just under the robot
         box = r.inflate(36, 16)
         self.banner_box = box
         pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)

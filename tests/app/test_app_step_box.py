@@ -16,7 +16,7 @@ from beacon_sim.runs.live import Session  # noqa: E402
 @pytest.mark.parametrize("corner", ["bottom_left", "top_left"])
 def test_the_step_box_does_not_cover_the_robot(size, corner):
     sc = load_scenario("ulps_circle")  # its room fills the world's area: the box is over it
-    x0, y0, x1, y1 = sc.world.bounds
+    x0, y0, _, y1 = sc.world.bounds
     y = y0 + 0.3 if corner == "bottom_left" else y1 - 0.3
     app = App(Session(sc, ["dead_reckoning"]), size, scripted=True)
     try:
