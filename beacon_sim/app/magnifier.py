@@ -137,12 +137,19 @@ class Magnifier(EstimateLayer):
             self.bound(surf, sub, pose, self.bound_cov)
         lw = max(self.lw - 1, 2)
         drawn = {}
-        for key, mean, cov, axis in sorted(small, key=lambda e: dashes.get(e[0]) is not None):
+        solid_first = sorted(small, key=lambda e: dashes.get(e[0]) is not None)
+        for key, mean, _, axis in solid_first:
             m = sub.to_px(mean[:2])
             pygame.draw.circle(surf, colours[key], (ipx(m[0]), ipx(m[1])), lw + 1)
-            self.uncertainty(surf, sub, mean, cov, colours[key], dashes.get(key), radius,
-                             width=lw, wedge=False)
             drawn[key] = axis * scale
+        # as on the map: ellipses that lie on one another in stripes (the KF's and the EKF's
+        # 9 cm alike: one drawn over the other hid it), at the inset's line width
+        world_lw, self.lw = self.lw, lw
+        try:
+            self._ellipses(surf, sub, [(key, mean, cov) for key, mean, cov, _ in solid_first],
+                           colours, dashes)
+        finally:
+            self.lw = world_lw
         bound_zoom = None
         if with_bound and b_axis * scale < MIN_BOUND_PX:  # too small at this zoom: a closer look
             bound_zoom = self._bound_inset(surf, sub, rect, pose, b_axis,
