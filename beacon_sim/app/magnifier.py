@@ -11,9 +11,10 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import palette
-from beacon_sim.app.estimate_layer import EstimateLayer, ellipse_diameter
+from beacon_sim.app.estimate_layer import ELLIPSE_SCALE2, EstimateLayer, ellipse_diameter
 from beacon_sim.app.strokes import draw_cross, polyline
 from beacon_sim.app.view import View, ipx, nice_step, world_rect
+from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.runs.styles import BOUND_STYLE
 
 #: The magnifier's words above the sizes of the ellipses it shows.
@@ -30,6 +31,20 @@ def format_length(metres: float) -> str:
     if metres >= 0.01:
         return f"{metres * 100:.2g} cm"
     return f"{metres * 1000:.2g} mm"
+
+
+def alike_keys(small) -> list[str]:
+    """The names of the largest group of ``(key, mean, cov, across)`` whose 95 % ellipses
+    lie on one another (every point within 2 % of the largest's size): the inset draws
+    them in stripes under the note "kf, ekf: same ellipse", which must fit its width."""
+    best: list[str] = []
+    outlines = [covariance_ellipse(m[:2], c[:2, :2], ELLIPSE_SCALE2, 48) for _, m, c, _ in small]
+    for i, (*_rest, across) in enumerate(small):
+        group = [k for j, (k, *_r, a) in enumerate(small)
+                 if np.max(np.hypot(*(outlines[j] - outlines[i]).T)) <= 0.02 * max(a, across)]
+        if len(group) > 1 and len(group) > len(best):
+            best = group
+    return best
 
 
 class Magnifier(EstimateLayer):
@@ -65,9 +80,11 @@ class Magnifier(EstimateLayer):
         font = self.fonts["small"]
         lh = font.get_linesize()
         # wide enough for its words (the bar is at most half the width, its length beside it)
+        alike = alike_keys(small)
         floor = max(150, font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
                     max((font.size(f"{key}  99 mm")[0] for key, *_ in small), default=0) + 50,
-                    font.size(f"{MAGNIFIER_BOUND}  99 mm")[0] + 50 if with_bound else 0)
+                    font.size(f"{MAGNIFIER_BOUND}  99 mm")[0] + 50 if with_bound else 0,
+                    font.size(f"{', '.join(alike)}: same ellipse")[0] + 16 if alike else 0)
         strip_h = lh * (len(small) + with_bound + 3) + 10
         robot_px = view.to_px(np.asarray(pose[:2], dtype=float))
         robot_box = pygame.Rect(ipx(robot_px[0] - r_px) - 8, ipx(robot_px[1] - r_px) - 8,

@@ -120,32 +120,39 @@ def test_the_magnifier_keeps_off_a_lost_beliefs_label():
         app.close()
 
 
-def test_identical_ellipses_in_the_magnifier_take_turns():
-    """assignment_kf with three beacons in view: the KF's and the EKF's ellipses are the same
-    9 cm; in the magnifier both colours show along the outline (the EKF's drawn over the
-    KF's hid it), as on the map."""
+@pytest.mark.parametrize("filters, size, chart", [(["kf", "ekf"], (1024, 768), False),
+                                                  (["kf", "ekf", "ukf"], (1600, 1000), True)])
+def test_identical_ellipses_in_the_magnifier_take_turns(filters, size, chart):
+    """assignment_kf with three beacons in view: the KF's, EKF's (and UKF's) ellipses are the
+    same 9 cm; in the magnifier every colour shows along the outline (the EKF's drawn over
+    the KF's hid it), as on the map, and the inset is wide enough for the note that says
+    so ("kf, ekf, ukf: same ellipse" was cut at its edge)."""
     import numpy as np
 
     from beacon_sim.app.window import SCRIPTED_FRAME_S
 
     sc = load_scenario("assignment_kf")
-    s = Session(sc, ["kf", "ekf"])
+    s = Session(sc, filters)
     s.toggle_autopilot()
-    app = App(s, (1024, 768), scripted=True)
+    app = App(s, size, scripted=True)
     try:
+        if chart:  # (docs/window.md's classroom picture: the chart takes a third of the height)
+            app.act("chart")
         while s.time < 52.9 - 1e-9:
             app.after_tick(s.tick())
         app.frame(SCRIPTED_FRAME_S)
         app.draw()
         mag = app.renderer.last_magnifier
-        assert mag is not None and set(mag["across_px"]) == {"kf", "ekf"}
+        assert mag is not None and set(mag["across_px"]) == set(filters)
         rect = mag["rect"].inflate(-6, -6)
         px = pygame.surfarray.array3d(app.screen.subsurface(rect)).reshape(-1, 3).astype(int)
 
         def count(colour):
             return int(np.sum(np.abs(px - np.array(colour)).sum(axis=1) < 30))
 
-        kf, ekf = count(app.colours["kf"]), count(app.colours["ekf"])
-        assert kf > 100 and ekf > 100, (kf, ekf)
+        counts = {n: count(app.colours[n]) for n in filters}
+        assert min(counts.values()) > 100, counts
+        note = app.fonts["small"].size(f"{', '.join(filters)}: same ellipse")[0]
+        assert mag["rect"].width >= note + 8
     finally:
         app.close()
