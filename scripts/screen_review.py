@@ -204,6 +204,7 @@ class Review:
 
         filters = ["ekf", "dead_reckoning"]
         path = self.out / f"kidnap_{size[0]}x{size[1]}.jsonl"
+        path.unlink(missing_ok=True)  # an earlier review's (the recorder would pick a new name)
         sc = load_scenario("default")
         live = Session(sc, filters, 3, {}, Recorder(path, sc, 3, filters, {}))
         live.toggle_autopilot()
