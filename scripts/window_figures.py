@@ -51,9 +51,10 @@ CLASSROOM = {
 }
 
 
-def make_app(scenario: str, size: tuple[int, int], filters: list[str] | None = None):
+def make_app(scenario: str, size: tuple[int, int], filters: list[str] | None = None,
+             autopilot: bool = True):
     """The window on ``filters`` (default: ``scenario``'s default filters), its driver at
-    the wheel."""
+    the wheel (``autopilot`` False: the robot stands still until driven)."""
     from beacon_sim.app.main import App
     from beacon_sim.core.scenario import is_team_scenario, load_scenario, load_team_scenario
     from beacon_sim.runs.live import Session
@@ -68,34 +69,45 @@ def make_app(scenario: str, size: tuple[int, int], filters: list[str] | None = N
         return App(ts, size, scripted=True)
     sc = load_scenario(scenario)
     s = Session(sc, list(filters or sc.default_filters))
-    s.toggle_autopilot()
+    if autopilot:
+        s.toggle_autopilot()
     return App(s, size, scripted=True)
+
+
+def tick_to(app, t: float) -> None:
+    """Run the window's session to the simulated time ``t`` [s] without drawing (the
+    window's banners and strip chart follow each tick)."""
+    s = app.session
+    while s.time < t - 1e-9:
+        app.after_tick(s.tick())
+
+
+def save_png(app, path: Path) -> Path:
+    """The window's present picture into ``path`` as a 256-colour palette PNG."""
+    from PIL import Image
+
+    tmp = path.with_suffix(".tmp.png")
+    app.save_screenshot(tmp)
+    img = Image.open(tmp).convert("RGB").quantize(256, method=Image.Quantize.MEDIANCUT)
+    img.save(path, optimize=True)
+    tmp.unlink()
+    return path
 
 
 def shoot(name: str, size: tuple[int, int], out: Path, filters: list[str] | None = None,
           path: Path | None = None) -> Path:
     """One screenshot: tick to the time, draw one frame, save as a palette PNG."""
-    from PIL import Image
-
     scenario, t, chart, help_on = SHOTS[name]
     app = make_app(scenario, size, filters)
     try:
         if chart:
             app.act("chart")
-        s = app.session
-        while s.time < t - 1e-9:
-            app.after_tick(s.tick())
+        tick_to(app, t)
         app.help = help_on
         app.run(app.frames + 1 if t > 0 else 0)  # t = 0: the first picture, before any tick
-        path = path or out / f"window_{name}_{size[0]}x{size[1]}.png"
-        tmp = path.with_suffix(".tmp.png")
-        app.save_screenshot(tmp)
+        return save_png(app, path or out / f"window_{name}_{size[0]}x{size[1]}.png")
     finally:
         app.close()
-    img = Image.open(tmp).convert("RGB").quantize(256, method=Image.Quantize.MEDIANCUT)
-    img.save(path, optimize=True)
-    tmp.unlink()
-    return path
 
 
 def main() -> None:

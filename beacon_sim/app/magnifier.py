@@ -11,9 +11,10 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import palette
-from beacon_sim.app.estimate_layer import EstimateLayer, ellipse_diameter
+from beacon_sim.app.estimate_layer import ELLIPSE_SCALE2, EstimateLayer, ellipse_diameter
 from beacon_sim.app.strokes import draw_cross, polyline
 from beacon_sim.app.view import View, ipx, nice_step, world_rect
+from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.runs.styles import BOUND_STYLE
 
 #: The magnifier's words above the sizes of the ellipses it shows.
@@ -32,6 +33,20 @@ def format_length(metres: float) -> str:
     return f"{metres * 1000:.2g} mm"
 
 
+def alike_keys(small) -> list[str]:
+    """The names of the largest group of ``(key, mean, cov, across)`` whose 95 % ellipses
+    lie on one another (every point within 2 % of the largest's size): the inset draws
+    them in stripes under the note "kf, ekf: same ellipse", which must fit its width."""
+    best: list[str] = []
+    outlines = [covariance_ellipse(m[:2], c[:2, :2], ELLIPSE_SCALE2, 48) for _, m, c, _ in small]
+    for i, (*_rest, across) in enumerate(small):
+        group = [k for j, (k, *_r, a) in enumerate(small)
+                 if np.max(np.hypot(*(outlines[j] - outlines[i]).T)) <= 0.02 * max(a, across)]
+        if len(group) > 1 and len(group) > len(best):
+            best = group
+    return best
+
+
 class Magnifier(EstimateLayer):
     """The inset; ``last_magnifier`` says what it drew, ``bound_cov`` is the bound it shows."""
 
@@ -42,12 +57,13 @@ class Magnifier(EstimateLayer):
         self.bound_cov: np.ndarray | None = None
 
     def magnifier(self, surf, view: View, pose, estimates, colours, dashes, radius: float) -> None:
-        """A magnified inset (top right of the world) when an estimate's 95 % ellipse is
+        """A magnified inset (at a corner of the world, see below) when an estimate's 95 % ellipse is
         smaller than the robot's outline on screen (a converged KF's 2 cm lie inside it):
         the true position (black cross), those estimates (dot) and their ellipses at a
         zoom where the largest is about half the inset, a scale bar, and each ellipse's size
         in words. A frame marks the magnified part around the robot. ``last_magnifier``
-        holds what was drawn (for tests): rect, px per metre, {name: ellipse across [px]},
+        holds what was drawn (for tests): rect (the inset), block (with its strip of words),
+        px per metre, {name: ellipse across [px]},
         and the bound's across [px] (``bound_px``) when ``bound_cov`` is shown and small (a
         map world's bound is millimetres)."""
         r_px = max(radius, 14.0 / view.scale) * view.scale
@@ -64,40 +80,47 @@ class Magnifier(EstimateLayer):
         font = self.fonts["small"]
         lh = font.get_linesize()
         # wide enough for its words (the bar is at most half the width, its length beside it)
-        side = max(min(int(0.3 * min(area.width, area.height)), 360), 150,
-                   font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
-                   max((font.size(f"{key}  99 mm")[0] for key, *_ in small), default=0) + 50,
-                   font.size(f"{MAGNIFIER_BOUND}  99 mm")[0] + 50 if with_bound else 0)
+        alike = alike_keys(small)
+        floor = max(150, font.size(MAGNIFIER_HEADING)[0] + 24, 2 * (font.size("50 mm")[0] + 26),
+                    max((font.size(f"{key}  99 mm")[0] for key, *_ in small), default=0) + 50,
+                    font.size(f"{MAGNIFIER_BOUND}  99 mm")[0] + 50 if with_bound else 0,
+                    font.size(f"{', '.join(alike)}: same ellipse")[0] + 16 if alike else 0)
         strip_h = lh * (len(small) + with_bound + 3) + 10
-        # a corner of the world's area that does not cover the robot (top right first)
         robot_px = view.to_px(np.asarray(pose[:2], dtype=float))
         robot_box = pygame.Rect(ipx(robot_px[0] - r_px) - 8, ipx(robot_px[1] - r_px) - 8,
                                 ipx(2 * r_px) + 16, ipx(2 * r_px) + 16)
-        blocks = [pygame.Rect(area.right - side - 12, area.top + 12, side, side + strip_h + 2),
-                  pygame.Rect(area.right - side - 12, area.bottom - side - strip_h - 14, side,
-                              side + strip_h + 2),
-                  pygame.Rect(area.left + 12, area.top + 40, side, side + strip_h + 2),
-                  pygame.Rect(area.left + 12, area.bottom - side - strip_h - 14, side,
-                              side + strip_h + 2)]
-        # the corner that hides the least: never the robot, then the fewest beacons and
-        # their labels, then the least of the room (the world's bounds) -- the margins first
         room = world_rect(view)
-        beacons = list(self.beacon_rects)
+        # the beacons and their labels, and the labels of beliefs wider than the world
+        beacons = [*self.beacon_rects, *getattr(self, "_lost_labels", ())]
 
-        def hidden(b: pygame.Rect) -> tuple[bool, int, int]:
-            over = b.clip(room)
-            return (b.colliderect(robot_box), len(b.collidelistall(beacons)), over.width * over.height)
+        def hidden(b: pygame.Rect) -> tuple[bool, int]:
+            return b.colliderect(robot_box), len(b.collidelistall(beacons))
 
-        block = min(blocks, key=hidden)  # (the first of equals: top right first)
-        if hidden(block)[:2] > (False, 0):  # every corner hides the robot or a beacon: try
-            tall = side + strip_h + 2       # the middles of the four edges too
+        # The place that hides the least: never the robot, then the fewest beacons and labels;
+        # then the largest inset (its full size, then smaller, down to its words'
+        # width, before it hides a beacon); then a corner (top right first) before the middle
+        # of an edge; then the least of the room (the world's bounds): the margins first.
+        best: tuple | None = None
+        full = max(min(int(0.3 * min(area.width, area.height)), 360), floor)
+        for rank, side in enumerate(dict.fromkeys((full, (full + floor) // 2, floor))):
+            tall = side + strip_h + 2
+            corners = [pygame.Rect(area.right - side - 12, area.top + 12, side, tall),
+                       pygame.Rect(area.right - side - 12, area.bottom - tall - 12, side, tall),
+                       pygame.Rect(area.left + 12, area.top + 40, side, tall),
+                       pygame.Rect(area.left + 12, area.bottom - tall - 12, side, tall)]
             edges = [pygame.Rect(area.centerx - side // 2, area.top + 12, side, tall),
                      pygame.Rect(area.centerx - side // 2, area.bottom - tall - 12, side, tall),
                      pygame.Rect(area.left + 12, area.centery - tall // 2, side, tall),
                      pygame.Rect(area.right - side - 12, area.centery - tall // 2, side, tall)]
-            edge = min(edges, key=hidden)
-            if hidden(edge)[:2] < hidden(block)[:2]:
-                block = edge
+            for order, b in enumerate(corners + edges):
+                over = b.clip(room)
+                key = (*hidden(b), rank, order >= len(corners), over.width * over.height, order)
+                if best is None or key < best[0]:
+                    best = (key, b, side)
+            if best is not None and best[0][:2] == (False, 0):
+                break  # free at this size: no smaller one
+        assert best is not None
+        _, block, side = best
         rect = pygame.Rect(block.left, block.top, side, side)
         # the zoom: the largest small ellipse (or the spread of the means) half the inset
         centre = np.asarray(pose[:2], dtype=float)
@@ -131,12 +154,19 @@ class Magnifier(EstimateLayer):
             self.bound(surf, sub, pose, self.bound_cov)
         lw = max(self.lw - 1, 2)
         drawn = {}
-        for key, mean, cov, axis in sorted(small, key=lambda e: dashes.get(e[0]) is not None):
+        solid_first = sorted(small, key=lambda e: dashes.get(e[0]) is not None)
+        for key, mean, _, axis in solid_first:
             m = sub.to_px(mean[:2])
             pygame.draw.circle(surf, colours[key], (ipx(m[0]), ipx(m[1])), lw + 1)
-            self.uncertainty(surf, sub, mean, cov, colours[key], dashes.get(key), radius,
-                             width=lw, wedge=False)
             drawn[key] = axis * scale
+        # as on the map: ellipses that lie on one another in stripes (the KF's and the EKF's
+        # 9 cm alike: one drawn over the other hid it), at the inset's line width
+        world_lw, self.lw = self.lw, lw
+        try:
+            self._ellipses(surf, sub, [(key, mean, cov) for key, mean, cov, _ in solid_first],
+                           colours, dashes)
+        finally:
+            self.lw = world_lw
         bound_zoom = None
         if with_bound and b_axis * scale < MIN_BOUND_PX:  # too small at this zoom: a closer look
             bound_zoom = self._bound_inset(surf, sub, rect, pose, b_axis,

@@ -18,9 +18,10 @@ class WorldNotes(TextPainter):
     def step_legend(self, surf, area: pygame.Rect, session, steps: bool, bound: bool,
                     avoid=(), world: pygame.Rect | None = None) -> pygame.Rect:
         """What the step view and the bound show, in a box at the bottom left of the world's
-        area, or at its top left, where it covers none of the rectangles ``avoid`` (the axis
-        labels) and, if it can, not the room (``world``); else raised above the labels it
-        would cover. Returns the box."""
+        area, or at its top left (or at the right of either), where it covers none of the
+        rectangles ``avoid`` (the axis labels), never the robot (``session.true_pose`` on the
+        room ``world``, the view's bounds in pixels) and, if it can, not the room; raised
+        above the labels it would cover. Returns the box."""
         lines = []
         if steps:
             used = sorted(session.used_ids()) if hasattr(session, "used_ids") else []
@@ -38,12 +39,20 @@ class WorldNotes(TextPainter):
         w, h = max(font.size(t)[0] for t in out) + 20, lh * len(out) + 10
         low = pygame.Rect(area.left + 8, area.bottom - 6 - h, w, h)
         high = pygame.Rect(area.left + 8, area.top + lh + 14, w, h)  # under "grid 2 m"
-        free = [b for b in (low, high) if b.collidelist(list(avoid)) < 0]
-        box = next((b for b in free if world is None or not b.colliderect(world)),
-                   free[0] if free else low)
-        covered = [r for r in avoid if r.colliderect(box)]
-        if covered:
-            box.bottom = min(r.top for r in covered) - 4
+        robot = self._robot_px(session, world)
+        best = None
+        for order, b in enumerate((low, high, low.move(area.right - 8 - low.right, 0),
+                                   high.move(area.right - 8 - high.right, 0))):
+            hits_label = b.collidelist(list(avoid)) >= 0
+            covered = [r for r in avoid if r.colliderect(b)]
+            if covered:
+                b = b.move(0, min(r.top for r in covered) - 4 - b.bottom)
+            key = (robot is not None and b.colliderect(robot), not area.contains(b), order >= 2, hits_label,
+                   world is not None and b.colliderect(world), order)  # the right: for the robot
+            if best is None or key < best[0]:
+                best = (key, b)
+        assert best is not None
+        box = best[1]
         shade = pygame.Surface(box.size, pygame.SRCALPHA)
         shade.fill((*palette.PANEL, 225))
         surf.blit(shade, box)
@@ -52,6 +61,19 @@ class WorldNotes(TextPainter):
             self._blit(surf, t, "small", palette.TEXT, (box.left + 10, box.top + 5 + k * lh))
         self.step_box = box
         return box
+
+    @staticmethod
+    def _robot_px(session, world: pygame.Rect | None) -> pygame.Rect | None:
+        """The driven robot on the screen [px], with a margin: its true position placed on
+        ``world`` (the room's bounds on the screen), None when either is unknown."""
+        pose = getattr(session, "true_pose", None)
+        if world is None or pose is None or world.width <= 0 or world.height <= 0:
+            return None
+        x0, y0, x1, y1 = session.scenario.world.bounds
+        px = world.left + (float(pose[0]) - x0) / (x1 - x0) * world.width
+        py = world.bottom - (float(pose[1]) - y0) / (y1 - y0) * world.height
+        r = max(session.scenario.robot_radius / (x1 - x0) * world.width, 14.0) * 2.0
+        return pygame.Rect(int(px - r), int(py - r), int(2 * r), int(2 * r))
 
     def switched_off(self, surf, area: pygame.Rect, lines: list[tuple[str, tuple]],
                      avoid=(), keep_clear=()) -> pygame.Rect | None:
@@ -89,7 +111,8 @@ class WorldNotes(TextPainter):
 
     def banner(self, surf, area: pygame.Rect, text: str, avoid: pygame.Rect | None = None) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved), or
-        just under ``avoid`` (the robot) when at the top it would cover it."""
+        across its bottom when at the top it would cover ``avoid`` (the robot), else just
+        under the robot. (Just under the robot it hid the beacons the robot was reading.)"""
         font = "banner" if self.fonts["banner"].size(text)[0] <= area.width - 60 else "hud"
         lines = wrap_text(self.fonts[font], text, area.width - 60)[:4]
         imgs = [self.fonts[font].render(line, True, palette.BANNER_TEXT) for line in lines]
@@ -99,9 +122,9 @@ class WorldNotes(TextPainter):
         r = pygame.Rect(0, 0, max(i.get_width() for i in imgs), lh * len(imgs))
         r.midtop = (area.centerx, area.top + 14)
         if avoid is not None and r.inflate(36, 16).colliderect(avoid):
-            r.top = avoid.bottom + 16  # just under the robot (the bottom edge is the replay's)
-            if r.inflate(36, 16).bottom > area.bottom:
-                r.midbottom = (area.centerx, area.bottom - 14)
+            r.midbottom = (area.centerx, area.bottom - 14)
+            if r.inflate(36, 16).colliderect(avoid):
+                r.top = avoid.bottom + 16  # just under the robot
         box = r.inflate(36, 16)
         self.banner_box = box
         pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)

@@ -43,3 +43,22 @@ def test_a_seek_clears_the_kidnap_banner(recorded):
         assert not app.now < app.banner_until
     finally:
         app.close()
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1920, 1080)])
+def test_a_banner_moved_off_the_robot_hides_no_beacon(size):
+    """The robot against the top wall under the banner's usual place, beacon 5 just below
+    it: the banner goes to the bottom of the world's area (at 1920x1080 it went just under
+    the robot, over beacon 5, the one the robot was reading)."""
+    app = App(Session(load_scenario("default"), ["ekf"]), size, scripted=True)
+    try:
+        app.session.command({"kind": "kidnap", "pose": [6.0, 7.6, 1.57]})
+        app.run(6)
+        app.flash("BUMPER: the robot hit the wall and stopped (v = 0)")
+        app.draw()
+        box = app.hud.banner_box
+        assert not box.colliderect(app.robot_box())
+        assert box.collidelist(app.renderer.beacon_rects) < 0, (box, app.renderer.beacon_rects)
+        assert pygame.Rect(app.view.area).contains(box)
+    finally:
+        app.close()

@@ -71,7 +71,7 @@ def panel():
     return get
 
 
-@pytest.mark.parametrize("size", [(1024, 768), (1280, 800), (1600, 1000)])
+@pytest.mark.parametrize("size", [(1024, 768), (1280, 800), (1600, 1000), (1920, 1080)])
 def test_every_panel_line_fits_inside_the_panel(size, panel):
     p = panel(size)
     texts = p.texts
