@@ -160,6 +160,16 @@ class WorkerTicks:
     def _after(self, step: TeamStep, outcome: FilterTick) -> None:
         raise NotImplementedError
 
+    @property
+    def on_worker_step(self) -> list[Callable[[TeamStep], None]]:
+        """Called on the worker with each tick's step once its filters are fed (the window
+        computes there what it will draw of the tick: ``app/ahead.py``); never called
+        without a worker. Kept over a restart."""
+        listeners = self.__dict__.get("_on_worker_step")
+        if listeners is None:
+            listeners = self.__dict__["_on_worker_step"] = []
+        return listeners
+
     def start_worker(self) -> None:
         """Run the filters on a worker thread from now on (``runs/filter_worker``): a tick
         steps the simulation and hands the filters' part to the worker; :meth:`collect` shows
@@ -236,6 +246,8 @@ class WorkerTicks:
             self._commands_to_filters(cmds, None, time_s)
         self.filters_run.feed(step)
         self._fail_time = step.time
+        for listener in self.__dict__.get("_on_worker_step", ()):
+            listener(step)
         return step, cmds, self._filter_tick(step.tick, drawing=last)
 
     def _drawn(self) -> Drawing | None:
