@@ -179,6 +179,7 @@ class WorkerTicks:
             return
         self._state = self._filter_tick(self.sim.tick, drawing=True)
         self._shown_at = (self.sim.tick, self.sim.time, self.sim.poses)
+        self._slow_by_cpu(True)  # the worker's wall time includes waiting for the window
         self.worker = FilterWorker()
         for name in self.names:
             self._sync_status(name)
@@ -194,11 +195,20 @@ class WorkerTicks:
         if ended:
             self.collect()
         self.worker, self._state, self._waiting = None, None, []
+        self._slow_by_cpu(False)
         self._beliefs.clear()
         if ended:
             for name in self.names:
                 self._sync_status(name)
         return ended
+
+    def _slow_by_cpu(self, on: bool) -> None:
+        """The filters' slow warning ("slow: N ms per step") on the worker thread's CPU time
+        (``on``), not its wall time, which includes waiting for the interpreter lock while
+        the window draws; or on the wall time again."""
+        for runner in self.filters_run.members:
+            runner.slow_by_cpu = on
+        self.filters_run.joint.slow_by_cpu = on
 
     @property
     def filters_behind(self) -> bool:
