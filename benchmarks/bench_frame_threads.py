@@ -11,7 +11,10 @@ are interleaved (rounds of ``--frames`` each, the order alternating) so that the
 falls on both alike. Targets: main-thread p99 <= 8 ms at 1280x800 and <= 10 ms at 1920x1080.
 
     python benchmarks/bench_frame_threads.py [--frames 150] [--rounds 2] [--sizes 1280x800]
-        [--only corridor symmetric_room ...]
+        [--only corridor symmetric_room ...] [--ways worker]
+
+``--ways worker`` measures only the window's way (the filters on the worker), e.g. to compare
+two checkouts row by row (``PYTHONPATH=OTHER python benchmarks/bench_frame_threads.py``).
 """
 
 from __future__ import annotations
@@ -89,6 +92,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--sizes", nargs="+", default=["1280x800"])
     ap.add_argument("--only", nargs="+", help="only these scenarios (their rows and commands)")
+    ap.add_argument("--ways", nargs="+", default=list(WAYS), choices=WAYS)
     a = ap.parse_args()
     rows: list[tuple[str, str, list[str] | None, dict]] = [(s, s, None, {}) for s in shipped()]
     rows += DOC_COMMANDS
@@ -104,13 +108,15 @@ def main() -> None:
     for label, scenario, specs, params in rows:
         for text in a.sizes:
             w, h = (int(v) for v in text.split("x"))
-            got: dict[str, list[dict]] = {way: [] for way in WAYS}
+            got: dict[str, list[dict]] = {way: [] for way in a.ways}
             for r in range(a.rounds):
                 for threaded in ((False, True) if r % 2 == 0 else (True, False)):
-                    got[WAYS[threaded]].append(bench(scenario, specs, params, (w, h), a.frames, threaded))
+                    if WAYS[threaded] in a.ways:
+                        got[WAYS[threaded]].append(bench(scenario, specs, params, (w, h), a.frames,
+                                                         threaded))
             loads.append(os.getloadavg()[0])
             target = TARGET_MS.get((w, h), 10.0)
-            for way in WAYS:
+            for way in a.ways:
                 runs = got[way]
                 cpu = 1e3 * np.concatenate([r["cpu"] for r in runs])
                 p50, p99 = float(np.median(cpu)), float(np.percentile(cpu, 99))

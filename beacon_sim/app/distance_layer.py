@@ -13,10 +13,11 @@ import numpy as np
 import pygame
 
 from beacon_sim.app import palette
-from beacon_sim.core.distance_curves import difference_curve, floor_hdop, range_circle
+from beacon_sim.app.ahead import tdoa_curves, tdoa_fix
+from beacon_sim.core.distance_curves import floor_hdop, range_circle
 from beacon_sim.core.geometry import covariance_ellipse
 from beacon_sim.core.metrics import chi2_quantile
-from beacon_sim.core.trilateration import TrilaterationError, fix_covariance, trilaterate
+from beacon_sim.core.trilateration import TrilaterationError, fix_covariance
 
 #: The kinds drawn here.
 DISTANCE_KINDS = ("range", "tdoa", "tdoa_fix")
@@ -53,13 +54,11 @@ def readings(surf, view, world, sensors, pose, measurements, lw: int, polyline) 
                     polyline(surf, CURVE, view.to_px(ring), 2, None, closed=True)
             continue
         if m.kind == "tdoa":
-            for b, d in zip(bxy[1:], m.z[:, 0], strict=True):
-                curve = difference_curve(bxy[0], b, float(d), h, pose[:2], reach)
+            for curve in tdoa_curves(m, bxy, h, pose, reach):  # (computed ahead: ahead.py)
                 if curve is not None and len(curve) > 1:
                     polyline(surf, CURVE, view.to_px(curve), 2, None)
-            try:
-                fix = trilaterate(m.z[:, 0], bxy[0], bxy[1:], h, spec.noise.range_std)
-            except TrilaterationError:
+            fix = tdoa_fix(m, bxy, h, spec.noise.range_std)  # (computed ahead: ahead.py)
+            if fix is None:
                 continue
             xy, cov = fix.xy, fix.cov
         else:

@@ -24,12 +24,38 @@ ELLIPSE_SCALE2 = CHI2_2DOF[ELLIPSE_LEVEL]
 PRIOR_DASH = (14, 10)
 
 
+#: Outlines and axes already computed, by the bytes of their mean and covariance: a frame
+#: draws each estimate's ellipse in the world and again in the magnifier, and asks its size
+#: for the lost marker and the magnifier (the same numbers give the same outline).
+_OUTLINES: dict[bytes, np.ndarray] = {}
+_DIAMETERS: dict[bytes, float] = {}
+
+
+def ellipse_outline(mean, cov) -> np.ndarray:
+    """The 95 % ellipse of the x-y block of ``cov`` around ``mean``'s x-y, (96, 2) [m]
+    (``core.geometry.covariance_ellipse``; do not change the array returned)."""
+    m = np.asarray(mean, dtype=float)[:2]
+    c = np.asarray(cov, dtype=float)[:2, :2]
+    key = m.tobytes() + c.tobytes()
+    pts = _OUTLINES.get(key)
+    if pts is None:
+        if len(_OUTLINES) > 256:
+            _OUTLINES.clear()
+        pts = _OUTLINES[key] = covariance_ellipse(m, c, ELLIPSE_SCALE2, 96)
+    return pts
+
+
 def ellipse_diameter(cov) -> float:
     """The major axis [m] of the 95 % ellipse of the x-y block of ``cov``."""
     c = np.asarray(cov, dtype=float)[:2, :2]
-    if not np.all(np.isfinite(c)):
-        return math.inf
-    return 2.0 * math.sqrt(max(float(np.linalg.eigvalsh(c)[-1]), 0.0) * ELLIPSE_SCALE2)
+    key = c.tobytes()
+    d = _DIAMETERS.get(key)
+    if d is None:
+        if len(_DIAMETERS) > 256:
+            _DIAMETERS.clear()
+        d = _DIAMETERS[key] = (math.inf if not np.all(np.isfinite(c)) else
+                               2.0 * math.sqrt(max(float(np.linalg.eigvalsh(c)[-1]), 0.0) * ELLIPSE_SCALE2))
+    return d
 
 
 class EstimateLayer(Canvas):
@@ -67,8 +93,7 @@ class EstimateLayer(Canvas):
         along the outline and an equal share of it, with a note naming them: one drawn over
         the other hid it (a dashed one left the other only its gaps)."""
         lw = self.lw
-        outlines = [view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 96))
-                    for _, mean, cov in estimates]
+        outlines = [view.to_px(ellipse_outline(mean, cov)) for _, mean, cov in estimates]
         groups: list[list[int]] = []
         for i in range(len(estimates)):
             if np.all(np.isfinite(outlines[i])):
@@ -162,9 +187,10 @@ class EstimateLayer(Canvas):
         """The 95 % ellipse of x-y (``ellipse``) and the +-2 sigma heading wedge (``wedge``),
         in ``dash`` style."""
         lw = width or self.lw
-        pts = view.to_px(covariance_ellipse(mean[:2], cov[:2, :2], ELLIPSE_SCALE2, 96))
-        if ellipse and np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
-            polyline(surf, colour, pts, lw, dash, closed=True)
+        if ellipse:
+            pts = view.to_px(ellipse_outline(mean, cov))
+            if np.all(np.isfinite(pts)) and np.ptp(pts[:, 0]) < 1e5 and np.ptp(pts[:, 1]) < 1e5:
+                polyline(surf, colour, pts, lw, dash, closed=True)
         if not wedge:
             return
         sigma = math.sqrt(max(float(cov[2, 2]), 0.0))

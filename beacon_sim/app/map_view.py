@@ -17,9 +17,9 @@ from functools import lru_cache
 import numpy as np
 import pygame
 
+from beacon_sim.app.ahead import scan_walls
 from beacon_sim.core.beam_model import distance_transform
 from beacon_sim.core.occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from beacon_sim.core.raycast import cast_rays
 from beacon_sim.core.types import Measurement
 
 #: Occupied cells: near-black, so that walls read as solid on a projector.
@@ -150,7 +150,7 @@ def draw_scan(surf: pygame.Surface, view, pose, m: Measurement, max_range: float
     hit = z[:, 0] < max_range
     through = np.zeros(len(z), dtype=bool)
     if grid is not None and len(z):
-        wall = cast_rays(grid, np.asarray(pose[:2], dtype=float), pose[2] + z[:, 1], max_range)
+        wall = scan_walls(grid, pose, m, max_range)  # (computed ahead: ahead.py)
         tol = max(2.0 * grid.resolution, 0.05)  # a wall's own cell, and rounding
         through = hit & (z[:, 0] > wall + tol)
         hit &= ~through

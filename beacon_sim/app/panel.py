@@ -20,6 +20,7 @@ from beacon_sim.app.in_view import (
     scan_in_view,
     sensors_read,
 )
+from beacon_sim.app.panel_cache import KeptPanel, draw_line, draw_outline, volatile
 from beacon_sim.app.text import TextPainter, fit_text, short, wrap_text
 from beacon_sim.core.clutter import UNKNOWN_ID
 from beacon_sim.core.sensor_kinds import scan_sensors
@@ -32,9 +33,24 @@ SHORT_OF_SPEED = 0.9
 class Panel(TextPainter):
     """The panel of one robot (:meth:`panel`) or of a team (:meth:`team_panel`), and its pieces."""
 
+    def __init__(self, fonts: dict[str, pygame.font.Font]):
+        super().__init__(fonts)
+        #: The panel's picture, kept while it says the same (``panel_cache``); ``keep_panel``
+        #: False draws it straight onto the screen every frame.
+        self.kept_panel = KeptPanel()
+        self.keep_panel = True
+
     def panel(self, surf, rect: pygame.Rect, session: Scene, colours, info: dict) -> None:
         """The side panel. ``info``: speed, paused, fps, recording (path or None), message.
-        A team's panel is :meth:`team_panel`."""
+        A team's panel is :meth:`team_panel`. Drawn from the kept picture when it says what
+        it said the frame before (``panel_cache.KeptPanel``)."""
+        if not self.keep_panel:
+            self.draw_panel(surf, rect, session, colours, info)
+            return
+        self.kept_panel.show(surf, rect, lambda target: self.draw_panel(target, rect, session, colours, info))
+
+    def draw_panel(self, surf, rect: pygame.Rect, session: Scene, colours, info: dict) -> None:
+        """:meth:`panel`'s drawing onto ``surf`` (a surface, or a ``panel_cache.PanelOps``)."""
         if getattr(session, "n_robots", 1) > 1:
             self.team_panel(surf, rect, session, colours, info)
             return
@@ -182,7 +198,7 @@ class Panel(TextPainter):
     def begin_panel(self, surf, rect: pygame.Rect) -> tuple[int, int, int]:
         """The panel's background and left edge; returns (x, text width, y) [px]."""
         surf.fill(palette.PANEL, rect)
-        pygame.draw.line(surf, palette.PANEL_EDGE, rect.topleft, rect.bottomleft, 3)
+        draw_line(surf, palette.PANEL_EDGE, rect.topleft, rect.bottomleft, 3)
         self.text_right = rect.right - 10  # where a panel line must end [px]
         return rect.left + 16, rect.width - 28, rect.top + 10
 
@@ -220,7 +236,7 @@ class Panel(TextPainter):
 
     def rule(self, surf, rect: pygame.Rect, x: int, y: int) -> int:
         """A horizontal separator across the panel."""
-        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
+        draw_line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
         return y + 8
 
     def filter_label(self, surf, x: int, y: int, i: int, name: str, colour, visible: bool) -> int:
@@ -229,7 +245,7 @@ class Panel(TextPainter):
         sw = pygame.Rect(x, y + 4, round(lh * 0.65), lh - 8)
         if visible:
             surf.fill(colour, sw)
-        pygame.draw.rect(surf, colour, sw, 3)
+        draw_outline(surf, colour, sw, 3)
         room = getattr(self, "text_right", 10**6) - (sw.right + lh // 4)
         font = self.fonts["hud"]
         label = f"{i + 1}  {name}"
@@ -262,7 +278,7 @@ class Panel(TextPainter):
         if verdict == "high":
             return self._blit(surf, text, "small", palette.BANNER_TEXT, at, bg=palette.WARN)
         r = self._blit(surf, text, "small", palette.WARN, at)
-        pygame.draw.rect(surf, palette.WARN, r.inflate(8, 2), 2)
+        draw_outline(surf, palette.WARN, r.inflate(8, 2), 2)
         return r
 
     def footer(self, surf, rect: pygame.Rect, x: int, w: int, y: int, legend: list[str],
@@ -286,12 +302,16 @@ class Panel(TextPainter):
         room = (rect.bottom - 16 - (y + 6) - 6) // sl - 1 - len(status)
         lines = notes[:max(room, 0)] + status
         y = max(y + 6, rect.bottom - (len(lines) + 1) * sl - 16)
-        pygame.draw.line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
+        draw_line(surf, palette.GRID_MAJOR, (x, y), (rect.right - 12, y), 2)
         y += 6
         old_clip = surf.get_clip()
         surf.set_clip(rect.inflate(-6, 0))  # a long recording path is cut at the edge
-        for line in lines:
-            self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))
+        for i, line in enumerate(lines):
+            if i == len(lines) - len(status):  # the FPS: a new figure every frame, drawn apart
+                with volatile(surf):
+                    self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))
+            else:
+                self._blit(surf, line, "small", palette.TEXT_DIM, (x, y))
             y += sl
         self._blit(surf, "H: help    Esc: quit", "small", palette.TEXT, (x, y))
         surf.set_clip(old_clip)

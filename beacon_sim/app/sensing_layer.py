@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pygame
 
-from beacon_sim.app import distance_layer, map_view, palette, shapes
+from beacon_sim.app import ahead, distance_layer, map_view, palette, shapes
 from beacon_sim.app.canvas import Canvas
 from beacon_sim.app.strokes import draw_cross, polyline
 from beacon_sim.app.view import View, ipx, world_rect
@@ -32,8 +32,8 @@ class SensingLayer(Canvas):
             if not math.isfinite(spec.max_range):
                 continue
             walls = grid if getattr(spec, "occluded_by_walls", False) else None
-            if walls is not None:
-                outline = shapes.sensor_outline(pose, spec.fov, spec.max_range, walls)
+            if walls is not None:  # (computed ahead on the filters' worker: ahead.py)
+                outline = ahead.sensor_outline(pose, spec, walls)
             elif spec.fov >= 2 * math.pi:
                 outline = circle(pose[:2], spec.max_range, 96)
             else:

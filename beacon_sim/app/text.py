@@ -6,9 +6,23 @@ from __future__ import annotations
 
 import pygame
 
+#: Lines already wrapped: (font, text, width) -> lines (the panel wraps the same legend every
+#: frame).
+_WRAPPED: dict[tuple, list[str]] = {}
+
 
 def wrap_text(font: pygame.font.Font, text: str, width: int) -> list[str]:
     """Greedy word wrap to ``width`` pixels."""
+    key = (font, text, width)
+    done = _WRAPPED.get(key)
+    if done is None:
+        if len(_WRAPPED) > 1024:
+            _WRAPPED.clear()
+        done = _WRAPPED[key] = _wrap(font, text, width)
+    return list(done)
+
+
+def _wrap(font: pygame.font.Font, text: str, width: int) -> list[str]:
     lines: list[str] = []
     line = ""
     for word in text.split():

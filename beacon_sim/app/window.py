@@ -25,6 +25,7 @@ import pygame
 
 from beacon_sim.app import controls, palette
 from beacon_sim.app.actions import WindowActions
+from beacon_sim.app.ahead import DrawingAhead, TickBound
 from beacon_sim.app.assets import load_fonts, ui_scale, window_icon
 from beacon_sim.app.display import display_surface
 from beacon_sim.app.framebuffer import choose_framebuffer
@@ -36,10 +37,10 @@ from beacon_sim.app.reloading import FilterReloading
 from beacon_sim.app.render import PHASES, ShowOptions, View, WorldRenderer
 from beacon_sim.app.strip import StripChart
 from beacon_sim.app.view import world_rect
+from beacon_sim.app.world_notes import switched_off_lines
 from beacon_sim.core.files import atomic_write
 from beacon_sim.core.team import TeamStep
 from beacon_sim.core.types import Step
-from beacon_sim.evaluation.live_bound import LiveBound
 from beacon_sim.hosting.runner import note_user_interrupt
 from beacon_sim.runs.live import Session
 
@@ -146,10 +147,10 @@ class App(WindowActions, FilterReloading):
         self.phase_cpu = [0.0] * PHASES  # CPU time of each drawing step [s], smoothed
         self.blit_cpu = 0.0  # CPU time of putting the world's picture on the screen [s]
         self.gif: GifRecorder | None = None  # offered every frame after drawing (--gif)
-        self.bound: LiveBound | None = None  # the PCRB along the true path (B)
-        if isinstance(session, Session) and not self.team_view:
-            self.bound = LiveBound(session.scenario)
-            session.on_step.append(self.bound.feed)
+        self.bound = None  # the PCRB along the true path (B): an ahead.TickBound, read as a LiveBound
+        if isinstance(session, Session):  # what a tick's drawing needs, computed on the worker
+            session.on_worker_step.append(DrawingAhead(session))
+            self.bound = None if self.team_view else TickBound(session)  # type: ignore[assignment]
         self.chart = StripChart(session.names, session.scenario.dt)
         self.pace = DeliveredSpeed()
         self.heap = HeapSettler()  # keeps full garbage collections out of the frames (heap.py)
@@ -365,27 +366,17 @@ class App(WindowActions, FilterReloading):
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
-        # Nothing drawn over the world: the next frame may leave its picture as it is.
+        # Nothing drawn over the world (or the panel): the next frame may leave it as it is.
         overlaid = (bool(steps) or bound is not None or self.now < self.banner_until or self.help
                     or bool(off))
-        self._on_screen = None if overlaid or self.team_view \
-            or type(self).draw_extra is not App.draw_extra else shown
+        plain = type(self).draw_extra is App.draw_extra  # (a replay's timeline crosses the panel)
+        self._on_screen = None if overlaid or self.team_view or not plain else shown
+        self.hud.kept_panel.intact = plain and not self.help
         pygame.display.flip()
 
     def switched_off_lines(self) -> list[tuple[str, tuple]]:
-        """A line ``(text, colour)`` per switched-off filter, for the note on the world: why,
-        and whether R brings it back (a filter that was built; one that could not be built
-        stays off)."""
-        out = []
-        run = getattr(self.session, "filters_run", None)
-        for name in self.session.names:
-            why = self.session.status[name].failed
-            if not why:
-                continue
-            built = run is not None and run.track(name, 0).filter is not None
-            out.append((f"{name} switched off: {why}" + ("  (R: back on)" if built else ""),
-                        self.colours[name]))
-        return out
+        """A line ``(text, colour)`` per switched-off filter (``world_notes.switched_off_lines``)."""
+        return switched_off_lines(self.session, self.colours)
 
     def draw_world(self, surf: pygame.Surface, key: tuple[tuple, int],
                    args: tuple) -> tuple[tuple, int]:

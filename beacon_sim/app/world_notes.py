@@ -11,6 +11,21 @@ from beacon_sim.app import palette
 from beacon_sim.app.text import TextPainter, wrap_text
 
 
+def switched_off_lines(session, colours) -> list[tuple[str, tuple]]:
+    """A line ``(text, colour)`` per switched-off filter of ``session``, for the note on the
+    world: why, and whether R brings it back (a filter that was built; one that could not be
+    built stays off)."""
+    out = []
+    run = getattr(session, "filters_run", None)
+    for name in session.names:
+        why = session.status[name].failed
+        if not why:
+            continue
+        built = run is not None and run.track(name, 0).filter is not None
+        out.append((f"{name} switched off: {why}" + ("  (R: back on)" if built else ""), colours[name]))
+    return out
+
+
 class WorldNotes(TextPainter):
     """The step legend, the switched-off note and the banner (``step_box``, ``off_box``,
     ``banner_box``: where each was last drawn)."""

@@ -86,7 +86,8 @@ _monotonic = time.monotonic  # the watchdog's clock
 
 
 def note_step_time(track: FilterTrack, step_ns: int) -> None:
-    """Record one step's wall time [ns] on ``track`` and set ``track.slow_warning`` when the
+    """Record one step's time [ns] on ``track`` (wall time; a window's worker gives its thread's
+    CPU time: ``FilterRunner.slow_by_cpu``) and set ``track.slow_warning`` when the
     mean of the last ``SLOW_WINDOW`` steps, leaving out the slowest one, exceeds ``SLOW_STEP_MS``.
 
     One slow step (a first call that imports or allocates, a garbage collection) does not
@@ -204,6 +205,10 @@ class FilterRunner:
         self.run_limit_s = run_limit_s
         self._watch = StepWatch(cpu_limits)  # one for every step, armed in place
         self._watch_cpu = cpu_limits
+        #: The slow warning (:func:`note_step_time`) on the filter thread's CPU time instead of
+        #: the wall clock: on a window's worker thread, whose wall time includes waiting for
+        #: the interpreter lock while the window draws (``runs/filter_worker``).
+        self.slow_by_cpu = False
 
     def fail(self, name: str, reason: str, tb: str = "", time_s: float | None = None) -> None:
         """Switch ``name`` off with ``reason`` (one line), at simulated time ``time_s`` [s]."""
@@ -260,6 +265,7 @@ class FilterRunner:
         plain = not self.keep_prior
         no_run_limit, step_limit = self.run_limit_s is None, self.step_limit_s
         control, dt, measurements = step.control, step.dt, step.measurements
+        by_cpu = self.slow_by_cpu
         guard = validate_estimate
         tid = _get_ident()  # every filter of a step runs in this thread
         for track in self.tracks.values():
@@ -281,7 +287,7 @@ class FilterRunner:
                 if est is _FAILED:
                     continue
             else:
-                cpu0 = 0 if no_run_limit else time.thread_time_ns()
+                cpu0 = 0 if no_run_limit and not by_cpu else time.thread_time_ns()
                 t0 = clock()
                 try:
                     if entry is not None:  # StepWatch.__enter__, inline
@@ -313,6 +319,8 @@ class FilterRunner:
                 if not no_run_limit:
                     track.charged_ns += time.thread_time_ns() - cpu0
                 track.steps += 1
+                if by_cpu:  # the slow warning on this thread's CPU time
+                    elapsed = time.thread_time_ns() - cpu0
                 # note_step_time's usual case inline: the recent steps' sum is under the line
                 recent = track.recent_step_ns
                 n = len(recent)
@@ -356,7 +364,7 @@ class FilterRunner:
         watch = self._watch
         watch.seconds = limit
         clock = time.perf_counter_ns
-        cpu0 = 0 if self.run_limit_s is None else time.thread_time_ns()
+        cpu0 = 0 if self.run_limit_s is None and not self.slow_by_cpu else time.thread_time_ns()
         t0 = clock()
         try:
             with watch:
@@ -369,7 +377,7 @@ class FilterRunner:
         if self.run_limit_s is not None:
             track.charged_ns += time.thread_time_ns() - cpu0
         track.steps += 1
-        note_step_time(track, elapsed)
+        note_step_time(track, time.thread_time_ns() - cpu0 if self.slow_by_cpu else elapsed)
         return est
 
 

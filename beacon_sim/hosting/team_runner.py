@@ -106,6 +106,7 @@ class JointRunner:
         self.n_robots = n_robots
         self.step_limit_s = step_limit_s
         self.cpu_limits = cpu_limits  # the step limit in the filter thread's CPU time
+        self.slow_by_cpu = False  # the slow warning on the thread's CPU time (runner.FilterRunner)
         self.tracks: dict[str, FilterTrack] = {
             name: bounded_track(name, f, keep, failed=None if f is not None else NOT_BUILT)
             for name, f in filters.items()}
@@ -127,6 +128,7 @@ class JointRunner:
             if track.failed or f is None:
                 continue
             t0 = time.perf_counter_ns()
+            cpu0 = time.thread_time_ns() if self.slow_by_cpu else 0
             try:
                 try:
                     with time_limit(limit, self.cpu_limits):
@@ -149,7 +151,7 @@ class JointRunner:
                 continue
             track.step_ns += elapsed
             track.steps += 1
-            note_step_time(track, elapsed)
+            note_step_time(track, time.thread_time_ns() - cpu0 if self.slow_by_cpu else elapsed)
             checked = validate_team_estimates(est, self.n_robots)
             if isinstance(checked, str):
                 self.fail(track.name, checked, "", time_s)

@@ -160,6 +160,16 @@ class WorkerTicks:
     def _after(self, step: TeamStep, outcome: FilterTick) -> None:
         raise NotImplementedError
 
+    @property
+    def on_worker_step(self) -> list[Callable[[TeamStep], None]]:
+        """Called on the worker with each tick's step once its filters are fed (the window
+        computes there what it will draw of the tick: ``app/ahead.py``); never called
+        without a worker. Kept over a restart."""
+        listeners = self.__dict__.get("_on_worker_step")
+        if listeners is None:
+            listeners = self.__dict__["_on_worker_step"] = []
+        return listeners
+
     def start_worker(self) -> None:
         """Run the filters on a worker thread from now on (``runs/filter_worker``): a tick
         steps the simulation and hands the filters' part to the worker; :meth:`collect` shows
@@ -169,6 +179,7 @@ class WorkerTicks:
             return
         self._state = self._filter_tick(self.sim.tick, drawing=True)
         self._shown_at = (self.sim.tick, self.sim.time, self.sim.poses)
+        self._slow_by_cpu(True)  # the worker's wall time includes waiting for the window
         self.worker = FilterWorker()
         for name in self.names:
             self._sync_status(name)
@@ -184,11 +195,20 @@ class WorkerTicks:
         if ended:
             self.collect()
         self.worker, self._state, self._waiting = None, None, []
+        self._slow_by_cpu(False)
         self._beliefs.clear()
         if ended:
             for name in self.names:
                 self._sync_status(name)
         return ended
+
+    def _slow_by_cpu(self, on: bool) -> None:
+        """The filters' slow warning ("slow: N ms per step") on the worker thread's CPU time
+        (``on``), not its wall time, which includes waiting for the interpreter lock while
+        the window draws; or on the wall time again."""
+        for runner in self.filters_run.members:
+            runner.slow_by_cpu = on
+        self.filters_run.joint.slow_by_cpu = on
 
     @property
     def filters_behind(self) -> bool:
@@ -236,6 +256,8 @@ class WorkerTicks:
             self._commands_to_filters(cmds, None, time_s)
         self.filters_run.feed(step)
         self._fail_time = step.time
+        for listener in self.__dict__.get("_on_worker_step", ()):
+            listener(step)
         return step, cmds, self._filter_tick(step.tick, drawing=last)
 
     def _drawn(self) -> Drawing | None:

@@ -49,7 +49,7 @@ def test_the_floor_hdop_is_each_kinds():
 def test_the_window_draws_curves_fix_and_hdop_key(tmp_path, monkeypatch):
     import pygame
 
-    from beacon_sim.app import distance_layer
+    from beacon_sim.app import ahead, distance_layer
     from beacon_sim.app.window import App
     from beacon_sim.runs.live import Session
 
@@ -60,7 +60,7 @@ def test_the_window_draws_curves_fix_and_hdop_key(tmp_path, monkeypatch):
         drawn["fix"] += 1
         return real_fix(*a, **k)
 
-    real_curve = distance_layer.difference_curve
+    real_curve = ahead.difference_curve  # the curves are traced there (ahead of the drawing)
 
     def curve(*a, **k):
         out = real_curve(*a, **k)
@@ -68,7 +68,7 @@ def test_the_window_draws_curves_fix_and_hdop_key(tmp_path, monkeypatch):
         return out
 
     monkeypatch.setattr(distance_layer, "_fix", fix)
-    monkeypatch.setattr(distance_layer, "difference_curve", curve)
+    monkeypatch.setattr(ahead, "difference_curve", curve)
     app = App(Session(load_scenario("ulps_leave"), ["ekf"], 3), (1000, 700), scripted=True)
     try:
         app.act_hdop()
