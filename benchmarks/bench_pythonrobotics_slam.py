@@ -193,6 +193,9 @@ def main() -> int:
             peer, names, counts, what = load_peer(folder), EKF_NAMES, args.landmarks or [4, 50], "EKF-SLAM"
             make, run = problem, run_ekf
         else:
+            if not (folder / "SLAM" / "FastSLAM2" / "fast_slam2.py").is_file():
+                print(f"{folder} has no SLAM/FastSLAM2/fast_slam2.py: FastSLAM not measured")
+                continue
             peer, names, counts, what = fast.load(folder), fast.NAMES, args.landmarks or [8], "FastSLAM"
             make, run = fast.problem, run_fast
         for n in counts:
