@@ -178,7 +178,7 @@ class WorldRenderer(FloorLayer, SensingLayer, BeaconLayer, RobotLayer, ParticleL
             pass
 
     def team_phases(self, surf, view, session, colours, show, drag=None, dashes=None, extra=None):
-        """:meth:`draw_team` as a generator of two steps (see :meth:`phases`)."""
+        """:meth:`draw_team` as a generator of three steps (see :meth:`phases`)."""
         self.last_world = session.team.world
         self.show_field = show.field
         dashes = dashes or {}
@@ -189,13 +189,15 @@ class WorldRenderer(FloorLayer, SensingLayer, BeaconLayer, RobotLayer, ParticleL
             surf.set_clip(old_clip)
 
     def _team_layers(self, surf, view, session, colours, show, drag, dashes, extra):
-        """:meth:`team_phases`' layers, inside the clip: the floor's pieces, the readings and
-        the robots; then the beliefs, the rings and the tags."""
+        """:meth:`team_phases`' layers, inside the clip, in three steps: the floor and the
+        sensor discs; the trails, the readings and the robots; the beliefs, the rings and the
+        tags."""
         team = session.team
         poses = session.poses
         radii = [r.scenario.robot_radius for r in team.robots]
         for r, pose in zip(team.robots, poses, strict=True):
             self.sensor_discs(surf, view, r.scenario.sensors, pose)
+        yield  # (the discs are the heaviest layer: a step of their own)
         shown = [n for n in session.names if session.visible[n] and not session.status[n].failed]
         if show.trails:
             for trail in session.truth_trails:

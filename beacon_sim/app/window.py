@@ -366,11 +366,12 @@ class App(WindowActions, FilterReloading):
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)
-        # Nothing drawn over the world (or the panel): the next frame may leave it as it is.
+        # Nothing drawn over the world (or the panel; a team's legend is under the world):
+        # the next frame may leave it as it is.
         overlaid = (bool(steps) or bound is not None or self.now < self.banner_until or self.help
                     or bool(off))
         plain = type(self).draw_extra is App.draw_extra  # (a replay's timeline crosses the panel)
-        self._on_screen = None if overlaid or self.team_view or not plain else shown
+        self._on_screen = None if overlaid or not plain else shown
         self.hud.kept_panel.intact = plain and not self.help
         pygame.display.flip()
 

@@ -323,3 +323,50 @@ def test_the_team_window_keeps_its_worlds_and_its_legends_picture_and_shows_the_
                               pygame.surfarray.array3d(legend))
     finally:
         app.close()
+
+
+def test_the_team_window_leaves_its_world_on_the_screen_until_something_covers_or_changes_it():
+    """Between ticks a team's world is not blitted again when the screen still holds it (as a
+    single robot's); whatever covers it (the help, a banner) or changes it (Tab, a filter
+    hidden) brings the right picture back: every plain frame shows the present or the
+    previous tick's world."""
+    from beacon_sim.core.scenario import load_team_scenario
+
+    s = Session(load_team_scenario("team_sparse"), ["centralised", "ci"])
+    s.toggle_autopilot()
+    app = App(s, (1024, 768), scripted=True)
+    app.smooth = True
+    events = {5: "next_robot", 12: "help", 16: "help", 23: "toggle1", 31: "toggle1",
+              38: "next_robot", 45: "help", 46: "next_robot", 50: "help"}
+    try:
+        app.frame(SCRIPTED_FRAME_S)
+        previous = fresh_world(app)
+        kept = stale = 0
+        for i in range(70):
+            if i in events:
+                app.act(events[i])
+                if events[i] == "next_robot":  # its banner ("driving: ...") for 3 frames
+                    app.banner_until = app.now + 0.05
+            if i == 56:
+                app.flash("a banner over the world")
+                app.banner_until = app.now + 0.1  # 6 frames
+            app.frame(SCRIPTED_FRAME_S)
+            if app.help or app.now < app.banner_until:
+                assert app._on_screen is None
+                if not app.world_stale:
+                    previous = fresh_world(app)
+                continue
+            kept += app._on_screen is not None
+            present = fresh_world(app)
+            shown = world_pixels(app)
+            if app.world_stale:
+                stale += 1
+                assert app.ticks_this_frame > 0
+                assert np.array_equal(shown, previous), f"frame {i}"
+            else:
+                assert np.array_equal(shown, present), f"frame {i}"
+                previous = present
+        assert kept >= 40 and stale >= 5
+        assert s.driven == 3 % s.n_robots and s.visible["centralised"]
+    finally:
+        app.close()
