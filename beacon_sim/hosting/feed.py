@@ -416,11 +416,24 @@ class ProbeFindings:
     failures: dict[str, tuple[str, int]] = field(default_factory=dict)
 
 
+def metered_stop(why: str | None) -> bool:
+    """Whether a slot stopped on a budget the machine meters (``why``: CPU time, memory, or
+    the run it probes stopping): the tick it stops at is the meter's, which another load or
+    processor moves by a tick or two, never a property of the filter's arithmetic."""
+    return bool(why) and (why == LEAD_FAILED or "time limit" in why or memory_suspect(why))
+
+
 def _differs_at(fed: Fed, k: int, ref: int, horizon: int) -> int | None:
     """The first tick (from 1) within ``horizon`` ticks at which slots k and ``ref`` of
     ``fed`` differ: one answered and the other did not, their estimates (means and
     covariances) are not the same bits, or they stopped at the same tick for different
-    reasons; None when they are the same throughout."""
+    reasons; None when they are the same throughout. When either stopped on a metered
+    budget (:func:`metered_stop`), only the ticks both answered are compared."""
+    if metered_stop(fed.failed[k]) or metered_stop(fed.failed[ref]):
+        horizon = min(horizon, int((fed.answered[:, k] & fed.answered[:, ref]).sum()))
+        a, b = fed.store[:horizon, k, 12:24], fed.store[:horizon, ref, 12:24]
+        same = np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
+        return None if same.all() else int(np.argmin(same)) + 1
     a_ok, b_ok = fed.answered[:horizon, k], fed.answered[:horizon, ref]
     a, b = fed.store[:horizon, k, 12:24], fed.store[:horizon, ref, 12:24]
     same = (a_ok == b_ok) & np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
@@ -557,5 +570,5 @@ def step_frames(steps: Sequence[Any]) -> list[bytes]:
 __all__ = ["GRADE_MEMORY_GB", "GRADE_RUN_S", "GRADE_SEEDS", "GRADE_TIME_LIMIT_S", "LEAD_FAILED",
            "LOG_BYTES", "PROBES", "PROBE_TICKS", "Fed", "LocalChild", "ProbeFindings", "Slot",
            "child_limits", "feed_alone", "feed_batch", "grade_limits", "judge_probes", "memory_suspect",
-           "other_readings_seed",
+           "metered_stop", "other_readings_seed",
            "probe_seed", "probe_slots", "reply_timeout", "slot_order", "step_frames", "step_request"]

@@ -31,7 +31,7 @@ from beacon_sim.hosting.client import ChildSession, FilterChild, step_request
 from beacon_sim.hosting.containment import Limits
 from beacon_sim.hosting.feed import LOG_BYTES as FEED_LOG_BYTES
 from beacon_sim.hosting.feed import PROBE_TICKS as FEED_PROBE_TICKS
-from beacon_sim.hosting.feed import PROBES, ProbeFindings, child_limits, reply_timeout
+from beacon_sim.hosting.feed import PROBES, ProbeFindings, child_limits, metered_stop, reply_timeout
 
 #: How many ticks the probes of a student's filter run (the first scenario and seed; see
 #: :mod:`beacon_sim.hosting.feed`): the run fed again (is it deterministic?), the run with
@@ -429,7 +429,10 @@ def _probe(child: FilterChild, sr: SimulatedRun, job: StudentJob, findings: dict
     if rep.get("failed_child"):
         _probe_findings(sr, ProbeFindings(False, None, None, failures), findings)
         return False
-    deterministic = bool(np.array_equal(rep["means"], first, equal_nan=True))
+    upto = n
+    if metered_stop(rep.get("failed")):  # the copy ran out of a metered budget: its tick is the meter's
+        upto = int(np.argmax(np.isnan(rep["means"][:, 0]))) if np.isnan(rep["means"][:, 0]).any() else n
+    deterministic = bool(np.array_equal(rep["means"][:upto], first[:upto], equal_nan=True))
     used = None
     ex = sr.extra
     if ex is not None and ex.frames_other is not None and ex.readings_within(len(ex.frames)):
