@@ -6,9 +6,12 @@ command the docs show (``bench_frame_views.py``'s rows), SDL dummy driver, frame
 For each view and way it prints the main thread's CPU time per frame (p50, p99: what decides
 whether a frame is late) and the filters' CPU time per simulated second (the filters' part of
 each tick: the recording, the commands, predict + update + estimate; on the worker also the
-beliefs it reads for drawing), with the simulated seconds per second delivered. The two ways
-are interleaved (rounds of ``--frames`` each, the order alternating) so that the machine's load
-falls on both alike. Targets: main-thread p99 <= 8 ms at 1280x800 and <= 10 ms at 1920x1080.
+beliefs it reads for drawing), with the simulated seconds per second delivered, and the
+machine's speed beside each row: the CPU time of a fixed reference task (a frame's kind of
+work: :func:`reference_ms`), so that a row measured while the machine was slower (another
+tenant, a lower clock) says so. The two ways are interleaved (rounds of ``--frames`` each,
+the order alternating) so that the machine's load falls on both alike. Targets: main-thread
+p99 <= 8 ms at 1280x800 and <= 10 ms at 1920x1080.
 
     python benchmarks/bench_frame_threads.py [--frames 150] [--rounds 2] [--sizes 1280x800]
         [--only corridor symmetric_room ...] [--ways worker]
@@ -43,6 +46,30 @@ from beacon_sim.core.scenario import load_any_scenario  # noqa: E402
 from beacon_sim.runs.live import Session  # noqa: E402
 
 WAYS = ("in the tick", "worker")
+
+
+def reference_ms(repeats: int = 15) -> float:
+    """The median main-thread CPU time [ms] of a fixed task of a frame's kind (a 1280x800
+    surface filled, 400 anti-aliased lines and 200 circles drawn, 2,000 3x3 eigen
+    decompositions): the same work every time, so its changes are the machine's."""
+    import pygame
+
+    surf = pygame.Surface((1280, 800))
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(0, 800, (400, 2, 2))
+    mats = rng.normal(size=(2000, 3, 3))
+    mats = mats @ np.swapaxes(mats, 1, 2)
+    out = np.empty(repeats)
+    for i in range(repeats):
+        c0 = time.thread_time()
+        surf.fill((250, 250, 245))
+        for a, b in pts:
+            pygame.draw.aaline(surf, (40, 40, 40), a, b)
+        for x, y in pts[:200, 0]:
+            pygame.draw.circle(surf, (200, 60, 60), (int(x), int(y)), 6)
+        np.linalg.eigh(mats)
+        out[i] = time.thread_time() - c0
+    return 1e3 * float(np.median(out))
 
 
 def bench(scenario: str, specs: list[str] | None, params: dict, size: tuple[int, int],
@@ -101,9 +128,10 @@ def main() -> None:
     print(f"load average at the start {os.getloadavg()[0]:.1f}; {a.rounds} rounds of {a.frames} "
           "frames per way, interleaved; main thread's CPU per frame; filters' CPU per simulated s")
     print("| view | size | way | main p50 ms | main p99 ms | target | verdict | filters CPU s per sim s "
-          "| sim s per s | switched off | load |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "| sim s per s | switched off | load | reference ms |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     loads = [os.getloadavg()[0]]
+    refs = [reference_ms()]
     met = total = 0
     for label, scenario, specs, params in rows:
         for text in a.sizes:
@@ -115,6 +143,7 @@ def main() -> None:
                         got[WAYS[threaded]].append(bench(scenario, specs, params, (w, h), a.frames,
                                                          threaded))
             loads.append(os.getloadavg()[0])
+            refs.append(reference_ms())
             target = TARGET_MS.get((w, h), 10.0)
             for way in a.ways:
                 runs = got[way]
@@ -130,9 +159,9 @@ def main() -> None:
                 print(f"| {label} ({' + '.join(runs[0]['names'])}) | {w}x{h} | {way} | {p50:.1f} | "
                       f"{p99:.1f} | {target:g} | {verdict} | {per_sim:.3f} | {speed:.2f} | "
                       f"{', '.join(f'{k} ({v})' for k, v in off.items()) or 'none'} | "
-                      f"{loads[-1]:.1f} |", flush=True)
+                      f"{loads[-1]:.1f} | {refs[-1]:.2f} |", flush=True)
     print(f"| load (1-min average over the run) | | worker | | | | {met} of {total} met | | | | "
-          f"{min(loads):.1f}-{max(loads):.1f} |", flush=True)
+          f"{min(loads):.1f}-{max(loads):.1f} | {min(refs):.2f}-{max(refs):.2f} |", flush=True)
 
 
 if __name__ == "__main__":
