@@ -420,7 +420,9 @@ def metered_stop(why: str | None) -> bool:
     """Whether a slot stopped on a budget the machine meters (``why``: CPU time, memory, or
     the run it probes stopping): the tick it stops at is the meter's, which another load or
     processor moves by a tick or two, never a property of the filter's arithmetic."""
-    return bool(why) and (why == LEAD_FAILED or "time limit" in why or memory_suspect(why))
+    if not why:
+        return False
+    return why == LEAD_FAILED or "time limit" in why or memory_suspect(why)
 
 
 def _differs_at(fed: Fed, k: int, ref: int, horizon: int) -> int | None:
