@@ -49,6 +49,9 @@ if TYPE_CHECKING:  # imported where used: the window opens without it
 
 #: Frame time a scripted (``--frames``) session pretends each frame took [s].
 SCRIPTED_FRAME_S = 1.0 / 60.0
+#: Frames between ticks from which a tick's picture is drawn over three frames, not two
+#: (x1 at 60 FPS with 0.1 s ticks: 6; at x4 and faster, two frames as before).
+SPREAD_GAP = 4
 
 
 class App(WindowActions, FilterReloading):
@@ -135,8 +138,11 @@ class App(WindowActions, FilterReloading):
         self.world_version = 0  # bumped by anything the key cannot see (cleared trails...)
         self._world: tuple[tuple, int] | None = None  # the key of the picture in _canvas
         self._canvas: pygame.Surface | None = None  # the world is drawn here, then blitted
-        # a half-drawn picture: its key, the phases generator, the steps done
-        self._pending: tuple[tuple, int, Any, int] | None = None
+        # a half-drawn picture: its key, the phases generator, the steps done, whether a
+        # frame between its tick and the one that shows it drew some of it
+        self._pending: tuple[tuple, int, Any, int, bool] | None = None
+        self._tick_gap = 0  # frames between the last two frames that showed ticks
+        self._last_tick_frame = -1
         self._again = False  # this frame began a picture again (a tick came half way)
         self.world_stale = False  # the screen shows the world one tick behind the session
         # the key of the world's picture on the screen, untouched by anything drawn over it
@@ -268,6 +274,8 @@ class App(WindowActions, FilterReloading):
                 self.session.settle_worker()
             self.ticks_this_frame = self.session.collect(self.after_tick)
         self.tick_cpu = time.thread_time() - c0
+        if self.ticks_this_frame:
+            self._tick_gap, self._last_tick_frame = self.frames - self._last_tick_frame, self.frames
         self.pace.sample(self.now, self.session.time, self.clock.speed, self.clock.paused)
         self.draw()
         if self.gif is not None:
@@ -292,8 +300,8 @@ class App(WindowActions, FilterReloading):
             if ev.kind == "bump":
                 self.flash(f"BUMPER: {who} hit the wall and stopped (v = 0)")
             elif ev.kind == "kidnap":
-                self.flash(f"KIDNAPPED  ({ev.detail})" if who == "the robot"
-                           else f"{who.upper()} KIDNAPPED  ({ev.detail})")
+                self.flash(f"KIDNAPPED: {ev.detail}" if who == "the robot"
+                           else f"{who.upper()} KIDNAPPED: {ev.detail}")
             elif ev.kind.endswith("_start"):
                 self.flash(ev.kind[: -len("_start")].replace("_", " ").upper()
                            + (f": {ev.detail}" if ev.detail else ""))
@@ -386,8 +394,11 @@ class App(WindowActions, FilterReloading):
         A frame that runs a tick after a frame that did not (:meth:`defer_tick`) shows the
         kept picture and draws the first layers of the new one, as many as keep it lighter
         than the next frame, which draws the rest and shows it (so too when a tick comes half
-        way, once in a row). The kept picture is not blitted when the screen still holds it
-        (:attr:`_on_screen`). Returns the key of the picture shown."""
+        way, once in a row). When ticks are :data:`SPREAD_GAP` frames apart or more, the
+        frame after the tick's may draw some of the layers too (still showing the previous
+        picture), so a tick's picture costs three frames a share each, not two. The kept
+        picture is not blitted when the screen still holds it (:attr:`_on_screen`). Returns
+        the key of the picture shown."""
         area = pygame.Rect(self.view.area).clip(surf.get_rect())
         canvas = self._canvas
         if canvas is None or canvas.get_size() != surf.get_size():
@@ -400,6 +411,8 @@ class App(WindowActions, FilterReloading):
         self._again = again = (pending is not None and pending[:2] != key and not self._again
                                and self._on_screen is not None and self._on_screen[0] == key[0])
         if pending is not None:
+            if pending[:2] == key and self._on_screen is not None and self._spread(pending):
+                return self._on_screen  # the previous picture, still on the screen
             if pending[:2] == key:
                 self._run_phases(pending[2], pending[3], PHASES)  # the rest, same state
                 self._world = key
@@ -416,13 +429,15 @@ class App(WindowActions, FilterReloading):
             self.world_stale = True
             phases = self.renderer.phases(canvas, *args)
             # A layer now when that lowers the heavier of this frame (the tick and the layers
-            # so far) and the next (the other layers and showing the picture).
+            # so far) and the next (the other layers and showing the picture), or the next
+            # two when the frame after this one may draw some (:meth:`_spread`).
             now, later, done = self.tick_cpu, sum(self.phase_cpu) + self.blit_cpu, 0
-            while done < PHASES and now + self.phase_cpu[done] < later:
+            parts = 2 if self._tick_gap >= SPREAD_GAP else 1
+            while done < PHASES and now + self.phase_cpu[done] < later / parts:
                 now += self.phase_cpu[done]
                 later -= self.phase_cpu[done]
                 done += 1
-            self._pending = (*key, phases, self._run_phases(phases, 0, done))
+            self._pending = (*key, phases, self._run_phases(phases, 0, done), False)
             self._world = None
             return shown
         else:
@@ -432,6 +447,25 @@ class App(WindowActions, FilterReloading):
         surf.blit(canvas, area, area)
         self.blit_cpu += 0.2 * (time.thread_time() - c0 - self.blit_cpu)
         return key
+
+    def _spread(self, pending) -> bool:
+        """Draw some more of the ``pending`` picture and leave it pending (True) when this
+        frame runs no tick, the screen still shows the previous picture, ticks come
+        :data:`SPREAD_GAP` frames apart or more, and no frame did so for this picture yet:
+        as many layers as keep this frame lighter than the next (the rest and the blit)."""
+        if pending[4] or self.ticks_this_frame or self._tick_gap < SPREAD_GAP:
+            return False
+        step = done = pending[3]
+        now, later = 0.0, sum(self.phase_cpu[step:]) + self.blit_cpu
+        while done < PHASES and now + self.phase_cpu[done] < later:
+            now += self.phase_cpu[done]
+            later -= self.phase_cpu[done]
+            done += 1
+        if done == step:
+            return False
+        self._pending = (*pending[:2], pending[2], self._run_phases(pending[2], step, done), True)
+        self.world_stale = True
+        return True
 
     def _run_phases(self, phases, first: int, stop: int) -> int:
         """Run the steps ``first`` .. ``stop - 1`` of a ``WorldRenderer.phases`` generator,

@@ -136,6 +136,39 @@ def test_a_tick_that_comes_half_way_through_a_picture_is_spread_over_two_frames_
         app.close()
 
 
+def test_ticks_six_frames_apart_spread_a_picture_over_three_frames_and_it_ends_as_drawn_afresh():
+    """two_rooms ticks every 0.1 s: six frames apart at 60 FPS. The tick's frame draws the
+    first layers, the next frame some more (no tick, the previous picture still on the
+    screen), the third shows the present exactly as drawn from scratch; every frame shows
+    the present or the previous tick's picture."""
+    s = Session(load_scenario("two_rooms"), ["ekf", "pf"], None, {"pf": {"n_particles": 400}})
+    s.toggle_autopilot()
+    app = App(s, (960, 600), scripted=True)
+    app.smooth = True
+    try:
+        for _ in range(30):
+            app.frame(SCRIPTED_FRAME_S)
+        while app.world_stale:
+            app.frame(SCRIPTED_FRAME_S)
+        previous, spread = fresh_world(app), 0
+        for i in range(60):
+            ticks_before = app.session.tick_count
+            app.frame(SCRIPTED_FRAME_S)
+            shown = world_pixels(app)
+            if app.world_stale:
+                assert np.array_equal(shown, previous), f"frame {i}"
+                if app.ticks_this_frame == 0:  # the frame after a tick's: more of its picture
+                    assert app.session.tick_count == ticks_before and app._pending[4]
+                    spread += 1
+            else:
+                present = fresh_world(app)
+                assert np.array_equal(shown, present), f"frame {i}"
+                previous = present
+        assert spread >= 8  # ten ticks: (almost) each picture over three frames
+    finally:
+        app.close()
+
+
 def test_the_world_is_drawn_as_without_smooth_and_a_screenshot_shows_the_present(tmp_path):
     plain, smooth = make_app(smooth=False), make_app(smooth=True)
     try:
