@@ -25,7 +25,7 @@ def test_a_banner_does_not_sit_on_the_robot(size):
         for y in (float(top_middle[1]), 1.0):  # under the banner's usual place, and away from it
             app.session.command({"kind": "kidnap", "pose": [float(top_middle[0]), y, 0.0]})
             app.run(app.frames + 6)
-            app.flash("KIDNAPPED  (a long message across the top of the world)")
+            app.flash("KIDNAPPED: a long message across the top of the world")
             app.draw()
             assert not app.hud.banner_box.colliderect(app.robot_box()), (y, app.hud.banner_box)
             assert pygame.Rect(app.view.area).contains(app.hud.banner_box)
@@ -60,5 +60,15 @@ def test_a_banner_moved_off_the_robot_hides_no_beacon(size):
         assert not box.colliderect(app.robot_box())
         assert box.collidelist(app.renderer.beacon_rects) < 0, (box, app.renderer.beacon_rects)
         assert pygame.Rect(app.view.area).contains(box)
+    finally:
+        app.close()
+
+
+def test_a_kidnap_banner_says_its_kind_without_brackets_in_brackets():
+    app = App(Session(load_scenario("default"), ["ekf"]), (1024, 768), scripted=True)
+    try:
+        app.session.command({"kind": "kidnap", "pose": [3.0, 3.0, 0.0]})
+        app.run(app.frames + 6)
+        assert app.banner_text == "KIDNAPPED: to a pose (user)"
     finally:
         app.close()
