@@ -50,8 +50,9 @@ class ShowOptions:
     hdop: bool = False  # distance beacons: the floor shaded by the layout's HDOP (O)
 
 
-#: The steps of :meth:`WorldRenderer.phases` (the yields plus the last part).
-PHASES = 5
+#: The most steps of :meth:`WorldRenderer.phases` (the yields plus the last part): five for
+#: one robot, four plus one per robot (up to four) for a team.
+PHASES = 8
 
 
 #: A team's estimate arrows at this fraction of a single robot's: a few filters' arrows on
@@ -87,12 +88,12 @@ class WorldRenderer(FloorLayer, SensingLayer, BeaconLayer, RobotLayer, ParticleL
 
     def phases(self, surf: pygame.Surface, view: View, session: Scene, colours, show: ShowOptions,
                drag=None, dashes=None, extra=None):
-        """:meth:`draw` as a generator of :data:`PHASES` steps, in the order of :meth:`draw`:
-        each ``next`` draws one more layer (the floor and the heat maps, the trails, rays,
+        """:meth:`draw` as a generator of five steps, in the order of :meth:`draw`: each
+        ``next`` draws one more layer (the floor and the heat maps, the trails, rays,
         beacons and the true robot, the particles, ``extra`` and the estimates, the
-        magnifier), all from the same session state (the window spreads them over two
-        frames). The clip is restored when it ends or is closed half way. A team's world
-        (:meth:`team_phases`) takes fewer steps."""
+        magnifier), all from the same session state (the window spreads them over two or
+        three frames). The clip is restored when it ends or is closed half way. A team's
+        world (:meth:`team_phases`) takes up to :data:`PHASES` steps."""
         if getattr(session, "n_robots", 1) > 1:  # a team's world, in its own steps
             yield from self.team_phases(surf, view, session, colours, show, drag, dashes, extra)
             return
@@ -178,7 +179,7 @@ class WorldRenderer(FloorLayer, SensingLayer, BeaconLayer, RobotLayer, ParticleL
             pass
 
     def team_phases(self, surf, view, session, colours, show, drag=None, dashes=None, extra=None):
-        """:meth:`draw_team` as a generator of three steps (see :meth:`phases`)."""
+        """:meth:`draw_team` as a generator of :data:`PHASES` steps (see :meth:`phases`)."""
         self.last_world = session.team.world
         self.show_field = show.field
         dashes = dashes or {}
@@ -189,15 +190,15 @@ class WorldRenderer(FloorLayer, SensingLayer, BeaconLayer, RobotLayer, ParticleL
             surf.set_clip(old_clip)
 
     def _team_layers(self, surf, view, session, colours, show, drag, dashes, extra):
-        """:meth:`team_phases`' layers, inside the clip, in three steps: the floor and the
-        sensor discs; the trails, the readings and the robots; the beliefs, the rings and the
-        tags."""
+        """:meth:`team_phases`' layers, inside the clip, in at most :data:`PHASES` steps: the
+        floor and the sensor discs; the trails; the readings and the robots; the beliefs, a
+        step per robot (up to four); the rings and the tags."""
         team = session.team
         poses = session.poses
         radii = [r.scenario.robot_radius for r in team.robots]
         for r, pose in zip(team.robots, poses, strict=True):
             self.sensor_discs(surf, view, r.scenario.sensors, pose)
-        yield  # (the discs are the heaviest layer: a step of their own)
+        yield
         shown = [n for n in session.names if session.visible[n] and not session.status[n].failed]
         if show.trails:
             for trail in session.truth_trails:
@@ -205,6 +206,7 @@ class WorldRenderer(FloorLayer, SensingLayer, BeaconLayer, RobotLayer, ParticleL
             for name in shown:
                 for trail in session.trails[name]:
                     self.trail(surf, view, trail, colours[name], 2)
+        yield
         for i, pose in enumerate(poses):
             self.rays(surf, view, team.world, pose, session.beacon_readings(i))
         for i, pose in enumerate(poses):
@@ -217,11 +219,14 @@ class WorldRenderer(FloorLayer, SensingLayer, BeaconLayer, RobotLayer, ParticleL
         if extra is not None:
             extra(surf, view, self.lw)
         beliefs = {name: session.estimates(name) for name in shown}
-        for i, radius in enumerate(radii):
-            ests = [(name, est[0][i], est[1][i]) for name, est in beliefs.items() if est is not None]
-            # smaller arrows than alone and no heading wedges: a dozen beliefs on three robots
-            self.estimates(surf, view, ests, colours, dashes, radius, show.ellipses, TEAM_ARROW_SCALE,
-                           wedges=False)
+        n, k = len(radii), min(len(radii), PHASES - 4)
+        for j in range(k):
+            for i in range(j * n // k, (j + 1) * n // k):  # a step per robot (or a few robots)
+                ests = [(name, est[0][i], est[1][i]) for name, est in beliefs.items() if est is not None]
+                # smaller arrows than alone and no heading wedges: a dozen beliefs on three robots
+                self.estimates(surf, view, ests, colours, dashes, radii[i], show.ellipses,
+                               TEAM_ARROW_SCALE, wedges=False)
+            yield
         self.tags: list[pygame.Rect] = []
         for i, (r, pose) in enumerate(zip(team.robots, poses, strict=True)):
             self.robot_ring(surf, view, pose, radii[i])

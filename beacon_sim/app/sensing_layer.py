@@ -14,7 +14,6 @@ from beacon_sim.app import ahead, distance_layer, map_view, palette, shapes
 from beacon_sim.app.canvas import Canvas
 from beacon_sim.app.strokes import draw_cross, polyline
 from beacon_sim.app.view import View, ipx, world_rect
-from beacon_sim.core.geometry import circle
 from beacon_sim.core.sensor_kinds import is_scan
 
 
@@ -24,7 +23,9 @@ class SensingLayer(Canvas):
     def sensor_discs(self, surf, view: View, sensors, pose) -> None:
         """Each beacon sensor's range (a disc, or a sector for a limited field of view)
         around ``pose``, tinted under the grid, clipped to the world; in a world with walls,
-        cut where the walls hide what lies behind (a sensor with ``occluded_by_walls``)."""
+        cut where the walls hide what lies behind (a sensor with ``occluded_by_walls``).
+        A whole disc is drawn on the whole pixel nearest its centre, with its radius
+        rounded to a pixel, from a tint kept per radius (:meth:`disc_tint`)."""
         area_clip = surf.get_clip()
         surf.set_clip(world_rect(view).clip(area_clip))
         grid = getattr(self.last_world, "grid", None)
@@ -32,10 +33,17 @@ class SensingLayer(Canvas):
             if not math.isfinite(spec.max_range):
                 continue
             walls = grid if getattr(spec, "occluded_by_walls", False) else None
+            if walls is None and spec.fov >= 2 * math.pi:
+                c = view.to_px(np.asarray(pose, dtype=float)[:2])
+                r = spec.max_range * view.scale
+                if np.all(np.isfinite(c)) and 0.0 < r < 1e5:
+                    cx, cy, rp = ipx(c[0]), ipx(c[1]), max(ipx(r), 1)
+                    surf.blit(self.disc_tint(rp), (cx - rp - 1, cy - rp - 1),
+                              special_flags=pygame.BLEND_RGB_MULT)
+                    pygame.draw.circle(surf, palette.SENSOR_EDGE, (cx, cy), rp, 2)
+                continue
             if walls is not None:  # (computed ahead on the filters' worker: ahead.py)
                 outline = ahead.sensor_outline(pose, spec, walls)
-            elif spec.fov >= 2 * math.pi:
-                outline = circle(pose[:2], spec.max_range, 96)
             else:
                 outline = shapes.sector(pose, spec.fov, spec.max_range)
             pts = view.to_px(outline)
@@ -50,6 +58,20 @@ class SensingLayer(Canvas):
                 surf.blit(tint, box, special_flags=pygame.BLEND_RGB_MULT)
             pygame.draw.polygon(surf, palette.SENSOR_EDGE, pts, 2)
         surf.set_clip(area_clip)
+
+    def disc_tint(self, radius: int) -> pygame.Surface:
+        """A (2 r + 3) px square, white but for a disc of ``radius`` px in the sensor's tint
+        at its centre: multiplied onto the world (kept per radius: a frame draws a robot's
+        disc anew wherever the robot is; a few radii, a window's sensors at its zoom)."""
+        tints = self.__dict__.setdefault("_disc_tints", {})
+        tint = tints.get(radius)
+        if tint is None:
+            if len(tints) >= 8:
+                tints.clear()
+            tint = tints[radius] = pygame.Surface((2 * radius + 3, 2 * radius + 3))
+            tint.fill((255, 255, 255))
+            pygame.draw.circle(tint, palette.SENSOR_FILL, (radius + 1, radius + 1), radius)
+        return tint
 
     def rays(self, surf, view: View, world, pose, readings) -> None:
         """Beacon readings taken at ``pose``: a grey line per beacon seen (to the measured

@@ -50,8 +50,9 @@ if TYPE_CHECKING:  # imported where used: the window opens without it
 #: Frame time a scripted (``--frames``) session pretends each frame took [s].
 SCRIPTED_FRAME_S = 1.0 / 60.0
 #: Frames between ticks from which a tick's picture is drawn over three frames, not two
-#: (x1 at 60 FPS with 0.1 s ticks: 6; at x4 and faster, two frames as before).
-SPREAD_GAP = 4
+#: (x1 at 60 FPS: 0.05 s ticks are 3 frames apart, 0.1 s ticks 6; at x2 and faster with
+#: 0.05 s ticks, at x4 with 0.1 s ticks, two frames).
+SPREAD_GAP = 3
 
 
 class App(WindowActions, FilterReloading):

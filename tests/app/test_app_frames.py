@@ -48,6 +48,12 @@ def fresh_world(app: App) -> np.ndarray:
     return pygame.surfarray.array3d(surf.subsurface(area))[:-1].copy()
 
 
+def ran_or_spread_a_tick(app: App) -> bool:
+    """Whether the frame showing the previous tick's picture ran a tick, or was the frame
+    after one drawing more of its picture (``App._spread``)."""
+    return app.ticks_this_frame > 0 or (app._pending is not None and app._pending[4])
+
+
 def estimates(session: Session) -> dict[str, list[bytes]]:
     return {n: [m.tobytes() for m in t.means] + [c.tobytes() for c in t.covs]
             for n, t in session.runner.tracks.items()}
@@ -97,9 +103,9 @@ def test_every_frame_shows_the_present_or_the_previous_ticks_picture():
                 continue
             present = fresh_world(app)
             shown = world_pixels(app)
-            if app.world_stale:
+            if app.world_stale:  # the frame of a tick, or the one after drawing more of it
                 stale_frames += 1
-                assert app.ticks_this_frame > 0
+                assert ran_or_spread_a_tick(app)
                 assert np.array_equal(shown, previous)
                 assert not np.array_equal(shown, present)  # the robot moved
             else:
@@ -338,7 +344,7 @@ def test_the_team_window_keeps_its_worlds_and_its_legends_picture_and_shows_the_
             shown = world_pixels(app)
             if app.world_stale:
                 stale += 1
-                assert app.ticks_this_frame > 0
+                assert ran_or_spread_a_tick(app)
                 assert np.array_equal(shown, previous)
             else:
                 assert np.array_equal(shown, present), f"frame {app.frames}"
@@ -394,12 +400,49 @@ def test_the_team_window_leaves_its_world_on_the_screen_until_something_covers_o
             shown = world_pixels(app)
             if app.world_stale:
                 stale += 1
-                assert app.ticks_this_frame > 0
+                assert ran_or_spread_a_tick(app)
                 assert np.array_equal(shown, previous), f"frame {i}"
             else:
                 assert np.array_equal(shown, present), f"frame {i}"
                 previous = present
         assert kept >= 40 and stale >= 5
         assert s.driven == 3 % s.n_robots and s.visible["centralised"]
+    finally:
+        app.close()
+
+
+def test_with_the_filters_on_the_worker_a_teams_tick_is_drawn_over_three_frames_as_afresh():
+    """team_sparse ticks every 0.05 s, three frames apart, with its four default filters on
+    the worker (as the window runs them): the frame that shows a finished tick draws the
+    first layers, the next some more, the third (which also steps the simulation of the
+    next tick) shows the tick's world exactly as drawn from scratch; every frame shows the
+    present or the previous tick's world."""
+    from beacon_sim.core.scenario import load_team_scenario
+
+    team = load_team_scenario("team_sparse")
+    s = Session(team, list(team.default_filters))
+    s.toggle_autopilot()
+    app = App(s, (1280, 800), scripted=True)
+    app.smooth = True
+    s.start_worker()
+    try:
+        for _ in range(30):
+            app.frame(SCRIPTED_FRAME_S)
+            s.settle_worker()  # the worker's tick done before the next frame shows it
+        previous, spread = fresh_world(app), 0
+        for i in range(60):
+            app.frame(SCRIPTED_FRAME_S)
+            s.settle_worker()
+            shown = world_pixels(app)
+            if app.world_stale:
+                assert ran_or_spread_a_tick(app), f"frame {i}"
+                assert np.array_equal(shown, previous), f"frame {i}"
+                spread += app.ticks_this_frame == 0
+            else:
+                present = fresh_world(app)
+                assert np.array_equal(shown, present), f"frame {i}"
+                previous = present
+        assert spread >= 12  # twenty ticks: (almost) each picture over three frames
+        assert s.tick_count >= 18
     finally:
         app.close()

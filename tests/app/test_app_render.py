@@ -177,3 +177,31 @@ def test_every_filter_kind_has_its_own_colour_or_line_style():
     assert len(set(styles.values())) == len(names)
     assert styles["ekf"][1] != styles["ukf"][1]  # they agree: one solid, one dashed
     assert styles["ekf'"][0] == styles["ekf"][0]
+
+
+def test_a_sensor_disc_tints_its_range_and_is_the_same_picture_wherever_the_robot_is():
+    """A whole disc (no walls, full field of view) multiplies the floor by the sensor's tint
+    inside its range, leaves it outside, and is drawn from one kept tint: moved by whole
+    pixels with the robot, the same pixels moved."""
+    from types import SimpleNamespace
+
+    from beacon_sim.app import palette
+
+    v = View((0.0, 0.0, 10.0, 10.0), (0, 0, 600, 600))
+    spec = SimpleNamespace(max_range=2.0, fov=2 * math.pi, occluded_by_walls=False)
+    r = WorldRenderer({})
+    pictures = []
+    for x in (4.0, 4.0 + 3 / v.scale):  # three pixels to the right
+        surf = pygame.Surface((600, 600))
+        surf.fill((200, 200, 200))
+        r.sensor_discs(surf, v, [spec], np.array([x, 5.0, 0.3]))
+        pictures.append(pygame.surfarray.array3d(surf))
+    c = v.to_px(np.array([4.0, 5.0]))
+    radius = 2.0 * v.scale
+    tinted = tuple(round(200 * t / 255) for t in palette.SENSOR_FILL)
+    for dx, dy in ((0.0, 0.0), (radius - 4, 0.0), (0.0, -(radius - 4)), (0.6 * radius, 0.6 * radius)):
+        assert tuple(pictures[0][int(c[0] + dx), int(c[1] + dy)]) == tinted
+    for dx, dy in ((radius + 4, 0.0), (0.0, radius + 4), (0.75 * radius, 0.75 * radius)):
+        assert tuple(pictures[0][int(c[0] + dx), int(c[1] + dy)]) == (200, 200, 200)
+    assert np.array_equal(pictures[0][:-3], pictures[1][3:])  # the same disc, 3 px on
+    assert len(r._disc_tints) == 1
