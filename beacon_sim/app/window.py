@@ -361,17 +361,21 @@ class App(WindowActions, FilterReloading):
         if self.chart_rect is not None:
             self.chart.draw(surf, self.chart_rect, self.fonts, self.colours, self.dashes,
                             self.session.visible, now=self.now, busy=self.ticks_this_frame > 0)
+        mag = self.renderer.last_magnifier
+        notes = [pygame.Rect(mag.get("block", mag["rect"]))] if mag else []  # over the world
         if steps or bound is not None:
-            self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session, bool(steps),
-                                 bound is not None, avoid=self.renderer.axis_rects,
-                                 world=world_rect(self.view))
+            notes.append(self.hud.step_legend(surf, pygame.Rect(self.view.area), self.session,
+                                              bool(steps), bound is not None,
+                                              avoid=self.renderer.axis_rects,
+                                              world=world_rect(self.view)))
         off = self.switched_off_lines()
         if off:
-            mag = self.renderer.last_magnifier
-            self.hud.switched_off(surf, pygame.Rect(self.view.area), off, avoid=self.renderer.axis_rects,
-                                  keep_clear=[mag.get("block", mag["rect"])] if mag else [])
+            box = self.hud.switched_off(surf, pygame.Rect(self.view.area), off,
+                                        avoid=self.renderer.axis_rects, keep_clear=notes[:1])
+            notes += [box] if box is not None else []
         if self.now < self.banner_until:
-            self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text, self.robot_box())
+            self.hud.banner(surf, pygame.Rect(self.view.area), self.banner_text, self.robot_box(),
+                            keep_clear=notes)
         self.draw_extra(surf)
         if self.help:
             self.hud.help(surf)

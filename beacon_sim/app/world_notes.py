@@ -124,10 +124,15 @@ class WorldNotes(TextPainter):
         self.off_box = box
         return box
 
-    def banner(self, surf, area: pygame.Rect, text: str, avoid: pygame.Rect | None = None) -> None:
+    def banner(self, surf, area: pygame.Rect, text: str, avoid: pygame.Rect | None = None,
+               keep_clear=()) -> None:
         """A large message across the top of the world view (kidnap, screenshot saved), or
         across its bottom when at the top it would cover ``avoid`` (the robot), else just
-        under the robot. (Just under the robot it hid the beacons the robot was reading.)"""
+        under or over the robot. (Just under the robot it hid the beacons the robot was
+        reading.) Of those places and those just under or over each of ``keep_clear`` (what
+        is drawn over the world: the magnifier, the step view's legend, the switched-off
+        note), the first that covers none of them, if there is one; never the robot where
+        another place does not."""
         font = "banner" if self.fonts["banner"].size(text)[0] <= area.width - 60 else "hud"
         lines = wrap_text(self.fonts[font], text, area.width - 60)[:4]
         imgs = [self.fonts[font].render(line, True, palette.BANNER_TEXT) for line in lines]
@@ -135,11 +140,21 @@ class WorldNotes(TextPainter):
             return
         lh = self.fonts[font].get_linesize()
         r = pygame.Rect(0, 0, max(i.get_width() for i in imgs), lh * len(imgs))
-        r.midtop = (area.centerx, area.top + 14)
-        if avoid is not None and r.inflate(36, 16).colliderect(avoid):
-            r.midbottom = (area.centerx, area.bottom - 14)
-            if r.inflate(36, 16).colliderect(avoid):
-                r.top = avoid.bottom + 16  # just under the robot
+        clear = [pygame.Rect(k) for k in keep_clear]
+        others = ([pygame.Rect(avoid)] if avoid is not None else []) + clear
+        spots = [r.copy() for _ in range(2 + 2 * len(others))]
+        spots[0].midtop = (area.centerx, area.top + 14)
+        spots[1].midbottom = (area.centerx, area.bottom - 14)
+        for k, other in enumerate(others):  # just under it, just over it
+            spots[2 + 2 * k].midtop = (area.centerx, other.bottom + 16)
+            spots[3 + 2 * k].midbottom = (area.centerx, other.top - 16)
+
+        def cost(k: int) -> tuple:
+            b = spots[k].inflate(36, 16)
+            return (avoid is not None and b.colliderect(avoid), not area.contains(b),
+                    b.collidelist(clear) >= 0, k)
+
+        r = spots[min(range(len(spots)), key=cost)]
         box = r.inflate(36, 16)
         self.banner_box = box
         pygame.draw.rect(surf, palette.BANNER_BG, box, border_radius=10)

@@ -72,3 +72,43 @@ def test_a_kidnap_banner_says_its_kind_without_brackets_in_brackets():
         assert app.banner_text == "KIDNAPPED: to a pose (user)"
     finally:
         app.close()
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1920, 1080)])
+def test_a_banner_covers_neither_the_magnifier_nor_the_step_views_legend(size):
+    """The magnifier (shown at the start of default) and the step view's legend with the
+    bound are drawn over the world; a long banner keeps off them, and off the robot."""
+    app = App(Session(load_scenario("default"), ["ekf", "dead_reckoning"]), size, scripted=True)
+    try:
+        app.run(30)
+        app.act("bound")
+        app.act("pause")
+        app.act("step_view")
+        app.flash("KIDNAPPED: a long message across the top of the world, wider than most")
+        app.draw()
+        mag = app.renderer.last_magnifier
+        assert mag is not None
+        banner = app.hud.banner_box
+        assert not banner.colliderect(mag["block"]), (banner, mag["block"])
+        assert not banner.colliderect(app.hud.step_box), (banner, app.hud.step_box)
+        assert not banner.colliderect(app.robot_box())
+        assert pygame.Rect(app.view.area).contains(banner)
+    finally:
+        app.close()
+
+
+def test_a_banner_takes_the_bottom_when_the_top_is_kept_clear():
+    """The banner's own choice: the top of the area held by a note, the robot elsewhere."""
+    app = App(Session(load_scenario("default"), ["ekf"]), (1024, 768), scripted=True)
+    try:
+        area = pygame.Rect(app.view.area)
+        note = pygame.Rect(area.left, area.top, area.width, 120)
+        surf = pygame.Surface(app.screen.get_size())
+        robot = pygame.Rect(area.left + 10, area.centery - 20, 40, 40)
+        app.hud.banner(surf, area, "BUMPER: the robot hit the wall", robot, keep_clear=[note])
+        assert not app.hud.banner_box.colliderect(note)
+        assert app.hud.banner_box.bottom > area.centery
+        app.hud.banner(surf, area, "BUMPER: the robot hit the wall", robot)
+        assert app.hud.banner_box.top < area.top + 30  # with nothing to keep clear: the top
+    finally:
+        app.close()
