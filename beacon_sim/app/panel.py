@@ -346,7 +346,8 @@ def nees_label(st) -> str:
 def nees_legend() -> list[str]:
     """The panel's lines saying what the NEES figure and its badge mean."""
     lo, hi = NEES_WINDOW_BAND
-    return [f"NEES: {NEES_WINDOW_S:.0f} s mean; orange > {hi:.2f}, outlined < {lo:.2f}"]
+    return [f"NEES: {NEES_WINDOW_S:.0f} s mean; orange > {hi:.2f}, outlined < {lo:.2f}",
+            "(driving; a standstill widens the band)"]
 
 
 def nees_text(nees: float) -> str:

@@ -1,6 +1,7 @@
 """How often the panel's NEES badge comes on for a filter: the windowed verdict of
 :class:`~beacon_sim.runs.scene.FilterStatus` over a headless run, against the per-tick
-band it replaced (what ``benchmarks/bench_nees_alarm.py`` prints and the tests bound)."""
+band it replaced, and over a standstill (what ``benchmarks/bench_nees_alarm.py`` prints and
+the tests bound)."""
 
 from __future__ import annotations
 
@@ -52,3 +53,42 @@ def count_alarms(scenario: Scenario, filter_spec: str, seed: int, duration_s: fl
         per_tick += out and not prev_tick
         prev_tick = out
     return AlarmCount(high + low, high, low, per_tick, duration_s / 3600.0)
+
+
+@dataclass(frozen=True)
+class StandstillBadges:
+    """The badge over a standstill: ``flagged`` seeds of ``seeds`` showed it at some tick
+    after the window first filled, ``high`` and ``low`` ticks of ``ticks`` judged."""
+
+    flagged: int
+    seeds: int
+    high: int
+    low: int
+    ticks: int
+
+
+def count_standstill_badges(scenario: Scenario, filter_spec: str, seeds, duration_s: float,
+                            params: dict | None = None) -> StandstillBadges:
+    """The window's session (``runs.live.Session``) with the robot standing still from t = 0
+    (the keyboard never pressed) for ``duration_s`` [s] of simulated time, once per seed of
+    ``seeds``: how often the panel's NEES badge came on for ``filter_spec`` (with
+    ``params`` as ``--set`` gives them) once its window was full. A pause in a lecture."""
+    from beacon_sim.runs.live import Session  # (the window's session: the panel's figures)
+
+    seeds = list(seeds)
+    flagged = high = low = ticks = 0
+    for seed in seeds:
+        s = Session(scenario, [filter_spec], seed, params or {})
+        name, hit = s.names[0], False
+        for _ in range(round(duration_s / scenario.dt)):
+            s.tick()
+            st = s.status[name]
+            if np.isnan(st.nees_mean):
+                continue
+            ticks += 1
+            v = st.nees_verdict
+            high += v == "high"
+            low += v == "low"
+            hit |= v is not None
+        flagged += hit
+    return StandstillBadges(flagged, len(seeds), high, low, ticks)
