@@ -132,8 +132,8 @@ class Panel(TextPainter):
         self.footer(surf, rect, x, w, y, [
             f"ellipse: {ELLIPSE_LEVEL:.0%} of x-y (chi2 = {ELLIPSE_SCALE2:.2f})",
             "wedge: heading +-2 sigma",
-            *nees_legend(),
             "black outline: true robot; line: path",
+            *nees_legend(),  # (last: a full panel drops the legend's last lines)
         ], info)
 
     # --- the panel's pieces (the single-robot and the team panel) -------------------------
@@ -347,7 +347,7 @@ def nees_legend() -> list[str]:
     """The panel's lines saying what the NEES figure and its badge mean."""
     lo, hi = NEES_WINDOW_BAND
     return [f"NEES: {NEES_WINDOW_S:.0f} s mean; orange > {hi:.2f}, outlined < {lo:.2f}",
-            "(driving; a standstill widens the band)"]
+            "(a standstill widens the band)"]
 
 
 def nees_text(nees: float) -> str:
